@@ -1,0 +1,203 @@
+//! Model blob writer (format version 1; spec in `docs/model-format.md`, offsets in
+//! [`fogtemp_core::wire`]). Every blob is read back through `Model::from_bytes`
+//! before it is returned, so a writer bug is reported here instead of in firmware.
+
+use fogtemp_core::wire::*;
+use fogtemp_core::{AxisProvenance, FeatureSettings, Model, Normalisation, OutsidePolicy, PolyTerm};
+
+use crate::error::CalError;
+use crate::mesh::MeshModel;
+
+/// One gyro axis to encode.
+#[derive(Clone, Debug, PartialEq)]
+pub struct AxisModel {
+    /// Feature tracker settings firmware must use.
+    pub features: FeatureSettings,
+    /// Input normalisation (shared by polynomial and mesh).
+    pub normalisation: Normalisation,
+    /// What the mesh returns outside its hull.
+    pub outside_policy: OutsidePolicy,
+    /// Polynomial terms (empty: no polynomial).
+    pub poly: Vec<PolyTerm>,
+    /// Mesh (None: no mesh).
+    pub mesh: Option<MeshModel>,
+    /// Fit statistics and calibrated range.
+    pub provenance: AxisProvenance,
+}
+
+/// A whole model file.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ModelFile {
+    /// Writer version, at most 16 ASCII bytes (longer is cut).
+    pub tool_version: String,
+    /// SHA-256 (or other 32-byte digest) of the calibration inputs.
+    pub input_digest: [u8; 32],
+    /// Axes, in order.
+    pub axes: Vec<AxisModel>,
+}
+
+/// The version string this crate writes into blobs.
+pub fn tool_version() -> String {
+    format!("fogtemp {}", env!("CARGO_PKG_VERSION"))
+}
+
+/// Encodes `model` as a version-1 blob and validates it with the core reader.
+///
+/// # Errors
+/// [`CalError::Encode`] if a count exceeds the format's limits; [`CalError::SelfCheck`]
+/// if the core rejects the result (for example a sliver triangle whose f32 transform
+/// cannot reproduce its vertices).
+pub fn encode(model: &ModelFile) -> Result<Vec<u8>, CalError> {
+    if model.axes.is_empty() || model.axes.len() > usize::from(MAX_AXES) {
+        return Err(CalError::Encode(format!("{} axes (allowed 1..={MAX_AXES})", model.axes.len())));
+    }
+    let mut out = vec![0u8; FILE_HEADER_LEN];
+    out[FILE_MAGIC].copy_from_slice(&MAGIC);
+    put_u16(&mut out, FILE_VERSION.start, FORMAT_VERSION);
+    put_u16(&mut out, FILE_HEADER_LEN_FIELD.start, FILE_HEADER_LEN as u16);
+    put_u16(&mut out, FILE_AXIS_COUNT.start, model.axes.len() as u16);
+    let version = model.tool_version.as_bytes();
+    let n = version.len().min(FILE_TOOL_VERSION.len());
+    out[FILE_TOOL_VERSION.start..FILE_TOOL_VERSION.start + n].copy_from_slice(&version[..n]);
+    out[FILE_INPUT_DIGEST].copy_from_slice(&model.input_digest);
+    for (id, axis) in model.axes.iter().enumerate() {
+        encode_axis(&mut out, id as u16, axis)?;
+    }
+    let total = out.len() + CRC_LEN;
+    let total_u32 = u32::try_from(total).map_err(|_| CalError::Encode(format!("blob of {total} bytes")))?;
+    put_u32(&mut out, FILE_TOTAL_LEN.start, total_u32);
+    let crc = crc32fast::hash(&out);
+    out.extend_from_slice(&crc.to_le_bytes());
+    Model::from_bytes(&out).map_err(CalError::SelfCheck)?;
+    Ok(out)
+}
+
+fn encode_axis(out: &mut Vec<u8>, id: u16, axis: &AxisModel) -> Result<(), CalError> {
+    let empty = MeshModel {
+        vertices: Vec::new(),
+        triangles: Vec::new(),
+        neighbours: Vec::new(),
+        hull: Vec::new(),
+        merged_duplicates: 0,
+        dropped_flat: Vec::new(),
+    };
+    let mesh = axis.mesh.as_ref().unwrap_or(&empty);
+    let count = |what: &str, n: usize| u32::try_from(n).map_err(|_| CalError::Encode(format!("{what}: {n}")));
+    let (terms, vertices, triangles, hull) = (
+        count("poly terms", axis.poly.len())?,
+        count("vertices", mesh.vertices.len())?,
+        count("triangles", mesh.triangles.len())?,
+        count("hull edges", mesh.hull.len())?,
+    );
+    if mesh.neighbours.len() != mesh.triangles.len() {
+        return Err(CalError::Encode("neighbour list length differs from triangle list".into()));
+    }
+    let section_len = axis_section_len(terms, vertices, triangles, hull)
+        .and_then(|n| u32::try_from(n).ok())
+        .ok_or_else(|| CalError::Encode("axis section too large".into()))?;
+    let kind =
+        if axis.poly.is_empty() { 0 } else { KIND_POLY } | if axis.mesh.is_some() { KIND_MESH } else { 0 };
+
+    let base = out.len();
+    out.resize(base + AXIS_HEADER_LEN, 0);
+    let h = &mut out[base..];
+    put_u32(h, AXIS_SECTION_LEN.start, section_len);
+    put_u16(h, AXIS_ID.start, id);
+    put_u16(h, AXIS_MODEL_KIND.start, kind);
+    let f = &axis.features;
+    put_f32(h, AXIS_WINDOW_S.start, f.window_s);
+    put_u32(h, AXIS_BLOCK_COUNT.start, f.block_count);
+    put_u32(h, AXIS_MIN_BLOCKS.start, f.min_blocks);
+    put_f32(h, AXIS_MAX_GAP_S.start, f.max_gap_s);
+    let nz = &axis.normalisation;
+    put_f32(h, AXIS_TEMP_OFFSET_C.start, nz.temp_offset_c);
+    put_f32(h, AXIS_TEMP_SCALE_PER_C.start, nz.temp_scale_per_c);
+    put_f32(h, AXIS_RATE_OFFSET_C_PER_MIN.start, nz.rate_offset_c_per_min);
+    put_f32(h, AXIS_RATE_SCALE_PER_C_PER_MIN.start, nz.rate_scale_per_c_per_min);
+    put_u32(h, AXIS_OUTSIDE_POLICY.start, axis.outside_policy.code());
+    put_u32(h, AXIS_POLY_TERM_COUNT.start, terms);
+    put_u32(h, AXIS_VERTEX_COUNT.start, vertices);
+    put_u32(h, AXIS_TRIANGLE_COUNT.start, triangles);
+    put_u32(h, AXIS_HULL_EDGE_COUNT.start, hull);
+    let p = &axis.provenance;
+    put_u32(h, AXIS_FIT_POINT_COUNT.start, p.fit_point_count);
+    put_f32(h, AXIS_RESIDUAL_RMS_DPH.start, p.residual_rms_dph);
+    put_f32(h, AXIS_RESIDUAL_MAX_ABS_DPH.start, p.residual_max_abs_dph);
+    put_f32(h, AXIS_TEMP_MIN_C.start, p.temp_min_c);
+    put_f32(h, AXIS_TEMP_MAX_C.start, p.temp_max_c);
+    put_f32(h, AXIS_RATE_MIN_C_PER_MIN.start, p.rate_min_c_per_min);
+    put_f32(h, AXIS_RATE_MAX_C_PER_MIN.start, p.rate_max_c_per_min);
+
+    for t in &axis.poly {
+        out.extend_from_slice(&[t.temp_power, t.rate_power, 0, 0]);
+        out.extend_from_slice(&t.coefficient_dph.to_le_bytes());
+    }
+    for v in &mesh.vertices {
+        for x in [v.x, v.y, v.value_dph] {
+            out.extend_from_slice(&x.to_le_bytes());
+        }
+    }
+    for (t, (tri, nb)) in mesh.triangles.iter().zip(&mesh.neighbours).enumerate() {
+        let tf = triangle_transform(mesh, *tri).ok_or_else(|| {
+            CalError::Encode(format!("triangle {t} has a vertex index out of range or zero area"))
+        })?;
+        for x in tf.origin {
+            out.extend_from_slice(&x.to_le_bytes());
+        }
+        for x in tf.bary.iter().chain(&tf.plane) {
+            out.extend_from_slice(&(*x as f32).to_le_bytes());
+        }
+        for i in nb.iter().chain(tri) {
+            out.extend_from_slice(&i.to_le_bytes());
+        }
+    }
+    for (t, e) in &mesh.hull {
+        out.extend_from_slice(&t.to_le_bytes());
+        out.extend_from_slice(&e.to_le_bytes());
+    }
+    debug_assert_eq!(out.len() - base, section_len as usize);
+    Ok(())
+}
+
+/// A triangle's stored transforms, relative to `origin` (vertex 2).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TriangleTransform {
+    /// Vertex 2's position.
+    pub origin: [f32; 2],
+    /// `l0 = b0 dx + b1 dy`, `l1 = b2 dx + b3 dy`.
+    pub bary: [f64; 4],
+    /// `value = p0 dx + p1 dy + p2`.
+    pub plane: [f64; 3],
+}
+
+/// Barycentric transform and value plane of triangle `tri`, in f64 from the f32 vertex
+/// positions the blob stores, relative to vertex 2 (so small triangles far from the
+/// origin keep their precision in f32). `None` for a bad index or a zero-area triangle.
+pub fn triangle_transform(mesh: &MeshModel, tri: [u32; 3]) -> Option<TriangleTransform> {
+    let vertex = |i: u32| mesh.vertices.get(i as usize);
+    let (a, b, c) = (vertex(tri[0])?, vertex(tri[1])?, vertex(tri[2])?);
+    let rel = |v: &fogtemp_core::Vertex| (f64::from(v.x) - f64::from(c.x), f64::from(v.y) - f64::from(c.y));
+    let ((ax, ay), (bx, by)) = (rel(a), rel(b));
+    // Solve [ax bx; ay by] [l0; l1] = [dx; dy].
+    let det = ax * by - bx * ay;
+    if det == 0.0 || !det.is_finite() {
+        return None;
+    }
+    let bary = [by / det, -bx / det, -ay / det, ax / det];
+    let vc = f64::from(c.value_dph);
+    let (da, db) = (f64::from(a.value_dph) - vc, f64::from(b.value_dph) - vc);
+    let plane = [da * bary[0] + db * bary[2], da * bary[1] + db * bary[3], vc];
+    Some(TriangleTransform { origin: [c.x, c.y], bary, plane })
+}
+
+fn put_u16(buf: &mut [u8], at: usize, v: u16) {
+    buf[at..at + 2].copy_from_slice(&v.to_le_bytes());
+}
+
+fn put_u32(buf: &mut [u8], at: usize, v: u32) {
+    buf[at..at + 4].copy_from_slice(&v.to_le_bytes());
+}
+
+fn put_f32(buf: &mut [u8], at: usize, v: f32) {
+    buf[at..at + 4].copy_from_slice(&v.to_le_bytes());
+}

@@ -1,0 +1,13 @@
+//! # fogtemp-cal
+//!
+//! The calibration library of fogtemp (std): builds the Delaunay mesh with `spade` on
+//! normalised axes, writes the model blob that `fogtemp-core` reads, and (as it grows)
+//! ingests lab logs, fits polynomial and mesh models and computes metrics.
+
+pub mod blob;
+pub mod error;
+pub mod mesh;
+
+pub use blob::{encode, AxisModel, ModelFile};
+pub use error::CalError;
+pub use mesh::{build_mesh, MeshModel, MeshPoint};

@@ -1,0 +1,154 @@
+//! The one error type of the core: small, `Copy`, and says what and where.
+
+use core::fmt;
+
+/// Everything that can go wrong in the core, with enough context to find the cause.
+///
+/// Field names are the names used in `docs/model-format.md`.
+#[non_exhaustive]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Error {
+    /// The blob ended before a field or section that must be there.
+    Truncated {
+        /// What was being read.
+        field: &'static str,
+        /// Bytes needed from the start of the blob.
+        needed: usize,
+        /// Bytes available.
+        found: usize,
+    },
+    /// The blob does not start with `FOGM`.
+    BadMagic,
+    /// The format version is not one this build reads.
+    UnsupportedVersion {
+        /// Version this build reads.
+        expected: u16,
+        /// Version in the blob.
+        found: u16,
+    },
+    /// A length or count field disagrees with the data.
+    LengthMismatch {
+        /// Which length field.
+        field: &'static str,
+        /// Value implied by the rest of the blob.
+        expected: usize,
+        /// Value found.
+        found: usize,
+    },
+    /// The CRC-32 trailer does not match the bytes.
+    CrcMismatch {
+        /// CRC computed over the blob.
+        expected: u32,
+        /// CRC stored in the trailer.
+        found: u32,
+    },
+    /// A count, flag or enum field holds a value outside its allowed range.
+    BadValue {
+        /// Which field.
+        field: &'static str,
+        /// Axis section (or 0 for the file header).
+        axis: u16,
+        /// Element index within the field's array (0 for scalars).
+        index: u32,
+    },
+    /// A float field is NaN or infinite.
+    NonFinite {
+        /// Which field.
+        field: &'static str,
+        /// Axis section (or 0 for the file header).
+        axis: u16,
+        /// Element index within the field's array (0 for scalars).
+        index: u32,
+    },
+    /// An index points past the end of the array it refers to.
+    IndexOutOfRange {
+        /// Which field holds the index.
+        field: &'static str,
+        /// Axis section.
+        axis: u16,
+        /// Element holding the bad index.
+        index: u32,
+        /// The bad index value.
+        value: u32,
+        /// Length of the array it must index.
+        limit: u32,
+    },
+    /// The mesh is not a consistent triangulation (neighbours not symmetric, hull not
+    /// closed, triangle not counter-clockwise, stored transform not matching vertices).
+    BadMesh {
+        /// What check failed.
+        check: &'static str,
+        /// Axis section.
+        axis: u16,
+        /// Triangle or hull entry where it failed.
+        index: u32,
+    },
+    /// The requested axis does not exist in this model.
+    NoSuchAxis {
+        /// Requested axis.
+        requested: usize,
+        /// Axes in the model.
+        available: usize,
+    },
+    /// The feature tracker's compile-time capacity is smaller than the blob's block count.
+    CapacityTooSmall {
+        /// Blocks the model's feature settings need.
+        needed: usize,
+        /// Blocks the tracker can hold (its const generic `N`).
+        capacity: usize,
+    },
+    /// A temperature sample was NaN or infinite.
+    NonFiniteSample,
+    /// A sample's time is not after the previous sample's time.
+    TimeNotIncreasing {
+        /// Previous accepted time, microseconds.
+        previous_us: u64,
+        /// Rejected time, microseconds.
+        found_us: u64,
+    },
+}
+
+impl fmt::Display for Error {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match *self {
+            Error::Truncated { field, needed, found } => {
+                write!(f, "model blob truncated reading {field}: needs {needed} bytes, has {found}")
+            }
+            Error::BadMagic => f.write_str("not a fogtemp model blob (magic is not \"FOGM\")"),
+            Error::UnsupportedVersion { expected, found } => write!(
+                f,
+                "model format version {found} is not supported (this build reads version {expected})"
+            ),
+            Error::LengthMismatch { field, expected, found } => {
+                write!(f, "{field} is {found} but the data implies {expected}")
+            }
+            Error::CrcMismatch { expected, found } => {
+                write!(f, "model blob corrupt: CRC-32 is {expected:#010x}, trailer says {found:#010x}")
+            }
+            Error::BadValue { field, axis, index } => {
+                write!(f, "axis {axis}: {field}[{index}] holds a value outside its allowed range")
+            }
+            Error::NonFinite { field, axis, index } => {
+                write!(f, "axis {axis}: {field}[{index}] is not a finite number")
+            }
+            Error::IndexOutOfRange { field, axis, index, value, limit } => {
+                write!(f, "axis {axis}: {field}[{index}] = {value} is out of range (limit {limit})")
+            }
+            Error::BadMesh { check, axis, index } => {
+                write!(f, "axis {axis}: mesh check '{check}' failed at element {index}")
+            }
+            Error::NoSuchAxis { requested, available } => {
+                write!(f, "axis {requested} requested but the model has {available} axes")
+            }
+            Error::CapacityTooSmall { needed, capacity } => {
+                write!(f, "feature tracker holds {capacity} blocks but the model needs {needed}")
+            }
+            Error::NonFiniteSample => f.write_str("temperature sample is not a finite number"),
+            Error::TimeNotIncreasing { previous_us, found_us } => {
+                write!(f, "sample time {found_us} us is not after the previous sample at {previous_us} us")
+            }
+        }
+    }
+}
+
+impl core::error::Error for Error {}

@@ -1,0 +1,246 @@
+//! Feature tracker: smoothed temperature and its rate (deg C/min) from raw samples, with
+//! fixed-size state. Calibration (`fogtemp-cal`) calls this same code, so firmware and
+//! calibration compute features identically.
+//!
+//! Method: temperature samples are averaged into `block_count` sub-blocks of
+//! `window_s / block_count` seconds. When a block closes, the features are the
+//! least-squares line through the block means of the last window: the rate is its
+//! slope, the temperature its value at the end of the newest block (the current time,
+//! so the feature is causal and unbiased for a linear trend). Averaging before the
+//! slope makes the rate robust to sensor quantisation, unlike a two-point difference.
+//!
+//! Gaps: when no temperature arrives for longer than `max_gap_s`, the tracker restarts,
+//! so no window ever spans a gap. Blocks without samples (slow sensors, short dropouts)
+//! are left out of the fit rather than filled.
+
+use crate::error::Error;
+use crate::model::FeatureSettings;
+
+/// Smoothed features at one instant.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Features {
+    /// Time the features refer to (end of the newest closed block), microseconds.
+    pub time_us: u64,
+    /// Smoothed temperature at `time_us`, deg C.
+    pub temp_c: f32,
+    /// Temperature rate, deg C per minute.
+    pub rate_c_per_min: f32,
+    /// Blocks with data in the window.
+    pub blocks_used: u32,
+    /// The whole window has elapsed since the tracker (re)started.
+    pub window_full: bool,
+}
+
+/// What one temperature sample did to the tracker.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct PushOutcome {
+    /// One or more blocks closed and `features()` changed (may now be `None`).
+    pub updated: bool,
+    /// The silence before this sample exceeded `max_gap_s`; the tracker restarted.
+    pub restarted: bool,
+}
+
+/// Fixed-capacity feature tracker holding up to `N` block means. No allocation.
+#[derive(Clone, Debug)]
+pub struct FeatureTracker<const N: usize> {
+    block_us: u64,
+    block_count: usize,
+    min_blocks: usize,
+    max_gap_us: u64,
+    /// Block means, oldest first from `head`; NaN = block without samples.
+    ring_c: [f32; N],
+    head: usize,
+    /// Blocks closed since (re)start, saturating at `block_count`.
+    closed: usize,
+    /// Current block: end time, reference value, sum of deviations, sample count.
+    block_end_us: u64,
+    block_ref_c: f32,
+    block_sum_dev_c: f32,
+    block_samples: u32,
+    last_time_us: Option<u64>,
+    features: Option<Features>,
+}
+
+impl<const N: usize> FeatureTracker<N> {
+    /// A tracker for `settings`.
+    ///
+    /// # Errors
+    /// [`Error::CapacityTooSmall`] if `settings.block_count > N`; [`Error::BadValue`] for
+    /// settings a validated model cannot hold (non-positive window, gap, fewer than 2 blocks).
+    pub fn new(settings: &FeatureSettings) -> Result<Self, Error> {
+        let bad = |field| Error::BadValue { field, axis: 0, index: 0 };
+        let block_count = settings.block_count as usize;
+        if block_count > N {
+            return Err(Error::CapacityTooSmall { needed: block_count, capacity: N });
+        }
+        if block_count < 2 || (settings.min_blocks as usize) < 2 || settings.min_blocks as usize > block_count
+        {
+            return Err(bad("block_count"));
+        }
+        // f64 here only: done once at start-up. `+ 0.5` rounds (no `round` without std).
+        let block_us = f64::from(settings.window_s) * 1.0e6 / block_count as f64 + 0.5;
+        let max_gap_us = f64::from(settings.max_gap_s) * 1.0e6 + 0.5;
+        if !(1.0..1.0e15).contains(&block_us) {
+            return Err(bad("window_s"));
+        }
+        if !(1.0..1.0e15).contains(&max_gap_us) {
+            return Err(bad("max_gap_s"));
+        }
+        Ok(Self {
+            block_us: block_us as u64,
+            block_count,
+            min_blocks: settings.min_blocks as usize,
+            max_gap_us: max_gap_us as u64,
+            ring_c: [f32::NAN; N],
+            head: 0,
+            closed: 0,
+            block_end_us: 0,
+            block_ref_c: 0.0,
+            block_sum_dev_c: 0.0,
+            block_samples: 0,
+            last_time_us: None,
+            features: None,
+        })
+    }
+
+    /// The latest features, or `None` while fewer than `min_blocks` blocks hold data.
+    pub fn features(&self) -> Option<Features> {
+        self.features
+    }
+
+    /// Time of the last accepted sample, microseconds.
+    pub fn last_time_us(&self) -> Option<u64> {
+        self.last_time_us
+    }
+
+    /// The longest temperature silence tolerated, microseconds.
+    pub fn max_gap_us(&self) -> u64 {
+        self.max_gap_us
+    }
+
+    /// Forgets everything, as at power-on.
+    pub fn reset(&mut self) {
+        self.ring_c = [f32::NAN; N];
+        self.head = 0;
+        self.closed = 0;
+        self.block_samples = 0;
+        self.block_sum_dev_c = 0.0;
+        self.last_time_us = None;
+        self.features = None;
+    }
+
+    /// Adds one temperature sample.
+    ///
+    /// # Errors
+    /// [`Error::NonFiniteSample`] for NaN/infinite temperature, [`Error::TimeNotIncreasing`]
+    /// for a time not after the previous sample. A rejected sample changes nothing.
+    pub fn push(&mut self, time_us: u64, temp_c: f32) -> Result<PushOutcome, Error> {
+        if !temp_c.is_finite() {
+            return Err(Error::NonFiniteSample);
+        }
+        let mut outcome = PushOutcome::default();
+        if let Some(previous_us) = self.last_time_us {
+            if time_us <= previous_us {
+                return Err(Error::TimeNotIncreasing { previous_us, found_us: time_us });
+            }
+            if time_us - previous_us > self.max_gap_us {
+                self.reset();
+                outcome.restarted = true;
+                outcome.updated = true;
+            }
+        }
+        if self.last_time_us.is_none() {
+            self.block_end_us = time_us.saturating_add(self.block_us);
+        } else if time_us >= self.block_end_us {
+            self.close_blocks_until(time_us);
+            self.features = self.compute();
+            outcome.updated = true;
+        }
+        self.accumulate(temp_c);
+        self.last_time_us = Some(time_us);
+        Ok(outcome)
+    }
+
+    fn accumulate(&mut self, temp_c: f32) {
+        if self.block_samples == 0 {
+            self.block_ref_c = temp_c;
+            self.block_sum_dev_c = 0.0;
+        }
+        self.block_sum_dev_c += temp_c - self.block_ref_c;
+        self.block_samples = self.block_samples.saturating_add(1);
+    }
+
+    /// Closes the current block and any empty ones up to the block holding `time_us`.
+    fn close_blocks_until(&mut self, time_us: u64) {
+        let behind = (time_us - self.block_end_us) / self.block_us;
+        let to_close = behind.saturating_add(1);
+        let mean = if self.block_samples > 0 {
+            self.block_ref_c + self.block_sum_dev_c / self.block_samples as f32
+        } else {
+            f32::NAN
+        };
+        self.push_block(mean);
+        // Empty blocks after it, at most one window's worth matters.
+        let empties = (to_close - 1).min(self.block_count as u64) as usize;
+        for _ in 0..empties {
+            self.push_block(f32::NAN);
+        }
+        self.block_end_us = self.block_end_us.saturating_add(to_close.saturating_mul(self.block_us));
+        self.block_samples = 0;
+        self.block_sum_dev_c = 0.0;
+    }
+
+    fn push_block(&mut self, mean_c: f32) {
+        if let Some(slot) = self.ring_c.get_mut(self.head) {
+            *slot = mean_c;
+        }
+        self.head = (self.head + 1) % self.block_count;
+        self.closed = (self.closed + 1).min(self.block_count);
+    }
+
+    /// Block means of the window, oldest first, as `(position, mean)`; position 0 is the
+    /// oldest block of a full window, so positions are block centres in block units.
+    fn window(&self) -> impl Iterator<Item = (f32, f32)> + '_ {
+        let n = self.block_count;
+        let first = n - self.closed;
+        (first..n).filter_map(move |pos| {
+            let idx = (self.head + pos) % n;
+            let mean = self.ring_c.get(idx).copied().unwrap_or(f32::NAN);
+            (!mean.is_nan()).then_some((pos as f32, mean))
+        })
+    }
+
+    /// Least-squares line through the window's block means (centred sums in f32).
+    fn compute(&self) -> Option<Features> {
+        let (mut count, mut sum_x, mut sum_y) = (0u32, 0.0f32, 0.0f32);
+        let y_ref = self.window().next()?.1;
+        for (x, y) in self.window() {
+            count += 1;
+            sum_x += x;
+            sum_y += y - y_ref;
+        }
+        if (count as usize) < self.min_blocks {
+            return None;
+        }
+        let (mean_x, mean_dy) = (sum_x / count as f32, sum_y / count as f32);
+        let (mut sxx, mut sxy) = (0.0f32, 0.0f32);
+        for (x, y) in self.window() {
+            let dx = x - mean_x;
+            sxx += dx * dx;
+            sxy += dx * (y - y_ref - mean_dy);
+        }
+        if sxx.partial_cmp(&0.0) != Some(core::cmp::Ordering::Greater) {
+            return None;
+        }
+        let slope_c_per_block = sxy / sxx;
+        let end_x = self.block_count as f32 - 0.5;
+        let block_min = self.block_us as f32 / 60.0e6;
+        Some(Features {
+            time_us: self.block_end_us.saturating_sub(self.block_us),
+            temp_c: y_ref + mean_dy + slope_c_per_block * (end_x - mean_x),
+            rate_c_per_min: slope_c_per_block / block_min,
+            blocks_used: count,
+            window_full: self.closed >= self.block_count,
+        })
+    }
+}

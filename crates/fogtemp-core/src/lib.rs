@@ -1,0 +1,46 @@
+//! # fogtemp-core
+//!
+//! The firmware runtime of fogtemp: compensates the temperature drift of a fibre-optic
+//! gyro one sample at a time, from a calibration model stored as a binary blob.
+//!
+//! - `#![no_std]`, no allocation, no `unsafe`, no panics: every fallible step returns
+//!   [`Error`], a small `Copy` enum that says what and where.
+//! - [`Model::from_bytes`] validates a blob borrowed from flash (layout in
+//!   `docs/model-format.md`, constants in [`wire`]).
+//! - [`Mesh`] locates the triangle by a bounded visibility walk from a caller-owned
+//!   [`WalkHint`] and interpolates linearly (barycentric); [`Poly`] evaluates polynomial terms.
+//! - [`FeatureTracker`] turns raw temperature samples into smoothed T and dT/dt (deg C/min);
+//!   calibration uses the same code.
+//! - [`Compensator`] ties them together: `step(time_us, gyro_dph, temp_c)` per sample.
+//!
+//! All arithmetic is f32 (Cortex-M4F has a single-precision FPU only).
+//!
+//! ```
+//! # fn demo(blob: &[u8]) -> Result<(), fogtemp_core::Error> {
+//! use fogtemp_core::{Compensator, Model};
+//! let model = Model::from_bytes(blob)?; // e.g. include_bytes!("model.fogm")
+//! let mut x_axis: Compensator = Compensator::new(&model, 0)?;
+//! let out = x_axis.step(1_000, 12.5, Some(24.8)); // time us, gyro deg/h, temp deg C
+//! let _compensated_dph = out.rate_dph;
+//! # Ok(()) }
+//! ```
+#![no_std]
+#![forbid(unsafe_code)]
+
+mod compensator;
+pub mod crc;
+mod error;
+mod features;
+mod mesh;
+mod model;
+mod poly;
+pub mod wire;
+
+pub use compensator::{Compensator, Flags, Output, DEFAULT_CAPACITY};
+pub use error::Error;
+pub use features::{FeatureTracker, Features, PushOutcome};
+pub use mesh::{Location, Mesh, MeshValue, OutsidePolicy, TriangleRecord, Vertex, WalkHint, INSIDE_EPS};
+pub use model::{
+    Axis, AxisProvenance, Evaluation, FeatureSettings, Model, Normalisation, MAX_NORMALISED_COORD,
+};
+pub use poly::{Poly, PolyTerm};

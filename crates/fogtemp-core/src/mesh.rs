@@ -1,0 +1,313 @@
+//! Triangle mesh with linear (barycentric) interpolation: the paper's eq. 13-19.
+//!
+//! Points live in the normalised plane `(x, y)`. Each triangle record carries its
+//! barycentric transform and its value plane, precomputed by the writer in f64, so
+//! locating and interpolating costs two affine evaluations per visited triangle.
+
+use crate::error::Error;
+use crate::wire::{self, HULL_EDGE_LEN, NO_NEIGHBOUR, TRIANGLE_LEN, VERTEX_LEN};
+
+/// A query counts as inside a triangle when every barycentric coordinate is at
+/// least `-INSIDE_EPS` (absorbs f32 rounding on shared edges).
+pub const INSIDE_EPS: f32 = 1e-6;
+
+/// What to return for a query outside the convex hull of the mesh.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum OutsidePolicy {
+    /// The value at the nearest point of the hull (in the normalised plane), so the
+    /// output is continuous across the hull. Blob code 0; the default.
+    NearestHull,
+    /// Zero: the mesh contributes nothing outside (hybrid models fall back to the
+    /// polynomial). Blob code 1.
+    Zero,
+}
+
+impl OutsidePolicy {
+    /// The blob code of this policy.
+    pub fn code(self) -> u32 {
+        match self {
+            OutsidePolicy::NearestHull => 0,
+            OutsidePolicy::Zero => 1,
+        }
+    }
+
+    /// The policy with blob code `code`.
+    pub fn from_code(code: u32) -> Option<Self> {
+        match code {
+            0 => Some(OutsidePolicy::NearestHull),
+            1 => Some(OutsidePolicy::Zero),
+            _ => None,
+        }
+    }
+}
+
+/// The caller-owned walk state: the triangle the last query ended in.
+///
+/// Any value is safe: a stale hint or one from another mesh is clamped to a valid
+/// triangle, and a failed call leaves it unchanged.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct WalkHint(pub u32);
+
+/// Where a query point lies.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Location {
+    /// Inside (or on the boundary of) `triangle`, with barycentric coordinates
+    /// `bary[k]` for the triangle's vertex `k`.
+    Inside {
+        /// Triangle index.
+        triangle: u32,
+        /// Barycentric coordinates, summing to 1.
+        bary: [f32; 3],
+    },
+    /// Outside the convex hull; `triangle` is the hull triangle where the walk stopped.
+    Outside {
+        /// Triangle index.
+        triangle: u32,
+    },
+}
+
+/// A mesh value with its provenance.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MeshValue {
+    /// Interpolated value, deg/h.
+    pub value_dph: f32,
+    /// Triangle that produced it (inside) or where the walk left the hull (outside).
+    pub triangle: u32,
+    /// The query was outside the hull and the outside policy produced the value.
+    pub outside_hull: bool,
+}
+
+/// One triangle record as stored in the blob.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TriangleRecord {
+    /// Origin of the transforms: the position of vertex 2.
+    pub origin: [f32; 2],
+    /// Barycentric transform: `l0 = b0 dx + b1 dy`, `l1 = b2 dx + b3 dy`, `l2 = 1 - l0 - l1`,
+    /// with `(dx, dy)` the query minus `origin`.
+    pub bary: [f32; 4],
+    /// Value plane: `value = p0 dx + p1 dy + p2`.
+    pub plane: [f32; 3],
+    /// Neighbour across the edge opposite vertex k, or [`NO_NEIGHBOUR`] on the hull.
+    pub neighbours: [u32; 3],
+    /// Vertex indices, counter-clockwise.
+    pub vertices: [u32; 3],
+}
+
+/// One mesh vertex: normalised position and value.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Vertex {
+    /// Normalised temperature.
+    pub x: f32,
+    /// Normalised rate.
+    pub y: f32,
+    /// Bias at this node, deg/h.
+    pub value_dph: f32,
+}
+
+/// The mesh part of an axis, borrowed from the blob (validated by `Model::from_bytes`).
+#[derive(Clone, Copy, Debug)]
+pub struct Mesh<'a> {
+    pub(crate) vertices: &'a [u8],
+    pub(crate) triangles: &'a [u8],
+    pub(crate) hull: &'a [u8],
+    pub(crate) policy: OutsidePolicy,
+}
+
+impl<'a> Mesh<'a> {
+    /// Number of vertices.
+    pub fn vertex_count(&self) -> u32 {
+        (self.vertices.len() / VERTEX_LEN) as u32
+    }
+
+    /// Number of triangles.
+    pub fn triangle_count(&self) -> u32 {
+        (self.triangles.len() / TRIANGLE_LEN) as u32
+    }
+
+    /// Number of hull edges.
+    pub fn hull_edge_count(&self) -> u32 {
+        (self.hull.len() / HULL_EDGE_LEN) as u32
+    }
+
+    /// The outside-hull policy stored in the blob.
+    pub fn outside_policy(&self) -> OutsidePolicy {
+        self.policy
+    }
+
+    /// Vertex `index`, if it exists.
+    pub fn vertex(&self, index: u32) -> Option<Vertex> {
+        let start = (index as usize).checked_mul(VERTEX_LEN)?;
+        let v = wire::array::<VERTEX_LEN>(self.vertices, start)?;
+        Some(Vertex { x: wire::f32_at(&v, 0)?, y: wire::f32_at(&v, 4)?, value_dph: wire::f32_at(&v, 8)? })
+    }
+
+    /// Triangle record `index`, if it exists.
+    #[inline]
+    pub fn triangle(&self, index: u32) -> Option<TriangleRecord> {
+        let start = (index as usize).checked_mul(TRIANGLE_LEN)?;
+        let r = wire::array::<TRIANGLE_LEN>(self.triangles, start)?;
+        let f = |o: usize| wire::f32_at(&r, o).unwrap_or(f32::NAN);
+        let u = |o: usize| wire::u32_at(&r, o).unwrap_or(NO_NEIGHBOUR);
+        Some(TriangleRecord {
+            origin: [f(0), f(4)],
+            bary: [f(8), f(12), f(16), f(20)],
+            plane: [f(24), f(28), f(32)],
+            neighbours: [u(36), u(40), u(44)],
+            vertices: [u(48), u(52), u(56)],
+        })
+    }
+
+    /// Hull edge `index` as `(triangle, edge)`; edge k runs from vertex k+1 to k+2.
+    pub fn hull_edge(&self, index: u32) -> Option<(u32, u32)> {
+        let start = (index as usize).checked_mul(HULL_EDGE_LEN)?;
+        Some((wire::u32_at(self.hull, start)?, wire::u32_at(self.hull, start.checked_add(4)?)?))
+    }
+
+    /// Locates `(x, y)` by a visibility walk from `hint`: at each triangle, step across
+    /// the edge with the most negative barycentric coordinate. Crossing a hull edge
+    /// means the point is outside the (convex) hull. The walk is bounded by the
+    /// triangle count; should it not settle (near-degenerate input), a full scan decides.
+    ///
+    /// On success `hint` is set to the triangle found.
+    ///
+    /// # Errors
+    /// [`Error::NonFiniteSample`] for a NaN or infinite coordinate; hint unchanged.
+    #[inline]
+    pub fn locate(&self, x: f32, y: f32, hint: &mut WalkHint) -> Result<Location, Error> {
+        if !(x.is_finite() && y.is_finite()) {
+            return Err(Error::NonFiniteSample);
+        }
+        let count = self.triangle_count();
+        let mut t = if hint.0 < count { hint.0 } else { 0 };
+        let mut previous = NO_NEIGHBOUR;
+        for _ in 0..=count {
+            let Some(rec) = self.triangle(t) else { break };
+            let bary = barycentric(&rec, x, y);
+            let (k, lmin) = most_negative(bary);
+            let next = rec.neighbours.get(k).copied().unwrap_or(NO_NEIGHBOUR);
+            // Stepping straight back means both triangles see the point beyond their
+            // shared edge: only rounding does that, so the point is on the edge.
+            if lmin >= -INSIDE_EPS || (next == previous && next != NO_NEIGHBOUR) {
+                hint.0 = t;
+                return Ok(Location::Inside { triangle: t, bary });
+            }
+            if next == NO_NEIGHBOUR {
+                hint.0 = t;
+                return Ok(Location::Outside { triangle: t });
+            }
+            (previous, t) = (t, next);
+        }
+        let location = self.locate_by_scan(x, y);
+        hint.0 = match location {
+            Location::Inside { triangle, .. } | Location::Outside { triangle } => triangle,
+        };
+        Ok(location)
+    }
+
+    /// Locates by testing every triangle: the reference the walk must agree with,
+    /// and its fallback. O(triangles).
+    pub fn locate_by_scan(&self, x: f32, y: f32) -> Location {
+        let mut best: Option<(u32, [f32; 3], f32)> = None;
+        for t in 0..self.triangle_count() {
+            let Some(rec) = self.triangle(t) else { break };
+            let bary = barycentric(&rec, x, y);
+            let (_, lmin) = most_negative(bary);
+            if best.is_none_or(|(_, _, b)| lmin > b) {
+                best = Some((t, bary, lmin));
+            }
+        }
+        match best {
+            Some((triangle, bary, lmin)) if lmin >= -INSIDE_EPS => Location::Inside { triangle, bary },
+            Some((triangle, _, _)) => Location::Outside { triangle },
+            None => Location::Outside { triangle: 0 },
+        }
+    }
+
+    /// Interpolated value at `(x, y)`: the plane of the containing triangle, or the
+    /// outside policy's value beyond the hull.
+    ///
+    /// # Errors
+    /// [`Error::NonFiniteSample`] for a NaN or infinite coordinate; hint unchanged.
+    #[inline]
+    pub fn interpolate(&self, x: f32, y: f32, hint: &mut WalkHint) -> Result<MeshValue, Error> {
+        match self.locate(x, y, hint)? {
+            Location::Inside { triangle, .. } => {
+                let value_dph = self.triangle(triangle).map_or(0.0, |r| plane_value(&r, x, y));
+                Ok(MeshValue { value_dph, triangle, outside_hull: false })
+            }
+            Location::Outside { triangle } => {
+                let value_dph = match self.policy {
+                    OutsidePolicy::NearestHull => self.nearest_hull_value(x, y),
+                    OutsidePolicy::Zero => 0.0,
+                };
+                Ok(MeshValue { value_dph, triangle, outside_hull: true })
+            }
+        }
+    }
+
+    /// Value at the point of the hull nearest to `(x, y)`, linear along the hull edge.
+    /// Scans every hull edge: O(hull edges), only for queries outside the hull.
+    pub fn nearest_hull_value(&self, x: f32, y: f32) -> f32 {
+        let mut best = (f32::INFINITY, 0.0f32);
+        for h in 0..self.hull_edge_count() {
+            let Some((a, b)) = self.hull_edge_vertices(h) else { continue };
+            let (dx, dy) = (b.x - a.x, b.y - a.y);
+            let len2 = dx * dx + dy * dy;
+            let s = if len2 > 0.0 { (((x - a.x) * dx + (y - a.y) * dy) / len2).clamp(0.0, 1.0) } else { 0.0 };
+            let (px, py) = (a.x + s * dx, a.y + s * dy);
+            let d2 = (x - px) * (x - px) + (y - py) * (y - py);
+            if d2 < best.0 {
+                best = (d2, a.value_dph + s * (b.value_dph - a.value_dph));
+            }
+        }
+        best.1
+    }
+
+    /// The start and end vertex of hull edge `index` (counter-clockwise order).
+    pub fn hull_edge_vertices(&self, index: u32) -> Option<(Vertex, Vertex)> {
+        let (t, e) = self.hull_edge(index)?;
+        let rec = self.triangle(t)?;
+        let (ia, ib) = edge_vertices(&rec, e)?;
+        Some((self.vertex(ia)?, self.vertex(ib)?))
+    }
+}
+
+/// Vertex indices `(from, to)` of edge `edge` (the edge opposite vertex `edge`).
+pub(crate) fn edge_vertices(rec: &TriangleRecord, edge: u32) -> Option<(u32, u32)> {
+    let e = edge as usize;
+    let from = rec.vertices.get((e + 1) % 3)?;
+    let to = rec.vertices.get((e + 2) % 3)?;
+    (e < 3).then_some((*from, *to))
+}
+
+/// Barycentric coordinates of `(x, y)` in the triangle `rec`.
+#[inline(always)]
+pub(crate) fn barycentric(rec: &TriangleRecord, x: f32, y: f32) -> [f32; 3] {
+    let (dx, dy) = (x - rec.origin[0], y - rec.origin[1]);
+    let b = &rec.bary;
+    let l0 = b[0] * dx + b[1] * dy;
+    let l1 = b[2] * dx + b[3] * dy;
+    [l0, l1, 1.0 - l0 - l1]
+}
+
+/// The triangle's value plane at `(x, y)`.
+#[inline(always)]
+pub(crate) fn plane_value(rec: &TriangleRecord, x: f32, y: f32) -> f32 {
+    let (dx, dy) = (x - rec.origin[0], y - rec.origin[1]);
+    rec.plane[0] * dx + rec.plane[1] * dy + rec.plane[2]
+}
+
+/// Index and value of the smallest coordinate. NaN never wins, so a NaN record
+/// cannot send the walk anywhere but to the bounded fallback.
+#[inline(always)]
+fn most_negative(l: [f32; 3]) -> (usize, f32) {
+    let [l0, l1, l2] = l;
+    let (mut k, mut m) = (0, l0);
+    if l1 < m {
+        (k, m) = (1, l1);
+    }
+    if l2 < m {
+        (k, m) = (2, l2);
+    }
+    (k, m)
+}

@@ -1,0 +1,586 @@
+//! `Model::from_bytes`: parse and fully validate a blob, then hand out per-axis views.
+
+use crate::crc::crc32;
+use crate::error::Error;
+use crate::mesh::{barycentric, edge_vertices, plane_value, Mesh, OutsidePolicy, TriangleRecord, WalkHint};
+use crate::poly::{parse_term, Poly};
+use crate::wire::*;
+
+/// Largest magnitude accepted for a normalised vertex coordinate. Keeps every product
+/// in the walk far from f32 overflow.
+pub const MAX_NORMALISED_COORD: f32 = 1.0e6;
+
+/// Feature-tracker settings stored per axis: how firmware computes T and dT/dt
+/// exactly as calibration did.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FeatureSettings {
+    /// Window length, seconds (the paper uses 100 s).
+    pub window_s: f32,
+    /// Sub-blocks per window; the rate is the least-squares slope over block means.
+    pub block_count: u32,
+    /// Blocks holding data needed before features are reported.
+    pub min_blocks: u32,
+    /// A silence of the temperature channel longer than this restarts the tracker, seconds.
+    pub max_gap_s: f32,
+}
+
+/// Affine map from physical inputs to the normalised plane the models live in:
+/// `x = (temp_c - temp_offset_c) * temp_scale_per_c`,
+/// `y = (rate_c_per_min - rate_offset_c_per_min) * rate_scale_per_c_per_min`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Normalisation {
+    /// Temperature subtracted before scaling, deg C.
+    pub temp_offset_c: f32,
+    /// Temperature scale, 1/deg C.
+    pub temp_scale_per_c: f32,
+    /// Rate subtracted before scaling, deg C/min.
+    pub rate_offset_c_per_min: f32,
+    /// Rate scale, 1/(deg C/min).
+    pub rate_scale_per_c_per_min: f32,
+}
+
+impl Normalisation {
+    /// Normalised `(x, y)`, each clamped to `±MAX_NORMALISED_COORD` (far outside any mesh)
+    /// so that extreme inputs stay finite.
+    #[inline]
+    pub fn apply(&self, temp_c: f32, rate_c_per_min: f32) -> (f32, f32) {
+        let x = (temp_c - self.temp_offset_c) * self.temp_scale_per_c;
+        let y = (rate_c_per_min - self.rate_offset_c_per_min) * self.rate_scale_per_c_per_min;
+        let c = MAX_NORMALISED_COORD;
+        (x.clamp(-c, c), y.clamp(-c, c))
+    }
+}
+
+/// Fit statistics and calibrated range stored with an axis (provenance).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AxisProvenance {
+    /// Calibration points used by the fit.
+    pub fit_point_count: u32,
+    /// RMS of the fit residuals, deg/h.
+    pub residual_rms_dph: f32,
+    /// Largest absolute fit residual, deg/h.
+    pub residual_max_abs_dph: f32,
+    /// Lowest calibrated temperature, deg C.
+    pub temp_min_c: f32,
+    /// Highest calibrated temperature, deg C.
+    pub temp_max_c: f32,
+    /// Lowest calibrated rate, deg C/min.
+    pub rate_min_c_per_min: f32,
+    /// Highest calibrated rate, deg C/min.
+    pub rate_max_c_per_min: f32,
+}
+
+/// A model value at one query.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Evaluation {
+    /// Modelled bias, deg/h (polynomial plus mesh, whichever the axis has).
+    pub value_dph: f32,
+    /// The query was outside the mesh hull; the outside policy produced the mesh part.
+    pub outside_hull: bool,
+}
+
+/// One gyro axis of a model: feature settings, normalisation and the bias model.
+#[derive(Clone, Copy, Debug)]
+pub struct Axis<'a> {
+    /// Axis number (its position in the blob).
+    pub id: u16,
+    /// How features are computed.
+    pub features: FeatureSettings,
+    /// Input normalisation.
+    pub normalisation: Normalisation,
+    /// Fit statistics.
+    pub provenance: AxisProvenance,
+    /// Polynomial part, if any.
+    pub poly: Option<Poly<'a>>,
+    /// Mesh part, if any.
+    pub mesh: Option<Mesh<'a>>,
+}
+
+impl Axis<'_> {
+    /// Modelled bias at `(temp_c, rate_c_per_min)`: the polynomial plus the mesh.
+    ///
+    /// # Errors
+    /// [`Error::NonFiniteSample`] if either input is NaN or infinite; `hint` unchanged.
+    #[inline]
+    pub fn evaluate(
+        &self,
+        temp_c: f32,
+        rate_c_per_min: f32,
+        hint: &mut WalkHint,
+    ) -> Result<Evaluation, Error> {
+        if !(temp_c.is_finite() && rate_c_per_min.is_finite()) {
+            return Err(Error::NonFiniteSample);
+        }
+        let (x, y) = self.normalisation.apply(temp_c, rate_c_per_min);
+        let poly = self.poly.map_or(0.0, |p| p.evaluate(x, y));
+        match &self.mesh {
+            Some(mesh) => {
+                let m = mesh.interpolate(x, y, hint)?;
+                Ok(Evaluation { value_dph: poly + m.value_dph, outside_hull: m.outside_hull })
+            }
+            None => Ok(Evaluation { value_dph: poly, outside_hull: false }),
+        }
+    }
+}
+
+/// A validated model blob, borrowed (typically from flash via `include_bytes!`).
+#[derive(Clone, Copy, Debug)]
+pub struct Model<'a> {
+    bytes: &'a [u8],
+    axis_count: u16,
+}
+
+impl<'a> Model<'a> {
+    /// Parses `bytes` and validates every length, count, index, float, the CRC-32 and
+    /// the mesh adjacency before returning. Never panics, for any input.
+    ///
+    /// # Errors
+    /// The first problem found, saying which field and where.
+    pub fn from_bytes(bytes: &'a [u8]) -> Result<Self, Error> {
+        let found = bytes.len();
+        let header = array::<FILE_HEADER_LEN>(bytes, 0).ok_or(Error::Truncated {
+            field: "file header",
+            needed: FILE_HEADER_LEN + CRC_LEN,
+            found,
+        })?;
+        if header.first_chunk::<4>() != Some(&MAGIC) {
+            return Err(Error::BadMagic);
+        }
+        let version = u16_at(&header, FILE_VERSION.start).unwrap_or(0);
+        if version != FORMAT_VERSION {
+            return Err(Error::UnsupportedVersion { expected: FORMAT_VERSION, found: version });
+        }
+        let header_len = usize::from(u16_at(&header, FILE_HEADER_LEN_FIELD.start).unwrap_or(0));
+        if header_len != FILE_HEADER_LEN {
+            return Err(Error::LengthMismatch {
+                field: "header_len",
+                expected: FILE_HEADER_LEN,
+                found: header_len,
+            });
+        }
+        let total_len = u32_at(&header, FILE_TOTAL_LEN.start).unwrap_or(0) as usize;
+        if total_len != found {
+            return Err(if total_len > found {
+                Error::Truncated { field: "total_len", needed: total_len, found }
+            } else {
+                Error::LengthMismatch { field: "total_len", expected: found, found: total_len }
+            });
+        }
+        let body_len = found
+            .checked_sub(CRC_LEN)
+            .filter(|&n| n >= FILE_HEADER_LEN)
+            .ok_or(Error::Truncated { field: "crc", needed: FILE_HEADER_LEN + CRC_LEN, found })?;
+        let stored_crc = u32_at(bytes, body_len).unwrap_or(0);
+        let body = bytes.get(..body_len).unwrap_or(&[]);
+        let computed = crc32(body);
+        if computed != stored_crc {
+            return Err(Error::CrcMismatch { expected: computed, found: stored_crc });
+        }
+        let axis_count = u16_at(&header, FILE_AXIS_COUNT.start).unwrap_or(0);
+        if axis_count == 0 || axis_count > MAX_AXES {
+            return Err(Error::BadValue { field: "axis_count", axis: 0, index: 0 });
+        }
+        if u16_at(&header, FILE_RESERVED.start) != Some(0) {
+            return Err(Error::BadValue { field: "reserved", axis: 0, index: 0 });
+        }
+        let model = Model { bytes: body, axis_count };
+        let mut offset = FILE_HEADER_LEN;
+        for id in 0..axis_count {
+            let (axis, len) = parse_axis(body, offset, id)?;
+            validate_axis(&axis)?;
+            offset = offset.saturating_add(len);
+        }
+        if offset != body_len {
+            return Err(Error::LengthMismatch {
+                field: "sum of section_len",
+                expected: body_len - FILE_HEADER_LEN,
+                found: offset.saturating_sub(FILE_HEADER_LEN),
+            });
+        }
+        Ok(model)
+    }
+
+    /// Number of gyro axes.
+    pub fn axis_count(&self) -> usize {
+        usize::from(self.axis_count)
+    }
+
+    /// The axis `index`.
+    ///
+    /// # Errors
+    /// [`Error::NoSuchAxis`] if `index >= axis_count()`.
+    pub fn axis(&self, index: usize) -> Result<Axis<'a>, Error> {
+        if index >= self.axis_count() {
+            return Err(Error::NoSuchAxis { requested: index, available: self.axis_count() });
+        }
+        let mut offset = FILE_HEADER_LEN;
+        for id in 0..self.axis_count {
+            let (axis, len) = parse_axis(self.bytes, offset, id)?;
+            if usize::from(id) == index {
+                return Ok(axis);
+            }
+            offset = offset.saturating_add(len);
+        }
+        Err(Error::NoSuchAxis { requested: index, available: self.axis_count() })
+    }
+
+    /// The writer's version string (ASCII, NUL padding removed).
+    pub fn tool_version(&self) -> &'a [u8] {
+        let field = self.bytes.get(FILE_TOOL_VERSION).unwrap_or(&[]);
+        let end = field.iter().position(|&b| b == 0).unwrap_or(field.len());
+        field.get(..end).unwrap_or(&[])
+    }
+
+    /// Digest of the calibration inputs (SHA-256, or zeros when unknown).
+    pub fn input_digest(&self) -> [u8; 32] {
+        array::<32>(self.bytes, FILE_INPUT_DIGEST.start).unwrap_or([0; 32])
+    }
+
+    /// The format version (always [`FORMAT_VERSION`] for a model that parsed).
+    pub fn format_version(&self) -> u16 {
+        FORMAT_VERSION
+    }
+}
+
+/// Strictly positive (false for NaN).
+fn positive(v: f32) -> bool {
+    v > 0.0
+}
+
+fn truncated(field: &'static str, needed: usize, found: usize) -> Error {
+    Error::Truncated { field, needed, found }
+}
+
+/// Parses the axis section at `offset` (header checks and slicing only); returns the axis
+/// and the section length.
+fn parse_axis(body: &[u8], offset: usize, id: u16) -> Result<(Axis<'_>, usize), Error> {
+    let found = body.len();
+    let header_end = offset.saturating_add(AXIS_HEADER_LEN);
+    let h = body.get(offset..header_end).ok_or(truncated("axis header", header_end, found))?;
+    let u32f = |r: core::ops::Range<usize>| u32_at(h, r.start).unwrap_or(0);
+    let f32f = |r: core::ops::Range<usize>| f32_at(h, r.start).unwrap_or(f32::NAN);
+    let bad = |field: &'static str| Error::BadValue { field, axis: id, index: 0 };
+
+    if u16_at(h, AXIS_ID.start) != Some(id) {
+        return Err(bad("axis_id"));
+    }
+    let kind = u16_at(h, AXIS_MODEL_KIND.start).unwrap_or(0);
+    if kind == 0 || kind & !(KIND_POLY | KIND_MESH) != 0 {
+        return Err(bad("model_kind"));
+    }
+    if h.get(AXIS_RESERVED).is_none_or(|r| r.iter().any(|&b| b != 0)) {
+        return Err(bad("reserved"));
+    }
+    let (terms, vertices, triangles, hull) = (
+        u32f(AXIS_POLY_TERM_COUNT),
+        u32f(AXIS_VERTEX_COUNT),
+        u32f(AXIS_TRIANGLE_COUNT),
+        u32f(AXIS_HULL_EDGE_COUNT),
+    );
+    let has_poly = kind & KIND_POLY != 0;
+    let has_mesh = kind & KIND_MESH != 0;
+    if has_poly != (terms > 0) || terms > MAX_POLY_TERMS {
+        return Err(bad("poly_term_count"));
+    }
+    if has_mesh {
+        if !(3..=MAX_TRIANGLES).contains(&vertices) {
+            return Err(bad("vertex_count"));
+        }
+        if !(1..=MAX_TRIANGLES).contains(&triangles) {
+            return Err(bad("triangle_count"));
+        }
+        if !(3..=triangles.saturating_add(2)).contains(&hull) {
+            return Err(bad("hull_edge_count"));
+        }
+    } else if vertices != 0 || triangles != 0 || hull != 0 {
+        return Err(bad("vertex_count"));
+    }
+    let section_len = u32f(AXIS_SECTION_LEN) as usize;
+    let expected = axis_section_len(terms, vertices, triangles, hull).unwrap_or(usize::MAX);
+    if section_len != expected {
+        return Err(Error::LengthMismatch { field: "section_len", expected, found: section_len });
+    }
+    let end = offset.checked_add(section_len).ok_or(truncated("axis section", usize::MAX, found))?;
+    let section = body.get(offset..end).ok_or(truncated("axis section", end, found))?;
+
+    let features = FeatureSettings {
+        window_s: f32f(AXIS_WINDOW_S),
+        block_count: u32f(AXIS_BLOCK_COUNT),
+        min_blocks: u32f(AXIS_MIN_BLOCKS),
+        max_gap_s: f32f(AXIS_MAX_GAP_S),
+    };
+    let normalisation = Normalisation {
+        temp_offset_c: f32f(AXIS_TEMP_OFFSET_C),
+        temp_scale_per_c: f32f(AXIS_TEMP_SCALE_PER_C),
+        rate_offset_c_per_min: f32f(AXIS_RATE_OFFSET_C_PER_MIN),
+        rate_scale_per_c_per_min: f32f(AXIS_RATE_SCALE_PER_C_PER_MIN),
+    };
+    let provenance = AxisProvenance {
+        fit_point_count: u32f(AXIS_FIT_POINT_COUNT),
+        residual_rms_dph: f32f(AXIS_RESIDUAL_RMS_DPH),
+        residual_max_abs_dph: f32f(AXIS_RESIDUAL_MAX_ABS_DPH),
+        temp_min_c: f32f(AXIS_TEMP_MIN_C),
+        temp_max_c: f32f(AXIS_TEMP_MAX_C),
+        rate_min_c_per_min: f32f(AXIS_RATE_MIN_C_PER_MIN),
+        rate_max_c_per_min: f32f(AXIS_RATE_MAX_C_PER_MIN),
+    };
+    let policy = OutsidePolicy::from_code(u32f(AXIS_OUTSIDE_POLICY)).ok_or(bad("outside_policy"))?;
+
+    // Payload slices, in order. Lengths were checked against section_len above.
+    let mut cursor = AXIS_HEADER_LEN;
+    let mut take = |n: usize| {
+        let start = cursor;
+        cursor = cursor.saturating_add(n);
+        section.get(start..cursor).unwrap_or(&[])
+    };
+    let poly_bytes = take(terms as usize * POLY_TERM_LEN);
+    let vertex_bytes = take(vertices as usize * VERTEX_LEN);
+    let triangle_bytes = take(triangles as usize * TRIANGLE_LEN);
+    let hull_bytes = take(hull as usize * HULL_EDGE_LEN);
+    let axis = Axis {
+        id,
+        features,
+        normalisation,
+        provenance,
+        poly: has_poly.then(|| Poly::new(poly_bytes)),
+        mesh: has_mesh.then_some(Mesh {
+            vertices: vertex_bytes,
+            triangles: triangle_bytes,
+            hull: hull_bytes,
+            policy,
+        }),
+    };
+    Ok((axis, section_len))
+}
+
+/// Every value check of one axis: floats, ranges, indices, adjacency, hull, transforms.
+fn validate_axis(axis: &Axis<'_>) -> Result<(), Error> {
+    let id = axis.id;
+    let bad = |field: &'static str, index: u32| Error::BadValue { field, axis: id, index };
+    let finite = |field: &'static str, v: f32, index: u32| {
+        if v.is_finite() {
+            Ok(v)
+        } else {
+            Err(Error::NonFinite { field, axis: id, index })
+        }
+    };
+
+    let f = &axis.features;
+    if !positive(finite("window_s", f.window_s, 0)?) || f.window_s > 1.0e6 {
+        return Err(bad("window_s", 0));
+    }
+    if f.block_count < 2 || f.block_count > MAX_BLOCKS {
+        return Err(bad("block_count", 0));
+    }
+    if f.min_blocks < 2 || f.min_blocks > f.block_count {
+        return Err(bad("min_blocks", 0));
+    }
+    // A block shorter than a microsecond cannot be timed by the tracker.
+    if f.window_s / (f.block_count as f32) < 1.0e-6 {
+        return Err(bad("block_count", 0));
+    }
+    if !positive(finite("max_gap_s", f.max_gap_s, 0)?) {
+        return Err(bad("max_gap_s", 0));
+    }
+    let n = &axis.normalisation;
+    finite("temp_offset_c", n.temp_offset_c, 0)?;
+    finite("rate_offset_c_per_min", n.rate_offset_c_per_min, 0)?;
+    if !positive(finite("temp_scale_per_c", n.temp_scale_per_c, 0)?) {
+        return Err(bad("temp_scale_per_c", 0));
+    }
+    if !positive(finite("rate_scale_per_c_per_min", n.rate_scale_per_c_per_min, 0)?) {
+        return Err(bad("rate_scale_per_c_per_min", 0));
+    }
+    let p = &axis.provenance;
+    for (field, v) in [
+        ("residual_rms_dph", p.residual_rms_dph),
+        ("residual_max_abs_dph", p.residual_max_abs_dph),
+        ("temp_min_c", p.temp_min_c),
+        ("temp_max_c", p.temp_max_c),
+        ("rate_min_c_per_min", p.rate_min_c_per_min),
+        ("rate_max_c_per_min", p.rate_max_c_per_min),
+    ] {
+        finite(field, v, 0)?;
+    }
+    if let Some(poly) = &axis.poly {
+        validate_poly(poly, id)?;
+    }
+    if let Some(mesh) = &axis.mesh {
+        validate_mesh(mesh, id)?;
+    }
+    Ok(())
+}
+
+fn validate_poly(poly: &Poly<'_>, id: u16) -> Result<(), Error> {
+    for (i, chunk) in poly.raw_terms().enumerate() {
+        let index = i as u32;
+        let term = parse_term(chunk);
+        if term.temp_power > MAX_POWER || term.rate_power > MAX_POWER || u16_at(chunk, 2) != Some(0) {
+            return Err(Error::BadValue { field: "poly_terms", axis: id, index });
+        }
+        if !term.coefficient_dph.is_finite() {
+            return Err(Error::NonFinite { field: "poly_terms.coefficient_dph", axis: id, index });
+        }
+    }
+    Ok(())
+}
+
+fn validate_mesh(mesh: &Mesh<'_>, id: u16) -> Result<(), Error> {
+    let vcount = mesh.vertex_count();
+    let tcount = mesh.triangle_count();
+    let mesh_err = |check: &'static str, index: u32| Error::BadMesh { check, axis: id, index };
+    for i in 0..vcount {
+        let v = mesh.vertex(i).ok_or(mesh_err("vertex", i))?;
+        for (field, c) in [("vertices.x", v.x), ("vertices.y", v.y)] {
+            if !c.is_finite() {
+                return Err(Error::NonFinite { field, axis: id, index: i });
+            }
+            if c.abs() > MAX_NORMALISED_COORD {
+                return Err(Error::BadValue { field, axis: id, index: i });
+            }
+        }
+        if !v.value_dph.is_finite() {
+            return Err(Error::NonFinite { field: "vertices.value_dph", axis: id, index: i });
+        }
+    }
+    let mut hull_slots = 0u32;
+    for t in 0..tcount {
+        let rec = mesh.triangle(t).ok_or(mesh_err("triangle", t))?;
+        validate_triangle_indices(&rec, t, vcount, tcount, id)?;
+        hull_slots += rec.neighbours.iter().filter(|&&n| n == NO_NEIGHBOUR).count() as u32;
+        validate_triangle_geometry(mesh, &rec, t, id)?;
+        for (k, &n) in rec.neighbours.iter().enumerate() {
+            if n != NO_NEIGHBOUR && !neighbour_points_back(mesh, &rec, t, k as u32, n) {
+                return Err(mesh_err("neighbours symmetric", t));
+            }
+        }
+    }
+    if hull_slots != mesh.hull_edge_count() {
+        return Err(Error::LengthMismatch {
+            field: "hull_edge_count",
+            expected: hull_slots as usize,
+            found: mesh.hull_edge_count() as usize,
+        });
+    }
+    validate_hull(mesh, id)
+}
+
+fn validate_triangle_indices(
+    rec: &TriangleRecord,
+    t: u32,
+    vcount: u32,
+    tcount: u32,
+    id: u16,
+) -> Result<(), Error> {
+    for (k, &v) in rec.vertices.iter().enumerate() {
+        if v >= vcount {
+            return Err(Error::IndexOutOfRange {
+                field: "triangles.vertices",
+                axis: id,
+                index: t,
+                value: v,
+                limit: vcount,
+            });
+        }
+        if rec.vertices.iter().skip(k + 1).any(|&w| w == v) {
+            return Err(Error::BadMesh { check: "distinct vertices", axis: id, index: t });
+        }
+    }
+    for &n in &rec.neighbours {
+        if n != NO_NEIGHBOUR && (n >= tcount || n == t) {
+            return Err(Error::IndexOutOfRange {
+                field: "triangles.neighbours",
+                axis: id,
+                index: t,
+                value: n,
+                limit: tcount,
+            });
+        }
+    }
+    for (field, vals) in [
+        ("triangles.origin", &rec.origin[..]),
+        ("triangles.bary", &rec.bary[..]),
+        ("triangles.plane", &rec.plane[..]),
+    ] {
+        if vals.iter().any(|v| !v.is_finite()) {
+            return Err(Error::NonFinite { field, axis: id, index: t });
+        }
+    }
+    Ok(())
+}
+
+/// Counter-clockwise, and the stored transform and plane reproduce the vertices.
+fn validate_triangle_geometry(mesh: &Mesh<'_>, rec: &TriangleRecord, t: u32, id: u16) -> Result<(), Error> {
+    let mesh_err = |check: &'static str| Error::BadMesh { check, axis: id, index: t };
+    let [a, b, c] = rec.vertices.map(|v| mesh.vertex(v));
+    let (Some(a), Some(b), Some(c)) = (a, b, c) else { return Err(mesh_err("vertex")) };
+    let area2 = (b.x - a.x) * (c.y - a.y) - (b.y - a.y) * (c.x - a.x);
+    if !positive(area2) {
+        return Err(mesh_err("counter-clockwise"));
+    }
+    if rec.origin != [c.x, c.y] {
+        return Err(mesh_err("origin is vertex 2"));
+    }
+    // Loose enough for f32 rounding of any triangle the writer accepts (height at least
+    // 1e-4 of the longest edge); tight enough that a transform of another triangle fails.
+    const BARY_TOL: f32 = 1.0e-2;
+    let value_scale = a.value_dph.abs().max(b.value_dph.abs()).max(c.value_dph.abs());
+    for (k, v) in [a, b, c].iter().enumerate() {
+        let l = barycentric(rec, v.x, v.y);
+        if l.iter().enumerate().any(|(j, &lj)| (lj - if j == k { 1.0 } else { 0.0 }).abs() > BARY_TOL) {
+            return Err(mesh_err("barycentric transform"));
+        }
+        if (plane_value(rec, v.x, v.y) - v.value_dph).abs() > BARY_TOL * (1.0 + value_scale) {
+            return Err(mesh_err("value plane"));
+        }
+    }
+    Ok(())
+}
+
+/// Triangle `n` has `t` as a neighbour across the same edge, traversed the other way.
+fn neighbour_points_back(mesh: &Mesh<'_>, rec: &TriangleRecord, t: u32, k: u32, n: u32) -> bool {
+    let Some(other) = mesh.triangle(n) else { return false };
+    let Some((from, to)) = edge_vertices(rec, k) else { return false };
+    other
+        .neighbours
+        .iter()
+        .enumerate()
+        .any(|(j, &back)| back == t && edge_vertices(&other, j as u32) == Some((to, from)))
+}
+
+/// Hull entries are hull slots, chained end to start in a closed loop, turning left.
+fn validate_hull(mesh: &Mesh<'_>, id: u16) -> Result<(), Error> {
+    let hcount = mesh.hull_edge_count();
+    let mesh_err = |check: &'static str, index: u32| Error::BadMesh { check, axis: id, index };
+    let edge = |h: u32| -> Result<(u32, u32), Error> {
+        let (t, e) = mesh.hull_edge(h).ok_or(mesh_err("hull entry", h))?;
+        let rec = mesh.triangle(t).ok_or(Error::IndexOutOfRange {
+            field: "hull.triangle",
+            axis: id,
+            index: h,
+            value: t,
+            limit: mesh.triangle_count(),
+        })?;
+        if rec.neighbours.get(e as usize) != Some(&NO_NEIGHBOUR) {
+            return Err(mesh_err("hull entry is a hull edge", h));
+        }
+        edge_vertices(&rec, e).ok_or(mesh_err("hull edge index", h))
+    };
+    for h in 0..hcount {
+        let (a, b) = edge(h)?;
+        let (b2, c) = edge((h + 1) % hcount)?;
+        if b != b2 {
+            return Err(mesh_err("hull chained", h));
+        }
+        let (Some(va), Some(vb), Some(vc)) = (mesh.vertex(a), mesh.vertex(b), mesh.vertex(c)) else {
+            return Err(mesh_err("hull vertex", h));
+        };
+        let turn = (vb.x - va.x) * (vc.y - vb.y) - (vb.y - va.y) * (vc.x - vb.x);
+        // Collinear hull points are allowed; f32 rounding may tilt them slightly.
+        let scale = ((vb.x - va.x).abs() + (vb.y - va.y).abs()) * ((vc.x - vb.x).abs() + (vc.y - vb.y).abs());
+        if turn < -1.0e-5 * scale {
+            return Err(mesh_err("hull convex", h));
+        }
+    }
+    Ok(())
+}

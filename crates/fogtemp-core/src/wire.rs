@@ -1,0 +1,172 @@
+//! Byte layout of the model blob, format version 1 (spec: `docs/model-format.md`).
+//!
+//! Every offset is a named constant so the reader here and the writer in `fogtemp-cal`
+//! cannot drift apart. All integers and floats are little-endian; nothing is aligned,
+//! every field is read with `from_le_bytes`, so a blob can sit at any address in flash.
+//!
+//! ```text
+//! +--------------------+  offset 0
+//! | file header (64 B) |  magic "FOGM", version, header_len, total_len, axis_count,
+//! |                    |  reserved, tool_version[16], input_digest[32]
+//! +--------------------+  64
+//! | axis section 0     |  axis header (96 B) then payload:
+//! |                    |    poly terms   P x  8 B
+//! |                    |    vertices     V x 12 B
+//! |                    |    triangles    T x 60 B
+//! |                    |    hull edges   H x  8 B
+//! +--------------------+
+//! | axis section 1 ... |
+//! +--------------------+  total_len - 4
+//! | CRC-32 (4 B)       |  over bytes [0, total_len - 4)
+//! +--------------------+  total_len
+//! ```
+
+use core::ops::Range;
+
+/// The four bytes every blob starts with.
+pub const MAGIC: [u8; 4] = *b"FOGM";
+/// The format version this build reads and writes.
+pub const FORMAT_VERSION: u16 = 1;
+
+/// File header length in bytes.
+pub const FILE_HEADER_LEN: usize = 64;
+/// `magic`: `b"FOGM"`.
+pub const FILE_MAGIC: Range<usize> = 0..4;
+/// `format_version`: u16.
+pub const FILE_VERSION: Range<usize> = 4..6;
+/// `header_len`: u16, must be [`FILE_HEADER_LEN`].
+pub const FILE_HEADER_LEN_FIELD: Range<usize> = 6..8;
+/// `total_len`: u32, whole blob including the CRC trailer.
+pub const FILE_TOTAL_LEN: Range<usize> = 8..12;
+/// `axis_count`: u16, 1..=[`MAX_AXES`].
+pub const FILE_AXIS_COUNT: Range<usize> = 12..14;
+/// `reserved`: u16, must be 0.
+pub const FILE_RESERVED: Range<usize> = 14..16;
+/// `tool_version`: 16 bytes of ASCII, NUL-padded.
+pub const FILE_TOOL_VERSION: Range<usize> = 16..32;
+/// `input_digest`: 32 bytes (SHA-256 of the calibration inputs, or zeros).
+pub const FILE_INPUT_DIGEST: Range<usize> = 32..64;
+/// Length of the CRC-32 trailer.
+pub const CRC_LEN: usize = 4;
+
+/// Axis section header length in bytes.
+pub const AXIS_HEADER_LEN: usize = 96;
+/// `section_len`: u32, header plus payload.
+pub const AXIS_SECTION_LEN: Range<usize> = 0..4;
+/// `axis_id`: u16, equal to the section's position.
+pub const AXIS_ID: Range<usize> = 4..6;
+/// `model_kind`: u16 bit set of [`KIND_POLY`] and [`KIND_MESH`], not zero.
+pub const AXIS_MODEL_KIND: Range<usize> = 6..8;
+/// `window_s`: f32, feature window length in seconds.
+pub const AXIS_WINDOW_S: Range<usize> = 8..12;
+/// `block_count`: u32, sub-blocks per window.
+pub const AXIS_BLOCK_COUNT: Range<usize> = 12..16;
+/// `min_blocks`: u32, blocks with data needed before features are reported.
+pub const AXIS_MIN_BLOCKS: Range<usize> = 16..20;
+/// `max_gap_s`: f32, a longer silence of the temperature channel restarts the tracker.
+pub const AXIS_MAX_GAP_S: Range<usize> = 20..24;
+/// `temp_offset_c`: f32; `x = (temp_c - temp_offset_c) * temp_scale_per_c`.
+pub const AXIS_TEMP_OFFSET_C: Range<usize> = 24..28;
+/// `temp_scale_per_c`: f32, > 0.
+pub const AXIS_TEMP_SCALE_PER_C: Range<usize> = 28..32;
+/// `rate_offset_c_per_min`: f32; `y = (rate - rate_offset) * rate_scale`.
+pub const AXIS_RATE_OFFSET_C_PER_MIN: Range<usize> = 32..36;
+/// `rate_scale_per_c_per_min`: f32, > 0.
+pub const AXIS_RATE_SCALE_PER_C_PER_MIN: Range<usize> = 36..40;
+/// `outside_policy`: u32, see [`crate::OutsidePolicy`].
+pub const AXIS_OUTSIDE_POLICY: Range<usize> = 40..44;
+/// `poly_term_count`: u32.
+pub const AXIS_POLY_TERM_COUNT: Range<usize> = 44..48;
+/// `vertex_count`: u32.
+pub const AXIS_VERTEX_COUNT: Range<usize> = 48..52;
+/// `triangle_count`: u32.
+pub const AXIS_TRIANGLE_COUNT: Range<usize> = 52..56;
+/// `hull_edge_count`: u32.
+pub const AXIS_HULL_EDGE_COUNT: Range<usize> = 56..60;
+/// `fit_point_count`: u32, calibration points the fit used (provenance).
+pub const AXIS_FIT_POINT_COUNT: Range<usize> = 60..64;
+/// `residual_rms_dph`: f32, fit residual RMS (provenance).
+pub const AXIS_RESIDUAL_RMS_DPH: Range<usize> = 64..68;
+/// `residual_max_abs_dph`: f32, largest absolute fit residual (provenance).
+pub const AXIS_RESIDUAL_MAX_ABS_DPH: Range<usize> = 68..72;
+/// `temp_min_c`: f32, calibrated temperature range (provenance).
+pub const AXIS_TEMP_MIN_C: Range<usize> = 72..76;
+/// `temp_max_c`: f32.
+pub const AXIS_TEMP_MAX_C: Range<usize> = 76..80;
+/// `rate_min_c_per_min`: f32, calibrated rate range (provenance).
+pub const AXIS_RATE_MIN_C_PER_MIN: Range<usize> = 80..84;
+/// `rate_max_c_per_min`: f32.
+pub const AXIS_RATE_MAX_C_PER_MIN: Range<usize> = 84..88;
+/// `reserved`: 8 bytes, must be 0.
+pub const AXIS_RESERVED: Range<usize> = 88..96;
+
+/// `model_kind` bit: the axis has a polynomial.
+pub const KIND_POLY: u16 = 1;
+/// `model_kind` bit: the axis has a mesh.
+pub const KIND_MESH: u16 = 2;
+
+/// Bytes per polynomial term: `temp_power` u8, `rate_power` u8, reserved u16, `coefficient_dph` f32.
+pub const POLY_TERM_LEN: usize = 8;
+/// Bytes per vertex: `x` f32, `y` f32 (normalised), `value_dph` f32.
+pub const VERTEX_LEN: usize = 12;
+/// Bytes per triangle record.
+pub const TRIANGLE_LEN: usize = 60;
+/// Triangle: origin `[ox, oy]` f32, the position of vertex 2. Transforms are relative to
+/// it (`dx = x - ox`, `dy = y - oy`) so small triangles keep full f32 precision.
+pub const TRI_ORIGIN: Range<usize> = 0..8;
+/// Triangle: barycentric transform `[b0, b1, b2, b3]` f32: `l0 = b0 dx + b1 dy`,
+/// `l1 = b2 dx + b3 dy`, `l2 = 1 - l0 - l1`.
+pub const TRI_BARY: Range<usize> = 8..24;
+/// Triangle: value plane `[p0, p1, p2]` f32: `value = p0 dx + p1 dy + p2` (`p2` is vertex 2's value).
+pub const TRI_PLANE: Range<usize> = 24..36;
+/// Triangle: neighbours u32 x3, neighbour k lies across the edge opposite vertex k.
+pub const TRI_NEIGHBOURS: Range<usize> = 36..48;
+/// Triangle: vertex indices u32 x3, counter-clockwise.
+pub const TRI_VERTICES: Range<usize> = 48..60;
+/// Bytes per hull edge: `triangle` u32, `edge` u32 (the edge opposite vertex `edge`).
+pub const HULL_EDGE_LEN: usize = 8;
+
+/// Neighbour value meaning "this edge is on the convex hull".
+pub const NO_NEIGHBOUR: u32 = u32::MAX;
+/// Most axis sections in one blob.
+pub const MAX_AXES: u16 = 16;
+/// Highest power of either input in a polynomial term.
+pub const MAX_POWER: u8 = 6;
+/// Most polynomial terms per axis.
+pub const MAX_POLY_TERMS: u32 = 64;
+/// Most sub-blocks per feature window.
+pub const MAX_BLOCKS: u32 = 4096;
+/// Most triangles per axis (keeps every index and byte offset far from overflow).
+pub const MAX_TRIANGLES: u32 = 1 << 22;
+
+/// Byte length of an axis section with the given counts, or `None` on overflow.
+pub fn axis_section_len(poly_terms: u32, vertices: u32, triangles: u32, hull_edges: u32) -> Option<usize> {
+    let parts = [
+        (poly_terms as usize).checked_mul(POLY_TERM_LEN)?,
+        (vertices as usize).checked_mul(VERTEX_LEN)?,
+        (triangles as usize).checked_mul(TRIANGLE_LEN)?,
+        (hull_edges as usize).checked_mul(HULL_EDGE_LEN)?,
+    ];
+    parts.iter().try_fold(AXIS_HEADER_LEN, |acc, &p| acc.checked_add(p))
+}
+
+/// Reads `N` bytes at `range` of `bytes`, if present.
+pub(crate) fn array<const N: usize>(bytes: &[u8], start: usize) -> Option<[u8; N]> {
+    let end = start.checked_add(N)?;
+    bytes.get(start..end)?.first_chunk::<N>().copied()
+}
+
+/// Little-endian u16 at `start`.
+pub(crate) fn u16_at(bytes: &[u8], start: usize) -> Option<u16> {
+    array::<2>(bytes, start).map(u16::from_le_bytes)
+}
+
+/// Little-endian u32 at `start`.
+pub(crate) fn u32_at(bytes: &[u8], start: usize) -> Option<u32> {
+    array::<4>(bytes, start).map(u32::from_le_bytes)
+}
+
+/// Little-endian f32 at `start`.
+pub(crate) fn f32_at(bytes: &[u8], start: usize) -> Option<f32> {
+    array::<4>(bytes, start).map(f32::from_le_bytes)
+}

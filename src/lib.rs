@@ -1,0 +1,1 @@
+//! fogtemp workspace root.

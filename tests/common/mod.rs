@@ -1,0 +1,98 @@
+//! Shared fixtures for the end-to-end tests: point sets and models built with the real writer.
+#![allow(dead_code, missing_docs)]
+
+use fogtemp_cal::{build_mesh, encode, AxisModel, MeshPoint, ModelFile};
+use fogtemp_core::{AxisProvenance, FeatureSettings, Normalisation, OutsidePolicy, PolyTerm};
+use rand::{Rng, SeedableRng};
+use rand_xoshiro::Xoshiro256PlusPlus;
+
+/// Paper defaults: 100 s window of 100 one-second blocks.
+pub const FEATURES: FeatureSettings = FeatureSettings { window_s: 100.0, block_count: 100, min_blocks: 10, max_gap_s: 5.0 };
+
+/// Maps -40..80 C to -1..1 and 0..1 C/min to -1..1.
+pub const NORMALISATION: Normalisation = Normalisation {
+    temp_offset_c: 20.0,
+    temp_scale_per_c: 1.0 / 60.0,
+    rate_offset_c_per_min: 0.5,
+    rate_scale_per_c_per_min: 2.0,
+};
+
+pub fn rng(seed: u64) -> Xoshiro256PlusPlus {
+    Xoshiro256PlusPlus::seed_from_u64(seed)
+}
+
+/// A smooth, non-planar bias surface in deg/h.
+pub fn bias_surface(temp_c: f64, rate_c_per_min: f64) -> f64 {
+    0.002 * temp_c + 1.5e-5 * temp_c * temp_c + 0.06 * rate_c_per_min + 0.01 * (temp_c / 15.0).sin() * rate_c_per_min
+}
+
+/// Uniform random points over the calibrated box.
+pub fn random_points(n: usize, seed: u64, value: impl Fn(f64, f64) -> f64) -> Vec<MeshPoint> {
+    let mut r = rng(seed);
+    (0..n)
+        .map(|_| {
+            let temp_c = r.gen_range(-40.0..80.0);
+            let rate_c_per_min = r.gen_range(0.0..1.0);
+            MeshPoint { temp_c, rate_c_per_min, value_dph: value(temp_c, rate_c_per_min) }
+        })
+        .collect()
+}
+
+/// Paper-like points: 8 power-on warm-ups (start -40..60 C), each a first-order rise of
+/// `self_heat_c` with time constant `tau_min`, sampled densely early and sparsely later.
+pub fn paper_points(per_run: usize, value: impl Fn(f64, f64) -> f64) -> Vec<MeshPoint> {
+    let starts = [-40.0, -25.0, -10.0, 5.0, 20.0, 35.0, 45.0, 60.0];
+    let (self_heat_c, tau_min, duration_min) = (12.0, 20.0, 120.0);
+    let mut out = Vec::new();
+    for (run, start) in starts.iter().enumerate() {
+        for i in 0..per_run {
+            // Quadratic spacing: dense during the fast warm-up.
+            let s = (i as f64 + 0.5) / per_run as f64;
+            let t_min = duration_min * s * s;
+            let temp_c = start + self_heat_c * (1.0 - (-t_min / tau_min).exp()) + 0.01 * run as f64;
+            let rate = self_heat_c / tau_min * (-t_min / tau_min).exp();
+            out.push(MeshPoint { temp_c, rate_c_per_min: rate, value_dph: value(temp_c, rate) });
+        }
+    }
+    out
+}
+
+pub fn provenance() -> AxisProvenance {
+    AxisProvenance {
+        fit_point_count: 0,
+        residual_rms_dph: 0.0,
+        residual_max_abs_dph: 0.0,
+        temp_min_c: -40.0,
+        temp_max_c: 80.0,
+        rate_min_c_per_min: 0.0,
+        rate_max_c_per_min: 1.0,
+    }
+}
+
+/// A one-axis mesh model blob of `points`.
+pub fn mesh_blob(points: &[MeshPoint], policy: OutsidePolicy) -> Vec<u8> {
+    let mesh = build_mesh(points, &NORMALISATION).expect("mesh builds");
+    let axis = AxisModel {
+        features: FEATURES,
+        normalisation: NORMALISATION,
+        outside_policy: policy,
+        poly: Vec::new(),
+        mesh: Some(mesh),
+        provenance: provenance(),
+    };
+    encode(&ModelFile { tool_version: "fogtemp test".into(), input_digest: [7; 32], axes: vec![axis] }).expect("encodes")
+}
+
+/// A one-axis model with the given polynomial terms and optional mesh points.
+pub fn model_blob(poly: Vec<PolyTerm>, points: Option<&[MeshPoint]>, policy: OutsidePolicy) -> Vec<u8> {
+    let mesh = points.map(|p| build_mesh(p, &NORMALISATION).expect("mesh builds"));
+    let axis = AxisModel {
+        features: FEATURES,
+        normalisation: NORMALISATION,
+        outside_policy: policy,
+        poly,
+        mesh,
+        provenance: provenance(),
+    };
+    encode(&ModelFile { tool_version: "fogtemp test".into(), input_digest: [7; 32], axes: vec![axis] }).expect("encodes")
+}
