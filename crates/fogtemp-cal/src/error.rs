@@ -22,6 +22,9 @@ pub enum CalError {
         /// Which item.
         index: usize,
     },
+    /// A least-squares fit failed (too few points, rank deficient).
+    #[error("fit failed: {0}")]
+    Fit(String),
     /// A model does not fit the blob format's limits.
     #[error("model cannot be encoded: {0}")]
     Encode(String),
@@ -29,15 +32,43 @@ pub enum CalError {
     #[error("encoded model failed validation: {0}")]
     SelfCheck(fogtemp_core::Error),
     /// A model blob could not be read.
-    #[error("{path}: {source}")]
+    #[error("{}: {source}", path.display())]
     Model {
         /// File.
         path: PathBuf,
         /// What the core said.
         source: fogtemp_core::Error,
     },
+    /// A named column is not in the file's header.
+    #[error("{}: no column named '{column}' (the header has: {available})", path.display())]
+    MissingColumn {
+        /// File.
+        path: PathBuf,
+        /// The missing column.
+        column: String,
+        /// Columns the header does have.
+        available: String,
+    },
+    /// A row was rejected.
+    #[error("{}:{}:{}: column '{}': {} (found '{}'); use --skip-bad-rows to skip such rows", path.display(), row.line, row.column, row.column_name, row.kind.describe(), row.found)]
+    BadRow {
+        /// File.
+        path: PathBuf,
+        /// Where and why.
+        row: Box<crate::ingest::BadRow>,
+    },
+    /// The CSV reader failed (invalid UTF-8 in the header, I/O error mid-file).
+    #[error("{}:{line}: {message}", path.display())]
+    Csv {
+        /// File.
+        path: PathBuf,
+        /// 1-based line, 0 if unknown.
+        line: u64,
+        /// The reader's message.
+        message: String,
+    },
     /// I/O on a named file.
-    #[error("{path}: {source}")]
+    #[error("{}: {source}", path.display())]
     Io {
         /// File.
         path: PathBuf,

@@ -6,7 +6,11 @@
 
 pub mod blob;
 pub mod error;
+pub mod features;
+pub mod ingest;
 pub mod mesh;
+pub mod poly_fit;
+pub mod thin;
 
 pub use blob::{encode, AxisModel, ModelFile};
 pub use error::CalError;
