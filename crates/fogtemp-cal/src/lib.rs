@@ -5,10 +5,12 @@
 //! ingests lab logs, fits polynomial and mesh models and computes metrics.
 
 pub mod blob;
+pub mod calibrate;
 pub mod error;
 pub mod features;
 pub mod ingest;
 pub mod mesh;
+pub mod metrics;
 pub mod poly_fit;
 pub mod thin;
 

@@ -154,7 +154,7 @@ impl<'a, const N: usize> Compensator<'a, N> {
                     flags |= Flags::OUTSIDE_HULL;
                 }
             }
-            // Features are finite by construction; should that ever fail, hold the bias.
+            // Reported features are finite; should evaluation still fail, hold the bias.
             Err(_) => flags |= Flags::WARMING_UP,
         }
         self.state_flags = flags;

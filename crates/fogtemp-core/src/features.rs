@@ -6,7 +6,10 @@
 //! `window_s / block_count` seconds. When a block closes, the features are the
 //! least-squares line through the block means of the last window: the rate is its
 //! slope, the temperature its value at the end of the newest block (the current time,
-//! so the feature is causal and unbiased for a linear trend). Averaging before the
+//! so the feature is causal and, for a linear trend, exact up to half a temperature sample
+//! period: a block mean stands for its samples' mean time, half a period before the block
+//! centre when sampling is uniform. Calibration and firmware share this code, so the lag
+//! cancels when both sample the temperature at the same rate). Averaging before the
 //! slope makes the rate robust to sensor quantisation, unlike a two-point difference.
 //!
 //! Gaps: when no temperature arrives for longer than `max_gap_s`, the tracker restarts,
@@ -103,7 +106,8 @@ impl<const N: usize> FeatureTracker<N> {
         })
     }
 
-    /// The latest features, or `None` while fewer than `min_blocks` blocks hold data.
+    /// The latest features, or `None` while fewer than `min_blocks` blocks hold data (or
+    /// while the window's values overflow f32: reported features are always finite).
     pub fn features(&self) -> Option<Features> {
         self.features
     }
@@ -235,10 +239,17 @@ impl<const N: usize> FeatureTracker<N> {
         let slope_c_per_block = sxy / sxx;
         let end_x = self.block_count as f32 - 0.5;
         let block_min = self.block_us as f32 / 60.0e6;
+        let temp_c = y_ref + mean_dy + slope_c_per_block * (end_x - mean_x);
+        let rate_c_per_min = slope_c_per_block / block_min;
+        // Finite inputs near f32::MAX overflow the sums or the fit: report no features
+        // rather than NaN or infinity.
+        if !(temp_c.is_finite() && rate_c_per_min.is_finite()) {
+            return None;
+        }
         Some(Features {
             time_us: self.block_end_us.saturating_sub(self.block_us),
-            temp_c: y_ref + mean_dy + slope_c_per_block * (end_x - mean_x),
-            rate_c_per_min: slope_c_per_block / block_min,
+            temp_c,
+            rate_c_per_min,
             blocks_used: count,
             window_full: self.closed >= self.block_count,
         })

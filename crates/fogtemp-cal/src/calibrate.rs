@@ -1,0 +1,438 @@
+//! The calibration pipeline: logs -> features (core tracker) -> smoothed targets ->
+//! thinning -> polynomial / mesh / hybrid fit -> model blob; and validation by replaying
+//! raw samples through the firmware's own `Compensator`.
+
+use std::path::{Path, PathBuf};
+
+use fogtemp_core::{AxisProvenance, Compensator, FeatureSettings, Model, Normalisation, OutsidePolicy};
+
+use crate::blob::{encode, AxisModel, ModelFile};
+use crate::error::CalError;
+use crate::features::{smoothed_gyro_dph, AxisFeatureStream, FeaturePoint, CAL_CAPACITY};
+use crate::ingest::{read_log, IngestOptions, IngestReport};
+use crate::mesh::{build_mesh, MeshPoint};
+use crate::metrics::{bias_stability, rms_over_runs, BiasStabilityOptions};
+use crate::poly_fit::{fit_poly, PolyFit, TermSelection};
+use crate::thin::{thin_greedy, thin_paper, GreedyThinning};
+
+/// Which model to fit.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Method {
+    /// Polynomial in (T, dT/dt).
+    Poly,
+    /// Delaunay mesh with linear interpolation (nearest hull value outside).
+    Mesh,
+    /// Polynomial plus a mesh of its residuals (polynomial alone outside the hull).
+    Hybrid,
+}
+
+/// How mesh nodes are chosen from the calibration points.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Thinning {
+    /// The paper: every point with |rate| >= `fast_rate_c_per_min`, every `settled_every`-th otherwise.
+    Paper {
+        /// Rate above which every point is kept, deg C/min.
+        fast_rate_c_per_min: f64,
+        /// Keep one in this many settled points.
+        settled_every: usize,
+    },
+    /// Greedy insertion of the worst-interpolated point (default).
+    Greedy(GreedyThinning),
+}
+
+/// Everything `fit` needs besides the logs.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CalibrationConfig {
+    /// Columns and units of the logs.
+    pub ingest: IngestOptions,
+    /// Feature tracker settings (written into the blob).
+    pub features: FeatureSettings,
+    /// Centred smoothing window of the gyro target, seconds (the paper: 100 s).
+    pub target_window_s: f64,
+    /// Model kind.
+    pub method: Method,
+    /// Mesh node selection.
+    pub thinning: Thinning,
+    /// Polynomial terms.
+    pub poly: TermSelection,
+    /// Leave out points whose feature window was not yet full.
+    pub full_windows_only: bool,
+}
+
+impl Default for CalibrationConfig {
+    fn default() -> Self {
+        Self {
+            ingest: IngestOptions::default(),
+            features: default_features(),
+            target_window_s: 100.0,
+            method: Method::Hybrid,
+            thinning: Thinning::Greedy(GreedyThinning::default()),
+            poly: TermSelection::default_stepwise(),
+            full_windows_only: false,
+        }
+    }
+}
+
+/// The paper's 100 s window, as 100 one-second blocks, features after 10 s, restart
+/// after 5 s without temperature.
+pub fn default_features() -> FeatureSettings {
+    FeatureSettings { window_s: 100.0, block_count: 100, min_blocks: 10, max_gap_s: 5.0 }
+}
+
+/// Features of one run, per axis.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RunFeatures {
+    /// The log.
+    pub path: PathBuf,
+    /// What ingest saw.
+    pub ingest: IngestReport,
+    /// Per axis: the feature points and their smoothed gyro targets (deg/h).
+    pub axes: Vec<(Vec<FeaturePoint>, Vec<f64>)>,
+}
+
+/// Reads one log and computes per-axis features and targets. `progress(bytes)` as in `read_log`.
+///
+/// # Errors
+/// Ingest errors (with file, line, column), or bad feature settings.
+pub fn extract_run(
+    path: &Path,
+    config: &CalibrationConfig,
+    progress: impl FnMut(u64),
+) -> Result<RunFeatures, CalError> {
+    let axes = config.ingest.format.gyro_columns.len();
+    let temp_columns = config.ingest.format.temp_columns.len();
+    let mut streams =
+        (0..axes).map(|_| AxisFeatureStream::new(&config.features)).collect::<Result<Vec<_>, _>>()?;
+    let ingest = read_log(
+        path,
+        &config.ingest,
+        |row| {
+            for (axis, stream) in streams.iter_mut().enumerate() {
+                let temp =
+                    row.temps_c.get(axis.min(temp_columns.saturating_sub(1))).copied().unwrap_or(f64::NAN);
+                stream.push(row.time_s, row.gyros_dph[axis], temp);
+            }
+            Ok(())
+        },
+        progress,
+    )?;
+    let axes = streams
+        .into_iter()
+        .map(|s| {
+            let points = s.finish();
+            let targets = smoothed_gyro_dph(&points, config.target_window_s);
+            (points, targets)
+        })
+        .collect();
+    Ok(RunFeatures { path: path.to_path_buf(), ingest, axes })
+}
+
+/// Calibration points of one axis over all runs, with the run index of each.
+pub fn calibration_points(
+    runs: &[RunFeatures],
+    axis: usize,
+    full_windows_only: bool,
+) -> (Vec<MeshPoint>, Vec<usize>) {
+    let mut points = Vec::new();
+    let mut run_of = Vec::new();
+    for (r, run) in runs.iter().enumerate() {
+        let Some((features, targets)) = run.axes.get(axis) else { continue };
+        for (f, &target) in features.iter().zip(targets) {
+            if target.is_finite() && (f.window_full || !full_windows_only) {
+                points.push(MeshPoint {
+                    temp_c: f.temp_c,
+                    rate_c_per_min: f.rate_c_per_min,
+                    value_dph: target,
+                });
+                run_of.push(r);
+            }
+        }
+    }
+    (points, run_of)
+}
+
+/// Normalisation mapping the points' bounding box to [-1, 1] on both axes.
+///
+/// # Errors
+/// [`CalError::DegenerateMesh`] if there are no points.
+pub fn choose_normalisation(points: &[MeshPoint]) -> Result<Normalisation, CalError> {
+    if points.is_empty() {
+        return Err(CalError::DegenerateMesh { reason: "no calibration points", points: 0 });
+    }
+    let span = |f: &dyn Fn(&MeshPoint) -> f64| {
+        let (lo, hi) =
+            points.iter().map(f).fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(v), b.max(v)));
+        ((lo + hi) / 2.0, ((hi - lo) / 2.0).max(1e-6))
+    };
+    let (t_mid, t_half) = span(&|p| p.temp_c);
+    let (r_mid, r_half) = span(&|p| p.rate_c_per_min);
+    Ok(Normalisation {
+        temp_offset_c: t_mid as f32,
+        temp_scale_per_c: (1.0 / t_half) as f32,
+        rate_offset_c_per_min: r_mid as f32,
+        rate_scale_per_c_per_min: (1.0 / r_half) as f32,
+    })
+}
+
+/// What `fit` did for one axis.
+#[derive(Clone, Debug, PartialEq)]
+pub struct AxisFitReport {
+    /// Calibration points offered.
+    pub points: usize,
+    /// Polynomial fit, when the method has one.
+    pub poly: Option<PolyFit>,
+    /// Mesh nodes (after thinning, merging and flat-triangle removal).
+    pub mesh_nodes: usize,
+    /// Mesh triangles.
+    pub mesh_triangles: usize,
+    /// Points merged as duplicates.
+    pub merged_duplicates: usize,
+    /// Points dropped for flat hull triangles.
+    pub dropped_flat: usize,
+    /// RMS of model minus target at all calibration points, deg/h.
+    pub residual_rms_dph: f64,
+    /// Largest |model - target|, deg/h.
+    pub residual_max_abs_dph: f64,
+}
+
+/// Fits one axis to its calibration points.
+///
+/// # Errors
+/// Fit or mesh errors ([`CalError::Fit`], [`CalError::DegenerateMesh`]).
+pub fn fit_axis(
+    points: &[MeshPoint],
+    runs: &[usize],
+    config: &CalibrationConfig,
+) -> Result<(AxisModel, AxisFitReport), CalError> {
+    let normalisation = choose_normalisation(points)?;
+    // One independent target per smoothing window (points are one per block).
+    let block_s = f64::from(config.features.window_s) / f64::from(config.features.block_count);
+    let n_eff = points.len() as f64 * (block_s / config.target_window_s).min(1.0);
+    let poly = match config.method {
+        Method::Poly | Method::Hybrid => Some(fit_poly(points, &normalisation, config.poly, n_eff)?),
+        Method::Mesh => None,
+    };
+    let residual_points: Vec<MeshPoint> = points
+        .iter()
+        .map(|p| MeshPoint {
+            value_dph: p.value_dph
+                - poly.as_ref().map_or(0.0, |f| f.evaluate(&normalisation, p.temp_c, p.rate_c_per_min)),
+            ..*p
+        })
+        .collect();
+    let mesh = match config.method {
+        Method::Poly => None,
+        Method::Mesh | Method::Hybrid => {
+            let keep = match config.thinning {
+                Thinning::Paper { fast_rate_c_per_min, settled_every } => {
+                    thin_paper(&residual_points, runs, fast_rate_c_per_min, settled_every)
+                }
+                Thinning::Greedy(g) => thin_greedy(&residual_points, &normalisation, &g)?.keep,
+            };
+            let nodes: Vec<MeshPoint> = keep.iter().map(|&i| residual_points[i]).collect();
+            Some(build_mesh(&nodes, &normalisation)?)
+        }
+    };
+    let outside_policy =
+        if config.method == Method::Hybrid { OutsidePolicy::Zero } else { OutsidePolicy::NearestHull };
+    let range = |f: &dyn Fn(&MeshPoint) -> f64| {
+        points.iter().map(f).fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(v), b.max(v)))
+    };
+    let (temp_min, temp_max) = range(&|p| p.temp_c);
+    let (rate_min, rate_max) = range(&|p| p.rate_c_per_min);
+    let mut axis = AxisModel {
+        features: config.features,
+        normalisation,
+        outside_policy,
+        poly: poly.as_ref().map(|p| p.blob_terms()).unwrap_or_default(),
+        mesh: mesh.clone(),
+        provenance: AxisProvenance {
+            fit_point_count: points.len() as u32,
+            residual_rms_dph: 0.0,
+            residual_max_abs_dph: 0.0,
+            temp_min_c: temp_min as f32,
+            temp_max_c: temp_max as f32,
+            rate_min_c_per_min: rate_min as f32,
+            rate_max_c_per_min: rate_max as f32,
+        },
+    };
+    // Residuals of the model as the firmware evaluates it (f32, through the core).
+    let probe =
+        encode(&ModelFile { tool_version: String::new(), input_digest: [0; 32], axes: vec![axis.clone()] })?;
+    let model = Model::from_bytes(&probe).map_err(CalError::SelfCheck)?;
+    let core_axis = model.axis(0).map_err(CalError::SelfCheck)?;
+    let mut hint = fogtemp_core::WalkHint::default();
+    let residuals: Vec<f64> = points
+        .iter()
+        .map(|p| {
+            let v = core_axis
+                .evaluate(p.temp_c as f32, p.rate_c_per_min as f32, &mut hint)
+                .map_or(f64::NAN, |e| f64::from(e.value_dph));
+            v - p.value_dph
+        })
+        .collect();
+    let residual_rms_dph =
+        (residuals.iter().map(|r| r * r).sum::<f64>() / residuals.len().max(1) as f64).sqrt();
+    let residual_max_abs_dph = residuals.iter().fold(0.0f64, |m, r| m.max(r.abs()));
+    axis.provenance.residual_rms_dph = residual_rms_dph as f32;
+    axis.provenance.residual_max_abs_dph = residual_max_abs_dph as f32;
+    let report = AxisFitReport {
+        points: points.len(),
+        mesh_nodes: mesh.as_ref().map_or(0, |m| m.vertices.len()),
+        mesh_triangles: mesh.as_ref().map_or(0, |m| m.triangles.len()),
+        merged_duplicates: mesh.as_ref().map_or(0, |m| m.merged_duplicates),
+        dropped_flat: mesh.as_ref().map_or(0, |m| m.dropped_flat.len()),
+        poly,
+        residual_rms_dph,
+        residual_max_abs_dph,
+    };
+    Ok((axis, report))
+}
+
+/// Fits every axis over all runs and encodes the blob.
+///
+/// # Errors
+/// As [`fit_axis`] and [`encode`].
+pub fn fit_model(
+    runs: &[RunFeatures],
+    config: &CalibrationConfig,
+    input_digest: [u8; 32],
+) -> Result<(Vec<u8>, Vec<AxisFitReport>), CalError> {
+    let mut axes = Vec::new();
+    let mut reports = Vec::new();
+    for axis in 0..config.ingest.format.gyro_columns.len() {
+        let (points, run_of) = calibration_points(runs, axis, config.full_windows_only);
+        let (model, report) = fit_axis(&points, &run_of, config)?;
+        axes.push(model);
+        reports.push(report);
+    }
+    let blob = encode(&ModelFile { tool_version: crate::blob::tool_version(), input_digest, axes })?;
+    Ok((blob, reports))
+}
+
+/// Raw and compensated series of one run and axis, as block means (1 s by default).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ReplaySeries {
+    /// Block centre times, seconds since the run start.
+    pub time_s: Vec<f64>,
+    /// Mean raw gyro per block, deg/h.
+    pub raw_dph: Vec<f64>,
+    /// Mean compensated gyro per block, deg/h.
+    pub compensated_dph: Vec<f64>,
+    /// Mean subtracted bias per block, deg/h.
+    pub bias_dph: Vec<f64>,
+    /// Samples with each flag bit set (index = bit number).
+    pub flag_counts: [u64; 8],
+    /// Samples replayed.
+    pub samples: u64,
+}
+
+/// Replays a log through the core `Compensator` of `axis`, exactly as firmware would, and
+/// keeps `block_s` block means of raw, compensated and bias (constant memory per sample).
+/// `visit` sees every sample `(time_s, raw_dph, output)`.
+///
+/// # Errors
+/// Ingest errors; [`CalError::Model`] if the axis cannot be compensated.
+pub fn replay(
+    path: &Path,
+    model: &Model<'_>,
+    axis: usize,
+    ingest: &IngestOptions,
+    block_s: f64,
+    mut visit: impl FnMut(f64, f64, &fogtemp_core::Output),
+    progress: impl FnMut(u64),
+) -> Result<(ReplaySeries, IngestReport), CalError> {
+    let mut comp: Compensator<'_, CAL_CAPACITY> = Compensator::new(model, axis)
+        .map_err(|source| CalError::Model { path: path.to_path_buf(), source })?;
+    let temp_columns = ingest.format.temp_columns.len();
+    let mut series = ReplaySeries::default();
+    let mut acc = (0u64, 0.0f64, 0.0f64, 0.0f64, 0i64);
+    let flush = |series: &mut ReplaySeries, acc: &mut (u64, f64, f64, f64, i64)| {
+        if acc.0 > 0 {
+            let n = acc.0 as f64;
+            series.time_s.push((acc.4 as f64 + 0.5) * block_s);
+            series.raw_dph.push(acc.1 / n);
+            series.compensated_dph.push(acc.2 / n);
+            series.bias_dph.push(acc.3 / n);
+        }
+        *acc = (0, 0.0, 0.0, 0.0, acc.4);
+    };
+    let report = read_log(
+        path,
+        ingest,
+        |row| {
+            let temp = row.temps_c.get(axis.min(temp_columns.saturating_sub(1))).copied().unwrap_or(f64::NAN);
+            let raw = row.gyros_dph[axis];
+            let time_us = (row.time_s * 1.0e6).round().max(0.0) as u64;
+            let out = comp.step(time_us, raw as f32, temp.is_finite().then_some(temp as f32));
+            visit(row.time_s, raw, &out);
+            let block = (row.time_s / block_s).floor() as i64;
+            if block != acc.4 {
+                flush(&mut series, &mut acc);
+                acc.4 = block;
+            }
+            acc.0 += 1;
+            acc.1 += raw;
+            acc.2 += f64::from(out.rate_dph);
+            acc.3 += f64::from(out.bias_dph);
+            series.samples += 1;
+            for (bit, count) in series.flag_counts.iter_mut().enumerate() {
+                if out.flags.0 & (1 << bit) != 0 {
+                    *count += 1;
+                }
+            }
+            Ok(())
+        },
+        progress,
+    )?;
+    flush(&mut series, &mut acc);
+    Ok((series, report))
+}
+
+/// Raw vs compensated bias stability of one run.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RunValidation {
+    /// The log.
+    pub path: PathBuf,
+    /// Axis.
+    pub axis: usize,
+    /// Raw bias stability, deg/h.
+    pub raw_bias_stability_dph: f64,
+    /// Compensated bias stability, deg/h.
+    pub compensated_bias_stability_dph: f64,
+    /// The replayed series.
+    pub series: ReplaySeries,
+}
+
+/// Replays every run and axis and computes bias stability raw vs compensated.
+///
+/// # Errors
+/// As [`replay`].
+pub fn validate_runs(
+    paths: &[PathBuf],
+    model: &Model<'_>,
+    ingest: &IngestOptions,
+    options: &BiasStabilityOptions,
+    mut progress: impl FnMut(usize, u64),
+) -> Result<(Vec<RunValidation>, f64, f64), CalError> {
+    let mut runs = Vec::new();
+    for (i, path) in paths.iter().enumerate() {
+        for axis in 0..model.axis_count().min(ingest.format.gyro_columns.len()) {
+            let (series, _) = replay(path, model, axis, ingest, 1.0, |_, _, _| {}, |b| progress(i, b))?;
+            runs.push(RunValidation {
+                path: path.clone(),
+                axis,
+                raw_bias_stability_dph: bias_stability(&series.time_s, &series.raw_dph, options),
+                compensated_bias_stability_dph: bias_stability(
+                    &series.time_s,
+                    &series.compensated_dph,
+                    options,
+                ),
+                series,
+            });
+        }
+    }
+    let raw = rms_over_runs(&runs.iter().map(|r| r.raw_bias_stability_dph).collect::<Vec<_>>());
+    let comp = rms_over_runs(&runs.iter().map(|r| r.compensated_bias_stability_dph).collect::<Vec<_>>());
+    Ok((runs, raw, comp))
+}

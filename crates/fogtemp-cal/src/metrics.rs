@@ -1,0 +1,234 @@
+//! Metrics: bias stability (GJB 2426A style) and the overlapping Allan deviation with
+//! fitted noise terms (IEEE Std 952). Every report prints the definition it used
+//! ([`BiasStabilityOptions::describe`]).
+
+/// How bias stability is computed.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BiasStabilityOptions {
+    /// Averaging time, seconds (100 s default, 10 s option).
+    pub tau_s: f64,
+    /// Overlapping windows (stepped by one sample block) instead of non-overlapping.
+    pub overlapping: bool,
+    /// Remove a least-squares line from the window means before the standard deviation.
+    pub detrend: bool,
+    /// Seconds at the start of each run left out (warm-up exclusion).
+    pub exclude_first_s: f64,
+}
+
+impl Default for BiasStabilityOptions {
+    fn default() -> Self {
+        Self { tau_s: 100.0, overlapping: false, detrend: false, exclude_first_s: 0.0 }
+    }
+}
+
+impl BiasStabilityOptions {
+    /// One-line definition for reports.
+    pub fn describe(&self) -> String {
+        format!(
+            "bias stability = standard deviation (n-1) of {} {} s means{}{}, per run; overall = RMS over runs",
+            if self.overlapping { "overlapping" } else { "non-overlapping" },
+            self.tau_s,
+            if self.detrend { ", after removing a least-squares line" } else { "" },
+            if self.exclude_first_s > 0.0 { format!(", first {} s of each run excluded", self.exclude_first_s) } else { String::new() },
+        )
+    }
+}
+
+/// Window means of a run: non-overlapping `tau_s` windows aligned to the first sample;
+/// a window counts only if it holds at least 90 % of the samples of the fullest window,
+/// so windows cut by gaps or the run's end are left out (and counted).
+pub fn window_means(times_s: &[f64], values: &[f64], options: &BiasStabilityOptions) -> (Vec<f64>, usize) {
+    let start = times_s.first().copied().unwrap_or(0.0) + options.exclude_first_s;
+    // Sum and count per sub-window of tau/step; overlapping windows combine `step` of them.
+    let step = if options.overlapping { 10 } else { 1 };
+    let sub_s = options.tau_s / step as f64;
+    let mut sums: Vec<(f64, usize)> = Vec::new();
+    for (&t, &v) in times_s.iter().zip(values) {
+        if t < start || !v.is_finite() {
+            continue;
+        }
+        let k = ((t - start) / sub_s) as usize;
+        if sums.len() <= k {
+            sums.resize(k + 1, (0.0, 0));
+        }
+        sums[k].0 += v;
+        sums[k].1 += 1;
+    }
+    let windows: Vec<(f64, usize)> = sums
+        .windows(step)
+        .step_by(if options.overlapping { 1 } else { step })
+        .map(|w| w.iter().fold((0.0, 0), |a, b| (a.0 + b.0, a.1 + b.1)))
+        .collect();
+    let fullest = windows.iter().map(|w| w.1).max().unwrap_or(0);
+    let threshold = (fullest as f64 * 0.9).ceil() as usize;
+    let mut dropped = 0;
+    let means = windows
+        .into_iter()
+        .filter_map(|(s, c)| {
+            if c >= threshold.max(1) {
+                Some(s / c as f64)
+            } else {
+                dropped += 1;
+                None
+            }
+        })
+        .collect();
+    (means, dropped)
+}
+
+/// Bias stability of one run, deg/h (NaN with fewer than 2 windows).
+pub fn bias_stability(times_s: &[f64], values: &[f64], options: &BiasStabilityOptions) -> f64 {
+    let (mut means, _) = window_means(times_s, values, options);
+    if options.detrend {
+        detrend(&mut means);
+    }
+    sample_std(&means)
+}
+
+/// RMS over runs of per-run figures (NaN runs are ignored).
+pub fn rms_over_runs(per_run: &[f64]) -> f64 {
+    let finite: Vec<f64> = per_run.iter().copied().filter(|v| v.is_finite()).collect();
+    if finite.is_empty() {
+        return f64::NAN;
+    }
+    (finite.iter().map(|v| v * v).sum::<f64>() / finite.len() as f64).sqrt()
+}
+
+/// Standard deviation with n-1 (NaN for fewer than 2 values).
+pub fn sample_std(values: &[f64]) -> f64 {
+    if values.len() < 2 {
+        return f64::NAN;
+    }
+    let mean = values.iter().sum::<f64>() / values.len() as f64;
+    (values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (values.len() - 1) as f64).sqrt()
+}
+
+fn detrend(values: &mut [f64]) {
+    let n = values.len() as f64;
+    if n < 3.0 {
+        return;
+    }
+    let mean_x = (n - 1.0) / 2.0;
+    let mean_y = values.iter().sum::<f64>() / n;
+    let (mut sxx, mut sxy) = (0.0, 0.0);
+    for (i, v) in values.iter().enumerate() {
+        let dx = i as f64 - mean_x;
+        sxx += dx * dx;
+        sxy += dx * (v - mean_y);
+    }
+    let slope = sxy / sxx;
+    for (i, v) in values.iter_mut().enumerate() {
+        *v -= mean_y + slope * (i as f64 - mean_x);
+    }
+}
+
+/// One point of an Allan deviation curve.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AllanPoint {
+    /// Averaging time, seconds.
+    pub tau_s: f64,
+    /// Allan deviation, deg/h.
+    pub adev_dph: f64,
+    /// Approximate relative error of this point, `1 / sqrt(2 (N/m - 1))`.
+    pub relative_error: f64,
+}
+
+/// Overlapping Allan deviation (IEEE 952) of a rate series sampled every `dt_s`, at
+/// octave-spaced cluster sizes, computed on the f64 angle `theta = cumsum(rate * dt)`
+/// with the mean rate removed.
+pub fn allan_deviation(rate_dph: &[f64], dt_s: f64) -> Vec<AllanPoint> {
+    let n = rate_dph.len();
+    if n < 4 {
+        return Vec::new();
+    }
+    let mean = rate_dph.iter().sum::<f64>() / n as f64;
+    let mut theta = Vec::with_capacity(n + 1);
+    theta.push(0.0f64);
+    let mut acc = 0.0;
+    for r in rate_dph {
+        acc += (r - mean) * dt_s;
+        theta.push(acc);
+    }
+    let mut out = Vec::new();
+    let mut m = 1usize;
+    while 2 * m < n {
+        let tau = m as f64 * dt_s;
+        let terms = theta.len() - 2 * m;
+        let sum: f64 = (0..terms).map(|k| (theta[k + 2 * m] - 2.0 * theta[k + m] + theta[k]).powi(2)).sum();
+        let avar = sum / (2.0 * tau * tau * terms as f64);
+        out.push(AllanPoint {
+            tau_s: tau,
+            adev_dph: avar.sqrt(),
+            relative_error: 1.0 / (2.0 * (n as f64 / m as f64 - 1.0)).sqrt(),
+        });
+        let next = ((m as f64) * 2f64.sqrt()).ceil() as usize;
+        m = next.max(m + 1);
+    }
+    out
+}
+
+/// Noise terms fitted to an Allan deviation curve (IEEE 952).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct NoiseTerms {
+    /// Angle random walk N, deg/sqrt(h).
+    pub arw_deg_per_sqrt_h: f64,
+    /// Bias instability B, deg/h (the flicker floor is 0.664 B).
+    pub bias_instability_dph: f64,
+    /// Rate random walk K, deg/h/sqrt(h).
+    pub rrw_dph_per_sqrt_h: f64,
+}
+
+/// Fits `sigma^2(tau) = (60 N)^2 / tau + (2 ln2 / pi) B^2 + (K^2 / 3600) tau / 3` (tau in s,
+/// sigma in deg/h) by non-negative least squares, each point weighted by its relative error.
+pub fn fit_noise_terms(curve: &[AllanPoint]) -> NoiseTerms {
+    let floor = 2.0 * std::f64::consts::LN_2 / std::f64::consts::PI;
+    let rows: Vec<([f64; 3], f64, f64)> = curve
+        .iter()
+        .filter(|p| p.adev_dph.is_finite() && p.adev_dph > 0.0)
+        .map(|p| {
+            let var = p.adev_dph * p.adev_dph;
+            // Relative error of sigma^2 is twice that of sigma.
+            let w = 1.0 / (var * 2.0 * p.relative_error.max(1e-3));
+            ([3600.0 / p.tau_s, floor, p.tau_s / (3.0 * 3600.0)], var, w)
+        })
+        .collect();
+    let x = nnls3(&rows);
+    NoiseTerms {
+        arw_deg_per_sqrt_h: x[0].sqrt(),
+        bias_instability_dph: x[1].sqrt(),
+        rrw_dph_per_sqrt_h: x[2].sqrt(),
+    }
+}
+
+/// Non-negative least squares for 3 unknowns by trying every active set (8 subsets).
+fn nnls3(rows: &[([f64; 3], f64, f64)]) -> [f64; 3] {
+    let mut best = ([0.0; 3], f64::INFINITY);
+    for mask in 1u8..8 {
+        let idx: Vec<usize> = (0..3).filter(|k| mask & (1 << k) != 0).collect();
+        let p = idx.len();
+        let mut a = nalgebra::DMatrix::zeros(rows.len(), p);
+        let mut b = nalgebra::DVector::zeros(rows.len());
+        for (r, (h, y, w)) in rows.iter().enumerate() {
+            for (c, &k) in idx.iter().enumerate() {
+                a[(r, c)] = h[k] * w;
+            }
+            b[r] = y * w;
+        }
+        if rows.len() < p {
+            continue;
+        }
+        let Ok(sol) = a.clone().svd(true, true).solve(&b, 1e-14) else { continue };
+        if sol.iter().any(|v| *v < 0.0) {
+            continue;
+        }
+        let resid = (&a * &sol - &b).norm_squared();
+        if resid < best.1 {
+            let mut x = [0.0; 3];
+            for (c, &k) in idx.iter().enumerate() {
+                x[k] = sol[c];
+            }
+            best = (x, resid);
+        }
+    }
+    best.0
+}

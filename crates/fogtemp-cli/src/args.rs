@@ -1,0 +1,308 @@
+//! Command-line arguments (contract: DESIGN section 5).
+
+use std::path::PathBuf;
+
+use clap::{Args, Parser, Subcommand, ValueEnum};
+
+/// fogtemp-cal: calibrate fibre-optic gyro temperature drift from lab logs and check the result.
+///
+/// Logs are CSV files, one per power-on run, with a header row. By default the columns are
+/// time_s (seconds), temp_c (deg C) and gyro_dph (deg/h); the ingest options map other
+/// names and units. A folder argument means every *.csv file in it, sorted by name.
+#[derive(Debug, Parser)]
+#[command(name = "fogtemp-cal", version, about, long_about = None, propagate_version = true)]
+pub struct Cli {
+    /// What to do.
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+/// The commands.
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Fit a model (polynomial, mesh or hybrid) to calibration logs and write the model file.
+    Fit(FitArgs),
+    /// Compensate one log with a model and write the compensated CSV.
+    Compensate(CompensateArgs),
+    /// Replay logs through the model exactly as firmware would; report raw vs compensated bias stability.
+    Validate(ValidateArgs),
+    /// Evaluate a model at (temp_c, rate_c_per_min) points from a CSV file.
+    Evaluate(EvaluateArgs),
+    /// Show what a model file holds: header, axes, polynomial, mesh nodes and triangles.
+    Inspect(InspectArgs),
+    /// Write a model as a source array for firmware (Rust or C).
+    Export(ExportArgs),
+    /// Overlapping Allan deviation of a log's gyro, with fitted noise terms N, B, K.
+    Allan(AllanArgs),
+}
+
+/// How to read the logs.
+#[derive(Debug, Clone, Args)]
+pub struct IngestArgs {
+    /// Name of the time column.
+    #[arg(long, default_value = "time_s", help_heading = "Log columns")]
+    pub time_column: String,
+    /// Unit of the time column.
+    #[arg(long, value_enum, default_value_t = TimeUnitArg::S, help_heading = "Log columns")]
+    pub time_unit: TimeUnitArg,
+    /// Temperature column(s): one shared by all axes, or one per gyro column.
+    #[arg(long = "temp-column", default_value = "temp_c", help_heading = "Log columns")]
+    pub temp_columns: Vec<String>,
+    /// temp_c = raw * temp-scale + temp-offset (for a sensor logged in raw counts).
+    #[arg(long, default_value_t = 1.0, allow_negative_numbers = true, help_heading = "Log columns")]
+    pub temp_scale: f64,
+    /// See --temp-scale, deg C.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true, help_heading = "Log columns")]
+    pub temp_offset: f64,
+    /// Gyro column(s), one model axis each.
+    #[arg(long = "gyro-column", default_value = "gyro_dph", help_heading = "Log columns")]
+    pub gyro_columns: Vec<String>,
+    /// Unit of the gyro columns.
+    #[arg(long, value_enum, default_value_t = GyroUnitArg::Dph, help_heading = "Log columns")]
+    pub gyro_unit: GyroUnitArg,
+    /// Extra factor applied to the gyro after unit conversion.
+    #[arg(long, default_value_t = 1.0, allow_negative_numbers = true, help_heading = "Log columns")]
+    pub gyro_scale: f64,
+    /// Field delimiter (one character).
+    #[arg(long, default_value = ",", help_heading = "Log columns")]
+    pub delimiter: char,
+    /// Skip malformed rows (non-numeric, NaN, short, duplicate or backward time) and report
+    /// them, instead of stopping at the first.
+    #[arg(long, help_heading = "Log columns")]
+    pub skip_bad_rows: bool,
+}
+
+/// Time units.
+#[derive(Debug, Clone, Copy, ValueEnum)]
+pub enum TimeUnitArg {
+    /// Seconds.
+    S,
+    /// Milliseconds.
+    Ms,
+    /// Microseconds.
+    Us,
+}
+
+/// Gyro units.
+#[derive(Debug, Clone, Copy, ValueEnum)]
+pub enum GyroUnitArg {
+    /// Degrees per hour.
+    Dph,
+    /// Degrees per second.
+    Dps,
+    /// Radians per second.
+    Rps,
+}
+
+/// Model kinds.
+#[derive(Debug, Clone, Copy, ValueEnum, PartialEq, Eq)]
+pub enum MethodArg {
+    /// Polynomial in temperature and rate (stepwise regression).
+    Poly,
+    /// Delaunay mesh with linear interpolation.
+    Mesh,
+    /// Polynomial plus a mesh of its residuals.
+    Hybrid,
+}
+
+/// Mesh node selection.
+#[derive(Debug, Clone, Copy, ValueEnum, PartialEq, Eq)]
+pub enum ThinningArg {
+    /// Insert the worst-interpolated point until within --tolerance-dph or --max-nodes.
+    Greedy,
+    /// The paper: every point while |rate| >= --fast-rate, every --settled-every-th after.
+    Paper,
+}
+
+/// Polynomial term sets.
+#[derive(Debug, Clone, Copy, ValueEnum, PartialEq, Eq)]
+pub enum PolyArg {
+    /// Stepwise selection (F-test to enter, t-test to remove) up to --max-degree.
+    Stepwise,
+    /// The paper's 11 terms plus a constant.
+    Paper,
+}
+
+/// `fit` arguments.
+#[derive(Debug, Args)]
+pub struct FitArgs {
+    /// Calibration logs (files or folders of *.csv).
+    #[arg(required = true)]
+    pub logs: Vec<PathBuf>,
+    /// Model file to write (written atomically).
+    #[arg(long, short)]
+    pub out: PathBuf,
+    /// Model kind.
+    #[arg(long, value_enum, default_value_t = MethodArg::Hybrid)]
+    pub method: MethodArg,
+    /// Feature window (smoothing of T and dT/dt), seconds.
+    #[arg(long, default_value_t = 100.0, help_heading = "Features")]
+    pub window_s: f32,
+    /// Sub-blocks per window (the rate is a least-squares slope over block means).
+    #[arg(long, default_value_t = 100, help_heading = "Features")]
+    pub blocks: u32,
+    /// Blocks with data before features are reported.
+    #[arg(long, default_value_t = 10, help_heading = "Features")]
+    pub min_blocks: u32,
+    /// A longer silence of the temperature channel restarts the features, seconds.
+    #[arg(long, default_value_t = 5.0, help_heading = "Features")]
+    pub max_gap_s: f32,
+    /// Centred smoothing window of the gyro target, seconds (default: --window-s).
+    #[arg(long, help_heading = "Features")]
+    pub target_window_s: Option<f64>,
+    /// Use only points whose feature window is full.
+    #[arg(long, help_heading = "Features")]
+    pub full_windows_only: bool,
+    /// Mesh node selection.
+    #[arg(long, value_enum, default_value_t = ThinningArg::Greedy, help_heading = "Mesh")]
+    pub thinning: ThinningArg,
+    /// Greedy thinning: stop when every point is interpolated within this, deg/h.
+    #[arg(long, default_value_t = 0.002, help_heading = "Mesh")]
+    pub tolerance_dph: f64,
+    /// Greedy thinning: at most this many nodes.
+    #[arg(long, default_value_t = 600, help_heading = "Mesh")]
+    pub max_nodes: usize,
+    /// Paper thinning: keep every point while |rate| >= this, deg C/min.
+    #[arg(long, default_value_t = 0.05, help_heading = "Mesh")]
+    pub fast_rate: f64,
+    /// Paper thinning: then keep one in this many.
+    #[arg(long, default_value_t = 3, help_heading = "Mesh")]
+    pub settled_every: usize,
+    /// Polynomial terms.
+    #[arg(long, value_enum, default_value_t = PolyArg::Stepwise, help_heading = "Polynomial")]
+    pub poly: PolyArg,
+    /// Stepwise: highest total degree of a term.
+    #[arg(long, default_value_t = 4, help_heading = "Polynomial")]
+    pub max_degree: u8,
+    /// Stepwise: p-value to enter.
+    #[arg(long, default_value_t = 0.05, help_heading = "Polynomial")]
+    pub p_enter: f64,
+    /// Stepwise: p-value to remove.
+    #[arg(long, default_value_t = 0.10, help_heading = "Polynomial")]
+    pub p_remove: f64,
+    /// Print one JSON document on stdout.
+    #[arg(long)]
+    pub json: bool,
+    /// Log columns and units.
+    #[command(flatten)]
+    pub ingest: IngestArgs,
+}
+
+/// `compensate` arguments.
+#[derive(Debug, Args)]
+pub struct CompensateArgs {
+    /// Model file.
+    #[arg(long, short)]
+    pub model: PathBuf,
+    /// Log to compensate.
+    pub log: PathBuf,
+    /// Output CSV (written atomically): time_s, then per axis raw, compensated, bias, flags.
+    #[arg(long, short)]
+    pub out: PathBuf,
+    /// Log columns and units.
+    #[command(flatten)]
+    pub ingest: IngestArgs,
+}
+
+/// Bias stability options.
+#[derive(Debug, Clone, Args)]
+pub struct StabilityArgs {
+    /// Averaging time, seconds.
+    #[arg(long, default_value_t = 100.0, help_heading = "Bias stability")]
+    pub tau_s: f64,
+    /// Overlapping windows.
+    #[arg(long, help_heading = "Bias stability")]
+    pub overlapping: bool,
+    /// Remove a least-squares line before the standard deviation.
+    #[arg(long, help_heading = "Bias stability")]
+    pub detrend: bool,
+    /// Seconds at the start of each run left out.
+    #[arg(long, default_value_t = 0.0, help_heading = "Bias stability")]
+    pub exclude_first_s: f64,
+}
+
+/// `validate` arguments.
+#[derive(Debug, Args)]
+pub struct ValidateArgs {
+    /// Model file.
+    #[arg(long, short)]
+    pub model: PathBuf,
+    /// Validation logs (files or folders).
+    #[arg(required = true)]
+    pub logs: Vec<PathBuf>,
+    /// Print one JSON document on stdout.
+    #[arg(long)]
+    pub json: bool,
+    /// Bias stability definition.
+    #[command(flatten)]
+    pub stability: StabilityArgs,
+    /// Log columns and units.
+    #[command(flatten)]
+    pub ingest: IngestArgs,
+}
+
+/// `evaluate` arguments.
+#[derive(Debug, Args)]
+pub struct EvaluateArgs {
+    /// Model file.
+    #[arg(long, short)]
+    pub model: PathBuf,
+    /// CSV with columns temp_c, rate_c_per_min.
+    #[arg(long)]
+    pub points: PathBuf,
+    /// Model axis.
+    #[arg(long, default_value_t = 0)]
+    pub axis: usize,
+    /// Output CSV (temp_c,rate_c_per_min,value_dph,flags); stdout if absent.
+    #[arg(long, short)]
+    pub out: Option<PathBuf>,
+}
+
+/// `inspect` arguments.
+#[derive(Debug, Args)]
+pub struct InspectArgs {
+    /// Model file.
+    pub model: PathBuf,
+    /// Print one JSON document on stdout.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Export formats.
+#[derive(Debug, Clone, Copy, ValueEnum)]
+pub enum ExportFormat {
+    /// A Rust `static` byte array.
+    Rust,
+    /// A C array with a header.
+    C,
+}
+
+/// `export` arguments.
+#[derive(Debug, Args)]
+pub struct ExportArgs {
+    /// Model file.
+    #[arg(long, short)]
+    pub model: PathBuf,
+    /// Source language.
+    #[arg(long, value_enum)]
+    pub format: ExportFormat,
+    /// Output file (for C, the header is written beside it with extension .h).
+    #[arg(long, short)]
+    pub out: PathBuf,
+    /// Identifier of the array.
+    #[arg(long, default_value = "FOGTEMP_MODEL")]
+    pub name: String,
+}
+
+/// `allan` arguments.
+#[derive(Debug, Args)]
+pub struct AllanArgs {
+    /// Log (best: a static, stationary recording).
+    pub log: PathBuf,
+    /// Print one JSON document on stdout.
+    #[arg(long)]
+    pub json: bool,
+    /// Log columns and units.
+    #[command(flatten)]
+    pub ingest: IngestArgs,
+}

@@ -1,0 +1,91 @@
+//! Output helpers: atomic file writes, progress bars, log discovery.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use anyhow::{bail, Context, Result};
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+
+/// Writes a file atomically: a temporary file in the same folder, flushed and synced,
+/// then renamed over `path`. A failure leaves no partial file behind.
+pub fn write_atomic(path: &Path, write: impl FnOnce(&mut dyn Write) -> Result<()>) -> Result<()> {
+    let dir = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    let mut tmp = tempfile::Builder::new()
+        .prefix(".fogtemp-")
+        .tempfile_in(&dir)
+        .with_context(|| format!("cannot create a temporary file in {}", dir.display()))?;
+    {
+        let mut buffered = std::io::BufWriter::new(tmp.as_file_mut());
+        write(&mut buffered)?;
+        buffered.flush().with_context(|| format!("writing {}", path.display()))?;
+    }
+    tmp.as_file().sync_all().with_context(|| format!("syncing {}", path.display()))?;
+    tmp.persist(path).with_context(|| format!("cannot move the output into place at {}", path.display()))?;
+    Ok(())
+}
+
+/// Every log named: files as given, folders expanded to their `*.csv` files sorted by name.
+pub fn expand_logs(args: &[PathBuf]) -> Result<Vec<PathBuf>> {
+    let mut out = Vec::new();
+    for arg in args {
+        if arg.is_dir() {
+            let mut found: Vec<PathBuf> = std::fs::read_dir(arg)
+                .with_context(|| format!("cannot list {}", arg.display()))?
+                .filter_map(|e| e.ok().map(|e| e.path()))
+                .filter(|p| p.extension().is_some_and(|x| x.eq_ignore_ascii_case("csv")) && p.is_file())
+                .collect();
+            found.sort();
+            if found.is_empty() {
+                bail!("{}: folder holds no *.csv files", arg.display());
+            }
+            out.extend(found);
+        } else if arg.is_file() {
+            out.push(arg.clone());
+        } else {
+            bail!("{}: no such file or folder", arg.display());
+        }
+    }
+    Ok(out)
+}
+
+/// A byte progress bar for one file, drawn on stderr only when it is a terminal.
+pub fn file_progress(path: &Path, label: &str) -> ProgressBar {
+    let len = std::fs::metadata(path).map(|m| m.len()).unwrap_or(0);
+    let bar = ProgressBar::with_draw_target(Some(len), ProgressDrawTarget::stderr());
+    if let Ok(style) = ProgressStyle::with_template(
+        "{prefix} [{bar:30}] {bytes}/{total_bytes} {binary_bytes_per_sec} eta {eta} {msg}",
+    ) {
+        bar.set_style(style.progress_chars("=> "));
+    }
+    let name =
+        path.file_name().map_or_else(|| path.display().to_string(), |n| n.to_string_lossy().into_owned());
+    bar.set_prefix(format!("{label} {name}"));
+    bar
+}
+
+/// SHA-256 over the contents of every file, in order (the model's input digest).
+pub fn digest_files(paths: &[PathBuf]) -> Result<[u8; 32]> {
+    use sha2::{Digest, Sha256};
+    let mut hasher = Sha256::new();
+    for p in paths {
+        let mut f = std::fs::File::open(p).with_context(|| format!("cannot open {}", p.display()))?;
+        let mut buf = vec![0u8; 1 << 20];
+        loop {
+            let n =
+                std::io::Read::read(&mut f, &mut buf).with_context(|| format!("reading {}", p.display()))?;
+            if n == 0 {
+                break;
+            }
+            hasher.update(&buf[..n]);
+        }
+    }
+    Ok(hasher.finalize().into())
+}
+
+/// Hex of a byte string.
+pub fn hex(bytes: &[u8]) -> String {
+    bytes.iter().map(|b| format!("{b:02x}")).collect()
+}
