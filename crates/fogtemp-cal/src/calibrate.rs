@@ -321,6 +321,10 @@ pub struct ReplaySeries {
     pub compensated_dph: Vec<f64>,
     /// Mean subtracted bias per block, deg/h.
     pub bias_dph: Vec<f64>,
+    /// The tracker's smoothed temperature at the end of each block, deg C (NaN before features).
+    pub temp_c: Vec<f64>,
+    /// The tracker's rate at the end of each block, deg C/min (NaN before features).
+    pub rate_c_per_min: Vec<f64>,
     /// Samples with each flag bit set (index = bit number).
     pub flag_counts: [u64; 8],
     /// Samples replayed.
@@ -347,13 +351,17 @@ pub fn replay(
     let temp_columns = ingest.format.temp_columns.len();
     let mut series = ReplaySeries::default();
     let mut acc = (0u64, 0.0f64, 0.0f64, 0.0f64, 0i64);
-    let flush = |series: &mut ReplaySeries, acc: &mut (u64, f64, f64, f64, i64)| {
+    let flush = |series: &mut ReplaySeries,
+                 acc: &mut (u64, f64, f64, f64, i64),
+                 f: Option<fogtemp_core::Features>| {
         if acc.0 > 0 {
             let n = acc.0 as f64;
             series.time_s.push((acc.4 as f64 + 0.5) * block_s);
             series.raw_dph.push(acc.1 / n);
             series.compensated_dph.push(acc.2 / n);
             series.bias_dph.push(acc.3 / n);
+            series.temp_c.push(f.map_or(f64::NAN, |f| f64::from(f.temp_c)));
+            series.rate_c_per_min.push(f.map_or(f64::NAN, |f| f64::from(f.rate_c_per_min)));
         }
         *acc = (0, 0.0, 0.0, 0.0, acc.4);
     };
@@ -368,7 +376,7 @@ pub fn replay(
             visit(row.time_s, raw, &out);
             let block = (row.time_s / block_s).floor() as i64;
             if block != acc.4 {
-                flush(&mut series, &mut acc);
+                flush(&mut series, &mut acc, comp.tracker().features());
                 acc.4 = block;
             }
             acc.0 += 1;
@@ -385,7 +393,7 @@ pub fn replay(
         },
         progress,
     )?;
-    flush(&mut series, &mut acc);
+    flush(&mut series, &mut acc, comp.tracker().features());
     Ok((series, report))
 }
 

@@ -12,6 +12,7 @@ pub mod ingest;
 pub mod mesh;
 pub mod metrics;
 pub mod poly_fit;
+pub mod report;
 pub mod thin;
 
 pub use blob::{encode, AxisModel, ModelFile};

@@ -183,6 +183,9 @@ pub struct FitArgs {
     /// Print one JSON document on stdout.
     #[arg(long)]
     pub json: bool,
+    /// Write fit-report.md with figures (calibration runs, mesh over the points) into this folder.
+    #[arg(long)]
+    pub report: Option<PathBuf>,
     /// Log columns and units.
     #[command(flatten)]
     pub ingest: IngestArgs,
@@ -233,6 +236,9 @@ pub struct ValidateArgs {
     /// Print one JSON document on stdout.
     #[arg(long)]
     pub json: bool,
+    /// Write report.md with figures (runs raw vs compensated, Allan deviation, mesh) into this folder.
+    #[arg(long)]
+    pub report: Option<PathBuf>,
     /// Bias stability definition.
     #[command(flatten)]
     pub stability: StabilityArgs,

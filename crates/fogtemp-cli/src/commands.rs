@@ -143,6 +143,24 @@ fn fit(a: FitArgs) -> Result<()> {
     let digest = digest_files(&logs)?;
     let (blob, reports) = calibrate::fit_model(&runs, &config, digest).context("fitting the model")?;
     write_atomic(&a.out, |w| Ok(w.write_all(&blob)?))?;
+    if let Some(dir) = &a.report {
+        let model = Model::from_bytes(&blob).map_err(|e| anyhow::anyhow!("{e}"))?;
+        let summary: Vec<String> = reports
+            .iter()
+            .enumerate()
+            .map(|(axis, r)| {
+                format!(
+                    "- axis {axis}: {} calibration points, residual RMS {:.5} deg/h, {} mesh nodes, {} polynomial terms",
+                    r.points,
+                    r.residual_rms_dph,
+                    r.mesh_nodes,
+                    r.poly.as_ref().map_or(0, |p| p.terms.len())
+                )
+            })
+            .collect();
+        fogtemp_cal::report::write_fit_report(dir, &a.out, &model, &runs, &summary.join("\n"))?;
+        eprintln!("report: {}", dir.join("fit-report.md").display());
+    }
     let axes: Vec<Value> = reports
         .iter()
         .enumerate()
@@ -294,6 +312,17 @@ fn validate(a: ValidateArgs) -> Result<()> {
     })?;
     for bar in &bars {
         bar.finish_and_clear();
+    }
+    if let Some(dir) = &a.report {
+        fogtemp_cal::report::write_validation_report(
+            dir,
+            &a.model,
+            &model,
+            &runs,
+            (raw, comp),
+            &options.describe(),
+        )?;
+        eprintln!("report: {}", dir.join("report.md").display());
     }
     let doc = json!({
         "definition": options.describe(),
