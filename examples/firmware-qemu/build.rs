@@ -2,10 +2,11 @@
 //!
 //! 1. Puts `memory.x` on the linker search path (cortex-m-rt's `link.x` INCLUDEs it).
 //! 2. Stages the two data files the firmware embeds with `include_bytes!`:
-//!    * `$OUT_DIR/model.bin`      <- `$FOGTEMP_FW_MODEL`      (default: empty, no model yet)
-//!    * `$OUT_DIR/trajectory.bin` <- `$FOGTEMP_FW_TRAJECTORY` (default: data/dummy_trajectory.bin)
+//!    * `$OUT_DIR/model.bin`      <- `$FOGTEMP_FW_MODEL`      (default: data/model.fogm)
+//!    * `$OUT_DIR/trajectory.bin` <- `$FOGTEMP_FW_TRAJECTORY` (default: data/trajectory.bin)
 //!
-//!    Relative paths are taken relative to this crate's directory.
+//!    Relative paths are taken relative to this crate's directory. The defaults are the
+//!    committed fixture written by the root test `tests/firmware_fixture.rs`.
 
 use std::env;
 use std::fs;
@@ -13,10 +14,13 @@ use std::path::{Path, PathBuf};
 
 fn stage(out: &Path, manifest: &Path, var: &str, default: Option<&str>, dest: &str) {
     println!("cargo:rerun-if-env-changed={var}");
-    let src = env::var_os(var)
-        .map(PathBuf::from)
-        .or_else(|| default.map(PathBuf::from))
-        .map(|p| if p.is_absolute() { p } else { manifest.join(p) });
+    let src = env::var_os(var).map(PathBuf::from).or_else(|| default.map(PathBuf::from)).map(|p| {
+        if p.is_absolute() {
+            p
+        } else {
+            manifest.join(p)
+        }
+    });
     let bytes = match src {
         Some(p) => {
             println!("cargo:rerun-if-changed={}", p.display());
@@ -36,12 +40,6 @@ fn main() {
     println!("cargo:rerun-if-changed=memory.x");
     println!("cargo:rerun-if-changed=build.rs");
 
-    stage(&out, &manifest, "FOGTEMP_FW_MODEL", None, "model.bin");
-    stage(
-        &out,
-        &manifest,
-        "FOGTEMP_FW_TRAJECTORY",
-        Some("data/dummy_trajectory.bin"),
-        "trajectory.bin",
-    );
+    stage(&out, &manifest, "FOGTEMP_FW_MODEL", Some("data/model.fogm"), "model.bin");
+    stage(&out, &manifest, "FOGTEMP_FW_TRAJECTORY", Some("data/trajectory.bin"), "trajectory.bin");
 }

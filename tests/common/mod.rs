@@ -7,7 +7,8 @@ use rand::{Rng, SeedableRng};
 use rand_xoshiro::Xoshiro256PlusPlus;
 
 /// Paper defaults: 100 s window of 100 one-second blocks.
-pub const FEATURES: FeatureSettings = FeatureSettings { window_s: 100.0, block_count: 100, min_blocks: 10, max_gap_s: 5.0 };
+pub const FEATURES: FeatureSettings =
+    FeatureSettings { window_s: 100.0, block_count: 100, min_blocks: 10, max_gap_s: 5.0 };
 
 /// Maps -40..80 C to -1..1 and 0..1 C/min to -1..1.
 pub const NORMALISATION: Normalisation = Normalisation {
@@ -23,7 +24,10 @@ pub fn rng(seed: u64) -> Xoshiro256PlusPlus {
 
 /// A smooth, non-planar bias surface in deg/h.
 pub fn bias_surface(temp_c: f64, rate_c_per_min: f64) -> f64 {
-    0.002 * temp_c + 1.5e-5 * temp_c * temp_c + 0.06 * rate_c_per_min + 0.01 * (temp_c / 15.0).sin() * rate_c_per_min
+    0.002 * temp_c
+        + 1.5e-5 * temp_c * temp_c
+        + 0.06 * rate_c_per_min
+        + 0.01 * (temp_c / 15.0).sin() * rate_c_per_min
 }
 
 /// Uniform random points over the calibrated box.
@@ -80,7 +84,8 @@ pub fn mesh_blob(points: &[MeshPoint], policy: OutsidePolicy) -> Vec<u8> {
         mesh: Some(mesh),
         provenance: provenance(),
     };
-    encode(&ModelFile { tool_version: "fogtemp test".into(), input_digest: [7; 32], axes: vec![axis] }).expect("encodes")
+    encode(&ModelFile { tool_version: "fogtemp test".into(), input_digest: [7; 32], axes: vec![axis] })
+        .expect("encodes")
 }
 
 /// A one-axis model with the given polynomial terms and optional mesh points.
@@ -94,5 +99,6 @@ pub fn model_blob(poly: Vec<PolyTerm>, points: Option<&[MeshPoint]>, policy: Out
         mesh,
         provenance: provenance(),
     };
-    encode(&ModelFile { tool_version: "fogtemp test".into(), input_digest: [7; 32], axes: vec![axis] }).expect("encodes")
+    encode(&ModelFile { tool_version: "fogtemp test".into(), input_digest: [7; 32], axes: vec![axis] })
+        .expect("encodes")
 }

@@ -80,6 +80,7 @@ fn encode_axis(out: &mut Vec<u8>, id: u16, axis: &AxisModel) -> Result<(), CalEr
         hull: Vec::new(),
         merged_duplicates: 0,
         dropped_flat: Vec::new(),
+        moved_flat: Vec::new(),
     };
     let mesh = axis.mesh.as_ref().unwrap_or(&empty);
     let count = |what: &str, n: usize| u32::try_from(n).map_err(|_| CalError::Encode(format!("{what}: {n}")));

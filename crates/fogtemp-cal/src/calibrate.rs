@@ -410,6 +410,8 @@ pub struct RunValidation {
     pub compensated_bias_stability_dph: f64,
     /// The replayed series.
     pub series: ReplaySeries,
+    /// What ingest saw (rows, skipped rows and where).
+    pub ingest: IngestReport,
 }
 
 /// Replays every run and axis and computes bias stability raw vs compensated.
@@ -426,7 +428,7 @@ pub fn validate_runs(
     let mut runs = Vec::new();
     for (i, path) in paths.iter().enumerate() {
         for axis in 0..model.axis_count().min(ingest.format.gyro_columns.len()) {
-            let (series, _) = replay(path, model, axis, ingest, 1.0, |_, _, _| {}, |b| progress(i, b))?;
+            let (series, report) = replay(path, model, axis, ingest, 1.0, |_, _, _| {}, |b| progress(i, b))?;
             runs.push(RunValidation {
                 path: path.clone(),
                 axis,
@@ -437,6 +439,7 @@ pub fn validate_runs(
                     options,
                 ),
                 series,
+                ingest: report,
             });
         }
     }

@@ -34,15 +34,26 @@ pub struct MeshModel {
     pub hull: Vec<(u32, u32)>,
     /// Input points merged into another because they normalise to the same f32 position.
     pub merged_duplicates: usize,
-    /// Points dropped because they made a flat triangle on the hull (see [`MIN_SHAPE_RATIO`]),
-    /// as `(temp_c, rate_c_per_min, value_dph)` after merging.
+    /// Points dropped because they made a flat triangle away from the hull (near-duplicate
+    /// points; see [`MIN_SHAPE_RATIO`]), as `(temp_c, rate_c_per_min, value_dph)` after merging.
     pub dropped_flat: Vec<(f64, f64, f64)>,
+    /// Points moved outward because they made a flat triangle on the hull, as the
+    /// displacement `(delta_temp_c, delta_rate_c_per_min)` of each.
+    pub moved_flat: Vec<(f64, f64)>,
 }
 
 /// Smallest accepted `height / longest edge` of a triangle (in the normalised plane).
-/// Flatter triangles (only possible on the hull of a Delaunay mesh, from nearly collinear
-/// boundary points) cannot be represented in f32: their middle vertex is dropped.
+/// Flatter triangles cannot be represented in f32. In a Delaunay mesh they appear on the
+/// hull, where boundary points are nearly collinear (a first-order warm-up is a straight
+/// line in (T, dT/dt), so the outermost runs lie along the hull): the middle vertex is
+/// pushed outward by [`PUSH_RATIO`] of the long edge, a shift far below any sensor's
+/// resolution, and nothing is lost. Away from the hull only near-duplicate points make
+/// them; there the middle vertex is dropped (and reported).
 pub const MIN_SHAPE_RATIO: f64 = 1.0e-4;
+
+/// How far a flat hull triangle's middle vertex is pushed outward, as a fraction of the
+/// triangle's longest edge (a few times [`MIN_SHAPE_RATIO`], so one push suffices).
+pub const PUSH_RATIO: f64 = 4.0e-4;
 
 /// Most rounds of dropping flat-triangle vertices before giving up.
 const MAX_FLAT_ROUNDS: usize = 50;
@@ -50,6 +61,8 @@ const MAX_FLAT_ROUNDS: usize = 50;
 #[derive(Clone, Copy, Debug)]
 struct Node {
     position: Point2<f64>,
+    /// Position before any push (equal to `position` for most nodes).
+    original: Point2<f64>,
     value_dph: f64,
 }
 
@@ -73,33 +86,132 @@ pub fn normalised(point: &MeshPoint, normalisation: &Normalisation) -> (f32, f32
 /// fewer than 3 distinct points or a collinear set.
 pub fn build_mesh(points: &[MeshPoint], normalisation: &Normalisation) -> Result<MeshModel, CalError> {
     let (mut nodes, merged_duplicates) = merge_duplicates(points, normalisation)?;
+    reject_collinear(&triangulate(&nodes)?, nodes.len())?;
     let mut dropped = Vec::new();
-    for _ in 0..MAX_FLAT_ROUNDS {
+    for round in 0..MAX_FLAT_ROUNDS {
         let dt = triangulate(&nodes)?;
-        let flat = flat_triangle_middles(&dt);
+        let flat = flat_triangles(&dt);
         if flat.is_empty() {
             let mut mesh = extract(&dt, merged_duplicates);
-            mesh.dropped_flat = dropped.iter().map(|n: &Node| physical(n, normalisation)).collect();
+            mesh.dropped_flat = dropped.iter().map(|n| physical(n, normalisation)).collect();
+            mesh.moved_flat = nodes
+                .iter()
+                .filter(|n| n.position != n.original)
+                .map(|n| {
+                    (
+                        (n.position.x - n.original.x) / f64::from(normalisation.temp_scale_per_c),
+                        (n.position.y - n.original.y) / f64::from(normalisation.rate_scale_per_c_per_min),
+                    )
+                })
+                .collect();
             return Ok(mesh);
         }
-        let mut keep = vec![true; nodes.len()];
-        for i in flat {
-            keep[i] = false;
+        let centroid = centroid(&nodes);
+        let mut drop = vec![false; nodes.len()];
+        let last_rounds = round + 3 >= MAX_FLAT_ROUNDS;
+        for f in flat {
+            if last_rounds {
+                drop[f.middle] = true;
+            } else {
+                push_outward(&mut nodes[f.middle], &f, centroid);
+            }
         }
         let mut index = 0;
         nodes.retain(|n| {
-            let k = keep[index];
+            let gone = drop[index];
             index += 1;
-            if !k {
+            if gone {
                 dropped.push(*n);
             }
-            k
+            !gone
         });
     }
     Err(CalError::DegenerateMesh {
-        reason: "flat triangles remain after dropping boundary points",
+        reason: "flat triangles remain after pushing boundary points",
         points: nodes.len(),
     })
+}
+
+/// A triangle flatter than [`MIN_SHAPE_RATIO`]: its middle vertex (opposite the longest
+/// edge), that edge's ends, and the value gradient around the middle vertex (least-squares
+/// plane through it and its Delaunay neighbours; `None` if they are collinear).
+struct FlatTriangle {
+    middle: usize,
+    a: Point2<f64>,
+    b: Point2<f64>,
+    gradient: Option<(f64, f64)>,
+}
+
+/// A set whose triangulated area is below [`MIN_SHAPE_RATIO`] of its squared diagonal is
+/// (nearly) collinear: a single warm-up run, for example. That is an error, not a mesh.
+fn reject_collinear(dt: &DelaunayTriangulation<Node>, points: usize) -> Result<(), CalError> {
+    let area: f64 = dt.inner_faces().map(|f| f.area()).sum();
+    let (lo, hi) = dt.vertices().fold(
+        (Point2::new(f64::INFINITY, f64::INFINITY), Point2::new(f64::NEG_INFINITY, f64::NEG_INFINITY)),
+        |(lo, hi), v| {
+            let p = v.position();
+            (Point2::new(lo.x.min(p.x), lo.y.min(p.y)), Point2::new(hi.x.max(p.x), hi.y.max(p.y)))
+        },
+    );
+    let diag2 = (hi.x - lo.x).powi(2) + (hi.y - lo.y).powi(2);
+    if area < MIN_SHAPE_RATIO * diag2 {
+        return Err(CalError::DegenerateMesh { reason: "the points are (nearly) collinear", points });
+    }
+    Ok(())
+}
+
+/// Gradient of the least-squares plane through `centre` and `neighbours` (position, value).
+fn local_gradient(centre: (Point2<f64>, f64), neighbours: &[(Point2<f64>, f64)]) -> Option<(f64, f64)> {
+    let rows: Vec<(f64, f64, f64)> = std::iter::once(centre)
+        .chain(neighbours.iter().copied())
+        .map(|(p, v)| (p.x - centre.0.x, p.y - centre.0.y, v - centre.1))
+        .collect();
+    let a = nalgebra::DMatrix::from_fn(rows.len(), 3, |r, c| match c {
+        0 => rows[r].0,
+        1 => rows[r].1,
+        _ => 1.0,
+    });
+    let b = nalgebra::DVector::from_iterator(rows.len(), rows.iter().map(|r| r.2));
+    let svd = a.svd(true, true);
+    let sv = &svd.singular_values;
+    if sv.min() <= 1e-9 * sv.max() {
+        return None;
+    }
+    let x = svd.solve(&b, 0.0).ok()?;
+    Some((x[0], x[1]))
+}
+
+fn centroid(nodes: &[Node]) -> Point2<f64> {
+    let n = nodes.len().max(1) as f64;
+    let (x, y) = nodes.iter().fold((0.0, 0.0), |(x, y), v| (x + v.position.x, y + v.position.y));
+    Point2::new(x / n, y / n)
+}
+
+/// Moves `node` to its projection on line `ab` plus [`PUSH_RATIO`] of `|ab|` along the
+/// normal pointing away from `centroid` (outward: flat triangles lie on the hull), rounded
+/// to f32 as the firmware will see it, and corrects its value to first order with the
+/// local gradient (exact for planar data).
+fn push_outward(node: &mut Node, flat: &FlatTriangle, centroid: Point2<f64>) {
+    let (a, b) = (flat.a, flat.b);
+    let (dx, dy) = (b.x - a.x, b.y - a.y);
+    let len = (dx * dx + dy * dy).sqrt();
+    if len == 0.0 {
+        return;
+    }
+    let (mut nx, mut ny) = (-dy / len, dx / len);
+    if (centroid.x - a.x) * nx + (centroid.y - a.y) * ny > 0.0 {
+        (nx, ny) = (-nx, -ny);
+    }
+    let p = node.position;
+    let s = ((p.x - a.x) * dx + (p.y - a.y) * dy) / (len * len);
+    let offset = PUSH_RATIO * len;
+    let x = a.x + s * dx + nx * offset;
+    let y = a.y + s * dy + ny * offset;
+    let moved = Point2::new(f64::from(x as f32), f64::from(y as f32));
+    if let Some((gx, gy)) = flat.gradient {
+        node.value_dph += gx * (moved.x - p.x) + gy * (moved.y - p.y);
+    }
+    node.position = moved;
 }
 
 fn triangulate(nodes: &[Node]) -> Result<DelaunayTriangulation<Node>, CalError> {
@@ -116,10 +228,10 @@ fn triangulate(nodes: &[Node]) -> Result<DelaunayTriangulation<Node>, CalError> 
     Ok(dt)
 }
 
-/// For each triangle flatter than [`MIN_SHAPE_RATIO`], the vertex opposite its longest
-/// edge (the one lying almost on that edge). Vertex indices are insertion order.
-fn flat_triangle_middles(dt: &DelaunayTriangulation<Node>) -> std::collections::BTreeSet<usize> {
-    let mut middles = std::collections::BTreeSet::new();
+/// Every triangle flatter than [`MIN_SHAPE_RATIO`] (vertex indices are insertion order).
+fn flat_triangles(dt: &DelaunayTriangulation<Node>) -> Vec<FlatTriangle> {
+    let mut seen = std::collections::BTreeSet::new();
+    let mut flat = Vec::new();
     for face in dt.inner_faces() {
         let p = face.positions();
         let edge2 = |i: usize| {
@@ -130,11 +242,23 @@ fn flat_triangle_middles(dt: &DelaunayTriangulation<Node>) -> std::collections::
             (0..3).map(|i| (i, edge2(i))).fold((0, 0.0), |m, e| if e.1 > m.1 { e } else { m });
         let area2 = ((p[1].x - p[0].x) * (p[2].y - p[0].y) - (p[1].y - p[0].y) * (p[2].x - p[0].x)).abs();
         // height / longest = area2 / longest^2
-        if area2 < MIN_SHAPE_RATIO * l2 {
-            middles.insert(face.vertices()[longest].fix().index());
+        if area2 >= MIN_SHAPE_RATIO * l2 {
+            continue;
+        }
+        let vertex = face.vertices()[longest];
+        let middle = vertex.fix().index();
+        if seen.insert(middle) {
+            let neighbours: Vec<(Point2<f64>, f64)> =
+                vertex.out_edges().map(|e| (e.to().position(), e.to().data().value_dph)).collect();
+            flat.push(FlatTriangle {
+                middle,
+                a: p[(longest + 1) % 3],
+                b: p[(longest + 2) % 3],
+                gradient: local_gradient((vertex.position(), vertex.data().value_dph), &neighbours),
+            });
         }
     }
-    middles
+    flat
 }
 
 /// A node back in physical units (inverse normalisation, f64).
@@ -171,9 +295,9 @@ fn merge_duplicates(
     let merged = points.len() - sums.len();
     let nodes = sums
         .into_iter()
-        .map(|(x, y, sum, n)| Node {
-            position: Point2::new(f64::from(x), f64::from(y)),
-            value_dph: sum / n as f64,
+        .map(|(x, y, sum, n)| {
+            let position = Point2::new(f64::from(x), f64::from(y));
+            Node { position, original: position, value_dph: sum / n as f64 }
         })
         .collect();
     Ok((nodes, merged))
@@ -218,7 +342,15 @@ fn extract(dt: &DelaunayTriangulation<Node>, merged_duplicates: usize) -> MeshMo
         neighbours.push(nb);
     }
     let hull = chain_hull(&hull_by_start, &triangles);
-    MeshModel { vertices, triangles, neighbours, hull, merged_duplicates, dropped_flat: Vec::new() }
+    MeshModel {
+        vertices,
+        triangles,
+        neighbours,
+        hull,
+        merged_duplicates,
+        dropped_flat: Vec::new(),
+        moved_flat: Vec::new(),
+    }
 }
 
 /// Orders hull edges counter-clockwise by following end vertex to start vertex.

@@ -9,12 +9,40 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 /// Writes a file atomically: a temporary file in the same folder, flushed and synced,
 /// then renamed over `path`. A failure leaves no partial file behind.
 pub fn write_atomic(path: &Path, write: impl FnOnce(&mut dyn Write) -> Result<()>) -> Result<()> {
+    stage(path, write)?.commit()
+}
+
+/// An output written and synced to a temporary file beside its destination; dropping it
+/// removes the temporary file, [`Staged::commit`] renames it into place.
+pub struct Staged {
+    tmp: tempfile::NamedTempFile,
+    path: PathBuf,
+}
+
+impl Staged {
+    /// Renames the staged file over its destination.
+    pub fn commit(self) -> Result<()> {
+        let path = self.path;
+        self.tmp
+            .persist(&path)
+            .with_context(|| format!("cannot move the output into place at {}", path.display()))?;
+        Ok(())
+    }
+}
+
+/// The first half of [`write_atomic`]: for outputs that must all be written before any
+/// of them is moved into place.
+pub fn stage(path: &Path, write: impl FnOnce(&mut dyn Write) -> Result<()>) -> Result<Staged> {
     let dir = match path.parent() {
         Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
         _ => PathBuf::from("."),
     };
-    let mut tmp = tempfile::Builder::new()
-        .prefix(".fogtemp-")
+    let mut builder = tempfile::Builder::new();
+    builder.prefix(".fogtemp-");
+    // The usual mode of a new file (0666 less the umask), not tempfile's private 0600.
+    #[cfg(unix)]
+    builder.permissions(std::os::unix::fs::PermissionsExt::from_mode(0o666));
+    let mut tmp = builder
         .tempfile_in(&dir)
         .with_context(|| format!("cannot create a temporary file in {}", dir.display()))?;
     {
@@ -23,8 +51,7 @@ pub fn write_atomic(path: &Path, write: impl FnOnce(&mut dyn Write) -> Result<()
         buffered.flush().with_context(|| format!("writing {}", path.display()))?;
     }
     tmp.as_file().sync_all().with_context(|| format!("syncing {}", path.display()))?;
-    tmp.persist(path).with_context(|| format!("cannot move the output into place at {}", path.display()))?;
-    Ok(())
+    Ok(Staged { tmp, path: path.to_path_buf() })
 }
 
 /// Every log named: files as given, folders expanded to their `*.csv` files sorted by name.
@@ -64,6 +91,48 @@ pub fn file_progress(path: &Path, label: &str) -> ProgressBar {
         path.file_name().map_or_else(|| path.display().to_string(), |n| n.to_string_lossy().into_owned());
     bar.set_prefix(format!("{label} {name}"));
     bar
+}
+
+/// A [`file_progress`] bar that also shows rows read and rows/s, fed by the
+/// `progress(bytes, rows)` callback of `fogtemp_cal::ingest::read_log_with_progress`.
+/// It stays hidden for reads that finish within a second, and draws on stderr only when
+/// that is a terminal.
+pub struct RowProgress {
+    bar: ProgressBar,
+    shown: std::cell::Cell<bool>,
+}
+
+#[allow(dead_code)] // For the commands that read logs, once they pass rows to the bar.
+impl RowProgress {
+    /// A hidden bar for the log at `path`, labelled like [`file_progress`].
+    pub fn new(path: &Path, label: &str) -> Self {
+        let bar = file_progress(path, label);
+        bar.set_draw_target(ProgressDrawTarget::hidden());
+        Self { bar, shown: std::cell::Cell::new(false) }
+    }
+
+    /// Records the bytes and rows read so far; shows the bar once a second has passed.
+    pub fn update(&self, bytes: u64, rows: u64) {
+        self.bar.set_position(bytes);
+        let seconds = self.bar.elapsed().as_secs_f64();
+        if seconds > 0.0 {
+            let per_second = rows as f64 / seconds;
+            self.bar.set_message(format!(
+                "{} rows, {} rows/s",
+                indicatif::HumanCount(rows),
+                indicatif::HumanCount(per_second as u64)
+            ));
+        }
+        if !self.shown.get() && seconds >= 1.0 {
+            self.shown.set(true);
+            self.bar.set_draw_target(ProgressDrawTarget::stderr());
+        }
+    }
+
+    /// Removes the bar.
+    pub fn finish_and_clear(&self) {
+        self.bar.finish_and_clear();
+    }
 }
 
 /// SHA-256 over the contents of every file, in order (the model's input digest).

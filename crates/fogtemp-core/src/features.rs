@@ -80,9 +80,11 @@ impl<const N: usize> FeatureTracker<N> {
         {
             return Err(bad("block_count"));
         }
-        // f64 here only: done once at start-up. `+ 0.5` rounds (no `round` without std).
-        let block_us = f64::from(settings.window_s) * 1.0e6 / block_count as f64 + 0.5;
-        let max_gap_us = f64::from(settings.max_gap_s) * 1.0e6 + 0.5;
+        // f32, not f64: f64 would link ~3 KB of soft-float routines on Cortex-M4F for these
+        // two start-up lines. The rounding is deterministic (IEEE) and identical in
+        // calibration and firmware, which is what matters. `+ 0.5` rounds (no `round` in core).
+        let block_us = settings.window_s * 1.0e6 / block_count as f32 + 0.5;
+        let max_gap_us = settings.max_gap_s * 1.0e6 + 0.5;
         if !(1.0..1.0e15).contains(&block_us) {
             return Err(bad("window_s"));
         }

@@ -297,8 +297,8 @@ pub(crate) fn plane_value(rec: &TriangleRecord, x: f32, y: f32) -> f32 {
     rec.plane[0] * dx + rec.plane[1] * dy + rec.plane[2]
 }
 
-/// Index and value of the smallest coordinate. NaN never wins, so a NaN record
-/// cannot send the walk anywhere but to the bounded fallback.
+/// Index and value of the smallest coordinate. Validated records give finite
+/// coordinates for finite queries; should a NaN appear anyway, the walk stays bounded.
 #[inline(always)]
 fn most_negative(l: [f32; 3]) -> (usize, f32) {
     let [l0, l1, l2] = l;

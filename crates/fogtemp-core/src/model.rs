@@ -525,12 +525,15 @@ fn validate_triangle_geometry(mesh: &Mesh<'_>, rec: &TriangleRecord, t: u32, id:
     // 1e-4 of the longest edge); tight enough that a transform of another triangle fails.
     const BARY_TOL: f32 = 1.0e-2;
     let value_scale = a.value_dph.abs().max(b.value_dph.abs()).max(c.value_dph.abs());
+    // `within` is false for NaN: finite coefficients can still overflow to inf - inf at a vertex.
+    let within = |error: f32, tol: f32| error <= tol;
     for (k, v) in [a, b, c].iter().enumerate() {
         let l = barycentric(rec, v.x, v.y);
-        if l.iter().enumerate().any(|(j, &lj)| (lj - if j == k { 1.0 } else { 0.0 }).abs() > BARY_TOL) {
+        let unit = |j: usize| if j == k { 1.0 } else { 0.0 };
+        if !l.iter().enumerate().all(|(j, &lj)| within((lj - unit(j)).abs(), BARY_TOL)) {
             return Err(mesh_err("barycentric transform"));
         }
-        if (plane_value(rec, v.x, v.y) - v.value_dph).abs() > BARY_TOL * (1.0 + value_scale) {
+        if !within((plane_value(rec, v.x, v.y) - v.value_dph).abs(), BARY_TOL * (1.0 + value_scale)) {
             return Err(mesh_err("value plane"));
         }
     }
@@ -566,6 +569,11 @@ fn validate_hull(mesh: &Mesh<'_>, id: u16) -> Result<(), Error> {
         }
         edge_vertices(&rec, e).ok_or(mesh_err("hull edge index", h))
     };
+    // Edge directions of a left-turning loop that goes round once cross the +x direction
+    // (from the lower half-plane to the upper) exactly once; a loop listed twice, or wound
+    // twice, crosses it more often.
+    let upper = |dx: f32, dy: f32| dy > 0.0 || (dy == 0.0 && dx > 0.0);
+    let mut windings = 0u32;
     for h in 0..hcount {
         let (a, b) = edge(h)?;
         let (b2, c) = edge((h + 1) % hcount)?;
@@ -581,6 +589,12 @@ fn validate_hull(mesh: &Mesh<'_>, id: u16) -> Result<(), Error> {
         if turn < -1.0e-5 * scale {
             return Err(mesh_err("hull convex", h));
         }
+        if !upper(vb.x - va.x, vb.y - va.y) && upper(vc.x - vb.x, vc.y - vb.y) {
+            windings += 1;
+        }
+    }
+    if windings != 1 {
+        return Err(mesh_err("hull goes round once", 0));
     }
     Ok(())
 }

@@ -5,15 +5,30 @@
 //!    flush-to-zero / default-NaN are off;
 //! 2. runs a small f32 self-test whose exact bit results were computed on the
 //!    x86_64 host with the same Rust code, and fails the run on any mismatch;
-//! 3. replays the embedded trajectory (`replay`) and prints one `out ...` line
-//!    per output, f32 values as `to_bits()` hex so host-vs-target checks are exact;
+//! 3. parses the embedded model blob with `fogtemp_core::Model::from_bytes`, builds a
+//!    `Compensator` for axis 0 and replays every record of the embedded trajectory
+//!    through `Compensator::step`, printing the selected outputs as exact f32 bits;
 //! 4. exits QEMU through semihosting: status 0 on success, 1 on failure
 //!    (a panic also exits with 1, via `panic-semihosting`'s `exit` feature).
 //!
+//! The embedded data and the expected output are generated on the host by the root
+//! test `tests/firmware_fixture.rs`, which runs the host build of the same core over the
+//! same trajectory; `.ci/firmware-qemu.sh` compares the two outputs exactly.
+//!
 //! Output line grammar (one record per line, space separated):
-//! * `out <index> <rate bits, 8 lowercase hex digits>` — placeholder replay;
-//!   the real replay will append ` <flags>` (see `replay`).
-//! * `done outputs=<n>` — last line of a successful run.
+//! * `out <index> <rate bits> <bias bits> <flags>`: record `index` (0-based) compensated;
+//!   rate and bias are `f32::to_bits()` as 8 lowercase hex digits, flags 2 hex digits
+//!   (`fogtemp_core::Flags`). Printed for record 0, the last record, every
+//!   [`PRINT_STRIDE`]-th record and every record whose flags or bias differ from the
+//!   previous record's.
+//! * `digest <records> <16 hex digits>`: FNV-1a 64 over the outputs of *every* record
+//!   (rate bits, bias bits, flags), so unprinted records are compared too.
+//! * `done records=<n> printed=<m>`: last line of a successful run.
+//! * `fpu ...`, `selftest ...`, `model ...` lines are diagnostics.
+//!
+//! With the cargo feature `baseline` the compensator is replaced by a pass-through
+//! (no `Model::from_bytes`, no `Compensator`): the same harness without the runtime,
+//! built only to measure the runtime's flash size by difference (see README).
 
 #![no_std]
 #![no_main]
@@ -24,17 +39,22 @@ use core::hint::black_box;
 use cortex_m_rt::entry;
 use cortex_m_semihosting::debug::{self, EXIT_FAILURE, EXIT_SUCCESS};
 use cortex_m_semihosting::{hio, hprintln};
+use fogtemp_core::Output;
 use panic_semihosting as _;
 
-// Linked but not called yet: keeps the core crate building for the target.
-use fogtemp_core as _;
-
-/// Model blob, staged by build.rs from `$FOGTEMP_FW_MODEL` (empty by default).
+/// Model blob, staged by build.rs from `$FOGTEMP_FW_MODEL` (default `data/model.fogm`).
 static MODEL_BLOB: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/model.bin"));
 
 /// Trajectory records, staged by build.rs from `$FOGTEMP_FW_TRAJECTORY`
-/// (default `data/dummy_trajectory.bin`, 8 records).
+/// (default `data/trajectory.bin`).
 static TRAJECTORY: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/trajectory.bin"));
+
+/// Feature-tracker capacity (blocks); the fixture model uses 20.
+#[cfg(not(feature = "baseline"))]
+const TRACKER_CAPACITY: usize = 32;
+
+/// Every `PRINT_STRIDE`-th record is printed (as in `tests/firmware_fixture.rs`).
+const PRINT_STRIDE: usize = 20;
 
 #[entry]
 fn main() -> ! {
@@ -45,13 +65,14 @@ fn main() -> ! {
 
     let mut out = HostOut::new();
     match replay(&mut out, MODEL_BLOB, TRAJECTORY) {
-        Ok(n) => {
+        Ok(summary) => {
+            out.line(format_args!("digest {} {:016x}", summary.records, summary.digest));
+            out.line(format_args!("done records={} printed={}", summary.records, summary.printed));
             out.flush();
-            hprintln!("done outputs={}", n);
         }
         Err(e) => {
             out.flush();
-            hprintln!("error replay: {:?}", e);
+            hprintln!("error replay: {}", e);
             ok = false;
         }
     }
@@ -112,12 +133,8 @@ fn harmonic(n: u32) -> f32 {
 /// the same shape of arithmetic as a temperature-drift polynomial.
 #[inline(never)]
 fn horner_sum(n: u32) -> f32 {
-    let (c0, c1, c2, c3) = (
-        black_box(0.75f32),
-        black_box(-0.0125f32),
-        black_box(3.5e-4f32),
-        black_box(-2.0e-6f32),
-    );
+    let (c0, c1, c2, c3) =
+        (black_box(0.75f32), black_box(-0.0125f32), black_box(3.5e-4f32), black_box(-2.0e-6f32));
     let mut acc = 0.0f32;
     let mut i = 0u32;
     while i < n {
@@ -136,11 +153,7 @@ fn selftest() -> bool {
         ("harmonic1000", harmonic(black_box(1000)), 0x40ef_890a_u32), // 7.4854784
         ("horner256", horner_sum(black_box(256)), 0x4368_34db_u32),   // 232.20647
         // MIN_POSITIVE / 4 is subnormal: 0 here would mean flush-to-zero is on.
-        (
-            "subnormal",
-            black_box(f32::MIN_POSITIVE) * black_box(0.25f32),
-            0x0020_0000_u32,
-        ),
+        ("subnormal", black_box(f32::MIN_POSITIVE) * black_box(0.25f32), 0x0020_0000_u32),
     ];
     let mut all = true;
     for (name, got, want) in checks {
@@ -168,69 +181,178 @@ const RECORD_LEN: usize = 16;
 #[derive(Clone, Copy, Debug)]
 struct Record {
     /// Sample time in microseconds.
-    #[allow(dead_code)] // used once the real Compensator replay is wired in
     time_us: u64,
     /// Raw gyro rate in deg/h.
     gyro_dph: f32,
-    /// Sensor temperature in deg C.
-    temp_c: f32,
+    /// Sensor temperature in deg C, if one arrived with this sample (NaN in the file).
+    temp_c: Option<f32>,
 }
 
 impl Record {
     fn decode(b: &[u8; RECORD_LEN]) -> Self {
         let [t0, t1, t2, t3, t4, t5, t6, t7, g0, g1, g2, g3, c0, c1, c2, c3] = *b;
+        let temp_c = f32::from_le_bytes([c0, c1, c2, c3]);
         Record {
             time_us: u64::from_le_bytes([t0, t1, t2, t3, t4, t5, t6, t7]),
             gyro_dph: f32::from_le_bytes([g0, g1, g2, g3]),
-            temp_c: f32::from_le_bytes([c0, c1, c2, c3]),
+            temp_c: if temp_c.is_nan() { None } else { Some(temp_c) },
         }
     }
 }
 
 /// Why a replay could not run.
-#[derive(Debug)]
-#[allow(dead_code)] // fields are read through Debug
 enum ReplayError {
     /// Trajectory length is not a multiple of [`RECORD_LEN`].
     TrajectoryLength(usize),
+    /// The core rejected the model (or the axis / tracker capacity).
+    #[cfg(not(feature = "baseline"))]
+    Model(fogtemp_core::Error),
 }
 
-// ===========================================================================
-// REPLAY — PLACEHOLDER
-//
-// Final form (once fogtemp-core's API lands):
-//   * build the compensator from `model` (the embedded model blob),
-//   * for every record call `fogtemp_core::Compensator::step(...)`,
-//   * for every output print
-//       `out <index> <{:08x} of rate.to_bits()> <flags>`
-//
-// For now: no model, and a trivial stand-in computation per record,
-//   rate = gyro_dph - 0.05 * (temp_c - 25.0)      (all f32)
-// printed as `out <index> <hex bits>`. data/expected_out.txt holds the host
-// result for data/dummy_trajectory.bin (from data/make_dummy_trajectory.py)
-// and .ci/firmware-qemu.sh compares against it.
-// ===========================================================================
-fn replay(out: &mut HostOut, model: &[u8], trajectory: &[u8]) -> Result<u32, ReplayError> {
-    let _ = model; // placeholder: the model blob is not interpreted yet
+impl fmt::Display for ReplayError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            ReplayError::TrajectoryLength(n) => {
+                write!(f, "trajectory is {} bytes, not a multiple of {}", n, RECORD_LEN)
+            }
+            #[cfg(not(feature = "baseline"))]
+            ReplayError::Model(e) => write!(f, "model: {}", e),
+        }
+    }
+}
 
+// ---------------------------------------------------------------------------
+// The runtime under test (and its pass-through stand-in for size measurement)
+// ---------------------------------------------------------------------------
+
+/// `fogtemp_core`: validate the blob, then one `Compensator` for axis 0.
+#[cfg(not(feature = "baseline"))]
+mod runtime {
+    use super::{ReplayError, TRACKER_CAPACITY};
+    use cortex_m_semihosting::hprintln;
+    use fogtemp_core::{Compensator, Model, Output};
+
+    pub struct Runtime<'a>(Compensator<'a, TRACKER_CAPACITY>);
+
+    impl<'a> Runtime<'a> {
+        pub fn new(blob: &'a [u8]) -> Result<Self, ReplayError> {
+            let model = Model::from_bytes(blob).map_err(ReplayError::Model)?;
+            let comp = Compensator::new(&model, 0).map_err(ReplayError::Model)?;
+            let axis = comp.axis();
+            let (poly_terms, vertices, triangles, hull) = (
+                axis.poly.map_or(0, |p| p.len()),
+                axis.mesh.map_or(0, |m| m.vertex_count()),
+                axis.mesh.map_or(0, |m| m.triangle_count()),
+                axis.mesh.map_or(0, |m| m.hull_edge_count()),
+            );
+            hprintln!(
+                "model bytes={} axes={} poly_terms={} vertices={} triangles={} hull_edges={} blocks={} state_bytes={}",
+                blob.len(),
+                model.axis_count(),
+                poly_terms,
+                vertices,
+                triangles,
+                hull,
+                axis.features.block_count,
+                core::mem::size_of::<Compensator<'_, TRACKER_CAPACITY>>(),
+            );
+            Ok(Runtime(comp))
+        }
+
+        #[inline(always)]
+        pub fn step(&mut self, time_us: u64, gyro_dph: f32, temp_c: Option<f32>) -> Output {
+            self.0.step(time_us, gyro_dph, temp_c)
+        }
+    }
+}
+
+/// Pass-through with the same interface: rate = gyro, bias = temperature (or 0), no
+/// model. Only for measuring the harness without the runtime; its output is not checked.
+#[cfg(feature = "baseline")]
+mod runtime {
+    use super::ReplayError;
+    use fogtemp_core::{Flags, Output};
+
+    pub struct Runtime;
+
+    impl Runtime {
+        pub fn new(blob: &[u8]) -> Result<Self, ReplayError> {
+            cortex_m_semihosting::hprintln!("model bytes={} (baseline: not parsed)", blob.len());
+            Ok(Runtime)
+        }
+
+        #[inline(always)]
+        pub fn step(&mut self, time_us: u64, gyro_dph: f32, temp_c: Option<f32>) -> Output {
+            Output { rate_dph: gyro_dph, bias_dph: temp_c.unwrap_or(0.0), flags: Flags((time_us & 1) as u8) }
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------
+// Replay
+// ---------------------------------------------------------------------------
+
+/// What a successful replay reports.
+struct Summary {
+    records: usize,
+    printed: usize,
+    digest: u64,
+}
+
+/// FNV-1a 64, fed with every output (same as the host fixture).
+struct Fnv1a(u64);
+
+impl Fnv1a {
+    fn new() -> Self {
+        Fnv1a(0xcbf2_9ce4_8422_2325)
+    }
+
+    fn bytes(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.0 ^= u64::from(b);
+            self.0 = self.0.wrapping_mul(0x0000_0100_0000_01b3);
+        }
+    }
+
+    fn output(&mut self, o: &Output) {
+        self.bytes(&o.rate_dph.to_bits().to_le_bytes());
+        self.bytes(&o.bias_dph.to_bits().to_le_bytes());
+        self.bytes(&[o.flags.0]);
+    }
+}
+
+/// Replays every record through the runtime and prints the selected outputs.
+fn replay(out: &mut HostOut, model: &[u8], trajectory: &[u8]) -> Result<Summary, ReplayError> {
     if trajectory.len() % RECORD_LEN != 0 {
         return Err(ReplayError::TrajectoryLength(trajectory.len()));
     }
-    let k = black_box(0.05f32);
-    let t0 = black_box(25.0f32);
-
-    let mut n = 0u32;
+    let mut runtime = runtime::Runtime::new(model)?;
+    let records = trajectory.len() / RECORD_LEN;
+    let mut digest = Fnv1a::new();
+    let mut previous: Option<(u32, u8)> = None;
+    let mut printed = 0;
     for (index, chunk) in trajectory.chunks_exact(RECORD_LEN).enumerate() {
         let mut buf = [0u8; RECORD_LEN];
         buf.copy_from_slice(chunk);
         let rec = Record::decode(&buf);
 
-        let rate = rec.gyro_dph - k * (rec.temp_c - t0);
+        let o = runtime.step(rec.time_us, rec.gyro_dph, rec.temp_c);
 
-        out.line(format_args!("out {} {:08x}", index, rate.to_bits()));
-        n += 1;
+        digest.output(&o);
+        let now = (o.bias_dph.to_bits(), o.flags.0);
+        if previous != Some(now) || index % PRINT_STRIDE == 0 || index + 1 == records {
+            out.line(format_args!(
+                "out {} {:08x} {:08x} {:02x}",
+                index,
+                o.rate_dph.to_bits(),
+                o.bias_dph.to_bits(),
+                o.flags.0
+            ));
+            printed += 1;
+        }
+        previous = Some(now);
     }
-    Ok(n)
+    Ok(Summary { records, printed, digest: digest.0 })
 }
 
 // ---------------------------------------------------------------------------
@@ -251,11 +373,7 @@ const MAX_LINE: usize = 120;
 
 impl HostOut {
     fn new() -> Self {
-        HostOut {
-            stream: hio::hstdout().ok(),
-            buf: [0; 1024],
-            len: 0,
-        }
+        HostOut { stream: hio::hstdout().ok(), buf: [0; 1024], len: 0 }
     }
 
     /// Append one formatted line plus `\n`.
@@ -264,10 +382,7 @@ impl HostOut {
             self.flush();
         }
         let start = self.len;
-        let mut w = SliceWriter {
-            buf: &mut self.buf[start..start + MAX_LINE],
-            len: 0,
-        };
+        let mut w = SliceWriter { buf: &mut self.buf[start..start + MAX_LINE], len: 0 };
         let _ = w.write_fmt(args); // truncated on overflow
         self.len = start + w.len;
         self.buf[self.len] = b'\n';

@@ -1,0 +1,1197 @@
+//! The model blob, format version 1: round trip through the writer and reader, the CRC, the
+//! committed golden bytes, and rejection of corrupt input without panics.
+//!
+//! Golden files live in `tests/golden/`. They are written only when the environment variable
+//! `FOGTEMP_BLESS=1` is set:
+//!
+//! ```text
+//! FOGTEMP_BLESS=1 cargo test --test blob_format golden
+//! ```
+//!
+//! Bless only when the format version changes (then add a new `model-vN` pair and keep the old
+//! ones: every released version stays readable) or when the writer's output legitimately
+//! changes for the same model; never to make a failing read of an old file pass.
+
+mod common;
+
+use std::collections::BTreeMap;
+use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::path::{Path, PathBuf};
+use std::sync::Once;
+
+use common::{bias_surface, paper_points, random_points, rng, FEATURES, NORMALISATION};
+use fogtemp_cal::blob::triangle_transform;
+use fogtemp_cal::{build_mesh, encode, AxisModel, CalError, MeshModel, MeshPoint, ModelFile};
+use fogtemp_core::wire::*;
+use fogtemp_core::{
+    AxisProvenance, Error, FeatureSettings, Location, Model, Normalisation, OutsidePolicy, PolyTerm, Vertex,
+    WalkHint,
+};
+use proptest::prelude::*;
+use proptest::test_runner::{Config, RngAlgorithm, RngSeed};
+use rand::Rng;
+
+// ---------------------------------------------------------------------------------------------
+// Helpers
+// ---------------------------------------------------------------------------------------------
+
+fn golden_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests").join("golden")
+}
+
+fn u16_at(b: &[u8], at: usize) -> u16 {
+    u16::from_le_bytes([b[at], b[at + 1]])
+}
+
+fn u32_at(b: &[u8], at: usize) -> u32 {
+    u32::from_le_bytes(b[at..at + 4].try_into().expect("4 bytes"))
+}
+
+fn put_u16(b: &mut [u8], at: usize, v: u16) {
+    b[at..at + 2].copy_from_slice(&v.to_le_bytes());
+}
+
+fn put_u32(b: &mut [u8], at: usize, v: u32) {
+    b[at..at + 4].copy_from_slice(&v.to_le_bytes());
+}
+
+fn put_f32(b: &mut [u8], at: usize, v: f32) {
+    b[at..at + 4].copy_from_slice(&v.to_le_bytes());
+}
+
+/// Rewrites `total_len` to the buffer length and the CRC trailer to match the bytes, so that
+/// a mutant gets past the integrity checks and exercises the validation behind them.
+fn fix_crc(b: &mut [u8]) {
+    if b.len() < FILE_HEADER_LEN + CRC_LEN {
+        return;
+    }
+    let body = b.len() - CRC_LEN;
+    let crc = crc32fast::hash(&b[..body]);
+    b[body..].copy_from_slice(&crc.to_le_bytes());
+}
+
+fn fix_len_and_crc(b: &mut [u8]) {
+    if b.len() >= FILE_HEADER_LEN + CRC_LEN {
+        let len = b.len() as u32;
+        put_u32(b, FILE_TOTAL_LEN.start, len);
+    }
+    fix_crc(b);
+}
+
+/// Offsets of one axis section's parts in a blob.
+#[derive(Clone, Copy, Debug)]
+struct Section {
+    start: usize,
+    terms: usize,
+    vertices: usize,
+    triangles: usize,
+    hull: usize,
+    poly_at: usize,
+    vertex_at: usize,
+    triangle_at: usize,
+    hull_at: usize,
+}
+
+/// The layout of axis `axis` of a well-formed blob, computed from the spec (not the reader).
+fn section(b: &[u8], axis: usize) -> Section {
+    let mut start = FILE_HEADER_LEN;
+    for _ in 0..axis {
+        start += u32_at(b, start + AXIS_SECTION_LEN.start) as usize;
+    }
+    let count = |r: std::ops::Range<usize>| u32_at(b, start + r.start) as usize;
+    let (terms, vertices, triangles, hull) = (
+        count(AXIS_POLY_TERM_COUNT),
+        count(AXIS_VERTEX_COUNT),
+        count(AXIS_TRIANGLE_COUNT),
+        count(AXIS_HULL_EDGE_COUNT),
+    );
+    let poly_at = start + AXIS_HEADER_LEN;
+    let vertex_at = poly_at + terms * POLY_TERM_LEN;
+    let triangle_at = vertex_at + vertices * VERTEX_LEN;
+    let hull_at = triangle_at + triangles * TRIANGLE_LEN;
+    Section { start, terms, vertices, triangles, hull, poly_at, vertex_at, triangle_at, hull_at }
+}
+
+/// Exercises every read-side API of an accepted model at many queries and hints. Returns the
+/// number of evaluations. Must never panic, whatever the model.
+fn exercise(model: &Model<'_>, seed: u64) -> usize {
+    let mut r = rng(seed);
+    let mut n = 0;
+    let _ = (model.tool_version(), model.input_digest(), model.format_version());
+    assert!(model.axis(model.axis_count()).is_err());
+    for i in 0..model.axis_count() {
+        let axis = model.axis(i).expect("an accepted model hands out each of its axes");
+        let mut queries: Vec<(f32, f32)> =
+            (0..24).map(|_| (r.gen_range(-100.0f32..150.0), r.gen_range(-1.0f32..2.0))).collect();
+        queries.extend([
+            (f32::MAX, f32::MAX),
+            (f32::MIN, 0.0),
+            (0.0, f32::MIN),
+            (1.0e30, -1.0e30),
+            (f32::NAN, 0.0),
+            (0.0, f32::INFINITY),
+            (-0.0, f32::MIN_POSITIVE),
+        ]);
+        let mut hint = WalkHint(r.gen());
+        for &(t, rate) in &queries {
+            let _ = axis.evaluate(t, rate, &mut hint);
+            n += 1;
+        }
+        if let Some(poly) = &axis.poly {
+            let _ = (poly.len(), poly.is_empty(), poly.terms().count(), poly.evaluate(1.0e6, -1.0e6));
+        }
+        if let Some(mesh) = &axis.mesh {
+            for &(t, rate) in &queries {
+                let (x, y) = axis.normalisation.apply(t, rate);
+                for h in [0, 1, mesh.triangle_count() / 2, mesh.triangle_count(), u32::MAX, r.gen()] {
+                    let mut hint = WalkHint(h);
+                    if let Ok(loc) = mesh.locate(x, y, &mut hint) {
+                        assert!(hint.0 < mesh.triangle_count(), "hint left in range");
+                        let (Location::Inside { triangle, .. } | Location::Outside { triangle }) = loc;
+                        assert!(triangle < mesh.triangle_count());
+                    }
+                    let _ = mesh.interpolate(x, y, &mut hint);
+                    n += 1;
+                }
+                let _ = (mesh.locate_by_scan(x, y), mesh.nearest_hull_value(x, y));
+            }
+            for h in 0..=mesh.hull_edge_count() {
+                let _ = (mesh.hull_edge(h), mesh.hull_edge_vertices(h));
+            }
+            let _ = (
+                mesh.vertex(u32::MAX),
+                mesh.triangle(u32::MAX),
+                mesh.hull_edge(u32::MAX),
+                mesh.outside_policy(),
+            );
+        }
+    }
+    n
+}
+
+fn proptest_config(cases: u32) -> Config {
+    Config {
+        cases,
+        failure_persistence: None,
+        rng_algorithm: RngAlgorithm::ChaCha,
+        rng_seed: RngSeed::Fixed(0xB10B_F0A7),
+        ..Config::default()
+    }
+}
+
+fn provenance(seed: f32) -> AxisProvenance {
+    AxisProvenance {
+        fit_point_count: 1000 + seed as u32,
+        residual_rms_dph: 0.0031 * seed,
+        residual_max_abs_dph: 0.0172 * seed,
+        temp_min_c: -41.25 + seed,
+        temp_max_c: 79.5 - seed,
+        rate_min_c_per_min: 0.0125 * seed,
+        rate_max_c_per_min: 0.75 + 0.01 * seed,
+    }
+}
+
+fn term(temp_power: u8, rate_power: u8, coefficient_dph: f32) -> PolyTerm {
+    PolyTerm { temp_power, rate_power, coefficient_dph }
+}
+
+/// A three-axis model: poly-only, mesh-only, and hybrid poly+mesh with `OutsidePolicy::Zero`;
+/// every axis has its own feature settings, normalisation and provenance.
+fn three_axis_model() -> ModelFile {
+    let n1 = Normalisation {
+        temp_offset_c: 25.0,
+        temp_scale_per_c: 1.0 / 50.0,
+        rate_offset_c_per_min: 0.3,
+        rate_scale_per_c_per_min: 1.5,
+    };
+    let axis0 = AxisModel {
+        features: FeatureSettings { window_s: 60.0, block_count: 30, min_blocks: 5, max_gap_s: 2.5 },
+        normalisation: NORMALISATION,
+        outside_policy: OutsidePolicy::NearestHull,
+        poly: vec![
+            term(0, 0, 0.0123),
+            term(1, 0, -0.25),
+            term(0, 1, 0.0625),
+            term(3, 2, 1.0e-4),
+            term(6, 0, -3.5e-7),
+            term(0, 6, 2.0e-6),
+            term(2, 2, f32::MIN_POSITIVE),
+        ],
+        mesh: None,
+        provenance: provenance(1.0),
+    };
+    let axis1 = AxisModel {
+        features: FEATURES,
+        normalisation: n1,
+        outside_policy: OutsidePolicy::NearestHull,
+        poly: Vec::new(),
+        mesh: Some(build_mesh(&random_points(40, 11, bias_surface), &n1).expect("mesh")),
+        provenance: provenance(2.0),
+    };
+    let axis2 = AxisModel {
+        features: FeatureSettings { window_s: 250.0, block_count: 4096, min_blocks: 4096, max_gap_s: 1.0e3 },
+        normalisation: NORMALISATION,
+        outside_policy: OutsidePolicy::Zero,
+        poly: vec![term(0, 0, -0.5), term(1, 1, 0.125)],
+        mesh: Some(build_mesh(&paper_points(6, bias_surface), &NORMALISATION).expect("mesh")),
+        provenance: provenance(3.0),
+    };
+    ModelFile {
+        tool_version: "fogtemp rt 0.1".into(),
+        input_digest: core_digest(),
+        axes: vec![axis0, axis1, axis2],
+    }
+}
+
+fn core_digest() -> [u8; 32] {
+    let mut d = [0u8; 32];
+    for (i, b) in d.iter_mut().enumerate() {
+        *b = (i as u8).wrapping_mul(37).wrapping_add(5);
+    }
+    d
+}
+
+/// A valid one-axis hybrid blob of about 2 KB (17 mesh nodes, 3 poly terms).
+fn two_kb_blob() -> Vec<u8> {
+    let axis = AxisModel {
+        features: FEATURES,
+        normalisation: NORMALISATION,
+        outside_policy: OutsidePolicy::NearestHull,
+        poly: vec![term(0, 0, 0.01), term(1, 0, 0.2), term(1, 1, -0.03)],
+        mesh: Some(build_mesh(&random_points(17, 21, bias_surface), &NORMALISATION).expect("mesh")),
+        provenance: provenance(4.0),
+    };
+    encode(&ModelFile { tool_version: "fogtemp 2k".into(), input_digest: [3; 32], axes: vec![axis] })
+        .expect("encodes")
+}
+
+fn bits(v: f32) -> u32 {
+    v.to_bits()
+}
+
+// ---------------------------------------------------------------------------------------------
+// 1. Round trip and layout
+// ---------------------------------------------------------------------------------------------
+
+#[test]
+fn encode_then_from_bytes_returns_every_field_bit_exactly() {
+    let file = three_axis_model();
+    let blob = encode(&file).expect("encodes");
+    let model = Model::from_bytes(&blob).expect("parses");
+    assert_eq!(model.format_version(), FORMAT_VERSION);
+    assert_eq!(model.tool_version(), file.tool_version.as_bytes());
+    assert_eq!(model.input_digest(), file.input_digest);
+    assert_eq!(model.axis_count(), 3);
+    assert!(matches!(model.axis(3), Err(Error::NoSuchAxis { requested: 3, available: 3 })));
+
+    for (i, written) in file.axes.iter().enumerate() {
+        let axis = model.axis(i).expect("axis");
+        assert_eq!(usize::from(axis.id), i);
+        let (f, g) = (&axis.features, &written.features);
+        assert_eq!(
+            (bits(f.window_s), f.block_count, f.min_blocks, bits(f.max_gap_s)),
+            (bits(g.window_s), g.block_count, g.min_blocks, bits(g.max_gap_s)),
+            "axis {i}: features"
+        );
+        let (n, m) = (&axis.normalisation, &written.normalisation);
+        assert_eq!(
+            [n.temp_offset_c, n.temp_scale_per_c, n.rate_offset_c_per_min, n.rate_scale_per_c_per_min]
+                .map(bits),
+            [m.temp_offset_c, m.temp_scale_per_c, m.rate_offset_c_per_min, m.rate_scale_per_c_per_min]
+                .map(bits),
+            "axis {i}: normalisation"
+        );
+        let (p, q) = (&axis.provenance, &written.provenance);
+        assert_eq!(p.fit_point_count, q.fit_point_count);
+        assert_eq!(
+            [
+                p.residual_rms_dph,
+                p.residual_max_abs_dph,
+                p.temp_min_c,
+                p.temp_max_c,
+                p.rate_min_c_per_min,
+                p.rate_max_c_per_min
+            ]
+            .map(bits),
+            [
+                q.residual_rms_dph,
+                q.residual_max_abs_dph,
+                q.temp_min_c,
+                q.temp_max_c,
+                q.rate_min_c_per_min,
+                q.rate_max_c_per_min
+            ]
+            .map(bits),
+            "axis {i}: provenance"
+        );
+        match &axis.poly {
+            None => assert!(written.poly.is_empty(), "axis {i}: poly missing"),
+            Some(poly) => {
+                let read: Vec<(u8, u8, u32)> =
+                    poly.terms().map(|t| (t.temp_power, t.rate_power, bits(t.coefficient_dph))).collect();
+                let expected: Vec<(u8, u8, u32)> = written
+                    .poly
+                    .iter()
+                    .map(|t| (t.temp_power, t.rate_power, bits(t.coefficient_dph)))
+                    .collect();
+                assert_eq!(read, expected, "axis {i}: poly terms");
+                assert_eq!(poly.len(), written.poly.len());
+            }
+        }
+        match (&axis.mesh, &written.mesh) {
+            (None, None) => {}
+            (Some(mesh), Some(w)) => {
+                assert_eq!(mesh.outside_policy(), written.outside_policy, "axis {i}: policy");
+                assert_eq!(mesh.vertex_count() as usize, w.vertices.len());
+                assert_eq!(mesh.triangle_count() as usize, w.triangles.len());
+                assert_eq!(mesh.hull_edge_count() as usize, w.hull.len());
+                for (v, wv) in w.vertices.iter().enumerate() {
+                    let rv = mesh.vertex(v as u32).expect("vertex");
+                    assert_eq!(
+                        [rv.x, rv.y, rv.value_dph].map(bits),
+                        [wv.x, wv.y, wv.value_dph].map(bits),
+                        "axis {i} vertex {v}"
+                    );
+                }
+                assert!(mesh.vertex(w.vertices.len() as u32).is_none());
+                for (t, (tri, nb)) in w.triangles.iter().zip(&w.neighbours).enumerate() {
+                    let rec = mesh.triangle(t as u32).expect("triangle");
+                    assert_eq!(rec.vertices, *tri, "axis {i} triangle {t}: vertices");
+                    assert_eq!(rec.neighbours, *nb, "axis {i} triangle {t}: neighbours");
+                    let tf = triangle_transform(w, *tri).expect("transform");
+                    assert_eq!(rec.origin.map(bits), tf.origin.map(bits), "axis {i} triangle {t}: origin");
+                    assert_eq!(
+                        rec.bary.map(bits),
+                        tf.bary.map(|v| bits(v as f32)),
+                        "axis {i} triangle {t}: bary"
+                    );
+                    assert_eq!(
+                        rec.plane.map(bits),
+                        tf.plane.map(|v| bits(v as f32)),
+                        "axis {i} triangle {t}: plane"
+                    );
+                }
+                assert!(mesh.triangle(w.triangles.len() as u32).is_none());
+                for (h, edge) in w.hull.iter().enumerate() {
+                    assert_eq!(mesh.hull_edge(h as u32), Some(*edge), "axis {i} hull {h}");
+                }
+                assert!(mesh.hull_edge(w.hull.len() as u32).is_none());
+            }
+            _ => panic!("axis {i}: mesh presence differs"),
+        }
+    }
+    assert!(exercise(&model, 1) > 0);
+}
+
+#[test]
+fn blob_layout_follows_the_spec() {
+    let file = three_axis_model();
+    let blob = encode(&file).expect("encodes");
+    assert_eq!(&blob[FILE_MAGIC], b"FOGM");
+    assert_eq!(u16_at(&blob, FILE_VERSION.start), 1);
+    assert_eq!(u16_at(&blob, FILE_HEADER_LEN_FIELD.start), 64);
+    assert_eq!(u32_at(&blob, FILE_TOTAL_LEN.start) as usize, blob.len());
+    assert_eq!(u16_at(&blob, FILE_AXIS_COUNT.start), 3);
+    assert_eq!(u16_at(&blob, FILE_RESERVED.start), 0);
+    assert_eq!(&blob[FILE_TOOL_VERSION][..14], b"fogtemp rt 0.1");
+    assert!(blob[FILE_TOOL_VERSION][14..].iter().all(|&b| b == 0), "NUL padded");
+    let body = blob.len() - 4;
+    assert_eq!(u32_at(&blob, body), crc32fast::hash(&blob[..body]), "CRC-32 (IEEE) trailer over the body");
+    let mut end = FILE_HEADER_LEN;
+    for (i, axis) in file.axes.iter().enumerate() {
+        let s = section(&blob, i);
+        assert_eq!(s.start, end);
+        assert_eq!(u16_at(&blob, s.start + AXIS_ID.start) as usize, i);
+        let kind = u16_at(&blob, s.start + AXIS_MODEL_KIND.start);
+        assert_eq!(kind & KIND_POLY != 0, !axis.poly.is_empty());
+        assert_eq!(kind & KIND_MESH != 0, axis.mesh.is_some());
+        assert_eq!(u32_at(&blob, s.start + AXIS_OUTSIDE_POLICY.start), axis.outside_policy.code());
+        assert!(blob[s.start + AXIS_RESERVED.start..s.start + AXIS_RESERVED.end].iter().all(|&b| b == 0));
+        let len = 96 + 8 * s.terms + 12 * s.vertices + 60 * s.triangles + 8 * s.hull;
+        assert_eq!(u32_at(&blob, s.start + AXIS_SECTION_LEN.start) as usize, len);
+        for (k, t) in axis.poly.iter().enumerate() {
+            let at = s.poly_at + 8 * k;
+            assert_eq!(&blob[at..at + 4], &[t.temp_power, t.rate_power, 0, 0]);
+            assert_eq!(blob[at + 4..at + 8], t.coefficient_dph.to_le_bytes());
+        }
+        if let Some(m) = &axis.mesh {
+            let v0 = &m.vertices[0];
+            assert_eq!(blob[s.vertex_at..s.vertex_at + 4], v0.x.to_le_bytes());
+            let t0 = s.triangle_at;
+            assert_eq!(u32_at(&blob, t0 + TRI_VERTICES.start), m.triangles[0][0]);
+            assert_eq!(u32_at(&blob, t0 + TRI_NEIGHBOURS.start), m.neighbours[0][0]);
+            assert_eq!(u32_at(&blob, s.hull_at), m.hull[0].0);
+            assert_eq!(u32_at(&blob, s.hull_at + 4), m.hull[0].1);
+        }
+        end += len;
+    }
+    assert_eq!(end, body, "sections fill the blob up to the CRC");
+}
+
+// ---------------------------------------------------------------------------------------------
+// 2. CRC
+// ---------------------------------------------------------------------------------------------
+
+#[test]
+fn core_crc32_equals_crc32fast_on_random_bytes() {
+    assert_eq!(fogtemp_core::crc::crc32(b"123456789"), 0xCBF4_3926);
+    let mut r = rng(42);
+    for i in 0..3000 {
+        let len = if i < 300 { i } else { r.gen_range(0..5000) };
+        let bytes: Vec<u8> = (0..len).map(|_| r.gen()).collect();
+        assert_eq!(fogtemp_core::crc::crc32(&bytes), crc32fast::hash(&bytes), "length {len}");
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// 3. Golden bytes of format version 1
+// ---------------------------------------------------------------------------------------------
+
+/// A deterministic pseudo-random stream from an integer LCG (no float library functions, so
+/// the golden model is the same on every platform and with every `rand` version).
+struct Lcg(u32);
+
+impl Lcg {
+    fn unit(&mut self) -> f64 {
+        self.0 = self.0.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+        f64::from(self.0 >> 8) / f64::from(1u32 << 24)
+    }
+}
+
+/// Bias surface of the golden model: polynomial arithmetic only (exactly reproducible).
+fn golden_surface(temp_c: f64, rate: f64) -> f64 {
+    0.002 * temp_c + 1.5e-5 * temp_c * temp_c + 0.06 * rate - 4.0e-4 * temp_c * rate
+}
+
+/// The golden model: axis 0 hybrid (5 poly terms + a 30-node mesh on a jittered 6 x 5 grid,
+/// nearest-hull policy), axis 1 polynomial only (own features and normalisation).
+fn golden_model() -> ModelFile {
+    let mut lcg = Lcg(0x00C0_FFEE);
+    let mut points = Vec::new();
+    for i in 0..6 {
+        for j in 0..5 {
+            let temp_c = -40.0 + 20.0 * (f64::from(i) + 0.15 + 0.7 * lcg.unit());
+            let rate = 0.2 * (f64::from(j) + 0.15 + 0.7 * lcg.unit());
+            points.push(MeshPoint { temp_c, rate_c_per_min: rate, value_dph: golden_surface(temp_c, rate) });
+        }
+    }
+    let axis0 = AxisModel {
+        features: FEATURES,
+        normalisation: NORMALISATION,
+        outside_policy: OutsidePolicy::NearestHull,
+        poly: vec![
+            term(0, 0, 0.05),
+            term(1, 0, 0.12),
+            term(0, 1, -0.03),
+            term(2, 0, 0.01),
+            term(1, 1, 0.004),
+        ],
+        mesh: Some(build_mesh(&points, &NORMALISATION).expect("golden mesh")),
+        provenance: provenance(5.0),
+    };
+    let axis1 = AxisModel {
+        features: FeatureSettings { window_s: 50.0, block_count: 25, min_blocks: 8, max_gap_s: 3.0 },
+        normalisation: Normalisation {
+            temp_offset_c: 15.0,
+            temp_scale_per_c: 0.02,
+            rate_offset_c_per_min: 0.25,
+            rate_scale_per_c_per_min: 4.0,
+        },
+        outside_policy: OutsidePolicy::NearestHull,
+        poly: vec![
+            term(0, 0, -0.02),
+            term(1, 0, 0.3),
+            term(2, 0, -0.05),
+            term(0, 1, 0.07),
+            term(3, 1, 0.002),
+        ],
+        mesh: None,
+        provenance: provenance(6.0),
+    };
+    ModelFile { tool_version: "fogtemp golden".into(), input_digest: core_digest(), axes: vec![axis0, axis1] }
+}
+
+/// The golden query points: axis 0 on a 6 x 5 grid reaching outside the hull, axis 1 on 5 x 4.
+fn golden_queries() -> Vec<(usize, f32, f32)> {
+    let mut q = Vec::new();
+    for temp_c in [-70.0f32, -35.5, -2.25, 21.0, 47.75, 95.0] {
+        for rate in [-0.25f32, 0.125, 0.4, 0.7, 1.3] {
+            q.push((0, temp_c, rate));
+        }
+    }
+    for temp_c in [-40.0f32, -10.0, 15.0, 40.0, 85.0] {
+        for rate in [0.0f32, 0.2, 0.45, 0.9] {
+            q.push((1, temp_c, rate));
+        }
+    }
+    q
+}
+
+const GOLDEN_BLOB: &str = "model-v1.fogm";
+const GOLDEN_CSV: &str = "model-v1.expected.csv";
+const GOLDEN_HEADER: &str = "axis,temp_c,rate_c_per_min,value_dph_bits,outside";
+
+/// One expected row: evaluated with a fresh default hint, so the row does not depend on the
+/// order of the queries.
+fn golden_row(model: &Model<'_>, (axis, temp_c, rate): (usize, f32, f32)) -> String {
+    let e = model.axis(axis).expect("axis").evaluate(temp_c, rate, &mut WalkHint::default()).expect("finite");
+    format!("{axis},{temp_c},{rate},{:08x},{}", e.value_dph.to_bits(), u8::from(e.outside_hull))
+}
+
+/// With `FOGTEMP_BLESS=1`, (re)writes the golden files from today's writer; otherwise nothing.
+fn bless_if_requested() {
+    static BLESS: Once = Once::new();
+    BLESS.call_once(|| {
+        if std::env::var("FOGTEMP_BLESS").as_deref() != Ok("1") {
+            return;
+        }
+        let blob = encode(&golden_model()).expect("golden model encodes");
+        let model = Model::from_bytes(&blob).expect("parses");
+        let mut csv = String::from(GOLDEN_HEADER);
+        csv.push('\n');
+        for q in golden_queries() {
+            csv.push_str(&golden_row(&model, q));
+            csv.push('\n');
+        }
+        std::fs::create_dir_all(golden_dir()).expect("create tests/golden");
+        std::fs::write(golden_dir().join(GOLDEN_BLOB), &blob).expect("write golden blob");
+        std::fs::write(golden_dir().join(GOLDEN_CSV), csv).expect("write golden csv");
+        eprintln!("FOGTEMP_BLESS=1: wrote {} ({} bytes) and {GOLDEN_CSV}", GOLDEN_BLOB, blob.len());
+    });
+}
+
+fn read_golden(name: &str) -> Vec<u8> {
+    bless_if_requested();
+    let path = golden_dir().join(name);
+    std::fs::read(&path).unwrap_or_else(|e| {
+        panic!("{}: {e}; golden files are created once with FOGTEMP_BLESS=1", path.display())
+    })
+}
+
+#[test]
+fn golden_v1_blob_parses_and_evaluates_every_expected_row_bit_exactly() {
+    let blob = read_golden(GOLDEN_BLOB);
+    let csv = String::from_utf8(read_golden(GOLDEN_CSV)).expect("utf-8");
+    let model = Model::from_bytes(&blob).expect("today's reader accepts the version-1 golden blob");
+    assert_eq!(model.format_version(), 1);
+    assert_eq!(model.axis_count(), 2);
+    assert_eq!(model.tool_version(), b"fogtemp golden");
+    assert_eq!(model.input_digest(), core_digest());
+    let (a0, a1) = (model.axis(0).expect("axis 0"), model.axis(1).expect("axis 1"));
+    assert!(a0.poly.is_some() && a0.mesh.is_some() && a1.poly.is_some() && a1.mesh.is_none());
+    assert!(a0.mesh.expect("mesh").vertex_count() >= 25);
+
+    let mut lines = csv.lines();
+    assert_eq!(lines.next(), Some(GOLDEN_HEADER));
+    let mut rows = 0;
+    let mut outside = 0;
+    for (n, line) in lines.enumerate() {
+        let fields: Vec<&str> = line.split(',').collect();
+        assert_eq!(fields.len(), 5, "row {n}: {line}");
+        let axis: usize = fields[0].parse().expect("axis");
+        let temp_c: f32 = fields[1].parse().expect("temp_c");
+        let rate: f32 = fields[2].parse().expect("rate_c_per_min");
+        let expected_bits = u32::from_str_radix(fields[3], 16).expect("value_dph_bits");
+        let expected_outside = fields[4] == "1";
+        let e =
+            model.axis(axis).expect("axis").evaluate(temp_c, rate, &mut WalkHint::default()).expect("finite");
+        assert_eq!(
+            (e.value_dph.to_bits(), e.outside_hull),
+            (expected_bits, expected_outside),
+            "row {n} ({line}): today's reader gives {} ({:08x})",
+            e.value_dph,
+            e.value_dph.to_bits()
+        );
+        rows += 1;
+        outside += usize::from(expected_outside);
+    }
+    assert_eq!(rows, golden_queries().len());
+    assert!(outside > 0 && outside < rows, "the golden queries cover inside and outside the hull");
+}
+
+#[test]
+fn golden_v1_blob_is_reproduced_byte_for_byte_by_todays_writer() {
+    let golden = read_golden(GOLDEN_BLOB);
+    let today = encode(&golden_model()).expect("encodes");
+    if today != golden {
+        let first =
+            today.iter().zip(&golden).position(|(a, b)| a != b).unwrap_or(today.len().min(golden.len()));
+        panic!(
+            "the writer's output for the golden model changed (lengths {} vs {}, first difference at \
+             byte {first}). A format change needs a new version and a new golden file; a legitimate \
+             writer change (e.g. a new triangle order) is blessed with FOGTEMP_BLESS=1 after checking \
+             the expected values still hold.",
+            today.len(),
+            golden.len()
+        );
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// 4. Corruption
+// ---------------------------------------------------------------------------------------------
+
+const MASKS: [u8; 9] = [0x01, 0x02, 0x04, 0x08, 0x10, 0x20, 0x40, 0x80, 0xFF];
+
+#[test]
+fn every_single_byte_flip_is_rejected_by_the_crc_or_length_checks() {
+    // CRC-32 detects every error burst of up to 32 bits, so no single-byte change can pass.
+    let blob = two_kb_blob();
+    assert!((1800..2300).contains(&blob.len()), "{} bytes", blob.len());
+    for at in 0..blob.len() {
+        for mask in MASKS {
+            let mut b = blob.clone();
+            b[at] ^= mask;
+            let result = Model::from_bytes(&b);
+            assert!(result.is_err(), "flip {mask:#04x} at {at} accepted");
+        }
+    }
+}
+
+#[test]
+fn every_single_byte_flip_with_crc_recomputed_is_rejected_or_evaluates_without_panic() {
+    let blob = two_kb_blob();
+    let mut outcomes: BTreeMap<String, usize> = BTreeMap::new();
+    let mut evaluations = 0;
+    for at in 0..blob.len() - CRC_LEN {
+        for mask in MASKS {
+            let mut b = blob.clone();
+            b[at] ^= mask;
+            fix_crc(&mut b);
+            let result = catch_unwind(AssertUnwindSafe(|| match Model::from_bytes(&b) {
+                Ok(model) => (String::from("accepted"), exercise(&model, at as u64)),
+                Err(e) => (variant(&e), 0),
+            }));
+            let (outcome, n) = result.unwrap_or_else(|_| panic!("panic on flip {mask:#04x} at byte {at}"));
+            *outcomes.entry(outcome).or_default() += 1;
+            evaluations += n;
+        }
+    }
+    println!("single-byte flips with CRC fixed: {outcomes:?}; {evaluations} evaluations of accepted mutants");
+    assert!(outcomes.get("accepted").copied().unwrap_or(0) > 0, "some flips (values, provenance) are valid");
+}
+
+#[test]
+fn every_truncation_is_rejected() {
+    let blob = two_kb_blob();
+    for len in 0..blob.len() {
+        assert!(Model::from_bytes(&blob[..len]).is_err(), "truncated to {len} accepted");
+        // Even with total_len and CRC patched to match, a cut section cannot be accepted.
+        let mut b = blob[..len].to_vec();
+        fix_len_and_crc(&mut b);
+        assert!(Model::from_bytes(&b).is_err(), "truncated to {len} with length and CRC fixed accepted");
+    }
+}
+
+/// The name of an error variant (for statistics).
+fn variant(e: &Error) -> String {
+    let s = format!("{e:?}");
+    s.split([' ', '{', '(']).next().unwrap_or("").to_string()
+}
+
+proptest! {
+    #![proptest_config(proptest_config(3000))]
+
+    #[test]
+    fn random_bytes_never_panic(bytes in proptest::collection::vec(any::<u8>(), 0..4096)) {
+        if let Ok(model) = Model::from_bytes(&bytes) {
+            exercise(&model, 9);
+        }
+    }
+
+    #[test]
+    fn random_bytes_behind_a_valid_header_never_panic(
+        axis_count in 0u16..20,
+        payload in proptest::collection::vec(any::<u8>(), 0..3000),
+    ) {
+        // A well-formed file header with a matching length and CRC: the reader has to go
+        // through the axis sections, which are random.
+        let mut b = vec![0u8; FILE_HEADER_LEN];
+        b[FILE_MAGIC].copy_from_slice(&MAGIC);
+        put_u16(&mut b, FILE_VERSION.start, FORMAT_VERSION);
+        put_u16(&mut b, FILE_HEADER_LEN_FIELD.start, FILE_HEADER_LEN as u16);
+        put_u16(&mut b, FILE_AXIS_COUNT.start, axis_count);
+        b.extend_from_slice(&payload);
+        b.extend_from_slice(&[0; CRC_LEN]);
+        fix_len_and_crc(&mut b);
+        if let Ok(model) = Model::from_bytes(&b) {
+            exercise(&model, 10);
+        }
+    }
+}
+
+/// One structured mutation of a valid blob.
+#[derive(Clone, Debug)]
+enum Mutation {
+    /// Overwrite one byte.
+    Byte { at: usize, value: u8 },
+    /// Overwrite an aligned u32 (counts, indices, neighbours, hull entries).
+    Word { at: usize, value: u32 },
+    /// Overwrite an aligned f32 with a special value.
+    Float { at: usize, value: f32 },
+    /// Change one of axis 0's counts by `delta`, inserting or removing records (filled with
+    /// `fill`) so that `section_len` and `total_len` stay consistent.
+    Resize { which: usize, delta: i32, fill: u8 },
+    /// Swap two 4-byte words.
+    Swap { a: usize, b: usize },
+}
+
+fn interesting_u32(r: &mut impl Rng, blob: &[u8]) -> u32 {
+    let s = section(blob, 0);
+    let counts = [s.terms, s.vertices, s.triangles, s.hull].map(|c| c as u32);
+    match r.gen_range(0..8) {
+        0 => 0,
+        1 => u32::MAX,
+        2 => u32::MAX - 1,
+        3 => counts[r.gen_range(0..4)],
+        4 => counts[r.gen_range(0..4)].wrapping_sub(1),
+        5 => r.gen_range(0..4),
+        6 => 1 << r.gen_range(0..32),
+        _ => r.gen(),
+    }
+}
+
+fn interesting_f32(r: &mut impl Rng) -> f32 {
+    const SPECIAL: [f32; 14] = [
+        f32::NAN,
+        f32::INFINITY,
+        f32::NEG_INFINITY,
+        0.0,
+        -0.0,
+        f32::MAX,
+        f32::MIN,
+        f32::MIN_POSITIVE,
+        1.0e-45,
+        1.0e6,
+        1.000_000_1e6,
+        -1.0e6,
+        1.0,
+        -1.0,
+    ];
+    if r.gen_bool(0.6) {
+        SPECIAL[r.gen_range(0..SPECIAL.len())]
+    } else {
+        f32::from_bits(r.gen())
+    }
+}
+
+fn random_mutation(r: &mut impl Rng, blob: &[u8]) -> Mutation {
+    let body = blob.len() - CRC_LEN;
+    let words = body / 4;
+    match r.gen_range(0..10) {
+        0 | 1 => Mutation::Byte { at: r.gen_range(0..body), value: r.gen() },
+        2..=4 => Mutation::Word { at: 4 * r.gen_range(0..words), value: interesting_u32(r, blob) },
+        5 | 6 => Mutation::Float { at: 4 * r.gen_range(0..words), value: interesting_f32(r) },
+        7 | 8 => Mutation::Resize { which: r.gen_range(0..4), delta: r.gen_range(-2..=2), fill: r.gen() },
+        _ => Mutation::Swap { a: 4 * r.gen_range(0..words), b: 4 * r.gen_range(0..words) },
+    }
+}
+
+fn apply(b: &mut Vec<u8>, m: &Mutation) {
+    let body = b.len() - CRC_LEN;
+    let fits = |at: usize, n: usize| at + n <= body;
+    match *m {
+        Mutation::Byte { at, .. } if !fits(at, 1) => {}
+        Mutation::Word { at, .. } | Mutation::Float { at, .. } if !fits(at, 4) => {}
+        Mutation::Swap { a, b: c } if !fits(a, 4) || !fits(c, 4) => {}
+        Mutation::Byte { at, value } => b[at] = value,
+        Mutation::Word { at, value } => put_u32(b, at, value),
+        Mutation::Float { at, value } => put_f32(b, at, value),
+        Mutation::Swap { a, b: c } => {
+            let (x, y) = (u32_at(b, a), u32_at(b, c));
+            put_u32(b, a, y);
+            put_u32(b, c, x);
+        }
+        Mutation::Resize { which, delta, fill } => {
+            // Only meaningful while axis 0's header is intact enough to describe the layout.
+            let s = section(b, 0);
+            let (count_field, count, record_len, array_end) = match which {
+                0 => (AXIS_POLY_TERM_COUNT, s.terms, POLY_TERM_LEN, s.vertex_at),
+                1 => (AXIS_VERTEX_COUNT, s.vertices, VERTEX_LEN, s.triangle_at),
+                2 => (AXIS_TRIANGLE_COUNT, s.triangles, TRIANGLE_LEN, s.hull_at),
+                _ => (AXIS_HULL_EDGE_COUNT, s.hull, HULL_EDGE_LEN, s.hull_at + s.hull * HULL_EDGE_LEN),
+            };
+            if array_end > body || count > 1 << 20 {
+                return;
+            }
+            let new_count = count as i64 + i64::from(delta);
+            if new_count < 0 {
+                return;
+            }
+            let bytes = (delta.unsigned_abs() as usize) * record_len;
+            if delta > 0 {
+                b.splice(array_end..array_end, std::iter::repeat_n(fill, bytes));
+            } else if delta < 0 {
+                if bytes > count * record_len {
+                    return;
+                }
+                b.drain(array_end - bytes..array_end);
+            }
+            put_u32(b, s.start + count_field.start, new_count as u32);
+            let section_len =
+                u32_at(b, s.start + AXIS_SECTION_LEN.start) as i64 + i64::from(delta) * record_len as i64;
+            put_u32(b, s.start + AXIS_SECTION_LEN.start, section_len as u32);
+            fix_len_and_crc(b);
+        }
+    }
+}
+
+#[test]
+fn random_mutations_with_crc_recomputed_never_panic_and_accepted_ones_evaluate() {
+    let blobs = [two_kb_blob(), encode(&three_axis_model()).expect("encodes")];
+    let mut r = rng(0xFEED);
+    let mut outcomes: BTreeMap<String, usize> = BTreeMap::new();
+    let mut evaluations = 0usize;
+    let panics_dir = Path::new(env!("CARGO_TARGET_TMPDIR")).join("blob-mutation-panics");
+    for case in 0..20_000u64 {
+        let base = &blobs[(case % 2) as usize];
+        let mut b = base.clone();
+        let mut mutations = Vec::new();
+        for _ in 0..r.gen_range(1..=4) {
+            // Each mutation is drawn against the current (possibly resized) bytes.
+            let m = random_mutation(&mut r, &b);
+            apply(&mut b, &m);
+            mutations.push(m);
+        }
+        fix_crc(&mut b);
+        let result = catch_unwind(AssertUnwindSafe(|| match Model::from_bytes(&b) {
+            Ok(model) => (String::from("accepted"), exercise(&model, case)),
+            Err(e) => (variant(&e), 0),
+        }));
+        let Ok((outcome, n)) = result else {
+            std::fs::create_dir_all(&panics_dir).expect("dir");
+            let path = panics_dir.join(format!("case-{case}.fogm"));
+            std::fs::write(&path, &b).expect("write");
+            panic!("case {case}: panic after {mutations:?}; bytes in {}", path.display());
+        };
+        *outcomes.entry(outcome).or_default() += 1;
+        evaluations += n;
+    }
+    println!("20000 mutants with CRC fixed: {outcomes:?}; {evaluations} evaluations of accepted mutants");
+    assert!(outcomes.len() >= 6, "mutations reach many different checks: {outcomes:?}");
+}
+
+#[test]
+fn fuzz_regressions_never_panic() {
+    // Inputs the fuzz target once crashed on (see tests/golden/fuzz-regressions/README.md),
+    // through the same two paths as the target: as given, and with length and CRC patched.
+    let dir = golden_dir().join("fuzz-regressions");
+    let mut replayed = 0;
+    for entry in std::fs::read_dir(&dir).expect("tests/golden/fuzz-regressions exists") {
+        let path = entry.expect("dir entry").path();
+        if path.extension().is_some_and(|e| e == "md") {
+            continue;
+        }
+        let bytes = std::fs::read(&path).expect("read regression input");
+        let mut fixed = bytes.clone();
+        fix_len_and_crc(&mut fixed);
+        for input in [&bytes, &fixed] {
+            let outcome = catch_unwind(AssertUnwindSafe(|| {
+                if let Ok(model) = Model::from_bytes(input) {
+                    exercise(&model, 0);
+                }
+            }));
+            assert!(outcome.is_ok(), "{}: panics", path.display());
+        }
+        replayed += 1;
+    }
+    println!("replayed {replayed} fuzz regression inputs");
+}
+
+// ---------------------------------------------------------------------------------------------
+// 5. Targeted corruptions (CRC recomputed): each gives its specific error
+// ---------------------------------------------------------------------------------------------
+
+fn mutated(f: impl FnOnce(&mut Vec<u8>, Section)) -> Result<(), Error> {
+    let mut b = two_kb_blob();
+    let s = section(&b, 0);
+    f(&mut b, s);
+    fix_crc(&mut b);
+    Model::from_bytes(&b).map(|_| ())
+}
+
+/// Finds a triangle slot `(t, k)` satisfying `want` in axis 0 of `b`.
+fn find_slot(b: &[u8], s: Section, want: impl Fn(u32) -> bool) -> (usize, usize) {
+    for t in 0..s.triangles {
+        for k in 0..3 {
+            if want(u32_at(b, s.triangle_at + 60 * t + TRI_NEIGHBOURS.start + 4 * k)) {
+                return (t, k);
+            }
+        }
+    }
+    panic!("no such slot");
+}
+
+#[test]
+fn targeted_header_corruptions_give_their_specific_errors() {
+    let r = mutated(|b, _| b[0] = b'X');
+    assert!(matches!(r, Err(Error::BadMagic)), "{r:?}");
+    let r = mutated(|b, _| put_u16(b, FILE_VERSION.start, 2));
+    assert!(matches!(r, Err(Error::UnsupportedVersion { expected: 1, found: 2 })), "{r:?}");
+    for count in [0u16, 17, u16::MAX] {
+        let r = mutated(|b, _| put_u16(b, FILE_AXIS_COUNT.start, count));
+        assert!(matches!(r, Err(Error::BadValue { field: "axis_count", .. })), "axis_count {count}: {r:?}");
+    }
+    let r = mutated(|b, _| put_u16(b, FILE_AXIS_COUNT.start, 2));
+    assert!(matches!(r, Err(Error::Truncated { .. })), "a second axis that is not there: {r:?}");
+    let r = mutated(|b, _| put_u16(b, FILE_HEADER_LEN_FIELD.start, 65));
+    assert!(matches!(r, Err(Error::LengthMismatch { field: "header_len", .. })), "{r:?}");
+    let r = mutated(|b, _| put_u16(b, FILE_RESERVED.start, 1));
+    assert!(matches!(r, Err(Error::BadValue { field: "reserved", .. })), "{r:?}");
+    // total_len is checked against the slice before the CRC.
+    let r = mutated(|b, _| {
+        let n = b.len() as u32;
+        put_u32(b, FILE_TOTAL_LEN.start, n + 1);
+    });
+    assert!(matches!(r, Err(Error::Truncated { field: "total_len", .. })), "{r:?}");
+    // CRC not recomputed.
+    let mut b = two_kb_blob();
+    b[100] ^= 1;
+    assert!(matches!(Model::from_bytes(&b), Err(Error::CrcMismatch { .. })));
+    assert!(matches!(Model::from_bytes(&b[..10]), Err(Error::Truncated { .. })));
+}
+
+#[test]
+fn targeted_axis_corruptions_give_their_specific_errors() {
+    let r = mutated(|b, s| put_u16(b, s.start + AXIS_ID.start, 1));
+    assert!(matches!(r, Err(Error::BadValue { field: "axis_id", .. })), "{r:?}");
+    let r = mutated(|b, s| put_u16(b, s.start + AXIS_MODEL_KIND.start, 4));
+    assert!(matches!(r, Err(Error::BadValue { field: "model_kind", .. })), "{r:?}");
+    let r = mutated(|b, s| put_u32(b, s.start + AXIS_OUTSIDE_POLICY.start, 2));
+    assert!(matches!(r, Err(Error::BadValue { field: "outside_policy", .. })), "{r:?}");
+    let r = mutated(|b, s| b[s.start + AXIS_RESERVED.start + 3] = 1);
+    assert!(matches!(r, Err(Error::BadValue { field: "reserved", .. })), "{r:?}");
+    let r = mutated(|b, s| put_u32(b, s.start + AXIS_SECTION_LEN.start, 96));
+    assert!(matches!(r, Err(Error::LengthMismatch { field: "section_len", .. })), "{r:?}");
+    let r = mutated(|b, s| put_f32(b, s.start + AXIS_WINDOW_S.start, f32::NAN));
+    assert!(matches!(r, Err(Error::NonFinite { field: "window_s", .. })), "{r:?}");
+    let r = mutated(|b, s| put_f32(b, s.start + AXIS_TEMP_SCALE_PER_C.start, -1.0));
+    assert!(matches!(r, Err(Error::BadValue { field: "temp_scale_per_c", .. })), "{r:?}");
+    let r = mutated(|b, s| put_u32(b, s.start + AXIS_BLOCK_COUNT.start, 5000));
+    assert!(matches!(r, Err(Error::BadValue { field: "block_count", .. })), "{r:?}");
+    let r = mutated(|b, s| put_f32(b, s.start + AXIS_RESIDUAL_RMS_DPH.start, f32::INFINITY));
+    assert!(matches!(r, Err(Error::NonFinite { field: "residual_rms_dph", .. })), "{r:?}");
+    let r = mutated(|b, s| b[s.poly_at] = 7);
+    assert!(matches!(r, Err(Error::BadValue { field: "poly_terms", .. })), "{r:?}");
+    let r = mutated(|b, s| put_f32(b, s.poly_at + 4, f32::NAN));
+    assert!(matches!(r, Err(Error::NonFinite { field: "poly_terms.coefficient_dph", .. })), "{r:?}");
+}
+
+#[test]
+fn targeted_mesh_corruptions_give_their_specific_errors() {
+    // A NaN vertex.
+    let r = mutated(|b, s| put_f32(b, s.vertex_at + 12 * 3, f32::NAN));
+    assert!(matches!(r, Err(Error::NonFinite { field: "vertices.x", index: 3, .. })), "{r:?}");
+    let r = mutated(|b, s| put_f32(b, s.vertex_at + 12 * 2 + 8, f32::INFINITY));
+    assert!(matches!(r, Err(Error::NonFinite { field: "vertices.value_dph", index: 2, .. })), "{r:?}");
+    let r = mutated(|b, s| put_f32(b, s.vertex_at + 4, 2.0e6));
+    assert!(matches!(r, Err(Error::BadValue { field: "vertices.y", .. })), "{r:?}");
+    // A neighbour index out of range, and pointing at itself.
+    let r = mutated(|b, s| {
+        let (t, k) = find_slot(b, s, |n| n != NO_NEIGHBOUR);
+        put_u32(b, s.triangle_at + 60 * t + TRI_NEIGHBOURS.start + 4 * k, s.triangles as u32);
+    });
+    assert!(matches!(r, Err(Error::IndexOutOfRange { field: "triangles.neighbours", .. })), "{r:?}");
+    let r = mutated(|b, s| {
+        let (t, k) = find_slot(b, s, |n| n != NO_NEIGHBOUR);
+        put_u32(b, s.triangle_at + 60 * t + TRI_NEIGHBOURS.start + 4 * k, t as u32);
+    });
+    assert!(matches!(r, Err(Error::IndexOutOfRange { field: "triangles.neighbours", .. })), "{r:?}");
+    // Asymmetric neighbours: one slot points at a valid triangle that does not point back.
+    let r = mutated(|b, s| {
+        let (t, k) = find_slot(b, s, |n| n != NO_NEIGHBOUR);
+        let at = s.triangle_at + 60 * t + TRI_NEIGHBOURS.start;
+        let current: Vec<u32> = (0..3).map(|j| u32_at(b, at + 4 * j)).collect();
+        let other = (0..s.triangles as u32)
+            .find(|&o| o != t as u32 && !current.contains(&o))
+            .expect("another triangle");
+        put_u32(b, at + 4 * k, other);
+    });
+    assert!(matches!(r, Err(Error::BadMesh { check: "neighbours symmetric", .. })), "{r:?}");
+    // A hull slot turned into an interior slot: hull count no longer matches.
+    let r = mutated(|b, s| {
+        let (t, k) = find_slot(b, s, |n| n == NO_NEIGHBOUR);
+        put_u32(b, s.triangle_at + 60 * t + TRI_NEIGHBOURS.start + 4 * k, 0);
+    });
+    assert!(matches!(r, Err(Error::IndexOutOfRange { .. } | Error::BadMesh { .. })), "{r:?}");
+    // Vertex index out of range, repeated vertex, clockwise triangle.
+    let r = mutated(|b, s| put_u32(b, s.triangle_at + TRI_VERTICES.start, s.vertices as u32));
+    assert!(matches!(r, Err(Error::IndexOutOfRange { field: "triangles.vertices", .. })), "{r:?}");
+    let r = mutated(|b, s| {
+        let v1 = u32_at(b, s.triangle_at + TRI_VERTICES.start + 4);
+        put_u32(b, s.triangle_at + TRI_VERTICES.start, v1);
+    });
+    assert!(matches!(r, Err(Error::BadMesh { check: "distinct vertices", .. })), "{r:?}");
+    let r = mutated(|b, s| {
+        let at = s.triangle_at + TRI_VERTICES.start;
+        let (v0, v1) = (u32_at(b, at), u32_at(b, at + 4));
+        put_u32(b, at, v1);
+        put_u32(b, at + 4, v0);
+    });
+    assert!(matches!(r, Err(Error::BadMesh { check: "counter-clockwise", .. })), "{r:?}");
+    // Transforms: origin, barycentric transform and plane of another triangle.
+    let r = mutated(|b, s| put_f32(b, s.triangle_at + TRI_ORIGIN.start, 0.123));
+    assert!(matches!(r, Err(Error::BadMesh { check: "origin is vertex 2", .. })), "{r:?}");
+    let r = mutated(|b, s| put_f32(b, s.triangle_at + TRI_BARY.start, f32::NAN));
+    assert!(matches!(r, Err(Error::NonFinite { field: "triangles.bary", .. })), "{r:?}");
+    let r = mutated(|b, s| {
+        let (from, to) = (s.triangle_at + 60 + TRI_BARY.start, s.triangle_at + TRI_BARY.start);
+        let other: Vec<u8> = b[from..from + 16].to_vec();
+        b[to..to + 16].copy_from_slice(&other);
+    });
+    assert!(matches!(r, Err(Error::BadMesh { check: "barycentric transform", .. })), "{r:?}");
+    let r = mutated(|b, s| {
+        let at = s.triangle_at + TRI_PLANE.start;
+        let p0 = f32::from_le_bytes(b[at..at + 4].try_into().expect("4"));
+        put_f32(b, at, p0 + 10.0);
+    });
+    assert!(matches!(r, Err(Error::BadMesh { check: "value plane", .. })), "{r:?}");
+}
+
+#[test]
+fn targeted_hull_corruptions_give_their_specific_errors() {
+    // A hull entry naming a slot that is not on the hull.
+    let r = mutated(|b, s| {
+        let (t, e) = (u32_at(b, s.hull_at) as usize, u32_at(b, s.hull_at + 4) as usize);
+        let at = s.triangle_at + 60 * t + TRI_NEIGHBOURS.start;
+        let inner = (0..3).find(|&k| k != e && u32_at(b, at + 4 * k) != NO_NEIGHBOUR);
+        match inner {
+            Some(k) => put_u32(b, s.hull_at + 4, k as u32),
+            None => put_u32(b, s.hull_at + 4, 3), // edge index 3 is never a hull slot
+        }
+    });
+    assert!(matches!(r, Err(Error::BadMesh { check: "hull entry is a hull edge", index: 0, .. })), "{r:?}");
+    let r = mutated(|b, s| put_u32(b, s.hull_at + 4, 3));
+    assert!(matches!(r, Err(Error::BadMesh { check: "hull entry is a hull edge", .. })), "{r:?}");
+    let r = mutated(|b, s| put_u32(b, s.hull_at, s.triangles as u32));
+    assert!(matches!(r, Err(Error::IndexOutOfRange { field: "hull.triangle", .. })), "{r:?}");
+    // Two hull entries swapped: still hull slots, no longer chained.
+    let r = mutated(|b, s| {
+        let (a, c) = (s.hull_at, s.hull_at + 8);
+        let (x, y) = (b[a..a + 8].to_vec(), b[c..c + 8].to_vec());
+        b[a..a + 8].copy_from_slice(&y);
+        b[c..c + 8].copy_from_slice(&x);
+    });
+    assert!(matches!(r, Err(Error::BadMesh { check: "hull chained", .. })), "{r:?}");
+    // Wrong hull count (section length adjusted so the count check itself is reached).
+    let mut b = two_kb_blob();
+    apply(&mut b, &Mutation::Resize { which: 3, delta: 1, fill: 0 });
+    let r = Model::from_bytes(&b);
+    assert!(matches!(r, Err(Error::LengthMismatch { field: "hull_edge_count", .. })), "{r:?}");
+}
+
+// ---------------------------------------------------------------------------------------------
+// 6. Validation gaps found by these tests (fail until crates/fogtemp-core is fixed)
+// ---------------------------------------------------------------------------------------------
+
+fn vertex(x: f32, y: f32, value_dph: f32) -> Vertex {
+    Vertex { x, y, value_dph }
+}
+
+/// Encodes a hand-made mesh. Returns `Err` if the writer's self-check (the core reader) already
+/// rejects it.
+fn encode_mesh(mesh: MeshModel) -> Result<Vec<u8>, Error> {
+    let axis = AxisModel {
+        features: FEATURES,
+        normalisation: NORMALISATION,
+        outside_policy: OutsidePolicy::NearestHull,
+        poly: Vec::new(),
+        mesh: Some(mesh),
+        provenance: provenance(1.0),
+    };
+    match encode(&ModelFile { tool_version: "crafted".into(), input_digest: [0; 32], axes: vec![axis] }) {
+        Ok(b) => Ok(b),
+        Err(CalError::SelfCheck(e)) => Err(e),
+        Err(e) => panic!("crafted mesh does not encode: {e}"),
+    }
+}
+
+/// One triangle whose vertices are all more than 1 away from vertex 2 in both coordinates,
+/// so a transform coefficient of `f32::MAX` overflows at vertices 0 and 1.
+fn big_triangle() -> MeshModel {
+    MeshModel {
+        // Relative to vertex 2 at the origin: a = (-4, 5), b = (4, -8); counter-clockwise.
+        vertices: vec![vertex(-4.0, 5.0, 0.1), vertex(4.0, -8.0, 0.2), vertex(0.0, 0.0, 0.3)],
+        triangles: vec![[0, 1, 2]],
+        neighbours: vec![[NO_NEIGHBOUR; 3]],
+        hull: vec![(0, 2), (0, 0), (0, 1)],
+        merged_duplicates: 0,
+        dropped_flat: Vec::new(),
+        moved_flat: Vec::new(),
+    }
+}
+
+#[test]
+fn transform_that_evaluates_to_nan_at_its_vertices_is_rejected() {
+    // Stored coefficients of f32::MAX are finite, but at vertices 0 and 1 they give
+    // inf - inf = NaN. The validator compares `|l - expected| > tol`, which is false for NaN,
+    // so the transform passes as "reproducing the vertices".
+    let clean = encode_mesh(big_triangle()).expect("the honest triangle is valid");
+    let s = section(&clean, 0);
+    for (what, range) in
+        [("barycentric transform", TRI_BARY), ("value plane", TRI_PLANE.start..TRI_PLANE.start + 8)]
+    {
+        let mut b = clean.clone();
+        for at in range.step_by(4) {
+            put_f32(&mut b, s.triangle_at + at, f32::MAX);
+        }
+        fix_crc(&mut b);
+        let result = Model::from_bytes(&b);
+        let detail = result.as_ref().ok().map(|m| {
+            let mesh = m.axis(0).expect("axis").mesh.expect("mesh");
+            // The centroid of the only triangle.
+            let (x, y) = (0.0f32, -1.0f32);
+            (mesh.locate(x, y, &mut WalkHint::default()), mesh.interpolate(x, y, &mut WalkHint::default()))
+        });
+        assert!(
+            matches!(result, Err(Error::BadMesh { check, .. }) if check == what),
+            "a {what} of f32::MAX was accepted; at the centroid of the triangle: {detail:?}"
+        );
+    }
+}
+
+/// Two separate pieces: a triangle split at an interior point (3 triangles, hull of 3 slots)
+/// and a lone triangle (3 hull slots). Its hull list names the first piece's loop twice:
+/// 6 entries = 6 hull slots <= triangle count + 2, each a hull slot, chained, turning left.
+fn two_pieces_with_hull_listed_twice() -> MeshModel {
+    MeshModel {
+        vertices: vec![
+            vertex(0.0, 0.0, 0.0),  // 0 A
+            vertex(4.0, 0.0, 0.4),  // 1 B
+            vertex(0.0, 4.0, 0.8),  // 2 C
+            vertex(1.0, 1.0, 0.2),  // 3 D (interior)
+            vertex(10.0, 0.0, 5.0), // 4 E
+            vertex(12.0, 0.0, 5.0), // 5 F
+            vertex(10.0, 2.0, 5.0), // 6 G
+        ],
+        triangles: vec![[0, 1, 3], [1, 2, 3], [2, 0, 3], [4, 5, 6]],
+        neighbours: vec![[1, 2, NO_NEIGHBOUR], [2, 0, NO_NEIGHBOUR], [0, 1, NO_NEIGHBOUR], [NO_NEIGHBOUR; 3]],
+        hull: vec![(0, 2), (1, 2), (2, 2), (0, 2), (1, 2), (2, 2)],
+        merged_duplicates: 0,
+        dropped_flat: Vec::new(),
+        moved_flat: Vec::new(),
+    }
+}
+
+#[test]
+fn hull_that_does_not_go_round_exactly_once_is_rejected() {
+    let Ok(b) = encode_mesh(two_pieces_with_hull_listed_twice()) else {
+        return; // the writer's self-check (the core reader) rejected it: fixed
+    };
+    let result = Model::from_bytes(&b);
+    let detail = result.as_ref().ok().map(|m| {
+        let mesh = m.axis(0).expect("axis").mesh.expect("mesh");
+        // A point inside the lone triangle: the answer depends on the hint.
+        let (x, y) = (10.5f32, 0.5f32);
+        (
+            mesh.interpolate(x, y, &mut WalkHint(0)),
+            mesh.interpolate(x, y, &mut WalkHint(3)),
+            mesh.locate_by_scan(x, y),
+        )
+    });
+    assert!(
+        matches!(result, Err(Error::BadMesh { .. })),
+        "a disconnected mesh whose hull list goes round one piece twice was accepted; inside the \
+         other piece, (hint 0, hint 3, scan) give {detail:?}"
+    );
+}
