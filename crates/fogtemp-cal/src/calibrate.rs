@@ -29,7 +29,8 @@ pub enum Method {
 /// How mesh nodes are chosen from the calibration points.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Thinning {
-    /// The paper: every point with |rate| >= `fast_rate_c_per_min`, every `settled_every`-th otherwise.
+    /// The paper: one point per smoothing window, then every point with
+    /// |rate| >= `fast_rate_c_per_min` and every `settled_every`-th otherwise.
     Paper {
         /// Rate above which every point is kept, deg C/min.
         fast_rate_c_per_min: f64,
@@ -38,6 +39,42 @@ pub enum Thinning {
     },
     /// Greedy insertion of the worst-interpolated point (default).
     Greedy(GreedyThinning),
+    /// Greedy insertion until the RMS interpolation error is `noise_multiple` times the
+    /// estimated noise of the smoothed targets (see [`target_noise_dph`]): RMS^2 = noise^2 +
+    /// misfit^2, so 1.5 stops once the systematic misfit is about the noise (1.1 sigma) and
+    /// nodes stop chasing noise.
+    GreedyAuto {
+        /// RMS tolerance in units of the target noise (1.5 by default).
+        noise_multiple: f64,
+        /// At most this many nodes.
+        max_nodes: usize,
+    },
+}
+
+/// Robust estimate of the noise of the smoothed gyro targets, deg/h: the white noise of the
+/// per-block gyro means (median absolute first difference / 0.6745 / sqrt 2, which ignores
+/// slow thermal drift) scaled by `sqrt(block_s / target_window_s)` for the centred average.
+/// NaN when there are too few blocks.
+pub fn target_noise_dph(runs: &[RunFeatures], axis: usize, block_s: f64, target_window_s: f64) -> f64 {
+    let mut diffs: Vec<f64> = runs
+        .iter()
+        .filter_map(|r| r.axes.get(axis))
+        .flat_map(|(points, _)| {
+            points
+                .windows(2)
+                .filter(|w| w[0].segment == w[1].segment && w[0].gyro_samples > 0 && w[1].gyro_samples > 0)
+                .map(|w| (w[1].gyro_mean_dph - w[0].gyro_mean_dph).abs())
+                .collect::<Vec<_>>()
+        })
+        .filter(|d| d.is_finite())
+        .collect();
+    if diffs.len() < 10 {
+        return f64::NAN;
+    }
+    let mid = diffs.len() / 2;
+    let (_, median, _) = diffs.select_nth_unstable_by(mid, |a, b| a.total_cmp(b));
+    let block_sigma = *median / 0.6745 / std::f64::consts::SQRT_2;
+    block_sigma * (block_s / target_window_s).min(1.0).sqrt()
 }
 
 /// Everything `fit` needs besides the logs.
@@ -57,6 +94,9 @@ pub struct CalibrationConfig {
     pub poly: TermSelection,
     /// Leave out points whose feature window was not yet full.
     pub full_windows_only: bool,
+    /// Fit the mesh node values by least squares to all calibration points (default)
+    /// instead of taking each node's own smoothed target (the paper).
+    pub least_squares_nodes: bool,
 }
 
 impl Default for CalibrationConfig {
@@ -66,9 +106,10 @@ impl Default for CalibrationConfig {
             features: default_features(),
             target_window_s: 100.0,
             method: Method::Hybrid,
-            thinning: Thinning::Greedy(GreedyThinning::default()),
+            thinning: Thinning::GreedyAuto { noise_multiple: 1.5, max_nodes: 600 },
             poly: TermSelection::default_stepwise(),
             full_windows_only: false,
+            least_squares_nodes: true,
         }
     }
 }
@@ -193,6 +234,8 @@ pub struct AxisFitReport {
     pub residual_rms_dph: f64,
     /// Largest |model - target|, deg/h.
     pub residual_max_abs_dph: f64,
+    /// Estimated noise of the smoothed targets used for thinning, deg/h (NaN if unknown).
+    pub target_noise_dph: f64,
 }
 
 /// Fits one axis to its calibration points.
@@ -203,6 +246,7 @@ pub fn fit_axis(
     points: &[MeshPoint],
     runs: &[usize],
     config: &CalibrationConfig,
+    target_noise_dph: f64,
 ) -> Result<(AxisModel, AxisFitReport), CalError> {
     let normalisation = choose_normalisation(points)?;
     // One independent target per smoothing window (points are one per block).
@@ -225,12 +269,38 @@ pub fn fit_axis(
         Method::Mesh | Method::Hybrid => {
             let keep = match config.thinning {
                 Thinning::Paper { fast_rate_c_per_min, settled_every } => {
-                    thin_paper(&residual_points, runs, fast_rate_c_per_min, settled_every)
+                    let stride = (config.target_window_s / block_s).round().max(1.0) as usize;
+                    thin_paper(&residual_points, runs, stride, fast_rate_c_per_min, settled_every)
                 }
                 Thinning::Greedy(g) => thin_greedy(&residual_points, &normalisation, &g)?.keep,
+                Thinning::GreedyAuto { noise_multiple, max_nodes } => {
+                    let tolerance_dph = if target_noise_dph.is_finite() && target_noise_dph > 0.0 {
+                        noise_multiple * target_noise_dph
+                    } else {
+                        GreedyThinning::default().tolerance_dph
+                    };
+                    let g = GreedyThinning {
+                        tolerance_dph,
+                        max_nodes,
+                        stop_on_rms: true,
+                        ..GreedyThinning::default()
+                    };
+                    thin_greedy(&residual_points, &normalisation, &g)?.keep
+                }
             };
             let nodes: Vec<MeshPoint> = keep.iter().map(|&i| residual_points[i]).collect();
-            Some(build_mesh(&nodes, &normalisation)?)
+            let mut mesh = build_mesh(&nodes, &normalisation)?;
+            if config.least_squares_nodes {
+                let targets: Vec<(f32, f32, f64)> = residual_points
+                    .iter()
+                    .map(|p| {
+                        let (x, y) = crate::mesh::normalised(p, &normalisation);
+                        (x, y, p.value_dph)
+                    })
+                    .collect();
+                crate::mesh_fit::fit_node_values(&mut mesh, &targets, 1e-3)?;
+            }
+            Some(mesh)
         }
     };
     let outside_policy =
@@ -285,6 +355,7 @@ pub fn fit_axis(
         poly,
         residual_rms_dph,
         residual_max_abs_dph,
+        target_noise_dph,
     };
     Ok((axis, report))
 }
@@ -302,7 +373,17 @@ pub fn fit_model(
     let mut reports = Vec::new();
     for axis in 0..config.ingest.format.gyro_columns.len() {
         let (points, run_of) = calibration_points(runs, axis, config.full_windows_only);
-        let (model, report) = fit_axis(&points, &run_of, config)?;
+        if points.is_empty() {
+            return Err(CalError::Fit(format!(
+                "axis {axis}: no calibration points: the feature tracker never had {} blocks of temperature \
+                 data without a gap longer than {} s; check --temp-column, or set --max-gap-s and --window-s \
+                 to suit the temperature sampling",
+                config.features.min_blocks, config.features.max_gap_s
+            )));
+        }
+        let block_s = f64::from(config.features.window_s) / f64::from(config.features.block_count);
+        let noise = target_noise_dph(runs, axis, block_s, config.target_window_s);
+        let (model, report) = fit_axis(&points, &run_of, config, noise)?;
         axes.push(model);
         reports.push(report);
     }

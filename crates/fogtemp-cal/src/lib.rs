@@ -10,6 +10,7 @@ pub mod error;
 pub mod features;
 pub mod ingest;
 pub mod mesh;
+pub mod mesh_fit;
 pub mod metrics;
 pub mod poly_fit;
 pub mod report;

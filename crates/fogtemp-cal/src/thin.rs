@@ -13,28 +13,37 @@ use spade::{DelaunayTriangulation, FloatTriangulation, HasPosition, Point2, Tria
 use crate::error::CalError;
 use crate::mesh::MeshPoint;
 
-/// The paper's rule: keep every point with `|rate| >= fast_rate_c_per_min`, and every
-/// `settled_every`-th of the others (counted per run, in time order). Returns indices.
+/// The paper's rule: the smoothed series is taken one point per smoothing window (every
+/// `stride`-th calibration point of a run, in time order: 100 s windows of 1 s points give
+/// the paper's 72 points per 2 h run); of those, keep every point with
+/// `|rate| >= fast_rate_c_per_min` and every `settled_every`-th of the others. Returns indices.
 pub fn thin_paper(
     points: &[MeshPoint],
     runs: &[usize],
+    stride: usize,
     fast_rate_c_per_min: f64,
     settled_every: usize,
 ) -> Vec<usize> {
-    let every = settled_every.max(1);
+    let (every, stride) = (settled_every.max(1), stride.max(1));
+    let mut seen_in_run = std::collections::HashMap::<usize, usize>::new();
     let mut settled_seen = std::collections::HashMap::<usize, usize>::new();
     let mut keep = Vec::new();
     for (i, p) in points.iter().enumerate() {
+        let run = runs.get(i).copied().unwrap_or(0);
+        let seen = seen_in_run.entry(run).or_insert(0);
+        *seen += 1;
+        if (*seen - 1) % stride != 0 {
+            continue;
+        }
         if p.rate_c_per_min.abs() >= fast_rate_c_per_min {
             keep.push(i);
             continue;
         }
-        let run = runs.get(i).copied().unwrap_or(0);
-        let seen = settled_seen.entry(run).or_insert(0);
-        if *seen % every == 0 {
+        let settled = settled_seen.entry(run).or_insert(0);
+        if *settled % every == 0 {
             keep.push(i);
         }
-        *seen += 1;
+        *settled += 1;
     }
     keep
 }
@@ -48,11 +57,15 @@ pub struct GreedyThinning {
     pub max_nodes: usize,
     /// Fraction of the current node count inserted per round (at least one point).
     pub batch_fraction: f64,
+    /// Stop on the RMS error instead of the largest error. With noisy targets the largest
+    /// error is a few noise sigmas however good the mesh is, so only the RMS can tell
+    /// systematic misfit from noise.
+    pub stop_on_rms: bool,
 }
 
 impl Default for GreedyThinning {
     fn default() -> Self {
-        Self { tolerance_dph: 0.002, max_nodes: 600, batch_fraction: 0.1 }
+        Self { tolerance_dph: 0.002, max_nodes: 600, batch_fraction: 0.1, stop_on_rms: false }
     }
 }
 
@@ -102,7 +115,8 @@ pub fn thin_greedy(
         let errors = interpolation_errors(&dt, &nodes);
         let (max_error_dph, rms_error_dph) = error_stats(&errors);
         let budget = settings.max_nodes.saturating_sub(keep.len());
-        if max_error_dph <= settings.tolerance_dph || budget == 0 {
+        let error = if settings.stop_on_rms { rms_error_dph } else { max_error_dph };
+        if error <= settings.tolerance_dph || budget == 0 {
             keep.sort_unstable();
             return Ok(Thinned { keep, max_error_dph, rms_error_dph });
         }

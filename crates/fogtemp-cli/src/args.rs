@@ -110,7 +110,8 @@ pub enum MethodArg {
 pub enum ThinningArg {
     /// Insert the worst-interpolated point until within --tolerance-dph or --max-nodes.
     Greedy,
-    /// The paper: every point while |rate| >= --fast-rate, every --settled-every-th after.
+    /// The paper: one point per smoothing window, all of them while |rate| >= --fast-rate,
+    /// every --settled-every-th after.
     Paper,
 }
 
@@ -156,12 +157,18 @@ pub struct FitArgs {
     /// Mesh node selection.
     #[arg(long, value_enum, default_value_t = ThinningArg::Greedy, help_heading = "Mesh")]
     pub thinning: ThinningArg,
-    /// Greedy thinning: stop when every point is interpolated within this, deg/h.
-    #[arg(long, default_value_t = 0.002, help_heading = "Mesh")]
-    pub tolerance_dph: f64,
+    /// Greedy thinning: stop when every point is interpolated within this, deg/h
+    /// (default: stop when the RMS interpolation error is 1.5 times the estimated noise of
+    /// the smoothed gyro, so the mesh follows the data down to its noise and no further).
+    #[arg(long, help_heading = "Mesh")]
+    pub tolerance_dph: Option<f64>,
     /// Greedy thinning: at most this many nodes.
     #[arg(long, default_value_t = 600, help_heading = "Mesh")]
     pub max_nodes: usize,
+    /// Use each node's own smoothed target as its value (the paper) instead of fitting the
+    /// node values by least squares to all calibration points (default).
+    #[arg(long, help_heading = "Mesh")]
+    pub interpolate_nodes: bool,
     /// Paper thinning: keep every point while |rate| >= this, deg C/min.
     #[arg(long, default_value_t = 0.05, help_heading = "Mesh")]
     pub fast_rate: f64,

@@ -114,11 +114,14 @@ fn fit(a: FitArgs) -> Result<()> {
             MethodArg::Hybrid => Method::Hybrid,
         },
         thinning: match a.thinning {
-            ThinningArg::Greedy => Thinning::Greedy(GreedyThinning {
-                tolerance_dph: a.tolerance_dph,
-                max_nodes: a.max_nodes,
-                ..GreedyThinning::default()
-            }),
+            ThinningArg::Greedy => match a.tolerance_dph {
+                Some(tolerance_dph) => Thinning::Greedy(GreedyThinning {
+                    tolerance_dph,
+                    max_nodes: a.max_nodes,
+                    ..GreedyThinning::default()
+                }),
+                None => Thinning::GreedyAuto { noise_multiple: 1.5, max_nodes: a.max_nodes },
+            },
             ThinningArg::Paper => {
                 Thinning::Paper { fast_rate_c_per_min: a.fast_rate, settled_every: a.settled_every }
             }
@@ -130,6 +133,7 @@ fn fit(a: FitArgs) -> Result<()> {
             }
         },
         full_windows_only: a.full_windows_only,
+        least_squares_nodes: !a.interpolate_nodes,
     };
     let mut runs = Vec::with_capacity(logs.len());
     for log in &logs {
@@ -177,6 +181,7 @@ fn fit(a: FitArgs) -> Result<()> {
                 "dropped_flat": r.dropped_flat,
                 "residual_rms_dph": r.residual_rms_dph,
                 "residual_max_abs_dph": r.residual_max_abs_dph,
+                "target_noise_dph": r.target_noise_dph,
                 "poly": r.poly.as_ref().map(|p| json!({
                     "terms": p.terms.iter().map(|t| json!({
                         "temp_power": t.temp_power, "rate_power": t.rate_power,
