@@ -916,3 +916,45 @@ fn paper_mesh_keeps_every_point_and_moves_hull_points_by_less_than_a_millidegree
     let bound = 0.005 * max_dt + 0.07 * max_dr + 1e-6;
     assert!(worst < bound, "model misses a calibration point by {worst} dph (bound {bound})");
 }
+
+#[test]
+fn grid_walk_gives_the_same_value_and_flag_as_the_hint_walk() {
+    // Same planes, different start triangle: the values may differ only when a query lies
+    // on an edge shared by two triangles (both planes agree there to f32 rounding), so the
+    // tolerance is a few ulps of the values (|v| < 1 dph).
+    for (name, points) in
+        [("random", random_points(2000, 21, bias_surface)), ("paper", paper_points(70, bias_surface))]
+    {
+        let (_, mesh) = load(mesh_blob(&points, OutsidePolicy::NearestHull));
+        for side in [1u32, 7, 32] {
+            let mut cells = vec![0u32; (side * side) as usize];
+            let grid = mesh.start_grid(side, &mut cells).expect("grid fits its buffer");
+            let (mut hint, mut grid_hint) = (WalkHint::default(), WalkHint::default());
+            let mut r = rng(77);
+            for i in 0..5000 {
+                let (x, y) = (r.gen_range(-1.3f32..1.3), r.gen_range(-1.3f32..1.3));
+                let plain = mesh.interpolate(x, y, &mut hint).expect("finite");
+                let gridded = mesh.interpolate_with_grid(x, y, &mut grid_hint, &grid).expect("finite");
+                assert_eq!(
+                    plain.outside_hull, gridded.outside_hull,
+                    "{name} side {side} query {i} ({x}, {y})"
+                );
+                assert!(
+                    (plain.value_dph - gridded.value_dph).abs() <= 1e-6,
+                    "{name} side {side} query {i}: {} vs {}",
+                    plain.value_dph,
+                    gridded.value_dph
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn start_grid_rejects_a_buffer_too_short() {
+    let (_, mesh) = load(mesh_blob(&random_points(50, 3, bias_surface), OutsidePolicy::NearestHull));
+    let mut cells = vec![0u32; 15];
+    assert!(mesh.start_grid(4, &mut cells).is_err());
+    assert!(mesh.start_grid(0, &mut cells).is_err());
+    assert!(mesh.start_grid(3, &mut cells).is_ok());
+}

@@ -39,7 +39,9 @@ pub mod wire;
 pub use compensator::{Compensator, Flags, Output, DEFAULT_CAPACITY};
 pub use error::Error;
 pub use features::{FeatureTracker, Features, PushOutcome};
-pub use mesh::{Location, Mesh, MeshValue, OutsidePolicy, TriangleRecord, Vertex, WalkHint, INSIDE_EPS};
+pub use mesh::{
+    Location, Mesh, MeshValue, OutsidePolicy, StartGrid, TriangleRecord, Vertex, WalkHint, INSIDE_EPS,
+};
 pub use model::{
     Axis, AxisProvenance, Evaluation, FeatureSettings, Model, Normalisation, MAX_NORMALISED_COORD,
 };

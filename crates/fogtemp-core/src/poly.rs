@@ -70,6 +70,7 @@ fn powers(v: f32) -> [f32; MAX_POWER as usize + 1] {
     p
 }
 
+#[inline]
 pub(crate) fn parse_term(chunk: &[u8]) -> PolyTerm {
     PolyTerm {
         temp_power: chunk.first().copied().unwrap_or(0),

@@ -151,22 +151,26 @@ pub fn axis_section_len(poly_terms: u32, vertices: u32, triangles: u32, hull_edg
 }
 
 /// Reads `N` bytes at `range` of `bytes`, if present.
+#[inline]
 pub(crate) fn array<const N: usize>(bytes: &[u8], start: usize) -> Option<[u8; N]> {
     let end = start.checked_add(N)?;
     bytes.get(start..end)?.first_chunk::<N>().copied()
 }
 
 /// Little-endian u16 at `start`.
+#[inline]
 pub(crate) fn u16_at(bytes: &[u8], start: usize) -> Option<u16> {
     array::<2>(bytes, start).map(u16::from_le_bytes)
 }
 
 /// Little-endian u32 at `start`.
+#[inline]
 pub(crate) fn u32_at(bytes: &[u8], start: usize) -> Option<u32> {
     array::<4>(bytes, start).map(u32::from_le_bytes)
 }
 
 /// Little-endian f32 at `start`.
+#[inline]
 pub(crate) fn f32_at(bytes: &[u8], start: usize) -> Option<f32> {
     array::<4>(bytes, start).map(f32::from_le_bytes)
 }
