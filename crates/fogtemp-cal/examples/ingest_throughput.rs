@@ -68,7 +68,16 @@ fn measure(cmd: &str, path: &Path, repeat: u64) {
             let run =
                 extract_run(path, &CalibrationConfig::default(), progress).unwrap_or_else(|e| panic!("{e}"));
             let points = run.axes.first().map_or(0, |a| a.0.len());
-            (run.ingest, format!("feature points {points}"))
+            // A hash of every feature and target, to check optimisations change nothing.
+            let mut hash = 0u64;
+            for (features, targets) in &run.axes {
+                for (f, t) in features.iter().zip(targets) {
+                    for v in [f.time_s, f.temp_c, f.rate_c_per_min, f.gyro_mean_dph, *t] {
+                        hash = (hash ^ v.to_bits()).wrapping_mul(0x0100_0000_01b3);
+                    }
+                }
+            }
+            (run.ingest, format!("feature points {points}, hash {hash:016x}"))
         };
         let secs = start.elapsed().as_secs_f64();
         best = best.min(secs);
