@@ -188,16 +188,16 @@ impl<'a> Mesh<'a> {
             let bary = [l0, l1, 1.0 - l0 - l1];
             let (k, lmin) = most_negative(bary);
             if lmin >= -INSIDE_EPS {
-                return Some(WalkEnd { triangle: t, record: r, bary, inside: true });
+                return Some(WalkEnd { triangle: t, record: r, delta: (dx, dy), bary, inside: true });
             }
             let next = rec_u32(r, TRI_NEIGHBOURS.start + 4 * k);
             // Stepping straight back means both triangles see the point beyond their
             // shared edge: only rounding does that, so the point is on the edge.
             if next == previous && next != NO_NEIGHBOUR {
-                return Some(WalkEnd { triangle: t, record: r, bary, inside: true });
+                return Some(WalkEnd { triangle: t, record: r, delta: (dx, dy), bary, inside: true });
             }
             if next == NO_NEIGHBOUR {
-                return Some(WalkEnd { triangle: t, record: r, bary, inside: false });
+                return Some(WalkEnd { triangle: t, record: r, delta: (dx, dy), bary, inside: false });
             }
             (previous, t) = (t, next);
         }
@@ -213,8 +213,9 @@ impl<'a> Mesh<'a> {
                 Location::Outside { triangle } => (triangle, false),
             };
             let record = self.record(triangle)?;
+            let delta = (x - rec_f32(record, TRI_ORIGIN.start), y - rec_f32(record, TRI_ORIGIN.start + 4));
             let bary = barycentric_rec(record, x, y);
-            Some(WalkEnd { triangle, record, bary, inside })
+            Some(WalkEnd { triangle, record, delta, bary, inside })
         })
     }
 
@@ -233,8 +234,11 @@ impl<'a> Mesh<'a> {
             return Err(Error::NonFiniteSample);
         }
         let start = if hint.0 < self.triangle_count() { hint.0 } else { 0 };
-        let end =
-            self.walk_or_scan(x, y, start).ok_or(Error::BadMesh { check: "walk", axis: 0, index: start })?;
+        let end = self.walk_or_scan(x, y, start).ok_or_else(|| Error::BadMesh {
+            check: "walk",
+            axis: 0,
+            index: start,
+        })?;
         hint.0 = end.triangle;
         Ok(if end.inside {
             Location::Inside { triangle: end.triangle, bary: end.bary }
@@ -273,8 +277,11 @@ impl<'a> Mesh<'a> {
             return Err(Error::NonFiniteSample);
         }
         let start = if hint.0 < self.triangle_count() { hint.0 } else { 0 };
-        let end =
-            self.walk_or_scan(x, y, start).ok_or(Error::BadMesh { check: "walk", axis: 0, index: start })?;
+        let end = self.walk_or_scan(x, y, start).ok_or_else(|| Error::BadMesh {
+            check: "walk",
+            axis: 0,
+            index: start,
+        })?;
         hint.0 = end.triangle;
         Ok(self.value_at(&end, x, y))
     }
@@ -302,7 +309,7 @@ impl<'a> Mesh<'a> {
             Some(end) if end.inside => Some(end),
             _ => self.walk_or_scan(x, y, grid.start(x, y).min(count.saturating_sub(1))),
         }
-        .ok_or(Error::BadMesh { check: "walk", axis: 0, index: start })?;
+        .ok_or_else(|| Error::BadMesh { check: "walk", axis: 0, index: start })?;
         hint.0 = end.triangle;
         Ok(self.value_at(&end, x, y))
     }
@@ -342,7 +349,7 @@ impl<'a> Mesh<'a> {
     fn value_at(&self, end: &WalkEnd<'_>, x: f32, y: f32) -> MeshValue {
         if end.inside {
             let r = end.record;
-            let (dx, dy) = (x - rec_f32(r, TRI_ORIGIN.start), y - rec_f32(r, TRI_ORIGIN.start + 4));
+            let (dx, dy) = end.delta;
             let p = TRI_PLANE.start;
             let value_dph = rec_f32(r, p) * dx + rec_f32(r, p + 4) * dy + rec_f32(r, p + 8);
             return MeshValue { value_dph, triangle: end.triangle, outside_hull: false };
@@ -386,6 +393,8 @@ impl<'a> Mesh<'a> {
 struct WalkEnd<'a> {
     triangle: u32,
     record: &'a [u8; TRIANGLE_LEN],
+    /// The query relative to the record's origin.
+    delta: (f32, f32),
     bary: [f32; 3],
     inside: bool,
 }
