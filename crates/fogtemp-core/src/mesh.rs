@@ -309,7 +309,7 @@ impl<'a> Mesh<'a> {
             Some(end) if end.inside => Some(end),
             _ => self.walk_or_scan(x, y, grid.start(x, y).min(count.saturating_sub(1))),
         }
-        .ok_or_else(|| Error::BadMesh { check: "walk", axis: 0, index: start })?;
+        .ok_or(Error::BadMesh { check: "walk", axis: 0, index: start })?;
         hint.0 = end.triangle;
         Ok(self.value_at(&end, x, y))
     }
