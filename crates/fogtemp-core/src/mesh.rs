@@ -234,11 +234,8 @@ impl<'a> Mesh<'a> {
             return Err(Error::NonFiniteSample);
         }
         let start = if hint.0 < self.triangle_count() { hint.0 } else { 0 };
-        let end = self.walk_or_scan(x, y, start).ok_or_else(|| Error::BadMesh {
-            check: "walk",
-            axis: 0,
-            index: start,
-        })?;
+        let end =
+            self.walk_or_scan(x, y, start).ok_or(Error::BadMesh { check: "walk", axis: 0, index: start })?;
         hint.0 = end.triangle;
         Ok(if end.inside {
             Location::Inside { triangle: end.triangle, bary: end.bary }
@@ -277,11 +274,8 @@ impl<'a> Mesh<'a> {
             return Err(Error::NonFiniteSample);
         }
         let start = if hint.0 < self.triangle_count() { hint.0 } else { 0 };
-        let end = self.walk_or_scan(x, y, start).ok_or_else(|| Error::BadMesh {
-            check: "walk",
-            axis: 0,
-            index: start,
-        })?;
+        let end =
+            self.walk_or_scan(x, y, start).ok_or(Error::BadMesh { check: "walk", axis: 0, index: start })?;
         hint.0 = end.triangle;
         Ok(self.value_at(&end, x, y))
     }
