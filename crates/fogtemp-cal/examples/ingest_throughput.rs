@@ -50,7 +50,7 @@ fn measure(cmd: &str, path: &Path, repeat: u64) {
     for i in 0..repeat.max(1) {
         let start = Instant::now();
         let mut progress_calls = 0u64;
-        let progress = |_: u64| progress_calls += 1;
+        let mut progress = |_: u64| progress_calls += 1;
         let (report, extra) = if cmd == "read" {
             let mut sum = 0.0f64;
             let report = read_log(
@@ -60,13 +60,13 @@ fn measure(cmd: &str, path: &Path, repeat: u64) {
                     sum += row.time_s + row.gyros_dph[0] + row.temps_c[0];
                     Ok(())
                 },
-                progress,
+                &mut progress,
             )
             .unwrap_or_else(|e| panic!("{e}"));
             (report, format!("checksum {:.6e}", black_box(sum)))
         } else {
-            let run =
-                extract_run(path, &CalibrationConfig::default(), progress).unwrap_or_else(|e| panic!("{e}"));
+            let run = extract_run(path, &CalibrationConfig::default(), |bytes, _rows| progress(bytes))
+                .unwrap_or_else(|e| panic!("{e}"));
             let points = run.axes.first().map_or(0, |a| a.0.len());
             // A hash of every feature and target, to check optimisations change nothing.
             let mut hash = 0u64;

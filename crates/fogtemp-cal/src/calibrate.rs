@@ -9,7 +9,7 @@ use fogtemp_core::{AxisProvenance, Compensator, FeatureSettings, Model, Normalis
 use crate::blob::{encode, AxisModel, ModelFile};
 use crate::error::CalError;
 use crate::features::{smoothed_gyro_dph, AxisFeatureStream, FeaturePoint, CAL_CAPACITY};
-use crate::ingest::{read_log, IngestOptions, IngestReport};
+use crate::ingest::{read_log_with_progress, IngestOptions, IngestReport};
 use crate::mesh::{build_mesh, MeshPoint};
 use crate::metrics::{bias_stability, rms_over_runs, BiasStabilityOptions};
 use crate::poly_fit::{fit_poly, PolyFit, TermSelection};
@@ -131,20 +131,21 @@ pub struct RunFeatures {
     pub axes: Vec<(Vec<FeaturePoint>, Vec<f64>)>,
 }
 
-/// Reads one log and computes per-axis features and targets. `progress(bytes)` as in `read_log`.
+/// Reads one log and computes per-axis features and targets. `progress(bytes, rows)` as in
+/// `read_log_with_progress`.
 ///
 /// # Errors
 /// Ingest errors (with file, line, column), or bad feature settings.
 pub fn extract_run(
     path: &Path,
     config: &CalibrationConfig,
-    progress: impl FnMut(u64),
+    progress: impl FnMut(u64, u64),
 ) -> Result<RunFeatures, CalError> {
     let axes = config.ingest.format.gyro_columns.len();
     let temp_columns = config.ingest.format.temp_columns.len();
     let mut streams =
         (0..axes).map(|_| AxisFeatureStream::new(&config.features)).collect::<Result<Vec<_>, _>>()?;
-    let ingest = read_log(
+    let ingest = read_log_with_progress(
         path,
         &config.ingest,
         |row| {
@@ -425,7 +426,7 @@ pub fn replay(
     ingest: &IngestOptions,
     block_s: f64,
     mut visit: impl FnMut(f64, f64, &fogtemp_core::Output),
-    progress: impl FnMut(u64),
+    progress: impl FnMut(u64, u64),
 ) -> Result<(ReplaySeries, IngestReport), CalError> {
     let mut comp: Compensator<'_, CAL_CAPACITY> = Compensator::new(model, axis)
         .map_err(|source| CalError::Model { path: path.to_path_buf(), source })?;
@@ -446,7 +447,7 @@ pub fn replay(
         }
         *acc = (0, 0.0, 0.0, 0.0, acc.4);
     };
-    let report = read_log(
+    let report = read_log_with_progress(
         path,
         ingest,
         |row| {
@@ -504,12 +505,13 @@ pub fn validate_runs(
     model: &Model<'_>,
     ingest: &IngestOptions,
     options: &BiasStabilityOptions,
-    mut progress: impl FnMut(usize, u64),
+    mut progress: impl FnMut(usize, u64, u64),
 ) -> Result<(Vec<RunValidation>, f64, f64), CalError> {
     let mut runs = Vec::new();
     for (i, path) in paths.iter().enumerate() {
         for axis in 0..model.axis_count().min(ingest.format.gyro_columns.len()) {
-            let (series, report) = replay(path, model, axis, ingest, 1.0, |_, _, _| {}, |b| progress(i, b))?;
+            let (series, report) =
+                replay(path, model, axis, ingest, 1.0, |_, _, _| {}, |b, r| progress(i, b, r))?;
             runs.push(RunValidation {
                 path: path.clone(),
                 axis,

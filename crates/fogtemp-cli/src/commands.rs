@@ -13,7 +13,7 @@ use fogtemp_core::{Compensator, FeatureSettings, Flags, Model, OutsidePolicy, Wa
 use serde_json::{json, Value};
 
 use crate::args::*;
-use crate::output::{digest_files, expand_logs, file_progress, hex, stage, write_atomic};
+use crate::output::{digest_files, expand_logs, hex, stage, write_atomic, RowProgress};
 
 /// Runs one command.
 pub fn run(command: Command) -> Result<()> {
@@ -137,8 +137,8 @@ fn fit(a: FitArgs) -> Result<()> {
     };
     let mut runs = Vec::with_capacity(logs.len());
     for log in &logs {
-        let bar = file_progress(log, "features");
-        let run = calibrate::extract_run(log, &config, |b| bar.set_position(b))
+        let bar = RowProgress::new(log, "features");
+        let run = calibrate::extract_run(log, &config, |b, r| bar.update(b, r))
             .with_context(|| format!("reading calibration log {}", log.display()))?;
         bar.finish_and_clear();
         if run.ingest.rows == 0 {
@@ -240,7 +240,7 @@ fn compensate(a: CompensateArgs) -> Result<()> {
         .collect::<Result<_, _>>()
         .map_err(|e| anyhow::anyhow!("{}: {e}", a.model.display()))?;
     let temp_columns = ingest.format.temp_columns.len();
-    let bar = file_progress(&a.log, "compensate");
+    let bar = RowProgress::new(&a.log, "compensate");
     let mut report = None;
     write_atomic(&a.out, |w| {
         let mut out = csv::Writer::from_writer(w);
@@ -253,7 +253,7 @@ fn compensate(a: CompensateArgs) -> Result<()> {
         }
         out.write_record(&header)?;
         let mut record: Vec<String> = Vec::with_capacity(header.len());
-        let r = fogtemp_cal::ingest::read_log(
+        let r = fogtemp_cal::ingest::read_log_with_progress(
             &a.log,
             &ingest,
             |row| {
@@ -275,7 +275,7 @@ fn compensate(a: CompensateArgs) -> Result<()> {
                     source: std::io::Error::other(e),
                 })
             },
-            |b| bar.set_position(b),
+            |b, r| bar.update(b, r),
         )?;
         if r.rows == 0 {
             bail!("{}: no data rows (only a header)", a.log.display());
@@ -315,10 +315,10 @@ fn validate(a: ValidateArgs) -> Result<()> {
     let logs = expand_logs(&a.logs)?;
     let ingest = ingest_options(&a.ingest)?;
     let options = stability_options(&a.stability)?;
-    let bars: Vec<_> = logs.iter().map(|l| file_progress(l, "validate")).collect();
-    let (runs, raw, comp) = calibrate::validate_runs(&logs, &model, &ingest, &options, |i, b| {
+    let bars: Vec<_> = logs.iter().map(|l| RowProgress::new(l, "validate")).collect();
+    let (runs, raw, comp) = calibrate::validate_runs(&logs, &model, &ingest, &options, |i, b, r| {
         if let Some(bar) = bars.get(i) {
-            bar.set_position(b);
+            bar.update(b, r);
         }
     })?;
     for bar in &bars {
@@ -626,8 +626,8 @@ fn allan(a: AllanArgs) -> Result<()> {
     let axes = ingest.format.gyro_columns.len();
     let mut series: Vec<Vec<f64>> = vec![Vec::new(); axes];
     let mut times = Vec::new();
-    let bar = file_progress(&a.log, "allan");
-    let report = fogtemp_cal::ingest::read_log(
+    let bar = RowProgress::new(&a.log, "allan");
+    let report = fogtemp_cal::ingest::read_log_with_progress(
         &a.log,
         &ingest,
         |row| {
@@ -637,7 +637,7 @@ fn allan(a: AllanArgs) -> Result<()> {
             }
             Ok(())
         },
-        |b| bar.set_position(b),
+        |b, r| bar.update(b, r),
     )?;
     bar.finish_and_clear();
     report_skipped(&report);

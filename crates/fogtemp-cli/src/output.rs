@@ -102,7 +102,6 @@ pub struct RowProgress {
     shown: std::cell::Cell<bool>,
 }
 
-#[allow(dead_code)] // For the commands that read logs, once they pass rows to the bar.
 impl RowProgress {
     /// A hidden bar for the log at `path`, labelled like [`file_progress`].
     pub fn new(path: &Path, label: &str) -> Self {
