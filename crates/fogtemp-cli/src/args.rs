@@ -246,6 +246,10 @@ pub struct ValidateArgs {
     /// Write report.md with figures (runs raw vs compensated, Allan deviation, mesh) into this folder.
     #[arg(long)]
     pub report: Option<PathBuf>,
+    /// Also replay these models on the same logs and add a comparison table (e.g. the same
+    /// calibration fitted with --thinning paper and --thinning greedy). Repeatable.
+    #[arg(long = "compare", value_name = "MODEL")]
+    pub compare: Vec<PathBuf>,
     /// Bias stability definition.
     #[command(flatten)]
     pub stability: StabilityArgs,

@@ -330,6 +330,7 @@ fn validate(a: ValidateArgs) -> Result<()> {
         }
         report_skipped(&r.ingest);
     }
+    let comparison = compare_models(&a, &logs, &ingest, &options, raw, comp)?;
     if let Some(dir) = &a.report {
         fogtemp_cal::report::write_validation_report(
             dir,
@@ -339,6 +340,14 @@ fn validate(a: ValidateArgs) -> Result<()> {
             (raw, comp),
             &options.describe(),
         )?;
+        if !comparison.is_empty() {
+            let table = comparison_markdown(&comparison);
+            let path = dir.join("report.md");
+            let mut text =
+                std::fs::read_to_string(&path).with_context(|| format!("reading {}", path.display()))?;
+            text = text.replacen("\n## ", &format!("\n{table}\n## "), 1);
+            std::fs::write(&path, text).with_context(|| format!("writing {}", path.display()))?;
+        }
         eprintln!("report: {}", dir.join("report.md").display());
     }
     let doc = json!({
@@ -354,6 +363,13 @@ fn validate(a: ValidateArgs) -> Result<()> {
             "samples": r.series.samples,
             "flag_samples": flag_names(&r.series.flag_counts),
             "skipped_rows": r.ingest.skipped,
+        })).collect::<Vec<_>>(),
+        "comparison": comparison.iter().map(|c| json!({
+            "model": c.model.display().to_string(),
+            "mesh_nodes": c.mesh_nodes,
+            "polynomial_terms": c.poly_terms,
+            "raw_bias_stability_dph": c.raw_dph,
+            "compensated_bias_stability_dph": c.compensated_dph,
         })).collect::<Vec<_>>(),
     });
     if a.json {
@@ -374,7 +390,88 @@ fn validate(a: ValidateArgs) -> Result<()> {
         );
     }
     println!("{:<40} {:>4} {:>14.5} {:>14.5} {:>8.2}", "overall (RMS over runs)", "", raw, comp, raw / comp);
+    if !comparison.is_empty() {
+        println!("\nmodels compared on the same logs:");
+        for c in &comparison {
+            println!(
+                "{:<40} {:>6} nodes {:>3} terms {:>14.5} {:>8.2}",
+                c.model.display(),
+                c.mesh_nodes,
+                c.poly_terms,
+                c.compensated_dph,
+                c.raw_dph / c.compensated_dph
+            );
+        }
+    }
     Ok(())
+}
+
+/// One model's overall result on the validation logs.
+struct Compared {
+    model: std::path::PathBuf,
+    mesh_nodes: u32,
+    poly_terms: usize,
+    raw_dph: f64,
+    compensated_dph: f64,
+}
+
+fn model_size(model: &Model<'_>) -> (u32, usize) {
+    (0..model.axis_count()).filter_map(|i| model.axis(i).ok()).fold((0, 0), |(n, t), a| {
+        (n + a.mesh.map_or(0, |m| m.vertex_count()), t + a.poly.map_or(0, |p| p.len()))
+    })
+}
+
+/// The primary model first, then every `--compare` model, replayed on the same logs.
+fn compare_models(
+    a: &ValidateArgs,
+    logs: &[std::path::PathBuf],
+    ingest: &IngestOptions,
+    options: &BiasStabilityOptions,
+    raw: f64,
+    comp: f64,
+) -> Result<Vec<Compared>> {
+    if a.compare.is_empty() {
+        return Ok(Vec::new());
+    }
+    let primary = read_model(&a.model)?;
+    let primary = Model::from_bytes(&primary).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let (mesh_nodes, poly_terms) = model_size(&primary);
+    let mut out = vec![Compared {
+        model: a.model.clone(),
+        mesh_nodes,
+        poly_terms,
+        raw_dph: raw,
+        compensated_dph: comp,
+    }];
+    for path in &a.compare {
+        let blob = read_model(path)?;
+        let model = Model::from_bytes(&blob).map_err(|e| anyhow::anyhow!("{e}"))?;
+        let bar = RowProgress::new(path, "compare");
+        let (_, raw_dph, compensated_dph) =
+            calibrate::validate_runs(logs, &model, ingest, options, |_, b, r| bar.update(b, r))?;
+        bar.finish_and_clear();
+        let (mesh_nodes, poly_terms) = model_size(&model);
+        out.push(Compared { model: path.clone(), mesh_nodes, poly_terms, raw_dph, compensated_dph });
+    }
+    Ok(out)
+}
+
+fn comparison_markdown(rows: &[Compared]) -> String {
+    let mut md = String::from(
+        "## Models compared on the same logs\n\n| model | mesh nodes | polynomial terms | raw, deg/h | compensated, deg/h | ratio |\n|---|---|---|---|---|---|\n",
+    );
+    for c in rows {
+        md.push_str(&format!(
+            "| {} | {} | {} | {:.5} | {:.5} | {:.2} |\n",
+            c.model.display(),
+            c.mesh_nodes,
+            c.poly_terms,
+            c.raw_dph,
+            c.compensated_dph,
+            c.raw_dph / c.compensated_dph
+        ));
+    }
+    md
 }
 
 fn evaluate(a: EvaluateArgs) -> Result<()> {
