@@ -207,16 +207,25 @@ impl<'a> Mesh<'a> {
     /// Walks from `hint` (clamped), falling back to a full scan if the walk does not settle.
     #[inline(always)]
     fn walk_or_scan(&self, x: f32, y: f32, start: u32) -> Option<WalkEnd<'a>> {
-        self.walk(start, x, y, self.triangle_count()).or_else(|| {
-            let (triangle, inside) = match self.locate_by_scan(x, y) {
-                Location::Inside { triangle, .. } => (triangle, true),
-                Location::Outside { triangle } => (triangle, false),
-            };
-            let record = self.record(triangle)?;
-            let delta = (x - rec_f32(record, TRI_ORIGIN.start), y - rec_f32(record, TRI_ORIGIN.start + 4));
-            let bary = barycentric_rec(record, x, y);
-            Some(WalkEnd { triangle, record, delta, bary, inside })
-        })
+        match self.walk(start, x, y, self.triangle_count()) {
+            Some(end) => Some(end),
+            None => self.scan_end(x, y),
+        }
+    }
+
+    /// The fallback when a walk does not settle: a full scan. Kept out of line so the walk's
+    /// hot loop stays small.
+    #[cold]
+    #[inline(never)]
+    fn scan_end(&self, x: f32, y: f32) -> Option<WalkEnd<'a>> {
+        let (triangle, inside) = match self.locate_by_scan(x, y) {
+            Location::Inside { triangle, .. } => (triangle, true),
+            Location::Outside { triangle } => (triangle, false),
+        };
+        let record = self.record(triangle)?;
+        let delta = (x - rec_f32(record, TRI_ORIGIN.start), y - rec_f32(record, TRI_ORIGIN.start + 4));
+        let bary = barycentric_rec(record, x, y);
+        Some(WalkEnd { triangle, record, delta, bary, inside })
     }
 
     /// Locates `(x, y)` by a visibility walk from `hint`: at each triangle, step across
@@ -357,6 +366,8 @@ impl<'a> Mesh<'a> {
 
     /// Value at the point of the hull nearest to `(x, y)`, linear along the hull edge.
     /// Scans every hull edge: O(hull edges), only for queries outside the hull.
+    #[cold]
+    #[inline(never)]
     pub fn nearest_hull_value(&self, x: f32, y: f32) -> f32 {
         let mut best = (f32::INFINITY, 0.0f32);
         for h in 0..self.hull_edge_count() {
