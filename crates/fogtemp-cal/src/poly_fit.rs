@@ -223,8 +223,12 @@ fn stepwise(
     // Each term can enter and leave a bounded number of times.
     for _ in 0..4 * candidates.len() + 4 {
         let fit = least_squares(design(chosen, column, n), y, n_eff)?;
-        // Forward: best partial F among candidates not in the model.
+        // Forward: best partial F among candidates not in the model. A further term must
+        // leave residual degrees of freedom, in the data and in the effective sample size.
         let p = chosen.len();
+        if p + 1 >= n || n_eff - ((p + 1) as f64) < 1.0 {
+            return Ok(());
+        }
         let mut best: Option<((u8, u8), f64)> = None;
         for &c in candidates.iter().filter(|c| !chosen.contains(c)) {
             let x = column(c);
@@ -235,8 +239,8 @@ fn stepwise(
             }
             let gain = v.dot(&fit.residuals).powi(2) / vv;
             let rss_new = (fit.rss - gain).max(f64::MIN_POSITIVE);
-            let dof2 = (n_eff - (p + 1) as f64).max(1.0);
-            let f_stat = gain / (rss_new / (n - p - 1).max(1) as f64) * (n_eff / n as f64);
+            let dof2 = n_eff - (p + 1) as f64;
+            let f_stat = gain / (rss_new / (n - p - 1) as f64) * (n_eff / n as f64);
             let dist = FisherSnedecor::new(1.0, dof2).map_err(|e| CalError::Fit(e.to_string()))?;
             let p_value = dist.sf(f_stat);
             if best.is_none_or(|(_, bp)| p_value < bp) {
