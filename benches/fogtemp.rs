@@ -2,7 +2,8 @@
 //! measured in the same run on the same nodes and the same queries.
 //!
 //! One module per topic: `interp` (the walk against spade and a full scan), `poly`,
-//! `runtime` (`Compensator::step`, `FeatureTracker::push`); `fixtures` builds the models
+//! `runtime` (`Compensator::step`, `FeatureTracker::push`), `ingest` (log reading and
+//! calibration features, bytes per second); `fixtures` builds the models
 //! with the real writer. Every group reports ns per sample through
 //! `Throughput::Elements` over a batch of queries. Results and the machine they were
 //! measured on: `docs/performance.md`.
@@ -14,6 +15,8 @@ use criterion::{criterion_group, criterion_main, Criterion};
 
 #[path = "fogtemp/fixtures.rs"]
 mod fixtures;
+#[path = "fogtemp/ingest.rs"]
+mod ingest;
 #[path = "fogtemp/interp.rs"]
 mod interp;
 #[path = "fogtemp/poly.rs"]
@@ -28,6 +31,7 @@ fn config() -> Criterion {
 criterion_group! {
     name = benches;
     config = config();
-    targets = interp::coherent, interp::random_order, poly::evaluate, runtime::step, runtime::push
+    targets = interp::coherent, interp::random_order, poly::evaluate, runtime::step, runtime::push,
+        ingest::throughput
 }
 criterion_main!(benches);
