@@ -198,11 +198,15 @@ pub fn plot_mesh(path: &Path, title: &str, mesh: &MeshFigure) -> Result<(), CalE
             )
         }))
         .map_err(|e| plot_err(path, e))?;
-    chart
-        .draw_series(mesh.points.iter().map(|p| Circle::new(*p, 1, RGBColor(90, 90, 90).mix(0.4).filled())))
-        .map_err(|e| plot_err(path, e))?
-        .label("calibration points")
-        .legend(|(x, y)| Circle::new((x, y), 3, RGBColor(90, 90, 90).filled()));
+    if !mesh.points.is_empty() {
+        chart
+            .draw_series(
+                mesh.points.iter().map(|p| Circle::new(*p, 1, RGBColor(90, 90, 90).mix(0.4).filled())),
+            )
+            .map_err(|e| plot_err(path, e))?
+            .label("calibration points")
+            .legend(|(x, y)| Circle::new((x, y), 3, RGBColor(90, 90, 90).filled()));
+    }
     chart
         .draw_series(mesh.nodes.iter().map(|n| Circle::new((n.0, n.1), 2, BLACK.filled())))
         .map_err(|e| plot_err(path, e))?
