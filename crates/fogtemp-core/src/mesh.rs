@@ -239,13 +239,7 @@ impl<'a> Mesh<'a> {
     /// [`Error::NonFiniteSample`] for a NaN or infinite coordinate; hint unchanged.
     #[inline]
     pub fn locate(&self, x: f32, y: f32, hint: &mut WalkHint) -> Result<Location, Error> {
-        if !(x.is_finite() && y.is_finite()) {
-            return Err(Error::NonFiniteSample);
-        }
-        let start = if hint.0 < self.triangle_count() { hint.0 } else { 0 };
-        let end =
-            self.walk_or_scan(x, y, start).ok_or(Error::BadMesh { check: "walk", axis: 0, index: start })?;
-        hint.0 = end.triangle;
+        let end = self.walk_from_hint(x, y, hint)?;
         Ok(if end.inside {
             Location::Inside { triangle: end.triangle, bary: end.bary }
         } else {
@@ -279,6 +273,14 @@ impl<'a> Mesh<'a> {
     /// [`Error::NonFiniteSample`] for a NaN or infinite coordinate; hint unchanged.
     #[inline]
     pub fn interpolate(&self, x: f32, y: f32, hint: &mut WalkHint) -> Result<MeshValue, Error> {
+        let end = self.walk_from_hint(x, y, hint)?;
+        Ok(self.value_at(&end, x, y))
+    }
+
+    /// Checks the query, walks from the (clamped) hint and, on success, moves the hint to
+    /// the triangle found.
+    #[inline(always)]
+    fn walk_from_hint(&self, x: f32, y: f32, hint: &mut WalkHint) -> Result<WalkEnd<'a>, Error> {
         if !(x.is_finite() && y.is_finite()) {
             return Err(Error::NonFiniteSample);
         }
@@ -286,7 +288,7 @@ impl<'a> Mesh<'a> {
         let end =
             self.walk_or_scan(x, y, start).ok_or(Error::BadMesh { check: "walk", axis: 0, index: start })?;
         hint.0 = end.triangle;
-        Ok(self.value_at(&end, x, y))
+        Ok(end)
     }
 
     /// Like [`Mesh::interpolate`], but when the query has left the hint triangle the walk
