@@ -142,7 +142,6 @@ pub fn extract_run(
     progress: impl FnMut(u64, u64),
 ) -> Result<RunFeatures, CalError> {
     let axes = config.ingest.format.gyro_columns.len();
-    let temp_columns = config.ingest.format.temp_columns.len();
     let mut streams =
         (0..axes).map(|_| AxisFeatureStream::new(&config.features)).collect::<Result<Vec<_>, _>>()?;
     let ingest = read_log_with_progress(
@@ -150,8 +149,7 @@ pub fn extract_run(
         &config.ingest,
         |row| {
             for (axis, stream) in streams.iter_mut().enumerate() {
-                let temp =
-                    row.temps_c.get(axis.min(temp_columns.saturating_sub(1))).copied().unwrap_or(f64::NAN);
+                let temp = row.temp_c_for_axis(axis);
                 stream.push(row.time_s, row.gyros_dph[axis], temp);
             }
             Ok(())
@@ -430,7 +428,6 @@ pub fn replay(
 ) -> Result<(ReplaySeries, IngestReport), CalError> {
     let mut comp: Compensator<'_, CAL_CAPACITY> = Compensator::new(model, axis)
         .map_err(|source| CalError::Model { path: path.to_path_buf(), source })?;
-    let temp_columns = ingest.format.temp_columns.len();
     let mut series = ReplaySeries::default();
     let mut acc = (0u64, 0.0f64, 0.0f64, 0.0f64, 0i64);
     let flush = |series: &mut ReplaySeries,
@@ -451,10 +448,9 @@ pub fn replay(
         path,
         ingest,
         |row| {
-            let temp = row.temps_c.get(axis.min(temp_columns.saturating_sub(1))).copied().unwrap_or(f64::NAN);
+            let temp = row.temp_c_for_axis(axis);
             let raw = row.gyros_dph[axis];
-            let time_us = (row.time_s * 1.0e6).round().max(0.0) as u64;
-            let out = comp.step(time_us, raw as f32, temp.is_finite().then_some(temp as f32));
+            let out = comp.step(row.time_us(), raw as f32, temp.is_finite().then_some(temp as f32));
             visit(row.time_s, raw, &out);
             let block = (row.time_s / block_s).floor() as i64;
             if block != acc.4 {

@@ -12,6 +12,11 @@ use crate::error::CalError;
 /// Tracker capacity used in calibration: the format's maximum block count.
 pub const CAL_CAPACITY: usize = fogtemp_core::wire::MAX_BLOCKS as usize;
 
+/// Seconds since the run start to whole microseconds (negative times clamp to 0).
+pub fn micros(time_s: f64) -> u64 {
+    (time_s * 1.0e6).round().max(0.0) as u64
+}
+
 /// One feature update of one axis, with the gyro it applies to.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct FeaturePoint {
@@ -65,7 +70,7 @@ impl AxisFeatureStream {
     /// when this row has none).
     pub fn push(&mut self, time_s: f64, gyro_dph: f64, temp_c: f64) {
         if temp_c.is_finite() {
-            let time_us = (time_s * 1.0e6).round().max(0.0) as u64;
+            let time_us = micros(time_s);
             match self.tracker.push(time_us, temp_c as f32) {
                 Ok(outcome) if outcome.updated => {
                     self.close_point();

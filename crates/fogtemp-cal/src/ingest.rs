@@ -131,6 +131,19 @@ pub struct Row<'a> {
     pub gyros_dph: &'a [f64],
 }
 
+impl Row<'_> {
+    /// The temperature for model axis `axis`, deg C: its own column when there is one per
+    /// gyro column, else the shared one. NaN when this row has no reading.
+    pub fn temp_c_for_axis(&self, axis: usize) -> f64 {
+        self.temps_c.get(axis.min(self.temps_c.len().saturating_sub(1))).copied().unwrap_or(f64::NAN)
+    }
+
+    /// [`Row::time_s`] in whole microseconds, as the feature tracker and compensator take it.
+    pub fn time_us(&self) -> u64 {
+        crate::features::micros(self.time_s)
+    }
+}
+
 /// Why a row was rejected.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub enum BadRowKind {

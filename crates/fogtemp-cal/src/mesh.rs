@@ -263,10 +263,16 @@ fn flat_triangles(dt: &DelaunayTriangulation<Node>) -> Vec<FlatTriangle> {
 
 /// A node back in physical units (inverse normalisation, f64).
 fn physical(n: &Node, nz: &Normalisation) -> (f64, f64, f64) {
+    let (temp_c, rate_c_per_min) = to_physical(nz, n.position.x, n.position.y);
+    (temp_c, rate_c_per_min, n.value_dph)
+}
+
+/// The inverse of the normalisation (f64): `(temp_c, rate_c_per_min)` of a point `(x, y)`
+/// of the normalised plane.
+pub fn to_physical(nz: &Normalisation, x: f64, y: f64) -> (f64, f64) {
     (
-        n.position.x / f64::from(nz.temp_scale_per_c) + f64::from(nz.temp_offset_c),
-        n.position.y / f64::from(nz.rate_scale_per_c_per_min) + f64::from(nz.rate_offset_c_per_min),
-        n.value_dph,
+        x / f64::from(nz.temp_scale_per_c) + f64::from(nz.temp_offset_c),
+        y / f64::from(nz.rate_scale_per_c_per_min) + f64::from(nz.rate_offset_c_per_min),
     )
 }
 

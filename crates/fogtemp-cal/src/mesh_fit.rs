@@ -72,11 +72,8 @@ pub fn fit_node_values(
     }
     let v0: Vec<f64> = mesh.vertices.iter().map(|v| f64::from(v.value_dph)).collect();
     let lambda = ridge * (rows.len() as f64 / n.max(1) as f64).max(1.0);
-    let apply = |v: &[f64]| -> Vec<f64> {
-        rows.iter().map(|(i, w, _)| w[0] * v[i[0]] + w[1] * v[i[1]] + w[2] * v[i[2]]).collect()
-    };
     let rms = |v: &[f64]| {
-        let r: f64 = apply(v).iter().zip(&rows).map(|(a, (_, _, y))| (a - y).powi(2)).sum();
+        let r: f64 = mul_rows(&rows, v).iter().zip(&rows).map(|(a, (_, _, y))| (a - y).powi(2)).sum();
         (r / rows.len().max(1) as f64).sqrt()
     };
     let rms_before_dph = rms(&v0);
@@ -94,11 +91,14 @@ pub fn fit_node_values(
     })
 }
 
+/// `A v` for the sparse rows (three weights each).
+fn mul_rows(rows: &[([usize; 3], [f64; 3], f64)], v: &[f64]) -> Vec<f64> {
+    rows.iter().map(|(i, w, _)| w[0] * v[i[0]] + w[1] * v[i[1]] + w[2] * v[i[2]]).collect()
+}
+
 /// CGLS for `min |A v - y|^2 + lambda |v - v0|^2`, solved for `d = v - v0` from `d = 0`.
 fn cgls(rows: &[([usize; 3], [f64; 3], f64)], v0: &[f64], lambda: f64, n: usize) -> (Vec<f64>, usize) {
-    let a_mul = |d: &[f64]| -> Vec<f64> {
-        rows.iter().map(|(i, w, _)| w[0] * d[i[0]] + w[1] * d[i[1]] + w[2] * d[i[2]]).collect()
-    };
+    let a_mul = |d: &[f64]| mul_rows(rows, d);
     let at_mul = |r: &[f64]| -> Vec<f64> {
         let mut out = vec![0.0; n];
         for ((i, w, _), rk) in rows.iter().zip(r) {

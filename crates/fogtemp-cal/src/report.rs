@@ -298,9 +298,7 @@ pub fn mesh_figure(axis: &fogtemp_core::Axis<'_>, points: Vec<(f64, f64)>) -> Op
     let nodes = (0..mesh.vertex_count())
         .filter_map(|k| mesh.vertex(k))
         .map(|v| {
-            let t = f64::from(v.x) / f64::from(n.temp_scale_per_c) + f64::from(n.temp_offset_c);
-            let r =
-                f64::from(v.y) / f64::from(n.rate_scale_per_c_per_min) + f64::from(n.rate_offset_c_per_min);
+            let (t, r) = crate::mesh::to_physical(n, f64::from(v.x), f64::from(v.y));
             let poly = axis.poly.map_or(0.0, |p| f64::from(p.evaluate(v.x, v.y)));
             (t, r, poly + f64::from(v.value_dph))
         })

@@ -239,7 +239,6 @@ fn compensate(a: CompensateArgs) -> Result<()> {
         .map(|i| Compensator::new(&model, i))
         .collect::<Result<_, _>>()
         .map_err(|e| anyhow::anyhow!("{}: {e}", a.model.display()))?;
-    let temp_columns = ingest.format.temp_columns.len();
     let bar = RowProgress::new(&a.log, "compensate");
     let mut report = None;
     write_atomic(&a.out, |w| {
@@ -259,10 +258,9 @@ fn compensate(a: CompensateArgs) -> Result<()> {
             |row| {
                 record.clear();
                 record.push(format!("{}", row.time_s));
-                let time_us = (row.time_s * 1.0e6).round().max(0.0) as u64;
+                let time_us = row.time_us();
                 for (i, comp) in comps.iter_mut().enumerate() {
-                    let temp =
-                        row.temps_c.get(i.min(temp_columns.saturating_sub(1))).copied().unwrap_or(f64::NAN);
+                    let temp = row.temp_c_for_axis(i);
                     let o =
                         comp.step(time_us, row.gyros_dph[i] as f32, temp.is_finite().then_some(temp as f32));
                     record.push(format!("{}", row.gyros_dph[i]));
@@ -330,7 +328,7 @@ fn validate(a: ValidateArgs) -> Result<()> {
         }
         report_skipped(&r.ingest);
     }
-    let comparison = compare_models(&a, &logs, &ingest, &options, raw, comp)?;
+    let comparison = compare_models(&a, &model, &logs, &ingest, &options, raw, comp)?;
     if let Some(dir) = &a.report {
         fogtemp_cal::report::write_validation_report(
             dir,
@@ -424,6 +422,7 @@ fn model_size(model: &Model<'_>) -> (u32, usize) {
 /// The primary model first, then every `--compare` model, replayed on the same logs.
 fn compare_models(
     a: &ValidateArgs,
+    primary: &Model<'_>,
     logs: &[std::path::PathBuf],
     ingest: &IngestOptions,
     options: &BiasStabilityOptions,
@@ -433,9 +432,7 @@ fn compare_models(
     if a.compare.is_empty() {
         return Ok(Vec::new());
     }
-    let primary = read_model(&a.model)?;
-    let primary = Model::from_bytes(&primary).map_err(|e| anyhow::anyhow!("{e}"))?;
-    let (mesh_nodes, poly_terms) = model_size(&primary);
+    let (mesh_nodes, poly_terms) = model_size(primary);
     let mut out = vec![Compared {
         model: a.model.clone(),
         mesh_nodes,
@@ -538,14 +535,6 @@ fn evaluate(a: EvaluateArgs) -> Result<()> {
     }
 }
 
-/// Physical coordinates of a normalised point (f64).
-fn physical(n: &fogtemp_core::Normalisation, x: f32, y: f32) -> (f64, f64) {
-    (
-        f64::from(x) / f64::from(n.temp_scale_per_c) + f64::from(n.temp_offset_c),
-        f64::from(y) / f64::from(n.rate_scale_per_c_per_min) + f64::from(n.rate_offset_c_per_min),
-    )
-}
-
 fn inspect_json(path: &Path, blob: &[u8], model: &Model<'_>) -> Result<Value> {
     let mut axes = Vec::new();
     for i in 0..model.axis_count() {
@@ -566,7 +555,7 @@ fn inspect_json(path: &Path, blob: &[u8], model: &Model<'_>) -> Result<Value> {
                 OutsidePolicy::Zero => "zero",
             });
             for v in (0..mesh.vertex_count()).filter_map(|k| mesh.vertex(k)) {
-                let (t, r) = physical(n, v.x, v.y);
+                let (t, r) = fogtemp_cal::mesh::to_physical(n, f64::from(v.x), f64::from(v.y));
                 let poly = axis.poly.map_or(0.0, |p| p.evaluate(v.x, v.y));
                 nodes.push(json!({
                     "temp_c": t, "rate_c_per_min": r,
