@@ -6,6 +6,7 @@
 
 pub mod blob;
 pub mod calibrate;
+pub mod diagnose;
 pub mod error;
 pub mod features;
 pub mod ingest;
@@ -14,6 +15,7 @@ pub mod mesh_fit;
 pub mod metrics;
 pub mod poly_fit;
 pub mod report;
+pub mod sim;
 pub mod thin;
 
 pub use blob::{encode, AxisModel, ModelFile};

@@ -1,0 +1,1 @@
+//! Discrepancy diagnosis: simulated vs recorded runs (work in progress).

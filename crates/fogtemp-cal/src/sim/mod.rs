@@ -1,0 +1,1 @@
+//! Physics simulator of the lab experiment (work in progress).
