@@ -409,6 +409,21 @@ pub struct ReplaySeries {
     pub flag_counts: [u64; 8],
     /// Samples replayed.
     pub samples: u64,
+    /// Time of the first sample the compensator corrected (its tracker's start-up is over),
+    /// seconds; NaN if it never did.
+    pub compensating_from_s: f64,
+}
+
+impl ReplaySeries {
+    /// Index of the first block that starts at or after [`Self::compensating_from_s`]
+    /// (the length of the series if there is none).
+    pub fn first_compensated_block(&self, block_s: f64) -> usize {
+        let from = self.compensating_from_s;
+        if !from.is_finite() {
+            return self.time_s.len();
+        }
+        self.time_s.iter().position(|t| t - 0.5 * block_s >= from - 1e-9).unwrap_or(self.time_s.len())
+    }
 }
 
 /// Replays a log through the core `Compensator` of `axis`, exactly as firmware would, and
@@ -428,7 +443,7 @@ pub fn replay(
 ) -> Result<(ReplaySeries, IngestReport), CalError> {
     let mut comp: Compensator<'_, CAL_CAPACITY> = Compensator::new(model, axis)
         .map_err(|source| CalError::Model { path: path.to_path_buf(), source })?;
-    let mut series = ReplaySeries::default();
+    let mut series = ReplaySeries { compensating_from_s: f64::NAN, ..ReplaySeries::default() };
     let mut acc = (0u64, 0.0f64, 0.0f64, 0.0f64, 0i64);
     let flush = |series: &mut ReplaySeries,
                  acc: &mut (u64, f64, f64, f64, i64),
@@ -452,6 +467,9 @@ pub fn replay(
             let raw = row.gyros_dph[axis];
             let out = comp.step(row.time_us(), raw as f32, temp.is_finite().then_some(temp as f32));
             visit(row.time_s, raw, &out);
+            if series.compensating_from_s.is_nan() && out.flags.0 & fogtemp_core::Flags::WARMING_UP.0 == 0 {
+                series.compensating_from_s = row.time_s;
+            }
             let block = (row.time_s / block_s).floor() as i64;
             if block != acc.4 {
                 flush(&mut series, &mut acc, comp.tracker().features());
@@ -508,15 +526,17 @@ pub fn validate_runs(
         for axis in 0..model.axis_count().min(ingest.format.gyro_columns.len()) {
             let (series, report) =
                 replay(path, model, axis, ingest, 1.0, |_, _, _| {}, |b, r| progress(i, b, r))?;
+            // Raw and compensated over the same span: from the first block the compensator
+            // corrected (before that its output is the raw input, flagged WARMING_UP).
+            let from = series.first_compensated_block(1.0);
+            let times = series.time_s.get(from..).unwrap_or_default();
+            let stability =
+                |values: &[f64]| bias_stability(times, values.get(from..).unwrap_or_default(), options);
             runs.push(RunValidation {
                 path: path.clone(),
                 axis,
-                raw_bias_stability_dph: bias_stability(&series.time_s, &series.raw_dph, options),
-                compensated_bias_stability_dph: bias_stability(
-                    &series.time_s,
-                    &series.compensated_dph,
-                    options,
-                ),
+                raw_bias_stability_dph: stability(&series.raw_dph),
+                compensated_bias_stability_dph: stability(&series.compensated_dph),
                 series,
                 ingest: report,
             });

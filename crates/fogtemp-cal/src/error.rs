@@ -67,6 +67,9 @@ pub enum CalError {
         /// The reader's message.
         message: String,
     },
+    /// A simulation scenario is invalid (TOML syntax with line and column, or a named field).
+    #[error("scenario: {0}")]
+    Scenario(String),
     /// I/O on a named file.
     #[error("{}: {source}", path.display())]
     Io {

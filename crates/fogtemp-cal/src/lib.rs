@@ -6,6 +6,7 @@
 
 pub mod blob;
 pub mod calibrate;
+pub mod demo;
 pub mod diagnose;
 pub mod error;
 pub mod features;

@@ -25,7 +25,8 @@ impl BiasStabilityOptions {
     /// One-line definition for reports.
     pub fn describe(&self) -> String {
         format!(
-            "bias stability = standard deviation (n-1) of {} {} s means{}{}, per run; overall = RMS over runs",
+            "bias stability = standard deviation (n-1) of {} {} s means{}{}, per run, raw and compensated alike \
+             from the first sample the compensator corrects (after its tracker's start-up); overall = RMS over runs",
             if self.overlapping { "overlapping" } else { "non-overlapping" },
             self.tau_s,
             if self.detrend { ", after removing a least-squares line" } else { "" },

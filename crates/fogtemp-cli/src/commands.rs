@@ -25,6 +25,8 @@ pub fn run(command: Command) -> Result<()> {
         Command::Inspect(a) => inspect(a),
         Command::Export(a) => export(a),
         Command::Allan(a) => allan(a),
+        Command::Simulate(a) => crate::simulate::simulate(a),
+        Command::Demo(a) => crate::simulate::demo(a),
     }
 }
 

@@ -1,1 +1,278 @@
-//! Physics simulator of the lab experiment (work in progress).
+//! Physics simulator of the lab experiment (`fogtemp-cal simulate`).
+//!
+//! A [`Scenario`] (TOML) describes the protocol, the thermal network, the bias physics, the
+//! noise and the temperature sensor. Each run is computed in two passes: the deterministic
+//! truth on a 1 s grid with the exact discrete step of the linear thermal network
+//! ([`thermal`]), then samples at the gyro rate (truth interpolated linearly, plus noise,
+//! plus the logged sensor). Runs are independent and deterministic per seed and run name,
+//! so they are generated in parallel with rayon and stream to CSV in the log format of
+//! DESIGN section 3 (`time_s,temp_c,gyro_dph`).
+
+pub mod noise;
+pub mod run;
+pub mod scenario;
+pub mod thermal;
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use rayon::prelude::*;
+use serde::Serialize;
+
+pub use run::{run_truth, RunGenerator, RunTruth, Sample, TruthPoint};
+pub use scenario::{RunSpec, Scenario, PAPER_TOML};
+
+use crate::error::CalError;
+
+/// Samples between progress reports.
+const PROGRESS_EVERY: u64 = 1 << 16;
+/// Bytes buffered before a write.
+const WRITE_CHUNK: usize = 1 << 20;
+
+/// What was written for one run.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct RunSummary {
+    /// Run name (file stem).
+    pub name: String,
+    /// The log file.
+    pub file: PathBuf,
+    /// The truth file (1 s grid).
+    pub truth_file: PathBuf,
+    /// Position label.
+    pub group: String,
+    /// Chamber temperature at the start, deg C.
+    pub start_temp_c: f64,
+    /// Input axis, unit vector north-east-down.
+    pub input_axis_ned: [f64; 3],
+    /// Earth rate on the input axis, deg/h.
+    pub input_rate_dph: f64,
+    /// Turn-on bias drawn for this run, deg/h.
+    pub turn_on_dph: f64,
+    /// Samples written.
+    pub samples: u64,
+    /// Length, s.
+    pub duration_s: f64,
+    /// `soaked` (power-on) or `warm` (hot restart).
+    pub initial: scenario::InitialState,
+}
+
+/// Decimals of the time column: the fewest (up to 6) that print every sample time exactly.
+pub fn time_decimals(rate_hz: f64) -> usize {
+    (0..=6).find(|&d| (10f64.powi(d as i32) / rate_hz).fract().abs() < 1e-9).unwrap_or(6)
+}
+
+/// Appends `value` with exactly `decimals` digits after the point (no exponent).
+pub fn push_fixed(buf: &mut Vec<u8>, value: f64, decimals: usize) {
+    let scale = 10f64.powi(decimals as i32);
+    let scaled = (value * scale).round();
+    if !scaled.is_finite() || scaled.abs() >= 9.0e18 {
+        let _ = write!(buf, "{value:.decimals$}");
+        return;
+    }
+    let mut n = scaled as i64;
+    if n < 0 {
+        buf.push(b'-');
+        n = -n;
+    }
+    let n = n as u64;
+    let p = 10u64.pow(decimals as u32);
+    push_digits(buf, n / p, 1);
+    if decimals > 0 {
+        buf.push(b'.');
+        push_digits(buf, n % p, decimals);
+    }
+}
+
+/// Appends `n` in decimal with at least `width` digits (zero padded).
+fn push_digits(buf: &mut Vec<u8>, mut n: u64, width: usize) {
+    let mut digits = [0u8; 20];
+    let mut len = 0;
+    while n > 0 || len < width {
+        digits[len] = b'0' + (n % 10) as u8;
+        n /= 10;
+        len += 1;
+    }
+    buf.extend(digits[..len].iter().rev());
+}
+
+/// Streams one run's log (`time_s,temp_c,gyro_dph`) to `out`; `progress(samples)` is called
+/// with increments. Returns the number of samples.
+///
+/// # Errors
+/// I/O errors of `out`.
+pub fn write_run_csv(
+    scenario: &Scenario,
+    truth: &RunTruth,
+    out: &mut impl Write,
+    progress: &(dyn Fn(u64) + Sync),
+) -> std::io::Result<u64> {
+    let decimals = time_decimals(scenario.sample_rate_hz);
+    let mut buf = Vec::with_capacity(WRITE_CHUNK + 256);
+    buf.extend_from_slice(b"time_s,temp_c,gyro_dph\n");
+    let mut written = 0u64;
+    for sample in RunGenerator::new(scenario, truth) {
+        push_fixed(&mut buf, sample.time_s, decimals);
+        buf.push(b',');
+        push_fixed(&mut buf, sample.temp_c, 4);
+        buf.push(b',');
+        push_fixed(&mut buf, sample.gyro_dph, 4);
+        buf.push(b'\n');
+        written += 1;
+        if buf.len() >= WRITE_CHUNK {
+            out.write_all(&buf)?;
+            buf.clear();
+        }
+        if written % PROGRESS_EVERY == 0 {
+            progress(PROGRESS_EVERY);
+        }
+    }
+    out.write_all(&buf)?;
+    progress(written % PROGRESS_EVERY);
+    Ok(written)
+}
+
+/// Writes the truth grid of a run as CSV.
+///
+/// # Errors
+/// I/O errors of `out`.
+pub fn write_truth_csv(truth: &RunTruth, out: &mut impl Write) -> std::io::Result<()> {
+    let mut buf = Vec::with_capacity(truth.points.len() * 120);
+    buf.extend_from_slice(
+        b"time_s,ambient_c,electronics_c,case_c,coil_c,sensor_true_c,bias_temp_c,coil_rate_c_per_min,\
+gradient_c,gradient_rate_c_per_min,power_w,bias_dph,output_dph\n",
+    );
+    for p in &truth.points {
+        let fields = [
+            p.time_s,
+            p.ambient_c,
+            p.electronics_c,
+            p.case_c,
+            p.coil_c,
+            p.sensor_c,
+            p.bias_temp_c,
+            p.coil_rate_c_per_min,
+            p.gradient_c,
+            p.gradient_rate_c_per_min,
+            p.power_w,
+            p.bias_dph,
+            p.output_dph,
+        ];
+        for (i, v) in fields.iter().enumerate() {
+            if i > 0 {
+                buf.push(b',');
+            }
+            push_fixed(&mut buf, *v, 6);
+        }
+        buf.push(b'\n');
+    }
+    out.write_all(&buf)
+}
+
+/// Writes `path` through a hidden temporary file in the same folder and renames it into
+/// place, so a failure never leaves half a file under the final name.
+///
+/// # Errors
+/// [`CalError::Io`] naming the file.
+pub fn write_file_atomic(
+    path: &Path,
+    write: impl FnOnce(&mut std::io::BufWriter<std::fs::File>) -> std::io::Result<()>,
+) -> Result<(), CalError> {
+    let io = |source| CalError::Io { path: path.to_path_buf(), source };
+    let name = path.file_name().map_or_else(|| "out".into(), |n| n.to_string_lossy().into_owned());
+    let tmp = path.with_file_name(format!(".{name}.{}.tmp", std::process::id()));
+    let result = (|| {
+        let file = std::fs::File::create(&tmp)?;
+        let mut w = std::io::BufWriter::with_capacity(WRITE_CHUNK, file);
+        write(&mut w)?;
+        w.flush()?;
+        std::fs::rename(&tmp, path)
+    })();
+    if result.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    result.map_err(io)
+}
+
+/// Simulates every run of `scenario` into `dir` (one `NAME.csv` per run, `truth/NAME.csv`,
+/// `scenario.toml` with `scenario_text` and `manifest.json`), runs in parallel.
+/// `progress(samples)` receives increments from any thread.
+///
+/// # Errors
+/// [`CalError::Io`] naming the file that could not be written.
+pub fn simulate_to_dir(
+    scenario: &Scenario,
+    scenario_text: &str,
+    dir: &Path,
+    progress: &(dyn Fn(u64) + Sync),
+) -> Result<Vec<RunSummary>, CalError> {
+    let truth_dir = dir.join("truth");
+    std::fs::create_dir_all(&truth_dir).map_err(|source| CalError::Io { path: truth_dir.clone(), source })?;
+    let runs = scenario.expanded_runs();
+    let summaries = runs
+        .par_iter()
+        .map(|spec| {
+            let truth = run_truth(scenario, spec);
+            let file = dir.join(format!("{}.csv", spec.name));
+            let truth_file = truth_dir.join(format!("{}.csv", spec.name));
+            write_file_atomic(&truth_file, |w| write_truth_csv(&truth, w))?;
+            let mut samples = 0;
+            write_file_atomic(&file, |w| {
+                samples = write_run_csv(scenario, &truth, w, progress)?;
+                Ok(())
+            })?;
+            Ok(RunSummary {
+                name: spec.name.clone(),
+                file,
+                truth_file,
+                group: spec.group.clone(),
+                start_temp_c: spec.chamber.start_c(),
+                input_axis_ned: spec.input_axis.ned().unwrap_or([f64::NAN; 3]),
+                input_rate_dph: truth.input_rate_dph,
+                turn_on_dph: truth.turn_on_dph,
+                samples,
+                duration_s: spec.duration_s,
+                initial: spec.initial,
+            })
+        })
+        .collect::<Result<Vec<_>, CalError>>()?;
+    write_file_atomic(&dir.join("scenario.toml"), |w| w.write_all(scenario_text.as_bytes()))?;
+    let manifest = Manifest {
+        scenario: scenario.name.clone(),
+        sample_rate_hz: scenario.sample_rate_hz,
+        seed: scenario.seed,
+        columns: ["time_s", "temp_c", "gyro_dph"],
+        runs: summaries.clone(),
+    };
+    let json = serde_json::to_vec_pretty(&manifest)
+        .map_err(|e| CalError::Scenario(format!("manifest could not be serialised: {e}")))?;
+    write_file_atomic(&dir.join("manifest.json"), |w| w.write_all(&json))?;
+    Ok(summaries)
+}
+
+/// `manifest.json` of a simulation folder: what each log is.
+#[derive(Clone, Debug, Serialize)]
+pub struct Manifest {
+    /// Scenario name.
+    pub scenario: String,
+    /// Gyro rate, Hz.
+    pub sample_rate_hz: f64,
+    /// Seed.
+    pub seed: u64,
+    /// Columns of every log.
+    pub columns: [&'static str; 3],
+    /// The runs.
+    pub runs: Vec<RunSummary>,
+}
+
+/// Every run's samples in memory (for tests and small rates; a 2 h run at 1 kHz is 170 MB).
+pub fn simulate_in_memory(scenario: &Scenario) -> Vec<(RunTruth, Vec<Sample>)> {
+    scenario
+        .expanded_runs()
+        .par_iter()
+        .map(|spec| {
+            let truth = run_truth(scenario, spec);
+            let samples: Vec<Sample> = RunGenerator::new(scenario, &truth).collect();
+            (truth, samples)
+        })
+        .collect()
+}
