@@ -51,30 +51,54 @@ pub enum Thinning {
     },
 }
 
-/// Robust estimate of the noise of the smoothed gyro targets, deg/h: the white noise of the
-/// per-block gyro means (median absolute first difference / 0.6745 / sqrt 2, which ignores
-/// slow thermal drift) scaled by `sqrt(block_s / target_window_s)` for the centred average.
-/// NaN when there are too few blocks.
+/// Robust estimate of the noise of the smoothed gyro targets, deg/h.
+///
+/// Within each segment of each run, the 1 s block means are averaged over non-overlapping
+/// windows of `target_window_s`; the second differences `m[j+2] - 2 m[j+1] + m[j]` of those
+/// window means cancel a linear thermal drift and, for noise whose window means are
+/// independent, have variance 6 sigma^2; the estimate is their median absolute value
+/// / 0.6745 / sqrt 6 (robust to the few windows where the drift curves). Unlike first
+/// differences of block means, this sees bias instability (flicker) at the window's time
+/// scale as well as white noise. Falls back to the white-noise estimate (median first
+/// difference of block means, scaled by sqrt(block_s / target_window_s)) when the runs hold
+/// fewer than 10 second differences; NaN when there are too few blocks for that too.
 pub fn target_noise_dph(runs: &[RunFeatures], axis: usize, block_s: f64, target_window_s: f64) -> f64 {
-    let mut diffs: Vec<f64> = runs
-        .iter()
-        .filter_map(|r| r.axes.get(axis))
-        .flat_map(|(points, _)| {
-            points
-                .windows(2)
-                .filter(|w| w[0].segment == w[1].segment && w[0].gyro_samples > 0 && w[1].gyro_samples > 0)
-                .map(|w| (w[1].gyro_mean_dph - w[0].gyro_mean_dph).abs())
-                .collect::<Vec<_>>()
-        })
-        .filter(|d| d.is_finite())
-        .collect();
-    if diffs.len() < 10 {
+    let per_window = ((target_window_s / block_s).round() as usize).max(1);
+    let mut second: Vec<f64> = Vec::new();
+    let mut first: Vec<f64> = Vec::new();
+    for (points, _) in runs.iter().filter_map(|r| r.axes.get(axis)) {
+        for seg in points.chunk_by(|a, b| a.segment == b.segment) {
+            let blocks: Vec<f64> = seg
+                .iter()
+                .filter(|p| p.gyro_samples > 0)
+                .map(|p| p.gyro_mean_dph)
+                .filter(|v| v.is_finite())
+                .collect();
+            first.extend(blocks.windows(2).map(|w| (w[1] - w[0]).abs()));
+            let means: Vec<f64> =
+                blocks.chunks_exact(per_window).map(|c| c.iter().sum::<f64>() / per_window as f64).collect();
+            second.extend(means.windows(3).map(|w| (w[2] - 2.0 * w[1] + w[0]).abs()));
+        }
+    }
+    if second.len() >= 10 {
+        return median(&mut second) / 0.6745 / 6f64.sqrt();
+    }
+    if first.len() < 10 {
         return f64::NAN;
     }
-    let mid = diffs.len() / 2;
-    let (_, median, _) = diffs.select_nth_unstable_by(mid, |a, b| a.total_cmp(b));
-    let block_sigma = *median / 0.6745 / std::f64::consts::SQRT_2;
+    let block_sigma = median(&mut first) / 0.6745 / std::f64::consts::SQRT_2;
     block_sigma * (block_s / target_window_s).min(1.0).sqrt()
+}
+
+fn rms(values: impl Iterator<Item = f64>) -> f64 {
+    let (sum, n) = values.fold((0.0, 0usize), |(s, n), v| (s + v * v, n + 1));
+    (sum / n.max(1) as f64).sqrt()
+}
+
+fn median(values: &mut [f64]) -> f64 {
+    let mid = values.len() / 2;
+    let (_, m, _) = values.select_nth_unstable_by(mid, |a, b| a.total_cmp(b));
+    *m
 }
 
 /// Everything `fit` needs besides the logs.
@@ -97,6 +121,10 @@ pub struct CalibrationConfig {
     /// Fit the mesh node values by least squares to all calibration points (default)
     /// instead of taking each node's own smoothed target (the paper).
     pub least_squares_nodes: bool,
+    /// Length of the rate axis relative to the temperature axis after normalisation
+    /// (1: both span [-1, 1], the default; the Delaunay triangulation and the thinning
+    /// distances see this aspect ratio).
+    pub rate_axis_weight: f64,
 }
 
 impl Default for CalibrationConfig {
@@ -110,6 +138,7 @@ impl Default for CalibrationConfig {
             poly: TermSelection::default_stepwise(),
             full_windows_only: false,
             least_squares_nodes: true,
+            rate_axis_weight: 1.0,
         }
     }
 }
@@ -247,7 +276,10 @@ pub fn fit_axis(
     config: &CalibrationConfig,
     target_noise_dph: f64,
 ) -> Result<(AxisModel, AxisFitReport), CalError> {
-    let normalisation = choose_normalisation(points)?;
+    let mut normalisation = choose_normalisation(points)?;
+    if config.rate_axis_weight.is_finite() && config.rate_axis_weight > 0.0 {
+        normalisation.rate_scale_per_c_per_min *= config.rate_axis_weight as f32;
+    }
     // One independent target per smoothing window (points are one per block).
     let block_s = f64::from(config.features.window_s) / f64::from(config.features.block_count);
     let n_eff = points.len() as f64 * (block_s / config.target_window_s).min(1.0);
@@ -263,8 +295,27 @@ pub fn fit_axis(
             ..*p
         })
         .collect();
+    let auto_tolerance_dph = |noise_multiple: f64| {
+        if target_noise_dph.is_finite() && target_noise_dph > 0.0 {
+            noise_multiple * target_noise_dph
+        } else {
+            GreedyThinning::default().tolerance_dph
+        }
+    };
+    // A hybrid needs no mesh when the polynomial already leaves no more than the tolerance
+    // (a mesh of its residuals would only carry their noise into the compensation).
+    let poly_is_enough = match (config.method, config.thinning) {
+        (Method::Hybrid, Thinning::GreedyAuto { noise_multiple, .. }) => {
+            rms(residual_points.iter().map(|p| p.value_dph)) <= auto_tolerance_dph(noise_multiple)
+        }
+        (Method::Hybrid, Thinning::Greedy(g)) if g.stop_on_rms => {
+            rms(residual_points.iter().map(|p| p.value_dph)) <= g.tolerance_dph
+        }
+        _ => false,
+    };
     let mesh = match config.method {
         Method::Poly => None,
+        Method::Hybrid if poly_is_enough => None,
         Method::Mesh | Method::Hybrid => {
             let keep = match config.thinning {
                 Thinning::Paper { fast_rate_c_per_min, settled_every } => {
@@ -273,13 +324,8 @@ pub fn fit_axis(
                 }
                 Thinning::Greedy(g) => thin_greedy(&residual_points, &normalisation, &g)?.keep,
                 Thinning::GreedyAuto { noise_multiple, max_nodes } => {
-                    let tolerance_dph = if target_noise_dph.is_finite() && target_noise_dph > 0.0 {
-                        noise_multiple * target_noise_dph
-                    } else {
-                        GreedyThinning::default().tolerance_dph
-                    };
                     let g = GreedyThinning {
-                        tolerance_dph,
+                        tolerance_dph: auto_tolerance_dph(noise_multiple),
                         max_nodes,
                         stop_on_rms: true,
                         ..GreedyThinning::default()

@@ -136,6 +136,7 @@ fn fit(a: FitArgs) -> Result<()> {
         },
         full_windows_only: a.full_windows_only,
         least_squares_nodes: !a.interpolate_nodes,
+        rate_axis_weight: 1.0,
     };
     let mut runs = Vec::with_capacity(logs.len());
     for log in &logs {
