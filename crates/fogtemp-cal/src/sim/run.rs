@@ -79,13 +79,21 @@ pub fn run_rngs(seed: u64, name: &str) -> (Xoshiro256PlusPlus, Xoshiro256PlusPlu
 
 /// Total chamber air temperature at `t_s`: the profile plus the control ripple.
 fn ambient_c(scenario: &Scenario, spec: &RunSpec, t_s: f64) -> f64 {
+    spec.chamber.temp_c(t_s) + ripple_c(scenario, t_s)
+}
+
+/// The chamber air temperature just before `t_s` (differs from [`ambient_c`] only at a step).
+fn ambient_before_c(scenario: &Scenario, spec: &RunSpec, t_s: f64) -> f64 {
+    spec.chamber.temp_before_c(t_s) + ripple_c(scenario, t_s)
+}
+
+fn ripple_c(scenario: &Scenario, t_s: f64) -> f64 {
     let ripple = &scenario.chamber;
-    let wave = if ripple.ripple_amplitude_c > 0.0 {
+    if ripple.ripple_amplitude_c > 0.0 {
         ripple.ripple_amplitude_c * (std::f64::consts::TAU * t_s / ripple.ripple_period_s).sin()
     } else {
         0.0
-    };
-    spec.chamber.temp_c(t_s) + wave
+    }
 }
 
 /// The bias terms at one grid point (deg/h), Earth rate excluded.
@@ -129,7 +137,10 @@ pub fn run_truth(scenario: &Scenario, spec: &RunSpec) -> RunTruth {
     for k in 0..=steps {
         let t = k as f64 * h;
         let ta = ambient_c(scenario, spec, t);
-        let ta_next = ambient_c(scenario, spec, t + h);
+        // The step moves the chamber linearly from ta to ta_next; at a chamber step at t + h
+        // that must be the value before it (the new value starts the next interval), or the
+        // step would be spread over [t, t + h] and arrive half a step early.
+        let ta_next = ambient_before_c(scenario, spec, t + h);
         let power_w = model.power_w(&x);
         let dx = model.derivative(&x, power_w, ta);
         let mut tp = TruthPoint {
@@ -184,8 +195,9 @@ pub struct RunGenerator<'a> {
     noise: NoiseGenerator,
     gyro_rng: Xoshiro256PlusPlus,
     sensor_rng: Xoshiro256PlusPlus,
-    sensor_period_s: f64,
-    next_sensor_s: f64,
+    sensor_rate_hz: f64,
+    /// Index of the next sensor sample (due at `sensor_index / sensor_rate_hz`).
+    sensor_index: u64,
     sensor_noise_c: f64,
     sensor_quantum_c: f64,
     sensor_offset_c: f64,
@@ -213,8 +225,8 @@ impl<'a> RunGenerator<'a> {
             noise,
             gyro_rng,
             sensor_rng,
-            sensor_period_s: 1.0 / scenario.sensor.rate_hz,
-            next_sensor_s: 0.0,
+            sensor_rate_hz: scenario.sensor.rate_hz,
+            sensor_index: 0,
             sensor_noise_c: scenario.sensor.noise_c,
             sensor_quantum_c: scenario.sensor.quantum_c,
             sensor_offset_c: scenario.sensor.offset_c,
@@ -249,8 +261,14 @@ impl<'a> RunGenerator<'a> {
     }
 
     fn read_sensor(&mut self, t_s: f64) {
-        while t_s >= self.next_sensor_s {
-            let t = self.next_sensor_s;
+        // Sensor times are computed as index / rate, like the gyro's, never accumulated: a
+        // sum of periods drifts (0.1 + 0.1 + 0.1 > 0.3) and would skip the sensor sample due
+        // at the same instant as a gyro sample, logging the previous one for a gyro period.
+        loop {
+            let t = self.sensor_index as f64 / self.sensor_rate_hz;
+            if t > t_s {
+                break;
+            }
             let mut reading = self.interpolate(t, |p| p.sensor_c) + self.sensor_offset_c;
             if self.sensor_noise_c > 0.0 {
                 reading += self.sensor_noise_c * self.sensor_rng.sample::<f64, _>(StandardNormal);
@@ -259,7 +277,7 @@ impl<'a> RunGenerator<'a> {
                 reading = (reading / self.sensor_quantum_c).round() * self.sensor_quantum_c;
             }
             self.logged_temp_c = reading;
-            self.next_sensor_s += self.sensor_period_s;
+            self.sensor_index += 1;
         }
     }
 

@@ -273,6 +273,8 @@ pub enum ChamberProfile {
         start_s: f64,
     },
     /// `start_c`, then `to_c` from `at_s` on (the chamber's own response is not modelled).
+    /// The thermal solution is exact for a step at a multiple of `thermal.step_s`; a step
+    /// between grid times is spread linearly over the step that contains it.
     Step {
         /// deg C.
         start_c: f64,
@@ -290,7 +292,8 @@ pub enum ChamberProfile {
         /// s.
         period_s: f64,
     },
-    /// Piecewise linear through `(time_s, temp_c)` points, held outside them.
+    /// Piecewise linear through `(time_s, temp_c)` points, held outside them; two points at
+    /// the same time make a step (the second value from that time on).
     Points {
         /// `[time_s, temp_c]` pairs with increasing time.
         points: Vec<[f64; 2]>,
@@ -317,7 +320,23 @@ impl ChamberProfile {
             Self::Sinusoid { mean_c, amplitude_c, period_s } => {
                 mean_c + amplitude_c * (std::f64::consts::TAU * t_s / period_s).sin()
             }
-            Self::Points { points } => piecewise(points, t_s),
+            Self::Points { points } => piecewise(points, t_s, false),
+        }
+    }
+
+    /// The limit of [`Self::temp_c`] from the left at `t_s` (equal to it except at a step):
+    /// the chamber temperature at the end of an interval that ends at `t_s`.
+    pub fn temp_before_c(&self, t_s: f64) -> f64 {
+        match self {
+            Self::Step { start_c, to_c, at_s } => {
+                if t_s <= *at_s {
+                    *start_c
+                } else {
+                    *to_c
+                }
+            }
+            Self::Points { points } => piecewise(points, t_s, true),
+            _ => self.temp_c(t_s),
         }
     }
 
@@ -327,14 +346,17 @@ impl ChamberProfile {
     }
 }
 
-fn piecewise(points: &[[f64; 2]], t_s: f64) -> f64 {
+/// Piecewise-linear interpolation through `points`, held outside them. At a time shared by
+/// two points (a step) the later point's value applies (right-continuous), or the earlier
+/// one's with `left_limit`.
+fn piecewise(points: &[[f64; 2]], t_s: f64, left_limit: bool) -> f64 {
     let Some(first) = points.first() else { return f64::NAN };
     if t_s <= first[0] {
         return first[1];
     }
     for w in points.windows(2) {
         let ([t0, v0], [t1, v1]) = (w[0], w[1]);
-        if t_s <= t1 {
+        if t_s < t1 || (left_limit && t_s == t1) {
             return if t1 > t0 { v0 + (v1 - v0) * (t_s - t0) / (t1 - t0) } else { v1 };
         }
     }
