@@ -67,6 +67,10 @@ pub enum CalError {
         /// The reader's message.
         message: String,
     },
+    /// The inputs of a diagnosis (simulated vs recorded runs) are unusable: unpaired or
+    /// duplicate names, empty or non-finite series, time not increasing, too few runs.
+    #[error("diagnose: {0}")]
+    Diagnose(String),
     /// I/O on a named file.
     #[error("{}: {source}", path.display())]
     Io {
