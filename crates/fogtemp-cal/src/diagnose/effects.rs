@@ -122,6 +122,9 @@ pub struct TermColumns {
     pub coefficients: Vec<(String, String)>,
     /// Per run: short means x columns (unscaled).
     pub per_run: Vec<DMatrix<f64>>,
+    /// Penalty rows on the coefficients (rows x k), added to every fit as pseudo-observations
+    /// with target 0 (never to held-out errors).
+    pub penalty: Option<DMatrix<f64>>,
 }
 
 impl TermColumns {
@@ -234,6 +237,26 @@ pub fn bspline_basis(x: f64, lo: f64, hi: f64, k: usize) -> Vec<f64> {
     b
 }
 
+/// Weight of the P-spline penalty rows: each second difference of neighbouring spline
+/// coefficients counts as one pseudo-observation of 0 (as heavy as one short mean), which
+/// is negligible where data support a coefficient and makes unsupported coefficients (a
+/// held-out run beyond the training temperatures) follow a straight line instead of
+/// swinging freely.
+const SPLINE_PENALTY_WEIGHT: f64 = 1.0;
+
+/// Second-difference penalty rows for `k` coefficients.
+fn second_differences(k: usize) -> DMatrix<f64> {
+    let rows = k.saturating_sub(2);
+    DMatrix::from_fn(rows, k, |i, j| {
+        SPLINE_PENALTY_WEIGHT
+            * match j.wrapping_sub(i) {
+                0 | 2 => 1.0,
+                1 => -2.0,
+                _ => 0.0,
+            }
+    })
+}
+
 fn matrix_from_columns(columns: &[Vec<f64>]) -> DMatrix<f64> {
     let n = columns.first().map_or(0, Vec::len);
     DMatrix::from_fn(n, columns.len(), |i, j| columns[j][i])
@@ -278,17 +301,24 @@ pub fn term_columns(prep: &Prepared, effect: Effect, theta: &[f64]) -> TermColum
                     matrix_from_columns(&[block_average(r, &per_sec)])
                 })
                 .collect();
-            TermColumns { theta: theta_v, coefficients: vec![coef("gain", "1 (1 = the simulation's b(T) on a lagged temperature)")], per_run }
+            TermColumns {
+                theta: theta_v,
+                coefficients: vec![coef("gain", "1 (1 = the simulation's b(T) on a lagged temperature)")],
+                per_run,
+                penalty: None,
+            }
         }
         Effect::ShupeRate => TermColumns {
             theta: theta_v,
             coefficients: vec![coef("coefficient_dph_per_c_per_min", "deg/h per deg C/min")],
             per_run: per_block(&|b| b.rate_c_per_min),
+            penalty: None,
         },
         Effect::GradientRate => TermColumns {
             theta: theta_v,
             coefficients: vec![coef("coefficient_dph_per_c_per_min2", "deg/h per deg C/min^2")],
             per_run: per_block(&|b| b.accel_c_per_min2),
+            penalty: None,
         },
         Effect::WarmupTransient => {
             let tau_s = theta[0];
@@ -305,7 +335,7 @@ pub fn term_columns(prep: &Prepared, effect: Effect, theta: &[f64]) -> TermColum
                     matrix_from_columns(&[block_average(r, &per_sec)])
                 })
                 .collect();
-            TermColumns { theta: theta_v, coefficients: vec![coef("amplitude_dph", "deg/h")], per_run }
+            TermColumns { theta: theta_v, coefficients: vec![coef("amplitude_dph", "deg/h")], per_run, penalty: None }
         }
         Effect::OrientationOffset => {
             let g = groups(prep);
@@ -321,7 +351,7 @@ pub fn term_columns(prep: &Prepared, effect: Effect, theta: &[f64]) -> TermColum
                 .collect();
             let coefficients =
                 others.iter().map(|o| coef(format!("offset_{o}_minus_{reference}_dph"), "deg/h")).collect();
-            TermColumns { theta: theta_v, coefficients, per_run }
+            TermColumns { theta: theta_v, coefficients, per_run, penalty: None }
         }
         Effect::Hysteresis => {
             let (width_c, degree) = (theta[0], theta[1]);
@@ -341,7 +371,7 @@ pub fn term_columns(prep: &Prepared, effect: Effect, theta: &[f64]) -> TermColum
             if degree >= 1.0 {
                 coefficients.push(coef("half_gap_slope_dph_per_c", "deg/h per deg C"));
             }
-            TermColumns { theta: theta_v, coefficients, per_run }
+            TermColumns { theta: theta_v, coefficients, per_run, penalty: None }
         }
         Effect::StaticShape => {
             let k = theta[0] as usize;
@@ -356,7 +386,7 @@ pub fn term_columns(prep: &Prepared, effect: Effect, theta: &[f64]) -> TermColum
                 })
                 .collect();
             let coefficients = (1..k).map(|j| coef(format!("spline_{j}_dph"), "deg/h")).collect();
-            TermColumns { theta: theta_v, coefficients, per_run }
+            TermColumns { theta: theta_v, coefficients, per_run, penalty: Some(second_differences(k - 1)) }
         }
         Effect::ScaleFactorTemperature => {
             let degree = theta[0] as i32;
@@ -375,7 +405,7 @@ pub fn term_columns(prep: &Prepared, effect: Effect, theta: &[f64]) -> TermColum
             if degree >= 2 {
                 coefficients.push(coef("s2_ppm_per_c2", "ppm per deg C^2"));
             }
-            TermColumns { theta: theta_v, coefficients, per_run }
+            TermColumns { theta: theta_v, coefficients, per_run, penalty: None }
         }
     }
 }
@@ -404,6 +434,34 @@ fn spread(values: impl Iterator<Item = f64>) -> f64 {
     let v: Vec<f64> = values.collect();
     crate::metrics::sample_std(&v)
 }
+
+/// Median fraction of the runs' short means that lie within the union of the other runs'
+/// temperature ranges: how well one run's temperatures are seen by the rest.
+pub fn temperature_overlap(prep: &Prepared) -> f64 {
+    let ranges: Vec<(f64, f64)> = prep
+        .runs
+        .iter()
+        .map(|r| r.blocks.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| (a.min(x.temp_c), b.max(x.temp_c))))
+        .collect();
+    let mut fractions: Vec<f64> = prep
+        .runs
+        .iter()
+        .enumerate()
+        .map(|(i, r)| {
+            let inside = r
+                .blocks
+                .iter()
+                .filter(|b| ranges.iter().enumerate().any(|(j, (lo, hi))| j != i && b.temp_c >= *lo && b.temp_c <= *hi))
+                .count();
+            inside as f64 / r.blocks.len().max(1) as f64
+        })
+        .collect();
+    fractions.sort_by(f64::total_cmp);
+    fractions.get(fractions.len() / 2).copied().unwrap_or(0.0)
+}
+
+/// Smallest median overlap (see [`temperature_overlap`]) for `static_shape`.
+const MIN_OVERLAP: f64 = 0.5;
 
 /// Why these runs cannot identify `effect` (with the experiment to run), if they cannot.
 pub fn unmet_requirement(prep: &Prepared, effect: Effect) -> Option<String> {
@@ -452,7 +510,17 @@ pub fn unmet_requirement(prep: &Prepared, effect: Effect) -> Option<String> {
         }
         Effect::StaticShape => {
             let (lo, hi) = prep.temp_range_c;
-            (hi - lo < 5.0).then(|| format!("the recorded temperature spans only {:.1} C; run: {}", hi - lo, effect.experiment()))
+            let covered = temperature_overlap(prep);
+            if hi - lo < 5.0 {
+                why(format!("the recorded temperature spans only {:.1} C", hi - lo))
+            } else if covered < MIN_OVERLAP {
+                why(format!(
+                    "the runs' temperature ranges hardly overlap (median {:.0} % of a run's short means lie within the other runs' ranges): a shape in T cannot be told from per-run offsets",
+                    100.0 * covered
+                ))
+            } else {
+                None
+            }
         }
         Effect::ScaleFactorTemperature => {
             if prep.runs.iter().any(|r| r.input_rate_dph.is_none()) {

@@ -109,58 +109,21 @@ pub fn effective_n(n: usize, rho: f64) -> f64 {
     (n as f64 * (1.0 - rho) / (1.0 + rho)).max(2.0)
 }
 
-/// Newey-West "meat" `sum_l w_l sum_i (u_i u_{i+l}^T + u_{i+l} u_i^T)` with Bartlett weights
-/// `w_l = 1 - l / (lag + 1)`, lags counted in block numbers within each run (`u` rows are
-/// score vectors, one per short mean).
-fn newey_west_meat(u: &[DMatrix<f64>], indices: &[Vec<usize>], lag: usize) -> DMatrix<f64> {
-    let p = u.first().map_or(0, |m| m.ncols());
-    let mut s = DMatrix::zeros(p, p);
-    for (m, idx) in u.iter().zip(indices) {
-        for i in 0..m.nrows() {
-            let ui = m.row(i);
-            s += ui.transpose() * ui;
-            for j in i + 1..m.nrows() {
-                let l = idx[j] - idx[i];
-                if l > lag {
-                    break;
-                }
-                let w = 1.0 - l as f64 / (lag as f64 + 1.0);
-                let cross = ui.transpose() * m.row(j);
-                s += (&cross + cross.transpose()) * w;
-            }
-        }
+/// Delete-one-group jackknife covariance of coefficient vectors estimated with each group
+/// (run) left out: `(G - 1)/G sum_j (b_j - mean b)(b_j - mean b)^T`.
+pub fn jackknife_covariance(fold_betas: &[DVector<f64>]) -> DMatrix<f64> {
+    let g = fold_betas.len();
+    let p = fold_betas.first().map_or(0, |b| b.len());
+    let mut cov = DMatrix::zeros(p, p);
+    if g < 2 {
+        return cov.add_scalar(f64::NAN);
     }
-    s
-}
-
-/// HAC (Newey-West) covariance of least-squares coefficients: `B^-1 S B^-1` with
-/// `B = X^T X` (pseudo-inverse) and `S` the Newey-West meat, times `n / (n - p)`.
-/// `x` and `e` are per run; `None` if there are no more rows than columns.
-pub fn hac_covariance(
-    x: &[DMatrix<f64>],
-    e: &[Vec<f64>],
-    indices: &[Vec<usize>],
-    lag: usize,
-) -> Option<DMatrix<f64>> {
-    let p = x.first()?.ncols();
-    let n: usize = x.iter().map(|m| m.nrows()).sum();
-    if n <= p {
-        return None;
+    let mean = fold_betas.iter().fold(DVector::zeros(p), |a, b| a + b) / g as f64;
+    for b in fold_betas {
+        let d = b - &mean;
+        cov += &d * d.transpose();
     }
-    let mut bread = DMatrix::zeros(p, p);
-    let mut scores = Vec::with_capacity(x.len());
-    for (m, er) in x.iter().zip(e) {
-        bread += m.transpose() * m;
-        let mut u = m.clone();
-        for (i, v) in er.iter().enumerate() {
-            u.row_mut(i).scale_mut(*v);
-        }
-        scores.push(u);
-    }
-    let meat = newey_west_meat(&scores, indices, lag);
-    let tol = 1e-12 * bread.amax().max(f64::MIN_POSITIVE);
-    let inv = bread.pseudo_inverse(tol).ok()?;
-    Some(&inv * meat * &inv * (n as f64 / (n - p) as f64))
+    cov * ((g - 1) as f64 / g as f64)
 }
 
 /// Newey-West standard error of the mean of `values` (per run, with block numbers).

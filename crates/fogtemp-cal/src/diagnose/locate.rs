@@ -6,8 +6,8 @@ use statrs::distribution::{ContinuousCDF, Normal};
 
 use super::effects::EffectGrid;
 use super::linalg::hac_se_of_mean;
-use super::prepare::{Prepared, RunData};
-use super::select::{fold_counts, folds_pass, FinalOutcome, Selection};
+use super::prepare::{adev_at, longest_finite, Prepared, RunData};
+use super::select::{fold_counts, folds_pass, material_runs, FinalOutcome, Selection};
 use super::{
     AllanRow, DiagnoseOptions, Diagnosis, Location, MapCell, NoiseLevel, RunTraceOut, SpanFinding,
     TableTest, TemperatureComparison, TemperatureRun, Unexplained,
@@ -161,37 +161,6 @@ pub fn map(prep: &Prepared, e: &[Vec<f64>], options: &DiagnoseOptions) -> Vec<Ma
         c.significant = c.z.abs() > z;
     }
     out
-}
-
-/// Longest stretch of finite values.
-fn longest_finite(v: &[f64]) -> &[f64] {
-    let (mut best, mut start) = ((0, 0), 0);
-    for i in 0..=v.len() {
-        if i == v.len() || !v[i].is_finite() {
-            if i - start > best.1 - best.0 {
-                best = (start, i);
-            }
-            start = i + 1;
-        }
-    }
-    &v[best.0..best.1]
-}
-
-/// Overlapping Allan deviation at cluster size `m` samples of 1 s.
-fn adev_at(v: &[f64], m: usize) -> f64 {
-    let n = v.len();
-    if m == 0 || 2 * m >= n {
-        return f64::NAN;
-    }
-    let mut theta = vec![0.0];
-    let mu = mean(v);
-    for x in v {
-        let last = theta[theta.len() - 1];
-        theta.push(last + x - mu);
-    }
-    let terms = theta.len() - 2 * m;
-    let s: f64 = (0..terms).map(|k| (theta[k + 2 * m] - 2.0 * theta[k + m] + theta[k]).powi(2)).sum();
-    (s / (2.0 * (m * m) as f64 * terms as f64)).sqrt()
 }
 
 /// RMS over runs of Allan curves on the points all runs share (tau up to 1/4 run).
@@ -369,10 +338,11 @@ fn best_shift(rec: &[f64], sim: &[f64]) -> (f64, f64) {
 }
 
 /// LORO test of a lookup table (per-key means of the other runs) on residual `e`.
-fn table_test(name: &str, keys: &[Vec<usize>], e: &[Vec<f64>], min_fraction: f64) -> TableTest {
+fn table_test(name: &str, keys: &[Vec<usize>], e: &[Vec<f64>], min_fraction: f64, noise_sigma_dph: f64) -> TableTest {
     let n_keys = keys.iter().flatten().max().map_or(0, |m| m + 1);
     let mut before = Vec::new();
     let mut after = Vec::new();
+    let mut predictions = Vec::new();
     for j in 0..e.len() {
         let mut sum = vec![0.0; n_keys];
         let mut count = vec![0usize; n_keys];
@@ -385,10 +355,12 @@ fn table_test(name: &str, keys: &[Vec<usize>], e: &[Vec<f64>], min_fraction: f64
             }
         }
         let pred = |k: usize| if count[k] >= 3 { sum[k] / count[k] as f64 } else { 0.0 };
+        predictions.push(keys[j].iter().map(|k| pred(*k)).collect::<Vec<f64>>());
         before.push(e[j].iter().map(|v| v * v).sum::<f64>());
         after.push(e[j].iter().zip(&keys[j]).map(|(v, k)| (v - pred(*k)).powi(2)).sum::<f64>());
     }
-    let (improved, informative) = fold_counts(&before, &after);
+    let material = material_runs(&predictions, noise_sigma_dph);
+    let (improved, informative) = fold_counts(&before, &after, &material);
     let (b, a): (f64, f64) = (before.iter().sum(), after.iter().sum());
     TableTest {
         table: name.to_string(),
@@ -411,8 +383,8 @@ fn unexplained(prep: &Prepared, outcome: &FinalOutcome, options: &DiagnoseOption
         .map(|r| r.blocks.iter().map(|b| TIME_EDGES_S.iter().filter(|x| b.since_on_s >= **x).count()).collect())
         .collect();
     let tables = vec![
-        table_test("T-rate cells", &cell_keys, e, options.min_fold_fraction),
-        table_test("time since power-on", &time_keys, e, options.min_fold_fraction),
+        table_test("T-rate cells", &cell_keys, e, options.min_fold_fraction, prep.noise_sigma_dph),
+        table_test("time since power-on", &time_keys, e, options.min_fold_fraction, prep.noise_sigma_dph),
     ];
     let significant_cells: Vec<MapCell> = map(prep, e, options).into_iter().filter(|c| c.significant).collect();
     let significant_spans: Vec<SpanFinding> = spans(prep, e, options).into_iter().filter(|s| s.significant).collect();

@@ -165,7 +165,7 @@ impl DiagnoseOptions {
 pub struct Parameter {
     /// Estimate.
     pub value: f64,
-    /// Standard error (HAC sandwich, linearised for profiled parameters); `None` for
+    /// Standard error (delete-one-run jackknife, linearised for profiled parameters); `None` for
     /// discrete grid choices (a basis size, a polynomial degree).
     pub std_error: Option<f64>,
     /// Units of value and standard error.
@@ -222,6 +222,10 @@ pub struct CandidateReport {
     pub folds_informative: usize,
     /// BIC(model + term) - BIC(model) on the effective sample size (negative favours the term).
     pub delta_bic: f64,
+    /// Fold-to-fold stability: 1 / (delete-one-run jackknife SE of the LORO contributions
+    /// projected on the full-data contribution); must reach the two-sided 1 % Student-t
+    /// limit with runs - 1 degrees of freedom.
+    pub stability_t: f64,
     /// R^2 of the term's fitted contribution on the terms already in the model.
     pub concealment_index: f64,
     /// The same R^2 with per-run offsets added to the model's terms.

@@ -116,6 +116,10 @@ pub struct Prepared {
     pub block_s: usize,
     /// Newey-West bandwidth in short means.
     pub hac_lag_blocks: usize,
+    /// Noise of one short mean: overlapping Allan deviation at tau = one short mean of the
+    /// 1 s raw residual, RMS over runs, deg/h (short-term noise; slow structure hardly
+    /// enters at this tau).
+    pub noise_sigma_dph: f64,
 }
 
 impl Prepared {
@@ -422,5 +426,45 @@ pub fn prepare(
     let block_s = options.mean_window_s.round().max(1.0) as usize;
     let hac_lag_blocks = (options.hac_lag_s / block_s as f64).ceil().max(1.0) as usize;
     let static_relation = fit_static_relation(&runs);
-    Ok(Prepared { runs, static_relation, temp_ref_c, temp_range_c, block_s, hac_lag_blocks })
+    let adevs: Vec<f64> = runs
+        .iter()
+        .map(|r| adev_at(longest_finite(&r.sec.resid_dph), block_s))
+        .filter(|v| v.is_finite())
+        .collect();
+    let noise_sigma_dph = (adevs.iter().map(|v| v * v).sum::<f64>() / adevs.len().max(1) as f64).sqrt();
+    Ok(Prepared { runs, static_relation, temp_ref_c, temp_range_c, block_s, hac_lag_blocks, noise_sigma_dph })
+}
+
+/// Longest stretch of finite values.
+pub fn longest_finite(v: &[f64]) -> &[f64] {
+    let (mut best, mut start) = ((0, 0), 0);
+    for i in 0..=v.len() {
+        if i == v.len() || !v[i].is_finite() {
+            if i - start > best.1 - best.0 {
+                best = (start, i);
+            }
+            start = i + 1;
+        }
+    }
+    &v[best.0..best.1]
+}
+
+/// Overlapping Allan deviation of a 1 s series at cluster size `m` seconds (NaN when the
+/// series is shorter than `2 m + 1`).
+pub fn adev_at(v: &[f64], m: usize) -> f64 {
+    let n = v.len();
+    if m == 0 || 2 * m >= n {
+        return f64::NAN;
+    }
+    let mu = v.iter().sum::<f64>() / n as f64;
+    let mut theta = Vec::with_capacity(n + 1);
+    theta.push(0.0);
+    let mut acc = 0.0;
+    for x in v {
+        acc += x - mu;
+        theta.push(acc);
+    }
+    let terms = theta.len() - 2 * m;
+    let s: f64 = (0..terms).map(|k| (theta[k + 2 * m] - 2.0 * theta[k + m] + theta[k]).powi(2)).sum();
+    (s / (2.0 * (m * m) as f64 * terms as f64)).sqrt()
 }

@@ -10,10 +10,13 @@
 //! - BIC = `n_eff ln(RSS / n) + k ln(n_eff)`, `n_eff = n (1 - rho) / (1 + rho)`, rho the
 //!   lag-1 autocorrelation of the current model's residual short means within runs, k =
 //!   linear coefficients + profiled parameters;
-//! - a fold is informative when the candidate changes its held-out squared error by more
-//!   than 1 %; a term is accepted when it is identifiable, lowers the total LORO error,
+//! - a fold (held-out run) is informative when the term's fitted contribution there, about
+//!   its mean over all runs, has an RMS of at least a quarter of the noise of one short
+//!   mean; a term is accepted when it is identifiable, lowers the total LORO error,
 //!   improves at least `min_fold_fraction` of the informative folds (and at least two),
-//!   and lowers BIC. The accepted candidate with the lowest LORO error enters; selection
+//!   lowers BIC, and is stable across folds (jackknife t of its contribution, see
+//!   [`stability_t`], above the two-sided Student-t limit with runs - 1 degrees of freedom
+//!   at 5 % / number of candidates). The accepted candidate with the lowest LORO error enters; selection
 //!   stops when no candidate is accepted or `max_effects` are in.
 //! - concealment index: R^2 of the candidate's fitted contribution on the terms already
 //!   in the model.
@@ -24,14 +27,15 @@ use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
 
 use super::effects::{term_columns, Effect, EffectGrid, TermColumns};
-use super::linalg::{compress, effective_n, fit_stacked, hac_covariance, lag1_rho, sse_of};
+use super::linalg::{compress, effective_n, fit_stacked, jackknife_covariance, lag1_rho, sse_of};
 use super::prepare::Prepared;
 use super::{CandidateReport, DiagnoseOptions, LeftOutEffect, Parameter, SelectionStep};
 use crate::error::CalError;
 use crate::metrics::{bias_stability, rms_over_runs, BiasStabilityOptions};
 
-/// Relative change of a fold's held-out error that makes the fold "informative".
-const INFORMATIVE_CHANGE: f64 = 0.01;
+/// A held-out run is informative about a term when the term's contribution there (about its
+/// mean over all runs) has an RMS of at least this fraction of the noise of one short mean.
+const MATERIAL_FRACTION: f64 = 0.25;
 
 /// A term in the model: an effect at one grid point.
 #[derive(Clone, Debug, PartialEq)]
@@ -61,6 +65,8 @@ pub struct Design {
     pub per_run: Vec<DMatrix<f64>>,
     /// Scale divided out of each column.
     pub scale: Vec<f64>,
+    /// Penalty pseudo-observations on the scaled coefficients (rows x p), target 0.
+    pub penalty: Option<DMatrix<f64>>,
 }
 
 impl Design {
@@ -106,7 +112,30 @@ pub fn build_design(prep: &Prepared, parts: &[&TermColumns]) -> Design {
             m.column_mut(k).unscale_mut(*s);
         }
     }
-    Design { per_run, scale }
+    let penalty = design_penalty(parts, &scale);
+    Design { per_run, scale, penalty }
+}
+
+/// Penalty rows of all parts, placed on their columns and expressed in scaled coefficients.
+fn design_penalty(parts: &[&TermColumns], scale: &[f64]) -> Option<DMatrix<f64>> {
+    let rows: usize = parts.iter().filter_map(|t| t.penalty.as_ref().map(|m| m.nrows())).sum();
+    if rows == 0 {
+        return None;
+    }
+    let mut pen = DMatrix::zeros(rows, scale.len());
+    let (mut row, mut col) = (0, 1);
+    for t in parts {
+        if let Some(m) = &t.penalty {
+            for i in 0..m.nrows() {
+                for j in 0..t.k() {
+                    pen[(row + i, col + j)] = m[(i, j)] / scale[col + j];
+                }
+            }
+            row += m.nrows();
+        }
+        col += t.k();
+    }
+    Some(pen)
 }
 
 /// Residual short means per run.
@@ -140,14 +169,18 @@ pub struct FoldEval {
 pub fn fold_eval(design: &Design, ys: &[Vec<f64>]) -> Result<FoldEval, CalError> {
     let p = design.p();
     let rs: Vec<DMatrix<f64>> = design.per_run.iter().zip(ys).map(|(x, y)| compress(x, y)).collect();
-    let all: Vec<&DMatrix<f64>> = rs.iter().collect();
+    let pen = design.penalty.as_ref().map(|m| compress(m, &vec![0.0; m.nrows()]));
+    let mut all: Vec<&DMatrix<f64>> = rs.iter().collect();
+    all.extend(pen.as_ref());
     let failed = || CalError::Fit("least squares failed (no rows or non-finite values)".into());
     let (full_beta, full_rss) = fit_stacked(&all, p).ok_or_else(failed)?;
     let mut train_rss = Vec::with_capacity(rs.len());
     let mut fold_sse = Vec::with_capacity(rs.len());
     let mut fold_beta = Vec::with_capacity(rs.len());
     for j in 0..rs.len() {
-        let others: Vec<&DMatrix<f64>> = rs.iter().enumerate().filter(|(i, _)| *i != j).map(|(_, r)| r).collect();
+        let mut others: Vec<&DMatrix<f64>> =
+            rs.iter().enumerate().filter(|(i, _)| *i != j).map(|(_, r)| r).collect();
+        others.extend(pen.as_ref());
         let (beta, rss) = fit_stacked(&others, p).ok_or_else(failed)?;
         fold_sse.push(sse_of(&rs[j], &beta));
         train_rss.push(rss);
@@ -165,10 +198,44 @@ pub fn bic(rss: f64, k: usize, n: usize, n_eff: f64) -> f64 {
 struct Profiled {
     point: usize,
     bic: f64,
-    k: usize,
     full_beta: DVector<f64>,
     fold_sse: Vec<f64>,
     design_scale: Vec<f64>,
+    /// Jackknife t of the contribution over LORO folds (see [`stability_t`]).
+    stability_t: f64,
+}
+
+/// Fold-to-fold stability of a term: each LORO fold's fitted contribution `v_j` (at the
+/// fold's own profiled point, evaluated on all runs) is projected on the full-data
+/// contribution `v`, `c_j = <v_j, v> / <v, v>`; the delete-one-run jackknife standard error
+/// of `c` is `sqrt((G - 1)/G sum (c_j - mean c)^2)` and the result is `1 / SE`. It accounts for
+/// any correlation within runs (flicker, per-run offsets), which `n_eff` cannot.
+fn stability_t(full: &[Vec<f64>], folds: &[Vec<Vec<f64>>]) -> f64 {
+    let dot = |a: &[Vec<f64>], b: &[Vec<f64>]| -> f64 {
+        a.iter().zip(b).map(|(x, y)| x.iter().zip(y).map(|(p, q)| p * q).sum::<f64>()).sum()
+    };
+    let vv = dot(full, full);
+    if !(vv > 0.0) || folds.len() < 2 {
+        return 0.0;
+    }
+    let c: Vec<f64> = folds.iter().map(|f| dot(f, full) / vv).collect();
+    let g = c.len() as f64;
+    let mean = c.iter().sum::<f64>() / g;
+    let se = ((g - 1.0) / g * c.iter().map(|x| (x - mean).powi(2)).sum::<f64>()).sqrt();
+    if se > 0.0 {
+        1.0 / se
+    } else {
+        f64::INFINITY
+    }
+}
+
+/// The stability a term needs: the two-sided Student-t limit with `runs - 1` degrees of
+/// freedom at 5 % family-wise (Bonferroni over the `tests` candidates of a step).
+pub fn stability_limit(runs: usize, tests: usize) -> f64 {
+    use statrs::distribution::{ContinuousCDF, StudentsT};
+    let dof = (runs.max(2) - 1) as f64;
+    let alpha = 0.05 / tests.max(1) as f64;
+    StudentsT::new(0.0, 1.0, dof).map_or(5.0, |t| t.inverse_cdf(1.0 - alpha / 2.0))
 }
 
 fn profile_candidate(
@@ -196,27 +263,33 @@ fn profile_candidate(
             bic(evals[a].0.full_rss, evals[a].1, n, n_eff).total_cmp(&bic(evals[b].0.full_rss, evals[b].1, n, n_eff))
         })
         .unwrap_or(0);
-    let fold_sse = (0..prep.runs.len())
+    let fold_points: Vec<usize> = (0..prep.runs.len())
         .map(|j| {
             let n_train = n - prep.runs[j].blocks.len();
             let neff_train = n_eff * n_train as f64 / n as f64;
-            let g = (0..evals.len())
+            (0..evals.len())
                 .min_by(|&a, &b| {
                     bic(evals[a].0.train_rss[j], evals[a].1, n_train, neff_train)
                         .total_cmp(&bic(evals[b].0.train_rss[j], evals[b].1, n_train, neff_train))
                 })
-                .unwrap_or(best);
-            evals[g].0.fold_sse[j]
+                .unwrap_or(best)
         })
         .collect();
+    let fold_sse = fold_points.iter().enumerate().map(|(j, &g)| evals[g].0.fold_sse[j]).collect();
     let (eval, k, scale) = &evals[best];
+    let full = contribution(prep, &grid.points[best], &eval.full_beta, scale);
+    let folds: Vec<Vec<Vec<f64>>> = fold_points
+        .iter()
+        .enumerate()
+        .map(|(j, &g)| contribution(prep, &grid.points[g], &evals[g].0.fold_beta[j], &evals[g].2))
+        .collect();
     Ok(Profiled {
         point: best,
         bic: bic(eval.full_rss, *k, n, n_eff),
-        k: *k,
         full_beta: eval.full_beta.clone(),
         fold_sse,
         design_scale: scale.clone(),
+        stability_t: stability_t(&full, &folds),
     })
 }
 
@@ -290,19 +363,30 @@ fn concealment(prep: &Prepared, base: &Design, v: &[Vec<f64>]) -> (f64, f64) {
     (plain, r_squared_runs(v, &with_runs))
 }
 
-/// Fold comparison: (improved, informative).
-pub fn fold_counts(before: &[f64], after: &[f64]) -> (usize, usize) {
+/// Runs where a contribution `v` (per run) is material: RMS of `v` about its mean over all
+/// runs at least a quarter of the noise of one short mean.
+pub fn material_runs(v: &[Vec<f64>], noise_sigma_dph: f64) -> Vec<bool> {
+    let n: usize = v.iter().map(Vec::len).sum();
+    let mean = v.iter().flatten().sum::<f64>() / n.max(1) as f64;
+    v.iter()
+        .map(|r| {
+            let ms = r.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / r.len().max(1) as f64;
+            ms.sqrt() >= MATERIAL_FRACTION * noise_sigma_dph
+        })
+        .collect()
+}
+
+/// Fold comparison over the informative folds: (improved, informative).
+pub fn fold_counts(before: &[f64], after: &[f64], informative: &[bool]) -> (usize, usize) {
     let mut improved = 0;
-    let mut informative = 0;
-    for (b, a) in before.iter().zip(after) {
-        if (b - a).abs() > INFORMATIVE_CHANGE * b {
-            informative += 1;
-            if a < b {
-                improved += 1;
-            }
+    let mut count = 0;
+    for ((b, a), _) in before.iter().zip(after).zip(informative).filter(|(_, i)| **i) {
+        count += 1;
+        if a < b {
+            improved += 1;
         }
     }
-    (improved, informative)
+    (improved, count)
 }
 
 /// Whether fold counts pass the acceptance rule.
@@ -324,6 +408,8 @@ struct StepContext<'a> {
     base_eval: FoldEval,
     n_eff: f64,
     in_model: Vec<Effect>,
+    /// Candidates evaluated at this step (for the Bonferroni correction).
+    tests: usize,
 }
 
 fn not_evaluated(effect: Effect, status: &str, note: String, experiment: Option<String>) -> CandidateReport {
@@ -336,6 +422,7 @@ fn not_evaluated(effect: Effect, status: &str, note: String, experiment: Option<
         folds_improved: 0,
         folds_informative: 0,
         delta_bic: f64::NAN,
+        stability_t: f64::NAN,
         concealment_index: f64::NAN,
         concealment_with_run_offsets: f64::NAN,
         most_confused_with: None,
@@ -372,7 +459,8 @@ fn judge(
     let n = ctx.prep.n_blocks();
     let base_cv: f64 = ctx.base_eval.fold_sse.iter().sum();
     let cv_sse: f64 = prof.fold_sse.iter().sum();
-    let (improved, informative) = fold_counts(&ctx.base_eval.fold_sse, &prof.fold_sse);
+    let material = material_runs(v, ctx.prep.noise_sigma_dph);
+    let (improved, informative) = fold_counts(&ctx.base_eval.fold_sse, &prof.fold_sse, &material);
     let base_bic = bic(ctx.base_eval.full_rss, ctx.base.p(), n, ctx.n_eff);
     let delta_bic = prof.bic - base_bic;
     let (conceal, conceal_runs) = concealment(ctx.prep, &ctx.base, v);
@@ -383,6 +471,7 @@ fn judge(
         (cv_sse < base_cv, "LORO error does not fall"),
         (folds_pass(improved, informative, ctx.options.min_fold_fraction), "too few informative folds improve"),
         (delta_bic < 0.0, "BIC (n_eff) does not fall"),
+        (prof.stability_t >= stability_limit(ctx.prep.runs.len(), ctx.tests), "not stable across folds (jackknife t)"),
     ];
     let failed: Vec<&str> = checks.iter().filter(|(ok, _)| !ok).map(|(_, why)| *why).collect();
     let accepted = !concealed && failed.is_empty();
@@ -409,6 +498,7 @@ fn judge(
         folds_improved: improved,
         folds_informative: informative,
         delta_bic,
+        stability_t: prof.stability_t,
         concealment_index: conceal,
         concealment_with_run_offsets: conceal_runs,
         most_confused_with: confused,
@@ -545,6 +635,10 @@ pub fn forward_select(
             base_eval,
             n_eff,
             in_model: chosen.iter().map(|c| c.effect).collect(),
+            tests: grids
+                .iter()
+                .filter(|g| g.unmet_requirement.is_none() && !chosen.iter().any(|c| c.effect == g.effect))
+                .count(),
         };
         let cv_rms = (ctx.base_eval.fold_sse.iter().sum::<f64>() / prep.n_blocks() as f64).sqrt();
         let (candidates, pick) = if step < options.max_effects { run_step(&ctx)? } else { (Vec::new(), None) };
@@ -632,6 +726,17 @@ pub struct FinalOutcome {
     pub baseline_heldout: Vec<Vec<f64>>,
 }
 
+/// Contribution of the `i`-th part of a design (`[1 | parts]`) per run, unscaled.
+fn term_contribution(design: &Design, beta: &DVector<f64>, parts: &[&TermColumns], i: usize) -> Vec<Vec<f64>> {
+    let start = 1 + parts[..i].iter().map(|t| t.k()).sum::<usize>();
+    let k = parts[i].k();
+    design
+        .per_run
+        .iter()
+        .map(|m| (0..m.nrows()).map(|r| (start..start + k).map(|c| m[(r, c)] * beta[c]).sum()).collect())
+        .collect()
+}
+
 /// Linearised derivative column of a term with respect to profiled parameter `m`.
 fn derivative_columns(
     prep: &Prepared,
@@ -697,15 +802,18 @@ struct Fitted {
     offset: Parameter,
 }
 
-/// Final-model coefficients with HAC standard errors; profiled parameters get a linearised
-/// standard error from derivative columns added to the design.
+/// Final-model coefficients with delete-one-run jackknife standard errors; profiled
+/// parameters get a linearised (Gauss-Newton) standard error: the derivative of the term
+/// with respect to the parameter is added as a column, and the jackknife covers the
+/// one-step estimates of all coefficients. Runs are the independent units, so the errors
+/// hold for any correlation within a run (flicker, turn-on offsets).
 fn fit_parameters(
     prep: &Prepared,
     grids: &[EffectGrid],
     chosen: &[ChosenTerm],
     design: &Design,
     beta: &DVector<f64>,
-    resid: &[Vec<f64>],
+    ys: &[Vec<f64>],
 ) -> Fitted {
     let parts = chosen_parts(grids, chosen);
     let unscaled: Vec<f64> = beta.iter().zip(&design.scale).map(|(b, s)| b / s).collect();
@@ -747,8 +855,14 @@ fn fit_parameters(
             concat(design, &refs, r)
         })
         .collect();
-    let cov = hac_covariance(&aug, resid, &block_indices(prep), prep.hac_lag_blocks);
     let all_scale: Vec<f64> = design.scale.iter().chain(&extra_scale).copied().collect();
+    let penalty = design.penalty.as_ref().map(|m| {
+        let mut padded = DMatrix::zeros(m.nrows(), all_scale.len());
+        padded.view_mut((0, 0), m.shape()).copy_from(m);
+        padded
+    });
+    let aug_design = Design { per_run: aug, scale: all_scale.clone(), penalty };
+    let cov = fold_eval(&aug_design, ys).ok().map(|e| jackknife_covariance(&e.fold_beta));
     let se_of = |k: usize| cov.as_ref().map_or(f64::NAN, |c| c[(k, k)].max(0.0).sqrt() / all_scale[k]);
     let mut se = Vec::new();
     let mut at = 1;
@@ -784,7 +898,7 @@ pub fn evaluate_final(
     let base = build_design(prep, &[]);
     let base_eval = fold_eval(&base, &ys)?;
     let baseline_heldout = heldout_residuals(&base, &base_eval, &ys);
-    let fitted = fit_parameters(prep, grids, chosen, &design, &eval.full_beta, &fitted_resid);
+    let fitted = fit_parameters(prep, grids, chosen, &design, &eval.full_beta, &ys);
     let bs_after = heldout_bias_stability(prep, &heldout, options);
     let rms_after = pooled_rms(&heldout);
     let mut left_out = Vec::new();
@@ -793,7 +907,9 @@ pub fn evaluate_final(
         let d0 = build_design(prep, &chosen_parts(grids, &without));
         let e0 = fold_eval(&d0, &ys)?;
         let h0 = heldout_residuals(&d0, &e0, &ys);
-        let (improved, informative) = fold_counts(&e0.fold_sse, &eval.fold_sse);
+        let v = term_contribution(&design, &eval.full_beta, &chosen_parts(grids, chosen), i);
+        let material = material_runs(&v, prep.noise_sigma_dph);
+        let (improved, informative) = fold_counts(&e0.fold_sse, &eval.fold_sse, &material);
         let before = pooled_rms(&h0);
         let grid = grids.iter().find(|g| g.effect == c.effect).ok_or_else(|| CalError::Fit("effect grid missing".into()))?;
         let cols = &grid.points[c.point];
