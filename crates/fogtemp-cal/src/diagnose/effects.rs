@@ -9,7 +9,7 @@
 //! | `gradient_rate` | `c d2T/dt2` |
 //! | `warmup_transient` | `A exp(-(t - t_on) / tau_w)`; tau_w 1-60 min |
 //! | `orientation_offset` | one constant per position group, relative to the first group |
-//! | `hysteresis` | `s (h0 [+ h1 (T - T_ref)])`, s in [-1, 1] from a play operator of width w on T; w, degree |
+//! | `hysteresis` | `s (h0 [+ h1 (T - T_ref)])`, s = +1 after heating faster than r0, -1 after cooling faster than r0, held in between (0 before the first); r0, degree |
 //! | `static_shape` | cubic B-splines in T over the recorded range, shared by all runs; basis size |
 //! | `scale_factor_temperature` | `Omega_in (s1 (T - T_ref) [+ s2 (T - T_ref)^2])`, ppm; degree |
 //!
@@ -149,7 +149,7 @@ pub struct EffectGrid {
 
 const LAG_GRID_S: [f64; 10] = [60.0, 120.0, 180.0, 300.0, 420.0, 600.0, 900.0, 1200.0, 1500.0, 1800.0];
 const WARMUP_GRID_S: [f64; 11] = [60.0, 120.0, 180.0, 300.0, 450.0, 600.0, 900.0, 1200.0, 1800.0, 2700.0, 3600.0];
-const PLAY_WIDTH_GRID_C: [f64; 4] = [0.25, 0.5, 1.0, 2.0];
+const BRANCH_THRESHOLD_GRID_C_PER_MIN: [f64; 5] = [0.005, 0.01, 0.02, 0.05, 0.1];
 const SPLINE_SIZE_GRID: [f64; 7] = [4.0, 5.0, 6.0, 8.0, 10.0, 12.0, 14.0];
 /// Cooling rate that counts as "cooling" for the hysteresis requirement, deg C/min.
 const COOLING_C_PER_MIN: f64 = -0.02;
@@ -189,20 +189,20 @@ pub fn low_pass(values: &[f64], tau_s: f64) -> Vec<f64> {
     out
 }
 
-/// Play (backlash) operator of width `width_c`: returns `s = (T - y) / (width / 2)` in
-/// [-1, 1], +1 on a heating branch, -1 on a cooling branch.
-pub fn play_branch(temp_c: &[f64], width_c: f64) -> Vec<f64> {
-    let half = width_c / 2.0;
-    let mut y: Option<f64> = None;
-    temp_c
+/// Branch of a heating/cooling hysteresis: +1 once dT/dt exceeds `threshold_c_per_min`,
+/// -1 once it falls below minus that, held while |dT/dt| is smaller (0 before the first
+/// crossing). Rate-independent above the threshold, unlike a lag.
+pub fn branch(rate_c_per_min: &[f64], threshold_c_per_min: f64) -> Vec<f64> {
+    let mut state = 0.0;
+    rate_c_per_min
         .iter()
-        .map(|&t| {
-            if !t.is_finite() {
-                return f64::NAN;
+        .map(|&r| {
+            if r > threshold_c_per_min {
+                state = 1.0;
+            } else if r < -threshold_c_per_min {
+                state = -1.0;
             }
-            let yy = y.unwrap_or(t).clamp(t - half, t + half);
-            y = Some(yy);
-            (t - yy) / half
+            state
         })
         .collect()
 }
@@ -354,12 +354,12 @@ pub fn term_columns(prep: &Prepared, effect: Effect, theta: &[f64]) -> TermColum
             TermColumns { theta: theta_v, coefficients, per_run, penalty: None }
         }
         Effect::Hysteresis => {
-            let (width_c, degree) = (theta[0], theta[1]);
+            let (threshold, degree) = (theta[0], theta[1]);
             let per_run = prep
                 .runs
                 .iter()
                 .map(|r| {
-                    let s = block_average(r, &play_branch(&r.sec.temp_c, width_c));
+                    let s = block_average(r, &branch(&r.sec.rate_c_per_min, threshold));
                     let mut cols = vec![s.clone()];
                     if degree >= 1.0 {
                         cols.push(s.iter().zip(&r.blocks).map(|(s, b)| s * (b.temp_c - t_ref)).collect());
@@ -419,8 +419,8 @@ pub fn grid_of(effect: Effect) -> (Vec<ProfiledParam>, Vec<Vec<f64>>) {
             (vec![p("tau_s", "s", true)], WARMUP_GRID_S.iter().map(|v| vec![*v]).collect())
         }
         Effect::Hysteresis => (
-            vec![p("play_width_c", "deg C", true), p("degree", "1", false)],
-            PLAY_WIDTH_GRID_C.iter().flat_map(|w| [vec![*w, 0.0], vec![*w, 1.0]]).collect(),
+            vec![p("rate_threshold_c_per_min", "deg C/min", true), p("degree", "1", false)],
+            BRANCH_THRESHOLD_GRID_C_PER_MIN.iter().flat_map(|w| [vec![*w, 0.0], vec![*w, 1.0]]).collect(),
         ),
         Effect::StaticShape => {
             (vec![p("basis_functions", "1", false)], SPLINE_SIZE_GRID.iter().map(|v| vec![*v]).collect())

@@ -6,7 +6,10 @@
 //! - model: `residual = c + sum of chosen terms + e` fitted to the short means of all runs
 //!   by least squares (per-run QR, stacked);
 //! - LORO: each run is predicted by the model fitted to the other runs; a candidate's
-//!   profiled parameters are re-chosen in each fold from the training runs only;
+//!   continuous profiled parameters (time constants, thresholds) are chosen by BIC and
+//!   re-chosen in each fold from the training runs only; its complexity (basis size,
+//!   polynomial degree) is the one with the lowest LORO error (slightly optimistic: a
+//!   choice among at most 7 values);
 //! - BIC = `n_eff ln(RSS / n) + k ln(n_eff)`, `n_eff = n (1 - rho) / (1 + rho)`, rho the
 //!   lag-1 autocorrelation of the current model's residual short means within runs, k =
 //!   linear coefficients + profiled parameters;
@@ -42,8 +45,10 @@ const MATERIAL_FRACTION: f64 = 0.25;
 pub struct ChosenTerm {
     /// The effect.
     pub effect: Effect,
-    /// Index into the effect's grid.
+    /// Index into the effect's grid (the profiled point before refinement).
     pub point: usize,
+    /// The term's columns at its refined parameters.
+    pub columns: TermColumns,
     /// Concealment index when it entered.
     pub concealment_index: f64,
     /// Most confusable other effect when it entered.
@@ -258,21 +263,50 @@ fn profile_candidate(
             fold_eval(&design, ys).map(|e| (e, k, design.scale))
         })
         .collect::<Result<_, _>>()?;
-    let best = (0..evals.len())
-        .min_by(|&a, &b| {
-            bic(evals[a].0.full_rss, evals[a].1, n, n_eff).total_cmp(&bic(evals[b].0.full_rss, evals[b].1, n, n_eff))
+    // Complexity (the discrete parameters) by LORO error; continuous parameters by BIC,
+    // re-chosen in every fold from its training runs.
+    let discrete = |j: usize| -> Vec<u64> {
+        grid.params
+            .iter()
+            .zip(&grid.points[j].theta)
+            .filter(|(p, _)| !p.continuous)
+            .map(|(_, v)| v.to_bits())
+            .collect()
+    };
+    let mut keys: Vec<Vec<u64>> = (0..evals.len()).map(discrete).collect();
+    keys.sort();
+    keys.dedup();
+    let profiled: Vec<Profiled> = keys
+        .iter()
+        .map(|key| {
+            let members: Vec<usize> = (0..evals.len()).filter(|&j| discrete(j) == *key).collect();
+            profile_members(prep, grid, &evals, &members, n, n_eff)
         })
-        .unwrap_or(0);
+        .collect();
+    profiled
+        .into_iter()
+        .min_by(|a, b| a.fold_sse.iter().sum::<f64>().total_cmp(&b.fold_sse.iter().sum::<f64>()))
+        .ok_or_else(|| CalError::Fit("empty profiling grid".into()))
+}
+
+/// BIC profile over `members` (grid points differing only in continuous parameters).
+fn profile_members(
+    prep: &Prepared,
+    grid: &EffectGrid,
+    evals: &[(FoldEval, usize, Vec<f64>)],
+    members: &[usize],
+    n: usize,
+    n_eff: f64,
+) -> Profiled {
+    let pick = |score: &dyn Fn(usize) -> f64| -> usize {
+        members.iter().copied().min_by(|&a, &b| score(a).total_cmp(&score(b))).unwrap_or(members[0])
+    };
+    let best = pick(&|g| bic(evals[g].0.full_rss, evals[g].1, n, n_eff));
     let fold_points: Vec<usize> = (0..prep.runs.len())
         .map(|j| {
             let n_train = n - prep.runs[j].blocks.len();
             let neff_train = n_eff * n_train as f64 / n as f64;
-            (0..evals.len())
-                .min_by(|&a, &b| {
-                    bic(evals[a].0.train_rss[j], evals[a].1, n_train, neff_train)
-                        .total_cmp(&bic(evals[b].0.train_rss[j], evals[b].1, n_train, neff_train))
-                })
-                .unwrap_or(best)
+            pick(&|g| bic(evals[g].0.train_rss[j], evals[g].1, n_train, neff_train))
         })
         .collect();
     let fold_sse = fold_points.iter().enumerate().map(|(j, &g)| evals[g].0.fold_sse[j]).collect();
@@ -283,14 +317,14 @@ fn profile_candidate(
         .enumerate()
         .map(|(j, &g)| contribution(prep, &grid.points[g], &evals[g].0.fold_beta[j], &evals[g].2))
         .collect();
-    Ok(Profiled {
+    Profiled {
         point: best,
         bic: bic(eval.full_rss, *k, n, n_eff),
         full_beta: eval.full_beta.clone(),
         fold_sse,
         design_scale: scale.clone(),
         stability_t: stability_t(&full, &folds),
-    })
+    }
 }
 
 /// Stacks per-run matrices into one.
@@ -584,11 +618,59 @@ fn model_names(chosen: &[ChosenTerm]) -> Vec<String> {
 }
 
 /// Columns of the chosen terms.
-pub fn chosen_parts<'a>(grids: &'a [EffectGrid], chosen: &[ChosenTerm]) -> Vec<&'a TermColumns> {
-    chosen
-        .iter()
-        .filter_map(|c| grids.iter().find(|g| g.effect == c.effect).map(|g| &g.points[c.point]))
-        .collect()
+pub fn chosen_parts(chosen: &[ChosenTerm]) -> Vec<&TermColumns> {
+    chosen.iter().map(|c| &c.columns).collect()
+}
+
+/// RSS of the full fit of `[1 | parts]`.
+fn full_rss(prep: &Prepared, parts: &[&TermColumns], ys: &[Vec<f64>]) -> f64 {
+    let design = build_design(prep, parts);
+    let mut rs: Vec<DMatrix<f64>> = design.per_run.iter().zip(ys).map(|(x, y)| compress(x, y)).collect();
+    rs.extend(design.penalty.as_ref().map(|m| compress(m, &vec![0.0; m.nrows()])));
+    let refs: Vec<&DMatrix<f64>> = rs.iter().collect();
+    fit_stacked(&refs, design.p()).map_or(f64::INFINITY, |f| f.1)
+}
+
+/// Refines each continuous profiled parameter of the chosen grid point between its grid
+/// neighbours: a parabola in ln(parameter) through the full-data RSS at the point and its
+/// two neighbours; the vertex is kept if it lowers the RSS.
+fn refine(prep: &Prepared, base: &[&TermColumns], grid: &EffectGrid, point: usize, ys: &[Vec<f64>]) -> TermColumns {
+    let best = &grid.points[point];
+    let rss_of = |cols: &TermColumns| {
+        let mut parts = base.to_vec();
+        parts.push(cols);
+        full_rss(prep, &parts, ys)
+    };
+    let mut theta = best.theta.clone();
+    for (m, _) in grid.params.iter().enumerate().filter(|(_, p)| p.continuous) {
+        let mut line: Vec<usize> = (0..grid.points.len())
+            .filter(|&j| (0..theta.len()).all(|q| q == m || grid.points[j].theta[q] == best.theta[q]))
+            .collect();
+        line.sort_by(|a, b| grid.points[*a].theta[m].total_cmp(&grid.points[*b].theta[m]));
+        let Some(pos) = line.iter().position(|&j| j == point) else { continue };
+        if pos == 0 || pos + 1 >= line.len() {
+            continue;
+        }
+        let pts: Vec<(f64, f64)> = [line[pos - 1], point, line[pos + 1]]
+            .iter()
+            .map(|&j| (grid.points[j].theta[m].ln(), rss_of(&grid.points[j])))
+            .collect();
+        let [(xa, fa), (xb, fb), (xc, fc)] = [pts[0], pts[1], pts[2]];
+        let den = (xb - xa) * (fb - fc) - (xb - xc) * (fb - fa);
+        if den.abs() > 0.0 {
+            let x = xb - 0.5 * ((xb - xa).powi(2) * (fb - fc) - (xb - xc).powi(2) * (fb - fa)) / den;
+            theta[m] = x.clamp(xa, xc).exp();
+        }
+    }
+    if theta == best.theta {
+        return best.clone();
+    }
+    let refined = term_columns(prep, grid.effect, &theta);
+    if rss_of(&refined) < rss_of(best) {
+        refined
+    } else {
+        best.clone()
+    }
 }
 
 /// In-sample residual of a design's full fit, per run.
@@ -620,7 +702,7 @@ pub fn forward_select(
     let mut steps = Vec::new();
     for step in 0..=options.max_effects {
         progress(&format!("forward selection, step {}", step + 1), 0.3 + 0.5 * step as f64 / (options.max_effects + 1) as f64);
-        let base_parts = chosen_parts(grids, &chosen);
+        let base_parts = chosen_parts(&chosen);
         let base = build_design(prep, &base_parts);
         let base_eval = fold_eval(&base, &ys)?;
         let rho = lag1_rho(&residuals(&base, &base_eval.full_beta, &ys), &indices);
@@ -652,7 +734,9 @@ pub fn forward_select(
         });
         match pick {
             Some((effect, point, concealment_index, most_confused_with)) => {
-                chosen.push(ChosenTerm { effect, point, concealment_index, most_confused_with })
+                let grid = grids.iter().find(|g| g.effect == effect).ok_or_else(|| CalError::Fit("effect grid missing".into()))?;
+                let columns = refine(prep, &chosen_parts(&chosen), grid, point, &ys);
+                chosen.push(ChosenTerm { effect, point, columns, concealment_index, most_confused_with })
             }
             None => break,
         }
@@ -788,6 +872,8 @@ fn parameters_of(
             .collect();
         let (mn, mx) = shape.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(*v), b.max(*v)));
         out.insert("peak_to_peak_dph".into(), Parameter { value: mx - mn, std_error: None, units: "deg/h".into() });
+        out.insert("t_min_c".into(), Parameter { value: lo, std_error: None, units: "deg C (basis range start)".into() });
+        out.insert("t_max_c".into(), Parameter { value: hi, std_error: None, units: "deg C (basis range end)".into() });
     }
     if grid.effect == Effect::ScaleFactorTemperature || grid.effect == Effect::Hysteresis {
         out.insert("t_ref_c".into(), Parameter { value: prep.temp_ref_c, std_error: None, units: "deg C".into() });
@@ -815,7 +901,7 @@ fn fit_parameters(
     beta: &DVector<f64>,
     ys: &[Vec<f64>],
 ) -> Fitted {
-    let parts = chosen_parts(grids, chosen);
+    let parts = chosen_parts(chosen);
     let unscaled: Vec<f64> = beta.iter().zip(&design.scale).map(|(b, s)| b / s).collect();
     let mut coef = Vec::new();
     let mut at = 1;
@@ -891,7 +977,7 @@ pub fn evaluate_final(
 ) -> Result<FinalOutcome, CalError> {
     let ys = targets(prep);
     let chosen = &selection.chosen;
-    let design = build_design(prep, &chosen_parts(grids, chosen));
+    let design = build_design(prep, &chosen_parts(chosen));
     let eval = fold_eval(&design, &ys)?;
     let heldout = heldout_residuals(&design, &eval, &ys);
     let fitted_resid = residuals(&design, &eval.full_beta, &ys);
@@ -904,15 +990,15 @@ pub fn evaluate_final(
     let mut left_out = Vec::new();
     for (i, c) in chosen.iter().enumerate() {
         let without: Vec<ChosenTerm> = chosen.iter().enumerate().filter(|(j, _)| *j != i).map(|(_, t)| t.clone()).collect();
-        let d0 = build_design(prep, &chosen_parts(grids, &without));
+        let d0 = build_design(prep, &chosen_parts(&without));
         let e0 = fold_eval(&d0, &ys)?;
         let h0 = heldout_residuals(&d0, &e0, &ys);
-        let v = term_contribution(&design, &eval.full_beta, &chosen_parts(grids, chosen), i);
+        let v = term_contribution(&design, &eval.full_beta, &chosen_parts(chosen), i);
         let material = material_runs(&v, prep.noise_sigma_dph);
         let (improved, informative) = fold_counts(&e0.fold_sse, &eval.fold_sse, &material);
         let before = pooled_rms(&h0);
         let grid = grids.iter().find(|g| g.effect == c.effect).ok_or_else(|| CalError::Fit("effect grid missing".into()))?;
-        let cols = &grid.points[c.point];
+        let cols = &c.columns;
         let parameters = parameters_of(prep, grid, cols, &fitted.coef[i], &fitted.se[i], &fitted.theta_se[i]);
         let improvement = 1.0 - rms_after / before;
         let mut statement = format!(
