@@ -15,7 +15,9 @@
 use std::time::Instant;
 
 use fogtemp_cal::diagnose::effects::bspline_basis;
-use fogtemp_cal::diagnose::{diagnose, DiagnoseOptions, Diagnosis, RunMeta, RunSeries};
+use fogtemp_cal::diagnose::{
+    diagnose, write_diagnosis_report, DiagnoseOptions, Diagnosis, RunMeta, RunSeries,
+};
 use fogtemp_cal::CalError;
 use rand::{Rng, SeedableRng};
 use rand_xoshiro::Xoshiro256PlusPlus;
@@ -54,7 +56,9 @@ impl Chamber {
             Chamber::Ramp { rate_c_per_min, start_s, duration_s } => {
                 start_c + rate_c_per_min / 60.0 * (t - start_s).clamp(0.0, duration_s)
             }
-            Chamber::Sine { amp_c, period_s } => start_c + amp_c * (std::f64::consts::TAU * t / period_s).sin(),
+            Chamber::Sine { amp_c, period_s } => {
+                start_c + amp_c * (std::f64::consts::TAU * t / period_s).sin()
+            }
             Chamber::Triangle { amp_c, period_s } => {
                 let phase = (t / period_s).fract();
                 let tri = if phase < 0.25 {
@@ -208,14 +212,16 @@ fn make_pair(run: &RunPlan, effect: Injected, rate_hz: f64, seed: u64) -> (RunSe
         let frac = t - k as f64;
         let k1 = (k + 1).min(case.len() - 1);
         let t_case = case[k] + (case[k1] - case[k]) * frac;
-        let sim_gyro = static_bias_dph(t_case) + S1_DPH_PER_C_PER_MIN * rate[k] + run.input_rate_dph.unwrap_or(0.0);
+        let sim_gyro =
+            static_bias_dph(t_case) + S1_DPH_PER_C_PER_MIN * rate[k] + run.input_rate_dph.unwrap_or(0.0);
         // The temperature sensor reads at 1 Hz, quantised to 1/16 C; the log holds the last reading.
         if i % (rate_hz.round().max(1.0) as usize) == 0 {
             let noisy = t_case + 0.01 * normal(&mut rng);
             held_temp = (noisy / 0.0625).round() * 0.0625;
         }
         let white = normal(&mut rng);
-        let rec_gyro = sim_gyro + extra[k] + RECORDED_OFFSET_DPH + white_sigma * white + ns * flicker.next(&mut rng);
+        let rec_gyro =
+            sim_gyro + extra[k] + RECORDED_OFFSET_DPH + white_sigma * white + ns * flicker.next(&mut rng);
         sim.time_s.push(t);
         sim.temp_c.push(t_case);
         sim.gyro_dph.push(sim_gyro);
@@ -226,7 +232,12 @@ fn make_pair(run: &RunPlan, effect: Injected, rate_hz: f64, seed: u64) -> (RunSe
     (sim, rec)
 }
 
-fn make_set(plans: &[RunPlan], effect: Injected, rate_hz: f64, seed: u64) -> (Vec<RunSeries>, Vec<RunSeries>) {
+fn make_set(
+    plans: &[RunPlan],
+    effect: Injected,
+    rate_hz: f64,
+    seed: u64,
+) -> (Vec<RunSeries>, Vec<RunSeries>) {
     plans.iter().enumerate().map(|(i, p)| make_pair(p, effect, rate_hz, seed * 1000 + i as u64)).unzip()
 }
 
@@ -251,10 +262,12 @@ fn paper_runs() -> Vec<RunPlan> {
 /// Eight power-on runs 6 C apart: with 10 C of self-heating their temperature ranges
 /// overlap, which a shape in T needs (physics.md section 4, row 9).
 fn overlapping_runs() -> Vec<RunPlan> {
-    (0..8).map(|i| {
-        let t = -10.0 + 6.0 * f64::from(i);
-        plan(&format!("overlap{i:02}_{t}C.csv"), t, Chamber::Constant)
-    }).collect()
+    (0..8)
+        .map(|i| {
+            let t = -10.0 + 6.0 * f64::from(i);
+            plan(&format!("overlap{i:02}_{t}C.csv"), t, Chamber::Constant)
+        })
+        .collect()
 }
 
 /// Two positions (A: input axis up, B: down) at the same four temperatures.
@@ -263,7 +276,11 @@ fn two_position_runs(rate_a_dph: f64, rate_b_dph: f64) -> Vec<RunPlan> {
     let mut out = Vec::new();
     for (g, rate) in [("A", rate_a_dph), ("B", rate_b_dph)] {
         for (i, &t) in temps.iter().enumerate() {
-            let chamber = if i == 1 { Chamber::Ramp { rate_c_per_min: 0.25, start_s: 3600.0, duration_s: 2400.0 } } else { Chamber::Constant };
+            let chamber = if i == 1 {
+                Chamber::Ramp { rate_c_per_min: 0.25, start_s: 3600.0, duration_s: 2400.0 }
+            } else {
+                Chamber::Constant
+            };
             let mut p = plan(&format!("pos{g}_{t}C.csv"), t, chamber);
             p.group = Some(g.into());
             p.input_rate_dph = Some(rate);
@@ -354,6 +371,7 @@ fn assert_helps(d: &Diagnosis, effect: &str) {
 fn null_case_leaves_nothing_out_and_says_consistent_with_noise() {
     let d = run_diagnosis(&paper_runs(), Injected::None, 2.0, 77);
     assert!(d.left_out.is_empty(), "null case named {:?}", names(&d));
+    assert_contract_json(&d);
     assert!(!d.unexplained.structured, "{}", d.unexplained.statement);
     assert!(d.summary.contains("consistent with noise"), "{}", d.summary);
     // The global offset is the recorded offset (3 SE).
@@ -368,6 +386,30 @@ fn thermal_lag_is_named_and_its_time_constant_recovered() {
     assert_recovered(&d, "thermal_lag", "tau_s", TAU_COIL_S, 0.25);
     assert_recovered(&d, "thermal_lag", "gain", 1.0, 0.25);
     assert_helps(&d, "thermal_lag");
+    assert_contract_json(&d);
+    let dir = tempfile::tempdir().expect("temp dir");
+    write_diagnosis_report(dir.path(), &d).expect("report written");
+    let md = std::fs::read_to_string(dir.path().join("report.md")).expect("report.md");
+    assert!(md.contains("### thermal_lag") && md.contains("bias stability = standard deviation"), "{md}");
+    for svg in ["residuals.svg", "map.svg", "allan.svg"] {
+        let text = std::fs::read_to_string(dir.path().join(svg)).expect(svg);
+        assert!(text.starts_with("<svg"), "{svg}");
+    }
+}
+
+/// The CLI prints the diagnosis as JSON; the contract keys are there with the right types.
+fn assert_contract_json(d: &Diagnosis) {
+    let v = serde_json::to_value(d).expect("serialisable");
+    let left_out = v["left_out"].as_array().expect("left_out array");
+    assert_eq!(left_out.len(), d.left_out.len());
+    for e in left_out {
+        assert!(e["effect"].is_string());
+        assert!(e["parameters"].is_object());
+        for key in ["residual_before_dph", "residual_after_dph", "heldout_improvement"] {
+            assert!(e[key].is_number(), "{key} in {e}");
+        }
+    }
+    assert!(v["summary"].is_string());
 }
 
 #[test]
@@ -389,7 +431,8 @@ fn warmup_transient_is_named_and_recovered() {
 
 #[test]
 fn orientation_offset_is_named_with_two_positions() {
-    let d = run_diagnosis(&two_position_runs(EARTH_UP_DPH, -EARTH_UP_DPH), Injected::Orientation(0.010), 2.0, 14);
+    let d =
+        run_diagnosis(&two_position_runs(EARTH_UP_DPH, -EARTH_UP_DPH), Injected::Orientation(0.010), 2.0, 14);
     assert_eq!(names(&d), ["orientation_offset"]);
     assert_recovered(&d, "orientation_offset", "offset_B_minus_A_dph", 0.010, 0.35);
     assert_helps(&d, "orientation_offset");
@@ -435,7 +478,8 @@ fn static_shape_is_not_identifiable_when_run_temperatures_do_not_overlap() {
 
 #[test]
 fn scale_factor_temperature_is_named_with_two_input_rates() {
-    let d = run_diagnosis(&two_position_runs(EARTH_UP_DPH, -EARTH_UP_DPH), Injected::ScaleFactor(20.0), 2.0, 17);
+    let d =
+        run_diagnosis(&two_position_runs(EARTH_UP_DPH, -EARTH_UP_DPH), Injected::ScaleFactor(20.0), 2.0, 17);
     assert_eq!(names(&d), ["scale_factor_temperature"]);
     assert_recovered(&d, "scale_factor_temperature", "s1_ppm_per_c", 20.0, 0.35);
     assert_helps(&d, "scale_factor_temperature");
@@ -443,9 +487,11 @@ fn scale_factor_temperature_is_named_with_two_input_rates() {
 
 #[test]
 fn scale_factor_with_one_input_rate_is_reported_not_identifiable() {
-    let d = run_diagnosis(&two_position_runs(EARTH_UP_DPH, EARTH_UP_DPH), Injected::ScaleFactor(20.0), 2.0, 18);
+    let d =
+        run_diagnosis(&two_position_runs(EARTH_UP_DPH, EARTH_UP_DPH), Injected::ScaleFactor(20.0), 2.0, 18);
     assert!(!names(&d).contains(&"scale_factor_temperature"));
-    let c = d.selection[0].candidates.iter().find(|c| c.effect == "scale_factor_temperature").expect("candidate");
+    let c =
+        d.selection[0].candidates.iter().find(|c| c.effect == "scale_factor_temperature").expect("candidate");
     assert_eq!(c.status, "not_identifiable");
     assert!(c.note.contains(">= 2 orientations"), "{}", c.note);
     // The structure is still found, as the static shape it is indistinguishable from.
@@ -504,4 +550,3 @@ fn speed_18_runs_2h_10hz() {
     eprintln!("18 runs x 2 h x 10 Hz: diagnosis took {secs:.2} s; left out {:?}", names(&d));
     assert!(secs <= 30.0, "took {secs} s");
 }
-

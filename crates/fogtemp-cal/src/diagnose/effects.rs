@@ -148,7 +148,8 @@ pub struct EffectGrid {
 }
 
 const LAG_GRID_S: [f64; 10] = [60.0, 120.0, 180.0, 300.0, 420.0, 600.0, 900.0, 1200.0, 1500.0, 1800.0];
-const WARMUP_GRID_S: [f64; 11] = [60.0, 120.0, 180.0, 300.0, 450.0, 600.0, 900.0, 1200.0, 1800.0, 2700.0, 3600.0];
+const WARMUP_GRID_S: [f64; 11] =
+    [60.0, 120.0, 180.0, 300.0, 450.0, 600.0, 900.0, 1200.0, 1800.0, 2700.0, 3600.0];
 const BRANCH_THRESHOLD_GRID_C_PER_MIN: [f64; 5] = [0.005, 0.01, 0.02, 0.05, 0.1];
 const SPLINE_SIZE_GRID: [f64; 7] = [4.0, 5.0, 6.0, 8.0, 10.0, 12.0, 14.0];
 /// Cooling rate that counts as "cooling" for the hysteresis requirement, deg C/min.
@@ -216,15 +217,11 @@ pub fn bspline_basis(x: f64, lo: f64, hi: f64, k: usize) -> Vec<f64> {
     knots.extend((1..=interior).map(|i| lo + (hi - lo) * i as f64 / (interior + 1) as f64));
     knots.extend([hi; 4]);
     let x = x.clamp(lo, hi - 1e-9 * (hi - lo).abs().max(1e-12));
-    let mut b: Vec<f64> =
-        knots.windows(2).map(|w| if w[0] <= x && x < w[1] { 1.0 } else { 0.0 }).collect();
+    let mut b: Vec<f64> = knots.windows(2).map(|w| if w[0] <= x && x < w[1] { 1.0 } else { 0.0 }).collect();
     for d in 1..=3 {
         for i in 0..knots.len() - 1 - d {
-            let left = if knots[i + d] > knots[i] {
-                (x - knots[i]) / (knots[i + d] - knots[i]) * b[i]
-            } else {
-                0.0
-            };
+            let left =
+                if knots[i + d] > knots[i] { (x - knots[i]) / (knots[i + d] - knots[i]) * b[i] } else { 0.0 };
             let right = if knots[i + d + 1] > knots[i + 1] {
                 (knots[i + d + 1] - x) / (knots[i + d + 1] - knots[i + 1]) * b[i + 1]
             } else {
@@ -295,7 +292,9 @@ pub fn term_columns(prep: &Prepared, effect: Effect, theta: &[f64]) -> TermColum
                 .map(|r| {
                     let lagged = low_pass(&r.sec.temp_c, tau_s);
                     let per_sec: Vec<f64> = match &prep.static_relation {
-                        Some(g) => r.sec.temp_c.iter().zip(&lagged).map(|(t, l)| g.eval(*l) - g.eval(*t)).collect(),
+                        Some(g) => {
+                            r.sec.temp_c.iter().zip(&lagged).map(|(t, l)| g.eval(*l) - g.eval(*t)).collect()
+                        }
                         None => vec![0.0; r.sec.temp_c.len()],
                     };
                     matrix_from_columns(&[block_average(r, &per_sec)])
@@ -335,7 +334,12 @@ pub fn term_columns(prep: &Prepared, effect: Effect, theta: &[f64]) -> TermColum
                     matrix_from_columns(&[block_average(r, &per_sec)])
                 })
                 .collect();
-            TermColumns { theta: theta_v, coefficients: vec![coef("amplitude_dph", "deg/h")], per_run, penalty: None }
+            TermColumns {
+                theta: theta_v,
+                coefficients: vec![coef("amplitude_dph", "deg/h")],
+                per_run,
+                penalty: None,
+            }
         }
         Effect::OrientationOffset => {
             let g = groups(prep);
@@ -346,7 +350,9 @@ pub fn term_columns(prep: &Prepared, effect: Effect, theta: &[f64]) -> TermColum
                 .iter()
                 .map(|r| {
                     let mine = group_of(r);
-                    DMatrix::from_fn(r.blocks.len(), others.len(), |_, j| f64::from(u8::from(others[j] == mine)))
+                    DMatrix::from_fn(r.blocks.len(), others.len(), |_, j| {
+                        f64::from(u8::from(others[j] == mine))
+                    })
                 })
                 .collect();
             let coefficients =
@@ -380,7 +386,8 @@ pub fn term_columns(prep: &Prepared, effect: Effect, theta: &[f64]) -> TermColum
                 .runs
                 .iter()
                 .map(|r| {
-                    let basis: Vec<Vec<f64>> = r.blocks.iter().map(|b| bspline_basis(b.temp_c, lo, hi, k)).collect();
+                    let basis: Vec<Vec<f64>> =
+                        r.blocks.iter().map(|b| bspline_basis(b.temp_c, lo, hi, k)).collect();
                     // The first function is dropped: the splines sum to one, the global offset is the constant.
                     DMatrix::from_fn(r.blocks.len(), k - 1, |i, j| basis[i][j + 1])
                 })
@@ -426,7 +433,9 @@ pub fn grid_of(effect: Effect) -> (Vec<ProfiledParam>, Vec<Vec<f64>>) {
             (vec![p("basis_functions", "1", false)], SPLINE_SIZE_GRID.iter().map(|v| vec![*v]).collect())
         }
         Effect::ScaleFactorTemperature => (vec![p("degree", "1", false)], vec![vec![1.0], vec![2.0]]),
-        Effect::ShupeRate | Effect::GradientRate | Effect::OrientationOffset => (Vec::new(), vec![Vec::new()]),
+        Effect::ShupeRate | Effect::GradientRate | Effect::OrientationOffset => {
+            (Vec::new(), vec![Vec::new()])
+        }
     }
 }
 
@@ -441,7 +450,11 @@ pub fn temperature_overlap(prep: &Prepared) -> f64 {
     let ranges: Vec<(f64, f64)> = prep
         .runs
         .iter()
-        .map(|r| r.blocks.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| (a.min(x.temp_c), b.max(x.temp_c))))
+        .map(|r| {
+            r.blocks
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| (a.min(x.temp_c), b.max(x.temp_c)))
+        })
         .collect();
     let mut fractions: Vec<f64> = prep
         .runs
@@ -451,7 +464,12 @@ pub fn temperature_overlap(prep: &Prepared) -> f64 {
             let inside = r
                 .blocks
                 .iter()
-                .filter(|b| ranges.iter().enumerate().any(|(j, (lo, hi))| j != i && b.temp_c >= *lo && b.temp_c <= *hi))
+                .filter(|b| {
+                    ranges
+                        .iter()
+                        .enumerate()
+                        .any(|(j, (lo, hi))| j != i && b.temp_c >= *lo && b.temp_c <= *hi)
+                })
                 .count();
             inside as f64 / r.blocks.len().max(1) as f64
         })

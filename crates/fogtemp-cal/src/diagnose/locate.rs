@@ -9,8 +9,8 @@ use super::linalg::hac_se_of_mean;
 use super::prepare::{adev_at, longest_finite, Prepared, RunData};
 use super::select::{fold_counts, folds_pass, material_runs, FinalOutcome, Selection};
 use super::{
-    AllanRow, DiagnoseOptions, Diagnosis, Location, MapCell, NoiseLevel, RunTraceOut, SpanFinding,
-    TableTest, TemperatureComparison, TemperatureRun, Unexplained,
+    AllanRow, DiagnoseOptions, Diagnosis, Location, MapCell, NoiseLevel, RunTraceOut, SpanFinding, TableTest,
+    TemperatureComparison, TemperatureRun, Unexplained,
 };
 use crate::error::CalError;
 use crate::metrics::{allan_deviation, fit_noise_terms, sample_std, AllanPoint, NoiseTerms};
@@ -43,8 +43,9 @@ fn slope(t: &[f64], v: &[f64]) -> f64 {
 
 /// Mean, HAC SE and more for the blocks of `run` selected by `keep`, residual `e`.
 fn span(run: &RunData, e: &[f64], label: &str, range: (f64, f64), lag: usize) -> Option<SpanFinding> {
-    let sel: Vec<usize> =
-        (0..run.blocks.len()).filter(|&i| run.blocks[i].since_on_s >= range.0 && run.blocks[i].since_on_s < range.1).collect();
+    let sel: Vec<usize> = (0..run.blocks.len())
+        .filter(|&i| run.blocks[i].since_on_s >= range.0 && run.blocks[i].since_on_s < range.1)
+        .collect();
     if sel.len() < 3 {
         return None;
     }
@@ -52,7 +53,7 @@ fn span(run: &RunData, e: &[f64], label: &str, range: (f64, f64), lag: usize) ->
     let idx: Vec<usize> = sel.iter().map(|&i| run.blocks[i].index).collect();
     let t_h: Vec<f64> = sel.iter().map(|&i| run.blocks[i].since_on_s / 3600.0).collect();
     let m = mean(&v);
-    let se = hac_se_of_mean(&[v.clone()], &[idx], lag);
+    let se = hac_se_of_mean(std::slice::from_ref(&v), &[idx], lag);
     Some(SpanFinding {
         run: run.name.clone(),
         span: label.to_string(),
@@ -111,7 +112,12 @@ pub fn cells_of(prep: &Prepared, options: &DiagnoseOptions) -> Vec<Vec<(usize, u
         .map(|r| {
             r.blocks
                 .iter()
-                .map(|b| (bin_of(&te, b.temp_c, false), bin_of(&options.rate_edges_c_per_min, b.rate_c_per_min, true)))
+                .map(|b| {
+                    (
+                        bin_of(&te, b.temp_c, false),
+                        bin_of(&options.rate_edges_c_per_min, b.rate_c_per_min, true),
+                    )
+                })
                 .collect()
         })
         .collect()
@@ -205,8 +211,13 @@ fn is_excess(value: f64, floor: f64, rel: f64) -> bool {
 }
 
 /// Allan comparison and the noise terms fitted to the final residual.
-fn allan_and_noise(prep: &Prepared, outcome: &FinalOutcome, options: &DiagnoseOptions) -> (Vec<AllanRow>, NoiseLevel) {
-    let before: Vec<Vec<f64>> = prep.runs.iter().map(|r| corrected_seconds(r, &vec![0.0; r.blocks.len()])).collect();
+fn allan_and_noise(
+    prep: &Prepared,
+    outcome: &FinalOutcome,
+    options: &DiagnoseOptions,
+) -> (Vec<AllanRow>, NoiseLevel) {
+    let before: Vec<Vec<f64>> =
+        prep.runs.iter().map(|r| corrected_seconds(r, &vec![0.0; r.blocks.len()])).collect();
     let after: Vec<Vec<f64>> = prep
         .runs
         .iter()
@@ -236,7 +247,8 @@ fn allan_and_noise(prep: &Prepared, outcome: &FinalOutcome, options: &DiagnoseOp
         .collect();
     let m = prep.block_s;
     let short = |series: &[Vec<f64>]| {
-        let v: Vec<f64> = series.iter().map(|s| adev_at(longest_finite(s), m)).filter(|v| v.is_finite()).collect();
+        let v: Vec<f64> =
+            series.iter().map(|s| adev_at(longest_finite(s), m)).filter(|v| v.is_finite()).collect();
         rms(&v)
     };
     let recorded: Vec<Vec<f64>> = prep.runs.iter().map(|r| r.sec.gyro_rec_dph.clone()).collect();
@@ -284,8 +296,13 @@ pub fn temperature(prep: &Prepared, options: &DiagnoseOptions) -> TemperatureCom
 
 fn temperature_run(run: &RunData) -> TemperatureRun {
     let s = &run.sec;
-    let pairs: Vec<(f64, f64)> =
-        s.temp_c.iter().zip(&s.temp_sim_c).filter(|(a, b)| a.is_finite() && b.is_finite()).map(|(a, b)| (*a, *b)).collect();
+    let pairs: Vec<(f64, f64)> = s
+        .temp_c
+        .iter()
+        .zip(&s.temp_sim_c)
+        .filter(|(a, b)| a.is_finite() && b.is_finite())
+        .map(|(a, b)| (*a, *b))
+        .collect();
     let diff: Vec<f64> = pairs.iter().map(|(a, b)| a - b).collect();
     let rate_diff: Vec<f64> = s
         .rate_c_per_min
@@ -338,7 +355,13 @@ fn best_shift(rec: &[f64], sim: &[f64]) -> (f64, f64) {
 }
 
 /// LORO test of a lookup table (per-key means of the other runs) on residual `e`.
-fn table_test(name: &str, keys: &[Vec<usize>], e: &[Vec<f64>], min_fraction: f64, noise_sigma_dph: f64) -> TableTest {
+fn table_test(
+    name: &str,
+    keys: &[Vec<usize>],
+    e: &[Vec<f64>],
+    min_fraction: f64,
+    noise_sigma_dph: f64,
+) -> TableTest {
     let n_keys = keys.iter().flatten().max().map_or(0, |m| m + 1);
     let mut before = Vec::new();
     let mut after = Vec::new();
@@ -371,30 +394,47 @@ fn table_test(name: &str, keys: &[Vec<usize>], e: &[Vec<f64>], min_fraction: f64
     }
 }
 
-const TIME_EDGES_S: [f64; 10] = [300.0, 600.0, 900.0, 1200.0, 1800.0, 2400.0, 3600.0, 5400.0, 7200.0, 10800.0];
+const TIME_EDGES_S: [f64; 10] =
+    [300.0, 600.0, 900.0, 1200.0, 1800.0, 2400.0, 3600.0, 5400.0, 7200.0, 10800.0];
 
-fn unexplained(prep: &Prepared, outcome: &FinalOutcome, options: &DiagnoseOptions, left_out_empty: bool) -> Unexplained {
+fn unexplained(
+    prep: &Prepared,
+    outcome: &FinalOutcome,
+    options: &DiagnoseOptions,
+    left_out_empty: bool,
+) -> Unexplained {
     let e = &outcome.fitted_resid;
     let n_rate = options.rate_edges_c_per_min.len() + 1;
-    let cell_keys: Vec<Vec<usize>> = cells_of(prep, options).iter().map(|c| c.iter().map(|(t, r)| t * n_rate + r).collect()).collect();
+    let cell_keys: Vec<Vec<usize>> =
+        cells_of(prep, options).iter().map(|c| c.iter().map(|(t, r)| t * n_rate + r).collect()).collect();
     let time_keys: Vec<Vec<usize>> = prep
         .runs
         .iter()
-        .map(|r| r.blocks.iter().map(|b| TIME_EDGES_S.iter().filter(|x| b.since_on_s >= **x).count()).collect())
+        .map(|r| {
+            r.blocks.iter().map(|b| TIME_EDGES_S.iter().filter(|x| b.since_on_s >= **x).count()).collect()
+        })
         .collect();
     let tables = vec![
         table_test("T-rate cells", &cell_keys, e, options.min_fold_fraction, prep.noise_sigma_dph),
         table_test("time since power-on", &time_keys, e, options.min_fold_fraction, prep.noise_sigma_dph),
     ];
-    let significant_cells: Vec<MapCell> = map(prep, e, options).into_iter().filter(|c| c.significant).collect();
-    let significant_spans: Vec<SpanFinding> = spans(prep, e, options).into_iter().filter(|s| s.significant).collect();
+    let significant_cells: Vec<MapCell> =
+        map(prep, e, options).into_iter().filter(|c| c.significant).collect();
+    let significant_spans: Vec<SpanFinding> =
+        spans(prep, e, options).into_iter().filter(|s| s.significant).collect();
     let offsets: Vec<f64> = e.iter().map(|v| mean(v)).collect();
     let structured = tables.iter().any(|t| t.structured);
     let statement = if structured {
         let which: Vec<String> = tables
             .iter()
             .filter(|t| t.structured)
-            .map(|t| format!("a {} table lowers the held-out residual by {:.1} %", t.table, 100.0 * t.cv_improvement))
+            .map(|t| {
+                format!(
+                    "a {} table lowers the held-out residual by {:.1} %",
+                    t.table,
+                    100.0 * t.cv_improvement
+                )
+            })
             .collect();
         format!(
             "structure remains that no catalogue effect explains: {}; {} significant (T, dT/dt) cells, {} significant run spans (see the map)",
@@ -405,7 +445,8 @@ fn unexplained(prep: &Prepared, outcome: &FinalOutcome, options: &DiagnoseOption
     } else if left_out_empty {
         "the residual is consistent with noise: no catalogue effect improves held-out runs and no structure repeats across runs".to_string()
     } else {
-        "after the chosen effects the residual is consistent with noise: no structure repeats across runs".to_string()
+        "after the chosen effects the residual is consistent with noise: no structure repeats across runs"
+            .to_string()
     };
     Unexplained {
         structured,
@@ -467,7 +508,9 @@ fn summary(d: &Diagnosis, grids: &[EffectGrid]) -> String {
         d.location.spans.len()
     ));
     if let Some(tau) = d.location.first_excess_tau_s {
-        s.push_str(&format!("; the residual's Allan deviation exceeds the noise floor from tau = {tau:.0} s."));
+        s.push_str(&format!(
+            "; the residual's Allan deviation exceeds the noise floor from tau = {tau:.0} s."
+        ));
     } else {
         s.push('.');
     }
@@ -504,7 +547,8 @@ pub fn assemble(
     outcome: FinalOutcome,
     options: &DiagnoseOptions,
 ) -> Result<Diagnosis, CalError> {
-    let raw: Vec<Vec<f64>> = prep.runs.iter().map(|r| r.blocks.iter().map(|b| b.resid_dph).collect()).collect();
+    let raw: Vec<Vec<f64>> =
+        prep.runs.iter().map(|r| r.blocks.iter().map(|b| b.resid_dph).collect()).collect();
     let all: Vec<f64> = raw.iter().flatten().copied().collect();
     let (allan, noise) = allan_and_noise(prep, &outcome, options);
     let first_excess_tau_s = allan.iter().find(|r| r.before_excess).map(|r| r.tau_s);

@@ -137,7 +137,7 @@ impl DiagnoseOptions {
                 return Err(CalError::Diagnose(format!("option {name} must be a positive number (got {v})")));
             }
         }
-        if !(self.mean_window_s >= 1.0) {
+        if self.mean_window_s < 1.0 {
             return Err(CalError::Diagnose("option mean_window_s must be at least 1 s".into()));
         }
         if !(self.warmup_span_s.is_finite() && self.warmup_span_s >= 0.0) {
@@ -146,10 +146,12 @@ impl DiagnoseOptions {
         if self.temp_bins == 0 || self.temp_bins > 100 {
             return Err(CalError::Diagnose("option temp_bins must be 1..=100".into()));
         }
-        if self.rate_edges_c_per_min.windows(2).any(|w| !(w[0] < w[1]))
+        if self.rate_edges_c_per_min.windows(2).any(|w| w[0] >= w[1])
             || self.rate_edges_c_per_min.iter().any(|v| !v.is_finite())
         {
-            return Err(CalError::Diagnose("option rate_edges_c_per_min must be finite and increasing".into()));
+            return Err(CalError::Diagnose(
+                "option rate_edges_c_per_min must be finite and increasing".into(),
+            ));
         }
         if !(0.0..=1.0).contains(&self.concealment_limit) || !(0.0..=1.0).contains(&self.min_fold_fraction) {
             return Err(CalError::Diagnose(

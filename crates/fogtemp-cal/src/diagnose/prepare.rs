@@ -356,7 +356,8 @@ fn prepare_run(sim: &RunSeries, rec: &RunSeries, options: &DiagnoseOptions) -> R
         gyro_rec_dph: rec_gyro,
         block_of,
     };
-    let meta = if rec.meta.group.is_some() || rec.meta.input_rate_dph.is_some() { &rec.meta } else { &sim.meta };
+    let meta =
+        if rec.meta.group.is_some() || rec.meta.input_rate_dph.is_some() { &rec.meta } else { &sim.meta };
     Ok(RunData {
         name: rec.name.clone(),
         group: meta.group.clone(),
@@ -369,10 +370,10 @@ fn prepare_run(sim: &RunSeries, rec: &RunSeries, options: &DiagnoseOptions) -> R
 /// Fits the simulation's static relation `g(T)` (see [`StaticRelation`]).
 fn fit_static_relation(runs: &[RunData]) -> Option<StaticRelation> {
     let rows: Vec<&Block> = runs.iter().flat_map(|r| &r.blocks).collect();
-    let (lo, hi) = rows.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), r| {
-        (a.min(r.temp_sim_c), b.max(r.temp_sim_c))
-    });
-    if !(hi - lo >= 1.0) || rows.len() < 10 {
+    let (lo, hi) = rows
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), r| (a.min(r.temp_sim_c), b.max(r.temp_sim_c)));
+    if hi - lo < 1.0 || hi.is_nan() || lo.is_nan() || rows.len() < 10 {
         return None;
     }
     let (centre_c, half_range_c) = ((hi + lo) / 2.0, (hi - lo) / 2.0);
@@ -389,10 +390,11 @@ fn fit_static_relation(runs: &[RunData]) -> Option<StaticRelation> {
     }
     let beta = super::linalg::least_squares(&x, &y)?;
     let coefficients_dph = [beta[1], beta[2], beta[3]];
-    coefficients_dph
-        .iter()
-        .all(|c| c.is_finite())
-        .then_some(StaticRelation { centre_c, half_range_c, coefficients_dph })
+    coefficients_dph.iter().all(|c| c.is_finite()).then_some(StaticRelation {
+        centre_c,
+        half_range_c,
+        coefficients_dph,
+    })
 }
 
 /// Pairs, validates and grids the runs.

@@ -220,7 +220,7 @@ fn stability_t(full: &[Vec<f64>], folds: &[Vec<Vec<f64>>]) -> f64 {
         a.iter().zip(b).map(|(x, y)| x.iter().zip(y).map(|(p, q)| p * q).sum::<f64>()).sum()
     };
     let vv = dot(full, full);
-    if !(vv > 0.0) || folds.len() < 2 {
+    if vv.is_nan() || vv <= 0.0 || folds.len() < 2 {
         return 0.0;
     }
     let c: Vec<f64> = folds.iter().map(|f| dot(f, full) / vv).collect();
@@ -466,6 +466,12 @@ fn not_evaluated(effect: Effect, status: &str, note: String, experiment: Option<
     }
 }
 
+/// A profiled candidate with its fitted contribution per run.
+type ScoredProfile = (Profiled, Vec<Vec<f64>>);
+
+/// The candidate a step adds: effect, grid point, concealment index, most confused effect.
+type Pick = (Effect, usize, f64, Option<(String, f64)>);
+
 /// Scores of one evaluated candidate.
 struct Scored {
     report: CandidateReport,
@@ -474,7 +480,7 @@ struct Scored {
     accepted: bool,
 }
 
-fn score_candidate(ctx: &StepContext<'_>, grid: &EffectGrid) -> Result<Option<(Profiled, Vec<Vec<f64>>)>, CalError> {
+fn score_candidate(ctx: &StepContext<'_>, grid: &EffectGrid) -> Result<Option<ScoredProfile>, CalError> {
     if grid.points.iter().all(|p| p.k() == 0) {
         return Ok(None);
     }
@@ -503,9 +509,15 @@ fn judge(
     let cv_improvement = 1.0 - cv_rms / (base_cv / n as f64).sqrt();
     let checks = [
         (cv_sse < base_cv, "LORO error does not fall"),
-        (folds_pass(improved, informative, ctx.options.min_fold_fraction), "too few informative folds improve"),
+        (
+            folds_pass(improved, informative, ctx.options.min_fold_fraction),
+            "too few informative folds improve",
+        ),
         (delta_bic < 0.0, "BIC (n_eff) does not fall"),
-        (prof.stability_t >= stability_limit(ctx.prep.runs.len(), ctx.tests), "not stable across folds (jackknife t)"),
+        (
+            prof.stability_t >= stability_limit(ctx.prep.runs.len(), ctx.tests),
+            "not stable across folds (jackknife t)",
+        ),
     ];
     let failed: Vec<&str> = checks.iter().filter(|(ok, _)| !ok).map(|(_, why)| *why).collect();
     let accepted = !concealed && failed.is_empty();
@@ -563,9 +575,9 @@ fn most_confused(
         .max_by(|a, b| a.1.total_cmp(&b.1))
 }
 
-fn run_step(ctx: &StepContext<'_>) -> Result<(Vec<CandidateReport>, Option<(Effect, usize, f64, Option<(String, f64)>)>), CalError> {
+fn run_step(ctx: &StepContext<'_>) -> Result<(Vec<CandidateReport>, Option<Pick>), CalError> {
     let open: Vec<&EffectGrid> = ctx.grids.iter().filter(|g| !ctx.in_model.contains(&g.effect)).collect();
-    let scored: Vec<Option<(Profiled, Vec<Vec<f64>>)>> = open
+    let scored: Vec<Option<ScoredProfile>> = open
         .par_iter()
         .map(|g| if g.unmet_requirement.is_some() { Ok(None) } else { score_candidate(ctx, g) })
         .collect::<Result<_, _>>()?;
@@ -575,7 +587,7 @@ fn run_step(ctx: &StepContext<'_>) -> Result<(Vec<CandidateReport>, Option<(Effe
         .filter_map(|(g, s)| s.as_ref().map(|(p, _)| (g.effect, &g.points[p.point])))
         .collect();
     let mut reports = Vec::new();
-    let mut best: Option<(f64, Effect, usize, f64, Option<(String, f64)>)> = None;
+    let mut best: Option<(f64, Pick)> = None;
     for (g, s) in open.iter().zip(&scored) {
         match (s, &g.unmet_requirement) {
             (_, Some(why)) => reports.push(not_evaluated(
@@ -594,13 +606,13 @@ fn run_step(ctx: &StepContext<'_>) -> Result<(Vec<CandidateReport>, Option<(Effe
                 let confused = most_confused(ctx, g.effect, v, &profiled_cols);
                 let sc = judge(ctx, g, prof, v, confused.clone());
                 if sc.accepted && best.as_ref().is_none_or(|b| sc.cv_sse < b.0) {
-                    best = Some((sc.cv_sse, g.effect, sc.point, sc.report.concealment_index, confused));
+                    best = Some((sc.cv_sse, (g.effect, sc.point, sc.report.concealment_index, confused)));
                 }
                 reports.push(sc.report);
             }
         }
     }
-    if let Some((_, effect, _, _, _)) = &best {
+    if let Some((_, (effect, _, _, _))) = &best {
         for r in &mut reports {
             if r.effect == effect.name() {
                 r.status = "selected".into();
@@ -610,7 +622,7 @@ fn run_step(ctx: &StepContext<'_>) -> Result<(Vec<CandidateReport>, Option<(Effe
             }
         }
     }
-    Ok((reports, best.map(|b| (b.1, b.2, b.3, b.4))))
+    Ok((reports, best.map(|b| b.1)))
 }
 
 fn model_names(chosen: &[ChosenTerm]) -> Vec<String> {
@@ -634,7 +646,13 @@ fn full_rss(prep: &Prepared, parts: &[&TermColumns], ys: &[Vec<f64>]) -> f64 {
 /// Refines each continuous profiled parameter of the chosen grid point between its grid
 /// neighbours: a parabola in ln(parameter) through the full-data RSS at the point and its
 /// two neighbours; the vertex is kept if it lowers the RSS.
-fn refine(prep: &Prepared, base: &[&TermColumns], grid: &EffectGrid, point: usize, ys: &[Vec<f64>]) -> TermColumns {
+fn refine(
+    prep: &Prepared,
+    base: &[&TermColumns],
+    grid: &EffectGrid,
+    point: usize,
+    ys: &[Vec<f64>],
+) -> TermColumns {
     let best = &grid.points[point];
     let rss_of = |cols: &TermColumns| {
         let mut parts = base.to_vec();
@@ -701,7 +719,10 @@ pub fn forward_select(
     let mut chosen: Vec<ChosenTerm> = Vec::new();
     let mut steps = Vec::new();
     for step in 0..=options.max_effects {
-        progress(&format!("forward selection, step {}", step + 1), 0.3 + 0.5 * step as f64 / (options.max_effects + 1) as f64);
+        progress(
+            &format!("forward selection, step {}", step + 1),
+            0.3 + 0.5 * step as f64 / (options.max_effects + 1) as f64,
+        );
         let base_parts = chosen_parts(&chosen);
         let base = build_design(prep, &base_parts);
         let base_eval = fold_eval(&base, &ys)?;
@@ -723,7 +744,8 @@ pub fn forward_select(
                 .count(),
         };
         let cv_rms = (ctx.base_eval.fold_sse.iter().sum::<f64>() / prep.n_blocks() as f64).sqrt();
-        let (candidates, pick) = if step < options.max_effects { run_step(&ctx)? } else { (Vec::new(), None) };
+        let (candidates, pick) =
+            if step < options.max_effects { run_step(&ctx)? } else { (Vec::new(), None) };
         steps.push(SelectionStep {
             model: model_names(&chosen),
             cv_rms_dph: cv_rms,
@@ -734,7 +756,10 @@ pub fn forward_select(
         });
         match pick {
             Some((effect, point, concealment_index, most_confused_with)) => {
-                let grid = grids.iter().find(|g| g.effect == effect).ok_or_else(|| CalError::Fit("effect grid missing".into()))?;
+                let grid = grids
+                    .iter()
+                    .find(|g| g.effect == effect)
+                    .ok_or_else(|| CalError::Fit("effect grid missing".into()))?;
                 let columns = refine(prep, &chosen_parts(&chosen), grid, point, &ys);
                 chosen.push(ChosenTerm { effect, point, columns, concealment_index, most_confused_with })
             }
@@ -811,7 +836,12 @@ pub struct FinalOutcome {
 }
 
 /// Contribution of the `i`-th part of a design (`[1 | parts]`) per run, unscaled.
-fn term_contribution(design: &Design, beta: &DVector<f64>, parts: &[&TermColumns], i: usize) -> Vec<Vec<f64>> {
+fn term_contribution(
+    design: &Design,
+    beta: &DVector<f64>,
+    parts: &[&TermColumns],
+    i: usize,
+) -> Vec<Vec<f64>> {
     let start = 1 + parts[..i].iter().map(|t| t.k()).sum::<usize>();
     let k = parts[i].k();
     design
@@ -840,7 +870,11 @@ fn derivative_columns(
     let per_run = (0..prep.runs.len())
         .map(|r| {
             let value = |t: &TermColumns| &t.per_run[r] * DVector::from_column_slice(coef);
-            DMatrix::from_column_slice(cols.per_run[r].nrows(), 1, ((value(&cu) - value(&cd)) / width).as_slice())
+            DMatrix::from_column_slice(
+                cols.per_run[r].nrows(),
+                1,
+                ((value(&cu) - value(&cd)) / width).as_slice(),
+            )
         })
         .collect();
     (per_run, width)
@@ -870,13 +904,26 @@ fn parameters_of(
                 b.iter().skip(1).zip(coef).map(|(x, c)| x * c).sum()
             })
             .collect();
-        let (mn, mx) = shape.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(*v), b.max(*v)));
-        out.insert("peak_to_peak_dph".into(), Parameter { value: mx - mn, std_error: None, units: "deg/h".into() });
-        out.insert("t_min_c".into(), Parameter { value: lo, std_error: None, units: "deg C (basis range start)".into() });
-        out.insert("t_max_c".into(), Parameter { value: hi, std_error: None, units: "deg C (basis range end)".into() });
+        let (mn, mx) =
+            shape.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(*v), b.max(*v)));
+        out.insert(
+            "peak_to_peak_dph".into(),
+            Parameter { value: mx - mn, std_error: None, units: "deg/h".into() },
+        );
+        out.insert(
+            "t_min_c".into(),
+            Parameter { value: lo, std_error: None, units: "deg C (basis range start)".into() },
+        );
+        out.insert(
+            "t_max_c".into(),
+            Parameter { value: hi, std_error: None, units: "deg C (basis range end)".into() },
+        );
     }
     if grid.effect == Effect::ScaleFactorTemperature || grid.effect == Effect::Hysteresis {
-        out.insert("t_ref_c".into(), Parameter { value: prep.temp_ref_c, std_error: None, units: "deg C".into() });
+        out.insert(
+            "t_ref_c".into(),
+            Parameter { value: prep.temp_ref_c, std_error: None, units: "deg C".into() },
+        );
     }
     out
 }
@@ -956,8 +1003,7 @@ fn fit_parameters(
         se.push((at..at + t.k()).map(se_of).collect());
         at += t.k();
     }
-    let mut theta_se: Vec<Vec<Option<f64>>> =
-        parts.iter().map(|t| vec![None; t.theta.len()]).collect();
+    let mut theta_se: Vec<Vec<Option<f64>>> = parts.iter().map(|t| vec![None; t.theta.len()]).collect();
     for (j, (ti, m)) in owner.iter().enumerate() {
         theta_se[*ti][*m] = Some(se_of(design.p() + j));
     }
@@ -989,7 +1035,8 @@ pub fn evaluate_final(
     let rms_after = pooled_rms(&heldout);
     let mut left_out = Vec::new();
     for (i, c) in chosen.iter().enumerate() {
-        let without: Vec<ChosenTerm> = chosen.iter().enumerate().filter(|(j, _)| *j != i).map(|(_, t)| t.clone()).collect();
+        let without: Vec<ChosenTerm> =
+            chosen.iter().enumerate().filter(|(j, _)| *j != i).map(|(_, t)| t.clone()).collect();
         let d0 = build_design(prep, &chosen_parts(&without));
         let e0 = fold_eval(&d0, &ys)?;
         let h0 = heldout_residuals(&d0, &e0, &ys);
@@ -997,7 +1044,10 @@ pub fn evaluate_final(
         let material = material_runs(&v, prep.noise_sigma_dph);
         let (improved, informative) = fold_counts(&e0.fold_sse, &eval.fold_sse, &material);
         let before = pooled_rms(&h0);
-        let grid = grids.iter().find(|g| g.effect == c.effect).ok_or_else(|| CalError::Fit("effect grid missing".into()))?;
+        let grid = grids
+            .iter()
+            .find(|g| g.effect == c.effect)
+            .ok_or_else(|| CalError::Fit("effect grid missing".into()))?;
         let cols = &c.columns;
         let parameters = parameters_of(prep, grid, cols, &fitted.coef[i], &fitted.se[i], &fitted.theta_se[i]);
         let improvement = 1.0 - rms_after / before;
@@ -1010,7 +1060,9 @@ pub fn evaluate_final(
             improved,
             informative
         );
-        if let Some((other, r2)) = c.most_confused_with.as_ref().filter(|(_, r2)| *r2 > options.concealment_limit) {
+        if let Some((other, r2)) =
+            c.most_confused_with.as_ref().filter(|(_, r2)| *r2 > options.concealment_limit)
+        {
             statement.push_str(&format!(
                 "; cannot be told apart from {other} on these runs (R^2 {r2:.4}): run {}",
                 c.effect.experiment()
