@@ -550,3 +550,34 @@ fn speed_18_runs_2h_10hz() {
     eprintln!("18 runs x 2 h x 10 Hz: diagnosis took {secs:.2} s; left out {:?}", names(&d));
     assert!(secs <= 30.0, "took {secs} s");
 }
+
+/// Confusion matrix over repeated noise seeds (run with
+/// `cargo test --release --test diagnose_lib -- --ignored --nocapture confusion`): for every
+/// scenario, how often each set of effects was named. Not an assertion: the numbers go into
+/// the report of the method's power and false-alarm rate.
+#[test]
+#[ignore]
+fn confusion_matrix_over_seeds() {
+    let seeds: u64 = std::env::var("SEEDS").ok().and_then(|v| v.parse().ok()).unwrap_or(10);
+    let two_rates = two_position_runs(EARTH_UP_DPH, -EARTH_UP_DPH);
+    let scenarios: Vec<(&str, Vec<RunPlan>, Injected)> = vec![
+        ("null", paper_runs(), Injected::None),
+        ("thermal_lag", paper_runs(), Injected::ThermalLag),
+        ("shupe_rate", paper_runs(), Injected::ShupeRate(0.03)),
+        ("warmup_transient", paper_runs(), Injected::Warmup(0.012, 480.0)),
+        ("orientation_offset", two_rates.clone(), Injected::Orientation(0.010)),
+        ("hysteresis", cycling_runs(), Injected::Hysteresis(0.005)),
+        ("static_shape", overlapping_runs(), Injected::StaticRipple(0.005, 35.0)),
+        ("scale_factor_temperature", two_rates, Injected::ScaleFactor(20.0)),
+    ];
+    for (label, plans, effect) in scenarios {
+        let mut counts: std::collections::BTreeMap<String, u32> = std::collections::BTreeMap::new();
+        for seed in 0..seeds {
+            let (sim, rec) = make_set(&plans, effect, 2.0, 5000 + seed);
+            let d = diagnose(&sim, &rec, &DiagnoseOptions::default(), |_, _| {}).expect("diagnosis runs");
+            let key = if d.left_out.is_empty() { "(none)".to_string() } else { names(&d).join("+") };
+            *counts.entry(key).or_default() += 1;
+        }
+        eprintln!("CONFUSION {label:<26} {counts:?}");
+    }
+}

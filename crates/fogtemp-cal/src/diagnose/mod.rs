@@ -228,6 +228,10 @@ pub struct CandidateReport {
     /// projected on the full-data contribution); must reach the two-sided 1 % Student-t
     /// limit with runs - 1 degrees of freedom.
     pub stability_t: f64,
+    /// Smallest share `<v_j, v>/<v, v>` of the full-data contribution `v` that a LORO fold's
+    /// contribution `v_j` reproduces (the stability rule of terms with > 2 coefficients:
+    /// >= 0.5).
+    pub min_fold_share: f64,
     /// R^2 of the term's fitted contribution on the terms already in the model.
     pub concealment_index: f64,
     /// The same R^2 with per-run offsets added to the model's terms.

@@ -19,7 +19,9 @@
 //!   improves at least `min_fold_fraction` of the informative folds (and at least two),
 //!   lowers BIC, and is stable across folds (jackknife t of its contribution, see
 //!   [`stability_t`], above the two-sided Student-t limit with runs - 1 degrees of freedom
-//!   at 5 % / number of candidates). The accepted candidate with the lowest LORO error enters; selection
+//!   at 5 % / number of candidates; for a flexible term with more than two coefficients, a
+//!   basis in T whose local coefficients a left-out run moves, every fold must instead
+//!   reproduce at least half of the full-data contribution). The accepted candidate with the lowest LORO error enters; selection
 //!   stops when no candidate is accepted or `max_effects` are in.
 //! - concealment index: R^2 of the candidate's fitted contribution on the terms already
 //!   in the model.
@@ -208,6 +210,27 @@ struct Profiled {
     design_scale: Vec<f64>,
     /// Jackknife t of the contribution over LORO folds (see [`stability_t`]).
     stability_t: f64,
+    /// Smallest share `c_j` of the full-data contribution that a fold reproduces.
+    min_fold_share: f64,
+}
+
+/// Terms with more linear coefficients than this are "flexible" (a basis in T): their
+/// stability is judged by the smallest fold share instead of the jackknife t.
+const FLEXIBLE_TERM_COEFFICIENTS: usize = 2;
+
+/// Smallest fold share a flexible term needs (see [`fold_shares`]).
+const MIN_FOLD_SHARE: f64 = 0.5;
+
+/// `c_j = <v_j, v> / <v, v>` for every fold (see [`stability_t`]).
+fn fold_shares(full: &[Vec<f64>], folds: &[Vec<Vec<f64>>]) -> Vec<f64> {
+    let dot = |a: &[Vec<f64>], b: &[Vec<f64>]| -> f64 {
+        a.iter().zip(b).map(|(x, y)| x.iter().zip(y).map(|(p, q)| p * q).sum::<f64>()).sum()
+    };
+    let vv = dot(full, full);
+    if vv.is_nan() || vv <= 0.0 {
+        return vec![0.0; folds.len()];
+    }
+    folds.iter().map(|f| dot(f, full) / vv).collect()
 }
 
 /// Fold-to-fold stability of a term: each LORO fold's fitted contribution `v_j` (at the
@@ -215,15 +238,10 @@ struct Profiled {
 /// contribution `v`, `c_j = <v_j, v> / <v, v>`; the delete-one-run jackknife standard error
 /// of `c` is `sqrt((G - 1)/G sum (c_j - mean c)^2)` and the result is `1 / SE`. It accounts for
 /// any correlation within runs (flicker, per-run offsets), which `n_eff` cannot.
-fn stability_t(full: &[Vec<f64>], folds: &[Vec<Vec<f64>>]) -> f64 {
-    let dot = |a: &[Vec<f64>], b: &[Vec<f64>]| -> f64 {
-        a.iter().zip(b).map(|(x, y)| x.iter().zip(y).map(|(p, q)| p * q).sum::<f64>()).sum()
-    };
-    let vv = dot(full, full);
-    if vv.is_nan() || vv <= 0.0 || folds.len() < 2 {
+fn stability_t(c: &[f64]) -> f64 {
+    if c.len() < 2 {
         return 0.0;
     }
-    let c: Vec<f64> = folds.iter().map(|f| dot(f, full) / vv).collect();
     let g = c.len() as f64;
     let mean = c.iter().sum::<f64>() / g;
     let se = ((g - 1.0) / g * c.iter().map(|x| (x - mean).powi(2)).sum::<f64>()).sqrt();
@@ -323,7 +341,8 @@ fn profile_members(
         full_beta: eval.full_beta.clone(),
         fold_sse,
         design_scale: scale.clone(),
-        stability_t: stability_t(&full, &folds),
+        stability_t: stability_t(&fold_shares(&full, &folds)),
+        min_fold_share: fold_shares(&full, &folds).into_iter().fold(f64::INFINITY, f64::min),
     }
 }
 
@@ -457,6 +476,7 @@ fn not_evaluated(effect: Effect, status: &str, note: String, experiment: Option<
         folds_informative: 0,
         delta_bic: f64::NAN,
         stability_t: f64::NAN,
+        min_fold_share: f64::NAN,
         concealment_index: f64::NAN,
         concealment_with_run_offsets: f64::NAN,
         most_confused_with: None,
@@ -514,10 +534,14 @@ fn judge(
             "too few informative folds improve",
         ),
         (delta_bic < 0.0, "BIC (n_eff) does not fall"),
-        (
-            prof.stability_t >= stability_limit(ctx.prep.runs.len(), ctx.tests),
-            "not stable across folds (jackknife t)",
-        ),
+        if grid.points[prof.point].k() > FLEXIBLE_TERM_COEFFICIENTS {
+            (prof.min_fold_share >= MIN_FOLD_SHARE, "a fold reproduces less than half of the fitted shape")
+        } else {
+            (
+                prof.stability_t >= stability_limit(ctx.prep.runs.len(), ctx.tests),
+                "not stable across folds (jackknife t)",
+            )
+        },
     ];
     let failed: Vec<&str> = checks.iter().filter(|(ok, _)| !ok).map(|(_, why)| *why).collect();
     let accepted = !concealed && failed.is_empty();
@@ -545,6 +569,7 @@ fn judge(
         folds_informative: informative,
         delta_bic,
         stability_t: prof.stability_t,
+        min_fold_share: prof.min_fold_share,
         concealment_index: conceal,
         concealment_with_run_offsets: conceal_runs,
         most_confused_with: confused,
