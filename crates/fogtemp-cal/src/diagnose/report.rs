@@ -58,6 +58,9 @@ fn diverging(t: f64) -> RGBColor {
     }
 }
 
+/// Selects one series of a run trace.
+type PickTrace = fn(&super::RunTraceOut) -> &Vec<f64>;
+
 /// Residual short means against time, one line per run: before (offset only, held-out)
 /// and after (final model, held-out), on one scale.
 fn plot_residuals(path: &Path, d: &Diagnosis) -> Result<(), CalError> {
@@ -69,7 +72,7 @@ fn plot_residuals(path: &Path, d: &Diagnosis) -> Result<(), CalError> {
     let areas = root.split_evenly((2, 1));
     let t_max = d.traces.iter().flat_map(|t| t.time_s.last().copied()).fold(1.0, f64::max) / 60.0;
     let y = range(d.traces.iter().flat_map(|t| t.before_dph.iter().chain(&t.after_dph).copied()));
-    let panels: [(&str, fn(&super::RunTraceOut) -> &Vec<f64>); 2] = [
+    let panels: [(&str, PickTrace); 2] = [
         ("before: global offset only, deg/h", |t| &t.before_dph),
         ("after: final model, deg/h", |t| &t.after_dph),
     ];
