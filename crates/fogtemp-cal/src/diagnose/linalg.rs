@@ -148,18 +148,3 @@ pub fn hac_se_of_mean(values: &[Vec<f64>], indices: &[Vec<usize>], lag: usize) -
     }
     (s.max(0.0) * n as f64 / (n - 1) as f64).sqrt() / n as f64
 }
-
-/// R^2 of `v` regressed on the columns of `z` (which should hold a constant):
-/// `1 - ||v - Z b||^2 / ||v - mean(v)||^2`; 0 when `v` is constant... unless `z` explains it
-/// (then 1).
-pub fn r_squared(v: &DVector<f64>, z: &DMatrix<f64>) -> f64 {
-    let n = v.len() as f64;
-    let mean = v.sum() / n;
-    let total: f64 = v.iter().map(|a| (a - mean).powi(2)).sum();
-    let Some(b) = least_squares(z, v) else { return f64::NAN };
-    let resid = (v - z * b).norm_squared();
-    if total <= 1e-300 {
-        return if resid <= 1e-300 { 1.0 } else { 0.0 };
-    }
-    (1.0 - resid / total).clamp(0.0, 1.0)
-}

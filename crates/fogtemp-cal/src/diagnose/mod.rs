@@ -193,8 +193,8 @@ pub struct LeftOutEffect {
     pub bias_stability_before_dph: f64,
     /// Held-out bias stability with the final model (RMS over runs), deg/h.
     pub bias_stability_after_dph: f64,
-    /// LORO folds in which this effect lowered the held-out error / folds it changed by
-    /// more than 1 %.
+    /// LORO folds in which this effect lowered the held-out error, among the informative
+    /// folds (runs where its contribution is material, see [`CandidateReport`]).
     pub folds_improved: usize,
     /// See `folds_improved`.
     pub folds_informative: usize,
@@ -220,13 +220,15 @@ pub struct CandidateReport {
     pub cv_improvement: f64,
     /// Folds (held-out runs) whose error fell.
     pub folds_improved: usize,
-    /// Folds whose error changed by more than 1 %.
+    /// Folds (held-out runs) where the term's contribution is material: RMS about its mean
+    /// over all runs >= a quarter of the noise of one short mean.
     pub folds_informative: usize,
     /// BIC(model + term) - BIC(model) on the effective sample size (negative favours the term).
     pub delta_bic: f64,
     /// Fold-to-fold stability: 1 / (delete-one-run jackknife SE of the LORO contributions
-    /// projected on the full-data contribution); must reach the two-sided 1 % Student-t
-    /// limit with runs - 1 degrees of freedom.
+    /// projected on the full-data contribution); for terms with <= 2 coefficients it must
+    /// reach the two-sided Student-t limit (runs - 1 degrees of freedom, 5 % Bonferroni over
+    /// the step's candidates).
     pub stability_t: f64,
     /// Smallest share `<v_j, v>/<v, v>` of the full-data contribution `v` that a LORO fold's
     /// contribution `v_j` reproduces (the stability rule of terms with > 2 coefficients:
@@ -420,7 +422,7 @@ pub struct TableTest {
     pub cv_improvement: f64,
     /// Folds improved.
     pub folds_improved: usize,
-    /// Folds changed by more than 1 %.
+    /// Folds where the table's prediction is material (as for candidates).
     pub folds_informative: usize,
     /// Passes the same acceptance rule as a catalogue effect.
     pub structured: bool,

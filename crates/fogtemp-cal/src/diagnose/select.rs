@@ -346,19 +346,6 @@ fn profile_members(
     }
 }
 
-/// Stacks per-run matrices into one.
-fn stack(per_run: &[DMatrix<f64>]) -> DMatrix<f64> {
-    let n: usize = per_run.iter().map(|m| m.nrows()).sum();
-    let p = per_run.first().map_or(0, |m| m.ncols());
-    let mut out = DMatrix::zeros(n, p);
-    let mut at = 0;
-    for m in per_run {
-        out.view_mut((at, 0), (m.nrows(), p)).copy_from(m);
-        at += m.nrows();
-    }
-    out
-}
-
 /// R^2 of `v` (per run) on the columns of `z` (per run, holding a constant), computed from
 /// per-run QR factors.
 pub fn r_squared_runs(v: &[Vec<f64>], z: &[DMatrix<f64>]) -> f64 {
@@ -1118,9 +1105,4 @@ pub fn evaluate_final(
         heldout_resid: heldout,
         baseline_heldout,
     })
-}
-
-/// Stacked copy of the per-run matrices (for callers that need one matrix).
-pub fn stacked(per_run: &[DMatrix<f64>]) -> DMatrix<f64> {
-    stack(per_run)
 }
