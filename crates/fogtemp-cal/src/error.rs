@@ -70,6 +70,10 @@ pub enum CalError {
     /// A simulation scenario is invalid (TOML syntax with line and column, or a named field).
     #[error("scenario: {0}")]
     Scenario(String),
+    /// The inputs of a diagnosis (simulated vs recorded runs) are unusable: unpaired or
+    /// duplicate names, empty or non-finite series, time not increasing, too few runs.
+    #[error("diagnose: {0}")]
+    Diagnose(String),
     /// I/O on a named file.
     #[error("{}: {source}", path.display())]
     Io {

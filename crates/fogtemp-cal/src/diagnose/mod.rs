@@ -1,1 +1,528 @@
-//! Discrepancy diagnosis: simulated vs recorded runs (work in progress).
+//! Discrepancy diagnosis: where, what physics, how much, and whether modelling it helps on
+//! runs it did not see, for a simulation of a lab experiment against its recordings.
+//!
+//! Pipeline (all in memory; the CLI reads the CSV logs and prints [`Diagnosis`] as JSON):
+//! 1. **Pair and grid** ([`prepare`]): runs are paired by name; both members are averaged
+//!    onto a common 1 s grid (any sample rate >= 1 Hz). Temperature and its rate are
+//!    smoothed with a centred least-squares line over `rate_window_s` (robust to a
+//!    quantised, sample-and-hold temperature channel); `d2T/dt2` is the least-squares slope
+//!    of that rate over `accel_window_s`. The residual `recorded - simulated` gyro is then
+//!    averaged into short means of `mean_window_s`.
+//! 2. **Locate** ([`locate`]): per-run offsets and warm-up/settled spans, a (T, dT/dt) cell
+//!    map of mean residuals with Newey-West (HAC) standard errors, the residual's Allan
+//!    deviation against a fitted noise floor, and recorded vs simulated temperature.
+//! 3. **Name and model** ([`effects`], [`select`]): every catalogue effect is a parametric
+//!    term built from the recorded signals, its non-linear parameters profiled on a grid.
+//!    Forward selection accepts a term only if leave-one-run-out (LORO) cross-validation
+//!    improves, most informative folds improve, BIC on the effective sample size improves,
+//!    and the term is identifiable (its data requirement holds and its concealment index is
+//!    below the limit).
+//! 4. **Show the fit improve**: held-out residual RMS and bias stability before and after
+//!    each chosen effect; nonparametric cross-validated tables flag structure no catalogue
+//!    effect explains.
+//!
+//! The model always has one global offset (the simulation's overall bias may be off) but
+//! **no per-run offsets**: a per-run constant cannot be predicted for a run that was not
+//! seen and would absorb the cross-run structure that identifies `static_shape`,
+//! `orientation_offset` and `scale_factor_temperature`. Per-run offsets (turn-on
+//! repeatability, slow flicker) are reported as a location finding instead, and the
+//! concealment index is also given against the model plus per-run offsets.
+
+pub mod effects;
+pub mod linalg;
+pub mod locate;
+pub mod prepare;
+pub mod report;
+pub mod select;
+
+use std::collections::BTreeMap;
+
+use serde::Serialize;
+
+use crate::error::CalError;
+
+pub use report::write_diagnosis_report;
+
+/// One run (one power-on) as a time series: the simulated or the recorded member of a pair.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct RunSeries {
+    /// Run name (file name); simulated and recorded runs are paired by it.
+    pub name: String,
+    /// Time, seconds, strictly increasing (gaps allowed).
+    pub time_s: Vec<f64>,
+    /// Temperature, deg C (may be quantised and sample-and-hold).
+    pub temp_c: Vec<f64>,
+    /// Gyro rate, deg/h.
+    pub gyro_dph: Vec<f64>,
+    /// Test set-up of the run.
+    pub meta: RunMeta,
+}
+
+/// What is known about a run's set-up (from the test plan, not from the data).
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct RunMeta {
+    /// Position / orientation label; runs with equal labels share an orientation.
+    pub group: Option<String>,
+    /// Rate on the input axis from the set-up (Earth rate projection or a table rate), deg/h.
+    pub input_rate_dph: Option<f64>,
+    /// Time of power-on on the run's clock, seconds (default: the run's first sample).
+    pub power_on_at_s: Option<f64>,
+}
+
+/// Settings of a diagnosis. Every field has a unit in its name where it has one.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct DiagnoseOptions {
+    /// Length of the short means the residual is modelled on, seconds (10-100 sensible).
+    pub mean_window_s: f64,
+    /// Window of the centred least-squares line giving smoothed T and dT/dt, seconds.
+    pub rate_window_s: f64,
+    /// Window of the least-squares slope of dT/dt giving d2T/dt2, seconds.
+    pub accel_window_s: f64,
+    /// Span after power-on reported as "warm-up"; the rest of the run is "settled", seconds.
+    pub warmup_span_s: f64,
+    /// Newey-West (Bartlett) bandwidth for HAC standard errors, seconds.
+    pub hac_lag_s: f64,
+    /// Temperature bins of the (T, dT/dt) map (equal width over the recorded range).
+    pub temp_bins: usize,
+    /// Edges between rate bins of the map, deg C/min (outer bins are open-ended).
+    pub rate_edges_c_per_min: Vec<f64>,
+    /// Most effects forward selection may add.
+    pub max_effects: usize,
+    /// Concealment index above which a term is "not identifiable from these runs".
+    pub concealment_limit: f64,
+    /// Fraction of informative LORO folds that must improve for a term to be accepted.
+    pub min_fold_fraction: f64,
+    /// Averaging time of the bias stability figures, seconds.
+    pub bias_stability_tau_s: f64,
+    /// Recorded-minus-simulated temperature RMS above which the thermal model is reported as
+    /// mismatched, deg C.
+    pub temp_tolerance_c: f64,
+}
+
+impl Default for DiagnoseOptions {
+    fn default() -> Self {
+        Self {
+            mean_window_s: 20.0,
+            rate_window_s: 100.0,
+            accel_window_s: 600.0,
+            warmup_span_s: 1800.0,
+            hac_lag_s: 600.0,
+            temp_bins: 8,
+            rate_edges_c_per_min: vec![-0.2, -0.05, -0.01, 0.01, 0.05, 0.2],
+            max_effects: 4,
+            concealment_limit: 0.99,
+            min_fold_fraction: 0.75,
+            bias_stability_tau_s: 100.0,
+            temp_tolerance_c: 0.25,
+        }
+    }
+}
+
+impl DiagnoseOptions {
+    /// Checks that every setting is usable.
+    ///
+    /// # Errors
+    /// [`CalError::Diagnose`] naming the first bad setting.
+    pub fn validate(&self) -> Result<(), CalError> {
+        let positive = [
+            ("mean_window_s", self.mean_window_s),
+            ("rate_window_s", self.rate_window_s),
+            ("accel_window_s", self.accel_window_s),
+            ("hac_lag_s", self.hac_lag_s),
+            ("bias_stability_tau_s", self.bias_stability_tau_s),
+            ("temp_tolerance_c", self.temp_tolerance_c),
+        ];
+        for (name, v) in positive {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(CalError::Diagnose(format!("option {name} must be a positive number (got {v})")));
+            }
+        }
+        if self.mean_window_s < 1.0 {
+            return Err(CalError::Diagnose("option mean_window_s must be at least 1 s".into()));
+        }
+        if !(self.warmup_span_s.is_finite() && self.warmup_span_s >= 0.0) {
+            return Err(CalError::Diagnose("option warmup_span_s must be >= 0".into()));
+        }
+        if self.temp_bins == 0 || self.temp_bins > 100 {
+            return Err(CalError::Diagnose("option temp_bins must be 1..=100".into()));
+        }
+        if self.rate_edges_c_per_min.windows(2).any(|w| w[0] >= w[1])
+            || self.rate_edges_c_per_min.iter().any(|v| !v.is_finite())
+        {
+            return Err(CalError::Diagnose(
+                "option rate_edges_c_per_min must be finite and increasing".into(),
+            ));
+        }
+        if !(0.0..=1.0).contains(&self.concealment_limit) || !(0.0..=1.0).contains(&self.min_fold_fraction) {
+            return Err(CalError::Diagnose(
+                "options concealment_limit and min_fold_fraction must be within 0..=1".into(),
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// A fitted parameter with its standard error and units.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Parameter {
+    /// Estimate.
+    pub value: f64,
+    /// Standard error (delete-one-run jackknife, linearised for profiled parameters); `None` for
+    /// discrete grid choices (a basis size, a polynomial degree).
+    pub std_error: Option<f64>,
+    /// Units of value and standard error.
+    pub units: String,
+}
+
+/// One catalogue effect the simulation leaves out, as chosen by forward selection.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct LeftOutEffect {
+    /// Catalogue name (`thermal_lag`, `shupe_rate`, ...).
+    pub effect: String,
+    /// Fitted parameters (final model, all runs).
+    pub parameters: BTreeMap<String, Parameter>,
+    /// Held-out residual RMS of short means without this effect (the final model minus this
+    /// term, every run predicted by a fit to the other runs), deg/h.
+    pub residual_before_dph: f64,
+    /// Held-out residual RMS of short means with the final model, deg/h.
+    pub residual_after_dph: f64,
+    /// `1 - residual_after_dph / residual_before_dph`: fraction by which this effect reduces
+    /// the held-out residual RMS (positive = helps on runs it did not see).
+    pub heldout_improvement: f64,
+    /// Held-out bias stability without this effect (RMS over runs), deg/h.
+    pub bias_stability_before_dph: f64,
+    /// Held-out bias stability with the final model (RMS over runs), deg/h.
+    pub bias_stability_after_dph: f64,
+    /// LORO folds in which this effect lowered the held-out error, among the informative
+    /// folds (runs where its contribution is material, see [`CandidateReport`]).
+    pub folds_improved: usize,
+    /// See `folds_improved`.
+    pub folds_informative: usize,
+    /// Concealment index when it entered (R^2 of its fitted contribution on the terms
+    /// already in the model).
+    pub concealment_index: f64,
+    /// Plain-language statement.
+    pub statement: String,
+}
+
+/// How a catalogue effect fared at one step of forward selection.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct CandidateReport {
+    /// Catalogue name.
+    pub effect: String,
+    /// `selected`, `rejected`, `not_identifiable` or `not_evaluable`.
+    pub status: String,
+    /// Profiled non-linear parameters (full data), e.g. `tau_s`.
+    pub profile: BTreeMap<String, f64>,
+    /// LORO held-out RMS of short means with this term added, deg/h (NaN if not evaluated).
+    pub cv_rms_dph: f64,
+    /// `1 - cv_rms_dph / (LORO RMS of the current model)`.
+    pub cv_improvement: f64,
+    /// Folds (held-out runs) whose error fell.
+    pub folds_improved: usize,
+    /// Folds (held-out runs) where the term's contribution is material: RMS about its mean
+    /// over all runs >= a quarter of the noise of one short mean.
+    pub folds_informative: usize,
+    /// BIC(model + term) - BIC(model) on the effective sample size (negative favours the term).
+    pub delta_bic: f64,
+    /// Fold-to-fold stability: 1 / (delete-one-run jackknife SE of the LORO contributions
+    /// projected on the full-data contribution); for terms with <= 2 coefficients it must
+    /// reach the two-sided Student-t limit (runs - 1 degrees of freedom, 5 % Bonferroni over
+    /// the step's candidates).
+    pub stability_t: f64,
+    /// Smallest share `<v_j, v>/<v, v>` of the full-data contribution `v` that a LORO fold's
+    /// contribution `v_j` reproduces (the stability rule of terms with > 2 coefficients:
+    /// >= 0.5).
+    pub min_fold_share: f64,
+    /// R^2 of the term's fitted contribution on the terms already in the model.
+    pub concealment_index: f64,
+    /// The same R^2 with per-run offsets added to the model's terms.
+    pub concealment_with_run_offsets: f64,
+    /// The other catalogue effect whose columns explain this term's contribution best, with
+    /// that R^2 (on the model's terms plus the other effect's columns).
+    pub most_confused_with: Option<(String, f64)>,
+    /// Identifiable from these runs (data requirement met and concealment below the limit).
+    pub identifiable: bool,
+    /// The experiment that would separate it, when it is not identifiable.
+    pub experiment: Option<String>,
+    /// Why it was (not) chosen.
+    pub note: String,
+}
+
+/// One step of forward selection.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct SelectionStep {
+    /// Effects in the model before this step (the global offset is always there).
+    pub model: Vec<String>,
+    /// LORO held-out RMS of the model before this step, deg/h.
+    pub cv_rms_dph: f64,
+    /// Effective sample size used by BIC at this step.
+    pub n_eff: f64,
+    /// Lag-1 autocorrelation of the model's short-mean residuals (within runs).
+    pub rho: f64,
+    /// Every catalogue effect at this step.
+    pub candidates: Vec<CandidateReport>,
+    /// Effect added at this step, if any.
+    pub added: Option<String>,
+}
+
+/// Estimated noise of the residual.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct NoiseLevel {
+    /// Allan deviation of the 1 s residual at `tau = mean_window_s`, RMS over runs: the
+    /// scatter of one short mean due to noise, deg/h.
+    pub short_mean_sigma_dph: f64,
+    /// Noise terms fitted (weighted NNLS, IEEE 952) to the final model's residual Allan
+    /// deviation: angle random walk, deg/sqrt(h).
+    pub arw_deg_per_sqrt_h: f64,
+    /// Bias instability B, deg/h (flicker floor 0.664 B).
+    pub bias_instability_dph: f64,
+    /// Rate random walk, deg/h/sqrt(h).
+    pub rrw_dph_per_sqrt_h: f64,
+    /// Noise of the recorded gyro alone: Allan deviation at `tau = mean_window_s` of the
+    /// recorded 1 s means, RMS over runs, deg/h.
+    pub recorded_short_mean_adev_dph: f64,
+    /// Definitions in words.
+    pub definition: String,
+}
+
+/// Mean residual over a span of one run.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct SpanFinding {
+    /// Run name.
+    pub run: String,
+    /// `warm-up`, `settled` or `whole run`.
+    pub span: String,
+    /// Start, seconds since power-on.
+    pub start_s: f64,
+    /// End, seconds since power-on.
+    pub end_s: f64,
+    /// Short means in the span.
+    pub n_means: usize,
+    /// Mean residual, deg/h.
+    pub mean_dph: f64,
+    /// Newey-West standard error of the mean, deg/h.
+    pub hac_se_dph: f64,
+    /// `mean_dph / hac_se_dph`.
+    pub z: f64,
+    /// RMS of the residual short means in the span, deg/h.
+    pub rms_dph: f64,
+    /// Least-squares slope of the residual against time, deg/h per hour.
+    pub slope_dph_per_h: f64,
+    /// |z| above the Bonferroni-corrected two-sided 5 % limit over all spans.
+    pub significant: bool,
+}
+
+/// One cell of the (T, dT/dt) map.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct MapCell {
+    /// Lower temperature edge, deg C.
+    pub temp_lo_c: f64,
+    /// Upper temperature edge, deg C.
+    pub temp_hi_c: f64,
+    /// Lower rate edge, deg C/min (`None` = open).
+    pub rate_lo_c_per_min: Option<f64>,
+    /// Upper rate edge, deg C/min (`None` = open).
+    pub rate_hi_c_per_min: Option<f64>,
+    /// Row (temperature bin) index.
+    pub temp_bin: usize,
+    /// Column (rate bin) index.
+    pub rate_bin: usize,
+    /// Short means in the cell.
+    pub n_means: usize,
+    /// Runs contributing.
+    pub n_runs: usize,
+    /// Mean residual, deg/h.
+    pub mean_dph: f64,
+    /// Newey-West standard error (lags within each run), deg/h.
+    pub hac_se_dph: f64,
+    /// `mean_dph / hac_se_dph`.
+    pub z: f64,
+    /// |z| above the Bonferroni-corrected two-sided 5 % limit over all cells.
+    pub significant: bool,
+}
+
+/// One point of the Allan comparison.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct AllanRow {
+    /// Averaging time, s.
+    pub tau_s: f64,
+    /// Allan deviation of the residual before modelling (RMS over runs), deg/h.
+    pub before_dph: f64,
+    /// Allan deviation of the final model's residual, deg/h.
+    pub after_dph: f64,
+    /// Noise floor from the fitted noise terms, deg/h.
+    pub floor_dph: f64,
+    /// Relative error of one point (pooled over runs).
+    pub relative_error: f64,
+    /// `before_dph` exceeds the floor by more than 3 relative errors and 30 %.
+    pub before_excess: bool,
+    /// `after_dph` exceeds the floor the same way.
+    pub after_excess: bool,
+}
+
+/// Recorded vs simulated temperature for one run.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct TemperatureRun {
+    /// Run name.
+    pub run: String,
+    /// Mean of recorded - simulated (smoothed), deg C.
+    pub mean_diff_c: f64,
+    /// RMS of recorded - simulated, deg C.
+    pub rms_diff_c: f64,
+    /// Largest |recorded - simulated|, deg C.
+    pub max_abs_diff_c: f64,
+    /// RMS of the difference of the rates, deg C/min.
+    pub rate_rms_diff_c_per_min: f64,
+    /// Time shift of the simulated temperature that best matches the recorded one
+    /// (positive = recorded lags), s, searched over +-30 min.
+    pub best_lag_s: f64,
+    /// RMS of recorded - shifted simulated (after removing the mean), deg C.
+    pub rms_diff_at_best_lag_c: f64,
+    /// Recorded rise / simulated rise over the run (NaN if the simulated rise < 1 C).
+    pub rise_ratio: f64,
+}
+
+/// Temperature channel comparison.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct TemperatureComparison {
+    /// Per run.
+    pub runs: Vec<TemperatureRun>,
+    /// Some run differs by more than `temp_tolerance_c` RMS.
+    pub mismatch: bool,
+    /// Plain-language statement.
+    pub statement: String,
+}
+
+/// Where recorded and simulated disagree.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Location {
+    /// Raw residual (recorded - simulated) RMS of short means over all runs, deg/h.
+    pub raw_residual_rms_dph: f64,
+    /// Mean raw residual over all runs, deg/h.
+    pub overall_offset_dph: f64,
+    /// Per run: whole run, warm-up, settled.
+    pub spans: Vec<SpanFinding>,
+    /// The (T, dT/dt) map of the raw residual.
+    pub map: Vec<MapCell>,
+    /// Residual Allan deviation against the noise floor.
+    pub allan: Vec<AllanRow>,
+    /// Shortest averaging time where the raw residual exceeds the floor, s.
+    pub first_excess_tau_s: Option<f64>,
+    /// Recorded vs simulated temperature.
+    pub temperature: TemperatureComparison,
+}
+
+/// Cross-validated test of a nonparametric table on the final residual.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct TableTest {
+    /// `T-rate cells` or `time since power-on`.
+    pub table: String,
+    /// `1 - LORO RMS with the table / RMS without`.
+    pub cv_improvement: f64,
+    /// Folds improved.
+    pub folds_improved: usize,
+    /// Folds where the table's prediction is material (as for candidates).
+    pub folds_informative: usize,
+    /// Passes the same acceptance rule as a catalogue effect.
+    pub structured: bool,
+}
+
+/// What the final model leaves unexplained.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Unexplained {
+    /// A structure repeats across runs that no selected effect explains.
+    pub structured: bool,
+    /// Nonparametric LORO tests.
+    pub tables: Vec<TableTest>,
+    /// Significant cells of the final residual's (T, dT/dt) map.
+    pub significant_cells: Vec<MapCell>,
+    /// Significant spans of the final residual.
+    pub significant_spans: Vec<SpanFinding>,
+    /// Spread (sample standard deviation) of per-run mean residuals after the model, deg/h.
+    pub run_offset_spread_dph: f64,
+    /// Plain-language statement.
+    pub statement: String,
+}
+
+/// The whole diagnosis: serialisable as the CLI's JSON document.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Diagnosis {
+    /// Plain-language summary.
+    pub summary: String,
+    /// Effects the simulation leaves out (empty when the residual is consistent with noise).
+    pub left_out: Vec<LeftOutEffect>,
+    /// Where the raw residual is significant.
+    pub location: Location,
+    /// Forward selection, step by step, with every candidate's scores.
+    pub selection: Vec<SelectionStep>,
+    /// What remains after the final model.
+    pub unexplained: Unexplained,
+    /// Noise of the residual.
+    pub noise: NoiseLevel,
+    /// Global offset of the final model, deg/h.
+    pub global_offset: Parameter,
+    /// Held-out residual RMS (short means) of the global offset alone, deg/h.
+    pub residual_before_dph: f64,
+    /// Held-out residual RMS (short means) of the final model, deg/h.
+    pub residual_after_dph: f64,
+    /// Held-out bias stability of the global offset alone, RMS over runs, deg/h.
+    pub bias_stability_before_dph: f64,
+    /// Held-out bias stability of the final model, RMS over runs, deg/h.
+    pub bias_stability_after_dph: f64,
+    /// Run names in pairing order.
+    pub runs: Vec<String>,
+    /// Options used.
+    pub options: DiagnoseOptions,
+    /// Definitions of every statistic, for the report.
+    pub definitions: Vec<String>,
+    /// Per-run traces for the figures (short means).
+    pub traces: Vec<RunTraceOut>,
+}
+
+/// Short-mean traces of one run for figures: residual before and after the final model.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct RunTraceOut {
+    /// Run name.
+    pub run: String,
+    /// Block centre, seconds since power-on.
+    pub time_s: Vec<f64>,
+    /// Smoothed recorded temperature, deg C.
+    pub temp_c: Vec<f64>,
+    /// Recorded rate, deg C/min.
+    pub rate_c_per_min: Vec<f64>,
+    /// Raw residual minus the global offset, deg/h.
+    pub before_dph: Vec<f64>,
+    /// Held-out (LORO) residual of the final model, deg/h.
+    pub after_dph: Vec<f64>,
+}
+
+/// Diagnoses the mismatch between simulated and recorded runs.
+///
+/// `progress(stage, fraction)` is called as stages complete (fraction in 0..=1).
+///
+/// # Errors
+/// [`CalError::Diagnose`] for unusable inputs: no runs, unpaired or duplicate names,
+/// series of unequal length, non-finite values, time not increasing, sampling slower
+/// than 1 Hz, runs too short for the windows, fewer than 2 runs; [`CalError::Fit`] if a
+/// least-squares problem cannot be solved.
+pub fn diagnose(
+    simulated: &[RunSeries],
+    recorded: &[RunSeries],
+    options: &DiagnoseOptions,
+    mut progress: impl FnMut(&str, f64),
+) -> Result<Diagnosis, CalError> {
+    options.validate()?;
+    progress("pairing runs", 0.0);
+    let prep = prepare::prepare(simulated, recorded, options)?;
+    progress("building effect terms", 0.15);
+    let grids = effects::build_grids(&prep)?;
+    progress("forward selection", 0.3);
+    let selection = select::forward_select(&prep, &grids, options, &mut progress)?;
+    progress("held-out evaluation", 0.8);
+    let outcome = select::evaluate_final(&prep, &grids, &selection, options)?;
+    progress("locating", 0.9);
+    let diagnosis = locate::assemble(&prep, &grids, selection, outcome, options)?;
+    progress("done", 1.0);
+    Ok(diagnosis)
+}

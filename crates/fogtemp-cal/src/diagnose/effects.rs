@@ -1,0 +1,575 @@
+//! The discrepancy catalogue (DESIGN.md section 7, physics.md section 4) as parametric
+//! terms built from the recorded signals, each with its profiling grid, its data
+//! requirement and the experiment that separates it from what it is confused with.
+//!
+//! | effect | term (columns; profiled parameters) |
+//! |---|---|
+//! | `thermal_lag` | `a [g(LPF_tau(T)) - g(T)]`, g = the simulation's static relation; tau 1-30 min |
+//! | `shupe_rate` | `c dT/dt` |
+//! | `gradient_rate` | `c d2T/dt2` |
+//! | `warmup_transient` | `A exp(-(t - t_on) / tau_w)`; tau_w 1-60 min |
+//! | `orientation_offset` | one constant per position group, relative to the first group |
+//! | `hysteresis` | `s (h0 [+ h1 (T - T_ref)])`, s = +1 after heating faster than r0, -1 after cooling faster than r0, held in between (0 before the first); r0, degree |
+//! | `static_shape` | cubic B-splines in T over the recorded range, shared by all runs; basis size |
+//! | `scale_factor_temperature` | `Omega_in (s1 (T - T_ref) [+ s2 (T - T_ref)^2])`, ppm; degree |
+//!
+//! T is the recorded temperature smoothed by the centred least-squares line, T_ref the mean
+//! recorded temperature over all short means, `Omega_in` the run's input rate from its
+//! metadata. The constant part of a scale-factor error times the input rate is an
+//! orientation offset and belongs to `orientation_offset`.
+
+use nalgebra::DMatrix;
+use serde::Serialize;
+
+use super::prepare::{Prepared, RunData};
+use crate::error::CalError;
+
+/// A catalogue effect (contract names: [`Effect::name`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize)]
+pub enum Effect {
+    /// The coil sees a lagged temperature.
+    ThermalLag,
+    /// A term in dT/dt missing or wrong.
+    ShupeRate,
+    /// A term in d2T/dt2.
+    GradientRate,
+    /// Decay in time since power-on, not driven by temperature.
+    WarmupTransient,
+    /// Constant offset per position (Earth-rate projection).
+    OrientationOffset,
+    /// Heating and cooling branches differ.
+    Hysteresis,
+    /// Missing structure in b(T).
+    StaticShape,
+    /// Temperature-dependent scale factor times the input rate.
+    ScaleFactorTemperature,
+}
+
+impl Effect {
+    /// Every catalogue effect, in report order.
+    pub const ALL: [Effect; 8] = [
+        Effect::ThermalLag,
+        Effect::ShupeRate,
+        Effect::GradientRate,
+        Effect::WarmupTransient,
+        Effect::OrientationOffset,
+        Effect::Hysteresis,
+        Effect::StaticShape,
+        Effect::ScaleFactorTemperature,
+    ];
+
+    /// The catalogue name (a contract: DESIGN.md section 7).
+    pub fn name(self) -> &'static str {
+        match self {
+            Effect::ThermalLag => "thermal_lag",
+            Effect::ShupeRate => "shupe_rate",
+            Effect::GradientRate => "gradient_rate",
+            Effect::WarmupTransient => "warmup_transient",
+            Effect::OrientationOffset => "orientation_offset",
+            Effect::Hysteresis => "hysteresis",
+            Effect::StaticShape => "static_shape",
+            Effect::ScaleFactorTemperature => "scale_factor_temperature",
+        }
+    }
+
+    /// The experiment that separates this effect from what it is confused with
+    /// (physics.md section 4).
+    pub fn experiment(self) -> &'static str {
+        match self {
+            Effect::ThermalLag => {
+                "ambient temperature sinusoids at two periods (a lag's phase saturates, a dT/dt term's grows with frequency), or a hot restart / chamber ramp run at several temperatures"
+            }
+            Effect::ShupeRate => {
+                "chamber ramps or ripple at several temperatures, so that dT/dt varies independently of T"
+            }
+            Effect::GradientRate => {
+                "a chamber-ramp run next to the power-on runs (d2T/dt2 changes sign between internal and external heating)"
+            }
+            Effect::WarmupTransient => {
+                "a hot restart (power cycle at a settled temperature): a decay in time since power-on whose time constant differs from the thermal one"
+            }
+            Effect::OrientationOffset => {
+                "repeated power-ons in at least two positions (>= 2 runs each) with each run's position recorded"
+            }
+            Effect::Hysteresis => "chamber cycling (heating and cooling) at two ramp rates",
+            Effect::StaticShape => {
+                "runs whose temperature ranges overlap (self-heating larger than the spacing of chamber temperatures)"
+            }
+            Effect::ScaleFactorTemperature => {
+                "runs in at least two orientations with different input rate (e.g. input axis up and down) over the same temperatures"
+            }
+        }
+    }
+}
+
+/// A profiled (non-linear) parameter of an effect.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ProfiledParam {
+    /// Name in reports (`tau_s`, ...).
+    pub name: &'static str,
+    /// Units.
+    pub units: &'static str,
+    /// Continuous (gets a linearised standard error) or a discrete choice.
+    pub continuous: bool,
+}
+
+/// A term's columns at one grid point.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TermColumns {
+    /// Values of the profiled parameters.
+    pub theta: Vec<f64>,
+    /// Name and units of each linear coefficient.
+    pub coefficients: Vec<(String, String)>,
+    /// Per run: short means x columns (unscaled).
+    pub per_run: Vec<DMatrix<f64>>,
+    /// Penalty rows on the coefficients (rows x k), added to every fit as pseudo-observations
+    /// with target 0 (never to held-out errors).
+    pub penalty: Option<DMatrix<f64>>,
+}
+
+impl TermColumns {
+    /// Number of linear coefficients.
+    pub fn k(&self) -> usize {
+        self.coefficients.len()
+    }
+}
+
+/// An effect with its grid of candidate terms.
+#[derive(Clone, Debug, PartialEq)]
+pub struct EffectGrid {
+    /// The effect.
+    pub effect: Effect,
+    /// Profiled parameters (empty for purely linear terms).
+    pub params: Vec<ProfiledParam>,
+    /// One entry per grid point.
+    pub points: Vec<TermColumns>,
+    /// Why the data cannot identify it (with the experiment to run), if so.
+    pub unmet_requirement: Option<String>,
+}
+
+const LAG_GRID_S: [f64; 10] = [60.0, 120.0, 180.0, 300.0, 420.0, 600.0, 900.0, 1200.0, 1500.0, 1800.0];
+const WARMUP_GRID_S: [f64; 11] =
+    [60.0, 120.0, 180.0, 300.0, 450.0, 600.0, 900.0, 1200.0, 1800.0, 2700.0, 3600.0];
+const BRANCH_THRESHOLD_GRID_C_PER_MIN: [f64; 5] = [0.005, 0.01, 0.02, 0.05, 0.1];
+const SPLINE_SIZE_GRID: [f64; 7] = [4.0, 5.0, 6.0, 8.0, 10.0, 12.0, 14.0];
+/// Cooling rate that counts as "cooling" for the hysteresis requirement, deg C/min.
+const COOLING_C_PER_MIN: f64 = -0.02;
+
+/// Block means of a per-second series over each run's valid blocks.
+fn block_average(run: &RunData, per_sec: &[f64]) -> Vec<f64> {
+    let mut sum = vec![0.0; run.blocks.len()];
+    let mut count = vec![0usize; run.blocks.len()];
+    for (k, &b) in run.sec.block_of.iter().enumerate() {
+        if b != usize::MAX && per_sec[k].is_finite() {
+            sum[b] += per_sec[k];
+            count[b] += 1;
+        }
+    }
+    sum.iter().zip(&count).map(|(s, &c)| if c > 0 { s / c as f64 } else { 0.0 }).collect()
+}
+
+/// First-order low-pass of a 1 s series with time constant `tau_s` (NaN-skipping,
+/// started at the first finite value, exact step for the elapsed time).
+pub fn low_pass(values: &[f64], tau_s: f64) -> Vec<f64> {
+    let mut out = vec![f64::NAN; values.len()];
+    let mut state: Option<(usize, f64)> = None;
+    for (k, &v) in values.iter().enumerate() {
+        if !v.is_finite() {
+            continue;
+        }
+        let y = match state {
+            None => v,
+            Some((at, y)) => {
+                let a = (-((k - at) as f64) / tau_s).exp();
+                a * y + (1.0 - a) * v
+            }
+        };
+        out[k] = y;
+        state = Some((k, y));
+    }
+    out
+}
+
+/// Branch of a heating/cooling hysteresis: +1 once dT/dt exceeds `threshold_c_per_min`,
+/// -1 once it falls below minus that, held while |dT/dt| is smaller (0 before the first
+/// crossing). Rate-independent above the threshold, unlike a lag.
+pub fn branch(rate_c_per_min: &[f64], threshold_c_per_min: f64) -> Vec<f64> {
+    let mut state = 0.0;
+    rate_c_per_min
+        .iter()
+        .map(|&r| {
+            if r > threshold_c_per_min {
+                state = 1.0;
+            } else if r < -threshold_c_per_min {
+                state = -1.0;
+            }
+            state
+        })
+        .collect()
+}
+
+/// Clamped uniform cubic B-spline basis with `k >= 4` functions on `[lo, hi]` at `x`
+/// (clamped into the interval); the values sum to 1.
+pub fn bspline_basis(x: f64, lo: f64, hi: f64, k: usize) -> Vec<f64> {
+    let k = k.max(4);
+    let interior = k - 4;
+    let mut knots = vec![lo; 4];
+    knots.extend((1..=interior).map(|i| lo + (hi - lo) * i as f64 / (interior + 1) as f64));
+    knots.extend([hi; 4]);
+    let x = x.clamp(lo, hi - 1e-9 * (hi - lo).abs().max(1e-12));
+    let mut b: Vec<f64> = knots.windows(2).map(|w| if w[0] <= x && x < w[1] { 1.0 } else { 0.0 }).collect();
+    for d in 1..=3 {
+        for i in 0..knots.len() - 1 - d {
+            let left =
+                if knots[i + d] > knots[i] { (x - knots[i]) / (knots[i + d] - knots[i]) * b[i] } else { 0.0 };
+            let right = if knots[i + d + 1] > knots[i + 1] {
+                (knots[i + d + 1] - x) / (knots[i + d + 1] - knots[i + 1]) * b[i + 1]
+            } else {
+                0.0
+            };
+            b[i] = left + right;
+        }
+    }
+    b.truncate(k);
+    b
+}
+
+/// Weight of the P-spline penalty rows: each second difference of neighbouring spline
+/// coefficients counts as one pseudo-observation of 0 (as heavy as one short mean), which
+/// is negligible where data support a coefficient and makes unsupported coefficients (a
+/// held-out run beyond the training temperatures) follow a straight line instead of
+/// swinging freely.
+const SPLINE_PENALTY_WEIGHT: f64 = 1.0;
+
+/// Second-difference penalty rows for `k` coefficients.
+fn second_differences(k: usize) -> DMatrix<f64> {
+    let rows = k.saturating_sub(2);
+    DMatrix::from_fn(rows, k, |i, j| {
+        SPLINE_PENALTY_WEIGHT
+            * match j.wrapping_sub(i) {
+                0 | 2 => 1.0,
+                1 => -2.0,
+                _ => 0.0,
+            }
+    })
+}
+
+fn matrix_from_columns(columns: &[Vec<f64>]) -> DMatrix<f64> {
+    let n = columns.first().map_or(0, Vec::len);
+    DMatrix::from_fn(n, columns.len(), |i, j| columns[j][i])
+}
+
+fn coef(name: impl Into<String>, units: &str) -> (String, String) {
+    (name.into(), units.to_string())
+}
+
+/// Sorted distinct groups (unlabelled runs form the group `(unlabelled)`).
+pub fn groups(prep: &Prepared) -> Vec<String> {
+    let mut g: Vec<String> = prep.runs.iter().map(group_of).collect();
+    g.sort();
+    g.dedup();
+    g
+}
+
+/// The group label of a run.
+pub fn group_of(run: &RunData) -> String {
+    run.group.clone().unwrap_or_else(|| "(unlabelled)".to_string())
+}
+
+/// Columns of `effect` at profiled parameters `theta`.
+pub fn term_columns(prep: &Prepared, effect: Effect, theta: &[f64]) -> TermColumns {
+    let t_ref = prep.temp_ref_c;
+    let per_block = |f: &dyn Fn(&super::prepare::Block) -> f64| -> Vec<DMatrix<f64>> {
+        prep.runs.iter().map(|r| matrix_from_columns(&[r.blocks.iter().map(f).collect()])).collect()
+    };
+    let theta_v = theta.to_vec();
+    match effect {
+        Effect::ThermalLag => {
+            let tau_s = theta[0];
+            let per_run = prep
+                .runs
+                .iter()
+                .map(|r| {
+                    let lagged = low_pass(&r.sec.temp_c, tau_s);
+                    let per_sec: Vec<f64> = match &prep.static_relation {
+                        Some(g) => {
+                            r.sec.temp_c.iter().zip(&lagged).map(|(t, l)| g.eval(*l) - g.eval(*t)).collect()
+                        }
+                        None => vec![0.0; r.sec.temp_c.len()],
+                    };
+                    matrix_from_columns(&[block_average(r, &per_sec)])
+                })
+                .collect();
+            TermColumns {
+                theta: theta_v,
+                coefficients: vec![coef("gain", "1 (1 = the simulation's b(T) on a lagged temperature)")],
+                per_run,
+                penalty: None,
+            }
+        }
+        Effect::ShupeRate => TermColumns {
+            theta: theta_v,
+            coefficients: vec![coef("coefficient_dph_per_c_per_min", "deg/h per deg C/min")],
+            per_run: per_block(&|b| b.rate_c_per_min),
+            penalty: None,
+        },
+        Effect::GradientRate => TermColumns {
+            theta: theta_v,
+            coefficients: vec![coef("coefficient_dph_per_c_per_min2", "deg/h per deg C/min^2")],
+            per_run: per_block(&|b| b.accel_c_per_min2),
+            penalty: None,
+        },
+        Effect::WarmupTransient => {
+            let tau_s = theta[0];
+            let per_run = prep
+                .runs
+                .iter()
+                .map(|r| {
+                    let per_sec: Vec<f64> = r
+                        .sec
+                        .since_on_s
+                        .iter()
+                        .map(|&t| if t >= 0.0 { (-t / tau_s).exp() } else { 0.0 })
+                        .collect();
+                    matrix_from_columns(&[block_average(r, &per_sec)])
+                })
+                .collect();
+            TermColumns {
+                theta: theta_v,
+                coefficients: vec![coef("amplitude_dph", "deg/h")],
+                per_run,
+                penalty: None,
+            }
+        }
+        Effect::OrientationOffset => {
+            let g = groups(prep);
+            let reference = g.first().cloned().unwrap_or_default();
+            let others: Vec<String> = g.iter().skip(1).cloned().collect();
+            let per_run = prep
+                .runs
+                .iter()
+                .map(|r| {
+                    let mine = group_of(r);
+                    DMatrix::from_fn(r.blocks.len(), others.len(), |_, j| {
+                        f64::from(u8::from(others[j] == mine))
+                    })
+                })
+                .collect();
+            let coefficients =
+                others.iter().map(|o| coef(format!("offset_{o}_minus_{reference}_dph"), "deg/h")).collect();
+            TermColumns { theta: theta_v, coefficients, per_run, penalty: None }
+        }
+        Effect::Hysteresis => {
+            let (threshold, degree) = (theta[0], theta[1]);
+            let per_run = prep
+                .runs
+                .iter()
+                .map(|r| {
+                    let s = block_average(r, &branch(&r.sec.rate_c_per_min, threshold));
+                    let mut cols = vec![s.clone()];
+                    if degree >= 1.0 {
+                        cols.push(s.iter().zip(&r.blocks).map(|(s, b)| s * (b.temp_c - t_ref)).collect());
+                    }
+                    matrix_from_columns(&cols)
+                })
+                .collect();
+            let mut coefficients = vec![coef("half_gap_dph", "deg/h (heating branch minus mid-line)")];
+            if degree >= 1.0 {
+                coefficients.push(coef("half_gap_slope_dph_per_c", "deg/h per deg C"));
+            }
+            TermColumns { theta: theta_v, coefficients, per_run, penalty: None }
+        }
+        Effect::StaticShape => {
+            let k = theta[0] as usize;
+            let (lo, hi) = prep.temp_range_c;
+            let per_run = prep
+                .runs
+                .iter()
+                .map(|r| {
+                    let basis: Vec<Vec<f64>> =
+                        r.blocks.iter().map(|b| bspline_basis(b.temp_c, lo, hi, k)).collect();
+                    // The first function is dropped: the splines sum to one, the global offset is the constant.
+                    DMatrix::from_fn(r.blocks.len(), k - 1, |i, j| basis[i][j + 1])
+                })
+                .collect();
+            let coefficients = (1..k).map(|j| coef(format!("spline_{j}_dph"), "deg/h")).collect();
+            TermColumns { theta: theta_v, coefficients, per_run, penalty: Some(second_differences(k - 1)) }
+        }
+        Effect::ScaleFactorTemperature => {
+            let degree = theta[0] as i32;
+            let per_run = prep
+                .runs
+                .iter()
+                .map(|r| {
+                    let omega = r.input_rate_dph.unwrap_or(0.0) * 1e-6;
+                    let cols: Vec<Vec<f64>> = (1..=degree)
+                        .map(|d| r.blocks.iter().map(|b| omega * (b.temp_c - t_ref).powi(d)).collect())
+                        .collect();
+                    matrix_from_columns(&cols)
+                })
+                .collect();
+            let mut coefficients = vec![coef("s1_ppm_per_c", "ppm per deg C")];
+            if degree >= 2 {
+                coefficients.push(coef("s2_ppm_per_c2", "ppm per deg C^2"));
+            }
+            TermColumns { theta: theta_v, coefficients, per_run, penalty: None }
+        }
+    }
+}
+
+/// Profiled parameters and their grid for `effect`.
+pub fn grid_of(effect: Effect) -> (Vec<ProfiledParam>, Vec<Vec<f64>>) {
+    let p = |name, units, continuous| ProfiledParam { name, units, continuous };
+    match effect {
+        Effect::ThermalLag => (vec![p("tau_s", "s", true)], LAG_GRID_S.iter().map(|v| vec![*v]).collect()),
+        Effect::WarmupTransient => {
+            (vec![p("tau_s", "s", true)], WARMUP_GRID_S.iter().map(|v| vec![*v]).collect())
+        }
+        Effect::Hysteresis => (
+            vec![p("rate_threshold_c_per_min", "deg C/min", true), p("degree", "1", false)],
+            BRANCH_THRESHOLD_GRID_C_PER_MIN.iter().flat_map(|w| [vec![*w, 0.0], vec![*w, 1.0]]).collect(),
+        ),
+        Effect::StaticShape => {
+            (vec![p("basis_functions", "1", false)], SPLINE_SIZE_GRID.iter().map(|v| vec![*v]).collect())
+        }
+        Effect::ScaleFactorTemperature => (vec![p("degree", "1", false)], vec![vec![1.0], vec![2.0]]),
+        Effect::ShupeRate | Effect::GradientRate | Effect::OrientationOffset => {
+            (Vec::new(), vec![Vec::new()])
+        }
+    }
+}
+
+fn spread(values: impl Iterator<Item = f64>) -> f64 {
+    let v: Vec<f64> = values.collect();
+    crate::metrics::sample_std(&v)
+}
+
+/// Median fraction of the runs' short means that lie within the union of the other runs'
+/// temperature ranges: how well one run's temperatures are seen by the rest.
+pub fn temperature_overlap(prep: &Prepared) -> f64 {
+    let ranges: Vec<(f64, f64)> = prep
+        .runs
+        .iter()
+        .map(|r| {
+            r.blocks
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| (a.min(x.temp_c), b.max(x.temp_c)))
+        })
+        .collect();
+    let mut fractions: Vec<f64> = prep
+        .runs
+        .iter()
+        .enumerate()
+        .map(|(i, r)| {
+            let inside = r
+                .blocks
+                .iter()
+                .filter(|b| {
+                    ranges
+                        .iter()
+                        .enumerate()
+                        .any(|(j, (lo, hi))| j != i && b.temp_c >= *lo && b.temp_c <= *hi)
+                })
+                .count();
+            inside as f64 / r.blocks.len().max(1) as f64
+        })
+        .collect();
+    fractions.sort_by(f64::total_cmp);
+    fractions.get(fractions.len() / 2).copied().unwrap_or(0.0)
+}
+
+/// Smallest median overlap (see [`temperature_overlap`]) for `static_shape`.
+const MIN_OVERLAP: f64 = 0.5;
+
+/// Why these runs cannot identify `effect` (with the experiment to run), if they cannot.
+pub fn unmet_requirement(prep: &Prepared, effect: Effect) -> Option<String> {
+    let blocks = || prep.runs.iter().flat_map(|r| r.blocks.iter());
+    let why = |reason: String| Some(format!("{reason}; run: {}", effect.experiment()));
+    match effect {
+        Effect::ThermalLag => match &prep.static_relation {
+            None => why("the simulated gyro has no static temperature dependence to lag (or its temperature varies < 1 C)".into()),
+            Some(g) => {
+                let (lo, hi) = prep.temp_range_c;
+                let slope = (0..=10).map(|i| g.slope(lo + (hi - lo) * i as f64 / 10.0).abs()).fold(0.0, f64::max);
+                (slope < 1e-6).then(|| format!("the simulation's b(T) is flat; run: {}", effect.experiment()))
+            }
+        },
+        Effect::ShupeRate => (spread(blocks().map(|b| b.rate_c_per_min)) < 0.005)
+            .then(|| format!("dT/dt hardly varies (std < 0.005 C/min); run: {}", effect.experiment())),
+        Effect::GradientRate => (spread(blocks().map(|b| b.accel_c_per_min2)) < 1e-4)
+            .then(|| format!("d2T/dt2 hardly varies; run: {}", effect.experiment())),
+        Effect::WarmupTransient => None,
+        Effect::OrientationOffset => {
+            let g = groups(prep);
+            let repeated = g
+                .iter()
+                .filter(|name| prep.runs.iter().filter(|r| group_of(r) == **name).count() >= 2)
+                .count();
+            if prep.runs.iter().any(|r| r.group.is_none()) {
+                why("not every run has a position label (RunMeta.group)".into())
+            } else if g.len() < 2 || repeated < 2 {
+                why(format!(
+                    "{} position group(s), {} with >= 2 runs: a per-position offset cannot be told from turn-on repeatability",
+                    g.len(),
+                    repeated
+                ))
+            } else {
+                None
+            }
+        }
+        Effect::Hysteresis => {
+            let cooling = blocks().filter(|b| b.rate_c_per_min < COOLING_C_PER_MIN).count();
+            (cooling < 10).then(|| {
+                format!(
+                    "no cooling in these runs ({cooling} short means below {COOLING_C_PER_MIN} C/min): heating and cooling branches cannot be compared from power-on data; run: {}",
+                    effect.experiment()
+                )
+            })
+        }
+        Effect::StaticShape => {
+            let (lo, hi) = prep.temp_range_c;
+            let covered = temperature_overlap(prep);
+            if hi - lo < 5.0 {
+                why(format!("the recorded temperature spans only {:.1} C", hi - lo))
+            } else if covered < MIN_OVERLAP {
+                why(format!(
+                    "the runs' temperature ranges hardly overlap (median {:.0} % of a run's short means lie within the other runs' ranges): a shape in T cannot be told from per-run offsets",
+                    100.0 * covered
+                ))
+            } else {
+                None
+            }
+        }
+        Effect::ScaleFactorTemperature => {
+            if prep.runs.iter().any(|r| r.input_rate_dph.is_none()) {
+                return why("not every run states its input rate (RunMeta.input_rate_dph)".into());
+            }
+            let mut rates: Vec<f64> = prep.runs.iter().filter_map(|r| r.input_rate_dph).collect();
+            rates.sort_by(f64::total_cmp);
+            let distinct = rates.windows(2).filter(|w| w[1] - w[0] > 1.0).count() + 1;
+            (distinct < 2).then(|| {
+                format!(
+                    "all runs share one input rate ({:.3} deg/h): a scale factor(T) times it is exactly a static b(T) (needs >= 2 orientations); run: {}",
+                    rates[0],
+                    effect.experiment()
+                )
+            })
+        }
+    }
+}
+
+/// Every catalogue effect's grid of terms.
+///
+/// # Errors
+/// None at present; the signature leaves room for term construction to fail.
+pub fn build_grids(prep: &Prepared) -> Result<Vec<EffectGrid>, CalError> {
+    use rayon::prelude::*;
+    Ok(Effect::ALL
+        .par_iter()
+        .map(|&effect| {
+            let (params, thetas) = grid_of(effect);
+            let points = thetas.iter().map(|t| term_columns(prep, effect, t)).collect();
+            EffectGrid { effect, params, points, unmet_requirement: unmet_requirement(prep, effect) }
+        })
+        .collect())
+}

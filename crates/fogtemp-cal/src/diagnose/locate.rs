@@ -1,0 +1,585 @@
+//! Locating the mismatch (per-run spans, the (T, dT/dt) map with HAC errors, Allan
+//! deviation against a noise floor, the temperature channels), the test for structure no
+//! catalogue effect explains, and the assembly of the [`Diagnosis`].
+
+use statrs::distribution::{ContinuousCDF, Normal};
+
+use super::effects::EffectGrid;
+use super::linalg::hac_se_of_mean;
+use super::prepare::{adev_at, longest_finite, Prepared, RunData};
+use super::select::{fold_counts, folds_pass, material_runs, FinalOutcome, Selection};
+use super::{
+    AllanRow, DiagnoseOptions, Diagnosis, Location, MapCell, NoiseLevel, RunTraceOut, SpanFinding, TableTest,
+    TemperatureComparison, TemperatureRun, Unexplained,
+};
+use crate::error::CalError;
+use crate::metrics::{allan_deviation, fit_noise_terms, sample_std, AllanPoint, NoiseTerms};
+
+/// Two-sided Bonferroni-corrected 5 % limit on |z| over `m` tests.
+pub fn bonferroni_z(m: usize) -> f64 {
+    let alpha = 0.05 / m.max(1) as f64;
+    Normal::new(0.0, 1.0).map_or(3.0, |n| n.inverse_cdf(1.0 - alpha / 2.0))
+}
+
+fn mean(v: &[f64]) -> f64 {
+    v.iter().sum::<f64>() / v.len().max(1) as f64
+}
+
+fn rms(v: &[f64]) -> f64 {
+    (v.iter().map(|x| x * x).sum::<f64>() / v.len().max(1) as f64).sqrt()
+}
+
+/// Least-squares slope of `v` against `t`.
+fn slope(t: &[f64], v: &[f64]) -> f64 {
+    let (mt, mv) = (mean(t), mean(v));
+    let sxx: f64 = t.iter().map(|x| (x - mt).powi(2)).sum();
+    let sxy: f64 = t.iter().zip(v).map(|(x, y)| (x - mt) * (y - mv)).sum();
+    if sxx > 0.0 {
+        sxy / sxx
+    } else {
+        0.0
+    }
+}
+
+/// Mean, HAC SE and more for the blocks of `run` selected by `keep`, residual `e`.
+fn span(run: &RunData, e: &[f64], label: &str, range: (f64, f64), lag: usize) -> Option<SpanFinding> {
+    let sel: Vec<usize> = (0..run.blocks.len())
+        .filter(|&i| run.blocks[i].since_on_s >= range.0 && run.blocks[i].since_on_s < range.1)
+        .collect();
+    if sel.len() < 3 {
+        return None;
+    }
+    let v: Vec<f64> = sel.iter().map(|&i| e[i]).collect();
+    let idx: Vec<usize> = sel.iter().map(|&i| run.blocks[i].index).collect();
+    let t_h: Vec<f64> = sel.iter().map(|&i| run.blocks[i].since_on_s / 3600.0).collect();
+    let m = mean(&v);
+    let se = hac_se_of_mean(std::slice::from_ref(&v), &[idx], lag);
+    Some(SpanFinding {
+        run: run.name.clone(),
+        span: label.to_string(),
+        start_s: run.blocks[sel[0]].since_on_s,
+        end_s: run.blocks[sel[sel.len() - 1]].since_on_s,
+        n_means: sel.len(),
+        mean_dph: m,
+        hac_se_dph: se,
+        z: m / se,
+        rms_dph: rms(&v),
+        slope_dph_per_h: slope(&t_h, &v),
+        significant: false,
+    })
+}
+
+/// Whole-run, warm-up and settled spans of every run, with Bonferroni significance.
+pub fn spans(prep: &Prepared, e: &[Vec<f64>], options: &DiagnoseOptions) -> Vec<SpanFinding> {
+    let w = options.warmup_span_s;
+    let mut out: Vec<SpanFinding> = prep
+        .runs
+        .iter()
+        .zip(e)
+        .flat_map(|(run, er)| {
+            [
+                span(run, er, "whole run", (f64::NEG_INFINITY, f64::INFINITY), prep.hac_lag_blocks),
+                span(run, er, "warm-up", (f64::NEG_INFINITY, w), prep.hac_lag_blocks),
+                span(run, er, "settled", (w, f64::INFINITY), prep.hac_lag_blocks),
+            ]
+        })
+        .flatten()
+        .collect();
+    let z = bonferroni_z(out.len());
+    for s in &mut out {
+        s.significant = s.z.abs() > z;
+    }
+    out
+}
+
+/// Edges of the temperature bins (equal width over the recorded range).
+fn temp_edges(prep: &Prepared, bins: usize) -> Vec<f64> {
+    let (lo, hi) = prep.temp_range_c;
+    let hi = if hi > lo { hi } else { lo + 1.0 };
+    (0..=bins).map(|i| lo + (hi - lo) * i as f64 / bins as f64).collect()
+}
+
+fn bin_of(edges: &[f64], v: f64, open: bool) -> usize {
+    let inner = if open { edges } else { &edges[1..edges.len() - 1] };
+    inner.iter().filter(|e| v >= **e).count()
+}
+
+/// Cell of every block: (temperature bin, rate bin).
+pub fn cells_of(prep: &Prepared, options: &DiagnoseOptions) -> Vec<Vec<(usize, usize)>> {
+    let te = temp_edges(prep, options.temp_bins);
+    prep.runs
+        .iter()
+        .map(|r| {
+            r.blocks
+                .iter()
+                .map(|b| {
+                    (
+                        bin_of(&te, b.temp_c, false),
+                        bin_of(&options.rate_edges_c_per_min, b.rate_c_per_min, true),
+                    )
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// The (T, dT/dt) map of residual `e` with Newey-West errors (cells with >= 5 means).
+pub fn map(prep: &Prepared, e: &[Vec<f64>], options: &DiagnoseOptions) -> Vec<MapCell> {
+    let te = temp_edges(prep, options.temp_bins);
+    let re = &options.rate_edges_c_per_min;
+    let cells = cells_of(prep, options);
+    let mut out = Vec::new();
+    for tb in 0..options.temp_bins {
+        for rb in 0..=re.len() {
+            let mut values = Vec::new();
+            let mut indices = Vec::new();
+            for ((run, er), cr) in prep.runs.iter().zip(e).zip(&cells) {
+                let sel: Vec<usize> = (0..er.len()).filter(|&i| cr[i] == (tb, rb)).collect();
+                if !sel.is_empty() {
+                    values.push(sel.iter().map(|&i| er[i]).collect::<Vec<f64>>());
+                    indices.push(sel.iter().map(|&i| run.blocks[i].index).collect::<Vec<usize>>());
+                }
+            }
+            let n: usize = values.iter().map(Vec::len).sum();
+            if n < 5 {
+                continue;
+            }
+            let m = values.iter().flatten().sum::<f64>() / n as f64;
+            let se = hac_se_of_mean(&values, &indices, prep.hac_lag_blocks);
+            out.push(MapCell {
+                temp_lo_c: te[tb],
+                temp_hi_c: te[tb + 1],
+                rate_lo_c_per_min: rb.checked_sub(1).map(|i| re[i]),
+                rate_hi_c_per_min: re.get(rb).copied(),
+                temp_bin: tb,
+                rate_bin: rb,
+                n_means: n,
+                n_runs: values.len(),
+                mean_dph: m,
+                hac_se_dph: se,
+                z: m / se,
+                significant: false,
+            });
+        }
+    }
+    let z = bonferroni_z(out.len());
+    for c in &mut out {
+        c.significant = c.z.abs() > z;
+    }
+    out
+}
+
+/// RMS over runs of Allan curves on the points all runs share (tau up to 1/4 run).
+fn pooled_allan(series: &[Vec<f64>]) -> Vec<AllanPoint> {
+    let curves: Vec<Vec<AllanPoint>> = series
+        .iter()
+        .map(|s| {
+            let seg = longest_finite(s);
+            let quarter = seg.len() as f64 / 4.0;
+            allan_deviation(seg, 1.0).into_iter().filter(|p| p.tau_s <= quarter).collect()
+        })
+        .filter(|c: &Vec<AllanPoint>| !c.is_empty())
+        .collect();
+    let mut pooled = crate::report::rms_allan(&curves);
+    let runs = curves.len().max(1) as f64;
+    for p in &mut pooled {
+        p.relative_error /= runs.sqrt();
+    }
+    pooled
+}
+
+/// 1 s residual minus a per-block correction (`correction[b]` for block b).
+fn corrected_seconds(run: &RunData, correction: &[f64]) -> Vec<f64> {
+    run.sec
+        .resid_dph
+        .iter()
+        .zip(&run.sec.block_of)
+        .map(|(r, &b)| if b == usize::MAX { f64::NAN } else { r - correction[b] })
+        .collect()
+}
+
+fn floor_of(terms: &NoiseTerms, tau_s: f64) -> f64 {
+    let b = 2.0 * std::f64::consts::LN_2 / std::f64::consts::PI;
+    ((60.0 * terms.arw_deg_per_sqrt_h).powi(2) / tau_s
+        + b * terms.bias_instability_dph.powi(2)
+        + terms.rrw_dph_per_sqrt_h.powi(2) * tau_s / (3.0 * 3600.0))
+        .sqrt()
+}
+
+fn is_excess(value: f64, floor: f64, rel: f64) -> bool {
+    value > floor * (1.0 + 3.0 * rel) && value > 1.3 * floor
+}
+
+/// Allan comparison and the noise terms fitted to the final residual.
+fn allan_and_noise(
+    prep: &Prepared,
+    outcome: &FinalOutcome,
+    options: &DiagnoseOptions,
+) -> (Vec<AllanRow>, NoiseLevel) {
+    let before: Vec<Vec<f64>> =
+        prep.runs.iter().map(|r| corrected_seconds(r, &vec![0.0; r.blocks.len()])).collect();
+    let after: Vec<Vec<f64>> = prep
+        .runs
+        .iter()
+        .zip(&outcome.fitted_resid)
+        .map(|(r, e)| {
+            let correction: Vec<f64> = r.blocks.iter().zip(e).map(|(b, e)| b.resid_dph - e).collect();
+            corrected_seconds(r, &correction)
+        })
+        .collect();
+    let (pb, pa) = (pooled_allan(&before), pooled_allan(&after));
+    let terms = fit_noise_terms(&pa);
+    let rows: Vec<AllanRow> = pb
+        .iter()
+        .zip(&pa)
+        .map(|(b, a)| {
+            let floor = floor_of(&terms, b.tau_s);
+            AllanRow {
+                tau_s: b.tau_s,
+                before_dph: b.adev_dph,
+                after_dph: a.adev_dph,
+                floor_dph: floor,
+                relative_error: b.relative_error,
+                before_excess: is_excess(b.adev_dph, floor, b.relative_error),
+                after_excess: is_excess(a.adev_dph, floor, a.relative_error),
+            }
+        })
+        .collect();
+    let m = prep.block_s;
+    let short = |series: &[Vec<f64>]| {
+        let v: Vec<f64> =
+            series.iter().map(|s| adev_at(longest_finite(s), m)).filter(|v| v.is_finite()).collect();
+        rms(&v)
+    };
+    let recorded: Vec<Vec<f64>> = prep.runs.iter().map(|r| r.sec.gyro_rec_dph.clone()).collect();
+    let noise = NoiseLevel {
+        short_mean_sigma_dph: short(&after),
+        arw_deg_per_sqrt_h: terms.arw_deg_per_sqrt_h,
+        bias_instability_dph: terms.bias_instability_dph,
+        rrw_dph_per_sqrt_h: terms.rrw_dph_per_sqrt_h,
+        recorded_short_mean_adev_dph: short(&recorded),
+        definition: format!(
+            "short-mean noise = overlapping Allan deviation at tau = {m} s of the 1 s residual after the final model, RMS over runs (longest gap-free stretch of each run); N, B, K = weighted NNLS fit of sigma^2 = (60N)^2/tau + (2 ln2/pi) B^2 + K^2 tau/(3*3600) to that residual's pooled Allan deviation (tau <= 1/4 run); the floor is that curve. {}",
+            if options.mean_window_s.round() as usize != m { "(mean window rounded to whole seconds)" } else { "" }
+        ),
+    };
+    (rows, noise)
+}
+
+/// Recorded vs simulated temperature per run.
+pub fn temperature(prep: &Prepared, options: &DiagnoseOptions) -> TemperatureComparison {
+    let runs: Vec<TemperatureRun> = prep.runs.iter().map(temperature_run).collect();
+    let worst = runs.iter().map(|r| r.rms_diff_c).fold(0.0, f64::max);
+    let mismatch = worst > options.temp_tolerance_c;
+    let statement = if mismatch {
+        let lagged: Vec<String> = runs
+            .iter()
+            .filter(|r| r.best_lag_s.abs() >= 60.0 && r.rms_diff_at_best_lag_c < 0.5 * r.rms_diff_c)
+            .map(|r| format!("{} ({:+.0} s)", r.run, r.best_lag_s))
+            .collect();
+        let mut s = format!(
+            "thermal-model mismatch: recorded and simulated temperature differ by up to {worst:.2} C RMS (tolerance {:.2} C)",
+            options.temp_tolerance_c
+        );
+        if !lagged.is_empty() {
+            s.push_str(&format!("; a time shift explains most of it in: {}", lagged.join(", ")));
+        }
+        s
+    } else {
+        format!(
+            "recorded and simulated temperature agree within {:.2} C RMS in every run (largest {worst:.3} C)",
+            options.temp_tolerance_c
+        )
+    };
+    TemperatureComparison { runs, mismatch, statement }
+}
+
+fn temperature_run(run: &RunData) -> TemperatureRun {
+    let s = &run.sec;
+    let pairs: Vec<(f64, f64)> = s
+        .temp_c
+        .iter()
+        .zip(&s.temp_sim_c)
+        .filter(|(a, b)| a.is_finite() && b.is_finite())
+        .map(|(a, b)| (*a, *b))
+        .collect();
+    let diff: Vec<f64> = pairs.iter().map(|(a, b)| a - b).collect();
+    let rate_diff: Vec<f64> = s
+        .rate_c_per_min
+        .iter()
+        .zip(&s.rate_sim_c_per_min)
+        .filter(|(a, b)| a.is_finite() && b.is_finite())
+        .map(|(a, b)| a - b)
+        .collect();
+    let (best_lag_s, best_rms) = best_shift(&s.temp_c, &s.temp_sim_c);
+    let rise = |v: &[f64]| {
+        let f: Vec<f64> = v.iter().copied().filter(|x| x.is_finite()).collect();
+        f.last().copied().unwrap_or(0.0) - f.first().copied().unwrap_or(0.0)
+    };
+    let sim_rise = rise(&s.temp_sim_c);
+    TemperatureRun {
+        run: run.name.clone(),
+        mean_diff_c: mean(&diff),
+        rms_diff_c: rms(&diff),
+        max_abs_diff_c: diff.iter().map(|d| d.abs()).fold(0.0, f64::max),
+        rate_rms_diff_c_per_min: rms(&rate_diff),
+        best_lag_s,
+        rms_diff_at_best_lag_c: best_rms,
+        rise_ratio: if sim_rise.abs() >= 1.0 { rise(&s.temp_c) / sim_rise } else { f64::NAN },
+    }
+}
+
+/// Shift (10 s steps, +-30 min) of `sim` minimising the RMS of `rec(t) - sim(t - shift)`
+/// after removing the mean difference.
+fn best_shift(rec: &[f64], sim: &[f64]) -> (f64, f64) {
+    let mut best = (0.0, f64::INFINITY);
+    for step in -180i64..=180 {
+        let shift = step * 10;
+        let d: Vec<f64> = (0..rec.len())
+            .filter_map(|k| {
+                let j = k as i64 - shift;
+                (j >= 0 && (j as usize) < sim.len()).then(|| rec[k] - sim[j as usize])
+            })
+            .filter(|v| v.is_finite())
+            .collect();
+        if d.len() < rec.len() / 2 {
+            continue;
+        }
+        let m = mean(&d);
+        let r = (d.iter().map(|v| (v - m).powi(2)).sum::<f64>() / d.len() as f64).sqrt();
+        if r < best.1 - 1e-12 {
+            best = (shift as f64, r);
+        }
+    }
+    best
+}
+
+/// LORO test of a lookup table (per-key means of the other runs) on residual `e`.
+fn table_test(
+    name: &str,
+    keys: &[Vec<usize>],
+    e: &[Vec<f64>],
+    min_fraction: f64,
+    noise_sigma_dph: f64,
+) -> TableTest {
+    let n_keys = keys.iter().flatten().max().map_or(0, |m| m + 1);
+    let mut before = Vec::new();
+    let mut after = Vec::new();
+    let mut predictions = Vec::new();
+    for j in 0..e.len() {
+        let mut sum = vec![0.0; n_keys];
+        let mut count = vec![0usize; n_keys];
+        for (i, (er, kr)) in e.iter().zip(keys).enumerate() {
+            if i != j {
+                for (v, k) in er.iter().zip(kr) {
+                    sum[*k] += v;
+                    count[*k] += 1;
+                }
+            }
+        }
+        let pred = |k: usize| if count[k] >= 3 { sum[k] / count[k] as f64 } else { 0.0 };
+        predictions.push(keys[j].iter().map(|k| pred(*k)).collect::<Vec<f64>>());
+        before.push(e[j].iter().map(|v| v * v).sum::<f64>());
+        after.push(e[j].iter().zip(&keys[j]).map(|(v, k)| (v - pred(*k)).powi(2)).sum::<f64>());
+    }
+    let material = material_runs(&predictions, noise_sigma_dph);
+    let (improved, informative) = fold_counts(&before, &after, &material);
+    let (b, a): (f64, f64) = (before.iter().sum(), after.iter().sum());
+    TableTest {
+        table: name.to_string(),
+        cv_improvement: 1.0 - (a / b).sqrt(),
+        folds_improved: improved,
+        folds_informative: informative,
+        structured: a < b && folds_pass(improved, informative, min_fraction),
+    }
+}
+
+const TIME_EDGES_S: [f64; 10] =
+    [300.0, 600.0, 900.0, 1200.0, 1800.0, 2400.0, 3600.0, 5400.0, 7200.0, 10800.0];
+
+fn unexplained(
+    prep: &Prepared,
+    outcome: &FinalOutcome,
+    options: &DiagnoseOptions,
+    left_out_empty: bool,
+) -> Unexplained {
+    let e = &outcome.fitted_resid;
+    let n_rate = options.rate_edges_c_per_min.len() + 1;
+    let cell_keys: Vec<Vec<usize>> =
+        cells_of(prep, options).iter().map(|c| c.iter().map(|(t, r)| t * n_rate + r).collect()).collect();
+    let time_keys: Vec<Vec<usize>> = prep
+        .runs
+        .iter()
+        .map(|r| {
+            r.blocks.iter().map(|b| TIME_EDGES_S.iter().filter(|x| b.since_on_s >= **x).count()).collect()
+        })
+        .collect();
+    let tables = vec![
+        table_test("T-rate cells", &cell_keys, e, options.min_fold_fraction, prep.noise_sigma_dph),
+        table_test("time since power-on", &time_keys, e, options.min_fold_fraction, prep.noise_sigma_dph),
+    ];
+    let significant_cells: Vec<MapCell> =
+        map(prep, e, options).into_iter().filter(|c| c.significant).collect();
+    let significant_spans: Vec<SpanFinding> =
+        spans(prep, e, options).into_iter().filter(|s| s.significant).collect();
+    let offsets: Vec<f64> = e.iter().map(|v| mean(v)).collect();
+    let structured = tables.iter().any(|t| t.structured);
+    let statement = if structured {
+        let which: Vec<String> = tables
+            .iter()
+            .filter(|t| t.structured)
+            .map(|t| {
+                format!(
+                    "a {} table lowers the held-out residual by {:.1} %",
+                    t.table,
+                    100.0 * t.cv_improvement
+                )
+            })
+            .collect();
+        format!(
+            "structure remains that no catalogue effect explains: {}; {} significant (T, dT/dt) cells, {} significant run spans (see the map)",
+            which.join(", "),
+            significant_cells.len(),
+            significant_spans.len()
+        )
+    } else if left_out_empty {
+        "the residual is consistent with noise: no catalogue effect improves held-out runs and no structure repeats across runs".to_string()
+    } else {
+        "after the chosen effects the residual is consistent with noise: no structure repeats across runs"
+            .to_string()
+    };
+    Unexplained {
+        structured,
+        tables,
+        significant_cells,
+        significant_spans,
+        run_offset_spread_dph: sample_std(&offsets),
+        statement,
+    }
+}
+
+fn definitions(options: &DiagnoseOptions, prep: &Prepared) -> Vec<String> {
+    vec![
+        format!("residual = recorded gyro - simulated gyro, averaged into short means of {} s on a common 1 s grid (a mean counts if >= 90 % of its seconds hold data)", prep.block_s),
+        format!("T and dT/dt = level and slope of a centred least-squares line over {} s of 1 s temperature means; d2T/dt2 = least-squares slope of dT/dt over {} s", options.rate_window_s, options.accel_window_s),
+        format!("HAC standard error = Newey-West with Bartlett weights, bandwidth {} short means ({} s), lags within a run only", prep.hac_lag_blocks, options.hac_lag_s),
+        "significance of spans and map cells: |z| above the two-sided 5 % normal limit, Bonferroni-corrected over all spans (cells)".into(),
+        "model = one global offset + chosen effect terms (no per-run offsets), least squares on the short means of all runs".into(),
+        "LORO = leave-one-run-out: every run is predicted by the model fitted to the other runs, profiled parameters re-chosen on the training runs".into(),
+        "n_eff = n (1 - rho)/(1 + rho), rho = lag-1 autocorrelation of the current model's residual short means within runs; BIC = n_eff ln(RSS/n) + k ln(n_eff), k = coefficients + profiled parameters".into(),
+        format!("acceptance: identifiable, LORO error falls, >= {:.0} % of informative folds improve (a held-out run is informative when the term's contribution there, about its mean over all runs, has an RMS >= 1/4 of the short-mean noise; at least 2 such runs), BIC falls, and the term is stable across folds (jackknife t of the fold contributions projected on the full-data contribution above the two-sided Student-t limit, runs - 1 dof, 5 % Bonferroni over the step's candidates; for a basis in T with > 2 coefficients instead every fold reproduces >= 50 % of the full-data contribution); best LORO error enters first", 100.0 * options.min_fold_fraction),
+        "parameter standard errors: delete-one-run jackknife over the LORO fits of the final model, profiled parameters linearised (their derivative columns added to the design); complexity (basis size, degree) chosen by LORO error, continuous parameters by BIC and refined between grid points by a parabola in ln(parameter)".into(),
+        format!("concealment index = R^2 of the candidate's fitted contribution on the model's current terms; above {} the effect is not identifiable from these runs", options.concealment_limit),
+        "residual_before_dph / residual_after_dph = held-out (LORO) RMS of residual short means without / with the effect (the rest of the final model unchanged); heldout_improvement = 1 - after/before".into(),
+        format!("bias stability = standard deviation (n-1) of non-overlapping {} s means of the 1 s held-out residual, per run; overall = RMS over runs", options.bias_stability_tau_s),
+        "unexplained structure: a lookup table of residual means per (T, dT/dt) cell or per time-since-power-on bin, fitted on the other runs, passes the same LORO and fold rules".into(),
+    ]
+}
+
+fn traces(prep: &Prepared, outcome: &FinalOutcome) -> Vec<RunTraceOut> {
+    prep.runs
+        .iter()
+        .enumerate()
+        .map(|(r, run)| RunTraceOut {
+            run: run.name.clone(),
+            time_s: run.blocks.iter().map(|b| b.since_on_s).collect(),
+            temp_c: run.blocks.iter().map(|b| b.temp_c).collect(),
+            rate_c_per_min: run.blocks.iter().map(|b| b.rate_c_per_min).collect(),
+            before_dph: outcome.baseline_heldout[r].clone(),
+            after_dph: outcome.heldout_resid[r].clone(),
+        })
+        .collect()
+}
+
+fn summary(d: &Diagnosis, grids: &[EffectGrid]) -> String {
+    let mut s = format!(
+        "{} paired runs. Raw residual (recorded - simulated) RMS {:.5} deg/h in {} s means, overall offset {:+.5} deg/h; noise of one short mean {:.5} deg/h.",
+        d.runs.len(),
+        d.location.raw_residual_rms_dph,
+        d.options.mean_window_s,
+        d.location.overall_offset_dph,
+        d.noise.short_mean_sigma_dph
+    );
+    let sig_cells = d.location.map.iter().filter(|c| c.significant).count();
+    let sig_spans: Vec<&super::SpanFinding> = d.location.spans.iter().filter(|c| c.significant).collect();
+    s.push_str(&format!(
+        " Where: {sig_cells} of {} (T, dT/dt) cells and {} of {} run spans are significant (HAC, Bonferroni)",
+        d.location.map.len(),
+        sig_spans.len(),
+        d.location.spans.len()
+    ));
+    if let Some(tau) = d.location.first_excess_tau_s {
+        s.push_str(&format!(
+            "; the residual's Allan deviation exceeds the noise floor from tau = {tau:.0} s."
+        ));
+    } else {
+        s.push('.');
+    }
+    if d.left_out.is_empty() {
+        s.push_str(" No catalogue effect is left out: ");
+    } else {
+        s.push_str(" Left out: ");
+        let parts: Vec<String> = d.left_out.iter().map(|e| e.statement.clone()).collect();
+        s.push_str(&parts.join("; "));
+        s.push_str(". Afterwards: ");
+    }
+    s.push_str(&d.unexplained.statement);
+    s.push_str(". ");
+    s.push_str(&d.location.temperature.statement);
+    s.push('.');
+    let blind: Vec<String> = grids
+        .iter()
+        .filter_map(|g| g.unmet_requirement.as_ref().map(|w| format!("{} ({w})", g.effect.name())))
+        .collect();
+    if !blind.is_empty() {
+        s.push_str(&format!(" Not identifiable from these runs: {}.", blind.join("; ")));
+    }
+    s
+}
+
+/// Assembles the diagnosis from the selection and the held-out outcome.
+///
+/// # Errors
+/// None at present (the signature leaves room for location steps to fail).
+pub fn assemble(
+    prep: &Prepared,
+    grids: &[EffectGrid],
+    selection: Selection,
+    outcome: FinalOutcome,
+    options: &DiagnoseOptions,
+) -> Result<Diagnosis, CalError> {
+    let raw: Vec<Vec<f64>> =
+        prep.runs.iter().map(|r| r.blocks.iter().map(|b| b.resid_dph).collect()).collect();
+    let all: Vec<f64> = raw.iter().flatten().copied().collect();
+    let (allan, noise) = allan_and_noise(prep, &outcome, options);
+    let first_excess_tau_s = allan.iter().find(|r| r.before_excess).map(|r| r.tau_s);
+    let location = Location {
+        raw_residual_rms_dph: rms(&all),
+        overall_offset_dph: mean(&all),
+        spans: spans(prep, &raw, options),
+        map: map(prep, &raw, options),
+        allan,
+        first_excess_tau_s,
+        temperature: temperature(prep, options),
+    };
+    let unexplained = unexplained(prep, &outcome, options, outcome.left_out.is_empty());
+    let mut d = Diagnosis {
+        summary: String::new(),
+        left_out: outcome.left_out.clone(),
+        location,
+        selection: selection.steps,
+        unexplained,
+        noise,
+        global_offset: outcome.global_offset.clone(),
+        residual_before_dph: outcome.residual_before_dph,
+        residual_after_dph: outcome.residual_after_dph,
+        bias_stability_before_dph: outcome.bias_stability_before_dph,
+        bias_stability_after_dph: outcome.bias_stability_after_dph,
+        runs: prep.runs.iter().map(|r| r.name.clone()).collect(),
+        options: options.clone(),
+        definitions: definitions(options, prep),
+        traces: traces(prep, &outcome),
+    };
+    d.summary = summary(&d, grids);
+    Ok(d)
+}

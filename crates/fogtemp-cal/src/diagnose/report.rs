@@ -1,0 +1,395 @@
+//! The diagnosis report: `report.md` with every definition, and SVG figures (residual vs
+//! time per run before/after, the (T, dT/dt) map, Allan deviation against the floor).
+
+use std::fmt::Write as _;
+use std::path::Path;
+
+use plotters::prelude::*;
+
+use super::{Diagnosis, MapCell};
+use crate::error::CalError;
+use crate::metrics::AllanPoint;
+
+fn io_err(path: &Path, e: impl std::fmt::Display) -> CalError {
+    CalError::Io { path: path.to_path_buf(), source: std::io::Error::other(e.to_string()) }
+}
+
+/// Tick label with at most 4 significant digits.
+fn tick(v: &f64) -> String {
+    let rounded: f64 = format!("{v:.3e}").parse().unwrap_or(*v);
+    format!("{rounded}")
+}
+
+fn range(values: impl Iterator<Item = f64>) -> (f64, f64) {
+    let (lo, hi) = values
+        .filter(|v| v.is_finite())
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(v), b.max(v)));
+    if !lo.is_finite() {
+        return (0.0, 1.0);
+    }
+    let pad = ((hi - lo) * 0.05).max(1e-9);
+    (lo - pad, hi + pad)
+}
+
+fn colour(i: usize) -> RGBColor {
+    const C: [RGBColor; 8] = [
+        RGBColor(31, 119, 180),
+        RGBColor(255, 127, 14),
+        RGBColor(44, 160, 44),
+        RGBColor(214, 39, 40),
+        RGBColor(148, 103, 189),
+        RGBColor(140, 86, 75),
+        RGBColor(227, 119, 194),
+        RGBColor(127, 127, 127),
+    ];
+    C[i % C.len()]
+}
+
+/// Blue (negative) to red (positive) through white, for `t` in [-1, 1].
+fn diverging(t: f64) -> RGBColor {
+    let s = ((t.clamp(-1.0, 1.0) + 1.0) / 2.0).clamp(0.0, 1.0);
+    let lerp = |a: f64, b: f64, u: f64| (a + (b - a) * u) as u8;
+    if s < 0.5 {
+        let u = s / 0.5;
+        RGBColor(lerp(33.0, 247.0, u), lerp(102.0, 247.0, u), lerp(172.0, 247.0, u))
+    } else {
+        let u = (s - 0.5) / 0.5;
+        RGBColor(lerp(247.0, 178.0, u), lerp(247.0, 24.0, u), lerp(247.0, 43.0, u))
+    }
+}
+
+/// Selects one series of a run trace.
+type PickTrace = fn(&super::RunTraceOut) -> &Vec<f64>;
+
+/// Residual short means against time, one line per run: before (offset only, held-out)
+/// and after (final model, held-out), on one scale.
+fn plot_residuals(path: &Path, d: &Diagnosis) -> Result<(), CalError> {
+    let root = SVGBackend::new(path, (1100, 720)).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| io_err(path, e))?;
+    let root = root
+        .titled("Residual (recorded - simulated), held-out short means", ("sans-serif", 22))
+        .map_err(|e| io_err(path, e))?;
+    let areas = root.split_evenly((2, 1));
+    let t_max = d.traces.iter().flat_map(|t| t.time_s.last().copied()).fold(1.0, f64::max) / 60.0;
+    let y = range(d.traces.iter().flat_map(|t| t.before_dph.iter().chain(&t.after_dph).copied()));
+    let panels: [(&str, PickTrace); 2] = [
+        ("before: global offset only, deg/h", |t| &t.before_dph),
+        ("after: final model, deg/h", |t| &t.after_dph),
+    ];
+    for (area, (label, pick)) in areas.iter().zip(panels) {
+        let mut chart = ChartBuilder::on(area)
+            .margin(8)
+            .x_label_area_size(35)
+            .y_label_area_size(70)
+            .build_cartesian_2d(0.0..t_max, y.0..y.1)
+            .map_err(|e| io_err(path, e))?;
+        chart
+            .configure_mesh()
+            .x_desc("time since power-on, min")
+            .y_desc(label)
+            .x_label_formatter(&tick)
+            .y_label_formatter(&tick)
+            .light_line_style(WHITE.mix(0.0))
+            .draw()
+            .map_err(|e| io_err(path, e))?;
+        for (i, t) in d.traces.iter().enumerate() {
+            let series = t.time_s.iter().zip(pick(t)).map(|(x, v)| (x / 60.0, *v));
+            chart
+                .draw_series(LineSeries::new(series, colour(i)))
+                .map_err(|e| io_err(path, e))?
+                .label(t.run.clone())
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], colour(i)));
+        }
+        if d.traces.len() <= 12 {
+            chart
+                .configure_series_labels()
+                .background_style(WHITE.mix(0.85))
+                .border_style(BLACK)
+                .draw()
+                .map_err(|e| io_err(path, e))?;
+        }
+    }
+    root.present().map_err(|e| io_err(path, e))
+}
+
+fn rate_label(c: &MapCell) -> String {
+    match (c.rate_lo_c_per_min, c.rate_hi_c_per_min) {
+        (None, Some(h)) => format!("< {h}"),
+        (Some(l), None) => format!(">= {l}"),
+        (Some(l), Some(h)) => format!("{l}..{h}"),
+        (None, None) => "all".into(),
+    }
+}
+
+/// The (T, dT/dt) map: one rectangle per cell coloured by z (clamped to +-5), significant
+/// cells outlined in black; rate bins on the vertical axis by index.
+fn plot_map(path: &Path, cells: &[MapCell], title: &str) -> Result<(), CalError> {
+    let root = SVGBackend::new(path, (1000, 640)).into_drawing_area();
+    root.fill(&WHITE).map_err(|e| io_err(path, e))?;
+    let (t0, t1) = range(cells.iter().flat_map(|c| [c.temp_lo_c, c.temp_hi_c]));
+    let bins = cells.iter().map(|c| c.rate_bin).max().unwrap_or(0) + 1;
+    let mut labels = vec![String::new(); bins];
+    for c in cells {
+        labels[c.rate_bin] = rate_label(c);
+    }
+    let mut chart = ChartBuilder::on(&root)
+        .caption(title, ("sans-serif", 20))
+        .margin(12)
+        .x_label_area_size(40)
+        .y_label_area_size(110)
+        .build_cartesian_2d(t0..t1, 0.0..bins as f64)
+        .map_err(|e| io_err(path, e))?;
+    let label_of = move |v: &f64| {
+        let i = v.floor() as usize;
+        if (v - v.floor() - 0.5).abs() < 0.26 {
+            labels.get(i).cloned().unwrap_or_default()
+        } else {
+            String::new()
+        }
+    };
+    chart
+        .configure_mesh()
+        .x_desc("temperature, deg C")
+        .y_desc("dT/dt, deg C/min")
+        .x_label_formatter(&tick)
+        .y_labels(bins * 2 + 1)
+        .y_label_formatter(&label_of)
+        .disable_mesh()
+        .draw()
+        .map_err(|e| io_err(path, e))?;
+    chart
+        .draw_series(cells.iter().map(|c| {
+            let y = c.rate_bin as f64;
+            Rectangle::new([(c.temp_lo_c, y + 0.05), (c.temp_hi_c, y + 0.95)], diverging(c.z / 5.0).filled())
+        }))
+        .map_err(|e| io_err(path, e))?;
+    chart
+        .draw_series(cells.iter().filter(|c| c.significant).map(|c| {
+            let y = c.rate_bin as f64;
+            Rectangle::new([(c.temp_lo_c, y + 0.05), (c.temp_hi_c, y + 0.95)], BLACK.stroke_width(2))
+        }))
+        .map_err(|e| io_err(path, e))?;
+    root.present().map_err(|e| io_err(path, e))
+}
+
+fn allan_curves(d: &Diagnosis) -> Vec<(String, Vec<AllanPoint>)> {
+    let curve = |f: fn(&super::AllanRow) -> f64| -> Vec<AllanPoint> {
+        d.location
+            .allan
+            .iter()
+            .map(|r| AllanPoint { tau_s: r.tau_s, adev_dph: f(r), relative_error: r.relative_error })
+            .collect()
+    };
+    vec![
+        ("residual before".into(), curve(|r| r.before_dph)),
+        ("residual after the final model".into(), curve(|r| r.after_dph)),
+        ("noise floor (fitted N, B, K)".into(), curve(|r| r.floor_dph)),
+    ]
+}
+
+fn opt(v: Option<f64>) -> String {
+    v.map_or_else(|| "-".into(), |x| format!("{x:.4}"))
+}
+
+fn markdown(d: &Diagnosis) -> String {
+    let mut md = String::new();
+    let _ = writeln!(md, "# Diagnosis: simulated vs recorded\n\n{}\n", d.summary);
+    let _ = writeln!(md, "## Definitions\n");
+    for def in &d.definitions {
+        let _ = writeln!(md, "- {def}");
+    }
+    let _ = writeln!(md, "- {}\n", d.noise.definition);
+    let _ = writeln!(
+        md,
+        "## Noise\n\nShort-mean noise {:.5} deg/h (recorded gyro alone {:.5}); N = {:.5} deg/sqrt(h), B = {:.5} deg/h, K = {:.5} deg/h/sqrt(h).\n",
+        d.noise.short_mean_sigma_dph,
+        d.noise.recorded_short_mean_adev_dph,
+        d.noise.arw_deg_per_sqrt_h,
+        d.noise.bias_instability_dph,
+        d.noise.rrw_dph_per_sqrt_h
+    );
+    let _ = writeln!(md, "## Left out\n");
+    if d.left_out.is_empty() {
+        let _ = writeln!(md, "Nothing: {}\n", d.unexplained.statement);
+    }
+    for e in &d.left_out {
+        let _ = writeln!(
+            md,
+            "### {}\n\n{}\n\n| parameter | value | standard error | units |\n|---|---|---|---|",
+            e.effect, e.statement
+        );
+        for (name, p) in &e.parameters {
+            let _ = writeln!(md, "| {name} | {:.6} | {} | {} |", p.value, opt(p.std_error), p.units);
+        }
+        let _ = writeln!(
+            md,
+            "\nHeld-out residual RMS {:.5} -> {:.5} deg/h (heldout_improvement {:.3}); held-out bias stability {:.5} -> {:.5} deg/h.\n",
+            e.residual_before_dph, e.residual_after_dph, e.heldout_improvement, e.bias_stability_before_dph, e.bias_stability_after_dph
+        );
+    }
+    let _ = writeln!(
+        md,
+        "Whole model on held-out runs: residual RMS {:.5} -> {:.5} deg/h, bias stability {:.5} -> {:.5} deg/h. Global offset {:+.5} +- {} deg/h.\n",
+        d.residual_before_dph,
+        d.residual_after_dph,
+        d.bias_stability_before_dph,
+        d.bias_stability_after_dph,
+        d.global_offset.value,
+        opt(d.global_offset.std_error)
+    );
+    let _ = writeln!(md, "![residuals](residuals.svg)\n\n## Forward selection\n");
+    for (i, step) in d.selection.iter().enumerate() {
+        let _ = writeln!(
+            md,
+            "### Step {} (model: offset{}; LORO RMS {:.5} deg/h; rho {:.2}, n_eff {:.0})\n\n| effect | status | profile | LORO RMS | improvement | folds | dBIC | stability t | concealment | with run offsets | most confused with | note |\n|---|---|---|---|---|---|---|---|---|---|---|---|",
+            i + 1,
+            step.model.iter().map(|m| format!(" + {m}")).collect::<String>(),
+            step.cv_rms_dph,
+            step.rho,
+            step.n_eff
+        );
+        for c in &step.candidates {
+            let profile: Vec<String> = c.profile.iter().map(|(k, v)| format!("{k}={v}")).collect();
+            let confused =
+                c.most_confused_with.as_ref().map_or("-".into(), |(e, r2)| format!("{e} ({r2:.3})"));
+            let note = match &c.experiment {
+                Some(x) if c.status == "not_identifiable" => format!("{}; run: {x}", c.note),
+                _ => c.note.clone(),
+            };
+            let _ = writeln!(
+                md,
+                "| {} | {} | {} | {:.5} | {:+.3} | {}/{} | {:.1} | {:.1} | {:.3} | {:.3} | {} | {} |",
+                c.effect,
+                c.status,
+                profile.join(", "),
+                c.cv_rms_dph,
+                c.cv_improvement,
+                c.folds_improved,
+                c.folds_informative,
+                c.delta_bic,
+                c.stability_t,
+                c.concealment_index,
+                c.concealment_with_run_offsets,
+                confused,
+                note
+            );
+        }
+        let _ = writeln!(md);
+    }
+    md.push_str(&location_markdown(d));
+    md
+}
+
+fn location_markdown(d: &Diagnosis) -> String {
+    let mut md = String::new();
+    let loc = &d.location;
+    let _ = writeln!(
+        md,
+        "## Where\n\nRaw residual RMS {:.5} deg/h, mean {:+.5} deg/h.\n\n| run | span | n | mean, deg/h | HAC SE | z | RMS | slope, deg/h per h | significant |\n|---|---|---|---|---|---|---|---|---|",
+        loc.raw_residual_rms_dph, loc.overall_offset_dph
+    );
+    for s in &loc.spans {
+        let _ = writeln!(
+            md,
+            "| {} | {} | {} | {:+.5} | {:.5} | {:+.1} | {:.5} | {:+.5} | {} |",
+            s.run,
+            s.span,
+            s.n_means,
+            s.mean_dph,
+            s.hac_se_dph,
+            s.z,
+            s.rms_dph,
+            s.slope_dph_per_h,
+            if s.significant { "yes" } else { "" }
+        );
+    }
+    let _ = writeln!(md, "\n![map](map.svg)\n\n| T, deg C | dT/dt, deg C/min | n | runs | mean, deg/h | HAC SE | z | significant |\n|---|---|---|---|---|---|---|---|");
+    for c in &loc.map {
+        let _ = writeln!(
+            md,
+            "| {:.1}..{:.1} | {} | {} | {} | {:+.5} | {:.5} | {:+.1} | {} |",
+            c.temp_lo_c,
+            c.temp_hi_c,
+            rate_label(c),
+            c.n_means,
+            c.n_runs,
+            c.mean_dph,
+            c.hac_se_dph,
+            c.z,
+            if c.significant { "yes" } else { "" }
+        );
+    }
+    let _ = writeln!(md, "\n![Allan deviation](allan.svg)\n\n| tau, s | before | after | floor | before exceeds | after exceeds |\n|---|---|---|---|---|---|");
+    for r in &loc.allan {
+        let _ = writeln!(
+            md,
+            "| {:.0} | {:.5} | {:.5} | {:.5} | {} | {} |",
+            r.tau_s,
+            r.before_dph,
+            r.after_dph,
+            r.floor_dph,
+            if r.before_excess { "yes" } else { "" },
+            if r.after_excess { "yes" } else { "" }
+        );
+    }
+    let _ = writeln!(md, "\n## Temperature channel\n\n{}\n\n| run | mean diff, C | RMS diff, C | max, C | rate RMS diff, C/min | best lag, s | RMS at best lag | rise ratio |\n|---|---|---|---|---|---|---|---|", loc.temperature.statement);
+    for t in &loc.temperature.runs {
+        let _ = writeln!(
+            md,
+            "| {} | {:+.3} | {:.3} | {:.3} | {:.4} | {:+.0} | {:.3} | {:.3} |",
+            t.run,
+            t.mean_diff_c,
+            t.rms_diff_c,
+            t.max_abs_diff_c,
+            t.rate_rms_diff_c_per_min,
+            t.best_lag_s,
+            t.rms_diff_at_best_lag_c,
+            t.rise_ratio
+        );
+    }
+    let u = &d.unexplained;
+    let _ = writeln!(
+        md,
+        "\n## Unexplained\n\n{}\n\n| table | LORO improvement | folds | structured |\n|---|---|---|---|",
+        u.statement
+    );
+    for t in &u.tables {
+        let _ = writeln!(
+            md,
+            "| {} | {:+.3} | {}/{} | {} |",
+            t.table, t.cv_improvement, t.folds_improved, t.folds_informative, t.structured
+        );
+    }
+    let _ = writeln!(
+        md,
+        "\nAfter the model: {} significant (T, dT/dt) cells, {} significant run spans; spread of per-run mean residuals {:.5} deg/h (turn-on repeatability and slow flicker; not modelled, see the module notes).",
+        u.significant_cells.len(),
+        u.significant_spans.len(),
+        u.run_offset_spread_dph
+    );
+    md
+}
+
+/// Writes `report.md`, `residuals.svg`, `map.svg` and `allan.svg` into `dir`.
+///
+/// # Errors
+/// [`CalError::Io`] when a file cannot be written.
+pub fn write_diagnosis_report(dir: &Path, d: &Diagnosis) -> Result<(), CalError> {
+    std::fs::create_dir_all(dir).map_err(|source| CalError::Io { path: dir.to_path_buf(), source })?;
+    plot_residuals(&dir.join("residuals.svg"), d)?;
+    plot_map(
+        &dir.join("map.svg"),
+        &d.location.map,
+        "Raw residual by (T, dT/dt): colour = z (HAC), outlined = significant",
+    )?;
+    let curves = allan_curves(d);
+    if curves.iter().any(|(_, c)| !c.is_empty()) {
+        crate::report::plot_allan(
+            &dir.join("allan.svg"),
+            "Residual Allan deviation (RMS over runs)",
+            &curves,
+        )?;
+    }
+    let path = dir.join("report.md");
+    std::fs::write(&path, markdown(d)).map_err(|source| CalError::Io { path, source })
+}
