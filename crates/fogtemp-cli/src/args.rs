@@ -39,6 +39,9 @@ pub enum Command {
     /// The paper's experiment end to end: simulate, calibrate on position 1 with every model,
     /// validate on position 2, and print Table 1 beside the paper's.
     Demo(DemoArgs),
+    /// Compare simulated and recorded runs: where they differ, which physics the simulation
+    /// left out, a fitted model of it, and whether it helps on runs it did not see.
+    Diagnose(DiagnoseArgs),
 }
 
 /// How to read the logs.
@@ -374,4 +377,32 @@ pub struct DemoArgs {
     /// Print one JSON document on stdout.
     #[arg(long)]
     pub json: bool,
+}
+
+/// `diagnose` arguments.
+#[derive(Debug, Args)]
+pub struct DiagnoseArgs {
+    /// Folder (or file) of simulated logs in the default columns (as `simulate` writes them;
+    /// its `manifest.json`, when present, gives each run's position and Earth rate).
+    #[arg(long)]
+    pub simulated: PathBuf,
+    /// Folder (or file) of recorded logs; runs are paired with the simulated ones by file
+    /// name. The log-column options below apply to these.
+    #[arg(long)]
+    pub recorded: PathBuf,
+    /// Print one JSON document on stdout.
+    #[arg(long)]
+    pub json: bool,
+    /// Write report.md and SVG figures into this folder.
+    #[arg(long)]
+    pub report: Option<PathBuf>,
+    /// Length of the short means the residual is modelled on, seconds (10-100).
+    #[arg(long, default_value_t = 20.0)]
+    pub mean_window_s: f64,
+    /// The logs are first reduced to means over this many seconds (constant memory).
+    #[arg(long, default_value_t = 1.0)]
+    pub bin_s: f64,
+    /// Columns and units of the recorded logs.
+    #[command(flatten)]
+    pub ingest: IngestArgs,
 }

@@ -27,6 +27,10 @@ pub fn run(command: Command) -> Result<()> {
         Command::Allan(a) => allan(a),
         Command::Simulate(a) => crate::simulate::simulate(a),
         Command::Demo(a) => crate::simulate::demo(a),
+        Command::Diagnose(a) => {
+            let ingest = ingest_options(&a.ingest)?;
+            crate::diagnose::diagnose(a, ingest)
+        }
     }
 }
 

@@ -1,0 +1,158 @@
+//! `diagnose`: simulated vs recorded logs -> located mismatch, named physics, fitted term,
+//! held-out before/after. Reads the logs into 1 s means (constant memory per sample), pairs
+//! them by file name, takes run metadata (position, Earth rate on the input axis) from the
+//! simulation's `manifest.json` when it has one.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use anyhow::{bail, Context, Result};
+use fogtemp_cal::diagnose::{
+    diagnose as run_diagnosis, write_diagnosis_report, DiagnoseOptions, RunMeta, RunSeries,
+};
+use fogtemp_cal::ingest::{read_log_with_progress, IngestOptions};
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+
+use crate::args::DiagnoseArgs;
+use crate::output::{expand_logs, RowProgress};
+
+/// Reads a log into `bin_s` means of time, temperature and gyro (axis 0). Bins without a
+/// temperature reading keep NaN temperature.
+fn read_series(path: &Path, ingest: &IngestOptions, bin_s: f64, meta: RunMeta) -> Result<RunSeries> {
+    let bar = RowProgress::new(path, "read");
+    let mut series = RunSeries { name: file_name(path), meta, ..RunSeries::default() };
+    // (bin, n, sum t, n temp, sum temp, sum gyro)
+    let mut acc: (i64, f64, f64, f64, f64, f64) = (i64::MIN, 0.0, 0.0, 0.0, 0.0, 0.0);
+    let flush = |s: &mut RunSeries, a: &(i64, f64, f64, f64, f64, f64)| {
+        if a.1 > 0.0 {
+            s.time_s.push(a.2 / a.1);
+            s.temp_c.push(if a.3 > 0.0 { a.4 / a.3 } else { f64::NAN });
+            s.gyro_dph.push(a.5 / a.1);
+        }
+    };
+    let report = read_log_with_progress(
+        path,
+        ingest,
+        |row| {
+            let bin = (row.time_s / bin_s).floor() as i64;
+            if bin != acc.0 {
+                flush(&mut series, &acc);
+                acc = (bin, 0.0, 0.0, 0.0, 0.0, 0.0);
+            }
+            acc.1 += 1.0;
+            acc.2 += row.time_s;
+            let temp = row.temp_c_for_axis(0);
+            if temp.is_finite() {
+                acc.3 += 1.0;
+                acc.4 += temp;
+            }
+            acc.5 += row.gyros_dph.first().copied().unwrap_or(f64::NAN);
+            Ok(())
+        },
+        |b, r| bar.update(b, r),
+    )
+    .with_context(|| format!("reading {}", path.display()))?;
+    flush(&mut series, &acc);
+    bar.finish_and_clear();
+    if report.rows == 0 {
+        bail!("{}: no data rows (only a header)", path.display());
+    }
+    if report.skipped > 0 {
+        eprintln!("{}: skipped {} bad rows", path.display(), report.skipped);
+    }
+    Ok(series)
+}
+
+fn file_name(p: &Path) -> String {
+    p.file_name().map_or_else(|| p.display().to_string(), |n| n.to_string_lossy().into_owned())
+}
+
+/// Run metadata from `DIR/manifest.json` (written by `simulate`), keyed by file name.
+fn manifest_meta(dir: &Path) -> Result<BTreeMap<String, RunMeta>> {
+    let path = dir.join("manifest.json");
+    if !path.is_file() {
+        return Ok(BTreeMap::new());
+    }
+    let text = std::fs::read_to_string(&path).with_context(|| format!("reading {}", path.display()))?;
+    let doc: serde_json::Value =
+        serde_json::from_str(&text).with_context(|| format!("{}: not valid JSON", path.display()))?;
+    let mut out = BTreeMap::new();
+    for run in doc["runs"].as_array().map(Vec::as_slice).unwrap_or_default() {
+        let Some(name) = run["name"].as_str() else { continue };
+        out.insert(
+            format!("{name}.csv"),
+            RunMeta {
+                group: run["group"].as_str().filter(|g| !g.is_empty()).map(str::to_string),
+                input_rate_dph: run["input_rate_dph"].as_f64(),
+                power_on_at_s: None,
+            },
+        );
+    }
+    Ok(out)
+}
+
+/// Pairs simulated and recorded logs by file name; every log must have a partner.
+fn pair(simulated: &[PathBuf], recorded: &[PathBuf]) -> Result<Vec<(PathBuf, PathBuf)>> {
+    let by_name: BTreeMap<String, &PathBuf> = recorded.iter().map(|p| (file_name(p), p)).collect();
+    let mut pairs = Vec::new();
+    let mut unmatched = Vec::new();
+    for s in simulated {
+        match by_name.get(&file_name(s)) {
+            Some(r) => pairs.push((s.clone(), (*r).clone())),
+            None => unmatched.push(format!("simulated {} has no recorded log of that name", file_name(s))),
+        }
+    }
+    let sim_names: std::collections::BTreeSet<String> = simulated.iter().map(|p| file_name(p)).collect();
+    for r in recorded {
+        if !sim_names.contains(&file_name(r)) {
+            unmatched.push(format!("recorded {} has no simulated log of that name", file_name(r)));
+        }
+    }
+    if !unmatched.is_empty() {
+        bail!("runs are paired by file name, and {} are not:\n  {}", unmatched.len(), unmatched.join("\n  "));
+    }
+    Ok(pairs)
+}
+
+/// The `diagnose` command.
+pub fn diagnose(a: DiagnoseArgs, recorded_ingest: IngestOptions) -> Result<()> {
+    let simulated = expand_logs(std::slice::from_ref(&a.simulated))?;
+    let recorded = expand_logs(std::slice::from_ref(&a.recorded))?;
+    let pairs = pair(&simulated, &recorded)?;
+    let meta = manifest_meta(&a.simulated)?;
+    let sim_ingest = IngestOptions::default();
+    let mut sims = Vec::new();
+    let mut recs = Vec::new();
+    for (s, r) in &pairs {
+        let m = meta.get(&file_name(s)).cloned().unwrap_or_default();
+        sims.push(read_series(s, &sim_ingest, a.bin_s, m.clone())?);
+        recs.push(read_series(r, &recorded_ingest, a.bin_s, m)?);
+    }
+    let options = DiagnoseOptions { mean_window_s: a.mean_window_s, ..DiagnoseOptions::default() };
+    let bar = ProgressBar::with_draw_target(Some(1000), ProgressDrawTarget::stderr());
+    if let Ok(style) = ProgressStyle::with_template("diagnose [{bar:30}] {percent}% {msg}") {
+        bar.set_style(style.progress_chars("=> "));
+    }
+    let started = std::time::Instant::now();
+    let d = run_diagnosis(&sims, &recs, &options, |stage, fraction| {
+        bar.set_message(stage.to_string());
+        bar.set_position((fraction.clamp(0.0, 1.0) * 1000.0) as u64);
+    })
+    .context("diagnosing")?;
+    bar.finish_and_clear();
+    let seconds = started.elapsed().as_secs_f64();
+    if let Some(dir) = &a.report {
+        write_diagnosis_report(dir, &d)
+            .with_context(|| format!("writing the report into {}", dir.display()))?;
+        eprintln!("report: {}", dir.join("report.md").display());
+    }
+    if a.json {
+        let mut doc = serde_json::to_value(&d)?;
+        doc["seconds"] = serde_json::json!(seconds);
+        println!("{}", serde_json::to_string_pretty(&doc)?);
+    } else {
+        println!("{}", d.summary);
+        eprintln!("diagnosed {} run pairs in {seconds:.1} s", pairs.len());
+    }
+    Ok(())
+}
