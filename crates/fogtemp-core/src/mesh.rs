@@ -275,25 +275,25 @@ impl<'a> Mesh<'a> {
     /// [`Error::NonFiniteSample`] for a NaN or infinite coordinate; hint unchanged.
     #[inline]
     pub fn interpolate(&self, x: f32, y: f32, hint: &mut WalkHint) -> Result<MeshValue, Error> {
-        match self.value_in_hint(x, y, hint.0) {
-            Some(value) => Ok(value),
-            None => self.interpolate_walk(x, y, hint),
+        match self.hint_test(x, y, hint.0) {
+            Some(test) if test.inside & test.value.value_dph.is_finite() => Ok(test.value),
+            _ => self.interpolate_walk(x, y, hint),
         }
     }
 
-    /// The hot path of [`Mesh::interpolate`] and [`Mesh::interpolate_with_grid`]: the value
-    /// when the query lies inside the hint triangle `t` itself (about 999 of 1000 samples of a
-    /// 1 kHz stream), else `None` and the caller takes the general path. When it returns a
-    /// value, the general path returns the same bits: its walk tests `t` first with the same
-    /// arithmetic and stops there, and it leaves the hint at `t`.
+    /// The hot path of [`Mesh::interpolate`] and [`Mesh::interpolate_with_grid`]: whether
+    /// the query lies inside the hint triangle `t` itself (about 999 of 1000 samples of a
+    /// 1 kHz stream), and the plane of `t` there; `None` for a hint past the last triangle.
     ///
-    /// No separate finiteness check of the query: a finite value implies a finite query.
-    /// `dx = x - ox` is NaN or infinite when `x` is, and then so is `p0 dx + p1 dy + p2` for
-    /// any `p0`, `p1`, `p2` (`0 * inf` is NaN, and NaN or infinity absorbs any addend). A
-    /// non-finite query therefore ends in `None`, and the general path rejects it.
+    /// When `inside` holds and the value is finite, the value is the answer, bit for bit:
+    /// the general path tests `t` first with the same arithmetic, stops there, and leaves
+    /// the hint at `t`. No separate finiteness check of the query is needed for that: a
+    /// finite value implies a finite query. `dx = x - ox` is NaN or infinite when `x` is,
+    /// and then so is `p0 dx + p1 dy + p2` for any `p0`, `p1`, `p2` (`0 * inf` is NaN, and
+    /// NaN or infinity absorbs any addend). Every other outcome goes to the general path,
+    /// which checks the query.
     #[inline(always)]
-    fn value_in_hint(&self, x: f32, y: f32, t: u32) -> Option<MeshValue> {
-        // `None` for a hint past the last triangle: the general path clamps it.
+    fn hint_test(&self, x: f32, y: f32, t: u32) -> Option<HintTest> {
         let r = self.record(t)?;
         let (dx, dy) = (x - rec_f32(r, TRI_ORIGIN.start), y - rec_f32(r, TRI_ORIGIN.start + 4));
         let b = TRI_BARY.start;
@@ -302,16 +302,15 @@ impl<'a> Mesh<'a> {
         let (_, lmin) = most_negative([l0, l1, 1.0 - l0 - l1]);
         let p = TRI_PLANE.start;
         let value_dph = rec_f32(r, p) * dx + rec_f32(r, p + 4) * dy + rec_f32(r, p + 8);
-        // `&`, not `&&`: one branch for both tests.
-        ((lmin >= -INSIDE_EPS) & (value_dph.abs() < f32::INFINITY)).then_some(MeshValue {
-            value_dph,
-            triangle: t,
-            outside_hull: false,
+        Some(HintTest {
+            inside: lmin >= -INSIDE_EPS,
+            value: MeshValue { value_dph, triangle: t, outside_hull: false },
         })
     }
 
     /// The general path of [`Mesh::interpolate`]: checks, walks, moves the hint. Out of line,
-    /// so the hot path stays a handful of instructions.
+    /// so the hot path stays a handful of instructions; a walk that leaves the hint triangle
+    /// costs far more than the call.
     #[inline(never)]
     fn interpolate_walk(&self, x: f32, y: f32, hint: &mut WalkHint) -> Result<MeshValue, Error> {
         let end = self.walk_from_hint(x, y, hint)?;
@@ -346,15 +345,27 @@ impl<'a> Mesh<'a> {
         hint: &mut WalkHint,
         grid: &StartGrid<'_>,
     ) -> Result<MeshValue, Error> {
-        match self.value_in_hint(x, y, hint.0) {
-            Some(value) => Ok(value),
-            None => self.interpolate_grid_walk(x, y, hint, grid),
+        match self.hint_test(x, y, hint.0) {
+            Some(test) if test.inside & test.value.value_dph.is_finite() => Ok(test.value),
+            // The query left the hint triangle: straight to the grid (what the general path
+            // does next), inline, as random-order queries take this branch every time.
+            Some(test) if !test.inside && x.is_finite() && y.is_finite() => {
+                let count = self.triangle_count();
+                let end = self
+                    .walk_or_scan(x, y, grid.start(x, y).min(count.saturating_sub(1)))
+                    .ok_or(Error::BadMesh { check: "walk", axis: 0, index: hint.0 })?;
+                hint.0 = end.triangle;
+                Ok(self.value_at(&end, x, y))
+            }
+            _ => self.interpolate_grid_general(x, y, hint, grid),
         }
     }
 
-    /// The general path of [`Mesh::interpolate_with_grid`], out of line.
+    /// The general path of [`Mesh::interpolate_with_grid`]: a non-finite query, a hint past
+    /// the last triangle, a non-finite plane value. Out of line.
+    #[cold]
     #[inline(never)]
-    fn interpolate_grid_walk(
+    fn interpolate_grid_general(
         &self,
         x: f32,
         y: f32,
@@ -449,6 +460,15 @@ impl<'a> Mesh<'a> {
         let (ia, ib) = edge_vertices(&rec, e)?;
         Some((self.vertex(ia)?, self.vertex(ib)?))
     }
+}
+
+/// What [`Mesh::hint_test`] found in the hint triangle.
+#[derive(Clone, Copy)]
+struct HintTest {
+    /// The query is inside (or on the boundary of) the hint triangle.
+    inside: bool,
+    /// The hint triangle's plane at the query (meaningful when `inside`).
+    value: MeshValue,
 }
 
 /// Where a walk ended: the triangle, its record, the query's barycentric coordinates in it,
