@@ -489,6 +489,85 @@ fn failed_locate_leaves_hint_unchanged() {
     }
 }
 
+#[test]
+fn failed_interpolate_from_the_right_triangle_leaves_hint_unchanged() {
+    // The hint already holds the triangle of a nearby finite point, so the hot path (the hint
+    // triangle's own test) sees the non-finite query first; it must still be an error.
+    let f = hint_fixture();
+    let side = 8;
+    let mut cells = vec![0u32; side * side];
+    let grid = f.mesh.start_grid(side as u32, &mut cells).expect("grid fits");
+    let (x0, y0) = (0.1f32, -0.2f32);
+    let mut hint = WalkHint::default();
+    f.mesh.interpolate(x0, y0, &mut hint).expect("finite");
+    let settled = hint;
+    for bad in [
+        (f32::NAN, y0),
+        (x0, f32::NAN),
+        (f32::INFINITY, y0),
+        (f32::NEG_INFINITY, y0),
+        (x0, f32::INFINITY),
+        (x0, f32::NEG_INFINITY),
+        (f32::INFINITY, f32::INFINITY),
+        (f32::NAN, f32::NAN),
+    ] {
+        let mut h = settled;
+        assert_eq!(f.mesh.interpolate(bad.0, bad.1, &mut h), Err(fogtemp_core::Error::NonFiniteSample));
+        assert_eq!(h, settled);
+        assert_eq!(
+            f.mesh.interpolate_with_grid(bad.0, bad.1, &mut h, &grid),
+            Err(fogtemp_core::Error::NonFiniteSample)
+        );
+        assert_eq!(h, settled);
+    }
+}
+
+#[test]
+fn interpolate_is_bit_identical_to_locate_then_plane() {
+    // `interpolate` answers most queries from the hint triangle alone (its hot path) and
+    // sends the rest through the walk; `locate` always walks. Inside the hull the value must
+    // be the located triangle's stored plane, bit for bit, and the hint must end in the same
+    // triangle. Queries: a slow drift (many per triangle), jumps, points on and beyond the
+    // hull, huge finite coordinates, and hints past the last triangle.
+    let f = hint_fixture();
+    let mesh = &f.mesh;
+    let mut r = rng(303);
+    let (mut hint_i, mut hint_l) = (WalkHint::default(), WalkHint::default());
+    let mut queries = Vec::new();
+    let (mut x, mut y) = (-0.5f32, -0.5f32);
+    for i in 0..20_000 {
+        if i % 997 == 0 {
+            (x, y) = (r.gen_range(-1.2f32..1.2), r.gen_range(-1.2f32..1.2));
+        } else {
+            (x, y) = (x + r.gen_range(-1e-3f32..1e-3), y + r.gen_range(-1e-3f32..1e-3));
+        }
+        queries.push((x, y));
+    }
+    queries.extend([(f32::MAX, 0.0), (0.0, -f32::MAX), (3e38, 3e38), (-1e30, 1e-30), (1.0, 1.0)]);
+    for (i, &(x, y)) in queries.iter().enumerate() {
+        if i % 1000 == 500 {
+            (hint_i, hint_l) = (WalkHint(u32::MAX), WalkHint(u32::MAX));
+        }
+        let got = mesh.interpolate(x, y, &mut hint_i).expect("finite");
+        let loc = mesh.locate(x, y, &mut hint_l).expect("finite");
+        assert_eq!(hint_i, hint_l, "query {i} ({x}, {y})");
+        match loc {
+            Location::Inside { triangle, .. } => {
+                let rec = mesh.triangle(triangle).expect("triangle");
+                let (dx, dy) = (x - rec.origin[0], y - rec.origin[1]);
+                let want = rec.plane[0] * dx + rec.plane[1] * dy + rec.plane[2];
+                assert_eq!(got.value_dph.to_bits(), want.to_bits(), "query {i} ({x}, {y})");
+                assert_eq!((got.triangle, got.outside_hull), (triangle, false), "query {i}");
+            }
+            Location::Outside { triangle } => {
+                assert_eq!((got.triangle, got.outside_hull), (triangle, true), "query {i}");
+                let want = mesh.nearest_hull_value(x, y);
+                assert_eq!(got.value_dph.to_bits(), want.to_bits(), "query {i} ({x}, {y})");
+            }
+        }
+    }
+}
+
 // ---------------------------------------------------------------------------------------------
 // 3. Planar and constant surfaces
 // ---------------------------------------------------------------------------------------------

@@ -170,7 +170,9 @@ impl<'a> Mesh<'a> {
     #[inline(always)]
     fn record(&self, t: u32) -> Option<&'a [u8; TRIANGLE_LEN]> {
         let start = (t as usize).checked_mul(TRIANGLE_LEN)?;
-        self.triangles.get(start..)?.first_chunk::<TRIANGLE_LEN>()
+        // One bounds check: `start + TRIANGLE_LEN <= len` (neither add overflows where
+        // `usize` is 64 bits wide, so the compiler drops those checks there).
+        self.triangles.get(start..start.checked_add(TRIANGLE_LEN)?)?.first_chunk::<TRIANGLE_LEN>()
     }
 
     /// The visibility walk from triangle `t` (see [`Mesh::locate`]), reading per step only
@@ -273,6 +275,44 @@ impl<'a> Mesh<'a> {
     /// [`Error::NonFiniteSample`] for a NaN or infinite coordinate; hint unchanged.
     #[inline]
     pub fn interpolate(&self, x: f32, y: f32, hint: &mut WalkHint) -> Result<MeshValue, Error> {
+        match self.hint_test(x, y, hint.0) {
+            Some(test) if test.inside & test.value.value_dph.is_finite() => Ok(test.value),
+            _ => self.interpolate_walk(x, y, hint),
+        }
+    }
+
+    /// The hot path of [`Mesh::interpolate`] and [`Mesh::interpolate_with_grid`]: whether
+    /// the query lies inside the hint triangle `t` itself (about 999 of 1000 samples of a
+    /// 1 kHz stream), and the plane of `t` there; `None` for a hint past the last triangle.
+    ///
+    /// When `inside` holds and the value is finite, the value is the answer, bit for bit:
+    /// the general path tests `t` first with the same arithmetic, stops there, and leaves
+    /// the hint at `t`. No separate finiteness check of the query is needed for that: a
+    /// finite value implies a finite query. `dx = x - ox` is NaN or infinite when `x` is,
+    /// and then so is `p0 dx + p1 dy + p2` for any `p0`, `p1`, `p2` (`0 * inf` is NaN, and
+    /// NaN or infinity absorbs any addend). Every other outcome goes to the general path,
+    /// which checks the query.
+    #[inline(always)]
+    fn hint_test(&self, x: f32, y: f32, t: u32) -> Option<HintTest> {
+        let r = self.record(t)?;
+        let (dx, dy) = (x - rec_f32(r, TRI_ORIGIN.start), y - rec_f32(r, TRI_ORIGIN.start + 4));
+        let b = TRI_BARY.start;
+        let l0 = rec_f32(r, b) * dx + rec_f32(r, b + 4) * dy;
+        let l1 = rec_f32(r, b + 8) * dx + rec_f32(r, b + 12) * dy;
+        let (_, lmin) = most_negative([l0, l1, 1.0 - l0 - l1]);
+        let p = TRI_PLANE.start;
+        let value_dph = rec_f32(r, p) * dx + rec_f32(r, p + 4) * dy + rec_f32(r, p + 8);
+        Some(HintTest {
+            inside: lmin >= -INSIDE_EPS,
+            value: MeshValue { value_dph, triangle: t, outside_hull: false },
+        })
+    }
+
+    /// The general path of [`Mesh::interpolate`]: checks, walks, moves the hint. Out of line,
+    /// so the hot path stays a handful of instructions; a walk that leaves the hint triangle
+    /// costs far more than the call.
+    #[inline(never)]
+    fn interpolate_walk(&self, x: f32, y: f32, hint: &mut WalkHint) -> Result<MeshValue, Error> {
         let end = self.walk_from_hint(x, y, hint)?;
         Ok(self.value_at(&end, x, y))
     }
@@ -299,6 +339,33 @@ impl<'a> Mesh<'a> {
     /// [`Error::NonFiniteSample`] for a NaN or infinite coordinate; hint unchanged.
     #[inline]
     pub fn interpolate_with_grid(
+        &self,
+        x: f32,
+        y: f32,
+        hint: &mut WalkHint,
+        grid: &StartGrid<'_>,
+    ) -> Result<MeshValue, Error> {
+        match self.hint_test(x, y, hint.0) {
+            Some(test) if test.inside & test.value.value_dph.is_finite() => Ok(test.value),
+            // The query left the hint triangle: straight to the grid (what the general path
+            // does next), inline, as random-order queries take this branch every time.
+            Some(test) if !test.inside && x.is_finite() && y.is_finite() => {
+                let count = self.triangle_count();
+                let end = self
+                    .walk_or_scan(x, y, grid.start(x, y).min(count.saturating_sub(1)))
+                    .ok_or(Error::BadMesh { check: "walk", axis: 0, index: hint.0 })?;
+                hint.0 = end.triangle;
+                Ok(self.value_at(&end, x, y))
+            }
+            _ => self.interpolate_grid_general(x, y, hint, grid),
+        }
+    }
+
+    /// The general path of [`Mesh::interpolate_with_grid`]: a non-finite query, a hint past
+    /// the last triangle, a non-finite plane value. Out of line.
+    #[cold]
+    #[inline(never)]
+    fn interpolate_grid_general(
         &self,
         x: f32,
         y: f32,
@@ -393,6 +460,15 @@ impl<'a> Mesh<'a> {
         let (ia, ib) = edge_vertices(&rec, e)?;
         Some((self.vertex(ia)?, self.vertex(ib)?))
     }
+}
+
+/// What [`Mesh::hint_test`] found in the hint triangle.
+#[derive(Clone, Copy)]
+struct HintTest {
+    /// The query is inside (or on the boundary of) the hint triangle.
+    inside: bool,
+    /// The hint triangle's plane at the query (meaningful when `inside`).
+    value: MeshValue,
 }
 
 /// Where a walk ended: the triangle, its record, the query's barycentric coordinates in it,
