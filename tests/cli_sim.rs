@@ -457,7 +457,8 @@ fn diagnose_names_a_left_out_lag_and_nothing_in_the_null_case() {
     // The case-to-coil network lag is (C_o + C_i) / G_co = 606 s and the sensor adds its own
     // 60 s the other way; accept the estimate within 4 reported standard errors of 546 s.
     let tau = &lag["parameters"]["tau_s"];
-    let (value, se) = (tau["value"].as_f64().unwrap_or(f64::NAN), tau["std_error"].as_f64().unwrap_or(f64::NAN));
+    let (value, se) =
+        (tau["value"].as_f64().unwrap_or(f64::NAN), tau["std_error"].as_f64().unwrap_or(f64::NAN));
     assert!((value - 546.0).abs() <= 4.0 * se.max(30.0), "tau {value} +- {se} s");
     assert!(report.join("report.md").is_file(), "no report.md");
 
