@@ -14,8 +14,8 @@
 //!   lag-1 autocorrelation of the current model's residual short means within runs, k =
 //!   linear coefficients + profiled parameters;
 //! - a fold (held-out run) is informative when the term's fitted contribution there, about
-//!   its mean over all runs, has an RMS of at least a quarter of the noise of one short
-//!   mean; a term is accepted when it is identifiable, lowers the total LORO error,
+//!   its mean over all runs, is detectable in that run alone (matched-filter SNR
+//!   `sqrt(sum (v - mean)^2) / sigma >= 3`, sigma the noise of one short mean); a term is accepted when it is identifiable, lowers the total LORO error,
 //!   improves at least `min_fold_fraction` of the informative folds (and at least two),
 //!   lowers BIC, and is stable across folds (jackknife t of its contribution, see
 //!   [`stability_t`], above the two-sided Student-t limit with runs - 1 degrees of freedom
@@ -39,8 +39,14 @@ use crate::error::CalError;
 use crate::metrics::{bias_stability, rms_over_runs, BiasStabilityOptions};
 
 /// A held-out run is informative about a term when the term's contribution there (about its
-/// mean over all runs) has an RMS of at least this fraction of the noise of one short mean.
-const MATERIAL_FRACTION: f64 = 0.25;
+/// mean over all runs) is detectable in that run alone: its matched-filter signal-to-noise
+/// ratio `sqrt(sum_b (v_b - mean)^2) / sigma` (sigma = noise of one short mean) is at least
+/// this. A real effect then lowers that run's held-out error with probability about
+/// `Phi(SNR / 2)` >= 0.93 under white noise, so the fold rule can expect most informative
+/// folds to improve; the rule does not depend on the length of the short means (an RMS
+/// threshold per short mean does, and misses effects smaller than the noise of one mean
+/// that a 2 h run still shows clearly).
+const MATERIAL_SNR: f64 = 3.0;
 
 /// A term in the model: an effect at one grid point.
 #[derive(Clone, Debug, PartialEq)]
@@ -403,15 +409,16 @@ fn concealment(prep: &Prepared, base: &Design, v: &[Vec<f64>]) -> (f64, f64) {
     (plain, r_squared_runs(v, &with_runs))
 }
 
-/// Runs where a contribution `v` (per run) is material: RMS of `v` about its mean over all
-/// runs at least a quarter of the noise of one short mean.
+/// Runs where a contribution `v` (per run) is material: its matched-filter signal-to-noise
+/// ratio in that run, `sqrt(sum (v - mean)^2) / noise_sigma_dph` with the mean over all
+/// runs, is at least [`MATERIAL_SNR`].
 pub fn material_runs(v: &[Vec<f64>], noise_sigma_dph: f64) -> Vec<bool> {
     let n: usize = v.iter().map(Vec::len).sum();
     let mean = v.iter().flatten().sum::<f64>() / n.max(1) as f64;
     v.iter()
         .map(|r| {
-            let ms = r.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / r.len().max(1) as f64;
-            ms.sqrt() >= MATERIAL_FRACTION * noise_sigma_dph
+            let ss = r.iter().map(|x| (x - mean).powi(2)).sum::<f64>();
+            ss.sqrt() >= MATERIAL_SNR * noise_sigma_dph
         })
         .collect()
 }
