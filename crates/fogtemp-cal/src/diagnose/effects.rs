@@ -11,7 +11,7 @@
 //! | `orientation_offset` | one constant per position group, relative to the first group |
 //! | `hysteresis` | `s (h0 [+ h1 (T - T_ref)])`, s = +1 after heating faster than r0, -1 after cooling faster than r0, held in between (0 before the first); r0, degree |
 //! | `static_shape` | cubic B-splines in `LPF_tau(T)` (the coil's temperature) over the recorded range, shared by all runs; basis size, tau 0-10 min |
-//! | `scale_factor_temperature` | `Omega_in (s1 (T - T_ref) [+ s2 ((T - T_ref)^2 - mean)])`, ppm; degree |
+//! | `scale_factor_temperature` | `Omega_in (s1 (T - T_ref) [+ s2 (T - T_ref)^2])`, ppm; degree |
 //!
 //! T is the recorded temperature smoothed by the centred least-squares line, T_ref the mean
 //! recorded temperature over all short means, `Omega_in` the run's input rate from its
@@ -422,37 +422,13 @@ pub fn term_columns(prep: &Prepared, effect: Effect, theta: &[f64]) -> TermColum
         }
         Effect::ScaleFactorTemperature => {
             let degree = theta[0] as i32;
-            // Powers of (T - T_ref) are centred on their mean over all short means, so that
-            // no power carries a constant times the input rate: that constant is a
-            // per-position offset and belongs to `orientation_offset` (an uncentred square
-            // has a positive mean and would mimic one).
-            let n_blocks = prep.n_blocks().max(1) as f64;
-            let centre_of_power: Vec<f64> = (0..=degree.max(0))
-                .map(|d| {
-                    if d == 1 {
-                        0.0
-                    } else {
-                        prep.runs
-                            .iter()
-                            .flat_map(|r| &r.blocks)
-                            .map(|b| (b.temp_c - t_ref).powi(d))
-                            .sum::<f64>()
-                            / n_blocks
-                    }
-                })
-                .collect();
             let per_run = prep
                 .runs
                 .iter()
                 .map(|r| {
                     let omega = r.input_rate_dph.unwrap_or(0.0) * 1e-6;
                     let cols: Vec<Vec<f64>> = (1..=degree)
-                        .map(|d| {
-                            r.blocks
-                                .iter()
-                                .map(|b| omega * ((b.temp_c - t_ref).powi(d) - centre_of_power[d as usize]))
-                                .collect()
-                        })
+                        .map(|d| r.blocks.iter().map(|b| omega * (b.temp_c - t_ref).powi(d)).collect())
                         .collect();
                     matrix_from_columns(&cols)
                 })

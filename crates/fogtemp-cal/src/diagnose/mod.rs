@@ -223,9 +223,8 @@ pub struct CandidateReport {
     pub cv_improvement: f64,
     /// Folds (held-out runs) whose error fell.
     pub folds_improved: usize,
-    /// Folds (held-out runs) where the term's contribution is material: its matched-filter
-    /// signal-to-noise ratio in the run, `sqrt(sum (v - mean)^2) / sigma` (mean over all runs,
-    /// sigma the noise of one short mean), is >= 3.
+    /// Folds (held-out runs) where the term's contribution is material: RMS about its mean
+    /// over all runs >= a quarter of the noise of one short mean.
     pub folds_informative: usize,
     /// BIC(model + term) - BIC(model) on the effective sample size (negative favours the term).
     pub delta_bic: f64,
