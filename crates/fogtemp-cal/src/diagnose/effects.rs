@@ -5,12 +5,12 @@
 //! | effect | term (columns; profiled parameters) |
 //! |---|---|
 //! | `thermal_lag` | `a [g(LPF_tau(T)) - g(T)]`, g = the simulation's static relation; tau 1-30 min |
-//! | `shupe_rate` | `c dT/dt` |
+//! | `shupe_rate` | `c dT_coil/dt`, `T_coil = LPF_tau(T)` (the coil lags the sensor); tau 0-30 min |
 //! | `gradient_rate` | `c d2T/dt2` |
 //! | `warmup_transient` | `A exp(-(t - t_on) / tau_w)`; tau_w 1-60 min |
 //! | `orientation_offset` | one constant per position group, relative to the first group |
 //! | `hysteresis` | `s (h0 [+ h1 (T - T_ref)])`, s = +1 after heating faster than r0, -1 after cooling faster than r0, held in between (0 before the first); r0, degree |
-//! | `static_shape` | cubic B-splines in T over the recorded range, shared by all runs; basis size |
+//! | `static_shape` | cubic B-splines in `LPF_tau(T)` (the coil's temperature) over the recorded range, shared by all runs; basis size, tau 0-10 min |
 //! | `scale_factor_temperature` | `Omega_in (s1 (T - T_ref) [+ s2 (T - T_ref)^2])`, ppm; degree |
 //!
 //! T is the recorded temperature smoothed by the centred least-squares line, T_ref the mean
@@ -148,6 +148,11 @@ pub struct EffectGrid {
 }
 
 const LAG_GRID_S: [f64; 10] = [60.0, 120.0, 180.0, 300.0, 420.0, 600.0, 900.0, 1200.0, 1500.0, 1800.0];
+/// Lag of the coil behind the logged sensor for the Shupe term's rate, s (1 s: the sensor's
+/// own rate).
+const SHUPE_LAG_GRID_S: [f64; 9] = [1.0, 60.0, 120.0, 240.0, 420.0, 600.0, 900.0, 1200.0, 1800.0];
+/// Lag of the coil behind the logged sensor for the static shape's temperature, s.
+const SHAPE_LAG_GRID_S: [f64; 3] = [1.0, 300.0, 600.0];
 const WARMUP_GRID_S: [f64; 11] =
     [60.0, 120.0, 180.0, 300.0, 450.0, 600.0, 900.0, 1200.0, 1800.0, 2700.0, 3600.0];
 const BRANCH_THRESHOLD_GRID_C_PER_MIN: [f64; 5] = [0.005, 0.01, 0.02, 0.05, 0.1];
@@ -307,12 +312,30 @@ pub fn term_columns(prep: &Prepared, effect: Effect, theta: &[f64]) -> TermColum
                 penalty: None,
             }
         }
-        Effect::ShupeRate => TermColumns {
-            theta: theta_v,
-            coefficients: vec![coef("coefficient_dph_per_c_per_min", "deg/h per deg C/min")],
-            per_run: per_block(&|b| b.rate_c_per_min),
-            penalty: None,
-        },
+        Effect::ShupeRate => {
+            // The Shupe term follows the coil's rate, and the coil lags the logged sensor:
+            // the rate of the first-order lag y = LPF_tau(T) is exactly (T - y) / tau.
+            let tau_s = theta[0];
+            let per_run = prep
+                .runs
+                .iter()
+                .map(|r| {
+                    let lagged = low_pass(&r.sec.temp_c, tau_s);
+                    let per_sec: Vec<f64> =
+                        r.sec.temp_c.iter().zip(&lagged).map(|(t, l)| 60.0 * (t - l) / tau_s).collect();
+                    matrix_from_columns(&[block_average(r, &per_sec)])
+                })
+                .collect();
+            TermColumns {
+                theta: theta_v,
+                coefficients: vec![coef(
+                    "coefficient_dph_per_c_per_min",
+                    "deg/h per deg C/min (of the coil)",
+                )],
+                per_run,
+                penalty: None,
+            }
+        }
         Effect::GradientRate => TermColumns {
             theta: theta_v,
             coefficients: vec![coef("coefficient_dph_per_c_per_min2", "deg/h per deg C/min^2")],
@@ -386,8 +409,10 @@ pub fn term_columns(prep: &Prepared, effect: Effect, theta: &[f64]) -> TermColum
                 .runs
                 .iter()
                 .map(|r| {
-                    let basis: Vec<Vec<f64>> =
-                        r.blocks.iter().map(|b| bspline_basis(b.temp_c, lo, hi, k)).collect();
+                    // The shape lives on the coil's temperature, which lags the sensor.
+                    let lag_s = theta.get(1).copied().unwrap_or(1.0);
+                    let coil = block_average(r, &low_pass(&r.sec.temp_c, lag_s));
+                    let basis: Vec<Vec<f64>> = coil.iter().map(|&t| bspline_basis(t, lo, hi, k)).collect();
                     // The first function is dropped: the splines sum to one, the global offset is the constant.
                     DMatrix::from_fn(r.blocks.len(), k - 1, |i, j| basis[i][j + 1])
                 })
@@ -429,13 +454,15 @@ pub fn grid_of(effect: Effect) -> (Vec<ProfiledParam>, Vec<Vec<f64>>) {
             vec![p("rate_threshold_c_per_min", "deg C/min", true), p("degree", "1", false)],
             BRANCH_THRESHOLD_GRID_C_PER_MIN.iter().flat_map(|w| [vec![*w, 0.0], vec![*w, 1.0]]).collect(),
         ),
-        Effect::StaticShape => {
-            (vec![p("basis_functions", "1", false)], SPLINE_SIZE_GRID.iter().map(|v| vec![*v]).collect())
-        }
+        Effect::StaticShape => (
+            vec![p("basis_functions", "1", false), p("coil_lag_s", "s", true)],
+            SPLINE_SIZE_GRID.iter().flat_map(|k| SHAPE_LAG_GRID_S.iter().map(|l| vec![*k, *l])).collect(),
+        ),
         Effect::ScaleFactorTemperature => (vec![p("degree", "1", false)], vec![vec![1.0], vec![2.0]]),
-        Effect::ShupeRate | Effect::GradientRate | Effect::OrientationOffset => {
-            (Vec::new(), vec![Vec::new()])
+        Effect::ShupeRate => {
+            (vec![p("coil_lag_s", "s", true)], SHUPE_LAG_GRID_S.iter().map(|v| vec![*v]).collect())
         }
+        Effect::GradientRate | Effect::OrientationOffset => (Vec::new(), vec![Vec::new()]),
     }
 }
 

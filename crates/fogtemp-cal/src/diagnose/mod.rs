@@ -28,6 +28,7 @@
 //! repeatability, slow flicker) are reported as a location finding instead, and the
 //! concealment index is also given against the model plus per-run offsets.
 
+pub mod concealed;
 pub mod effects;
 pub mod linalg;
 pub mod locate;
@@ -91,6 +92,8 @@ pub struct DiagnoseOptions {
     /// Concealment index above which a term is "not identifiable from these runs".
     pub concealment_limit: f64,
     /// Fraction of informative LORO folds that must improve for a term to be accepted.
+    /// (0.55, a strict majority, gave more power on tests/diagnose_sim.rs but let small
+    /// compensating second terms into tests/diagnose_lib.rs; docs/diagnose.md.)
     pub min_fold_fraction: f64,
     /// Averaging time of the bias stability figures, seconds.
     pub bias_stability_tau_s: f64,

@@ -40,6 +40,9 @@ use crate::metrics::{bias_stability, rms_over_runs, BiasStabilityOptions};
 
 /// A held-out run is informative about a term when the term's contribution there (about its
 /// mean over all runs) has an RMS of at least this fraction of the noise of one short mean.
+/// (A matched-filter rule, `sqrt(sum v^2) / sigma >= 3`, counted near-zero-contribution runs
+/// as informative; under flicker they improve at random and the fold rule then rejected real
+/// effects and admitted spurious second terms: docs/diagnose.md.)
 const MATERIAL_FRACTION: f64 = 0.25;
 
 /// A term in the model: an effect at one grid point.
@@ -974,7 +977,15 @@ fn fit_parameters(
     for (ti, (c, t)) in chosen.iter().zip(&parts).enumerate() {
         let grid = grids.iter().find(|g| g.effect == c.effect);
         for (m, p) in grid.map(|g| g.params.as_slice()).unwrap_or(&[]).iter().enumerate() {
-            if p.continuous {
+            // A parameter at the edge of its grid is a bound, not an estimate: its derivative
+            // column would be near-collinear with the term and inflate every other SE.
+            let at_edge = grid.is_some_and(|g| {
+                let values = g.points.iter().map(|pt| pt.theta[m]);
+                let (lo, hi) =
+                    values.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(v), b.max(v)));
+                t.theta[m] <= lo || t.theta[m] >= hi
+            });
+            if p.continuous && !at_edge {
                 extra.push(derivative_columns(prep, c.effect, t, &coef[ti], m).0);
                 owner.push((ti, m));
             }
