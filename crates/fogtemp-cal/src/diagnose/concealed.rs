@@ -488,7 +488,7 @@ pub fn truth_map(dataset: &ConcealedDataset, generated: &Generated) -> BTreeMap<
     if dataset.identifiable && dataset.injected == Some(Effect::ThermalLag) {
         m.insert("tau_s".into(), coil_lag_s(&generated.recorded_truth));
     }
-    if dataset.identifiable && dataset.injected == Some(Effect::ShupeRate) {
+    if dataset.identifiable && matches!(dataset.injected, Some(Effect::ShupeRate | Effect::GradientRate)) {
         m.insert("coil_lag_s".into(), coil_lag_s(&generated.recorded_truth));
     }
     m

@@ -284,9 +284,6 @@ pub fn group_of(run: &RunData) -> String {
 /// Columns of `effect` at profiled parameters `theta`.
 pub fn term_columns(prep: &Prepared, effect: Effect, theta: &[f64]) -> TermColumns {
     let t_ref = prep.temp_ref_c;
-    let per_block = |f: &dyn Fn(&super::prepare::Block) -> f64| -> Vec<DMatrix<f64>> {
-        prep.runs.iter().map(|r| matrix_from_columns(&[r.blocks.iter().map(f).collect()])).collect()
-    };
     let theta_v = theta.to_vec();
     match effect {
         Effect::ThermalLag => {
@@ -336,12 +333,41 @@ pub fn term_columns(prep: &Prepared, effect: Effect, theta: &[f64]) -> TermColum
                 penalty: None,
             }
         }
-        Effect::GradientRate => TermColumns {
-            theta: theta_v,
-            coefficients: vec![coef("coefficient_dph_per_c_per_min2", "deg/h per deg C/min^2")],
-            per_run: per_block(&|b| b.accel_c_per_min2),
-            penalty: None,
-        },
+        Effect::GradientRate => {
+            // The coil's radial gradient follows the coil's rate (dT_r ~ tau_r dT_coil/dt), so
+            // its rate follows the coil's second derivative; the coil lags the logged sensor.
+            // For y = LPF_tau(T): y' = (T - y) / tau and y'' = (T' - y') / tau, with T' the
+            // smoothed rate of the recorded temperature.
+            let tau_s = theta[0];
+            let per_run = prep
+                .runs
+                .iter()
+                .map(|r| {
+                    let lagged = low_pass(&r.sec.temp_c, tau_s);
+                    let per_sec: Vec<f64> = r
+                        .sec
+                        .temp_c
+                        .iter()
+                        .zip(&lagged)
+                        .zip(&r.sec.rate_c_per_min)
+                        .map(|((t, l), rate)| {
+                            let coil_rate_c_per_s = (t - l) / tau_s;
+                            3600.0 * (rate / 60.0 - coil_rate_c_per_s) / tau_s
+                        })
+                        .collect();
+                    matrix_from_columns(&[block_average(r, &per_sec)])
+                })
+                .collect();
+            TermColumns {
+                theta: theta_v,
+                coefficients: vec![coef(
+                    "coefficient_dph_per_c_per_min2",
+                    "deg/h per deg C/min^2 (of the coil)",
+                )],
+                per_run,
+                penalty: None,
+            }
+        }
         Effect::WarmupTransient => {
             let tau_s = theta[0];
             let per_run = prep
@@ -459,10 +485,10 @@ pub fn grid_of(effect: Effect) -> (Vec<ProfiledParam>, Vec<Vec<f64>>) {
             SPLINE_SIZE_GRID.iter().flat_map(|k| SHAPE_LAG_GRID_S.iter().map(|l| vec![*k, *l])).collect(),
         ),
         Effect::ScaleFactorTemperature => (vec![p("degree", "1", false)], vec![vec![1.0], vec![2.0]]),
-        Effect::ShupeRate => {
+        Effect::ShupeRate | Effect::GradientRate => {
             (vec![p("coil_lag_s", "s", true)], SHUPE_LAG_GRID_S.iter().map(|v| vec![*v]).collect())
         }
-        Effect::GradientRate | Effect::OrientationOffset => (Vec::new(), vec![Vec::new()]),
+        Effect::OrientationOffset => (Vec::new(), vec![Vec::new()]),
     }
 }
 
