@@ -480,3 +480,22 @@ fn diagnose_refuses_unpaired_runs() {
     let err = run_err(&["diagnose", "--simulated", s(&simulated), "--recorded", s(&recorded)]);
     assert!(err.contains("paired by file name") && err.contains("pos2_60C.csv"), "{err}");
 }
+
+/// One paired run: the mismatch is located, but nothing can be named (naming needs a run
+/// held out of the fit); the command says so instead of failing or claiming "nothing left
+/// out".
+#[test]
+fn diagnose_of_one_run_locates_but_names_nothing_and_says_why() {
+    let dir = TempDir::new().expect("tempdir");
+    let simulated = simulate_dir(dir.path(), "sim", &paper_at_1hz("sensor"), 21);
+    let recorded = simulate_dir(dir.path(), "rec", &paper_at_1hz("coil"), 22);
+    let (sim_log, rec_log) = (simulated.join("pos1_-40C.csv"), recorded.join("pos1_-40C.csv"));
+    let doc = run_json(&["diagnose", "--simulated", s(&sim_log), "--recorded", s(&rec_log), "--json"]);
+    assert_eq!(doc["left_out"].as_array().map(Vec::len), Some(0), "{doc}");
+    let summary = doc["summary"].as_str().unwrap_or_default();
+    assert!(
+        summary.starts_with("ONE PAIRED RUN") && !summary.contains("No catalogue effect is left out"),
+        "{summary}"
+    );
+    assert!(doc["location"]["spans"].as_array().is_some_and(|s| !s.is_empty()), "no spans located");
+}

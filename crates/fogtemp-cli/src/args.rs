@@ -402,6 +402,15 @@ pub struct DiagnoseArgs {
     /// The logs are first reduced to means over this many seconds (constant memory).
     #[arg(long, default_value_t = 1.0)]
     pub bin_s: f64,
+    /// Window of the least-squares temperature rate, seconds.
+    #[arg(long, default_value_t = 100.0)]
+    pub rate_window_s: f64,
+    /// Fraction of a rate window that must hold data (lower for sparse logs, e.g. bursts).
+    #[arg(long, default_value_t = 0.5)]
+    pub window_coverage: f64,
+    /// Fraction of a short mean that must hold data.
+    #[arg(long, default_value_t = 0.9)]
+    pub block_coverage: f64,
     /// Columns and units of the recorded logs.
     #[command(flatten)]
     pub ingest: IngestArgs,

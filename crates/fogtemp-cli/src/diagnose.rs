@@ -128,7 +128,13 @@ pub fn diagnose(a: DiagnoseArgs, recorded_ingest: IngestOptions) -> Result<()> {
         sims.push(read_series(s, &sim_ingest, a.bin_s, m.clone())?);
         recs.push(read_series(r, &recorded_ingest, a.bin_s, m)?);
     }
-    let options = DiagnoseOptions { mean_window_s: a.mean_window_s, ..DiagnoseOptions::default() };
+    let options = DiagnoseOptions {
+        mean_window_s: a.mean_window_s,
+        rate_window_s: a.rate_window_s,
+        window_coverage: a.window_coverage,
+        block_coverage: a.block_coverage,
+        ..DiagnoseOptions::default()
+    };
     let bar = ProgressBar::with_draw_target(Some(1000), ProgressDrawTarget::stderr());
     if let Ok(style) = ProgressStyle::with_template("diagnose [{bar:30}] {percent}% {msg}") {
         bar.set_style(style.progress_chars("=> "));

@@ -100,6 +100,11 @@ pub struct DiagnoseOptions {
     /// Recorded-minus-simulated temperature RMS above which the thermal model is reported as
     /// mismatched, deg C.
     pub temp_tolerance_c: f64,
+    /// Fraction of a smoothing window (temperature rate, its slope) that must hold data
+    /// (0.5: half the window; lower only for sparse logs such as periodic bursts).
+    pub window_coverage: f64,
+    /// Fraction of a short mean's seconds that must hold data (0.9).
+    pub block_coverage: f64,
 }
 
 impl Default for DiagnoseOptions {
@@ -117,6 +122,8 @@ impl Default for DiagnoseOptions {
             min_fold_fraction: 0.75,
             bias_stability_tau_s: 100.0,
             temp_tolerance_c: 0.25,
+            window_coverage: 0.5,
+            block_coverage: 0.9,
         }
     }
 }
@@ -154,6 +161,12 @@ impl DiagnoseOptions {
         {
             return Err(CalError::Diagnose(
                 "option rate_edges_c_per_min must be finite and increasing".into(),
+            ));
+        }
+        let fraction = |v: f64| v > 0.0 && v <= 1.0;
+        if !fraction(self.window_coverage) || !fraction(self.block_coverage) {
+            return Err(CalError::Diagnose(
+                "options window_coverage and block_coverage must be within (0, 1]".into(),
             ));
         }
         if !(0.0..=1.0).contains(&self.concealment_limit) || !(0.0..=1.0).contains(&self.min_fold_fraction) {
@@ -518,6 +531,9 @@ pub fn diagnose(
     options.validate()?;
     progress("pairing runs", 0.0);
     let prep = prepare::prepare(simulated, recorded, options)?;
+    if prep.runs.len() < 2 {
+        return single_run(&prep, options);
+    }
     progress("building effect terms", 0.15);
     let grids = effects::build_grids(&prep)?;
     progress("forward selection", 0.3);
@@ -528,4 +544,43 @@ pub fn diagnose(
     let diagnosis = locate::assemble(&prep, &grids, selection, outcome, options)?;
     progress("done", 1.0);
     Ok(diagnosis)
+}
+
+/// One paired run: the mismatch is located (spans, map, Allan deviation, temperature
+/// channels), but no effect can be named, because naming needs runs held out of the fit
+/// (leave-one-run-out). `left_out` is empty and the summary says why: this is "not
+/// decidable from one run", not "nothing left out".
+fn single_run(prep: &prepare::Prepared, options: &DiagnoseOptions) -> Result<Diagnosis, CalError> {
+    let resid: Vec<Vec<f64>> =
+        prep.runs.iter().map(|r| r.blocks.iter().map(|b| b.resid_dph).collect()).collect();
+    let all: Vec<f64> = resid.iter().flatten().copied().collect();
+    let offset = all.iter().sum::<f64>() / all.len().max(1) as f64;
+    let fitted: Vec<Vec<f64>> = resid.iter().map(|v| v.iter().map(|e| e - offset).collect()).collect();
+    let nan_runs: Vec<Vec<f64>> = resid.iter().map(|v| vec![f64::NAN; v.len()]).collect();
+    let outcome = select::FinalOutcome {
+        left_out: Vec::new(),
+        global_offset: Parameter { value: offset, std_error: None, units: "deg/h".into() },
+        residual_before_dph: f64::NAN,
+        residual_after_dph: f64::NAN,
+        bias_stability_before_dph: f64::NAN,
+        bias_stability_after_dph: f64::NAN,
+        fitted_resid: fitted,
+        heldout_resid: nan_runs.clone(),
+        baseline_heldout: nan_runs,
+    };
+    let selection = select::Selection { steps: Vec::new(), chosen: Vec::new() };
+    let mut d = locate::assemble(prep, &[], selection, outcome, options)?;
+    let claimed = format!(" No catalogue effect is left out: {}", d.unexplained.statement);
+    d.unexplained.structured = false;
+    d.unexplained.tables.clear();
+    d.unexplained.statement = "not tested: one run gives no held-out run to test a structure against".into();
+    d.summary = d.summary.replace(&claimed, " Effects not named (one run)");
+    d.summary = format!(
+        "ONE PAIRED RUN: the mismatch is located below, but no effect can be named or its model \
+         tested, because both need runs held out of the fit (leave-one-run-out); left_out is empty \
+         for that reason, not because the residual is consistent with noise. Record at least two \
+         runs (better: the experiments listed for each effect in docs/diagnose.md).\n\n{}",
+        d.summary
+    );
+    Ok(d)
 }

@@ -6,9 +6,6 @@ use nalgebra::{DMatrix, DVector};
 use super::{DiagnoseOptions, RunSeries};
 use crate::error::CalError;
 
-/// Smallest fraction of a block's seconds that must hold data for the block to count.
-const BLOCK_COVERAGE: f64 = 0.9;
-
 /// One short mean of a run (a "block").
 #[derive(Clone, Debug, PartialEq)]
 pub struct Block {
@@ -280,10 +277,16 @@ pub fn centred_line(values: &[f64], half: usize, min_count: usize) -> (Vec<f64>,
     (level, slope)
 }
 
+/// Finite seconds a window of `len` seconds needs: the fraction `coverage`, and at least 3
+/// (a line through fewer is not a rate).
+fn coverage_count(len: usize, coverage: f64) -> usize {
+    ((len as f64 * coverage).ceil() as usize).max(3)
+}
+
 /// Smoothed temperature and rate (deg C/min) from 1 s temperature means.
 fn smooth_temperature(temp_1s: &[f64], options: &DiagnoseOptions) -> (Vec<f64>, Vec<f64>) {
     let half = (options.rate_window_s / 2.0).round().max(1.0) as usize;
-    let (level, slope) = centred_line(temp_1s, half, half + 1);
+    let (level, slope) = centred_line(temp_1s, half, coverage_count(2 * half + 1, options.window_coverage));
     (level, slope.iter().map(|s| s * 60.0).collect())
 }
 
@@ -299,12 +302,16 @@ fn prepare_run(sim: &RunSeries, rec: &RunSeries, options: &DiagnoseOptions) -> R
     let (temp_c, rate_c_per_min) = smooth_temperature(&rec_temp, options);
     let (temp_sim_c, rate_sim_c_per_min) = smooth_temperature(&sim_temp, options);
     let accel_half = (options.accel_window_s / 2.0).round().max(1.0) as usize;
-    let (_, accel) = centred_line(&rate_c_per_min, accel_half, accel_half + 1);
+    let (_, accel) = centred_line(
+        &rate_c_per_min,
+        accel_half,
+        coverage_count(2 * accel_half + 1, options.window_coverage),
+    );
     let accel_c_per_min2: Vec<f64> = accel.iter().map(|a| a * 60.0).collect();
     let resid_dph: Vec<f64> = rec_gyro.iter().zip(&sim_gyro).map(|(r, s)| r - s).collect();
     let since_on_s: Vec<f64> = (0..n_sec).map(|k| t0 + k as f64 + 0.5 - power_on).collect();
     let block_s = options.mean_window_s.round().max(1.0) as usize;
-    let needed = ((block_s as f64) * BLOCK_COVERAGE).ceil() as usize;
+    let needed = (((block_s as f64) * options.block_coverage).ceil() as usize).max(1);
     let mut blocks = Vec::new();
     let mut block_of = vec![usize::MAX; n_sec];
     for index in 0..n_sec.div_ceil(block_s) {
@@ -413,11 +420,8 @@ pub fn prepare(
         check_series(r, "recorded")?;
     }
     let pairs = pair(simulated, recorded)?;
-    if pairs.len() < 2 {
-        return Err(bad(format!(
-            "diagnosis needs at least 2 paired runs for leave-one-run-out validation (got {})",
-            pairs.len()
-        )));
+    if pairs.is_empty() {
+        return Err(bad("no paired runs".into()));
     }
     let runs: Vec<RunData> =
         pairs.iter().map(|(s, r)| prepare_run(s, r, options)).collect::<Result<_, _>>()?;
