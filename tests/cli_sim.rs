@@ -462,6 +462,16 @@ fn diagnose_names_a_left_out_lag_and_nothing_in_the_null_case() {
     assert!((value - 546.0).abs() <= 4.0 * se.max(30.0), "tau {value} +- {se} s");
     assert!(report.join("report.md").is_file(), "no report.md");
 
+    // The scenario updated with what was found, simulated again (another noise seed):
+    // nothing is left out any more and the residual shrinks.
+    let updated = fs::read_to_string(report.join("scenario-updated.toml")).expect("scenario-updated.toml");
+    assert!(updated.contains("temperature_node = \"coil\""), "{updated}");
+    let resimulated = simulate_dir(dir.path(), "sim-updated", &updated, 14);
+    let again = run_json(&["diagnose", "--simulated", s(&resimulated), "--recorded", s(&recorded), "--json"]);
+    assert_eq!(again["left_out"].as_array().map(Vec::len), Some(0), "{}", again["summary"]);
+    let rms = |d: &Value| d["location"]["raw_residual_rms_dph"].as_f64().unwrap_or(f64::NAN);
+    assert!(rms(&again) < rms(&doc), "residual RMS {} -> {}", rms(&doc), rms(&again));
+
     let null = simulate_dir(dir.path(), "rec-null", &paper_at_1hz("sensor"), 13);
     let doc = run_json(&["diagnose", "--simulated", s(&simulated), "--recorded", s(&null), "--json"]);
     assert_eq!(doc["left_out"].as_array().map(Vec::len), Some(0), "{}", doc["summary"]);

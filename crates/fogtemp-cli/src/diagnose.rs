@@ -147,18 +147,56 @@ pub fn diagnose(a: DiagnoseArgs, recorded_ingest: IngestOptions) -> Result<()> {
     .context("diagnosing")?;
     bar.finish_and_clear();
     let seconds = started.elapsed().as_secs_f64();
+    let mut scenario_changes = Vec::new();
+    let mut updated_path = None;
     if let Some(dir) = &a.report {
         write_diagnosis_report(dir, &d)
             .with_context(|| format!("writing the report into {}", dir.display()))?;
         eprintln!("report: {}", dir.join("report.md").display());
+        if let Some((path, changes)) = write_updated_scenario(&a.simulated, dir, &d)? {
+            eprintln!("scenario with the effects found: {}", path.display());
+            scenario_changes = changes;
+            updated_path = Some(path);
+        }
     }
     if a.json {
         let mut doc = serde_json::to_value(&d)?;
         doc["seconds"] = serde_json::json!(seconds);
+        doc["updated_scenario"] = serde_json::json!(updated_path.map(|p| p.display().to_string()));
+        doc["scenario_changes"] = serde_json::json!(scenario_changes);
         println!("{}", serde_json::to_string_pretty(&doc)?);
     } else {
         println!("{}", d.summary);
         eprintln!("diagnosed {} run pairs in {seconds:.1} s", pairs.len());
     }
     Ok(())
+}
+
+/// When the simulation folder holds the `scenario.toml` it was made from, writes
+/// `DIR/scenario-updated.toml`: that scenario with every effect found (the changes listed
+/// at its top). Returns the path and the changes, or `None` without a scenario.
+fn write_updated_scenario(
+    simulated: &Path,
+    dir: &Path,
+    d: &fogtemp_cal::diagnose::Diagnosis,
+) -> Result<Option<(PathBuf, Vec<String>)>> {
+    let source = simulated.join("scenario.toml");
+    if !source.is_file() {
+        return Ok(None);
+    }
+    let text = std::fs::read_to_string(&source).with_context(|| format!("reading {}", source.display()))?;
+    let scenario = fogtemp_cal::sim::Scenario::from_toml(&text, &source.display().to_string())?;
+    let (updated, changes) = fogtemp_cal::diagnose::updated_scenario(&scenario, d);
+    let mut out =
+        format!("# {} updated by `fogtemp-cal diagnose` with the effects it found:\n", source.display());
+    if changes.is_empty() {
+        out.push_str("# (none: nothing is left out)\n");
+    }
+    for c in &changes {
+        out.push_str(&format!("# - {c}\n"));
+    }
+    out.push_str(&updated.to_toml()?);
+    let path = dir.join("scenario-updated.toml");
+    crate::output::write_atomic(&path, |w| Ok(w.write_all(out.as_bytes())?))?;
+    Ok(Some((path, changes)))
 }

@@ -35,6 +35,7 @@ pub mod locate;
 pub mod prepare;
 pub mod report;
 pub mod select;
+pub mod update;
 
 use std::collections::BTreeMap;
 
@@ -43,6 +44,7 @@ use serde::Serialize;
 use crate::error::CalError;
 
 pub use report::write_diagnosis_report;
+pub use update::updated_scenario;
 
 /// One run (one power-on) as a time series: the simulated or the recorded member of a pair.
 #[derive(Clone, Debug, Default, PartialEq, Serialize)]
