@@ -36,16 +36,16 @@ pub struct MeshFigure {
 }
 
 /// Tick label with at most 4 significant digits and no float noise (0.01000000000001 -> 0.01).
-fn tick(v: &f64) -> String {
+pub(crate) fn tick(v: &f64) -> String {
     let rounded: f64 = format!("{v:.3e}").parse().unwrap_or(*v);
     format!("{rounded}")
 }
 
-fn plot_err(path: &Path, e: impl std::fmt::Display) -> CalError {
+pub(crate) fn plot_err(path: &Path, e: impl std::fmt::Display) -> CalError {
     CalError::Io { path: path.to_path_buf(), source: std::io::Error::other(e.to_string()) }
 }
 
-fn finite_range(values: impl Iterator<Item = f64>) -> (f64, f64) {
+pub(crate) fn finite_range(values: impl Iterator<Item = f64>) -> (f64, f64) {
     let (lo, hi) = values
         .filter(|v| v.is_finite())
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(v), b.max(v)));
@@ -57,7 +57,7 @@ fn finite_range(values: impl Iterator<Item = f64>) -> (f64, f64) {
 }
 
 /// Distinct colours for runs.
-fn run_colour(i: usize) -> RGBColor {
+pub(crate) fn run_colour(i: usize) -> RGBColor {
     const C: [RGBColor; 8] = [
         RGBColor(31, 119, 180),
         RGBColor(255, 127, 14),

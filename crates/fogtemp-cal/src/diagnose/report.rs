@@ -10,40 +10,7 @@ use super::{Diagnosis, MapCell};
 use crate::error::CalError;
 use crate::metrics::AllanPoint;
 
-fn io_err(path: &Path, e: impl std::fmt::Display) -> CalError {
-    CalError::Io { path: path.to_path_buf(), source: std::io::Error::other(e.to_string()) }
-}
-
-/// Tick label with at most 4 significant digits.
-fn tick(v: &f64) -> String {
-    let rounded: f64 = format!("{v:.3e}").parse().unwrap_or(*v);
-    format!("{rounded}")
-}
-
-fn range(values: impl Iterator<Item = f64>) -> (f64, f64) {
-    let (lo, hi) = values
-        .filter(|v| v.is_finite())
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(v), b.max(v)));
-    if !lo.is_finite() {
-        return (0.0, 1.0);
-    }
-    let pad = ((hi - lo) * 0.05).max(1e-9);
-    (lo - pad, hi + pad)
-}
-
-fn colour(i: usize) -> RGBColor {
-    const C: [RGBColor; 8] = [
-        RGBColor(31, 119, 180),
-        RGBColor(255, 127, 14),
-        RGBColor(44, 160, 44),
-        RGBColor(214, 39, 40),
-        RGBColor(148, 103, 189),
-        RGBColor(140, 86, 75),
-        RGBColor(227, 119, 194),
-        RGBColor(127, 127, 127),
-    ];
-    C[i % C.len()]
-}
+use crate::report::{finite_range as range, plot_err as io_err, run_colour as colour, tick};
 
 /// Blue (negative) to red (positive) through white, for `t` in [-1, 1].
 fn diverging(t: f64) -> RGBColor {
