@@ -492,13 +492,18 @@ fn traces(prep: &Prepared, outcome: &FinalOutcome) -> Vec<RunTraceOut> {
 }
 
 fn summary(d: &Diagnosis, grids: &[EffectGrid]) -> String {
+    let sigma = d.noise.short_mean_sigma_dph;
+    let noise = if sigma.is_finite() && sigma > 0.0 {
+        format!("{sigma:.5} deg/h")
+    } else {
+        "unknown (no stretch without gaps is long enough for its Allan deviation)".into()
+    };
     let mut s = format!(
-        "{} paired runs. Raw residual (recorded - simulated) RMS {:.5} deg/h in {} s means, overall offset {:+.5} deg/h; noise of one short mean {:.5} deg/h.",
+        "{} paired runs. Raw residual (recorded - simulated) RMS {:.5} deg/h in {} s means, overall offset {:+.5} deg/h; noise of one short mean {noise}.",
         d.runs.len(),
         d.location.raw_residual_rms_dph,
         d.options.mean_window_s,
         d.location.overall_offset_dph,
-        d.noise.short_mean_sigma_dph
     );
     let sig_cells = d.location.map.iter().filter(|c| c.significant).count();
     let sig_spans: Vec<&super::SpanFinding> = d.location.spans.iter().filter(|c| c.significant).collect();
