@@ -15,6 +15,8 @@
 //! from cargo's own report (so `CARGO_TARGET_DIR` and the release profile are honoured).
 //! Set `FOGTEMP_CAL_BIN` to test a prebuilt binary instead.
 
+mod common;
+
 use std::collections::BTreeSet;
 use std::ffi::{OsStr, OsString};
 use std::fs;
@@ -33,41 +35,9 @@ use tempfile::TempDir;
 // The binary
 // ---------------------------------------------------------------------------------------
 
-/// Path of the `fogtemp-cal` executable, built once per test process (see the module docs).
-fn bin() -> &'static Path {
-    static BIN: OnceLock<PathBuf> = OnceLock::new();
-    BIN.get_or_init(|| {
-        if let Some(path) = std::env::var_os("FOGTEMP_CAL_BIN") {
-            return PathBuf::from(path);
-        }
-        let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
-        let mut build = std::process::Command::new(cargo);
-        build
-            .args(["build", "--package", "fogtemp-cli", "--bin", "fogtemp-cal"])
-            .arg("--message-format=json-render-diagnostics")
-            .arg("--manifest-path")
-            .arg(Path::new(env!("CARGO_MANIFEST_DIR")).join("Cargo.toml"));
-        if !cfg!(debug_assertions) {
-            build.arg("--release");
-        }
-        let out = build.output().expect("cannot run cargo to build fogtemp-cal");
-        assert!(
-            out.status.success(),
-            "cargo build -p fogtemp-cli failed:\n{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-        String::from_utf8_lossy(&out.stdout)
-            .lines()
-            .filter_map(|line| serde_json::from_str::<Value>(line).ok())
-            .filter(|m| m["reason"] == "compiler-artifact" && m["target"]["name"] == "fogtemp-cal")
-            .find_map(|m| m["executable"].as_str().map(PathBuf::from))
-            .expect("cargo reported no fogtemp-cal executable")
-    })
-}
-
 /// A command line for `fogtemp-cal`.
 fn cal() -> Command {
-    Command::new(bin())
+    Command::new(common::fogtemp_cal_bin())
 }
 
 /// Runs `fogtemp-cal args...`, requires success, returns stdout.

@@ -7,50 +7,19 @@
 //! `FOGTEMP_CAL_BIN`). Scenarios are small (10 Hz, minutes per run) to keep the debug build
 //! quick; everything is written to temporary folders.
 
+mod common;
+
 use std::collections::BTreeMap;
 use std::fs;
 use std::path::{Path, PathBuf};
-use std::sync::OnceLock;
 
 use assert_cmd::Command;
 use fogtemp_cal::sim::{simulate_in_memory, Scenario, PAPER_TOML};
 use serde_json::Value;
 use tempfile::TempDir;
 
-/// Path of the `fogtemp-cal` executable (see `tests/cli.rs` for why cargo is asked).
-fn bin() -> &'static Path {
-    static BIN: OnceLock<PathBuf> = OnceLock::new();
-    BIN.get_or_init(|| {
-        if let Some(path) = std::env::var_os("FOGTEMP_CAL_BIN") {
-            return PathBuf::from(path);
-        }
-        let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
-        let mut build = std::process::Command::new(cargo);
-        build
-            .args(["build", "--package", "fogtemp-cli", "--bin", "fogtemp-cal"])
-            .arg("--message-format=json-render-diagnostics")
-            .arg("--manifest-path")
-            .arg(Path::new(env!("CARGO_MANIFEST_DIR")).join("Cargo.toml"));
-        if !cfg!(debug_assertions) {
-            build.arg("--release");
-        }
-        let out = build.output().expect("cannot run cargo to build fogtemp-cal");
-        assert!(
-            out.status.success(),
-            "cargo build -p fogtemp-cli failed:\n{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-        String::from_utf8_lossy(&out.stdout)
-            .lines()
-            .filter_map(|line| serde_json::from_str::<Value>(line).ok())
-            .filter(|m| m["reason"] == "compiler-artifact" && m["target"]["name"] == "fogtemp-cal")
-            .find_map(|m| m["executable"].as_str().map(PathBuf::from))
-            .expect("cargo reported no fogtemp-cal executable")
-    })
-}
-
 fn cal() -> Command {
-    Command::new(bin())
+    Command::new(common::fogtemp_cal_bin())
 }
 
 /// Runs `fogtemp-cal args...`, requires success, parses stdout as JSON.

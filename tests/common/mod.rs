@@ -102,3 +102,37 @@ pub fn model_blob(poly: Vec<PolyTerm>, points: Option<&[MeshPoint]>, policy: Out
     encode(&ModelFile { tool_version: "fogtemp test".into(), input_digest: [7; 32], axes: vec![axis] })
         .expect("encodes")
 }
+
+/// Path of the `fogtemp-cal` executable for the command-line tests: `FOGTEMP_CAL_BIN` if set,
+/// else built once per test process by asking cargo (in the same profile as the tests) where
+/// the binary is, since integration tests of the root package get no `CARGO_BIN_EXE_` for it.
+pub fn fogtemp_cal_bin() -> &'static std::path::Path {
+    static BIN: std::sync::OnceLock<std::path::PathBuf> = std::sync::OnceLock::new();
+    BIN.get_or_init(|| {
+        if let Some(path) = std::env::var_os("FOGTEMP_CAL_BIN") {
+            return std::path::PathBuf::from(path);
+        }
+        let cargo = std::env::var_os("CARGO").unwrap_or_else(|| "cargo".into());
+        let mut build = std::process::Command::new(cargo);
+        build
+            .args(["build", "--package", "fogtemp-cli", "--bin", "fogtemp-cal"])
+            .arg("--message-format=json-render-diagnostics")
+            .arg("--manifest-path")
+            .arg(std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("Cargo.toml"));
+        if !cfg!(debug_assertions) {
+            build.arg("--release");
+        }
+        let out = build.output().expect("cannot run cargo to build fogtemp-cal");
+        assert!(
+            out.status.success(),
+            "cargo build -p fogtemp-cli failed:\n{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        String::from_utf8_lossy(&out.stdout)
+            .lines()
+            .filter_map(|line| serde_json::from_str::<serde_json::Value>(line).ok())
+            .filter(|m| m["reason"] == "compiler-artifact" && m["target"]["name"] == "fogtemp-cal")
+            .find_map(|m| m["executable"].as_str().map(std::path::PathBuf::from))
+            .expect("cargo reported no fogtemp-cal executable")
+    })
+}
