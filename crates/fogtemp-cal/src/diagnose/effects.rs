@@ -259,6 +259,12 @@ fn second_differences(k: usize) -> DMatrix<f64> {
     })
 }
 
+/// A one-column term per run: `per_sec(run)` gives its value every second, averaged into
+/// the run's short means.
+fn one_column(prep: &Prepared, per_sec: impl Fn(&RunData) -> Vec<f64>) -> Vec<DMatrix<f64>> {
+    prep.runs.iter().map(|r| matrix_from_columns(&[block_average(r, &per_sec(r))])).collect()
+}
+
 fn matrix_from_columns(columns: &[Vec<f64>]) -> DMatrix<f64> {
     let n = columns.first().map_or(0, Vec::len);
     DMatrix::from_fn(n, columns.len(), |i, j| columns[j][i])
@@ -288,50 +294,29 @@ pub fn term_columns(prep: &Prepared, effect: Effect, theta: &[f64]) -> TermColum
     match effect {
         Effect::ThermalLag => {
             let tau_s = theta[0];
-            let per_run = prep
-                .runs
-                .iter()
-                .map(|r| {
-                    let lagged = low_pass(&r.sec.temp_c, tau_s);
-                    let per_sec: Vec<f64> = match &prep.static_relation {
-                        Some(g) => {
-                            r.sec.temp_c.iter().zip(&lagged).map(|(t, l)| g.eval(*l) - g.eval(*t)).collect()
-                        }
-                        None => vec![0.0; r.sec.temp_c.len()],
-                    };
-                    matrix_from_columns(&[block_average(r, &per_sec)])
-                })
-                .collect();
-            TermColumns {
-                theta: theta_v,
-                coefficients: vec![coef("gain", "1 (1 = the simulation's b(T) on a lagged temperature)")],
-                per_run,
-                penalty: None,
-            }
+            let per_run = one_column(prep, |r| {
+                let lagged = low_pass(&r.sec.temp_c, tau_s);
+                match &prep.static_relation {
+                    Some(g) => {
+                        r.sec.temp_c.iter().zip(&lagged).map(|(t, l)| g.eval(*l) - g.eval(*t)).collect()
+                    }
+                    None => vec![0.0; r.sec.temp_c.len()],
+                }
+            });
+            let coefficients = vec![coef("gain", "1 (1 = the simulation's b(T) on a lagged temperature)")];
+            TermColumns { theta: theta_v, coefficients, per_run, penalty: None }
         }
         Effect::ShupeRate => {
             // The Shupe term follows the coil's rate, and the coil lags the logged sensor:
             // the rate of the first-order lag y = LPF_tau(T) is exactly (T - y) / tau.
             let tau_s = theta[0];
-            let per_run = prep
-                .runs
-                .iter()
-                .map(|r| {
-                    let lagged = low_pass(&r.sec.temp_c, tau_s);
-                    let per_sec: Vec<f64> =
-                        r.sec.temp_c.iter().zip(&lagged).map(|(t, l)| 60.0 * (t - l) / tau_s).collect();
-                    matrix_from_columns(&[block_average(r, &per_sec)])
-                })
-                .collect();
-            TermColumns {
-                theta: theta_v,
-                coefficients: vec![coef(
-                    "coefficient_dph_per_c_per_min",
-                    "deg/h per deg C/min (of the coil)",
-                )],
-                per_run,
-                penalty: None,
-            }
+            let per_run = one_column(prep, |r| {
+                let lagged = low_pass(&r.sec.temp_c, tau_s);
+                r.sec.temp_c.iter().zip(&lagged).map(|(t, l)| 60.0 * (t - l) / tau_s).collect()
+            });
+            let coefficients =
+                vec![coef("coefficient_dph_per_c_per_min", "deg/h per deg C/min (of the coil)")];
+            TermColumns { theta: theta_v, coefficients, per_run, penalty: None }
         }
         Effect::GradientRate => {
             // The coil's radial gradient follows the coil's rate (dT_r ~ tau_r dT_coil/dt), so
@@ -339,50 +324,25 @@ pub fn term_columns(prep: &Prepared, effect: Effect, theta: &[f64]) -> TermColum
             // For y = LPF_tau(T): y' = (T - y) / tau and y'' = (T' - y') / tau, with T' the
             // smoothed rate of the recorded temperature.
             let tau_s = theta[0];
-            let per_run = prep
-                .runs
-                .iter()
-                .map(|r| {
-                    let lagged = low_pass(&r.sec.temp_c, tau_s);
-                    let per_sec: Vec<f64> = r
-                        .sec
-                        .temp_c
-                        .iter()
-                        .zip(&lagged)
-                        .zip(&r.sec.rate_c_per_min)
-                        .map(|((t, l), rate)| {
-                            let coil_rate_c_per_s = (t - l) / tau_s;
-                            3600.0 * (rate / 60.0 - coil_rate_c_per_s) / tau_s
-                        })
-                        .collect();
-                    matrix_from_columns(&[block_average(r, &per_sec)])
-                })
-                .collect();
-            TermColumns {
-                theta: theta_v,
-                coefficients: vec![coef(
-                    "coefficient_dph_per_c_per_min2",
-                    "deg/h per deg C/min^2 (of the coil)",
-                )],
-                per_run,
-                penalty: None,
-            }
+            let per_run = one_column(prep, |r| {
+                let lagged = low_pass(&r.sec.temp_c, tau_s);
+                r.sec
+                    .temp_c
+                    .iter()
+                    .zip(&lagged)
+                    .zip(&r.sec.rate_c_per_min)
+                    .map(|((t, l), rate)| 3600.0 * (rate / 60.0 - (t - l) / tau_s) / tau_s)
+                    .collect()
+            });
+            let coefficients =
+                vec![coef("coefficient_dph_per_c_per_min2", "deg/h per deg C/min^2 (of the coil)")];
+            TermColumns { theta: theta_v, coefficients, per_run, penalty: None }
         }
         Effect::WarmupTransient => {
             let tau_s = theta[0];
-            let per_run = prep
-                .runs
-                .iter()
-                .map(|r| {
-                    let per_sec: Vec<f64> = r
-                        .sec
-                        .since_on_s
-                        .iter()
-                        .map(|&t| if t >= 0.0 { (-t / tau_s).exp() } else { 0.0 })
-                        .collect();
-                    matrix_from_columns(&[block_average(r, &per_sec)])
-                })
-                .collect();
+            let per_run = one_column(prep, |r| {
+                r.sec.since_on_s.iter().map(|&t| if t >= 0.0 { (-t / tau_s).exp() } else { 0.0 }).collect()
+            });
             TermColumns {
                 theta: theta_v,
                 coefficients: vec![coef("amplitude_dph", "deg/h")],
