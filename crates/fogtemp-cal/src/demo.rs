@@ -183,6 +183,11 @@ impl DemoProgress for NoProgress {
     fn advance(&self, _: u64) {}
 }
 
+/// Whether two configurations read the logs into the same features and targets.
+fn same_features(a: &CalibrationConfig, b: &CalibrationConfig) -> bool {
+    a.ingest == b.ingest && a.features == b.features && a.target_window_s == b.target_window_s
+}
+
 fn run_name(p: &Path) -> String {
     p.file_stem().map_or_else(|| p.display().to_string(), |s| s.to_string_lossy().into_owned())
 }
@@ -232,12 +237,7 @@ pub fn run_demo(
     progress.stage("features", calibration_logs.len() as u64);
     let mut feature_sets: Vec<(CalibrationConfig, Vec<RunFeatures>)> = Vec::new();
     for model in &options.models {
-        let same = |c: &CalibrationConfig| {
-            c.ingest == model.config.ingest
-                && c.features == model.config.features
-                && c.target_window_s == model.config.target_window_s
-        };
-        if feature_sets.iter().any(|(c, _)| same(c)) {
+        if feature_sets.iter().any(|(c, _)| same_features(c, &model.config)) {
             continue;
         }
         let mut set = Vec::new();
@@ -255,7 +255,7 @@ pub fn run_demo(
     for model in &options.models {
         let features = feature_sets
             .iter()
-            .find(|(c, _)| c.ingest == model.config.ingest && c.features == model.config.features)
+            .find(|(c, _)| same_features(c, &model.config))
             .map(|(_, f)| f.as_slice())
             .unwrap_or_default();
         let (blob, reports) = calibrate::fit_model(features, &model.config, [0; 32])?;
