@@ -472,70 +472,101 @@ impl ReplaySeries {
     }
 }
 
-/// Replays a log through the core `Compensator` of `axis`, exactly as firmware would, and
-/// keeps `block_s` block means of raw, compensated and bias (constant memory per sample).
-/// `visit` sees every sample `(time_s, raw_dph, output)`.
-///
-/// # Errors
-/// Ingest errors; [`CalError::Model`] if the axis cannot be compensated.
-pub fn replay(
-    path: &Path,
-    model: &Model<'_>,
+/// One compensator being replayed, with the block means it keeps.
+struct Replayer<'m> {
+    comp: Compensator<'m, CAL_CAPACITY>,
     axis: usize,
-    ingest: &IngestOptions,
     block_s: f64,
-    mut visit: impl FnMut(f64, f64, &fogtemp_core::Output),
-    progress: impl FnMut(u64, u64),
-) -> Result<(ReplaySeries, IngestReport), CalError> {
-    let mut comp: Compensator<'_, CAL_CAPACITY> = Compensator::new(model, axis)
-        .map_err(|source| CalError::Model { path: path.to_path_buf(), source })?;
-    let mut series = ReplaySeries { compensating_from_s: f64::NAN, ..ReplaySeries::default() };
-    let mut acc = (0u64, 0.0f64, 0.0f64, 0.0f64, 0i64);
-    let flush = |series: &mut ReplaySeries,
-                 acc: &mut (u64, f64, f64, f64, i64),
-                 f: Option<fogtemp_core::Features>| {
-        if acc.0 > 0 {
-            let n = acc.0 as f64;
-            series.time_s.push((acc.4 as f64 + 0.5) * block_s);
-            series.raw_dph.push(acc.1 / n);
-            series.compensated_dph.push(acc.2 / n);
-            series.bias_dph.push(acc.3 / n);
+    series: ReplaySeries,
+    /// Samples, raw sum, compensated sum, bias sum and block number of the open block.
+    acc: (u64, f64, f64, f64, i64),
+}
+
+impl<'m> Replayer<'m> {
+    fn new(path: &Path, model: &'m Model<'_>, axis: usize, block_s: f64) -> Result<Self, CalError> {
+        let comp = Compensator::new(model, axis)
+            .map_err(|source| CalError::Model { path: path.to_path_buf(), source })?;
+        let series = ReplaySeries { compensating_from_s: f64::NAN, ..ReplaySeries::default() };
+        Ok(Self { comp, axis, block_s, series, acc: (0, 0.0, 0.0, 0.0, 0) })
+    }
+
+    fn step(&mut self, row: &crate::ingest::Row<'_>) {
+        let temp = row.temp_c_for_axis(self.axis);
+        let raw = row.gyros_dph[self.axis];
+        let out = self.comp.step(row.time_us(), raw as f32, temp.is_finite().then_some(temp as f32));
+        if self.series.compensating_from_s.is_nan() && out.flags.0 & fogtemp_core::Flags::WARMING_UP.0 == 0 {
+            self.series.compensating_from_s = row.time_s;
+        }
+        let block = (row.time_s / self.block_s).floor() as i64;
+        if block != self.acc.4 {
+            self.flush();
+            self.acc.4 = block;
+        }
+        self.acc.0 += 1;
+        self.acc.1 += raw;
+        self.acc.2 += f64::from(out.rate_dph);
+        self.acc.3 += f64::from(out.bias_dph);
+        self.series.samples += 1;
+        for (bit, count) in self.series.flag_counts.iter_mut().enumerate() {
+            if out.flags.0 & (1 << bit) != 0 {
+                *count += 1;
+            }
+        }
+    }
+
+    /// Closes the open block (the tracker's features as they stand at its end).
+    fn flush(&mut self) {
+        let (n, raw, comp, bias, block) = self.acc;
+        if n > 0 {
+            let n = n as f64;
+            let f = self.comp.tracker().features();
+            let series = &mut self.series;
+            series.time_s.push((block as f64 + 0.5) * self.block_s);
+            series.raw_dph.push(raw / n);
+            series.compensated_dph.push(comp / n);
+            series.bias_dph.push(bias / n);
             series.temp_c.push(f.map_or(f64::NAN, |f| f64::from(f.temp_c)));
             series.rate_c_per_min.push(f.map_or(f64::NAN, |f| f64::from(f.rate_c_per_min)));
         }
-        *acc = (0, 0.0, 0.0, 0.0, acc.4);
-    };
+        self.acc = (0, 0.0, 0.0, 0.0, block);
+    }
+}
+
+/// Replays a log through the core `Compensator` of every axis of every model, exactly as
+/// firmware would, reading the log once, and keeps `block_s` block means of raw,
+/// compensated and bias (constant memory per sample). Returns the series per model, per
+/// axis (the axes the model and the log's gyro columns share).
+///
+/// # Errors
+/// Ingest errors; [`CalError::Model`] if an axis cannot be compensated.
+pub fn replay_models(
+    path: &Path,
+    models: &[&Model<'_>],
+    ingest: &IngestOptions,
+    block_s: f64,
+    progress: impl FnMut(u64, u64),
+) -> Result<(Vec<Vec<ReplaySeries>>, IngestReport), CalError> {
+    let axes = |m: &Model<'_>| m.axis_count().min(ingest.format.gyro_columns.len());
+    let mut replayers: Vec<Replayer<'_>> = Vec::new();
+    for model in models {
+        for axis in 0..axes(model) {
+            replayers.push(Replayer::new(path, model, axis, block_s)?);
+        }
+    }
     let report = read_log_with_progress(
         path,
         ingest,
         |row| {
-            let temp = row.temp_c_for_axis(axis);
-            let raw = row.gyros_dph[axis];
-            let out = comp.step(row.time_us(), raw as f32, temp.is_finite().then_some(temp as f32));
-            visit(row.time_s, raw, &out);
-            if series.compensating_from_s.is_nan() && out.flags.0 & fogtemp_core::Flags::WARMING_UP.0 == 0 {
-                series.compensating_from_s = row.time_s;
-            }
-            let block = (row.time_s / block_s).floor() as i64;
-            if block != acc.4 {
-                flush(&mut series, &mut acc, comp.tracker().features());
-                acc.4 = block;
-            }
-            acc.0 += 1;
-            acc.1 += raw;
-            acc.2 += f64::from(out.rate_dph);
-            acc.3 += f64::from(out.bias_dph);
-            series.samples += 1;
-            for (bit, count) in series.flag_counts.iter_mut().enumerate() {
-                if out.flags.0 & (1 << bit) != 0 {
-                    *count += 1;
-                }
-            }
+            replayers.iter_mut().for_each(|r| r.step(row));
             Ok(())
         },
         progress,
     )?;
-    flush(&mut series, &mut acc, comp.tracker().features());
+    let mut finished = replayers.into_iter().map(|mut r| {
+        r.flush();
+        r.series
+    });
+    let series = models.iter().map(|m| finished.by_ref().take(axes(m)).collect()).collect();
     Ok((series, report))
 }
 
@@ -559,36 +590,59 @@ pub struct RunValidation {
 /// Replays every run and axis and computes bias stability raw vs compensated.
 ///
 /// # Errors
-/// As [`replay`].
+/// As [`replay_models`].
 pub fn validate_runs(
     paths: &[PathBuf],
     model: &Model<'_>,
     ingest: &IngestOptions,
     options: &BiasStabilityOptions,
-    mut progress: impl FnMut(usize, u64, u64),
+    progress: impl FnMut(usize, u64, u64),
 ) -> Result<(Vec<RunValidation>, f64, f64), CalError> {
-    let mut runs = Vec::new();
+    let mut all = validate_models(paths, &[model], ingest, options, progress)?;
+    Ok(all.pop().unwrap_or_default())
+}
+
+/// [`validate_runs`] for several models on the same logs, reading each log once: one
+/// `(runs, raw, compensated)` per model.
+///
+/// # Errors
+/// As [`replay_models`].
+pub fn validate_models(
+    paths: &[PathBuf],
+    models: &[&Model<'_>],
+    ingest: &IngestOptions,
+    options: &BiasStabilityOptions,
+    mut progress: impl FnMut(usize, u64, u64),
+) -> Result<Vec<(Vec<RunValidation>, f64, f64)>, CalError> {
+    let mut runs: Vec<Vec<RunValidation>> = models.iter().map(|_| Vec::new()).collect();
     for (i, path) in paths.iter().enumerate() {
-        for axis in 0..model.axis_count().min(ingest.format.gyro_columns.len()) {
-            let (series, report) =
-                replay(path, model, axis, ingest, 1.0, |_, _, _| {}, |b, r| progress(i, b, r))?;
-            // Raw and compensated over the same span: from the first block the compensator
-            // corrected (before that its output is the raw input, flagged WARMING_UP).
-            let from = series.first_compensated_block(1.0);
-            let times = series.time_s.get(from..).unwrap_or_default();
-            let stability =
-                |values: &[f64]| bias_stability(times, values.get(from..).unwrap_or_default(), options);
-            runs.push(RunValidation {
-                path: path.clone(),
-                axis,
-                raw_bias_stability_dph: stability(&series.raw_dph),
-                compensated_bias_stability_dph: stability(&series.compensated_dph),
-                series,
-                ingest: report,
-            });
+        let (per_model, report) = replay_models(path, models, ingest, 1.0, |b, r| progress(i, b, r))?;
+        for (model_runs, per_axis) in runs.iter_mut().zip(per_model) {
+            for (axis, series) in per_axis.into_iter().enumerate() {
+                // Raw and compensated over the same span: from the first block the compensator
+                // corrected (before that its output is the raw input, flagged WARMING_UP).
+                let from = series.first_compensated_block(1.0);
+                let times = series.time_s.get(from..).unwrap_or_default();
+                let stability =
+                    |values: &[f64]| bias_stability(times, values.get(from..).unwrap_or_default(), options);
+                model_runs.push(RunValidation {
+                    path: path.clone(),
+                    axis,
+                    raw_bias_stability_dph: stability(&series.raw_dph),
+                    compensated_bias_stability_dph: stability(&series.compensated_dph),
+                    series,
+                    ingest: report.clone(),
+                });
+            }
         }
     }
-    let raw = rms_over_runs(&runs.iter().map(|r| r.raw_bias_stability_dph).collect::<Vec<_>>());
-    let comp = rms_over_runs(&runs.iter().map(|r| r.compensated_bias_stability_dph).collect::<Vec<_>>());
-    Ok((runs, raw, comp))
+    Ok(runs
+        .into_iter()
+        .map(|runs| {
+            let raw = rms_over_runs(&runs.iter().map(|r| r.raw_bias_stability_dph).collect::<Vec<_>>());
+            let comp =
+                rms_over_runs(&runs.iter().map(|r| r.compensated_bias_stability_dph).collect::<Vec<_>>());
+            (runs, raw, comp)
+        })
+        .collect())
 }

@@ -270,21 +270,19 @@ pub fn run_demo(
     seconds.fit = started.elapsed().as_secs_f64();
 
     let started = Instant::now();
-    progress.stage("validate", (options.models.len() * validation_logs.len()) as u64);
+    progress.stage("validate", validation_logs.len() as u64);
+    let parsed: Vec<Model<'_>> = blobs
+        .iter()
+        .map(|b| Model::from_bytes(&b.1).map_err(CalError::SelfCheck))
+        .collect::<Result<_, _>>()?;
+    let outcomes = validate_all(&validation_logs, &parsed, options, progress)?;
     let mut results = Vec::new();
     let mut validations: Vec<(Vec<RunValidation>, f64)> = Vec::new();
     let mut raw_dph = f64::NAN;
     let mut raw_runs = Vec::new();
-    for (model, (path, blob, residual, nodes, terms)) in options.models.iter().zip(&blobs) {
-        let parsed = Model::from_bytes(blob).map_err(CalError::SelfCheck)?;
-        let (runs, raw, comp) = calibrate::validate_runs(
-            &validation_logs,
-            &parsed,
-            &model.config.ingest,
-            &options.stability,
-            |_, _, _| {},
-        )?;
-        progress.advance(validation_logs.len() as u64);
+    for ((model, (path, blob, residual, nodes, terms)), (runs, raw, comp)) in
+        options.models.iter().zip(&blobs).zip(outcomes)
+    {
         raw_dph = raw;
         raw_runs = runs.iter().map(|r| (run_name(&r.path), r.raw_bias_stability_dph)).collect();
         results.push(ModelResult {
@@ -326,6 +324,36 @@ pub fn run_demo(
 }
 
 type Blob = (PathBuf, Vec<u8>, f64, usize, usize);
+
+/// Validates every model on the validation logs: in one pass over each log when the models
+/// read the logs alike (the usual case), else model by model. Advances `progress` per log.
+fn validate_all(
+    logs: &[PathBuf],
+    models: &[Model<'_>],
+    options: &DemoOptions,
+    progress: &dyn DemoProgress,
+) -> Result<Vec<(Vec<RunValidation>, f64, f64)>, CalError> {
+    let mut current = usize::MAX;
+    let mut advance = |i: usize, _: u64, _: u64| {
+        if i != current {
+            current = i;
+            progress.advance(1);
+        }
+    };
+    let ingest = |k: usize| options.models.get(k).map(|m| &m.config.ingest);
+    if (1..models.len()).all(|k| ingest(k) == ingest(0)) {
+        let refs: Vec<&Model<'_>> = models.iter().collect();
+        let ingest = ingest(0).cloned().unwrap_or_default();
+        return calibrate::validate_models(logs, &refs, &ingest, &options.stability, advance);
+    }
+    models
+        .iter()
+        .zip(&options.models)
+        .map(|(model, m)| {
+            calibrate::validate_runs(logs, model, &m.config.ingest, &options.stability, &mut advance)
+        })
+        .collect()
+}
 
 fn write_demo_report(
     dir: &Path,

@@ -320,8 +320,15 @@ fn validate(a: ValidateArgs) -> Result<()> {
     let logs = expand_logs(&a.logs)?;
     let ingest = ingest_options(&a.ingest)?;
     let options = stability_options(&a.stability)?;
+    // The compared models are replayed in the same pass over each log as the primary one.
+    let compare_blobs: Vec<Vec<u8>> = a.compare.iter().map(|p| read_model(p)).collect::<Result<_>>()?;
+    let mut models = vec![model];
+    for blob in &compare_blobs {
+        models.push(Model::from_bytes(blob).map_err(|e| anyhow::anyhow!("{e}"))?);
+    }
+    let refs: Vec<&Model<'_>> = models.iter().collect();
     let bars: Vec<_> = logs.iter().map(|l| RowProgress::new(l, "validate")).collect();
-    let (runs, raw, comp) = calibrate::validate_runs(&logs, &model, &ingest, &options, |i, b, r| {
+    let mut outcomes = calibrate::validate_models(&logs, &refs, &ingest, &options, |i, b, r| {
         if let Some(bar) = bars.get(i) {
             bar.update(b, r);
         }
@@ -329,18 +336,21 @@ fn validate(a: ValidateArgs) -> Result<()> {
     for bar in &bars {
         bar.finish_and_clear();
     }
+    let compared = outcomes.split_off(1.min(outcomes.len()));
+    let (runs, raw, comp) = outcomes.pop().unwrap_or_default();
+    let model = &models[0];
     for r in runs.iter().filter(|r| r.axis == 0) {
         if r.ingest.rows == 0 {
             bail!("{}: no data rows (only a header)", r.path.display());
         }
         report_skipped(&r.ingest);
     }
-    let comparison = compare_models(&a, &model, &logs, &ingest, &options, raw, comp)?;
+    let comparison = compare_models(&a, &models, &compared, raw, comp);
     if let Some(dir) = &a.report {
         fogtemp_cal::report::write_validation_report(
             dir,
             &a.model,
-            &model,
+            model,
             &runs,
             (raw, comp),
             &options.describe(),
@@ -429,35 +439,25 @@ fn model_size(model: &Model<'_>) -> (u32, usize) {
 /// The primary model first, then every `--compare` model, replayed on the same logs.
 fn compare_models(
     a: &ValidateArgs,
-    primary: &Model<'_>,
-    logs: &[std::path::PathBuf],
-    ingest: &IngestOptions,
-    options: &BiasStabilityOptions,
+    models: &[Model<'_>],
+    compared: &[(Vec<calibrate::RunValidation>, f64, f64)],
     raw: f64,
     comp: f64,
-) -> Result<Vec<Compared>> {
+) -> Vec<Compared> {
     if a.compare.is_empty() {
-        return Ok(Vec::new());
+        return Vec::new();
     }
-    let (mesh_nodes, poly_terms) = model_size(primary);
-    let mut out = vec![Compared {
-        model: a.model.clone(),
-        mesh_nodes,
-        poly_terms,
-        raw_dph: raw,
-        compensated_dph: comp,
-    }];
-    for path in &a.compare {
-        let blob = read_model(path)?;
-        let model = Model::from_bytes(&blob).map_err(|e| anyhow::anyhow!("{e}"))?;
-        let bar = RowProgress::new(path, "compare");
-        let (_, raw_dph, compensated_dph) =
-            calibrate::validate_runs(logs, &model, ingest, options, |_, b, r| bar.update(b, r))?;
-        bar.finish_and_clear();
-        let (mesh_nodes, poly_terms) = model_size(&model);
-        out.push(Compared { model: path.clone(), mesh_nodes, poly_terms, raw_dph, compensated_dph });
+    let entry = |path: &std::path::Path, model: &Model<'_>, raw_dph: f64, compensated_dph: f64| {
+        let (mesh_nodes, poly_terms) = model_size(model);
+        Compared { model: path.to_path_buf(), mesh_nodes, poly_terms, raw_dph, compensated_dph }
+    };
+    let mut out = vec![entry(&a.model, &models[0], raw, comp)];
+    for ((path, model), (_, raw_dph, compensated_dph)) in
+        a.compare.iter().zip(models.iter().skip(1)).zip(compared)
+    {
+        out.push(entry(path, model, *raw_dph, *compensated_dph));
     }
-    Ok(out)
+    out
 }
 
 fn comparison_markdown(rows: &[Compared]) -> String {
