@@ -138,6 +138,22 @@ fn mixed_runs() -> Vec<RunSpec> {
     runs
 }
 
+/// The mixed runs plus two hot restarts with chamber ramps across most of the range at
+/// 0.7 C/min, one heating (-30 -> 40 C) and one cooling (40 -> -30 C). A lag of b(T) gives
+/// -b'(T) tau dT/dt there, which grows with T along the ramp (b' doubles from -30 to 40 C);
+/// a Shupe term gives S1 dT/dt, constant along it. The mixed runs' 12.5 C ramp is too
+/// narrow for that (b' changes by 10 % over it): the separating experiment of
+/// [`Effect::ThermalLag`] / [`Effect::ShupeRate`] (physics.md section 4 row 1).
+fn wide_ramp_runs() -> Vec<RunSpec> {
+    let mut runs = mixed_runs();
+    for (name, from, to) in
+        [("pos1_warm_ramp_up_m30C", -30.0, 40.0), ("pos1_warm_ramp_down_40C", 40.0, -30.0)]
+    {
+        runs.push(warm(name, "pos1", vec![[0.0, from], [600.0, from], [6600.0, to]], axis(Direction::Up)));
+    }
+    runs
+}
+
 /// The same six power-on runs only (the paper's protocol: dT/dt >= 0, tied to the time
 /// since power-on).
 fn power_on_runs() -> Vec<RunSpec> {
@@ -199,7 +215,8 @@ pub fn datasets_at(scale: f64) -> Vec<ConcealedDataset> {
         truth: Vec::new(),
     });
 
-    let (simulated, recorded) = pair("thermal_lag", mixed_runs(), |s| s.bias.temperature_node = Node::Coil);
+    let (simulated, recorded) =
+        pair("thermal_lag", wide_ramp_runs(), |s| s.bias.temperature_node = Node::Coil);
     let mut simulated = simulated;
     simulated.bias.temperature_node = Node::Sensor;
     out.push(ConcealedDataset {
@@ -213,7 +230,7 @@ pub fn datasets_at(scale: f64) -> Vec<ConcealedDataset> {
         truth: vec![tp("gain", 1.0, "the recording's b(T) is the simulation's on the coil temperature")],
     });
 
-    let (mut simulated, recorded) = pair("shupe_rate", mixed_runs(), |_| {});
+    let (mut simulated, recorded) = pair("shupe_rate", wide_ramp_runs(), |_| {});
     simulated.bias.shupe_dph_per_c_per_min -= k * SHUPE_DELTA;
     out.push(ConcealedDataset {
         label: "shupe_rate".into(),
