@@ -84,29 +84,35 @@ pub fn sse_of(r: &DMatrix<f64>, beta: &DVector<f64>) -> f64 {
         .sum()
 }
 
-/// Pooled lag-1 autocorrelation of residuals within runs, over consecutive short means
-/// only (block numbers differing by one), clamped to `[0, 0.99]`.
-pub fn lag1_rho(residuals: &[Vec<f64>], indices: &[Vec<usize>]) -> f64 {
-    let (mut num, mut den) = (0.0, 0.0);
+/// Pooled autocorrelations at lags `1..=max_lag` of residuals within runs, about zero (the
+/// residuals of a model with a constant: a run's offset from the others is correlated noise
+/// too, as flicker makes it), over pairs of short means `k` block numbers apart.
+pub fn autocorrelations(residuals: &[Vec<f64>], indices: &[Vec<usize>], max_lag: usize) -> Vec<f64> {
+    let den: f64 = residuals.iter().flatten().map(|v| v * v).sum();
+    let mut num = vec![0.0; max_lag + 1];
     for (e, idx) in residuals.iter().zip(indices) {
-        let mean = e.iter().sum::<f64>() / e.len().max(1) as f64;
-        den += e.iter().map(|v| (v - mean).powi(2)).sum::<f64>();
-        for k in 1..e.len() {
-            if idx[k] == idx[k - 1] + 1 {
-                num += (e[k] - mean) * (e[k - 1] - mean);
+        for i in 0..e.len() {
+            for j in i + 1..e.len() {
+                let lag = idx[j] - idx[i];
+                if lag > max_lag {
+                    break;
+                }
+                num[lag] += e[i] * e[j];
             }
         }
     }
-    if den > 0.0 {
-        (num / den).clamp(0.0, 0.99)
-    } else {
-        0.0
-    }
+    num.iter().skip(1).map(|v| if den > 0.0 { v / den } else { 0.0 }).collect()
 }
 
-/// Effective sample size of `n` AR(1)-correlated values: `n (1 - rho) / (1 + rho)`.
-pub fn effective_n(n: usize, rho: f64) -> f64 {
-    (n as f64 * (1.0 - rho) / (1.0 + rho)).max(2.0)
+/// Effective sample size of `n` correlated values: `n / (1 + 2 sum_k w_k rho_k)` over lags
+/// `k = 1..=L` with Bartlett weights `w_k = 1 - k / (L + 1)` (the same window as the
+/// Newey-West errors), at most `n`, at least 2. Flicker noise correlates short means over
+/// many lags; the AR(1) formula on the lag-1 value alone ignored that and overstated
+/// `n_eff` (BIC then favoured every extra term).
+pub fn effective_n(n: usize, rho: &[f64]) -> f64 {
+    let lags = rho.len() as f64;
+    let sum: f64 = rho.iter().enumerate().map(|(k, r)| (1.0 - (k as f64 + 1.0) / (lags + 1.0)) * r).sum();
+    (n as f64 / (1.0 + 2.0 * sum).max(1.0)).max(2.0)
 }
 
 /// Delete-one-group jackknife covariance of coefficient vectors estimated with each group
@@ -147,4 +153,38 @@ pub fn hac_se_of_mean(values: &[Vec<f64>], indices: &[Vec<usize>], lag: usize) -
         }
     }
     (s.max(0.0) * n as f64 / (n - 1) as f64).sqrt() / n as f64
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Closed form: an alternating +-1 series has autocorrelation (-1)^k (n - k)/n about zero
+    /// when pooled over one run; a gap in the block numbers removes the pairs across it.
+    #[test]
+    fn autocorrelations_match_the_closed_form_and_respect_gaps() {
+        let e: Vec<f64> = (0..10).map(|i| if i % 2 == 0 { 1.0 } else { -1.0 }).collect();
+        let idx: Vec<usize> = (0..10).collect();
+        let rho = autocorrelations(&[e.clone()], &[idx], 3);
+        for (k, r) in rho.iter().enumerate() {
+            let lag = k + 1;
+            let expected = if lag % 2 == 0 { 1.0 } else { -1.0 } * (10 - lag) as f64 / 10.0;
+            assert!((r - expected).abs() < 1e-12, "lag {lag}: {r} vs {expected}");
+        }
+        // Block numbers 0..5 and 100..105: no pair across the gap.
+        let gapped: Vec<usize> = (0..5).chain(100..105).collect();
+        let rho = autocorrelations(&[e], &[gapped], 1);
+        assert!((rho[0] - (-8.0 / 10.0)).abs() < 1e-12, "{}", rho[0]);
+    }
+
+    /// `n / (1 + 2 sum w_k rho_k)` with Bartlett weights, bounded to `[2, n]`.
+    #[test]
+    fn effective_n_uses_bartlett_weights_and_is_bounded() {
+        let n_eff = effective_n(110, &[0.5, 0.25]);
+        let expected = 110.0 / (1.0 + 2.0 * (0.5 * 2.0 / 3.0 + 0.25 / 3.0));
+        assert!((n_eff - expected).abs() < 1e-9, "{n_eff} vs {expected}");
+        assert_eq!(effective_n(50, &[-0.9, -0.9]), 50.0);
+        assert_eq!(effective_n(10, &[0.99; 20]), 2.0);
+        assert_eq!(effective_n(40, &[]), 40.0);
+    }
 }

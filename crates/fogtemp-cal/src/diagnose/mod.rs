@@ -276,7 +276,8 @@ pub struct SelectionStep {
     pub cv_rms_dph: f64,
     /// Effective sample size used by BIC at this step.
     pub n_eff: f64,
-    /// Lag-1 autocorrelation of the model's short-mean residuals (within runs).
+    /// Lag-1 autocorrelation of the model's short-mean residuals (within runs, about zero;
+    /// reported only: `n_eff` uses lags 1..L).
     pub rho: f64,
     /// Every catalogue effect at this step.
     pub candidates: Vec<CandidateReport>,

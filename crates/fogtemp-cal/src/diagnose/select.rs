@@ -10,8 +10,9 @@
 //!   re-chosen in each fold from the training runs only; its complexity (basis size,
 //!   polynomial degree) is the one with the lowest LORO error (slightly optimistic: a
 //!   choice among at most 7 values);
-//! - BIC = `n_eff ln(RSS / n) + k ln(n_eff)`, `n_eff = n (1 - rho) / (1 + rho)`, rho the
-//!   lag-1 autocorrelation of the current model's residual short means within runs, k =
+//! - BIC = `n_eff ln(RSS / n) + k ln(n_eff)`, `n_eff = n / (1 + 2 sum_k w_k rho_k)`, rho_k
+//!   the autocorrelations at lags 1..L (L = the Newey-West bandwidth) of the current
+//!   model's residual short means within runs, Bartlett weights `w_k = 1 - k/(L+1)`, k =
 //!   linear coefficients + profiled parameters;
 //! - a fold (held-out run) is informative when the term's fitted contribution there, about
 //!   its mean over all runs, has an RMS of at least a quarter of the noise of one short
@@ -32,7 +33,7 @@ use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
 
 use super::effects::{term_columns, Effect, EffectGrid, TermColumns};
-use super::linalg::{compress, effective_n, fit_stacked, jackknife_covariance, lag1_rho, sse_of};
+use super::linalg::{autocorrelations, compress, effective_n, fit_stacked, jackknife_covariance, sse_of};
 use super::prepare::Prepared;
 use super::{CandidateReport, DiagnoseOptions, LeftOutEffect, Parameter, SelectionStep};
 use crate::error::CalError;
@@ -741,8 +742,10 @@ pub fn forward_select(
         let base_parts = chosen_parts(&chosen);
         let base = build_design(prep, &base_parts);
         let base_eval = fold_eval(&base, &ys)?;
-        let rho = lag1_rho(&residuals(&base, &base_eval.full_beta, &ys), &indices);
-        let n_eff = effective_n(prep.n_blocks(), rho);
+        let base_resid = residuals(&base, &base_eval.full_beta, &ys);
+        let acf = autocorrelations(&base_resid, &indices, prep.hac_lag_blocks);
+        let rho = acf.first().copied().unwrap_or(0.0);
+        let n_eff = effective_n(prep.n_blocks(), &acf);
         let ctx = StepContext {
             prep,
             grids,
