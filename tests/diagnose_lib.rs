@@ -308,9 +308,9 @@ fn run_diagnosis(plans: &[RunPlan], effect: Injected, rate_hz: f64, seed: u64) -
     for step in &d.selection {
         for c in &step.candidates {
             eprintln!(
-                "  step {:?} {:<26} {:<16} cv {:.5} ({:+.3}) folds {}/{} dBIC {:9.1} t {:6.1} conceal {:.3} / {:.3} {:?} {:?}",
+                "  step {:?} {:<26} {:<16} cv {:.5} ({:+.3}) folds {}/{} dBIC {:9.1} t {:6.1} conceal {:.3} / {:.3} {:?} {:?} {}",
                 step.model, c.effect, c.status, c.cv_rms_dph, c.cv_improvement, c.folds_improved, c.folds_informative,
-                c.delta_bic, c.stability_t, c.concealment_index, c.concealment_with_run_offsets, c.most_confused_with, c.profile
+                c.delta_bic, c.stability_t, c.concealment_index, c.concealment_with_run_offsets, c.most_confused_with, c.profile, c.note
             );
         }
     }

@@ -246,10 +246,19 @@ pub fn bspline_basis(x: f64, lo: f64, hi: f64, k: usize) -> Vec<f64> {
 /// swinging freely.
 const SPLINE_PENALTY_WEIGHT: f64 = 1.0;
 
-/// Second-difference penalty rows for `k` coefficients.
+/// Weight of the ridge rows: each spline coefficient also counts as one pseudo-observation
+/// of 0 (as heavy as one short mean), so a coefficient that no training run supports stays
+/// at the simulation's shape (no change) instead of extrapolating the neighbours' slope
+/// into a held-out run's temperatures.
+const SPLINE_RIDGE_WEIGHT: f64 = 1.0;
+
+/// Penalty rows for `k` spline coefficients: second differences, then the ridge.
 fn second_differences(k: usize) -> DMatrix<f64> {
     let rows = k.saturating_sub(2);
-    DMatrix::from_fn(rows, k, |i, j| {
+    DMatrix::from_fn(rows + k, k, |i, j| {
+        if i >= rows {
+            return if j == i - rows { SPLINE_RIDGE_WEIGHT } else { 0.0 };
+        }
         SPLINE_PENALTY_WEIGHT
             * match j.wrapping_sub(i) {
                 0 | 2 => 1.0,

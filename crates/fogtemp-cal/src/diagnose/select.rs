@@ -9,7 +9,8 @@
 //!   continuous profiled parameters (time constants, thresholds) are chosen by BIC and
 //!   re-chosen in each fold from the training runs only; its complexity (basis size,
 //!   polynomial degree) is the one with the lowest LORO error (slightly optimistic: a
-//!   choice among at most 7 values);
+//!   choice among at most 7 values), the size of a penalised spline basis the smallest
+//!   within one standard error of it (see [`one_standard_error_choice`]);
 //! - BIC = `n_eff ln(RSS / n) + k ln(n_eff)`, `n_eff = n / (1 + 2 sum_k w_k rho_k)`, rho_k
 //!   the autocorrelations at lags 1..L (L = the Newey-West bandwidth) of the current
 //!   model's residual short means within runs, Bartlett weights `w_k = 1 - k/(L+1)`, k =
@@ -22,7 +23,7 @@
 //!   [`stability_t`], above the two-sided Student-t limit with runs - 1 degrees of freedom
 //!   at 5 % / number of candidates; for a flexible term with more than two coefficients, a
 //!   basis in T whose local coefficients a left-out run moves, every fold must instead
-//!   reproduce at least half of the full-data contribution). The accepted candidate with the lowest LORO error enters; selection
+//!   reproduce, on its training runs, at least half of the full-data contribution). The accepted candidate with the lowest LORO error enters; selection
 //!   stops when no candidate is accepted or `max_effects` are in.
 //! - concealment index: R^2 of the candidate's fitted contribution on the terms already
 //!   in the model.
@@ -208,6 +209,8 @@ pub fn bic(rss: f64, k: usize, n: usize, n_eff: f64) -> f64 {
 /// A candidate after profiling.
 struct Profiled {
     point: usize,
+    /// Linear coefficients of the term at `point` (its complexity).
+    coefficients: usize,
     bic: f64,
     full_beta: DVector<f64>,
     fold_sse: Vec<f64>,
@@ -225,16 +228,43 @@ const FLEXIBLE_TERM_COEFFICIENTS: usize = 2;
 /// Smallest fold share a flexible term needs (see [`fold_shares`]).
 const MIN_FOLD_SHARE: f64 = 0.5;
 
+/// `<a, b>` over the runs `keep` allows.
+fn dot_runs(a: &[Vec<f64>], b: &[Vec<f64>], keep: impl Fn(usize) -> bool) -> f64 {
+    a.iter()
+        .zip(b)
+        .enumerate()
+        .filter(|(r, _)| keep(*r))
+        .map(|(_, (x, y))| x.iter().zip(y).map(|(p, q)| p * q).sum::<f64>())
+        .sum()
+}
+
 /// `c_j = <v_j, v> / <v, v>` for every fold (see [`stability_t`]).
 fn fold_shares(full: &[Vec<f64>], folds: &[Vec<Vec<f64>>]) -> Vec<f64> {
-    let dot = |a: &[Vec<f64>], b: &[Vec<f64>]| -> f64 {
-        a.iter().zip(b).map(|(x, y)| x.iter().zip(y).map(|(p, q)| p * q).sum::<f64>()).sum()
-    };
-    let vv = dot(full, full);
+    let vv = dot_runs(full, full, |_| true);
     if vv.is_nan() || vv <= 0.0 {
         return vec![0.0; folds.len()];
     }
-    folds.iter().map(|f| dot(f, full) / vv).collect()
+    folds.iter().map(|f| dot_runs(f, full, |_| true) / vv).collect()
+}
+
+/// Fold shares of a flexible term (a basis in T) over each fold's training runs only:
+/// `<v_j, v> / <v, v>` without the held-out run `j`. Where only the held-out run covers
+/// some temperatures, the fold's coefficients there are unsupported (the penalty keeps them
+/// at the simulation's shape) and the held-out error already judges that region; the share
+/// asks whether the shape the other runs support is reproduced without run `j`.
+fn training_fold_shares(full: &[Vec<f64>], folds: &[Vec<Vec<f64>>]) -> Vec<f64> {
+    folds
+        .iter()
+        .enumerate()
+        .map(|(j, f)| {
+            let vv = dot_runs(full, full, |r| r != j);
+            if vv.is_nan() || vv <= 0.0 {
+                0.0
+            } else {
+                dot_runs(f, full, |r| r != j) / vv
+            }
+        })
+        .collect()
 }
 
 /// Fold-to-fold stability of a term: each LORO fold's fitted contribution `v_j` (at the
@@ -305,10 +335,37 @@ fn profile_candidate(
             profile_members(prep, grid, &evals, &members, n, n_eff)
         })
         .collect();
+    let penalised = grid.points.iter().any(|p| p.penalty.is_some());
+    let choice = if penalised {
+        one_standard_error_choice(profiled)
+    } else {
+        profiled.into_iter().min_by(|a, b| total_cv(a).total_cmp(&total_cv(b)))
+    };
+    choice.ok_or_else(|| CalError::Fit("empty profiling grid".into()))
+}
+
+fn total_cv(p: &Profiled) -> f64 {
+    p.fold_sse.iter().sum()
+}
+
+/// The size of a penalised basis by the one-standard-error rule of cross-validation
+/// (Breiman et al. 1984; Hastie, Tibshirani & Friedman, *Elements of Statistical Learning*
+/// 7.10): the smallest basis whose LORO error is within one standard error of the smallest,
+/// the standard error from the spread of its per-run held-out errors. The penalty keeps a
+/// bigger basis smooth, so the LORO error is flat over sizes and its minimum is decided by
+/// noise; a bigger basis than needed is then judged (and rejected) as unstable. (Discrete
+/// choices between distinct terms, such as a polynomial degree, keep the smallest error.)
+fn one_standard_error_choice(profiled: Vec<Profiled>) -> Option<Profiled> {
+    let total = total_cv;
+    let best = profiled.iter().min_by(|a, b| total(a).total_cmp(&total(b)))?;
+    let g = best.fold_sse.len() as f64;
+    let mean = total(best) / g;
+    let sd = (best.fold_sse.iter().map(|e| (e - mean).powi(2)).sum::<f64>() / (g - 1.0).max(1.0)).sqrt();
+    let limit = total(best) + g * sd / g.sqrt();
     profiled
         .into_iter()
-        .min_by(|a, b| a.fold_sse.iter().sum::<f64>().total_cmp(&b.fold_sse.iter().sum::<f64>()))
-        .ok_or_else(|| CalError::Fit("empty profiling grid".into()))
+        .filter(|p| total(p) <= limit)
+        .min_by(|a, b| a.coefficients.cmp(&b.coefficients).then(total(a).total_cmp(&total(b))))
 }
 
 /// BIC profile over `members` (grid points differing only in continuous parameters).
@@ -341,12 +398,13 @@ fn profile_members(
         .collect();
     Profiled {
         point: best,
+        coefficients: grid.points[best].k(),
         bic: bic(eval.full_rss, *k, n, n_eff),
         full_beta: eval.full_beta.clone(),
         fold_sse,
         design_scale: scale.clone(),
         stability_t: stability_t(&fold_shares(&full, &folds)),
-        min_fold_share: fold_shares(&full, &folds).into_iter().fold(f64::INFINITY, f64::min),
+        min_fold_share: training_fold_shares(&full, &folds).into_iter().fold(f64::INFINITY, f64::min),
     }
 }
 
