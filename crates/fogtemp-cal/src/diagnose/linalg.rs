@@ -165,7 +165,7 @@ mod tests {
     fn autocorrelations_match_the_closed_form_and_respect_gaps() {
         let e: Vec<f64> = (0..10).map(|i| if i % 2 == 0 { 1.0 } else { -1.0 }).collect();
         let idx: Vec<usize> = (0..10).collect();
-        let rho = autocorrelations(&[e.clone()], &[idx], 3);
+        let rho = autocorrelations(std::slice::from_ref(&e), &[idx], 3);
         for (k, r) in rho.iter().enumerate() {
             let lag = k + 1;
             let expected = if lag % 2 == 0 { 1.0 } else { -1.0 } * (10 - lag) as f64 / 10.0;
