@@ -80,6 +80,11 @@ fn null_dataset_names_nothing() {
 fn thermal_lag_hidden_behind_shupe_is_named_and_recovered() {
     let (d, truth) = run("thermal_lag", 1.0);
     assert_named_first(&d, "thermal_lag");
+    // A Shupe term explains nearly the same residual (b(T - tau dT/dt) ~ b - b' tau dT/dt):
+    // the report must say that these runs hardly separate the two, and how to separate them.
+    let lag = &d.left_out[0];
+    assert_eq!(lag.alternatives, ["shupe_rate"], "{}", lag.statement);
+    assert!(lag.statement.contains("alternative explanation: shupe_rate"), "{}", lag.statement);
     assert_recovered(&d, "thermal_lag", "gain", truth["gain"]);
     assert_recovered(&d, "thermal_lag", "tau_s", truth["tau_s"]);
 }

@@ -55,6 +55,7 @@ fn print_candidates(d: &Diagnosis) {
             .map(|(k, v)| format!("{k}={:.5}+-{:.5}", v.value, v.std_error.unwrap_or(f64::NAN)))
             .collect();
         eprintln!("    left out {}: {}", e.effect, p.join(" "));
+        eprintln!("      {}", e.statement);
     }
 }
 

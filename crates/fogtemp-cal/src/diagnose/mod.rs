@@ -219,6 +219,10 @@ pub struct LeftOutEffect {
     /// Concealment index when it entered (R^2 of its fitted contribution on the terms
     /// already in the model).
     pub concealment_index: f64,
+    /// Other catalogue effects that passed every rule at the same step and no longer pass
+    /// once this one is in: alternative explanations these runs hardly separate from it
+    /// (only its lower LORO error chose it; the statement names the experiment to run).
+    pub alternatives: Vec<String>,
     /// Plain-language statement.
     pub statement: String,
 }

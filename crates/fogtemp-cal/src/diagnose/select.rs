@@ -692,7 +692,7 @@ fn run_step(ctx: &StepContext<'_>) -> Result<(Vec<CandidateReport>, Option<Pick>
                 r.status = "selected".into();
             } else if r.status == "accepted" {
                 r.status = "rejected".into();
-                r.note = "passes the rules but another effect lowers the LORO error more".into();
+                r.note = RUNNER_UP_NOTE.into();
             }
         }
     }
@@ -1095,6 +1095,30 @@ fn fit_parameters(
     Fitted { coef, se, theta_se, offset }
 }
 
+/// Passes every rule at a step without being selected.
+const RUNNER_UP_NOTE: &str = "passes the rules but another effect lowers the LORO error more";
+
+/// Alternative explanations of the effect chosen at step `k`: candidates that passed every
+/// rule at that step (only the lower LORO error decided) and no longer pass once the chosen
+/// effect is in the model (it explains what they explained), with their LORO RMS. When
+/// selection stopped at `max_effects` there is no next step and every runner-up counts.
+fn alternatives(steps: &[SelectionStep], k: usize) -> Vec<(String, f64)> {
+    let Some(step) = steps.get(k) else { return Vec::new() };
+    let next = steps.get(k + 1).filter(|s| !s.candidates.is_empty());
+    step.candidates
+        .iter()
+        .filter(|c| c.status == "rejected" && c.note == RUNNER_UP_NOTE)
+        .filter(|c| {
+            next.is_none_or(|n| {
+                n.candidates
+                    .iter()
+                    .any(|d| d.effect == c.effect && !matches!(d.status.as_str(), "selected" | "accepted"))
+            })
+        })
+        .map(|c| (c.effect.clone(), c.cv_rms_dph))
+        .collect()
+}
+
 /// Held-out evaluation of the chosen model, each effect's contribution, and parameters.
 ///
 /// # Errors
@@ -1152,7 +1176,25 @@ pub fn evaluate_final(
                 c.effect.experiment()
             ));
         }
+        let alternatives = alternatives(&selection.steps, i);
+        if !alternatives.is_empty() {
+            let chosen_cv = selection.steps[i]
+                .candidates
+                .iter()
+                .find(|r| r.effect == c.effect.name())
+                .map_or(f64::NAN, |r| r.cv_rms_dph);
+            let list: Vec<String> =
+                alternatives.iter().map(|(e, cv)| format!("{e} (LORO RMS {cv:.5} deg/h)")).collect();
+            statement.push_str(&format!(
+                "; alternative explanation: {} passed every rule too and no longer does once {} is in (only the lower LORO RMS, {chosen_cv:.5} deg/h, chose {}); to separate them run {}",
+                list.join(", "),
+                c.effect.name(),
+                c.effect.name(),
+                c.effect.experiment()
+            ));
+        }
         left_out.push(LeftOutEffect {
+            alternatives: alternatives.into_iter().map(|(e, _)| e).collect(),
             effect: c.effect.name().to_string(),
             parameters,
             residual_before_dph: before,
