@@ -69,13 +69,15 @@ fn main() {
     let only: Vec<&str> = positional.iter().skip(3).map(|s| s.as_str()).collect();
     let all = datasets_at(scale);
     let columns: Vec<&str> = Effect::ALL.iter().map(|e| e.name()).collect();
-    let mut rows: Vec<(String, bool, BTreeMap<String, usize>, usize)> = Vec::new();
+    let mut rows: Vec<(String, bool, BTreeMap<String, usize>, usize, usize)> = Vec::new();
     let mut recoveries: Vec<(String, BTreeMap<String, Recovery>)> = Vec::new();
     let mut sizes: Vec<(String, f64, f64)> = Vec::new();
     let start = Instant::now();
     for ds in all.iter().filter(|d| only.is_empty() || only.contains(&d.label.as_str())) {
         let mut counts: BTreeMap<String, usize> = BTreeMap::new();
         let mut none = 0;
+        // Seeds where the injected effect is named or listed as an alternative of a named one.
+        let mut offered = 0;
         let mut rec: BTreeMap<String, Recovery> = BTreeMap::new();
         for seed in first..first + seeds {
             let g = generate(ds, seed);
@@ -94,6 +96,14 @@ fn main() {
             }
             if named.is_empty() {
                 none += 1;
+            }
+            if let Some(effect) = ds.injected {
+                if d.left_out
+                    .iter()
+                    .any(|e| e.effect == effect.name() || e.alternatives.iter().any(|a| a == effect.name()))
+                {
+                    offered += 1;
+                }
             }
             for n in &named {
                 *counts.entry((*n).to_string()).or_default() += 1;
@@ -118,7 +128,7 @@ fn main() {
                 }
             }
         }
-        rows.push((ds.label.clone(), ds.identifiable, counts, none));
+        rows.push((ds.label.clone(), ds.identifiable, counts, none, offered));
         recoveries.push((ds.label.clone(), rec));
     }
     println!(
@@ -126,13 +136,14 @@ fn main() {
         first + seeds - 1,
         start.elapsed().as_secs_f64()
     );
-    println!("| dataset (injected) | {} | none |", columns.join(" | "));
-    println!("|---|{}---|", "---|".repeat(columns.len()));
-    for (label, identifiable, counts, none) in &rows {
+    println!("| dataset (injected) | {} | none | injected named or an alternative |", columns.join(" | "));
+    println!("|---|{}---|---|", "---|".repeat(columns.len()));
+    for (label, identifiable, counts, none, offered) in &rows {
         let cells: Vec<String> =
             columns.iter().map(|c| counts.get(*c).copied().unwrap_or(0).to_string()).collect();
         let mark = if *identifiable { "" } else { " (concealed beyond recovery)" };
-        println!("| {label}{mark} | {} | {none} |", cells.join(" | "));
+        let offered = if label == "null" { "-".to_string() } else { offered.to_string() };
+        println!("| {label}{mark} | {} | {none} | {offered} |", cells.join(" | "));
     }
     println!("\nEffect sizes (noise-free truth, recorded minus simulated about its mean over all runs):\n");
     println!("| dataset | RMS deg/h | peak deg/h | RMS / {RESIDUAL_NOISE_100S_DPH} |");
@@ -148,6 +159,10 @@ fn main() {
     for (label, rec) in &recoveries {
         for (name, r) in rec {
             let n = r.values.len();
+            if n == 0 {
+                println!("| {label} | {name} | {:.5} | 0 | - | - | - | - |", r.truth);
+                continue;
+            }
             let mean = r.values.iter().sum::<f64>() / n.max(1) as f64;
             let sd =
                 (r.values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n.max(2) - 1) as f64).sqrt();
