@@ -27,6 +27,10 @@ struct Recovery {
     covered: usize,
 }
 
+/// One matrix row: label, identifiable, effects named (count per name), seeds naming
+/// nothing, seeds where the injected effect is named or an alternative of a named one.
+type Row = (String, bool, BTreeMap<String, usize>, usize, usize);
+
 fn print_candidates(d: &Diagnosis) {
     for step in &d.selection {
         for c in &step.candidates {
@@ -69,7 +73,7 @@ fn main() {
     let only: Vec<&str> = positional.iter().skip(3).map(|s| s.as_str()).collect();
     let all = datasets_at(scale);
     let columns: Vec<&str> = Effect::ALL.iter().map(|e| e.name()).collect();
-    let mut rows: Vec<(String, bool, BTreeMap<String, usize>, usize, usize)> = Vec::new();
+    let mut rows: Vec<Row> = Vec::new();
     let mut recoveries: Vec<(String, BTreeMap<String, Recovery>)> = Vec::new();
     let mut sizes: Vec<(String, f64, f64)> = Vec::new();
     let start = Instant::now();
