@@ -6,7 +6,7 @@ use statrs::distribution::{ContinuousCDF, Normal};
 
 use super::effects::EffectGrid;
 use super::linalg::hac_se_of_mean;
-use super::prepare::{adev_at, longest_finite, Prepared, RunData};
+use super::prepare::{longest_finite, short_mean_noise, Prepared, RunData};
 use super::select::{fold_counts, folds_pass, material_runs, FinalOutcome, Selection};
 use super::{
     AllanRow, DiagnoseOptions, Diagnosis, Location, MapCell, NoiseLevel, RunTraceOut, SpanFinding, TableTest,
@@ -247,19 +247,23 @@ fn allan_and_noise(
         .collect();
     let m = prep.block_s;
     let short = |series: &[Vec<f64>]| {
-        let v: Vec<f64> =
-            series.iter().map(|s| adev_at(longest_finite(s), m)).filter(|v| v.is_finite()).collect();
-        rms(&v)
+        let slices: Vec<&[f64]> = series.iter().map(Vec::as_slice).collect();
+        short_mean_noise(&slices, m)
     };
     let recorded: Vec<Vec<f64>> = prep.runs.iter().map(|r| r.sec.gyro_rec_dph.clone()).collect();
+    let (short_after, from_tau_s) = short(&after);
+    let extrapolated = from_tau_s.map_or(String::new(), |k| {
+        format!(" No gap-free stretch is longer than 2 x {m} s, so the short-mean noise is the Allan variance at tau = {k} s pooled over every gap-free stretch, times {k}/{m} (white noise assumed between {k} and {m} s).")
+    });
     let noise = NoiseLevel {
-        short_mean_sigma_dph: short(&after),
+        short_mean_sigma_dph: short_after,
+        short_mean_sigma_from_tau_s: from_tau_s,
         arw_deg_per_sqrt_h: terms.arw_deg_per_sqrt_h,
         bias_instability_dph: terms.bias_instability_dph,
         rrw_dph_per_sqrt_h: terms.rrw_dph_per_sqrt_h,
-        recorded_short_mean_adev_dph: short(&recorded),
+        recorded_short_mean_adev_dph: short(&recorded).0,
         definition: format!(
-            "short-mean noise = overlapping Allan deviation at tau = {m} s of the 1 s residual after the final model, RMS over runs (longest gap-free stretch of each run); N, B, K = weighted NNLS fit of sigma^2 = (60N)^2/tau + (2 ln2/pi) B^2 + K^2 tau/(3*3600) to that residual's pooled Allan deviation (tau <= 1/4 run); the floor is that curve. {}",
+            "short-mean noise = overlapping Allan deviation at tau = {m} s of the 1 s residual after the final model, RMS over runs (longest gap-free stretch of each run); N, B, K = weighted NNLS fit of sigma^2 = (60N)^2/tau + (2 ln2/pi) B^2 + K^2 tau/(3*3600) to that residual's pooled Allan deviation (tau <= 1/4 run); the floor is that curve. {}{extrapolated}",
             if options.mean_window_s.round() as usize != m { "(mean window rounded to whole seconds)" } else { "" }
         ),
     };
@@ -494,7 +498,12 @@ fn traces(prep: &Prepared, outcome: &FinalOutcome) -> Vec<RunTraceOut> {
 fn summary(d: &Diagnosis, grids: &[EffectGrid]) -> String {
     let sigma = d.noise.short_mean_sigma_dph;
     let noise = if sigma.is_finite() && sigma > 0.0 {
-        format!("{sigma:.5} deg/h")
+        match d.noise.short_mean_sigma_from_tau_s {
+            Some(k) => format!(
+                "{sigma:.5} deg/h (extrapolated as white noise from the Allan deviation at tau = {k} s within gap-free stretches)"
+            ),
+            None => format!("{sigma:.5} deg/h"),
+        }
     } else {
         "unknown (no stretch without gaps is long enough for its Allan deviation)".into()
     };

@@ -295,6 +295,10 @@ pub struct NoiseLevel {
     /// Allan deviation of the 1 s residual at `tau = mean_window_s`, RMS over runs: the
     /// scatter of one short mean due to noise, deg/h.
     pub short_mean_sigma_dph: f64,
+    /// `Some(k)` when no gap-free stretch was long enough and `short_mean_sigma_dph` is
+    /// extrapolated, as white noise, from the Allan deviation at `tau = k` s pooled over the
+    /// gap-free stretches (sparse burst logs).
+    pub short_mean_sigma_from_tau_s: Option<usize>,
     /// Noise terms fitted (weighted NNLS, IEEE 952) to the final model's residual Allan
     /// deviation: angle random walk, deg/sqrt(h).
     pub arw_deg_per_sqrt_h: f64,
