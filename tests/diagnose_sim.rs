@@ -167,10 +167,16 @@ fn scale_factor_temperature_with_two_orientations_is_named_and_recovered() {
 /// The coefficient is S3 times the coil's radial time constant (deg/h per deg C/min^2 of the
 /// coil), not S3 itself, so only the coil lag is compared with the truth.
 #[test]
-fn gradient_rate_is_named_and_its_coil_lag_recovered() {
+fn gradient_rate_is_named_and_its_coefficient_and_coil_lag_recovered() {
     let (d, truth) = run("gradient_rate", 2.0);
     assert_named_first(&d, "gradient_rate");
     assert_recovered(&d, "gradient_rate", "coil_lag_s", truth["coil_lag_s"]);
+    assert_recovered(
+        &d,
+        "gradient_rate",
+        "coefficient_dph_per_c_per_min2",
+        truth["coefficient_dph_per_c_per_min2"],
+    );
 }
 
 #[test]

@@ -498,6 +498,36 @@ pub fn coil_lag_s(recorded: &[RunTruth]) -> f64 {
     }
 }
 
+/// The coefficient of the `gradient_rate` term that best maps the true injected
+/// contribution (recorded minus simulated noise-free output) onto the term built, as the
+/// diagnosis builds it, from the true sensor temperature with the coil lag `tau_s`:
+/// `d2 LPF_tau(T_s)/dt2` in deg C/min^2 (least squares with an intercept over all runs).
+/// The simulator's radial gradient is not exactly a first-order lag of the coil's rate, so
+/// this is the term's best value, not S3 times a time constant.
+pub fn gradient_coefficient(simulated: &[RunTruth], recorded: &[RunTruth], tau_s: f64) -> f64 {
+    let (mut xs, mut vs) = (Vec::new(), Vec::new());
+    for (sim, rec) in simulated.iter().zip(recorded) {
+        let sensor: Vec<f64> = rec.points.iter().map(|p| p.sensor_c).collect();
+        let lagged = super::effects::low_pass(&sensor, tau_s);
+        let n = sensor.len();
+        for i in 1..n.saturating_sub(1) {
+            let dt = rec.points[i + 1].time_s - rec.points[i - 1].time_s;
+            let rate_c_per_s = (sensor[i + 1] - sensor[i - 1]) / dt;
+            xs.push(3600.0 * (rate_c_per_s - (sensor[i] - lagged[i]) / tau_s) / tau_s);
+            vs.push(rec.points[i].output_dph - sim.points[i].output_dph);
+        }
+    }
+    let n = xs.len().max(1) as f64;
+    let (mx, mv) = (xs.iter().sum::<f64>() / n, vs.iter().sum::<f64>() / n);
+    let sxv: f64 = xs.iter().zip(&vs).map(|(x, v)| (x - mx) * (v - mv)).sum();
+    let sxx: f64 = xs.iter().map(|x| (x - mx).powi(2)).sum();
+    if sxx > 0.0 {
+        sxv / sxx
+    } else {
+        f64::NAN
+    }
+}
+
 /// The datasets' true parameters as a map (label -> parameter -> value), with the coil lag
 /// of the `thermal_lag` design derived from its truth.
 pub fn truth_map(dataset: &ConcealedDataset, generated: &Generated) -> BTreeMap<String, f64> {
@@ -507,6 +537,11 @@ pub fn truth_map(dataset: &ConcealedDataset, generated: &Generated) -> BTreeMap<
     }
     if dataset.identifiable && matches!(dataset.injected, Some(Effect::ShupeRate | Effect::GradientRate)) {
         m.insert("coil_lag_s".into(), coil_lag_s(&generated.recorded_truth));
+    }
+    if dataset.identifiable && dataset.injected == Some(Effect::GradientRate) {
+        let tau_s = coil_lag_s(&generated.recorded_truth);
+        let c = gradient_coefficient(&generated.simulated_truth, &generated.recorded_truth, tau_s);
+        m.insert("coefficient_dph_per_c_per_min2".into(), c);
     }
     m
 }
