@@ -260,7 +260,7 @@ pub fn run_demo(
             .unwrap_or_default();
         let (blob, reports) = calibrate::fit_model(features, &model.config, [0; 32])?;
         let path = models_dir.join(format!("{}.fogm", model.key));
-        sim::write_file_atomic(&path, |w| std::io::Write::write_all(w, &blob))?;
+        crate::output::write_file_atomic(&path, |w| std::io::Write::write_all(w, &blob))?;
         let residual = reports.first().map_or(f64::NAN, |r| r.residual_rms_dph);
         let nodes = reports.first().map_or(0, |r| r.mesh_nodes);
         let terms = reports.first().and_then(|r| r.poly.as_ref()).map_or(0, |p| p.terms.len());
@@ -387,7 +387,7 @@ fn write_demo_report(
     }
     let path = dir.join("report.md");
     let text = demo_markdown(result);
-    sim::write_file_atomic(&path, |w| std::io::Write::write_all(w, text.as_bytes()))
+    crate::output::write_file_atomic(&path, |w| std::io::Write::write_all(w, text.as_bytes()))
 }
 
 /// The Markdown report: Table 1 beside the paper's, per-run figures, settings.

@@ -74,6 +74,16 @@ pub enum CalError {
     /// duplicate names, empty or non-finite series, time not increasing, too few runs.
     #[error("diagnose: {0}")]
     Diagnose(String),
+    /// Writing an output file failed (see [`crate::output`]).
+    #[error("{action} {}: {source}", path.display())]
+    Output {
+        /// What failed ("writing", "syncing", "cannot move the output into place at", ...).
+        action: &'static str,
+        /// File or folder.
+        path: PathBuf,
+        /// The OS error.
+        source: std::io::Error,
+    },
     /// I/O on a named file.
     #[error("{}: {source}", path.display())]
     Io {

@@ -14,6 +14,7 @@ pub mod ingest;
 pub mod mesh;
 pub mod mesh_fit;
 pub mod metrics;
+pub mod output;
 pub mod poly_fit;
 pub mod report;
 pub mod sim;

@@ -6,6 +6,7 @@ use plotters::prelude::*;
 
 use crate::error::CalError;
 use crate::metrics::AllanPoint;
+use crate::output::write_file_atomic;
 
 /// One run's traces for the figures (block means, typically 1 s).
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -39,6 +40,21 @@ pub struct MeshFigure {
 pub(crate) fn tick(v: &f64) -> String {
     let rounded: f64 = format!("{v:.3e}").parse().unwrap_or(*v);
     format!("{rounded}")
+}
+
+/// Draws an SVG of `size` pixels with `draw` in memory and writes it to `path` atomically
+/// (a failed drawing leaves no half-drawn file).
+///
+/// # Errors
+/// What `draw` returns, or [`CalError::Output`] if the file cannot be written.
+pub(crate) fn write_svg(
+    path: &Path,
+    size: (u32, u32),
+    draw: impl FnOnce(DrawingArea<SVGBackend<'_>, plotters::coord::Shift>) -> Result<(), CalError>,
+) -> Result<(), CalError> {
+    let mut svg = String::new();
+    draw(SVGBackend::with_string(&mut svg, size).into_drawing_area())?;
+    write_file_atomic(path, |w| w.write_all(svg.as_bytes()))
 }
 
 pub(crate) fn plot_err(path: &Path, e: impl std::fmt::Display) -> CalError {
@@ -78,63 +94,68 @@ pub(crate) fn run_colour(i: usize) -> RGBColor {
 pub fn plot_runs(path: &Path, title: &str, runs: &[RunTrace]) -> Result<(), CalError> {
     let with_comp = runs.iter().any(|r| !r.compensated_dph.is_empty());
     let panels = if with_comp { 4 } else { 3 };
-    let root = SVGBackend::new(path, (1100, 260 * panels as u32)).into_drawing_area();
-    root.fill(&WHITE).map_err(|e| plot_err(path, e))?;
-    let root = root.titled(title, ("sans-serif", 22)).map_err(|e| plot_err(path, e))?;
-    let areas = root.split_evenly((panels, 1));
-    let t_max = runs.iter().flat_map(|r| r.time_s.last().copied()).fold(1.0, f64::max) / 60.0;
-    type Pick = fn(&RunTrace) -> &Vec<f64>;
-    let mut specs: Vec<(&str, Pick)> = vec![
-        ("temperature, deg C", |r| &r.temp_c),
-        ("rate, deg C/min", |r| &r.rate_c_per_min),
-        ("raw gyro, deg/h", |r| &r.raw_dph),
-    ];
-    if with_comp {
-        specs.push(("compensated gyro, deg/h", |r| &r.compensated_dph));
-    }
-    // Raw and compensated share one scale so the improvement is visible.
-    let gyro_range =
-        finite_range(runs.iter().flat_map(|r| r.raw_dph.iter().chain(&r.compensated_dph).copied()));
-    for (area, (label, pick)) in areas.iter().zip(specs) {
-        let y_range = if label.contains("gyro") {
-            gyro_range
-        } else {
-            finite_range(runs.iter().flat_map(|r| pick(r).iter().copied()))
-        };
-        let mut chart = ChartBuilder::on(area)
-            .margin(8)
-            .x_label_area_size(35)
-            .y_label_area_size(70)
-            .build_cartesian_2d(0.0..t_max, y_range.0..y_range.1)
-            .map_err(|e| plot_err(path, e))?;
-        chart
-            .configure_mesh()
-            .x_desc("time since power-on, min")
-            .y_desc(label)
-            .x_label_formatter(&tick)
-            .y_label_formatter(&tick)
-            .light_line_style(WHITE.mix(0.0))
-            .draw()
-            .map_err(|e| plot_err(path, e))?;
-        for (i, run) in runs.iter().enumerate() {
-            let series =
-                run.time_s.iter().zip(pick(run)).filter(|(_, v)| v.is_finite()).map(|(t, v)| (t / 60.0, *v));
-            chart
-                .draw_series(LineSeries::new(series, run_colour(i)))
-                .map_err(|e| plot_err(path, e))?
-                .label(run.name.clone())
-                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], run_colour(i)));
+    write_svg(path, (1100, 260 * panels as u32), |root| {
+        root.fill(&WHITE).map_err(|e| plot_err(path, e))?;
+        let root = root.titled(title, ("sans-serif", 22)).map_err(|e| plot_err(path, e))?;
+        let areas = root.split_evenly((panels, 1));
+        let t_max = runs.iter().flat_map(|r| r.time_s.last().copied()).fold(1.0, f64::max) / 60.0;
+        type Pick = fn(&RunTrace) -> &Vec<f64>;
+        let mut specs: Vec<(&str, Pick)> = vec![
+            ("temperature, deg C", |r| &r.temp_c),
+            ("rate, deg C/min", |r| &r.rate_c_per_min),
+            ("raw gyro, deg/h", |r| &r.raw_dph),
+        ];
+        if with_comp {
+            specs.push(("compensated gyro, deg/h", |r| &r.compensated_dph));
         }
-        if label.starts_with("temperature") && runs.len() <= 16 {
+        // Raw and compensated share one scale so the improvement is visible.
+        let gyro_range =
+            finite_range(runs.iter().flat_map(|r| r.raw_dph.iter().chain(&r.compensated_dph).copied()));
+        for (area, (label, pick)) in areas.iter().zip(specs) {
+            let y_range = if label.contains("gyro") {
+                gyro_range
+            } else {
+                finite_range(runs.iter().flat_map(|r| pick(r).iter().copied()))
+            };
+            let mut chart = ChartBuilder::on(area)
+                .margin(8)
+                .x_label_area_size(35)
+                .y_label_area_size(70)
+                .build_cartesian_2d(0.0..t_max, y_range.0..y_range.1)
+                .map_err(|e| plot_err(path, e))?;
             chart
-                .configure_series_labels()
-                .background_style(WHITE.mix(0.85))
-                .border_style(BLACK)
+                .configure_mesh()
+                .x_desc("time since power-on, min")
+                .y_desc(label)
+                .x_label_formatter(&tick)
+                .y_label_formatter(&tick)
+                .light_line_style(WHITE.mix(0.0))
                 .draw()
                 .map_err(|e| plot_err(path, e))?;
+            for (i, run) in runs.iter().enumerate() {
+                let series = run
+                    .time_s
+                    .iter()
+                    .zip(pick(run))
+                    .filter(|(_, v)| v.is_finite())
+                    .map(|(t, v)| (t / 60.0, *v));
+                chart
+                    .draw_series(LineSeries::new(series, run_colour(i)))
+                    .map_err(|e| plot_err(path, e))?
+                    .label(run.name.clone())
+                    .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], run_colour(i)));
+            }
+            if label.starts_with("temperature") && runs.len() <= 16 {
+                chart
+                    .configure_series_labels()
+                    .background_style(WHITE.mix(0.85))
+                    .border_style(BLACK)
+                    .draw()
+                    .map_err(|e| plot_err(path, e))?;
+            }
         }
-    }
-    root.present().map_err(|e| plot_err(path, e))
+        root.present().map_err(|e| plot_err(path, e))
+    })
 }
 
 /// Blue (low) to red (high) through white.
@@ -156,90 +177,91 @@ fn diverging(t: f64) -> RGBColor {
 /// # Errors
 /// [`CalError::Io`] if the file cannot be written.
 pub fn plot_mesh(path: &Path, title: &str, mesh: &MeshFigure) -> Result<(), CalError> {
-    let root = SVGBackend::new(path, (1000, 760)).into_drawing_area();
-    root.fill(&WHITE).map_err(|e| plot_err(path, e))?;
-    let (main, legend) = root.split_horizontally(880);
-    let (t0, t1) = finite_range(mesh.nodes.iter().map(|n| n.0).chain(mesh.points.iter().map(|p| p.0)));
-    let (r0, r1) = finite_range(mesh.nodes.iter().map(|n| n.1).chain(mesh.points.iter().map(|p| p.1)));
-    let (v0, v1) = finite_range(mesh.nodes.iter().map(|n| n.2));
-    let scale = |v: f64| (v - v0) / (v1 - v0);
-    let mut chart = ChartBuilder::on(&main)
-        .caption(title, ("sans-serif", 20))
-        .margin(10)
-        .x_label_area_size(40)
-        .y_label_area_size(70)
-        .build_cartesian_2d(t0..t1, r0..r1)
-        .map_err(|e| plot_err(path, e))?;
-    chart
-        .configure_mesh()
-        .x_desc("temperature, deg C")
-        .y_desc("rate, deg C/min")
-        .x_label_formatter(&tick)
-        .y_label_formatter(&tick)
-        .disable_mesh()
-        .draw()
-        .map_err(|e| plot_err(path, e))?;
-    let node = |i: u32| mesh.nodes.get(i as usize).copied().unwrap_or((0.0, 0.0, 0.0));
-    chart
-        .draw_series(mesh.triangles.iter().map(|t| {
-            let [a, b, c] = t.map(node);
-            Polygon::new(
-                vec![(a.0, a.1), (b.0, b.1), (c.0, c.1)],
-                diverging(scale((a.2 + b.2 + c.2) / 3.0)).filled(),
-            )
-        }))
-        .map_err(|e| plot_err(path, e))?;
-    chart
-        .draw_series(mesh.triangles.iter().map(|t| {
-            let [a, b, c] = t.map(node);
-            PathElement::new(
-                vec![(a.0, a.1), (b.0, b.1), (c.0, c.1), (a.0, a.1)],
-                BLACK.mix(0.35).stroke_width(1),
-            )
-        }))
-        .map_err(|e| plot_err(path, e))?;
-    if !mesh.points.is_empty() {
+    write_svg(path, (1000, 760), |root| {
+        root.fill(&WHITE).map_err(|e| plot_err(path, e))?;
+        let (main, legend) = root.split_horizontally(880);
+        let (t0, t1) = finite_range(mesh.nodes.iter().map(|n| n.0).chain(mesh.points.iter().map(|p| p.0)));
+        let (r0, r1) = finite_range(mesh.nodes.iter().map(|n| n.1).chain(mesh.points.iter().map(|p| p.1)));
+        let (v0, v1) = finite_range(mesh.nodes.iter().map(|n| n.2));
+        let scale = |v: f64| (v - v0) / (v1 - v0);
+        let mut chart = ChartBuilder::on(&main)
+            .caption(title, ("sans-serif", 20))
+            .margin(10)
+            .x_label_area_size(40)
+            .y_label_area_size(70)
+            .build_cartesian_2d(t0..t1, r0..r1)
+            .map_err(|e| plot_err(path, e))?;
         chart
-            .draw_series(
-                mesh.points.iter().map(|p| Circle::new(*p, 1, RGBColor(90, 90, 90).mix(0.4).filled())),
-            )
+            .configure_mesh()
+            .x_desc("temperature, deg C")
+            .y_desc("rate, deg C/min")
+            .x_label_formatter(&tick)
+            .y_label_formatter(&tick)
+            .disable_mesh()
+            .draw()
+            .map_err(|e| plot_err(path, e))?;
+        let node = |i: u32| mesh.nodes.get(i as usize).copied().unwrap_or((0.0, 0.0, 0.0));
+        chart
+            .draw_series(mesh.triangles.iter().map(|t| {
+                let [a, b, c] = t.map(node);
+                Polygon::new(
+                    vec![(a.0, a.1), (b.0, b.1), (c.0, c.1)],
+                    diverging(scale((a.2 + b.2 + c.2) / 3.0)).filled(),
+                )
+            }))
+            .map_err(|e| plot_err(path, e))?;
+        chart
+            .draw_series(mesh.triangles.iter().map(|t| {
+                let [a, b, c] = t.map(node);
+                PathElement::new(
+                    vec![(a.0, a.1), (b.0, b.1), (c.0, c.1), (a.0, a.1)],
+                    BLACK.mix(0.35).stroke_width(1),
+                )
+            }))
+            .map_err(|e| plot_err(path, e))?;
+        if !mesh.points.is_empty() {
+            chart
+                .draw_series(
+                    mesh.points.iter().map(|p| Circle::new(*p, 1, RGBColor(90, 90, 90).mix(0.4).filled())),
+                )
+                .map_err(|e| plot_err(path, e))?
+                .label("calibration points")
+                .legend(|(x, y)| Circle::new((x, y), 3, RGBColor(90, 90, 90).filled()));
+        }
+        chart
+            .draw_series(mesh.nodes.iter().map(|n| Circle::new((n.0, n.1), 2, BLACK.filled())))
             .map_err(|e| plot_err(path, e))?
-            .label("calibration points")
-            .legend(|(x, y)| Circle::new((x, y), 3, RGBColor(90, 90, 90).filled()));
-    }
-    chart
-        .draw_series(mesh.nodes.iter().map(|n| Circle::new((n.0, n.1), 2, BLACK.filled())))
-        .map_err(|e| plot_err(path, e))?
-        .label("mesh nodes")
-        .legend(|(x, y)| Circle::new((x, y), 3, BLACK.filled()));
-    chart
-        .configure_series_labels()
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .draw()
+            .label("mesh nodes")
+            .legend(|(x, y)| Circle::new((x, y), 3, BLACK.filled()));
+        chart
+            .configure_series_labels()
+            .background_style(WHITE.mix(0.85))
+            .border_style(BLACK)
+            .draw()
+            .map_err(|e| plot_err(path, e))?;
+        // Colour bar.
+        let mut bar = ChartBuilder::on(&legend)
+            .margin_top(60)
+            .margin_bottom(60)
+            .y_label_area_size(60)
+            .caption("deg/h", ("sans-serif", 16))
+            .build_cartesian_2d(0.0..1.0, v0..v1)
+            .map_err(|e| plot_err(path, e))?;
+        bar.configure_mesh()
+            .disable_x_axis()
+            .disable_mesh()
+            .y_label_formatter(&tick)
+            .draw()
+            .map_err(|e| plot_err(path, e))?;
+        let steps = 100;
+        bar.draw_series((0..steps).map(|k| {
+            let a = v0 + (v1 - v0) * k as f64 / steps as f64;
+            let b = v0 + (v1 - v0) * (k + 1) as f64 / steps as f64;
+            Rectangle::new([(0.0, a), (1.0, b)], diverging(scale((a + b) / 2.0)).filled())
+        }))
         .map_err(|e| plot_err(path, e))?;
-    // Colour bar.
-    let mut bar = ChartBuilder::on(&legend)
-        .margin_top(60)
-        .margin_bottom(60)
-        .y_label_area_size(60)
-        .caption("deg/h", ("sans-serif", 16))
-        .build_cartesian_2d(0.0..1.0, v0..v1)
-        .map_err(|e| plot_err(path, e))?;
-    bar.configure_mesh()
-        .disable_x_axis()
-        .disable_mesh()
-        .y_label_formatter(&tick)
-        .draw()
-        .map_err(|e| plot_err(path, e))?;
-    let steps = 100;
-    bar.draw_series((0..steps).map(|k| {
-        let a = v0 + (v1 - v0) * k as f64 / steps as f64;
-        let b = v0 + (v1 - v0) * (k + 1) as f64 / steps as f64;
-        Rectangle::new([(0.0, a), (1.0, b)], diverging(scale((a + b) / 2.0)).filled())
-    }))
-    .map_err(|e| plot_err(path, e))?;
-    root.present().map_err(|e| plot_err(path, e))
+        root.present().map_err(|e| plot_err(path, e))
+    })
 }
 
 /// Allan deviation curves, log-log.
@@ -254,40 +276,44 @@ pub fn plot_allan(path: &Path, title: &str, curves: &[(String, Vec<AllanPoint>)]
     if !t0.is_finite() {
         return Err(plot_err(path, "no Allan deviation points to plot"));
     }
-    let root = SVGBackend::new(path, (900, 650)).into_drawing_area();
-    root.fill(&WHITE).map_err(|e| plot_err(path, e))?;
-    let mut chart = ChartBuilder::on(&root)
-        .caption(title, ("sans-serif", 20))
-        .margin(12)
-        .x_label_area_size(45)
-        .y_label_area_size(80)
-        .build_cartesian_2d((t0 * 0.8..t1 * 1.25).log_scale(), (a0 * 0.8..a1 * 1.25).log_scale())
-        .map_err(|e| plot_err(path, e))?;
-    chart
-        .configure_mesh()
-        .x_desc("averaging time tau, s")
-        .y_desc("Allan deviation, deg/h")
-        .x_labels(8)
-        .y_labels(8)
-        .x_label_formatter(&tick)
-        .y_label_formatter(&tick)
-        .draw()
-        .map_err(|e| plot_err(path, e))?;
-    for (i, (name, curve)) in curves.iter().enumerate() {
-        let colour = run_colour(i);
+    write_svg(path, (900, 650), |root| {
+        root.fill(&WHITE).map_err(|e| plot_err(path, e))?;
+        let mut chart = ChartBuilder::on(&root)
+            .caption(title, ("sans-serif", 20))
+            .margin(12)
+            .x_label_area_size(45)
+            .y_label_area_size(80)
+            .build_cartesian_2d((t0 * 0.8..t1 * 1.25).log_scale(), (a0 * 0.8..a1 * 1.25).log_scale())
+            .map_err(|e| plot_err(path, e))?;
         chart
-            .draw_series(LineSeries::new(curve.iter().map(|p| (p.tau_s, p.adev_dph)), colour.stroke_width(2)))
-            .map_err(|e| plot_err(path, e))?
-            .label(name.clone())
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], colour.stroke_width(2)));
-    }
-    chart
-        .configure_series_labels()
-        .background_style(WHITE.mix(0.85))
-        .border_style(BLACK)
-        .draw()
-        .map_err(|e| plot_err(path, e))?;
-    root.present().map_err(|e| plot_err(path, e))
+            .configure_mesh()
+            .x_desc("averaging time tau, s")
+            .y_desc("Allan deviation, deg/h")
+            .x_labels(8)
+            .y_labels(8)
+            .x_label_formatter(&tick)
+            .y_label_formatter(&tick)
+            .draw()
+            .map_err(|e| plot_err(path, e))?;
+        for (i, (name, curve)) in curves.iter().enumerate() {
+            let colour = run_colour(i);
+            chart
+                .draw_series(LineSeries::new(
+                    curve.iter().map(|p| (p.tau_s, p.adev_dph)),
+                    colour.stroke_width(2),
+                ))
+                .map_err(|e| plot_err(path, e))?
+                .label(name.clone())
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], colour.stroke_width(2)));
+        }
+        chart
+            .configure_series_labels()
+            .background_style(WHITE.mix(0.85))
+            .border_style(BLACK)
+            .draw()
+            .map_err(|e| plot_err(path, e))?;
+        root.present().map_err(|e| plot_err(path, e))
+    })
 }
 
 /// Mesh figure data from a model axis: nodes in physical units (model value at the node:
@@ -406,7 +432,7 @@ pub fn write_validation_report(
         }
     }
     let path = dir.join("report.md");
-    std::fs::write(&path, md).map_err(|source| CalError::Io { path, source })
+    write_file_atomic(&path, |w| w.write_all(md.as_bytes()))
 }
 
 /// Writes `fit-report.md` and its figures into `dir` for a fit: calibration runs
@@ -457,5 +483,5 @@ pub fn write_fit_report(
         }
     }
     let path = dir.join("fit-report.md");
-    std::fs::write(&path, md).map_err(|source| CalError::Io { path, source })
+    write_file_atomic(&path, |w| w.write_all(md.as_bytes()))
 }

@@ -361,7 +361,7 @@ fn validate(a: ValidateArgs) -> Result<()> {
             let mut text =
                 std::fs::read_to_string(&path).with_context(|| format!("reading {}", path.display()))?;
             text = text.replacen("\n## ", &format!("\n{table}\n## "), 1);
-            std::fs::write(&path, text).with_context(|| format!("writing {}", path.display()))?;
+            write_atomic(&path, |w| Ok(w.write_all(text.as_bytes())?))?;
         }
         eprintln!("report: {}", dir.join("report.md").display());
     }
@@ -707,7 +707,7 @@ fn export(a: ExportArgs) -> Result<()> {
                 Ok(())
             })?;
             source_file.commit()?;
-            header.commit()
+            header.commit().map_err(anyhow::Error::from)
         }
     }?;
     println!("wrote {}", a.out.display());

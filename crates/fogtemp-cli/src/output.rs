@@ -4,54 +4,21 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
+pub use fogtemp_cal::output::Staged;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
-/// Writes a file atomically: a temporary file in the same folder, flushed and synced,
-/// then renamed over `path`. A failure leaves no partial file behind.
+/// Writes a file atomically (`fogtemp_cal::output`): a temporary file in the same folder,
+/// flushed and synced, then renamed over `path`. A failure leaves no partial file behind.
 pub fn write_atomic(path: &Path, write: impl FnOnce(&mut dyn Write) -> Result<()>) -> Result<()> {
-    stage(path, write)?.commit()
-}
-
-/// An output written and synced to a temporary file beside its destination; dropping it
-/// removes the temporary file, [`Staged::commit`] renames it into place.
-pub struct Staged {
-    tmp: tempfile::NamedTempFile,
-    path: PathBuf,
-}
-
-impl Staged {
-    /// Renames the staged file over its destination.
-    pub fn commit(self) -> Result<()> {
-        let path = self.path;
-        self.tmp
-            .persist(&path)
-            .with_context(|| format!("cannot move the output into place at {}", path.display()))?;
-        Ok(())
-    }
+    stage(path, write)?.commit()?;
+    Ok(())
 }
 
 /// The first half of [`write_atomic`]: for outputs that must all be written before any
-/// of them is moved into place.
+/// of them is moved into place ([`Staged::commit`]).
 pub fn stage(path: &Path, write: impl FnOnce(&mut dyn Write) -> Result<()>) -> Result<Staged> {
-    let dir = match path.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
-        _ => PathBuf::from("."),
-    };
-    let mut builder = tempfile::Builder::new();
-    builder.prefix(".fogtemp-");
-    // The usual mode of a new file (0666 less the umask), not tempfile's private 0600.
-    #[cfg(unix)]
-    builder.permissions(std::os::unix::fs::PermissionsExt::from_mode(0o666));
-    let mut tmp = builder
-        .tempfile_in(&dir)
-        .with_context(|| format!("cannot create a temporary file in {}", dir.display()))?;
-    {
-        let mut buffered = std::io::BufWriter::new(tmp.as_file_mut());
-        write(&mut buffered)?;
-        buffered.flush().with_context(|| format!("writing {}", path.display()))?;
-    }
-    tmp.as_file().sync_all().with_context(|| format!("syncing {}", path.display()))?;
-    Ok(Staged { tmp, path: path.to_path_buf() })
+    // The closure's error chain travels inside the I/O error ("{:#}" keeps every cause).
+    Ok(fogtemp_cal::output::stage(path, |w| write(w).map_err(|e| std::io::Error::other(format!("{e:#}"))))?)
 }
 
 /// Every log named: files as given, folders expanded to their `*.csv` files sorted by name.

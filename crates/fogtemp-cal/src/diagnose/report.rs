@@ -9,8 +9,9 @@ use plotters::prelude::*;
 use super::{Diagnosis, MapCell};
 use crate::error::CalError;
 use crate::metrics::AllanPoint;
+use crate::output::write_file_atomic;
 
-use crate::report::{finite_range as range, plot_err as io_err, run_colour as colour, tick};
+use crate::report::{finite_range as range, plot_err as io_err, run_colour as colour, tick, write_svg};
 
 /// Blue (negative) to red (positive) through white, for `t` in [-1, 1].
 fn diverging(t: f64) -> RGBColor {
@@ -31,52 +32,53 @@ type PickTrace = fn(&super::RunTraceOut) -> &Vec<f64>;
 /// Residual short means against time, one line per run: before (offset only, held-out)
 /// and after (final model, held-out), on one scale.
 fn plot_residuals(path: &Path, d: &Diagnosis) -> Result<(), CalError> {
-    let root = SVGBackend::new(path, (1100, 720)).into_drawing_area();
-    root.fill(&WHITE).map_err(|e| io_err(path, e))?;
-    let root = root
-        .titled("Residual (recorded - simulated), held-out short means", ("sans-serif", 22))
-        .map_err(|e| io_err(path, e))?;
-    let areas = root.split_evenly((2, 1));
-    let t_max = d.traces.iter().flat_map(|t| t.time_s.last().copied()).fold(1.0, f64::max) / 60.0;
-    let y = range(d.traces.iter().flat_map(|t| t.before_dph.iter().chain(&t.after_dph).copied()));
-    let panels: [(&str, PickTrace); 2] = [
-        ("before: global offset only, deg/h", |t| &t.before_dph),
-        ("after: final model, deg/h", |t| &t.after_dph),
-    ];
-    for (area, (label, pick)) in areas.iter().zip(panels) {
-        let mut chart = ChartBuilder::on(area)
-            .margin(8)
-            .x_label_area_size(35)
-            .y_label_area_size(70)
-            .build_cartesian_2d(0.0..t_max, y.0..y.1)
+    write_svg(path, (1100, 720), |root| {
+        root.fill(&WHITE).map_err(|e| io_err(path, e))?;
+        let root = root
+            .titled("Residual (recorded - simulated), held-out short means", ("sans-serif", 22))
             .map_err(|e| io_err(path, e))?;
-        chart
-            .configure_mesh()
-            .x_desc("time since power-on, min")
-            .y_desc(label)
-            .x_label_formatter(&tick)
-            .y_label_formatter(&tick)
-            .light_line_style(WHITE.mix(0.0))
-            .draw()
-            .map_err(|e| io_err(path, e))?;
-        for (i, t) in d.traces.iter().enumerate() {
-            let series = t.time_s.iter().zip(pick(t)).map(|(x, v)| (x / 60.0, *v));
+        let areas = root.split_evenly((2, 1));
+        let t_max = d.traces.iter().flat_map(|t| t.time_s.last().copied()).fold(1.0, f64::max) / 60.0;
+        let y = range(d.traces.iter().flat_map(|t| t.before_dph.iter().chain(&t.after_dph).copied()));
+        let panels: [(&str, PickTrace); 2] = [
+            ("before: global offset only, deg/h", |t| &t.before_dph),
+            ("after: final model, deg/h", |t| &t.after_dph),
+        ];
+        for (area, (label, pick)) in areas.iter().zip(panels) {
+            let mut chart = ChartBuilder::on(area)
+                .margin(8)
+                .x_label_area_size(35)
+                .y_label_area_size(70)
+                .build_cartesian_2d(0.0..t_max, y.0..y.1)
+                .map_err(|e| io_err(path, e))?;
             chart
-                .draw_series(LineSeries::new(series, colour(i)))
-                .map_err(|e| io_err(path, e))?
-                .label(t.run.clone())
-                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], colour(i)));
-        }
-        if d.traces.len() <= 12 {
-            chart
-                .configure_series_labels()
-                .background_style(WHITE.mix(0.85))
-                .border_style(BLACK)
+                .configure_mesh()
+                .x_desc("time since power-on, min")
+                .y_desc(label)
+                .x_label_formatter(&tick)
+                .y_label_formatter(&tick)
+                .light_line_style(WHITE.mix(0.0))
                 .draw()
                 .map_err(|e| io_err(path, e))?;
+            for (i, t) in d.traces.iter().enumerate() {
+                let series = t.time_s.iter().zip(pick(t)).map(|(x, v)| (x / 60.0, *v));
+                chart
+                    .draw_series(LineSeries::new(series, colour(i)))
+                    .map_err(|e| io_err(path, e))?
+                    .label(t.run.clone())
+                    .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], colour(i)));
+            }
+            if d.traces.len() <= 12 {
+                chart
+                    .configure_series_labels()
+                    .background_style(WHITE.mix(0.85))
+                    .border_style(BLACK)
+                    .draw()
+                    .map_err(|e| io_err(path, e))?;
+            }
         }
-    }
-    root.present().map_err(|e| io_err(path, e))
+        root.present().map_err(|e| io_err(path, e))
+    })
 }
 
 fn rate_label(c: &MapCell) -> String {
@@ -91,52 +93,56 @@ fn rate_label(c: &MapCell) -> String {
 /// The (T, dT/dt) map: one rectangle per cell coloured by z (clamped to +-5), significant
 /// cells outlined in black; rate bins on the vertical axis by index.
 fn plot_map(path: &Path, cells: &[MapCell], title: &str) -> Result<(), CalError> {
-    let root = SVGBackend::new(path, (1000, 640)).into_drawing_area();
-    root.fill(&WHITE).map_err(|e| io_err(path, e))?;
-    let (t0, t1) = range(cells.iter().flat_map(|c| [c.temp_lo_c, c.temp_hi_c]));
-    let bins = cells.iter().map(|c| c.rate_bin).max().unwrap_or(0) + 1;
-    let mut labels = vec![String::new(); bins];
-    for c in cells {
-        labels[c.rate_bin] = rate_label(c);
-    }
-    let mut chart = ChartBuilder::on(&root)
-        .caption(title, ("sans-serif", 20))
-        .margin(12)
-        .x_label_area_size(40)
-        .y_label_area_size(110)
-        .build_cartesian_2d(t0..t1, 0.0..bins as f64)
-        .map_err(|e| io_err(path, e))?;
-    let label_of = move |v: &f64| {
-        let i = v.floor() as usize;
-        if (v - v.floor() - 0.5).abs() < 0.26 {
-            labels.get(i).cloned().unwrap_or_default()
-        } else {
-            String::new()
+    write_svg(path, (1000, 640), |root| {
+        root.fill(&WHITE).map_err(|e| io_err(path, e))?;
+        let (t0, t1) = range(cells.iter().flat_map(|c| [c.temp_lo_c, c.temp_hi_c]));
+        let bins = cells.iter().map(|c| c.rate_bin).max().unwrap_or(0) + 1;
+        let mut labels = vec![String::new(); bins];
+        for c in cells {
+            labels[c.rate_bin] = rate_label(c);
         }
-    };
-    chart
-        .configure_mesh()
-        .x_desc("temperature, deg C")
-        .y_desc("dT/dt, deg C/min")
-        .x_label_formatter(&tick)
-        .y_labels(bins * 2 + 1)
-        .y_label_formatter(&label_of)
-        .disable_mesh()
-        .draw()
-        .map_err(|e| io_err(path, e))?;
-    chart
-        .draw_series(cells.iter().map(|c| {
-            let y = c.rate_bin as f64;
-            Rectangle::new([(c.temp_lo_c, y + 0.05), (c.temp_hi_c, y + 0.95)], diverging(c.z / 5.0).filled())
-        }))
-        .map_err(|e| io_err(path, e))?;
-    chart
-        .draw_series(cells.iter().filter(|c| c.significant).map(|c| {
-            let y = c.rate_bin as f64;
-            Rectangle::new([(c.temp_lo_c, y + 0.05), (c.temp_hi_c, y + 0.95)], BLACK.stroke_width(2))
-        }))
-        .map_err(|e| io_err(path, e))?;
-    root.present().map_err(|e| io_err(path, e))
+        let mut chart = ChartBuilder::on(&root)
+            .caption(title, ("sans-serif", 20))
+            .margin(12)
+            .x_label_area_size(40)
+            .y_label_area_size(110)
+            .build_cartesian_2d(t0..t1, 0.0..bins as f64)
+            .map_err(|e| io_err(path, e))?;
+        let label_of = move |v: &f64| {
+            let i = v.floor() as usize;
+            if (v - v.floor() - 0.5).abs() < 0.26 {
+                labels.get(i).cloned().unwrap_or_default()
+            } else {
+                String::new()
+            }
+        };
+        chart
+            .configure_mesh()
+            .x_desc("temperature, deg C")
+            .y_desc("dT/dt, deg C/min")
+            .x_label_formatter(&tick)
+            .y_labels(bins * 2 + 1)
+            .y_label_formatter(&label_of)
+            .disable_mesh()
+            .draw()
+            .map_err(|e| io_err(path, e))?;
+        chart
+            .draw_series(cells.iter().map(|c| {
+                let y = c.rate_bin as f64;
+                Rectangle::new(
+                    [(c.temp_lo_c, y + 0.05), (c.temp_hi_c, y + 0.95)],
+                    diverging(c.z / 5.0).filled(),
+                )
+            }))
+            .map_err(|e| io_err(path, e))?;
+        chart
+            .draw_series(cells.iter().filter(|c| c.significant).map(|c| {
+                let y = c.rate_bin as f64;
+                Rectangle::new([(c.temp_lo_c, y + 0.05), (c.temp_hi_c, y + 0.95)], BLACK.stroke_width(2))
+            }))
+            .map_err(|e| io_err(path, e))?;
+        root.present().map_err(|e| io_err(path, e))
+    })
 }
 
 fn allan_curves(d: &Diagnosis) -> Vec<(String, Vec<AllanPoint>)> {
@@ -358,5 +364,5 @@ pub fn write_diagnosis_report(dir: &Path, d: &Diagnosis) -> Result<(), CalError>
         )?;
     }
     let path = dir.join("report.md");
-    std::fs::write(&path, markdown(d)).map_err(|source| CalError::Io { path, source })
+    write_file_atomic(&path, |w| w.write_all(markdown(d).as_bytes()))
 }

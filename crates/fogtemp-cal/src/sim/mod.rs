@@ -23,6 +23,7 @@ pub use run::{run_truth, RunGenerator, RunTruth, Sample, TruthPoint};
 pub use scenario::{RunSpec, Scenario, PAPER_TOML};
 
 use crate::error::CalError;
+use crate::output::write_file_atomic;
 
 /// Samples between progress reports.
 const PROGRESS_EVERY: u64 = 1 << 16;
@@ -168,31 +169,6 @@ gradient_c,gradient_rate_c_per_min,power_w,bias_dph,output_dph\n",
     out.write_all(&buf)
 }
 
-/// Writes `path` through a hidden temporary file in the same folder and renames it into
-/// place, so a failure never leaves half a file under the final name.
-///
-/// # Errors
-/// [`CalError::Io`] naming the file.
-pub fn write_file_atomic(
-    path: &Path,
-    write: impl FnOnce(&mut std::io::BufWriter<std::fs::File>) -> std::io::Result<()>,
-) -> Result<(), CalError> {
-    let io = |source| CalError::Io { path: path.to_path_buf(), source };
-    let name = path.file_name().map_or_else(|| "out".into(), |n| n.to_string_lossy().into_owned());
-    let tmp = path.with_file_name(format!(".{name}.{}.tmp", std::process::id()));
-    let result = (|| {
-        let file = std::fs::File::create(&tmp)?;
-        let mut w = std::io::BufWriter::with_capacity(WRITE_CHUNK, file);
-        write(&mut w)?;
-        w.flush()?;
-        std::fs::rename(&tmp, path)
-    })();
-    if result.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    result.map_err(io)
-}
-
 /// Simulates every run of `scenario` into `dir` (one `NAME.csv` per run, `truth/NAME.csv`,
 /// `scenario.toml` with `scenario_text` and `manifest.json`), runs in parallel.
 /// `progress(samples)` receives increments from any thread.
@@ -214,10 +190,10 @@ pub fn simulate_to_dir(
             let truth = run_truth(scenario, spec);
             let file = dir.join(format!("{}.csv", spec.name));
             let truth_file = truth_dir.join(format!("{}.csv", spec.name));
-            write_file_atomic(&truth_file, |w| write_truth_csv(&truth, w))?;
+            write_file_atomic(&truth_file, |mut w| write_truth_csv(&truth, &mut w))?;
             let mut samples = 0;
-            write_file_atomic(&file, |w| {
-                samples = write_run_csv(scenario, &truth, w, progress)?;
+            write_file_atomic(&file, |mut w| {
+                samples = write_run_csv(scenario, &truth, &mut w, progress)?;
                 Ok(())
             })?;
             Ok(RunSummary {

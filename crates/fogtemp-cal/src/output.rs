@@ -1,0 +1,126 @@
+//! Atomic file output: every file the library or the CLI writes goes through a temporary
+//! file beside its destination, is flushed and synced, and is renamed into place, so a
+//! failure (full disk, crash, bad data half-way) never leaves half a file under the final
+//! name. [`stage`] + [`Staged::commit`] serve outputs that must all be written before any
+//! of them is moved into place.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use crate::error::CalError;
+
+/// Buffer of the writer handed to the closures (large: simulated logs are gigabytes).
+const WRITE_BUFFER_BYTES: usize = 1 << 20;
+
+/// An output written and synced to a temporary file beside its destination; dropping it
+/// removes the temporary file, [`Staged::commit`] renames it into place.
+#[derive(Debug)]
+pub struct Staged {
+    tmp: tempfile::NamedTempFile,
+    path: PathBuf,
+}
+
+impl Staged {
+    /// Renames the staged file over its destination.
+    ///
+    /// # Errors
+    /// [`CalError::Output`] if the rename fails (the temporary file is removed).
+    pub fn commit(self) -> Result<(), CalError> {
+        let path = self.path;
+        self.tmp.persist(&path).map_err(|e| CalError::Output {
+            action: "cannot move the output into place at",
+            path,
+            source: e.error,
+        })?;
+        Ok(())
+    }
+
+    /// Where the file goes on [`Staged::commit`].
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+}
+
+/// Writes `path`'s content with `write` into a synced temporary file in the same folder
+/// (mode 0666 less the umask, like a new file), ready to be moved into place.
+///
+/// # Errors
+/// [`CalError::Output`] naming the folder or file and what failed; the temporary file is
+/// removed.
+pub fn stage(
+    path: &Path,
+    write: impl FnOnce(&mut dyn Write) -> std::io::Result<()>,
+) -> Result<Staged, CalError> {
+    let dir = match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    let mut builder = tempfile::Builder::new();
+    builder.prefix(".fogtemp-");
+    // The usual mode of a new file (0666 less the umask), not tempfile's private 0600.
+    #[cfg(unix)]
+    builder.permissions(std::os::unix::fs::PermissionsExt::from_mode(0o666));
+    let mut tmp = builder.tempfile_in(&dir).map_err(|source| CalError::Output {
+        action: "cannot create a temporary file in",
+        path: dir.clone(),
+        source,
+    })?;
+    let failed = |action: &'static str| {
+        let path = path.to_path_buf();
+        move |source| CalError::Output { action, path, source }
+    };
+    {
+        let mut buffered = std::io::BufWriter::with_capacity(WRITE_BUFFER_BYTES, tmp.as_file_mut());
+        write(&mut buffered).map_err(failed("writing"))?;
+        buffered.flush().map_err(failed("writing"))?;
+    }
+    tmp.as_file().sync_all().map_err(failed("syncing"))?;
+    Ok(Staged { tmp, path: path.to_path_buf() })
+}
+
+/// Writes `path` atomically: [`stage`] then [`Staged::commit`].
+///
+/// # Errors
+/// [`CalError::Output`] naming the file and what failed; nothing is left under `path`'s
+/// name unless the whole file was written.
+pub fn write_file_atomic(
+    path: &Path,
+    write: impl FnOnce(&mut dyn Write) -> std::io::Result<()>,
+) -> Result<(), CalError> {
+    stage(path, write)?.commit()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_failing_writer_leaves_nothing_and_a_good_one_replaces_the_file() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let path = dir.path().join("out.txt");
+        std::fs::write(&path, "old").expect("seed file");
+        let err = write_file_atomic(&path, |w| {
+            w.write_all(b"half")?;
+            Err(std::io::Error::other("disk full"))
+        })
+        .expect_err("the writer failed");
+        assert!(err.to_string().contains("writing") && err.to_string().contains("disk full"), "{err}");
+        assert_eq!(std::fs::read_to_string(&path).expect("read"), "old");
+        let names: Vec<String> = std::fs::read_dir(dir.path())
+            .expect("list")
+            .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
+            .collect();
+        assert_eq!(names, ["out.txt"], "no temporary file left");
+        write_file_atomic(&path, |w| w.write_all(b"new")).expect("write");
+        assert_eq!(std::fs::read_to_string(&path).expect("read"), "new");
+    }
+
+    #[test]
+    fn a_missing_folder_is_named() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let path = dir.path().join("no/such/out.txt");
+        let err = write_file_atomic(&path, |w| w.write_all(b"x")).expect_err("no folder");
+        assert!(err.to_string().contains("cannot create a temporary file in"), "{err}");
+        assert!(err.to_string().contains("no/such"), "{err}");
+    }
+}
