@@ -57,6 +57,59 @@ pub(crate) fn write_svg(
     write_file_atomic(path, |w| w.write_all(svg.as_bytes()))
 }
 
+/// A panel against time since power-on (minutes, 0..`t_max_min`) with `y_range` and the
+/// axis label `y_label`, mesh drawn.
+///
+/// # Errors
+/// [`CalError::Io`] naming `path` if drawing fails.
+pub(crate) fn time_panel<'a>(
+    area: &DrawingArea<SVGBackend<'a>, plotters::coord::Shift>,
+    path: &Path,
+    t_max_min: f64,
+    y_range: (f64, f64),
+    y_label: &str,
+) -> Result<
+    ChartContext<
+        'a,
+        SVGBackend<'a>,
+        Cartesian2d<plotters::coord::types::RangedCoordf64, plotters::coord::types::RangedCoordf64>,
+    >,
+    CalError,
+> {
+    let mut chart = ChartBuilder::on(area)
+        .margin(8)
+        .x_label_area_size(35)
+        .y_label_area_size(70)
+        .build_cartesian_2d(0.0..t_max_min, y_range.0..y_range.1)
+        .map_err(|e| plot_err(path, e))?;
+    chart
+        .configure_mesh()
+        .x_desc("time since power-on, min")
+        .y_desc(y_label)
+        .x_label_formatter(&tick)
+        .y_label_formatter(&tick)
+        .light_line_style(WHITE.mix(0.0))
+        .draw()
+        .map_err(|e| plot_err(path, e))?;
+    Ok(chart)
+}
+
+/// The series legend every figure uses (translucent white box, black border).
+///
+/// # Errors
+/// [`CalError::Io`] naming `path` if drawing fails.
+pub(crate) fn draw_legend<'a, CT: plotters::coord::CoordTranslate>(
+    chart: &mut ChartContext<'a, SVGBackend<'a>, CT>,
+    path: &Path,
+) -> Result<(), CalError> {
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .draw()
+        .map_err(|e| plot_err(path, e))
+}
+
 pub(crate) fn plot_err(path: &Path, e: impl std::fmt::Display) -> CalError {
     CalError::Io { path: path.to_path_buf(), source: std::io::Error::other(e.to_string()) }
 }
@@ -117,21 +170,7 @@ pub fn plot_runs(path: &Path, title: &str, runs: &[RunTrace]) -> Result<(), CalE
             } else {
                 finite_range(runs.iter().flat_map(|r| pick(r).iter().copied()))
             };
-            let mut chart = ChartBuilder::on(area)
-                .margin(8)
-                .x_label_area_size(35)
-                .y_label_area_size(70)
-                .build_cartesian_2d(0.0..t_max, y_range.0..y_range.1)
-                .map_err(|e| plot_err(path, e))?;
-            chart
-                .configure_mesh()
-                .x_desc("time since power-on, min")
-                .y_desc(label)
-                .x_label_formatter(&tick)
-                .y_label_formatter(&tick)
-                .light_line_style(WHITE.mix(0.0))
-                .draw()
-                .map_err(|e| plot_err(path, e))?;
+            let mut chart = time_panel(area, path, t_max, y_range, label)?;
             for (i, run) in runs.iter().enumerate() {
                 let series = run
                     .time_s
@@ -146,12 +185,7 @@ pub fn plot_runs(path: &Path, title: &str, runs: &[RunTrace]) -> Result<(), CalE
                     .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], run_colour(i)));
             }
             if label.starts_with("temperature") && runs.len() <= 16 {
-                chart
-                    .configure_series_labels()
-                    .background_style(WHITE.mix(0.85))
-                    .border_style(BLACK)
-                    .draw()
-                    .map_err(|e| plot_err(path, e))?;
+                draw_legend(&mut chart, path)?;
             }
         }
         root.present().map_err(|e| plot_err(path, e))
@@ -233,12 +267,7 @@ pub fn plot_mesh(path: &Path, title: &str, mesh: &MeshFigure) -> Result<(), CalE
             .map_err(|e| plot_err(path, e))?
             .label("mesh nodes")
             .legend(|(x, y)| Circle::new((x, y), 3, BLACK.filled()));
-        chart
-            .configure_series_labels()
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK)
-            .draw()
-            .map_err(|e| plot_err(path, e))?;
+        draw_legend(&mut chart, path)?;
         // Colour bar.
         let mut bar = ChartBuilder::on(&legend)
             .margin_top(60)
@@ -306,12 +335,7 @@ pub fn plot_allan(path: &Path, title: &str, curves: &[(String, Vec<AllanPoint>)]
                 .label(name.clone())
                 .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], colour.stroke_width(2)));
         }
-        chart
-            .configure_series_labels()
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK)
-            .draw()
-            .map_err(|e| plot_err(path, e))?;
+        draw_legend(&mut chart, path)?;
         root.present().map_err(|e| plot_err(path, e))
     })
 }

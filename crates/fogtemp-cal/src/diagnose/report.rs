@@ -11,7 +11,9 @@ use crate::error::CalError;
 use crate::metrics::AllanPoint;
 use crate::output::write_file_atomic;
 
-use crate::report::{finite_range as range, plot_err as io_err, run_colour as colour, tick, write_svg};
+use crate::report::{
+    draw_legend, finite_range as range, plot_err as io_err, run_colour as colour, tick, time_panel, write_svg,
+};
 
 /// Blue (negative) to red (positive) through white, for `t` in [-1, 1].
 fn diverging(t: f64) -> RGBColor {
@@ -45,21 +47,7 @@ fn plot_residuals(path: &Path, d: &Diagnosis) -> Result<(), CalError> {
             ("after: final model, deg/h", |t| &t.after_dph),
         ];
         for (area, (label, pick)) in areas.iter().zip(panels) {
-            let mut chart = ChartBuilder::on(area)
-                .margin(8)
-                .x_label_area_size(35)
-                .y_label_area_size(70)
-                .build_cartesian_2d(0.0..t_max, y.0..y.1)
-                .map_err(|e| io_err(path, e))?;
-            chart
-                .configure_mesh()
-                .x_desc("time since power-on, min")
-                .y_desc(label)
-                .x_label_formatter(&tick)
-                .y_label_formatter(&tick)
-                .light_line_style(WHITE.mix(0.0))
-                .draw()
-                .map_err(|e| io_err(path, e))?;
+            let mut chart = time_panel(area, path, t_max, y, label)?;
             for (i, t) in d.traces.iter().enumerate() {
                 let series = t.time_s.iter().zip(pick(t)).map(|(x, v)| (x / 60.0, *v));
                 chart
@@ -69,12 +57,7 @@ fn plot_residuals(path: &Path, d: &Diagnosis) -> Result<(), CalError> {
                     .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], colour(i)));
             }
             if d.traces.len() <= 12 {
-                chart
-                    .configure_series_labels()
-                    .background_style(WHITE.mix(0.85))
-                    .border_style(BLACK)
-                    .draw()
-                    .map_err(|e| io_err(path, e))?;
+                draw_legend(&mut chart, path)?;
             }
         }
         root.present().map_err(|e| io_err(path, e))
