@@ -12,6 +12,8 @@
 //! decade (tau 1 s .. 1e5 s, stationary start), plus a recorded global offset of
 //! 0.002 deg/h. Effect sizes are comparable to the noise of a 100 s mean (0.003 deg/h).
 
+mod common;
+
 use std::time::Instant;
 
 use fogtemp_cal::diagnose::effects::bspline_basis;
@@ -324,15 +326,6 @@ fn run_diagnosis(plans: &[RunPlan], effect: Injected, rate_hz: f64, seed: u64) -
     d
 }
 
-fn correlation(a: &[f64], b: &[f64]) -> f64 {
-    let n = a.len() as f64;
-    let (ma, mb) = (a.iter().sum::<f64>() / n, b.iter().sum::<f64>() / n);
-    let cov: f64 = a.iter().zip(b).map(|(x, y)| (x - ma) * (y - mb)).sum();
-    let va: f64 = a.iter().map(|x| (x - ma).powi(2)).sum();
-    let vb: f64 = b.iter().map(|y| (y - mb).powi(2)).sum();
-    cov / (va * vb).sqrt()
-}
-
 fn names(d: &Diagnosis) -> Vec<&str> {
     d.left_out.iter().map(|e| e.effect.as_str()).collect()
 }
@@ -481,7 +474,7 @@ fn static_shape_is_named_for_a_ripple_in_temperature() {
         .map(|&t| bspline_basis(t, lo, hi, k).iter().skip(1).zip(&coef).map(|(b, c)| b * c).sum())
         .collect();
     let truth: Vec<f64> = grid.iter().map(|t| 0.005 * (std::f64::consts::TAU * t / 35.0).sin()).collect();
-    let r = correlation(&fitted, &truth);
+    let r = common::correlation(&fitted, &truth);
     assert!(r > 0.7, "correlation of fitted and injected shape {r}");
     assert_helps(&d, "static_shape");
 }
