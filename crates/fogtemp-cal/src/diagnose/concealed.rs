@@ -488,14 +488,9 @@ pub fn coil_lag_s(recorded: &[RunTruth]) -> f64 {
     if best == 0 || best + 1 == grid.len() {
         return grid[best];
     }
-    let (xa, xb, xc) = (grid[best - 1].ln(), grid[best].ln(), grid[best + 1].ln());
-    let (fa, fb, fc) = (values[best - 1], values[best], values[best + 1]);
-    let den = (xb - xa) * (fb - fc) - (xb - xc) * (fb - fa);
-    if den.abs() > 0.0 {
-        (xb - 0.5 * ((xb - xa).powi(2) * (fb - fc) - (xb - xc).powi(2) * (fb - fa)) / den).exp()
-    } else {
-        grid[best]
-    }
+    let point = |j: usize| (grid[j].ln(), values[j]);
+    super::linalg::parabola_vertex([point(best - 1), point(best), point(best + 1)])
+        .map_or(grid[best], f64::exp)
 }
 
 /// The coefficient of the `gradient_rate` term that best maps the true injected
@@ -511,9 +506,9 @@ pub fn gradient_coefficient(simulated: &[RunTruth], recorded: &[RunTruth], tau_s
         let lagged = super::effects::low_pass(&sensor, tau_s);
         let n = sensor.len();
         for i in 1..n.saturating_sub(1) {
-            let dt = rec.points[i + 1].time_s - rec.points[i - 1].time_s;
-            let rate_c_per_s = (sensor[i + 1] - sensor[i - 1]) / dt;
-            xs.push(3600.0 * (rate_c_per_s - (sensor[i] - lagged[i]) / tau_s) / tau_s);
+            let dt_min = (rec.points[i + 1].time_s - rec.points[i - 1].time_s) / 60.0;
+            let rate_c_per_min = (sensor[i + 1] - sensor[i - 1]) / dt_min;
+            xs.push(super::effects::lagged_accel_c_per_min2(sensor[i], lagged[i], rate_c_per_min, tau_s));
             vs.push(rec.points[i].output_dph - sim.points[i].output_dph);
         }
     }

@@ -296,6 +296,18 @@ pub fn group_of(run: &RunData) -> String {
     run.group.clone().unwrap_or_else(|| "(unlabelled)".to_string())
 }
 
+/// Rate of the first-order lag `y = LPF_tau(T)` (the coil behind the sensor) from the
+/// temperature `temp_c` and the lagged value `lagged_c`: exactly `(T - y) / tau`, deg C/min.
+pub fn lagged_rate_c_per_min(temp_c: f64, lagged_c: f64, tau_s: f64) -> f64 {
+    60.0 * (temp_c - lagged_c) / tau_s
+}
+
+/// Second derivative of `y = LPF_tau(T)`: `y'' = (T' - y') / tau` with `T'` the temperature's
+/// rate `rate_c_per_min`, deg C/min^2.
+pub fn lagged_accel_c_per_min2(temp_c: f64, lagged_c: f64, rate_c_per_min: f64, tau_s: f64) -> f64 {
+    60.0 * (rate_c_per_min - lagged_rate_c_per_min(temp_c, lagged_c, tau_s)) / tau_s
+}
+
 /// Columns of `effect` at profiled parameters `theta`.
 pub fn term_columns(prep: &Prepared, effect: Effect, theta: &[f64]) -> TermColumns {
     let t_ref = prep.temp_ref_c;
@@ -316,12 +328,11 @@ pub fn term_columns(prep: &Prepared, effect: Effect, theta: &[f64]) -> TermColum
             TermColumns { theta: theta_v, coefficients, per_run, penalty: None }
         }
         Effect::ShupeRate => {
-            // The Shupe term follows the coil's rate, and the coil lags the logged sensor:
-            // the rate of the first-order lag y = LPF_tau(T) is exactly (T - y) / tau.
+            // The Shupe term follows the coil's rate, and the coil lags the logged sensor.
             let tau_s = theta[0];
             let per_run = one_column(prep, |r| {
                 let lagged = low_pass(&r.sec.temp_c, tau_s);
-                r.sec.temp_c.iter().zip(&lagged).map(|(t, l)| 60.0 * (t - l) / tau_s).collect()
+                r.sec.temp_c.iter().zip(&lagged).map(|(t, l)| lagged_rate_c_per_min(*t, *l, tau_s)).collect()
             });
             let coefficients =
                 vec![coef("coefficient_dph_per_c_per_min", "deg/h per deg C/min (of the coil)")];
@@ -330,8 +341,6 @@ pub fn term_columns(prep: &Prepared, effect: Effect, theta: &[f64]) -> TermColum
         Effect::GradientRate => {
             // The coil's radial gradient follows the coil's rate (dT_r ~ tau_r dT_coil/dt), so
             // its rate follows the coil's second derivative; the coil lags the logged sensor.
-            // For y = LPF_tau(T): y' = (T - y) / tau and y'' = (T' - y') / tau, with T' the
-            // smoothed rate of the recorded temperature.
             let tau_s = theta[0];
             let per_run = one_column(prep, |r| {
                 let lagged = low_pass(&r.sec.temp_c, tau_s);
@@ -340,7 +349,7 @@ pub fn term_columns(prep: &Prepared, effect: Effect, theta: &[f64]) -> TermColum
                     .iter()
                     .zip(&lagged)
                     .zip(&r.sec.rate_c_per_min)
-                    .map(|((t, l), rate)| 3600.0 * (rate / 60.0 - (t - l) / tau_s) / tau_s)
+                    .map(|((t, l), rate)| lagged_accel_c_per_min2(*t, *l, *rate, tau_s))
                     .collect()
             });
             let coefficients =

@@ -84,6 +84,15 @@ pub fn sse_of(r: &DMatrix<f64>, beta: &DVector<f64>) -> f64 {
         .sum()
 }
 
+/// Abscissa of the vertex of the parabola through three points `(x, f)`; `None` when they
+/// are collinear.
+pub fn parabola_vertex(points: [(f64, f64); 3]) -> Option<f64> {
+    let [(xa, fa), (xb, fb), (xc, fc)] = points;
+    let den = (xb - xa) * (fb - fc) - (xb - xc) * (fb - fa);
+    (den.abs() > 0.0)
+        .then(|| xb - 0.5 * ((xb - xa).powi(2) * (fb - fc) - (xb - xc).powi(2) * (fb - fa)) / den)
+}
+
 /// Pooled autocorrelations at lags `1..=max_lag` of residuals within runs, about zero (the
 /// residuals of a model with a constant: a run's offset from the others is correlated noise
 /// too, as flicker makes it), over pairs of short means `k` block numbers apart.
@@ -175,6 +184,15 @@ mod tests {
         let gapped: Vec<usize> = (0..5).chain(100..105).collect();
         let rho = autocorrelations(&[e], &[gapped], 1);
         assert!((rho[0] - (-8.0 / 10.0)).abs() < 1e-12, "{}", rho[0]);
+    }
+
+    /// The vertex of `f = (x - 2)^2 + 1` sampled at 0, 1, 5 is 2 (closed form).
+    #[test]
+    fn parabola_vertex_of_a_sampled_parabola() {
+        let f = |x: f64| (x - 2.0).powi(2) + 1.0;
+        let v = parabola_vertex([(0.0, f(0.0)), (1.0, f(1.0)), (5.0, f(5.0))]).expect("a vertex");
+        assert!((v - 2.0).abs() < 1e-12, "{v}");
+        assert_eq!(parabola_vertex([(0.0, 1.0), (1.0, 2.0), (2.0, 3.0)]), None);
     }
 
     /// `n / (1 + 2 sum w_k rho_k)` with Bartlett weights, bounded to `[2, n]`.

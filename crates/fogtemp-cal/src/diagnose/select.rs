@@ -34,7 +34,9 @@ use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
 
 use super::effects::{term_columns, Effect, EffectGrid, TermColumns};
-use super::linalg::{autocorrelations, compress, effective_n, fit_stacked, jackknife_covariance, sse_of};
+use super::linalg::{
+    autocorrelations, compress, effective_n, fit_stacked, jackknife_covariance, parabola_vertex, sse_of,
+};
 use super::prepare::Prepared;
 use super::{CandidateReport, DiagnoseOptions, LeftOutEffect, Parameter, SelectionStep};
 use crate::error::CalError;
@@ -356,16 +358,16 @@ fn total_cv(p: &Profiled) -> f64 {
 /// noise; a bigger basis than needed is then judged (and rejected) as unstable. (Discrete
 /// choices between distinct terms, such as a polynomial degree, keep the smallest error.)
 fn one_standard_error_choice(profiled: Vec<Profiled>) -> Option<Profiled> {
-    let total = total_cv;
-    let best = profiled.iter().min_by(|a, b| total(a).total_cmp(&total(b)))?;
+    let best = profiled.iter().min_by(|a, b| total_cv(a).total_cmp(&total_cv(b)))?;
     let g = best.fold_sse.len() as f64;
-    let mean = total(best) / g;
+    let mean = total_cv(best) / g;
     let sd = (best.fold_sse.iter().map(|e| (e - mean).powi(2)).sum::<f64>() / (g - 1.0).max(1.0)).sqrt();
-    let limit = total(best) + g * sd / g.sqrt();
+    // Standard error of the total over g folds: g x (sd / sqrt(g)).
+    let limit = total_cv(best) + sd * g.sqrt();
     profiled
         .into_iter()
-        .filter(|p| total(p) <= limit)
-        .min_by(|a, b| a.coefficients.cmp(&b.coefficients).then(total(a).total_cmp(&total(b))))
+        .filter(|p| total_cv(p) <= limit)
+        .min_by(|a, b| a.coefficients.cmp(&b.coefficients).then(total_cv(a).total_cmp(&total_cv(b))))
 }
 
 /// BIC profile over `members` (grid points differing only in continuous parameters).
@@ -747,11 +749,8 @@ fn refine(
             .iter()
             .map(|&j| (grid.points[j].theta[m].ln(), rss_of(&grid.points[j])))
             .collect();
-        let [(xa, fa), (xb, fb), (xc, fc)] = [pts[0], pts[1], pts[2]];
-        let den = (xb - xa) * (fb - fc) - (xb - xc) * (fb - fa);
-        if den.abs() > 0.0 {
-            let x = xb - 0.5 * ((xb - xa).powi(2) * (fb - fc) - (xb - xc).powi(2) * (fb - fa)) / den;
-            theta[m] = x.clamp(xa, xc).exp();
+        if let Some(x) = parabola_vertex([pts[0], pts[1], pts[2]]) {
+            theta[m] = x.clamp(pts[0].0, pts[2].0).exp();
         }
     }
     if theta == best.theta {
