@@ -14,7 +14,7 @@ use std::fs;
 use std::path::{Path, PathBuf};
 
 use assert_cmd::Command;
-use fogtemp_cal::sim::{simulate_in_memory, Scenario, PAPER_TOML};
+use fogtemp_sim::{simulate_in_memory, Scenario, PAPER_TOML};
 use serde_json::Value;
 use tempfile::TempDir;
 
@@ -134,7 +134,7 @@ fn simulate_writes_logs_truth_scenario_and_manifest() {
 
     // The library's samples for the same scenario.
     let scenario = Scenario::from_toml(SMALL, "small").expect("valid");
-    let library: BTreeMap<String, Vec<fogtemp_cal::sim::Sample>> =
+    let library: BTreeMap<String, Vec<fogtemp_sim::Sample>> =
         simulate_in_memory(&scenario).into_iter().map(|(t, x)| (t.spec.name.clone(), x)).collect();
 
     for name in NAMES {

@@ -16,11 +16,11 @@ mod common;
 
 use std::time::Instant;
 
-use fogtemp_cal::diagnose::effects::bspline_basis;
-use fogtemp_cal::diagnose::{
-    diagnose, write_diagnosis_report, DiagnoseOptions, Diagnosis, RunMeta, RunSeries,
+use fogtemp_diagnose::effects::bspline_basis;
+use fogtemp_diagnose::{
+    diagnose, write_diagnosis_report, DiagnoseError, DiagnoseOptions, Diagnosis, RunMeta, RunSeries,
+    SeriesProblem, Side,
 };
-use fogtemp_cal::CalError;
 use rand::{Rng, SeedableRng};
 use rand_xoshiro::Xoshiro256PlusPlus;
 
@@ -527,25 +527,55 @@ fn bad_inputs_are_clear_errors() {
     let mut renamed = rec.clone();
     renamed[1].name = "other.csv".into();
     let e = diagnose(&sim, &renamed, &opts, |_, _| {}).unwrap_err();
-    assert!(matches!(e, CalError::Diagnose(ref m) if m.contains("other.csv")), "{e}");
+    assert!(
+        matches!(&e, DiagnoseError::Unpaired { recorded_only, simulated_only }
+            if recorded_only == &["other.csv"] && simulated_only.len() == 1),
+        "{e}"
+    );
+    assert!(e.to_string().contains("'other.csv'"), "{e}");
     let mut nan = rec.clone();
     nan[0].gyro_dph[10] = f64::NAN;
     let e = diagnose(&sim, &nan, &opts, |_, _| {}).unwrap_err();
-    assert!(matches!(e, CalError::Diagnose(ref m) if m.contains("gyro_dph sample 10")), "{e}");
+    assert!(
+        matches!(
+            &e,
+            DiagnoseError::BadSeries {
+                side: Side::Recorded,
+                problem: SeriesProblem::NonFinite { what: "gyro_dph", sample: 10 },
+                ..
+            }
+        ),
+        "{e}"
+    );
+    assert!(e.to_string().contains("gyro_dph sample 10"), "{e}");
     let mut empty = rec.clone();
     empty[0].time_s.clear();
     empty[0].temp_c.clear();
     empty[0].gyro_dph.clear();
-    assert!(matches!(diagnose(&sim, &empty, &opts, |_, _| {}), Err(CalError::Diagnose(_))));
+    let e = diagnose(&sim, &empty, &opts, |_, _| {}).unwrap_err();
+    assert!(matches!(&e, DiagnoseError::BadSeries { problem: SeriesProblem::Empty, .. }), "{e}");
     // One run is located but nothing can be named (no held-out run): not an error.
     let one = diagnose(&sim[..1], &rec[..1], &opts, |_, _| {}).expect("one run is located");
     assert!(one.left_out.is_empty() && one.summary.starts_with("ONE PAIRED RUN"), "{}", one.summary);
-    assert!(matches!(diagnose(&[], &[], &opts, |_, _| {}), Err(CalError::Diagnose(_))));
+    let e = diagnose(&[], &[], &opts, |_, _| {}).unwrap_err();
+    assert!(matches!(e, DiagnoseError::NoRuns { simulated: 0, recorded: 0 }), "{e}");
     let mut backwards = rec.clone();
     backwards[0].time_s[5] = backwards[0].time_s[4];
-    assert!(matches!(diagnose(&sim, &backwards, &opts, |_, _| {}), Err(CalError::Diagnose(_))));
+    let e = diagnose(&sim, &backwards, &opts, |_, _| {}).unwrap_err();
+    assert!(
+        matches!(
+            &e,
+            DiagnoseError::BadSeries { problem: SeriesProblem::TimeNotIncreasing { sample: 5, .. }, .. }
+        ),
+        "{e}"
+    );
     let bad_opts = DiagnoseOptions { mean_window_s: f64::NAN, ..DiagnoseOptions::default() };
-    assert!(matches!(diagnose(&sim, &rec, &bad_opts, |_, _| {}), Err(CalError::Diagnose(_))));
+    let e = diagnose(&sim, &rec, &bad_opts, |_, _| {}).unwrap_err();
+    assert!(matches!(e, DiagnoseError::InvalidOption { option: "mean_window_s", .. }), "{e}");
+    let mut twice = rec.clone();
+    twice[1].name = twice[0].name.clone();
+    let e = diagnose(&sim, &twice, &opts, |_, _| {}).unwrap_err();
+    assert!(matches!(&e, DiagnoseError::DuplicateRun { side: Side::Recorded, .. }), "{e}");
 }
 
 /// Speed: 18 runs x 2 h at 10 Hz (run with `cargo test --release --test diagnose_lib -- --ignored --nocapture`).

@@ -1,6 +1,6 @@
 //! The diagnosis proved on concealed data made WITH THE PROJECT'S SIMULATOR: one dataset per
 //! catalogue effect, where the effect is concealed by the protocol or by another effect, and
-//! a null dataset (designs, sizes and what conceals what: `fogtemp_cal::diagnose::concealed`
+//! a null dataset (designs, sizes and what conceals what: `fogtemp_diagnose::concealed`
 //! and docs/diagnose.md). "Simulated" is the scenario without the effect, "recorded" the same
 //! scenario with it; each has its own noise seed (paper noise: N = 0.0005 deg/sqrt(h),
 //! B = 0.002 deg/h), 1 Hz, 2 h runs.
@@ -16,9 +16,9 @@
 
 mod common;
 
-use fogtemp_cal::diagnose::concealed::{datasets_at, generate, truth_map, ConcealedDataset};
-use fogtemp_cal::diagnose::effects::bspline_basis;
-use fogtemp_cal::diagnose::{diagnose, DiagnoseOptions, Diagnosis};
+use fogtemp_diagnose::concealed::{datasets_at, generate, truth_map, ConcealedDataset};
+use fogtemp_diagnose::effects::bspline_basis;
+use fogtemp_diagnose::{diagnose, DiagnoseOptions, Diagnosis};
 
 /// Repetition seed of every test (the simulated and recorded noise seeds derive from it).
 const SEED: u64 = 7;
@@ -68,7 +68,7 @@ fn assert_named_first(d: &Diagnosis, effect: &str) {
     assert!(e.heldout_improvement > 0.0, "{effect}: held-out improvement {}", e.heldout_improvement);
 }
 
-fn candidate<'a>(d: &'a Diagnosis, effect: &str) -> &'a fogtemp_cal::diagnose::CandidateReport {
+fn candidate<'a>(d: &'a Diagnosis, effect: &str) -> &'a fogtemp_diagnose::CandidateReport {
     d.selection[0].candidates.iter().find(|c| c.effect == effect).expect("candidate")
 }
 

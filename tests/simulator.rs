@@ -1,4 +1,4 @@
-//! Simulator (`fogtemp_cal::sim`) against oracles: the Allan deviation of a noise-only run
+//! Simulator (`fogtemp_sim`) against oracles: the Allan deviation of a noise-only run
 //! against the IEEE 952 terms it was built from, the thermal network against closed-form
 //! step responses and an independent fine-step RK4 integration, the Earth-rate projection
 //! against an ECEF construction, determinism per seed and run name, scenario parsing and
@@ -7,9 +7,9 @@
 //! Every comparison states its tolerance and why. All randomness uses fixed seeds.
 
 use fogtemp_cal::metrics::{allan_deviation, fit_noise_terms, AllanPoint};
-use fogtemp_cal::sim::noise::flicker_term_variance;
-use fogtemp_cal::sim::scenario::{ChamberProfile, Direction, InitialState, InputAxis, Node, RunSpec, Site};
-use fogtemp_cal::sim::{run_truth, simulate_in_memory, RunGenerator, RunTruth, Sample, Scenario, PAPER_TOML};
+use fogtemp_sim::noise::flicker_term_variance;
+use fogtemp_sim::scenario::{ChamberProfile, Direction, InitialState, InputAxis, Node, RunSpec, Site};
+use fogtemp_sim::{run_truth, simulate_in_memory, RunGenerator, RunTruth, Sample, Scenario, PAPER_TOML};
 
 /// The paper scenario with every deterministic term and every random term switched off:
 /// no bias physics, no scale-factor error, no chamber ripple, no gyro or sensor noise, no
@@ -428,7 +428,7 @@ fn self_heating_steady_state() {
         s.runs = vec![warm, soaked];
         s.validate().expect("valid");
         let (gca, gec) = (s.thermal.case_ambient_w_per_k, s.thermal.electronics_case_w_per_k);
-        let check = |p: &fogtemp_cal::sim::TruthPoint, tol: f64| {
+        let check = |p: &fogtemp_sim::TruthPoint, tol: f64| {
             let pw = p.power_w;
             assert!(pw >= s.thermal.power_w);
             assert!(

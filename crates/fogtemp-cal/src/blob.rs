@@ -5,7 +5,7 @@
 use fogtemp_core::wire::*;
 use fogtemp_core::{AxisProvenance, FeatureSettings, Model, Normalisation, OutsidePolicy, PolyTerm};
 
-use crate::error::CalError;
+use crate::error::{CalError, EncodeProblem};
 use crate::mesh::MeshModel;
 
 /// One gyro axis to encode.
@@ -49,7 +49,10 @@ pub fn tool_version() -> String {
 /// cannot reproduce its vertices).
 pub fn encode(model: &ModelFile) -> Result<Vec<u8>, CalError> {
     if model.axes.is_empty() || model.axes.len() > usize::from(MAX_AXES) {
-        return Err(CalError::Encode(format!("{} axes (allowed 1..={MAX_AXES})", model.axes.len())));
+        return Err(CalError::Encode(EncodeProblem::AxisCount {
+            axes: model.axes.len(),
+            max: usize::from(MAX_AXES),
+        }));
     }
     let mut out = vec![0u8; FILE_HEADER_LEN];
     out[FILE_MAGIC].copy_from_slice(&MAGIC);
@@ -64,7 +67,8 @@ pub fn encode(model: &ModelFile) -> Result<Vec<u8>, CalError> {
         encode_axis(&mut out, id as u16, axis)?;
     }
     let total = out.len() + CRC_LEN;
-    let total_u32 = u32::try_from(total).map_err(|_| CalError::Encode(format!("blob of {total} bytes")))?;
+    let total_u32 = u32::try_from(total)
+        .map_err(|_| CalError::Encode(EncodeProblem::TooLarge { what: "blob bytes", count: total }))?;
     put_u32(&mut out, FILE_TOTAL_LEN.start, total_u32);
     let crc = crc32fast::hash(&out);
     out.extend_from_slice(&crc.to_le_bytes());
@@ -83,7 +87,9 @@ fn encode_axis(out: &mut Vec<u8>, id: u16, axis: &AxisModel) -> Result<(), CalEr
         moved_flat: Vec::new(),
     };
     let mesh = axis.mesh.as_ref().unwrap_or(&empty);
-    let count = |what: &str, n: usize| u32::try_from(n).map_err(|_| CalError::Encode(format!("{what}: {n}")));
+    let count = |what: &'static str, n: usize| {
+        u32::try_from(n).map_err(|_| CalError::Encode(EncodeProblem::TooLarge { what, count: n }))
+    };
     let (terms, vertices, triangles, hull) = (
         count("poly terms", axis.poly.len())?,
         count("vertices", mesh.vertices.len())?,
@@ -91,11 +97,12 @@ fn encode_axis(out: &mut Vec<u8>, id: u16, axis: &AxisModel) -> Result<(), CalEr
         count("hull edges", mesh.hull.len())?,
     );
     if mesh.neighbours.len() != mesh.triangles.len() {
-        return Err(CalError::Encode("neighbour list length differs from triangle list".into()));
+        return Err(CalError::Encode(EncodeProblem::NeighbourMismatch));
     }
-    let section_len = axis_section_len(terms, vertices, triangles, hull)
-        .and_then(|n| u32::try_from(n).ok())
-        .ok_or_else(|| CalError::Encode("axis section too large".into()))?;
+    let section_len =
+        axis_section_len(terms, vertices, triangles, hull).and_then(|n| u32::try_from(n).ok()).ok_or(
+            CalError::Encode(EncodeProblem::TooLarge { what: "axis section", count: mesh.vertices.len() }),
+        )?;
     let kind =
         if axis.poly.is_empty() { 0 } else { KIND_POLY } | if axis.mesh.is_some() { KIND_MESH } else { 0 };
 
@@ -139,9 +146,8 @@ fn encode_axis(out: &mut Vec<u8>, id: u16, axis: &AxisModel) -> Result<(), CalEr
         }
     }
     for (t, (tri, nb)) in mesh.triangles.iter().zip(&mesh.neighbours).enumerate() {
-        let tf = triangle_transform(mesh, *tri).ok_or_else(|| {
-            CalError::Encode(format!("triangle {t} has a vertex index out of range or zero area"))
-        })?;
+        let tf = triangle_transform(mesh, *tri)
+            .ok_or(CalError::Encode(EncodeProblem::BadTriangle { triangle: t }))?;
         for x in tf.origin {
             out.extend_from_slice(&x.to_le_bytes());
         }

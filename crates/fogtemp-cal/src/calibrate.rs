@@ -2,6 +2,7 @@
 //! thinning -> polynomial / mesh / hybrid fit -> model blob; and validation by replaying
 //! raw samples through the firmware's own `Compensator`.
 
+use std::io::Read;
 use std::path::{Path, PathBuf};
 
 use fogtemp_core::{AxisProvenance, Compensator, FeatureSettings, Model, Normalisation, OutsidePolicy};
@@ -9,7 +10,7 @@ use fogtemp_core::{AxisProvenance, Compensator, FeatureSettings, Model, Normalis
 use crate::blob::{encode, AxisModel, ModelFile};
 use crate::error::CalError;
 use crate::features::{smoothed_gyro_dph, AxisFeatureStream, FeaturePoint, CAL_CAPACITY};
-use crate::ingest::{read_log_with_progress, IngestOptions, IngestReport};
+use crate::ingest::{read_from, read_log_with_progress, IngestOptions, IngestReport, Row};
 use crate::mesh::{build_mesh, MeshPoint};
 use crate::metrics::{bias_stability, rms_over_runs, BiasStabilityOptions};
 use crate::poly_fit::{fit_poly, PolyFit, TermSelection};
@@ -170,21 +171,38 @@ pub fn extract_run(
     config: &CalibrationConfig,
     progress: impl FnMut(u64, u64),
 ) -> Result<RunFeatures, CalError> {
+    extract_with(path, config, |visit| read_log_with_progress(path, &config.ingest, visit, progress))
+}
+
+/// [`extract_run`] from any reader; `name` stands for the source in errors and in
+/// [`RunFeatures::path`].
+///
+/// # Errors
+/// As [`extract_run`].
+pub fn extract_run_from<R: Read + Send>(
+    reader: R,
+    name: &Path,
+    config: &CalibrationConfig,
+) -> Result<RunFeatures, CalError> {
+    extract_with(name, config, |visit| read_from(reader, name, &config.ingest, visit, |_, _| {}))
+}
+
+/// Features and targets of one run whose rows `read` hands to the visitor it is given.
+fn extract_with(
+    path: &Path,
+    config: &CalibrationConfig,
+    read: impl FnOnce(&mut dyn FnMut(&Row<'_>) -> Result<(), CalError>) -> Result<IngestReport, CalError>,
+) -> Result<RunFeatures, CalError> {
     let axes = config.ingest.format.gyro_columns.len();
     let mut streams =
         (0..axes).map(|_| AxisFeatureStream::new(&config.features)).collect::<Result<Vec<_>, _>>()?;
-    let ingest = read_log_with_progress(
-        path,
-        &config.ingest,
-        |row| {
-            for (axis, stream) in streams.iter_mut().enumerate() {
-                let temp = row.temp_c_for_axis(axis);
-                stream.push(row.time_s, row.gyros_dph[axis], temp);
-            }
-            Ok(())
-        },
-        progress,
-    )?;
+    let ingest = read(&mut |row: &Row<'_>| {
+        for (axis, stream) in streams.iter_mut().enumerate() {
+            let temp = row.temp_c_for_axis(axis);
+            stream.push(row.time_s, row.gyros_dph[axis], temp);
+        }
+        Ok(())
+    })?;
     let axes = streams
         .into_iter()
         .map(|s| {
@@ -266,6 +284,15 @@ pub struct AxisFitReport {
     pub target_noise_dph: f64,
 }
 
+/// One fitted axis: what goes into the blob and what the fit did.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FittedAxis {
+    /// The axis section of the blob.
+    pub model: AxisModel,
+    /// What the fit did.
+    pub report: AxisFitReport,
+}
+
 /// Fits one axis to its calibration points.
 ///
 /// # Errors
@@ -275,7 +302,7 @@ pub fn fit_axis(
     runs: &[usize],
     config: &CalibrationConfig,
     target_noise_dph: f64,
-) -> Result<(AxisModel, AxisFitReport), CalError> {
+) -> Result<FittedAxis, CalError> {
     let mut normalisation = choose_normalisation(points)?;
     if config.rate_axis_weight.is_finite() && config.rate_axis_weight > 0.0 {
         normalisation.rate_scale_per_c_per_min *= config.rate_axis_weight as f32;
@@ -402,7 +429,16 @@ pub fn fit_axis(
         residual_max_abs_dph,
         target_noise_dph,
     };
-    Ok((axis, report))
+    Ok(FittedAxis { model: axis, report })
+}
+
+/// A fitted model: the blob and, per axis, what the fit did.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FittedModel {
+    /// The encoded model (validated by the core before it is returned).
+    pub blob: Vec<u8>,
+    /// Per axis, what the fit did.
+    pub axes: Vec<AxisFitReport>,
 }
 
 /// Fits every axis over all runs and encodes the blob.
@@ -413,27 +449,26 @@ pub fn fit_model(
     runs: &[RunFeatures],
     config: &CalibrationConfig,
     input_digest: [u8; 32],
-) -> Result<(Vec<u8>, Vec<AxisFitReport>), CalError> {
+) -> Result<FittedModel, CalError> {
     let mut axes = Vec::new();
     let mut reports = Vec::new();
     for axis in 0..config.ingest.format.gyro_columns.len() {
         let (points, run_of) = calibration_points(runs, axis, config.full_windows_only);
         if points.is_empty() {
-            return Err(CalError::Fit(format!(
-                "axis {axis}: no calibration points: the feature tracker never had {} blocks of temperature \
-                 data without a gap longer than {} s; check --temp-column, or set --max-gap-s and --window-s \
-                 to suit the temperature sampling",
-                config.features.min_blocks, config.features.max_gap_s
-            )));
+            return Err(CalError::NoCalibrationPoints {
+                axis,
+                min_blocks: config.features.min_blocks,
+                max_gap_s: config.features.max_gap_s,
+            });
         }
         let block_s = f64::from(config.features.window_s) / f64::from(config.features.block_count);
         let noise = target_noise_dph(runs, axis, block_s, config.target_window_s);
-        let (model, report) = fit_axis(&points, &run_of, config, noise)?;
-        axes.push(model);
-        reports.push(report);
+        let fitted = fit_axis(&points, &run_of, config, noise)?;
+        axes.push(fitted.model);
+        reports.push(fitted.report);
     }
     let blob = encode(&ModelFile { tool_version: crate::blob::tool_version(), input_digest, axes })?;
-    Ok((blob, reports))
+    Ok(FittedModel { blob, axes: reports })
 }
 
 /// Raw and compensated series of one run and axis, as block means (1 s by default).
@@ -532,6 +567,15 @@ impl<'m> Replayer<'m> {
     }
 }
 
+/// One log replayed through every model: the series per model, per axis, and what ingest saw.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Replay {
+    /// Per model (in the order given), per axis: the block means.
+    pub models: Vec<Vec<ReplaySeries>>,
+    /// What ingest saw.
+    pub ingest: IngestReport,
+}
+
 /// Replays a log through the core `Compensator` of every axis of every model, exactly as
 /// firmware would, reading the log once, and keeps `block_s` block means of raw,
 /// compensated and bias (constant memory per sample). Returns the series per model, per
@@ -545,7 +589,32 @@ pub fn replay_models(
     ingest: &IngestOptions,
     block_s: f64,
     progress: impl FnMut(u64, u64),
-) -> Result<(Vec<Vec<ReplaySeries>>, IngestReport), CalError> {
+) -> Result<Replay, CalError> {
+    replay_with(path, models, ingest, block_s, |visit| read_log_with_progress(path, ingest, visit, progress))
+}
+
+/// [`replay_models`] from any reader; `name` stands for the source in errors and reports.
+///
+/// # Errors
+/// As [`replay_models`].
+pub fn replay_models_from<R: Read + Send>(
+    reader: R,
+    name: &Path,
+    models: &[&Model<'_>],
+    ingest: &IngestOptions,
+    block_s: f64,
+) -> Result<Replay, CalError> {
+    replay_with(name, models, ingest, block_s, |visit| read_from(reader, name, ingest, visit, |_, _| {}))
+}
+
+/// The replay of one log whose rows `read` hands to the visitor it is given.
+fn replay_with(
+    path: &Path,
+    models: &[&Model<'_>],
+    ingest: &IngestOptions,
+    block_s: f64,
+    read: impl FnOnce(&mut dyn FnMut(&Row<'_>) -> Result<(), CalError>) -> Result<IngestReport, CalError>,
+) -> Result<Replay, CalError> {
     let axes = |m: &Model<'_>| m.axis_count().min(ingest.format.gyro_columns.len());
     let mut replayers: Vec<Replayer<'_>> = Vec::new();
     for model in models {
@@ -553,21 +622,16 @@ pub fn replay_models(
             replayers.push(Replayer::new(path, model, axis, block_s)?);
         }
     }
-    let report = read_log_with_progress(
-        path,
-        ingest,
-        |row| {
-            replayers.iter_mut().for_each(|r| r.step(row));
-            Ok(())
-        },
-        progress,
-    )?;
+    let report = read(&mut |row: &Row<'_>| {
+        replayers.iter_mut().for_each(|r| r.step(row));
+        Ok(())
+    })?;
     let mut finished = replayers.into_iter().map(|mut r| {
         r.flush();
         r.series
     });
     let series = models.iter().map(|m| finished.by_ref().take(axes(m)).collect()).collect();
-    Ok((series, report))
+    Ok(Replay { models: series, ingest: report })
 }
 
 /// Raw vs compensated bias stability of one run.
@@ -587,6 +651,17 @@ pub struct RunValidation {
     pub ingest: IngestReport,
 }
 
+/// One model's validation: per run and axis, and overall (RMS over runs and axes).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Validation {
+    /// Per run and axis, in log order.
+    pub runs: Vec<RunValidation>,
+    /// Raw bias stability, RMS over `runs`, deg/h.
+    pub raw_bias_stability_dph: f64,
+    /// Compensated bias stability, RMS over `runs`, deg/h.
+    pub compensated_bias_stability_dph: f64,
+}
+
 /// Replays every run and axis and computes bias stability raw vs compensated.
 ///
 /// # Errors
@@ -597,13 +672,13 @@ pub fn validate_runs(
     ingest: &IngestOptions,
     options: &BiasStabilityOptions,
     progress: impl FnMut(usize, u64, u64),
-) -> Result<(Vec<RunValidation>, f64, f64), CalError> {
+) -> Result<Validation, CalError> {
     let mut all = validate_models(paths, &[model], ingest, options, progress)?;
     Ok(all.pop().unwrap_or_default())
 }
 
 /// [`validate_runs`] for several models on the same logs, reading each log once: one
-/// `(runs, raw, compensated)` per model.
+/// [`Validation`] per model.
 ///
 /// # Errors
 /// As [`replay_models`].
@@ -613,10 +688,44 @@ pub fn validate_models(
     ingest: &IngestOptions,
     options: &BiasStabilityOptions,
     mut progress: impl FnMut(usize, u64, u64),
-) -> Result<Vec<(Vec<RunValidation>, f64, f64)>, CalError> {
-    let mut runs: Vec<Vec<RunValidation>> = models.iter().map(|_| Vec::new()).collect();
-    for (i, path) in paths.iter().enumerate() {
-        let (per_model, report) = replay_models(path, models, ingest, 1.0, |b, r| progress(i, b, r))?;
+) -> Result<Vec<Validation>, CalError> {
+    let replays = paths.iter().enumerate().map(|(i, path)| {
+        Ok((path.clone(), replay_models(path, models, ingest, 1.0, |b, r| progress(i, b, r))?))
+    });
+    validations(models.len(), replays, options)
+}
+
+/// [`validate_runs`] over logs given as `(name, reader)` pairs, for logs that are not files
+/// (bytes in memory, a decompressor); `name` stands for each log in errors and results.
+///
+/// # Errors
+/// As [`replay_models`].
+pub fn validate_readers<N, R>(
+    logs: impl IntoIterator<Item = (N, R)>,
+    model: &Model<'_>,
+    ingest: &IngestOptions,
+    options: &BiasStabilityOptions,
+) -> Result<Validation, CalError>
+where
+    N: AsRef<Path>,
+    R: Read + Send,
+{
+    let replays = logs.into_iter().map(|(name, reader)| {
+        let name = name.as_ref();
+        Ok((name.to_path_buf(), replay_models_from(reader, name, &[model], ingest, 1.0)?))
+    });
+    Ok(validations(1, replays, options)?.pop().unwrap_or_default())
+}
+
+/// Bias stability raw vs compensated per model from the replays of every log.
+fn validations(
+    model_count: usize,
+    replays: impl Iterator<Item = Result<(PathBuf, Replay), CalError>>,
+    options: &BiasStabilityOptions,
+) -> Result<Vec<Validation>, CalError> {
+    let mut runs: Vec<Vec<RunValidation>> = (0..model_count).map(|_| Vec::new()).collect();
+    for replay in replays {
+        let (path, Replay { models: per_model, ingest: report }) = replay?;
         for (model_runs, per_axis) in runs.iter_mut().zip(per_model) {
             for (axis, series) in per_axis.into_iter().enumerate() {
                 // Raw and compensated over the same span: from the first block the compensator
@@ -642,7 +751,7 @@ pub fn validate_models(
             let raw = rms_over_runs(&runs.iter().map(|r| r.raw_bias_stability_dph).collect::<Vec<_>>());
             let comp =
                 rms_over_runs(&runs.iter().map(|r| r.compensated_bias_stability_dph).collect::<Vec<_>>());
-            (runs, raw, comp)
+            Validation { runs, raw_bias_stability_dph: raw, compensated_bias_stability_dph: comp }
         })
         .collect())
 }

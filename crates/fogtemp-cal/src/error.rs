@@ -24,10 +24,25 @@ pub enum CalError {
     },
     /// A least-squares fit failed (too few points, rank deficient).
     #[error("fit failed: {0}")]
-    Fit(String),
+    Fit(FitProblem),
+    /// No axis point ever had features: the tracker never had `min_blocks` blocks of
+    /// temperature data without a gap longer than `max_gap_s` (the temperature column, the
+    /// window or the gap limit do not suit the log's temperature sampling).
+    #[error(
+        "fit failed: axis {axis}: no calibration points: the feature tracker never had {min_blocks} blocks of \
+         temperature data without a gap longer than {max_gap_s} s"
+    )]
+    NoCalibrationPoints {
+        /// Gyro axis.
+        axis: usize,
+        /// Blocks the tracker needs before its first features.
+        min_blocks: u32,
+        /// The longest silence the tracker bridges, seconds.
+        max_gap_s: f32,
+    },
     /// A model does not fit the blob format's limits.
     #[error("model cannot be encoded: {0}")]
-    Encode(String),
+    Encode(EncodeProblem),
     /// The encoded blob failed the core's own validation (a writer bug, reported rather than shipped).
     #[error("encoded model failed validation: {0}")]
     SelfCheck(fogtemp_core::Error),
@@ -50,7 +65,7 @@ pub enum CalError {
         available: String,
     },
     /// A row was rejected.
-    #[error("{}:{}:{}: column '{}': {} (found '{}'); use --skip-bad-rows to skip such rows", path.display(), row.line, row.column, row.column_name, row.kind.describe(), row.found)]
+    #[error("{}:{}:{}: column '{}': {} (found '{}')", path.display(), row.line, row.column, row.column_name, row.kind.describe(), row.found)]
     BadRow {
         /// File.
         path: PathBuf,
@@ -67,13 +82,6 @@ pub enum CalError {
         /// The reader's message.
         message: String,
     },
-    /// A simulation scenario is invalid (TOML syntax with line and column, or a named field).
-    #[error("scenario: {0}")]
-    Scenario(String),
-    /// The inputs of a diagnosis (simulated vs recorded runs) are unusable: unpaired or
-    /// duplicate names, empty or non-finite series, time not increasing, too few runs.
-    #[error("diagnose: {0}")]
-    Diagnose(String),
     /// Writing an output file failed (see [`crate::output`]).
     #[error("{action} {}: {source}", path.display())]
     Output {
@@ -92,4 +100,61 @@ pub enum CalError {
         /// The OS error.
         source: std::io::Error,
     },
+}
+
+/// Why a least-squares fit failed.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum FitProblem {
+    /// Fewer points than terms.
+    #[error("{points} points cannot fit {terms} terms")]
+    TooFewPoints {
+        /// Points offered.
+        points: usize,
+        /// Terms to fit.
+        terms: usize,
+    },
+    /// Two or more terms cannot be told apart on these points.
+    #[error("design matrix is rank deficient (terms not separable on these points)")]
+    RankDeficient,
+    /// The triangular factor could not be inverted.
+    #[error("singular R")]
+    Singular,
+    /// A test distribution could not be set up (degrees of freedom out of range).
+    #[error("{0}")]
+    Distribution(String),
+}
+
+/// Why a model cannot be encoded in the blob format.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum EncodeProblem {
+    /// Axis count outside what the format allows.
+    #[error("{axes} axes (allowed 1..={max})")]
+    AxisCount {
+        /// Axes offered.
+        axes: usize,
+        /// The format's limit.
+        max: usize,
+    },
+    /// A count or a size does not fit the format's fields.
+    #[error("{what}: {count}")]
+    TooLarge {
+        /// Which count ("blob bytes", "vertices", ...).
+        what: &'static str,
+        /// The count.
+        count: usize,
+    },
+    /// The mesh's neighbour list does not match its triangle list.
+    #[error("neighbour list length differs from triangle list")]
+    NeighbourMismatch,
+    /// A triangle refers to a vertex that does not exist, or has zero area.
+    #[error("triangle {triangle} has a vertex index out of range or zero area")]
+    BadTriangle {
+        /// Triangle index.
+        triangle: usize,
+    },
+    /// The feature tracker settings are outside what the core accepts.
+    #[error("feature settings: {0}")]
+    FeatureSettings(fogtemp_core::Error),
 }

@@ -7,7 +7,7 @@
 
 use fogtemp_core::{FeatureSettings, FeatureTracker};
 
-use crate::error::CalError;
+use crate::error::{CalError, EncodeProblem};
 
 /// Tracker capacity used in calibration: the format's maximum block count.
 pub const CAL_CAPACITY: usize = fogtemp_core::wire::MAX_BLOCKS as usize;
@@ -55,7 +55,7 @@ impl AxisFeatureStream {
     /// [`CalError::Encode`] if the settings are outside what the blob can carry.
     pub fn new(settings: &FeatureSettings) -> Result<Self, CalError> {
         let tracker =
-            FeatureTracker::new(settings).map_err(|e| CalError::Encode(format!("feature settings: {e}")))?;
+            FeatureTracker::new(settings).map_err(|e| CalError::Encode(EncodeProblem::FeatureSettings(e)))?;
         Ok(Self {
             tracker: Box::new(tracker),
             points: Vec::new(),

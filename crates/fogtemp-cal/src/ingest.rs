@@ -284,10 +284,32 @@ where
         Mode::Single
     };
     let tuning = Tuning { mode, ..Tuning::default() };
-    read_from(path, file, options, tuning, visit, progress)
+    read_with_tuning(path, file, options, tuning, visit, progress)
 }
 
-/// How [`read_from`] runs.
+/// [`read_log_with_progress`] from any reader (a socket, a decompressor, bytes in memory),
+/// like `csv::Reader::from_reader` beside `from_path`. `name` stands for the source in
+/// errors and in [`IngestReport::path`] (for example the file name the bytes came from).
+/// The rows are parsed on the calling thread.
+///
+/// # Errors
+/// As [`read_log`], with `name` as the file; [`CalError::Csv`] for a failing reader.
+pub fn read_from<R, F, P>(
+    reader: R,
+    name: &Path,
+    options: &IngestOptions,
+    visit: F,
+    progress: P,
+) -> Result<IngestReport, CalError>
+where
+    R: Read + Send,
+    F: FnMut(&Row<'_>) -> Result<(), CalError>,
+    P: FnMut(u64, u64),
+{
+    read_with_tuning(name, reader, options, Tuning::default(), visit, progress)
+}
+
+/// How [`read_with_tuning`] runs.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Mode {
     /// Everything on the calling thread.
@@ -320,7 +342,7 @@ impl Default for Tuning {
     }
 }
 
-fn read_from<R, F, P>(
+fn read_with_tuning<R, F, P>(
     path: &Path,
     reader: R,
     options: &IngestOptions,
@@ -1614,7 +1636,7 @@ mod tests {
     fn run_mode(data: &[u8], options: &IngestOptions, tuning: Tuning, chunk: usize) -> Outcome {
         let mut seen = Vec::new();
         let reader = Chunky { data, chunk };
-        let result = read_from(
+        let result = read_with_tuning(
             Path::new("log.csv"),
             reader,
             options,
@@ -2061,7 +2083,7 @@ mod tests {
         }
         for (tuning, chunk) in MODES {
             let mut calls = 0;
-            let result = read_from(
+            let result = read_with_tuning(
                 Path::new("log.csv"),
                 Chunky { data: data.as_bytes(), chunk },
                 &default_options(),
@@ -2069,13 +2091,13 @@ mod tests {
                 |row| {
                     calls += 1;
                     if row.line == 100 {
-                        return Err(CalError::Fit("stop".into()));
+                        return Err(CalError::NonFinite { what: "stop", index: 100 });
                     }
                     Ok(())
                 },
                 |_, _| {},
             );
-            assert!(matches!(result, Err(CalError::Fit(_))));
+            assert!(matches!(result, Err(CalError::NonFinite { what: "stop", index: 100 })));
             assert_eq!(calls, 99);
         }
     }
@@ -2088,7 +2110,7 @@ mod tests {
         }
         for (tuning, chunk) in MODES {
             let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-                read_from(
+                read_with_tuning(
                     Path::new("log.csv"),
                     Chunky { data: data.as_bytes(), chunk },
                     &default_options(),
@@ -2142,7 +2164,7 @@ mod tests {
         for mode in [Mode::Single, Mode::Parallel { workers: 2 }] {
             let mut calls = Vec::new();
             let tuning = Tuning { mode, chunk_bytes: 64 << 10, ..Tuning::default() };
-            let report = read_from(
+            let report = read_with_tuning(
                 Path::new("log.csv"),
                 data.as_bytes(),
                 &default_options(),

@@ -233,3 +233,17 @@ fn nnls3(rows: &[([f64; 3], f64, f64)]) -> [f64; 3] {
     }
     best.0
 }
+/// RMS over runs of Allan deviation curves, on the cluster sizes all runs share.
+pub fn rms_allan(curves: &[Vec<AllanPoint>]) -> Vec<AllanPoint> {
+    let shortest = curves.iter().map(Vec::len).min().unwrap_or(0);
+    (0..shortest)
+        .map(|k| {
+            let var = curves.iter().map(|c| c[k].adev_dph.powi(2)).sum::<f64>() / curves.len() as f64;
+            AllanPoint {
+                tau_s: curves[0][k].tau_s,
+                adev_dph: var.sqrt(),
+                relative_error: curves[0][k].relative_error,
+            }
+        })
+        .collect()
+}

@@ -10,7 +10,7 @@ use fogtemp_core::{Normalisation, PolyTerm};
 use nalgebra::{DMatrix, DVector};
 use statrs::distribution::{ContinuousCDF, FisherSnedecor, StudentsT};
 
-use crate::error::CalError;
+use crate::error::{CalError, FitProblem};
 use crate::mesh::MeshPoint;
 
 /// `(temp_power, rate_power)` of the paper's 11 terms (T, T^2, T^3, dT, dT^2, dT^3, T*dT,
@@ -174,26 +174,24 @@ fn design(chosen: &[(u8, u8)], column: &dyn Fn((u8, u8)) -> DVector<f64>, n: usi
 fn least_squares(h: DMatrix<f64>, y: &DVector<f64>, n_eff: f64) -> Result<LsFit, CalError> {
     let (n, p) = h.shape();
     if n <= p {
-        return Err(CalError::Fit(format!("{n} points cannot fit {p} terms")));
+        return Err(CalError::Fit(FitProblem::TooFewPoints { points: n, terms: p }));
     }
     let qr = h.clone().qr();
     let (q, r) = (qr.q(), qr.r());
     if (0..p).any(|k| r[(k, k)].abs() <= 1e-12 * r[(0, 0)].abs().max(1e-300)) {
-        return Err(CalError::Fit(
-            "design matrix is rank deficient (terms not separable on these points)".into(),
-        ));
+        return Err(CalError::Fit(FitProblem::RankDeficient));
     }
     let qty = q.transpose() * y;
-    let coefficients = r.solve_upper_triangular(&qty).ok_or_else(|| CalError::Fit("singular R".into()))?;
+    let coefficients = r.solve_upper_triangular(&qty).ok_or(CalError::Fit(FitProblem::Singular))?;
     let residuals = y - &h * &coefficients;
     let rss = residuals.norm_squared();
-    let r_inv = r
-        .solve_upper_triangular(&DMatrix::identity(p, p))
-        .ok_or_else(|| CalError::Fit("singular R".into()))?;
+    let r_inv =
+        r.solve_upper_triangular(&DMatrix::identity(p, p)).ok_or(CalError::Fit(FitProblem::Singular))?;
     // Variance with n - p dof, inflated by n / n_eff for autocorrelated residuals.
     let sigma2 = rss / (n - p) as f64 * (n as f64 / n_eff);
     let dof = (n_eff - p as f64).max(1.0);
-    let t = StudentsT::new(0.0, 1.0, dof).map_err(|e| CalError::Fit(e.to_string()))?;
+    let t =
+        StudentsT::new(0.0, 1.0, dof).map_err(|e| CalError::Fit(FitProblem::Distribution(e.to_string())))?;
     let std_errors: Vec<f64> = (0..p).map(|k| (sigma2 * r_inv.row(k).norm_squared()).sqrt()).collect();
     let p_values = (0..p)
         .map(|k| {
@@ -241,7 +239,8 @@ fn stepwise(
             let rss_new = (fit.rss - gain).max(f64::MIN_POSITIVE);
             let dof2 = n_eff - (p + 1) as f64;
             let f_stat = gain / (rss_new / (n - p - 1) as f64) * (n_eff / n as f64);
-            let dist = FisherSnedecor::new(1.0, dof2).map_err(|e| CalError::Fit(e.to_string()))?;
+            let dist = FisherSnedecor::new(1.0, dof2)
+                .map_err(|e| CalError::Fit(FitProblem::Distribution(e.to_string())))?;
             let p_value = dist.sf(f_stat);
             if best.is_none_or(|(_, bp)| p_value < bp) {
                 best = Some((c, p_value));

@@ -37,7 +37,7 @@ pub struct MeshFigure {
 }
 
 /// Tick label with at most 4 significant digits and no float noise (0.01000000000001 -> 0.01).
-pub(crate) fn tick(v: &f64) -> String {
+pub fn tick(v: &f64) -> String {
     let rounded: f64 = format!("{v:.3e}").parse().unwrap_or(*v);
     format!("{rounded}")
 }
@@ -47,7 +47,7 @@ pub(crate) fn tick(v: &f64) -> String {
 ///
 /// # Errors
 /// What `draw` returns, or [`CalError::Output`] if the file cannot be written.
-pub(crate) fn write_svg(
+pub fn write_svg(
     path: &Path,
     size: (u32, u32),
     draw: impl FnOnce(DrawingArea<SVGBackend<'_>, plotters::coord::Shift>) -> Result<(), CalError>,
@@ -62,7 +62,7 @@ pub(crate) fn write_svg(
 ///
 /// # Errors
 /// [`CalError::Io`] naming `path` if drawing fails.
-pub(crate) fn time_panel<'a>(
+pub fn time_panel<'a>(
     area: &DrawingArea<SVGBackend<'a>, plotters::coord::Shift>,
     path: &Path,
     t_max_min: f64,
@@ -98,7 +98,7 @@ pub(crate) fn time_panel<'a>(
 ///
 /// # Errors
 /// [`CalError::Io`] naming `path` if drawing fails.
-pub(crate) fn draw_legend<'a, CT: plotters::coord::CoordTranslate>(
+pub fn draw_legend<'a, CT: plotters::coord::CoordTranslate>(
     chart: &mut ChartContext<'a, SVGBackend<'a>, CT>,
     path: &Path,
 ) -> Result<(), CalError> {
@@ -110,11 +110,13 @@ pub(crate) fn draw_legend<'a, CT: plotters::coord::CoordTranslate>(
         .map_err(|e| plot_err(path, e))
 }
 
-pub(crate) fn plot_err(path: &Path, e: impl std::fmt::Display) -> CalError {
+/// A drawing failure as an I/O error naming the figure's file.
+pub fn plot_err(path: &Path, e: impl std::fmt::Display) -> CalError {
     CalError::Io { path: path.to_path_buf(), source: std::io::Error::other(e.to_string()) }
 }
 
-pub(crate) fn finite_range(values: impl Iterator<Item = f64>) -> (f64, f64) {
+/// The range of the finite values, padded by 5 % ((0, 1) when there are none).
+pub fn finite_range(values: impl Iterator<Item = f64>) -> (f64, f64) {
     let (lo, hi) = values
         .filter(|v| v.is_finite())
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(v), b.max(v)));
@@ -126,7 +128,7 @@ pub(crate) fn finite_range(values: impl Iterator<Item = f64>) -> (f64, f64) {
 }
 
 /// Distinct colours for runs.
-pub(crate) fn run_colour(i: usize) -> RGBColor {
+pub fn run_colour(i: usize) -> RGBColor {
     const C: [RGBColor; 8] = [
         RGBColor(31, 119, 180),
         RGBColor(255, 127, 14),
@@ -357,21 +359,6 @@ pub fn mesh_figure(axis: &fogtemp_core::Axis<'_>, points: Vec<(f64, f64)>) -> Op
     Some(MeshFigure { nodes, triangles, points })
 }
 
-/// RMS over runs of Allan deviation curves, on the cluster sizes all runs share.
-pub fn rms_allan(curves: &[Vec<AllanPoint>]) -> Vec<AllanPoint> {
-    let shortest = curves.iter().map(Vec::len).min().unwrap_or(0);
-    (0..shortest)
-        .map(|k| {
-            let var = curves.iter().map(|c| c[k].adev_dph.powi(2)).sum::<f64>() / curves.len() as f64;
-            AllanPoint {
-                tau_s: curves[0][k].tau_s,
-                adev_dph: var.sqrt(),
-                relative_error: curves[0][k].relative_error,
-            }
-        })
-        .collect()
-}
-
 fn file_name(p: &Path) -> String {
     p.file_name().map_or_else(|| p.display().to_string(), |n| n.to_string_lossy().into_owned())
 }
@@ -442,7 +429,10 @@ pub fn write_validation_report(
         plot_allan(
             &dir.join(&allan_svg),
             &format!("Allan deviation of 1 s means, RMS over runs, axis {axis}"),
-            &[("raw".into(), rms_allan(&raw_curves)), ("compensated".into(), rms_allan(&comp_curves))],
+            &[
+                ("raw".into(), crate::metrics::rms_allan(&raw_curves)),
+                ("compensated".into(), crate::metrics::rms_allan(&comp_curves)),
+            ],
         )?;
         md.push_str(&format!("![Allan deviation]({allan_svg})\n\n"));
         if let Some(fig) = model.axis(axis).ok().and_then(|a| mesh_figure(&a, Vec::new())) {

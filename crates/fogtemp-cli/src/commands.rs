@@ -155,7 +155,8 @@ fn fit(a: FitArgs) -> Result<()> {
         runs.push(run);
     }
     let digest = digest_files(&logs)?;
-    let (blob, reports) = calibrate::fit_model(&runs, &config, digest).context("fitting the model")?;
+    let fitted = calibrate::fit_model(&runs, &config, digest).context("fitting the model")?;
+    let (blob, reports) = (fitted.blob, fitted.axes);
     write_atomic(&a.out, |w| Ok(w.write_all(&blob)?))?;
     if let Some(dir) = &a.report {
         let model = Model::from_bytes(&blob).map_err(|e| anyhow::anyhow!("{e}"))?;
@@ -337,7 +338,8 @@ fn validate(a: ValidateArgs) -> Result<()> {
         bar.finish_and_clear();
     }
     let compared = outcomes.split_off(1.min(outcomes.len()));
-    let (runs, raw, comp) = outcomes.pop().unwrap_or_default();
+    let calibrate::Validation { runs, raw_bias_stability_dph: raw, compensated_bias_stability_dph: comp } =
+        outcomes.pop().unwrap_or_default();
     let model = &models[0];
     for r in runs.iter().filter(|r| r.axis == 0) {
         if r.ingest.rows == 0 {
@@ -440,7 +442,7 @@ fn model_size(model: &Model<'_>) -> (u32, usize) {
 fn compare_models(
     a: &ValidateArgs,
     models: &[Model<'_>],
-    compared: &[(Vec<calibrate::RunValidation>, f64, f64)],
+    compared: &[calibrate::Validation],
     raw: f64,
     comp: f64,
 ) -> Vec<Compared> {
@@ -452,10 +454,8 @@ fn compare_models(
         Compared { model: path.to_path_buf(), mesh_nodes, poly_terms, raw_dph, compensated_dph }
     };
     let mut out = vec![entry(&a.model, &models[0], raw, comp)];
-    for ((path, model), (_, raw_dph, compensated_dph)) in
-        a.compare.iter().zip(models.iter().skip(1)).zip(compared)
-    {
-        out.push(entry(path, model, *raw_dph, *compensated_dph));
+    for ((path, model), v) in a.compare.iter().zip(models.iter().skip(1)).zip(compared) {
+        out.push(entry(path, model, v.raw_bias_stability_dph, v.compensated_bias_stability_dph));
     }
     out
 }

@@ -7,10 +7,10 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context, Result};
-use fogtemp_cal::diagnose::{
+use fogtemp_cal::ingest::{read_log_with_progress, IngestOptions};
+use fogtemp_diagnose::{
     diagnose as run_diagnosis, write_diagnosis_report, DiagnoseOptions, RunMeta, RunSeries,
 };
-use fogtemp_cal::ingest::{read_log_with_progress, IngestOptions};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
 use crate::args::DiagnoseArgs;
@@ -178,15 +178,15 @@ pub fn diagnose(a: DiagnoseArgs, recorded_ingest: IngestOptions) -> Result<()> {
 fn write_updated_scenario(
     simulated: &Path,
     dir: &Path,
-    d: &fogtemp_cal::diagnose::Diagnosis,
+    d: &fogtemp_diagnose::Diagnosis,
 ) -> Result<Option<(PathBuf, Vec<String>)>> {
     let source = simulated.join("scenario.toml");
     if !source.is_file() {
         return Ok(None);
     }
     let text = std::fs::read_to_string(&source).with_context(|| format!("reading {}", source.display()))?;
-    let scenario = fogtemp_cal::sim::Scenario::from_toml(&text, &source.display().to_string())?;
-    let (updated, changes) = fogtemp_cal::diagnose::updated_scenario(&scenario, d);
+    let scenario = fogtemp_sim::Scenario::from_toml(&text, &source.display().to_string())?;
+    let (updated, changes) = fogtemp_diagnose::updated_scenario(&scenario, d);
     let mut out =
         format!("# {} updated by `fogtemp-cal diagnose` with the effects it found:\n", source.display());
     if changes.is_empty() {

@@ -1,4 +1,5 @@
-//! `fogtemp-cal`: the calibration command for lab technicians (thin glue over `fogtemp-cal`).
+//! `fogtemp-cal`: the calibration command for lab technicians (thin glue over the fogtemp
+//! libraries: `fogtemp-cal`, `fogtemp-sim`, `fogtemp-diagnose`).
 
 mod args;
 mod commands;
@@ -7,19 +8,56 @@ mod output;
 mod simulate;
 
 use clap::Parser;
+use fogtemp_cal::CalError;
+use fogtemp_diagnose::DiagnoseError;
+use fogtemp_sim::SimError;
 
 fn main() -> std::process::ExitCode {
     let cli = args::Cli::parse();
     match commands::run(cli.command) {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {
-            // One paragraph: the error and its causes.
-            let mut message = format!("error: {e}");
-            for cause in e.chain().skip(1) {
-                message.push_str(&format!("\n  caused by: {cause}"));
-            }
-            eprintln!("{message}");
+            eprintln!("{}", error_paragraph(&e));
             std::process::ExitCode::FAILURE
         }
+    }
+}
+
+/// One paragraph: the error and its causes, each with the command-line hint that fits it.
+fn error_paragraph(e: &anyhow::Error) -> String {
+    let mut message = String::from("error: ");
+    for (k, cause) in e.chain().enumerate() {
+        if k > 0 {
+            message.push_str("\n  caused by: ");
+        }
+        message.push_str(&cause.to_string());
+        message.push_str(flag_hint(cause).unwrap_or_default());
+    }
+    message
+}
+
+/// The library's error inside `e`, if it is one (directly or wrapped by the simulator or
+/// the diagnosis, whose wrapping variants are transparent).
+fn cal_error<'e>(e: &'e (dyn std::error::Error + 'static)) -> Option<&'e CalError> {
+    e.downcast_ref::<CalError>()
+        .or_else(|| match e.downcast_ref::<SimError>() {
+            Some(SimError::Cal(c)) => Some(c),
+            _ => None,
+        })
+        .or_else(|| match e.downcast_ref::<DiagnoseError>() {
+            Some(DiagnoseError::Cal(c)) => Some(c),
+            _ => None,
+        })
+}
+
+/// What to change on the command line, for the library errors a flag can fix (the
+/// libraries name no flags: their callers have none).
+fn flag_hint(e: &(dyn std::error::Error + 'static)) -> Option<&'static str> {
+    match cal_error(e)? {
+        CalError::BadRow { .. } => Some("; use --skip-bad-rows to skip such rows"),
+        CalError::NoCalibrationPoints { .. } => {
+            Some("; check --temp-column, or set --max-gap-s and --window-s to suit the temperature sampling")
+        }
+        _ => None,
     }
 }

@@ -3,7 +3,7 @@
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use anyhow::{Context, Result};
-use fogtemp_cal::sim::{self, Scenario};
+use fogtemp_sim::{self as sim, Scenario};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use serde_json::json;
 
@@ -130,7 +130,7 @@ struct StageBars {
     bar: std::sync::Mutex<Option<ProgressBar>>,
 }
 
-impl fogtemp_cal::demo::DemoProgress for StageBars {
+impl fogtemp_sim::demo::DemoProgress for StageBars {
     fn stage(&self, name: &str, total: u64) {
         if let Ok(mut slot) = self.bar.lock() {
             if let Some(old) = slot.take() {
@@ -158,7 +158,7 @@ impl fogtemp_cal::demo::DemoProgress for StageBars {
 
 /// The `demo` command.
 pub fn demo(a: crate::args::DemoArgs) -> Result<()> {
-    use fogtemp_cal::demo::{run_demo, DemoOptions, PAPER_MESH_DPH, PAPER_POLY_DPH, PAPER_RAW_DPH};
+    use fogtemp_sim::demo::{run_demo, DemoOptions, PAPER_MESH_DPH, PAPER_POLY_DPH, PAPER_RAW_DPH};
     let (scenario, text) = load_scenario(&a.scenario, a.rate, a.seed, None)?;
     let options = DemoOptions { report: !a.no_report, ..DemoOptions::default() };
     let bars = StageBars { bar: std::sync::Mutex::new(None) };

@@ -30,9 +30,11 @@
 
 pub mod concealed;
 pub mod effects;
+pub mod error;
 pub mod linalg;
 pub mod locate;
 pub mod prepare;
+#[cfg(feature = "report")]
 pub mod report;
 pub mod select;
 pub mod update;
@@ -41,8 +43,8 @@ use std::collections::BTreeMap;
 
 use serde::Serialize;
 
-use crate::error::CalError;
-
+pub use error::{DiagnoseError, SeriesProblem, Side};
+#[cfg(feature = "report")]
 pub use report::write_diagnosis_report;
 pub use update::updated_scenario;
 
@@ -134,8 +136,8 @@ impl DiagnoseOptions {
     /// Checks that every setting is usable.
     ///
     /// # Errors
-    /// [`CalError::Diagnose`] naming the first bad setting.
-    pub fn validate(&self) -> Result<(), CalError> {
+    /// [`DiagnoseError::InvalidOption`] naming the first bad setting.
+    pub fn validate(&self) -> Result<(), DiagnoseError> {
         let positive = [
             ("mean_window_s", self.mean_window_s),
             ("rate_window_s", self.rate_window_s),
@@ -146,35 +148,50 @@ impl DiagnoseOptions {
         ];
         for (name, v) in positive {
             if !(v.is_finite() && v > 0.0) {
-                return Err(CalError::Diagnose(format!("option {name} must be a positive number (got {v})")));
+                return Err(DiagnoseError::InvalidOption {
+                    option: name,
+                    message: format!("option {name} must be a positive number (got {v})"),
+                });
             }
         }
         if self.mean_window_s < 1.0 {
-            return Err(CalError::Diagnose("option mean_window_s must be at least 1 s".into()));
+            return Err(DiagnoseError::InvalidOption {
+                option: "mean_window_s",
+                message: "option mean_window_s must be at least 1 s".into(),
+            });
         }
         if !(self.warmup_span_s.is_finite() && self.warmup_span_s >= 0.0) {
-            return Err(CalError::Diagnose("option warmup_span_s must be >= 0".into()));
+            return Err(DiagnoseError::InvalidOption {
+                option: "warmup_span_s",
+                message: "option warmup_span_s must be >= 0".into(),
+            });
         }
         if self.temp_bins == 0 || self.temp_bins > 100 {
-            return Err(CalError::Diagnose("option temp_bins must be 1..=100".into()));
+            return Err(DiagnoseError::InvalidOption {
+                option: "temp_bins",
+                message: "option temp_bins must be 1..=100".into(),
+            });
         }
         if self.rate_edges_c_per_min.windows(2).any(|w| w[0] >= w[1])
             || self.rate_edges_c_per_min.iter().any(|v| !v.is_finite())
         {
-            return Err(CalError::Diagnose(
-                "option rate_edges_c_per_min must be finite and increasing".into(),
-            ));
+            return Err(DiagnoseError::InvalidOption {
+                option: "rate_edges_c_per_min",
+                message: "option rate_edges_c_per_min must be finite and increasing".into(),
+            });
         }
         let fraction = |v: f64| v > 0.0 && v <= 1.0;
         if !fraction(self.window_coverage) || !fraction(self.block_coverage) {
-            return Err(CalError::Diagnose(
-                "options window_coverage and block_coverage must be within (0, 1]".into(),
-            ));
+            return Err(DiagnoseError::InvalidOption {
+                option: "window_coverage, block_coverage",
+                message: "options window_coverage and block_coverage must be within (0, 1]".into(),
+            });
         }
         if !(0.0..=1.0).contains(&self.concealment_limit) || !(0.0..=1.0).contains(&self.min_fold_fraction) {
-            return Err(CalError::Diagnose(
-                "options concealment_limit and min_fold_fraction must be within 0..=1".into(),
-            ));
+            return Err(DiagnoseError::InvalidOption {
+                option: "concealment_limit, min_fold_fraction",
+                message: "options concealment_limit and min_fold_fraction must be within 0..=1".into(),
+            });
         }
         Ok(())
     }
@@ -529,16 +546,16 @@ pub struct RunTraceOut {
 /// `progress(stage, fraction)` is called as stages complete (fraction in 0..=1).
 ///
 /// # Errors
-/// [`CalError::Diagnose`] for unusable inputs: no runs, unpaired or duplicate names,
+/// [`DiagnoseError`] for unusable inputs: no runs, unpaired or duplicate names,
 /// series of unequal length, non-finite values, time not increasing, sampling slower
-/// than 1 Hz, runs too short for the windows, fewer than 2 runs; [`CalError::Fit`] if a
+/// than 1 Hz, runs too short for the windows, fewer than 2 runs; [`DiagnoseError::Fit`] if a
 /// least-squares problem cannot be solved.
 pub fn diagnose(
     simulated: &[RunSeries],
     recorded: &[RunSeries],
     options: &DiagnoseOptions,
     mut progress: impl FnMut(&str, f64),
-) -> Result<Diagnosis, CalError> {
+) -> Result<Diagnosis, DiagnoseError> {
     options.validate()?;
     progress("pairing runs", 0.0);
     let prep = prepare::prepare(simulated, recorded, options)?;
@@ -561,7 +578,7 @@ pub fn diagnose(
 /// channels), but no effect can be named, because naming needs runs held out of the fit
 /// (leave-one-run-out). `left_out` is empty and the summary says why: this is "not
 /// decidable from one run", not "nothing left out".
-fn single_run(prep: &prepare::Prepared, options: &DiagnoseOptions) -> Result<Diagnosis, CalError> {
+fn single_run(prep: &prepare::Prepared, options: &DiagnoseOptions) -> Result<Diagnosis, DiagnoseError> {
     let resid: Vec<Vec<f64>> =
         prep.runs.iter().map(|r| r.blocks.iter().map(|b| b.resid_dph).collect()).collect();
     let all: Vec<f64> = resid.iter().flatten().copied().collect();

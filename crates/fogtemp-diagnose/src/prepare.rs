@@ -4,7 +4,7 @@
 use nalgebra::{DMatrix, DVector};
 
 use super::{DiagnoseOptions, RunSeries};
-use crate::error::CalError;
+use crate::error::{DiagnoseError, SeriesProblem, Side};
 
 /// One short mean of a run (a "block").
 #[derive(Clone, Debug, PartialEq)]
@@ -129,59 +129,50 @@ impl Prepared {
     }
 }
 
-fn bad(msg: String) -> CalError {
-    CalError::Diagnose(msg)
+fn bad_series(side: Side, run: &RunSeries, problem: SeriesProblem) -> DiagnoseError {
+    DiagnoseError::BadSeries { side, run: run.name.clone(), problem }
 }
 
 /// Checks one series: equal lengths, finite values, strictly increasing time, >= 1 Hz.
 ///
 /// # Errors
-/// [`CalError::Diagnose`] naming the run, the side and the sample.
-pub fn check_series(run: &RunSeries, side: &str) -> Result<(), CalError> {
+/// [`DiagnoseError::BadSeries`] naming the run, the side and the sample.
+pub fn check_series(run: &RunSeries, side: Side) -> Result<(), DiagnoseError> {
     let n = run.time_s.len();
     if n == 0 {
-        return Err(bad(format!("{side} run '{}' is empty", run.name)));
+        return Err(bad_series(side, run, SeriesProblem::Empty));
     }
     if run.temp_c.len() != n || run.gyro_dph.len() != n {
-        return Err(bad(format!(
-            "{side} run '{}': time_s, temp_c and gyro_dph have {} / {} / {} samples (must be equal)",
-            run.name,
-            n,
-            run.temp_c.len(),
-            run.gyro_dph.len()
-        )));
+        let lengths = [n, run.temp_c.len(), run.gyro_dph.len()];
+        return Err(bad_series(side, run, SeriesProblem::UnequalLengths { lengths }));
     }
     let columns = [("time_s", &run.time_s), ("temp_c", &run.temp_c), ("gyro_dph", &run.gyro_dph)];
     for (what, values) in columns {
-        if let Some(i) = values.iter().position(|v| !v.is_finite()) {
-            return Err(bad(format!("{side} run '{}': {what} sample {i} is not finite", run.name)));
+        if let Some(sample) = values.iter().position(|v| !v.is_finite()) {
+            return Err(bad_series(side, run, SeriesProblem::NonFinite { what, sample }));
         }
     }
     if let Some(i) = run.time_s.windows(2).position(|w| w[1] <= w[0]) {
-        return Err(bad(format!(
-            "{side} run '{}': time_s does not increase at sample {} ({} then {})",
-            run.name,
-            i + 1,
-            run.time_s[i],
-            run.time_s[i + 1]
-        )));
+        let problem = SeriesProblem::TimeNotIncreasing {
+            sample: i + 1,
+            before_s: run.time_s[i],
+            at_s: run.time_s[i + 1],
+        };
+        return Err(bad_series(side, run, problem));
     }
     if n > 1 {
         let mut dt: Vec<f64> = run.time_s.windows(2).map(|w| w[1] - w[0]).collect();
         dt.sort_by(f64::total_cmp);
         let median = dt[dt.len() / 2];
         if median > 1.05 {
-            return Err(bad(format!(
-                "{side} run '{}': median sample interval {median} s; diagnose needs a sample rate >= 1 Hz",
-                run.name
-            )));
+            return Err(bad_series(side, run, SeriesProblem::TooSlow { median_interval_s: median }));
         }
     }
-    if let Some(rate) = run.meta.input_rate_dph.filter(|v| !v.is_finite()) {
-        return Err(bad(format!("{side} run '{}': input_rate_dph {rate} is not finite", run.name)));
+    if let Some(value) = run.meta.input_rate_dph.filter(|v| !v.is_finite()) {
+        return Err(bad_series(side, run, SeriesProblem::NonFiniteMeta { what: "input_rate_dph", value }));
     }
-    if let Some(t) = run.meta.power_on_at_s.filter(|v| !v.is_finite()) {
-        return Err(bad(format!("{side} run '{}': power_on_at_s {t} is not finite", run.name)));
+    if let Some(value) = run.meta.power_on_at_s.filter(|v| !v.is_finite()) {
+        return Err(bad_series(side, run, SeriesProblem::NonFiniteMeta { what: "power_on_at_s", value }));
     }
     Ok(())
 }
@@ -189,36 +180,28 @@ pub fn check_series(run: &RunSeries, side: &str) -> Result<(), CalError> {
 /// Pairs runs by name.
 ///
 /// # Errors
-/// [`CalError::Diagnose`] for no runs, duplicate names, or a name on one side only.
+/// [`DiagnoseError::NoRuns`], [`DiagnoseError::DuplicateRun`] or [`DiagnoseError::Unpaired`].
 pub fn pair<'a>(
     simulated: &'a [RunSeries],
     recorded: &'a [RunSeries],
-) -> Result<Vec<(&'a RunSeries, &'a RunSeries)>, CalError> {
+) -> Result<Vec<(&'a RunSeries, &'a RunSeries)>, DiagnoseError> {
     if simulated.is_empty() || recorded.is_empty() {
-        return Err(bad(format!(
-            "need simulated and recorded runs (got {} simulated, {} recorded)",
-            simulated.len(),
-            recorded.len()
-        )));
+        return Err(DiagnoseError::NoRuns { simulated: simulated.len(), recorded: recorded.len() });
     }
-    for (side, runs) in [("simulated", simulated), ("recorded", recorded)] {
+    for (side, runs) in [(Side::Simulated, simulated), (Side::Recorded, recorded)] {
         let mut names: Vec<&str> = runs.iter().map(|r| r.name.as_str()).collect();
         names.sort_unstable();
         if let Some(w) = names.windows(2).find(|w| w[0] == w[1]) {
-            return Err(bad(format!("two {side} runs are named '{}'", w[0])));
+            return Err(DiagnoseError::DuplicateRun { side, name: w[0].to_string() });
         }
     }
     let unpaired = |a: &[RunSeries], b: &[RunSeries]| -> Vec<String> {
-        a.iter().filter(|r| !b.iter().any(|s| s.name == r.name)).map(|r| format!("'{}'", r.name)).collect()
+        a.iter().filter(|r| !b.iter().any(|s| s.name == r.name)).map(|r| r.name.clone()).collect()
     };
-    let rec_only = unpaired(recorded, simulated);
-    let sim_only = unpaired(simulated, recorded);
-    if !rec_only.is_empty() || !sim_only.is_empty() {
-        return Err(bad(format!(
-            "runs are paired by name; recorded without a simulated partner: [{}]; simulated without a recorded partner: [{}]",
-            rec_only.join(", "),
-            sim_only.join(", ")
-        )));
+    let recorded_only = unpaired(recorded, simulated);
+    let simulated_only = unpaired(simulated, recorded);
+    if !recorded_only.is_empty() || !simulated_only.is_empty() {
+        return Err(DiagnoseError::Unpaired { recorded_only, simulated_only });
     }
     Ok(recorded
         .iter()
@@ -293,7 +276,11 @@ fn smooth_temperature(temp_1s: &[f64], options: &DiagnoseOptions) -> (Vec<f64>, 
     (level, slope.iter().map(|s| s * 60.0).collect())
 }
 
-fn prepare_run(sim: &RunSeries, rec: &RunSeries, options: &DiagnoseOptions) -> Result<RunData, CalError> {
+fn prepare_run(
+    sim: &RunSeries,
+    rec: &RunSeries,
+    options: &DiagnoseOptions,
+) -> Result<RunData, DiagnoseError> {
     let t0 = rec.time_s[0];
     let t_end = rec.time_s[rec.time_s.len() - 1];
     let n_sec = (t_end - t0).floor() as usize + 1;
@@ -349,12 +336,8 @@ fn prepare_run(sim: &RunSeries, rec: &RunSeries, options: &DiagnoseOptions) -> R
         });
     }
     if blocks.len() < 3 {
-        return Err(bad(format!(
-            "run '{}': only {} short means of {} s where both recorded and simulated data and the smoothing windows are complete (need >= 3; do the runs overlap in time?)",
-            rec.name,
-            blocks.len(),
-            block_s
-        )));
+        let problem = SeriesProblem::TooShort { means: blocks.len(), mean_window_s: block_s };
+        return Err(bad_series(Side::Recorded, rec, problem));
     }
     let sec = SecondGrid {
         since_on_s,
@@ -410,21 +393,21 @@ fn fit_static_relation(runs: &[RunData]) -> Option<StaticRelation> {
 /// Pairs, validates and grids the runs.
 ///
 /// # Errors
-/// [`CalError::Diagnose`] for unusable inputs (see [`super::diagnose`]).
+/// [`DiagnoseError`] for unusable inputs (see [`super::diagnose`]).
 pub fn prepare(
     simulated: &[RunSeries],
     recorded: &[RunSeries],
     options: &DiagnoseOptions,
-) -> Result<Prepared, CalError> {
+) -> Result<Prepared, DiagnoseError> {
     for r in simulated {
-        check_series(r, "simulated")?;
+        check_series(r, Side::Simulated)?;
     }
     for r in recorded {
-        check_series(r, "recorded")?;
+        check_series(r, Side::Recorded)?;
     }
     let pairs = pair(simulated, recorded)?;
     if pairs.is_empty() {
-        return Err(bad("no paired runs".into()));
+        return Err(DiagnoseError::NoRuns { simulated: simulated.len(), recorded: recorded.len() });
     }
     let runs: Vec<RunData> =
         pairs.iter().map(|(s, r)| prepare_run(s, r, options)).collect::<Result<_, _>>()?;

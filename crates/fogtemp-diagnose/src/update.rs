@@ -2,7 +2,7 @@
 //! mapped onto the simulator's own parameters (docs/simulator.md), so the engineer can
 //! simulate again and compare. Where a term has no exact counterpart the mapping is stated.
 
-use crate::sim::scenario::{InputAxis, Node, Scenario};
+use fogtemp_sim::scenario::{InputAxis, Node, Scenario};
 
 use super::{Diagnosis, LeftOutEffect};
 

@@ -8,6 +8,8 @@
 //! so they are generated in parallel with rayon and stream to CSV in the log format of
 //! DESIGN section 3 (`time_s,temp_c,gyro_dph`).
 
+pub mod demo;
+pub mod error;
 pub mod noise;
 pub mod run;
 pub mod scenario;
@@ -19,11 +21,12 @@ use std::path::{Path, PathBuf};
 use rayon::prelude::*;
 use serde::Serialize;
 
+pub use error::SimError;
 pub use run::{run_truth, RunGenerator, RunTruth, Sample, TruthPoint};
 pub use scenario::{RunSpec, Scenario, PAPER_TOML};
 
-use crate::error::CalError;
-use crate::output::write_file_atomic;
+use fogtemp_cal::output::write_file_atomic;
+use fogtemp_cal::CalError;
 
 /// Samples between progress reports.
 const PROGRESS_EVERY: u64 = 1 << 16;
@@ -174,13 +177,14 @@ gradient_c,gradient_rate_c_per_min,power_w,bias_dph,output_dph\n",
 /// `progress(samples)` receives increments from any thread.
 ///
 /// # Errors
-/// [`CalError::Io`] naming the file that could not be written.
+/// [`SimError::Cal`] with [`CalError::Io`] or [`CalError::Output`] naming the file that could
+/// not be written.
 pub fn simulate_to_dir(
     scenario: &Scenario,
     scenario_text: &str,
     dir: &Path,
     progress: &(dyn Fn(u64) + Sync),
-) -> Result<Vec<RunSummary>, CalError> {
+) -> Result<Vec<RunSummary>, SimError> {
     let truth_dir = dir.join("truth");
     std::fs::create_dir_all(&truth_dir).map_err(|source| CalError::Io { path: truth_dir.clone(), source })?;
     let runs = scenario.expanded_runs();
@@ -220,7 +224,7 @@ pub fn simulate_to_dir(
         runs: summaries.clone(),
     };
     let json = serde_json::to_vec_pretty(&manifest)
-        .map_err(|e| CalError::Scenario(format!("manifest could not be serialised: {e}")))?;
+        .map_err(|e| SimError::Serialise { what: "manifest", message: e.to_string() })?;
     write_file_atomic(&dir.join("manifest.json"), |w| w.write_all(&json))?;
     Ok(summaries)
 }

@@ -39,8 +39,8 @@ use super::linalg::{
 };
 use super::prepare::Prepared;
 use super::{CandidateReport, DiagnoseOptions, LeftOutEffect, Parameter, SelectionStep};
-use crate::error::CalError;
-use crate::metrics::{bias_stability, rms_over_runs, BiasStabilityOptions};
+use crate::error::DiagnoseError;
+use fogtemp_cal::metrics::{bias_stability, rms_over_runs, BiasStabilityOptions};
 
 /// A held-out run is informative about a term when the term's contribution there (about its
 /// mean over all runs) has an RMS of at least this fraction of the noise of one short mean.
@@ -179,14 +179,14 @@ pub struct FoldEval {
 /// Fits the design to all runs and in every leave-one-run-out fold.
 ///
 /// # Errors
-/// [`CalError::Fit`] if a fit has no rows or produces non-finite values.
-pub fn fold_eval(design: &Design, ys: &[Vec<f64>]) -> Result<FoldEval, CalError> {
+/// [`DiagnoseError::Fit`] if a fit has no rows or produces non-finite values.
+pub fn fold_eval(design: &Design, ys: &[Vec<f64>]) -> Result<FoldEval, DiagnoseError> {
     let p = design.p();
     let rs: Vec<DMatrix<f64>> = design.per_run.iter().zip(ys).map(|(x, y)| compress(x, y)).collect();
     let pen = design.penalty.as_ref().map(|m| compress(m, &vec![0.0; m.nrows()]));
     let mut all: Vec<&DMatrix<f64>> = rs.iter().collect();
     all.extend(pen.as_ref());
-    let failed = || CalError::Fit("least squares failed (no rows or non-finite values)".into());
+    let failed = || DiagnoseError::Fit("least squares failed (no rows or non-finite values)");
     let (full_beta, full_rss) = fit_stacked(&all, p).ok_or_else(failed)?;
     let mut train_rss = Vec::with_capacity(rs.len());
     let mut fold_sse = Vec::with_capacity(rs.len());
@@ -303,7 +303,7 @@ fn profile_candidate(
     grid: &EffectGrid,
     ys: &[Vec<f64>],
     n_eff: f64,
-) -> Result<Profiled, CalError> {
+) -> Result<Profiled, DiagnoseError> {
     let n = prep.n_blocks();
     let p_base = 1 + base.iter().map(|t| t.k()).sum::<usize>();
     let evals: Vec<(FoldEval, usize, Vec<f64>)> = grid
@@ -343,7 +343,7 @@ fn profile_candidate(
     } else {
         profiled.into_iter().min_by(|a, b| total_cv(a).total_cmp(&total_cv(b)))
     };
-    choice.ok_or_else(|| CalError::Fit("empty profiling grid".into()))
+    choice.ok_or(DiagnoseError::Fit("empty profiling grid"))
 }
 
 fn total_cv(p: &Profiled) -> f64 {
@@ -551,7 +551,7 @@ struct Scored {
     accepted: bool,
 }
 
-fn score_candidate(ctx: &StepContext<'_>, grid: &EffectGrid) -> Result<Option<ScoredProfile>, CalError> {
+fn score_candidate(ctx: &StepContext<'_>, grid: &EffectGrid) -> Result<Option<ScoredProfile>, DiagnoseError> {
     if grid.points.iter().all(|p| p.k() == 0) {
         return Ok(None);
     }
@@ -651,7 +651,7 @@ fn most_confused(
         .max_by(|a, b| a.1.total_cmp(&b.1))
 }
 
-fn run_step(ctx: &StepContext<'_>) -> Result<(Vec<CandidateReport>, Option<Pick>), CalError> {
+fn run_step(ctx: &StepContext<'_>) -> Result<(Vec<CandidateReport>, Option<Pick>), DiagnoseError> {
     let open: Vec<&EffectGrid> = ctx.grids.iter().filter(|g| !ctx.in_model.contains(&g.effect)).collect();
     let scored: Vec<Option<ScoredProfile>> = open
         .par_iter()
@@ -780,13 +780,13 @@ pub fn residuals(design: &Design, beta: &DVector<f64>, ys: &[Vec<f64>]) -> Vec<V
 /// Forward selection over the catalogue (see the module documentation for the rule).
 ///
 /// # Errors
-/// [`CalError::Fit`] if a least-squares problem fails.
+/// [`DiagnoseError::Fit`] if a least-squares problem fails.
 pub fn forward_select(
     prep: &Prepared,
     grids: &[EffectGrid],
     options: &DiagnoseOptions,
     progress: &mut dyn FnMut(&str, f64),
-) -> Result<Selection, CalError> {
+) -> Result<Selection, DiagnoseError> {
     let ys = targets(prep);
     let indices = block_indices(prep);
     let mut chosen: Vec<ChosenTerm> = Vec::new();
@@ -834,7 +834,7 @@ pub fn forward_select(
                 let grid = grids
                     .iter()
                     .find(|g| g.effect == effect)
-                    .ok_or_else(|| CalError::Fit("effect grid missing".into()))?;
+                    .ok_or(DiagnoseError::Fit("effect grid missing"))?;
                 let columns = refine(prep, &chosen_parts(&chosen), grid, point, &ys);
                 chosen.push(ChosenTerm { effect, point, columns, concealment_index, most_confused_with })
             }
@@ -1121,13 +1121,13 @@ fn alternatives(steps: &[SelectionStep], k: usize) -> Vec<(String, f64)> {
 /// Held-out evaluation of the chosen model, each effect's contribution, and parameters.
 ///
 /// # Errors
-/// [`CalError::Fit`] if a least-squares problem fails.
+/// [`DiagnoseError::Fit`] if a least-squares problem fails.
 pub fn evaluate_final(
     prep: &Prepared,
     grids: &[EffectGrid],
     selection: &Selection,
     options: &DiagnoseOptions,
-) -> Result<FinalOutcome, CalError> {
+) -> Result<FinalOutcome, DiagnoseError> {
     let ys = targets(prep);
     let chosen = &selection.chosen;
     let design = build_design(prep, &chosen_parts(chosen));
@@ -1151,10 +1151,8 @@ pub fn evaluate_final(
         let material = material_runs(&v, prep.noise_sigma_dph);
         let (improved, informative) = fold_counts(&e0.fold_sse, &eval.fold_sse, &material);
         let before = pooled_rms(&h0);
-        let grid = grids
-            .iter()
-            .find(|g| g.effect == c.effect)
-            .ok_or_else(|| CalError::Fit("effect grid missing".into()))?;
+        let grid =
+            grids.iter().find(|g| g.effect == c.effect).ok_or(DiagnoseError::Fit("effect grid missing"))?;
         let cols = &c.columns;
         let parameters = parameters_of(prep, grid, cols, &fitted.coef[i], &fitted.se[i], &fitted.theta_se[i]);
         let improvement = 1.0 - rms_after / before;

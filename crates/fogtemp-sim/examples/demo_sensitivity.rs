@@ -7,9 +7,9 @@
 //! (defaults 100 Hz and 2 seeds; docs/demo-sensitivity.md was made with them).
 
 use fogtemp_cal::calibrate::Thinning;
-use fogtemp_cal::demo::{default_models, run_demo, DemoOptions, NoProgress};
-use fogtemp_cal::sim::Scenario;
 use fogtemp_core::FeatureSettings;
+use fogtemp_sim::demo::{default_models, run_demo, DemoOptions, NoProgress};
+use fogtemp_sim::Scenario;
 
 /// One row of the table: what changes, and how.
 struct Variant {

@@ -22,7 +22,7 @@ use nalgebra::DMatrix;
 use serde::Serialize;
 
 use super::prepare::{Prepared, RunData};
-use crate::error::CalError;
+use crate::error::DiagnoseError;
 
 /// A catalogue effect (contract names: [`Effect::name`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize)]
@@ -472,7 +472,7 @@ pub fn grid_of(effect: Effect) -> (Vec<ProfiledParam>, Vec<Vec<f64>>) {
 
 fn spread(values: impl Iterator<Item = f64>) -> f64 {
     let v: Vec<f64> = values.collect();
-    crate::metrics::sample_std(&v)
+    fogtemp_cal::metrics::sample_std(&v)
 }
 
 /// Median fraction of the runs' short means that lie within the union of the other runs'
@@ -593,7 +593,7 @@ pub fn unmet_requirement(prep: &Prepared, effect: Effect) -> Option<String> {
 ///
 /// # Errors
 /// None at present; the signature leaves room for term construction to fail.
-pub fn build_grids(prep: &Prepared) -> Result<Vec<EffectGrid>, CalError> {
+pub fn build_grids(prep: &Prepared) -> Result<Vec<EffectGrid>, DiagnoseError> {
     use rayon::prelude::*;
     Ok(Effect::ALL
         .par_iter()

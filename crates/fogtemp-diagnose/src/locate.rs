@@ -12,8 +12,8 @@ use super::{
     AllanRow, DiagnoseOptions, Diagnosis, Location, MapCell, NoiseLevel, RunTraceOut, SpanFinding, TableTest,
     TemperatureComparison, TemperatureRun, Unexplained,
 };
-use crate::error::CalError;
-use crate::metrics::{allan_deviation, fit_noise_terms, sample_std, AllanPoint, NoiseTerms};
+use crate::error::DiagnoseError;
+use fogtemp_cal::metrics::{allan_deviation, fit_noise_terms, sample_std, AllanPoint, NoiseTerms};
 
 /// Two-sided Bonferroni-corrected 5 % limit on |z| over `m` tests.
 pub fn bonferroni_z(m: usize) -> f64 {
@@ -180,7 +180,7 @@ fn pooled_allan(series: &[Vec<f64>]) -> Vec<AllanPoint> {
         })
         .filter(|c: &Vec<AllanPoint>| !c.is_empty())
         .collect();
-    let mut pooled = crate::report::rms_allan(&curves);
+    let mut pooled = fogtemp_cal::metrics::rms_allan(&curves);
     let runs = curves.len().max(1) as f64;
     for p in &mut pooled {
         p.relative_error /= runs.sqrt();
@@ -561,7 +561,7 @@ pub fn assemble(
     selection: Selection,
     outcome: FinalOutcome,
     options: &DiagnoseOptions,
-) -> Result<Diagnosis, CalError> {
+) -> Result<Diagnosis, DiagnoseError> {
     let raw: Vec<Vec<f64>> =
         prep.runs.iter().map(|r| r.blocks.iter().map(|b| b.resid_dph).collect()).collect();
     let all: Vec<f64> = raw.iter().flatten().copied().collect();

@@ -7,11 +7,13 @@ use std::path::Path;
 use plotters::prelude::*;
 
 use super::{Diagnosis, MapCell};
-use crate::error::CalError;
-use crate::metrics::AllanPoint;
-use crate::output::write_file_atomic;
+use fogtemp_cal::CalError;
 
-use crate::report::{
+use crate::error::DiagnoseError;
+use fogtemp_cal::metrics::AllanPoint;
+use fogtemp_cal::output::write_file_atomic;
+
+use fogtemp_cal::report::{
     draw_legend, finite_range as range, plot_err as io_err, run_colour as colour, tick, time_panel, write_svg,
 };
 
@@ -329,8 +331,8 @@ fn location_markdown(d: &Diagnosis) -> String {
 /// Writes `report.md`, `residuals.svg`, `map.svg` and `allan.svg` into `dir`.
 ///
 /// # Errors
-/// [`CalError::Io`] when a file cannot be written.
-pub fn write_diagnosis_report(dir: &Path, d: &Diagnosis) -> Result<(), CalError> {
+/// [`DiagnoseError::Cal`] with [`fogtemp_cal::CalError::Io`] when a file cannot be written.
+pub fn write_diagnosis_report(dir: &Path, d: &Diagnosis) -> Result<(), DiagnoseError> {
     std::fs::create_dir_all(dir).map_err(|source| CalError::Io { path: dir.to_path_buf(), source })?;
     plot_residuals(&dir.join("residuals.svg"), d)?;
     plot_map(
@@ -340,12 +342,12 @@ pub fn write_diagnosis_report(dir: &Path, d: &Diagnosis) -> Result<(), CalError>
     )?;
     let curves = allan_curves(d);
     if curves.iter().any(|(_, c)| !c.is_empty()) {
-        crate::report::plot_allan(
+        fogtemp_cal::report::plot_allan(
             &dir.join("allan.svg"),
             "Residual Allan deviation (RMS over runs)",
             &curves,
         )?;
     }
     let path = dir.join("report.md");
-    write_file_atomic(&path, |w| w.write_all(markdown(d).as_bytes()))
+    Ok(write_file_atomic(&path, |w| w.write_all(markdown(d).as_bytes()))?)
 }

@@ -8,10 +8,14 @@ use std::time::Instant;
 use fogtemp_core::Model;
 use serde::Serialize;
 
-use crate::calibrate::{self, CalibrationConfig, Method, RunFeatures, RunValidation, Thinning};
-use crate::error::CalError;
-use crate::metrics::BiasStabilityOptions;
-use crate::sim::{self, RunSummary, Scenario};
+use fogtemp_cal::calibrate::{
+    self, CalibrationConfig, Method, RunFeatures, RunValidation, Thinning, Validation,
+};
+use fogtemp_cal::metrics::BiasStabilityOptions;
+use fogtemp_cal::CalError;
+
+use crate::error::SimError;
+use crate::{RunSummary, Scenario};
 
 /// The paper's Table 1 (validation bias stability, deg/h).
 pub const PAPER_RAW_DPH: f64 = 0.0153;
@@ -79,7 +83,7 @@ pub struct DemoOptions {
     pub models: Vec<DemoModel>,
     /// Bias-stability definition.
     pub stability: BiasStabilityOptions,
-    /// Write the report and figures.
+    /// Write the report and figures (with the `report` feature; ignored without it).
     pub report: bool,
 }
 
@@ -195,7 +199,7 @@ fn run_name(p: &Path) -> String {
 /// Runs the demo into `out` (`logs/`, `models/`, `report/`).
 ///
 /// # Errors
-/// Simulation, ingest, fit or report errors, each naming its file; [`CalError::Scenario`]
+/// Simulation, ingest, fit or report errors, each naming its file; [`SimError::NoRunsInPosition`]
 /// when a position has no runs.
 pub fn run_demo(
     scenario: &Scenario,
@@ -203,7 +207,7 @@ pub fn run_demo(
     out: &Path,
     options: &DemoOptions,
     progress: &dyn DemoProgress,
-) -> Result<DemoResult, CalError> {
+) -> Result<DemoResult, SimError> {
     let mut seconds = Timings::default();
     let logs_dir = out.join("logs");
     let models_dir = out.join("models");
@@ -218,14 +222,14 @@ pub fn run_demo(
         .map(|r| (r.duration_s * scenario.sample_rate_hz).floor() as u64 + 1)
         .sum();
     progress.stage("simulate", total_samples);
-    let runs = sim::simulate_to_dir(scenario, scenario_text, &logs_dir, &|n| progress.advance(n))?;
+    let runs = crate::simulate_to_dir(scenario, scenario_text, &logs_dir, &|n| progress.advance(n))?;
     seconds.simulate = started.elapsed().as_secs_f64();
 
-    let logs_of = |group: &str| -> Result<Vec<PathBuf>, CalError> {
+    let logs_of = |group: &str| -> Result<Vec<PathBuf>, SimError> {
         let logs: Vec<PathBuf> =
             runs.iter().filter(|r: &&RunSummary| r.group == group).map(|r| r.file.clone()).collect();
         if logs.is_empty() {
-            return Err(CalError::Scenario(format!("no runs in position '{group}'")));
+            return Err(SimError::NoRunsInPosition { group: group.to_string() });
         }
         Ok(logs)
     };
@@ -258,9 +262,10 @@ pub fn run_demo(
             .find(|(c, _)| same_features(c, &model.config))
             .map(|(_, f)| f.as_slice())
             .unwrap_or_default();
-        let (blob, reports) = calibrate::fit_model(features, &model.config, [0; 32])?;
+        let fitted = calibrate::fit_model(features, &model.config, [0; 32])?;
+        let (blob, reports) = (fitted.blob, fitted.axes);
         let path = models_dir.join(format!("{}.fogm", model.key));
-        crate::output::write_file_atomic(&path, |w| std::io::Write::write_all(w, &blob))?;
+        fogtemp_cal::output::write_file_atomic(&path, |w| std::io::Write::write_all(w, &blob))?;
         let residual = reports.first().map_or(f64::NAN, |r| r.residual_rms_dph);
         let nodes = reports.first().map_or(0, |r| r.mesh_nodes);
         let terms = reports.first().and_then(|r| r.poly.as_ref()).map_or(0, |p| p.terms.len());
@@ -280,9 +285,11 @@ pub fn run_demo(
     let mut validations: Vec<(Vec<RunValidation>, f64)> = Vec::new();
     let mut raw_dph = f64::NAN;
     let mut raw_runs = Vec::new();
-    for ((model, (path, blob, residual, nodes, terms)), (runs, raw, comp)) in
+    for ((model, (path, blob, residual, nodes, terms)), validation) in
         options.models.iter().zip(&blobs).zip(outcomes)
     {
+        let Validation { runs, raw_bias_stability_dph: raw, compensated_bias_stability_dph: comp } =
+            validation;
         raw_dph = raw;
         raw_runs = runs.iter().map(|r| (run_name(&r.path), r.raw_bias_stability_dph)).collect();
         results.push(ModelResult {
@@ -323,6 +330,7 @@ pub fn run_demo(
     Ok(result)
 }
 
+/// A fitted model's file, bytes, fit residual RMS, mesh nodes and polynomial terms.
 type Blob = (PathBuf, Vec<u8>, f64, usize, usize);
 
 /// Validates every model on the validation logs: in one pass over each log when the models
@@ -332,7 +340,7 @@ fn validate_all(
     models: &[Model<'_>],
     options: &DemoOptions,
     progress: &dyn DemoProgress,
-) -> Result<Vec<(Vec<RunValidation>, f64, f64)>, CalError> {
+) -> Result<Vec<Validation>, CalError> {
     let mut current = usize::MAX;
     let mut advance = |i: usize, _: u64, _: u64| {
         if i != current {
@@ -355,6 +363,7 @@ fn validate_all(
         .collect()
 }
 
+#[cfg(feature = "report")]
 fn write_demo_report(
     dir: &Path,
     result: &DemoResult,
@@ -365,7 +374,7 @@ fn write_demo_report(
     std::fs::create_dir_all(dir).map_err(|source| CalError::Io { path: dir.to_path_buf(), source })?;
     for (model, ((path, blob, ..), (runs, raw))) in result.models.iter().zip(blobs.iter().zip(validations)) {
         let parsed = Model::from_bytes(blob).map_err(CalError::SelfCheck)?;
-        crate::report::write_validation_report(
+        fogtemp_cal::report::write_validation_report(
             &dir.join(&model.key),
             path,
             &parsed,
@@ -375,7 +384,7 @@ fn write_demo_report(
         )?;
         if model.mesh_nodes > 0 {
             if let Some((_, features)) = feature_sets.first() {
-                crate::report::write_fit_report(
+                fogtemp_cal::report::write_fit_report(
                     &dir.join(&model.key),
                     path,
                     &parsed,
@@ -387,7 +396,19 @@ fn write_demo_report(
     }
     let path = dir.join("report.md");
     let text = demo_markdown(result);
-    crate::output::write_file_atomic(&path, |w| std::io::Write::write_all(w, text.as_bytes()))
+    fogtemp_cal::output::write_file_atomic(&path, |w| std::io::Write::write_all(w, text.as_bytes()))
+}
+
+/// Without the `report` feature there are no figures to draw: the demo writes no report.
+#[cfg(not(feature = "report"))]
+fn write_demo_report(
+    _dir: &Path,
+    _result: &DemoResult,
+    _blobs: &[Blob],
+    _validations: &[(Vec<RunValidation>, f64)],
+    _feature_sets: &[(CalibrationConfig, Vec<RunFeatures>)],
+) -> Result<(), CalError> {
+    Ok(())
 }
 
 /// The Markdown report: Table 1 beside the paper's, per-run figures, settings.

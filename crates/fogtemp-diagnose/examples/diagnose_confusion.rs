@@ -1,5 +1,5 @@
 //! Confusion matrix of the diagnosis on concealed-effect datasets made with the simulator
-//! (`fogtemp_cal::diagnose::concealed`): every dataset over several noise seeds, the
+//! (`fogtemp_diagnose::concealed`): every dataset over several noise seeds, the
 //! effects named each time (injected effect x named effects, Markdown), and the recovery
 //! of each injected effect's parameters (mean, spread over seeds, mean reported standard
 //! error, and how often the truth lies within 3.5 reported SE).
@@ -12,11 +12,9 @@
 use std::collections::BTreeMap;
 use std::time::Instant;
 
-use fogtemp_cal::diagnose::concealed::{
-    datasets_at, effect_size, generate, truth_map, RESIDUAL_NOISE_100S_DPH,
-};
-use fogtemp_cal::diagnose::effects::Effect;
-use fogtemp_cal::diagnose::{diagnose, DiagnoseOptions, Diagnosis};
+use fogtemp_diagnose::concealed::{datasets_at, effect_size, generate, truth_map, RESIDUAL_NOISE_100S_DPH};
+use fogtemp_diagnose::effects::Effect;
+use fogtemp_diagnose::{diagnose, DiagnoseOptions, Diagnosis};
 
 /// Recovery statistics of one parameter over seeds.
 #[derive(Default)]

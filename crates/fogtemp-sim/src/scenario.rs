@@ -4,7 +4,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::error::CalError;
+use crate::error::SimError;
 
 /// The built-in scenario of the paper's experiment, with its sources as comments.
 pub const PAPER_TOML: &str = include_str!("paper.toml");
@@ -473,27 +473,35 @@ impl Scenario {
     ///
     /// # Errors
     /// Never in a released build (the file is checked by the tests).
-    pub fn paper() -> Result<Self, CalError> {
+    pub fn paper() -> Result<Self, SimError> {
         Self::from_toml(PAPER_TOML, "built-in paper scenario")
     }
 
     /// Parses and validates a scenario; `origin` names the text in errors.
     ///
     /// # Errors
-    /// [`CalError::Scenario`] with the TOML parser's line and column, or the invalid field.
-    pub fn from_toml(text: &str, origin: &str) -> Result<Self, CalError> {
-        let scenario: Self =
-            toml::from_str(text).map_err(|e| CalError::Scenario(format!("{origin}: {e}")))?;
-        scenario.validate().map_err(|e| CalError::Scenario(format!("{origin}: {e}")))?;
+    /// [`SimError::Scenario`] with the TOML parser's line and column, or the invalid field.
+    pub fn from_toml(text: &str, origin: &str) -> Result<Self, SimError> {
+        let scenario: Self = toml::from_str(text).map_err(|e| {
+            let (line, column) = e.span().map_or((None, None), |span| line_column(text, span.start));
+            SimError::Scenario { origin: origin.to_string(), line, column, message: e.to_string() }
+        })?;
+        scenario.validate().map_err(|message| SimError::Scenario {
+            origin: origin.to_string(),
+            line: None,
+            column: None,
+            message,
+        })?;
         Ok(scenario)
     }
 
     /// The scenario as TOML (without the comments of the built-in file).
     ///
     /// # Errors
-    /// [`CalError::Scenario`] if serialisation fails.
-    pub fn to_toml(&self) -> Result<String, CalError> {
-        toml::to_string_pretty(self).map_err(|e| CalError::Scenario(e.to_string()))
+    /// [`SimError::Serialise`] if serialisation fails.
+    pub fn to_toml(&self) -> Result<String, SimError> {
+        toml::to_string_pretty(self)
+            .map_err(|e| SimError::Serialise { what: "scenario", message: e.to_string() })
     }
 
     /// Grid runs first (position-major, then start temperature), then the explicit runs.
@@ -620,6 +628,14 @@ impl Scenario {
         }
         Ok(())
     }
+}
+
+/// 1-based line and column of byte `offset` in `text`.
+fn line_column(text: &str, offset: usize) -> (Option<usize>, Option<usize>) {
+    let before = text.get(..offset).unwrap_or(text);
+    let line = before.matches('\n').count() + 1;
+    let column = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
+    (Some(line), Some(column))
 }
 
 fn validate_run(run: &RunSpec) -> Result<(), String> {

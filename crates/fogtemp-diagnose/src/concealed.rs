@@ -25,8 +25,8 @@ use std::collections::BTreeMap;
 
 use super::effects::Effect;
 use super::{RunMeta, RunSeries};
-use crate::sim::scenario::{ChamberProfile, Direction, InitialState, InputAxis, Node};
-use crate::sim::{simulate_in_memory, RunSpec, RunTruth, Sample, Scenario};
+use fogtemp_sim::scenario::{ChamberProfile, Direction, InitialState, InputAxis, Node};
+use fogtemp_sim::{simulate_in_memory, RunSpec, RunTruth, Sample, Scenario};
 
 /// Sample rate of every dataset, Hz (the diagnosis grids everything onto 1 s means).
 pub const RATE_HZ: f64 = 1.0;

@@ -1,0 +1,38 @@
+//! Errors of the simulator and the demo.
+
+use fogtemp_cal::CalError;
+
+/// What can go wrong while simulating or running the demo.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum SimError {
+    /// A scenario is invalid: TOML syntax (with line and column) or a field's value.
+    #[error("scenario: {origin}: {message}")]
+    Scenario {
+        /// Where the scenario came from (a file name, or "paper").
+        origin: String,
+        /// 1-based line of a syntax error, if the parser gave one.
+        line: Option<usize>,
+        /// 1-based column of a syntax error, if the parser gave one.
+        column: Option<usize>,
+        /// What is wrong (the parser's message, or the field and its problem).
+        message: String,
+    },
+    /// A document (scenario, manifest) could not be serialised.
+    #[error("scenario: {what} could not be serialised: {message}")]
+    Serialise {
+        /// Which document.
+        what: &'static str,
+        /// The serialiser's message.
+        message: String,
+    },
+    /// The demo's calibration or validation position has no runs in the scenario.
+    #[error("scenario: no runs in position '{group}'")]
+    NoRunsInPosition {
+        /// The position (run group).
+        group: String,
+    },
+    /// Writing, reading, fitting or validating failed (the calibration library's error).
+    #[error(transparent)]
+    Cal(#[from] CalError),
+}
