@@ -4,7 +4,7 @@
 //! of each injected effect's parameters (mean, spread over seeds, mean reported standard
 //! error, and how often the truth lies within 3.5 reported SE).
 //!
-//! `cargo run --release -p fogtemp-cal --example diagnose_confusion -- [SEEDS] [FIRST_SEED] [SCALE] [LABEL...]`
+//! `cargo run --release -p fogtemp-diagnose --example diagnose_confusion -- [SEEDS] [FIRST_SEED] [SCALE] [LABEL...]`
 //! (defaults: 20 seeds from 5000, sizes x1, every dataset; docs/diagnose.md gives the commands
 //! it was made with). SCALE multiplies every injected size (`concealed::datasets_at`).
 //! `-v` anywhere prints each diagnosis's candidate table.

@@ -3,7 +3,7 @@
 //! position 1, validate on position 2) once per variant and seed, and prints a Markdown
 //! table of validation bias stability (deg/h, mean over seeds).
 //!
-//! `cargo run --release -p fogtemp-cal --example demo_sensitivity -- [RATE_HZ] [SEEDS]`
+//! `cargo run --release -p fogtemp-sim --example demo_sensitivity -- [RATE_HZ] [SEEDS]`
 //! (defaults 100 Hz and 2 seeds; docs/demo-sensitivity.md was made with them).
 
 use fogtemp_cal::calibrate::Thinning;
