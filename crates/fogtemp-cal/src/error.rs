@@ -82,6 +82,16 @@ pub enum CalError {
         /// The reader's message.
         message: String,
     },
+    /// A run-metadata file (`--runs`) is malformed or does not match the logs.
+    #[error("{}:{line}: {problem}", path.display())]
+    Runs {
+        /// The runs file.
+        path: PathBuf,
+        /// 1-based line (0 when the problem is not on one line).
+        line: u64,
+        /// What is wrong.
+        problem: crate::runs::RunsProblem,
+    },
     /// Writing an output file failed (see [`crate::output`]).
     #[error("{action} {}: {source}", path.display())]
     Output {

@@ -61,6 +61,7 @@ pub mod output;
 pub mod poly_fit;
 #[cfg(feature = "report")]
 pub mod report;
+pub mod runs;
 pub mod thin;
 
 pub use blob::{encode, AxisModel, ModelFile};

@@ -1,0 +1,297 @@
+//! Run metadata (`--runs FILE`): what each log was.
+//!
+//! A CSV file with the header `run,position,input_rate_dph` and an optional `role` column
+//! (`cal` or `val`), one row per run (contract: `docs/architecture.md`, "Contracts"):
+//! - `run`: the log's file name without `.csv`;
+//! - `position`: any label; runs in one position share the Earth-rate projection;
+//! - `input_rate_dph`: the true rate about the input axis (the Earth-rate projection, or a
+//!   turntable's rate), deg/h;
+//! - `role`: whether the run calibrates (`cal`) or validates (`val`).
+//!
+//! Columns may come in any order; further columns are ignored. Every problem is an error
+//! naming the file and the line: a missing column, a bad number or role, a run listed twice,
+//! a row for a run no log has, a log no row describes.
+
+use std::collections::BTreeMap;
+use std::io::Read;
+use std::path::{Path, PathBuf};
+
+use crate::error::CalError;
+
+/// Whether a run calibrates or validates.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Role {
+    /// Calibration run.
+    Cal,
+    /// Validation run.
+    Val,
+}
+
+/// One row of a runs file.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct RunMetadata {
+    /// The log's file name without `.csv`.
+    pub run: String,
+    /// Position label.
+    pub position: String,
+    /// True rate about the input axis, deg/h.
+    pub input_rate_dph: f64,
+    /// Calibration or validation, when the file says.
+    pub role: Option<Role>,
+    /// 1-based line of the row in the file.
+    pub line: u64,
+}
+
+/// What is wrong with a runs file.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[non_exhaustive]
+pub enum RunsProblem {
+    /// The header lacks a required column.
+    #[error("no column named '{column}' (the header has: {available})")]
+    MissingColumn {
+        /// The required column.
+        column: &'static str,
+        /// The header's columns.
+        available: String,
+    },
+    /// A cell is empty, not a number, or not a role.
+    #[error("column '{column}': {what} (found '{found}')")]
+    BadCell {
+        /// Column name.
+        column: &'static str,
+        /// What it must be.
+        what: &'static str,
+        /// The cell.
+        found: String,
+    },
+    /// Two rows name the same run.
+    #[error("run '{run}' is listed twice (first on line {first_line})")]
+    Duplicate {
+        /// The run.
+        run: String,
+        /// Line of its first row.
+        first_line: u64,
+    },
+    /// A row names a run that none of the logs is.
+    #[error("run '{run}' has no log among the {logs} given")]
+    UnknownRun {
+        /// The run.
+        run: String,
+        /// Logs given.
+        logs: usize,
+    },
+    /// A log has no row.
+    #[error("no row for the log {}", log.display())]
+    MissingRun {
+        /// The log.
+        log: PathBuf,
+    },
+    /// The file has no header.
+    #[error("no header row")]
+    Empty,
+    /// The CSV itself is malformed (unequal quoting, invalid UTF-8).
+    #[error("{0}")]
+    Csv(String),
+}
+
+/// A parsed runs file.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RunsFile {
+    /// Where it came from.
+    pub path: PathBuf,
+    /// Its rows, in file order.
+    pub runs: Vec<RunMetadata>,
+}
+
+fn problem(path: &Path, line: u64, problem: RunsProblem) -> CalError {
+    CalError::Runs { path: path.to_path_buf(), line, problem }
+}
+
+impl RunsFile {
+    /// Reads and checks the runs file at `path`.
+    ///
+    /// # Errors
+    /// [`CalError::Io`] if it cannot be opened; [`CalError::Runs`] with the line and the
+    /// problem otherwise.
+    pub fn read(path: &Path) -> Result<Self, CalError> {
+        let file =
+            std::fs::File::open(path).map_err(|source| CalError::Io { path: path.to_path_buf(), source })?;
+        Self::from_reader(file, path)
+    }
+
+    /// Reads and checks a runs file from any reader; `name` stands for it in errors.
+    ///
+    /// # Errors
+    /// [`CalError::Runs`] with the line and the problem.
+    pub fn from_reader<R: Read>(reader: R, name: &Path) -> Result<Self, CalError> {
+        let mut csv = csv::ReaderBuilder::new().trim(csv::Trim::All).flexible(true).from_reader(reader);
+        let header = csv.headers().map_err(|e| problem(name, 1, RunsProblem::Csv(e.to_string())))?.clone();
+        if header.is_empty() {
+            return Err(problem(name, 1, RunsProblem::Empty));
+        }
+        let column = |wanted: &'static str| {
+            header.iter().position(|h| h == wanted).ok_or_else(|| {
+                let available = header.iter().collect::<Vec<_>>().join(", ");
+                problem(name, 1, RunsProblem::MissingColumn { column: wanted, available })
+            })
+        };
+        let (run_col, position_col, rate_col) =
+            (column("run")?, column("position")?, column("input_rate_dph")?);
+        let role_col = header.iter().position(|h| h == "role");
+        let mut runs: Vec<RunMetadata> = Vec::new();
+        let mut first_line: BTreeMap<String, u64> = BTreeMap::new();
+        for record in csv.records() {
+            let record = record.map_err(|e| {
+                let line = e.position().map_or(0, csv::Position::line);
+                problem(name, line, RunsProblem::Csv(e.to_string()))
+            })?;
+            let line = record.position().map_or(0, csv::Position::line);
+            let cell = |i: usize| record.get(i).unwrap_or("");
+            let bad = |column: &'static str, what: &'static str, found: &str| {
+                problem(name, line, RunsProblem::BadCell { column, what, found: found.to_string() })
+            };
+            let run = cell(run_col);
+            if run.is_empty() {
+                return Err(bad("run", "a run name is required", run));
+            }
+            let position = cell(position_col);
+            if position.is_empty() {
+                return Err(bad("position", "a position label is required", position));
+            }
+            let rate_text = cell(rate_col);
+            let input_rate_dph: f64 = rate_text
+                .parse()
+                .ok()
+                .filter(|v: &f64| v.is_finite())
+                .ok_or_else(|| bad("input_rate_dph", "not a finite number", rate_text))?;
+            let role = match role_col.map(cell) {
+                None | Some("") => None,
+                Some("cal") => Some(Role::Cal),
+                Some("val") => Some(Role::Val),
+                Some(other) => return Err(bad("role", "must be 'cal' or 'val'", other)),
+            };
+            if let Some(&first) = first_line.get(run) {
+                return Err(problem(
+                    name,
+                    line,
+                    RunsProblem::Duplicate { run: run.to_string(), first_line: first },
+                ));
+            }
+            first_line.insert(run.to_string(), line);
+            runs.push(RunMetadata {
+                run: run.to_string(),
+                position: position.to_string(),
+                input_rate_dph,
+                role,
+                line,
+            });
+        }
+        Ok(Self { path: name.to_path_buf(), runs })
+    }
+
+    /// The row of every log, in the logs' order, checking that the file and the logs name
+    /// the same runs (a log's run is its file name without `.csv`).
+    ///
+    /// # Errors
+    /// [`CalError::Runs`]: [`RunsProblem::MissingRun`] for a log without a row (line 0),
+    /// [`RunsProblem::UnknownRun`] for a row without a log (its line).
+    pub fn for_logs(&self, logs: &[PathBuf]) -> Result<Vec<&RunMetadata>, CalError> {
+        let by_name: BTreeMap<&str, &RunMetadata> = self.runs.iter().map(|r| (r.run.as_str(), r)).collect();
+        let mut out = Vec::with_capacity(logs.len());
+        for log in logs {
+            let name = run_name(log);
+            let row = by_name
+                .get(name.as_str())
+                .ok_or_else(|| problem(&self.path, 0, RunsProblem::MissingRun { log: log.clone() }))?;
+            out.push(*row);
+        }
+        if let Some(extra) = self.runs.iter().find(|r| !logs.iter().any(|l| run_name(l) == r.run)) {
+            let unknown = RunsProblem::UnknownRun { run: extra.run.clone(), logs: logs.len() };
+            return Err(problem(&self.path, extra.line, unknown));
+        }
+        Ok(out)
+    }
+}
+
+/// A log's run name: its file name without a trailing `.csv`.
+pub fn run_name(log: &Path) -> String {
+    let name =
+        log.file_name().map_or_else(|| log.display().to_string(), |n| n.to_string_lossy().into_owned());
+    name.strip_suffix(".csv").map(str::to_string).unwrap_or(name)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn parse(text: &str) -> Result<RunsFile, CalError> {
+        RunsFile::from_reader(text.as_bytes(), Path::new("runs.csv"))
+    }
+
+    fn runs_problem(result: Result<RunsFile, CalError>) -> (u64, RunsProblem) {
+        match result {
+            Err(CalError::Runs { line, problem, .. }) => (line, problem),
+            other => panic!("expected a runs-file error, got {other:?}"),
+        }
+    }
+
+    #[test]
+    fn reads_rows_in_any_column_order_with_and_without_roles() {
+        let f =
+            parse("position,run,input_rate_dph,role,note\nup,a,8.95,cal,x\ndown,b,-8.95,val,\nup,c,8.95,,\n")
+                .expect("valid");
+        assert_eq!(f.runs.len(), 3);
+        assert_eq!(f.runs[0].run, "a");
+        assert_eq!(f.runs[0].position, "up");
+        assert_eq!(f.runs[0].input_rate_dph, 8.95);
+        assert_eq!(f.runs[0].role, Some(Role::Cal));
+        assert_eq!(f.runs[1].role, Some(Role::Val));
+        assert_eq!(f.runs[2].role, None);
+        assert_eq!([f.runs[0].line, f.runs[1].line, f.runs[2].line], [2, 3, 4]);
+        let plain = parse("run,position,input_rate_dph\nup_poweron_-35C,up,8.958929\n").expect("valid");
+        assert_eq!(plain.runs[0].role, None);
+    }
+
+    #[test]
+    fn each_problem_names_its_line() {
+        let (line, p) = runs_problem(parse("run,input_rate_dph\na,1\n"));
+        assert_eq!(line, 1);
+        assert!(matches!(p, RunsProblem::MissingColumn { column: "position", .. }), "{p}");
+        let (line, p) = runs_problem(parse("run,position,input_rate_dph\na,up,1\nb,up,fast\n"));
+        assert_eq!(line, 3);
+        assert!(matches!(p, RunsProblem::BadCell { column: "input_rate_dph", .. }), "{p}");
+        let (line, p) = runs_problem(parse("run,position,input_rate_dph\na,up,NaN\n"));
+        assert_eq!(line, 2);
+        assert!(matches!(p, RunsProblem::BadCell { column: "input_rate_dph", .. }), "{p}");
+        let (line, p) = runs_problem(parse("run,position,input_rate_dph,role\na,up,1,calibrate\n"));
+        assert_eq!(line, 2);
+        assert!(matches!(p, RunsProblem::BadCell { column: "role", .. }), "{p}");
+        let (line, p) = runs_problem(parse("run,position,input_rate_dph\na,up,1\nb,up,1\na,down,-1\n"));
+        assert_eq!(line, 4);
+        assert_eq!(p, RunsProblem::Duplicate { run: "a".into(), first_line: 2 });
+        let (line, p) = runs_problem(parse("run,position,input_rate_dph\n,up,1\n"));
+        assert_eq!(line, 2);
+        assert!(matches!(p, RunsProblem::BadCell { column: "run", .. }), "{p}");
+        let (_, p) = runs_problem(parse(""));
+        assert_eq!(p, RunsProblem::Empty);
+    }
+
+    #[test]
+    fn logs_and_rows_must_name_the_same_runs() {
+        let f = parse("run,position,input_rate_dph\na,up,1\nb,down,-1\n").expect("valid");
+        let logs = [PathBuf::from("dir/b.csv"), PathBuf::from("dir/a.csv")];
+        let rows = f.for_logs(&logs).expect("every log has a row");
+        assert_eq!(rows.iter().map(|r| r.run.as_str()).collect::<Vec<_>>(), ["b", "a"]);
+        let err = f.for_logs(&[PathBuf::from("a.csv"), PathBuf::from("c.csv")]).unwrap_err();
+        assert!(
+            matches!(&err, CalError::Runs { problem: RunsProblem::MissingRun { log }, .. } if log.ends_with("c.csv"))
+        );
+        let err = f.for_logs(&[PathBuf::from("a.csv")]).unwrap_err();
+        assert!(
+            matches!(&err, CalError::Runs { line: 3, problem: RunsProblem::UnknownRun { run, logs: 1 }, .. } if run == "b"),
+            "{err}"
+        );
+        assert!(err.to_string().starts_with("runs.csv:3: "), "{err}");
+    }
+}
