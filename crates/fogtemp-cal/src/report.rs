@@ -194,8 +194,8 @@ pub fn plot_runs(path: &Path, title: &str, runs: &[RunTrace]) -> Result<(), CalE
     })
 }
 
-/// Blue (low) to red (high) through white.
-fn diverging(t: f64) -> RGBColor {
+/// Blue (low, `t` = 0) to red (high, `t` = 1) through white (0.5); `t` is clamped to [0, 1].
+pub fn diverging(t: f64) -> RGBColor {
     let t = t.clamp(0.0, 1.0);
     let lerp = |a: f64, b: f64, s: f64| (a + (b - a) * s) as u8;
     if t < 0.5 {

@@ -19,15 +19,7 @@ use fogtemp_cal::report::{
 
 /// Blue (negative) to red (positive) through white, for `t` in [-1, 1].
 fn diverging(t: f64) -> RGBColor {
-    let s = ((t.clamp(-1.0, 1.0) + 1.0) / 2.0).clamp(0.0, 1.0);
-    let lerp = |a: f64, b: f64, u: f64| (a + (b - a) * u) as u8;
-    if s < 0.5 {
-        let u = s / 0.5;
-        RGBColor(lerp(33.0, 247.0, u), lerp(102.0, 247.0, u), lerp(172.0, 247.0, u))
-    } else {
-        let u = (s - 0.5) / 0.5;
-        RGBColor(lerp(247.0, 178.0, u), lerp(247.0, 24.0, u), lerp(247.0, 43.0, u))
-    }
+    fogtemp_cal::report::diverging((t.clamp(-1.0, 1.0) + 1.0) / 2.0)
 }
 
 /// Selects one series of a run trace.
