@@ -1,0 +1,162 @@
+//! Batches of parsed rows, and the calling thread's consumer that visits them, reports
+//! progress and builds the report.
+
+use super::{BadRow, IngestReport, Row, PROGRESS_EVERY_BYTES};
+use crate::error::CalError;
+
+/// Rows parsed but not yet visited, and how the log ended if it did.
+#[derive(Debug, Default)]
+pub(super) struct Batch {
+    /// Per row: time (s, relative), temperatures, gyros.
+    pub(super) values: Vec<f64>,
+    /// Per row: its line.
+    pub(super) lines: Vec<u64>,
+    /// File offset after the last record parsed.
+    pub(super) bytes: u64,
+    /// `Some` once the log has ended (summary) or failed.
+    pub(super) end: Option<Result<Tail, CalError>>,
+}
+
+/// The parser's share of the report.
+#[derive(Debug)]
+pub(super) struct Tail {
+    pub(super) bytes: u64,
+    pub(super) skipped: u64,
+    pub(super) first_skipped: Vec<BadRow>,
+    pub(super) time_origin_s: f64,
+}
+
+/// The calling thread's side: visits rows, reports progress, builds the report.
+pub(super) struct Consumer {
+    pub(super) report: IngestReport,
+    pub(super) temps: usize,
+    pub(super) stride: usize,
+    pub(super) last_progress: u64,
+}
+
+impl Consumer {
+    /// Visits the batch's rows; `Ok(true)` once the log has ended.
+    pub(super) fn consume<F, P>(
+        &mut self,
+        batch: &mut Batch,
+        visit: &mut F,
+        progress: &mut P,
+    ) -> Result<bool, CalError>
+    where
+        F: FnMut(&Row<'_>) -> Result<(), CalError>,
+        P: FnMut(u64, u64),
+    {
+        self.visit_rows(batch, 0, 0.0, visit)?;
+        match batch.end.take() {
+            None => {
+                if batch.bytes - self.last_progress >= PROGRESS_EVERY_BYTES {
+                    progress(batch.bytes, self.report.rows);
+                    self.last_progress = batch.bytes;
+                }
+                Ok(false)
+            }
+            Some(Ok(tail)) => {
+                self.report.bytes = tail.bytes;
+                self.report.skipped = tail.skipped;
+                self.report.first_skipped = tail.first_skipped;
+                self.report.time_origin_s = tail.time_origin_s;
+                progress(self.report.bytes, self.report.rows);
+                Ok(true)
+            }
+            Some(Err(e)) => Err(e),
+        }
+    }
+}
+
+impl Consumer {
+    /// Visits the batch's rows, adding `line_base` to their lines and taking `origin`
+    /// from their times (both zero for a sequential parser's rows).
+    pub(super) fn visit_rows<F>(
+        &mut self,
+        batch: &Batch,
+        line_base: u64,
+        origin: f64,
+        visit: &mut F,
+    ) -> Result<(), CalError>
+    where
+        F: FnMut(&Row<'_>) -> Result<(), CalError>,
+    {
+        let split = 1 + self.temps;
+        for (values, &line) in batch.values.chunks_exact(self.stride).zip(&batch.lines) {
+            visit(&Row {
+                line: line_base + line,
+                time_s: values[0] - origin,
+                temps_c: &values[1..split],
+                gyros_dph: &values[split..],
+            })?;
+        }
+        self.report.rows += batch.lines.len() as u64;
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::ingest::test_support::*;
+    use crate::ingest::*;
+
+    #[test]
+    fn rows_before_a_bad_row_are_visited() {
+        let (seen, result) =
+            run(format!("{HEADER}0,20,1\n1,20,1\n2,20,x\n3,20,1\n").as_bytes(), &default_options());
+        assert!(matches!(result, Err(CalError::BadRow { .. })));
+        assert_eq!(seen.iter().map(|s| s.line).collect::<Vec<_>>(), vec![2, 3]);
+    }
+
+    #[test]
+    fn visitor_errors_stop_the_read() {
+        let mut data = String::from(HEADER);
+        for i in 0..5000 {
+            data.push_str(&format!("{i},20,1\n"));
+        }
+        for (tuning, chunk) in MODES {
+            let mut calls = 0;
+            let result = read_with_tuning(
+                Path::new("log.csv"),
+                Chunky { data: data.as_bytes(), chunk },
+                &default_options(),
+                tuning,
+                |row| {
+                    calls += 1;
+                    if row.line == 100 {
+                        return Err(CalError::NonFinite { what: "stop", index: 100 });
+                    }
+                    Ok(())
+                },
+                |_, _| {},
+            );
+            assert!(matches!(result, Err(CalError::NonFinite { what: "stop", index: 100 })));
+            assert_eq!(calls, 99);
+        }
+    }
+
+    #[test]
+    fn progress_reports_bytes_and_rows() {
+        let mut data = String::from(HEADER);
+        for i in 0..400_000 {
+            data.push_str(&format!("{}.{:03},25.0625,0.123456\n", i / 1000, i % 1000));
+        }
+        for mode in [Mode::Single, Mode::Parallel { workers: 2 }] {
+            let mut calls = Vec::new();
+            let tuning = Tuning { mode, chunk_bytes: 64 << 10, ..Tuning::default() };
+            let report = read_with_tuning(
+                Path::new("log.csv"),
+                data.as_bytes(),
+                &default_options(),
+                tuning,
+                |_| Ok(()),
+                |bytes, rows| calls.push((bytes, rows)),
+            )
+            .unwrap();
+            assert!(calls.len() >= 3, "{calls:?}");
+            assert!(calls.windows(2).all(|w| w[0].0 < w[1].0 && w[0].1 < w[1].1), "{calls:?}");
+            assert_eq!(*calls.last().unwrap(), (data.len() as u64, 400_000));
+            assert_eq!((report.bytes, report.rows), (data.len() as u64, 400_000));
+        }
+    }
+}

@@ -1,0 +1,448 @@
+//! The column plan and the row checks: where the values are (from the header) and how they
+//! are scaled, the general path's cell parsing, time order, and skipped rows.
+
+use std::path::{Path, PathBuf};
+
+use super::batch::Batch;
+use super::parser::Fields;
+use super::{BadRow, BadRowKind, IngestOptions, LogFormat, MAX_REPORTED_BAD_ROWS};
+use crate::error::CalError;
+
+/// `Plan::roles` entry of a field no row value comes from.
+pub(super) const SKIP: usize = usize::MAX;
+
+/// Where the values come from (from the header) and how they are scaled.
+#[derive(Clone)]
+pub(super) struct Plan {
+    pub(super) columns: Columns,
+    /// Per field up to `min_fields`: the slot in `RowState::values` it is parsed into, or
+    /// [`SKIP`].
+    pub(super) roles: Vec<usize>,
+    pub(super) time_slot: usize,
+    pub(super) temp_slots: Vec<usize>,
+    pub(super) gyro_slots: Vec<usize>,
+    pub(super) time_factor: f64,
+    pub(super) gyro_factor: f64,
+    pub(super) temp_scale: f64,
+    pub(super) temp_offset_c: f64,
+    /// The delimiter cannot occur in a plain decimal.
+    pub(super) fast: bool,
+}
+
+/// Row-level state: header, previous time, skipped rows.
+pub(super) struct RowState {
+    pub(super) path: PathBuf,
+    pub(super) format: LogFormat,
+    skip_bad_rows: bool,
+    pub(super) plan: Option<Plan>,
+    /// One-pass path: one value per distinct used field.
+    pub(super) values: Vec<f64>,
+    temps: Vec<f64>,
+    gyros: Vec<f64>,
+    pub(super) previous_time: Option<f64>,
+    pub(super) origin: Option<f64>,
+    pub(super) skipped: u64,
+    pub(super) first_skipped: Vec<BadRow>,
+}
+
+impl RowState {
+    pub(super) fn new(path: &Path, options: &IngestOptions) -> Self {
+        Self {
+            path: path.to_path_buf(),
+            format: options.format.clone(),
+            skip_bad_rows: options.skip_bad_rows,
+            plan: None,
+            values: Vec::new(),
+            temps: vec![f64::NAN; options.format.temp_columns.len()],
+            gyros: vec![0.0; options.format.gyro_columns.len()],
+            previous_time: None,
+            origin: None,
+            skipped: 0,
+            first_skipped: Vec::new(),
+        }
+    }
+
+    /// The state a worker starts a chunk with: the same header, no previous time (the
+    /// first row's time is checked when chunks are merged), no skipped rows, and an
+    /// origin of zero, so that rows keep their absolute time (`t - 0.0 == t`).
+    pub(super) fn for_chunk(&self) -> Self {
+        Self {
+            path: self.path.clone(),
+            format: self.format.clone(),
+            skip_bad_rows: self.skip_bad_rows,
+            plan: self.plan.clone(),
+            values: self.values.clone(),
+            temps: self.temps.clone(),
+            gyros: self.gyros.clone(),
+            previous_time: None,
+            origin: Some(0.0),
+            skipped: 0,
+            first_skipped: Vec::new(),
+        }
+    }
+
+    /// One record by the general path: the header if none yet, else a row (accepted into
+    /// `batch`, skipped, or the error).
+    pub(super) fn record(
+        &mut self,
+        fields: Fields<'_>,
+        line: u64,
+        batch: &mut Batch,
+    ) -> Result<(), CalError> {
+        let Some(plan) = &self.plan else {
+            let plan = make_plan(&self.path, fields, &self.format)?;
+            self.values = vec![f64::NAN; plan.roles.iter().filter(|&&r| r != SKIP).count()];
+            self.plan = Some(plan);
+            return Ok(());
+        };
+        let parsed = parse_row(fields, plan, line, &mut self.temps, &mut self.gyros)
+            .and_then(|time| check_time(time, self.previous_time, &plan.columns, line, fields));
+        match parsed {
+            Ok(time) => {
+                let origin = *self.origin.get_or_insert(time);
+                self.previous_time = Some(time);
+                batch.lines.push(line);
+                batch.values.push(time - origin);
+                batch.values.extend_from_slice(&self.temps);
+                batch.values.extend_from_slice(&self.gyros);
+                Ok(())
+            }
+            Err(bad) if self.skip_bad_rows => {
+                self.skipped += 1;
+                if self.first_skipped.len() < MAX_REPORTED_BAD_ROWS {
+                    self.first_skipped.push(bad);
+                }
+                Ok(())
+            }
+            Err(bad) => Err(CalError::BadRow { path: self.path.clone(), row: Box::new(bad) }),
+        }
+    }
+}
+
+#[derive(Clone)]
+pub(super) struct Columns {
+    time: usize,
+    pub(super) temps: Vec<usize>,
+    pub(super) gyros: Vec<usize>,
+    names: Vec<String>,
+    min_fields: usize,
+}
+
+pub(super) fn make_plan(path: &Path, header: Fields<'_>, f: &LogFormat) -> Result<Plan, CalError> {
+    let columns = locate_columns(path, header, f)?;
+    let mut roles = vec![SKIP; columns.min_fields];
+    let mut slots = 0;
+    let mut slot_of = |field: usize| {
+        if roles[field] == SKIP {
+            roles[field] = slots;
+            slots += 1;
+        }
+        roles[field]
+    };
+    let time_slot = slot_of(columns.time);
+    let gyro_slots = columns.gyros.iter().map(|&c| slot_of(c)).collect();
+    let temp_slots = columns.temps.iter().map(|&c| slot_of(c)).collect();
+    Ok(Plan {
+        columns,
+        roles,
+        time_slot,
+        temp_slots,
+        gyro_slots,
+        time_factor: f.time_unit.seconds(),
+        gyro_factor: f.gyro_unit.dph() * f.gyro_scale,
+        temp_scale: f.temp_scale,
+        temp_offset_c: f.temp_offset_c,
+        fast: !matches!(f.delimiter, b'0'..=b'9' | b'.' | b'-' | b'"' | b'\r' | b'\n'),
+    })
+}
+
+fn locate_columns(path: &Path, header: Fields<'_>, f: &LogFormat) -> Result<Columns, CalError> {
+    let names: Vec<String> = (0..header.len())
+        .map(|i| {
+            let h = header.get(i).unwrap_or(b"");
+            String::from_utf8_lossy(h).trim().trim_start_matches('\u{feff}').to_string()
+        })
+        .collect();
+    let find = |wanted: &str| {
+        names.iter().position(|n| n == wanted).ok_or_else(|| CalError::MissingColumn {
+            path: path.to_path_buf(),
+            column: wanted.to_string(),
+            available: names.join(", "),
+        })
+    };
+    let time = find(&f.time_column)?;
+    let temps = f.temp_columns.iter().map(|c| find(c)).collect::<Result<Vec<_>, _>>()?;
+    let gyros = f.gyro_columns.iter().map(|c| find(c)).collect::<Result<Vec<_>, _>>()?;
+    if gyros.is_empty() {
+        return Err(CalError::MissingColumn {
+            path: path.to_path_buf(),
+            column: "(no gyro column named)".into(),
+            available: names.join(", "),
+        });
+    }
+    let min_fields = temps.iter().chain(&gyros).copied().chain([time]).max().unwrap_or(0) + 1;
+    Ok(Columns { time, temps, gyros, names, min_fields })
+}
+
+fn bad_row(columns: &Columns, line: u64, field: usize, found: &[u8], kind: BadRowKind) -> BadRow {
+    let text = String::from_utf8_lossy(found);
+    BadRow {
+        line,
+        column: field + 1,
+        column_name: columns.names.get(field).cloned().unwrap_or_default(),
+        found: text.chars().take(40).collect(),
+        kind,
+    }
+}
+
+/// Parses one numeric cell; `Ok(None)` for an empty cell.
+fn parse_cell(columns: &Columns, fields: Fields<'_>, field: usize, line: u64) -> Result<Option<f64>, BadRow> {
+    let raw = fields.get(field).unwrap_or(b"");
+    let trimmed = raw.trim_ascii();
+    if trimmed.is_empty() {
+        return Ok(None);
+    }
+    match fast_float2::parse::<f64, _>(trimmed) {
+        Ok(v) if v.is_finite() => Ok(Some(v)),
+        Ok(_) => Err(bad_row(columns, line, field, raw, BadRowKind::NonFinite)),
+        Err(_) => Err(bad_row(columns, line, field, raw, BadRowKind::NotANumber)),
+    }
+}
+
+/// The general path: time (returned, s), gyros and temperatures (into the slices), with
+/// the first bad cell in the order time, gyros, temperatures.
+pub(super) fn parse_row(
+    fields: Fields<'_>,
+    plan: &Plan,
+    line: u64,
+    temps: &mut [f64],
+    gyros: &mut [f64],
+) -> Result<f64, BadRow> {
+    let columns = &plan.columns;
+    if fields.len() < columns.min_fields {
+        let field = fields.len();
+        return Err(bad_row(
+            columns,
+            line,
+            field.min(columns.names.len().saturating_sub(1)),
+            b"",
+            BadRowKind::ShortRow,
+        ));
+    }
+    let required = |field: usize| -> Result<f64, BadRow> {
+        parse_cell(columns, fields, field, line)?
+            .ok_or_else(|| bad_row(columns, line, field, b"", BadRowKind::EmptyCell))
+    };
+    let time = required(columns.time)? * plan.time_factor;
+    for (slot, &field) in gyros.iter_mut().zip(&columns.gyros) {
+        *slot = required(field)? * plan.gyro_factor;
+    }
+    for (slot, &field) in temps.iter_mut().zip(&columns.temps) {
+        *slot = parse_cell(columns, fields, field, line)?
+            .map_or(f64::NAN, |raw| raw * plan.temp_scale + plan.temp_offset_c);
+    }
+    Ok(time)
+}
+
+pub(super) fn check_time(
+    time: f64,
+    previous: Option<f64>,
+    columns: &Columns,
+    line: u64,
+    fields: Fields<'_>,
+) -> Result<f64, BadRow> {
+    let found = || fields.get(columns.time).unwrap_or(b"");
+    match previous {
+        Some(p) if time == p => Err(bad_row(columns, line, columns.time, found(), BadRowKind::DuplicateTime)),
+        Some(p) if time < p => Err(bad_row(columns, line, columns.time, found(), BadRowKind::BackwardTime)),
+        _ => Ok(time),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::ingest::test_support::*;
+    use crate::ingest::*;
+
+    #[test]
+    fn not_a_number_names_line_column_and_text() {
+        let b = bad(&format!("{HEADER}0.0,20,1\n0.1,20,1\n0.2,20,abc\n"));
+        expect(&b, 4, 3, "gyro_dph", "abc", BadRowKind::NotANumber);
+        let b = bad(&format!("{HEADER}0.0,2x0,1\n"));
+        expect(&b, 2, 2, "temp_c", "2x0", BadRowKind::NotANumber);
+        let b = bad(&format!("{HEADER}0.0,20,1\n-,20,1\n"));
+        expect(&b, 3, 1, "time_s", "-", BadRowKind::NotANumber);
+    }
+
+    #[test]
+    fn non_finite_cells_are_rejected() {
+        for text in ["nan", "NaN", "inf", "-inf", "infinity", "1e400"] {
+            let b = bad(&format!("{HEADER}0.0,20,1\n0.1,20,{text}\n"));
+            expect(&b, 3, 3, "gyro_dph", text, BadRowKind::NonFinite);
+        }
+        let b = bad(&format!("{HEADER}0.0,nan,1\n"));
+        expect(&b, 2, 2, "temp_c", "nan", BadRowKind::NonFinite);
+    }
+
+    #[test]
+    fn short_row_names_the_first_missing_column() {
+        let b = bad(&format!("{HEADER}0.0,20,1\n0.1,20\n"));
+        expect(&b, 3, 3, "gyro_dph", "", BadRowKind::ShortRow);
+        let b = bad(&format!("{HEADER}0.0\n"));
+        expect(&b, 2, 2, "temp_c", "", BadRowKind::ShortRow);
+    }
+
+    #[test]
+    fn duplicate_and_backward_time() {
+        let b = bad(&format!("{HEADER}0.0,20,1\n0.1,20,1\n0.1,20,1\n"));
+        expect(&b, 4, 1, "time_s", "0.1", BadRowKind::DuplicateTime);
+        let b = bad(&format!("{HEADER}0.0,20,1\n0.2,20,1\n0.100,20,1\n"));
+        expect(&b, 4, 1, "time_s", "0.100", BadRowKind::BackwardTime);
+        // Same value in another spelling is still a duplicate.
+        let b = bad(&format!("{HEADER}1.5,20,1\n1.50,20,1\n"));
+        expect(&b, 3, 1, "time_s", "1.50", BadRowKind::DuplicateTime);
+    }
+
+    #[test]
+    fn empty_required_cells() {
+        let b = bad(&format!("{HEADER}0.0,20,1\n,20,1\n"));
+        expect(&b, 3, 1, "time_s", "", BadRowKind::EmptyCell);
+        let b = bad(&format!("{HEADER}0.0,20,1\n0.1,20,\n"));
+        expect(&b, 3, 3, "gyro_dph", "", BadRowKind::EmptyCell);
+        let b = bad(&format!("{HEADER}0.0,20,  \n"));
+        expect(&b, 2, 3, "gyro_dph", "", BadRowKind::EmptyCell);
+    }
+
+    #[test]
+    fn first_bad_cell_in_order_time_gyro_temperature() {
+        let b = bad(&format!("{HEADER}x,y,z\n"));
+        expect(&b, 2, 1, "time_s", "x", BadRowKind::NotANumber);
+        let b = bad(&format!("{HEADER}0,y,z\n"));
+        expect(&b, 2, 3, "gyro_dph", "z", BadRowKind::NotANumber);
+    }
+
+    #[test]
+    fn error_message_names_file_line_column() {
+        let (_, result) = run(format!("{HEADER}0,20,1\n1,20,x\n").as_bytes(), &default_options());
+        let message = result.unwrap_err().to_string();
+        assert!(message.starts_with("log.csv:3:3: column 'gyro_dph': not a number (found 'x')"), "{message}");
+    }
+
+    #[test]
+    fn skip_bad_rows_counts_and_lists_the_first_twenty() {
+        let mut data = String::from(HEADER);
+        let mut t = 0;
+        for i in 0..30 {
+            data.push_str(&format!("{t},20,1\n"));
+            t += 1;
+            data.push_str(&format!("{t},20,bad{i}\n"));
+        }
+        let (seen, result) = run(data.as_bytes(), &skipping());
+        let report = result.unwrap();
+        assert_eq!((seen.len(), report.rows, report.skipped), (30, 30, 30));
+        assert_eq!(report.first_skipped.len(), MAX_REPORTED_BAD_ROWS);
+        assert_eq!(report.first_skipped[0].line, 3);
+        assert_eq!(report.first_skipped[19].line, 41);
+        assert_eq!(report.first_skipped[19].found, "bad19");
+        // A skipped row does not advance the previous time.
+        let data = format!("{HEADER}0,20,1\n5,20,x\n1,20,1\n1,20,1\n");
+        let (seen, result) = run(data.as_bytes(), &skipping());
+        let report = result.unwrap();
+        assert_eq!(seen.iter().map(|s| s.line).collect::<Vec<_>>(), vec![2, 4]);
+        assert_eq!(report.first_skipped[1].kind, BadRowKind::DuplicateTime);
+        assert_eq!(report.first_skipped[1].line, 5);
+    }
+
+    #[test]
+    fn empty_temperature_cells_are_no_reading() {
+        let options = IngestOptions {
+            format: LogFormat { temp_columns: vec!["t1".into(), "t2".into()], ..LogFormat::default() },
+            ..IngestOptions::default()
+        };
+        let seen = rows("time_s,t1,t2,gyro_dph\n0,,20,1\n1,21,,1\n2,,,1\n3, ,22,1\n", &options);
+        let v = values(&seen);
+        let nan = |x: f64| x.is_nan();
+        assert!(nan(v[0].2[0]) && v[0].2[1] == 20.0);
+        assert!(v[1].2[0] == 21.0 && nan(v[1].2[1]));
+        assert!(nan(v[2].2[0]) && nan(v[2].2[1]));
+        assert!(nan(v[3].2[0]) && v[3].2[1] == 22.0);
+    }
+
+    #[test]
+    fn units_and_scales() {
+        let options = IngestOptions {
+            format: LogFormat {
+                time_column: "t_ms".into(),
+                time_unit: TimeUnit::Milliseconds,
+                temp_columns: vec!["raw".into()],
+                temp_scale: 0.0625,
+                temp_offset_c: -10.0,
+                gyro_columns: vec!["gx".into(), "gy".into()],
+                gyro_unit: RateUnit::RadPerSecond,
+                gyro_scale: 0.5,
+                delimiter: b';',
+            },
+            ..IngestOptions::default()
+        };
+        let seen = rows("gx;t_ms;raw;gy\n1;1000;400;-2\n0.5;1001.5;416;0\n", &options);
+        let v = values(&seen);
+        let rad = RateUnit::RadPerSecond.dph() * 0.5;
+        assert_eq!(v[0].1, 0.0);
+        assert_eq!(v[1].1, 1001.5 * 1e-3 - 1000.0 * 1e-3);
+        assert_eq!(v[0].2, vec![400.0 * 0.0625 - 10.0]);
+        assert_eq!(v[1].2, vec![416.0 * 0.0625 - 10.0]);
+        assert_eq!(v[0].3, vec![rad, -2.0 * rad]);
+        assert_eq!(v[1].3, vec![0.5 * rad, 0.0]);
+        let options = IngestOptions {
+            format: LogFormat {
+                gyro_unit: RateUnit::DegPerSecond,
+                time_unit: TimeUnit::Microseconds,
+                ..LogFormat::default()
+            },
+            ..IngestOptions::default()
+        };
+        let v = values(&rows(&format!("{HEADER}1000000,20,1\n1500000,20,-0.5\n"), &options));
+        assert_eq!((v[1].1, v[0].3[0], v[1].3[0]), (0.5, 3600.0, -1800.0));
+    }
+
+    #[test]
+    fn extra_columns_and_shared_temperature_column() {
+        let options = IngestOptions {
+            format: LogFormat {
+                temp_columns: vec!["temp_c".into(), "temp_c".into()],
+                gyro_columns: vec!["g0".into(), "g1".into()],
+                ..LogFormat::default()
+            },
+            ..IngestOptions::default()
+        };
+        let data = "g1,id,time_s,temp_c,g0,comment\n2,a,0,20,1,\"x,y\"\n4,b,1,21,3,ok,more\n";
+        let v = values(&rows(data, &options));
+        assert_eq!(v[0].2, vec![20.0, 20.0]);
+        assert_eq!(v[0].3, vec![1.0, 2.0]);
+        assert_eq!(v[1].3, vec![3.0, 4.0]);
+        // A short row reports the first column it lacks, even one the model does not use.
+        let b = match run(b"time_s,x,temp_c,gyro_dph\n0,1\n", &default_options()).1 {
+            Err(CalError::BadRow { row, .. }) => *row,
+            other => panic!("{}", summary(&other)),
+        };
+        expect(&b, 2, 3, "temp_c", "", BadRowKind::ShortRow);
+    }
+
+    #[test]
+    fn missing_columns_and_empty_files() {
+        let (_, result) = run(b"time_s,temp_c\n0,20\n", &default_options());
+        assert!(
+            matches!(&result, Err(CalError::MissingColumn { column, available, .. })
+                if column == "gyro_dph" && available == "time_s, temp_c"),
+            "{}",
+            summary(&result)
+        );
+        for empty in ["", "\n\n", "\u{feff}"] {
+            let (seen, result) = run(empty.as_bytes(), &default_options());
+            assert!(seen.is_empty() && result.is_err(), "{empty:?}: {}", summary(&result));
+        }
+        // A header alone is a log without rows.
+        let report = run(HEADER.trim_end().as_bytes(), &default_options()).1.unwrap();
+        assert_eq!(report.rows, 0);
+    }
+}

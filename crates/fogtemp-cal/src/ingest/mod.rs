@@ -1,0 +1,634 @@
+//! Streaming CSV ingest of lab logs (one file per run; contract in DESIGN section 3).
+//!
+//! Rows are parsed into reused buffers and handed to a visitor one at a time, in file
+//! order, so memory stays constant whatever the log size. Every rejected row is reported
+//! with its file, line and column; with `skip_bad_rows` the rows are skipped and counted
+//! instead.
+//!
+//! The reader follows the `csv` crate's dialect (RFC 4180 with `"` quoting, flexible
+//! record lengths): `\n`, `\r\n` and a lone `\r` all end a record, blank lines are
+//! skipped, a UTF-8 byte-order mark at the start of the file is ignored and the last line
+//! needs no newline. Line numbers are physical lines (1-based, counted by `\n`; the
+//! header is line 1 unless blank lines precede it), including after blank lines and in
+//! CRLF files.
+//!
+//! How it is fast (see `docs/ingest-performance.md`): records without quotes, whose
+//! needed cells are plain decimals (`-12.345`, at most 15 digits), are split and
+//! converted in one pass over the bytes, with exactly the value `fast-float2` would give
+//! (the decimal's digits as an integer divided by a power of ten, both exact in `f64`,
+//! so the one rounding is the correct one). Any other record (quotes, exponents, spaces,
+//! `nan`, short rows, empty required cells, time not increasing) takes the general path,
+//! which splits the record (with `csv-core` when it holds a quote) and parses its cells as
+//! before, so errors and values are the same either way. On logs of 1 MiB or more, when
+//! there is a second core, worker threads parse 1 MiB chunks of whole records and the
+//! calling thread merges them in order and runs the visitor (see [`read_log`]); memory
+//! is a few chunks whatever the log size.
+
+mod batch;
+mod columns;
+mod decimal;
+mod parallel;
+mod parser;
+#[cfg(test)]
+mod test_support;
+
+use std::fs::File;
+use std::io::Read;
+use std::path::{Path, PathBuf};
+
+use crate::error::CalError;
+use batch::{Batch, Consumer};
+use parallel::read_parallel;
+use parser::Parser;
+
+/// Unit of the time column.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TimeUnit {
+    /// Seconds.
+    Seconds,
+    /// Milliseconds.
+    Milliseconds,
+    /// Microseconds.
+    Microseconds,
+}
+
+impl TimeUnit {
+    /// Seconds per unit.
+    pub fn seconds(self) -> f64 {
+        match self {
+            TimeUnit::Seconds => 1.0,
+            TimeUnit::Milliseconds => 1.0e-3,
+            TimeUnit::Microseconds => 1.0e-6,
+        }
+    }
+}
+
+/// Unit of the gyro columns.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RateUnit {
+    /// Degrees per hour.
+    DegPerHour,
+    /// Degrees per second.
+    DegPerSecond,
+    /// Radians per second.
+    RadPerSecond,
+}
+
+impl RateUnit {
+    /// Degrees per hour per unit.
+    pub fn dph(self) -> f64 {
+        match self {
+            RateUnit::DegPerHour => 1.0,
+            RateUnit::DegPerSecond => 3600.0,
+            RateUnit::RadPerSecond => 3600.0 * 180.0 / std::f64::consts::PI,
+        }
+    }
+}
+
+/// Which columns hold what, and in which units.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LogFormat {
+    /// Time column name.
+    pub time_column: String,
+    /// Time unit.
+    pub time_unit: TimeUnit,
+    /// Temperature columns (one per model axis, or one shared by all axes).
+    pub temp_columns: Vec<String>,
+    /// `temp_c = raw * temp_scale + temp_offset` (for raw sensor counts).
+    pub temp_scale: f64,
+    /// See `temp_scale`, deg C.
+    pub temp_offset_c: f64,
+    /// Gyro columns, one per model axis.
+    pub gyro_columns: Vec<String>,
+    /// Gyro unit.
+    pub gyro_unit: RateUnit,
+    /// Extra factor on the gyro after the unit conversion (e.g. 0.5 for a driver that doubles).
+    pub gyro_scale: f64,
+    /// Field delimiter.
+    pub delimiter: u8,
+}
+
+impl Default for LogFormat {
+    fn default() -> Self {
+        Self {
+            time_column: "time_s".into(),
+            time_unit: TimeUnit::Seconds,
+            temp_columns: vec!["temp_c".into()],
+            temp_scale: 1.0,
+            temp_offset_c: 0.0,
+            gyro_columns: vec!["gyro_dph".into()],
+            gyro_unit: RateUnit::DegPerHour,
+            gyro_scale: 1.0,
+            delimiter: b',',
+        }
+    }
+}
+
+/// One parsed row, borrowed from the reader's buffers (valid during the visitor call).
+#[derive(Clone, Copy, Debug)]
+pub struct Row<'a> {
+    /// 1-based line number in the file.
+    pub line: u64,
+    /// Time since the first row of the file, seconds.
+    pub time_s: f64,
+    /// Temperatures, deg C, one per temperature column; NaN where the cell is empty
+    /// (sensors slower than the gyro leave cells empty).
+    pub temps_c: &'a [f64],
+    /// Gyro rates, deg/h, one per gyro column.
+    pub gyros_dph: &'a [f64],
+}
+
+impl Row<'_> {
+    /// The temperature for model axis `axis`, deg C: its own column when there is one per
+    /// gyro column, else the shared one. NaN when this row has no reading.
+    pub fn temp_c_for_axis(&self, axis: usize) -> f64 {
+        self.temps_c.get(axis.min(self.temps_c.len().saturating_sub(1))).copied().unwrap_or(f64::NAN)
+    }
+
+    /// [`Row::time_s`] in whole microseconds, as the feature tracker and compensator take it.
+    pub fn time_us(&self) -> u64 {
+        crate::features::micros(self.time_s)
+    }
+}
+
+/// Why a row was rejected.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum BadRowKind {
+    /// A cell is not a number.
+    NotANumber,
+    /// A cell is NaN or infinite.
+    NonFinite,
+    /// Fewer fields than the header.
+    ShortRow,
+    /// Time equal to the previous row's.
+    DuplicateTime,
+    /// Time before the previous row's.
+    BackwardTime,
+    /// A required cell (time or gyro) is empty.
+    EmptyCell,
+}
+
+impl BadRowKind {
+    /// Short description for reports.
+    pub fn describe(self) -> &'static str {
+        match self {
+            BadRowKind::NotANumber => "not a number",
+            BadRowKind::NonFinite => "NaN or infinite",
+            BadRowKind::ShortRow => "fewer fields than the header",
+            BadRowKind::DuplicateTime => "time equal to the previous row",
+            BadRowKind::BackwardTime => "time before the previous row",
+            BadRowKind::EmptyCell => "empty required cell",
+        }
+    }
+}
+
+/// A rejected row: where and why.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BadRow {
+    /// 1-based line.
+    pub line: u64,
+    /// 1-based column (field) number.
+    pub column: usize,
+    /// Column name from the header.
+    pub column_name: String,
+    /// The offending text (cut to 40 characters).
+    pub found: String,
+    /// Why.
+    pub kind: BadRowKind,
+}
+
+/// How many rows were rejected, and where the first of them are.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct IngestReport {
+    /// File read.
+    pub path: PathBuf,
+    /// Bytes read.
+    pub bytes: u64,
+    /// Rows accepted.
+    pub rows: u64,
+    /// Rows skipped (only with `skip_bad_rows`).
+    pub skipped: u64,
+    /// The first [`MAX_REPORTED_BAD_ROWS`] skipped rows.
+    pub first_skipped: Vec<BadRow>,
+    /// Time of the first accepted row in the file's own units converted to seconds
+    /// (`Row::time_s` is relative to it).
+    pub time_origin_s: f64,
+}
+
+/// How many skipped rows are listed individually.
+pub const MAX_REPORTED_BAD_ROWS: usize = 20;
+
+/// Options for [`read_log`].
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct IngestOptions {
+    /// Columns and units.
+    pub format: LogFormat,
+    /// Skip bad rows (and report them) instead of stopping at the first.
+    pub skip_bad_rows: bool,
+}
+
+/// Bytes between two progress calls.
+const PROGRESS_EVERY_BYTES: u64 = 4 << 20;
+/// Logs at least this large are parsed in parallel (when there is a second core).
+const PARALLEL_MIN_BYTES: u64 = 1 << 20;
+/// Read buffer (grows only for a record longer than this).
+const BUFFER_BYTES: usize = 1 << 20;
+/// Rows per batch handed from the parser to the visitor.
+const BATCH_ROWS: usize = 16 * 1024;
+/// Bytes per chunk of the parallel reader (cut at the last newline).
+const CHUNK_BYTES: usize = 1 << 20;
+/// Parsing threads of the parallel reader, at most.
+const MAX_WORKERS: usize = 4;
+
+/// Reads the log at `path`, calling `visit` for every accepted row, in file order, on
+/// the calling thread (a log of 1 MiB or more is parsed by worker threads meanwhile, when
+/// there is more than one core). `progress` is called with the bytes read so far, about
+/// every 4 MiB and once at the end.
+///
+/// # Errors
+/// [`CalError::Io`] if the file cannot be opened, [`CalError::Csv`] if reading it fails
+/// or it has no header row, [`CalError::MissingColumn`] if a named column is absent,
+/// [`CalError::BadRow`] for the first bad row (unless `skip_bad_rows`), or whatever error
+/// the visitor returns (the read stops there).
+pub fn read_log<F, P>(
+    path: &Path,
+    options: &IngestOptions,
+    visit: F,
+    mut progress: P,
+) -> Result<IngestReport, CalError>
+where
+    F: FnMut(&Row<'_>) -> Result<(), CalError>,
+    P: FnMut(u64),
+{
+    read_log_with_progress(path, options, visit, |bytes, _rows| progress(bytes))
+}
+
+/// [`read_log`] with a progress callback that also gets the rows accepted so far:
+/// `progress(bytes, rows)`, about every 4 MiB and once at the end (with
+/// [`IngestReport::bytes`] and [`IngestReport::rows`]), enough for a bar showing bytes/s
+/// and rows/s.
+///
+/// # Errors
+/// As [`read_log`].
+pub fn read_log_with_progress<F, P>(
+    path: &Path,
+    options: &IngestOptions,
+    visit: F,
+    progress: P,
+) -> Result<IngestReport, CalError>
+where
+    F: FnMut(&Row<'_>) -> Result<(), CalError>,
+    P: FnMut(u64, u64),
+{
+    let file = File::open(path).map_err(|source| CalError::Io { path: path.to_path_buf(), source })?;
+    let size = file.metadata().map_or(0, |m| m.len());
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let mode = if size >= PARALLEL_MIN_BYTES && cores >= 2 {
+        Mode::Parallel { workers: cores.min(MAX_WORKERS) }
+    } else {
+        Mode::Single
+    };
+    let tuning = Tuning { mode, ..Tuning::default() };
+    read_with_tuning(path, file, options, tuning, visit, progress)
+}
+
+/// [`read_log_with_progress`] from any reader (a socket, a decompressor, bytes in memory),
+/// like `csv::Reader::from_reader` beside `from_path`. `name` stands for the source in
+/// errors and in [`IngestReport::path`] (for example the file name the bytes came from).
+/// The rows are parsed on the calling thread.
+///
+/// # Errors
+/// As [`read_log`], with `name` as the file; [`CalError::Csv`] for a failing reader.
+pub fn read_from<R, F, P>(
+    reader: R,
+    name: &Path,
+    options: &IngestOptions,
+    visit: F,
+    progress: P,
+) -> Result<IngestReport, CalError>
+where
+    R: Read + Send,
+    F: FnMut(&Row<'_>) -> Result<(), CalError>,
+    P: FnMut(u64, u64),
+{
+    read_with_tuning(name, reader, options, Tuning::default(), visit, progress)
+}
+
+/// How [`read_with_tuning`] runs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Mode {
+    /// Everything on the calling thread.
+    Single,
+    /// The header on the calling thread, then chunks of whole records parsed by `workers`
+    /// threads and merged, in order, on the calling thread (which runs the visitor).
+    Parallel {
+        /// Parsing threads.
+        workers: usize,
+    },
+}
+
+/// Internal knobs (the tests shrink them to exercise buffer, batch and chunk boundaries).
+#[derive(Clone, Copy, Debug)]
+struct Tuning {
+    mode: Mode,
+    buffer_bytes: usize,
+    batch_rows: usize,
+    chunk_bytes: usize,
+}
+
+impl Default for Tuning {
+    fn default() -> Self {
+        Self {
+            mode: Mode::Single,
+            buffer_bytes: BUFFER_BYTES,
+            batch_rows: BATCH_ROWS,
+            chunk_bytes: CHUNK_BYTES,
+        }
+    }
+}
+
+fn read_with_tuning<R, F, P>(
+    path: &Path,
+    reader: R,
+    options: &IngestOptions,
+    tuning: Tuning,
+    mut visit: F,
+    mut progress: P,
+) -> Result<IngestReport, CalError>
+where
+    R: Read + Send,
+    F: FnMut(&Row<'_>) -> Result<(), CalError>,
+    P: FnMut(u64, u64),
+{
+    let mut parser = Parser::new(path, reader, options, tuning.buffer_bytes);
+    let temps = options.format.temp_columns.len();
+    let mut consumer = Consumer {
+        report: IngestReport { path: path.to_path_buf(), ..Default::default() },
+        temps,
+        stride: 1 + temps + options.format.gyro_columns.len(),
+        last_progress: 0,
+    };
+    let batch_rows = tuning.batch_rows.max(1);
+    let mut batch = Batch::default();
+    if let Mode::Parallel { workers } = tuning.mode {
+        parser.header_only = true;
+        parser.fill(&mut batch, batch_rows);
+        parser.header_only = false;
+        if batch.end.is_none() {
+            return read_parallel(parser, consumer, tuning, workers.max(1), &mut visit, &mut progress);
+        }
+        // No header (an empty log, a missing column): `consume` reports it below.
+    }
+    loop {
+        if consumer.consume(&mut batch, &mut visit, &mut progress)? {
+            return Ok(consumer.report);
+        }
+        parser.fill(&mut batch, batch_rows);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::columns::{check_time, make_plan, parse_row};
+    use super::parser::Fields;
+    use super::test_support::*;
+    use super::*;
+
+    #[test]
+    fn plain_log_values_and_lines() {
+        let data = format!("{HEADER}10.000,25.0625,0.5\n10.001,25.1250,-0.25\n10.002,,1e-3\n");
+        let v = values(&rows(&data, &default_options()));
+        assert_eq!(v.len(), 3);
+        assert_eq!((v[0].0, v[0].1, v[0].2[0], v[0].3[0]), (2, 0.0, 25.0625, 0.5));
+        assert_eq!((v[1].0, v[1].2[0], v[1].3[0]), (3, 25.125, -0.25));
+        assert_eq!(v[1].1, 10.001 - 10.0);
+        assert_eq!(v[2].0, 4);
+        assert!(v[2].2[0].is_nan(), "empty temperature cell is no reading");
+        assert_eq!(v[2].3[0], 1e-3);
+        let (_, report) = run(data.as_bytes(), &default_options());
+        let report = report.unwrap();
+        assert_eq!((report.rows, report.skipped, report.bytes), (3, 0, data.len() as u64));
+        assert_eq!(report.time_origin_s, 10.0);
+    }
+
+    #[test]
+    fn read_log_reads_a_file() {
+        let path = std::env::temp_dir().join(format!("fogtemp-ingest-test-{}.csv", std::process::id()));
+        let mut data = String::from(HEADER);
+        for i in 0..100_000 {
+            data.push_str(&format!("{}.{:03},25.0625,0.123456\n", i / 1000, i % 1000));
+        }
+        std::fs::write(&path, &data).unwrap();
+        let mut last = 0;
+        let mut rows = 0;
+        let report = read_log(
+            &path,
+            &default_options(),
+            |_| {
+                rows += 1;
+                Ok(())
+            },
+            |bytes| last = bytes,
+        );
+        std::fs::remove_file(&path).unwrap();
+        let report = report.unwrap();
+        assert_eq!(
+            (report.rows, rows, last, report.bytes),
+            (100_000, 100_000, data.len() as u64, data.len() as u64)
+        );
+        let missing = read_log(Path::new("/nonexistent/log.csv"), &default_options(), |_| Ok(()), |_| {});
+        assert!(matches!(missing, Err(CalError::Io { .. })));
+    }
+
+    /// The reader this module replaced (the `csv` crate), kept as the reference: same
+    /// rows, same values, same errors. Its line numbers are off after blank lines and in
+    /// CRLF files, so lines are compared only for files without those.
+    fn reference(data: &[u8], options: &IngestOptions) -> Outcome {
+        let mut seen = Vec::new();
+        let result = (|| {
+            let path = Path::new("log.csv");
+            let mut reader = csv::ReaderBuilder::new()
+                .delimiter(options.format.delimiter)
+                .has_headers(true)
+                .flexible(true)
+                .from_reader(data);
+            let header = reader.byte_headers().map_err(|e| CalError::Csv {
+                path: path.into(),
+                line: 0,
+                message: e.to_string(),
+            })?;
+            let bounds: Vec<(usize, usize)> = {
+                let mut start = 0;
+                (0..header.len())
+                    .map(|i| {
+                        let end = start + header[i].len();
+                        let b = (start, end);
+                        start = end;
+                        b
+                    })
+                    .collect()
+            };
+            let joined: Vec<u8> = header.iter().flatten().copied().collect();
+            let plan = make_plan(path, Fields { data: &joined, bounds: &bounds }, &options.format)?;
+            let mut report =
+                IngestReport { path: path.into(), bytes: data.len() as u64, ..Default::default() };
+            let mut temps = vec![f64::NAN; plan.columns.temps.len()];
+            let mut gyros = vec![0.0; plan.columns.gyros.len()];
+            let mut previous = None;
+            let mut record = csv::ByteRecord::new();
+            while reader.read_byte_record(&mut record).unwrap() {
+                let line = record.position().map_or(0, |p| p.line());
+                let mut bounds = Vec::new();
+                let mut start = 0;
+                for f in record.iter() {
+                    bounds.push((start, start + f.len()));
+                    start += f.len();
+                }
+                let joined: Vec<u8> = record.iter().flatten().copied().collect();
+                let fields = Fields { data: &joined, bounds: &bounds };
+                let parsed = parse_row(fields, &plan, line, &mut temps, &mut gyros)
+                    .and_then(|time| check_time(time, previous, &plan.columns, line, fields));
+                match parsed {
+                    Ok(time) => {
+                        if previous.is_none() {
+                            report.time_origin_s = time;
+                        }
+                        previous = Some(time);
+                        report.rows += 1;
+                        seen.push(Seen::of(&Row {
+                            line,
+                            time_s: time - report.time_origin_s,
+                            temps_c: &temps,
+                            gyros_dph: &gyros,
+                        }));
+                    }
+                    Err(bad) if options.skip_bad_rows => {
+                        report.skipped += 1;
+                        if report.first_skipped.len() < MAX_REPORTED_BAD_ROWS {
+                            report.first_skipped.push(bad);
+                        }
+                    }
+                    Err(bad) => return Err(CalError::BadRow { path: path.into(), row: Box::new(bad) }),
+                }
+            }
+            Ok(report)
+        })();
+        (seen, result)
+    }
+
+    /// Cells that exercise every path: plain decimals, other spellings, bad values,
+    /// quotes (with delimiters and newlines inside), spaces, empties.
+    const CELLS: [&str; 28] = [
+        "",
+        " ",
+        "0",
+        "1.5",
+        "-2.25",
+        "25.0625",
+        "0.000001",
+        "1e2",
+        "1E-2",
+        " 3 ",
+        "x",
+        "nan",
+        "inf",
+        "-",
+        ".",
+        "7.",
+        ".7",
+        "+8",
+        "\"4\"",
+        "\"5,5\"",
+        "\"6\n\"",
+        "\"a\"\"b\"",
+        "9\"",
+        "12345678901234567",
+        "0.12345678901234567",
+        "1e999",
+        "--1",
+        "1.2.3",
+    ];
+
+    fn random_log(seed: u64) -> (Vec<u8>, IngestOptions, bool) {
+        let mut state = seed | 1;
+        let mut next = move |n: u64| {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state % n
+        };
+        let mut names = ["time_s", "temp_c", "gyro_dph", "note"];
+        for i in (1..names.len()).rev() {
+            names.swap(i, next(i as u64 + 1) as usize);
+        }
+        let terminators = ["\n", "\n", "\n", "\r\n", "\r"];
+        let terminator = terminators[next(5) as usize];
+        let mut data = Vec::new();
+        if next(4) == 0 {
+            data.extend_from_slice("\u{feff}".as_bytes());
+        }
+        let quote_header = next(4) == 0;
+        let header: Vec<String> =
+            names.iter().map(|n| if quote_header { format!("\"{n}\"") } else { (*n).to_string() }).collect();
+        data.extend_from_slice(header.join(",").as_bytes());
+        let mut time = 0.0f64;
+        let rows = next(40);
+        for _ in 0..rows {
+            data.extend_from_slice(terminator.as_bytes());
+            if next(10) == 0 {
+                data.extend_from_slice(terminator.as_bytes());
+            }
+            let fields = if next(12) == 0 { next(4) as usize } else { 4 };
+            let mut cells = Vec::new();
+            for name in names.iter().take(fields) {
+                let mostly_good = next(6) != 0;
+                let cell = match *name {
+                    "time_s" if mostly_good => {
+                        time += [0.001, 0.25, 1.0, 0.0, -0.5][next(5) as usize];
+                        let spelled = format!("{time:.3}");
+                        if next(8) == 0 {
+                            format!("\"{spelled}\"")
+                        } else {
+                            spelled
+                        }
+                    }
+                    "temp_c" | "gyro_dph" if mostly_good => format!("{}.{:04}", next(80), next(10_000)),
+                    _ => CELLS[next(CELLS.len() as u64) as usize].to_string(),
+                };
+                cells.push(cell);
+            }
+            data.extend_from_slice(cells.join(",").as_bytes());
+        }
+        if next(2) == 0 {
+            data.extend_from_slice(terminator.as_bytes());
+        }
+        let options = IngestOptions { skip_bad_rows: next(2) == 0, ..IngestOptions::default() };
+        let blank_lines = data.windows(2).any(|w| w == b"\n\n" || w == b"\r\r" || w == b"\r\n");
+        let compare_lines = !blank_lines && !data.contains(&b'\r');
+        (data, options, compare_lines)
+    }
+
+    #[test]
+    fn agrees_with_the_csv_crate_reader_on_random_logs() {
+        for seed in 1..1500u64 {
+            let (data, options, compare_lines) = random_log(seed.wrapping_mul(0x9e37_79b9_7f4a_7c15));
+            let text = String::from_utf8_lossy(&data).into_owned();
+            let (mut ours, mut our_result) = run(&data, &options);
+            let (mut theirs, mut their_result) = reference(&data, &options);
+            if !compare_lines {
+                for s in ours.iter_mut().chain(theirs.iter_mut()) {
+                    s.line = 0;
+                }
+                for r in [&mut our_result, &mut their_result] {
+                    match r {
+                        Ok(report) => report.first_skipped.iter_mut().for_each(|b| b.line = 0),
+                        Err(CalError::BadRow { row, .. }) => row.line = 0,
+                        Err(_) => {}
+                    }
+                }
+            }
+            assert_eq!(ours, theirs, "rows differ for {text:?}");
+            assert_eq!(summary(&our_result), summary(&their_result), "result differs for {text:?}");
+        }
+    }
+}
