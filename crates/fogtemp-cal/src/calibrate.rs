@@ -214,28 +214,66 @@ fn extract_with(
     Ok(RunFeatures { path: path.to_path_buf(), ingest, axes })
 }
 
-/// Calibration points of one axis over all runs, with the run index of each.
+/// The calibration points of one axis over all runs.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct CalibrationPoints {
+    /// (T, dT/dt, smoothed gyro target) per point.
+    pub points: Vec<MeshPoint>,
+    /// The run index of each point.
+    pub run_of: Vec<usize>,
+    /// How many tracker blocks of time the points stand for: each point counts the whole
+    /// blocks since the previous feature update of its run and segment (at least 1, at most a
+    /// smoothing window's worth). Equal to the point count for a log whose temperature fills
+    /// every block; larger for sparse logs (bursts minutes apart), where each point stands for
+    /// all the time since the last one.
+    pub block_equivalents: f64,
+}
+
+impl CalibrationPoints {
+    /// Effective number of independent targets for the stepwise tests: one per smoothing
+    /// window of `target_window_s` covered (points are one per block, and consecutive targets
+    /// share most of their window).
+    pub fn n_eff(&self, block_s: f64, target_window_s: f64) -> f64 {
+        self.block_equivalents * (block_s / target_window_s).min(1.0)
+    }
+}
+
+/// Calibration points of one axis over all runs, with the run index of each and the time
+/// they cover (in tracker blocks of `block_s`, at most `target_window_s` per point).
 pub fn calibration_points(
     runs: &[RunFeatures],
     axis: usize,
     full_windows_only: bool,
-) -> (Vec<MeshPoint>, Vec<usize>) {
-    let mut points = Vec::new();
-    let mut run_of = Vec::new();
+    block_s: f64,
+    target_window_s: f64,
+) -> CalibrationPoints {
+    let max_blocks = (target_window_s / block_s).round().max(1.0);
+    let mut out = CalibrationPoints::default();
     for (r, run) in runs.iter().enumerate() {
         let Some((features, targets)) = run.axes.get(axis) else { continue };
+        let mut previous: Option<&FeaturePoint> = None;
         for (f, &target) in features.iter().zip(targets) {
+            // Whole blocks since the previous update of this segment (rounded: block close
+            // times are block multiples up to the microsecond clock).
+            let blocks = match previous {
+                Some(p) if p.segment == f.segment => {
+                    ((f.time_s - p.time_s) / block_s).round().clamp(1.0, max_blocks)
+                }
+                _ => 1.0,
+            };
+            previous = Some(f);
             if target.is_finite() && (f.window_full || !full_windows_only) {
-                points.push(MeshPoint {
+                out.points.push(MeshPoint {
                     temp_c: f.temp_c,
                     rate_c_per_min: f.rate_c_per_min,
                     value_dph: target,
                 });
-                run_of.push(r);
+                out.run_of.push(r);
+                out.block_equivalents += blocks;
             }
         }
     }
-    (points, run_of)
+    out
 }
 
 /// Normalisation mapping the points' bounding box to [-1, 1] on both axes.
@@ -298,18 +336,18 @@ pub struct FittedAxis {
 /// # Errors
 /// Fit or mesh errors ([`CalError::Fit`], [`CalError::DegenerateMesh`]).
 pub fn fit_axis(
-    points: &[MeshPoint],
-    runs: &[usize],
+    calibration: &CalibrationPoints,
     config: &CalibrationConfig,
     target_noise_dph: f64,
 ) -> Result<FittedAxis, CalError> {
+    let (points, runs) = (calibration.points.as_slice(), calibration.run_of.as_slice());
     let mut normalisation = choose_normalisation(points)?;
     if config.rate_axis_weight.is_finite() && config.rate_axis_weight > 0.0 {
         normalisation.rate_scale_per_c_per_min *= config.rate_axis_weight as f32;
     }
     // One independent target per smoothing window (points are one per block).
     let block_s = f64::from(config.features.window_s) / f64::from(config.features.block_count);
-    let n_eff = points.len() as f64 * (block_s / config.target_window_s).min(1.0);
+    let n_eff = calibration.n_eff(block_s, config.target_window_s);
     let poly = match config.method {
         Method::Poly | Method::Hybrid => Some(fit_poly(points, &normalisation, config.poly, n_eff)?),
         Method::Mesh => None,
@@ -453,17 +491,18 @@ pub fn fit_model(
     let mut axes = Vec::new();
     let mut reports = Vec::new();
     for axis in 0..config.ingest.format.gyro_columns.len() {
-        let (points, run_of) = calibration_points(runs, axis, config.full_windows_only);
-        if points.is_empty() {
+        let block_s = f64::from(config.features.window_s) / f64::from(config.features.block_count);
+        let calibration =
+            calibration_points(runs, axis, config.full_windows_only, block_s, config.target_window_s);
+        if calibration.points.is_empty() {
             return Err(CalError::NoCalibrationPoints {
                 axis,
                 min_blocks: config.features.min_blocks,
                 max_gap_s: config.features.max_gap_s,
             });
         }
-        let block_s = f64::from(config.features.window_s) / f64::from(config.features.block_count);
         let noise = target_noise_dph(runs, axis, block_s, config.target_window_s);
-        let fitted = fit_axis(&points, &run_of, config, noise)?;
+        let fitted = fit_axis(&calibration, config, noise)?;
         axes.push(fitted.model);
         reports.push(fitted.report);
     }
@@ -754,4 +793,84 @@ fn validations(
             Validation { runs, raw_bias_stability_dph: raw, compensated_bias_stability_dph: comp }
         })
         .collect())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::poly_fit::TermSelection;
+
+    /// A log in 5 s bursts at 50 Hz every 300 s for 2 h (the shape of a thermal-vacuum
+    /// recording), temperature falling 20 -> -20 C, bias `slope_dph_per_c * T` plus a
+    /// deterministic +-1 deg/h wobble per burst.
+    fn burst_log(slope_dph_per_c: f64) -> String {
+        let mut csv = String::from("time_s,temp_c,gyro_dph\n");
+        for burst in 0..24 {
+            let start_s = 300.0 * f64::from(burst);
+            for k in 0..250 {
+                let t = start_s + f64::from(k) * 0.02;
+                let temp_c = 20.0 - 40.0 * t / 7200.0;
+                let wobble = if burst % 2 == 0 { 1.0 } else { -1.0 };
+                csv.push_str(&format!("{t:.3},{temp_c:.4},{}\n", slope_dph_per_c * temp_c + wobble));
+            }
+        }
+        csv
+    }
+
+    fn sparse_config() -> CalibrationConfig {
+        let features = FeatureSettings { window_s: 1200.0, block_count: 40, min_blocks: 3, max_gap_s: 400.0 };
+        CalibrationConfig {
+            features,
+            target_window_s: 1200.0,
+            method: Method::Poly,
+            poly: TermSelection::default_stepwise(),
+            ..CalibrationConfig::default()
+        }
+    }
+
+    #[test]
+    fn sparse_bursts_count_the_time_each_point_stands_for() {
+        let config = sparse_config();
+        let run =
+            extract_run_from(burst_log(100.0).as_bytes(), Path::new("bursts.csv"), &config).expect("reads");
+        let block_s = 1200.0 / 40.0;
+        let c = calibration_points(std::slice::from_ref(&run), 0, false, block_s, 1200.0);
+        // One feature update per burst (the 5 s burst lies inside one 30 s block), 300 s =
+        // 10 blocks apart: every point after the first of its segment counts 10 blocks.
+        let n = c.points.len() as f64;
+        assert!(n >= 20.0, "{n} points");
+        assert_eq!(c.block_equivalents, 1.0 + 10.0 * (n - 1.0));
+        assert_eq!(c.n_eff(block_s, 1200.0), c.block_equivalents * block_s / 1200.0);
+    }
+
+    #[test]
+    fn sparse_bursts_get_their_temperature_term() {
+        // 100 deg/h per C over 40 C is a 4000 deg/h drift against a 1 deg/h wobble: the
+        // stepwise selection must admit T (with n_eff = points, one per 30 s block, it
+        // had 24 * 30 / 1200 = 0.6 -> 1 independent target and admitted nothing).
+        let config = sparse_config();
+        let run =
+            extract_run_from(burst_log(100.0).as_bytes(), Path::new("bursts.csv"), &config).expect("reads");
+        let fitted = fit_model(&[run], &config, [0; 32]).expect("fits");
+        let axis = &fitted.axes[0];
+        let poly = axis.poly.as_ref().expect("a polynomial");
+        assert!(poly.terms.iter().any(|t| t.temp_power == 1 && t.rate_power == 0), "{:?}", poly.steps);
+        // What remains (43 deg/h here) is the burst sampling of the causal tracker against the
+        // centred targets on a 0.33 C/min ramp, about 1 % of the drift: allow 2 %.
+        assert!(axis.residual_rms_dph < 0.02 * 4000.0, "{}", axis.residual_rms_dph);
+    }
+
+    #[test]
+    fn contiguous_logs_count_one_block_per_point() {
+        let mut csv = String::from("time_s,temp_c,gyro_dph\n");
+        for k in 0..3000 {
+            let t = f64::from(k) * 0.1;
+            csv.push_str(&format!("{t:.1},{:.4},0.0\n", 20.0 + t / 60.0));
+        }
+        let config = CalibrationConfig::default();
+        let run = extract_run_from(csv.as_bytes(), Path::new("c.csv"), &config).expect("reads");
+        let c = calibration_points(std::slice::from_ref(&run), 0, false, 1.0, 100.0);
+        assert!(!c.points.is_empty());
+        assert_eq!(c.block_equivalents, c.points.len() as f64);
+    }
 }
