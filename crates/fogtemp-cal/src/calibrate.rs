@@ -25,6 +25,8 @@ pub enum Method {
     Mesh,
     /// Polynomial plus a mesh of its residuals (polynomial alone outside the hull).
     Hybrid,
+    /// A cubic in temperature alone (what PX4 and ArduPilot ship): the baseline.
+    CubicT,
 }
 
 /// How mesh nodes are chosen from the calibration points.
@@ -350,6 +352,7 @@ pub fn fit_axis(
     let n_eff = calibration.n_eff(block_s, config.target_window_s);
     let poly = match config.method {
         Method::Poly | Method::Hybrid => Some(fit_poly(points, &normalisation, config.poly, n_eff)?),
+        Method::CubicT => Some(fit_poly(points, &normalisation, TermSelection::CubicInTemperature, n_eff)?),
         Method::Mesh => None,
     };
     let residual_points: Vec<MeshPoint> = points
@@ -379,7 +382,7 @@ pub fn fit_axis(
         _ => false,
     };
     let mesh = match config.method {
-        Method::Poly => None,
+        Method::Poly | Method::CubicT => None,
         Method::Hybrid if poly_is_enough => None,
         Method::Mesh | Method::Hybrid => {
             let keep = match config.thinning {
@@ -798,7 +801,6 @@ fn validations(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::poly_fit::TermSelection;
 
     /// A log in 5 s bursts at 50 Hz every 300 s for 2 h (the shape of a thermal-vacuum
     /// recording), temperature falling 20 -> -20 C, bias `slope_dph_per_c * T` plus a

@@ -18,11 +18,17 @@ use crate::mesh::MeshPoint;
 pub const PAPER_TERMS: [(u8, u8); 11] =
     [(1, 0), (2, 0), (3, 0), (0, 1), (0, 2), (0, 3), (1, 1), (2, 1), (1, 2), (3, 1), (1, 3)];
 
+/// `(temp_power, rate_power)` of a cubic in temperature alone (T, T^2, T^3): the thermal
+/// calibration PX4 and ArduPilot ship for their gyros, the baseline every report shows.
+pub const CUBIC_T_TERMS: [(u8, u8); 3] = [(1, 0), (2, 0), (3, 0)];
+
 /// Which terms to fit.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum TermSelection {
     /// The paper's 11 terms plus the constant, all kept.
     Paper,
+    /// A cubic in temperature alone plus the constant ([`CUBIC_T_TERMS`]), all kept.
+    CubicInTemperature,
     /// Stepwise over every `T^i dT^j` with `1 <= i + j <= max_degree`.
     Stepwise {
         /// Highest total degree of a candidate term (3 or 4 are sensible).
@@ -129,6 +135,7 @@ pub fn fit_poly(
     let y = DVector::from_iterator(n, points.iter().map(|p| p.value_dph));
     let candidates: Vec<(u8, u8)> = match selection {
         TermSelection::Paper => PAPER_TERMS.to_vec(),
+        TermSelection::CubicInTemperature => CUBIC_T_TERMS.to_vec(),
         TermSelection::Stepwise { max_degree, .. } => {
             (1..=max_degree).flat_map(|d| (0..=d).rev().map(move |i| (i, d - i))).collect()
         }
@@ -140,6 +147,7 @@ pub fn fit_poly(
     let mut steps = Vec::new();
     match selection {
         TermSelection::Paper => chosen.extend(PAPER_TERMS),
+        TermSelection::CubicInTemperature => chosen.extend(CUBIC_T_TERMS),
         TermSelection::Stepwise { p_enter, p_remove, .. } => stepwise(
             &candidates,
             &column,
@@ -299,4 +307,44 @@ fn finish(
         n_eff,
         steps,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const UNIT: Normalisation = Normalisation {
+        temp_offset_c: 20.0,
+        temp_scale_per_c: 0.02,
+        rate_offset_c_per_min: 0.0,
+        rate_scale_per_c_per_min: 1.0,
+    };
+
+    #[test]
+    fn cubic_in_temperature_recovers_a_cubic_and_ignores_the_rate() {
+        // b = 0.3 + 0.2 x - 0.1 x^2 + 0.05 x^3 in the normalised temperature x; the rate
+        // varies independently and must get no term.
+        let points: Vec<MeshPoint> = (0..200)
+            .map(|k| {
+                let temp_c = -30.0 + 0.5 * f64::from(k);
+                let x = (temp_c - 20.0) * 0.02;
+                let rate_c_per_min = (f64::from(k) * 0.7).sin();
+                MeshPoint {
+                    temp_c,
+                    rate_c_per_min,
+                    value_dph: 0.3 + 0.2 * x - 0.1 * x * x + 0.05 * x * x * x,
+                }
+            })
+            .collect();
+        let fit = fit_poly(&points, &UNIT, TermSelection::CubicInTemperature, 200.0).expect("fits");
+        let got: Vec<(u8, u8, f64)> =
+            fit.terms.iter().map(|t| (t.temp_power, t.rate_power, t.coefficient_dph)).collect();
+        let want = [(0, 0, 0.3), (1, 0, 0.2), (2, 0, -0.1), (3, 0, 0.05)];
+        assert_eq!(got.len(), want.len());
+        for ((ti, tj, c), (wi, wj, w)) in got.iter().zip(want) {
+            assert_eq!((*ti, *tj), (wi, wj));
+            assert!((c - w).abs() < 1e-12, "T^{ti}: {c} vs {w}");
+        }
+        assert!(fit.residual_rms_dph < 1e-12);
+    }
 }
