@@ -327,8 +327,8 @@ mod tests {
         let points: Vec<MeshPoint> = (0..200)
             .map(|k| {
                 let temp_c = -30.0 + 0.5 * f64::from(k);
-                let x = (temp_c - 20.0) * 0.02;
                 let rate_c_per_min = (f64::from(k) * 0.7).sin();
+                let (x, _) = normalised_f64(&UNIT, temp_c, rate_c_per_min);
                 MeshPoint {
                     temp_c,
                     rate_c_per_min,
