@@ -188,8 +188,8 @@ impl From<Output> for fogtemp_output {
 #[derive(Clone, Copy, Debug)]
 #[allow(non_camel_case_types)]
 pub struct fogtemp_error {
-    /// The status the call returned.
-    pub status: fogtemp_status,
+    /// The status the call returned (a `fogtemp_status` value).
+    pub status: u32,
     /// The axis the error names, or `FOGTEMP_NO_AXIS`.
     pub axis: u32,
     /// Element (triangle, vertex, term, hull entry) the error names, else 0.
@@ -386,7 +386,7 @@ unsafe fn fail(err: *mut fogtemp_error, e: Error) -> fogtemp_status {
     // SAFETY: `ErrorCell` fits in `[u64; 6]` with no stricter alignment (compile-time
     // assertion); `opaque` is a local array we own.
     unsafe { opaque.as_mut_ptr().cast::<ErrorCell>().write(cell) };
-    let value = fogtemp_error { status, axis, index, needed, found, opaque };
+    let value = fogtemp_error { status: status as u32, axis, index, needed, found, opaque };
     if !err.is_null() {
         // SAFETY: `err` is writable per the contract; a misaligned one is ignored by
         // `write_out` (the status still reports the error).
@@ -401,8 +401,14 @@ unsafe fn fail(err: *mut fogtemp_error, e: Error) -> fogtemp_status {
 /// `err` is null or points to writable memory for a `fogtemp_error`.
 unsafe fn fail_status(err: *mut fogtemp_error, status: fogtemp_status) -> fogtemp_status {
     if !err.is_null() {
-        let value =
-            fogtemp_error { status, axis: FOGTEMP_NO_AXIS, index: 0, needed: 0, found: 0, opaque: [0; 6] };
+        let value = fogtemp_error {
+            status: status as u32,
+            axis: FOGTEMP_NO_AXIS,
+            index: 0,
+            needed: 0,
+            found: 0,
+            opaque: [0; 6],
+        };
         // SAFETY: `err` is writable per the contract; misaligned is ignored by `write_out`.
         let _ = unsafe { write_out(err, value) };
     }
@@ -839,7 +845,7 @@ pub unsafe extern "C" fn fogtemp_error_message(
         let _ = write!(w, "{e}");
     } else {
         // A caller mistake (null, misaligned, uninitialised) carries no core error.
-        let status = err.status as u32;
+        let status = err.status;
         let found = fogtemp_status::ALL.iter().find(|s| **s as u32 == status);
         let Some(s) = found else { return 0 };
         let _ = w.write_str(s.message().to_str().unwrap_or("error"));
