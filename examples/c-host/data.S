@@ -19,6 +19,6 @@ fogtemp_trajectory:
     .global fogtemp_trajectory_end
 fogtemp_trajectory_end:
 
-#if defined(__linux__) && defined(__ELF__)
-    .section .note.GNU-stack, "", %progbits  /* no executable stack on the host */
+#if defined(__ELF__)
+    .section .note.GNU-stack, "", %progbits  /* no executable stack */
 #endif
