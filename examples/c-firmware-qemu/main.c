@@ -57,6 +57,23 @@ static int replay_baseline(void) {
 }
 #endif
 
+/* CMSDK APB timer 0 of mps2-an386 (0x4000_0000), counting down at the 25 MHz system clock.
+ * Under `qemu -icount shift=0` every guest instruction advances virtual time by 1 ns, so a
+ * tick is 40 instructions (calibrated below against a loop of known length). */
+#ifndef BASELINE
+#define TIMER0_CTRL (*(volatile uint32_t *)0x40000000u)
+#define TIMER0_VALUE (*(volatile uint32_t *)0x40000004u)
+#define TIMER0_RELOAD (*(volatile uint32_t *)0x40000008u)
+static uint32_t timer0(void) { return TIMER0_VALUE; }
+
+/* 2 instructions per iteration (subs, bne), plus a few. */
+static uint32_t calibrate(uint32_t iterations) {
+    uint32_t t0 = timer0();
+    __asm volatile("1: subs %0, %0, #1\n bne 1b" : "+r"(iterations)::"cc");
+    return t0 - timer0();
+}
+#endif
+
 static char *put_u32(char *p, uint32_t v) {
     char tmp[12];
     int n = 0;
@@ -70,6 +87,18 @@ int main(void) {
 #ifdef BASELINE
     int status = replay_baseline();
 #else
+    TIMER0_RELOAD = 0xFFFFFFFFu;
+    TIMER0_VALUE = 0xFFFFFFFFu;
+    TIMER0_CTRL = 1u; /* enable, system clock */
+    {
+        char cal[64];
+        char *q = cal;
+        memcpy(q, "clock ticks for 2000000 loop instructions=", 42);
+        q = put_u32(q + 42, calibrate(1000000u));
+        *q = 0;
+        emit(cal);
+    }
+    fogtemp_replay_set_clock(timer0);
     int status = fogtemp_replay(fogtemp_partition, (size_t)(fogtemp_partition_end - fogtemp_partition),
                                 fogtemp_trajectory, (size_t)(fogtemp_trajectory_end - fogtemp_trajectory), emit);
 #endif

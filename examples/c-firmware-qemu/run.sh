@@ -115,7 +115,7 @@ echo "RAM: fogtemp_model 32 + fogtemp_axis 192 + fogtemp_state 224 bytes (static
 
 echo "== c-firmware-qemu: run (qemu-system-arm mps2-an386, timeout ${TIMEOUT}s)"
 status=0
-timeout "$TIMEOUT" qemu-system-arm -cpu cortex-m4 -machine mps2-an386 -nographic \
+timeout "$TIMEOUT" qemu-system-arm -cpu cortex-m4 -machine mps2-an386 -nographic -icount shift=0 \
     -semihosting-config enable=on,target=native -kernel "$WORK/firmware.elf" \
     </dev/null >"$WORK/qemu.out" 2>&1 || status=$?
 tr -d '\r' <"$WORK/qemu.out" >"$WORK/qemu.txt"

@@ -25,6 +25,9 @@ static fogtemp_state state;
 static float blocks[BLOCKS_CAPACITY];
 
 static char line[160];
+static uint32_t (*clock_fn)(void);
+
+void fogtemp_replay_set_clock(uint32_t (*down_counter)(void)) { clock_fn = down_counter; }
 
 /* Tiny formatting (no printf: the firmware has no stdio). */
 static char *put_str(char *p, const char *s) {
@@ -130,13 +133,22 @@ int fogtemp_replay(const uint8_t *partition, size_t partition_len, const uint8_t
     uint64_t digest = 0xcbf29ce484222325ULL;
     size_t printed = 0;
     uint32_t prev_bias = 0;
+    uint64_t cost_total = 0;
+    uint32_t cost_max = 0;
+    size_t cost_max_at = 0;
     int prev_flags = -1;
     for (size_t i = 0; i < records; i++) {
         uint64_t t;
         float gyro, temp;
         fogtemp_output o;
         record(trajectory + i * RECORD_LEN, &t, &gyro, &temp);
+        uint32_t c0 = clock_fn ? clock_fn() : 0;
         s = fogtemp_step(&axis, &state, t, gyro, temp, temp == temp /* not NaN */, &o);
+        if (clock_fn) {
+            uint32_t ticks = c0 - clock_fn();
+            cost_total += ticks;
+            if (ticks > cost_max) { cost_max = ticks; cost_max_at = i; }
+        }
         if (s != FOGTEMP_STATUS_OK) return fail(emit, "fogtemp_step", s, NULL);
         uint32_t rate = f32_bits(o.rate_dph), bias = f32_bits(o.bias_dph);
         digest = fnv1a(fnv1a(fnv1a(digest, rate, 4), bias, 4), o.flags, 1);
@@ -162,6 +174,19 @@ int fogtemp_replay(const uint8_t *partition, size_t partition_len, const uint8_t
     p = put_hex(p, digest, 16);
     *p = 0;
     emit(line);
+
+    if (clock_fn) {
+        p = put_str(line, "cost fogtemp_step calls=");
+        p = put_u64(p, records);
+        p = put_str(p, " ticks=");
+        p = put_u64(p, cost_total);
+        p = put_str(p, " max_ticks=");
+        p = put_u64(p, cost_max);
+        p = put_str(p, " at record ");
+        p = put_u64(p, cost_max_at);
+        *p = 0;
+        emit(line);
+    }
 
     /* Again after a reset, with a wrapping 32-bit timer that wraps 100 s into the run. */
     s = fogtemp_state_reset(&state);
