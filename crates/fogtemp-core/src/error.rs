@@ -99,6 +99,14 @@ pub enum Error {
     },
     /// A temperature sample was NaN or infinite.
     NonFiniteSample,
+    /// A flash partition holds bytes after the blob that are not erased-flash padding
+    /// (all `0xFF` or all `0x00`): [`crate::Model::from_flash`].
+    TrailingBytes {
+        /// Offset of the first byte that breaks the padding.
+        offset: usize,
+        /// The padding byte expected there (the first byte after the blob).
+        fill: u8,
+    },
     /// A sample's time is not after the previous sample's time.
     TimeNotIncreasing {
         /// Previous accepted time, microseconds.
@@ -144,9 +152,29 @@ impl fmt::Display for Error {
                 write!(f, "feature tracker holds {capacity} blocks but the model needs {needed}")
             }
             Error::NonFiniteSample => f.write_str("temperature sample is not a finite number"),
+            Error::TrailingBytes { offset, fill } => write!(
+                f,
+                "byte {offset} after the model blob breaks the erased-flash padding ({fill:#04x} expected; only all 0xff or all 0x00 is accepted)"
+            ),
             Error::TimeNotIncreasing { previous_us, found_us } => {
                 write!(f, "sample time {found_us} us is not after the previous sample at {previous_us} us")
             }
+        }
+    }
+}
+
+impl Error {
+    /// The same error, naming `axis` where it names one (the mesh and the tracker do not
+    /// know their axis; the axis that calls them does).
+    pub(crate) fn at_axis(self, id: u16) -> Error {
+        match self {
+            Error::BadValue { field, index, .. } => Error::BadValue { field, axis: id, index },
+            Error::NonFinite { field, index, .. } => Error::NonFinite { field, axis: id, index },
+            Error::BadMesh { check, index, .. } => Error::BadMesh { check, axis: id, index },
+            Error::IndexOutOfRange { field, index, value, limit, .. } => {
+                Error::IndexOutOfRange { field, axis: id, index, value, limit }
+            }
+            other => other,
         }
     }
 }

@@ -43,15 +43,51 @@ pub struct PushOutcome {
     pub restarted: bool,
 }
 
+/// Where a tracker keeps its block means: a fixed array (`[f32; N]`, the usual case), a
+/// borrowed slice, or storage a foreign caller owns (the C ABI). Only the first
+/// `block_count` entries are used; the capacity is `blocks().len()`.
+pub trait BlockStorage {
+    /// The block means, read-only.
+    fn blocks(&self) -> &[f32];
+    /// The block means, writable.
+    fn blocks_mut(&mut self) -> &mut [f32];
+}
+
+impl<const N: usize> BlockStorage for [f32; N] {
+    #[inline(always)]
+    fn blocks(&self) -> &[f32] {
+        self
+    }
+    #[inline(always)]
+    fn blocks_mut(&mut self) -> &mut [f32] {
+        self
+    }
+}
+
+impl BlockStorage for &mut [f32] {
+    #[inline(always)]
+    fn blocks(&self) -> &[f32] {
+        self
+    }
+    #[inline(always)]
+    fn blocks_mut(&mut self) -> &mut [f32] {
+        self
+    }
+}
+
 /// Fixed-capacity feature tracker holding up to `N` block means. No allocation.
+pub type FeatureTracker<const N: usize> = BlockTracker<[f32; N]>;
+
+/// The feature tracker over any [`BlockStorage`]; [`FeatureTracker<N>`] is the one with an
+/// array of `N` blocks inside. No allocation.
 #[derive(Clone, Debug)]
-pub struct FeatureTracker<const N: usize> {
+pub struct BlockTracker<S> {
     block_us: u64,
     block_count: usize,
     min_blocks: usize,
     max_gap_us: u64,
     /// Block means, oldest first from `head`; NaN = block without samples.
-    ring_c: [f32; N],
+    ring_c: S,
     head: usize,
     /// Blocks closed since (re)start, saturating at `block_count`.
     closed: usize,
@@ -64,39 +100,66 @@ pub struct FeatureTracker<const N: usize> {
     features: Option<Features>,
 }
 
-impl<const N: usize> FeatureTracker<N> {
+/// The block length and the longest tolerated gap in whole microseconds, or the name of
+/// the field that cannot be timed (below 1 us or from 1e15 us, about 32 years). Shared by
+/// the tracker and the blob validator, so a model `Model::from_bytes` accepts always gets a
+/// tracker.
+pub(crate) fn timing_us(settings: &FeatureSettings) -> Result<(u64, u64), &'static str> {
+    if settings.block_count == 0 {
+        return Err("block_count");
+    }
+    // f32, not f64: f64 would link ~3 KB of soft-float routines on Cortex-M4F for these
+    // two start-up lines. The rounding is deterministic (IEEE) and identical in
+    // calibration and firmware, which is what matters. `+ 0.5` rounds (no `round` in core).
+    let block_us = settings.window_s * 1.0e6 / settings.block_count as f32 + 0.5;
+    let max_gap_us = settings.max_gap_s * 1.0e6 + 0.5;
+    if !(1.0..1.0e15).contains(&block_us) {
+        return Err("window_s");
+    }
+    if !(1.0..1.0e15).contains(&max_gap_us) {
+        return Err("max_gap_s");
+    }
+    Ok((block_us as u64, max_gap_us as u64))
+}
+
+impl<const N: usize> BlockTracker<[f32; N]> {
     /// A tracker for `settings`.
     ///
     /// # Errors
     /// [`Error::CapacityTooSmall`] if `settings.block_count > N`; [`Error::BadValue`] for
     /// settings a validated model cannot hold (non-positive window, gap, fewer than 2 blocks).
     pub fn new(settings: &FeatureSettings) -> Result<Self, Error> {
+        Self::with_storage(settings, [f32::NAN; N])
+    }
+}
+
+impl<S: BlockStorage> BlockTracker<S> {
+    /// A tracker for `settings` keeping its block means in `storage` (at least
+    /// `settings.block_count` entries; see [`FeatureSettings::blocks_needed`]).
+    ///
+    /// # Errors
+    /// [`Error::CapacityTooSmall`] if `settings.block_count` exceeds the storage's length;
+    /// [`Error::BadValue`] for settings a validated model cannot hold (non-positive window,
+    /// gap, fewer than 2 blocks).
+    pub fn with_storage(settings: &FeatureSettings, mut storage: S) -> Result<Self, Error> {
         let bad = |field| Error::BadValue { field, axis: 0, index: 0 };
         let block_count = settings.block_count as usize;
-        if block_count > N {
-            return Err(Error::CapacityTooSmall { needed: block_count, capacity: N });
+        let capacity = storage.blocks().len();
+        if block_count > capacity {
+            return Err(Error::CapacityTooSmall { needed: block_count, capacity });
         }
         if block_count < 2 || (settings.min_blocks as usize) < 2 || settings.min_blocks as usize > block_count
         {
             return Err(bad("block_count"));
         }
-        // f32, not f64: f64 would link ~3 KB of soft-float routines on Cortex-M4F for these
-        // two start-up lines. The rounding is deterministic (IEEE) and identical in
-        // calibration and firmware, which is what matters. `+ 0.5` rounds (no `round` in core).
-        let block_us = settings.window_s * 1.0e6 / block_count as f32 + 0.5;
-        let max_gap_us = settings.max_gap_s * 1.0e6 + 0.5;
-        if !(1.0..1.0e15).contains(&block_us) {
-            return Err(bad("window_s"));
-        }
-        if !(1.0..1.0e15).contains(&max_gap_us) {
-            return Err(bad("max_gap_s"));
-        }
+        let (block_us, max_gap_us) = timing_us(settings).map_err(bad)?;
+        storage.blocks_mut().iter_mut().for_each(|b| *b = f32::NAN);
         Ok(Self {
-            block_us: block_us as u64,
+            block_us,
             block_count,
             min_blocks: settings.min_blocks as usize,
-            max_gap_us: max_gap_us as u64,
-            ring_c: [f32::NAN; N],
+            max_gap_us,
+            ring_c: storage,
             head: 0,
             closed: 0,
             block_end_us: 0,
@@ -114,6 +177,16 @@ impl<const N: usize> FeatureTracker<N> {
         self.features
     }
 
+    /// Blocks this tracker can hold (the storage's length).
+    pub fn capacity(&self) -> usize {
+        self.ring_c.blocks().len()
+    }
+
+    /// Blocks per window in use (the model's `block_count`).
+    pub fn block_count(&self) -> usize {
+        self.block_count
+    }
+
     /// Time of the last accepted sample, microseconds.
     pub fn last_time_us(&self) -> Option<u64> {
         self.last_time_us
@@ -126,7 +199,7 @@ impl<const N: usize> FeatureTracker<N> {
 
     /// Forgets everything, as at power-on.
     pub fn reset(&mut self) {
-        self.ring_c = [f32::NAN; N];
+        self.ring_c.blocks_mut().iter_mut().for_each(|b| *b = f32::NAN);
         self.head = 0;
         self.closed = 0;
         self.block_samples = 0;
@@ -197,7 +270,7 @@ impl<const N: usize> FeatureTracker<N> {
     }
 
     fn push_block(&mut self, mean_c: f32) {
-        if let Some(slot) = self.ring_c.get_mut(self.head) {
+        if let Some(slot) = self.ring_c.blocks_mut().get_mut(self.head) {
             *slot = mean_c;
         }
         self.head = (self.head + 1) % self.block_count;
@@ -211,7 +284,7 @@ impl<const N: usize> FeatureTracker<N> {
         let first = n - self.closed;
         (first..n).filter_map(move |pos| {
             let idx = (self.head + pos) % n;
-            let mean = self.ring_c.get(idx).copied().unwrap_or(f32::NAN);
+            let mean = self.ring_c.blocks().get(idx).copied().unwrap_or(f32::NAN);
             (!mean.is_nan()).then_some((pos as f32, mean))
         })
     }

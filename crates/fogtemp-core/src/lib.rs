@@ -11,7 +11,11 @@
 //!   [`WalkHint`] and interpolates linearly (barycentric); [`Poly`] evaluates polynomial terms.
 //! - [`FeatureTracker`] turns raw temperature samples into smoothed T and dT/dt (deg C/min);
 //!   calibration uses the same code.
-//! - [`Compensator`] ties them together: `step(time_us, gyro_dph, temp_c)` per sample.
+//! - [`Axis::step`] compensates one sample with a caller-owned [`AxisState`]
+//!   (configuration apart from state); [`Compensator`] bundles the axis and its state:
+//!   `step(time_us, gyro_dph, temp_c)` per sample, `step_u32` for a wrapping 32-bit timer.
+//! - [`Model::from_flash`] reads a blob followed by erased flash; [`Axis::blocks_needed`]
+//!   is the tracker capacity an axis needs.
 //!
 //! All arithmetic is f32 (Cortex-M4F has a single-precision FPU only).
 //!
@@ -36,9 +40,9 @@ mod model;
 mod poly;
 pub mod wire;
 
-pub use compensator::{Compensator, Flags, Output, DEFAULT_CAPACITY};
+pub use compensator::{AxisState, Compensator, Flags, Output, WrappingClock, DEFAULT_CAPACITY};
 pub use error::Error;
-pub use features::{FeatureTracker, Features, PushOutcome};
+pub use features::{BlockStorage, BlockTracker, FeatureTracker, Features, PushOutcome};
 pub use mesh::{
     Location, Mesh, MeshValue, OutsidePolicy, StartGrid, TriangleRecord, Vertex, WalkHint, INSIDE_EPS,
 };

@@ -114,6 +114,8 @@ pub struct Mesh<'a> {
     pub(crate) triangles: &'a [u8],
     pub(crate) hull: &'a [u8],
     pub(crate) policy: OutsidePolicy,
+    /// The axis this mesh belongs to (named in errors).
+    pub(crate) axis: u16,
 }
 
 impl<'a> Mesh<'a> {
@@ -325,8 +327,11 @@ impl<'a> Mesh<'a> {
             return Err(Error::NonFiniteSample);
         }
         let start = if hint.0 < self.triangle_count() { hint.0 } else { 0 };
-        let end =
-            self.walk_or_scan(x, y, start).ok_or(Error::BadMesh { check: "walk", axis: 0, index: start })?;
+        let end = self.walk_or_scan(x, y, start).ok_or(Error::BadMesh {
+            check: "walk",
+            axis: self.axis,
+            index: start,
+        })?;
         hint.0 = end.triangle;
         Ok(end)
     }
@@ -353,7 +358,7 @@ impl<'a> Mesh<'a> {
                 let count = self.triangle_count();
                 let end = self
                     .walk_or_scan(x, y, grid.start(x, y).min(count.saturating_sub(1)))
-                    .ok_or(Error::BadMesh { check: "walk", axis: 0, index: hint.0 })?;
+                    .ok_or(Error::BadMesh { check: "walk", axis: self.axis, index: hint.0 })?;
                 hint.0 = end.triangle;
                 Ok(self.value_at(&end, x, y))
             }
@@ -381,7 +386,7 @@ impl<'a> Mesh<'a> {
             Some(end) if end.inside => Some(end),
             _ => self.walk_or_scan(x, y, grid.start(x, y).min(count.saturating_sub(1))),
         }
-        .ok_or(Error::BadMesh { check: "walk", axis: 0, index: start })?;
+        .ok_or(Error::BadMesh { check: "walk", axis: self.axis, index: start })?;
         hint.0 = end.triangle;
         Ok(self.value_at(&end, x, y))
     }
@@ -395,7 +400,7 @@ impl<'a> Mesh<'a> {
     pub fn start_grid<'g>(&self, side: u32, cells: &'g mut [u32]) -> Result<StartGrid<'g>, Error> {
         let needed = (side as usize).checked_mul(side as usize).filter(|&n| n > 0);
         let Some(needed) = needed.filter(|&n| n <= cells.len()) else {
-            return Err(Error::BadValue { field: "start grid side", axis: 0, index: side });
+            return Err(Error::BadValue { field: "start grid side", axis: self.axis, index: side });
         };
         let (mut lo, mut hi) = ([f32::INFINITY; 2], [f32::NEG_INFINITY; 2]);
         for v in (0..self.vertex_count()).filter_map(|i| self.vertex(i)) {

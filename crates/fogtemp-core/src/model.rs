@@ -24,6 +24,16 @@ pub struct FeatureSettings {
     pub max_gap_s: f32,
 }
 
+impl FeatureSettings {
+    /// Tracker capacity (blocks) these settings need: `block_count`. A
+    /// [`crate::FeatureTracker<N>`], [`crate::Compensator<'_, N>`] or [`crate::AxisState`]
+    /// built with less is refused with [`Error::CapacityTooSmall`] naming this number.
+    #[inline]
+    pub const fn blocks_needed(&self) -> usize {
+        self.block_count as usize
+    }
+}
+
 /// Affine map from physical inputs to the normalised plane the models live in:
 /// `x = (temp_c - temp_offset_c) * temp_scale_per_c`,
 /// `y = (rate_c_per_min - rate_offset_c_per_min) * rate_scale_per_c_per_min`.
@@ -97,6 +107,14 @@ pub struct Axis<'a> {
 }
 
 impl Axis<'_> {
+    /// Tracker capacity (blocks) this axis needs: its `block_count`
+    /// ([`FeatureSettings::blocks_needed`]). `Compensator::<N>::new` and
+    /// [`Axis::state`] refuse an `N` below it with [`Error::CapacityTooSmall`].
+    #[inline]
+    pub const fn blocks_needed(&self) -> usize {
+        self.features.blocks_needed()
+    }
+
     /// Modelled bias at `(temp_c, rate_c_per_min)`: the polynomial plus the mesh.
     ///
     /// # Errors
@@ -115,7 +133,7 @@ impl Axis<'_> {
         let poly = self.poly.map_or(0.0, |p| p.evaluate(x, y));
         match &self.mesh {
             Some(mesh) => {
-                let m = mesh.interpolate(x, y, hint)?;
+                let m = mesh.interpolate(x, y, hint).map_err(|e| e.at_axis(self.id))?;
                 Ok(Evaluation { value_dph: poly + m.value_dph, outside_hull: m.outside_hull })
             }
             None => Ok(Evaluation { value_dph: poly, outside_hull: false }),
@@ -198,6 +216,43 @@ impl<'a> Model<'a> {
             });
         }
         Ok(model)
+    }
+
+    /// Reads a model from a flash partition: the blob followed by erased flash. The blob's
+    /// own `total_len` says where it ends; the bytes after it must all be `0xFF` (erased
+    /// NOR flash) or all be `0x00` (none is fine too). Returns the model and the bytes it
+    /// occupies (`total_len`), so a caller can place something after it.
+    ///
+    /// [`Model::from_bytes`] still requires the exact length.
+    ///
+    /// # Errors
+    /// [`Error::TrailingBytes`] if the padding is neither all `0xFF` nor all `0x00`;
+    /// otherwise what [`Model::from_bytes`] returns for the first `total_len` bytes
+    /// (a `total_len` beyond the partition is [`Error::Truncated`]).
+    pub fn from_flash(bytes: &'a [u8]) -> Result<(Self, usize), Error> {
+        let found = bytes.len();
+        let header = array::<FILE_HEADER_LEN>(bytes, 0).ok_or(Error::Truncated {
+            field: "file header",
+            needed: FILE_HEADER_LEN + CRC_LEN,
+            found,
+        })?;
+        if header.first_chunk::<4>() != Some(&MAGIC) {
+            return Err(Error::BadMagic);
+        }
+        let total_len = u32_at(&header, FILE_TOTAL_LEN.start).unwrap_or(0) as usize;
+        let (Some(blob), Some(padding)) = (bytes.get(..total_len), bytes.get(total_len..)) else {
+            return Err(Error::Truncated { field: "total_len", needed: total_len, found });
+        };
+        let model = Self::from_bytes(blob)?;
+        if let Some(&fill) = padding.first() {
+            if !(fill == 0xFF || fill == 0x00) {
+                return Err(Error::TrailingBytes { offset: total_len, fill: 0xFF });
+            }
+            if let Some(at) = padding.iter().position(|&b| b != fill) {
+                return Err(Error::TrailingBytes { offset: total_len.saturating_add(at), fill });
+            }
+        }
+        Ok((model, total_len))
     }
 
     /// Number of gyro axes.
@@ -348,6 +403,7 @@ fn parse_axis(body: &[u8], offset: usize, id: u16) -> Result<(Axis<'_>, usize), 
             triangles: triangle_bytes,
             hull: hull_bytes,
             policy,
+            axis: id,
         }),
     };
     Ok((axis, section_len))
@@ -382,6 +438,8 @@ fn validate_axis(axis: &Axis<'_>) -> Result<(), Error> {
     if !positive(finite("max_gap_s", f.max_gap_s, 0)?) {
         return Err(bad("max_gap_s", 0));
     }
+    // The tracker's own timing check: every accepted axis gets a tracker.
+    crate::features::timing_us(f).map_err(|field| bad(field, 0))?;
     let n = &axis.normalisation;
     finite("temp_offset_c", n.temp_offset_c, 0)?;
     finite("rate_offset_c_per_min", n.rate_offset_c_per_min, 0)?;

@@ -1,0 +1,333 @@
+//! The C ABI against the core it wraps: every output of a replay through `fogtemp_step` /
+//! `fogtemp_step_u32` equals `fogtemp_core::Compensator`'s bit for bit (tolerance: none);
+//! capacity, flash padding, reset, error details and messages; every caller mistake (NULL,
+//! misaligned, uninitialised) is a status, never a crash.
+#![allow(
+    clippy::unwrap_used,
+    clippy::expect_used,
+    clippy::indexing_slicing,
+    clippy::panic,
+    clippy::undocumented_unsafe_blocks,
+    clippy::arithmetic_side_effects
+)] // test code: a failed expectation is the test failing
+
+use std::ffi::CStr;
+use std::mem::{align_of, size_of, MaybeUninit};
+use std::ptr;
+
+use fogtemp_core::{Compensator, Model};
+use fogtemp_ffi::*;
+
+static FW_MODEL: &[u8] = include_bytes!("../../../examples/firmware-qemu/data/model.fogm");
+static FW_TRAJECTORY: &[u8] = include_bytes!("../../../examples/firmware-qemu/data/trajectory.bin");
+static GOLDEN: &[u8] = include_bytes!("../../../tests/golden/model-v1.fogm");
+
+fn trajectory() -> Vec<(u64, f32, f32)> {
+    FW_TRAJECTORY
+        .chunks_exact(16)
+        .map(|r| {
+            (
+                u64::from_le_bytes(r[0..8].try_into().unwrap()),
+                f32::from_le_bytes(r[8..12].try_into().unwrap()),
+                f32::from_le_bytes(r[12..16].try_into().unwrap()),
+            )
+        })
+        .collect()
+}
+
+fn no_error() -> fogtemp_error {
+    // SAFETY: fogtemp_error is plain integers.
+    unsafe { MaybeUninit::zeroed().assume_init() }
+}
+
+/// Model + axis 0 + state through the ABI, with `blocks` as the tracker storage.
+fn open(
+    blob: &'static [u8],
+    axis_index: usize,
+    blocks: &mut [f32],
+) -> (Box<fogtemp_axis>, Box<fogtemp_state>) {
+    let mut model = Box::new(fogtemp_model { opaque: [0; 4] });
+    let mut axis = Box::new(fogtemp_axis { opaque: [0; 24] });
+    let mut state = Box::new(fogtemp_state { opaque: [0; 28] });
+    let mut err = no_error();
+    // SAFETY: live pointers; the blob is 'static, `blocks` outlives the returned state in
+    // every caller.
+    unsafe {
+        assert_eq!(
+            fogtemp_model_from_bytes(blob.as_ptr(), blob.len(), &mut *model, &mut err),
+            fogtemp_status::Ok
+        );
+        assert_eq!(fogtemp_model_axis(&*model, axis_index, &mut *axis, &mut err), fogtemp_status::Ok);
+        let s = fogtemp_state_init(&*axis, &mut *state, blocks.as_mut_ptr(), blocks.len(), &mut err);
+        assert_eq!(s, fogtemp_status::Ok);
+    }
+    (axis, state)
+}
+
+fn message(err: &fogtemp_error) -> String {
+    let mut buf = [0u8; 256];
+    // SAFETY: live pointers.
+    let n = unsafe { fogtemp_error_message(err, buf.as_mut_ptr().cast(), buf.len()) };
+    CStr::from_bytes_until_nul(&buf).unwrap().to_str().unwrap().chars().take(n).collect()
+}
+
+#[test]
+fn replay_through_the_abi_equals_the_compensator_bit_for_bit() {
+    let model = Model::from_bytes(FW_MODEL).unwrap();
+    let mut reference: Compensator<'_, 32> = Compensator::new(&model, 0).unwrap();
+    let mut blocks = vec![0.0f32; 20];
+    let (axis, mut state) = open(FW_MODEL, 0, &mut blocks);
+    let mut blocks32 = vec![0.0f32; 20];
+    let (_, mut state32) = open(FW_MODEL, 0, &mut blocks32);
+    let records = trajectory();
+    let offset = (1u64 << 32) - 90_000_000 - records[0].0; // the u32 timer wraps 90 s in
+    for &(t, g, c) in &records {
+        let want = reference.step(t, g, (!c.is_nan()).then_some(c));
+        let mut out = fogtemp_output::default();
+        let mut out32 = fogtemp_output::default();
+        // SAFETY: live pointers, states made for `axis`.
+        unsafe {
+            assert_eq!(fogtemp_step(&*axis, &mut *state, t, g, c, !c.is_nan(), &mut out), fogtemp_status::Ok);
+            let t32 = (t + offset) as u32;
+            assert_eq!(
+                fogtemp_step_u32(&*axis, &mut *state32, t32, g, c, !c.is_nan(), &mut out32),
+                fogtemp_status::Ok
+            );
+        }
+        for o in [out, out32] {
+            assert_eq!(
+                (o.rate_dph.to_bits(), o.bias_dph.to_bits(), o.flags),
+                (want.rate_dph.to_bits(), want.bias_dph.to_bits(), want.flags.0),
+                "t = {t}"
+            );
+        }
+    }
+}
+
+#[test]
+fn capacity_too_small_names_needed_and_available() {
+    let mut model = fogtemp_model { opaque: [0; 4] };
+    let mut axis = fogtemp_axis { opaque: [0; 24] };
+    let mut state = fogtemp_state { opaque: [0xEE; 28] };
+    let mut err = no_error();
+    let mut blocks = [0.0f32; 19];
+    let mut needed = 0usize;
+    // SAFETY: live pointers.
+    unsafe {
+        assert_eq!(
+            fogtemp_model_from_bytes(FW_MODEL.as_ptr(), FW_MODEL.len(), &mut model, &mut err),
+            fogtemp_status::Ok
+        );
+        assert_eq!(fogtemp_model_axis(&model, 0, &mut axis, &mut err), fogtemp_status::Ok);
+        assert_eq!(fogtemp_axis_blocks_needed(&axis, &mut needed), fogtemp_status::Ok);
+        assert_eq!(needed, 20);
+        let s = fogtemp_state_init(&axis, &mut state, blocks.as_mut_ptr(), blocks.len(), &mut err);
+        assert_eq!(s, fogtemp_status::CapacityTooSmall);
+    }
+    assert_eq!(err.status, fogtemp_status::CapacityTooSmall as u32);
+    assert_eq!((err.needed, err.found), (20, 19));
+    assert_eq!(message(&err), "feature tracker holds 19 blocks but the model needs 20");
+    assert_eq!(state.opaque, [0xEE; 28], "a failed init leaves the state untouched");
+}
+
+#[test]
+fn flash_padding_through_the_abi() {
+    for fill in [0xFFu8, 0x00] {
+        let mut flash = GOLDEN.to_vec();
+        flash.resize(8192, fill);
+        let mut model = fogtemp_model { opaque: [0; 4] };
+        let (mut used, mut count) = (0usize, 0usize);
+        let mut err = no_error();
+        // SAFETY: live pointers; `flash` outlives `model` here.
+        unsafe {
+            let s = fogtemp_model_from_flash(flash.as_ptr(), flash.len(), &mut model, &mut used, &mut err);
+            assert_eq!(s, fogtemp_status::Ok);
+            assert_eq!(fogtemp_model_axis_count(&model, &mut count), fogtemp_status::Ok);
+            // The exact-length reader refuses the same partition.
+            let s = fogtemp_model_from_bytes(flash.as_ptr(), flash.len(), &mut model, &mut err);
+            assert_eq!(s, fogtemp_status::LengthMismatch);
+        }
+        assert_eq!((used, count), (GOLDEN.len(), 2));
+        flash[GOLDEN.len() + 100] = 0x12;
+        // SAFETY: as above; `used` may be NULL.
+        let s = unsafe {
+            fogtemp_model_from_flash(flash.as_ptr(), flash.len(), &mut model, ptr::null_mut(), &mut err)
+        };
+        assert_eq!(s, fogtemp_status::TrailingBytes);
+        assert_eq!(err.found, (GOLDEN.len() + 100) as u64);
+        assert!(message(&err).starts_with(&format!("byte {} after the model blob", GOLDEN.len() + 100)));
+    }
+}
+
+#[test]
+fn reset_through_the_abi_is_power_on() {
+    let mut blocks = vec![0.0f32; 20];
+    let (axis, mut state) = open(FW_MODEL, 0, &mut blocks);
+    let mut fresh_blocks = vec![0.0f32; 20];
+    let (_, mut fresh) = open(FW_MODEL, 0, &mut fresh_blocks);
+    let records = trajectory();
+    let mut out = fogtemp_output::default();
+    for &(t, g, c) in records.iter().take(9_000) {
+        // SAFETY: live pointers.
+        unsafe { fogtemp_step(&*axis, &mut *state, t, g, c, !c.is_nan(), &mut out) };
+    }
+    assert_ne!(out.bias_dph, 0.0);
+    // SAFETY: live pointer.
+    assert_eq!(unsafe { fogtemp_state_reset(&mut *state) }, fogtemp_status::Ok);
+    for &(t, g, c) in &records {
+        let (mut a, mut b) = (fogtemp_output::default(), fogtemp_output::default());
+        // SAFETY: live pointers.
+        unsafe {
+            fogtemp_step(&*axis, &mut *state, t, g, c, !c.is_nan(), &mut a);
+            fogtemp_step(&*axis, &mut *fresh, t, g, c, !c.is_nan(), &mut b);
+        }
+        assert_eq!(
+            (a.rate_dph.to_bits(), a.bias_dph.to_bits(), a.flags),
+            (b.rate_dph.to_bits(), b.bias_dph.to_bits(), b.flags)
+        );
+    }
+}
+
+#[test]
+fn errors_carry_the_axis_and_the_element() {
+    let mut model = fogtemp_model { opaque: [0; 4] };
+    let mut axis = fogtemp_axis { opaque: [0; 24] };
+    let mut err = no_error();
+    // Corrupt axis 1's vertex count of the golden model (and fix the CRC): the error names axis 1.
+    let mut blob = GOLDEN.to_vec();
+    let axis1 = 64 + u32::from_le_bytes(blob[64..68].try_into().unwrap()) as usize;
+    blob[axis1 + 40..axis1 + 44].copy_from_slice(&7u32.to_le_bytes()); // outside_policy = 7
+    let n = blob.len();
+    let crc = fogtemp_core::crc::crc32(&blob[..n - 4]);
+    blob[n - 4..].copy_from_slice(&crc.to_le_bytes());
+    // SAFETY: live pointers; `blob` outlives the (failed) model.
+    unsafe {
+        assert_eq!(
+            fogtemp_model_from_bytes(blob.as_ptr(), n, &mut model, &mut err),
+            fogtemp_status::BadValue
+        );
+    }
+    assert_eq!(err.axis, 1);
+    assert_eq!(message(&err), "axis 1: outside_policy[0] holds a value outside its allowed range");
+    // NoSuchAxis: needed = axes available, found = requested.
+    // SAFETY: live pointers.
+    unsafe {
+        assert_eq!(
+            fogtemp_model_from_bytes(GOLDEN.as_ptr(), GOLDEN.len(), &mut model, &mut err),
+            fogtemp_status::Ok
+        );
+        assert_eq!(fogtemp_model_axis(&model, 5, &mut axis, &mut err), fogtemp_status::NoSuchAxis);
+    }
+    assert_eq!((err.needed, err.found, err.axis), (2, 5, FOGTEMP_NO_AXIS));
+}
+
+#[test]
+fn caller_mistakes_are_statuses() {
+    let mut blocks = vec![0.0f32; 20];
+    let (axis, mut state) = open(FW_MODEL, 0, &mut blocks);
+    let mut out = fogtemp_output::default();
+    let zero_axis = fogtemp_axis { opaque: [0; 24] };
+    let mut zero_state = fogtemp_state { opaque: [0; 28] };
+    let mut err = no_error();
+    let mut raw = [0u64; 40];
+    let misaligned_state = raw.as_mut_ptr().cast::<u8>().wrapping_add(4).cast::<fogtemp_state>();
+    let misaligned_out = raw.as_mut_ptr().cast::<u8>().wrapping_add(1).cast::<fogtemp_output>();
+    let mut model = fogtemp_model { opaque: [0; 4] };
+    // SAFETY: the invalid pointers are what is tested; the ABI must refuse them unread.
+    unsafe {
+        use fogtemp_status::*;
+        assert_eq!(fogtemp_step(ptr::null(), &mut *state, 0, 0.0, 0.0, false, &mut out), NullPointer);
+        assert_eq!(fogtemp_step(&*axis, ptr::null_mut(), 0, 0.0, 0.0, false, &mut out), NullPointer);
+        assert_eq!(fogtemp_step(&*axis, &mut *state, 0, 0.0, 0.0, false, ptr::null_mut()), NullPointer);
+        assert_eq!(fogtemp_step(&*axis, &mut *state, 0, 0.0, 0.0, false, misaligned_out), Misaligned);
+        assert_eq!(fogtemp_step(&*axis, misaligned_state, 0, 0.0, 0.0, false, &mut out), Misaligned);
+        assert_eq!(fogtemp_step(&zero_axis, &mut *state, 0, 0.0, 0.0, false, &mut out), NotInitialised);
+        assert_eq!(fogtemp_step(&*axis, &mut zero_state, 0, 0.0, 0.0, false, &mut out), NotInitialised);
+        assert_eq!(fogtemp_step_u32(&*axis, &mut zero_state, 0, 0.0, 0.0, false, &mut out), NotInitialised);
+        assert_eq!(fogtemp_state_reset(ptr::null_mut()), NullPointer);
+        assert_eq!(fogtemp_state_reset(&mut zero_state), NotInitialised);
+        // The axis struct is not a state: its tag differs.
+        assert_eq!(fogtemp_state_reset((&*axis as *const fogtemp_axis).cast_mut().cast()), NotInitialised);
+        assert_eq!(fogtemp_model_from_bytes(ptr::null(), 10, &mut model, &mut err), NullPointer);
+        assert_eq!(err.status, NullPointer as u32);
+        assert_eq!(message(&err), "a required pointer is NULL");
+        assert_eq!(
+            fogtemp_model_from_bytes(GOLDEN.as_ptr(), GOLDEN.len(), ptr::null_mut(), ptr::null_mut()),
+            NullPointer
+        );
+        assert_eq!(
+            fogtemp_model_axis(&model, 0, &mut *Box::new(fogtemp_axis { opaque: [0; 24] }), &mut err),
+            NotInitialised
+        );
+        let mut n = 0usize;
+        assert_eq!(fogtemp_axis_blocks_needed(&zero_axis, &mut n), NotInitialised);
+        assert_eq!(fogtemp_axis_blocks_needed(&*axis, ptr::null_mut()), NullPointer);
+        assert_eq!(fogtemp_state_init(&*axis, &mut zero_state, ptr::null_mut(), 20, &mut err), NullPointer);
+        let odd_blocks = raw.as_mut_ptr().cast::<u8>().wrapping_add(2).cast::<f32>();
+        assert_eq!(fogtemp_state_init(&*axis, &mut zero_state, odd_blocks, 20, &mut err), Misaligned);
+        let mut bias = 0.0f32;
+        assert_eq!(fogtemp_evaluate(&*axis, &mut *state, 25.0, 0.1, &mut bias, ptr::null_mut()), Ok);
+        assert_eq!(
+            fogtemp_evaluate(&*axis, &mut *state, f32::NAN, 0.1, &mut bias, ptr::null_mut()),
+            NonFiniteSample
+        );
+        assert_eq!(
+            fogtemp_evaluate(&*axis, &mut *state, 25.0, 0.1, ptr::null_mut(), ptr::null_mut()),
+            NullPointer
+        );
+        assert_eq!(fogtemp_error_message(ptr::null(), ptr::null_mut(), 0), 0);
+    }
+}
+
+#[test]
+fn error_message_truncates_and_always_terminates() {
+    let mut err = no_error();
+    let mut model = fogtemp_model { opaque: [0; 4] };
+    let junk = [0u8; 100];
+    // SAFETY: live pointers.
+    let s = unsafe { fogtemp_model_from_bytes(junk.as_ptr(), junk.len(), &mut model, &mut err) };
+    assert_eq!(s, fogtemp_status::BadMagic);
+    let full = message(&err);
+    assert_eq!(full, "not a fogtemp model blob (magic is not \"FOGM\")");
+    for len in 0..full.len() + 3 {
+        let mut buf = vec![0x7Fu8; len + 4];
+        // SAFETY: `buf` has `len + 4` bytes; only `len` are offered.
+        let n = unsafe { fogtemp_error_message(&err, buf.as_mut_ptr().cast(), len) };
+        assert_eq!(n, full.len());
+        if len > 0 {
+            let k = full.len().min(len - 1);
+            assert_eq!(&buf[..k], &full.as_bytes()[..k]);
+            assert_eq!(buf[k], 0);
+        }
+        assert!(buf[len..].iter().all(|&b| b == 0x7F), "wrote past len {len}");
+    }
+    // Every status has a static message; unknown codes too.
+    for code in 0..=20u32 {
+        // SAFETY: the ABI returns a static NUL-terminated string, never NULL.
+        let m = unsafe { CStr::from_ptr(fogtemp_status_message(code)) };
+        assert!(!m.to_bytes().is_empty());
+    }
+    // SAFETY: as above.
+    assert_eq!(unsafe { CStr::from_ptr(fogtemp_status_message(999)) }.to_str().unwrap(), "unknown status");
+}
+
+#[test]
+fn layout_matches_the_header() {
+    let mut layout = [0usize; 8];
+    // SAFETY: live pointer.
+    assert_eq!(unsafe { fogtemp_layout(&mut layout) }, fogtemp_status::Ok);
+    assert_eq!(
+        layout,
+        [
+            size_of::<fogtemp_model>(),
+            align_of::<fogtemp_model>(),
+            size_of::<fogtemp_axis>(),
+            align_of::<fogtemp_axis>(),
+            size_of::<fogtemp_state>(),
+            align_of::<fogtemp_state>(),
+            size_of::<fogtemp_error>(),
+            align_of::<fogtemp_error>(),
+        ]
+    );
+    assert_eq!(layout, [32, 8, 192, 8, 224, 8, 80, 8]);
+}
