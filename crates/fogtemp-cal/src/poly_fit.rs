@@ -42,7 +42,7 @@ impl TermSelection {
 }
 
 /// One fitted term.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
 pub struct FittedTerm {
     /// Power of the normalised temperature.
     pub temp_power: u8,
