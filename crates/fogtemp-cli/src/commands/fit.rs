@@ -2,15 +2,16 @@
 
 use anyhow::{bail, Context, Result};
 use fogtemp_cal::calibrate::{self, CalibrationConfig, Method, Thinning};
+use fogtemp_cal::documents::FitDocument;
 use fogtemp_cal::poly_fit::TermSelection;
 use fogtemp_cal::thin::GreedyThinning;
 use fogtemp_core::{FeatureSettings, Model};
-use serde_json::{json, Value};
 
-use super::{ingest_options, report_skipped, skipped_json};
+use super::{ingest_options, print_json, report_skipped};
 use crate::args::{FitArgs, MethodArg, PolyArg, ThinningArg};
-use crate::output::{digest_files, expand_logs, hex, write_atomic, RowProgress};
+use crate::output::{digest_files, expand_logs, write_atomic, RowProgress};
 
+/// The `fit` command.
 pub fn fit(a: FitArgs) -> Result<()> {
     let logs = expand_logs(&a.logs)?;
     let config = CalibrationConfig {
@@ -64,10 +65,10 @@ pub fn fit(a: FitArgs) -> Result<()> {
     }
     let digest = digest_files(&logs)?;
     let fitted = calibrate::fit_model(&runs, &config, digest).context("fitting the model")?;
-    let (blob, reports) = (fitted.blob, fitted.axes);
-    write_atomic(&a.out, |w| Ok(w.write_all(&blob)?))?;
+    let (blob, reports) = (&fitted.blob, &fitted.axes);
+    write_atomic(&a.out, |w| Ok(w.write_all(blob)?))?;
     if let Some(dir) = &a.report {
-        let model = Model::from_bytes(&blob).map_err(|e| anyhow::anyhow!("{e}"))?;
+        let model = Model::from_bytes(blob).map_err(|e| anyhow::anyhow!("{e}"))?;
         let summary: Vec<String> = reports
             .iter()
             .enumerate()
@@ -84,41 +85,8 @@ pub fn fit(a: FitArgs) -> Result<()> {
         fogtemp_cal::report::write_fit_report(dir, &a.out, &model, &runs, &summary.join("\n"))?;
         eprintln!("report: {}", dir.join("fit-report.md").display());
     }
-    let axes: Vec<Value> = reports
-        .iter()
-        .enumerate()
-        .map(|(axis, r)| {
-            json!({
-                "axis": axis,
-                "points": r.points,
-                "mesh_nodes": r.mesh_nodes,
-                "mesh_triangles": r.mesh_triangles,
-                "merged_duplicates": r.merged_duplicates,
-                "dropped_flat": r.dropped_flat,
-                "residual_rms_dph": r.residual_rms_dph,
-                "residual_max_abs_dph": r.residual_max_abs_dph,
-                "target_noise_dph": r.target_noise_dph,
-                "poly": r.poly.as_ref().map(|p| json!({
-                    "terms": p.terms.iter().map(|t| json!({
-                        "temp_power": t.temp_power, "rate_power": t.rate_power,
-                        "coefficient_dph": t.coefficient_dph, "std_error_dph": t.std_error_dph, "p_value": t.p_value,
-                    })).collect::<Vec<_>>(),
-                    "condition_number": p.condition_number,
-                    "residual_rms_dph": p.residual_rms_dph,
-                    "n": p.n, "n_eff": p.n_eff, "steps": p.steps,
-                })),
-            })
-        })
-        .collect();
-    let doc = json!({
-        "model": a.out.display().to_string(),
-        "bytes": blob.len(),
-        "input_digest": hex(&digest),
-        "runs": runs.iter().map(|r| skipped_json(&r.ingest)).collect::<Vec<_>>(),
-        "axes": axes,
-    });
     if a.json {
-        println!("{}", serde_json::to_string_pretty(&doc)?);
+        print_json(&FitDocument::new(&a.out, &fitted, &runs, &digest))?;
     } else {
         println!("wrote {} ({} bytes) from {} logs", a.out.display(), blob.len(), logs.len());
         for (axis, r) in reports.iter().enumerate() {

@@ -18,7 +18,7 @@ use std::path::Path;
 use anyhow::{bail, Context, Result};
 use fogtemp_cal::ingest::{IngestOptions, IngestReport, LogFormat, RateUnit, TimeUnit};
 use fogtemp_core::Model;
-use serde_json::{json, Value};
+use serde::Serialize;
 
 use crate::args::{Command, GyroUnitArg, IngestArgs, TimeUnitArg};
 
@@ -97,15 +97,15 @@ fn report_skipped(report: &IngestReport) {
     }
 }
 
-fn skipped_json(report: &IngestReport) -> Value {
-    json!({
-        "path": report.path.display().to_string(),
-        "rows": report.rows,
-        "bytes": report.bytes,
-        "skipped_rows": report.skipped,
-        "first_skipped": report.first_skipped.iter().map(|b| json!({
-            "line": b.line, "column": b.column, "column_name": b.column_name,
-            "reason": b.kind.describe(), "found": b.found,
-        })).collect::<Vec<_>>(),
-    })
+/// Prints a library document as the one JSON document on stdout: through a
+/// `serde_json::Value`, so the keys come out sorted and NaN or infinite numbers as `null`.
+fn print_json(doc: &impl Serialize) -> Result<()> {
+    println!("{}", serde_json::to_string_pretty(&serde_json::to_value(doc)?)?);
+    Ok(())
+}
+
+/// A value as the JSON text of it (numbers as JSON prints them: `100.0`, `null` for NaN),
+/// for the text outputs that have always shown them so.
+fn json_text(value: &impl Serialize) -> String {
+    serde_json::to_string(value).unwrap_or_default()
 }

@@ -2,12 +2,12 @@
 //! on the same logs.
 
 use anyhow::{bail, Context, Result};
-use fogtemp_cal::calibrate;
+use fogtemp_cal::calibrate::{self, Validation};
+use fogtemp_cal::documents::{ComparedModel, ValidationDocument};
 use fogtemp_cal::metrics::BiasStabilityOptions;
 use fogtemp_core::Model;
-use serde_json::{json, Value};
 
-use super::{ingest_options, read_model, report_skipped};
+use super::{ingest_options, print_json, read_model, report_skipped};
 use crate::args::{StabilityArgs, ValidateArgs};
 use crate::output::{expand_logs, write_atomic, RowProgress};
 
@@ -23,11 +23,7 @@ fn stability_options(a: &StabilityArgs) -> Result<BiasStabilityOptions> {
     })
 }
 
-fn flag_names(counts: &[u64; 8]) -> Value {
-    let names = ["warming_up", "partial_window", "outside_hull", "temp_stale", "bad_input"];
-    Value::Object(names.iter().enumerate().map(|(bit, n)| (n.to_string(), json!(counts[bit]))).collect())
-}
-
+/// The `validate` command.
 pub fn validate(a: ValidateArgs) -> Result<()> {
     let blob = read_model(&a.model)?;
     let model = Model::from_bytes(&blob).map_err(|e| anyhow::anyhow!("{e}"))?;
@@ -51,8 +47,9 @@ pub fn validate(a: ValidateArgs) -> Result<()> {
         bar.finish_and_clear();
     }
     let compared = outcomes.split_off(1.min(outcomes.len()));
-    let calibrate::Validation { runs, raw_bias_stability_dph: raw, compensated_bias_stability_dph: comp } =
-        outcomes.pop().unwrap_or_default();
+    let validation = outcomes.pop().unwrap_or_default();
+    let (runs, raw, comp) =
+        (&validation.runs, validation.raw_bias_stability_dph, validation.compensated_bias_stability_dph);
     let model = &models[0];
     for r in runs.iter().filter(|r| r.axis == 0) {
         if r.ingest.rows == 0 {
@@ -60,13 +57,13 @@ pub fn validate(a: ValidateArgs) -> Result<()> {
         }
         report_skipped(&r.ingest);
     }
-    let comparison = compare_models(&a, &models, &compared, raw, comp);
+    let comparison = compare_models(&a, &models, &validation, &compared);
     if let Some(dir) = &a.report {
         fogtemp_cal::report::write_validation_report(
             dir,
             &a.model,
             model,
-            &runs,
+            runs,
             (raw, comp),
             &options.describe(),
         )?;
@@ -80,35 +77,12 @@ pub fn validate(a: ValidateArgs) -> Result<()> {
         }
         eprintln!("report: {}", dir.join("report.md").display());
     }
-    let doc = json!({
-        "definition": options.describe(),
-        "raw_bias_stability_dph": raw,
-        "compensated_bias_stability_dph": comp,
-        "improvement_ratio": raw / comp,
-        "runs": runs.iter().map(|r| json!({
-            "path": r.path.display().to_string(),
-            "axis": r.axis,
-            "raw_bias_stability_dph": r.raw_bias_stability_dph,
-            "compensated_bias_stability_dph": r.compensated_bias_stability_dph,
-            "samples": r.series.samples,
-            "flag_samples": flag_names(&r.series.flag_counts),
-            "skipped_rows": r.ingest.skipped,
-        })).collect::<Vec<_>>(),
-        "comparison": comparison.iter().map(|c| json!({
-            "model": c.model.display().to_string(),
-            "mesh_nodes": c.mesh_nodes,
-            "polynomial_terms": c.poly_terms,
-            "raw_bias_stability_dph": c.raw_dph,
-            "compensated_bias_stability_dph": c.compensated_dph,
-        })).collect::<Vec<_>>(),
-    });
     if a.json {
-        println!("{}", serde_json::to_string_pretty(&doc)?);
-        return Ok(());
+        return print_json(&ValidationDocument::new(&options, &validation, comparison));
     }
     println!("{}", options.describe());
     println!("{:<40} {:>4} {:>14} {:>14} {:>8}", "run", "axis", "raw deg/h", "comp deg/h", "ratio");
-    for r in &runs {
+    for r in runs {
         let name = r.path.file_name().map_or_else(String::new, |n| n.to_string_lossy().into_owned());
         println!(
             "{:<40} {:>4} {:>14.5} {:>14.5} {:>8.2}",
@@ -125,67 +99,49 @@ pub fn validate(a: ValidateArgs) -> Result<()> {
         for c in &comparison {
             println!(
                 "{:<40} {:>6} nodes {:>3} terms {:>14.5} {:>8.2}",
-                c.model.display(),
+                c.model,
                 c.mesh_nodes,
-                c.poly_terms,
-                c.compensated_dph,
-                c.raw_dph / c.compensated_dph
+                c.polynomial_terms,
+                c.compensated_bias_stability_dph,
+                c.raw_bias_stability_dph / c.compensated_bias_stability_dph
             );
         }
     }
     Ok(())
 }
 
-/// One model's overall result on the validation logs.
-struct Compared {
-    model: std::path::PathBuf,
-    mesh_nodes: u32,
-    poly_terms: usize,
-    raw_dph: f64,
-    compensated_dph: f64,
-}
-
-fn model_size(model: &Model<'_>) -> (u32, usize) {
-    (0..model.axis_count()).filter_map(|i| model.axis(i).ok()).fold((0, 0), |(n, t), a| {
-        (n + a.mesh.map_or(0, |m| m.vertex_count()), t + a.poly.map_or(0, |p| p.len()))
-    })
-}
-
-/// The primary model first, then every `--compare` model, replayed on the same logs.
+/// The primary model first, then every `--compare` model, replayed on the same logs (none
+/// without `--compare`).
 fn compare_models(
     a: &ValidateArgs,
     models: &[Model<'_>],
-    compared: &[calibrate::Validation],
-    raw: f64,
-    comp: f64,
-) -> Vec<Compared> {
+    primary: &Validation,
+    compared: &[Validation],
+) -> Vec<ComparedModel> {
     if a.compare.is_empty() {
         return Vec::new();
     }
-    let entry = |path: &std::path::Path, model: &Model<'_>, raw_dph: f64, compensated_dph: f64| {
-        let (mesh_nodes, poly_terms) = model_size(model);
-        Compared { model: path.to_path_buf(), mesh_nodes, poly_terms, raw_dph, compensated_dph }
-    };
-    let mut out = vec![entry(&a.model, &models[0], raw, comp)];
+    let mut out = vec![ComparedModel::new(&a.model, &models[0], primary)];
     for ((path, model), v) in a.compare.iter().zip(models.iter().skip(1)).zip(compared) {
-        out.push(entry(path, model, v.raw_bias_stability_dph, v.compensated_bias_stability_dph));
+        out.push(ComparedModel::new(path, model, v));
     }
     out
 }
 
-fn comparison_markdown(rows: &[Compared]) -> String {
+/// The comparison as a Markdown table for the validation report.
+fn comparison_markdown(rows: &[ComparedModel]) -> String {
     let mut md = String::from(
         "## Models compared on the same logs\n\n| model | mesh nodes | polynomial terms | raw, deg/h | compensated, deg/h | ratio |\n|---|---|---|---|---|---|\n",
     );
     for c in rows {
         md.push_str(&format!(
             "| {} | {} | {} | {:.5} | {:.5} | {:.2} |\n",
-            c.model.display(),
+            c.model,
             c.mesh_nodes,
-            c.poly_terms,
-            c.raw_dph,
-            c.compensated_dph,
-            c.raw_dph / c.compensated_dph
+            c.polynomial_terms,
+            c.raw_bias_stability_dph,
+            c.compensated_bias_stability_dph,
+            c.raw_bias_stability_dph / c.compensated_bias_stability_dph
         ));
     }
     md
