@@ -16,7 +16,6 @@ use serde::Serialize;
 use crate::calibrate::{AxisFitReport, FittedModel, RunFeatures, RunValidation, Validation};
 use crate::ingest::{BadRow, IngestReport};
 use crate::metrics::{allan_deviation, fit_noise_terms, AllanPoint, BiasStabilityOptions, NoiseTerms};
-use crate::poly_fit::{FittedTerm, PolyFit};
 
 /// Lower-case hex of a byte string (the model's input digest).
 pub fn hex(bytes: &[u8]) -> String {
@@ -103,83 +102,25 @@ impl FitDocument {
             bytes: fitted.blob.len(),
             input_digest: hex(input_digest),
             runs: runs.iter().map(|r| IngestDocument::new(&r.ingest)).collect(),
-            axes: fitted.axes.iter().enumerate().map(|(axis, r)| FitAxisDocument::new(axis, r)).collect(),
+            axes: fitted
+                .axes
+                .iter()
+                .enumerate()
+                .map(|(axis, r)| FitAxisDocument { axis, fit: r.clone() })
+                .collect(),
         }
     }
 }
 
-/// One axis's fit ([`AxisFitReport`]).
+/// One axis's fit: its index and the [`AxisFitReport`] (`poly` is the
+/// [`crate::poly_fit::PolyFit`] when the model has one, null without).
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct FitAxisDocument {
     /// Axis index.
     pub axis: usize,
-    /// Calibration points after thinning.
-    pub points: usize,
-    /// Mesh nodes (0 without a mesh).
-    pub mesh_nodes: usize,
-    /// Mesh triangles.
-    pub mesh_triangles: usize,
-    /// Points merged as duplicates before triangulation.
-    pub merged_duplicates: usize,
-    /// Points dropped for flat hull triangles.
-    pub dropped_flat: usize,
-    /// RMS of the model's residuals at the calibration points, deg/h.
-    pub residual_rms_dph: f64,
-    /// Largest absolute residual, deg/h.
-    pub residual_max_abs_dph: f64,
-    /// Noise of the targets the fit aims at, deg/h.
-    pub target_noise_dph: f64,
-    /// The polynomial, when the model has one.
-    pub poly: Option<PolyFitDocument>,
-}
-
-impl FitAxisDocument {
-    /// The document of axis `axis`.
-    pub fn new(axis: usize, r: &AxisFitReport) -> Self {
-        Self {
-            axis,
-            points: r.points,
-            mesh_nodes: r.mesh_nodes,
-            mesh_triangles: r.mesh_triangles,
-            merged_duplicates: r.merged_duplicates,
-            dropped_flat: r.dropped_flat,
-            residual_rms_dph: r.residual_rms_dph,
-            residual_max_abs_dph: r.residual_max_abs_dph,
-            target_noise_dph: r.target_noise_dph,
-            poly: r.poly.as_ref().map(PolyFitDocument::new),
-        }
-    }
-}
-
-/// A fitted polynomial with its statistics ([`PolyFit`]).
-#[derive(Clone, Debug, PartialEq, Serialize)]
-pub struct PolyFitDocument {
-    /// Terms, constant first, with their standard errors and p-values.
-    pub terms: Vec<FittedTerm>,
-    /// 2-norm condition number of the design matrix (normalised inputs).
-    pub condition_number: f64,
-    /// RMS of the polynomial's residuals at the calibration points, deg/h.
-    pub residual_rms_dph: f64,
-    /// Points used.
-    pub n: usize,
-    /// Effective sample size used in the tests.
-    pub n_eff: f64,
-    /// Stepwise log: `+T^1 dT^2 (p=...)`, `-...`.
-    pub steps: Vec<String>,
-}
-
-impl PolyFitDocument {
-    /// The document of one polynomial fit.
-    pub fn new(p: &PolyFit) -> Self {
-        Self {
-            terms: p.terms.clone(),
-            condition_number: p.condition_number,
-            residual_rms_dph: p.residual_rms_dph,
-            n: p.n,
-            n_eff: p.n_eff,
-            steps: p.steps.clone(),
-        }
-    }
+    /// What the fit did, as keys of this object.
+    #[serde(flatten)]
+    pub fit: AxisFitReport,
 }
 
 /// `validate --json`: raw vs compensated bias stability per run and overall, and the
