@@ -302,7 +302,7 @@ pub fn choose_normalisation(points: &[MeshPoint]) -> Result<Normalisation, CalEr
 }
 
 /// What `fit` did for one axis.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct AxisFitReport {
     /// Calibration points offered.
     pub points: usize,

@@ -51,6 +51,7 @@
 
 pub mod blob;
 pub mod calibrate;
+pub mod documents;
 pub mod error;
 pub mod features;
 pub mod ingest;

@@ -124,7 +124,7 @@ fn detrend(values: &mut [f64]) {
 }
 
 /// One point of an Allan deviation curve.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
 pub struct AllanPoint {
     /// Averaging time, seconds.
     pub tau_s: f64,
@@ -169,7 +169,7 @@ pub fn allan_deviation(rate_dph: &[f64], dt_s: f64) -> Vec<AllanPoint> {
 }
 
 /// Noise terms fitted to an Allan deviation curve (IEEE 952).
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
 pub struct NoiseTerms {
     /// Angle random walk N, deg/sqrt(h).
     pub arw_deg_per_sqrt_h: f64,

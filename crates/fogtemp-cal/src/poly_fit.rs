@@ -48,7 +48,7 @@ impl TermSelection {
 }
 
 /// One fitted term.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
 pub struct FittedTerm {
     /// Power of the normalised temperature.
     pub temp_power: u8,
@@ -63,13 +63,15 @@ pub struct FittedTerm {
 }
 
 /// A fitted polynomial with its statistics.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct PolyFit {
     /// Terms, constant first.
     pub terms: Vec<FittedTerm>,
     /// RMS of the residuals at the calibration points, deg/h.
     pub residual_rms_dph: f64,
-    /// Largest absolute residual, deg/h.
+    /// Largest absolute residual, deg/h (not serialised: the `fit --json` document has the
+    /// model's own at the axis level).
+    #[serde(skip)]
     pub residual_max_abs_dph: f64,
     /// 2-norm condition number of the design matrix (normalised inputs).
     pub condition_number: f64,

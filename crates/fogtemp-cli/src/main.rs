@@ -3,9 +3,7 @@
 
 mod args;
 mod commands;
-mod diagnose;
 mod output;
-mod simulate;
 
 use clap::Parser;
 use fogtemp_cal::CalError;

@@ -119,8 +119,3 @@ pub fn digest_files(paths: &[PathBuf]) -> Result<[u8; 32]> {
     }
     Ok(hasher.finalize().into())
 }
-
-/// Hex of a byte string.
-pub fn hex(bytes: &[u8]) -> String {
-    bytes.iter().map(|b| format!("{b:02x}")).collect()
-}

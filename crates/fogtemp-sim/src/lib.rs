@@ -9,6 +9,7 @@
 //! DESIGN section 3 (`time_s,temp_c,gyro_dph`).
 
 pub mod demo;
+pub mod documents;
 pub mod error;
 pub mod noise;
 pub mod run;

@@ -1,12 +1,14 @@
-//! `simulate`: scenario -> CSV logs, in parallel, with a progress bar.
+//! `simulate`: scenario -> CSV logs, in parallel, with a progress bar; `demo`: the paper's
+//! experiment end to end.
 
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use anyhow::{Context, Result};
+use fogtemp_sim::documents::{DemoDocument, SimulateDocument};
 use fogtemp_sim::{self as sim, Scenario};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
-use serde_json::json;
 
+use super::print_json;
 use crate::args::SimulateArgs;
 
 /// Reads `paper` or a TOML file, applies the command-line overrides, and returns the
@@ -94,28 +96,19 @@ pub fn simulate_into(
 pub fn simulate(a: SimulateArgs) -> Result<()> {
     let (scenario, text) = load_scenario(&a.scenario, a.rate, a.seed, a.duration_s)?;
     let (runs, seconds) = simulate_into(&scenario, &text, &a.out)?;
-    let samples: u64 = runs.iter().map(|r| r.samples).sum();
+    let doc = SimulateDocument::new(&scenario, &a.out, &runs, seconds);
     if a.json {
-        let doc = json!({
-            "scenario": scenario.name,
-            "out": a.out.display().to_string(),
-            "sample_rate_hz": scenario.sample_rate_hz,
-            "seed": scenario.seed,
-            "samples": samples,
-            "seconds": seconds,
-            "runs": runs,
-        });
-        println!("{}", serde_json::to_string_pretty(&doc)?);
+        print_json(&doc)?;
     } else {
         println!(
             "simulated {} runs, {} samples at {} Hz in {:.1} s into {}",
-            runs.len(),
-            samples,
-            scenario.sample_rate_hz,
-            seconds,
+            doc.runs.len(),
+            doc.samples,
+            doc.sample_rate_hz,
+            doc.seconds,
             a.out.display()
         );
-        for r in &runs {
+        for r in &doc.runs {
             println!(
                 "  {:<16} start {:>6.1} C  input rate {:>8.4} deg/h  {} samples",
                 r.name, r.start_temp_c, r.input_rate_dph, r.samples
@@ -168,23 +161,9 @@ pub fn demo(a: crate::args::DemoArgs) -> Result<()> {
             bar.finish_and_clear();
         }
     }
+    let doc = DemoDocument::new(&result, &a.out, &options);
     if a.json {
-        let mut doc = json!({
-            "scenario": result.scenario,
-            "sample_rate_hz": result.sample_rate_hz,
-            "seed": result.seed,
-            "definition": result.definition,
-            "raw_dph": result.raw_dph,
-            "paper": { "raw_dph": PAPER_RAW_DPH, "poly_dph": PAPER_POLY_DPH, "mesh_dph": PAPER_MESH_DPH },
-            "models": result.models,
-            "seconds": result.seconds,
-            "report": (!a.no_report).then(|| a.out.join("report").join("report.md").display().to_string()),
-        });
-        for m in &result.models {
-            doc[format!("{}_dph", m.key)] = json!(m.compensated_dph);
-        }
-        println!("{}", serde_json::to_string_pretty(&doc)?);
-        return Ok(());
+        return print_json(&doc);
     }
     println!(
         "{} scenario at {} Hz, seed {}: calibrated on {} runs, validated on {} runs",
@@ -213,8 +192,8 @@ pub fn demo(a: crate::args::DemoArgs) -> Result<()> {
             m.improvement_ratio
         );
     }
-    if !a.no_report {
-        println!("\nreport: {}", a.out.join("report").join("report.md").display());
+    if let Some(report) = &doc.report {
+        println!("\nreport: {report}");
     }
     Ok(())
 }

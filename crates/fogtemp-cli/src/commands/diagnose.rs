@@ -9,10 +9,12 @@ use std::path::{Path, PathBuf};
 use anyhow::{bail, Context, Result};
 use fogtemp_cal::ingest::{read_log_with_progress, IngestOptions};
 use fogtemp_diagnose::{
-    diagnose as run_diagnosis, write_diagnosis_report, DiagnoseOptions, RunMeta, RunSeries,
+    diagnose as run_diagnosis, write_diagnosis_report, DiagnoseOptions, Diagnosis, RunMeta, RunSeries,
 };
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use serde::Serialize;
 
+use super::print_json;
 use crate::args::DiagnoseArgs;
 use crate::output::{expand_logs, RowProgress};
 
@@ -114,6 +116,20 @@ fn pair(simulated: &[PathBuf], recorded: &[PathBuf]) -> Result<Vec<(PathBuf, Pat
     Ok(pairs)
 }
 
+/// `diagnose --json`: the diagnosis with what the command adds.
+#[derive(Serialize)]
+struct DiagnoseDocument<'a> {
+    /// The diagnosis, as keys of this object.
+    #[serde(flatten)]
+    diagnosis: &'a Diagnosis,
+    /// Wall-clock time of the diagnosis, s.
+    seconds: f64,
+    /// `scenario-updated.toml` written beside the report, as displayed, or `None` (null).
+    updated_scenario: Option<String>,
+    /// The changes made to the scenario (empty without one).
+    scenario_changes: Vec<String>,
+}
+
 /// The `diagnose` command.
 pub fn diagnose(a: DiagnoseArgs, recorded_ingest: IngestOptions) -> Result<()> {
     let simulated = expand_logs(std::slice::from_ref(&a.simulated))?;
@@ -160,11 +176,12 @@ pub fn diagnose(a: DiagnoseArgs, recorded_ingest: IngestOptions) -> Result<()> {
         }
     }
     if a.json {
-        let mut doc = serde_json::to_value(&d)?;
-        doc["seconds"] = serde_json::json!(seconds);
-        doc["updated_scenario"] = serde_json::json!(updated_path.map(|p| p.display().to_string()));
-        doc["scenario_changes"] = serde_json::json!(scenario_changes);
-        println!("{}", serde_json::to_string_pretty(&doc)?);
+        print_json(&DiagnoseDocument {
+            diagnosis: &d,
+            seconds,
+            updated_scenario: updated_path.map(|p| p.display().to_string()),
+            scenario_changes,
+        })?;
     } else {
         println!("{}", d.summary);
         eprintln!("diagnosed {} run pairs in {seconds:.1} s", pairs.len());
@@ -178,7 +195,7 @@ pub fn diagnose(a: DiagnoseArgs, recorded_ingest: IngestOptions) -> Result<()> {
 fn write_updated_scenario(
     simulated: &Path,
     dir: &Path,
-    d: &fogtemp_diagnose::Diagnosis,
+    d: &Diagnosis,
 ) -> Result<Option<(PathBuf, Vec<String>)>> {
     let source = simulated.join("scenario.toml");
     if !source.is_file() {

@@ -1,0 +1,541 @@
+//! The JSON documents of `fogtemp-cal fit`, `validate`, `inspect` and `allan` (`--json`),
+//! as typed [`Serialize`] values built from the library's own results, so that a Rust or
+//! Python caller gets the same document without the command.
+//!
+//! The key names are a contract (DESIGN section 5): they never change. The command prints
+//! each document as `serde_json::to_string_pretty(&serde_json::to_value(&doc)?)`: through a
+//! `serde_json::Value` the keys come out sorted alphabetically, and NaN or infinite numbers
+//! print as `null`. Numbers the model blob stores as `f32` are held here widened to `f64`
+//! (exactly), as the command has always printed them.
+
+use std::path::Path;
+
+use fogtemp_core::{Model, OutsidePolicy};
+use serde::Serialize;
+
+use crate::calibrate::{AxisFitReport, FittedModel, RunFeatures, RunValidation, Validation};
+use crate::ingest::{BadRow, IngestReport};
+use crate::metrics::{allan_deviation, fit_noise_terms, AllanPoint, BiasStabilityOptions, NoiseTerms};
+
+/// Lower-case hex of a byte string (the model's input digest).
+pub fn hex(bytes: &[u8]) -> String {
+    bytes.iter().map(|b| format!("{b:02x}")).collect()
+}
+
+/// What was read from one log, with the rows skipped (`fit --json`: `runs[]`).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct IngestDocument {
+    /// The log, as displayed (lossy UTF-8).
+    pub path: String,
+    /// Rows accepted.
+    pub rows: u64,
+    /// Bytes read.
+    pub bytes: u64,
+    /// Rows skipped (only with `skip_bad_rows`).
+    pub skipped_rows: u64,
+    /// The first skipped rows (at most [`crate::ingest::MAX_REPORTED_BAD_ROWS`]).
+    pub first_skipped: Vec<SkippedRowDocument>,
+}
+
+impl IngestDocument {
+    /// The document of one read.
+    pub fn new(report: &IngestReport) -> Self {
+        Self {
+            path: report.path.display().to_string(),
+            rows: report.rows,
+            bytes: report.bytes,
+            skipped_rows: report.skipped,
+            first_skipped: report.first_skipped.iter().map(SkippedRowDocument::new).collect(),
+        }
+    }
+}
+
+/// One skipped row: where and why.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct SkippedRowDocument {
+    /// 1-based line.
+    pub line: u64,
+    /// 1-based column (field) number.
+    pub column: usize,
+    /// Column name from the header.
+    pub column_name: String,
+    /// Why, in words ([`crate::ingest::BadRowKind::describe`]).
+    pub reason: &'static str,
+    /// The offending text (cut to 40 characters).
+    pub found: String,
+}
+
+impl SkippedRowDocument {
+    /// The document of one rejected row.
+    pub fn new(row: &BadRow) -> Self {
+        Self {
+            line: row.line,
+            column: row.column,
+            column_name: row.column_name.clone(),
+            reason: row.kind.describe(),
+            found: row.found.clone(),
+        }
+    }
+}
+
+/// `fit --json`: the model written, its inputs and every axis's fit.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct FitDocument {
+    /// The model file, as displayed.
+    pub model: String,
+    /// Size of the blob, bytes.
+    pub bytes: usize,
+    /// SHA-256 of the calibration logs, hex.
+    pub input_digest: String,
+    /// Every calibration log read.
+    pub runs: Vec<IngestDocument>,
+    /// Every axis's fit.
+    pub axes: Vec<FitAxisDocument>,
+}
+
+impl FitDocument {
+    /// The document of `fitted`, written to `model`, from `runs` whose contents hash to
+    /// `input_digest` (the arguments of [`crate::calibrate::fit_model`]).
+    pub fn new(model: &Path, fitted: &FittedModel, runs: &[RunFeatures], input_digest: &[u8; 32]) -> Self {
+        Self {
+            model: model.display().to_string(),
+            bytes: fitted.blob.len(),
+            input_digest: hex(input_digest),
+            runs: runs.iter().map(|r| IngestDocument::new(&r.ingest)).collect(),
+            axes: fitted
+                .axes
+                .iter()
+                .enumerate()
+                .map(|(axis, r)| FitAxisDocument { axis, fit: r.clone() })
+                .collect(),
+        }
+    }
+}
+
+/// One axis's fit: its index and the [`AxisFitReport`] (`poly` is the
+/// [`crate::poly_fit::PolyFit`] when the model has one, null without).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct FitAxisDocument {
+    /// Axis index.
+    pub axis: usize,
+    /// What the fit did, as keys of this object.
+    #[serde(flatten)]
+    pub fit: AxisFitReport,
+}
+
+/// `validate --json`: raw vs compensated bias stability per run and overall, and the
+/// models compared on the same logs.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct ValidationDocument {
+    /// The bias-stability definition ([`BiasStabilityOptions::describe`]).
+    pub definition: String,
+    /// Raw bias stability, RMS over runs, deg/h.
+    pub raw_bias_stability_dph: f64,
+    /// Compensated bias stability, RMS over runs, deg/h.
+    pub compensated_bias_stability_dph: f64,
+    /// raw / compensated.
+    pub improvement_ratio: f64,
+    /// Every run and axis.
+    pub runs: Vec<RunValidationDocument>,
+    /// The primary model then every compared one (empty without a comparison).
+    pub comparison: Vec<ComparedModel>,
+}
+
+impl ValidationDocument {
+    /// The document of `validation` under `options`, with the `comparison` rows
+    /// ([`ComparedModel::new`]).
+    pub fn new(
+        options: &BiasStabilityOptions,
+        validation: &Validation,
+        comparison: Vec<ComparedModel>,
+    ) -> Self {
+        Self {
+            definition: options.describe(),
+            raw_bias_stability_dph: validation.raw_bias_stability_dph,
+            compensated_bias_stability_dph: validation.compensated_bias_stability_dph,
+            improvement_ratio: validation.raw_bias_stability_dph / validation.compensated_bias_stability_dph,
+            runs: validation.runs.iter().map(RunValidationDocument::new).collect(),
+            comparison,
+        }
+    }
+}
+
+/// One run and axis of a validation.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct RunValidationDocument {
+    /// The log, as displayed.
+    pub path: String,
+    /// Axis index.
+    pub axis: usize,
+    /// Raw bias stability, deg/h.
+    pub raw_bias_stability_dph: f64,
+    /// Compensated bias stability, deg/h.
+    pub compensated_bias_stability_dph: f64,
+    /// Samples replayed.
+    pub samples: u64,
+    /// Samples that carried each compensator flag.
+    pub flag_samples: FlagSamples,
+    /// Rows skipped while reading the log.
+    pub skipped_rows: u64,
+}
+
+impl RunValidationDocument {
+    /// The document of one run's validation.
+    pub fn new(r: &RunValidation) -> Self {
+        Self {
+            path: r.path.display().to_string(),
+            axis: r.axis,
+            raw_bias_stability_dph: r.raw_bias_stability_dph,
+            compensated_bias_stability_dph: r.compensated_bias_stability_dph,
+            samples: r.series.samples,
+            flag_samples: FlagSamples::new(&r.series.flag_counts),
+            skipped_rows: r.ingest.skipped,
+        }
+    }
+}
+
+/// Samples that carried each `fogtemp_core::Flags` bit.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct FlagSamples {
+    /// `WARMING_UP` (bit 0): no features yet.
+    pub warming_up: u64,
+    /// `PARTIAL_WINDOW` (bit 1): the window is not yet full.
+    pub partial_window: u64,
+    /// `OUTSIDE_HULL` (bit 2): outside the calibrated mesh.
+    pub outside_hull: u64,
+    /// `TEMP_STALE` (bit 3): no temperature for longer than `max_gap_s`.
+    pub temp_stale: u64,
+    /// `BAD_INPUT` (bit 4): the sample's input was rejected.
+    pub bad_input: u64,
+}
+
+impl FlagSamples {
+    /// From counts per flag bit ([`crate::calibrate::ReplaySeries::flag_counts`]).
+    pub fn new(counts: &[u64; 8]) -> Self {
+        Self {
+            warming_up: counts[0],
+            partial_window: counts[1],
+            outside_hull: counts[2],
+            temp_stale: counts[3],
+            bad_input: counts[4],
+        }
+    }
+}
+
+/// One model's overall result on the validation logs (`validate --compare`).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct ComparedModel {
+    /// The model file, as displayed.
+    pub model: String,
+    /// Mesh nodes over every axis.
+    pub mesh_nodes: u32,
+    /// Polynomial terms over every axis.
+    pub polynomial_terms: usize,
+    /// Raw bias stability, RMS over runs, deg/h.
+    pub raw_bias_stability_dph: f64,
+    /// Compensated bias stability, RMS over runs, deg/h.
+    pub compensated_bias_stability_dph: f64,
+}
+
+impl ComparedModel {
+    /// The row of the model read from `path`, validated as `validation`.
+    pub fn new(path: &Path, model: &Model<'_>, validation: &Validation) -> Self {
+        let (mesh_nodes, polynomial_terms) =
+            (0..model.axis_count()).filter_map(|i| model.axis(i).ok()).fold((0, 0), |(n, t), a| {
+                (n + a.mesh.map_or(0, |m| m.vertex_count()), t + a.poly.map_or(0, |p| p.len()))
+            });
+        Self {
+            model: path.display().to_string(),
+            mesh_nodes,
+            polynomial_terms,
+            raw_bias_stability_dph: validation.raw_bias_stability_dph,
+            compensated_bias_stability_dph: validation.compensated_bias_stability_dph,
+        }
+    }
+}
+
+/// `inspect --json`: a model's header, sections, and the mesh in physical units.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct ModelDocument {
+    /// The model file, as displayed.
+    pub model: String,
+    /// Size of the blob, bytes.
+    pub bytes: usize,
+    /// Blob format version.
+    pub format_version: u16,
+    /// The tool that wrote it (lossy UTF-8).
+    pub tool_version: String,
+    /// SHA-256 of the calibration logs, hex.
+    pub input_digest: String,
+    /// Every axis.
+    pub axes: Vec<ModelAxisDocument>,
+}
+
+impl ModelDocument {
+    /// The document of the model blob `blob`, read from `path`.
+    ///
+    /// # Errors
+    /// The blob or one of its axes is not valid.
+    pub fn new(path: &Path, blob: &[u8]) -> Result<Self, fogtemp_core::Error> {
+        let model = Model::from_bytes(blob)?;
+        Ok(Self {
+            model: path.display().to_string(),
+            bytes: blob.len(),
+            format_version: model.format_version(),
+            tool_version: String::from_utf8_lossy(model.tool_version()).into_owned(),
+            input_digest: hex(&model.input_digest()),
+            axes: (0..model.axis_count())
+                .map(|i| Ok(ModelAxisDocument::new(i, &model.axis(i)?)))
+                .collect::<Result<_, fogtemp_core::Error>>()?,
+        })
+    }
+}
+
+/// One axis of a model.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct ModelAxisDocument {
+    /// Axis index.
+    pub axis: usize,
+    /// Sections present: `poly`, `mesh` (in that order).
+    pub kind: Vec<&'static str>,
+    /// The feature tracker's settings.
+    pub features: FeaturesDocument,
+    /// The normalisation of (T, dT/dt) onto the model's axes.
+    pub normalisation: NormalisationDocument,
+    /// `nearest_hull` or `zero` with a mesh, `None` (null) without one.
+    pub outside_policy: Option<&'static str>,
+    /// What the fit saw.
+    pub provenance: ProvenanceDocument,
+    /// Polynomial terms, when the axis has a polynomial.
+    pub poly: Option<Vec<PolyTermDocument>>,
+    /// Mesh nodes (empty without a mesh).
+    pub nodes: Vec<MeshNodeDocument>,
+    /// Mesh triangles, three indices into `nodes` each.
+    pub triangles: Vec<[u32; 3]>,
+    /// The first node of every hull edge, in the blob's order.
+    pub hull: Vec<u32>,
+}
+
+impl ModelAxisDocument {
+    /// The document of axis `index`.
+    pub fn new(index: usize, axis: &fogtemp_core::Axis<'_>) -> Self {
+        let n = &axis.normalisation;
+        let mut kind = Vec::new();
+        if axis.poly.is_some() {
+            kind.push("poly");
+        }
+        if axis.mesh.is_some() {
+            kind.push("mesh");
+        }
+        let (mut nodes, mut triangles, mut hull, mut outside_policy) =
+            (Vec::new(), Vec::new(), Vec::new(), None);
+        if let Some(mesh) = &axis.mesh {
+            outside_policy = Some(match mesh.outside_policy() {
+                OutsidePolicy::NearestHull => "nearest_hull",
+                OutsidePolicy::Zero => "zero",
+            });
+            for v in (0..mesh.vertex_count()).filter_map(|k| mesh.vertex(k)) {
+                let (temp_c, rate_c_per_min) = crate::mesh::to_physical(n, f64::from(v.x), f64::from(v.y));
+                let poly = axis.poly.map_or(0.0, |p| p.evaluate(v.x, v.y));
+                nodes.push(MeshNodeDocument {
+                    temp_c,
+                    rate_c_per_min,
+                    value_dph: f64::from(poly + v.value_dph),
+                    mesh_value_dph: f64::from(v.value_dph),
+                    x: f64::from(v.x),
+                    y: f64::from(v.y),
+                });
+            }
+            triangles.extend((0..mesh.triangle_count()).filter_map(|k| mesh.triangle(k)).map(|t| t.vertices));
+            hull.extend((0..mesh.hull_edge_count()).filter_map(|k| mesh.hull_edge(k)).filter_map(
+                |(t, e)| {
+                    let rec = mesh.triangle(t)?;
+                    Some(rec.vertices[(e as usize + 1) % 3])
+                },
+            ));
+        }
+        let (f, p) = (&axis.features, &axis.provenance);
+        Self {
+            axis: index,
+            kind,
+            features: FeaturesDocument {
+                window_s: f64::from(f.window_s),
+                block_count: f.block_count,
+                min_blocks: f.min_blocks,
+                max_gap_s: f64::from(f.max_gap_s),
+            },
+            normalisation: NormalisationDocument {
+                temp_offset_c: f64::from(n.temp_offset_c),
+                temp_scale_per_c: f64::from(n.temp_scale_per_c),
+                rate_offset_c_per_min: f64::from(n.rate_offset_c_per_min),
+                rate_scale_per_c_per_min: f64::from(n.rate_scale_per_c_per_min),
+            },
+            outside_policy,
+            provenance: ProvenanceDocument {
+                fit_point_count: p.fit_point_count,
+                residual_rms_dph: f64::from(p.residual_rms_dph),
+                residual_max_abs_dph: f64::from(p.residual_max_abs_dph),
+                temp_min_c: f64::from(p.temp_min_c),
+                temp_max_c: f64::from(p.temp_max_c),
+                rate_min_c_per_min: f64::from(p.rate_min_c_per_min),
+                rate_max_c_per_min: f64::from(p.rate_max_c_per_min),
+            },
+            poly: axis.poly.map(|poly| {
+                poly.terms()
+                    .map(|t| PolyTermDocument {
+                        temp_power: t.temp_power,
+                        rate_power: t.rate_power,
+                        coefficient_dph: f64::from(t.coefficient_dph),
+                    })
+                    .collect()
+            }),
+            nodes,
+            triangles,
+            hull,
+        }
+    }
+}
+
+/// The feature tracker's settings of an axis (`fogtemp_core::FeatureSettings`).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct FeaturesDocument {
+    /// Window of the features, s.
+    pub window_s: f64,
+    /// Blocks in the window.
+    pub block_count: u32,
+    /// Blocks needed before the first features.
+    pub min_blocks: u32,
+    /// A temperature gap longer than this restarts the tracker, s.
+    pub max_gap_s: f64,
+}
+
+/// The normalisation of an axis (`fogtemp_core::Normalisation`): `x = (T - offset) scale`.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct NormalisationDocument {
+    /// Temperature offset, deg C.
+    pub temp_offset_c: f64,
+    /// Temperature scale, 1/deg C.
+    pub temp_scale_per_c: f64,
+    /// Rate offset, deg C/min.
+    pub rate_offset_c_per_min: f64,
+    /// Rate scale, 1/(deg C/min).
+    pub rate_scale_per_c_per_min: f64,
+}
+
+/// What the fit of an axis saw (`fogtemp_core::AxisProvenance`).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct ProvenanceDocument {
+    /// Calibration points fitted.
+    pub fit_point_count: u32,
+    /// RMS of the residuals at the calibration points, deg/h.
+    pub residual_rms_dph: f64,
+    /// Largest absolute residual, deg/h.
+    pub residual_max_abs_dph: f64,
+    /// Lowest temperature calibrated, deg C.
+    pub temp_min_c: f64,
+    /// Highest temperature calibrated, deg C.
+    pub temp_max_c: f64,
+    /// Lowest temperature rate calibrated, deg C/min.
+    pub rate_min_c_per_min: f64,
+    /// Highest temperature rate calibrated, deg C/min.
+    pub rate_max_c_per_min: f64,
+}
+
+/// One stored polynomial term (`fogtemp_core::PolyTerm`).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct PolyTermDocument {
+    /// Power of the normalised temperature.
+    pub temp_power: u8,
+    /// Power of the normalised rate.
+    pub rate_power: u8,
+    /// Coefficient, deg/h.
+    pub coefficient_dph: f64,
+}
+
+/// One mesh node in physical units.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct MeshNodeDocument {
+    /// Temperature, deg C.
+    pub temp_c: f64,
+    /// Temperature rate, deg C/min.
+    pub rate_c_per_min: f64,
+    /// The axis's bias at the node (polynomial plus mesh), deg/h.
+    pub value_dph: f64,
+    /// The mesh's own value at the node, deg/h.
+    pub mesh_value_dph: f64,
+    /// Normalised temperature.
+    pub x: f64,
+    /// Normalised rate.
+    pub y: f64,
+}
+
+/// What `allan --json` says the curve is.
+pub const ALLAN_DEFINITION: &str = "overlapping Allan deviation (IEEE Std 952) of the gyro, from the f64 angle cumsum with the mean removed; N, B, K by non-negative least squares on sigma^2";
+
+/// `allan --json`: the Allan deviation of every gyro column of a log and its noise terms.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct AllanDocument {
+    /// The log, as displayed.
+    pub log: String,
+    /// [`ALLAN_DEFINITION`].
+    pub definition: &'static str,
+    /// Time steps longer than 1.5 times the median sample period.
+    pub gaps: usize,
+    /// Every gyro column.
+    pub axes: Vec<AllanAxisDocument>,
+}
+
+impl AllanDocument {
+    /// The document of a log's gyro `columns`, sampled at `times_s` (s) with one series per
+    /// column in `series_dph` (deg/h). `None` when no two times increase (no sample period).
+    pub fn new(log: &Path, columns: &[String], times_s: &[f64], series_dph: &[Vec<f64>]) -> Option<Self> {
+        let dt_s = median_step(times_s)?;
+        let gaps = times_s.windows(2).filter(|w| (w[1] - w[0]) > 1.5 * dt_s).count();
+        let axes = series_dph
+            .iter()
+            .zip(columns)
+            .enumerate()
+            .map(|(axis, (s, column))| {
+                let curve = allan_deviation(s, dt_s);
+                AllanAxisDocument {
+                    axis,
+                    column: column.clone(),
+                    sample_period_s: dt_s,
+                    samples: s.len(),
+                    noise: fit_noise_terms(&curve),
+                    curve,
+                }
+            })
+            .collect();
+        Some(Self { log: log.display().to_string(), definition: ALLAN_DEFINITION, gaps, axes })
+    }
+}
+
+/// The Allan deviation of one gyro column.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct AllanAxisDocument {
+    /// Axis index.
+    pub axis: usize,
+    /// Gyro column name.
+    pub column: String,
+    /// Median sample period, s.
+    pub sample_period_s: f64,
+    /// Samples.
+    pub samples: usize,
+    /// N (deg/sqrt(h)), B (deg/h), K (deg/h/sqrt(h)), as keys of this object.
+    #[serde(flatten)]
+    pub noise: NoiseTerms,
+    /// The curve, octave-spaced.
+    pub curve: Vec<AllanPoint>,
+}
+
+/// Median of the positive steps between consecutive times.
+fn median_step(times: &[f64]) -> Option<f64> {
+    let mut steps: Vec<f64> = times.windows(2).map(|w| w[1] - w[0]).filter(|d| *d > 0.0).collect();
+    if steps.is_empty() {
+        return None;
+    }
+    let mid = steps.len() / 2;
+    let (_, m, _) = steps.select_nth_unstable_by(mid, |a, b| a.total_cmp(b));
+    Some(*m)
+}

@@ -1,0 +1,59 @@
+//! `allan`: overlapping Allan deviation and fitted noise terms of a log.
+
+use anyhow::{Context, Result};
+use fogtemp_cal::documents::AllanDocument;
+
+use super::{ingest_options, json_text, print_json, report_skipped};
+use crate::args::AllanArgs;
+use crate::output::RowProgress;
+
+/// The `allan` command.
+pub fn allan(a: AllanArgs) -> Result<()> {
+    let ingest = ingest_options(&a.ingest)?;
+    let axes = ingest.format.gyro_columns.len();
+    let mut series: Vec<Vec<f64>> = vec![Vec::new(); axes];
+    let mut times = Vec::new();
+    let bar = RowProgress::new(&a.log, "allan");
+    let report = fogtemp_cal::ingest::read_log_with_progress(
+        &a.log,
+        &ingest,
+        |row| {
+            times.push(row.time_s);
+            for (s, g) in series.iter_mut().zip(row.gyros_dph) {
+                s.push(*g);
+            }
+            Ok(())
+        },
+        |b, r| bar.update(b, r),
+    )?;
+    bar.finish_and_clear();
+    report_skipped(&report);
+    let doc = AllanDocument::new(&a.log, &ingest.format.gyro_columns, &times, &series)
+        .with_context(|| format!("{}: the log needs at least two rows", a.log.display()))?;
+    if a.json {
+        return print_json(&doc);
+    }
+    if doc.gaps > 0 {
+        eprintln!("warning: {} steps longer than 1.5x the median sample period; the Allan deviation assumes uniform sampling", doc.gaps);
+    }
+    // A number JSON prints as null (NaN, infinite) shows as `or`.
+    let finite_or = |x: f64, or: f64| if x.is_finite() { x } else { or };
+    for d in &doc.axes {
+        println!(
+            "axis {} ({}): N = {:.6} deg/sqrt(h), B = {:.6} deg/h, K = {:.6} deg/h/sqrt(h)",
+            d.axis,
+            json_text(&d.column),
+            finite_or(d.noise.arw_deg_per_sqrt_h, f64::NAN),
+            finite_or(d.noise.bias_instability_dph, f64::NAN),
+            finite_or(d.noise.rrw_dph_per_sqrt_h, f64::NAN)
+        );
+        for p in &d.curve {
+            println!(
+                "  tau {:>10.3} s  adev {:.6} deg/h",
+                finite_or(p.tau_s, 0.0),
+                finite_or(p.adev_dph, 0.0)
+            );
+        }
+    }
+    Ok(())
+}

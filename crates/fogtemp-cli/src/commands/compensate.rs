@@ -1,0 +1,68 @@
+//! `compensate`: one log replayed through the model, as CSV.
+
+use anyhow::{bail, Result};
+use fogtemp_core::{Compensator, Model};
+
+use super::{ingest_options, read_model, report_skipped};
+use crate::args::CompensateArgs;
+use crate::output::{write_atomic, RowProgress};
+
+pub fn compensate(a: CompensateArgs) -> Result<()> {
+    let blob = read_model(&a.model)?;
+    let model = Model::from_bytes(&blob).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let ingest = ingest_options(&a.ingest)?;
+    let axes = model.axis_count().min(ingest.format.gyro_columns.len());
+    let mut comps: Vec<Compensator<'_, { fogtemp_cal::features::CAL_CAPACITY }>> = (0..axes)
+        .map(|i| Compensator::new(&model, i))
+        .collect::<Result<_, _>>()
+        .map_err(|e| anyhow::anyhow!("{}: {e}", a.model.display()))?;
+    let bar = RowProgress::new(&a.log, "compensate");
+    let mut report = None;
+    write_atomic(&a.out, |w| {
+        let mut out = csv::Writer::from_writer(w);
+        let mut header = vec!["time_s".to_string()];
+        for i in 0..axes {
+            let suffix = if axes == 1 { String::new() } else { format!("_{i}") };
+            for col in ["raw_dph", "compensated_dph", "bias_dph", "flags"] {
+                header.push(format!("{col}{suffix}"));
+            }
+        }
+        out.write_record(&header)?;
+        let mut record: Vec<String> = Vec::with_capacity(header.len());
+        let r = fogtemp_cal::ingest::read_log_with_progress(
+            &a.log,
+            &ingest,
+            |row| {
+                record.clear();
+                record.push(format!("{}", row.time_s));
+                let time_us = row.time_us();
+                for (i, comp) in comps.iter_mut().enumerate() {
+                    let temp = row.temp_c_for_axis(i);
+                    let o =
+                        comp.step(time_us, row.gyros_dph[i] as f32, temp.is_finite().then_some(temp as f32));
+                    record.push(format!("{}", row.gyros_dph[i]));
+                    record.push(format!("{}", o.rate_dph));
+                    record.push(format!("{}", o.bias_dph));
+                    record.push(format!("{}", o.flags.0));
+                }
+                out.write_record(&record).map_err(|e| fogtemp_cal::CalError::Io {
+                    path: a.out.clone(),
+                    source: std::io::Error::other(e),
+                })
+            },
+            |b, r| bar.update(b, r),
+        )?;
+        if r.rows == 0 {
+            bail!("{}: no data rows (only a header)", a.log.display());
+        }
+        out.flush()?;
+        report = Some(r);
+        Ok(())
+    })?;
+    bar.finish_and_clear();
+    if let Some(r) = &report {
+        report_skipped(r);
+        println!("wrote {} ({} rows, {} axes)", a.out.display(), r.rows, axes);
+    }
+    Ok(())
+}

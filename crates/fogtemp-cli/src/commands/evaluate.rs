@@ -1,0 +1,74 @@
+//! `evaluate`: the model's value at given (T, dT/dt) points, as CSV.
+
+use std::io::Write;
+
+use anyhow::{bail, Context, Result};
+use fogtemp_core::{Flags, Model, WalkHint};
+
+use super::read_model;
+use crate::args::EvaluateArgs;
+use crate::output::write_atomic;
+
+pub fn evaluate(a: EvaluateArgs) -> Result<()> {
+    let blob = read_model(&a.model)?;
+    let model = Model::from_bytes(&blob).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let axis = model.axis(a.axis).map_err(|e| anyhow::anyhow!("{}: {e}", a.model.display()))?;
+    let mut reader = csv::ReaderBuilder::new()
+        .trim(csv::Trim::All)
+        .from_path(&a.points)
+        .with_context(|| format!("cannot open {}", a.points.display()))?;
+    let header =
+        reader.headers().with_context(|| format!("{}: cannot read the header", a.points.display()))?.clone();
+    let col = |name: &str| {
+        header.iter().position(|h| h == name).with_context(|| {
+            format!(
+                "{}: no column named '{name}' (the header has: {})",
+                a.points.display(),
+                header.iter().collect::<Vec<_>>().join(", ")
+            )
+        })
+    };
+    let (ti, ri) = (col("temp_c")?, col("rate_c_per_min")?);
+    let mut rows = Vec::new();
+    for (k, rec) in reader.records().enumerate() {
+        let rec = rec.with_context(|| format!("{}: malformed CSV", a.points.display()))?;
+        let line = rec.position().map_or(k as u64 + 2, |p| p.line());
+        let cell = |i: usize, name: &str| -> Result<f64> {
+            let text = rec.get(i).unwrap_or("");
+            let v: f64 = text.parse().map_err(|_| {
+                anyhow::anyhow!(
+                    "{}:{line}:{}: column '{name}': not a number (found '{text}')",
+                    a.points.display(),
+                    i + 1
+                )
+            })?;
+            if !v.is_finite() {
+                bail!(
+                    "{}:{line}:{}: column '{name}': NaN or infinite (found '{text}')",
+                    a.points.display(),
+                    i + 1
+                );
+            }
+            Ok(v)
+        };
+        rows.push((cell(ti, "temp_c")?, cell(ri, "rate_c_per_min")?));
+    }
+    let mut hint = WalkHint::default();
+    let mut lines = Vec::with_capacity(rows.len());
+    for (t, r) in rows {
+        let e = axis.evaluate(t as f32, r as f32, &mut hint).map_err(|e| anyhow::anyhow!("{e}"))?;
+        let flags = if e.outside_hull { Flags::OUTSIDE_HULL.0 } else { 0 };
+        lines.push(format!("{t},{r},{},{flags}", e.value_dph));
+    }
+    let write = |w: &mut dyn Write| -> Result<()> {
+        writeln!(w, "temp_c,rate_c_per_min,value_dph,flags")?;
+        for l in &lines {
+            writeln!(w, "{l}")?;
+        }
+        Ok(())
+    };
+    match &a.out {
+        Some(path) => write_atomic(path, write),
+        None => write(&mut std::io::stdout().lock()),
+    }
+}

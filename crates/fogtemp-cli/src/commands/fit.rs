@@ -1,0 +1,115 @@
+//! `fit`: calibration logs -> model blob, with the fit of every axis.
+
+use anyhow::{bail, Context, Result};
+use fogtemp_cal::calibrate::{self, CalibrationConfig, Method, Thinning};
+use fogtemp_cal::documents::FitDocument;
+use fogtemp_cal::poly_fit::TermSelection;
+use fogtemp_cal::thin::GreedyThinning;
+use fogtemp_core::{FeatureSettings, Model};
+
+use super::{ingest_options, print_json, report_skipped};
+use crate::args::{FitArgs, MethodArg, PolyArg, ThinningArg};
+use crate::output::{digest_files, expand_logs, write_atomic, RowProgress};
+
+/// The `fit` command.
+pub fn fit(a: FitArgs) -> Result<()> {
+    let logs = expand_logs(&a.logs)?;
+    let config = CalibrationConfig {
+        ingest: ingest_options(&a.ingest)?,
+        features: FeatureSettings {
+            window_s: a.window_s,
+            block_count: a.blocks,
+            min_blocks: a.min_blocks,
+            max_gap_s: a.max_gap_s,
+        },
+        target_window_s: a.target_window_s.unwrap_or(f64::from(a.window_s)),
+        method: match a.method {
+            MethodArg::Poly => Method::Poly,
+            MethodArg::Mesh => Method::Mesh,
+            MethodArg::Hybrid => Method::Hybrid,
+        },
+        thinning: match a.thinning {
+            ThinningArg::Greedy => match a.tolerance_dph {
+                Some(tolerance_dph) => Thinning::Greedy(GreedyThinning {
+                    tolerance_dph,
+                    max_nodes: a.max_nodes,
+                    ..GreedyThinning::default()
+                }),
+                None => Thinning::GreedyAuto { noise_multiple: 1.5, max_nodes: a.max_nodes },
+            },
+            ThinningArg::Paper => {
+                Thinning::Paper { fast_rate_c_per_min: a.fast_rate, settled_every: a.settled_every }
+            }
+        },
+        poly: match a.poly {
+            PolyArg::Paper => TermSelection::Paper,
+            PolyArg::Stepwise => {
+                TermSelection::Stepwise { max_degree: a.max_degree, p_enter: a.p_enter, p_remove: a.p_remove }
+            }
+        },
+        full_windows_only: a.full_windows_only,
+        least_squares_nodes: !a.interpolate_nodes,
+        rate_axis_weight: 1.0,
+    };
+    let mut runs = Vec::with_capacity(logs.len());
+    for log in &logs {
+        let bar = RowProgress::new(log, "features");
+        let run = calibrate::extract_run(log, &config, |b, r| bar.update(b, r))
+            .with_context(|| format!("reading calibration log {}", log.display()))?;
+        bar.finish_and_clear();
+        if run.ingest.rows == 0 {
+            bail!("{}: no data rows (only a header)", log.display());
+        }
+        report_skipped(&run.ingest);
+        runs.push(run);
+    }
+    let digest = digest_files(&logs)?;
+    let fitted = calibrate::fit_model(&runs, &config, digest).context("fitting the model")?;
+    let (blob, reports) = (&fitted.blob, &fitted.axes);
+    write_atomic(&a.out, |w| Ok(w.write_all(blob)?))?;
+    if let Some(dir) = &a.report {
+        let model = Model::from_bytes(blob).map_err(|e| anyhow::anyhow!("{e}"))?;
+        let summary: Vec<String> = reports
+            .iter()
+            .enumerate()
+            .map(|(axis, r)| {
+                format!(
+                    "- axis {axis}: {} calibration points, residual RMS {:.5} deg/h, {} mesh nodes, {} polynomial terms",
+                    r.points,
+                    r.residual_rms_dph,
+                    r.mesh_nodes,
+                    r.poly.as_ref().map_or(0, |p| p.terms.len())
+                )
+            })
+            .collect();
+        fogtemp_cal::report::write_fit_report(dir, &a.out, &model, &runs, &summary.join("\n"))?;
+        eprintln!("report: {}", dir.join("fit-report.md").display());
+    }
+    if a.json {
+        print_json(&FitDocument::new(&a.out, &fitted, &runs, &digest))?;
+    } else {
+        println!("wrote {} ({} bytes) from {} logs", a.out.display(), blob.len(), logs.len());
+        for (axis, r) in reports.iter().enumerate() {
+            println!(
+                "axis {axis}: {} points, fit residual RMS {:.5} deg/h (max {:.5}), {} mesh nodes, {} triangles{}",
+                r.points,
+                r.residual_rms_dph,
+                r.residual_max_abs_dph,
+                r.mesh_nodes,
+                r.mesh_triangles,
+                r.poly.as_ref().map_or(String::new(), |p| format!(
+                    ", {} polynomial terms (condition number {:.1})",
+                    p.terms.len(),
+                    p.condition_number
+                )),
+            );
+            if r.dropped_flat > 0 || r.merged_duplicates > 0 {
+                println!(
+                    "  mesh: {} duplicate points merged, {} points dropped for flat hull triangles",
+                    r.merged_duplicates, r.dropped_flat
+                );
+            }
+        }
+    }
+    Ok(())
+}

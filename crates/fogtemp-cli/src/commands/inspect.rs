@@ -1,0 +1,48 @@
+//! `inspect`: a model's header, sections and mesh in physical units.
+
+use anyhow::Result;
+use fogtemp_cal::documents::ModelDocument;
+
+use super::{json_text, print_json, read_model};
+use crate::args::InspectArgs;
+
+/// The `inspect` command.
+pub fn inspect(a: InspectArgs) -> Result<()> {
+    let blob = read_model(&a.model)?;
+    let doc = ModelDocument::new(&a.model, &blob).map_err(|e| anyhow::anyhow!("{e}"))?;
+    if a.json {
+        return print_json(&doc);
+    }
+    println!(
+        "{}: fogtemp model, format {}, {} bytes, written by '{}', input digest {}",
+        a.model.display(),
+        doc.format_version,
+        doc.bytes,
+        doc.tool_version,
+        doc.input_digest
+    );
+    for axis in &doc.axes {
+        println!(
+            "axis {}: {} | window {} s in {} blocks, restart after {} s | {} polynomial terms, {} nodes, {} triangles, outside: {} | fit residual RMS {} deg/h over {} points",
+            axis.axis,
+            axis.kind.join("+"),
+            json_text(&axis.features.window_s),
+            axis.features.block_count,
+            json_text(&axis.features.max_gap_s),
+            axis.poly.as_ref().map_or(0, Vec::len),
+            axis.nodes.len(),
+            axis.triangles.len(),
+            json_text(&axis.outside_policy),
+            json_text(&axis.provenance.residual_rms_dph),
+            axis.provenance.fit_point_count,
+        );
+        println!(
+            "  calibrated range: {} .. {} C, {} .. {} C/min",
+            json_text(&axis.provenance.temp_min_c),
+            json_text(&axis.provenance.temp_max_c),
+            json_text(&axis.provenance.rate_min_c_per_min),
+            json_text(&axis.provenance.rate_max_c_per_min)
+        );
+    }
+    Ok(())
+}

@@ -1,0 +1,111 @@
+//! The commands: parse arguments into library settings, run, report.
+
+//! One module per command; this one dispatches and holds what several share (ingest
+//! options, reading a model, skipped-row warnings).
+
+mod allan;
+mod compensate;
+mod diagnose;
+mod evaluate;
+mod export;
+mod fit;
+mod inspect;
+mod simulate;
+mod validate;
+
+use std::path::Path;
+
+use anyhow::{bail, Context, Result};
+use fogtemp_cal::ingest::{IngestOptions, IngestReport, LogFormat, RateUnit, TimeUnit};
+use fogtemp_core::Model;
+use serde::Serialize;
+
+use crate::args::{Command, GyroUnitArg, IngestArgs, TimeUnitArg};
+
+/// Runs one command.
+pub fn run(command: Command) -> Result<()> {
+    match command {
+        Command::Fit(a) => fit::fit(a),
+        Command::Compensate(a) => compensate::compensate(a),
+        Command::Validate(a) => validate::validate(a),
+        Command::Evaluate(a) => evaluate::evaluate(a),
+        Command::Inspect(a) => inspect::inspect(a),
+        Command::Export(a) => export::export(a),
+        Command::Allan(a) => allan::allan(a),
+        Command::Simulate(a) => simulate::simulate(a),
+        Command::Demo(a) => simulate::demo(a),
+        Command::Diagnose(a) => {
+            let ingest = ingest_options(&a.ingest)?;
+            diagnose::diagnose(a, ingest)
+        }
+    }
+}
+
+fn ingest_options(a: &IngestArgs) -> Result<IngestOptions> {
+    if !a.delimiter.is_ascii() {
+        bail!("--delimiter must be one ASCII character, got '{}'", a.delimiter);
+    }
+    Ok(IngestOptions {
+        format: LogFormat {
+            time_column: a.time_column.clone(),
+            time_unit: match a.time_unit {
+                TimeUnitArg::S => TimeUnit::Seconds,
+                TimeUnitArg::Ms => TimeUnit::Milliseconds,
+                TimeUnitArg::Us => TimeUnit::Microseconds,
+            },
+            temp_columns: a.temp_columns.clone(),
+            temp_scale: a.temp_scale,
+            temp_offset_c: a.temp_offset,
+            gyro_columns: a.gyro_columns.clone(),
+            gyro_unit: match a.gyro_unit {
+                GyroUnitArg::Dph => RateUnit::DegPerHour,
+                GyroUnitArg::Dps => RateUnit::DegPerSecond,
+                GyroUnitArg::Rps => RateUnit::RadPerSecond,
+            },
+            gyro_scale: a.gyro_scale,
+            delimiter: a.delimiter as u8,
+        },
+        skip_bad_rows: a.skip_bad_rows,
+    })
+}
+
+fn read_model(path: &Path) -> Result<Vec<u8>> {
+    let bytes = std::fs::read(path).with_context(|| format!("cannot read model {}", path.display()))?;
+    Model::from_bytes(&bytes).map_err(|e| anyhow::anyhow!("{}: not a valid model: {e}", path.display()))?;
+    Ok(bytes)
+}
+
+/// Tells the technician about skipped rows (nothing is dropped silently).
+fn report_skipped(report: &IngestReport) {
+    if report.skipped == 0 {
+        return;
+    }
+    eprintln!(
+        "warning: {}: skipped {} bad rows (--skip-bad-rows); first ones:",
+        report.path.display(),
+        report.skipped
+    );
+    for b in &report.first_skipped {
+        eprintln!(
+            "  line {} column {} '{}': {} (found '{}')",
+            b.line,
+            b.column,
+            b.column_name,
+            b.kind.describe(),
+            b.found
+        );
+    }
+}
+
+/// Prints a library document as the one JSON document on stdout: through a
+/// `serde_json::Value`, so the keys come out sorted and NaN or infinite numbers as `null`.
+fn print_json(doc: &impl Serialize) -> Result<()> {
+    println!("{}", serde_json::to_string_pretty(&serde_json::to_value(doc)?)?);
+    Ok(())
+}
+
+/// A value as the JSON text of it (numbers as JSON prints them: `100.0`, `null` for NaN),
+/// for the text outputs that have always shown them so.
+fn json_text(value: &impl Serialize) -> String {
+    serde_json::to_string(value).unwrap_or_default()
+}

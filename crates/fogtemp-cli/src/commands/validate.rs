@@ -1,0 +1,148 @@
+//! `validate`: raw vs compensated bias stability per run and overall, and models compared
+//! on the same logs.
+
+use anyhow::{bail, Context, Result};
+use fogtemp_cal::calibrate::{self, Validation};
+use fogtemp_cal::documents::{ComparedModel, ValidationDocument};
+use fogtemp_cal::metrics::BiasStabilityOptions;
+use fogtemp_core::Model;
+
+use super::{ingest_options, print_json, read_model, report_skipped};
+use crate::args::{StabilityArgs, ValidateArgs};
+use crate::output::{expand_logs, write_atomic, RowProgress};
+
+fn stability_options(a: &StabilityArgs) -> Result<BiasStabilityOptions> {
+    if !a.tau_s.is_finite() || a.tau_s <= 0.0 {
+        bail!("--tau-s must be positive");
+    }
+    Ok(BiasStabilityOptions {
+        tau_s: a.tau_s,
+        overlapping: a.overlapping,
+        detrend: a.detrend,
+        exclude_first_s: a.exclude_first_s,
+    })
+}
+
+/// The `validate` command.
+pub fn validate(a: ValidateArgs) -> Result<()> {
+    let blob = read_model(&a.model)?;
+    let model = Model::from_bytes(&blob).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let logs = expand_logs(&a.logs)?;
+    let ingest = ingest_options(&a.ingest)?;
+    let options = stability_options(&a.stability)?;
+    // The compared models are replayed in the same pass over each log as the primary one.
+    let compare_blobs: Vec<Vec<u8>> = a.compare.iter().map(|p| read_model(p)).collect::<Result<_>>()?;
+    let mut models = vec![model];
+    for blob in &compare_blobs {
+        models.push(Model::from_bytes(blob).map_err(|e| anyhow::anyhow!("{e}"))?);
+    }
+    let refs: Vec<&Model<'_>> = models.iter().collect();
+    let bars: Vec<_> = logs.iter().map(|l| RowProgress::new(l, "validate")).collect();
+    let mut outcomes = calibrate::validate_models(&logs, &refs, &ingest, &options, |i, b, r| {
+        if let Some(bar) = bars.get(i) {
+            bar.update(b, r);
+        }
+    })?;
+    for bar in &bars {
+        bar.finish_and_clear();
+    }
+    let compared = outcomes.split_off(1.min(outcomes.len()));
+    let validation = outcomes.pop().unwrap_or_default();
+    let (runs, raw, comp) =
+        (&validation.runs, validation.raw_bias_stability_dph, validation.compensated_bias_stability_dph);
+    let model = &models[0];
+    for r in runs.iter().filter(|r| r.axis == 0) {
+        if r.ingest.rows == 0 {
+            bail!("{}: no data rows (only a header)", r.path.display());
+        }
+        report_skipped(&r.ingest);
+    }
+    let comparison = compare_models(&a, &models, &validation, &compared);
+    if let Some(dir) = &a.report {
+        fogtemp_cal::report::write_validation_report(
+            dir,
+            &a.model,
+            model,
+            runs,
+            (raw, comp),
+            &options.describe(),
+        )?;
+        if !comparison.is_empty() {
+            let table = comparison_markdown(&comparison);
+            let path = dir.join("report.md");
+            let mut text =
+                std::fs::read_to_string(&path).with_context(|| format!("reading {}", path.display()))?;
+            text = text.replacen("\n## ", &format!("\n{table}\n## "), 1);
+            write_atomic(&path, |w| Ok(w.write_all(text.as_bytes())?))?;
+        }
+        eprintln!("report: {}", dir.join("report.md").display());
+    }
+    if a.json {
+        return print_json(&ValidationDocument::new(&options, &validation, comparison));
+    }
+    println!("{}", options.describe());
+    println!("{:<40} {:>4} {:>14} {:>14} {:>8}", "run", "axis", "raw deg/h", "comp deg/h", "ratio");
+    for r in runs {
+        let name = r.path.file_name().map_or_else(String::new, |n| n.to_string_lossy().into_owned());
+        println!(
+            "{:<40} {:>4} {:>14.5} {:>14.5} {:>8.2}",
+            name,
+            r.axis,
+            r.raw_bias_stability_dph,
+            r.compensated_bias_stability_dph,
+            r.raw_bias_stability_dph / r.compensated_bias_stability_dph
+        );
+    }
+    println!("{:<40} {:>4} {:>14.5} {:>14.5} {:>8.2}", "overall (RMS over runs)", "", raw, comp, raw / comp);
+    if !comparison.is_empty() {
+        println!("\nmodels compared on the same logs:");
+        for c in &comparison {
+            println!(
+                "{:<40} {:>6} nodes {:>3} terms {:>14.5} {:>8.2}",
+                c.model,
+                c.mesh_nodes,
+                c.polynomial_terms,
+                c.compensated_bias_stability_dph,
+                c.raw_bias_stability_dph / c.compensated_bias_stability_dph
+            );
+        }
+    }
+    Ok(())
+}
+
+/// The primary model first, then every `--compare` model, replayed on the same logs (none
+/// without `--compare`).
+fn compare_models(
+    a: &ValidateArgs,
+    models: &[Model<'_>],
+    primary: &Validation,
+    compared: &[Validation],
+) -> Vec<ComparedModel> {
+    if a.compare.is_empty() {
+        return Vec::new();
+    }
+    let mut out = vec![ComparedModel::new(&a.model, &models[0], primary)];
+    for ((path, model), v) in a.compare.iter().zip(models.iter().skip(1)).zip(compared) {
+        out.push(ComparedModel::new(path, model, v));
+    }
+    out
+}
+
+/// The comparison as a Markdown table for the validation report.
+fn comparison_markdown(rows: &[ComparedModel]) -> String {
+    let mut md = String::from(
+        "## Models compared on the same logs\n\n| model | mesh nodes | polynomial terms | raw, deg/h | compensated, deg/h | ratio |\n|---|---|---|---|---|---|\n",
+    );
+    for c in rows {
+        md.push_str(&format!(
+            "| {} | {} | {} | {:.5} | {:.5} | {:.2} |\n",
+            c.model,
+            c.mesh_nodes,
+            c.polynomial_terms,
+            c.raw_bias_stability_dph,
+            c.compensated_bias_stability_dph,
+            c.raw_bias_stability_dph / c.compensated_bias_stability_dph
+        ));
+    }
+    md
+}
