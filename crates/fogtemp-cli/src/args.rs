@@ -111,6 +111,9 @@ pub enum MethodArg {
     Mesh,
     /// Polynomial plus a mesh of its residuals.
     Hybrid,
+    /// A cubic in temperature alone (what PX4 and ArduPilot ship): the baseline.
+    #[value(name = "cubic-t")]
+    CubicT,
 }
 
 /// Mesh node selection.

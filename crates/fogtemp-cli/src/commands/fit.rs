@@ -27,6 +27,7 @@ pub fn fit(a: FitArgs) -> Result<()> {
             MethodArg::Poly => Method::Poly,
             MethodArg::Mesh => Method::Mesh,
             MethodArg::Hybrid => Method::Hybrid,
+            MethodArg::CubicT => Method::CubicT,
         },
         thinning: match a.thinning {
             ThinningArg::Greedy => match a.tolerance_dph {
