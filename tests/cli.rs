@@ -1111,3 +1111,56 @@ fn allan_recovers_white_noise_arw() {
     let expected = 60.0 * N / f(&at_1s["tau_s"]).sqrt();
     assert!((f(&at_1s["adev_dph"]) / expected - 1.0).abs() < 0.10, "{at_1s} vs {expected}");
 }
+
+// ---------------------------------------------------------------------------------------
+// Capacity: the firmware's tracker capacity is a checked contract
+// ---------------------------------------------------------------------------------------
+
+#[test]
+fn capacity_is_checked_at_fit_validate_compensate_and_exported() {
+    let logs = logs();
+    let dir = TempDir::new().expect("tempdir");
+    let model = dir.path().join("m.fogm");
+    // 200 blocks do not fit the firmware default of 128: refused before anything is read.
+    let err = run_err(args!["fit", "--method", "poly", "--blocks", "200", "--out", &model, &logs.cal]);
+    assert!(
+        err.contains("capacity") && err.contains("needs 200 blocks") && err.contains("--blocks 128"),
+        "{err}"
+    );
+    assert!(!model.exists());
+    // ... and accepted when the firmware is said to hold them.
+    let model200 = dir.path().join("m200.fogm");
+    run_ok(args![
+        "fit",
+        "--method",
+        "poly",
+        "--blocks",
+        "200",
+        "--min-blocks",
+        "2",
+        "--capacity",
+        "256",
+        "--out",
+        &model200,
+        &logs.cal
+    ]);
+    let doc = json(&run_ok(args!["inspect", &model200, "--json"]));
+    assert_eq!(doc["axes"][0]["features"]["blocks_needed"], 200);
+    assert!(run_ok(args!["inspect", &model200]).contains("capacity needed: 200 blocks"));
+    // validate and compensate refuse it at the default capacity, naming the model.
+    let err = run_err(args!["validate", "--model", &model200, &logs.val]);
+    assert!(err.contains("m200.fogm axis 0") && err.contains("capacity is 128"), "{err}");
+    let out = dir.path().join("c.csv");
+    let err = run_err(args!["compensate", "--model", &model200, logs.val.join("run0.csv"), "--out", &out]);
+    assert!(err.contains("capacity"), "{err}");
+    assert!(!out.exists());
+    // The exports carry the capacity the model needs.
+    let rs = dir.path().join("model.rs");
+    run_ok(args!["export", "--model", &model200, "--format", "rust", "--out", &rs, "--name", "GYRO_MODEL"]);
+    assert!(fs::read_to_string(&rs).expect("rs").contains("pub const GYRO_MODEL_CAPACITY: usize = 200;"));
+    let c = dir.path().join("model.c");
+    run_ok(args!["export", "--model", &model200, "--format", "c", "--out", &c, "--name", "gyro_model"]);
+    assert!(fs::read_to_string(dir.path().join("model.h"))
+        .expect("h")
+        .contains("#define GYRO_MODEL_CAPACITY 200u"));
+}

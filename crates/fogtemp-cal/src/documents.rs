@@ -363,6 +363,7 @@ impl ModelAxisDocument {
                 block_count: f.block_count,
                 min_blocks: f.min_blocks,
                 max_gap_s: f64::from(f.max_gap_s),
+                blocks_needed: axis.blocks_needed(),
             },
             normalisation: NormalisationDocument {
                 temp_offset_c: f64::from(n.temp_offset_c),
@@ -407,6 +408,9 @@ pub struct FeaturesDocument {
     pub min_blocks: u32,
     /// A temperature gap longer than this restarts the tracker, s.
     pub max_gap_s: f64,
+    /// The feature tracker capacity (block means) a firmware's `Compensator` needs for
+    /// this axis (`fogtemp_core::Axis::blocks_needed`).
+    pub blocks_needed: usize,
 }
 
 /// The normalisation of an axis (`fogtemp_core::Normalisation`): `x = (T - offset) scale`.

@@ -138,6 +138,10 @@ pub enum PolyArg {
 /// `fit` arguments.
 #[derive(Debug, Args)]
 pub struct FitArgs {
+    /// Blocks the firmware's feature tracker holds: its `Compensator` capacity (fogtemp-core's
+    /// default, 128). A model whose window needs more blocks is refused.
+    #[arg(long, default_value_t = fogtemp_core::DEFAULT_CAPACITY)]
+    pub capacity: usize,
     /// Calibration logs (files or folders of *.csv).
     #[arg(required = true)]
     pub logs: Vec<PathBuf>,
@@ -212,6 +216,10 @@ pub struct FitArgs {
 /// `compensate` arguments.
 #[derive(Debug, Args)]
 pub struct CompensateArgs {
+    /// Blocks the firmware's feature tracker holds: its `Compensator` capacity (fogtemp-core's
+    /// default, 128). A model whose window needs more blocks is refused.
+    #[arg(long, default_value_t = fogtemp_core::DEFAULT_CAPACITY)]
+    pub capacity: usize,
     /// Model file.
     #[arg(long, short)]
     pub model: PathBuf,
@@ -245,6 +253,10 @@ pub struct StabilityArgs {
 /// `validate` arguments.
 #[derive(Debug, Args)]
 pub struct ValidateArgs {
+    /// Blocks the firmware's feature tracker holds: its `Compensator` capacity (fogtemp-core's
+    /// default, 128). A model whose window needs more blocks is refused.
+    #[arg(long, default_value_t = fogtemp_core::DEFAULT_CAPACITY)]
+    pub capacity: usize,
     /// Model file.
     #[arg(long, short)]
     pub model: PathBuf,

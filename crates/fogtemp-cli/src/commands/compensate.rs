@@ -3,12 +3,13 @@
 use anyhow::{bail, Result};
 use fogtemp_core::{Compensator, Model};
 
-use super::{ingest_options, read_model, report_skipped};
+use super::{check_capacity, ingest_options, read_model, report_skipped};
 use crate::args::CompensateArgs;
 use crate::output::{write_atomic, RowProgress};
 
 pub fn compensate(a: CompensateArgs) -> Result<()> {
     let blob = read_model(&a.model)?;
+    check_capacity(&a.model, &blob, a.capacity)?;
     let model = Model::from_bytes(&blob).map_err(|e| anyhow::anyhow!("{e}"))?;
     let ingest = ingest_options(&a.ingest)?;
     let axes = model.axis_count().min(ingest.format.gyro_columns.len());

@@ -7,12 +7,13 @@ use fogtemp_cal::poly_fit::TermSelection;
 use fogtemp_cal::thin::GreedyThinning;
 use fogtemp_core::{FeatureSettings, Model};
 
-use super::{ingest_options, print_json, report_skipped};
+use super::{capacity_fits, ingest_options, print_json, report_skipped};
 use crate::args::{FitArgs, MethodArg, PolyArg, ThinningArg};
 use crate::output::{digest_files, expand_logs, write_atomic, RowProgress};
 
 /// The `fit` command.
 pub fn fit(a: FitArgs) -> Result<()> {
+    capacity_fits(a.blocks as usize, a.capacity).context("--blocks")?;
     let logs = expand_logs(&a.logs)?;
     let config = CalibrationConfig {
         ingest: ingest_options(&a.ingest)?,

@@ -37,11 +37,12 @@ pub fn inspect(a: InspectArgs) -> Result<()> {
             axis.provenance.fit_point_count,
         );
         println!(
-            "  calibrated range: {} .. {} C, {} .. {} C/min",
+            "  calibrated range: {} .. {} C, {} .. {} C/min; feature tracker capacity needed: {} blocks",
             json_text(&axis.provenance.temp_min_c),
             json_text(&axis.provenance.temp_max_c),
             json_text(&axis.provenance.rate_min_c_per_min),
-            json_text(&axis.provenance.rate_max_c_per_min)
+            json_text(&axis.provenance.rate_max_c_per_min),
+            axis.features.blocks_needed
         );
     }
     Ok(())

@@ -75,6 +75,31 @@ fn read_model(path: &Path) -> Result<Vec<u8>> {
     Ok(bytes)
 }
 
+/// Refuses a model whose feature tracker needs more blocks than the firmware's `capacity`
+/// (it would fail at boot with `CapacityTooSmall`).
+fn check_capacity(path: &Path, blob: &[u8], capacity: usize) -> Result<()> {
+    let model =
+        Model::from_bytes(blob).map_err(|e| anyhow::anyhow!("{}: not a valid model: {e}", path.display()))?;
+    for index in 0..model.axis_count() {
+        let axis = model.axis(index).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+        capacity_fits(axis.blocks_needed(), capacity)
+            .with_context(|| format!("{} axis {index}", path.display()))?;
+    }
+    Ok(())
+}
+
+/// An error saying "capacity" and what to change when `needed` blocks exceed `capacity`.
+fn capacity_fits(needed: usize, capacity: usize) -> Result<()> {
+    if needed > capacity {
+        bail!(
+            "the model's feature tracker needs {needed} blocks but the firmware's capacity is {capacity} \
+             (--capacity): fit with --blocks {capacity} or fewer, or build the firmware's Compensator with \
+             capacity {needed} and pass --capacity {needed}"
+        );
+    }
+    Ok(())
+}
+
 /// Tells the technician about skipped rows (nothing is dropped silently).
 fn report_skipped(report: &IngestReport) {
     if report.skipped == 0 {

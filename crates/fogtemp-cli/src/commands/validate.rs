@@ -7,7 +7,7 @@ use fogtemp_cal::documents::{ComparedModel, ValidationDocument};
 use fogtemp_cal::metrics::BiasStabilityOptions;
 use fogtemp_core::Model;
 
-use super::{ingest_options, print_json, read_model, report_skipped};
+use super::{check_capacity, ingest_options, print_json, read_model, report_skipped};
 use crate::args::{StabilityArgs, ValidateArgs};
 use crate::output::{expand_logs, write_atomic, RowProgress};
 
@@ -26,6 +26,7 @@ fn stability_options(a: &StabilityArgs) -> Result<BiasStabilityOptions> {
 /// The `validate` command.
 pub fn validate(a: ValidateArgs) -> Result<()> {
     let blob = read_model(&a.model)?;
+    check_capacity(&a.model, &blob, a.capacity)?;
     let model = Model::from_bytes(&blob).map_err(|e| anyhow::anyhow!("{e}"))?;
     let logs = expand_logs(&a.logs)?;
     let ingest = ingest_options(&a.ingest)?;
@@ -33,7 +34,8 @@ pub fn validate(a: ValidateArgs) -> Result<()> {
     // The compared models are replayed in the same pass over each log as the primary one.
     let compare_blobs: Vec<Vec<u8>> = a.compare.iter().map(|p| read_model(p)).collect::<Result<_>>()?;
     let mut models = vec![model];
-    for blob in &compare_blobs {
+    for (path, blob) in a.compare.iter().zip(&compare_blobs) {
+        check_capacity(path, blob, a.capacity)?;
         models.push(Model::from_bytes(blob).map_err(|e| anyhow::anyhow!("{e}"))?);
     }
     let refs: Vec<&Model<'_>> = models.iter().collect();
