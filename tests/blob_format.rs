@@ -1,11 +1,20 @@
-//! The model blob, format version 1: round trip through the writer and reader, the CRC, the
-//! committed golden bytes, and rejection of corrupt input without panics.
+//! The model blob, format version 1, from the writer's side: round trip through
+//! `fogtemp_cal::encode` and the core reader, the layout against the spec, the committed golden
+//! bytes reproduced by today's writer, and rejection of corrupted written blobs without panics
+//! (single-byte flips, truncations, structured mutations, targeted corruptions with their
+//! specific errors).
+//!
+//! The reader's side alone (the core's CRC, the golden bytes read and evaluated, random bytes,
+//! the fuzz regressions) is tested in the core's own `crates/fogtemp-core/tests/blob_format.rs`;
+//! the byte helpers and the golden file names and queries are shared with it
+//! (`crates/fogtemp-core/tests/common/blob.rs`, included here with `#[path]`).
 //!
 //! Golden files live in `tests/golden/`. They are written only when the environment variable
 //! `FOGTEMP_BLESS=1` is set:
 //!
 //! ```text
 //! FOGTEMP_BLESS=1 cargo test --test blob_format golden
+//! cargo test -p fogtemp-core --test blob_format golden   # today's reader on the new files
 //! ```
 //!
 //! Bless only when the format version changes (then add a new `model-vN` pair and keep the old
@@ -13,6 +22,8 @@
 //! changes for the same model; never to make a failing read of an old file pass.
 
 mod common;
+#[path = "../crates/fogtemp-core/tests/common/blob.rs"]
+mod shared;
 
 use std::collections::BTreeMap;
 use std::panic::{catch_unwind, AssertUnwindSafe};
@@ -24,12 +35,13 @@ use fogtemp_cal::blob::triangle_transform;
 use fogtemp_cal::{build_mesh, encode, AxisModel, CalError, MeshModel, MeshPoint, ModelFile};
 use fogtemp_core::wire::*;
 use fogtemp_core::{
-    AxisProvenance, Error, FeatureSettings, Location, Model, Normalisation, OutsidePolicy, PolyTerm, Vertex,
-    WalkHint,
+    AxisProvenance, Error, FeatureSettings, Model, Normalisation, OutsidePolicy, PolyTerm, Vertex, WalkHint,
 };
-use proptest::prelude::*;
-use proptest::test_runner::{Config, RngAlgorithm, RngSeed};
 use rand::Rng;
+use shared::{
+    core_digest, exercise, fix_crc, fix_len_and_crc, golden_queries, put_f32, put_u16, put_u32, u16_at,
+    u32_at, GOLDEN_BLOB, GOLDEN_CSV, GOLDEN_HEADER,
+};
 
 // ---------------------------------------------------------------------------------------------
 // Helpers
@@ -37,45 +49,6 @@ use rand::Rng;
 
 fn golden_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("tests").join("golden")
-}
-
-fn u16_at(b: &[u8], at: usize) -> u16 {
-    u16::from_le_bytes([b[at], b[at + 1]])
-}
-
-fn u32_at(b: &[u8], at: usize) -> u32 {
-    u32::from_le_bytes(b[at..at + 4].try_into().expect("4 bytes"))
-}
-
-fn put_u16(b: &mut [u8], at: usize, v: u16) {
-    b[at..at + 2].copy_from_slice(&v.to_le_bytes());
-}
-
-fn put_u32(b: &mut [u8], at: usize, v: u32) {
-    b[at..at + 4].copy_from_slice(&v.to_le_bytes());
-}
-
-fn put_f32(b: &mut [u8], at: usize, v: f32) {
-    b[at..at + 4].copy_from_slice(&v.to_le_bytes());
-}
-
-/// Rewrites `total_len` to the buffer length and the CRC trailer to match the bytes, so that
-/// a mutant gets past the integrity checks and exercises the validation behind them.
-fn fix_crc(b: &mut [u8]) {
-    if b.len() < FILE_HEADER_LEN + CRC_LEN {
-        return;
-    }
-    let body = b.len() - CRC_LEN;
-    let crc = crc32fast::hash(&b[..body]);
-    b[body..].copy_from_slice(&crc.to_le_bytes());
-}
-
-fn fix_len_and_crc(b: &mut [u8]) {
-    if b.len() >= FILE_HEADER_LEN + CRC_LEN {
-        let len = b.len() as u32;
-        put_u32(b, FILE_TOTAL_LEN.start, len);
-    }
-    fix_crc(b);
 }
 
 /// Offsets of one axis section's parts in a blob.
@@ -110,73 +83,6 @@ fn section(b: &[u8], axis: usize) -> Section {
     let triangle_at = vertex_at + vertices * VERTEX_LEN;
     let hull_at = triangle_at + triangles * TRIANGLE_LEN;
     Section { start, terms, vertices, triangles, hull, poly_at, vertex_at, triangle_at, hull_at }
-}
-
-/// Exercises every read-side API of an accepted model at many queries and hints. Returns the
-/// number of evaluations. Must never panic, whatever the model.
-fn exercise(model: &Model<'_>, seed: u64) -> usize {
-    let mut r = rng(seed);
-    let mut n = 0;
-    let _ = (model.tool_version(), model.input_digest(), model.format_version());
-    assert!(model.axis(model.axis_count()).is_err());
-    for i in 0..model.axis_count() {
-        let axis = model.axis(i).expect("an accepted model hands out each of its axes");
-        let mut queries: Vec<(f32, f32)> =
-            (0..24).map(|_| (r.gen_range(-100.0f32..150.0), r.gen_range(-1.0f32..2.0))).collect();
-        queries.extend([
-            (f32::MAX, f32::MAX),
-            (f32::MIN, 0.0),
-            (0.0, f32::MIN),
-            (1.0e30, -1.0e30),
-            (f32::NAN, 0.0),
-            (0.0, f32::INFINITY),
-            (-0.0, f32::MIN_POSITIVE),
-        ]);
-        let mut hint = WalkHint(r.gen());
-        for &(t, rate) in &queries {
-            let _ = axis.evaluate(t, rate, &mut hint);
-            n += 1;
-        }
-        if let Some(poly) = &axis.poly {
-            let _ = (poly.len(), poly.is_empty(), poly.terms().count(), poly.evaluate(1.0e6, -1.0e6));
-        }
-        if let Some(mesh) = &axis.mesh {
-            for &(t, rate) in &queries {
-                let (x, y) = axis.normalisation.apply(t, rate);
-                for h in [0, 1, mesh.triangle_count() / 2, mesh.triangle_count(), u32::MAX, r.gen()] {
-                    let mut hint = WalkHint(h);
-                    if let Ok(loc) = mesh.locate(x, y, &mut hint) {
-                        assert!(hint.0 < mesh.triangle_count(), "hint left in range");
-                        let (Location::Inside { triangle, .. } | Location::Outside { triangle }) = loc;
-                        assert!(triangle < mesh.triangle_count());
-                    }
-                    let _ = mesh.interpolate(x, y, &mut hint);
-                    n += 1;
-                }
-                let _ = (mesh.locate_by_scan(x, y), mesh.nearest_hull_value(x, y));
-            }
-            for h in 0..=mesh.hull_edge_count() {
-                let _ = (mesh.hull_edge(h), mesh.hull_edge_vertices(h));
-            }
-            let _ = (
-                mesh.vertex(u32::MAX),
-                mesh.triangle(u32::MAX),
-                mesh.hull_edge(u32::MAX),
-                mesh.outside_policy(),
-            );
-        }
-    }
-    n
-}
-
-fn proptest_config(cases: u32) -> Config {
-    Config {
-        cases,
-        failure_persistence: None,
-        rng_algorithm: RngAlgorithm::ChaCha,
-        rng_seed: RngSeed::Fixed(0xB10B_F0A7),
-        ..Config::default()
-    }
 }
 
 fn provenance(seed: f32) -> AxisProvenance {
@@ -241,14 +147,6 @@ fn three_axis_model() -> ModelFile {
         input_digest: core_digest(),
         axes: vec![axis0, axis1, axis2],
     }
-}
-
-fn core_digest() -> [u8; 32] {
-    let mut d = [0u8; 32];
-    for (i, b) in d.iter_mut().enumerate() {
-        *b = (i as u8).wrapping_mul(37).wrapping_add(5);
-    }
-    d
 }
 
 /// A valid one-axis hybrid blob of about 2 KB (17 mesh nodes, 3 poly terms).
@@ -429,22 +327,7 @@ fn blob_layout_follows_the_spec() {
 }
 
 // ---------------------------------------------------------------------------------------------
-// 2. CRC
-// ---------------------------------------------------------------------------------------------
-
-#[test]
-fn core_crc32_equals_crc32fast_on_random_bytes() {
-    assert_eq!(fogtemp_core::crc::crc32(b"123456789"), 0xCBF4_3926);
-    let mut r = rng(42);
-    for i in 0..3000 {
-        let len = if i < 300 { i } else { r.gen_range(0..5000) };
-        let bytes: Vec<u8> = (0..len).map(|_| r.gen()).collect();
-        assert_eq!(fogtemp_core::crc::crc32(&bytes), crc32fast::hash(&bytes), "length {len}");
-    }
-}
-
-// ---------------------------------------------------------------------------------------------
-// 3. Golden bytes of format version 1
+// 2. Golden bytes of format version 1 (the reader's side: the core's tests)
 // ---------------------------------------------------------------------------------------------
 
 /// A deterministic pseudo-random stream from an integer LCG (no float library functions, so
@@ -511,26 +394,6 @@ fn golden_model() -> ModelFile {
     ModelFile { tool_version: "fogtemp golden".into(), input_digest: core_digest(), axes: vec![axis0, axis1] }
 }
 
-/// The golden query points: axis 0 on a 6 x 5 grid reaching outside the hull, axis 1 on 5 x 4.
-fn golden_queries() -> Vec<(usize, f32, f32)> {
-    let mut q = Vec::new();
-    for temp_c in [-70.0f32, -35.5, -2.25, 21.0, 47.75, 95.0] {
-        for rate in [-0.25f32, 0.125, 0.4, 0.7, 1.3] {
-            q.push((0, temp_c, rate));
-        }
-    }
-    for temp_c in [-40.0f32, -10.0, 15.0, 40.0, 85.0] {
-        for rate in [0.0f32, 0.2, 0.45, 0.9] {
-            q.push((1, temp_c, rate));
-        }
-    }
-    q
-}
-
-const GOLDEN_BLOB: &str = "model-v1.fogm";
-const GOLDEN_CSV: &str = "model-v1.expected.csv";
-const GOLDEN_HEADER: &str = "axis,temp_c,rate_c_per_min,value_dph_bits,outside";
-
 /// One expected row: evaluated with a fresh default hint, so the row does not depend on the
 /// order of the queries.
 fn golden_row(model: &Model<'_>, (axis, temp_c, rate): (usize, f32, f32)) -> String {
@@ -569,47 +432,6 @@ fn read_golden(name: &str) -> Vec<u8> {
 }
 
 #[test]
-fn golden_v1_blob_parses_and_evaluates_every_expected_row_bit_exactly() {
-    let blob = read_golden(GOLDEN_BLOB);
-    let csv = String::from_utf8(read_golden(GOLDEN_CSV)).expect("utf-8");
-    let model = Model::from_bytes(&blob).expect("today's reader accepts the version-1 golden blob");
-    assert_eq!(model.format_version(), 1);
-    assert_eq!(model.axis_count(), 2);
-    assert_eq!(model.tool_version(), b"fogtemp golden");
-    assert_eq!(model.input_digest(), core_digest());
-    let (a0, a1) = (model.axis(0).expect("axis 0"), model.axis(1).expect("axis 1"));
-    assert!(a0.poly.is_some() && a0.mesh.is_some() && a1.poly.is_some() && a1.mesh.is_none());
-    assert!(a0.mesh.expect("mesh").vertex_count() >= 25);
-
-    let mut lines = csv.lines();
-    assert_eq!(lines.next(), Some(GOLDEN_HEADER));
-    let mut rows = 0;
-    let mut outside = 0;
-    for (n, line) in lines.enumerate() {
-        let fields: Vec<&str> = line.split(',').collect();
-        assert_eq!(fields.len(), 5, "row {n}: {line}");
-        let axis: usize = fields[0].parse().expect("axis");
-        let temp_c: f32 = fields[1].parse().expect("temp_c");
-        let rate: f32 = fields[2].parse().expect("rate_c_per_min");
-        let expected_bits = u32::from_str_radix(fields[3], 16).expect("value_dph_bits");
-        let expected_outside = fields[4] == "1";
-        let e =
-            model.axis(axis).expect("axis").evaluate(temp_c, rate, &mut WalkHint::default()).expect("finite");
-        assert_eq!(
-            (e.value_dph.to_bits(), e.outside_hull),
-            (expected_bits, expected_outside),
-            "row {n} ({line}): today's reader gives {} ({:08x})",
-            e.value_dph,
-            e.value_dph.to_bits()
-        );
-        rows += 1;
-        outside += usize::from(expected_outside);
-    }
-    assert_eq!(rows, golden_queries().len());
-    assert!(outside > 0 && outside < rows, "the golden queries cover inside and outside the hull");
-}
-
-#[test]
 fn golden_v1_blob_is_reproduced_byte_for_byte_by_todays_writer() {
     let golden = read_golden(GOLDEN_BLOB);
     let today = encode(&golden_model()).expect("encodes");
@@ -628,7 +450,7 @@ fn golden_v1_blob_is_reproduced_byte_for_byte_by_todays_writer() {
 }
 
 // ---------------------------------------------------------------------------------------------
-// 4. Corruption
+// 3. Corruption
 // ---------------------------------------------------------------------------------------------
 
 const MASKS: [u8; 9] = [0x01, 0x02, 0x04, 0x08, 0x10, 0x20, 0x40, 0x80, 0xFF];
@@ -687,37 +509,6 @@ fn every_truncation_is_rejected() {
 fn variant(e: &Error) -> String {
     let s = format!("{e:?}");
     s.split([' ', '{', '(']).next().unwrap_or("").to_string()
-}
-
-proptest! {
-    #![proptest_config(proptest_config(3000))]
-
-    #[test]
-    fn random_bytes_never_panic(bytes in proptest::collection::vec(any::<u8>(), 0..4096)) {
-        if let Ok(model) = Model::from_bytes(&bytes) {
-            exercise(&model, 9);
-        }
-    }
-
-    #[test]
-    fn random_bytes_behind_a_valid_header_never_panic(
-        axis_count in 0u16..20,
-        payload in proptest::collection::vec(any::<u8>(), 0..3000),
-    ) {
-        // A well-formed file header with a matching length and CRC: the reader has to go
-        // through the axis sections, which are random.
-        let mut b = vec![0u8; FILE_HEADER_LEN];
-        b[FILE_MAGIC].copy_from_slice(&MAGIC);
-        put_u16(&mut b, FILE_VERSION.start, FORMAT_VERSION);
-        put_u16(&mut b, FILE_HEADER_LEN_FIELD.start, FILE_HEADER_LEN as u16);
-        put_u16(&mut b, FILE_AXIS_COUNT.start, axis_count);
-        b.extend_from_slice(&payload);
-        b.extend_from_slice(&[0; CRC_LEN]);
-        fix_len_and_crc(&mut b);
-        if let Ok(model) = Model::from_bytes(&b) {
-            exercise(&model, 10);
-        }
-    }
 }
 
 /// One structured mutation of a valid blob.
@@ -871,35 +662,8 @@ fn random_mutations_with_crc_recomputed_never_panic_and_accepted_ones_evaluate()
     assert!(outcomes.len() >= 6, "mutations reach many different checks: {outcomes:?}");
 }
 
-#[test]
-fn fuzz_regressions_never_panic() {
-    // Inputs the fuzz target once crashed on (see tests/golden/fuzz-regressions/README.md),
-    // through the same two paths as the target: as given, and with length and CRC patched.
-    let dir = golden_dir().join("fuzz-regressions");
-    let mut replayed = 0;
-    for entry in std::fs::read_dir(&dir).expect("tests/golden/fuzz-regressions exists") {
-        let path = entry.expect("dir entry").path();
-        if path.extension().is_some_and(|e| e == "md") {
-            continue;
-        }
-        let bytes = std::fs::read(&path).expect("read regression input");
-        let mut fixed = bytes.clone();
-        fix_len_and_crc(&mut fixed);
-        for input in [&bytes, &fixed] {
-            let outcome = catch_unwind(AssertUnwindSafe(|| {
-                if let Ok(model) = Model::from_bytes(input) {
-                    exercise(&model, 0);
-                }
-            }));
-            assert!(outcome.is_ok(), "{}: panics", path.display());
-        }
-        replayed += 1;
-    }
-    println!("replayed {replayed} fuzz regression inputs");
-}
-
 // ---------------------------------------------------------------------------------------------
-// 5. Targeted corruptions (CRC recomputed): each gives its specific error
+// 4. Targeted corruptions (CRC recomputed): each gives its specific error
 // ---------------------------------------------------------------------------------------------
 
 fn mutated(f: impl FnOnce(&mut Vec<u8>, Section)) -> Result<(), Error> {
@@ -1081,7 +845,7 @@ fn targeted_hull_corruptions_give_their_specific_errors() {
 }
 
 // ---------------------------------------------------------------------------------------------
-// 6. Validation gaps found by these tests (fail until crates/fogtemp-core is fixed)
+// 5. Validation gaps found by these tests (fail until crates/fogtemp-core is fixed)
 // ---------------------------------------------------------------------------------------------
 
 fn vertex(x: f32, y: f32, value_dph: f32) -> Vertex {

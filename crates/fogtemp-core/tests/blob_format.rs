@@ -1,0 +1,178 @@
+//! The model blob, format version 1, from the reader's side alone: the core's CRC against
+//! `crc32fast`, the committed golden bytes read and evaluated bit-exactly, and arbitrary or
+//! once-crashing input rejected or evaluated without panics.
+//!
+//! The writer's side (round trip through `fogtemp_cal::encode`, layout, the golden blob
+//! reproduced by today's writer, corruptions of written blobs) is tested in the workspace
+//! root's `tests/blob_format.rs`, which needs `fogtemp-cal`.
+//!
+//! The golden files live in the workspace root's `tests/golden/` (the root's writer test
+//! compares them with today's writer and the fuzz seed corpus starts from them). They are
+//! written only by the root test, with `FOGTEMP_BLESS=1 cargo test --test blob_format golden`
+//! from the workspace root; see that file for when blessing is legitimate. The expected values
+//! in the CSV were evaluated by the core reader when blessed, so this test checks that today's
+//! reader still reads the version-1 bytes and gives the same f32 bits.
+#![allow(clippy::expect_used, clippy::unwrap_used, clippy::panic, clippy::indexing_slicing)]
+
+mod common;
+
+use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::path::PathBuf;
+
+use common::blob::{
+    core_digest, exercise, fix_len_and_crc, golden_queries, put_u16, GOLDEN_BLOB, GOLDEN_CSV, GOLDEN_HEADER,
+};
+use common::rng;
+use fogtemp_core::wire::*;
+use fogtemp_core::{Model, WalkHint};
+use proptest::prelude::*;
+use proptest::test_runner::{Config, RngAlgorithm, RngSeed};
+use rand::Rng;
+
+/// The workspace root's `tests/golden/`.
+fn golden_dir() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..").join("..").join("tests").join("golden")
+}
+
+fn read_golden(name: &str) -> Vec<u8> {
+    let path = golden_dir().join(name);
+    std::fs::read(&path).unwrap_or_else(|e| {
+        panic!(
+            "{}: {e}; golden files are created once, from the workspace root, with \
+             FOGTEMP_BLESS=1 cargo test --test blob_format golden",
+            path.display()
+        )
+    })
+}
+
+fn proptest_config(cases: u32) -> Config {
+    Config {
+        cases,
+        failure_persistence: None,
+        rng_algorithm: RngAlgorithm::ChaCha,
+        rng_seed: RngSeed::Fixed(0xB10B_F0A7),
+        ..Config::default()
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// CRC
+// ---------------------------------------------------------------------------------------------
+
+#[test]
+fn core_crc32_equals_crc32fast_on_random_bytes() {
+    assert_eq!(fogtemp_core::crc::crc32(b"123456789"), 0xCBF4_3926);
+    let mut r = rng(42);
+    for i in 0..3000 {
+        let len = if i < 300 { i } else { r.gen_range(0..5000) };
+        let bytes: Vec<u8> = (0..len).map(|_| r.gen()).collect();
+        assert_eq!(fogtemp_core::crc::crc32(&bytes), crc32fast::hash(&bytes), "length {len}");
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Golden bytes of format version 1
+// ---------------------------------------------------------------------------------------------
+
+#[test]
+fn golden_v1_blob_parses_and_evaluates_every_expected_row_bit_exactly() {
+    let blob = read_golden(GOLDEN_BLOB);
+    let csv = String::from_utf8(read_golden(GOLDEN_CSV)).expect("utf-8");
+    let model = Model::from_bytes(&blob).expect("today's reader accepts the version-1 golden blob");
+    assert_eq!(model.format_version(), 1);
+    assert_eq!(model.axis_count(), 2);
+    assert_eq!(model.tool_version(), b"fogtemp golden");
+    assert_eq!(model.input_digest(), core_digest());
+    let (a0, a1) = (model.axis(0).expect("axis 0"), model.axis(1).expect("axis 1"));
+    assert!(a0.poly.is_some() && a0.mesh.is_some() && a1.poly.is_some() && a1.mesh.is_none());
+    assert!(a0.mesh.expect("mesh").vertex_count() >= 25);
+
+    let mut lines = csv.lines();
+    assert_eq!(lines.next(), Some(GOLDEN_HEADER));
+    let mut rows = 0;
+    let mut outside = 0;
+    for (n, line) in lines.enumerate() {
+        let fields: Vec<&str> = line.split(',').collect();
+        assert_eq!(fields.len(), 5, "row {n}: {line}");
+        let axis: usize = fields[0].parse().expect("axis");
+        let temp_c: f32 = fields[1].parse().expect("temp_c");
+        let rate: f32 = fields[2].parse().expect("rate_c_per_min");
+        let expected_bits = u32::from_str_radix(fields[3], 16).expect("value_dph_bits");
+        let expected_outside = fields[4] == "1";
+        let e =
+            model.axis(axis).expect("axis").evaluate(temp_c, rate, &mut WalkHint::default()).expect("finite");
+        assert_eq!(
+            (e.value_dph.to_bits(), e.outside_hull),
+            (expected_bits, expected_outside),
+            "row {n} ({line}): today's reader gives {} ({:08x})",
+            e.value_dph,
+            e.value_dph.to_bits()
+        );
+        rows += 1;
+        outside += usize::from(expected_outside);
+    }
+    assert_eq!(rows, golden_queries().len());
+    assert!(outside > 0 && outside < rows, "the golden queries cover inside and outside the hull");
+}
+
+// ---------------------------------------------------------------------------------------------
+// Arbitrary input
+// ---------------------------------------------------------------------------------------------
+
+proptest! {
+    #![proptest_config(proptest_config(3000))]
+
+    #[test]
+    fn random_bytes_never_panic(bytes in proptest::collection::vec(any::<u8>(), 0..4096)) {
+        if let Ok(model) = Model::from_bytes(&bytes) {
+            exercise(&model, 9);
+        }
+    }
+
+    #[test]
+    fn random_bytes_behind_a_valid_header_never_panic(
+        axis_count in 0u16..20,
+        payload in proptest::collection::vec(any::<u8>(), 0..3000),
+    ) {
+        // A well-formed file header with a matching length and CRC: the reader has to go
+        // through the axis sections, which are random.
+        let mut b = vec![0u8; FILE_HEADER_LEN];
+        b[FILE_MAGIC].copy_from_slice(&MAGIC);
+        put_u16(&mut b, FILE_VERSION.start, FORMAT_VERSION);
+        put_u16(&mut b, FILE_HEADER_LEN_FIELD.start, FILE_HEADER_LEN as u16);
+        put_u16(&mut b, FILE_AXIS_COUNT.start, axis_count);
+        b.extend_from_slice(&payload);
+        b.extend_from_slice(&[0; CRC_LEN]);
+        fix_len_and_crc(&mut b);
+        if let Ok(model) = Model::from_bytes(&b) {
+            exercise(&model, 10);
+        }
+    }
+}
+
+#[test]
+fn fuzz_regressions_never_panic() {
+    // Inputs the fuzz target once crashed on (see tests/golden/fuzz-regressions/README.md),
+    // through the same two paths as the target: as given, and with length and CRC patched.
+    let dir = golden_dir().join("fuzz-regressions");
+    let mut replayed = 0;
+    for entry in std::fs::read_dir(&dir).expect("tests/golden/fuzz-regressions exists") {
+        let path = entry.expect("dir entry").path();
+        if path.extension().is_some_and(|e| e == "md") {
+            continue;
+        }
+        let bytes = std::fs::read(&path).expect("read regression input");
+        let mut fixed = bytes.clone();
+        fix_len_and_crc(&mut fixed);
+        for input in [&bytes, &fixed] {
+            let outcome = catch_unwind(AssertUnwindSafe(|| {
+                if let Ok(model) = Model::from_bytes(input) {
+                    exercise(&model, 0);
+                }
+            }));
+            assert!(outcome.is_ok(), "{}: panics", path.display());
+        }
+        replayed += 1;
+    }
+    println!("replayed {replayed} fuzz regression inputs");
+}
