@@ -1,4 +1,4 @@
-//! End-to-end tests of the `fogtemp-cal` command line (DESIGN sections 3, 5 and 8): the
+//! End-to-end tests of the `fogtemp-cal` command line (docs/architecture.md, Contracts): the
 //! log format, the command contract (fit, validate, compensate, evaluate, inspect, export,
 //! allan), error reporting on bad input, atomic outputs and the noise metrics.
 //!
@@ -282,7 +282,7 @@ fn round_trip(method: &str) {
         assert!(f(&r["raw_bias_stability_dph"]) > 0.0 && f(&r["compensated_bias_stability_dph"]) > 0.0);
         assert_eq!(r["samples"].as_u64(), Some((RUN_MIN * 60.0 * RATE_HZ) as u64));
     }
-    // The overall figure is the RMS over runs (DESIGN section 8).
+    // The overall figure is the RMS over runs (docs/architecture.md, Contracts: metrics).
     for (key, overall) in [("raw_bias_stability_dph", raw), ("compensated_bias_stability_dph", comp)] {
         let rms = (vruns.iter().map(|r| f(&r[key]).powi(2)).sum::<f64>() / vruns.len() as f64).sqrt();
         assert!((rms - overall).abs() <= 1e-12 * overall, "{key}: {overall} vs RMS {rms}");

@@ -1,5 +1,5 @@
-//! End-to-end tests of `fogtemp-cal simulate` and `fogtemp-cal demo` (DESIGN sections 3, 5
-//! and 6): the files a simulation writes and their format, agreement with the library,
+//! End-to-end tests of `fogtemp-cal simulate` and `fogtemp-cal demo` (docs/architecture.md, Contracts;
+//! docs/simulator.md): the files a simulation writes and their format, agreement with the library,
 //! byte-identical output per seed, error reporting for a bad scenario file, and a small demo
 //! whose compensated bias stability beats the raw one.
 //!

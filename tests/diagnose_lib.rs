@@ -6,8 +6,8 @@
 //! sits) approaches `T_a + 10 C` with tau 25 min; the coil follows the case through a
 //! first-order lag of 10 min. The simulation assumes the coil is at the sensor temperature:
 //! `gyro_sim = b(T_case) + S1 dT_case/dt` with `b(T) = 0.005 (T - 20) + 5e-5 (T - 20)^2`
-//! deg/h and `S1 = 0.06` deg/h per C/min (physics.md section 5). Only the `thermal_lag`
-//! scenario lets the coil's lag show in the recorded gyro. Noise (physics.md section 3):
+//! deg/h and `S1 = 0.06` deg/h per C/min (docs/physics.md section 5). Only the `thermal_lag`
+//! scenario lets the coil's lag show in the recorded gyro. Noise (docs/physics.md section 3):
 //! white N = 0.0005 deg/sqrt(h), flicker B = 0.002 deg/h as one Gauss-Markov process per
 //! decade (tau 1 s .. 1e5 s, stationary start), plus a recorded global offset of
 //! 0.002 deg/h. Effect sizes are comparable to the noise of a 100 s mean (0.003 deg/h).
@@ -266,7 +266,7 @@ fn paper_runs() -> Vec<RunPlan> {
 }
 
 /// Eight power-on runs 6 C apart: with 10 C of self-heating their temperature ranges
-/// overlap, which a shape in T needs (physics.md section 4, row 9).
+/// overlap, which a shape in T needs (docs/physics.md section 4, row 9).
 fn overlapping_runs() -> Vec<RunPlan> {
     (0..8)
         .map(|i| {

@@ -247,7 +247,7 @@ fn chamber_step_matches_the_analytic_response() {
     }
 }
 
-/// The network of physics.md section 2 as an independent f64 ODE, RK4 with a fine step.
+/// The network of docs/physics.md section 2 as an independent f64 ODE, RK4 with a fine step.
 struct Network {
     c: [f64; 4],
     g: [f64; 4],
@@ -473,7 +473,7 @@ fn ecef_rate(omega: f64, lat_deg: f64, ned: [f64; 3]) -> f64 {
 
 /// Up = +Omega sin(lat), down its negative, north = +Omega cos(lat), south its negative,
 /// east = west = 0, at latitudes 0, 40, -30 and 90, against [`ecef_rate`] (1e-12 deg/h);
-/// Omega = 15.041 deg/h, up at 40 N = 9.668 and at 30 N = 7.52 deg/h (physics.md section 1).
+/// Omega = 15.041 deg/h, up at 40 N = 9.668 and at 30 N = 7.52 deg/h (docs/physics.md section 1).
 #[test]
 fn earth_rate_projection() {
     let omega = 7.292_115e-5_f64.to_degrees() * 3600.0;

@@ -2,7 +2,7 @@
 //! as typed [`Serialize`] values built from the library's own results, so that a Rust or
 //! Python caller gets the same document without the command.
 //!
-//! The key names are a contract (DESIGN section 5): they never change. The command prints
+//! The key names are a contract (docs/architecture.md, Contracts): they never change. The command prints
 //! each document as `serde_json::to_string_pretty(&serde_json::to_value(&doc)?)`: through a
 //! `serde_json::Value` the keys come out sorted alphabetically, and NaN or infinite numbers
 //! print as `null`. Numbers the model blob stores as `f32` are held here widened to `f64`

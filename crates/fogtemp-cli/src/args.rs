@@ -1,4 +1,4 @@
-//! Command-line arguments (contract: DESIGN section 5).
+//! Command-line arguments (contract: docs/architecture.md, Contracts).
 
 use std::path::PathBuf;
 

@@ -16,7 +16,7 @@
 //! works on 1 s means) and the runs are those of each design.
 //!
 //! Noise scale of the residual (recorded minus simulated, both noisy): the 100 s mean of
-//! one gyro scatters by `sqrt((6 N)^2 + (1.17 B)^2) = 0.0038` deg/h (physics.md section 5),
+//! one gyro scatters by `sqrt((6 N)^2 + (1.17 B)^2) = 0.0038` deg/h (docs/physics.md section 5),
 //! the difference of two by `0.0054` deg/h. Effect sizes below are stated against that
 //! figure as the RMS of the injected contribution about its mean over all runs (what a
 //! global offset cannot absorb), computed from the noise-free truth by [`effect_size`].
@@ -143,7 +143,7 @@ fn mixed_runs() -> Vec<RunSpec> {
 /// -b'(T) tau dT/dt there, which grows with T along the ramp (b' doubles from -30 to 40 C);
 /// a Shupe term gives S1 dT/dt, constant along it. The mixed runs' 12.5 C ramp is too
 /// narrow for that (b' changes by 10 % over it): the separating experiment of
-/// [`Effect::ThermalLag`] / [`Effect::ShupeRate`] (physics.md section 4 row 1).
+/// [`Effect::ThermalLag`] / [`Effect::ShupeRate`] (docs/physics.md section 4 row 1).
 fn wide_ramp_runs() -> Vec<RunSpec> {
     let mut runs = mixed_runs();
     for (name, from, to) in
@@ -300,7 +300,7 @@ pub fn datasets_at(scale: f64) -> Vec<ConcealedDataset> {
         injected: Some(Effect::OrientationOffset),
         identifiable: true,
         concealment: "the second position's input axis is tilted 0.5 mrad towards north in the recording, but the test plan (and the simulation) says 'down': a constant per position that a per-position calibration absorbs in each group's mean; four power-ons per position at the same temperatures separate it from turn-on scatter and from b(T)".into(),
-        size: format!("Omega_E cos(lat) x 0.5 mrad = {tilt_offset:.4} deg/h: 1 mrad is the whole budget (physics.md section 1)"),
+        size: format!("Omega_E cos(lat) x 0.5 mrad = {tilt_offset:.4} deg/h: 1 mrad is the whole budget (docs/physics.md section 1)"),
         simulated,
         recorded,
         truth: vec![tp("offset_pos2_minus_pos1_dph", tilt_offset, "Earth rate on the tilted axis minus on 'down'")],

@@ -1,4 +1,4 @@
-//! The discrepancy catalogue (DESIGN.md section 7, physics.md section 4) as parametric
+//! The discrepancy catalogue (docs/architecture.md, Contracts; docs/physics.md section 4) as parametric
 //! terms built from the recorded signals, each with its profiling grid, its data
 //! requirement and the experiment that separates it from what it is confused with.
 //!
@@ -58,7 +58,7 @@ impl Effect {
         Effect::ScaleFactorTemperature,
     ];
 
-    /// The catalogue name (a contract: DESIGN.md section 7).
+    /// The catalogue name (a contract: docs/architecture.md, Contracts).
     pub fn name(self) -> &'static str {
         match self {
             Effect::ThermalLag => "thermal_lag",
@@ -73,7 +73,7 @@ impl Effect {
     }
 
     /// The experiment that separates this effect from what it is confused with
-    /// (physics.md section 4).
+    /// (docs/physics.md section 4).
     pub fn experiment(self) -> &'static str {
         match self {
             Effect::ThermalLag => {

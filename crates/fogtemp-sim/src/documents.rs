@@ -1,7 +1,7 @@
 //! The JSON documents of `fogtemp-cal simulate` and `demo` (`--json`), as typed
 //! [`Serialize`] values built from the simulator's own results.
 //!
-//! The key names are a contract (DESIGN section 5): they never change. The command prints
+//! The key names are a contract (docs/architecture.md, Contracts): they never change. The command prints
 //! each document through a `serde_json::Value` (keys sorted alphabetically, NaN or infinite
 //! numbers as `null`).
 

@@ -6,7 +6,7 @@
 //! ([`thermal`]), then samples at the gyro rate (truth interpolated linearly, plus noise,
 //! plus the logged sensor). Runs are independent and deterministic per seed and run name,
 //! so they are generated in parallel with rayon and stream to CSV in the log format of
-//! DESIGN section 3 (`time_s,temp_c,gyro_dph`).
+//! docs/architecture.md (Contracts: log format) (`time_s,temp_c,gyro_dph`).
 
 pub mod demo;
 pub mod documents;

@@ -1,4 +1,4 @@
-//! Gyro noise (physics.md section 3): angle random walk (white rate), bias instability as a
+//! Gyro noise (docs/physics.md section 3): angle random walk (white rate), bias instability as a
 //! sum of first-order Gauss-Markov terms (one per decade of correlation time), rate random
 //! walk. Quantisation of the output angle is applied by the run generator.
 
@@ -30,7 +30,7 @@ pub struct NoiseGenerator {
 }
 
 /// The stationary variance of each decade's Gauss-Markov term for bias instability `b_dph`:
-/// `q = B^2 ln(10) / pi` (physics.md section 3; its Allan deviation is flat at about 0.66-0.69 B).
+/// `q = B^2 ln(10) / pi` (docs/physics.md section 3; its Allan deviation is flat at about 0.66-0.69 B).
 pub fn flicker_term_variance(b_dph: f64) -> f64 {
     b_dph * b_dph * std::f64::consts::LN_10 / std::f64::consts::PI
 }

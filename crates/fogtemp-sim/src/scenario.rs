@@ -52,7 +52,7 @@ pub struct Site {
 }
 
 fn default_earth_rate_dph() -> f64 {
-    // 7.292115e-5 rad/s in deg/h (physics.md section 1, WGS-84 value).
+    // 7.292115e-5 rad/s in deg/h (docs/physics.md section 1, WGS-84 value).
     7.292_115e-5_f64.to_degrees() * 3600.0
 }
 
@@ -70,7 +70,7 @@ pub enum Node {
     Sensor,
 }
 
-/// The lumped thermal network (physics.md section 2): electronics -> case -> coil outer
+/// The lumped thermal network (docs/physics.md section 2): electronics -> case -> coil outer
 /// layer -> coil inner layer, case -> ambient (chamber), and a sensor with its own lag on a
 /// mount node. Power after power-on: `P = power_w + tec_w_per_k*|T_e - tec_setpoint_c| +
 /// heater_w*[T_e < heater_below_c]`.
@@ -407,7 +407,7 @@ impl InputAxis {
         (norm.is_finite() && norm > 0.0).then(|| v.map(|x| x / norm))
     }
 
-    /// Earth rate on this axis, deg/h: Omega (cos(lat) u_N - sin(lat) u_D) (physics.md section 1).
+    /// Earth rate on this axis, deg/h: Omega (cos(lat) u_N - sin(lat) u_D) (docs/physics.md section 1).
     pub fn earth_rate_dph(&self, site: &Site) -> f64 {
         let Some([n, _, d]) = self.ned() else { return f64::NAN };
         let lat = site.latitude_deg.to_radians();

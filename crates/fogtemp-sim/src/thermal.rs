@@ -1,4 +1,4 @@
-//! The lumped thermal network and its exact discrete step (physics.md section 2).
+//! The lumped thermal network and its exact discrete step (docs/physics.md section 2).
 //!
 //! State `[T_e, T_c, T_o, T_i, T_s]` (electronics, case, coil outer, coil inner, sensor),
 //! inputs `[P, T_a]` (power, chamber air). Between steps the power is held and the chamber

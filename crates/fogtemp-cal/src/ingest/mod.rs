@@ -1,4 +1,4 @@
-//! Streaming CSV ingest of lab logs (one file per run; contract in DESIGN section 3).
+//! Streaming CSV ingest of lab logs (one file per run; contract in docs/architecture.md, Contracts).
 //!
 //! Rows are parsed into reused buffers and handed to a visitor one at a time, in file
 //! order, so memory stays constant whatever the log size. Every rejected row is reported
