@@ -91,6 +91,9 @@ pub struct FitDocument {
     pub runs: Vec<IngestDocument>,
     /// Every axis's fit.
     pub axes: Vec<FitAxisDocument>,
+    /// What the calibration points cannot separate or do not cover
+    /// ([`crate::identifiability`]; `kind`, `axis`, `message`, `values`).
+    pub warnings: Vec<crate::identifiability::Warning>,
 }
 
 impl FitDocument {
@@ -108,7 +111,13 @@ impl FitDocument {
                 .enumerate()
                 .map(|(axis, r)| FitAxisDocument { axis, fit: r.clone() })
                 .collect(),
+            warnings: Vec::new(),
         }
+    }
+
+    /// The document with these identifiability warnings.
+    pub fn with_warnings(self, warnings: Vec<crate::identifiability::Warning>) -> Self {
+        Self { warnings, ..self }
     }
 }
 

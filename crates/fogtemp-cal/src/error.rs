@@ -72,6 +72,17 @@ pub enum CalError {
         /// Where and why.
         row: Box<crate::ingest::BadRow>,
     },
+    /// The log's shape settings are contradictory, or the log does not fit them (a time
+    /// column and a sample rate both, a header that looks like data, a bad comment prefix).
+    #[error("{}{}: {problem}", path.display(), at_line(*line))]
+    LogFormat {
+        /// File.
+        path: PathBuf,
+        /// 1-based line, 0 when the problem is not on one line.
+        line: u64,
+        /// What is wrong.
+        problem: String,
+    },
     /// The CSV reader failed (invalid UTF-8 in the header, I/O error mid-file).
     #[error("{}:{line}: {message}", path.display())]
     Csv {
@@ -110,6 +121,15 @@ pub enum CalError {
         /// The OS error.
         source: std::io::Error,
     },
+}
+
+/// `:line` for a known line, nothing for 0.
+fn at_line(line: u64) -> String {
+    if line == 0 {
+        String::new()
+    } else {
+        format!(":{line}")
+    }
 }
 
 /// Why a least-squares fit failed.

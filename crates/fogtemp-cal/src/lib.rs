@@ -54,6 +54,7 @@ pub mod calibrate;
 pub mod documents;
 pub mod error;
 pub mod features;
+pub mod identifiability;
 pub mod ingest;
 pub mod mesh;
 pub mod mesh_fit;

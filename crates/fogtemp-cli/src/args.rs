@@ -2,13 +2,17 @@
 
 use std::path::PathBuf;
 
+use anyhow::{bail, Result};
 use clap::{Args, Parser, Subcommand, ValueEnum};
+use fogtemp_cal::ingest::{Delimiter, IngestOptions, LogFormat, RateUnit, TimeUnit};
 
 /// fogtemp-cal: calibrate fibre-optic gyro temperature drift from lab logs and check the result.
 ///
 /// Logs are CSV files, one per power-on run, with a header row. By default the columns are
 /// time_s (seconds), temp_c (deg C) and gyro_dph (deg/h); the ingest options map other
-/// names and units. A folder argument means every *.csv file in it, sorted by name.
+/// names and units, and read other shapes (a banner to skip, no header, no time column,
+/// comment lines, semicolon, tab or whitespace delimiters). A folder argument means every
+/// *.csv file in it, sorted by name.
 #[derive(Debug, Parser)]
 #[command(name = "fogtemp-cal", version, about, long_about = None, propagate_version = true)]
 pub struct Cli {
@@ -53,6 +57,23 @@ pub struct IngestArgs {
     /// Unit of the time column.
     #[arg(long, value_enum, default_value_t = TimeUnitArg::S, help_heading = "Log columns")]
     pub time_unit: TimeUnitArg,
+    /// The log has no time column: row k (0-based, counting rows rejected with
+    /// --skip-bad-rows, not blank or comment lines) is at k / HZ seconds. A log that has a
+    /// column named as --time-column as well is refused as ambiguous.
+    #[arg(long, value_name = "HZ", conflicts_with_all = ["time_column", "time_unit"], help_heading = "Log shape")]
+    pub sample_rate_hz: Option<f64>,
+    /// Lines at the start of every log to drop unread (e.g. a terminal program's banner),
+    /// before the header or, with --columns, the data. Error line numbers still count them.
+    #[arg(long, value_name = "N", default_value_t = 0, help_heading = "Log shape")]
+    pub skip_lines: u64,
+    /// The logs have no header row: these are their column names, in order (a,b,c). Then
+    /// --time-column, --temp-column and --gyro-column choose among them.
+    #[arg(long, value_name = "NAMES", value_delimiter = ',', help_heading = "Log shape")]
+    pub columns: Vec<String>,
+    /// Lines starting with this text (after spaces or tabs) are comments, skipped anywhere;
+    /// '' for none.
+    #[arg(long, value_name = "PREFIX", default_value = "#", help_heading = "Log shape")]
+    pub comment: String,
     /// Temperature column(s): one shared by all axes, or one per gyro column.
     #[arg(long = "temp-column", default_value = "temp_c", help_heading = "Log columns")]
     pub temp_columns: Vec<String>,
@@ -71,13 +92,74 @@ pub struct IngestArgs {
     /// Extra factor applied to the gyro after unit conversion.
     #[arg(long, default_value_t = 1.0, allow_negative_numbers = true, help_heading = "Log columns")]
     pub gyro_scale: f64,
-    /// Field delimiter (one character).
-    #[arg(long, default_value = ",", help_heading = "Log columns")]
-    pub delimiter: char,
+    /// Field delimiter: auto (from the header, or the first data row: the most frequent of
+    /// comma, semicolon and tab, else whitespace if the fields are separated by spaces),
+    /// comma, semicolon, tab, whitespace (runs of spaces and tabs, no quoting) or any one
+    /// ASCII character.
+    #[arg(long, value_name = "DELIMITER", default_value = "auto", value_parser = parse_delimiter, help_heading = "Log shape")]
+    pub delimiter: Delimiter,
     /// Skip malformed rows (non-numeric, NaN, short, duplicate or backward time) and report
     /// them, instead of stopping at the first.
     #[arg(long, help_heading = "Log columns")]
     pub skip_bad_rows: bool,
+}
+
+impl IngestArgs {
+    /// The library's ingest settings.
+    ///
+    /// # Errors
+    /// Settings the library refuses before reading (see `LogFormat::check`).
+    pub fn options(&self) -> Result<IngestOptions> {
+        let format = LogFormat {
+            time_column: self.time_column.clone(),
+            time_unit: match self.time_unit {
+                TimeUnitArg::S => TimeUnit::Seconds,
+                TimeUnitArg::Ms => TimeUnit::Milliseconds,
+                TimeUnitArg::Us => TimeUnit::Microseconds,
+            },
+            temp_columns: self.temp_columns.clone(),
+            temp_scale: self.temp_scale,
+            temp_offset_c: self.temp_offset,
+            gyro_columns: self.gyro_columns.clone(),
+            gyro_unit: match self.gyro_unit {
+                GyroUnitArg::Dph => RateUnit::DegPerHour,
+                GyroUnitArg::Dps => RateUnit::DegPerSecond,
+                GyroUnitArg::Rps => RateUnit::RadPerSecond,
+            },
+            gyro_scale: self.gyro_scale,
+            delimiter: self.delimiter,
+            skip_lines: self.skip_lines,
+            comment: (!self.comment.is_empty()).then(|| self.comment.clone()),
+            column_names: self.columns.iter().map(|c| c.trim().to_string()).collect(),
+            sample_rate_hz: self.sample_rate_hz,
+        };
+        if let Err(e) = format.check(std::path::Path::new("--options")) {
+            match e {
+                fogtemp_cal::CalError::LogFormat { problem, .. } => bail!("{problem}"),
+                other => bail!("{other}"),
+            }
+        }
+        Ok(IngestOptions { format, skip_bad_rows: self.skip_bad_rows })
+    }
+}
+
+/// `--delimiter`: a name or one ASCII character.
+fn parse_delimiter(text: &str) -> Result<Delimiter, String> {
+    Ok(match text {
+        "auto" => Delimiter::Auto,
+        "comma" | "," => Delimiter::Byte(b','),
+        "semicolon" | ";" => Delimiter::Byte(b';'),
+        "tab" | "\t" | "\\t" => Delimiter::Byte(b'\t'),
+        "whitespace" | "space" => Delimiter::Whitespace,
+        _ => match text.as_bytes() {
+            [b] if b.is_ascii() => Delimiter::Byte(*b),
+            _ => {
+                return Err(format!(
+                    "expected auto, comma, semicolon, tab, whitespace or one ASCII character, got '{text}'"
+                ))
+            }
+        },
+    })
 }
 
 /// Time units.

@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 
 use super::batch::Batch;
 use super::parser::Fields;
-use super::{BadRow, BadRowKind, IngestOptions, LogFormat, MAX_REPORTED_BAD_ROWS};
+use super::{BadRow, BadRowKind, Delimiter, IngestOptions, LogFormat, MAX_REPORTED_BAD_ROWS};
 use crate::error::CalError;
 
 /// `Plan::roles` entry of a field no row value comes from.
@@ -18,15 +18,21 @@ pub(super) struct Plan {
     /// Per field up to `min_fields`: the slot in `RowState::values` it is parsed into, or
     /// [`SKIP`].
     pub(super) roles: Vec<usize>,
-    pub(super) time_slot: usize,
+    /// `None` when time comes from the record index ([`LogFormat::sample_rate_hz`]).
+    pub(super) time_slot: Option<usize>,
     pub(super) temp_slots: Vec<usize>,
     pub(super) gyro_slots: Vec<usize>,
     pub(super) time_factor: f64,
+    /// Time of data record `k` is `k / rate` (no time column).
+    pub(super) sample_rate_hz: Option<f64>,
     pub(super) gyro_factor: f64,
     pub(super) temp_scale: f64,
     pub(super) temp_offset_c: f64,
-    /// The delimiter cannot occur in a plain decimal.
+    /// The delimiter is one byte that cannot occur in a plain decimal.
     pub(super) fast: bool,
+    /// First byte of the comment prefix (the one-pass path leaves such records, and any
+    /// starting with a space or tab, to the general path).
+    pub(super) comment_first: Option<u8>,
 }
 
 /// Row-level state: header, previous time, skipped rows.
@@ -43,6 +49,8 @@ pub(super) struct RowState {
     pub(super) origin: Option<f64>,
     pub(super) skipped: u64,
     pub(super) first_skipped: Vec<BadRow>,
+    /// Data records seen (accepted or rejected): the index of the next one.
+    pub(super) records: u64,
 }
 
 impl RowState {
@@ -59,7 +67,31 @@ impl RowState {
             origin: None,
             skipped: 0,
             first_skipped: Vec::new(),
+            records: 0,
         }
+    }
+
+    /// Sets the plan from [`LogFormat::column_names`] (a headerless log); does nothing when
+    /// the log has a header row.
+    pub(super) fn plan_headerless(&mut self) -> Result<(), CalError> {
+        if self.format.column_names.is_empty() || self.plan.is_some() {
+            return Ok(());
+        }
+        let joined: Vec<u8> = self.format.column_names.concat().into_bytes();
+        let mut bounds = Vec::new();
+        let mut start = 0;
+        for name in &self.format.column_names {
+            bounds.push((start, start + name.len()));
+            start += name.len();
+        }
+        self.set_plan(Fields { data: &joined, bounds: &bounds }, 0)
+    }
+
+    fn set_plan(&mut self, header: Fields<'_>, line: u64) -> Result<(), CalError> {
+        let plan = make_plan(&self.path, header, &self.format, line)?;
+        self.values = vec![f64::NAN; plan.roles.iter().filter(|&&r| r != SKIP).count()];
+        self.plan = Some(plan);
+        Ok(())
     }
 
     /// The state a worker starts a chunk with: the same header, no previous time (the
@@ -78,6 +110,7 @@ impl RowState {
             origin: Some(0.0),
             skipped: 0,
             first_skipped: Vec::new(),
+            records: 0,
         }
     }
 
@@ -90,12 +123,11 @@ impl RowState {
         batch: &mut Batch,
     ) -> Result<(), CalError> {
         let Some(plan) = &self.plan else {
-            let plan = make_plan(&self.path, fields, &self.format)?;
-            self.values = vec![f64::NAN; plan.roles.iter().filter(|&&r| r != SKIP).count()];
-            self.plan = Some(plan);
-            return Ok(());
+            return self.set_plan(fields, line);
         };
-        let parsed = parse_row(fields, plan, line, &mut self.temps, &mut self.gyros)
+        let index = self.records;
+        self.records += 1;
+        let parsed = parse_row(fields, plan, line, index, &mut self.temps, &mut self.gyros)
             .and_then(|time| check_time(time, self.previous_time, &plan.columns, line, fields));
         match parsed {
             Ok(time) => {
@@ -121,15 +153,17 @@ impl RowState {
 
 #[derive(Clone)]
 pub(super) struct Columns {
-    time: usize,
+    /// `None`: time from the record index.
+    time: Option<usize>,
     pub(super) temps: Vec<usize>,
     pub(super) gyros: Vec<usize>,
     names: Vec<String>,
     min_fields: usize,
 }
 
-pub(super) fn make_plan(path: &Path, header: Fields<'_>, f: &LogFormat) -> Result<Plan, CalError> {
-    let columns = locate_columns(path, header, f)?;
+/// The plan from the header (`line`: its line, 0 for names given in [`LogFormat::column_names`]).
+pub(super) fn make_plan(path: &Path, header: Fields<'_>, f: &LogFormat, line: u64) -> Result<Plan, CalError> {
+    let columns = locate_columns(path, header, f, line)?;
     let mut roles = vec![SKIP; columns.min_fields];
     let mut slots = 0;
     let mut slot_of = |field: usize| {
@@ -139,7 +173,7 @@ pub(super) fn make_plan(path: &Path, header: Fields<'_>, f: &LogFormat) -> Resul
         }
         roles[field]
     };
-    let time_slot = slot_of(columns.time);
+    let time_slot = columns.time.map(&mut slot_of);
     let gyro_slots = columns.gyros.iter().map(|&c| slot_of(c)).collect();
     let temp_slots = columns.temps.iter().map(|&c| slot_of(c)).collect();
     Ok(Plan {
@@ -149,14 +183,16 @@ pub(super) fn make_plan(path: &Path, header: Fields<'_>, f: &LogFormat) -> Resul
         temp_slots,
         gyro_slots,
         time_factor: f.time_unit.seconds(),
+        sample_rate_hz: f.sample_rate_hz,
         gyro_factor: f.gyro_unit.dph() * f.gyro_scale,
         temp_scale: f.temp_scale,
         temp_offset_c: f.temp_offset_c,
-        fast: !matches!(f.delimiter, b'0'..=b'9' | b'.' | b'-' | b'"' | b'\r' | b'\n'),
+        fast: matches!(f.delimiter, Delimiter::Byte(b) if !matches!(b, b'0'..=b'9' | b'.' | b'-' | b'"' | b'\r' | b'\n')),
+        comment_first: f.comment_prefix().first().copied(),
     })
 }
 
-fn locate_columns(path: &Path, header: Fields<'_>, f: &LogFormat) -> Result<Columns, CalError> {
+fn locate_columns(path: &Path, header: Fields<'_>, f: &LogFormat, line: u64) -> Result<Columns, CalError> {
     let names: Vec<String> = (0..header.len())
         .map(|i| {
             let h = header.get(i).unwrap_or(b"");
@@ -170,9 +206,41 @@ fn locate_columns(path: &Path, header: Fields<'_>, f: &LogFormat) -> Result<Colu
             available: names.join(", "),
         })
     };
-    let time = find(&f.time_column)?;
-    let temps = f.temp_columns.iter().map(|c| find(c)).collect::<Result<Vec<_>, _>>()?;
-    let gyros = f.gyro_columns.iter().map(|c| find(c)).collect::<Result<Vec<_>, _>>()?;
+    let has_time_column = names.contains(&f.time_column);
+    if let (Some(rate), true) = (f.sample_rate_hz, has_time_column) {
+        return Err(CalError::LogFormat {
+            path: path.to_path_buf(),
+            line,
+            problem: format!(
+                "ambiguous time: the log has a time column '{}' and a sample rate of {rate} Hz was given; \
+                 use one of them",
+                f.time_column
+            ),
+        });
+    }
+    let located = (|| {
+        let time = match f.sample_rate_hz {
+            Some(_) => None,
+            None => Some(find(&f.time_column)?),
+        };
+        let temps = f.temp_columns.iter().map(|c| find(c)).collect::<Result<Vec<_>, _>>()?;
+        let gyros = f.gyro_columns.iter().map(|c| find(c)).collect::<Result<Vec<_>, _>>()?;
+        Ok((time, temps, gyros))
+    })();
+    let (time, temps, gyros) = match located {
+        Err(CalError::MissingColumn { .. }) if line > 0 && looks_like_data(&names) => {
+            return Err(CalError::LogFormat {
+                path: path.to_path_buf(),
+                line,
+                problem: format!(
+                    "this line was read as the header but every cell is a number ({}): a log without a \
+                     header row needs its column names given, and one without a time column its sample rate",
+                    names.join(", ")
+                ),
+            })
+        }
+        other => other?,
+    };
     if gyros.is_empty() {
         return Err(CalError::MissingColumn {
             path: path.to_path_buf(),
@@ -180,8 +248,13 @@ fn locate_columns(path: &Path, header: Fields<'_>, f: &LogFormat) -> Result<Colu
             available: names.join(", "),
         });
     }
-    let min_fields = temps.iter().chain(&gyros).copied().chain([time]).max().unwrap_or(0) + 1;
+    let min_fields = temps.iter().chain(&gyros).copied().chain(time).max().unwrap_or(0) + 1;
     Ok(Columns { time, temps, gyros, names, min_fields })
+}
+
+/// Every cell a number: a data row, not a header.
+fn looks_like_data(names: &[String]) -> bool {
+    !names.is_empty() && names.iter().all(|n| fast_float2::parse::<f64, _>(n.as_bytes()).is_ok())
 }
 
 fn bad_row(columns: &Columns, line: u64, field: usize, found: &[u8], kind: BadRowKind) -> BadRow {
@@ -209,12 +282,14 @@ fn parse_cell(columns: &Columns, fields: Fields<'_>, field: usize, line: u64) ->
     }
 }
 
-/// The general path: time (returned, s), gyros and temperatures (into the slices), with
-/// the first bad cell in the order time, gyros, temperatures.
+/// The general path: time (returned, s; from the record `index` when the log has no time
+/// column), gyros and temperatures (into the slices), with the first bad cell in the order
+/// time, gyros, temperatures.
 pub(super) fn parse_row(
     fields: Fields<'_>,
     plan: &Plan,
     line: u64,
+    index: u64,
     temps: &mut [f64],
     gyros: &mut [f64],
 ) -> Result<f64, BadRow> {
@@ -233,7 +308,10 @@ pub(super) fn parse_row(
         parse_cell(columns, fields, field, line)?
             .ok_or_else(|| bad_row(columns, line, field, b"", BadRowKind::EmptyCell))
     };
-    let time = required(columns.time)? * plan.time_factor;
+    let time = match columns.time {
+        Some(field) => required(field)? * plan.time_factor,
+        None => time_of_record(index, plan.sample_rate_hz),
+    };
     for (slot, &field) in gyros.iter_mut().zip(&columns.gyros) {
         *slot = required(field)? * plan.gyro_factor;
     }
@@ -244,6 +322,12 @@ pub(super) fn parse_row(
     Ok(time)
 }
 
+/// Time of data record `index` from the sample rate, seconds.
+#[inline]
+pub(super) fn time_of_record(index: u64, sample_rate_hz: Option<f64>) -> f64 {
+    index as f64 / sample_rate_hz.unwrap_or(1.0)
+}
+
 pub(super) fn check_time(
     time: f64,
     previous: Option<f64>,
@@ -251,10 +335,11 @@ pub(super) fn check_time(
     line: u64,
     fields: Fields<'_>,
 ) -> Result<f64, BadRow> {
-    let found = || fields.get(columns.time).unwrap_or(b"");
+    let Some(field) = columns.time else { return Ok(time) };
+    let found = || fields.get(field).unwrap_or(b"");
     match previous {
-        Some(p) if time == p => Err(bad_row(columns, line, columns.time, found(), BadRowKind::DuplicateTime)),
-        Some(p) if time < p => Err(bad_row(columns, line, columns.time, found(), BadRowKind::BackwardTime)),
+        Some(p) if time == p => Err(bad_row(columns, line, field, found(), BadRowKind::DuplicateTime)),
+        Some(p) if time < p => Err(bad_row(columns, line, field, found(), BadRowKind::BackwardTime)),
         _ => Ok(time),
     }
 }
@@ -380,7 +465,8 @@ mod tests {
                 gyro_columns: vec!["gx".into(), "gy".into()],
                 gyro_unit: RateUnit::RadPerSecond,
                 gyro_scale: 0.5,
-                delimiter: b';',
+                delimiter: Delimiter::Byte(b';'),
+                ..LogFormat::default()
             },
             ..IngestOptions::default()
         };

@@ -30,6 +30,8 @@ mod decimal;
 mod parallel;
 mod parser;
 #[cfg(test)]
+mod shape_tests;
+#[cfg(test)]
 mod test_support;
 
 use std::fs::File;
@@ -104,8 +106,66 @@ pub struct LogFormat {
     pub gyro_unit: RateUnit,
     /// Extra factor on the gyro after the unit conversion (e.g. 0.5 for a driver that doubles).
     pub gyro_scale: f64,
-    /// Field delimiter.
-    pub delimiter: u8,
+    /// Field delimiter ([`Delimiter::Auto`] by default: from the first line that is not
+    /// skipped, blank or a comment).
+    pub delimiter: Delimiter,
+    /// Lines at the start of the file dropped unread (a terminal program's banner), before
+    /// the header or, for a headerless log, the data. Line numbers still count them.
+    pub skip_lines: u64,
+    /// Lines that start with this text (after any spaces or tabs) are comments and skipped
+    /// wherever they are; `None` for no comments. `#` by default. It may not start with
+    /// what a number or a record can start with (a digit, `+`, `-`, `.`, a space, a tab, a
+    /// quote or the delimiter).
+    pub comment: Option<String>,
+    /// Names of the columns in order, for a log without a header row (its first line after
+    /// `skip_lines` is data); empty when the log has a header row.
+    pub column_names: Vec<String>,
+    /// Sample rate for a log without a time column: data record `k` (0-based, counting
+    /// rejected records but not blank or comment lines) is at `k / rate` seconds. A log
+    /// that also has a column named `time_column` is refused as ambiguous.
+    pub sample_rate_hz: Option<f64>,
+}
+
+/// How the fields of a record are separated.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Delimiter {
+    /// One byte (`,`, `;`, `\t`, ...); fields may be quoted with `"` (RFC 4180).
+    Byte(u8),
+    /// Runs of spaces and tabs (leading and trailing ones ignored); no quoting.
+    Whitespace,
+    /// Detected from the first line that is not skipped, blank or a comment (the header,
+    /// or the first data row of a headerless log): the most frequent of `,` `;` and tab
+    /// outside quotes (ties in that order); with none of them, whitespace if the line has a
+    /// space or tab between fields; else `,` (a single column).
+    Auto,
+}
+
+impl Delimiter {
+    /// The delimiter [`Delimiter::Auto`] picks for `line` (other variants return themselves).
+    pub fn resolve(self, line: &[u8]) -> Delimiter {
+        if self != Delimiter::Auto {
+            return self;
+        }
+        let mut counts = [0usize; 3];
+        let mut quoted = false;
+        for &b in line {
+            match b {
+                b'"' => quoted = !quoted,
+                b',' if !quoted => counts[0] += 1,
+                b';' if !quoted => counts[1] += 1,
+                b'\t' if !quoted => counts[2] += 1,
+                _ => {}
+            }
+        }
+        let best = (0..3).fold(0, |best, k| if counts[k] > counts[best] { k } else { best });
+        if counts[best] > 0 {
+            return Delimiter::Byte([b',', b';', b'\t'][best]);
+        }
+        if line.trim_ascii().contains(&b' ') {
+            return Delimiter::Whitespace;
+        }
+        Delimiter::Byte(b',')
+    }
 }
 
 impl Default for LogFormat {
@@ -119,8 +179,50 @@ impl Default for LogFormat {
             gyro_columns: vec!["gyro_dph".into()],
             gyro_unit: RateUnit::DegPerHour,
             gyro_scale: 1.0,
-            delimiter: b',',
+            delimiter: Delimiter::Auto,
+            skip_lines: 0,
+            comment: Some("#".into()),
+            column_names: Vec::new(),
+            sample_rate_hz: None,
         }
+    }
+}
+
+impl LogFormat {
+    /// Checks the settings that do not depend on the log's contents; `path` names the log
+    /// in the error.
+    ///
+    /// # Errors
+    /// [`CalError::LogFormat`] for a sample rate that is not a positive finite number, a
+    /// comment prefix that could start a record, or an empty column name.
+    pub fn check(&self, path: &Path) -> Result<(), CalError> {
+        let problem =
+            |problem: String| Err(CalError::LogFormat { path: path.to_path_buf(), line: 0, problem });
+        if let Some(rate) = self.sample_rate_hz {
+            if !(rate.is_finite() && rate > 0.0) {
+                return problem(format!("the sample rate must be a positive number of Hz, got {rate}"));
+            }
+        }
+        if let Some(first) = self.comment_prefix().first() {
+            let clashes =
+                matches!(first, b'0'..=b'9' | b'+' | b'-' | b'.' | b' ' | b'\t' | b'"' | b'\r' | b'\n')
+                    || self.delimiter == Delimiter::Byte(*first);
+            if clashes {
+                return problem(format!(
+                    "the comment prefix {:?} starts with a character a record can start with",
+                    self.comment.as_deref().unwrap_or_default()
+                ));
+            }
+        }
+        if self.column_names.iter().any(|n| n.trim().is_empty()) {
+            return problem("a column name is empty".into());
+        }
+        Ok(())
+    }
+
+    /// The comment prefix as bytes (empty: no comments).
+    pub(crate) fn comment_prefix(&self) -> &[u8] {
+        self.comment.as_deref().unwrap_or_default().as_bytes()
     }
 }
 
@@ -360,6 +462,13 @@ where
     F: FnMut(&Row<'_>) -> Result<(), CalError>,
     P: FnMut(u64, u64),
 {
+    options.format.check(path)?;
+    // Times from the record index need every record counted in order: one thread.
+    let tuning = if options.format.sample_rate_hz.is_some() {
+        Tuning { mode: Mode::Single, ..tuning }
+    } else {
+        tuning
+    };
     let mut parser = Parser::new(path, reader, options, tuning.buffer_bytes);
     let temps = options.format.temp_columns.len();
     let mut consumer = Consumer {
@@ -447,11 +556,8 @@ mod tests {
         let mut seen = Vec::new();
         let result = (|| {
             let path = Path::new("log.csv");
-            let mut reader = csv::ReaderBuilder::new()
-                .delimiter(options.format.delimiter)
-                .has_headers(true)
-                .flexible(true)
-                .from_reader(data);
+            let mut reader =
+                csv::ReaderBuilder::new().delimiter(b',').has_headers(true).flexible(true).from_reader(data);
             let header = reader.byte_headers().map_err(|e| CalError::Csv {
                 path: path.into(),
                 line: 0,
@@ -469,7 +575,8 @@ mod tests {
                     .collect()
             };
             let joined: Vec<u8> = header.iter().flatten().copied().collect();
-            let plan = make_plan(path, Fields { data: &joined, bounds: &bounds }, &options.format)?;
+            let format = LogFormat { delimiter: Delimiter::Byte(b','), ..options.format.clone() };
+            let plan = make_plan(path, Fields { data: &joined, bounds: &bounds }, &format, 1)?;
             let mut report =
                 IngestReport { path: path.into(), bytes: data.len() as u64, ..Default::default() };
             let mut temps = vec![f64::NAN; plan.columns.temps.len()];
@@ -486,7 +593,7 @@ mod tests {
                 }
                 let joined: Vec<u8> = record.iter().flatten().copied().collect();
                 let fields = Fields { data: &joined, bounds: &bounds };
-                let parsed = parse_row(fields, &plan, line, &mut temps, &mut gyros)
+                let parsed = parse_row(fields, &plan, line, report.rows, &mut temps, &mut gyros)
                     .and_then(|time| check_time(time, previous, &plan.columns, line, fields));
                 match parsed {
                     Ok(time) => {

@@ -7,9 +7,10 @@ use std::path::{Path, PathBuf};
 use memchr::{memchr, memchr2, memchr_iter};
 
 use super::batch::{Batch, Tail};
+use super::columns::time_of_record;
 use super::columns::RowState;
 use super::decimal::fast_fields;
-use super::IngestOptions;
+use super::{Delimiter, IngestOptions};
 use crate::error::CalError;
 
 /// The UTF-8 byte-order mark.
@@ -111,11 +112,14 @@ pub(super) struct Parser<R> {
     pub(super) path: PathBuf,
     pub(super) src: Source<R>,
     delimiter: u8,
+    /// Fields are separated by runs of spaces and tabs (`delimiter` is then unused).
+    whitespace: bool,
     /// The one-pass path is usable (header read, and a delimiter no number contains).
     fast: bool,
     /// Every record goes through `csv-core` (a delimiter that is a quote or terminator).
     core_only: bool,
-    bom_checked: bool,
+    /// Byte-order mark, skipped lines, delimiter and a headerless log's columns are done.
+    preamble_done: bool,
     core: csv_core::Reader,
     quoted: Option<Quoted>,
     out: Vec<u8>,
@@ -146,27 +150,119 @@ impl<R: Read> Parser<R> {
         Self::with_state(path, src, rows, true)
     }
 
-    fn with_state(path: &Path, src: Source<R>, rows: RowState, bom_checked: bool) -> Self {
-        let delimiter = rows.format.delimiter;
-        let mut core = csv_core::ReaderBuilder::new().delimiter(delimiter).build();
-        // Prime it so that it never strips a byte-order mark from a record mid-file
-        // (the file's own mark is skipped before any record).
-        let _ = core.read_record(b"\n", &mut [0u8; 1], &mut [0usize; 1]);
-        let core_only = matches!(delimiter, b'"' | b'\r' | b'\n');
-        Self {
+    fn with_state(path: &Path, src: Source<R>, rows: RowState, preamble_done: bool) -> Self {
+        let mut parser = Self {
             path: path.to_path_buf(),
             src,
-            delimiter,
-            fast: rows.plan.as_ref().is_some_and(|p| p.fast) && !core_only,
-            core_only,
-            bom_checked,
-            core,
+            delimiter: b',',
+            whitespace: false,
+            fast: false,
+            core_only: false,
+            preamble_done,
+            core: csv_core::Reader::new(),
             quoted: None,
             out: vec![0; 256],
             ends: vec![0; 16],
             bounds: Vec::new(),
             rows,
             header_only: false,
+        };
+        // `Auto` stays until the preamble has seen the first line; comma meanwhile.
+        parser.set_delimiter(parser.rows.format.delimiter);
+        parser
+    }
+
+    /// Splits fields by `delimiter` from now on (also in the row state, so that chunks and
+    /// the plan see the resolved one).
+    fn set_delimiter(&mut self, delimiter: Delimiter) {
+        (self.delimiter, self.whitespace) = match delimiter {
+            Delimiter::Byte(b) => (b, false),
+            Delimiter::Whitespace => (b' ', true),
+            Delimiter::Auto => (b',', false),
+        };
+        if delimiter != Delimiter::Auto {
+            self.rows.format.delimiter = delimiter;
+        }
+        self.core = csv_core::ReaderBuilder::new().delimiter(self.delimiter).build();
+        // Prime it so that it never strips a byte-order mark from a record mid-file
+        // (the file's own mark is skipped before any record).
+        let _ = self.core.read_record(b"\n", &mut [0u8; 1], &mut [0usize; 1]);
+        self.core_only = !self.whitespace && matches!(self.delimiter, b'"' | b'\r' | b'\n');
+        self.refresh_fast();
+    }
+
+    fn refresh_fast(&mut self) {
+        self.fast = self.rows.plan.as_ref().is_some_and(|p| p.fast) && !self.core_only;
+    }
+
+    /// Once, before any record: the byte-order mark, the lines to skip, the delimiter (when
+    /// detected) and a headerless log's columns.
+    fn preamble(&mut self) -> Result<(), CalError> {
+        while self.src.end < BOM.len() && !self.src.eof {
+            self.refill()?;
+        }
+        if self.src.buf[..self.src.end].starts_with(BOM) {
+            self.src.pos = BOM.len();
+        }
+        let to_skip = self.rows.format.skip_lines;
+        let mut left = to_skip;
+        while left > 0 {
+            match memchr(b'\n', &self.src.buf[self.src.pos..self.src.end]) {
+                Some(i) => {
+                    self.src.pos += i + 1;
+                    self.src.line += 1;
+                    left -= 1;
+                }
+                None if self.src.eof => {
+                    // An unterminated last line still counts as one.
+                    left -= u64::from(self.src.pos < self.src.end);
+                    self.src.pos = self.src.end;
+                    if left > 0 {
+                        return Err(CalError::LogFormat {
+                            path: self.path.clone(),
+                            line: self.src.line,
+                            problem: format!("the log ends within the {to_skip} lines to skip"),
+                        });
+                    }
+                }
+                None => {
+                    // A banner line longer than the buffer: drop what is read of it.
+                    self.src.pos = self.src.end;
+                    self.refill()?;
+                }
+            }
+        }
+        if self.rows.format.delimiter == Delimiter::Auto {
+            let detected = self.detect_delimiter()?;
+            self.set_delimiter(detected);
+        }
+        self.rows.plan_headerless()?;
+        self.refresh_fast();
+        self.preamble_done = true;
+        Ok(())
+    }
+
+    /// [`Delimiter::Auto`] resolved on the first line that is not blank or a comment
+    /// (looked at, not consumed).
+    fn detect_delimiter(&mut self) -> Result<Delimiter, CalError> {
+        let mut at = 0;
+        loop {
+            let rest = &self.src.buf[self.src.pos + at..self.src.end];
+            let (line, next) = match memchr2(b'\n', b'\r', rest) {
+                Some(i) => (&rest[..i], Some(at + i + 1)),
+                None if self.src.eof => (rest, None),
+                None => {
+                    self.refill()?;
+                    continue;
+                }
+            };
+            if !(line.trim_ascii().is_empty() || is_comment(line, self.rows.format.comment_prefix())) {
+                return Ok(Delimiter::Auto.resolve(line));
+            }
+            match next {
+                Some(next) => at = next,
+                None => return Ok(Delimiter::Byte(b',')),
+            }
         }
     }
 
@@ -193,14 +289,8 @@ impl<R: Read> Parser<R> {
 
     /// `Ok(true)` at the end of the log.
     fn fill_rows(&mut self, batch: &mut Batch, max_rows: usize) -> Result<bool, CalError> {
-        if !self.bom_checked {
-            while self.src.end < BOM.len() && !self.src.eof {
-                self.refill()?;
-            }
-            if self.src.buf[..self.src.end].starts_with(BOM) {
-                self.src.pos = BOM.len();
-            }
-            self.bom_checked = true;
+        if !self.preamble_done {
+            self.preamble()?;
         }
         while batch.lines.len() < max_rows && !(self.header_only && self.rows.plan.is_some()) {
             let flow = if self.quoted.is_some() {
@@ -247,7 +337,7 @@ impl<R: Read> Parser<R> {
     /// The one-pass path, over as many records as it can take; stops (leaving `pos` at
     /// the record's start) at the first record it cannot, for `general_record`.
     fn fast_rows(&mut self, batch: &mut Batch, max_rows: usize) {
-        let RowState { plan: Some(plan), values, previous_time, origin, .. } = &mut self.rows else {
+        let RowState { plan: Some(plan), values, previous_time, origin, records, .. } = &mut self.rows else {
             return;
         };
         let buf = &self.src.buf[..self.src.end];
@@ -265,19 +355,27 @@ impl<R: Read> Parser<R> {
             if count >= max_rows {
                 break;
             }
+            if let (Some(&b), Some(comment)) = (buf.get(pos), plan.comment_first) {
+                if b == comment || b == b' ' || b == b'\t' {
+                    break; // maybe a comment line: the general path decides
+                }
+            }
             let Some(terminator) = fast_fields(buf, pos, self.delimiter, &plan.roles, values) else {
                 break;
             };
-            let raw_time = values[plan.time_slot];
-            if raw_time.is_nan() || plan.gyro_slots.iter().any(|&k| values[k].is_nan()) {
+            let time = match plan.time_slot {
+                Some(slot) => values[slot] * plan.time_factor,
+                None => time_of_record(*records, plan.sample_rate_hz),
+            };
+            if time.is_nan() || plan.gyro_slots.iter().any(|&k| values[k].is_nan()) {
                 break; // an empty required cell: the general path reports it
             }
-            let time = raw_time * plan.time_factor;
             if previous_time.is_some_and(|p| time <= p) {
                 break; // duplicate or backward time: likewise
             }
             let time_origin = *origin.get_or_insert(time);
             *previous_time = Some(time);
+            *records += 1;
             batch.lines.push(line);
             batch.values.push(time - time_origin);
             for &k in &plan.temp_slots {
@@ -312,21 +410,33 @@ impl<R: Read> Parser<R> {
             _ => return Ok(Flow::NeedMore),
         };
         let record = &rest[..len];
-        if memchr(b'"', record).is_some() {
-            self.quoted = Some(Quoted { line: self.src.line, out_len: 0, ends_len: 0 });
+        if is_comment(record, self.rows.format.comment_prefix()) {
+            self.src.pos = start + len;
             return Ok(Flow::Continue);
         }
         self.bounds.clear();
-        let mut field_start = start;
-        for i in memchr_iter(self.delimiter, record) {
-            self.bounds.push((field_start, start + i));
-            field_start = start + i + 1;
+        if self.whitespace {
+            split_whitespace(record, start, &mut self.bounds);
+            if self.bounds.is_empty() {
+                self.src.pos = start + len; // only spaces: a blank line
+                return Ok(Flow::Continue);
+            }
+        } else {
+            if memchr(b'"', record).is_some() {
+                self.quoted = Some(Quoted { line: self.src.line, out_len: 0, ends_len: 0 });
+                return Ok(Flow::Continue);
+            }
+            let mut field_start = start;
+            for i in memchr_iter(self.delimiter, record) {
+                self.bounds.push((field_start, start + i));
+                field_start = start + i + 1;
+            }
+            self.bounds.push((field_start, start + len));
         }
-        self.bounds.push((field_start, start + len));
         self.src.pos = start + len;
         let fields = Fields { data: &self.src.buf, bounds: &self.bounds };
         self.rows.record(fields, self.src.line, batch)?;
-        self.fast = self.rows.plan.as_ref().is_some_and(|p| p.fast) && !self.core_only;
+        self.refresh_fast();
         Ok(Flow::Continue)
     }
 
@@ -369,7 +479,7 @@ impl<R: Read> Parser<R> {
                     self.quoted = None;
                     let fields = Fields { data: &self.out, bounds: &self.bounds };
                     self.rows.record(fields, line, batch)?;
-                    self.fast = self.rows.plan.as_ref().is_some_and(|p| p.fast) && !self.core_only;
+                    self.refresh_fast();
                     return Ok(Flow::Continue);
                 }
                 R::End => {
@@ -378,6 +488,29 @@ impl<R: Read> Parser<R> {
                 }
             }
         }
+    }
+}
+
+/// A record that starts (after spaces or tabs) with the comment prefix (none if empty).
+fn is_comment(record: &[u8], prefix: &[u8]) -> bool {
+    !prefix.is_empty() && record.trim_ascii_start().starts_with(prefix)
+}
+
+/// Bounds of the runs of non-blank bytes of `record` (at `offset` in the buffer).
+fn split_whitespace(record: &[u8], offset: usize, bounds: &mut Vec<(usize, usize)>) {
+    let mut field_start = None;
+    for (i, &b) in record.iter().enumerate() {
+        match (b == b' ' || b == b'\t', field_start) {
+            (true, Some(s)) => {
+                bounds.push((offset + s, offset + i));
+                field_start = None;
+            }
+            (false, None) => field_start = Some(i),
+            _ => {}
+        }
+    }
+    if let Some(s) = field_start {
+        bounds.push((offset + s, offset + record.len()));
     }
 }
 

@@ -65,6 +65,8 @@ pub fn fit(a: FitArgs) -> Result<()> {
         report_skipped(&run.ingest);
         runs.push(run);
     }
+    let warnings = fogtemp_cal::identifiability::fit_warnings(&runs, &config, &Default::default());
+    warnings.iter().for_each(|w| eprintln!("warning: {}", w.message));
     let digest = digest_files(&logs)?;
     let fitted = calibrate::fit_model(&runs, &config, digest).context("fitting the model")?;
     let (blob, reports) = (&fitted.blob, &fitted.axes);
@@ -88,7 +90,7 @@ pub fn fit(a: FitArgs) -> Result<()> {
         eprintln!("report: {}", dir.join("fit-report.md").display());
     }
     if a.json {
-        print_json(&FitDocument::new(&a.out, &fitted, &runs, &digest))?;
+        print_json(&FitDocument::new(&a.out, &fitted, &runs, &digest).with_warnings(warnings))?;
     } else {
         println!("wrote {} ({} bytes) from {} logs", a.out.display(), blob.len(), logs.len());
         for (axis, r) in reports.iter().enumerate() {

@@ -16,11 +16,11 @@ mod validate;
 use std::path::Path;
 
 use anyhow::{bail, Context, Result};
-use fogtemp_cal::ingest::{IngestOptions, IngestReport, LogFormat, RateUnit, TimeUnit};
+use fogtemp_cal::ingest::{IngestOptions, IngestReport};
 use fogtemp_core::Model;
 use serde::Serialize;
 
-use crate::args::{Command, GyroUnitArg, IngestArgs, TimeUnitArg};
+use crate::args::{Command, IngestArgs};
 
 /// Runs one command.
 pub fn run(command: Command) -> Result<()> {
@@ -42,31 +42,7 @@ pub fn run(command: Command) -> Result<()> {
 }
 
 fn ingest_options(a: &IngestArgs) -> Result<IngestOptions> {
-    if !a.delimiter.is_ascii() {
-        bail!("--delimiter must be one ASCII character, got '{}'", a.delimiter);
-    }
-    Ok(IngestOptions {
-        format: LogFormat {
-            time_column: a.time_column.clone(),
-            time_unit: match a.time_unit {
-                TimeUnitArg::S => TimeUnit::Seconds,
-                TimeUnitArg::Ms => TimeUnit::Milliseconds,
-                TimeUnitArg::Us => TimeUnit::Microseconds,
-            },
-            temp_columns: a.temp_columns.clone(),
-            temp_scale: a.temp_scale,
-            temp_offset_c: a.temp_offset,
-            gyro_columns: a.gyro_columns.clone(),
-            gyro_unit: match a.gyro_unit {
-                GyroUnitArg::Dph => RateUnit::DegPerHour,
-                GyroUnitArg::Dps => RateUnit::DegPerSecond,
-                GyroUnitArg::Rps => RateUnit::RadPerSecond,
-            },
-            gyro_scale: a.gyro_scale,
-            delimiter: a.delimiter as u8,
-        },
-        skip_bad_rows: a.skip_bad_rows,
-    })
+    a.options()
 }
 
 fn read_model(path: &Path) -> Result<Vec<u8>> {

@@ -1,0 +1,483 @@
+//! Identifiability warnings: what the calibration points cannot tell apart or do not cover,
+//! computed from the points themselves before any model is chosen.
+//!
+//! Each warning has a stable `kind` (snake_case, a JSON contract: docs/architecture.md,
+//! Contracts), a message for the technician, and the numbers behind it. The thresholds and
+//! why:
+//!
+//! - `temperature_rate_confounded`: dT/dt regressed on a cubic in T (the terms of the
+//!   `cubic-t` model, on T normalised to [-1, 1]) explains R^2 of it; the variance inflation
+//!   factor VIF = 1 / (1 - R^2) says how much the variance of a rate coefficient grows
+//!   because T already explains the rate. Warn above [`MAX_VIF`] = 10 (R^2 > 0.9), the
+//!   usual multicollinearity limit (Kutner, Nachtsheim, Neter, *Applied Linear Regression
+//!   Models*, 4th ed., section 10.5; Marquardt 1970): the rate coefficient's standard error
+//!   is then more than 3.2 times what an orthogonal design gives, and a rate effect can be
+//!   taken up by the T terms (one warm-up run has dT/dt = (T_end - T) / tau exactly, so
+//!   R^2 = 1: docs/physics.md, Identifiability). The docs' concealment index (R^2 > 0.99:
+//!   "not identifiable") is the stricter limit; this one warns earlier.
+//! - `too_few_runs`: fewer than [`MIN_RUNS`] = 3 runs with points. Run-to-run (turn-on)
+//!   differences are the error a calibration must average out, and leave-one-run-out
+//!   cross-validation needs at least 3 runs so that every fit still sees 2 runs and the
+//!   spread over folds has a degree of freedom beyond one difference.
+//! - `narrow_temperature_range`: when the temperature range the model will be used over is
+//!   known, any part of it outside the calibrated range (the model holds its boundary value
+//!   there, uncompensated beyond it). Otherwise a calibrated span below
+//!   [`MIN_TEMP_SPAN_C`] = 20 C: one power-on's self-heating alone spans 5-20 C
+//!   (docs/physics.md, ranges), so a narrower calibration has not varied the ambient
+//!   temperature and cannot tell the temperature's effect from the warm-up's.
+//! - `heating_only` / `cooling_only`: the 99th percentile of dT/dt at or above
+//!   [`MOVING_RATE_C_PER_MIN`] and the 1st percentile not at or below minus it (or the
+//!   reverse). 0.05 C/min is the paper's limit between a changing and a settled
+//!   temperature (its thinning keeps every point above it; `fit --fast-rate`). A rate
+//!   effect (Shupe) is odd in dT/dt, and heating/cooling hysteresis needs both signs
+//!   (docs/physics.md, table row 8); rates of the missing sign lie outside the calibrated
+//!   region. Power-on runs never cool, so power-on-only calibrations get `heating_only`.
+
+use std::collections::BTreeMap;
+
+use nalgebra::{DMatrix, DVector};
+use serde::Serialize;
+
+use crate::calibrate::{calibration_points, CalibrationConfig, CalibrationPoints, RunFeatures};
+
+/// Largest variance inflation factor of dT/dt over the cubic-in-T terms before
+/// `temperature_rate_confounded` (see the module documentation).
+pub const MAX_VIF: f64 = 10.0;
+/// Fewest runs before `too_few_runs`.
+pub const MIN_RUNS: usize = 3;
+/// Narrowest calibrated temperature span, deg C, when the operating range is unknown.
+pub const MIN_TEMP_SPAN_C: f64 = 20.0;
+/// |dT/dt| from which the temperature is changing, deg C/min (the paper's fast-rate limit).
+pub const MOVING_RATE_C_PER_MIN: f64 = 0.05;
+
+/// What the warnings are checked against.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct IdentifiabilitySettings {
+    /// The temperature range the model will be used over (min, max), deg C, when known.
+    pub operating_temp_c: Option<(f64, f64)>,
+}
+
+/// Which warning.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum WarningKind {
+    /// T and dT/dt move together: a rate effect cannot be told from a temperature effect.
+    TemperatureRateConfounded,
+    /// Too few runs to average out run-to-run differences or to cross-validate.
+    TooFewRuns,
+    /// The calibrated temperatures do not cover the range the model is used over.
+    NarrowTemperatureRange,
+    /// No cooling in the calibration.
+    HeatingOnly,
+    /// No heating in the calibration.
+    CoolingOnly,
+}
+
+impl WarningKind {
+    /// The stable name (as in JSON).
+    pub fn name(self) -> &'static str {
+        match self {
+            WarningKind::TemperatureRateConfounded => "temperature_rate_confounded",
+            WarningKind::TooFewRuns => "too_few_runs",
+            WarningKind::NarrowTemperatureRange => "narrow_temperature_range",
+            WarningKind::HeatingOnly => "heating_only",
+            WarningKind::CoolingOnly => "cooling_only",
+        }
+    }
+}
+
+/// One warning: which axis, what, and the numbers behind it.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Warning {
+    /// Gyro axis.
+    pub axis: usize,
+    /// Which warning.
+    pub kind: WarningKind,
+    /// For the technician: what was found, why it matters, what experiment would help.
+    pub message: String,
+    /// The numbers behind it, by name (thresholds included).
+    pub values: BTreeMap<&'static str, f64>,
+}
+
+impl Warning {
+    fn new(axis: usize, kind: WarningKind, message: String, values: &[(&'static str, f64)]) -> Self {
+        Self { axis, kind, message, values: values.iter().copied().collect() }
+    }
+}
+
+/// The warnings of every axis, from the calibration points `fit` uses (the same selection as
+/// [`crate::calibrate::fit_model`]).
+pub fn fit_warnings(
+    runs: &[RunFeatures],
+    config: &CalibrationConfig,
+    settings: &IdentifiabilitySettings,
+) -> Vec<Warning> {
+    let block_s = f64::from(config.features.window_s) / f64::from(config.features.block_count.max(1));
+    (0..config.ingest.format.gyro_columns.len())
+        .flat_map(|axis| {
+            let points =
+                calibration_points(runs, axis, config.full_windows_only, block_s, config.target_window_s);
+            warnings(&points, axis, settings)
+        })
+        .collect()
+}
+
+/// The warnings for one axis's calibration points (none for an empty set: `fit` reports
+/// that itself).
+pub fn warnings(points: &CalibrationPoints, axis: usize, settings: &IdentifiabilitySettings) -> Vec<Warning> {
+    if points.points.is_empty() {
+        return Vec::new();
+    }
+    [
+        confounding(points, axis),
+        too_few_runs(points, axis),
+        temperature_range(points, axis, settings),
+        rate_signs(points, axis),
+    ]
+    .into_iter()
+    .flatten()
+    .collect()
+}
+
+/// `temperature_rate_confounded`, from the R^2 of dT/dt on {1, T, T^2, T^3}.
+fn confounding(points: &CalibrationPoints, axis: usize) -> Option<Warning> {
+    let temps: Vec<f64> = points.points.iter().map(|p| p.temp_c).collect();
+    let rates: Vec<f64> = points.points.iter().map(|p| p.rate_c_per_min).collect();
+    let r_squared = r_squared_on_cubic(&temps, &rates)?;
+    let vif = 1.0 / (1.0 - r_squared).max(f64::MIN_POSITIVE);
+    if vif <= MAX_VIF {
+        return None;
+    }
+    let corr = correlation(&temps, &rates);
+    Some(Warning::new(
+        axis,
+        WarningKind::TemperatureRateConfounded,
+        format!(
+            "axis {axis}: temperature and its rate are confounded: a cubic in T explains {:.1} % of the \
+             variance of dT/dt (variance inflation factor {vif:.1} > {MAX_VIF}, corr(T, dT/dt) = {corr:.3}), so \
+             a rate effect cannot be told from a temperature effect; add runs that reach the same \
+             temperatures at other rates (power-on at several chamber temperatures, ramps at two rates, \
+             cooling runs)",
+            100.0 * r_squared
+        ),
+        &[
+            ("r_squared_rate_on_cubic_t", r_squared),
+            ("variance_inflation_factor", vif),
+            ("max_variance_inflation_factor", MAX_VIF),
+            ("corr_temp_rate", corr),
+        ],
+    ))
+}
+
+/// `too_few_runs`.
+fn too_few_runs(points: &CalibrationPoints, axis: usize) -> Option<Warning> {
+    let mut runs = points.run_of.clone();
+    runs.sort_unstable();
+    runs.dedup();
+    if runs.len() >= MIN_RUNS {
+        return None;
+    }
+    Some(Warning::new(
+        axis,
+        WarningKind::TooFewRuns,
+        format!(
+            "axis {axis}: only {} run(s) have calibration points (at least {MIN_RUNS}): run-to-run \
+             differences are not averaged out and cannot be cross-validated; record more power-on runs",
+            runs.len()
+        ),
+        &[("runs", runs.len() as f64), ("min_runs", MIN_RUNS as f64)],
+    ))
+}
+
+/// `narrow_temperature_range`.
+fn temperature_range(
+    points: &CalibrationPoints,
+    axis: usize,
+    settings: &IdentifiabilitySettings,
+) -> Option<Warning> {
+    let (lo, hi) = min_max(points.points.iter().map(|p| p.temp_c));
+    let span = hi - lo;
+    match settings.operating_temp_c {
+        Some((op_lo, op_hi)) => {
+            let (below, above) = ((lo - op_lo).max(0.0), (op_hi - hi).max(0.0));
+            if below + above <= 0.0 {
+                return None;
+            }
+            Some(Warning::new(
+                axis,
+                WarningKind::NarrowTemperatureRange,
+                format!(
+                    "axis {axis}: the calibration covers {lo:.1} to {hi:.1} C but the model is used over \
+                     {op_lo:.1} to {op_hi:.1} C: {below:.1} C below and {above:.1} C above are not calibrated \
+                     (the model holds its boundary value there); extend the chamber's range"
+                ),
+                &[
+                    ("temp_min_c", lo),
+                    ("temp_max_c", hi),
+                    ("operating_temp_min_c", op_lo),
+                    ("operating_temp_max_c", op_hi),
+                    ("uncovered_c", below + above),
+                ],
+            ))
+        }
+        None if span < MIN_TEMP_SPAN_C => Some(Warning::new(
+            axis,
+            WarningKind::NarrowTemperatureRange,
+            format!(
+                "axis {axis}: the calibration spans only {span:.1} C ({lo:.1} to {hi:.1} C), less than \
+                 {MIN_TEMP_SPAN_C} C (one power-on's self-heating alone spans up to 20 C): the temperature's \
+                 effect is not separated from the warm-up's, and outside this range the model holds its \
+                 boundary value; calibrate at several chamber temperatures"
+            ),
+            &[
+                ("temp_min_c", lo),
+                ("temp_max_c", hi),
+                ("temp_span_c", span),
+                ("min_temp_span_c", MIN_TEMP_SPAN_C),
+            ],
+        )),
+        None => None,
+    }
+}
+
+/// `heating_only` / `cooling_only`, from the 1st and 99th percentiles of dT/dt.
+fn rate_signs(points: &CalibrationPoints, axis: usize) -> Option<Warning> {
+    let mut rates: Vec<f64> =
+        points.points.iter().map(|p| p.rate_c_per_min).filter(|r| r.is_finite()).collect();
+    if rates.is_empty() {
+        return None;
+    }
+    rates.sort_unstable_by(f64::total_cmp);
+    let (p01, p99) = (percentile(&rates, 0.01), percentile(&rates, 0.99));
+    let heating = p99 >= MOVING_RATE_C_PER_MIN;
+    let cooling = p01 <= -MOVING_RATE_C_PER_MIN;
+    let (kind, what, missing) = match (heating, cooling) {
+        (true, false) => (WarningKind::HeatingOnly, "heats", "cooling"),
+        (false, true) => (WarningKind::CoolingOnly, "cools", "heating"),
+        _ => return None,
+    };
+    Some(Warning::new(
+        axis,
+        kind,
+        format!(
+            "axis {axis}: the calibration only {what} (dT/dt from {p01:.3} to {p99:.3} C/min, 1st to 99th \
+             percentile; changing means beyond +-{MOVING_RATE_C_PER_MIN} C/min): {missing} rates are outside \
+             the calibrated region (the model holds its boundary value) and heating/cooling hysteresis \
+             cannot be seen; add {missing} runs"
+        ),
+        &[
+            ("rate_p01_c_per_min", p01),
+            ("rate_p99_c_per_min", p99),
+            ("moving_rate_c_per_min", MOVING_RATE_C_PER_MIN),
+        ],
+    ))
+}
+
+/// R^2 of `y` regressed on {1, u, u^2, u^3} with `u` the `x` mapped to [-1, 1]; `None` when
+/// `y` does not vary or there are too few finite points (5) to say.
+fn r_squared_on_cubic(x: &[f64], y: &[f64]) -> Option<f64> {
+    let pairs: Vec<(f64, f64)> =
+        x.iter().zip(y).filter(|(a, b)| a.is_finite() && b.is_finite()).map(|(&a, &b)| (a, b)).collect();
+    if pairs.len() < 5 {
+        return None;
+    }
+    let n = pairs.len() as f64;
+    let mean_y = pairs.iter().map(|p| p.1).sum::<f64>() / n;
+    let ss_total: f64 = pairs.iter().map(|p| (p.1 - mean_y).powi(2)).sum();
+    if ss_total <= f64::EPSILON * mean_y.abs().max(1.0) * n {
+        return None;
+    }
+    let (lo, hi) = min_max(pairs.iter().map(|p| p.0));
+    let (mid, half) = ((lo + hi) / 2.0, ((hi - lo) / 2.0).max(f64::MIN_POSITIVE));
+    let design = DMatrix::from_fn(pairs.len(), 4, |i, j| ((pairs[i].0 - mid) / half).powi(j as i32));
+    let target = DVector::from_iterator(pairs.len(), pairs.iter().map(|p| p.1));
+    // SVD least squares: a constant T makes the design rank one, which it handles.
+    let svd = design.clone().svd(true, true);
+    let coefficients = svd.solve(&target, 1e-12).ok()?;
+    let residual = target - design * coefficients;
+    Some((1.0 - residual.norm_squared() / ss_total).clamp(0.0, 1.0))
+}
+
+/// Pearson correlation (NaN when either does not vary).
+fn correlation(x: &[f64], y: &[f64]) -> f64 {
+    let n = x.len().min(y.len()) as f64;
+    let (mx, my) = (x.iter().sum::<f64>() / n, y.iter().sum::<f64>() / n);
+    let (mut sxy, mut sxx, mut syy) = (0.0, 0.0, 0.0);
+    for (a, b) in x.iter().zip(y) {
+        sxy += (a - mx) * (b - my);
+        sxx += (a - mx) * (a - mx);
+        syy += (b - my) * (b - my);
+    }
+    sxy / (sxx * syy).sqrt()
+}
+
+fn min_max(values: impl Iterator<Item = f64>) -> (f64, f64) {
+    values.fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), v| (lo.min(v), hi.max(v)))
+}
+
+/// Nearest-rank percentile of sorted values (`q` in [0, 1]).
+fn percentile(sorted: &[f64], q: f64) -> f64 {
+    let rank = (q * sorted.len() as f64).ceil().max(1.0) as usize;
+    sorted[rank.min(sorted.len()) - 1]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::MeshPoint;
+
+    /// Points from (run, temp, rate) triples (the targets do not matter here).
+    fn points(triples: &[(usize, f64, f64)]) -> CalibrationPoints {
+        CalibrationPoints {
+            points: triples
+                .iter()
+                .map(|&(_, temp_c, rate_c_per_min)| MeshPoint { temp_c, rate_c_per_min, value_dph: 0.0 })
+                .collect(),
+            run_of: triples.iter().map(|t| t.0).collect(),
+            block_equivalents: triples.len() as f64,
+        }
+    }
+
+    /// A warm-up from `start_c` by 15 C with time constant `tau_min`: rate = (T_end - T) / tau.
+    fn warm_up(run: usize, start_c: f64, tau_min: f64) -> Vec<(usize, f64, f64)> {
+        (0..120)
+            .map(|k| {
+                let t_min = k as f64;
+                let temp = start_c + 15.0 * (1.0 - (-t_min / tau_min).exp());
+                (run, temp, (start_c + 15.0 - temp) / tau_min)
+            })
+            .collect()
+    }
+
+    /// Chamber ramps up and down between -20 and 40 C at two rates: T and dT/dt independent.
+    fn ramps() -> Vec<(usize, f64, f64)> {
+        let mut out = Vec::new();
+        for (run, rate) in [(0, 0.5), (1, -0.5), (2, 1.0), (3, -1.0)] {
+            for k in 0..=60 {
+                let temp = if rate > 0.0 { -20.0 + k as f64 } else { 40.0 - k as f64 };
+                out.push((run, temp, rate));
+            }
+        }
+        out
+    }
+
+    fn kinds(w: &[Warning]) -> Vec<WarningKind> {
+        w.iter().map(|w| w.kind).collect()
+    }
+
+    #[test]
+    fn one_warm_up_is_confounded_and_ramps_are_not() {
+        // One exponential warm-up: rate is linear in T, R^2 = 1 (docs/physics.md).
+        let w = confounding(&points(&warm_up(0, 20.0, 20.0)), 0).expect("confounded");
+        assert!(w.values["r_squared_rate_on_cubic_t"] > 1.0 - 1e-9, "{:?}", w.values);
+        assert!((w.values["corr_temp_rate"] + 1.0).abs() < 1e-9, "{:?}", w.values);
+        assert_eq!(w.kind.name(), "temperature_rate_confounded");
+        // Ramps at +-0.5 and +-1 C/min over the same temperatures: the rate is independent
+        // of T by construction; the regression explains none of it (closed form: the
+        // mean rate is 0 at every T).
+        assert!(confounding(&points(&ramps()), 0).is_none());
+        assert!(r_squared_on_cubic(
+            &ramps().iter().map(|t| t.1).collect::<Vec<_>>(),
+            &ramps().iter().map(|t| t.2).collect::<Vec<_>>()
+        )
+        .is_some_and(|r2| r2 < 1e-12));
+    }
+
+    #[test]
+    fn confounding_threshold_is_the_vif_of_ten() {
+        // rate = T/10 + c * (+-1 alternating): R^2 = var(T/10) / (var(T/10) + c^2) exactly
+        // for T symmetric about 0 and the alternation orthogonal to {1, T, T^2, T^3}
+        // (checked by the regression itself below). Choose c on both sides of R^2 = 0.9.
+        let temps: Vec<f64> = (0..200).map(|k| -10.0 + 20.0 * (k / 2) as f64 / 99.0).collect();
+        let var_signal = {
+            let m = temps.iter().sum::<f64>() / 200.0;
+            temps.iter().map(|t| (t / 10.0 - m / 10.0).powi(2)).sum::<f64>() / 200.0
+        };
+        for (r2_wanted, fires) in [(0.95, true), (0.85, false)] {
+            let c = (var_signal * (1.0 - r2_wanted) / r2_wanted).sqrt();
+            let triples: Vec<(usize, f64, f64)> = temps
+                .iter()
+                .enumerate()
+                .map(|(k, &t)| (k % 4, t, t / 10.0 + if k % 2 == 0 { c } else { -c }))
+                .collect();
+            let p = points(&triples);
+            let r2 = r_squared_on_cubic(
+                &triples.iter().map(|t| t.1).collect::<Vec<_>>(),
+                &triples.iter().map(|t| t.2).collect::<Vec<_>>(),
+            )
+            .unwrap();
+            assert!((r2 - r2_wanted).abs() < 1e-9, "R^2 {r2} wanted {r2_wanted}");
+            assert_eq!(confounding(&p, 0).is_some(), fires, "R^2 {r2}");
+        }
+        // A constant rate has nothing to confound.
+        assert!(confounding(
+            &points(&[(0, 1.0, 0.2), (0, 2.0, 0.2), (0, 3.0, 0.2), (1, 4.0, 0.2), (2, 5.0, 0.2)]),
+            0
+        )
+        .is_none());
+    }
+
+    #[test]
+    fn too_few_runs_fires_below_three() {
+        let two: Vec<_> = warm_up(0, 0.0, 20.0).into_iter().chain(warm_up(1, 20.0, 20.0)).collect();
+        let w = too_few_runs(&points(&two), 0).expect("two runs");
+        assert_eq!((w.values["runs"], w.values["min_runs"]), (2.0, 3.0));
+        let three: Vec<_> = two.into_iter().chain(warm_up(2, 40.0, 20.0)).collect();
+        assert!(too_few_runs(&points(&three), 0).is_none());
+    }
+
+    #[test]
+    fn narrow_range_absolute_floor_and_operating_range() {
+        let settings = IdentifiabilitySettings::default();
+        // One warm-up spans 15 C * (1 - e^-119/20) = 14.96 C < 20 C.
+        let w = temperature_range(&points(&warm_up(0, 20.0, 20.0)), 0, &settings).expect("narrow");
+        assert!((w.values["temp_span_c"] - 15.0 * (1.0 - (-119.0f64 / 20.0).exp())).abs() < 1e-9);
+        // Ramps span 60 C.
+        assert!(temperature_range(&points(&ramps()), 0, &settings).is_none());
+        // Known use from -30 to 40 C: 10 C below the calibrated -20 C uncovered.
+        let used = IdentifiabilitySettings { operating_temp_c: Some((-30.0, 40.0)) };
+        let w = temperature_range(&points(&ramps()), 0, &used).expect("uncovered");
+        assert_eq!(w.values["uncovered_c"], 10.0);
+        let inside = IdentifiabilitySettings { operating_temp_c: Some((-10.0, 35.0)) };
+        assert!(temperature_range(&points(&ramps()), 0, &inside).is_none());
+        // A narrow calibration that does cover its stated use passes.
+        let narrow_use = IdentifiabilitySettings { operating_temp_c: Some((21.0, 30.0)) };
+        assert!(temperature_range(&points(&warm_up(0, 20.0, 20.0)), 0, &narrow_use).is_none());
+    }
+
+    #[test]
+    fn heating_only_cooling_only_and_both() {
+        let heating: Vec<_> = (0..3).flat_map(|r| warm_up(r, 20.0 * r as f64, 20.0)).collect();
+        let w = rate_signs(&points(&heating), 0).expect("heating only");
+        assert_eq!((w.kind, w.kind.name()), (WarningKind::HeatingOnly, "heating_only"));
+        let cooling: Vec<_> = heating.iter().map(|&(r, t, rate)| (r, t, -rate)).collect();
+        assert_eq!(rate_signs(&points(&cooling), 0).map(|w| w.kind), Some(WarningKind::CoolingOnly));
+        assert!(rate_signs(&points(&ramps()), 0).is_none());
+        // Settled (|rate| below 0.05 C/min everywhere): neither side is moving, no warning.
+        let settled: Vec<_> =
+            (0..50).map(|k| (k % 3, k as f64, 0.04 * ((k % 5) as f64 - 2.0) / 2.0)).collect();
+        assert!(rate_signs(&points(&settled), 0).is_none());
+        // One cooling point among 201 is beyond the 1st percentile (rank 3 of 201).
+        let mut mostly: Vec<_> = (0..200).map(|k| (0, k as f64, 0.5)).collect();
+        mostly.push((0, 50.0, -0.5));
+        assert_eq!(rate_signs(&points(&mostly), 0).map(|w| w.kind), Some(WarningKind::HeatingOnly));
+    }
+
+    #[test]
+    fn all_warnings_together_and_none() {
+        let w = warnings(&points(&warm_up(0, 20.0, 20.0)), 1, &IdentifiabilitySettings::default());
+        assert_eq!(
+            kinds(&w),
+            vec![
+                WarningKind::TemperatureRateConfounded,
+                WarningKind::TooFewRuns,
+                WarningKind::NarrowTemperatureRange,
+                WarningKind::HeatingOnly
+            ]
+        );
+        assert!(w.iter().all(|w| w.axis == 1 && w.message.starts_with("axis 1: ")));
+        assert!(warnings(&points(&ramps()), 0, &IdentifiabilitySettings::default()).is_empty());
+        assert!(warnings(&CalibrationPoints::default(), 0, &IdentifiabilitySettings::default()).is_empty());
+        assert!(w[0].values["variance_inflation_factor"] > MAX_VIF);
+    }
+}

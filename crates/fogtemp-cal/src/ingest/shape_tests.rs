@@ -1,0 +1,271 @@
+//! Lab log shapes: banners, headerless logs, time from a sample rate, comments, delimiters;
+//! and a serial capture read end to end (every test runs every reader mode, see
+//! `test_support::run`).
+
+use std::path::Path;
+
+use super::test_support::*;
+use super::*;
+
+fn with(format: LogFormat) -> IngestOptions {
+    IngestOptions { format, ..IngestOptions::default() }
+}
+
+fn error_of(data: &str, options: &IngestOptions) -> CalError {
+    match run(data.as_bytes(), options).1 {
+        Err(e) => e,
+        Ok(r) => panic!("expected an error, got {} rows", r.rows),
+    }
+}
+
+#[test]
+fn skipped_banner_lines_count_in_line_numbers() {
+    // A banner with quotes, delimiters and bytes that are not UTF-8: never parsed.
+    let banner = "Tera Term \"VT\", log, 2026-11-24 10:00\n\u{feff}COM3; 115200 \"8N1\n";
+    let format = LogFormat { skip_lines: 2, ..LogFormat::default() };
+    let data = format!("{banner}{HEADER}0,20,1\n1,20,2\n");
+    let v = values(&rows(&data, &with(format.clone())));
+    assert_eq!(v.iter().map(|r| (r.0, r.3[0])).collect::<Vec<_>>(), vec![(4, 1.0), (5, 2.0)]);
+    let mut bytes = b"\xff\xfe garbage\n".to_vec();
+    bytes.extend_from_slice(format!("x\n{HEADER}0,20,1\n1,20,oops\n").as_bytes());
+    match run(&bytes, &with(format.clone())).1 {
+        Err(CalError::BadRow { row, .. }) => expect(&row, 5, 3, "gyro_dph", "oops", BadRowKind::NotANumber),
+        other => panic!("{}", summary(&other)),
+    }
+    // Fewer lines than to skip.
+    let short = error_of("banner\n", &with(LogFormat { skip_lines: 3, ..LogFormat::default() }));
+    assert!(
+        matches!(&short, CalError::LogFormat { line: 2, problem, .. } if problem.contains("3 lines to skip")),
+        "{short}"
+    );
+}
+
+#[test]
+fn headerless_logs_take_the_given_names() {
+    let format = LogFormat {
+        column_names: vec!["gyro_dph".into(), "time_s".into(), "temp_c".into()],
+        ..LogFormat::default()
+    };
+    let v = values(&rows("1.5,0,20\n2.5,0.5,21\n", &with(format.clone())));
+    assert_eq!(
+        v.iter().map(|r| (r.0, r.1, r.2[0], r.3[0])).collect::<Vec<_>>(),
+        vec![(1, 0.0, 20.0, 1.5), (2, 0.5, 21.0, 2.5)]
+    );
+    let b = bad_with("1.5,0,20\n2.5,1\n", &with(format.clone()));
+    expect(&b, 2, 3, "temp_c", "", BadRowKind::ShortRow);
+    // A name the columns do not have.
+    let missing = error_of("1,2,3\n", &with(LogFormat { time_column: "t".into(), ..format }));
+    assert!(matches!(&missing, CalError::MissingColumn { column, .. } if column == "t"), "{missing}");
+    // Without names, a first line of numbers is named as data, not as a missing column.
+    let e = error_of("0,20,1\n1,20,1\n", &default_options());
+    assert!(
+        matches!(&e, CalError::LogFormat { line: 1, problem, .. } if problem.contains("every cell is a number")),
+        "{e}"
+    );
+}
+
+fn bad_with(data: &str, options: &IngestOptions) -> BadRow {
+    match run(data.as_bytes(), options).1 {
+        Err(CalError::BadRow { row, .. }) => *row,
+        other => panic!("expected a bad row, got {}", summary(&other)),
+    }
+}
+
+#[test]
+fn time_from_the_sample_rate_counts_rejected_rows() {
+    let format = LogFormat {
+        column_names: vec!["temp_c".into(), "gyro_dph".into()],
+        sample_rate_hz: Some(50.0),
+        ..LogFormat::default()
+    };
+    let data = "# capture\n20,1\n20,2\n\n20\n20,4\n# note\n20,5\n";
+    let skipping = IngestOptions { skip_bad_rows: true, ..with(format.clone()) };
+    let (seen, report) = run(data.as_bytes(), &skipping);
+    let report = report.unwrap();
+    let v = values(&seen);
+    // Records 0, 1, (2 cut short), 3, 4: times k / 50 s; blank and comment lines are no records.
+    assert_eq!(
+        v.iter().map(|r| (r.0, r.1, r.3[0])).collect::<Vec<_>>(),
+        vec![(2, 0.0, 1.0), (3, 1.0 / 50.0, 2.0), (6, 3.0 / 50.0, 4.0), (8, 4.0 / 50.0, 5.0)]
+    );
+    assert_eq!((report.rows, report.skipped, report.time_origin_s), (4, 1, 0.0));
+    expect(&report.first_skipped[0], 5, 2, "gyro_dph", "", BadRowKind::ShortRow);
+    let e = error_of(data, &with(format.clone()));
+    assert_eq!(e.to_string(), "log.csv:5:2: column 'gyro_dph': fewer fields than the header (found '')");
+    // A time column as well is ambiguous, with or without a header.
+    let ambiguous = LogFormat { sample_rate_hz: Some(50.0), ..LogFormat::default() };
+    let e = error_of(&format!("{HEADER}0,20,1\n"), &with(ambiguous));
+    assert!(
+        matches!(&e, CalError::LogFormat { line: 1, problem, .. } if problem.contains("ambiguous")),
+        "{e}"
+    );
+    let named =
+        LogFormat { column_names: vec!["time_s".into(), "temp_c".into(), "gyro_dph".into()], ..format };
+    assert!(matches!(error_of("0,20,1\n", &with(named)), CalError::LogFormat { .. }));
+    for rate in [0.0, -1.0, f64::NAN, f64::INFINITY] {
+        let f = LogFormat { sample_rate_hz: Some(rate), ..LogFormat::default() };
+        assert!(matches!(f.check(Path::new("x")), Err(CalError::LogFormat { .. })), "{rate}");
+    }
+}
+
+#[test]
+fn comment_lines_anywhere_and_lines_still_exact() {
+    let data =
+        format!("# logger v2 \"quoted, text\"\n{HEADER}0,20,1\n  # indented, 1, 2\n1,20,2\n#\n2,20,x\n");
+    let b = bad(&data);
+    expect(&b, 7, 3, "gyro_dph", "x", BadRowKind::NotANumber);
+    let v = values(&rows(&data.replace(",x", ",3"), &default_options()));
+    assert_eq!(v.iter().map(|r| (r.0, r.3[0])).collect::<Vec<_>>(), vec![(3, 1.0), (5, 2.0), (7, 3.0)]);
+    // Another prefix; and none: then '#' lines are rows like any other.
+    let slashes = with(LogFormat { comment: Some("//".into()), ..LogFormat::default() });
+    let v = values(&rows(&format!("{HEADER}0,20,1\n// x\n1,20,2\n"), &slashes));
+    assert_eq!(v.len(), 2);
+    let none = with(LogFormat { comment: None, ..LogFormat::default() });
+    let b = bad_with(&format!("{HEADER}0,20,1\n# x,20,1\n"), &none);
+    expect(&b, 3, 1, "time_s", "# x", BadRowKind::NotANumber);
+    // A prefix a record could start with is refused before reading.
+    for prefix in ["1", "-", ".", " #", "\"", ","] {
+        let f = LogFormat {
+            comment: Some(prefix.into()),
+            delimiter: Delimiter::Byte(b','),
+            ..LogFormat::default()
+        };
+        assert!(matches!(f.check(Path::new("x")), Err(CalError::LogFormat { .. })), "{prefix:?}");
+    }
+}
+
+#[test]
+fn comment_lines_in_a_log_read_in_chunks() {
+    // Long enough for many chunks in every parallel mode; comments, an unused first column.
+    let mut data = String::from("id,time_s,temp_c,gyro_dph\n");
+    for k in 0..3000 {
+        if k % 97 == 0 {
+            data.push_str("# pause, 1, 2, 3\n");
+        }
+        data.push_str(&format!("{k},{k}.5,20,{}\n", k % 11));
+    }
+    let seen = rows(&data, &default_options());
+    assert_eq!(seen.len(), 3000);
+    assert!(values(&seen).iter().enumerate().all(|(k, r)| r.3[0] == (k % 11) as f64));
+}
+
+#[test]
+fn delimiters_named_and_detected() {
+    let resolve = |line: &str| Delimiter::Auto.resolve(line.as_bytes());
+    assert_eq!(resolve("time_s,temp_c,gyro_dph"), Delimiter::Byte(b','));
+    assert_eq!(resolve("time_s;temp_c;gyro_dph"), Delimiter::Byte(b';'));
+    assert_eq!(resolve("time_s\ttemp_c\tgyro_dph"), Delimiter::Byte(b'\t'));
+    assert_eq!(resolve("  time_s   temp_c gyro_dph  "), Delimiter::Whitespace);
+    assert_eq!(resolve("\"a;b\",c,d"), Delimiter::Byte(b','), "quoted delimiters do not count");
+    assert_eq!(resolve("a;b;c,d"), Delimiter::Byte(b';'));
+    assert_eq!(resolve("gyro_dph"), Delimiter::Byte(b','));
+    assert_eq!(Delimiter::Whitespace.resolve(b"a,b"), Delimiter::Whitespace);
+    for (text, delimiter, lines) in [
+        ("# c\ntime_s;temp_c;gyro_dph\n0;20;1\n0.5;20;2\n", Delimiter::Auto, [3, 4]),
+        ("\n\ntime_s\ttemp_c\tgyro_dph\n0\t20\t1\n0.5\t20\t2\n", Delimiter::Auto, [4, 5]),
+        ("# c\n  time_s  temp_c   gyro_dph\n 0   20 1\n\t0.5 20\t 2  \n", Delimiter::Auto, [3, 4]),
+        ("# c\ntime_s temp_c gyro_dph\n0 20 1\n   \n0.5 20 2\n", Delimiter::Whitespace, [3, 5]),
+        ("# c\ntime_s;temp_c;gyro_dph\n0;20;1\n0.5;20;2\n", Delimiter::Byte(b';'), [3, 4]),
+    ] {
+        let options = with(LogFormat { delimiter, ..LogFormat::default() });
+        let v = values(&rows(text, &options));
+        let got: Vec<_> = v.iter().map(|r| (r.0, r.1, r.2[0], r.3[0])).collect();
+        assert_eq!(got, vec![(lines[0], 0.0, 20.0, 1.0), (lines[1], 0.5, 20.0, 2.0)], "{text:?}");
+    }
+    // Whitespace logs report columns by field, not by character.
+    let b = bad_with("time_s  temp_c gyro_dph\n0  20   oops\n", &default_options());
+    expect(&b, 2, 3, "gyro_dph", "oops", BadRowKind::NotANumber);
+    let b = bad_with("time_s  temp_c gyro_dph\n0  20\n", &default_options());
+    expect(&b, 2, 3, "gyro_dph", "", BadRowKind::ShortRow);
+}
+
+/// Text of a serial capture: a banner, no header, no time column, 50 Hz, whitespace
+/// between the fields `gyro_dph temp_c`, gyro = 0.5 (T - 20) deg/h exactly (printed to 6
+/// decimals), T a warm-up from `start_c`; record `cut` printed without its temperature.
+fn capture(start_c: f64, records: usize, cut: usize) -> (String, Vec<(f64, f64)>) {
+    let mut text = String::from("COM3 115200 8N1 - capture started 2026-11-24 10:00:00\n");
+    let mut truth = Vec::new();
+    for k in 0..records {
+        let t = k as f64 / 50.0;
+        let temp = start_c + 15.0 * (1.0 - (-t / 600.0).exp());
+        let gyro = 0.5 * (temp - 20.0);
+        let (gyro_text, temp_text) = (format!("{gyro:.6}"), format!("{temp:.4}"));
+        if k == cut {
+            text.push_str(&format!(" {gyro_text}\n"));
+        } else {
+            text.push_str(&format!(" {gyro_text}  {temp_text}\n"));
+            truth.push((gyro_text.parse().unwrap(), temp_text.parse().unwrap()));
+        }
+    }
+    (text, truth)
+}
+
+fn capture_format() -> LogFormat {
+    LogFormat {
+        skip_lines: 1,
+        column_names: vec!["gyro_dph".into(), "temp_c".into()],
+        sample_rate_hz: Some(50.0),
+        ..LogFormat::default()
+    }
+}
+
+#[test]
+fn serial_capture_rows_exactly() {
+    let (text, truth) = capture(0.0, 3000, 1234);
+    let options = IngestOptions { format: capture_format(), skip_bad_rows: true };
+    let (seen, report) = run(text.as_bytes(), &options);
+    let report = report.unwrap();
+    assert_eq!((report.rows, report.skipped), (2999, 1));
+    // The cut row: record 1234 on line 1236 (banner on line 1, records from line 2).
+    expect(&report.first_skipped[0], 1236, 2, "temp_c", "", BadRowKind::ShortRow);
+    let v = values(&seen);
+    for (i, row) in v.iter().enumerate() {
+        let k = if i < 1234 { i } else { i + 1 }; // record index
+        assert_eq!(row.0, k as u64 + 2);
+        assert_eq!(row.1, k as f64 / 50.0, "time of record {k}");
+        assert_eq!((row.3[0], row.2[0]), truth[i], "values of record {k}");
+    }
+    let e = error_of(&text, &IngestOptions { format: capture_format(), skip_bad_rows: false });
+    assert_eq!(e.to_string(), "log.csv:1236:2: column 'temp_c': fewer fields than the header (found '')");
+}
+
+#[test]
+fn serial_captures_calibrate_end_to_end() {
+    use crate::calibrate::{extract_run_from, fit_model, CalibrationConfig, Method};
+    // Three 30-minute warm-ups from 0, 20 and 40 C at 50 Hz, each with one row cut short.
+    let config = CalibrationConfig {
+        method: Method::Poly,
+        ingest: IngestOptions { format: capture_format(), skip_bad_rows: true },
+        ..CalibrationConfig::default()
+    };
+    let runs: Vec<_> = [0.0, 20.0, 40.0]
+        .iter()
+        .enumerate()
+        .map(|(i, &start)| {
+            let (text, _) = capture(start, 90_000, 5_000 + 1000 * i);
+            let name = format!("capture{i}.txt");
+            extract_run_from(text.as_bytes(), Path::new(&name), &config).unwrap()
+        })
+        .collect();
+    assert!(runs.iter().all(|r| r.ingest.skipped == 1 && r.ingest.rows == 89_999));
+    let fitted = fit_model(&runs, &config, [0; 32]).unwrap();
+    let model = fogtemp_core::Model::from_bytes(&fitted.blob).unwrap();
+    let axis = model.axis(0).unwrap();
+    let mut hint = fogtemp_core::WalkHint::default();
+    // Oracle: 0.5 (T - 20) deg/h whatever the rate. The model is evaluated inside the
+    // calibrated region: each warm-up's (T, rate) path, rate = (start + 15 - T) / 10 min
+    // from 5 min on (before that the tracker's window is filling). Tolerance 0.05 deg/h,
+    // 0.2 % of the 22.5 deg/h the bias spans: the printed 6 decimals and the tracker's
+    // lag of a causal window against the centred 100 s targets leave less than that
+    // (the library's own doc example bounds the same effect at 0.1 deg/h on a 10 Hz log).
+    let mut worst: f64 = 0.0;
+    for start in [0.0, 20.0, 40.0] {
+        for minute in 5..30 {
+            let temp = start + 15.0 * (1.0 - (-f64::from(minute) / 10.0).exp());
+            let rate = (start + 15.0 - temp) / 10.0;
+            let got = axis.evaluate(temp as f32, rate as f32, &mut hint).unwrap().value_dph;
+            worst = worst.max((f64::from(got) - 0.5 * (temp - 20.0)).abs());
+        }
+    }
+    assert!(worst < 0.05, "worst model error {worst} deg/h");
+}
