@@ -151,15 +151,17 @@ impl<R: Read> Parser<R> {
     }
 
     fn with_state(path: &Path, src: Source<R>, rows: RowState, preamble_done: bool) -> Self {
+        // `Auto` stays until the preamble has seen the first line; comma meanwhile.
+        let (delimiter, whitespace) = split_by(rows.format.delimiter);
         let mut parser = Self {
             path: path.to_path_buf(),
             src,
-            delimiter: b',',
-            whitespace: false,
+            delimiter,
+            whitespace,
             fast: false,
             core_only: false,
             preamble_done,
-            core: csv_core::Reader::new(),
+            core: core_reader(delimiter),
             quoted: None,
             out: vec![0; 256],
             ends: vec![0; 16],
@@ -167,26 +169,19 @@ impl<R: Read> Parser<R> {
             rows,
             header_only: false,
         };
-        // `Auto` stays until the preamble has seen the first line; comma meanwhile.
-        parser.set_delimiter(parser.rows.format.delimiter);
+        parser.core_only = !whitespace && matches!(delimiter, b'"' | b'\r' | b'\n');
+        parser.refresh_fast();
         parser
     }
 
     /// Splits fields by `delimiter` from now on (also in the row state, so that chunks and
     /// the plan see the resolved one).
     fn set_delimiter(&mut self, delimiter: Delimiter) {
-        (self.delimiter, self.whitespace) = match delimiter {
-            Delimiter::Byte(b) => (b, false),
-            Delimiter::Whitespace => (b' ', true),
-            Delimiter::Auto => (b',', false),
-        };
+        (self.delimiter, self.whitespace) = split_by(delimiter);
         if delimiter != Delimiter::Auto {
             self.rows.format.delimiter = delimiter;
         }
-        self.core = csv_core::ReaderBuilder::new().delimiter(self.delimiter).build();
-        // Prime it so that it never strips a byte-order mark from a record mid-file
-        // (the file's own mark is skipped before any record).
-        let _ = self.core.read_record(b"\n", &mut [0u8; 1], &mut [0usize; 1]);
+        self.core = core_reader(self.delimiter);
         self.core_only = !self.whitespace && matches!(self.delimiter, b'"' | b'\r' | b'\n');
         self.refresh_fast();
     }
@@ -489,6 +484,24 @@ impl<R: Read> Parser<R> {
             }
         }
     }
+}
+
+/// The byte fields are split at, and whether runs of spaces and tabs split them instead.
+fn split_by(delimiter: Delimiter) -> (u8, bool) {
+    match delimiter {
+        Delimiter::Byte(b) => (b, false),
+        Delimiter::Whitespace => (b' ', true),
+        Delimiter::Auto => (b',', false),
+    }
+}
+
+/// `csv-core`'s reader for quoted records.
+fn core_reader(delimiter: u8) -> csv_core::Reader {
+    let mut core = csv_core::ReaderBuilder::new().delimiter(delimiter).build();
+    // Prime it so that it never strips a byte-order mark from a record mid-file
+    // (the file's own mark is skipped before any record).
+    let _ = core.read_record(b"\n", &mut [0u8; 1], &mut [0usize; 1]);
+    core
 }
 
 /// A record that starts (after spaces or tabs) with the comment prefix (none if empty).
