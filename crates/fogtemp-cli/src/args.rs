@@ -4,6 +4,7 @@ use std::path::PathBuf;
 
 use anyhow::{bail, Result};
 use clap::{Args, Parser, Subcommand, ValueEnum};
+use fogtemp_cal::identifiability::IdentifiabilitySettings;
 use fogtemp_cal::ingest::{Delimiter, IngestOptions, LogFormat, RateUnit, TimeUnit};
 
 /// fogtemp-cal: calibrate fibre-optic gyro temperature drift from lab logs and check the result.
@@ -290,9 +291,31 @@ pub struct FitArgs {
     /// Write fit-report.md with figures (calibration runs, mesh over the points) into this folder.
     #[arg(long)]
     pub report: Option<PathBuf>,
+    /// Temperature range the model will be used over, MIN,MAX in deg C (e.g. -40,85): a
+    /// warning names any part of it the calibration does not cover (without it, a warning
+    /// comes when the calibration spans less than 20 C).
+    #[arg(long, value_name = "MIN,MAX", value_parser = parse_range, allow_hyphen_values = true)]
+    pub operating_temp_c: Option<(f64, f64)>,
     /// Log columns and units.
     #[command(flatten)]
     pub ingest: IngestArgs,
+}
+
+impl FitArgs {
+    /// What the identifiability warnings are checked against.
+    pub fn identifiability(&self) -> IdentifiabilitySettings {
+        IdentifiabilitySettings { operating_temp_c: self.operating_temp_c }
+    }
+}
+
+/// `MIN,MAX` with MIN < MAX, both finite.
+fn parse_range(text: &str) -> Result<(f64, f64), String> {
+    let parsed =
+        text.split_once(',').and_then(|(a, b)| Some((a.trim().parse().ok()?, b.trim().parse().ok()?)));
+    match parsed {
+        Some((lo, hi)) if f64::is_finite(lo) && f64::is_finite(hi) && lo < hi => Ok((lo, hi)),
+        _ => Err(format!("expected MIN,MAX in deg C with MIN < MAX, got '{text}'")),
+    }
 }
 
 /// `compensate` arguments.

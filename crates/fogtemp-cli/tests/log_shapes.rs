@@ -117,6 +117,25 @@ fn serial_captures_fit_and_validate_end_to_end() {
         (provenance["temp_min_c"].as_f64().unwrap(), provenance["temp_max_c"].as_f64().unwrap());
     assert!(temp_min < 1.0 && temp_max > 54.0, "{provenance}");
 
+    // A stated operating range the calibration does not cover: the uncovered degrees.
+    let mut args =
+        vec!["fit", "--method", "poly", "--skip-bad-rows", "--json", "--operating-temp-c", "-10,60"];
+    let other = dir.path().join("other.fogm");
+    args.extend(["--out", s(&other)]);
+    args.extend(SHAPE);
+    args.extend(cal.iter().map(|p| s(p)));
+    let (ranged, _) = ok_json(&args);
+    let narrow: Vec<&Value> = ranged["warnings"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|w| w["kind"] == "narrow_temperature_range")
+        .collect();
+    assert_eq!(narrow.len(), 1, "{ranged}");
+    let uncovered = narrow[0]["values"]["uncovered_c"].as_f64().unwrap();
+    // The provenance holds the same range in f32.
+    assert!((uncovered - ((temp_min + 10.0) + (60.0 - temp_max))).abs() < 1e-4, "{uncovered}");
+
     // The model against the oracle along the calibrated warm-ups (from 5 min, once the
     // feature window has filled): within 0.05 deg/h, 0.2 % of the 27 deg/h the bias spans
     // (what remains is the causal tracker's lag against the centred targets).

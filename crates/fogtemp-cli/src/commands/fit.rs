@@ -65,7 +65,7 @@ pub fn fit(a: FitArgs) -> Result<()> {
         report_skipped(&run.ingest);
         runs.push(run);
     }
-    let warnings = fogtemp_cal::identifiability::fit_warnings(&runs, &config, &Default::default());
+    let warnings = fogtemp_cal::identifiability::fit_warnings(&runs, &config, &a.identifiability());
     warnings.iter().for_each(|w| eprintln!("warning: {}", w.message));
     let digest = digest_files(&logs)?;
     let fitted = calibrate::fit_model(&runs, &config, digest).context("fitting the model")?;
