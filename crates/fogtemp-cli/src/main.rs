@@ -53,6 +53,10 @@ fn cal_error<'e>(e: &'e (dyn std::error::Error + 'static)) -> Option<&'e CalErro
 fn flag_hint(e: &(dyn std::error::Error + 'static)) -> Option<&'static str> {
     match cal_error(e)? {
         CalError::BadRow { .. } => Some("; use --skip-bad-rows to skip such rows"),
+        CalError::LogFormat { .. } => Some(
+            "; see --skip-lines, --columns, --sample-rate-hz, --time-column, --comment and --delimiter \
+             (docs/calibration-logs.md)",
+        ),
         CalError::NoCalibrationPoints { .. } => {
             Some("; check --temp-column, or set --max-gap-s and --window-s to suit the temperature sampling")
         }

@@ -260,6 +260,7 @@ fn ambiguous_or_malformed_shapes_are_refused() {
     let out = run(&["fit", "--out", s(&model), s(&log)]);
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(stderr.contains(":1: this line was read as the header but every cell is a number"), "{stderr}");
+    assert!(stderr.contains("; see --skip-lines, --columns, --sample-rate-hz"), "{stderr}");
     // Bad values for the shape flags.
     for (bad, says) in [
         (vec!["--sample-rate-hz", "0"], "positive number of Hz"),
