@@ -25,10 +25,11 @@ import fogtemp  # noqa: E402
 
 
 def means(time_s, values, tau_s=100.0):
-    """Non-overlapping tau-second means (the paper's 100 s smoothing), with their centre times."""
+    """Non-overlapping tau-second means (the paper's 100 s smoothing) with their centre times;
+    windows under 90 % full are left out, as the library's bias stability does."""
     bins = np.floor(time_s / tau_s).astype(np.int64)
     count = np.bincount(bins)
-    full = count > 0
+    full = count >= 0.9 * count.max()
     centre = (np.arange(count.size) + 0.5) * tau_s
     return centre[full], np.bincount(bins, weights=values)[full] / count[full]
 
@@ -55,8 +56,9 @@ def main():
 
     # Figure 1: raw vs compensated 100 s means per start temperature, position 2.
     fig, (ax_raw, ax_comp) = plt.subplots(1, 2, figsize=(12, 4.5), sharey=True)
-    colours = plt.cm.coolwarm(np.linspace(0, 1, 8))
-    for colour, path in zip(colours, sorted(logs.glob("pos2*.csv"))):
+    validation_logs = sorted(logs.glob("pos2*.csv"), key=lambda p: start_c[p.stem])
+    colours = plt.cm.coolwarm(np.linspace(0, 1, len(validation_logs)))
+    for colour, path in zip(colours, validation_logs):
         run = fogtemp.read_log(path)
         compensated, flags = model.compensate(run["time_s"], run["gyro_dph"], run["temp_c"])
         corrected = (flags & fogtemp.FLAG_BITS["WARMING_UP"]) == 0

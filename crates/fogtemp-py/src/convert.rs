@@ -17,8 +17,9 @@ pub fn f64_array<'py>(value: &Bound<'py, PyAny>, what: &str) -> PyResult<PyReado
     let numpy = py.import("numpy")?;
     let kwargs = PyDict::new(py);
     kwargs.set_item("dtype", numpy.getattr("float64")?)?;
+    kwargs.set_item("order", "C")?;
     let array = numpy
-        .call_method("ascontiguousarray", (value,), Some(&kwargs))
+        .call_method("asarray", (value,), Some(&kwargs))
         .map_err(|e| errors::value(format!("{what} must be numbers convertible to float64 ({e})")))?;
     Ok(array.cast_into::<PyArrayDyn<f64>>()?.readonly())
 }
