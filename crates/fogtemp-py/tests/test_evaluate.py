@@ -92,7 +92,7 @@ def test_threads_and_start_grid_agree_with_the_command_line(mesh_model, tmp_path
     with open(points, "w") as f:
         f.write("temp_c,rate_c_per_min\n")
         for t, r in zip(temp, rate):
-            f.write(f"{t!r},{r!r}\n")
+            f.write(f"{float(t)!r},{float(r)!r}\n")
     out = tmp_path / "out.csv"
     done = cli("evaluate", "--model", model_path, "--points", points, "--out", out)
     assert done.returncode == 0, done.stderr
