@@ -9,10 +9,10 @@ use std::path::{Path, PathBuf};
 use anyhow::{bail, Context, Result};
 use fogtemp_cal::ingest::{read_log_with_progress, IngestOptions};
 use fogtemp_diagnose::{
-    diagnose as run_diagnosis, write_diagnosis_report, DiagnoseOptions, Diagnosis, RunMeta, RunSeries,
+    diagnose as run_diagnosis, write_diagnosis_report, DiagnoseDocument, DiagnoseOptions, Diagnosis, RunMeta,
+    RunSeries,
 };
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
-use serde::Serialize;
 
 use super::print_json;
 use crate::args::DiagnoseArgs;
@@ -114,20 +114,6 @@ fn pair(simulated: &[PathBuf], recorded: &[PathBuf]) -> Result<Vec<(PathBuf, Pat
         bail!("runs are paired by file name, and {} are not:\n  {}", unmatched.len(), unmatched.join("\n  "));
     }
     Ok(pairs)
-}
-
-/// `diagnose --json`: the diagnosis with what the command adds.
-#[derive(Serialize)]
-struct DiagnoseDocument<'a> {
-    /// The diagnosis, as keys of this object.
-    #[serde(flatten)]
-    diagnosis: &'a Diagnosis,
-    /// Wall-clock time of the diagnosis, s.
-    seconds: f64,
-    /// `scenario-updated.toml` written beside the report, as displayed, or `None` (null).
-    updated_scenario: Option<String>,
-    /// The changes made to the scenario (empty without one).
-    scenario_changes: Vec<String>,
 }
 
 /// The `diagnose` command.
