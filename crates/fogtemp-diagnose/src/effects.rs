@@ -537,7 +537,7 @@ pub fn unmet_requirement(prep: &Prepared, effect: Effect) -> Option<String> {
                 .filter(|name| prep.runs.iter().filter(|r| group_of(r) == **name).count() >= 2)
                 .count();
             if prep.runs.iter().any(|r| r.group.is_none()) {
-                why("not every run has a position label (RunMeta.group)".into())
+                why("not every run has a position label (give each run's position in a runs file: `diagnose --runs FILE`, columns run,position,input_rate_dph)".into())
             } else if g.len() < 2 || repeated < 2 {
                 why(format!(
                     "{} position group(s), {} with >= 2 runs: a per-position offset cannot be told from turn-on repeatability",
@@ -573,7 +573,7 @@ pub fn unmet_requirement(prep: &Prepared, effect: Effect) -> Option<String> {
         }
         Effect::ScaleFactorTemperature => {
             if prep.runs.iter().any(|r| r.input_rate_dph.is_none()) {
-                return why("not every run states its input rate (RunMeta.input_rate_dph)".into());
+                return why("not every run states its input rate (give each run's input_rate_dph in a runs file: `diagnose --runs FILE`, columns run,position,input_rate_dph)".into());
             }
             let mut rates: Vec<f64> = prep.runs.iter().filter_map(|r| r.input_rate_dph).collect();
             rates.sort_by(f64::total_cmp);
