@@ -122,3 +122,15 @@ def simulate(
     progress: bool = True,
 ) -> Dict[str, Any]:
     """The ``fogtemp-cal simulate --json`` document, after writing the logs into ``out``."""
+
+def diagnose(
+    simulated: PathLike,
+    recorded: PathLike,
+    runs: Optional[PathLike] = None,
+    *,
+    progress: bool = True,
+    **options: Any,
+) -> Dict[str, Any]:
+    """The ``fogtemp-cal diagnose --json`` document: simulated vs recorded logs paired by file name.
+    Options: mean_window_s, bin_s, rate_window_s, window_coverage, block_coverage, log-column options
+    (for the recorded logs)."""

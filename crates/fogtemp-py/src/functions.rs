@@ -43,7 +43,7 @@ pub fn parse_method(name: &str) -> PyResult<Method> {
 
 /// Paths from a path, a list of paths, folders expanded to their `*.csv` files sorted by
 /// name (the command line's rule).
-fn expand_logs(items: &[PathBuf]) -> PyResult<Vec<PathBuf>> {
+pub fn expand_logs(items: &[PathBuf]) -> PyResult<Vec<PathBuf>> {
     let mut out = Vec::new();
     for arg in items {
         if arg.is_dir() {

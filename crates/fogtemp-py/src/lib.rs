@@ -8,6 +8,7 @@
 //! Long work (ingest, fit, replay, evaluation of many points) runs with the GIL released.
 
 mod convert;
+mod diagnose;
 mod errors;
 mod functions;
 mod model;
@@ -17,7 +18,7 @@ mod progress;
 use pyo3::prelude::*;
 
 /// fogtemp: temperature-drift calibration of fibre-optic gyros (fit, evaluate, compensate,
-/// validate, simulate) from numpy arrays, pandas DataFrames and CSV logs.
+/// validate, simulate, diagnose) from numpy arrays, pandas DataFrames and CSV logs.
 #[pymodule]
 #[pyo3(name = "fogtemp")]
 fn fogtemp_module(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -28,6 +29,7 @@ fn fogtemp_module(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(functions::validate, m)?)?;
     m.add_function(wrap_pyfunction!(functions::allan, m)?)?;
     m.add_function(wrap_pyfunction!(functions::simulate, m)?)?;
+    m.add_function(wrap_pyfunction!(diagnose::diagnose, m)?)?;
     m.add("METHODS", functions::METHOD_NAMES.to_vec())?;
     m.add("FLAG_BITS", model::flag_bits(m.py())?)?;
     Ok(())
