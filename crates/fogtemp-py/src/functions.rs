@@ -201,17 +201,13 @@ pub fn fit(
         ));
     }
     let ingest = options::ingest(&mut o)?;
-    let config =
+    let mut config =
         options::calibration(&mut o, CalibrationConfig { ingest, method, ..CalibrationConfig::default() })?;
     let capacity = o.usize("capacity", fogtemp_core::DEFAULT_CAPACITY)?;
     o.finish()?;
     options::capacity_fits(config.features.block_count as usize, capacity)?;
-    let (runs, digest) = if arrays {
-        array_runs(py, &items, config.clone())?
-    } else {
-        file_runs(py, &items, &config, progress)?
-    };
-    let (config, runs) = (config, runs);
+    let (runs, digest) =
+        if arrays { array_runs(py, &items, &mut config)? } else { file_runs(py, &items, &config, progress)? };
     let fitted = py.detach(|| calibrate::fit_model(&runs, &config, digest)).map_err(errors::cal)?;
     let source = out.as_ref().map_or_else(|| "<fit>".to_string(), |p| p.display().to_string());
     let doc = FitDocument::new(Path::new(&source), &fitted, &runs, &digest);
@@ -261,7 +257,7 @@ fn file_runs(
 fn array_runs(
     py: Python<'_>,
     items: &[Bound<'_, PyAny>],
-    mut config: CalibrationConfig,
+    config: &mut CalibrationConfig,
 ) -> PyResult<(Vec<RunFeatures>, [u8; 32])> {
     use sha2::Digest;
     let runs: Vec<ArrayRun<'_>> =
@@ -281,7 +277,7 @@ fn array_runs(
             temps_c: &temps,
             gyros_dph: &gyros,
         };
-        let f = py.detach(|| extract_run_arrays(&view, &config)).map_err(array_error)?;
+        let f = py.detach(|| extract_run_arrays(&view, config)).map_err(array_error)?;
         if f.ingest.rows == 0 {
             return Err(errors::value(format!("{}: no samples", run.name.display())));
         }

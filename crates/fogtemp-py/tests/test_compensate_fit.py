@@ -125,3 +125,16 @@ def test_simulate_document(tmp_path):
     doc = fogtemp.simulate("paper", out=tmp_path, rate=1.0, seed=3, duration_s=300.0, progress=False)
     assert doc["sample_rate_hz"] == 1.0 and doc["seed"] == 3 and len(doc["runs"]) == 16
     assert (tmp_path / "manifest.json").is_file()
+
+
+def test_several_axes_from_two_dimensional_gyro_arrays():
+    runs = synthetic_runs()
+    doubled = [dict(r, gyro_dph=np.column_stack([r["gyro_dph"], 2.0 * r["gyro_dph"]])) for r in runs]
+    both = fogtemp.fit(doubled, method="poly", progress=False)
+    single = fogtemp.fit(runs, method="poly", progress=False)
+    assert both.axis_count == 2
+    t, r = np.meshgrid(np.linspace(-15, 35, 20), np.linspace(0, 3, 10))
+    np.testing.assert_array_equal(both.evaluate(t, r, axis=0), single.evaluate(t, r))
+    # Twice the gyro: the same terms selected (the stepwise tests are scale-free), twice the
+    # coefficients, up to the f32 storage of the blob.
+    np.testing.assert_allclose(both.evaluate(t, r, axis=1), 2.0 * single.evaluate(t, r), rtol=1e-5, atol=1e-4)
