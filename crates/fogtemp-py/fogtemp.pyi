@@ -86,6 +86,8 @@ def fit(
 ) -> Model:
     """Fits a model to calibration logs (paths or folders) or runs given as arrays.
 
+    method: "auto" (what ``fogtemp-cal fit`` does by default), "poly", "mesh", "hybrid", "cubic-t".
+
     Options: the ``fogtemp-cal fit`` flags as keywords (window_s, blocks, min_blocks, max_gap_s,
     target_window_s, full_windows_only, thinning, tolerance_dph, max_nodes, interpolate_nodes,
     fast_rate, settled_every, poly, max_degree, p_enter, p_remove, capacity) and, for files, the

@@ -170,8 +170,8 @@ fn array_error(e: fogtemp_cal::CalError) -> PyErr {
 ///
 /// `logs` is a path (a CSV log or a folder of them), a list of paths, or a list of runs given
 /// as arrays: dicts or pandas DataFrames with `time_s` (s), `temp_c` (deg C, NaN = no reading)
-/// and `gyro_dph` (deg/h; 2-D for several axes). `method` is "auto", "poly", "mesh",
-/// "hybrid" or "cubic-t". Keywords: the command line's `fit` options (`window_s`, `blocks`,
+/// and `gyro_dph` (deg/h; 2-D for several axes). `method` is "auto" (what the command
+/// line's `fit` does by default), "poly", "mesh", "hybrid" or "cubic-t". Keywords: the command line's `fit` options (`window_s`, `blocks`,
 /// `min_blocks`, `max_gap_s`, `target_window_s`, `full_windows_only`, `thinning`,
 /// `tolerance_dph`, `max_nodes`, `interpolate_nodes`, `fast_rate`, `settled_every`, `poly`,
 /// `max_degree`, `p_enter`, `p_remove`, `capacity`) and, for files, its log-column options
