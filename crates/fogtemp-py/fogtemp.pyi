@@ -64,6 +64,7 @@ class Model:
         temp_c: ArrayLike,
         axis: int = 0,
         return_bias: Literal[False] = False,
+        capacity: int = 128,
     ) -> Tuple[npt.NDArray[np.float64], npt.NDArray[np.uint8]]: ...
     @overload
     def compensate(
@@ -73,6 +74,7 @@ class Model:
         temp_c: ArrayLike,
         axis: int = 0,
         return_bias: Literal[True] = ...,
+        capacity: int = 128,
     ) -> Tuple[npt.NDArray[np.float64], npt.NDArray[np.uint8], npt.NDArray[np.float64]]: ...
     def __reduce__(self) -> Tuple[Any, Tuple[bytes]]: ...
 

@@ -173,7 +173,10 @@ impl Model {
     /// sample), `gyro_dph` (deg/h) and `temp_c` (deg C; NaN where a sample has no
     /// temperature reading) are 1-D and of equal length. The outputs are float64 arrays
     /// holding the core's f32 results exactly, and uint8 flags (`fogtemp.FLAG_BITS`).
-    #[pyo3(signature = (time_s, gyro_dph, temp_c, axis = 0, return_bias = false))]
+    /// `capacity` is the firmware's tracker capacity (the core's default, 128): a model whose
+    /// window needs more blocks is refused, as the command line refuses it.
+    #[pyo3(signature = (time_s, gyro_dph, temp_c, axis = 0, return_bias = false, capacity = fogtemp_core::DEFAULT_CAPACITY))]
+    #[allow(clippy::too_many_arguments)] // Python's keywords, each with its default
     fn compensate<'py>(
         &self,
         py: Python<'py>,
@@ -182,8 +185,10 @@ impl Model {
         temp_c: &Bound<'py, PyAny>,
         axis: usize,
         return_bias: bool,
+        capacity: usize,
     ) -> PyResult<Bound<'py, PyTuple>> {
-        self.axis(axis)?;
+        // The firmware's tracker capacity: a model needing more blocks fails at its boot.
+        crate::options::capacity_fits(self.axis(axis)?.blocks_needed(), capacity)?;
         let (t, g, c) =
             (f64_vector(time_s, "time_s")?, f64_vector(gyro_dph, "gyro_dph")?, f64_vector(temp_c, "temp_c")?);
         let (ts, gs, cs) = (slice(&t, "time_s")?, slice(&g, "gyro_dph")?, slice(&c, "temp_c")?);

@@ -120,6 +120,8 @@ def test_evaluate_and_compensate_refuse_bad_arrays(small_model):
     # NaN gyro or temperature is data, not an error: flagged exactly as firmware flags it.
     out, flags = small_model.compensate(np.arange(10.0), np.full(10, np.nan), np.full(10, np.nan))
     assert np.isnan(out).all() and (flags & fogtemp.FLAG_BITS["BAD_INPUT"]).all()
+    with pytest.raises(ValueError, match="needs 100 blocks but the firmware's capacity is 64"):
+        small_model.compensate(np.arange(10.0), np.zeros(10), np.zeros(10), capacity=64)
     empty_out, empty_flags = small_model.compensate([], [], [])
     assert empty_out.shape == (0,) and empty_flags.shape == (0,)
 
