@@ -374,7 +374,13 @@ fn null_case_leaves_nothing_out_and_says_consistent_with_noise() {
     assert!(d.left_out.is_empty(), "null case named {:?}", names(&d));
     assert_contract_json(&d);
     assert!(!d.unexplained.structured, "{}", d.unexplained.statement);
-    assert!(d.summary.contains("consistent with noise"), "{}", d.summary);
+    // Spans significant against within-run (HAC) errors may remain under flicker; the
+    // statement then locates them and says they do not repeat across runs (never "noise").
+    assert!(
+        d.summary.contains("consistent with noise") || d.summary.contains("does not repeat across runs"),
+        "{}",
+        d.summary
+    );
     // The global offset is the recorded offset (3 SE), and its SE is at most twice the
     // closed-form one (see `offset_se_closed_form_dph`), so an inflated SE cannot pass.
     // Seen: 0.00166 +- 0.00037 deg/h against a closed-form SE of 0.00087 (the SE equals the

@@ -102,7 +102,13 @@ fn candidate<'a>(d: &'a Diagnosis, effect: &str) -> &'a fogtemp_diagnose::Candid
 fn null_dataset_names_nothing() {
     let (d, _) = run("null", 1.0);
     assert!(d.left_out.is_empty(), "null dataset named {:?}", names(&d));
-    assert!(d.summary.contains("consistent with noise"), "{}", d.summary);
+    // Spans significant against within-run (HAC) errors may remain under flicker; the
+    // statement then locates them and says they do not repeat across runs (never "noise").
+    assert!(
+        d.summary.contains("consistent with noise") || d.summary.contains("does not repeat across runs"),
+        "{}",
+        d.summary
+    );
 }
 
 #[test]

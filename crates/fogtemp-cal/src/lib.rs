@@ -49,6 +49,7 @@
 //! # }
 //! ```
 
+pub mod arrays;
 pub mod blob;
 pub mod calibrate;
 pub mod documents;

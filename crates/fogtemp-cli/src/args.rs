@@ -510,6 +510,11 @@ pub struct DiagnoseArgs {
     /// name. The log-column options below apply to these.
     #[arg(long)]
     pub recorded: PathBuf,
+    /// Run metadata: a CSV file with the header `run,position,input_rate_dph` (optional
+    /// `role`), one row per log (`run` = file name without `.csv`); without it, the simulated
+    /// folder's `manifest.json` is read when present.
+    #[arg(long)]
+    pub runs: Option<PathBuf>,
     /// Print one JSON document on stdout.
     #[arg(long)]
     pub json: bool,

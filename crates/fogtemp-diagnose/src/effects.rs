@@ -4,12 +4,12 @@
 //!
 //! | effect | term (columns; profiled parameters) |
 //! |---|---|
-//! | `thermal_lag` | `a [g(LPF_tau(T)) - g(T)]`, g = the simulation's static relation; tau 1-30 min |
+//! | `thermal_lag` | `a [G(L(T)) - G(T)]`, G = the simulation's own prediction `g(T) + S dT/dt` (fitted to the simulated logs), L = a chain of 1 or 2 first-order lags of mean delay tau; tau 1-60 min, order |
 //! | `shupe_rate` | `c dT_coil/dt`, `T_coil = LPF_tau(T)` (the coil lags the sensor); tau 0-30 min |
 //! | `gradient_rate` | `c d2T/dt2` |
 //! | `warmup_transient` | `A exp(-(t - t_on) / tau_w)`; tau_w 1-60 min |
 //! | `orientation_offset` | one constant per position group, relative to the first group |
-//! | `hysteresis` | `s (h0 [+ h1 (T - T_ref)])`, s = +1 after heating faster than r0, -1 after cooling faster than r0, held in between (0 before the first); r0, degree |
+//! | `hysteresis` | `s (h0 [+ h1 (T - T_ref)])`, s = +1 after heating faster than r0, -1 after cooling faster than r0, held in between (0 before the first), or s = (T - P_w(T)) / (w/2) with P_w the play operator of width w; r0 or w, degree |
 //! | `static_shape` | cubic B-splines in `LPF_tau(T)` (the coil's temperature) over the recorded range, shared by all runs; basis size, tau 0-10 min |
 //! | `scale_factor_temperature` | `Omega_in (s1 (T - T_ref) [+ s2 (T - T_ref)^2])`, ppm; degree |
 //!
@@ -147,7 +147,10 @@ pub struct EffectGrid {
     pub unmet_requirement: Option<String>,
 }
 
-const LAG_GRID_S: [f64; 10] = [60.0, 120.0, 180.0, 300.0, 420.0, 600.0, 900.0, 1200.0, 1500.0, 1800.0];
+/// Mean delay of the lag chain, s (to an hour: a coil can lag its case sensor by 15-30 min
+/// and more).
+const LAG_GRID_S: [f64; 12] =
+    [60.0, 120.0, 180.0, 300.0, 420.0, 600.0, 900.0, 1200.0, 1500.0, 1800.0, 2400.0, 3600.0];
 /// Lag of the coil behind the logged sensor for the Shupe term's rate, s (1 s: the sensor's
 /// own rate).
 const SHUPE_LAG_GRID_S: [f64; 9] = [1.0, 60.0, 120.0, 240.0, 420.0, 600.0, 900.0, 1200.0, 1800.0];
@@ -156,6 +159,8 @@ const SHAPE_LAG_GRID_S: [f64; 3] = [1.0, 300.0, 600.0];
 const WARMUP_GRID_S: [f64; 11] =
     [60.0, 120.0, 180.0, 300.0, 450.0, 600.0, 900.0, 1200.0, 1800.0, 2700.0, 3600.0];
 const BRANCH_THRESHOLD_GRID_C_PER_MIN: [f64; 5] = [0.005, 0.01, 0.02, 0.05, 0.1];
+/// Widths of the play (backlash) operator of the hysteresis term, deg C.
+const PLAY_WIDTH_GRID_C: [f64; 5] = [0.5, 1.0, 2.0, 4.0, 8.0];
 const SPLINE_SIZE_GRID: [f64; 7] = [4.0, 5.0, 6.0, 8.0, 10.0, 12.0, 14.0];
 /// Cooling rate that counts as "cooling" for the hysteresis requirement, deg C/min.
 const COOLING_C_PER_MIN: f64 = -0.02;
@@ -193,6 +198,41 @@ pub fn low_pass(values: &[f64], tau_s: f64) -> Vec<f64> {
         state = Some((k, y));
     }
     out
+}
+
+/// A chain of `order` first-order lags of `tau_s / order` each applied to a 1 s series:
+/// the lagged value and its rate, deg C/min (exact for the chain: the last stage's input
+/// minus its output over its time constant).
+pub fn lag_chain(values: &[f64], tau_s: f64, order: usize) -> (Vec<f64>, Vec<f64>) {
+    let stage_s = tau_s / order.max(1) as f64;
+    let mut input = values.to_vec();
+    let mut output = low_pass(&input, stage_s);
+    for _ in 1..order.max(1) {
+        input = output;
+        output = low_pass(&input, stage_s);
+    }
+    let rate = input.iter().zip(&output).map(|(i, o)| lagged_rate_c_per_min(*i, *o, stage_s)).collect();
+    (output, rate)
+}
+
+/// Branch of a hysteresis with memory in temperature: `(T - P_w(T)) / (w / 2)` with `P_w` the
+/// play (backlash) operator of width `w` (the output follows T once T has moved w/2 past
+/// it). +1 on a heating branch, -1 on a cooling one, a linear transition over `w` after each
+/// reversal; 0 at the first sample. NaN-skipping.
+pub fn play_branch(temp_c: &[f64], width_c: f64) -> Vec<f64> {
+    let half = width_c / 2.0;
+    let mut state: Option<f64> = None;
+    temp_c
+        .iter()
+        .map(|&t| {
+            if !t.is_finite() {
+                return f64::NAN;
+            }
+            let y = state.map_or(t, |y| y.clamp(t - half, t + half));
+            state = Some(y);
+            (t - y) / half
+        })
+        .collect()
 }
 
 /// Branch of a heating/cooling hysteresis: +1 once dT/dt exceeds `threshold_c_per_min`,
@@ -314,17 +354,29 @@ pub fn term_columns(prep: &Prepared, effect: Effect, theta: &[f64]) -> TermColum
     let theta_v = theta.to_vec();
     match effect {
         Effect::ThermalLag => {
-            let tau_s = theta[0];
-            let per_run = one_column(prep, |r| {
-                let lagged = low_pass(&r.sec.temp_c, tau_s);
-                match &prep.static_relation {
-                    Some(g) => {
-                        r.sec.temp_c.iter().zip(&lagged).map(|(t, l)| g.eval(*l) - g.eval(*t)).collect()
-                    }
-                    None => vec![0.0; r.sec.temp_c.len()],
+            // The simulation's own prediction g(T) + S dT/dt evaluated at the lagged
+            // temperature and its rate, minus the same at the logged one. The lag is a chain
+            // of `order` first-order lags of tau/order each (mean delay tau).
+            let (tau_s, order) = (theta[0], theta.get(1).copied().unwrap_or(1.0).max(1.0) as usize);
+            let per_run = one_column(prep, |r| match &prep.static_relation {
+                Some(g) => {
+                    let (lagged, lagged_rate) = lag_chain(&r.sec.temp_c, tau_s, order);
+                    r.sec
+                        .temp_c
+                        .iter()
+                        .zip(&r.sec.rate_c_per_min)
+                        .zip(lagged.iter().zip(&lagged_rate))
+                        .map(|((t, rate), (l, lr))| {
+                            g.eval(*l) - g.eval(*t) + g.rate_dph_per_c_per_min * (lr - rate)
+                        })
+                        .collect()
                 }
+                None => vec![0.0; r.sec.temp_c.len()],
             });
-            let coefficients = vec![coef("gain", "1 (1 = the simulation's b(T) on a lagged temperature)")];
+            let coefficients = vec![coef(
+                "gain",
+                "1 (1 = the simulation's own prediction evaluated at the lagged temperature)",
+            )];
             TermColumns { theta: theta_v, coefficients, per_run, penalty: None }
         }
         Effect::ShupeRate => {
@@ -388,11 +440,17 @@ pub fn term_columns(prep: &Prepared, effect: Effect, theta: &[f64]) -> TermColum
         }
         Effect::Hysteresis => {
             let (threshold, degree) = (theta[0], theta[1]);
+            let width_c = theta.get(2).copied().unwrap_or(0.0);
             let per_run = prep
                 .runs
                 .iter()
                 .map(|r| {
-                    let s = block_average(r, &branch(&r.sec.rate_c_per_min, threshold));
+                    let branch_per_s = if width_c > 0.0 {
+                        play_branch(&r.sec.temp_c, width_c)
+                    } else {
+                        branch(&r.sec.rate_c_per_min, threshold)
+                    };
+                    let s = block_average(r, &branch_per_s);
                     let mut cols = vec![s.clone()];
                     if degree >= 1.0 {
                         cols.push(s.iter().zip(&r.blocks).map(|(s, b)| s * (b.temp_c - t_ref)).collect());
@@ -450,13 +508,25 @@ pub fn term_columns(prep: &Prepared, effect: Effect, theta: &[f64]) -> TermColum
 pub fn grid_of(effect: Effect) -> (Vec<ProfiledParam>, Vec<Vec<f64>>) {
     let p = |name, units, continuous| ProfiledParam { name, units, continuous };
     match effect {
-        Effect::ThermalLag => (vec![p("tau_s", "s", true)], LAG_GRID_S.iter().map(|v| vec![*v]).collect()),
+        Effect::ThermalLag => (
+            vec![p("tau_s", "s", true), p("lag_order", "1 (first-order lags in the chain)", false)],
+            [1.0, 2.0].iter().flat_map(|o| LAG_GRID_S.iter().map(move |v| vec![*v, *o])).collect(),
+        ),
         Effect::WarmupTransient => {
             (vec![p("tau_s", "s", true)], WARMUP_GRID_S.iter().map(|v| vec![*v]).collect())
         }
         Effect::Hysteresis => (
-            vec![p("rate_threshold_c_per_min", "deg C/min", true), p("degree", "1", false)],
-            BRANCH_THRESHOLD_GRID_C_PER_MIN.iter().flat_map(|w| [vec![*w, 0.0], vec![*w, 1.0]]).collect(),
+            vec![
+                p("rate_threshold_c_per_min", "deg C/min (branch form; 0 for the play form)", true),
+                p("degree", "1", false),
+                p("play_width_c", "deg C (0: the held branch of the rate)", false),
+            ],
+            BRANCH_THRESHOLD_GRID_C_PER_MIN
+                .iter()
+                .map(|r| (*r, 0.0))
+                .chain(PLAY_WIDTH_GRID_C.iter().map(|w| (0.0, *w)))
+                .flat_map(|(r, w)| [vec![r, 0.0, w], vec![r, 1.0, w]])
+                .collect(),
         ),
         Effect::StaticShape => (
             vec![p("basis_functions", "1", false), p("coil_lag_s", "s", true)],
@@ -537,7 +607,7 @@ pub fn unmet_requirement(prep: &Prepared, effect: Effect) -> Option<String> {
                 .filter(|name| prep.runs.iter().filter(|r| group_of(r) == **name).count() >= 2)
                 .count();
             if prep.runs.iter().any(|r| r.group.is_none()) {
-                why("not every run has a position label (RunMeta.group)".into())
+                why("not every run has a position label (give each run's position in a runs file: `diagnose --runs FILE`, columns run,position,input_rate_dph)".into())
             } else if g.len() < 2 || repeated < 2 {
                 why(format!(
                     "{} position group(s), {} with >= 2 runs: a per-position offset cannot be told from turn-on repeatability",
@@ -573,7 +643,7 @@ pub fn unmet_requirement(prep: &Prepared, effect: Effect) -> Option<String> {
         }
         Effect::ScaleFactorTemperature => {
             if prep.runs.iter().any(|r| r.input_rate_dph.is_none()) {
-                return why("not every run states its input rate (RunMeta.input_rate_dph)".into());
+                return why("not every run states its input rate (give each run's input_rate_dph in a runs file: `diagnose --runs FILE`, columns run,position,input_rate_dph)".into());
             }
             let mut rates: Vec<f64> = prep.runs.iter().filter_map(|r| r.input_rate_dph).collect();
             rates.sort_by(f64::total_cmp);
@@ -603,4 +673,23 @@ pub fn build_grids(prep: &Prepared) -> Result<Vec<EffectGrid>, DiagnoseError> {
             EffectGrid { effect, params, points, unmet_requirement: unmet_requirement(prep, effect) }
         })
         .collect())
+}
+
+#[cfg(test)]
+mod play_tests {
+    use super::*;
+
+    #[test]
+    fn play_branch_follows_the_backlash_operator() {
+        // Width 2: T 0 -> 3 (heating; output lags by 1 once T passed 1), back to 1.5.
+        let t = [0.0, 0.5, 1.0, 2.0, 3.0, 2.5, 2.0, 1.5];
+        // Outputs y: 0, 0, 0, 1, 2, 2, 2, 2 -> (T - y) / 1.
+        let expected = [0.0, 0.5, 1.0, 1.0, 1.0, 0.5, 0.0, -0.5];
+        let got = play_branch(&t, 2.0);
+        for (g, e) in got.iter().zip(expected) {
+            assert!((g - e).abs() < 1e-12, "{got:?}");
+        }
+        assert!(play_branch(&[1.0, f64::NAN, 4.0], 2.0)[1].is_nan());
+        assert_eq!(play_branch(&[1.0, f64::NAN, 4.0], 2.0)[2], 1.0);
+    }
 }

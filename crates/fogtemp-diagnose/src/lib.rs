@@ -29,6 +29,7 @@
 //! concealment index is also given against the model plus per-run offsets.
 
 pub mod concealed;
+pub mod documents;
 pub mod effects;
 pub mod error;
 pub mod linalg;
@@ -43,6 +44,7 @@ use std::collections::BTreeMap;
 
 use serde::Serialize;
 
+pub use documents::DiagnoseDocument;
 pub use error::{DiagnoseError, SeriesProblem, Side};
 #[cfg(feature = "report")]
 pub use report::write_diagnosis_report;

@@ -428,30 +428,7 @@ fn unexplained(
         spans(prep, e, options).into_iter().filter(|s| s.significant).collect();
     let offsets: Vec<f64> = e.iter().map(|v| mean(v)).collect();
     let structured = tables.iter().any(|t| t.structured);
-    let statement = if structured {
-        let which: Vec<String> = tables
-            .iter()
-            .filter(|t| t.structured)
-            .map(|t| {
-                format!(
-                    "a {} table lowers the held-out residual by {:.1} %",
-                    t.table,
-                    100.0 * t.cv_improvement
-                )
-            })
-            .collect();
-        format!(
-            "structure remains that no catalogue effect explains: {}; {} significant (T, dT/dt) cells, {} significant run spans (see the map)",
-            which.join(", "),
-            significant_cells.len(),
-            significant_spans.len()
-        )
-    } else if left_out_empty {
-        "the residual is consistent with noise: no catalogue effect improves held-out runs and no structure repeats across runs".to_string()
-    } else {
-        "after the chosen effects the residual is consistent with noise: no structure repeats across runs"
-            .to_string()
-    };
+    let statement = unexplained_statement(&tables, &significant_cells, &significant_spans, left_out_empty);
     Unexplained {
         structured,
         tables,
@@ -459,6 +436,92 @@ fn unexplained(
         significant_spans,
         run_offset_spread_dph: sample_std(&offsets),
         statement,
+    }
+}
+
+/// Where the residual after the model is significant, for the statement: the spans and
+/// cells with the largest |z| (at most `MAX_LISTED` each).
+fn where_significant(cells: &[MapCell], spans: &[SpanFinding]) -> String {
+    let mut spans: Vec<&SpanFinding> = spans.iter().collect();
+    spans.sort_by(|a, b| b.z.abs().total_cmp(&a.z.abs()));
+    let mut cells: Vec<&MapCell> = cells.iter().collect();
+    cells.sort_by(|a, b| b.z.abs().total_cmp(&a.z.abs()));
+    let mut runs: Vec<&str> = spans.iter().map(|s| s.run.as_str()).collect();
+    runs.sort_unstable();
+    runs.dedup();
+    let mut parts = Vec::new();
+    if !spans.is_empty() {
+        let listed: Vec<String> = spans
+            .iter()
+            .take(MAX_LISTED)
+            .map(|s| format!("{} {} ({:+.5} deg/h, z {:+.1})", s.run, s.span, s.mean_dph, s.z))
+            .collect();
+        parts.push(format!(
+            "{} significant run spans in {} runs, largest {}",
+            spans.len(),
+            runs.len(),
+            listed.join(", ")
+        ));
+    }
+    if !cells.is_empty() {
+        let rate = |v: Option<f64>, open: &str| v.map_or_else(|| open.to_string(), |r| format!("{r:+.2}"));
+        let listed: Vec<String> = cells
+            .iter()
+            .take(MAX_LISTED)
+            .map(|c| {
+                format!(
+                    "T {:.1}..{:.1} C, dT/dt {}..{} C/min ({:+.5} deg/h, z {:+.1})",
+                    c.temp_lo_c,
+                    c.temp_hi_c,
+                    rate(c.rate_lo_c_per_min, "-inf"),
+                    rate(c.rate_hi_c_per_min, "+inf"),
+                    c.mean_dph,
+                    c.z
+                )
+            })
+            .collect();
+        parts.push(format!("{} significant (T, dT/dt) cells, largest {}", cells.len(), listed.join("; ")));
+    }
+    parts.join("; ")
+}
+
+/// Spans and cells listed by name in the statement.
+const MAX_LISTED: usize = 3;
+
+/// The conclusion about what the model leaves: it never calls the residual "consistent with
+/// noise" while spans or cells of it are significant. Structure that a held-out table
+/// predicts repeats across runs; significant structure that no table predicts is specific
+/// to runs (turn-on offsets, slow wander) and is said to be so.
+fn unexplained_statement(
+    tables: &[TableTest],
+    cells: &[MapCell],
+    spans: &[SpanFinding],
+    left_out_empty: bool,
+) -> String {
+    let location = where_significant(cells, spans);
+    let structured: Vec<String> = tables
+        .iter()
+        .filter(|t| t.structured)
+        .map(|t| {
+            format!("a {} table lowers the held-out residual by {:.1} %", t.table, 100.0 * t.cv_improvement)
+        })
+        .collect();
+    if !structured.is_empty() {
+        let at = if location.is_empty() { String::new() } else { format!("; {location}") };
+        return format!(
+            "structure remains that no catalogue effect explains: {}{at} (see the map)",
+            structured.join(", ")
+        );
+    }
+    if !location.is_empty() {
+        return format!(
+            "structure remains that no catalogue effect explains: {location}; it does not repeat across runs (no held-out table of T, dT/dt or time since power-on predicts it), so it is specific to runs (turn-on offsets, slow wander) rather than a term of the physics"
+        );
+    }
+    if left_out_empty {
+        "the residual is consistent with noise: no catalogue effect improves held-out runs and no span or cell is significant".to_string()
+    } else {
+        "after the chosen effects the residual is consistent with noise: no span or cell is significant and no structure repeats across runs".to_string()
     }
 }
 
@@ -596,4 +659,88 @@ pub fn assemble(
     };
     d.summary = summary(&d, grids);
     Ok(d)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn span(run: &str, z: f64) -> SpanFinding {
+        SpanFinding {
+            run: run.into(),
+            span: "settled".into(),
+            start_s: 1800.0,
+            end_s: 7200.0,
+            n_means: 270,
+            mean_dph: 0.001 * z,
+            hac_se_dph: 0.001,
+            z,
+            rms_dph: 0.01,
+            slope_dph_per_h: 0.0,
+            significant: true,
+        }
+    }
+
+    fn cell(z: f64) -> MapCell {
+        MapCell {
+            temp_lo_c: 10.0,
+            temp_hi_c: 20.0,
+            rate_lo_c_per_min: Some(0.01),
+            rate_hi_c_per_min: None,
+            temp_bin: 2,
+            rate_bin: 5,
+            n_means: 100,
+            n_runs: 3,
+            mean_dph: 0.002,
+            hac_se_dph: 0.0005,
+            z,
+            significant: true,
+        }
+    }
+
+    fn table(structured: bool) -> TableTest {
+        TableTest {
+            table: "T-rate cells".into(),
+            cv_improvement: 0.1,
+            folds_improved: 8,
+            folds_informative: 10,
+            structured,
+        }
+    }
+
+    #[test]
+    fn significant_spans_or_cells_are_never_called_noise() {
+        for left_out_empty in [true, false] {
+            let s = unexplained_statement(&[table(false)], &[], &[span("a.csv", 4.0)], left_out_empty);
+            assert!(!s.contains("consistent with noise"), "{s}");
+            assert!(s.starts_with("structure remains that no catalogue effect explains"), "{s}");
+            assert!(s.contains("1 significant run spans in 1 runs") && s.contains("a.csv settled"), "{s}");
+            assert!(s.contains("does not repeat across runs"), "{s}");
+            let s = unexplained_statement(&[table(false)], &[cell(-5.0)], &[], left_out_empty);
+            assert!(!s.contains("consistent with noise"), "{s}");
+            assert!(s.contains("1 significant (T, dT/dt) cells") && s.contains("T 10.0..20.0 C"), "{s}");
+            assert!(s.contains("dT/dt +0.01..+inf C/min") && s.contains("z -5.0"), "{s}");
+        }
+    }
+
+    #[test]
+    fn the_largest_spans_are_listed_first_and_runs_counted_once() {
+        let spans = [span("a.csv", 3.5), span("b.csv", -9.0), span("a.csv", 5.0), span("c.csv", 4.0)];
+        let s = where_significant(&[], &spans);
+        assert!(s.starts_with("4 significant run spans in 3 runs"), "{s}");
+        let (b, a, c) = (s.find("b.csv"), s.find("a.csv"), s.find("c.csv"));
+        assert!(b < a && a < c, "largest |z| first: {s}");
+        assert!(!s.contains("z +3.5"), "at most {MAX_LISTED} listed: {s}");
+    }
+
+    #[test]
+    fn repeating_structure_and_plain_noise_keep_their_statements() {
+        let s = unexplained_statement(&[table(true)], &[cell(4.0)], &[], false);
+        assert!(s.contains("a T-rate cells table lowers the held-out residual by 10.0 %"), "{s}");
+        assert!(s.contains("1 significant (T, dT/dt) cells"), "{s}");
+        let s = unexplained_statement(&[table(false)], &[], &[], true);
+        assert!(s.starts_with("the residual is consistent with noise"), "{s}");
+        let s = unexplained_statement(&[table(false)], &[], &[], false);
+        assert!(s.starts_with("after the chosen effects the residual is consistent with noise"), "{s}");
+    }
 }

@@ -69,9 +69,11 @@ pub struct RunData {
     pub blocks: Vec<Block>,
 }
 
-/// The simulation's static gyro-vs-temperature relation `g(T)`: a cubic fitted to the
-/// simulated short means together with a dT/dt term (so that the simulation's own rate
-/// term does not leak into the static shape).
+/// The simulation's own prediction as a function of its temperature signals:
+/// `g(T) + S dT/dt`, a cubic in T and a rate term fitted to the simulated short means with
+/// one constant per run (the input rate of each position and any turn-on offset are
+/// constants of a run, not functions of T; without them a +-Earth-rate step between
+/// positions would bend the cubic).
 #[derive(Clone, Debug, PartialEq)]
 pub struct StaticRelation {
     /// Centre of the normalised temperature, deg C.
@@ -80,6 +82,8 @@ pub struct StaticRelation {
     pub half_range_c: f64,
     /// Coefficients of u, u^2, u^3 (u normalised temperature), deg/h.
     pub coefficients_dph: [f64; 3],
+    /// Coefficient of the simulated temperature rate, deg/h per deg C/min.
+    pub rate_dph_per_c_per_min: f64,
 }
 
 impl StaticRelation {
@@ -362,32 +366,32 @@ fn prepare_run(
 
 /// Fits the simulation's static relation `g(T)` (see [`StaticRelation`]).
 fn fit_static_relation(runs: &[RunData]) -> Option<StaticRelation> {
-    let rows: Vec<&Block> = runs.iter().flat_map(|r| &r.blocks).collect();
-    let (lo, hi) = rows
-        .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), r| (a.min(r.temp_sim_c), b.max(r.temp_sim_c)));
+    let rows: Vec<(usize, &Block)> =
+        runs.iter().enumerate().flat_map(|(r, run)| run.blocks.iter().map(move |b| (r, b))).collect();
+    let (lo, hi) = rows.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), (_, r)| {
+        (a.min(r.temp_sim_c), b.max(r.temp_sim_c))
+    });
     if hi - lo < 1.0 || hi.is_nan() || lo.is_nan() || rows.len() < 10 {
         return None;
     }
     let (centre_c, half_range_c) = ((hi + lo) / 2.0, (hi - lo) / 2.0);
-    let mut x = DMatrix::zeros(rows.len(), 5);
+    let n_runs = runs.len();
+    let mut x = DMatrix::zeros(rows.len(), n_runs + 4);
     let mut y = DVector::zeros(rows.len());
-    for (i, r) in rows.iter().enumerate() {
+    for (i, (run, r)) in rows.iter().enumerate() {
         let u = (r.temp_sim_c - centre_c) / half_range_c;
-        x[(i, 0)] = 1.0;
-        x[(i, 1)] = u;
-        x[(i, 2)] = u * u;
-        x[(i, 3)] = u * u * u;
-        x[(i, 4)] = r.rate_sim_c_per_min;
+        x[(i, *run)] = 1.0;
+        x[(i, n_runs)] = u;
+        x[(i, n_runs + 1)] = u * u;
+        x[(i, n_runs + 2)] = u * u * u;
+        x[(i, n_runs + 3)] = r.rate_sim_c_per_min;
         y[i] = r.gyro_sim_dph;
     }
     let beta = super::linalg::least_squares(&x, &y)?;
-    let coefficients_dph = [beta[1], beta[2], beta[3]];
-    coefficients_dph.iter().all(|c| c.is_finite()).then_some(StaticRelation {
-        centre_c,
-        half_range_c,
-        coefficients_dph,
-    })
+    let coefficients_dph = [beta[n_runs], beta[n_runs + 1], beta[n_runs + 2]];
+    let rate_dph_per_c_per_min = beta[n_runs + 3];
+    (coefficients_dph.iter().all(|c| c.is_finite()) && rate_dph_per_c_per_min.is_finite())
+        .then_some(StaticRelation { centre_c, half_range_c, coefficients_dph, rate_dph_per_c_per_min })
 }
 
 /// Pairs, validates and grids the runs.

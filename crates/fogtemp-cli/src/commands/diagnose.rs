@@ -1,7 +1,7 @@
 //! `diagnose`: simulated vs recorded logs -> located mismatch, named physics, fitted term,
 //! held-out before/after. Reads the logs into 1 s means (constant memory per sample), pairs
-//! them by file name, takes run metadata (position, Earth rate on the input axis) from the
-//! simulation's `manifest.json` when it has one.
+//! them by file name, takes run metadata (position, Earth rate on the input axis) from
+//! `--runs FILE` or else from the simulation's `manifest.json` when it has one.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -9,10 +9,10 @@ use std::path::{Path, PathBuf};
 use anyhow::{bail, Context, Result};
 use fogtemp_cal::ingest::{read_log_with_progress, IngestOptions};
 use fogtemp_diagnose::{
-    diagnose as run_diagnosis, write_diagnosis_report, DiagnoseOptions, Diagnosis, RunMeta, RunSeries,
+    diagnose as run_diagnosis, write_diagnosis_report, DiagnoseDocument, DiagnoseOptions, Diagnosis, RunMeta,
+    RunSeries,
 };
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
-use serde::Serialize;
 
 use super::print_json;
 use crate::args::DiagnoseArgs;
@@ -93,6 +93,25 @@ fn manifest_meta(dir: &Path) -> Result<BTreeMap<String, RunMeta>> {
     Ok(out)
 }
 
+/// Run metadata from a runs file (`--runs`), keyed by file name. Every simulated log must
+/// have a row and every row a log (errors name the file and line).
+fn runs_file_meta(path: &Path, simulated: &[PathBuf]) -> Result<BTreeMap<String, RunMeta>> {
+    let file = fogtemp_cal::runs::RunsFile::read(path)?;
+    let rows = file.for_logs(simulated)?;
+    Ok(simulated
+        .iter()
+        .zip(rows)
+        .map(|(log, row)| {
+            let meta = RunMeta {
+                group: Some(row.position.clone()),
+                input_rate_dph: Some(row.input_rate_dph),
+                power_on_at_s: None,
+            };
+            (file_name(log), meta)
+        })
+        .collect())
+}
+
 /// Pairs simulated and recorded logs by file name; every log must have a partner.
 fn pair(simulated: &[PathBuf], recorded: &[PathBuf]) -> Result<Vec<(PathBuf, PathBuf)>> {
     let by_name: BTreeMap<String, &PathBuf> = recorded.iter().map(|p| (file_name(p), p)).collect();
@@ -116,26 +135,15 @@ fn pair(simulated: &[PathBuf], recorded: &[PathBuf]) -> Result<Vec<(PathBuf, Pat
     Ok(pairs)
 }
 
-/// `diagnose --json`: the diagnosis with what the command adds.
-#[derive(Serialize)]
-struct DiagnoseDocument<'a> {
-    /// The diagnosis, as keys of this object.
-    #[serde(flatten)]
-    diagnosis: &'a Diagnosis,
-    /// Wall-clock time of the diagnosis, s.
-    seconds: f64,
-    /// `scenario-updated.toml` written beside the report, as displayed, or `None` (null).
-    updated_scenario: Option<String>,
-    /// The changes made to the scenario (empty without one).
-    scenario_changes: Vec<String>,
-}
-
 /// The `diagnose` command.
 pub fn diagnose(a: DiagnoseArgs, recorded_ingest: IngestOptions) -> Result<()> {
     let simulated = expand_logs(std::slice::from_ref(&a.simulated))?;
     let recorded = expand_logs(std::slice::from_ref(&a.recorded))?;
     let pairs = pair(&simulated, &recorded)?;
-    let meta = manifest_meta(&a.simulated)?;
+    let meta = match &a.runs {
+        Some(path) => runs_file_meta(path, &simulated)?,
+        None => manifest_meta(&a.simulated)?,
+    };
     let sim_ingest = IngestOptions::default();
     let mut sims = Vec::new();
     let mut recs = Vec::new();
@@ -216,4 +224,47 @@ fn write_updated_scenario(
     let path = dir.join("scenario-updated.toml");
     crate::output::write_atomic(&path, |w| Ok(w.write_all(out.as_bytes())?))?;
     Ok(Some((path, changes)))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn runs_file(text: &str) -> (tempfile::TempDir, PathBuf) {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let path = dir.path().join("runs.csv");
+        std::fs::write(&path, text).expect("write runs.csv");
+        (dir, path)
+    }
+
+    fn logs(names: &[&str]) -> Vec<PathBuf> {
+        names.iter().map(|n| PathBuf::from(format!("sim/{n}.csv"))).collect()
+    }
+
+    #[test]
+    fn runs_file_gives_every_log_its_position_and_rate() {
+        let (_dir, path) = runs_file("run,position,input_rate_dph\nb,down,-9.5\na,up,9.5\n");
+        let meta = runs_file_meta(&path, &logs(&["a", "b"])).expect("valid");
+        assert_eq!(meta["a.csv"].group.as_deref(), Some("up"));
+        assert_eq!(meta["a.csv"].input_rate_dph, Some(9.5));
+        assert_eq!(meta["b.csv"].group.as_deref(), Some("down"));
+        assert_eq!(meta["b.csv"].input_rate_dph, Some(-9.5));
+    }
+
+    #[test]
+    fn runs_file_errors_name_the_file_and_line() {
+        let message = |text: &str, names: &[&str]| {
+            let (_dir, path) = runs_file(text);
+            let err = runs_file_meta(&path, &logs(names)).expect_err("must fail");
+            (format!("{err:#}"), path.display().to_string())
+        };
+        let (m, file) = message("run,position,input_rate_dph\na,up,1\na,down,-1\n", &["a"]);
+        assert!(m.starts_with(&format!("{file}:3: ")) && m.contains("listed twice"), "{m}");
+        let (m, file) = message("run,position,input_rate_dph\na,up,1\nc,down,-1\n", &["a"]);
+        assert!(m.starts_with(&format!("{file}:3: ")) && m.contains("'c'"), "{m}");
+        let (m, file) = message("run,position,input_rate_dph\na,up,1\n", &["a", "b"]);
+        assert!(m.starts_with(&format!("{file}:")) && m.contains("b.csv"), "{m}");
+        let (m, file) = message("run,position\na,up\n", &["a"]);
+        assert!(m.starts_with(&format!("{file}:1: ")) && m.contains("input_rate_dph"), "{m}");
+    }
 }

@@ -1,0 +1,367 @@
+//! The final fit and its report: held-out residuals and bias stability before and after
+//! each chosen effect, parameters with jackknife standard errors, alternatives.
+
+use std::collections::BTreeMap;
+
+use nalgebra::{DMatrix, DVector};
+
+use super::design::*;
+use super::forward::*;
+use super::rules::*;
+use crate::effects::{term_columns, Effect, EffectGrid, TermColumns};
+use crate::error::DiagnoseError;
+use crate::linalg::jackknife_covariance;
+use crate::prepare::Prepared;
+use crate::{DiagnoseOptions, LeftOutEffect, Parameter, SelectionStep};
+use fogtemp_cal::metrics::{bias_stability, rms_over_runs, BiasStabilityOptions};
+
+/// Bias stability (RMS over runs) of 1 s residuals corrected by per-block predictions
+/// (`heldout` = block residuals, so prediction = block residual target - heldout).
+pub fn heldout_bias_stability(prep: &Prepared, heldout: &[Vec<f64>], options: &DiagnoseOptions) -> f64 {
+    let bs = BiasStabilityOptions { tau_s: options.bias_stability_tau_s, ..BiasStabilityOptions::default() };
+    let per_run: Vec<f64> = prep
+        .runs
+        .iter()
+        .zip(heldout)
+        .map(|(run, h)| {
+            let mut t = Vec::new();
+            let mut v = Vec::new();
+            for (k, &b) in run.sec.block_of.iter().enumerate() {
+                if b != usize::MAX && run.sec.resid_dph[k].is_finite() {
+                    let prediction = run.blocks[b].resid_dph - h[b];
+                    t.push(run.sec.since_on_s[k]);
+                    v.push(run.sec.resid_dph[k] - prediction);
+                }
+            }
+            bias_stability(&t, &v, &bs)
+        })
+        .collect();
+    rms_over_runs(&per_run)
+}
+
+/// What the final model achieves on held-out runs.
+pub struct FinalOutcome {
+    /// The chosen effects with parameters and held-out figures.
+    pub left_out: Vec<LeftOutEffect>,
+    /// The model's global offset.
+    pub global_offset: Parameter,
+    /// Held-out residual RMS, offset only, deg/h.
+    pub residual_before_dph: f64,
+    /// Held-out residual RMS, final model, deg/h.
+    pub residual_after_dph: f64,
+    /// Held-out bias stability, offset only, deg/h.
+    pub bias_stability_before_dph: f64,
+    /// Held-out bias stability, final model, deg/h.
+    pub bias_stability_after_dph: f64,
+    /// In-sample residual of the final model per run.
+    pub fitted_resid: Vec<Vec<f64>>,
+    /// Held-out residual of the final model per run.
+    pub heldout_resid: Vec<Vec<f64>>,
+    /// Held-out residual of the offset-only model per run.
+    pub baseline_heldout: Vec<Vec<f64>>,
+}
+
+/// Contribution of the `i`-th part of a design (`[1 | parts]`) per run, unscaled.
+pub(super) fn term_contribution(
+    design: &Design,
+    beta: &DVector<f64>,
+    parts: &[&TermColumns],
+    i: usize,
+) -> Vec<Vec<f64>> {
+    let start = 1 + parts[..i].iter().map(|t| t.k()).sum::<usize>();
+    let k = parts[i].k();
+    design
+        .per_run
+        .iter()
+        .map(|m| (0..m.nrows()).map(|r| (start..start + k).map(|c| m[(r, c)] * beta[c]).sum()).collect())
+        .collect()
+}
+
+/// Linearised derivative column of a term with respect to profiled parameter `m`.
+pub(super) fn derivative_columns(
+    prep: &Prepared,
+    effect: Effect,
+    cols: &TermColumns,
+    coef: &[f64],
+    m: usize,
+) -> (Vec<DMatrix<f64>>, f64) {
+    let theta = &cols.theta;
+    let h = (theta[m].abs() * 0.05).max(1e-6);
+    let mut up = theta.clone();
+    up[m] += h;
+    let mut down = theta.clone();
+    down[m] = (down[m] - h).max(theta[m] * 0.5);
+    let width = up[m] - down[m];
+    let (cu, cd) = (term_columns(prep, effect, &up), term_columns(prep, effect, &down));
+    let per_run = (0..prep.runs.len())
+        .map(|r| {
+            let value = |t: &TermColumns| &t.per_run[r] * DVector::from_column_slice(coef);
+            DMatrix::from_column_slice(
+                cols.per_run[r].nrows(),
+                1,
+                ((value(&cu) - value(&cd)) / width).as_slice(),
+            )
+        })
+        .collect();
+    (per_run, width)
+}
+
+pub(super) fn parameters_of(
+    prep: &Prepared,
+    grid: &EffectGrid,
+    cols: &TermColumns,
+    coef: &[f64],
+    se: &[f64],
+    theta_se: &[Option<f64>],
+) -> BTreeMap<String, Parameter> {
+    let mut out = BTreeMap::new();
+    for (((name, units), v), s) in cols.coefficients.iter().zip(coef).zip(se) {
+        out.insert(name.clone(), Parameter { value: *v, std_error: Some(*s), units: units.clone() });
+    }
+    for ((p, v), s) in grid.params.iter().zip(&cols.theta).zip(theta_se) {
+        out.insert(p.name.to_string(), Parameter { value: *v, std_error: *s, units: p.units.to_string() });
+    }
+    if grid.effect == Effect::StaticShape {
+        let (lo, hi) = prep.temp_range_c;
+        let k = cols.theta[0] as usize;
+        let shape: Vec<f64> = (0..=100)
+            .map(|i| {
+                let b = crate::effects::bspline_basis(lo + (hi - lo) * f64::from(i) / 100.0, lo, hi, k);
+                b.iter().skip(1).zip(coef).map(|(x, c)| x * c).sum()
+            })
+            .collect();
+        let (mn, mx) =
+            shape.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(*v), b.max(*v)));
+        out.insert(
+            "peak_to_peak_dph".into(),
+            Parameter { value: mx - mn, std_error: None, units: "deg/h".into() },
+        );
+        out.insert(
+            "t_min_c".into(),
+            Parameter { value: lo, std_error: None, units: "deg C (basis range start)".into() },
+        );
+        out.insert(
+            "t_max_c".into(),
+            Parameter { value: hi, std_error: None, units: "deg C (basis range end)".into() },
+        );
+    }
+    if grid.effect == Effect::ScaleFactorTemperature || grid.effect == Effect::Hysteresis {
+        out.insert(
+            "t_ref_c".into(),
+            Parameter { value: prep.temp_ref_c, std_error: None, units: "deg C".into() },
+        );
+    }
+    out
+}
+
+pub(super) struct Fitted {
+    pub(super) coef: Vec<Vec<f64>>,
+    pub(super) se: Vec<Vec<f64>>,
+    pub(super) theta_se: Vec<Vec<Option<f64>>>,
+    pub(super) offset: Parameter,
+}
+
+/// Final-model coefficients with delete-one-run jackknife standard errors; profiled
+/// parameters get a linearised (Gauss-Newton) standard error: the derivative of the term
+/// with respect to the parameter is added as a column, and the jackknife covers the
+/// one-step estimates of all coefficients. Runs are the independent units, so the errors
+/// hold for any correlation within a run (flicker, turn-on offsets).
+pub(super) fn fit_parameters(
+    prep: &Prepared,
+    grids: &[EffectGrid],
+    chosen: &[ChosenTerm],
+    design: &Design,
+    beta: &DVector<f64>,
+    ys: &[Vec<f64>],
+) -> Fitted {
+    let parts = chosen_parts(chosen);
+    let unscaled: Vec<f64> = beta.iter().zip(&design.scale).map(|(b, s)| b / s).collect();
+    let mut coef = Vec::new();
+    let mut at = 1;
+    for t in &parts {
+        coef.push(unscaled[at..at + t.k()].to_vec());
+        at += t.k();
+    }
+    // Augmented design: scaled linear columns, then derivative columns (scaled too).
+    let mut extra: Vec<Vec<DMatrix<f64>>> = Vec::new();
+    let mut owner: Vec<(usize, usize)> = Vec::new();
+    for (ti, (c, t)) in chosen.iter().zip(&parts).enumerate() {
+        let grid = grids.iter().find(|g| g.effect == c.effect);
+        for (m, p) in grid.map(|g| g.params.as_slice()).unwrap_or(&[]).iter().enumerate() {
+            // A parameter at the edge of its grid is a bound, not an estimate: its derivative
+            // column would be near-collinear with the term and inflate every other SE.
+            let at_edge = grid.is_some_and(|g| {
+                let values = g.points.iter().map(|pt| pt.theta[m]);
+                let (lo, hi) =
+                    values.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(v), b.max(v)));
+                t.theta[m] <= lo || t.theta[m] >= hi
+            });
+            if p.continuous && !at_edge {
+                extra.push(derivative_columns(prep, c.effect, t, &coef[ti], m).0);
+                owner.push((ti, m));
+            }
+        }
+    }
+    let extra_scale: Vec<f64> = extra
+        .iter()
+        .map(|cols| {
+            let n: usize = cols.iter().map(|m| m.nrows()).sum();
+            let ss: f64 = cols.iter().map(|m| m.norm_squared()).sum();
+            let rms = (ss / n.max(1) as f64).sqrt();
+            if rms > 0.0 && rms.is_finite() {
+                rms
+            } else {
+                1.0
+            }
+        })
+        .collect();
+    let aug: Vec<DMatrix<f64>> = (0..prep.runs.len())
+        .map(|r| {
+            let scaled: Vec<DMatrix<f64>> = extra.iter().zip(&extra_scale).map(|(e, s)| &e[r] / *s).collect();
+            let refs: Vec<&DMatrix<f64>> = scaled.iter().collect();
+            concat(design, &refs, r)
+        })
+        .collect();
+    let all_scale: Vec<f64> = design.scale.iter().chain(&extra_scale).copied().collect();
+    let penalty = design.penalty.as_ref().map(|m| {
+        let mut padded = DMatrix::zeros(m.nrows(), all_scale.len());
+        padded.view_mut((0, 0), m.shape()).copy_from(m);
+        padded
+    });
+    let aug_design = Design { per_run: aug, scale: all_scale.clone(), penalty };
+    let cov = fold_eval(&aug_design, ys).ok().map(|e| jackknife_covariance(&e.fold_beta));
+    let se_of = |k: usize| cov.as_ref().map_or(f64::NAN, |c| c[(k, k)].max(0.0).sqrt() / all_scale[k]);
+    let mut se = Vec::new();
+    let mut at = 1;
+    for t in &parts {
+        se.push((at..at + t.k()).map(se_of).collect());
+        at += t.k();
+    }
+    let mut theta_se: Vec<Vec<Option<f64>>> = parts.iter().map(|t| vec![None; t.theta.len()]).collect();
+    for (j, (ti, m)) in owner.iter().enumerate() {
+        theta_se[*ti][*m] = Some(se_of(design.p() + j));
+    }
+    let offset = Parameter { value: unscaled[0], std_error: Some(se_of(0)), units: "deg/h".into() };
+    Fitted { coef, se, theta_se, offset }
+}
+
+/// Alternative explanations of the effect chosen at step `k`: candidates that passed every
+/// rule at that step (only the lower LORO error decided) and no longer pass once the chosen
+/// effect is in the model (it explains what they explained), with their LORO RMS. When
+/// selection stopped at `max_effects` there is no next step and every runner-up counts.
+pub(super) fn alternatives(steps: &[SelectionStep], k: usize) -> Vec<(String, f64)> {
+    let Some(step) = steps.get(k) else { return Vec::new() };
+    let next = steps.get(k + 1).filter(|s| !s.candidates.is_empty());
+    step.candidates
+        .iter()
+        .filter(|c| c.status == "rejected" && c.note == RUNNER_UP_NOTE)
+        .filter(|c| {
+            next.is_none_or(|n| {
+                n.candidates
+                    .iter()
+                    .any(|d| d.effect == c.effect && !matches!(d.status.as_str(), "selected" | "accepted"))
+            })
+        })
+        .map(|c| (c.effect.clone(), c.cv_rms_dph))
+        .collect()
+}
+
+/// Held-out evaluation of the chosen model, each effect's contribution, and parameters.
+///
+/// # Errors
+/// [`DiagnoseError::Fit`] if a least-squares problem fails.
+pub fn evaluate_final(
+    prep: &Prepared,
+    grids: &[EffectGrid],
+    selection: &Selection,
+    options: &DiagnoseOptions,
+) -> Result<FinalOutcome, DiagnoseError> {
+    let ys = targets(prep);
+    let chosen = &selection.chosen;
+    let design = build_design(prep, &chosen_parts(chosen));
+    let eval = fold_eval(&design, &ys)?;
+    let heldout = heldout_residuals(&design, &eval, &ys);
+    let fitted_resid = residuals(&design, &eval.full_beta, &ys);
+    let base = build_design(prep, &[]);
+    let base_eval = fold_eval(&base, &ys)?;
+    let baseline_heldout = heldout_residuals(&base, &base_eval, &ys);
+    let fitted = fit_parameters(prep, grids, chosen, &design, &eval.full_beta, &ys);
+    let bs_after = heldout_bias_stability(prep, &heldout, options);
+    let rms_after = pooled_rms(&heldout);
+    let mut left_out = Vec::new();
+    for (i, c) in chosen.iter().enumerate() {
+        let without: Vec<ChosenTerm> =
+            chosen.iter().enumerate().filter(|(j, _)| *j != i).map(|(_, t)| t.clone()).collect();
+        let d0 = build_design(prep, &chosen_parts(&without));
+        let e0 = fold_eval(&d0, &ys)?;
+        let h0 = heldout_residuals(&d0, &e0, &ys);
+        let v = term_contribution(&design, &eval.full_beta, &chosen_parts(chosen), i);
+        let material = material_runs(&v, prep.noise_sigma_dph);
+        let (improved, informative) = fold_counts(&e0.fold_sse, &eval.fold_sse, &material);
+        let before = pooled_rms(&h0);
+        let grid =
+            grids.iter().find(|g| g.effect == c.effect).ok_or(DiagnoseError::Fit("effect grid missing"))?;
+        let cols = &c.columns;
+        let parameters = parameters_of(prep, grid, cols, &fitted.coef[i], &fitted.se[i], &fitted.theta_se[i]);
+        let improvement = 1.0 - rms_after / before;
+        let mut statement = format!(
+            "{}: held-out residual RMS {:.5} -> {:.5} deg/h ({:+.1} %), improved in {} of {} informative runs",
+            c.effect.name(),
+            before,
+            rms_after,
+            -100.0 * improvement,
+            improved,
+            informative
+        );
+        if let Some((other, r2)) =
+            c.most_confused_with.as_ref().filter(|(_, r2)| *r2 > options.concealment_limit)
+        {
+            statement.push_str(&format!(
+                "; cannot be told apart from {other} on these runs (R^2 {r2:.4}): run {}",
+                c.effect.experiment()
+            ));
+        }
+        let alternatives = alternatives(&selection.steps, i);
+        if !alternatives.is_empty() {
+            let chosen_cv = selection.steps[i]
+                .candidates
+                .iter()
+                .find(|r| r.effect == c.effect.name())
+                .map_or(f64::NAN, |r| r.cv_rms_dph);
+            let list: Vec<String> =
+                alternatives.iter().map(|(e, cv)| format!("{e} (LORO RMS {cv:.5} deg/h)")).collect();
+            statement.push_str(&format!(
+                "; alternative explanation: {} passed every rule too and no longer does once {} is in (only the lower LORO RMS, {chosen_cv:.5} deg/h, chose {}); to separate them run {}",
+                list.join(", "),
+                c.effect.name(),
+                c.effect.name(),
+                c.effect.experiment()
+            ));
+        }
+        left_out.push(LeftOutEffect {
+            alternatives: alternatives.into_iter().map(|(e, _)| e).collect(),
+            effect: c.effect.name().to_string(),
+            parameters,
+            residual_before_dph: before,
+            residual_after_dph: rms_after,
+            heldout_improvement: improvement,
+            bias_stability_before_dph: heldout_bias_stability(prep, &h0, options),
+            bias_stability_after_dph: bs_after,
+            folds_improved: improved,
+            folds_informative: informative,
+            concealment_index: c.concealment_index,
+            statement,
+        });
+    }
+    Ok(FinalOutcome {
+        left_out,
+        global_offset: fitted.offset,
+        residual_before_dph: pooled_rms(&baseline_heldout),
+        residual_after_dph: rms_after,
+        bias_stability_before_dph: heldout_bias_stability(prep, &baseline_heldout, options),
+        bias_stability_after_dph: bs_after,
+        fitted_resid,
+        heldout_resid: heldout,
+        baseline_heldout,
+    })
+}

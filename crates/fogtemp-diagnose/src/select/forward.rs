@@ -1,0 +1,369 @@
+//! The forward-selection loop: every open candidate profiled and judged at each step, the
+//! accepted one with the lowest LORO error enters, its continuous parameters refined.
+
+use std::collections::BTreeMap;
+
+use nalgebra::DMatrix;
+use rayon::prelude::*;
+
+use super::design::*;
+use super::rules::*;
+use crate::effects::{term_columns, Effect, EffectGrid, TermColumns};
+use crate::error::DiagnoseError;
+use crate::linalg::{autocorrelations, effective_n, parabola_vertex};
+use crate::prepare::Prepared;
+use crate::{CandidateReport, DiagnoseOptions, SelectionStep};
+
+/// A term in the model: an effect at one grid point.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ChosenTerm {
+    /// The effect.
+    pub effect: Effect,
+    /// Index into the effect's grid (the profiled point before refinement).
+    pub point: usize,
+    /// The term's columns at its refined parameters.
+    pub columns: TermColumns,
+    /// Concealment index when it entered.
+    pub concealment_index: f64,
+    /// Most confusable other effect when it entered.
+    pub most_confused_with: Option<(String, f64)>,
+}
+
+/// Result of forward selection.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Selection {
+    /// Steps with every candidate's scores.
+    pub steps: Vec<SelectionStep>,
+    /// Chosen terms in order of entry.
+    pub chosen: Vec<ChosenTerm>,
+}
+
+pub(super) fn profile_map(grid: &EffectGrid, point: usize) -> BTreeMap<String, f64> {
+    grid.params.iter().zip(&grid.points[point].theta).map(|(p, v)| (p.name.to_string(), *v)).collect()
+}
+
+pub(super) struct StepContext<'a> {
+    pub(super) prep: &'a Prepared,
+    pub(super) grids: &'a [EffectGrid],
+    pub(super) ys: &'a [Vec<f64>],
+    pub(super) options: &'a DiagnoseOptions,
+    pub(super) base_parts: Vec<&'a TermColumns>,
+    pub(super) base: Design,
+    pub(super) base_eval: FoldEval,
+    pub(super) n_eff: f64,
+    pub(super) in_model: Vec<Effect>,
+    /// Candidates evaluated at this step (for the Bonferroni correction).
+    pub(super) tests: usize,
+}
+
+pub(super) fn not_evaluated(
+    effect: Effect,
+    status: &str,
+    note: String,
+    experiment: Option<String>,
+) -> CandidateReport {
+    CandidateReport {
+        effect: effect.name().to_string(),
+        status: status.to_string(),
+        profile: BTreeMap::new(),
+        cv_rms_dph: f64::NAN,
+        cv_improvement: f64::NAN,
+        folds_improved: 0,
+        folds_informative: 0,
+        delta_bic: f64::NAN,
+        stability_t: f64::NAN,
+        min_fold_share: f64::NAN,
+        concealment_index: f64::NAN,
+        concealment_with_run_offsets: f64::NAN,
+        most_confused_with: None,
+        identifiable: false,
+        experiment,
+        note,
+    }
+}
+
+/// A profiled candidate with its fitted contribution per run.
+pub(super) type ScoredProfile = (Profiled, Vec<Vec<f64>>);
+
+/// The candidate a step adds: effect, grid point, concealment index, most confused effect.
+pub(super) type Pick = (Effect, usize, f64, Option<(String, f64)>);
+
+/// Scores of one evaluated candidate.
+pub(super) struct Scored {
+    pub(super) report: CandidateReport,
+    pub(super) point: usize,
+    pub(super) cv_sse: f64,
+    pub(super) accepted: bool,
+}
+
+pub(super) fn score_candidate(
+    ctx: &StepContext<'_>,
+    grid: &EffectGrid,
+) -> Result<Option<ScoredProfile>, DiagnoseError> {
+    if grid.points.iter().all(|p| p.k() == 0) {
+        return Ok(None);
+    }
+    let prof = profile_candidate(ctx.prep, &ctx.base_parts, grid, ctx.ys, ctx.n_eff)?;
+    let v = contribution(ctx.prep, &grid.points[prof.point], &prof.full_beta, &prof.design_scale);
+    Ok(Some((prof, v)))
+}
+
+pub(super) fn judge(
+    ctx: &StepContext<'_>,
+    grid: &EffectGrid,
+    prof: &Profiled,
+    v: &[Vec<f64>],
+    confused: Option<(String, f64)>,
+) -> Scored {
+    let n = ctx.prep.n_blocks();
+    let base_cv: f64 = ctx.base_eval.fold_sse.iter().sum();
+    let cv_sse: f64 = prof.fold_sse.iter().sum();
+    let material = material_runs(v, ctx.prep.noise_sigma_dph);
+    let (improved, informative) = fold_counts(&ctx.base_eval.fold_sse, &prof.fold_sse, &material);
+    let base_bic = bic(ctx.base_eval.full_rss, ctx.base.p(), n, ctx.n_eff);
+    let delta_bic = prof.bic - base_bic;
+    let (conceal, conceal_runs) = concealment(ctx.prep, &ctx.base, v);
+    let concealed = conceal > ctx.options.concealment_limit;
+    let cv_rms = (cv_sse / n as f64).sqrt();
+    let cv_improvement = 1.0 - cv_rms / (base_cv / n as f64).sqrt();
+    let failed = acceptance_failures(&RuleInputs {
+        cv_sse,
+        base_cv_sse: base_cv,
+        folds_improved: improved,
+        folds_informative: informative,
+        min_fold_fraction: ctx.options.min_fold_fraction,
+        delta_bic,
+        coefficients: grid.points[prof.point].k(),
+        min_fold_share: prof.min_fold_share,
+        stability_t: prof.stability_t,
+        stability_limit: stability_limit(ctx.prep.runs.len(), ctx.tests),
+    });
+    let accepted = !concealed && failed.is_empty();
+    let (status, note, experiment) = if concealed {
+        (
+            "not_identifiable",
+            format!(
+                "concealment index {conceal:.4} > {}: not identifiable from these runs",
+                ctx.options.concealment_limit
+            ),
+            Some(grid.effect.experiment().to_string()),
+        )
+    } else if accepted {
+        ("accepted", "passes LORO, fold, BIC and concealment rules".to_string(), None)
+    } else {
+        ("rejected", failed.join("; "), None)
+    };
+    let report = CandidateReport {
+        effect: grid.effect.name().to_string(),
+        status: status.to_string(),
+        profile: profile_map(grid, prof.point),
+        cv_rms_dph: cv_rms,
+        cv_improvement,
+        folds_improved: improved,
+        folds_informative: informative,
+        delta_bic,
+        stability_t: prof.stability_t,
+        min_fold_share: prof.min_fold_share,
+        concealment_index: conceal,
+        concealment_with_run_offsets: conceal_runs,
+        most_confused_with: confused,
+        identifiable: !concealed,
+        experiment,
+        note,
+    };
+    Scored { report, point: prof.point, cv_sse, accepted }
+}
+
+/// Most confusable other candidate: the largest R^2 of `v` on the model's terms plus
+/// another candidate's columns at its own profiled point.
+pub(super) fn most_confused(
+    ctx: &StepContext<'_>,
+    me: Effect,
+    v: &[Vec<f64>],
+    others: &[(Effect, &TermColumns)],
+) -> Option<(String, f64)> {
+    others
+        .iter()
+        .filter(|(e, c)| *e != me && c.k() > 0)
+        .map(|(e, cols)| {
+            let z: Vec<DMatrix<f64>> =
+                (0..ctx.prep.runs.len()).map(|r| concat(&ctx.base, &[&cols.per_run[r]], r)).collect();
+            (e.name().to_string(), r_squared_runs(v, &z))
+        })
+        .filter(|(_, r2)| r2.is_finite())
+        .max_by(|a, b| a.1.total_cmp(&b.1))
+}
+
+pub(super) fn run_step(ctx: &StepContext<'_>) -> Result<(Vec<CandidateReport>, Option<Pick>), DiagnoseError> {
+    let open: Vec<&EffectGrid> = ctx.grids.iter().filter(|g| !ctx.in_model.contains(&g.effect)).collect();
+    let scored: Vec<Option<ScoredProfile>> = open
+        .par_iter()
+        .map(|g| if g.unmet_requirement.is_some() { Ok(None) } else { score_candidate(ctx, g) })
+        .collect::<Result<_, _>>()?;
+    let profiled_cols: Vec<(Effect, &TermColumns)> = open
+        .iter()
+        .zip(&scored)
+        .filter_map(|(g, s)| s.as_ref().map(|(p, _)| (g.effect, &g.points[p.point])))
+        .collect();
+    let mut reports = Vec::new();
+    let mut best: Option<(f64, Pick)> = None;
+    for (g, s) in open.iter().zip(&scored) {
+        match (s, &g.unmet_requirement) {
+            (_, Some(why)) => reports.push(not_evaluated(
+                g.effect,
+                "not_identifiable",
+                format!("not identifiable from these runs: {why}"),
+                Some(g.effect.experiment().to_string()),
+            )),
+            (None, None) => reports.push(not_evaluated(
+                g.effect,
+                "not_evaluable",
+                "the term is identically zero on these runs".into(),
+                None,
+            )),
+            (Some((prof, v)), None) => {
+                let confused = most_confused(ctx, g.effect, v, &profiled_cols);
+                let sc = judge(ctx, g, prof, v, confused.clone());
+                if sc.accepted && best.as_ref().is_none_or(|b| sc.cv_sse < b.0) {
+                    best = Some((sc.cv_sse, (g.effect, sc.point, sc.report.concealment_index, confused)));
+                }
+                reports.push(sc.report);
+            }
+        }
+    }
+    if let Some((_, (effect, _, _, _))) = &best {
+        for r in &mut reports {
+            if r.effect == effect.name() {
+                r.status = "selected".into();
+            } else if r.status == "accepted" {
+                r.status = "rejected".into();
+                r.note = RUNNER_UP_NOTE.into();
+            }
+        }
+    }
+    Ok((reports, best.map(|b| b.1)))
+}
+
+pub(super) fn model_names(chosen: &[ChosenTerm]) -> Vec<String> {
+    chosen.iter().map(|c| c.effect.name().to_string()).collect()
+}
+
+/// Columns of the chosen terms.
+pub fn chosen_parts(chosen: &[ChosenTerm]) -> Vec<&TermColumns> {
+    chosen.iter().map(|c| &c.columns).collect()
+}
+
+/// Refines each continuous profiled parameter of the chosen grid point between its grid
+/// neighbours: a parabola in ln(parameter) through the full-data RSS at the point and its
+/// two neighbours; the vertex is kept if it lowers the RSS.
+pub(super) fn refine(
+    prep: &Prepared,
+    base: &[&TermColumns],
+    grid: &EffectGrid,
+    point: usize,
+    ys: &[Vec<f64>],
+) -> TermColumns {
+    let best = &grid.points[point];
+    let rss_of = |cols: &TermColumns| {
+        let mut parts = base.to_vec();
+        parts.push(cols);
+        full_rss(prep, &parts, ys)
+    };
+    let mut theta = best.theta.clone();
+    for (m, _) in grid.params.iter().enumerate().filter(|(_, p)| p.continuous) {
+        let mut line: Vec<usize> = (0..grid.points.len())
+            .filter(|&j| (0..theta.len()).all(|q| q == m || grid.points[j].theta[q] == best.theta[q]))
+            .collect();
+        line.sort_by(|a, b| grid.points[*a].theta[m].total_cmp(&grid.points[*b].theta[m]));
+        let Some(pos) = line.iter().position(|&j| j == point) else { continue };
+        if pos == 0 || pos + 1 >= line.len() {
+            continue;
+        }
+        let pts: Vec<(f64, f64)> = [line[pos - 1], point, line[pos + 1]]
+            .iter()
+            .map(|&j| (grid.points[j].theta[m].ln(), rss_of(&grid.points[j])))
+            .collect();
+        if let Some(x) = parabola_vertex([pts[0], pts[1], pts[2]]) {
+            theta[m] = x.clamp(pts[0].0, pts[2].0).exp();
+        }
+    }
+    if theta == best.theta {
+        return best.clone();
+    }
+    let refined = term_columns(prep, grid.effect, &theta);
+    if rss_of(&refined) < rss_of(best) {
+        refined
+    } else {
+        best.clone()
+    }
+}
+
+/// Forward selection over the catalogue (see the module documentation for the rule).
+///
+/// # Errors
+/// [`DiagnoseError::Fit`] if a least-squares problem fails.
+pub fn forward_select(
+    prep: &Prepared,
+    grids: &[EffectGrid],
+    options: &DiagnoseOptions,
+    progress: &mut dyn FnMut(&str, f64),
+) -> Result<Selection, DiagnoseError> {
+    let ys = targets(prep);
+    let indices = block_indices(prep);
+    let mut chosen: Vec<ChosenTerm> = Vec::new();
+    let mut steps = Vec::new();
+    for step in 0..=options.max_effects {
+        progress(
+            &format!("forward selection, step {}", step + 1),
+            0.3 + 0.5 * step as f64 / (options.max_effects + 1) as f64,
+        );
+        let base_parts = chosen_parts(&chosen);
+        let base = build_design(prep, &base_parts);
+        let base_eval = fold_eval(&base, &ys)?;
+        let base_resid = residuals(&base, &base_eval.full_beta, &ys);
+        let acf = autocorrelations(&base_resid, &indices, prep.hac_lag_blocks);
+        let rho = acf.first().copied().unwrap_or(0.0);
+        let n_eff = effective_n(prep.n_blocks(), &acf);
+        let ctx = StepContext {
+            prep,
+            grids,
+            ys: &ys,
+            options,
+            base_parts,
+            base,
+            base_eval,
+            n_eff,
+            in_model: chosen.iter().map(|c| c.effect).collect(),
+            tests: grids
+                .iter()
+                .filter(|g| g.unmet_requirement.is_none() && !chosen.iter().any(|c| c.effect == g.effect))
+                .count(),
+        };
+        let cv_rms = (ctx.base_eval.fold_sse.iter().sum::<f64>() / prep.n_blocks() as f64).sqrt();
+        let (candidates, pick) =
+            if step < options.max_effects { run_step(&ctx)? } else { (Vec::new(), None) };
+        steps.push(SelectionStep {
+            model: model_names(&chosen),
+            cv_rms_dph: cv_rms,
+            n_eff,
+            rho,
+            candidates,
+            added: pick.as_ref().map(|p| p.0.name().to_string()),
+        });
+        match pick {
+            Some((effect, point, concealment_index, most_confused_with)) => {
+                let grid = grids
+                    .iter()
+                    .find(|g| g.effect == effect)
+                    .ok_or(DiagnoseError::Fit("effect grid missing"))?;
+                let columns = refine(prep, &chosen_parts(&chosen), grid, point, &ys);
+                chosen.push(ChosenTerm { effect, point, columns, concealment_index, most_confused_with })
+            }
+            None => break,
+        }
+    }
+    Ok(Selection { steps, chosen })
+}
+
+/// Passes every rule at a step without being selected.
+pub(super) const RUNNER_UP_NOTE: &str = "passes the rules but another effect lowers the LORO error more";

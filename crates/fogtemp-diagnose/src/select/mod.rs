@@ -1,0 +1,42 @@
+//! Model choice: profiling, leave-one-run-out (LORO) cross-validation, BIC on the
+//! effective sample size, concealment, forward selection, and the held-out evaluation of
+//! the chosen model.
+//!
+//! Definitions (stated in the report too):
+//! - model: `residual = c + sum of chosen terms + e` fitted to the short means of all runs
+//!   by least squares (per-run QR, stacked);
+//! - LORO: each run is predicted by the model fitted to the other runs; a candidate's
+//!   continuous profiled parameters (time constants, thresholds) are chosen by BIC and
+//!   re-chosen in each fold from the training runs only; its complexity (basis size,
+//!   polynomial degree) is the one with the lowest LORO error (slightly optimistic: a
+//!   choice among at most 7 values), the size of a penalised spline basis the smallest
+//!   within one standard error of it (see [`one_standard_error_choice`]);
+//! - BIC = `n_eff ln(RSS / n) + k ln(n_eff)`, `n_eff = n / (1 + 2 sum_k w_k rho_k)`, rho_k
+//!   the autocorrelations at lags 1..L (L = the Newey-West bandwidth) of the current
+//!   model's residual short means within runs, Bartlett weights `w_k = 1 - k/(L+1)`, k =
+//!   linear coefficients + profiled parameters;
+//! - a fold (held-out run) is informative when the term's fitted contribution there, about
+//!   its mean over all runs, has an RMS of at least a quarter of the noise of one short
+//!   mean; a term is accepted when it is identifiable, lowers the total LORO error,
+//!   improves at least `min_fold_fraction` of the informative folds (and at least two),
+//!   lowers BIC, and is stable across folds (jackknife t of its contribution, see
+//!   [`stability_t`], above the two-sided Student-t limit with runs - 1 degrees of freedom
+//!   at 5 % / number of candidates; for a flexible term with more than two coefficients, a
+//!   basis in T whose local coefficients a left-out run moves, every fold must instead
+//!   reproduce, on its training runs, at least half of the full-data contribution). The accepted candidate with the lowest LORO error enters; selection
+//!   stops when no candidate is accepted or `max_effects` are in.
+//! - concealment index: R^2 of the candidate's fitted contribution on the terms already
+//!   in the model.
+
+mod design;
+mod final_fit;
+mod forward;
+mod rules;
+
+pub use design::{
+    bic, block_indices, build_design, fold_eval, heldout_residuals, pooled_rms, r_squared_runs, residuals,
+    targets, Design, FoldEval,
+};
+pub use final_fit::{evaluate_final, heldout_bias_stability, FinalOutcome};
+pub use forward::{chosen_parts, forward_select, ChosenTerm, Selection};
+pub use rules::{fold_counts, folds_pass, material_runs, stability_limit};

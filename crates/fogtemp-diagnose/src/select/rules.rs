@@ -1,0 +1,268 @@
+//! The acceptance rules of forward selection, as pure functions of the numbers they judge:
+//! informative folds, the fold rule, the jackknife stability of a term and its limit, the
+//! fold shares of a flexible term, the concealment index.
+
+use nalgebra::DMatrix;
+
+use super::design::{concat, r_squared_runs, run_dummies, Design};
+use crate::prepare::Prepared;
+
+/// A held-out run is informative about a term when the term's contribution there (about its
+/// mean over all runs) has an RMS of at least this fraction of the noise of one short mean.
+/// (A matched-filter rule, `sqrt(sum v^2) / sigma >= 3`, counted near-zero-contribution runs
+/// as informative; under flicker they improve at random and the fold rule then rejected real
+/// effects and admitted spurious second terms: docs/diagnose.md.)
+pub(super) const MATERIAL_FRACTION: f64 = 0.25;
+
+/// Terms with more linear coefficients than this are "flexible" (a basis in T): their
+/// stability is judged by the smallest fold share instead of the jackknife t.
+pub(super) const FLEXIBLE_TERM_COEFFICIENTS: usize = 2;
+
+/// Smallest fold share a flexible term needs (see [`fold_shares`]).
+pub(super) const MIN_FOLD_SHARE: f64 = 0.5;
+
+/// `<a, b>` over the runs `keep` allows.
+pub(super) fn dot_runs(a: &[Vec<f64>], b: &[Vec<f64>], keep: impl Fn(usize) -> bool) -> f64 {
+    a.iter()
+        .zip(b)
+        .enumerate()
+        .filter(|(r, _)| keep(*r))
+        .map(|(_, (x, y))| x.iter().zip(y).map(|(p, q)| p * q).sum::<f64>())
+        .sum()
+}
+
+/// `c_j = <v_j, v> / <v, v>` for every fold (see [`stability_t`]).
+pub(super) fn fold_shares(full: &[Vec<f64>], folds: &[Vec<Vec<f64>>]) -> Vec<f64> {
+    let vv = dot_runs(full, full, |_| true);
+    if vv.is_nan() || vv <= 0.0 {
+        return vec![0.0; folds.len()];
+    }
+    folds.iter().map(|f| dot_runs(f, full, |_| true) / vv).collect()
+}
+
+/// Fold shares of a flexible term (a basis in T) over each fold's training runs only:
+/// `<v_j, v> / <v, v>` without the held-out run `j`. Where only the held-out run covers
+/// some temperatures, the fold's coefficients there are unsupported (the penalty keeps them
+/// at the simulation's shape) and the held-out error already judges that region; the share
+/// asks whether the shape the other runs support is reproduced without run `j`.
+pub(super) fn training_fold_shares(full: &[Vec<f64>], folds: &[Vec<Vec<f64>>]) -> Vec<f64> {
+    folds
+        .iter()
+        .enumerate()
+        .map(|(j, f)| {
+            let vv = dot_runs(full, full, |r| r != j);
+            if vv.is_nan() || vv <= 0.0 {
+                0.0
+            } else {
+                dot_runs(f, full, |r| r != j) / vv
+            }
+        })
+        .collect()
+}
+
+/// Fold-to-fold stability of a term: each LORO fold's fitted contribution `v_j` (at the
+/// fold's own profiled point, evaluated on all runs) is projected on the full-data
+/// contribution `v`, `c_j = <v_j, v> / <v, v>`; the delete-one-run jackknife standard error
+/// of `c` is `sqrt((G - 1)/G sum (c_j - mean c)^2)` and the result is `1 / SE`. It accounts for
+/// any correlation within runs (flicker, per-run offsets), which `n_eff` cannot.
+pub(super) fn stability_t(c: &[f64]) -> f64 {
+    if c.len() < 2 {
+        return 0.0;
+    }
+    let g = c.len() as f64;
+    let mean = c.iter().sum::<f64>() / g;
+    let se = ((g - 1.0) / g * c.iter().map(|x| (x - mean).powi(2)).sum::<f64>()).sqrt();
+    if se > 0.0 {
+        1.0 / se
+    } else {
+        f64::INFINITY
+    }
+}
+
+/// The stability a term needs: the two-sided Student-t limit with `runs - 1` degrees of
+/// freedom at 5 % family-wise (Bonferroni over the `tests` candidates of a step).
+pub fn stability_limit(runs: usize, tests: usize) -> f64 {
+    use statrs::distribution::{ContinuousCDF, StudentsT};
+    let dof = (runs.max(2) - 1) as f64;
+    let alpha = 0.05 / tests.max(1) as f64;
+    StudentsT::new(0.0, 1.0, dof).map_or(5.0, |t| t.inverse_cdf(1.0 - alpha / 2.0))
+}
+
+/// Concealment of `v`: on the model's terms, and on them plus per-run offsets.
+pub(super) fn concealment(prep: &Prepared, base: &Design, v: &[Vec<f64>]) -> (f64, f64) {
+    let plain = r_squared_runs(v, &base.per_run);
+    let with_runs: Vec<DMatrix<f64>> =
+        (0..prep.runs.len()).map(|r| concat(base, &[&run_dummies(prep, r)], r)).collect();
+    (plain, r_squared_runs(v, &with_runs))
+}
+
+/// Runs where a contribution `v` (per run) is material: RMS of `v` about its mean over all
+/// runs at least a quarter of the noise of one short mean.
+pub fn material_runs(v: &[Vec<f64>], noise_sigma_dph: f64) -> Vec<bool> {
+    let n: usize = v.iter().map(Vec::len).sum();
+    let mean = v.iter().flatten().sum::<f64>() / n.max(1) as f64;
+    v.iter()
+        .map(|r| {
+            let ms = r.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / r.len().max(1) as f64;
+            ms.sqrt() >= MATERIAL_FRACTION * noise_sigma_dph
+        })
+        .collect()
+}
+
+/// Fold comparison over the informative folds: (improved, informative).
+pub fn fold_counts(before: &[f64], after: &[f64], informative: &[bool]) -> (usize, usize) {
+    let mut improved = 0;
+    let mut count = 0;
+    for ((b, a), _) in before.iter().zip(after).zip(informative).filter(|(_, i)| **i) {
+        count += 1;
+        if a < b {
+            improved += 1;
+        }
+    }
+    (improved, count)
+}
+
+/// Whether fold counts pass the acceptance rule.
+pub fn folds_pass(improved: usize, informative: usize, min_fraction: f64) -> bool {
+    informative >= 2 && improved as f64 >= min_fraction * informative as f64
+}
+
+/// The numbers the acceptance rules judge for one candidate.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct RuleInputs {
+    /// LORO squared error with the candidate.
+    pub(super) cv_sse: f64,
+    /// LORO squared error of the current model.
+    pub(super) base_cv_sse: f64,
+    /// Informative folds that improve.
+    pub(super) folds_improved: usize,
+    /// Informative folds.
+    pub(super) folds_informative: usize,
+    /// Fraction of informative folds that must improve.
+    pub(super) min_fold_fraction: f64,
+    /// BIC with the candidate minus BIC without.
+    pub(super) delta_bic: f64,
+    /// Linear coefficients of the candidate's term.
+    pub(super) coefficients: usize,
+    /// Smallest training-fold share (flexible terms).
+    pub(super) min_fold_share: f64,
+    /// Jackknife t of the contribution (other terms).
+    pub(super) stability_t: f64,
+    /// The t a term needs (see [`stability_limit`]).
+    pub(super) stability_limit: f64,
+}
+
+/// The acceptance rules a candidate fails (empty: accepted, identifiability aside): the LORO
+/// error falls, enough informative folds improve, BIC falls, and the term is stable (a
+/// flexible term: every fold reproduces half of the shape; otherwise the jackknife t).
+pub(super) fn acceptance_failures(x: &RuleInputs) -> Vec<&'static str> {
+    let stable = if x.coefficients > FLEXIBLE_TERM_COEFFICIENTS {
+        (x.min_fold_share >= MIN_FOLD_SHARE, "a fold reproduces less than half of the fitted shape")
+    } else {
+        (x.stability_t >= x.stability_limit, "not stable across folds (jackknife t)")
+    };
+    let checks = [
+        (x.cv_sse < x.base_cv_sse, "LORO error does not fall"),
+        (
+            folds_pass(x.folds_improved, x.folds_informative, x.min_fold_fraction),
+            "too few informative folds improve",
+        ),
+        (x.delta_bic < 0.0, "BIC (n_eff) does not fall"),
+        stable,
+    ];
+    checks.iter().filter(|(ok, _)| !ok).map(|(_, why)| *why).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn material_runs_compare_the_rms_about_the_pooled_mean_with_a_quarter_sigma() {
+        // Pooled mean of [1, 3] and [2, 2] is 2; RMS about it: sqrt((1 + 1) / 2) = 1 and 0.
+        let v = vec![vec![1.0, 3.0], vec![2.0, 2.0]];
+        assert_eq!(material_runs(&v, 4.0), [true, false]); // 1 >= 0.25 x 4
+        assert_eq!(material_runs(&v, 4.1), [false, false]); // 1 < 1.025
+    }
+
+    #[test]
+    fn fold_counts_only_count_informative_folds() {
+        let before = [1.0, 1.0, 1.0, 1.0];
+        let after = [0.5, 2.0, 0.9, 0.1];
+        assert_eq!(fold_counts(&before, &after, &[true, true, true, false]), (2, 3));
+        assert_eq!(fold_counts(&before, &after, &[false; 4]), (0, 0));
+    }
+
+    #[test]
+    fn folds_pass_needs_two_informative_folds_and_the_fraction() {
+        assert!(folds_pass(3, 4, 0.75)); // 3 >= 0.75 x 4
+        assert!(!folds_pass(2, 3, 0.75)); // 2 < 2.25
+        assert!(!folds_pass(12, 17, 0.75)); // 12 < 12.75
+        assert!(!folds_pass(1, 1, 0.5)); // one informative fold is not enough
+        assert!(folds_pass(2, 2, 1.0));
+    }
+
+    #[test]
+    fn stability_t_is_one_over_the_jackknife_standard_error() {
+        // c = [0.9, 1.0, 1.1, 1.0]: mean 1, sum of squares 0.02, SE = sqrt(3/4 x 0.02) = 0.12247.
+        let t = stability_t(&[0.9, 1.0, 1.1, 1.0]);
+        assert!((t - 1.0 / (0.75f64 * 0.02).sqrt()).abs() < 1e-12, "{t}");
+        assert!((t - 8.164_965_809).abs() < 1e-6, "{t}");
+        assert_eq!(stability_t(&[1.0, 1.0]), f64::INFINITY);
+        assert_eq!(stability_t(&[1.0]), 0.0);
+    }
+
+    #[test]
+    fn stability_limit_is_the_bonferroni_student_t_quantile() {
+        // Tables: t(0.975, 7) = 2.364624, t(0.975, 16) = 2.119905, t(1 - 0.05 / 16, 16) =
+        // t(0.996875, 16) = 3.145803 (scipy.stats.t.ppf).
+        assert!((stability_limit(8, 1) - 2.364_624).abs() < 1e-5);
+        assert!((stability_limit(17, 1) - 2.119_905).abs() < 1e-5);
+        assert!((stability_limit(17, 8) - 3.145_803).abs() < 1e-5, "{}", stability_limit(17, 8));
+    }
+
+    #[test]
+    fn fold_shares_project_each_fold_on_the_full_contribution() {
+        // full v = ([1, 0], [0, 1]), <v, v> = 2; fold 0 v_0 = ([1, 0], [0, 0]): share 1/2;
+        // fold 1 v_1 = ([2, 0], [0, 2]): share 2. Over training runs only: fold 0 keeps run 1
+        // (<v_0, v> = 0 over <v, v> = 1: 0); fold 1 keeps run 0 (2 / 1 = 2).
+        let full = vec![vec![1.0, 0.0], vec![0.0, 1.0]];
+        let folds = vec![vec![vec![1.0, 0.0], vec![0.0, 0.0]], vec![vec![2.0, 0.0], vec![0.0, 2.0]]];
+        assert_eq!(fold_shares(&full, &folds), [0.5, 2.0]);
+        assert_eq!(training_fold_shares(&full, &folds), [0.0, 2.0]);
+        assert_eq!(fold_shares(&[vec![0.0]], &[vec![vec![1.0]]]), [0.0]);
+    }
+
+    fn accepted_inputs() -> RuleInputs {
+        RuleInputs {
+            cv_sse: 9.0,
+            base_cv_sse: 10.0,
+            folds_improved: 6,
+            folds_informative: 8,
+            min_fold_fraction: 0.75,
+            delta_bic: -3.0,
+            coefficients: 1,
+            min_fold_share: f64::NAN,
+            stability_t: 5.0,
+            stability_limit: 4.0,
+        }
+    }
+
+    #[test]
+    fn each_acceptance_rule_fails_on_its_own_number() {
+        let ok = accepted_inputs();
+        assert!(acceptance_failures(&ok).is_empty());
+        let fails = |x: RuleInputs| acceptance_failures(&x);
+        assert_eq!(fails(RuleInputs { cv_sse: 10.0, ..ok }), ["LORO error does not fall"]);
+        assert_eq!(fails(RuleInputs { folds_improved: 5, ..ok }), ["too few informative folds improve"]);
+        assert_eq!(fails(RuleInputs { delta_bic: 0.0, ..ok }), ["BIC (n_eff) does not fall"]);
+        assert_eq!(fails(RuleInputs { stability_t: 3.9, ..ok }), ["not stable across folds (jackknife t)"]);
+        // A flexible term (> 2 coefficients) is judged by its fold share, not by the t.
+        let flexible = RuleInputs { coefficients: 5, stability_t: 0.0, min_fold_share: 0.5, ..ok };
+        assert!(fails(flexible).is_empty());
+        assert_eq!(
+            fails(RuleInputs { min_fold_share: 0.49, ..flexible }),
+            ["a fold reproduces less than half of the fitted shape"]
+        );
+    }
+}

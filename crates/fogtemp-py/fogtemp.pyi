@@ -1,0 +1,140 @@
+"""fogtemp: temperature-drift calibration of fibre-optic gyros (fit, evaluate, compensate,
+validate, simulate) from numpy arrays, pandas DataFrames and CSV logs.
+
+A thin layer over the Rust libraries fogtemp-cal (calibration), fogtemp-core (the firmware
+runtime) and fogtemp-sim (the simulator): the same code the ``fogtemp-cal`` command runs, with
+the same JSON documents (as dicts) and the same error messages.
+"""
+
+import os
+from typing import Any, Dict, List, Literal, Mapping, Optional, Sequence, Tuple, Union, overload
+
+import numpy as np
+import numpy.typing as npt
+
+__version__: str
+
+METHODS: List[str]
+"""Accepted ``fit`` methods: "auto", "poly", "mesh", "hybrid", "cubic-t"."""
+
+FLAG_BITS: Dict[str, int]
+"""Compensator flag bits: WARMING_UP 1, PARTIAL_WINDOW 2, OUTSIDE_HULL 4, TEMP_STALE 8, BAD_INPUT 16."""
+
+PathLike = Union[str, "os.PathLike[str]"]
+ArrayLike = npt.ArrayLike
+Run = Mapping[str, Any]
+"""A run given as arrays: a dict or pandas DataFrame with ``time_s`` (s), ``temp_c`` (deg C, NaN =
+no reading) and ``gyro_dph`` (deg/h; 2-D with one column per axis for several axes)."""
+
+class Model:
+    """A validated fogtemp model blob (what firmware embeds), with the library's documents."""
+
+    @staticmethod
+    def from_file(path: PathLike) -> "Model":
+        """Reads and validates a model file. FileNotFoundError, or ValueError naming the field."""
+    @staticmethod
+    def from_bytes(data: bytes) -> "Model":
+        """Validates a blob's bytes; a truncated or corrupted blob raises ValueError."""
+    def to_bytes(self) -> bytes:
+        """The blob, exactly what firmware embeds."""
+    def save(self, path: PathLike) -> None:
+        """Writes the blob atomically."""
+    def inspect(self) -> Dict[str, Any]:
+        """The ``fogtemp-cal inspect --json`` document (axes, nodes, triangles, polynomial, ...)."""
+    @property
+    def axis_count(self) -> int:
+        """Number of gyro axes."""
+    @property
+    def fit_report(self) -> Optional[Dict[str, Any]]:
+        """The ``fit --json`` document when fitted by ``fogtemp.fit`` in this process, else None."""
+    def evaluate(
+        self,
+        temp_c: ArrayLike,
+        rate_c_per_min: ArrayLike,
+        axis: int = 0,
+        threads: Optional[int] = None,
+    ) -> npt.NDArray[np.float64]:
+        """Bias in deg/h at (temp_c, rate_c_per_min), broadcast, any shape; NaN for NaN input.
+        Through the core's f32 evaluation; GIL released; ``threads`` defaults to every core."""
+    @overload
+    def compensate(
+        self,
+        time_s: ArrayLike,
+        gyro_dph: ArrayLike,
+        temp_c: ArrayLike,
+        axis: int = 0,
+        return_bias: Literal[False] = False,
+        capacity: int = 128,
+    ) -> Tuple[npt.NDArray[np.float64], npt.NDArray[np.uint8]]: ...
+    @overload
+    def compensate(
+        self,
+        time_s: ArrayLike,
+        gyro_dph: ArrayLike,
+        temp_c: ArrayLike,
+        axis: int = 0,
+        return_bias: Literal[True] = ...,
+        capacity: int = 128,
+    ) -> Tuple[npt.NDArray[np.float64], npt.NDArray[np.uint8], npt.NDArray[np.float64]]: ...
+    def __reduce__(self) -> Tuple[Any, Tuple[bytes]]: ...
+
+def fit(
+    logs: Union[PathLike, Run, Sequence[Union[PathLike, Run]]],
+    method: str = "auto",
+    *,
+    out: Optional[PathLike] = None,
+    progress: bool = True,
+    **options: Any,
+) -> Model:
+    """Fits a model to calibration logs (paths or folders) or runs given as arrays.
+
+    method: "auto" (what ``fogtemp-cal fit`` does by default), "poly", "mesh", "hybrid", "cubic-t".
+
+    Options: the ``fogtemp-cal fit`` flags as keywords (window_s, blocks, min_blocks, max_gap_s,
+    target_window_s, full_windows_only, thinning, tolerance_dph, max_nodes, interpolate_nodes,
+    fast_rate, settled_every, poly, max_degree, p_enter, p_remove, capacity) and, for files, the
+    log-column options (time_column, time_unit, temp_column, temp_scale, temp_offset, gyro_column,
+    gyro_unit, gyro_scale, delimiter, skip_bad_rows).
+    """
+
+@overload
+def read_log(
+    path: PathLike, *, as_dataframe: Literal[False] = False, progress: bool = True, **options: Any
+) -> Dict[str, npt.NDArray[np.float64]]: ...
+@overload
+def read_log(path: PathLike, *, as_dataframe: Literal[True], progress: bool = True, **options: Any) -> Any: ...
+def validate(
+    model: Union[Model, PathLike],
+    logs: Union[PathLike, Sequence[PathLike]],
+    *,
+    progress: bool = True,
+    **options: Any,
+) -> Dict[str, Any]:
+    """The ``fogtemp-cal validate --json`` document: raw vs compensated bias stability.
+    Options: tau_s, overlapping, detrend, exclude_first_s, capacity, compare, log-column options."""
+
+def allan(log: Union[PathLike, Run], *, progress: bool = True, **options: Any) -> Dict[str, Any]:
+    """The ``fogtemp-cal allan --json`` document: overlapping Allan deviation, N, B, K."""
+
+def simulate(
+    scenario: str = "paper",
+    *,
+    out: PathLike,
+    rate: Optional[float] = None,
+    seed: Optional[int] = None,
+    duration_s: Optional[float] = None,
+    progress: bool = True,
+) -> Dict[str, Any]:
+    """The ``fogtemp-cal simulate --json`` document, after writing the logs into ``out``."""
+
+def diagnose(
+    simulated: PathLike,
+    recorded: PathLike,
+    runs: Optional[PathLike] = None,
+    *,
+    progress: bool = True,
+    **options: Any,
+) -> Dict[str, Any]:
+    """The ``fogtemp-cal diagnose --json`` document: simulated vs recorded logs paired by file name.
+    Options: mean_window_s, bin_s, rate_window_s, window_coverage, block_coverage, log-column options
+    (for the recorded logs)."""

@@ -1,0 +1,68 @@
+//! Python values in and out: arrays through numpy, documents through JSON.
+
+use numpy::{PyArrayDyn, PyArrayMethods, PyReadonlyArrayDyn, PyUntypedArrayMethods};
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+use serde::Serialize;
+
+use crate::errors;
+
+/// `value` as a C-contiguous float64 numpy array (a copy only when it is not one already):
+/// lists, scalars, pandas Series, arrays of any numeric dtype.
+///
+/// # Errors
+/// `ValueError` naming `what` when numpy cannot convert it.
+pub fn f64_array<'py>(value: &Bound<'py, PyAny>, what: &str) -> PyResult<PyReadonlyArrayDyn<'py, f64>> {
+    let py = value.py();
+    let numpy = py.import("numpy")?;
+    let kwargs = PyDict::new(py);
+    kwargs.set_item("dtype", numpy.getattr("float64")?)?;
+    kwargs.set_item("order", "C")?;
+    let array = numpy
+        .call_method("asarray", (value,), Some(&kwargs))
+        .map_err(|e| errors::value(format!("{what} must be numbers convertible to float64 ({e})")))?;
+    Ok(array.cast_into::<PyArrayDyn<f64>>()?.readonly())
+}
+
+/// The contiguous data of an array from [`f64_array`].
+pub fn slice<'a>(array: &'a PyReadonlyArrayDyn<'_, f64>, what: &str) -> PyResult<&'a [f64]> {
+    array.as_slice().map_err(|e| errors::value(format!("{what}: {e}")))
+}
+
+/// A 1-D float64 array (any shape is refused except one dimension).
+pub fn f64_vector<'py>(value: &Bound<'py, PyAny>, what: &str) -> PyResult<PyReadonlyArrayDyn<'py, f64>> {
+    let array = f64_array(value, what)?;
+    if array.ndim() != 1 {
+        return Err(errors::value(format!("{what} must be one-dimensional, got shape {:?}", array.shape())));
+    }
+    Ok(array)
+}
+
+/// A library document as Python objects with the command line's `--json` keys: through
+/// JSON exactly as the command prints it (NaN and infinities become `None`).
+pub fn document<'py>(py: Python<'py>, doc: &impl Serialize) -> PyResult<Bound<'py, PyAny>> {
+    let text = serde_json::to_value(doc).and_then(|v| serde_json::to_string(&v)).map_err(|e| {
+        pyo3::exceptions::PyRuntimeError::new_err(format!("cannot serialise the document: {e}"))
+    })?;
+    py.import("json")?.call_method1("loads", (text,))
+}
+
+/// `obj[key]` for a dict, a pandas DataFrame or any mapping; `None` when the key is absent.
+pub fn item<'py>(obj: &Bound<'py, PyAny>, key: &str) -> PyResult<Option<Bound<'py, PyAny>>> {
+    if !obj.hasattr("__getitem__")? || !obj.hasattr("__contains__")? {
+        return Ok(None);
+    }
+    if !obj.contains(key)? {
+        return Ok(None);
+    }
+    Ok(Some(obj.get_item(key)?))
+}
+
+/// True for a run given as arrays: a dict, a pandas DataFrame, or any mapping with a
+/// `time_s` key (paths are strings or `os.PathLike`).
+pub fn is_arrays(obj: &Bound<'_, PyAny>) -> PyResult<bool> {
+    if obj.is_instance_of::<pyo3::types::PyString>() || obj.hasattr("__fspath__")? {
+        return Ok(false);
+    }
+    Ok(item(obj, "time_s")?.is_some())
+}

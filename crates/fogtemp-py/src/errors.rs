@@ -1,0 +1,54 @@
+//! Library errors as Python exceptions, with the libraries' own messages (the ones the
+//! command line prints after `error:`), plus the hint the command line gives, in keyword
+//! form.
+
+use fogtemp_cal::CalError;
+use fogtemp_sim::SimError;
+use pyo3::exceptions::{PyFileNotFoundError, PyOSError, PyRuntimeError, PyValueError};
+use pyo3::PyErr;
+
+/// The exception for a calibration-library error: `FileNotFoundError` / `OSError` for
+/// files, `RuntimeError` for a writer self-check failure (a bug), `ValueError` for
+/// everything the input decides (bad rows, missing columns, no calibration points, a fit
+/// that cannot be made, an invalid model).
+pub fn cal(e: CalError) -> PyErr {
+    let message = format!("{e}{}", hint(&e));
+    match &e {
+        CalError::Io { source, .. } if source.kind() == std::io::ErrorKind::NotFound => {
+            PyFileNotFoundError::new_err(message)
+        }
+        CalError::Io { .. } | CalError::Output { .. } => PyOSError::new_err(message),
+        CalError::SelfCheck(_) => PyRuntimeError::new_err(message),
+        _ => PyValueError::new_err(message),
+    }
+}
+
+/// What to change in the call, for the errors a keyword fixes (the command line names its
+/// flags in the same place: `--skip-bad-rows`, `--temp-column`, ...).
+fn hint(e: &CalError) -> &'static str {
+    match e {
+        CalError::BadRow { .. } => "; pass skip_bad_rows=True to skip such rows",
+        CalError::NoCalibrationPoints { .. } => {
+            "; check temp_column, or set max_gap_s and window_s to suit the temperature sampling"
+        }
+        _ => "",
+    }
+}
+
+/// The exception for a simulator error (a calibration-library error inside keeps its type).
+pub fn sim(e: SimError) -> PyErr {
+    match e {
+        SimError::Cal(c) => cal(c),
+        other => PyValueError::new_err(other.to_string()),
+    }
+}
+
+/// `ValueError` for a model blob the core refuses, as the command line says it.
+pub fn model(source: &str, e: fogtemp_core::Error) -> PyErr {
+    PyValueError::new_err(format!("{source}: not a valid model: {e}"))
+}
+
+/// `ValueError` with `message`.
+pub fn value(message: impl Into<String>) -> PyErr {
+    PyValueError::new_err(message.into())
+}

@@ -1,0 +1,616 @@
+//! The module's functions: `fit`, `read_log`, `validate`, `allan`, `simulate`.
+
+use std::path::{Path, PathBuf};
+
+use fogtemp_cal::arrays::{extract_run_arrays, RunArrays};
+use fogtemp_cal::calibrate::{self, CalibrationConfig, Method, RunFeatures};
+use fogtemp_cal::documents::{AllanDocument, ComparedModel, FitDocument, ValidationDocument};
+use fogtemp_cal::ingest::{read_log_with_progress, IngestOptions, IngestReport};
+use fogtemp_core::Model as CoreModel;
+use numpy::{PyArray1, PyUntypedArrayMethods};
+use pyo3::exceptions::{PyFileNotFoundError, PyTypeError};
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyList};
+
+use crate::convert::{self, f64_vector, slice};
+use crate::errors;
+use crate::model::Model;
+use crate::options::{self, Options, COLUMN_KEYS};
+use crate::progress::{self, Progress};
+
+/// The method names `fit` accepts.
+pub const METHOD_NAMES: [&str; 5] = ["auto", "poly", "mesh", "hybrid", "cubic-t"];
+
+/// The one place a method name becomes a [`Method`].
+pub fn parse_method(name: &str) -> PyResult<Method> {
+    Ok(match name {
+        // AUTO: `fogtemp_cal::calibrate::Method::Auto` (cross-validated choice) is being added
+        // to the calibration library; until it exists "auto" means what the command line's
+        // `fit` does by default today, the hybrid. At merge: `"auto" => Method::Auto`.
+        "auto" => Method::Hybrid,
+        "poly" => Method::Poly,
+        "mesh" => Method::Mesh,
+        "hybrid" => Method::Hybrid,
+        "cubic-t" | "cubic_t" => Method::CubicT,
+        other => {
+            return Err(errors::value(format!(
+                "method must be one of {}, got '{other}'",
+                METHOD_NAMES.join(", ")
+            )))
+        }
+    })
+}
+
+/// Paths from a path, a list of paths, folders expanded to their `*.csv` files sorted by
+/// name (the command line's rule).
+pub fn expand_logs(items: &[PathBuf]) -> PyResult<Vec<PathBuf>> {
+    let mut out = Vec::new();
+    for arg in items {
+        if arg.is_dir() {
+            let listing = std::fs::read_dir(arg).map_err(|e| {
+                pyo3::exceptions::PyOSError::new_err(format!("cannot list {}: {e}", arg.display()))
+            })?;
+            let mut found: Vec<PathBuf> = listing
+                .filter_map(|e| e.ok().map(|e| e.path()))
+                .filter(|p| p.extension().is_some_and(|x| x.eq_ignore_ascii_case("csv")) && p.is_file())
+                .collect();
+            found.sort();
+            if found.is_empty() {
+                return Err(errors::value(format!("{}: folder holds no *.csv files", arg.display())));
+            }
+            out.extend(found);
+        } else if arg.is_file() {
+            out.push(arg.clone());
+        } else {
+            return Err(PyFileNotFoundError::new_err(format!("{}: no such file or folder", arg.display())));
+        }
+    }
+    Ok(out)
+}
+
+/// One argument or a list of them, as a list.
+fn as_list<'py>(value: &Bound<'py, PyAny>) -> PyResult<Vec<Bound<'py, PyAny>>> {
+    if value.is_instance_of::<PyList>() || value.is_instance_of::<pyo3::types::PyTuple>() {
+        value.try_iter()?.collect()
+    } else {
+        Ok(vec![value.clone()])
+    }
+}
+
+/// SHA-256 over the contents of every file, in order: the model's input digest, as the
+/// command line computes it.
+fn digest_files(paths: &[PathBuf]) -> PyResult<[u8; 32]> {
+    use sha2::{Digest, Sha256};
+    let mut hasher = Sha256::new();
+    for p in paths {
+        let io = |e| errors::cal(fogtemp_cal::CalError::Io { path: p.clone(), source: e });
+        let mut f = std::fs::File::open(p).map_err(io)?;
+        let mut buf = vec![0u8; 1 << 20];
+        loop {
+            let n = std::io::Read::read(&mut f, &mut buf).map_err(io)?;
+            if n == 0 {
+                break;
+            }
+            hasher.update(&buf[..n]);
+        }
+    }
+    Ok(hasher.finalize().into())
+}
+
+/// One run given as arrays, held as contiguous float64 numpy arrays.
+struct ArrayRun<'py> {
+    name: PathBuf,
+    time_s: numpy::PyReadonlyArrayDyn<'py, f64>,
+    temps_c: Vec<numpy::PyReadonlyArrayDyn<'py, f64>>,
+    gyros_dph: Vec<numpy::PyReadonlyArrayDyn<'py, f64>>,
+}
+
+/// A column that is one array (1-D) or several (2-D, one per column of the second axis).
+fn columns<'py>(value: &Bound<'py, PyAny>, what: &str) -> PyResult<Vec<numpy::PyReadonlyArrayDyn<'py, f64>>> {
+    let array = convert::f64_array(value, what)?;
+    match array.ndim() {
+        1 => Ok(vec![array]),
+        2 => {
+            let t = array.as_any().getattr("T")?;
+            (0..array.shape()[1]).map(|k| f64_vector(&t.get_item(k)?, what)).collect()
+        }
+        _ => Err(errors::value(format!(
+            "{what} must be 1-D (or 2-D, one column per axis), got shape {:?}",
+            array.shape()
+        ))),
+    }
+}
+
+impl<'py> ArrayRun<'py> {
+    /// Run `index` from a dict or DataFrame with `time_s`, `temp_c`, `gyro_dph`.
+    fn new(index: usize, run: &Bound<'py, PyAny>) -> PyResult<Self> {
+        let name = PathBuf::from(format!("runs[{index}]"));
+        let get = |key: &str| -> PyResult<Bound<'py, PyAny>> {
+            convert::item(run, key)?.ok_or_else(|| {
+                errors::value(format!("runs[{index}]: no '{key}' (a run needs time_s, temp_c and gyro_dph)"))
+            })
+        };
+        Ok(Self {
+            time_s: f64_vector(&get("time_s")?, &format!("runs[{index}]['time_s']"))?,
+            temps_c: columns(&get("temp_c")?, &format!("runs[{index}]['temp_c']"))?,
+            gyros_dph: columns(&get("gyro_dph")?, &format!("runs[{index}]['gyro_dph']"))?,
+            name,
+        })
+    }
+
+    /// SHA-256 input: every array's little-endian bytes in order.
+    fn digest_into(&self, hasher: &mut sha2::Sha256) -> PyResult<()> {
+        use sha2::Digest;
+        for a in std::iter::once(&self.time_s).chain(&self.temps_c).chain(&self.gyros_dph) {
+            for v in slice(a, "run")? {
+                hasher.update(v.to_le_bytes());
+            }
+        }
+        Ok(())
+    }
+}
+
+/// A bad sample of an array run in its own words (the library reports the sample index as
+/// the line and the array as the column).
+fn array_error(e: fogtemp_cal::CalError) -> PyErr {
+    match &e {
+        fogtemp_cal::CalError::BadRow { path, row } => errors::value(format!(
+            "{}: sample {}: {}: {} (found {}); pass skip_bad_rows=True to skip such samples",
+            path.display(),
+            row.line,
+            row.column_name,
+            row.kind.describe(),
+            row.found
+        )),
+        _ => errors::cal(e),
+    }
+}
+
+/// Fits a model to calibration runs (the command line's `fit`).
+///
+/// `logs` is a path (a CSV log or a folder of them), a list of paths, or a list of runs given
+/// as arrays: dicts or pandas DataFrames with `time_s` (s), `temp_c` (deg C, NaN = no reading)
+/// and `gyro_dph` (deg/h; 2-D for several axes). `method` is "auto" (what the command
+/// line's `fit` does by default), "poly", "mesh", "hybrid" or "cubic-t". Keywords: the command line's `fit` options (`window_s`, `blocks`,
+/// `min_blocks`, `max_gap_s`, `target_window_s`, `full_windows_only`, `thinning`,
+/// `tolerance_dph`, `max_nodes`, `interpolate_nodes`, `fast_rate`, `settled_every`, `poly`,
+/// `max_degree`, `p_enter`, `p_remove`, `capacity`) and, for files, its log-column options
+/// (`time_column`, `time_unit`, `temp_column`, `temp_scale`, `temp_offset`, `gyro_column`,
+/// `gyro_unit`, `gyro_scale`, `delimiter`, `skip_bad_rows`). `out` also writes the model
+/// file; `progress` shows reading progress on stderr. Runs with the GIL released.
+#[pyfunction]
+#[pyo3(signature = (logs, method = "auto", *, out = None, progress = true, **options))]
+pub fn fit(
+    py: Python<'_>,
+    logs: &Bound<'_, PyAny>,
+    method: &str,
+    out: Option<PathBuf>,
+    progress: bool,
+    options: Option<&Bound<'_, PyDict>>,
+) -> PyResult<Model> {
+    let method = parse_method(method)?;
+    let items = as_list(logs)?;
+    if items.is_empty() {
+        return Err(errors::value("fit() needs at least one log or run"));
+    }
+    let mut o = Options::new("fit", options);
+    let arrays = convert::is_arrays(&items[0])?;
+    if arrays && o.any_given(&COLUMN_KEYS[..9])? {
+        return Err(PyTypeError::new_err(
+            "fit(): column and unit options apply to log files; runs given as arrays are in time_s, temp_c, gyro_dph",
+        ));
+    }
+    let ingest = options::ingest(&mut o)?;
+    let mut config =
+        options::calibration(&mut o, CalibrationConfig { ingest, method, ..CalibrationConfig::default() })?;
+    let capacity = o.usize("capacity", fogtemp_core::DEFAULT_CAPACITY)?;
+    o.finish()?;
+    options::capacity_fits(config.features.block_count as usize, capacity)?;
+    let (runs, digest) =
+        if arrays { array_runs(py, &items, &mut config)? } else { file_runs(py, &items, &config, progress)? };
+    let fitted = py.detach(|| calibrate::fit_model(&runs, &config, digest)).map_err(errors::cal)?;
+    let source = out.as_ref().map_or_else(|| "<fit>".to_string(), |p| p.display().to_string());
+    let doc = FitDocument::new(Path::new(&source), &fitted, &runs, &digest);
+    let json = serde_json::to_value(&doc).and_then(|v| serde_json::to_string(&v)).ok();
+    let model = Model::new(fitted.blob, source, json)?;
+    if let Some(path) = &out {
+        let blob = model.blob();
+        py.detach(|| fogtemp_cal::output::write_file_atomic(path, |w| w.write_all(blob)))
+            .map_err(errors::cal)?;
+    }
+    Ok(model)
+}
+
+/// Features of every log file (the command line's `fit` reading loop).
+fn file_runs(
+    py: Python<'_>,
+    items: &[Bound<'_, PyAny>],
+    config: &CalibrationConfig,
+    show: bool,
+) -> PyResult<(Vec<RunFeatures>, [u8; 32])> {
+    let paths: Vec<PathBuf> = items
+        .iter()
+        .map(|i| {
+            i.extract::<PathBuf>().map_err(|_| {
+                PyTypeError::new_err("fit(): logs must be paths, or runs given as dicts or DataFrames")
+            })
+        })
+        .collect::<PyResult<_>>()?;
+    let logs = expand_logs(&paths)?;
+    let mut runs = Vec::with_capacity(logs.len());
+    for log in &logs {
+        let mut bar = Progress::new(format!("features {}", file_name(log)), show);
+        let run = py.detach(|| calibrate::extract_run(log, config, |b, r| bar.rows(b, r)));
+        bar.finish();
+        let run = run.map_err(errors::cal)?;
+        if run.ingest.rows == 0 {
+            return Err(errors::value(format!("{}: no data rows (only a header)", log.display())));
+        }
+        warn_skipped(py, &run.ingest)?;
+        runs.push(run);
+    }
+    let digest = py.detach(|| digest_files(&logs))?;
+    Ok((runs, digest))
+}
+
+/// Features of every run given as arrays, and the digest of their values.
+fn array_runs(
+    py: Python<'_>,
+    items: &[Bound<'_, PyAny>],
+    config: &mut CalibrationConfig,
+) -> PyResult<(Vec<RunFeatures>, [u8; 32])> {
+    use sha2::Digest;
+    let runs: Vec<ArrayRun<'_>> =
+        items.iter().enumerate().map(|(i, r)| ArrayRun::new(i, r)).collect::<PyResult<_>>()?;
+    let axes = runs[0].gyros_dph.len();
+    config.ingest.format.gyro_columns = (0..axes).map(|k| format!("gyro_dph[{k}]")).collect();
+    let mut hasher = sha2::Sha256::new();
+    let mut features = Vec::with_capacity(runs.len());
+    for run in &runs {
+        run.digest_into(&mut hasher)?;
+        let temps: Vec<&[f64]> = run.temps_c.iter().map(|a| slice(a, "temp_c")).collect::<PyResult<_>>()?;
+        let gyros: Vec<&[f64]> =
+            run.gyros_dph.iter().map(|a| slice(a, "gyro_dph")).collect::<PyResult<_>>()?;
+        let view = RunArrays {
+            name: &run.name,
+            time_s: slice(&run.time_s, "time_s")?,
+            temps_c: &temps,
+            gyros_dph: &gyros,
+        };
+        let f = py.detach(|| extract_run_arrays(&view, config)).map_err(array_error)?;
+        if f.ingest.rows == 0 {
+            return Err(errors::value(format!("{}: no samples", run.name.display())));
+        }
+        warn_skipped(py, &f.ingest)?;
+        features.push(f);
+    }
+    Ok((features, hasher.finalize().into()))
+}
+
+fn file_name(p: &Path) -> String {
+    p.file_name().map_or_else(|| p.display().to_string(), |n| n.to_string_lossy().into_owned())
+}
+
+/// Warns about skipped rows, in the command line's words (nothing is dropped silently).
+fn warn_skipped(py: Python<'_>, report: &IngestReport) -> PyResult<()> {
+    if report.skipped == 0 {
+        return Ok(());
+    }
+    let mut text = format!(
+        "{}: skipped {} bad rows (skip_bad_rows); first ones:",
+        report.path.display(),
+        report.skipped
+    );
+    for b in &report.first_skipped {
+        text.push_str(&format!(
+            "\n  line {} column {} '{}': {} (found '{}')",
+            b.line,
+            b.column,
+            b.column_name,
+            b.kind.describe(),
+            b.found
+        ));
+    }
+    progress::warn(py, &text)
+}
+
+/// Reads a CSV log into numpy arrays (the library's ingest, as every command reads logs).
+///
+/// Returns `{"time_s", "temp_c", "gyro_dph"}`: time in seconds since the first row, deg C
+/// (NaN where a row has no temperature reading), deg/h; with several temperature or gyro
+/// columns the keys are `temp_c_0`, `temp_c_1`, ... and `gyro_dph_0`, .... Keywords: the
+/// log-column options of `fit`. `as_dataframe=True` returns a pandas DataFrame instead.
+#[pyfunction]
+#[pyo3(signature = (path, *, as_dataframe = false, progress = true, **options))]
+pub fn read_log<'py>(
+    py: Python<'py>,
+    path: PathBuf,
+    as_dataframe: bool,
+    progress: bool,
+    options: Option<&Bound<'py, PyDict>>,
+) -> PyResult<Bound<'py, PyAny>> {
+    let mut o = Options::new("read_log", options);
+    let ingest = options::ingest(&mut o)?;
+    o.finish()?;
+    let (temps, gyros) = (ingest.format.temp_columns.len(), ingest.format.gyro_columns.len());
+    let mut time = Vec::new();
+    let mut temp_cols: Vec<Vec<f64>> = vec![Vec::new(); temps];
+    let mut gyro_cols: Vec<Vec<f64>> = vec![Vec::new(); gyros];
+    let mut bar = Progress::new(format!("read {}", file_name(&path)), progress);
+    let report = py.detach(|| {
+        read_log_with_progress(
+            &path,
+            &ingest,
+            |row| {
+                time.push(row.time_s);
+                for (c, v) in temp_cols.iter_mut().zip(row.temps_c) {
+                    c.push(*v);
+                }
+                for (c, v) in gyro_cols.iter_mut().zip(row.gyros_dph) {
+                    c.push(*v);
+                }
+                Ok(())
+            },
+            |b, r| bar.rows(b, r),
+        )
+    });
+    bar.finish();
+    let report = report.map_err(errors::cal)?;
+    warn_skipped(py, &report)?;
+    let dict = PyDict::new(py);
+    dict.set_item("time_s", PyArray1::from_vec(py, time))?;
+    let named = |base: &str, k: usize, count: usize| {
+        if count == 1 {
+            base.to_string()
+        } else {
+            format!("{base}_{k}")
+        }
+    };
+    for (k, c) in temp_cols.into_iter().enumerate() {
+        dict.set_item(named("temp_c", k, temps), PyArray1::from_vec(py, c))?;
+    }
+    for (k, c) in gyro_cols.into_iter().enumerate() {
+        dict.set_item(named("gyro_dph", k, gyros), PyArray1::from_vec(py, c))?;
+    }
+    if as_dataframe {
+        let pandas = py.import("pandas").map_err(|e| {
+            pyo3::exceptions::PyImportError::new_err(format!(
+                "read_log(as_dataframe=True) needs pandas ({e})"
+            ))
+        })?;
+        return pandas.call_method1("DataFrame", (dict,));
+    }
+    Ok(dict.into_any())
+}
+
+/// A model argument: a `Model` or a path to a model file.
+fn model_arg(value: &Bound<'_, PyAny>) -> PyResult<(Vec<u8>, String)> {
+    if let Ok(m) = value.cast::<Model>() {
+        let m = m.get();
+        return Ok((m.blob().to_vec(), m.source().to_string()));
+    }
+    let path: PathBuf =
+        value.extract().map_err(|_| PyTypeError::new_err("model must be a fogtemp.Model or a path"))?;
+    let blob = std::fs::read(&path).map_err(|e| {
+        let message = format!("cannot read model {}: {e}", path.display());
+        if e.kind() == std::io::ErrorKind::NotFound {
+            PyFileNotFoundError::new_err(message)
+        } else {
+            pyo3::exceptions::PyOSError::new_err(message)
+        }
+    })?;
+    Ok((blob, path.display().to_string()))
+}
+
+/// Replays validation logs through the model exactly as firmware would (the command line's
+/// `validate --json`): raw vs compensated bias stability per run and overall.
+///
+/// `model` is a `Model` or a path; `logs` paths or folders. Keywords: `tau_s`,
+/// `overlapping`, `detrend`, `exclude_first_s`, `capacity`, `compare` (a list of further
+/// models replayed on the same logs), and the log-column options.
+#[pyfunction]
+#[pyo3(signature = (model, logs, *, progress = true, **options))]
+pub fn validate<'py>(
+    py: Python<'py>,
+    model: &Bound<'py, PyAny>,
+    logs: &Bound<'py, PyAny>,
+    progress: bool,
+    options: Option<&Bound<'py, PyDict>>,
+) -> PyResult<Bound<'py, PyAny>> {
+    let mut o = Options::new("validate", options);
+    let ingest = options::ingest(&mut o)?;
+    let stability = options::stability(&mut o)?;
+    let capacity = o.usize("capacity", fogtemp_core::DEFAULT_CAPACITY)?;
+    let compare = match o.get("compare")? {
+        Some(c) => as_list(&c)?,
+        None => Vec::new(),
+    };
+    o.finish()?;
+    let mut blobs = vec![model_arg(model)?];
+    for c in &compare {
+        blobs.push(model_arg(c)?);
+    }
+    let models: Vec<CoreModel<'_>> = blobs
+        .iter()
+        .map(|(b, s)| CoreModel::from_bytes(b).map_err(|e| errors::model(s, e)))
+        .collect::<PyResult<_>>()?;
+    for ((_, source), m) in blobs.iter().zip(&models) {
+        for index in 0..m.axis_count() {
+            let axis = m.axis(index).map_err(|e| errors::model(source, e))?;
+            options::capacity_fits(axis.blocks_needed(), capacity)
+                .map_err(|e| errors::value(format!("{source} axis {index}: {}", e.value(py))))?;
+        }
+    }
+    let paths: Vec<PathBuf> =
+        as_list(logs)?.iter().map(|l| l.extract::<PathBuf>()).collect::<PyResult<_>>()?;
+    let logs = expand_logs(&paths)?;
+    let refs: Vec<&CoreModel<'_>> = models.iter().collect();
+    let mut bars: Vec<Progress> =
+        logs.iter().map(|l| Progress::new(format!("validate {}", file_name(l)), progress)).collect();
+    let outcome = py.detach(|| {
+        calibrate::validate_models(&logs, &refs, &ingest, &stability, |i, b, r| {
+            if let Some(bar) = bars.get_mut(i) {
+                bar.rows(b, r);
+            }
+        })
+    });
+    bars.iter().for_each(Progress::finish);
+    let mut outcomes = outcome.map_err(errors::cal)?;
+    let compared = outcomes.split_off(1.min(outcomes.len()));
+    let validation = outcomes.pop().unwrap_or_default();
+    for r in validation.runs.iter().filter(|r| r.axis == 0) {
+        if r.ingest.rows == 0 {
+            return Err(errors::value(format!("{}: no data rows (only a header)", r.path.display())));
+        }
+        warn_skipped(py, &r.ingest)?;
+    }
+    let comparison = if compare.is_empty() {
+        Vec::new()
+    } else {
+        std::iter::once(&validation)
+            .chain(&compared)
+            .zip(blobs.iter().zip(&models))
+            .map(|(v, ((_, source), m))| ComparedModel::new(Path::new(source), m, v))
+            .collect()
+    };
+    convert::document(py, &ValidationDocument::new(&stability, &validation, comparison))
+}
+
+/// Overlapping Allan deviation of a log's gyro with the fitted noise terms N, B, K (the
+/// command line's `allan --json`).
+///
+/// `log` is a path (log-column options as keywords) or a dict/DataFrame with `time_s` and
+/// `gyro_dph` (deg/h).
+#[pyfunction]
+#[pyo3(signature = (log, *, progress = true, **options))]
+pub fn allan<'py>(
+    py: Python<'py>,
+    log: &Bound<'py, PyAny>,
+    progress: bool,
+    options: Option<&Bound<'py, PyDict>>,
+) -> PyResult<Bound<'py, PyAny>> {
+    let mut o = Options::new("allan", options);
+    if convert::is_arrays(log)? {
+        o.finish()?;
+        let time = f64_vector(
+            &convert::item(log, "time_s")?.ok_or_else(|| errors::value("allan(): no 'time_s'"))?,
+            "time_s",
+        )?;
+        let gyro = convert::item(log, "gyro_dph")?.ok_or_else(|| errors::value("allan(): no 'gyro_dph'"))?;
+        let gyros = columns(&gyro, "gyro_dph")?;
+        let times = slice(&time, "time_s")?;
+        let series: Vec<Vec<f64>> =
+            gyros.iter().map(|g| slice(g, "gyro_dph").map(<[f64]>::to_vec)).collect::<PyResult<_>>()?;
+        if let Some(s) = series.iter().find(|s| s.len() != times.len()) {
+            return Err(errors::value(format!(
+                "gyro_dph has {} samples but time_s has {}",
+                s.len(),
+                times.len()
+            )));
+        }
+        let names: Vec<String> = (0..series.len())
+            .map(|k| if series.len() == 1 { "gyro_dph".into() } else { format!("gyro_dph[{k}]") })
+            .collect();
+        let doc =
+            py.detach(|| AllanDocument::new(Path::new("<arrays>"), &names, times, &series)).ok_or_else(
+                || errors::value("allan(): the log needs at least two samples with increasing time"),
+            )?;
+        return convert::document(py, &doc);
+    }
+    let ingest: IngestOptions = options::ingest(&mut o)?;
+    o.finish()?;
+    let path: PathBuf = log.extract()?;
+    let mut times = Vec::new();
+    let mut series: Vec<Vec<f64>> = vec![Vec::new(); ingest.format.gyro_columns.len()];
+    let mut bar = Progress::new(format!("allan {}", file_name(&path)), progress);
+    let report = py.detach(|| {
+        read_log_with_progress(
+            &path,
+            &ingest,
+            |row| {
+                times.push(row.time_s);
+                for (s, g) in series.iter_mut().zip(row.gyros_dph) {
+                    s.push(*g);
+                }
+                Ok(())
+            },
+            |b, r| bar.rows(b, r),
+        )
+    });
+    bar.finish();
+    warn_skipped(py, &report.map_err(errors::cal)?)?;
+    let doc = py
+        .detach(|| AllanDocument::new(&path, &ingest.format.gyro_columns, &times, &series))
+        .ok_or_else(|| errors::value(format!("{}: the log needs at least two rows", path.display())))?;
+    convert::document(py, &doc)
+}
+
+/// Simulates a lab experiment into CSV logs (the command line's `simulate --json`):
+/// `scenario` is "paper" (the built-in scenario of the paper's experiment) or a scenario TOML
+/// file; `rate` (Hz), `seed` and `duration_s` override it. Writes `out/NAME.csv` per run,
+/// `truth/`, `scenario.toml` and `manifest.json`; returns the document.
+#[pyfunction]
+#[pyo3(signature = (scenario = "paper", *, out, rate = None, seed = None, duration_s = None, progress = true))]
+pub fn simulate<'py>(
+    py: Python<'py>,
+    scenario: &str,
+    out: PathBuf,
+    rate: Option<f64>,
+    seed: Option<u64>,
+    duration_s: Option<f64>,
+    progress: bool,
+) -> PyResult<Bound<'py, PyAny>> {
+    use fogtemp_sim::Scenario;
+    let (mut sc, mut text) = if scenario == "paper" {
+        (Scenario::paper().map_err(errors::sim)?, fogtemp_sim::PAPER_TOML.to_string())
+    } else {
+        let text = std::fs::read_to_string(scenario).map_err(|e| {
+            errors::cal(fogtemp_cal::CalError::Io { path: PathBuf::from(scenario), source: e })
+        })?;
+        (Scenario::from_toml(&text, scenario).map_err(errors::sim)?, text)
+    };
+    // The command line's overrides (`simulate --rate --seed --duration-s`).
+    if let Some(rate) = rate {
+        sc.sample_rate_hz = rate;
+    }
+    if let Some(seed) = seed {
+        sc.seed = seed;
+    }
+    if let Some(duration) = duration_s {
+        if let Some(grid) = &mut sc.grid {
+            grid.duration_s = duration;
+        }
+        for run in &mut sc.runs {
+            run.duration_s = duration;
+        }
+    }
+    if rate.is_some() || seed.is_some() || duration_s.is_some() {
+        sc.validate().map_err(|e| errors::value(format!("scenario after the overrides: {e}")))?;
+        text = format!(
+            "# {scenario} with overrides (rate {rate:?} Hz, seed {seed:?}, duration {duration_s:?} s)\n{}",
+            sc.to_toml().map_err(errors::sim)?
+        );
+    }
+    std::fs::create_dir_all(&out)
+        .map_err(|e| errors::cal(fogtemp_cal::CalError::Io { path: out.clone(), source: e }))?;
+    let total: u64 =
+        sc.expanded_runs().iter().map(|r| (r.duration_s * sc.sample_rate_hz).floor() as u64 + 1).sum();
+    let bar = std::sync::Mutex::new((Progress::new("simulate", progress), 0u64));
+    let started = std::time::Instant::now();
+    let runs = py.detach(|| {
+        fogtemp_sim::simulate_to_dir(&sc, &text, &out, &|n| {
+            if let Ok(mut b) = bar.lock() {
+                b.1 += n;
+                let done = b.1;
+                b.0.count(done, total, "samples");
+            }
+        })
+    });
+    if let Ok(b) = bar.lock() {
+        b.0.finish();
+    }
+    let runs = runs.map_err(errors::sim)?;
+    let doc =
+        fogtemp_sim::documents::SimulateDocument::new(&sc, &out, &runs, started.elapsed().as_secs_f64());
+    convert::document(py, &doc)
+}

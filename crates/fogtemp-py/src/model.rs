@@ -1,0 +1,319 @@
+//! `fogtemp.Model`: a validated model blob, evaluated and replayed by `fogtemp-core`.
+
+use std::path::{Path, PathBuf};
+
+use fogtemp_cal::documents::ModelDocument;
+use fogtemp_cal::features::{micros, CAL_CAPACITY};
+use fogtemp_core::{Axis, Compensator, Flags, Model as CoreModel, StartGrid, WalkHint};
+use numpy::{PyArray1, PyArrayMethods, PyUntypedArrayMethods};
+use pyo3::exceptions::PyFileNotFoundError;
+use pyo3::prelude::*;
+use pyo3::types::{PyBytes, PyDict, PyTuple};
+
+use crate::convert::{self, f64_array, f64_vector, slice};
+use crate::errors;
+
+/// Below this many points an evaluation walks from the last triangle only; above it a start
+/// grid over the mesh (built once per call, about four cells per triangle) makes random-order
+/// queries a step or two each.
+const GRID_MIN_POINTS: usize = 4096;
+/// Below this many points an evaluation runs on one thread.
+const PARALLEL_MIN_POINTS: usize = 1 << 16;
+
+/// A fogtemp model: the validated blob that firmware reads (`fogtemp-core`), with the
+/// calibration library's documents about it.
+///
+/// Make one with `fogtemp.fit(...)`, `Model.from_file(path)` or `Model.from_bytes(b)`.
+#[pyclass(frozen, module = "fogtemp")]
+pub struct Model {
+    blob: Vec<u8>,
+    /// Where the blob came from, as documents and errors name it.
+    source: String,
+    /// The `fit --json` document when this model was fitted in this process.
+    fit_json: Option<String>,
+}
+
+impl Model {
+    /// A model from `blob` after the core's validation.
+    pub fn new(blob: Vec<u8>, source: String, fit_json: Option<String>) -> PyResult<Self> {
+        CoreModel::from_bytes(&blob).map_err(|e| errors::model(&source, e))?;
+        Ok(Self { blob, source, fit_json })
+    }
+
+    /// The blob.
+    pub fn blob(&self) -> &[u8] {
+        &self.blob
+    }
+
+    /// Where it came from.
+    pub fn source(&self) -> &str {
+        &self.source
+    }
+
+    /// The core's view of the blob (validated at construction; validated again, cheaply).
+    fn core(&self) -> PyResult<CoreModel<'_>> {
+        CoreModel::from_bytes(&self.blob).map_err(|e| errors::model(&self.source, e))
+    }
+
+    /// Axis `index`, or `IndexError`-like `ValueError` naming the axis count.
+    fn axis(&self, index: usize) -> PyResult<Axis<'_>> {
+        let model = self.core()?;
+        if index >= model.axis_count() {
+            return Err(errors::value(format!(
+                "{}: axis {index} does not exist (the model has {} axes)",
+                self.source,
+                model.axis_count()
+            )));
+        }
+        model.axis(index).map_err(|e| errors::model(&self.source, e))
+    }
+}
+
+#[pymethods]
+impl Model {
+    /// Reads and validates a model file (`.fogm`, as `fogtemp-cal fit` writes it).
+    ///
+    /// Raises FileNotFoundError if there is no such file, ValueError if the bytes are not a
+    /// valid model (the message names the field the core's validation refused).
+    #[staticmethod]
+    fn from_file(path: PathBuf) -> PyResult<Self> {
+        let blob = std::fs::read(&path).map_err(|e| {
+            let message = format!("cannot read model {}: {e}", path.display());
+            if e.kind() == std::io::ErrorKind::NotFound {
+                PyFileNotFoundError::new_err(message)
+            } else {
+                pyo3::exceptions::PyOSError::new_err(message)
+            }
+        })?;
+        Self::new(blob, path.display().to_string(), None)
+    }
+
+    /// A model from the bytes of a blob (validated by the core: a truncated or corrupted blob
+    /// raises ValueError, never crashes).
+    #[staticmethod]
+    fn from_bytes(data: Vec<u8>) -> PyResult<Self> {
+        Self::new(data, "<bytes>".to_string(), None)
+    }
+
+    /// The blob, exactly what firmware embeds (`include_bytes!`, or the C array of `export`).
+    fn to_bytes<'py>(&self, py: Python<'py>) -> Bound<'py, PyBytes> {
+        PyBytes::new(py, &self.blob)
+    }
+
+    /// Writes the blob to `path` atomically (a temporary file in the same folder, synced,
+    /// then renamed into place).
+    fn save(&self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
+        let blob = &self.blob;
+        py.detach(|| fogtemp_cal::output::write_file_atomic(&path, |w| w.write_all(blob)))
+            .map_err(errors::cal)
+    }
+
+    /// The `fogtemp-cal inspect --json` document: header, per axis the feature settings,
+    /// normalisation, provenance, polynomial terms, mesh `nodes` (`temp_c`,
+    /// `rate_c_per_min`, `value_dph`, normalised `x`, `y`) and `triangles`.
+    fn inspect<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let doc = ModelDocument::new(Path::new(&self.source), &self.blob)
+            .map_err(|e| errors::model(&self.source, e))?;
+        convert::document(py, &doc)
+    }
+
+    /// Number of gyro axes.
+    #[getter]
+    fn axis_count(&self) -> PyResult<usize> {
+        Ok(self.core()?.axis_count())
+    }
+
+    /// The `fogtemp-cal fit --json` document of this model when it was fitted by
+    /// `fogtemp.fit` in this process (per axis the points, polynomial, mesh size and
+    /// residuals), else None.
+    #[getter]
+    fn fit_report<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyAny>>> {
+        match &self.fit_json {
+            Some(text) => Ok(Some(py.import("json")?.call_method1("loads", (text,))?)),
+            None => Ok(None),
+        }
+    }
+
+    /// The model's bias at `(temp_c, rate_c_per_min)`, deg/h, through the core's own
+    /// evaluation (f32, normalisation, polynomial, mesh walk, outside-hull policy).
+    ///
+    /// The inputs are array-like (numpy arrays of any shape, lists, scalars, pandas Series)
+    /// and broadcast against each other; the result has their broadcast shape. A NaN or
+    /// infinite input gives NaN at that point. Runs with the GIL released, on `threads`
+    /// threads (default: every core) for large inputs.
+    #[pyo3(signature = (temp_c, rate_c_per_min, axis = 0, threads = None))]
+    fn evaluate<'py>(
+        &self,
+        py: Python<'py>,
+        temp_c: &Bound<'py, PyAny>,
+        rate_c_per_min: &Bound<'py, PyAny>,
+        axis: usize,
+        threads: Option<usize>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let core_axis = self.axis(axis)?;
+        let (mut t, mut r) = (f64_array(temp_c, "temp_c")?, f64_array(rate_c_per_min, "rate_c_per_min")?);
+        if t.shape() != r.shape() {
+            let pair = py.import("numpy")?.call_method1("broadcast_arrays", (t.as_any(), r.as_any()))?;
+            t = f64_array(&pair.get_item(0)?, "temp_c")?;
+            r = f64_array(&pair.get_item(1)?, "rate_c_per_min")?;
+        }
+        let shape = t.shape().to_vec();
+        let (ts, rs) = (slice(&t, "temp_c")?, slice(&r, "rate_c_per_min")?);
+        let threads =
+            threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get())).max(1);
+        let values = py.detach(|| evaluate_points(&core_axis, ts, rs, threads));
+        PyArray1::from_vec(py, values).reshape(shape).map(Bound::into_any)
+    }
+
+    /// Replays a recording through the core `Compensator` of `axis`, sample by sample,
+    /// exactly as firmware would (the command line's `compensate`): returns
+    /// `(compensated_dph, flags)` (and the subtracted `bias_dph` with `return_bias=True`).
+    ///
+    /// `time_s` (seconds, any origin: the compensator sees microseconds since the first
+    /// sample), `gyro_dph` (deg/h) and `temp_c` (deg C; NaN where a sample has no
+    /// temperature reading) are 1-D and of equal length. The outputs are float64 arrays
+    /// holding the core's f32 results exactly, and uint8 flags (`fogtemp.FLAG_BITS`).
+    /// `capacity` is the firmware's tracker capacity (the core's default, 128): a model whose
+    /// window needs more blocks is refused, as the command line refuses it.
+    #[pyo3(signature = (time_s, gyro_dph, temp_c, axis = 0, return_bias = false, capacity = fogtemp_core::DEFAULT_CAPACITY))]
+    #[allow(clippy::too_many_arguments)] // Python's keywords, each with its default
+    fn compensate<'py>(
+        &self,
+        py: Python<'py>,
+        time_s: &Bound<'py, PyAny>,
+        gyro_dph: &Bound<'py, PyAny>,
+        temp_c: &Bound<'py, PyAny>,
+        axis: usize,
+        return_bias: bool,
+        capacity: usize,
+    ) -> PyResult<Bound<'py, PyTuple>> {
+        // The firmware's tracker capacity: a model needing more blocks fails at its boot.
+        crate::options::capacity_fits(self.axis(axis)?.blocks_needed(), capacity)?;
+        let (t, g, c) =
+            (f64_vector(time_s, "time_s")?, f64_vector(gyro_dph, "gyro_dph")?, f64_vector(temp_c, "temp_c")?);
+        let (ts, gs, cs) = (slice(&t, "time_s")?, slice(&g, "gyro_dph")?, slice(&c, "temp_c")?);
+        if gs.len() != ts.len() || cs.len() != ts.len() {
+            return Err(errors::value(format!(
+                "time_s, gyro_dph and temp_c must have the same length, got {}, {} and {}",
+                ts.len(),
+                gs.len(),
+                cs.len()
+            )));
+        }
+        if let Some(k) = ts.iter().position(|t| !t.is_finite()) {
+            return Err(errors::value(format!("time_s[{k}] is not a finite number ({})", ts[k])));
+        }
+        let model = self.core()?;
+        let mut comp: Box<Compensator<'_, CAL_CAPACITY>> =
+            Box::new(Compensator::new(&model, axis).map_err(|e| errors::model(&self.source, e))?);
+        let replay = py.detach(|| {
+            let n = ts.len();
+            let (mut out, mut bias, mut flags) = (vec![0.0; n], vec![0.0; n], vec![0u8; n]);
+            let origin = ts.first().copied().unwrap_or(0.0);
+            for k in 0..n {
+                let temp = cs[k];
+                let o =
+                    comp.step(micros(ts[k] - origin), gs[k] as f32, temp.is_finite().then_some(temp as f32));
+                out[k] = f64::from(o.rate_dph);
+                bias[k] = f64::from(o.bias_dph);
+                flags[k] = o.flags.0;
+            }
+            (out, bias, flags)
+        });
+        let (out, bias, flags) = replay;
+        let mut items: Vec<Bound<'py, PyAny>> =
+            vec![PyArray1::from_vec(py, out).into_any(), PyArray1::from_vec(py, flags).into_any()];
+        if return_bias {
+            items.push(PyArray1::from_vec(py, bias).into_any());
+        }
+        PyTuple::new(py, items)
+    }
+
+    fn __repr__(&self) -> PyResult<String> {
+        let model = self.core()?;
+        let axes: Vec<String> = (0..model.axis_count())
+            .filter_map(|i| model.axis(i).ok())
+            .map(|a| {
+                let mut kind = Vec::new();
+                if let Some(p) = a.poly {
+                    kind.push(format!("poly({} terms)", p.len()));
+                }
+                if let Some(m) = a.mesh {
+                    kind.push(format!("mesh({} nodes)", m.vertex_count()));
+                }
+                kind.join("+")
+            })
+            .collect();
+        Ok(format!("<fogtemp.Model {} bytes, axes: [{}]>", self.blob.len(), axes.join(", ")))
+    }
+
+    /// Pickles as its bytes.
+    fn __reduce__<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyTuple>> {
+        let py = slf.py();
+        let from_bytes = py.get_type::<Model>().getattr("from_bytes")?;
+        let bytes = PyBytes::new(py, &slf.get().blob);
+        PyTuple::new(py, [from_bytes, PyTuple::new(py, [bytes])?.into_any()])
+    }
+}
+
+/// Evaluates every point (NaN where an input is not finite), on up to `threads` threads.
+fn evaluate_points(axis: &Axis<'_>, ts: &[f64], rs: &[f64], threads: usize) -> Vec<f64> {
+    let mut out = vec![f64::NAN; ts.len()];
+    let mut cells = Vec::new();
+    let grid = match &axis.mesh {
+        Some(mesh) if ts.len() >= GRID_MIN_POINTS => {
+            // About 4 cells per triangle (measured on the paper-like 573-node mesh, 1 M random
+            // points inside the hull: 31 ms with 1/4 cell per triangle, 18 ms with 4, 17 ms with
+            // 16), but never more cells than a quarter of the points, so that building the grid
+            // (one short walk per cell) stays a small part of the call.
+            let cells_wanted = (4 * mesh.triangle_count() as usize).min(ts.len() / 4).max(1);
+            let side = ((cells_wanted as f64).sqrt() as u32).max(1);
+            cells.resize((side * side) as usize, 0u32);
+            mesh.start_grid(side, &mut cells).ok()
+        }
+        _ => None,
+    };
+    let threads = if ts.len() >= PARALLEL_MIN_POINTS { threads } else { 1 };
+    let chunk = ts.len().div_ceil(threads).max(1);
+    std::thread::scope(|scope| {
+        for ((out, ts), rs) in out.chunks_mut(chunk).zip(ts.chunks(chunk)).zip(rs.chunks(chunk)) {
+            let grid = grid.as_ref();
+            scope.spawn(move || evaluate_chunk(axis, grid, ts, rs, out));
+        }
+    });
+    out
+}
+
+/// One thread's points, with its own walk hint.
+fn evaluate_chunk(axis: &Axis<'_>, grid: Option<&StartGrid<'_>>, ts: &[f64], rs: &[f64], out: &mut [f64]) {
+    let mut hint = WalkHint::default();
+    for ((o, &t), &r) in out.iter_mut().zip(ts).zip(rs) {
+        let (t, r) = (t as f32, r as f32);
+        *o = match (grid, &axis.mesh) {
+            // `Axis::evaluate` with the mesh located from the start grid: the same
+            // normalisation, polynomial and mesh interpolation (and outside policy).
+            (Some(grid), Some(mesh)) if t.is_finite() && r.is_finite() => {
+                let (x, y) = axis.normalisation.apply(t, r);
+                let poly = axis.poly.map_or(0.0, |p| p.evaluate(x, y));
+                mesh.interpolate_with_grid(x, y, &mut hint, grid)
+                    .map_or(f64::NAN, |m| f64::from(poly + m.value_dph))
+            }
+            _ => axis.evaluate(t, r, &mut hint).map_or(f64::NAN, |e| f64::from(e.value_dph)),
+        };
+    }
+}
+
+/// `{name: bit}` of the compensator's flags.
+pub fn flag_bits(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
+    let d = PyDict::new(py);
+    for (name, flag) in [
+        ("WARMING_UP", Flags::WARMING_UP),
+        ("PARTIAL_WINDOW", Flags::PARTIAL_WINDOW),
+        ("OUTSIDE_HULL", Flags::OUTSIDE_HULL),
+        ("TEMP_STALE", Flags::TEMP_STALE),
+        ("BAD_INPUT", Flags::BAD_INPUT),
+    ] {
+        d.set_item(name, flag.0)?;
+    }
+    Ok(d)
+}

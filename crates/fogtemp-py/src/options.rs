@@ -1,0 +1,244 @@
+//! Keyword options: the command line's flags as keywords (`--temp-column` is
+//! `temp_column=`), mapped onto the same library settings with the same defaults.
+
+use std::collections::BTreeSet;
+
+use fogtemp_cal::calibrate::{CalibrationConfig, Thinning};
+use fogtemp_cal::ingest::{IngestOptions, LogFormat, RateUnit, TimeUnit};
+use fogtemp_cal::metrics::BiasStabilityOptions;
+use fogtemp_cal::poly_fit::TermSelection;
+use fogtemp_cal::thin::GreedyThinning;
+use fogtemp_core::FeatureSettings;
+use pyo3::exceptions::PyTypeError;
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyString};
+
+use crate::errors;
+
+/// The keyword arguments of one call; every key must be taken once, or [`Options::finish`]
+/// raises `TypeError` naming it (a misspelt option is never ignored).
+pub struct Options<'py> {
+    dict: Option<Bound<'py, PyDict>>,
+    taken: BTreeSet<String>,
+    function: &'static str,
+}
+
+impl<'py> Options<'py> {
+    /// The options of `function` (for messages).
+    pub fn new(function: &'static str, dict: Option<&Bound<'py, PyDict>>) -> Self {
+        Self { dict: dict.cloned(), taken: BTreeSet::new(), function }
+    }
+
+    /// The value of `key` unless absent or `None`.
+    pub fn get(&mut self, key: &str) -> PyResult<Option<Bound<'py, PyAny>>> {
+        self.taken.insert(key.to_string());
+        let Some(dict) = &self.dict else { return Ok(None) };
+        Ok(dict.get_item(key)?.filter(|v| !v.is_none()))
+    }
+
+    /// A `TypeError` for a value of the wrong type.
+    fn wrong(&self, key: &str, expected: &str, e: PyErr) -> PyErr {
+        PyTypeError::new_err(format!("{}(): {key} must be {expected} ({e})", self.function))
+    }
+
+    /// A float option.
+    pub fn f64(&mut self, key: &str, default: f64) -> PyResult<f64> {
+        match self.get(key)? {
+            Some(v) => v.extract::<f64>().map_err(|e| self.wrong(key, "a number", e)),
+            None => Ok(default),
+        }
+    }
+
+    /// An optional float option.
+    pub fn opt_f64(&mut self, key: &str) -> PyResult<Option<f64>> {
+        match self.get(key)? {
+            Some(v) => v.extract::<f64>().map(Some).map_err(|e| self.wrong(key, "a number", e)),
+            None => Ok(None),
+        }
+    }
+
+    /// A non-negative integer option.
+    pub fn usize(&mut self, key: &str, default: usize) -> PyResult<usize> {
+        match self.get(key)? {
+            Some(v) => v.extract::<usize>().map_err(|e| self.wrong(key, "a non-negative integer", e)),
+            None => Ok(default),
+        }
+    }
+
+    /// A boolean option.
+    pub fn bool(&mut self, key: &str, default: bool) -> PyResult<bool> {
+        match self.get(key)? {
+            Some(v) => v.extract::<bool>().map_err(|e| self.wrong(key, "True or False", e)),
+            None => Ok(default),
+        }
+    }
+
+    /// A string option.
+    pub fn string(&mut self, key: &str, default: &str) -> PyResult<String> {
+        match self.get(key)? {
+            Some(v) => v.extract::<String>().map_err(|e| self.wrong(key, "a string", e)),
+            None => Ok(default.to_string()),
+        }
+    }
+
+    /// A string or a list of strings.
+    pub fn strings(&mut self, key: &str, default: &str) -> PyResult<Vec<String>> {
+        match self.get(key)? {
+            Some(v) if v.is_instance_of::<PyString>() => Ok(vec![v.extract::<String>()?]),
+            Some(v) => {
+                v.extract::<Vec<String>>().map_err(|e| self.wrong(key, "a string or a list of strings", e))
+            }
+            None => Ok(vec![default.to_string()]),
+        }
+    }
+
+    /// True if any of `keys` was given (and not `None`).
+    pub fn any_given(&self, keys: &[&str]) -> PyResult<bool> {
+        let Some(dict) = &self.dict else { return Ok(false) };
+        for key in keys {
+            if dict.get_item(key)?.is_some_and(|v| !v.is_none()) {
+                return Ok(true);
+            }
+        }
+        Ok(false)
+    }
+
+    /// Raises `TypeError` for any keyword no option took.
+    pub fn finish(self) -> PyResult<()> {
+        let Some(dict) = &self.dict else { return Ok(()) };
+        for key in dict.keys() {
+            let key: String = key.extract()?;
+            if !self.taken.contains(&key) {
+                return Err(PyTypeError::new_err(format!(
+                    "{}() got an unexpected keyword argument '{key}'",
+                    self.function
+                )));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The log-column keywords (the command line's "Log columns" flags).
+pub const COLUMN_KEYS: [&str; 10] = [
+    "time_column",
+    "time_unit",
+    "temp_column",
+    "temp_scale",
+    "temp_offset",
+    "gyro_column",
+    "gyro_unit",
+    "gyro_scale",
+    "delimiter",
+    "skip_bad_rows",
+];
+
+/// Ingest options from the log-column keywords, with the command line's defaults.
+pub fn ingest(o: &mut Options<'_>) -> PyResult<IngestOptions> {
+    let time_unit = match o.string("time_unit", "s")?.as_str() {
+        "s" => TimeUnit::Seconds,
+        "ms" => TimeUnit::Milliseconds,
+        "us" => TimeUnit::Microseconds,
+        other => return Err(errors::value(format!("time_unit must be 's', 'ms' or 'us', got '{other}'"))),
+    };
+    let gyro_unit = match o.string("gyro_unit", "dph")?.as_str() {
+        "dph" => RateUnit::DegPerHour,
+        "dps" => RateUnit::DegPerSecond,
+        "rps" => RateUnit::RadPerSecond,
+        other => {
+            return Err(errors::value(format!("gyro_unit must be 'dph', 'dps' or 'rps', got '{other}'")))
+        }
+    };
+    let delimiter = o.string("delimiter", ",")?;
+    let delimiter = match delimiter.as_bytes() {
+        [b] if b.is_ascii() => *b,
+        _ => return Err(errors::value(format!("delimiter must be one ASCII character, got '{delimiter}'"))),
+    };
+    Ok(IngestOptions {
+        format: LogFormat {
+            time_column: o.string("time_column", "time_s")?,
+            time_unit,
+            temp_columns: o.strings("temp_column", "temp_c")?,
+            temp_scale: o.f64("temp_scale", 1.0)?,
+            temp_offset_c: o.f64("temp_offset", 0.0)?,
+            gyro_columns: o.strings("gyro_column", "gyro_dph")?,
+            gyro_unit,
+            gyro_scale: o.f64("gyro_scale", 1.0)?,
+            delimiter,
+        },
+        skip_bad_rows: o.bool("skip_bad_rows", false)?,
+    })
+}
+
+/// The fit settings (everything but the method and the ingest options) from the command
+/// line's `fit` keywords, with its defaults.
+pub fn calibration(o: &mut Options<'_>, base: CalibrationConfig) -> PyResult<CalibrationConfig> {
+    let defaults = fogtemp_cal::calibrate::default_features();
+    let features = FeatureSettings {
+        window_s: o.f64("window_s", f64::from(defaults.window_s))? as f32,
+        block_count: u32::try_from(o.usize("blocks", defaults.block_count as usize)?)
+            .map_err(|_| errors::value("blocks is too large"))?,
+        min_blocks: u32::try_from(o.usize("min_blocks", defaults.min_blocks as usize)?)
+            .map_err(|_| errors::value("min_blocks is too large"))?,
+        max_gap_s: o.f64("max_gap_s", f64::from(defaults.max_gap_s))? as f32,
+    };
+    let target_window_s = o.opt_f64("target_window_s")?.unwrap_or(f64::from(features.window_s));
+    let max_nodes = o.usize("max_nodes", 600)?;
+    let tolerance_dph = o.opt_f64("tolerance_dph")?;
+    let (fast_rate_c_per_min, settled_every) = (o.f64("fast_rate", 0.05)?, o.usize("settled_every", 3)?);
+    let thinning = match o.string("thinning", "greedy")?.as_str() {
+        "greedy" => match tolerance_dph {
+            Some(tolerance_dph) => {
+                Thinning::Greedy(GreedyThinning { tolerance_dph, max_nodes, ..GreedyThinning::default() })
+            }
+            None => Thinning::GreedyAuto { noise_multiple: 1.5, max_nodes },
+        },
+        "paper" => Thinning::Paper { fast_rate_c_per_min, settled_every },
+        other => return Err(errors::value(format!("thinning must be 'greedy' or 'paper', got '{other}'"))),
+    };
+    let max_degree =
+        u8::try_from(o.usize("max_degree", 4)?).map_err(|_| errors::value("max_degree is too large"))?;
+    let (p_enter, p_remove) = (o.f64("p_enter", 0.05)?, o.f64("p_remove", 0.10)?);
+    let poly = match o.string("poly", "stepwise")?.as_str() {
+        "stepwise" => TermSelection::Stepwise { max_degree, p_enter, p_remove },
+        "paper" => TermSelection::Paper,
+        other => return Err(errors::value(format!("poly must be 'stepwise' or 'paper', got '{other}'"))),
+    };
+    Ok(CalibrationConfig {
+        features,
+        target_window_s,
+        thinning,
+        poly,
+        full_windows_only: o.bool("full_windows_only", false)?,
+        least_squares_nodes: !o.bool("interpolate_nodes", false)?,
+        ..base
+    })
+}
+
+/// Bias-stability keywords (the command line's `validate` flags), with its defaults.
+pub fn stability(o: &mut Options<'_>) -> PyResult<BiasStabilityOptions> {
+    let d = BiasStabilityOptions::default();
+    let tau_s = o.f64("tau_s", d.tau_s)?;
+    if !tau_s.is_finite() || tau_s <= 0.0 {
+        return Err(errors::value("tau_s must be positive"));
+    }
+    Ok(BiasStabilityOptions {
+        tau_s,
+        overlapping: o.bool("overlapping", d.overlapping)?,
+        detrend: o.bool("detrend", d.detrend)?,
+        exclude_first_s: o.f64("exclude_first_s", d.exclude_first_s)?,
+    })
+}
+
+/// Refuses settings whose feature tracker needs more blocks than the firmware's `capacity`
+/// (the command line's check and message, in keyword form).
+pub fn capacity_fits(needed: usize, capacity: usize) -> PyResult<()> {
+    if needed > capacity {
+        return Err(errors::value(format!(
+            "the model's feature tracker needs {needed} blocks but the firmware's capacity is {capacity} \
+             (capacity=): fit with blocks={capacity} or fewer, or build the firmware's Compensator with \
+             capacity {needed} and pass capacity={needed}"
+        )));
+    }
+    Ok(())
+}

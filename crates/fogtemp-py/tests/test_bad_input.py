@@ -1,0 +1,147 @@
+"""The bad-input matrix: every case raises the exception a Python user expects, with the
+library's message, and none crashes the interpreter (each case also runs in a child
+interpreter that must exit normally)."""
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import fogtemp
+from conftest import synthetic_runs, write_csv
+
+
+@pytest.fixture(scope="module")
+def small_model():
+    return fogtemp.fit(synthetic_runs(runs=2), method="hybrid", progress=False)
+
+
+def test_corrupt_and_truncated_blobs_raise_value_error(small_model):
+    blob = small_model.to_bytes()
+    for length in range(0, len(blob), max(1, len(blob) // 200)):
+        with pytest.raises(ValueError, match="not a valid model"):
+            fogtemp.Model.from_bytes(blob[:length])
+    rng = np.random.default_rng(5)
+    for _ in range(200):
+        corrupt = bytearray(blob)
+        corrupt[rng.integers(len(blob))] ^= 1 << int(rng.integers(8))
+        with pytest.raises(ValueError, match="not a valid model"):
+            fogtemp.Model.from_bytes(bytes(corrupt))
+    with pytest.raises(ValueError, match="not a valid model"):
+        fogtemp.Model.from_bytes(b"")
+    with pytest.raises(TypeError):
+        fogtemp.Model.from_bytes(12)
+
+
+def test_missing_files_raise_file_not_found(tmp_path):
+    missing = tmp_path / "nope.csv"
+    with pytest.raises(FileNotFoundError, match="cannot read model .*nope.fogm"):
+        fogtemp.Model.from_file(tmp_path / "nope.fogm")
+    with pytest.raises(FileNotFoundError, match="no such file or folder"):
+        fogtemp.fit([missing], progress=False)
+    with pytest.raises(FileNotFoundError, match="nope.csv"):
+        fogtemp.read_log(missing, progress=False)
+    with pytest.raises(FileNotFoundError):
+        fogtemp.validate(tmp_path / "nope.fogm", [missing], progress=False)
+
+
+def test_malformed_row_names_file_line_and_column_like_the_command_line(tmp_path, cli):
+    log = tmp_path / "bad.csv"
+    log.write_text("time_s,temp_c,gyro_dph\n0.0,20,1\n0.1,20,1\n0.2,20,abc\n")
+    expected = f"{log}:4:3: column 'gyro_dph': not a number (found 'abc')"
+    with pytest.raises(ValueError) as caught:
+        fogtemp.read_log(log, progress=False)
+    assert str(caught.value).startswith(expected)
+    with pytest.raises(ValueError, match="skip_bad_rows=True"):
+        fogtemp.fit([log], progress=False)
+    done = cli("fit", "--out", tmp_path / "m.fogm", log)
+    assert done.returncode == 1 and expected in done.stderr
+    # Skipping is reported, not silent.
+    with pytest.warns(UserWarning, match="skipped 1 bad rows"):
+        data = fogtemp.read_log(log, skip_bad_rows=True, progress=False)
+    assert len(data["time_s"]) == 2
+
+
+def test_missing_column_and_header_only(tmp_path):
+    log = tmp_path / "cols.csv"
+    log.write_text("time_s,temperature,gyro_dph\n0,20,1\n")
+    with pytest.raises(ValueError, match="no column named 'temp_c'"):
+        fogtemp.read_log(log, progress=False)
+    empty = tmp_path / "empty.csv"
+    empty.write_text("time_s,temp_c,gyro_dph\n")
+    with pytest.raises(ValueError, match="no data rows"):
+        fogtemp.fit([empty], progress=False)
+
+
+def test_array_runs_with_nan_wrong_shapes_and_lengths(small_model):
+    run = synthetic_runs(runs=1)[0]
+    bad = dict(run, gyro_dph=run["gyro_dph"].copy())
+    bad["gyro_dph"][17] = np.nan
+    with pytest.raises(ValueError, match=r"runs\[0\]: sample 17: gyro_dph: NaN or infinite"):
+        fogtemp.fit([bad], progress=False)
+    backwards = dict(run, time_s=run["time_s"].copy())
+    backwards["time_s"][40] = backwards["time_s"][39]
+    with pytest.raises(ValueError, match="sample 40: time_s: time equal to the previous row"):
+        fogtemp.fit([backwards], progress=False)
+    with pytest.raises(ValueError, match="gyro_dph has 99 samples but time_s has"):
+        fogtemp.fit([dict(run, gyro_dph=run["gyro_dph"][:99])], progress=False)
+    with pytest.raises(ValueError, match="must be one-dimensional|must be 1-D"):
+        fogtemp.fit([dict(run, time_s=run["time_s"].reshape(-1, 1))], progress=False)
+    with pytest.raises(ValueError, match="no 'gyro_dph'"):
+        fogtemp.fit([{"time_s": run["time_s"], "temp_c": run["temp_c"]}], progress=False)
+    with pytest.raises(ValueError, match="float64"):
+        fogtemp.fit([dict(run, gyro_dph=["x"] * len(run["time_s"]))], progress=False)
+    with pytest.raises(TypeError, match="column and unit options apply to log files"):
+        fogtemp.fit([run], gyro_unit="rps", progress=False)
+    with pytest.raises(TypeError, match="unexpected keyword argument 'windw_s'"):
+        fogtemp.fit([run], windw_s=100, progress=False)
+    with pytest.raises(ValueError, match="method must be one of"):
+        fogtemp.fit([run], method="spline", progress=False)
+    with pytest.raises(ValueError, match="needs 200 blocks but the firmware's capacity is 128"):
+        fogtemp.fit([run], blocks=200, progress=False)
+    with pytest.raises(ValueError, match="no calibration points"):
+        fogtemp.fit([dict(run, temp_c=np.full(len(run["time_s"]), np.nan))], progress=False)
+
+
+def test_evaluate_and_compensate_refuse_bad_arrays(small_model):
+    with pytest.raises(ValueError):
+        small_model.evaluate(np.zeros(3), np.zeros(4))
+    with pytest.raises(ValueError, match="float64"):
+        small_model.evaluate("abc", 0.0)
+    t = np.arange(10.0)
+    with pytest.raises(ValueError, match="same length"):
+        small_model.compensate(t, np.zeros(9), np.zeros(10))
+    with pytest.raises(ValueError, match="one-dimensional"):
+        small_model.compensate(t.reshape(2, 5), np.zeros((2, 5)), np.zeros((2, 5)))
+    t[3] = np.nan
+    with pytest.raises(ValueError, match=r"time_s\[3\] is not a finite number"):
+        small_model.compensate(t, np.zeros(10), np.zeros(10))
+    # NaN gyro or temperature is data, not an error: flagged exactly as firmware flags it.
+    out, flags = small_model.compensate(np.arange(10.0), np.full(10, np.nan), np.full(10, np.nan))
+    assert np.isnan(out).all() and (flags & fogtemp.FLAG_BITS["BAD_INPUT"]).all()
+    with pytest.raises(ValueError, match="needs 100 blocks but the firmware's capacity is 64"):
+        small_model.compensate(np.arange(10.0), np.zeros(10), np.zeros(10), capacity=64)
+    empty_out, empty_flags = small_model.compensate([], [], [])
+    assert empty_out.shape == (0,) and empty_flags.shape == (0,)
+
+
+CHILD = r"""
+import numpy as np, fogtemp
+blob = bytes(range(256)) * 4
+for n in range(len(blob)):
+    try:
+        fogtemp.Model.from_bytes(blob[:n])
+    except ValueError:
+        pass
+try:
+    fogtemp.fit([{"time_s": [0.0, 1.0], "temp_c": [np.nan, np.nan], "gyro_dph": [np.inf, 0.0]}], progress=False)
+except ValueError:
+    pass
+print("survived")
+"""
+
+
+def test_the_interpreter_survives_garbage_in_a_child_process():
+    done = subprocess.run([sys.executable, "-c", CHILD], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0 and done.stdout.strip() == "survived", done.stderr

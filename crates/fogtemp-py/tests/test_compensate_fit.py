@@ -1,0 +1,140 @@
+"""compensate and fit against the command line on the same files, fit from arrays against fit
+from the same data as CSV, and the JSON documents against the command's --json output."""
+
+import json
+import pickle
+
+import numpy as np
+import pandas as pd
+import pytest
+
+import fogtemp
+from conftest import synthetic_runs, write_csv
+
+
+def test_compensate_equals_the_command_line(mesh_model, val_logs, tmp_path, cli):
+    # The simulated log with the temperature kept on every 10th row only (a 1 Hz sensor
+    # beside a 10 Hz gyro): the empty cells are "no reading" to both.
+    frame = pd.read_csv(val_logs[3])
+    frame.loc[frame.index % 10 != 0, "temp_c"] = np.nan
+    log = tmp_path / "sparse.csv"
+    frame.to_csv(log, index=False, na_rep="")
+    model_path = tmp_path / "m.fogm"
+    mesh_model.save(model_path)
+    out = tmp_path / "comp.csv"
+    done = cli("compensate", "--model", model_path, log, "--out", out)
+    assert done.returncode == 0, done.stderr
+    expected = pd.read_csv(out)
+    data = fogtemp.read_log(log, progress=False)
+    assert np.isnan(data["temp_c"]).mean() == pytest.approx(0.9, abs=0.01)
+    compensated, flags, bias = mesh_model.compensate(
+        data["time_s"], data["gyro_dph"], data["temp_c"], return_bias=True
+    )
+    assert len(compensated) == len(expected)
+    # The command prints the core's f32 results in their shortest form: equal as f32, bit for bit.
+    np.testing.assert_array_equal(compensated.astype(np.float32), expected["compensated_dph"].to_numpy(np.float32))
+    np.testing.assert_array_equal(bias.astype(np.float32), expected["bias_dph"].to_numpy(np.float32))
+    np.testing.assert_array_equal(flags, expected["flags"].to_numpy(np.uint8))
+    assert (flags & fogtemp.FLAG_BITS["WARMING_UP"]).any() and not (flags & fogtemp.FLAG_BITS["WARMING_UP"]).all()
+
+
+def test_compensate_accepts_any_time_origin_and_lists(mesh_model):
+    run = synthetic_runs(runs=1)[0]
+    a = mesh_model.compensate(run["time_s"], run["gyro_dph"], run["temp_c"])
+    b = mesh_model.compensate(list(run["time_s"] - 100.0), list(run["gyro_dph"]), list(run["temp_c"]))
+    np.testing.assert_array_equal(a[0], b[0])
+    np.testing.assert_array_equal(a[1], b[1])
+    assert a[1].dtype == np.uint8
+
+
+def test_fit_from_paths_is_the_command_lines_fit(cal_logs, tmp_path, cli):
+    out = tmp_path / "cli.fogm"
+    done = cli("fit", "--method", "hybrid", "--out", out, "--json", *cal_logs)
+    assert done.returncode == 0, done.stderr
+    ours = fogtemp.fit(cal_logs, method="hybrid", out=tmp_path / "py.fogm", progress=False)
+    assert ours.to_bytes() == out.read_bytes()
+    assert (tmp_path / "py.fogm").read_bytes() == out.read_bytes()
+    expected = json.loads(done.stdout)
+    report = ours.fit_report
+    expected.pop("model"), report.pop("model")
+    assert report == expected
+
+
+def test_fit_from_arrays_equals_fit_from_the_same_csv(tmp_path):
+    runs = synthetic_runs()
+    paths = []
+    for k, run in enumerate(runs):
+        paths.append(tmp_path / f"run{k}.csv")
+        write_csv(paths[-1], run)
+    for method in ("poly", "mesh", "hybrid"):
+        from_csv = fogtemp.fit(paths, method=method, progress=False)
+        from_arrays = fogtemp.fit(runs, method=method, progress=False)
+        from_frames = fogtemp.fit([pd.DataFrame(r) for r in runs], method=method, progress=False)
+        a, c, f = from_arrays.inspect(), from_csv.inspect(), from_frames.inspect()
+        # Identical model in every field; only the input digest (of files vs of arrays) and
+        # the name differ. The blobs differ in those 32 bytes and the CRC only.
+        assert a["input_digest"] != c["input_digest"]
+        for doc in (a, c, f):
+            doc.pop("input_digest"), doc.pop("model")
+        assert a == c == f, method
+        assert len(from_arrays.to_bytes()) == len(from_csv.to_bytes())
+        grid_t, grid_r = np.meshgrid(np.linspace(-25, 40, 50), np.linspace(-1, 4, 40))
+        np.testing.assert_array_equal(from_arrays.evaluate(grid_t, grid_r), from_csv.evaluate(grid_t, grid_r))
+
+
+def test_inspect_and_validate_documents_equal_the_command_line(mesh_model, val_logs, tmp_path, cli):
+    model_path = tmp_path / "m.fogm"
+    mesh_model.save(model_path)
+    loaded = fogtemp.Model.from_file(model_path)
+    done = cli("inspect", model_path, "--json")
+    assert done.returncode == 0, done.stderr
+    assert loaded.inspect() == json.loads(done.stdout)
+    done = cli("validate", "--model", model_path, "--json", *val_logs[:3])
+    assert done.returncode == 0, done.stderr
+    ours = fogtemp.validate(model_path, val_logs[:3], progress=False)
+    assert ours == json.loads(done.stdout)
+    assert ours["compensated_bias_stability_dph"] > 0 and len(ours["runs"]) == 3
+    done = cli("allan", val_logs[0], "--json")
+    assert done.returncode == 0, done.stderr
+    assert fogtemp.allan(val_logs[0], progress=False) == json.loads(done.stdout)
+
+
+def test_validate_compare_and_model_objects(mesh_model, poly_model, val_logs):
+    doc = fogtemp.validate(mesh_model, val_logs[:2], compare=[poly_model], progress=False)
+    assert [c["polynomial_terms"] > 0 for c in doc["comparison"]] == [False, True]
+
+
+def test_read_log_dataframe_and_columns(val_logs):
+    frame = fogtemp.read_log(val_logs[0], as_dataframe=True, progress=False)
+    assert list(frame.columns) == ["time_s", "temp_c", "gyro_dph"]
+    arrays = fogtemp.read_log(val_logs[0], progress=False)
+    np.testing.assert_array_equal(frame["gyro_dph"].to_numpy(), arrays["gyro_dph"])
+    assert arrays["time_s"][0] == 0.0 and np.all(np.diff(arrays["time_s"]) > 0)
+
+
+def test_models_round_trip_through_bytes_files_and_pickle(mesh_model, tmp_path):
+    blob = mesh_model.to_bytes()
+    assert fogtemp.Model.from_bytes(blob).to_bytes() == blob
+    mesh_model.save(tmp_path / "x.fogm")
+    assert fogtemp.Model.from_file(tmp_path / "x.fogm").to_bytes() == blob
+    assert pickle.loads(pickle.dumps(mesh_model)).to_bytes() == blob
+    assert "mesh(" in repr(mesh_model) and mesh_model.axis_count == 1
+
+
+def test_simulate_document(tmp_path):
+    doc = fogtemp.simulate("paper", out=tmp_path, rate=1.0, seed=3, duration_s=300.0, progress=False)
+    assert doc["sample_rate_hz"] == 1.0 and doc["seed"] == 3 and len(doc["runs"]) == 16
+    assert (tmp_path / "manifest.json").is_file()
+
+
+def test_several_axes_from_two_dimensional_gyro_arrays():
+    runs = synthetic_runs()
+    doubled = [dict(r, gyro_dph=np.column_stack([r["gyro_dph"], 2.0 * r["gyro_dph"]])) for r in runs]
+    both = fogtemp.fit(doubled, method="poly", progress=False)
+    single = fogtemp.fit(runs, method="poly", progress=False)
+    assert both.axis_count == 2
+    t, r = np.meshgrid(np.linspace(-15, 35, 20), np.linspace(0, 3, 10))
+    np.testing.assert_array_equal(both.evaluate(t, r, axis=0), single.evaluate(t, r))
+    # Twice the gyro: the same terms selected (the stepwise tests are scale-free), twice the
+    # coefficients, up to the f32 storage of the blob.
+    np.testing.assert_allclose(both.evaluate(t, r, axis=1), 2.0 * single.evaluate(t, r), rtol=1e-5, atol=1e-4)

@@ -1,0 +1,110 @@
+"""Model.evaluate against independent oracles: scipy's LinearNDInterpolator on the model's own
+normalised nodes (mesh), numpy.polynomial on its stored terms (polynomial), and the command
+line's `evaluate` (the core's Axis::evaluate, point by point)."""
+
+import numpy as np
+import pytest
+from numpy.polynomial import polynomial as P
+from scipy.interpolate import LinearNDInterpolator
+
+import fogtemp
+
+
+def normalise(axis, temp_c, rate):
+    n = axis["normalisation"]
+    x = (temp_c - n["temp_offset_c"]) * n["temp_scale_per_c"]
+    y = (rate - n["rate_offset_c_per_min"]) * n["rate_scale_per_c_per_min"]
+    return x, y
+
+
+def random_points_in_range(axis, count, seed):
+    p = axis["provenance"]
+    rng = np.random.default_rng(seed)
+    temp = rng.uniform(p["temp_min_c"], p["temp_max_c"], count)
+    rate = rng.uniform(p["rate_min_c_per_min"], p["rate_max_c_per_min"], count)
+    return temp, rate
+
+
+def test_mesh_matches_scipy_linear_interpolation_on_the_nodes(mesh_model):
+    axis = mesh_model.inspect()["axes"][0]
+    assert axis["kind"] == ["mesh"]
+    nodes = axis["nodes"]
+    assert len(nodes) >= 10
+    xy = np.array([[n["x"], n["y"]] for n in nodes])
+    values = np.array([n["value_dph"] for n in nodes])
+    scipy_interp = LinearNDInterpolator(xy, values)
+    temp, rate = random_points_in_range(axis, 200_000, seed=11)
+    ours = mesh_model.evaluate(temp, rate)
+    x, y = normalise(axis, temp, rate)
+    theirs = scipy_interp(x, y)
+    inside = np.isfinite(theirs)
+    assert inside.sum() > 50_000  # most of the calibrated box lies inside the hull
+    span = values.max() - values.min()
+    worst = np.max(np.abs(ours[inside] - theirs[inside]))
+    assert worst <= 1e-4 * span, (worst, span)
+
+
+def test_polynomial_matches_numpy_polynomial_on_the_terms(poly_model):
+    axis = poly_model.inspect()["axes"][0]
+    assert axis["kind"] == ["poly"]
+    terms = axis["poly"]
+    degree = max(max(t["temp_power"], t["rate_power"]) for t in terms)
+    coefficients = np.zeros((degree + 1, degree + 1))
+    for t in terms:
+        coefficients[t["temp_power"], t["rate_power"]] += t["coefficient_dph"]
+    temp, rate = random_points_in_range(axis, 100_000, seed=12)
+    x, y = normalise(axis, temp, rate)
+    theirs = P.polyval2d(x, y, coefficients)
+    ours = poly_model.evaluate(temp, rate)
+    span = theirs.max() - theirs.min()
+    worst = np.max(np.abs(ours - theirs))
+    # The core evaluates in f32: a relative error of a few 1e-7 of the terms' magnitudes.
+    assert worst <= 1e-4 * span, (worst, span)
+
+
+def test_any_shape_broadcasting_and_nan(mesh_model):
+    temp = np.linspace(-30.0, 50.0, 24).reshape(2, 3, 4)
+    rate = np.float64(0.1)
+    out = mesh_model.evaluate(temp, rate)
+    assert out.shape == (2, 3, 4) and out.dtype == np.float64
+    flat = mesh_model.evaluate(temp.ravel(), np.full(24, 0.1))
+    np.testing.assert_array_equal(out.ravel(), flat)
+    assert mesh_model.evaluate(20.0, 0.0).shape == ()
+    assert mesh_model.evaluate([20.0, 21.0], [0.0, 0.0]).shape == (2,)
+    with_nan = mesh_model.evaluate([20.0, np.nan, 21.0], [0.0, 0.0, np.inf])
+    assert np.isfinite(with_nan[0]) and np.isnan(with_nan[1]) and np.isnan(with_nan[2])
+    # A Fortran-ordered, strided view gives the same values as its contiguous copy.
+    strided = np.asfortranarray(np.linspace(-30, 50, 200).reshape(10, 20))[:, ::3]
+    np.testing.assert_array_equal(
+        mesh_model.evaluate(strided, 0.05), mesh_model.evaluate(np.ascontiguousarray(strided), 0.05)
+    )
+
+
+def test_threads_and_start_grid_agree_with_the_command_line(mesh_model, tmp_path, cli):
+    axis = mesh_model.inspect()["axes"][0]
+    temp, rate = random_points_in_range(axis, 100_000, seed=13)
+    # Points outside the calibrated box too (the outside-hull policy).
+    temp = np.concatenate([temp, [-80.0, 120.0]])
+    rate = np.concatenate([rate, [3.0, -3.0]])
+    model_path = tmp_path / "m.fogm"
+    mesh_model.save(model_path)
+    points = tmp_path / "points.csv"
+    with open(points, "w") as f:
+        f.write("temp_c,rate_c_per_min\n")
+        for t, r in zip(temp, rate):
+            f.write(f"{float(t)!r},{float(r)!r}\n")
+    out = tmp_path / "out.csv"
+    done = cli("evaluate", "--model", model_path, "--points", points, "--out", out)
+    assert done.returncode == 0, done.stderr
+    cli_values = np.loadtxt(out, delimiter=",", skiprows=1, usecols=2)
+    one_thread = mesh_model.evaluate(temp, rate, threads=1)
+    many = mesh_model.evaluate(temp, rate, threads=4)
+    np.testing.assert_array_equal(one_thread, many)
+    # The grid start may end in the neighbouring triangle for a point on a shared edge: the two
+    # planes agree there to f32 rounding.
+    np.testing.assert_allclose(one_thread, cli_values, rtol=0, atol=1e-5)
+
+
+def test_axis_out_of_range_is_a_value_error(mesh_model):
+    with pytest.raises(ValueError, match="axis 3 does not exist"):
+        mesh_model.evaluate(20.0, 0.0, axis=3)
