@@ -323,7 +323,14 @@ pub fn run_demo(
     if options.report {
         let started = Instant::now();
         progress.stage("report", 1);
-        write_demo_report(&out.join("report"), &result, &blobs, &validations, &feature_sets)?;
+        write_demo_report(
+            &out.join("report"),
+            &result,
+            &blobs,
+            &validations,
+            &feature_sets,
+            &options.stability,
+        )?;
         progress.advance(1);
         result.seconds.report = started.elapsed().as_secs_f64();
     }
@@ -370,16 +377,18 @@ fn write_demo_report(
     blobs: &[Blob],
     validations: &[(Vec<RunValidation>, f64)],
     feature_sets: &[(CalibrationConfig, Vec<RunFeatures>)],
+    stability: &BiasStabilityOptions,
 ) -> Result<(), CalError> {
     std::fs::create_dir_all(dir).map_err(|source| CalError::Io { path: dir.to_path_buf(), source })?;
     for (model, ((path, blob, ..), (runs, raw))) in result.models.iter().zip(blobs.iter().zip(validations)) {
         let parsed = Model::from_bytes(blob).map_err(CalError::SelfCheck)?;
-        fogtemp_cal::report::write_validation_report(
+        fogtemp_cal::report::write_validation_report_with(
             &dir.join(&model.key),
             path,
             &parsed,
             runs,
             (*raw, model.compensated_dph),
+            stability,
             &result.definition,
         )?;
         if model.mesh_nodes > 0 {
@@ -396,7 +405,8 @@ fn write_demo_report(
     }
     let path = dir.join("report.md");
     let text = demo_markdown(result);
-    fogtemp_cal::output::write_file_atomic(&path, |w| std::io::Write::write_all(w, text.as_bytes()))
+    fogtemp_cal::output::write_file_atomic(&path, |w| std::io::Write::write_all(w, text.as_bytes()))?;
+    fogtemp_cal::report::write_html_beside(&path)
 }
 
 /// Without the `report` feature there are no figures to draw: the demo writes no report.
@@ -407,6 +417,7 @@ fn write_demo_report(
     _blobs: &[Blob],
     _validations: &[(Vec<RunValidation>, f64)],
     _feature_sets: &[(CalibrationConfig, Vec<RunFeatures>)],
+    _stability: &BiasStabilityOptions,
 ) -> Result<(), CalError> {
     Ok(())
 }

@@ -1,4 +1,6 @@
-//! Figures (SVG, plotters) and the Markdown report: what a navigation engineer reads.
+//! Figures (SVG, plotters) and the reports a navigation engineer reads: `report.md` with
+//! its SVG figures and a self-contained `report.html` beside it (module [`html`]). The
+//! validation figures cover the span of the metric (module [`data`], docs/reports.md).
 
 use std::path::Path;
 
@@ -7,6 +9,15 @@ use plotters::prelude::*;
 use crate::error::CalError;
 use crate::metrics::AllanPoint;
 use crate::output::write_file_atomic;
+
+pub mod cross_validation;
+pub mod data;
+pub mod figures;
+pub mod html;
+
+pub use cross_validation::{cross_validation_markdown, CrossValidationRow};
+pub use figures::{plot_drift, plot_run_bars, DriftRun};
+pub use html::write_html_beside;
 
 /// One run's traces for the figures (block means, typically 1 s).
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -37,7 +48,12 @@ pub struct MeshFigure {
 }
 
 /// Tick label with at most 4 significant digits and no float noise (0.01000000000001 -> 0.01).
+/// Values under 1e-12 in magnitude are an axis's zero reached by adding steps (6.9e-17) and
+/// print as 0.
 pub fn tick(v: &f64) -> String {
+    if v.abs() < 1e-12 {
+        return "0".into();
+    }
     let rounded: f64 = format!("{v:.3e}").parse().unwrap_or(*v);
     format!("{rounded}")
 }
@@ -102,8 +118,21 @@ pub fn draw_legend<'a, CT: plotters::coord::CoordTranslate>(
     chart: &mut ChartContext<'a, SVGBackend<'a>, CT>,
     path: &Path,
 ) -> Result<(), CalError> {
+    draw_legend_at(chart, path, SeriesLabelPosition::MiddleRight)
+}
+
+/// [`draw_legend`] at `position` (where the figure's curves leave room).
+///
+/// # Errors
+/// [`CalError::Io`] naming `path` if drawing fails.
+pub fn draw_legend_at<'a, CT: plotters::coord::CoordTranslate>(
+    chart: &mut ChartContext<'a, SVGBackend<'a>, CT>,
+    path: &Path,
+    position: SeriesLabelPosition,
+) -> Result<(), CalError> {
     chart
         .configure_series_labels()
+        .position(position)
         .background_style(WHITE.mix(0.85))
         .border_style(BLACK)
         .draw()
@@ -149,9 +178,11 @@ pub fn run_colour(i: usize) -> RGBColor {
 pub fn plot_runs(path: &Path, title: &str, runs: &[RunTrace]) -> Result<(), CalError> {
     let with_comp = runs.iter().any(|r| !r.compensated_dph.is_empty());
     let panels = if with_comp { 4 } else { 3 };
-    write_svg(path, (1100, 260 * panels as u32), |root| {
+    write_svg(path, (1200, 260 * panels as u32), |root| {
         root.fill(&WHITE).map_err(|e| plot_err(path, e))?;
         let root = root.titled(title, ("sans-serif", 22)).map_err(|e| plot_err(path, e))?;
+        let (root, legend) = root.split_horizontally(1030);
+        draw_run_legend(&legend, path, runs.iter().map(|r| r.name.as_str()))?;
         let areas = root.split_evenly((panels, 1));
         let t_max = runs.iter().flat_map(|r| r.time_s.last().copied()).fold(1.0, f64::max) / 60.0;
         type Pick = fn(&RunTrace) -> &Vec<f64>;
@@ -180,18 +211,31 @@ pub fn plot_runs(path: &Path, title: &str, runs: &[RunTrace]) -> Result<(), CalE
                     .zip(pick(run))
                     .filter(|(_, v)| v.is_finite())
                     .map(|(t, v)| (t / 60.0, *v));
-                chart
-                    .draw_series(LineSeries::new(series, run_colour(i)))
-                    .map_err(|e| plot_err(path, e))?
-                    .label(run.name.clone())
-                    .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], run_colour(i)));
-            }
-            if label.starts_with("temperature") && runs.len() <= 16 {
-                draw_legend(&mut chart, path)?;
+                chart.draw_series(LineSeries::new(series, run_colour(i))).map_err(|e| plot_err(path, e))?;
             }
         }
         root.present().map_err(|e| plot_err(path, e))
     })
+}
+
+/// The run legend in its own area beside the panels, where it hides no curve: a line in
+/// the run's colour and its name, for the first 24 runs.
+///
+/// # Errors
+/// [`CalError::Io`] naming `path` if drawing fails.
+pub fn draw_run_legend<'n>(
+    area: &DrawingArea<SVGBackend<'_>, plotters::coord::Shift>,
+    path: &Path,
+    names: impl Iterator<Item = &'n str>,
+) -> Result<(), CalError> {
+    for (i, name) in names.enumerate().take(24) {
+        let y = 24 + 17 * i as i32;
+        area.draw(&PathElement::new(vec![(4, y), (24, y)], run_colour(i).stroke_width(3)))
+            .map_err(|e| plot_err(path, e))?;
+        area.draw(&Text::new(name.to_string(), (30, y - 7), ("sans-serif", 13)))
+            .map_err(|e| plot_err(path, e))?;
+    }
+    Ok(())
 }
 
 /// Blue (low, `t` = 0) to red (high, `t` = 1) through white (0.5); `t` is clamped to [0, 1].
@@ -295,6 +339,35 @@ pub fn plot_mesh(path: &Path, title: &str, mesh: &MeshFigure) -> Result<(), CalE
     })
 }
 
+/// Tick values for a log axis over [`lo`, `hi`]: 1, 2 and 5 times the powers of ten inside
+/// it, or every integer multiple 1..9 when that gives fewer than 3 (a range under a decade).
+pub fn log_ticks(lo: f64, hi: f64) -> Vec<f64> {
+    if !(lo > 0.0 && hi > lo && hi.is_finite()) {
+        return Vec::new();
+    }
+    let ticks = |mantissas: &[f64]| -> Vec<f64> {
+        let mut out = Vec::new();
+        let mut exponent = lo.log10().floor() as i32;
+        while 10f64.powi(exponent) <= hi {
+            for m in mantissas {
+                // Rounded to 12 significant digits so 0.001 * 2 prints as 0.002.
+                let v: f64 = format!("{:.11e}", m * 10f64.powi(exponent)).parse().unwrap_or(f64::NAN);
+                if v >= lo && v <= hi {
+                    out.push(v);
+                }
+            }
+            exponent += 1;
+        }
+        out
+    };
+    let coarse = ticks(&[1.0, 2.0, 5.0]);
+    if coarse.len() >= 3 {
+        coarse
+    } else {
+        ticks(&[1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0])
+    }
+}
+
 /// Allan deviation curves, log-log.
 ///
 /// # Errors
@@ -314,7 +387,10 @@ pub fn plot_allan(path: &Path, title: &str, curves: &[(String, Vec<AllanPoint>)]
             .margin(12)
             .x_label_area_size(45)
             .y_label_area_size(80)
-            .build_cartesian_2d((t0 * 0.8..t1 * 1.25).log_scale(), (a0 * 0.8..a1 * 1.25).log_scale())
+            .build_cartesian_2d(
+                (t0 * 0.8..t1 * 1.25).log_scale().with_key_points(log_ticks(t0 * 0.8, t1 * 1.25)),
+                (a0 * 0.8..a1 * 1.25).log_scale().with_key_points(log_ticks(a0 * 0.8, a1 * 1.25)),
+            )
             .map_err(|e| plot_err(path, e))?;
         chart
             .configure_mesh()
@@ -337,7 +413,8 @@ pub fn plot_allan(path: &Path, title: &str, curves: &[(String, Vec<AllanPoint>)]
                 .label(name.clone())
                 .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], colour.stroke_width(2)));
         }
-        draw_legend(&mut chart, path)?;
+        // Allan curves fall from the upper left: the lower left is free.
+        draw_legend_at(&mut chart, path, SeriesLabelPosition::LowerLeft)?;
         root.present().map_err(|e| plot_err(path, e))
     })
 }
@@ -363,8 +440,10 @@ fn file_name(p: &Path) -> String {
     p.file_name().map_or_else(|| p.display().to_string(), |n| n.to_string_lossy().into_owned())
 }
 
-/// Writes `report.md` and its figures into `dir` for a validation: per-run traces with
-/// raw and compensated output, the model's mesh, and raw vs compensated Allan deviation.
+/// Writes `report.md`, `report.html` and their figures into `dir` for a validation: per axis
+/// the drift of the runs as 100 s means (raw beside compensated), the per-run before/after
+/// bars, raw vs compensated Allan deviation and the model's mesh. Every figure covers the
+/// span of the metric: from each run's first compensated sample (module [`data`]).
 ///
 /// # Errors
 /// [`CalError::Io`] when a file cannot be written.
@@ -376,11 +455,39 @@ pub fn write_validation_report(
     overall: (f64, f64),
     definition: &str,
 ) -> Result<(), CalError> {
+    write_validation_report_with(
+        dir,
+        model_path,
+        model,
+        runs,
+        overall,
+        &crate::metrics::BiasStabilityOptions::default(),
+        definition,
+    )
+}
+
+/// [`write_validation_report`] with the bias-stability settings the runs were measured with
+/// (the drift figure uses their window length and exclusion).
+///
+/// # Errors
+/// [`CalError::Io`] when a file cannot be written.
+pub fn write_validation_report_with(
+    dir: &Path,
+    model_path: &Path,
+    model: &fogtemp_core::Model<'_>,
+    runs: &[crate::calibrate::RunValidation],
+    overall: (f64, f64),
+    options: &crate::metrics::BiasStabilityOptions,
+    definition: &str,
+) -> Result<(), CalError> {
     std::fs::create_dir_all(dir).map_err(|source| CalError::Io { path: dir.to_path_buf(), source })?;
     let mut md = String::new();
     md.push_str(&format!("# Validation of {}\n\n", file_name(model_path)));
     md.push_str(&format!(
-        "Bias stability: {definition}. Runs replayed through the firmware's `Compensator`.\n\n"
+        "Definition: {definition}. Runs replayed through the firmware's `Compensator`. \
+         Every figure covers the same span as the metric: each run from the first sample the \
+         compensator corrected (the start-up before it, where the output is the raw input, is \
+         left out of figures and metric alike).\n\n"
     ));
     md.push_str("| run | axis | raw, deg/h | compensated, deg/h | ratio |\n|---|---|---|---|---|\n");
     for r in runs {
@@ -405,36 +512,8 @@ pub fn write_validation_report(
         if axis_runs.is_empty() {
             continue;
         }
-        let traces: Vec<RunTrace> = axis_runs
-            .iter()
-            .map(|r| RunTrace {
-                name: file_name(&r.path),
-                time_s: r.series.time_s.clone(),
-                temp_c: r.series.temp_c.clone(),
-                rate_c_per_min: r.series.rate_c_per_min.clone(),
-                raw_dph: r.series.raw_dph.clone(),
-                compensated_dph: r.series.compensated_dph.clone(),
-            })
-            .collect();
-        let runs_svg = format!("runs-axis{axis}.svg");
-        plot_runs(&dir.join(&runs_svg), &format!("Validation runs, axis {axis} (1 s means)"), &traces)?;
-        md.push_str(&format!("## Axis {axis}\n\n![runs]({runs_svg})\n\n"));
-        let raw_curves: Vec<Vec<AllanPoint>> =
-            axis_runs.iter().map(|r| crate::metrics::allan_deviation(&r.series.raw_dph, 1.0)).collect();
-        let comp_curves: Vec<Vec<AllanPoint>> = axis_runs
-            .iter()
-            .map(|r| crate::metrics::allan_deviation(&r.series.compensated_dph, 1.0))
-            .collect();
-        let allan_svg = format!("allan-axis{axis}.svg");
-        plot_allan(
-            &dir.join(&allan_svg),
-            &format!("Allan deviation of 1 s means, RMS over runs, axis {axis}"),
-            &[
-                ("raw".into(), crate::metrics::rms_allan(&raw_curves)),
-                ("compensated".into(), crate::metrics::rms_allan(&comp_curves)),
-            ],
-        )?;
-        md.push_str(&format!("![Allan deviation]({allan_svg})\n\n"));
+        md.push_str(&format!("## Axis {axis}\n\n"));
+        md.push_str(&validation_axis_figures(dir, axis, &axis_runs, options)?);
         if let Some(fig) = model.axis(axis).ok().and_then(|a| mesh_figure(&a, Vec::new())) {
             let mesh_svg = format!("mesh-axis{axis}.svg");
             plot_mesh(
@@ -442,11 +521,119 @@ pub fn write_validation_report(
                 &format!("Model mesh, axis {axis}: value at nodes, deg/h"),
                 &fig,
             )?;
-            md.push_str(&format!("![mesh]({mesh_svg})\n\n"));
+            md.push_str(&format!("![The model's mesh over (T, dT/dt), value at the nodes]({mesh_svg})\n\n"));
         }
     }
     let path = dir.join("report.md");
-    write_file_atomic(&path, |w| w.write_all(md.as_bytes()))
+    write_file_atomic(&path, |w| w.write_all(md.as_bytes()))?;
+    write_html_beside(&path)
+}
+
+/// The drift, bars and Allan figures of one axis's validation runs, and their Markdown.
+fn validation_axis_figures(
+    dir: &Path,
+    axis: usize,
+    runs: &[&crate::calibrate::RunValidation],
+    options: &crate::metrics::BiasStabilityOptions,
+) -> Result<String, CalError> {
+    let mut md = String::new();
+    let name = |r: &crate::calibrate::RunValidation| {
+        r.path.file_stem().map_or_else(|| file_name(&r.path), |s| s.to_string_lossy().into_owned())
+    };
+    let drift: Vec<DriftRun> = runs
+        .iter()
+        .map(|r| {
+            let span = data::compensated_span(&r.series, 1.0);
+            DriftRun {
+                name: name(r),
+                time_s: span.time_s.to_vec(),
+                temp_c: span.temp_c.to_vec(),
+                raw: data::relative_window_means(span.time_s, span.raw_dph, options),
+                compensated: data::relative_window_means(span.time_s, span.compensated_dph, options),
+            }
+        })
+        .collect();
+    let bars = data::run_bars(runs, name);
+    let overall = bars.last().map_or((f64::NAN, f64::NAN), |b| (b.raw_dph, b.compensated_dph));
+    let starts: Vec<f64> = runs
+        .iter()
+        .filter_map(|r| data::compensated_span(&r.series, 1.0).time_s.first().map(|t| t - 0.5))
+        .collect();
+    let (first, last) = starts.iter().fold((f64::INFINITY, 0.0f64), |(a, b), &t| (a.min(t), b.max(t)));
+    if first.is_finite() {
+        let when = if last > first { format!("{first} s to {last} s") } else { format!("{first} s") };
+        md.push_str(&format!(
+            "Span of the metric and of every figure below: each run from its first compensated block, \
+             {when} after power-on.\n\n"
+        ));
+    }
+    let drift_svg = format!("drift-axis{axis}.svg");
+    plot_drift(
+        &dir.join(&drift_svg),
+        &format!(
+            "Validation runs, axis {axis}: {} s means, each run relative to its own mean",
+            options.tau_s
+        ),
+        &drift,
+        options.tau_s,
+        overall,
+    )?;
+    md.push_str(&format!(
+        "![Drift: {tau} s means of each run relative to its own mean, raw beside compensated on one scale; \
+         their standard deviation per run is the run's bias stability]({drift_svg})\n\n",
+        tau = options.tau_s
+    ));
+    let bars_svg = format!("bars-axis{axis}.svg");
+    plot_run_bars(&dir.join(&bars_svg), &format!("Bias stability per validation run, axis {axis}"), &bars)?;
+    md.push_str(&format!("![Bias stability per run, raw beside compensated]({bars_svg})\n\n"));
+    let series: Vec<&crate::calibrate::ReplaySeries> = runs.iter().map(|r| &r.series).collect();
+    let (raw, comp) = data::span_allan(&series, 1.0);
+    if !raw.is_empty() && !comp.is_empty() {
+        let allan_svg = format!("allan-axis{axis}.svg");
+        plot_allan(
+            &dir.join(&allan_svg),
+            &format!(
+                "Allan deviation of 1 s means from the first compensated sample, RMS over runs, axis {axis}"
+            ),
+            &[("raw".into(), raw.clone()), ("compensated".into(), comp.clone())],
+        )?;
+        md.push_str(&format!(
+            "![Allan deviation, raw and compensated, each run from its first compensated sample]({allan_svg})\n\n"
+        ));
+        md.push_str(&allan_table(&raw, &comp));
+    }
+    Ok(md)
+}
+
+/// Raw and compensated Allan deviation at 1, 10, 100 and 1000 s (where present), and
+/// their ratio.
+fn allan_table(raw: &[AllanPoint], comp: &[AllanPoint]) -> String {
+    let mut md = String::from(
+        "| tau, s | raw ADEV, deg/h | compensated ADEV, deg/h | compensated / raw |\n|---|---|---|---|\n",
+    );
+    let mut shown = Vec::new();
+    for target in [1.0f64, 10.0, 100.0, 1000.0] {
+        // The curve's cluster sizes are octave-spaced: the one nearest the target in log.
+        let nearest = raw
+            .iter()
+            .zip(comp)
+            .filter(|(r, c)| r.tau_s == c.tau_s)
+            .min_by(|a, b| (a.0.tau_s / target).ln().abs().total_cmp(&(b.0.tau_s / target).ln().abs()));
+        if let Some((r, c)) = nearest {
+            if (r.tau_s / target).ln().abs() < 0.5 && !shown.contains(&r.tau_s) {
+                shown.push(r.tau_s);
+                md.push_str(&format!(
+                    "| {} | {:.5} | {:.5} | {:.3} |\n",
+                    r.tau_s,
+                    r.adev_dph,
+                    c.adev_dph,
+                    c.adev_dph / r.adev_dph
+                ));
+            }
+        }
+    }
+    md.push('\n');
+    md
 }
 
 /// Writes `fit-report.md` and its figures into `dir` for a fit: calibration runs
@@ -497,5 +684,147 @@ pub fn write_fit_report(
         }
     }
     let path = dir.join("fit-report.md");
-    write_file_atomic(&path, |w| w.write_all(md.as_bytes()))
+    write_file_atomic(&path, |w| w.write_all(md.as_bytes()))?;
+    write_html_beside(&path)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ticks_print_an_accumulated_zero_as_zero() {
+        assert_eq!(tick(&6.938893903907228e-17), "0");
+        assert_eq!(tick(&0.010000000000000002), "0.01");
+        assert_eq!(tick(&-0.05), "-0.05");
+    }
+
+    #[test]
+    fn log_ticks_by_hand() {
+        // 0.0014..0.037: 0.002, 0.005, 0.01, 0.02.
+        assert_eq!(log_ticks(0.0014, 0.037), [0.002, 0.005, 0.01, 0.02]);
+        // 0.8..4000: 1, 2, 5, 10, ..., 2000.
+        assert_eq!(
+            log_ticks(0.8, 4000.0),
+            [1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0, 200.0, 500.0, 1000.0, 2000.0]
+        );
+        // Under a decade: every multiple.
+        assert_eq!(log_ticks(0.0025, 0.0045), [0.003, 0.004]);
+        assert!(log_ticks(0.0, 1.0).is_empty());
+    }
+
+    /// A 2 h log at 10 Hz: temperature rising 20 -> 40 C with a time constant of 30 min,
+    /// bias 0.002 deg/h per C plus white noise (fixed seed), Earth rate 10 deg/h.
+    fn log(seed: u64, earth_dph: f64) -> String {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(seed);
+        let mut csv = String::from("time_s,temp_c,gyro_dph\n");
+        for k in 0..72_001 {
+            let t = f64::from(k) * 0.1;
+            let temp_c = 20.0 + 20.0 * (1.0 - (-t / 1800.0).exp());
+            let noise: f64 = (0..12).map(|_| rng.gen::<f64>()).sum::<f64>() - 6.0;
+            csv.push_str(&format!("{t:.1},{temp_c:.4},{:.6}\n", earth_dph + 0.002 * temp_c + 0.05 * noise));
+        }
+        csv
+    }
+
+    fn scratch(name: &str) -> std::path::PathBuf {
+        let dir = std::env::temp_dir().join(format!("fogtemp-report-test-{}-{name}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        dir
+    }
+
+    /// Every figure the Markdown names exists, and the HTML inlines each of them and loads
+    /// nothing: no `src=`, no `http` anywhere (the SVG namespace is dropped).
+    fn assert_self_contained(dir: &Path, md_name: &str) {
+        let md = std::fs::read_to_string(dir.join(md_name)).expect("markdown");
+        let html = std::fs::read_to_string(dir.join(md_name).with_extension("html")).expect("html");
+        let figures: Vec<&str> = md
+            .lines()
+            .filter_map(|l| l.trim().strip_prefix("!["))
+            .filter_map(|l| l.split("](").nth(1))
+            .collect();
+        assert!(!figures.is_empty(), "{md}");
+        for f in &figures {
+            let file = f.trim_end_matches(')');
+            assert!(dir.join(file).is_file(), "{file} missing");
+        }
+        assert_eq!(html.matches("<svg ").count(), figures.len(), "every figure inlined once");
+        assert_eq!(html.matches("<figure>").count(), figures.len());
+        assert!(!html.contains("http") && !html.contains("src="), "external reference in {md_name}");
+        assert_eq!(html.matches("<table>").count(), md.matches("\n|---").count(), "every table");
+    }
+
+    #[test]
+    fn validation_and_fit_reports_are_self_contained_and_hold_every_figure() {
+        let config = crate::calibrate::CalibrationConfig {
+            method: crate::calibrate::Method::Poly,
+            ..crate::calibrate::CalibrationConfig::default()
+        };
+        let runs: Vec<crate::calibrate::RunFeatures> = (1..=2)
+            .map(|seed| {
+                let text = log(seed, 10.0);
+                crate::calibrate::extract_run_from(
+                    text.as_bytes(),
+                    Path::new(&format!("cal{seed}.csv")),
+                    &config,
+                )
+                .expect("features")
+            })
+            .collect();
+        let fitted = crate::calibrate::fit_model(&runs, &config, [0; 32]).expect("fit");
+        let model = fogtemp_core::Model::from_bytes(&fitted.blob).expect("model");
+        let options = crate::metrics::BiasStabilityOptions::default();
+        let logs: Vec<(String, String)> =
+            (3..=4).map(|seed| (format!("val{seed}.csv"), log(seed, -5.0))).collect();
+        let validation = crate::calibrate::validate_readers(
+            logs.iter().map(|(name, text)| (name.clone(), text.as_bytes())),
+            &model,
+            &config.ingest,
+            &options,
+        )
+        .expect("validation");
+        let dir = scratch("validate");
+        write_validation_report_with(
+            &dir,
+            Path::new("m.fogm"),
+            &model,
+            &validation.runs,
+            (validation.raw_bias_stability_dph, validation.compensated_bias_stability_dph),
+            &options,
+            &options.describe(),
+        )
+        .expect("validation report");
+        assert_self_contained(&dir, "report.md");
+        let md = std::fs::read_to_string(dir.join("report.md")).expect("md");
+        for figure in ["drift-axis0.svg", "bars-axis0.svg", "allan-axis0.svg"] {
+            assert!(md.contains(figure), "{figure} not in the report");
+        }
+
+        let fit_dir = scratch("fit");
+        let table = cross_validation_markdown(
+            0,
+            &["cal1".into(), "cal2".into()],
+            &[CrossValidationRow {
+                method: "poly".into(),
+                cv_dph: 0.01,
+                se_dph: 0.001,
+                chosen: true,
+                held_out_dph: vec![0.01, 0.01],
+            }],
+        );
+        write_fit_report(
+            &fit_dir,
+            Path::new("m.fogm"),
+            &model,
+            &runs,
+            &format!("- axis 0: fitted\n\n{table}"),
+        )
+        .expect("fit report");
+        assert_self_contained(&fit_dir, "fit-report.md");
+        let html = std::fs::read_to_string(fit_dir.join("fit-report.html")).expect("html");
+        assert!(html.contains("<strong><code>poly</code></strong>"), "the cross-validation table");
+        let _ = std::fs::remove_dir_all(&dir);
+        let _ = std::fs::remove_dir_all(&fit_dir);
+    }
 }
