@@ -404,9 +404,46 @@ fn write_demo_report(
         }
     }
     let path = dir.join("report.md");
-    let text = demo_markdown(result);
+    let mut text = demo_markdown(result);
+    let bars = demo_bars(dir, result)?;
+    match text.find("\n## Figures") {
+        Some(at) => text.insert_str(at + 1, &bars),
+        None => text.push_str(&bars),
+    }
     fogtemp_cal::output::write_file_atomic(&path, |w| std::io::Write::write_all(w, text.as_bytes()))?;
     fogtemp_cal::report::write_html_beside(&path)
+}
+
+/// The per-run bars of every model beside raw (`bars.svg` in `dir`) and their Markdown.
+#[cfg(feature = "report")]
+fn demo_bars(dir: &Path, result: &DemoResult) -> Result<String, CalError> {
+    use fogtemp_cal::report::{plot_grouped_bars, run_colour, BarSeries, RAW_GREY};
+    let mut groups: Vec<String> = result.raw_runs.iter().map(|r| r.0.clone()).collect();
+    groups.push("RMS over runs".into());
+    let with_rms = |runs: &[(String, f64)], rms: f64| -> Vec<f64> {
+        runs.iter().map(|r| r.1).chain(std::iter::once(rms)).collect()
+    };
+    let mut series = vec![BarSeries {
+        name: "raw".into(),
+        colour: RAW_GREY,
+        values: with_rms(&result.raw_runs, result.raw_dph),
+    }];
+    for (i, m) in result.models.iter().enumerate() {
+        series.push(BarSeries {
+            name: m.key.clone(),
+            colour: run_colour(i),
+            values: with_rms(&m.runs, m.compensated_dph),
+        });
+    }
+    plot_grouped_bars(
+        &dir.join("bars.svg"),
+        "Validation bias stability per run: raw and every model",
+        &groups,
+        &series,
+    )?;
+    Ok("## Per validation run, every model\n\n![Bias stability per validation run, raw beside every model \
+        (the last group is the RMS over runs, Table 1)](bars.svg)\n\n"
+        .to_string())
 }
 
 /// Without the `report` feature there are no figures to draw: the demo writes no report.
@@ -468,7 +505,12 @@ pub fn demo_markdown(r: &DemoResult) -> String {
     for m in &r.models {
         md.push_str(&format!(
             "| `{}` | {} | {} | {} | {:.5} | {} |\n",
-            m.key, m.description, m.mesh_nodes, m.poly_terms, m.fit_residual_rms_dph, m.model_bytes
+            m.key,
+            m.description.replace('|', "\\|"),
+            m.mesh_nodes,
+            m.poly_terms,
+            m.fit_residual_rms_dph,
+            m.model_bytes
         ));
     }
     md.push_str("\n## Per validation run, deg/h\n\n| run | raw |");

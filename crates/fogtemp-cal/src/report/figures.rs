@@ -138,17 +138,50 @@ pub fn plot_drift(
 /// # Errors
 /// [`CalError::Io`] if the file cannot be written.
 pub fn plot_run_bars(path: &Path, title: &str, bars: &[RunBar]) -> Result<(), CalError> {
-    let top = bars
-        .iter()
-        .flat_map(|b| [b.raw_dph, b.compensated_dph])
-        .filter(|v| v.is_finite())
-        .fold(0.0, f64::max);
-    let top = if top > 0.0 { top * 1.15 } else { 1.0 };
-    let n = bars.len();
-    let names: Vec<String> = bars.iter().map(|b| b.name.clone()).collect();
-    let raw_colour = RGBColor(150, 150, 150);
-    let comp_colour = RGBColor(31, 119, 180);
-    write_svg(path, (1200, 520), |root| {
+    let groups: Vec<String> = bars.iter().map(|b| b.name.clone()).collect();
+    let series = [
+        BarSeries { name: "raw".into(), colour: RAW_GREY, values: bars.iter().map(|b| b.raw_dph).collect() },
+        BarSeries {
+            name: "compensated".into(),
+            colour: run_colour(0),
+            values: bars.iter().map(|b| b.compensated_dph).collect(),
+        },
+    ];
+    plot_grouped_bars(path, title, &groups, &series)
+}
+
+/// The colour of raw (uncompensated) bars.
+pub const RAW_GREY: RGBColor = RGBColor(150, 150, 150);
+
+/// One series of a grouped bar figure: a value per group, deg/h.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BarSeries {
+    /// Legend name.
+    pub name: String,
+    /// Bar colour.
+    pub colour: RGBColor,
+    /// One value per group (NaN: no bar).
+    pub values: Vec<f64>,
+}
+
+/// Grouped bars of bias stability from zero: one group per name in `groups`, one bar per
+/// series in each, values written above the bars (rotated when the bars are narrow).
+///
+/// # Errors
+/// [`CalError::Io`] if the file cannot be written.
+pub fn plot_grouped_bars(
+    path: &Path,
+    title: &str,
+    groups: &[String],
+    series: &[BarSeries],
+) -> Result<(), CalError> {
+    let top =
+        series.iter().flat_map(|s| s.values.iter().copied()).filter(|v| v.is_finite()).fold(0.0, f64::max);
+    let top = if top > 0.0 { top * 1.18 } else { 1.0 };
+    let n = groups.len();
+    let k = series.len().max(1);
+    let slot = 0.8 / k as f64;
+    write_svg(path, (1200, 540), |root| {
         root.fill(&WHITE).map_err(|e| plot_err(path, e))?;
         let mut chart = ChartBuilder::on(&root)
             .caption(title, ("sans-serif", 20))
@@ -157,10 +190,11 @@ pub fn plot_run_bars(path: &Path, title: &str, bars: &[RunBar]) -> Result<(), Ca
             .y_label_area_size(80)
             .build_cartesian_2d(-0.5..(n as f64 - 0.5), 0.0..top)
             .map_err(|e| plot_err(path, e))?;
+        // Unit steps of the x axis are the groups (n + 1 labels asked: plotters then steps by 1).
         let label = |v: &f64| {
-            let k = v.round();
-            if (v - k).abs() < 1e-6 && k >= 0.0 {
-                names.get(k as usize).cloned().unwrap_or_default()
+            let g = v.round();
+            if (v - g).abs() < 1e-6 && g >= 0.0 {
+                groups.get(g as usize).cloned().unwrap_or_default()
             } else {
                 String::new()
             }
@@ -175,33 +209,35 @@ pub fn plot_run_bars(path: &Path, title: &str, bars: &[RunBar]) -> Result<(), Ca
             .light_line_style(WHITE.mix(0.0))
             .draw()
             .map_err(|e| plot_err(path, e))?;
-        let width = 0.36;
-        for (offset, colour, name, pick) in [
-            (-0.19, raw_colour, "raw", (|b: &RunBar| b.raw_dph) as fn(&RunBar) -> f64),
-            (0.19, comp_colour, "compensated", |b: &RunBar| b.compensated_dph),
-        ] {
-            let rects = bars.iter().enumerate().filter(|(_, b)| pick(b).is_finite()).map(move |(i, b)| {
+        // Bar width in pixels decides whether the values fit upright.
+        let bar_px = 1100.0 / n.max(1) as f64 * slot;
+        for (j, s) in series.iter().enumerate() {
+            let offset = -0.4 + slot * (j as f64 + 0.5);
+            let colour = s.colour;
+            let bars = s.values.iter().enumerate().filter(|(_, v)| v.is_finite()).map(move |(i, &v)| {
                 let x = i as f64 + offset;
-                Rectangle::new([(x - width / 2.0, 0.0), (x + width / 2.0, pick(b))], colour.filled())
+                Rectangle::new([(x - 0.45 * slot, 0.0), (x + 0.45 * slot, v)], colour.filled())
             });
             chart
-                .draw_series(rects)
+                .draw_series(bars)
                 .map_err(|e| plot_err(path, e))?
-                .label(name)
+                .label(s.name.clone())
                 .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 16, y + 5)], colour.filled()));
-            let values = bars.iter().enumerate().filter(|(_, b)| pick(b).is_finite()).map(move |(i, b)| {
-                Text::new(
-                    format!("{:.4}", pick(b)),
-                    (i as f64 + offset, pick(b)),
-                    ("sans-serif", 12).into_font().color(&BLACK).pos(plotters::style::text_anchor::Pos::new(
-                        plotters::style::text_anchor::HPos::Center,
-                        plotters::style::text_anchor::VPos::Bottom,
-                    )),
-                )
+            let values = s.values.iter().enumerate().filter(|(_, v)| v.is_finite()).map(move |(i, &v)| {
+                let font = ("sans-serif", 12).into_font().color(&BLACK);
+                use plotters::style::text_anchor::{HPos, Pos, VPos};
+                // Rotated text anchors in its own frame: left = its start (the bar's top),
+                // centre = across the bar.
+                let (font, pos) = if bar_px >= 40.0 {
+                    (font, Pos::new(HPos::Center, VPos::Bottom))
+                } else {
+                    (font.transform(FontTransform::Rotate270), Pos::new(HPos::Left, VPos::Center))
+                };
+                Text::new(format!("{v:.4}"), (i as f64 + offset, v), font.pos(pos))
             });
             chart.draw_series(values).map_err(|e| plot_err(path, e))?;
         }
-        // Upper left: the 15 % headroom above the tallest bar keeps the legend clear of most bars;
+        // Upper left: the headroom above the tallest bar keeps the legend clear of most bars;
         // every value is also written on its bar.
         draw_legend_at(&mut chart, path, SeriesLabelPosition::UpperLeft)?;
         root.present().map_err(|e| plot_err(path, e))

@@ -85,10 +85,26 @@ fn figure_line(line: &str) -> Option<(&str, &str)> {
     (len == line.trim().len() - 1).then_some((label, href))
 }
 
-/// The cells of a pipe-table row.
-fn cells(line: &str) -> Vec<&str> {
-    let inner = line.trim().trim_start_matches('|').trim_end_matches('|');
-    inner.split('|').map(str::trim).collect()
+/// The cells of a pipe-table row; `\|` is a pipe inside a cell.
+fn cells(line: &str) -> Vec<String> {
+    let inner = line.trim().strip_prefix('|').unwrap_or(line.trim());
+    let inner =
+        if inner.ends_with('|') && !inner.ends_with("\\|") { &inner[..inner.len() - 1] } else { inner };
+    let mut out = Vec::new();
+    let mut cell = String::new();
+    let mut chars = inner.chars().peekable();
+    while let Some(c) = chars.next() {
+        match c {
+            '\\' if chars.peek() == Some(&'|') => {
+                chars.next();
+                cell.push('|');
+            }
+            '|' => out.push(std::mem::take(&mut cell)),
+            _ => cell.push(c),
+        }
+    }
+    out.push(cell);
+    out.iter().map(|c| c.trim().to_string()).collect()
 }
 
 fn is_separator(line: &str) -> bool {
@@ -198,7 +214,7 @@ fn table(lines: &[&str]) -> String {
         let tag = if has_header && k == 0 { "th" } else { "td" };
         html.push_str("<tr>");
         for cell in cells(line) {
-            html.push_str(&format!("<{tag}>{}</{tag}>", inline(cell)));
+            html.push_str(&format!("<{tag}>{}</{tag}>", inline(&cell)));
         }
         html.push_str("</tr>\n");
     }
@@ -243,6 +259,16 @@ mod tests {
         assert!(html.contains("<tr><td>a&lt;b</td><td><strong>0.1</strong></td></tr>"));
         assert!(html.contains("<ul>\n<li>one</li>\n<li>two</li>\n</ul>"));
         assert!(!html.contains("|---|"));
+    }
+
+    #[test]
+    fn an_escaped_pipe_stays_inside_its_cell() {
+        let md = "| model | what |\n|---|---|\n| `m` | all while \\|dT/dt\\| >= 0.05 |\n";
+        let html = markdown_to_html(md, "t", |_| Ok(String::new())).unwrap();
+        assert!(
+            html.contains("<tr><td><code>m</code></td><td>all while |dT/dt| &gt;= 0.05</td></tr>"),
+            "{html}"
+        );
     }
 
     #[test]

@@ -16,7 +16,7 @@ pub mod figures;
 pub mod html;
 
 pub use cross_validation::{cross_validation_markdown, CrossValidationRow};
-pub use figures::{plot_drift, plot_run_bars, DriftRun};
+pub use figures::{plot_drift, plot_grouped_bars, plot_run_bars, BarSeries, DriftRun, RAW_GREY};
 pub use html::write_html_beside;
 
 /// One run's traces for the figures (block means, typically 1 s).
@@ -257,15 +257,22 @@ pub fn diverging(t: f64) -> RGBColor {
 /// # Errors
 /// [`CalError::Io`] if the file cannot be written.
 pub fn plot_mesh(path: &Path, title: &str, mesh: &MeshFigure) -> Result<(), CalError> {
-    write_svg(path, (1000, 760), |root| {
+    write_svg(path, (1040, 760), |root| {
         root.fill(&WHITE).map_err(|e| plot_err(path, e))?;
-        let (main, legend) = root.split_horizontally(880);
+        let (main, legend) = root.split_horizontally(900);
+        // The key goes under the title: the mesh fills the plane, a legend box would hide part.
+        let key = if mesh.points.is_empty() {
+            "black dots: nodes"
+        } else {
+            "black dots: nodes, grey: calibration points"
+        };
+        let main = main.titled(title, ("sans-serif", 20)).map_err(|e| plot_err(path, e))?;
+        let main = main.titled(key, ("sans-serif", 14)).map_err(|e| plot_err(path, e))?;
         let (t0, t1) = finite_range(mesh.nodes.iter().map(|n| n.0).chain(mesh.points.iter().map(|p| p.0)));
         let (r0, r1) = finite_range(mesh.nodes.iter().map(|n| n.1).chain(mesh.points.iter().map(|p| p.1)));
         let (v0, v1) = finite_range(mesh.nodes.iter().map(|n| n.2));
         let scale = |v: f64| (v - v0) / (v1 - v0);
         let mut chart = ChartBuilder::on(&main)
-            .caption(title, ("sans-serif", 20))
             .margin(10)
             .x_label_area_size(40)
             .y_label_area_size(70)
@@ -304,21 +311,16 @@ pub fn plot_mesh(path: &Path, title: &str, mesh: &MeshFigure) -> Result<(), CalE
                 .draw_series(
                     mesh.points.iter().map(|p| Circle::new(*p, 1, RGBColor(90, 90, 90).mix(0.4).filled())),
                 )
-                .map_err(|e| plot_err(path, e))?
-                .label("calibration points")
-                .legend(|(x, y)| Circle::new((x, y), 3, RGBColor(90, 90, 90).filled()));
+                .map_err(|e| plot_err(path, e))?;
         }
         chart
             .draw_series(mesh.nodes.iter().map(|n| Circle::new((n.0, n.1), 2, BLACK.filled())))
-            .map_err(|e| plot_err(path, e))?
-            .label("mesh nodes")
-            .legend(|(x, y)| Circle::new((x, y), 3, BLACK.filled()));
-        draw_legend(&mut chart, path)?;
+            .map_err(|e| plot_err(path, e))?;
         // Colour bar.
         let mut bar = ChartBuilder::on(&legend)
             .margin_top(60)
             .margin_bottom(60)
-            .y_label_area_size(60)
+            .y_label_area_size(75)
             .caption("deg/h", ("sans-serif", 16))
             .build_cartesian_2d(0.0..1.0, v0..v1)
             .map_err(|e| plot_err(path, e))?;
@@ -326,6 +328,7 @@ pub fn plot_mesh(path: &Path, title: &str, mesh: &MeshFigure) -> Result<(), CalE
             .disable_x_axis()
             .disable_mesh()
             .y_label_formatter(&tick)
+            .y_label_style(("sans-serif", 13))
             .draw()
             .map_err(|e| plot_err(path, e))?;
         let steps = 100;
