@@ -205,6 +205,60 @@ mod tests {
         assert!((std - bias_stability(&times, &values, &options)).abs() < 1e-15);
     }
 
+    /// Replays a 10 Hz log of `blocks` whole seconds through a constant model, ending with
+    /// `extra` samples of the next second (each 100 deg/h off, as a noisy short block).
+    fn replayed(blocks: u32, extra: u32) -> ReplaySeries {
+        let mut csv = String::from("time_s,temp_c,gyro_dph\n");
+        for k in 0..(blocks * 10 + extra) {
+            let gyro = if k >= blocks * 10 { 100.0 } else { 1.0 };
+            csv.push_str(&format!("{:.1},20.0,{gyro}\n", f64::from(k) * 0.1));
+        }
+        let config = crate::calibrate::CalibrationConfig {
+            method: crate::calibrate::Method::Poly,
+            ..crate::calibrate::CalibrationConfig::default()
+        };
+        let run = crate::calibrate::extract_run_from(
+            replayed_log(300).as_bytes(),
+            std::path::Path::new("cal.csv"),
+            &config,
+        )
+        .expect("features");
+        let fitted = crate::calibrate::fit_model(&[run], &config, [0; 32]).expect("fit");
+        let model = fogtemp_core::Model::from_bytes(&fitted.blob).expect("model");
+        let replay = crate::calibrate::replay_models_from(
+            csv.as_bytes(),
+            std::path::Path::new("val.csv"),
+            &[&model],
+            &config.ingest,
+            1.0,
+        )
+        .expect("replay");
+        replay.models[0][0].clone()
+    }
+
+    fn replayed_log(seconds: u32) -> String {
+        let mut csv = String::from("time_s,temp_c,gyro_dph\n");
+        for k in 0..seconds * 10 {
+            let t = f64::from(k) * 0.1;
+            csv.push_str(&format!("{t:.1},{:.3},{}\n", 20.0 + t / 60.0, 1.0 + 0.01 * t / 60.0));
+        }
+        csv
+    }
+
+    #[test]
+    fn a_last_block_cut_short_by_the_log_end_is_left_out() {
+        // 200 whole seconds, then 1 sample at t = 200.0 s (a run logged up to its duration
+        // inclusive): the 1-sample block is not a 1 s mean and is dropped.
+        let short = replayed(200, 1);
+        assert_eq!(short.time_s.len(), 200);
+        assert_eq!(short.time_s.last(), Some(&199.5));
+        assert!(short.raw_dph.iter().all(|&v| v == 1.0));
+        // 9 of 10 samples (90 % of the fullest block) still count as a block.
+        let nine = replayed(200, 9);
+        assert_eq!(nine.time_s.last(), Some(&200.5));
+        assert_eq!(nine.raw_dph.last(), Some(&100.0));
+    }
+
     fn validation(raw: f64, comp: f64) -> RunValidation {
         RunValidation {
             path: format!("run{raw}.csv").into(),
