@@ -189,7 +189,7 @@ pub fn plot_runs(path: &Path, title: &str, runs: &[RunTrace]) -> Result<(), CalE
         let mut specs: Vec<(&str, Pick)> = vec![
             ("temperature, deg C", |r| &r.temp_c),
             ("rate, deg C/min", |r| &r.rate_c_per_min),
-            ("raw gyro, deg/h", |r| &r.raw_dph),
+            ("gyro, uncompensated, deg/h", |r| &r.raw_dph),
         ];
         if with_comp {
             specs.push(("compensated gyro, deg/h", |r| &r.compensated_dph));
@@ -671,10 +671,12 @@ pub fn write_fit_report(
         let runs_svg = format!("fit-runs-axis{axis}.svg");
         plot_runs(
             &dir.join(&runs_svg),
-            &format!("Calibration runs, axis {axis} (gyro: smoothed target)"),
+            &format!("Calibration runs, axis {axis} (gyro: the smoothed target the model is fitted to)"),
             &traces,
         )?;
-        md.push_str(&format!("## Axis {axis}\n\n![calibration runs]({runs_svg})\n\n"));
+        md.push_str(&format!(
+            "## Axis {axis}\n\n![Calibration runs: temperature, rate and the smoothed gyro target against time]({runs_svg})\n\n"
+        ));
         let points: Vec<(f64, f64)> = runs
             .iter()
             .filter_map(|r| r.axes.get(axis))
@@ -683,7 +685,9 @@ pub fn write_fit_report(
         if let Some(fig) = model.axis(axis).ok().and_then(|a| mesh_figure(&a, points)) {
             let mesh_svg = format!("fit-mesh-axis{axis}.svg");
             plot_mesh(&dir.join(&mesh_svg), &format!("Mesh over the calibration points, axis {axis}"), &fig)?;
-            md.push_str(&format!("![mesh]({mesh_svg})\n\n"));
+            md.push_str(&format!(
+                "![The mesh over (T, dT/dt): model value at the nodes, calibration points in grey]({mesh_svg})\n\n"
+            ));
         }
     }
     let path = dir.join("fit-report.md");
