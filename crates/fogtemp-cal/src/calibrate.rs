@@ -557,6 +557,8 @@ struct Replayer<'m> {
     series: ReplaySeries,
     /// Samples, raw sum, compensated sum, bias sum and block number of the open block.
     acc: (u64, f64, f64, f64, i64),
+    /// Samples in the fullest block closed so far.
+    fullest_block: u64,
 }
 
 impl<'m> Replayer<'m> {
@@ -564,7 +566,7 @@ impl<'m> Replayer<'m> {
         let comp = Compensator::new(model, axis)
             .map_err(|source| CalError::Model { path: path.to_path_buf(), source })?;
         let series = ReplaySeries { compensating_from_s: f64::NAN, ..ReplaySeries::default() };
-        Ok(Self { comp, axis, block_s, series, acc: (0, 0.0, 0.0, 0.0, 0) })
+        Ok(Self { comp, axis, block_s, series, acc: (0, 0.0, 0.0, 0.0, 0), fullest_block: 0 })
     }
 
     fn step(&mut self, row: &crate::ingest::Row<'_>) {
@@ -605,7 +607,18 @@ impl<'m> Replayer<'m> {
             series.temp_c.push(f.map_or(f64::NAN, |f| f64::from(f.temp_c)));
             series.rate_c_per_min.push(f.map_or(f64::NAN, |f| f64::from(f.rate_c_per_min)));
         }
+        self.fullest_block = self.fullest_block.max(self.acc.0);
         self.acc = (0, 0.0, 0.0, 0.0, block);
+    }
+
+    /// The series at the end of the log. A last block cut short by the end (under 90 % of
+    /// the fullest block, e.g. the one sample logged at exactly the run's duration) is left
+    /// out: its mean of few samples is much noisier than the others and spiked the figures.
+    fn finish(mut self) -> ReplaySeries {
+        if self.acc.0 * 10 >= self.fullest_block * 9 {
+            self.flush();
+        }
+        self.series
     }
 }
 
@@ -668,10 +681,7 @@ fn replay_with(
         replayers.iter_mut().for_each(|r| r.step(row));
         Ok(())
     })?;
-    let mut finished = replayers.into_iter().map(|mut r| {
-        r.flush();
-        r.series
-    });
+    let mut finished = replayers.into_iter().map(Replayer::finish);
     let series = models.iter().map(|m| finished.by_ref().take(axes(m)).collect()).collect();
     Ok(Replay { models: series, ingest: report })
 }

@@ -323,7 +323,14 @@ pub fn run_demo(
     if options.report {
         let started = Instant::now();
         progress.stage("report", 1);
-        write_demo_report(&out.join("report"), &result, &blobs, &validations, &feature_sets)?;
+        write_demo_report(
+            &out.join("report"),
+            &result,
+            &blobs,
+            &validations,
+            &feature_sets,
+            &options.stability,
+        )?;
         progress.advance(1);
         result.seconds.report = started.elapsed().as_secs_f64();
     }
@@ -370,16 +377,18 @@ fn write_demo_report(
     blobs: &[Blob],
     validations: &[(Vec<RunValidation>, f64)],
     feature_sets: &[(CalibrationConfig, Vec<RunFeatures>)],
+    stability: &BiasStabilityOptions,
 ) -> Result<(), CalError> {
     std::fs::create_dir_all(dir).map_err(|source| CalError::Io { path: dir.to_path_buf(), source })?;
     for (model, ((path, blob, ..), (runs, raw))) in result.models.iter().zip(blobs.iter().zip(validations)) {
         let parsed = Model::from_bytes(blob).map_err(CalError::SelfCheck)?;
-        fogtemp_cal::report::write_validation_report(
+        fogtemp_cal::report::write_validation_report_with(
             &dir.join(&model.key),
             path,
             &parsed,
             runs,
             (*raw, model.compensated_dph),
+            stability,
             &result.definition,
         )?;
         if model.mesh_nodes > 0 {
@@ -395,8 +404,46 @@ fn write_demo_report(
         }
     }
     let path = dir.join("report.md");
-    let text = demo_markdown(result);
-    fogtemp_cal::output::write_file_atomic(&path, |w| std::io::Write::write_all(w, text.as_bytes()))
+    let mut text = demo_markdown(result);
+    let bars = demo_bars(dir, result)?;
+    match text.find("\n## Figures") {
+        Some(at) => text.insert_str(at + 1, &bars),
+        None => text.push_str(&bars),
+    }
+    fogtemp_cal::output::write_file_atomic(&path, |w| std::io::Write::write_all(w, text.as_bytes()))?;
+    fogtemp_cal::report::write_html_beside(&path)
+}
+
+/// The per-run bars of every model beside raw (`bars.svg` in `dir`) and their Markdown.
+#[cfg(feature = "report")]
+fn demo_bars(dir: &Path, result: &DemoResult) -> Result<String, CalError> {
+    use fogtemp_cal::report::{plot_grouped_bars, run_colour, BarSeries, RAW_GREY};
+    let mut groups: Vec<String> = result.raw_runs.iter().map(|r| r.0.clone()).collect();
+    groups.push("RMS over runs".into());
+    let with_rms = |runs: &[(String, f64)], rms: f64| -> Vec<f64> {
+        runs.iter().map(|r| r.1).chain(std::iter::once(rms)).collect()
+    };
+    let mut series = vec![BarSeries {
+        name: "raw".into(),
+        colour: RAW_GREY,
+        values: with_rms(&result.raw_runs, result.raw_dph),
+    }];
+    for (i, m) in result.models.iter().enumerate() {
+        series.push(BarSeries {
+            name: m.key.clone(),
+            colour: run_colour(i),
+            values: with_rms(&m.runs, m.compensated_dph),
+        });
+    }
+    plot_grouped_bars(
+        &dir.join("bars.svg"),
+        "Validation bias stability per run: raw and every model",
+        &groups,
+        &series,
+    )?;
+    Ok("## Per validation run, every model\n\n![Bias stability per validation run, raw beside every model \
+        (the last group is the RMS over runs, Table 1)](bars.svg)\n\n"
+        .to_string())
 }
 
 /// Without the `report` feature there are no figures to draw: the demo writes no report.
@@ -407,6 +454,7 @@ fn write_demo_report(
     _blobs: &[Blob],
     _validations: &[(Vec<RunValidation>, f64)],
     _feature_sets: &[(CalibrationConfig, Vec<RunFeatures>)],
+    _stability: &BiasStabilityOptions,
 ) -> Result<(), CalError> {
     Ok(())
 }
@@ -457,7 +505,12 @@ pub fn demo_markdown(r: &DemoResult) -> String {
     for m in &r.models {
         md.push_str(&format!(
             "| `{}` | {} | {} | {} | {:.5} | {} |\n",
-            m.key, m.description, m.mesh_nodes, m.poly_terms, m.fit_residual_rms_dph, m.model_bytes
+            m.key,
+            m.description.replace('|', "\\|"),
+            m.mesh_nodes,
+            m.poly_terms,
+            m.fit_residual_rms_dph,
+            m.model_bytes
         ));
     }
     md.push_str("\n## Per validation run, deg/h\n\n| run | raw |");

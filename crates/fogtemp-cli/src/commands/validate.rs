@@ -61,12 +61,13 @@ pub fn validate(a: ValidateArgs) -> Result<()> {
     }
     let comparison = compare_models(&a, &models, &validation, &compared);
     if let Some(dir) = &a.report {
-        fogtemp_cal::report::write_validation_report(
+        fogtemp_cal::report::write_validation_report_with(
             dir,
             &a.model,
             model,
             runs,
             (raw, comp),
+            &options,
             &options.describe(),
         )?;
         if !comparison.is_empty() {
@@ -76,6 +77,7 @@ pub fn validate(a: ValidateArgs) -> Result<()> {
                 std::fs::read_to_string(&path).with_context(|| format!("reading {}", path.display()))?;
             text = text.replacen("\n## ", &format!("\n{table}\n## "), 1);
             write_atomic(&path, |w| Ok(w.write_all(text.as_bytes())?))?;
+            fogtemp_cal::report::write_html_beside(&path)?;
         }
         eprintln!("report: {}", dir.join("report.md").display());
     }

@@ -1,0 +1,245 @@
+//! The validation figures a navigation engineer reads: the drift as 100 s means, raw beside
+//! compensated, and the per-run before/after bars. Their data come from [`super::data`].
+
+use std::path::Path;
+
+use plotters::prelude::*;
+
+use super::data::{RelativeMeans, RunBar};
+use super::{draw_legend_at, draw_run_legend, finite_range, plot_err, run_colour, tick, write_svg};
+use crate::error::CalError;
+
+/// One validation run for the drift figure, over the metric's span.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct DriftRun {
+    /// Run name.
+    pub name: String,
+    /// Block centre times of the temperature, seconds since power-on.
+    pub time_s: Vec<f64>,
+    /// Smoothed temperature, deg C.
+    pub temp_c: Vec<f64>,
+    /// Raw window means relative to the run's mean.
+    pub raw: RelativeMeans,
+    /// Compensated window means relative to the run's mean.
+    pub compensated: RelativeMeans,
+}
+
+/// A symmetric range around zero holding every finite value, padded by 10 %.
+fn symmetric_range(values: impl Iterator<Item = f64>) -> (f64, f64) {
+    let max = values.filter(|v| v.is_finite()).fold(0.0f64, |m, v| m.max(v.abs()));
+    let half = if max > 0.0 { max * 1.1 } else { 1.0 };
+    (-half, half)
+}
+
+/// The drift figure: temperature over the metric's span on top; below, raw (left) beside
+/// compensated (right) `tau_s` window means, each run relative to its own mean, on one
+/// symmetric scale so the drift the model removes is visible. `stability_dph` (raw,
+/// compensated) goes into the panel titles.
+///
+/// # Errors
+/// [`CalError::Io`] if the file cannot be written.
+pub fn plot_drift(
+    path: &Path,
+    title: &str,
+    runs: &[DriftRun],
+    tau_s: f64,
+    stability_dph: (f64, f64),
+) -> Result<(), CalError> {
+    let t_max_min =
+        runs.iter().flat_map(|r| r.time_s.iter().chain(&r.raw.time_s).copied()).fold(1.0f64, f64::max) / 60.0;
+    let y = symmetric_range(
+        runs.iter().flat_map(|r| r.raw.deviation_dph.iter().chain(&r.compensated.deviation_dph).copied()),
+    );
+    write_svg(path, (1200, 860), |root| {
+        root.fill(&WHITE).map_err(|e| plot_err(path, e))?;
+        let root = root.titled(title, ("sans-serif", 22)).map_err(|e| plot_err(path, e))?;
+        let (top, bottom) = root.split_vertically(300);
+        let (top, legend) = top.split_horizontally(1040);
+        let (left, right) = bottom.split_horizontally(600);
+
+        let temp_range = finite_range(runs.iter().flat_map(|r| r.temp_c.iter().copied()));
+        let mut chart = ChartBuilder::on(&top)
+            .margin(8)
+            .margin_right(20)
+            .x_label_area_size(35)
+            .y_label_area_size(70)
+            .build_cartesian_2d(0.0..t_max_min, temp_range.0..temp_range.1)
+            .map_err(|e| plot_err(path, e))?;
+        chart
+            .configure_mesh()
+            .x_desc("time since power-on, min")
+            .y_desc("temperature, deg C")
+            .x_label_formatter(&tick)
+            .y_label_formatter(&tick)
+            .light_line_style(WHITE.mix(0.0))
+            .draw()
+            .map_err(|e| plot_err(path, e))?;
+        for (i, run) in runs.iter().enumerate() {
+            let series = run
+                .time_s
+                .iter()
+                .zip(&run.temp_c)
+                .filter(|(_, v)| v.is_finite())
+                .map(|(t, v)| (t / 60.0, *v));
+            chart
+                .draw_series(LineSeries::new(series, run_colour(i).stroke_width(2)))
+                .map_err(|e| plot_err(path, e))?;
+        }
+        draw_run_legend(&legend, path, runs.iter().map(|r| r.name.as_str()))?;
+
+        let panels = [
+            (&left, format!("raw: bias stability {:.4} deg/h", stability_dph.0), false),
+            (&right, format!("compensated: bias stability {:.4} deg/h", stability_dph.1), true),
+        ];
+        for (area, caption, compensated) in panels {
+            let mut chart = ChartBuilder::on(area)
+                .caption(caption, ("sans-serif", 17))
+                .margin(8)
+                .margin_right(20)
+                .x_label_area_size(35)
+                .y_label_area_size(80)
+                .build_cartesian_2d(0.0..t_max_min, y.0..y.1)
+                .map_err(|e| plot_err(path, e))?;
+            chart
+                .configure_mesh()
+                .x_desc("time since power-on, min")
+                .y_desc(format!("{tau_s} s mean - run mean, deg/h"))
+                .x_label_formatter(&tick)
+                .y_label_formatter(&tick)
+                .light_line_style(WHITE.mix(0.0))
+                .draw()
+                .map_err(|e| plot_err(path, e))?;
+            chart
+                .draw_series(std::iter::once(PathElement::new(
+                    vec![(0.0, 0.0), (t_max_min, 0.0)],
+                    BLACK.mix(0.5),
+                )))
+                .map_err(|e| plot_err(path, e))?;
+            for (i, run) in runs.iter().enumerate() {
+                let m = if compensated { &run.compensated } else { &run.raw };
+                let points: Vec<(f64, f64)> =
+                    m.time_s.iter().zip(&m.deviation_dph).map(|(t, v)| (t / 60.0, *v)).collect();
+                let colour = run_colour(i);
+                chart
+                    .draw_series(LineSeries::new(points.iter().copied(), colour.stroke_width(2)))
+                    .map_err(|e| plot_err(path, e))?;
+                chart
+                    .draw_series(points.iter().map(|p| Circle::new(*p, 2, colour.filled())))
+                    .map_err(|e| plot_err(path, e))?;
+            }
+        }
+        root.present().map_err(|e| plot_err(path, e))
+    })
+}
+
+/// Per-run before/after bars: raw (grey) beside compensated (blue) bias stability for each
+/// run and the RMS over runs, from zero, values written above the bars.
+///
+/// # Errors
+/// [`CalError::Io`] if the file cannot be written.
+pub fn plot_run_bars(path: &Path, title: &str, bars: &[RunBar]) -> Result<(), CalError> {
+    let groups: Vec<String> = bars.iter().map(|b| b.name.clone()).collect();
+    let series = [
+        BarSeries { name: "raw".into(), colour: RAW_GREY, values: bars.iter().map(|b| b.raw_dph).collect() },
+        BarSeries {
+            name: "compensated".into(),
+            colour: run_colour(0),
+            values: bars.iter().map(|b| b.compensated_dph).collect(),
+        },
+    ];
+    plot_grouped_bars(path, title, &groups, &series)
+}
+
+/// The colour of raw (uncompensated) bars.
+pub const RAW_GREY: RGBColor = RGBColor(150, 150, 150);
+
+/// One series of a grouped bar figure: a value per group, deg/h.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BarSeries {
+    /// Legend name.
+    pub name: String,
+    /// Bar colour.
+    pub colour: RGBColor,
+    /// One value per group (NaN: no bar).
+    pub values: Vec<f64>,
+}
+
+/// Grouped bars of bias stability from zero: one group per name in `groups`, one bar per
+/// series in each, values written above the bars (rotated when the bars are narrow).
+///
+/// # Errors
+/// [`CalError::Io`] if the file cannot be written.
+pub fn plot_grouped_bars(
+    path: &Path,
+    title: &str,
+    groups: &[String],
+    series: &[BarSeries],
+) -> Result<(), CalError> {
+    let top =
+        series.iter().flat_map(|s| s.values.iter().copied()).filter(|v| v.is_finite()).fold(0.0, f64::max);
+    let top = if top > 0.0 { top * 1.18 } else { 1.0 };
+    let n = groups.len();
+    let k = series.len().max(1);
+    let slot = 0.8 / k as f64;
+    write_svg(path, (1200, 540), |root| {
+        root.fill(&WHITE).map_err(|e| plot_err(path, e))?;
+        let mut chart = ChartBuilder::on(&root)
+            .caption(title, ("sans-serif", 20))
+            .margin(12)
+            .x_label_area_size(40)
+            .y_label_area_size(80)
+            .build_cartesian_2d(-0.5..(n as f64 - 0.5), 0.0..top)
+            .map_err(|e| plot_err(path, e))?;
+        // Unit steps of the x axis are the groups (n + 1 labels asked: plotters then steps by 1).
+        let label = |v: &f64| {
+            let g = v.round();
+            if (v - g).abs() < 1e-6 && g >= 0.0 {
+                groups.get(g as usize).cloned().unwrap_or_default()
+            } else {
+                String::new()
+            }
+        };
+        chart
+            .configure_mesh()
+            .disable_x_mesh()
+            .x_labels(n + 1)
+            .x_label_formatter(&label)
+            .y_desc("bias stability, deg/h")
+            .y_label_formatter(&tick)
+            .light_line_style(WHITE.mix(0.0))
+            .draw()
+            .map_err(|e| plot_err(path, e))?;
+        // Bar width in pixels decides whether the values fit upright.
+        let bar_px = 1100.0 / n.max(1) as f64 * slot;
+        for (j, s) in series.iter().enumerate() {
+            let offset = -0.4 + slot * (j as f64 + 0.5);
+            let colour = s.colour;
+            let bars = s.values.iter().enumerate().filter(|(_, v)| v.is_finite()).map(move |(i, &v)| {
+                let x = i as f64 + offset;
+                Rectangle::new([(x - 0.45 * slot, 0.0), (x + 0.45 * slot, v)], colour.filled())
+            });
+            chart
+                .draw_series(bars)
+                .map_err(|e| plot_err(path, e))?
+                .label(s.name.clone())
+                .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 16, y + 5)], colour.filled()));
+            let values = s.values.iter().enumerate().filter(|(_, v)| v.is_finite()).map(move |(i, &v)| {
+                let font = ("sans-serif", 12).into_font().color(&BLACK);
+                use plotters::style::text_anchor::{HPos, Pos, VPos};
+                // Rotated text anchors in its own frame: left = its start (the bar's top),
+                // centre = across the bar.
+                let (font, pos) = if bar_px >= 40.0 {
+                    (font, Pos::new(HPos::Center, VPos::Bottom))
+                } else {
+                    (font.transform(FontTransform::Rotate270), Pos::new(HPos::Left, VPos::Center))
+                };
+                Text::new(format!("{v:.4}"), (i as f64 + offset, v), font.pos(pos))
+            });
+            chart.draw_series(values).map_err(|e| plot_err(path, e))?;
+        }
+        // Upper left: the headroom above the tallest bar keeps the legend clear of most bars;
+        // every value is also written on its bar.
+        draw_legend_at(&mut chart, path, SeriesLabelPosition::UpperLeft)?;
+        root.present().map_err(|e| plot_err(path, e))
+    })
+}

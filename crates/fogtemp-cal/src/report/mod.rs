@@ -1,0 +1,837 @@
+//! Figures (SVG, plotters) and the reports a navigation engineer reads: `report.md` with
+//! its SVG figures and a self-contained `report.html` beside it (module [`html`]). The
+//! validation figures cover the span of the metric (module [`data`], docs/reports.md).
+
+use std::path::Path;
+
+use plotters::prelude::*;
+
+use crate::error::CalError;
+use crate::metrics::AllanPoint;
+use crate::output::write_file_atomic;
+
+pub mod cross_validation;
+pub mod data;
+pub mod figures;
+pub mod html;
+
+pub use cross_validation::{cross_validation_markdown, CrossValidationRow};
+pub use figures::{plot_drift, plot_grouped_bars, plot_run_bars, BarSeries, DriftRun, RAW_GREY};
+pub use html::write_html_beside;
+
+/// One run's traces for the figures (block means, typically 1 s).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct RunTrace {
+    /// Short name (file name).
+    pub name: String,
+    /// Time since run start, seconds.
+    pub time_s: Vec<f64>,
+    /// Smoothed temperature, deg C (NaN where unknown).
+    pub temp_c: Vec<f64>,
+    /// Temperature rate, deg C/min (NaN where unknown).
+    pub rate_c_per_min: Vec<f64>,
+    /// Raw gyro, deg/h.
+    pub raw_dph: Vec<f64>,
+    /// Compensated gyro, deg/h (empty when not compensated).
+    pub compensated_dph: Vec<f64>,
+}
+
+/// A mesh for the (T, rate) figure, in physical units.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct MeshFigure {
+    /// Nodes: (temp_c, rate_c_per_min, value_dph).
+    pub nodes: Vec<(f64, f64, f64)>,
+    /// Triangles as node indices.
+    pub triangles: Vec<[u32; 3]>,
+    /// Calibration points: (temp_c, rate_c_per_min).
+    pub points: Vec<(f64, f64)>,
+}
+
+/// Tick label with at most 4 significant digits and no float noise (0.01000000000001 -> 0.01).
+/// Values under 1e-12 in magnitude are an axis's zero reached by adding steps (6.9e-17) and
+/// print as 0.
+pub fn tick(v: &f64) -> String {
+    if v.abs() < 1e-12 {
+        return "0".into();
+    }
+    let rounded: f64 = format!("{v:.3e}").parse().unwrap_or(*v);
+    format!("{rounded}")
+}
+
+/// Draws an SVG of `size` pixels with `draw` in memory and writes it to `path` atomically
+/// (a failed drawing leaves no half-drawn file).
+///
+/// # Errors
+/// What `draw` returns, or [`CalError::Output`] if the file cannot be written.
+pub fn write_svg(
+    path: &Path,
+    size: (u32, u32),
+    draw: impl FnOnce(DrawingArea<SVGBackend<'_>, plotters::coord::Shift>) -> Result<(), CalError>,
+) -> Result<(), CalError> {
+    let mut svg = String::new();
+    draw(SVGBackend::with_string(&mut svg, size).into_drawing_area())?;
+    write_file_atomic(path, |w| w.write_all(svg.as_bytes()))
+}
+
+/// A panel against time since power-on (minutes, 0..`t_max_min`) with `y_range` and the
+/// axis label `y_label`, mesh drawn.
+///
+/// # Errors
+/// [`CalError::Io`] naming `path` if drawing fails.
+pub fn time_panel<'a>(
+    area: &DrawingArea<SVGBackend<'a>, plotters::coord::Shift>,
+    path: &Path,
+    t_max_min: f64,
+    y_range: (f64, f64),
+    y_label: &str,
+) -> Result<
+    ChartContext<
+        'a,
+        SVGBackend<'a>,
+        Cartesian2d<plotters::coord::types::RangedCoordf64, plotters::coord::types::RangedCoordf64>,
+    >,
+    CalError,
+> {
+    let mut chart = ChartBuilder::on(area)
+        .margin(8)
+        .x_label_area_size(35)
+        .y_label_area_size(70)
+        .build_cartesian_2d(0.0..t_max_min, y_range.0..y_range.1)
+        .map_err(|e| plot_err(path, e))?;
+    chart
+        .configure_mesh()
+        .x_desc("time since power-on, min")
+        .y_desc(y_label)
+        .x_label_formatter(&tick)
+        .y_label_formatter(&tick)
+        .light_line_style(WHITE.mix(0.0))
+        .draw()
+        .map_err(|e| plot_err(path, e))?;
+    Ok(chart)
+}
+
+/// The series legend every figure uses (translucent white box, black border).
+///
+/// # Errors
+/// [`CalError::Io`] naming `path` if drawing fails.
+pub fn draw_legend<'a, CT: plotters::coord::CoordTranslate>(
+    chart: &mut ChartContext<'a, SVGBackend<'a>, CT>,
+    path: &Path,
+) -> Result<(), CalError> {
+    draw_legend_at(chart, path, SeriesLabelPosition::MiddleRight)
+}
+
+/// [`draw_legend`] at `position` (where the figure's curves leave room).
+///
+/// # Errors
+/// [`CalError::Io`] naming `path` if drawing fails.
+pub fn draw_legend_at<'a, CT: plotters::coord::CoordTranslate>(
+    chart: &mut ChartContext<'a, SVGBackend<'a>, CT>,
+    path: &Path,
+    position: SeriesLabelPosition,
+) -> Result<(), CalError> {
+    chart
+        .configure_series_labels()
+        .position(position)
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .draw()
+        .map_err(|e| plot_err(path, e))
+}
+
+/// A drawing failure as an I/O error naming the figure's file.
+pub fn plot_err(path: &Path, e: impl std::fmt::Display) -> CalError {
+    CalError::Io { path: path.to_path_buf(), source: std::io::Error::other(e.to_string()) }
+}
+
+/// The range of the finite values, padded by 5 % ((0, 1) when there are none).
+pub fn finite_range(values: impl Iterator<Item = f64>) -> (f64, f64) {
+    let (lo, hi) = values
+        .filter(|v| v.is_finite())
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(v), b.max(v)));
+    if !lo.is_finite() {
+        return (0.0, 1.0);
+    }
+    let pad = ((hi - lo) * 0.05).max(1e-9);
+    (lo - pad, hi + pad)
+}
+
+/// Distinct colours for runs.
+pub fn run_colour(i: usize) -> RGBColor {
+    const C: [RGBColor; 8] = [
+        RGBColor(31, 119, 180),
+        RGBColor(255, 127, 14),
+        RGBColor(44, 160, 44),
+        RGBColor(214, 39, 40),
+        RGBColor(148, 103, 189),
+        RGBColor(140, 86, 75),
+        RGBColor(227, 119, 194),
+        RGBColor(127, 127, 127),
+    ];
+    C[i % C.len()]
+}
+
+/// Stacked panels against time: temperature, rate, raw gyro, and compensated gyro when present.
+///
+/// # Errors
+/// [`CalError::Io`] if the file cannot be written.
+pub fn plot_runs(path: &Path, title: &str, runs: &[RunTrace]) -> Result<(), CalError> {
+    let with_comp = runs.iter().any(|r| !r.compensated_dph.is_empty());
+    let panels = if with_comp { 4 } else { 3 };
+    write_svg(path, (1200, 260 * panels as u32), |root| {
+        root.fill(&WHITE).map_err(|e| plot_err(path, e))?;
+        let root = root.titled(title, ("sans-serif", 22)).map_err(|e| plot_err(path, e))?;
+        let (root, legend) = root.split_horizontally(1030);
+        draw_run_legend(&legend, path, runs.iter().map(|r| r.name.as_str()))?;
+        let areas = root.split_evenly((panels, 1));
+        let t_max = runs.iter().flat_map(|r| r.time_s.last().copied()).fold(1.0, f64::max) / 60.0;
+        type Pick = fn(&RunTrace) -> &Vec<f64>;
+        let mut specs: Vec<(&str, Pick)> = vec![
+            ("temperature, deg C", |r| &r.temp_c),
+            ("rate, deg C/min", |r| &r.rate_c_per_min),
+            ("gyro, uncompensated, deg/h", |r| &r.raw_dph),
+        ];
+        if with_comp {
+            specs.push(("compensated gyro, deg/h", |r| &r.compensated_dph));
+        }
+        // Raw and compensated share one scale so the improvement is visible.
+        let gyro_range =
+            finite_range(runs.iter().flat_map(|r| r.raw_dph.iter().chain(&r.compensated_dph).copied()));
+        for (area, (label, pick)) in areas.iter().zip(specs) {
+            let y_range = if label.contains("gyro") {
+                gyro_range
+            } else {
+                finite_range(runs.iter().flat_map(|r| pick(r).iter().copied()))
+            };
+            let mut chart = time_panel(area, path, t_max, y_range, label)?;
+            for (i, run) in runs.iter().enumerate() {
+                let series = run
+                    .time_s
+                    .iter()
+                    .zip(pick(run))
+                    .filter(|(_, v)| v.is_finite())
+                    .map(|(t, v)| (t / 60.0, *v));
+                chart.draw_series(LineSeries::new(series, run_colour(i))).map_err(|e| plot_err(path, e))?;
+            }
+        }
+        root.present().map_err(|e| plot_err(path, e))
+    })
+}
+
+/// The run legend in its own area beside the panels, where it hides no curve: a line in
+/// the run's colour and its name, for the first 24 runs.
+///
+/// # Errors
+/// [`CalError::Io`] naming `path` if drawing fails.
+pub fn draw_run_legend<'n>(
+    area: &DrawingArea<SVGBackend<'_>, plotters::coord::Shift>,
+    path: &Path,
+    names: impl Iterator<Item = &'n str>,
+) -> Result<(), CalError> {
+    for (i, name) in names.enumerate().take(24) {
+        let y = 24 + 17 * i as i32;
+        area.draw(&PathElement::new(vec![(4, y), (24, y)], run_colour(i).stroke_width(3)))
+            .map_err(|e| plot_err(path, e))?;
+        area.draw(&Text::new(name.to_string(), (30, y - 7), ("sans-serif", 13)))
+            .map_err(|e| plot_err(path, e))?;
+    }
+    Ok(())
+}
+
+/// Blue (low, `t` = 0) to red (high, `t` = 1) through white (0.5); `t` is clamped to [0, 1].
+pub fn diverging(t: f64) -> RGBColor {
+    let t = t.clamp(0.0, 1.0);
+    let lerp = |a: f64, b: f64, s: f64| (a + (b - a) * s) as u8;
+    if t < 0.5 {
+        let s = t / 0.5;
+        RGBColor(lerp(33.0, 247.0, s), lerp(102.0, 247.0, s), lerp(172.0, 247.0, s))
+    } else {
+        let s = (t - 0.5) / 0.5;
+        RGBColor(lerp(247.0, 178.0, s), lerp(247.0, 24.0, s), lerp(247.0, 43.0, s))
+    }
+}
+
+/// The (T, rate) plane: triangles filled by their mean node value, edges, nodes and the
+/// calibration points, with a colour scale.
+///
+/// # Errors
+/// [`CalError::Io`] if the file cannot be written.
+pub fn plot_mesh(path: &Path, title: &str, mesh: &MeshFigure) -> Result<(), CalError> {
+    write_svg(path, (1040, 760), |root| {
+        root.fill(&WHITE).map_err(|e| plot_err(path, e))?;
+        let (main, legend) = root.split_horizontally(900);
+        // The key goes under the title: the mesh fills the plane, a legend box would hide part.
+        let key = if mesh.points.is_empty() {
+            "black dots: nodes"
+        } else {
+            "black dots: nodes, grey: calibration points"
+        };
+        let main = main.titled(title, ("sans-serif", 20)).map_err(|e| plot_err(path, e))?;
+        let main = main.titled(key, ("sans-serif", 14)).map_err(|e| plot_err(path, e))?;
+        let (t0, t1) = finite_range(mesh.nodes.iter().map(|n| n.0).chain(mesh.points.iter().map(|p| p.0)));
+        let (r0, r1) = finite_range(mesh.nodes.iter().map(|n| n.1).chain(mesh.points.iter().map(|p| p.1)));
+        let (v0, v1) = finite_range(mesh.nodes.iter().map(|n| n.2));
+        let scale = |v: f64| (v - v0) / (v1 - v0);
+        let mut chart = ChartBuilder::on(&main)
+            .margin(10)
+            .x_label_area_size(40)
+            .y_label_area_size(70)
+            .build_cartesian_2d(t0..t1, r0..r1)
+            .map_err(|e| plot_err(path, e))?;
+        chart
+            .configure_mesh()
+            .x_desc("temperature, deg C")
+            .y_desc("rate, deg C/min")
+            .x_label_formatter(&tick)
+            .y_label_formatter(&tick)
+            .disable_mesh()
+            .draw()
+            .map_err(|e| plot_err(path, e))?;
+        let node = |i: u32| mesh.nodes.get(i as usize).copied().unwrap_or((0.0, 0.0, 0.0));
+        chart
+            .draw_series(mesh.triangles.iter().map(|t| {
+                let [a, b, c] = t.map(node);
+                Polygon::new(
+                    vec![(a.0, a.1), (b.0, b.1), (c.0, c.1)],
+                    diverging(scale((a.2 + b.2 + c.2) / 3.0)).filled(),
+                )
+            }))
+            .map_err(|e| plot_err(path, e))?;
+        chart
+            .draw_series(mesh.triangles.iter().map(|t| {
+                let [a, b, c] = t.map(node);
+                PathElement::new(
+                    vec![(a.0, a.1), (b.0, b.1), (c.0, c.1), (a.0, a.1)],
+                    BLACK.mix(0.35).stroke_width(1),
+                )
+            }))
+            .map_err(|e| plot_err(path, e))?;
+        if !mesh.points.is_empty() {
+            chart
+                .draw_series(
+                    mesh.points.iter().map(|p| Circle::new(*p, 1, RGBColor(90, 90, 90).mix(0.4).filled())),
+                )
+                .map_err(|e| plot_err(path, e))?;
+        }
+        chart
+            .draw_series(mesh.nodes.iter().map(|n| Circle::new((n.0, n.1), 2, BLACK.filled())))
+            .map_err(|e| plot_err(path, e))?;
+        // Colour bar.
+        let mut bar = ChartBuilder::on(&legend)
+            .margin_top(60)
+            .margin_bottom(60)
+            .y_label_area_size(75)
+            .caption("deg/h", ("sans-serif", 16))
+            .build_cartesian_2d(0.0..1.0, v0..v1)
+            .map_err(|e| plot_err(path, e))?;
+        bar.configure_mesh()
+            .disable_x_axis()
+            .disable_mesh()
+            .y_label_formatter(&tick)
+            .y_label_style(("sans-serif", 13))
+            .draw()
+            .map_err(|e| plot_err(path, e))?;
+        let steps = 100;
+        bar.draw_series((0..steps).map(|k| {
+            let a = v0 + (v1 - v0) * k as f64 / steps as f64;
+            let b = v0 + (v1 - v0) * (k + 1) as f64 / steps as f64;
+            Rectangle::new([(0.0, a), (1.0, b)], diverging(scale((a + b) / 2.0)).filled())
+        }))
+        .map_err(|e| plot_err(path, e))?;
+        root.present().map_err(|e| plot_err(path, e))
+    })
+}
+
+/// Tick values for a log axis over [`lo`, `hi`]: 1, 2 and 5 times the powers of ten inside
+/// it, or every integer multiple 1..9 when that gives fewer than 3 (a range under a decade).
+pub fn log_ticks(lo: f64, hi: f64) -> Vec<f64> {
+    if !(lo > 0.0 && hi > lo && hi.is_finite()) {
+        return Vec::new();
+    }
+    let ticks = |mantissas: &[f64]| -> Vec<f64> {
+        let mut out = Vec::new();
+        let mut exponent = lo.log10().floor() as i32;
+        while 10f64.powi(exponent) <= hi {
+            for m in mantissas {
+                // Rounded to 12 significant digits so 0.001 * 2 prints as 0.002.
+                let v: f64 = format!("{:.11e}", m * 10f64.powi(exponent)).parse().unwrap_or(f64::NAN);
+                if v >= lo && v <= hi {
+                    out.push(v);
+                }
+            }
+            exponent += 1;
+        }
+        out
+    };
+    let coarse = ticks(&[1.0, 2.0, 5.0]);
+    if coarse.len() >= 3 {
+        coarse
+    } else {
+        ticks(&[1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0])
+    }
+}
+
+/// Allan deviation curves, log-log.
+///
+/// # Errors
+/// [`CalError::Io`] if the file cannot be written.
+pub fn plot_allan(path: &Path, title: &str, curves: &[(String, Vec<AllanPoint>)]) -> Result<(), CalError> {
+    let points =
+        || curves.iter().flat_map(|(_, c)| c.iter()).filter(|p| p.adev_dph > 0.0 && p.adev_dph.is_finite());
+    let (t0, t1) = points().fold((f64::INFINITY, 0.0f64), |(a, b), p| (a.min(p.tau_s), b.max(p.tau_s)));
+    let (a0, a1) = points().fold((f64::INFINITY, 0.0f64), |(a, b), p| (a.min(p.adev_dph), b.max(p.adev_dph)));
+    if !t0.is_finite() {
+        return Err(plot_err(path, "no Allan deviation points to plot"));
+    }
+    write_svg(path, (900, 650), |root| {
+        root.fill(&WHITE).map_err(|e| plot_err(path, e))?;
+        let mut chart = ChartBuilder::on(&root)
+            .caption(title, ("sans-serif", 20))
+            .margin(12)
+            .x_label_area_size(45)
+            .y_label_area_size(80)
+            .build_cartesian_2d(
+                (t0 * 0.8..t1 * 1.25).log_scale().with_key_points(log_ticks(t0 * 0.8, t1 * 1.25)),
+                (a0 * 0.8..a1 * 1.25).log_scale().with_key_points(log_ticks(a0 * 0.8, a1 * 1.25)),
+            )
+            .map_err(|e| plot_err(path, e))?;
+        chart
+            .configure_mesh()
+            .x_desc("averaging time tau, s")
+            .y_desc("Allan deviation, deg/h")
+            .x_labels(8)
+            .y_labels(8)
+            .x_label_formatter(&tick)
+            .y_label_formatter(&tick)
+            .draw()
+            .map_err(|e| plot_err(path, e))?;
+        for (i, (name, curve)) in curves.iter().enumerate() {
+            let colour = run_colour(i);
+            chart
+                .draw_series(LineSeries::new(
+                    curve.iter().map(|p| (p.tau_s, p.adev_dph)),
+                    colour.stroke_width(2),
+                ))
+                .map_err(|e| plot_err(path, e))?
+                .label(name.clone())
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], colour.stroke_width(2)));
+        }
+        // Allan curves fall from the upper left: the lower left is free.
+        draw_legend_at(&mut chart, path, SeriesLabelPosition::LowerLeft)?;
+        root.present().map_err(|e| plot_err(path, e))
+    })
+}
+
+/// Mesh figure data from a model axis: nodes in physical units (model value at the node:
+/// polynomial plus mesh) and triangles.
+pub fn mesh_figure(axis: &fogtemp_core::Axis<'_>, points: Vec<(f64, f64)>) -> Option<MeshFigure> {
+    let mesh = axis.mesh?;
+    let n = &axis.normalisation;
+    let nodes = (0..mesh.vertex_count())
+        .filter_map(|k| mesh.vertex(k))
+        .map(|v| {
+            let (t, r) = crate::mesh::to_physical(n, f64::from(v.x), f64::from(v.y));
+            let poly = axis.poly.map_or(0.0, |p| f64::from(p.evaluate(v.x, v.y)));
+            (t, r, poly + f64::from(v.value_dph))
+        })
+        .collect();
+    let triangles = (0..mesh.triangle_count()).filter_map(|k| mesh.triangle(k)).map(|t| t.vertices).collect();
+    Some(MeshFigure { nodes, triangles, points })
+}
+
+fn file_name(p: &Path) -> String {
+    p.file_name().map_or_else(|| p.display().to_string(), |n| n.to_string_lossy().into_owned())
+}
+
+/// Writes `report.md`, `report.html` and their figures into `dir` for a validation: per axis
+/// the drift of the runs as 100 s means (raw beside compensated), the per-run before/after
+/// bars, raw vs compensated Allan deviation and the model's mesh. Every figure covers the
+/// span of the metric: from each run's first compensated sample (module [`data`]).
+///
+/// # Errors
+/// [`CalError::Io`] when a file cannot be written.
+pub fn write_validation_report(
+    dir: &Path,
+    model_path: &Path,
+    model: &fogtemp_core::Model<'_>,
+    runs: &[crate::calibrate::RunValidation],
+    overall: (f64, f64),
+    definition: &str,
+) -> Result<(), CalError> {
+    write_validation_report_with(
+        dir,
+        model_path,
+        model,
+        runs,
+        overall,
+        &crate::metrics::BiasStabilityOptions::default(),
+        definition,
+    )
+}
+
+/// [`write_validation_report`] with the bias-stability settings the runs were measured with
+/// (the drift figure uses their window length and exclusion).
+///
+/// # Errors
+/// [`CalError::Io`] when a file cannot be written.
+pub fn write_validation_report_with(
+    dir: &Path,
+    model_path: &Path,
+    model: &fogtemp_core::Model<'_>,
+    runs: &[crate::calibrate::RunValidation],
+    overall: (f64, f64),
+    options: &crate::metrics::BiasStabilityOptions,
+    definition: &str,
+) -> Result<(), CalError> {
+    std::fs::create_dir_all(dir).map_err(|source| CalError::Io { path: dir.to_path_buf(), source })?;
+    let mut md = String::new();
+    md.push_str(&format!("# Validation of {}\n\n", file_name(model_path)));
+    md.push_str(&format!(
+        "Definition: {definition}. Runs replayed through the firmware's `Compensator`. \
+         Every figure covers the same span as the metric: each run from the first sample the \
+         compensator corrected (the start-up before it, where the output is the raw input, is \
+         left out of figures and metric alike).\n\n"
+    ));
+    md.push_str("| run | axis | raw, deg/h | compensated, deg/h | ratio |\n|---|---|---|---|---|\n");
+    for r in runs {
+        md.push_str(&format!(
+            "| {} | {} | {:.5} | {:.5} | {:.2} |\n",
+            file_name(&r.path),
+            r.axis,
+            r.raw_bias_stability_dph,
+            r.compensated_bias_stability_dph,
+            r.raw_bias_stability_dph / r.compensated_bias_stability_dph
+        ));
+    }
+    md.push_str(&format!(
+        "| **overall (RMS over runs)** | | **{:.5}** | **{:.5}** | **{:.2}** |\n\n",
+        overall.0,
+        overall.1,
+        overall.0 / overall.1
+    ));
+    for axis in 0..model.axis_count() {
+        let axis_runs: Vec<&crate::calibrate::RunValidation> =
+            runs.iter().filter(|r| r.axis == axis).collect();
+        if axis_runs.is_empty() {
+            continue;
+        }
+        md.push_str(&format!("## Axis {axis}\n\n"));
+        md.push_str(&validation_axis_figures(dir, axis, &axis_runs, options)?);
+        if let Some(fig) = model.axis(axis).ok().and_then(|a| mesh_figure(&a, Vec::new())) {
+            let mesh_svg = format!("mesh-axis{axis}.svg");
+            plot_mesh(
+                &dir.join(&mesh_svg),
+                &format!("Model mesh, axis {axis}: value at nodes, deg/h"),
+                &fig,
+            )?;
+            md.push_str(&format!("![The model's mesh over (T, dT/dt), value at the nodes]({mesh_svg})\n\n"));
+        }
+    }
+    let path = dir.join("report.md");
+    write_file_atomic(&path, |w| w.write_all(md.as_bytes()))?;
+    write_html_beside(&path)
+}
+
+/// The drift, bars and Allan figures of one axis's validation runs, and their Markdown.
+fn validation_axis_figures(
+    dir: &Path,
+    axis: usize,
+    runs: &[&crate::calibrate::RunValidation],
+    options: &crate::metrics::BiasStabilityOptions,
+) -> Result<String, CalError> {
+    let mut md = String::new();
+    let name = |r: &crate::calibrate::RunValidation| {
+        r.path.file_stem().map_or_else(|| file_name(&r.path), |s| s.to_string_lossy().into_owned())
+    };
+    let drift: Vec<DriftRun> = runs
+        .iter()
+        .map(|r| {
+            let span = data::compensated_span(&r.series, 1.0);
+            DriftRun {
+                name: name(r),
+                time_s: span.time_s.to_vec(),
+                temp_c: span.temp_c.to_vec(),
+                raw: data::relative_window_means(span.time_s, span.raw_dph, options),
+                compensated: data::relative_window_means(span.time_s, span.compensated_dph, options),
+            }
+        })
+        .collect();
+    let bars = data::run_bars(runs, name);
+    let overall = bars.last().map_or((f64::NAN, f64::NAN), |b| (b.raw_dph, b.compensated_dph));
+    let starts: Vec<f64> = runs
+        .iter()
+        .filter_map(|r| data::compensated_span(&r.series, 1.0).time_s.first().map(|t| t - 0.5))
+        .collect();
+    let (first, last) = starts.iter().fold((f64::INFINITY, 0.0f64), |(a, b), &t| (a.min(t), b.max(t)));
+    if first.is_finite() {
+        let when = if last > first { format!("{first} s to {last} s") } else { format!("{first} s") };
+        md.push_str(&format!(
+            "Span of the metric and of every figure below: each run from its first compensated block, \
+             {when} after power-on.\n\n"
+        ));
+    }
+    let drift_svg = format!("drift-axis{axis}.svg");
+    plot_drift(
+        &dir.join(&drift_svg),
+        &format!(
+            "Validation runs, axis {axis}: {} s means, each run relative to its own mean",
+            options.tau_s
+        ),
+        &drift,
+        options.tau_s,
+        overall,
+    )?;
+    md.push_str(&format!(
+        "![Drift: {tau} s means of each run relative to its own mean, raw beside compensated on one scale; \
+         their standard deviation per run is the run's bias stability]({drift_svg})\n\n",
+        tau = options.tau_s
+    ));
+    let bars_svg = format!("bars-axis{axis}.svg");
+    plot_run_bars(&dir.join(&bars_svg), &format!("Bias stability per validation run, axis {axis}"), &bars)?;
+    md.push_str(&format!("![Bias stability per run, raw beside compensated]({bars_svg})\n\n"));
+    let series: Vec<&crate::calibrate::ReplaySeries> = runs.iter().map(|r| &r.series).collect();
+    let (raw, comp) = data::span_allan(&series, 1.0);
+    if !raw.is_empty() && !comp.is_empty() {
+        let allan_svg = format!("allan-axis{axis}.svg");
+        plot_allan(
+            &dir.join(&allan_svg),
+            &format!(
+                "Allan deviation of 1 s means from the first compensated sample, RMS over runs, axis {axis}"
+            ),
+            &[("raw".into(), raw.clone()), ("compensated".into(), comp.clone())],
+        )?;
+        md.push_str(&format!(
+            "![Allan deviation, raw and compensated, each run from its first compensated sample]({allan_svg})\n\n"
+        ));
+        md.push_str(&allan_table(&raw, &comp));
+    }
+    Ok(md)
+}
+
+/// Raw and compensated Allan deviation at 1, 10, 100 and 1000 s (where present), and
+/// their ratio.
+fn allan_table(raw: &[AllanPoint], comp: &[AllanPoint]) -> String {
+    let mut md = String::from(
+        "| tau, s | raw ADEV, deg/h | compensated ADEV, deg/h | compensated / raw |\n|---|---|---|---|\n",
+    );
+    let mut shown = Vec::new();
+    for target in [1.0f64, 10.0, 100.0, 1000.0] {
+        // The curve's cluster sizes are octave-spaced: the one nearest the target in log.
+        let nearest = raw
+            .iter()
+            .zip(comp)
+            .filter(|(r, c)| r.tau_s == c.tau_s)
+            .min_by(|a, b| (a.0.tau_s / target).ln().abs().total_cmp(&(b.0.tau_s / target).ln().abs()));
+        if let Some((r, c)) = nearest {
+            if (r.tau_s / target).ln().abs() < 0.5 && !shown.contains(&r.tau_s) {
+                shown.push(r.tau_s);
+                md.push_str(&format!(
+                    "| {} | {:.5} | {:.5} | {:.3} |\n",
+                    r.tau_s,
+                    r.adev_dph,
+                    c.adev_dph,
+                    c.adev_dph / r.adev_dph
+                ));
+            }
+        }
+    }
+    md.push('\n');
+    md
+}
+
+/// Writes `fit-report.md` and its figures into `dir` for a fit: calibration runs
+/// (features and raw gyro), and per axis the mesh with the calibration points.
+///
+/// # Errors
+/// [`CalError::Io`] when a file cannot be written.
+pub fn write_fit_report(
+    dir: &Path,
+    model_path: &Path,
+    model: &fogtemp_core::Model<'_>,
+    runs: &[crate::calibrate::RunFeatures],
+    summary_markdown: &str,
+) -> Result<(), CalError> {
+    std::fs::create_dir_all(dir).map_err(|source| CalError::Io { path: dir.to_path_buf(), source })?;
+    let mut md = format!("# Fit of {}\n\n{summary_markdown}\n\n", file_name(model_path));
+    for axis in 0..model.axis_count() {
+        let traces: Vec<RunTrace> = runs
+            .iter()
+            .filter_map(|r| {
+                let (points, targets) = r.axes.get(axis)?;
+                Some(RunTrace {
+                    name: file_name(&r.path),
+                    time_s: points.iter().map(|p| p.time_s).collect(),
+                    temp_c: points.iter().map(|p| p.temp_c).collect(),
+                    rate_c_per_min: points.iter().map(|p| p.rate_c_per_min).collect(),
+                    raw_dph: targets.clone(),
+                    compensated_dph: Vec::new(),
+                })
+            })
+            .collect();
+        let runs_svg = format!("fit-runs-axis{axis}.svg");
+        plot_runs(
+            &dir.join(&runs_svg),
+            &format!("Calibration runs, axis {axis} (gyro: the smoothed target the model is fitted to)"),
+            &traces,
+        )?;
+        md.push_str(&format!(
+            "## Axis {axis}\n\n![Calibration runs: temperature, rate and the smoothed gyro target against time]({runs_svg})\n\n"
+        ));
+        let points: Vec<(f64, f64)> = runs
+            .iter()
+            .filter_map(|r| r.axes.get(axis))
+            .flat_map(|(p, _)| p.iter().step_by(5).map(|f| (f.temp_c, f.rate_c_per_min)))
+            .collect();
+        if let Some(fig) = model.axis(axis).ok().and_then(|a| mesh_figure(&a, points)) {
+            let mesh_svg = format!("fit-mesh-axis{axis}.svg");
+            plot_mesh(&dir.join(&mesh_svg), &format!("Mesh over the calibration points, axis {axis}"), &fig)?;
+            md.push_str(&format!(
+                "![The mesh over (T, dT/dt): model value at the nodes, calibration points in grey]({mesh_svg})\n\n"
+            ));
+        }
+    }
+    let path = dir.join("fit-report.md");
+    write_file_atomic(&path, |w| w.write_all(md.as_bytes()))?;
+    write_html_beside(&path)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ticks_print_an_accumulated_zero_as_zero() {
+        assert_eq!(tick(&6.938893903907228e-17), "0");
+        assert_eq!(tick(&0.010000000000000002), "0.01");
+        assert_eq!(tick(&-0.05), "-0.05");
+    }
+
+    #[test]
+    fn log_ticks_by_hand() {
+        // 0.0014..0.037: 0.002, 0.005, 0.01, 0.02.
+        assert_eq!(log_ticks(0.0014, 0.037), [0.002, 0.005, 0.01, 0.02]);
+        // 0.8..4000: 1, 2, 5, 10, ..., 2000.
+        assert_eq!(
+            log_ticks(0.8, 4000.0),
+            [1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0, 200.0, 500.0, 1000.0, 2000.0]
+        );
+        // Under a decade: every multiple.
+        assert_eq!(log_ticks(0.0025, 0.0045), [0.003, 0.004]);
+        assert!(log_ticks(0.0, 1.0).is_empty());
+    }
+
+    /// A 2 h log at 10 Hz: temperature rising 20 -> 40 C with a time constant of 30 min,
+    /// bias 0.002 deg/h per C plus white noise (fixed seed), Earth rate 10 deg/h.
+    fn log(seed: u64, earth_dph: f64) -> String {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(seed);
+        let mut csv = String::from("time_s,temp_c,gyro_dph\n");
+        for k in 0..72_001 {
+            let t = f64::from(k) * 0.1;
+            let temp_c = 20.0 + 20.0 * (1.0 - (-t / 1800.0).exp());
+            let noise: f64 = (0..12).map(|_| rng.gen::<f64>()).sum::<f64>() - 6.0;
+            csv.push_str(&format!("{t:.1},{temp_c:.4},{:.6}\n", earth_dph + 0.002 * temp_c + 0.05 * noise));
+        }
+        csv
+    }
+
+    fn scratch(name: &str) -> std::path::PathBuf {
+        let dir = std::env::temp_dir().join(format!("fogtemp-report-test-{}-{name}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        dir
+    }
+
+    /// Every figure the Markdown names exists, and the HTML inlines each of them and loads
+    /// nothing: no `src=`, no `http` anywhere (the SVG namespace is dropped).
+    fn assert_self_contained(dir: &Path, md_name: &str) {
+        let md = std::fs::read_to_string(dir.join(md_name)).expect("markdown");
+        let html = std::fs::read_to_string(dir.join(md_name).with_extension("html")).expect("html");
+        let figures: Vec<&str> = md
+            .lines()
+            .filter_map(|l| l.trim().strip_prefix("!["))
+            .filter_map(|l| l.split("](").nth(1))
+            .collect();
+        assert!(!figures.is_empty(), "{md}");
+        for f in &figures {
+            let file = f.trim_end_matches(')');
+            assert!(dir.join(file).is_file(), "{file} missing");
+        }
+        assert_eq!(html.matches("<svg ").count(), figures.len(), "every figure inlined once");
+        assert_eq!(html.matches("<figure>").count(), figures.len());
+        assert!(!html.contains("http") && !html.contains("src="), "external reference in {md_name}");
+        assert_eq!(html.matches("<table>").count(), md.matches("\n|---").count(), "every table");
+    }
+
+    #[test]
+    fn validation_and_fit_reports_are_self_contained_and_hold_every_figure() {
+        let config = crate::calibrate::CalibrationConfig {
+            method: crate::calibrate::Method::Poly,
+            ..crate::calibrate::CalibrationConfig::default()
+        };
+        let runs: Vec<crate::calibrate::RunFeatures> = (1..=2)
+            .map(|seed| {
+                let text = log(seed, 10.0);
+                crate::calibrate::extract_run_from(
+                    text.as_bytes(),
+                    Path::new(&format!("cal{seed}.csv")),
+                    &config,
+                )
+                .expect("features")
+            })
+            .collect();
+        let fitted = crate::calibrate::fit_model(&runs, &config, [0; 32]).expect("fit");
+        let model = fogtemp_core::Model::from_bytes(&fitted.blob).expect("model");
+        let options = crate::metrics::BiasStabilityOptions::default();
+        let logs: Vec<(String, String)> =
+            (3..=4).map(|seed| (format!("val{seed}.csv"), log(seed, -5.0))).collect();
+        let validation = crate::calibrate::validate_readers(
+            logs.iter().map(|(name, text)| (name.clone(), text.as_bytes())),
+            &model,
+            &config.ingest,
+            &options,
+        )
+        .expect("validation");
+        let dir = scratch("validate");
+        write_validation_report_with(
+            &dir,
+            Path::new("m.fogm"),
+            &model,
+            &validation.runs,
+            (validation.raw_bias_stability_dph, validation.compensated_bias_stability_dph),
+            &options,
+            &options.describe(),
+        )
+        .expect("validation report");
+        assert_self_contained(&dir, "report.md");
+        let md = std::fs::read_to_string(dir.join("report.md")).expect("md");
+        for figure in ["drift-axis0.svg", "bars-axis0.svg", "allan-axis0.svg"] {
+            assert!(md.contains(figure), "{figure} not in the report");
+        }
+
+        let fit_dir = scratch("fit");
+        let table = cross_validation_markdown(
+            0,
+            &["cal1".into(), "cal2".into()],
+            &[CrossValidationRow {
+                method: "poly".into(),
+                cv_dph: 0.01,
+                se_dph: 0.001,
+                chosen: true,
+                held_out_dph: vec![0.01, 0.01],
+            }],
+        );
+        write_fit_report(
+            &fit_dir,
+            Path::new("m.fogm"),
+            &model,
+            &runs,
+            &format!("- axis 0: fitted\n\n{table}"),
+        )
+        .expect("fit report");
+        assert_self_contained(&fit_dir, "fit-report.md");
+        let html = std::fs::read_to_string(fit_dir.join("fit-report.html")).expect("html");
+        assert!(html.contains("<strong><code>poly</code></strong>"), "the cross-validation table");
+        let _ = std::fs::remove_dir_all(&dir);
+        let _ = std::fs::remove_dir_all(&fit_dir);
+    }
+}
