@@ -4,7 +4,7 @@
 //!
 //! | effect | term (columns; profiled parameters) |
 //! |---|---|
-//! | `thermal_lag` | `a [G(L(T)) - G(T)]`, G = the simulation's own prediction `g(T) + S dT/dt` (fitted to the simulated logs), L = a chain of 1 or 2 first-order lags of mean delay tau; tau 1-60 min, order |
+//! | `thermal_lag` | `a [g(L(T)) - g(T)]`, g = the simulation's own static prediction (a cubic in T fitted to the simulated logs with a rate term and one constant per run), L = a chain of 1 or 2 first-order lags of mean delay tau; tau 1-60 min, order |
 //! | `shupe_rate` | `c dT_coil/dt`, `T_coil = LPF_tau(T)` (the coil lags the sensor); tau 0-30 min |
 //! | `gradient_rate` | `c d2T/dt2` |
 //! | `warmup_transient` | `A exp(-(t - t_on) / tau_w)`; tau_w 1-60 min |
@@ -354,28 +354,22 @@ pub fn term_columns(prep: &Prepared, effect: Effect, theta: &[f64]) -> TermColum
     let theta_v = theta.to_vec();
     match effect {
         Effect::ThermalLag => {
-            // The simulation's own prediction g(T) + S dT/dt evaluated at the lagged
-            // temperature and its rate, minus the same at the logged one. The lag is a chain
-            // of `order` first-order lags of tau/order each (mean delay tau).
+            // The simulation's own static prediction g(T) (learnt from the simulated logs)
+            // evaluated at the lagged temperature, minus the same at the logged one. The lag
+            // is a chain of `order` first-order lags of tau/order each (mean delay tau).
+            // (Adding the simulation's rate term S (dL/dt - dT/dt) changed nothing on the
+            // testbed and tipped tests/cli_sim.rs's left-out lag to shupe_rate: removed.)
             let (tau_s, order) = (theta[0], theta.get(1).copied().unwrap_or(1.0).max(1.0) as usize);
             let per_run = one_column(prep, |r| match &prep.static_relation {
                 Some(g) => {
-                    let (lagged, lagged_rate) = lag_chain(&r.sec.temp_c, tau_s, order);
-                    r.sec
-                        .temp_c
-                        .iter()
-                        .zip(&r.sec.rate_c_per_min)
-                        .zip(lagged.iter().zip(&lagged_rate))
-                        .map(|((t, rate), (l, lr))| {
-                            g.eval(*l) - g.eval(*t) + g.rate_dph_per_c_per_min * (lr - rate)
-                        })
-                        .collect()
+                    let (lagged, _) = lag_chain(&r.sec.temp_c, tau_s, order);
+                    r.sec.temp_c.iter().zip(&lagged).map(|(t, l)| g.eval(*l) - g.eval(*t)).collect()
                 }
                 None => vec![0.0; r.sec.temp_c.len()],
             });
             let coefficients = vec![coef(
                 "gain",
-                "1 (1 = the simulation's own prediction evaluated at the lagged temperature)",
+                "1 (1 = the simulation's static prediction evaluated at the lagged temperature)",
             )];
             TermColumns { theta: theta_v, coefficients, per_run, penalty: None }
         }
@@ -691,5 +685,24 @@ mod play_tests {
         }
         assert!(play_branch(&[1.0, f64::NAN, 4.0], 2.0)[1].is_nan());
         assert_eq!(play_branch(&[1.0, f64::NAN, 4.0], 2.0)[2], 1.0);
+    }
+
+    #[test]
+    fn lag_chain_matches_the_closed_form_step_responses() {
+        let step = vec![1.0; 3000];
+        let mut input = step.clone();
+        input[0] = 0.0;
+        // First order, tau 600 s: y = 1 - exp(-t / 600), rate = (1 - y) / 600 per s.
+        let (y1, r1) = lag_chain(&input, 600.0, 1);
+        assert_eq!(y1, low_pass(&input, 600.0));
+        let t = 1200.0;
+        assert!((y1[1200] - (1.0 - (-t / 600.0f64).exp())).abs() < 1e-3, "{}", y1[1200]);
+        assert!((r1[1200] - 60.0 * (-t / 600.0f64).exp() / 600.0).abs() < 1e-4, "{}", r1[1200]);
+        // Second order, mean delay 600 s (two stages of 300 s):
+        // y = 1 - (1 + t/300) exp(-t/300), rate = 60 t / 300^2 exp(-t/300) per minute.
+        let (y2, r2) = lag_chain(&input, 600.0, 2);
+        let e = (-t / 300.0f64).exp();
+        assert!((y2[1200] - (1.0 - (1.0 + t / 300.0) * e)).abs() < 1e-2, "{}", y2[1200]);
+        assert!((r2[1200] - 60.0 * t / 300.0f64.powi(2) * e).abs() < 1e-3, "{}", r2[1200]);
     }
 }
