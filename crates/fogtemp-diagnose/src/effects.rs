@@ -147,6 +147,8 @@ pub struct EffectGrid {
     pub unmet_requirement: Option<String>,
 }
 
+/// Orders of the lag chain (first-order lags in series) `thermal_lag` profiles.
+const LAG_ORDERS: [f64; 1] = [1.0];
 /// Mean delay of the lag chain, s (to an hour: a coil can lag its case sensor by 15-30 min
 /// and more).
 const LAG_GRID_S: [f64; 12] =
@@ -504,7 +506,7 @@ pub fn grid_of(effect: Effect) -> (Vec<ProfiledParam>, Vec<Vec<f64>>) {
     match effect {
         Effect::ThermalLag => (
             vec![p("tau_s", "s", true), p("lag_order", "1 (first-order lags in the chain)", false)],
-            [1.0, 2.0].iter().flat_map(|o| LAG_GRID_S.iter().map(move |v| vec![*v, *o])).collect(),
+            LAG_ORDERS.iter().flat_map(|o| LAG_GRID_S.iter().map(move |v| vec![*v, *o])).collect(),
         ),
         Effect::WarmupTransient => {
             (vec![p("tau_s", "s", true)], WARMUP_GRID_S.iter().map(|v| vec![*v]).collect())
