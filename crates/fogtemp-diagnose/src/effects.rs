@@ -102,6 +102,74 @@ impl Effect {
     }
 }
 
+/// What the runs already contain, so that a statement recommends only experiments that are
+/// not there.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct RunContent {
+    /// Some run moves its temperature after the warm-up span (a chamber ramp or step).
+    pub ramps: bool,
+    /// The runs heat and cool (chamber cycling).
+    pub heating_and_cooling: bool,
+    /// Positions with at least two runs.
+    pub repeated_positions: usize,
+    /// Distinct input rates (more than 1 deg/h apart).
+    pub input_rates: usize,
+}
+
+/// Rate that counts as a chamber ramp after the warm-up span, deg C/min.
+const RAMP_C_PER_MIN: f64 = 0.05;
+/// Time after power-on from which a temperature rate is the chamber's, not self-heating, s.
+const SETTLED_AFTER_S: f64 = 1800.0;
+
+/// What `prep`'s runs contain (see [`RunContent`]).
+pub fn run_content(prep: &Prepared) -> RunContent {
+    let blocks = || prep.runs.iter().flat_map(|r| r.blocks.iter());
+    let ramps = blocks().any(|b| b.since_on_s >= SETTLED_AFTER_S && b.rate_c_per_min.abs() >= RAMP_C_PER_MIN);
+    let cooling = blocks().filter(|b| b.rate_c_per_min < COOLING_C_PER_MIN).count();
+    let heating = blocks().filter(|b| b.rate_c_per_min > -COOLING_C_PER_MIN).count();
+    let g = groups(prep);
+    let repeated_positions = if prep.runs.iter().any(|r| r.group.is_none()) {
+        0
+    } else {
+        g.iter().filter(|name| prep.runs.iter().filter(|r| group_of(r) == **name).count() >= 2).count()
+    };
+    let mut rates: Vec<f64> = prep.runs.iter().filter_map(|r| r.input_rate_dph).collect();
+    rates.sort_by(f64::total_cmp);
+    let input_rates =
+        if rates.is_empty() { 0 } else { rates.windows(2).filter(|w| w[1] - w[0] > 1.0).count() + 1 };
+    RunContent { ramps, heating_and_cooling: cooling >= 10 && heating >= 10, repeated_positions, input_rates }
+}
+
+/// The experiment that would separate `effect` from what it is confused with, given what the
+/// runs already contain: never one that is already there (then the next one, and why).
+pub fn separating_experiment(effect: Effect, content: &RunContent) -> String {
+    let base = effect.experiment();
+    let already = |what: &str, next: &str| format!("{next} (these runs already hold {what})");
+    match effect {
+        Effect::ThermalLag | Effect::ShupeRate if content.ramps => already(
+            "chamber ramps or steps",
+            "ambient temperature sinusoids at two periods (a lag's phase saturates, a dT/dt term's grows with frequency), or ramps at a second rate over a wider temperature span",
+        ),
+        Effect::GradientRate if content.ramps => already(
+            "chamber ramps or steps",
+            "ramps at two different rates (a d2T/dt2 term scales with the change of rate at the ramp corners, a lag or dT/dt term with the rate)",
+        ),
+        Effect::Hysteresis if content.heating_and_cooling => already(
+            "heating and cooling",
+            "chamber cycling at a second ramp rate (a hysteresis gap does not scale with the rate, a dT/dt term does) and more cycling runs",
+        ),
+        Effect::OrientationOffset if content.repeated_positions >= 2 => already(
+            "repeated power-ons in two or more positions",
+            "more power-ons per position (per-run turn-on offsets average out as 1/sqrt(runs))",
+        ),
+        Effect::ScaleFactorTemperature if content.input_rates >= 2 => already(
+            "runs at two or more input rates",
+            "more runs per orientation over the same temperatures, or a turntable rate",
+        ),
+        _ => base.to_string(),
+    }
+}
+
 /// A profiled (non-linear) parameter of an effect.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ProfiledParam {
@@ -706,5 +774,24 @@ mod play_tests {
         let e = (-t / 300.0f64).exp();
         assert!((y2[1200] - (1.0 - (1.0 + t / 300.0) * e)).abs() < 1e-2, "{}", y2[1200]);
         assert!((r2[1200] - 60.0 * t / 300.0f64.powi(2) * e).abs() < 1e-3, "{}", r2[1200]);
+    }
+
+    #[test]
+    fn a_separating_experiment_is_never_one_the_runs_already_hold() {
+        let none = RunContent::default();
+        let all =
+            RunContent { ramps: true, heating_and_cooling: true, repeated_positions: 2, input_rates: 2 };
+        for effect in Effect::ALL {
+            assert_eq!(separating_experiment(effect, &none), effect.experiment());
+        }
+        assert!(Effect::GradientRate.experiment().contains("chamber-ramp run"));
+        let g = separating_experiment(Effect::GradientRate, &all);
+        assert!(!g.contains("chamber-ramp run") && g.contains("already hold chamber ramps"), "{g}");
+        let h = separating_experiment(Effect::Hysteresis, &all);
+        assert!(h.contains("second ramp rate") && h.contains("already hold heating and cooling"), "{h}");
+        let s = separating_experiment(Effect::ShupeRate, &all);
+        assert!(!s.starts_with("chamber ramps") && s.contains("sinusoids"), "{s}");
+        let o = separating_experiment(Effect::OrientationOffset, &all);
+        assert!(o.starts_with("more power-ons per position"), "{o}");
     }
 }

@@ -149,7 +149,7 @@ pub(super) fn judge(
                 "concealment index {conceal:.4} > {}: not identifiable from these runs",
                 ctx.options.concealment_limit
             ),
-            Some(grid.effect.experiment().to_string()),
+            Some(crate::effects::separating_experiment(grid.effect, &crate::effects::run_content(ctx.prep))),
         )
     } else if accepted {
         ("accepted", "passes LORO, fold, BIC and concealment rules".to_string(), None)
