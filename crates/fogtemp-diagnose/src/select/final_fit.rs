@@ -289,6 +289,7 @@ pub fn evaluate_final(
     let bs_after = heldout_bias_stability(prep, &heldout, options);
     let rms_after = pooled_rms(&heldout);
     let mut left_out = Vec::new();
+    let content = crate::effects::run_content(prep);
     for (i, c) in chosen.iter().enumerate() {
         let without: Vec<ChosenTerm> =
             chosen.iter().enumerate().filter(|(j, _)| *j != i).map(|(_, t)| t.clone()).collect();
@@ -318,7 +319,7 @@ pub fn evaluate_final(
         {
             statement.push_str(&format!(
                 "; cannot be told apart from {other} on these runs (R^2 {r2:.4}): run {}",
-                c.effect.experiment()
+                crate::effects::separating_experiment(c.effect, &content)
             ));
         }
         let alternatives = alternatives(&selection.steps, i);
@@ -335,7 +336,7 @@ pub fn evaluate_final(
                 list.join(", "),
                 c.effect.name(),
                 c.effect.name(),
-                c.effect.experiment()
+                crate::effects::separating_experiment(c.effect, &content)
             ));
         }
         left_out.push(LeftOutEffect {

@@ -120,6 +120,7 @@ pub(super) fn judge(
     let cv_sse: f64 = prof.fold_sse.iter().sum();
     let material = material_runs(v, ctx.prep.noise_sigma_dph);
     let (improved, informative) = fold_counts(&ctx.base_eval.fold_sse, &prof.fold_sse, &material);
+    let gain_t = fold_gain_t(&ctx.base_eval.fold_sse, &prof.fold_sse, &material);
     let base_bic = bic(ctx.base_eval.full_rss, ctx.base.p(), n, ctx.n_eff);
     let delta_bic = prof.bic - base_bic;
     let (conceal, conceal_runs) = concealment(ctx.prep, &ctx.base, v);
@@ -132,6 +133,8 @@ pub(super) fn judge(
         folds_improved: improved,
         folds_informative: informative,
         min_fold_fraction: ctx.options.min_fold_fraction,
+        fold_gain_t: gain_t,
+        fold_gain_limit: fold_gain_limit(informative, ctx.tests),
         delta_bic,
         coefficients: grid.points[prof.point].k(),
         min_fold_share: prof.min_fold_share,
@@ -146,7 +149,7 @@ pub(super) fn judge(
                 "concealment index {conceal:.4} > {}: not identifiable from these runs",
                 ctx.options.concealment_limit
             ),
-            Some(grid.effect.experiment().to_string()),
+            Some(crate::effects::separating_experiment(grid.effect, &crate::effects::run_content(ctx.prep))),
         )
     } else if accepted {
         ("accepted", "passes LORO, fold, BIC and concealment rules".to_string(), None)

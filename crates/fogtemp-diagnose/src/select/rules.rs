@@ -127,6 +127,41 @@ pub fn folds_pass(improved: usize, informative: usize, min_fraction: f64) -> boo
     informative >= 2 && improved as f64 >= min_fraction * informative as f64
 }
 
+/// Paired t of the held-out gains `d_j = before_j - after_j` over the informative folds:
+/// `mean(d) / (sd(d) / sqrt(m))`, runs the independent units (0 with fewer than 3 folds,
+/// infinite when every gain is equal and positive).
+pub(super) fn fold_gain_t(before: &[f64], after: &[f64], informative: &[bool]) -> f64 {
+    let d: Vec<f64> =
+        before.iter().zip(after).zip(informative).filter(|(_, i)| **i).map(|((b, a), _)| b - a).collect();
+    if d.len() < 3 {
+        return 0.0;
+    }
+    let m = d.len() as f64;
+    let mean = d.iter().sum::<f64>() / m;
+    let sd = (d.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (m - 1.0)).sqrt();
+    if sd > 0.0 {
+        mean / (sd / m.sqrt())
+    } else if mean > 0.0 {
+        f64::INFINITY
+    } else {
+        0.0
+    }
+}
+
+/// The paired t the fold gains need: the one-sided Student-t limit with `informative - 1`
+/// degrees of freedom at 5 % family-wise (Bonferroni over the `tests` candidates). Under
+/// per-run offsets (flicker, turn-on repeatability) a real term's held-out gain is noisy in
+/// each run, so the share of folds that improve can stay below the fraction while the gains
+/// are significantly positive; the fold rule passes on either.
+pub(super) fn fold_gain_limit(informative: usize, tests: usize) -> f64 {
+    use statrs::distribution::{ContinuousCDF, StudentsT};
+    if informative < 3 {
+        return f64::INFINITY;
+    }
+    let alpha = 0.05 / tests.max(1) as f64;
+    StudentsT::new(0.0, 1.0, (informative - 1) as f64).map_or(f64::INFINITY, |t| t.inverse_cdf(1.0 - alpha))
+}
+
 /// The numbers the acceptance rules judge for one candidate.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub(super) struct RuleInputs {
@@ -140,6 +175,10 @@ pub(super) struct RuleInputs {
     pub(super) folds_informative: usize,
     /// Fraction of informative folds that must improve.
     pub(super) min_fold_fraction: f64,
+    /// Paired t of the informative folds' held-out gains (see [`fold_gain_t`]).
+    pub(super) fold_gain_t: f64,
+    /// The paired t the gains need instead of the fold fraction (see [`fold_gain_limit`]).
+    pub(super) fold_gain_limit: f64,
     /// BIC with the candidate minus BIC without.
     pub(super) delta_bic: f64,
     /// Linear coefficients of the candidate's term.
@@ -164,7 +203,8 @@ pub(super) fn acceptance_failures(x: &RuleInputs) -> Vec<&'static str> {
     let checks = [
         (x.cv_sse < x.base_cv_sse, "LORO error does not fall"),
         (
-            folds_pass(x.folds_improved, x.folds_informative, x.min_fold_fraction),
+            folds_pass(x.folds_improved, x.folds_informative, x.min_fold_fraction)
+                || x.fold_gain_t >= x.fold_gain_limit,
             "too few informative folds improve",
         ),
         (x.delta_bic < 0.0, "BIC (n_eff) does not fall"),
@@ -240,6 +280,8 @@ mod tests {
             folds_improved: 6,
             folds_informative: 8,
             min_fold_fraction: 0.75,
+            fold_gain_t: 0.0,
+            fold_gain_limit: 3.0,
             delta_bic: -3.0,
             coefficients: 1,
             min_fold_share: f64::NAN,
@@ -255,6 +297,8 @@ mod tests {
         let fails = |x: RuleInputs| acceptance_failures(&x);
         assert_eq!(fails(RuleInputs { cv_sse: 10.0, ..ok }), ["LORO error does not fall"]);
         assert_eq!(fails(RuleInputs { folds_improved: 5, ..ok }), ["too few informative folds improve"]);
+        // Significant paired gains pass the fold rule with fewer improved folds.
+        assert!(fails(RuleInputs { folds_improved: 5, fold_gain_t: 3.0, ..ok }).is_empty());
         assert_eq!(fails(RuleInputs { delta_bic: 0.0, ..ok }), ["BIC (n_eff) does not fall"]);
         assert_eq!(fails(RuleInputs { stability_t: 3.9, ..ok }), ["not stable across folds (jackknife t)"]);
         // A flexible term (> 2 coefficients) is judged by its fold share, not by the t.
@@ -264,5 +308,18 @@ mod tests {
             fails(RuleInputs { min_fold_share: 0.49, ..flexible }),
             ["a fold reproduces less than half of the fitted shape"]
         );
+    }
+
+    #[test]
+    fn fold_gain_t_is_the_paired_t_of_the_informative_gains() {
+        // Gains 1, 2, 3 (fold 3 not informative): mean 2, sd 1, t = 2 / (1 / sqrt 3) = 3.4641.
+        let t = fold_gain_t(&[2.0, 3.0, 4.0, 0.0], &[1.0, 1.0, 1.0, 9.0], &[true, true, true, false]);
+        assert!((t - 2.0 * 3f64.sqrt()).abs() < 1e-12, "{t}");
+        assert_eq!(fold_gain_t(&[2.0, 2.0], &[1.0, 1.0], &[true, true]), 0.0);
+        assert_eq!(fold_gain_t(&[2.0; 3], &[1.0; 3], &[true; 3]), f64::INFINITY);
+        // One-sided t(0.95, 16) = 1.745884; t(1 - 0.05/8, 16) = 2.813056 (scipy.stats.t.ppf).
+        assert!((fold_gain_limit(17, 1) - 1.745_884).abs() < 1e-5);
+        assert!((fold_gain_limit(17, 8) - 2.813_056).abs() < 1e-5, "{}", fold_gain_limit(17, 8));
+        assert_eq!(fold_gain_limit(2, 1), f64::INFINITY);
     }
 }
