@@ -15,7 +15,8 @@ Stdlib only; the testbed itself needs numpy and scipy.
 Usage:
   python3 ../shared/testbed/gen.py --out TB/seed1 --seed 1 --rate 1    # once per seed
   python3 scripts/testbed_calibration.py [--bin target/release/fogtemp-cal] \\
-      [--methods cubic-t,poly,mesh,hybrid,auto] TB/seed1 ...
+      [--methods cubic-t,poly,mesh,hybrid,auto] [--json > rows.json] TB/seed1 ...
+  python3 scripts/testbed_calibration.py --rows rows.json     # the table again from saved rows
 """
 import argparse
 import csv
@@ -91,10 +92,13 @@ def main():
     ap.add_argument("--bin", default="target/release/fogtemp-cal")
     ap.add_argument("--methods", default="cubic-t,poly,mesh,hybrid,auto")
     ap.add_argument("--json", action="store_true", help="print the rows as JSON instead of Markdown")
-    ap.add_argument("seeds", nargs="+", help="folders written by gen.py --out")
+    ap.add_argument("--rows", help="render the table from rows saved with --json instead of running")
+    ap.add_argument("seeds", nargs="*", help="folders written by gen.py --out")
     a = ap.parse_args()
     methods = a.methods.split(",")
     rows = []
+    if a.rows:
+        rows = json.load(open(a.rows))
     with tempfile.TemporaryDirectory() as tmp:
         for seed in a.seeds:
             for case in sorted(glob.glob(os.path.join(seed, "case*"))):
