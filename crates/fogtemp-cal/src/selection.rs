@@ -76,11 +76,21 @@ pub struct SelectionOptions {
     pub positions: Option<Vec<String>>,
     /// Bias stability of the held-out runs (as `validate`'s default: 100 s).
     pub stability: BiasStabilityOptions,
+    /// Experimental (off by default): score only the folds whose held-out runs' features
+    /// lie within the temperature and rate ranges of the training runs (a fold that widens
+    /// the range tests an extrapolation the final model, fitted on every run, does not make
+    /// inside its calibrated range). See docs/calibration-testbed.md.
+    pub inside_range_only: bool,
 }
 
 impl Default for SelectionOptions {
     fn default() -> Self {
-        Self { candidates: CANDIDATES.to_vec(), positions: None, stability: BiasStabilityOptions::default() }
+        Self {
+            candidates: CANDIDATES.to_vec(),
+            positions: None,
+            stability: BiasStabilityOptions::default(),
+            inside_range_only: false,
+        }
     }
 }
 
@@ -407,7 +417,33 @@ pub fn select(
             }
         }
     }
-    Ok((0..axes).map(|axis| axis_selection(axis, grouping, &folds, candidates, &held, &failed)).collect())
+    Ok((0..axes)
+        .map(|axis| {
+            let inside: Vec<bool> = folds
+                .iter()
+                .map(|f| !options.inside_range_only || within_training_range(runs, axis, &f.held_out))
+                .collect();
+            axis_selection(axis, grouping, &folds, &inside, candidates, &held, &failed)
+        })
+        .collect())
+}
+
+/// (min T, max T, min rate, max rate) of the features of `runs` on `axis`.
+fn feature_range<'r>(runs: impl Iterator<Item = &'r RunFeatures>, axis: usize) -> [f64; 4] {
+    let mut r = [f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY];
+    for p in runs.filter_map(|run| run.axes.get(axis)).flat_map(|(points, _)| points) {
+        r = [r[0].min(p.temp_c), r[1].max(p.temp_c), r[2].min(p.rate_c_per_min), r[3].max(p.rate_c_per_min)];
+    }
+    r
+}
+
+/// Whether the held-out runs' features lie within the temperature and rate ranges of the
+/// other runs.
+fn within_training_range(runs: &[RunFeatures], axis: usize, held_out: &[usize]) -> bool {
+    let training = runs.iter().enumerate().filter(|(i, _)| !held_out.contains(i)).map(|(_, r)| r);
+    let held = held_out.iter().filter_map(|&i| runs.get(i));
+    let (t, h) = (feature_range(training, axis), feature_range(held, axis));
+    h[0] >= t[0] && h[1] <= t[1] && h[2] >= t[2] && h[3] <= t[3]
 }
 
 /// The choice for one axis from the held-out runs of every candidate.
@@ -415,6 +451,7 @@ fn axis_selection(
     axis: usize,
     grouping: Grouping,
     folds: &[Fold],
+    inside: &[bool],
     candidates: &[Method],
     held: &[Vec<Vec<HeldOutRun>>],
     failed: &[Option<String>],
@@ -443,8 +480,9 @@ fn axis_selection(
         .collect();
     // A fold counts when every scored candidate has a finite score on it (a held-out run
     // shorter than two averaging windows has none for any).
-    let usable: Vec<usize> =
-        (0..folds.len()).filter(|&g| scores.iter().flatten().all(|s| s[g].is_finite())).collect();
+    let usable: Vec<usize> = (0..folds.len())
+        .filter(|&g| inside[g] && scores.iter().flatten().all(|s| s[g].is_finite()))
+        .collect();
     let kept: Vec<Option<Vec<f64>>> =
         scores.iter().map(|s| s.as_ref().map(|s| usable.iter().map(|&g| s[g]).collect())).collect();
     let choice = (usable.len() >= MIN_FOLDS).then(|| choose(&kept)).flatten();
@@ -696,6 +734,45 @@ mod tests {
             model.axis(0).expect("axis").selection,
             u16::from_le_bytes([SELECTION_POLY, SELECTION_FALLBACK])
         );
+    }
+
+    /// A run whose features span the given temperatures and rates.
+    fn run_spanning(points: &[(f64, f64)]) -> RunFeatures {
+        let features = points
+            .iter()
+            .map(|&(temp_c, rate_c_per_min)| crate::features::FeaturePoint {
+                time_s: 0.0,
+                temp_c,
+                rate_c_per_min,
+                window_full: true,
+                gyro_mean_dph: 0.0,
+                gyro_samples: 1,
+                segment: 0,
+            })
+            .collect();
+        RunFeatures {
+            path: PathBuf::from("r.csv"),
+            ingest: Default::default(),
+            axes: vec![(features, vec![0.0; points.len()])],
+        }
+    }
+
+    #[test]
+    fn a_fold_is_inside_the_range_only_when_no_held_out_feature_widens_it() {
+        let runs = [
+            run_spanning(&[(-30.0, 0.0), (0.0, 1.0)]),
+            run_spanning(&[(-10.0, 0.2), (10.0, 0.5)]),
+            run_spanning(&[(20.0, -0.5), (40.0, 0.8)]),
+            run_spanning(&[(35.0, 0.1)]),
+        ];
+        // Run 1 lies within the others' -30..40 C and -0.5..1 C/min.
+        assert!(within_training_range(&runs, 0, &[1]));
+        assert!(within_training_range(&runs, 0, &[3]));
+        // Run 0 holds the coldest point and the fastest rate; run 2 the hottest and the
+        // only cooling rate.
+        assert!(!within_training_range(&runs, 0, &[0]));
+        assert!(!within_training_range(&runs, 0, &[2]));
+        assert!(!within_training_range(&runs, 0, &[1, 2]), "a group is judged as a whole");
     }
 
     #[test]

@@ -161,6 +161,10 @@ pub struct FitArgs {
     /// position out at a time instead of one run.
     #[arg(long)]
     pub runs: Option<PathBuf>,
+    /// Experimental: `auto` scores only the folds whose held-out runs lie within the
+    /// temperature and rate ranges of the other runs (docs/calibration-testbed.md).
+    #[arg(long, hide = true)]
+    pub cv_inside_range_only: bool,
     /// Feature window (smoothing of T and dT/dt), seconds.
     #[arg(long, default_value_t = 100.0, help_heading = "Features")]
     pub window_s: f32,

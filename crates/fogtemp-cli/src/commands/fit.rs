@@ -69,7 +69,11 @@ pub fn fit(a: FitArgs) -> Result<()> {
         runs.push(run);
     }
     let digest = digest_files(&logs)?;
-    let selection = SelectionOptions { positions, ..SelectionOptions::default() };
+    let selection = SelectionOptions {
+        positions,
+        inside_range_only: a.cv_inside_range_only,
+        ..SelectionOptions::default()
+    };
     let bar = indicatif::ProgressBar::new(0).with_message("cross-validation (folds)");
     let fitted = calibrate::fit_model_with(&runs, &config, digest, &selection, |fold, folds| {
         bar.set_length(folds as u64);
