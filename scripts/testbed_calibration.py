@@ -4,19 +4,31 @@
 For every case of every seed folder: fit each method on the recorded `up_*` runs, validate on the
 recorded `down_*` runs through the firmware's Compensator (`fogtemp-cal validate --json`), and
 print the validation bias stability against the case's noise floor (`noise_100s_dph` in
-answer.json) as a Markdown table. Stdlib only; the testbed itself needs numpy and scipy.
+answer.json) as a Markdown table, with the method `auto` chose and how far it is from the best
+fixed method, then a summary.
+
+When a case folder holds the `runs.csv` the testbed writes (run,position,input_rate_dph), the
+script passes every recorded log to `fit` and `validate` with `--runs`, through a copy of that
+file with a `role` column added (`up_*` cal, `down_*` val): the same split, by the runs file.
+Stdlib only; the testbed itself needs numpy and scipy.
 
 Usage:
   python3 ../shared/testbed/gen.py --out TB/seed1 --seed 1 --rate 1    # once per seed
-  python3 scripts/testbed_calibration.py [--bin target/release/fogtemp-cal] [--methods poly,mesh,hybrid] TB/seed1 ...
+  python3 scripts/testbed_calibration.py [--bin target/release/fogtemp-cal] \\
+      [--methods cubic-t,poly,mesh,hybrid,auto] [--json > rows.json] TB/seed1 ...
+  python3 scripts/testbed_calibration.py --rows rows.json     # the table again from saved rows
 """
 import argparse
+import csv
 import glob
 import json
 import os
+import statistics
 import subprocess
 import sys
 import tempfile
+
+FIXED = ("cubic-t", "poly", "mesh", "hybrid")
 
 
 def run_json(cmd):
@@ -26,16 +38,37 @@ def run_json(cmd):
     return json.loads(out.stdout)
 
 
+def runs_with_roles(case_dir, tmp):
+    """A copy of the case's runs.csv with role cal for up_* and val for down_* (None without one)."""
+    src = os.path.join(case_dir, "runs.csv")
+    if not os.path.exists(src):
+        return None
+    with open(src, newline="") as f:
+        rows = list(csv.DictReader(f))
+    dst = os.path.join(tmp, "runs.csv")
+    with open(dst, "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["run", "position", "input_rate_dph", "role"])
+        for r in rows:
+            role = "cal" if r["run"].startswith("up_") else "val" if r["run"].startswith("down_") else ""
+            w.writerow([r["run"], r["position"], r["input_rate_dph"], role])
+    return dst
+
+
 def case_rows(binary, case_dir, methods, tmp):
     recorded = os.path.join(case_dir, "recorded")
     cal = sorted(glob.glob(os.path.join(recorded, "up_*.csv")))
     val = sorted(glob.glob(os.path.join(recorded, "down_*.csv")))
+    runs = runs_with_roles(case_dir, tmp)
+    if runs is not None:
+        every = sorted(glob.glob(os.path.join(recorded, "*.csv")))
+        cal, val = every + ["--runs", runs], every + ["--runs", runs]
     answer = json.load(open(os.path.join(case_dir, "answer.json")))
     row = {"case": os.path.relpath(case_dir), "effect": answer["effect"], "noise": answer["noise_100s_dph"]}
     for method in methods:
         model = os.path.join(tmp, f"{method}.fogm")
         try:
-            run_json([binary, "fit", "--method", method, "--out", model, "--json", *cal])
+            fit = run_json([binary, "fit", "--method", method, "--out", model, "--json", *cal])
             doc = run_json([binary, "validate", "--model", model, "--json", *val])
         except RuntimeError as e:
             print(f"warning: {case_dir} {method}: {e}", file=sys.stderr)
@@ -43,18 +76,29 @@ def case_rows(binary, case_dir, methods, tmp):
             continue
         row["raw"] = doc["raw_bias_stability_dph"]
         row[method] = doc["compensated_bias_stability_dph"]
+        selection = fit["axes"][0].get("selection")
+        if selection:
+            row[f"{method}_chose"] = selection["method"]
+            row[f"{method}_cv"] = {c["method"]: c["cv_bias_stability_dph"] for c in selection["candidates"]}
     return row
+
+
+def finite(v):
+    return v == v
 
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--bin", default="target/release/fogtemp-cal")
-    ap.add_argument("--methods", default="poly,mesh,hybrid")
+    ap.add_argument("--methods", default="cubic-t,poly,mesh,hybrid,auto")
     ap.add_argument("--json", action="store_true", help="print the rows as JSON instead of Markdown")
-    ap.add_argument("seeds", nargs="+", help="folders written by gen.py --out")
+    ap.add_argument("--rows", help="render the table from rows saved with --json instead of running")
+    ap.add_argument("seeds", nargs="*", help="folders written by gen.py --out")
     a = ap.parse_args()
     methods = a.methods.split(",")
     rows = []
+    if a.rows:
+        rows = json.load(open(a.rows))
     with tempfile.TemporaryDirectory() as tmp:
         for seed in a.seeds:
             for case in sorted(glob.glob(os.path.join(seed, "case*"))):
@@ -62,13 +106,38 @@ def main():
     if a.json:
         print(json.dumps(rows, indent=1))
         return
-    print("| case | effect | noise floor | raw | " + " | ".join(methods) + " | best |")
-    print("|---|---|---|---|" + "---|" * len(methods) + "---|")
+    fixed = [m for m in methods if m in FIXED]
+    auto = "auto" in methods
+    head = "| case | effect | noise floor | raw | " + " | ".join(methods) + " | best fixed |"
+    if auto:
+        head += " auto chose | auto / best |"
+    print(head)
+    print("|---|---|---|---|" + "---|" * len(methods) + "---|" + ("---|---|" if auto else ""))
+    ratios, floors = [], []
     for r in rows:
-        vals = {m: r[m] for m in methods}
-        best = min(vals, key=lambda m: vals[m] if vals[m] == vals[m] else float("inf"))
-        cells = " | ".join(f"{vals[m]:.5f} ({vals[m] / r['noise']:.2f}x)" for m in methods)
-        print(f"| {r['case']} | {r['effect']} | {r['noise']:.5f} | {r.get('raw', float('nan')):.5f} | {cells} | {best} |")
+        vals = {m: r[m] for m in fixed}
+        best = min(vals, key=lambda m: vals[m] if finite(vals[m]) else float("inf"))
+        cells = " | ".join(f"{r[m]:.5f} ({r[m] / r['noise']:.2f}x)" for m in methods)
+        line = f"| {r['case']} | {r['effect']} | {r['noise']:.5f} | {r.get('raw', float('nan')):.5f} | {cells} | {best} |"
+        if auto:
+            ratio = r["auto"] / vals[best]
+            ratios.append(ratio)
+            floors.append(r["auto"] / r["noise"])
+            line += f" {r.get('auto_chose', '-')} | {ratio:.3f} |"
+        print(line)
+    if auto and ratios:
+        within = sum(1 for x in ratios if x <= 1.05)
+        print()
+        print(f"auto within 5 % of the best fixed method in {within} of {len(ratios)} cases; "
+              f"worst auto / best {max(ratios):.3f}; median auto / noise floor {statistics.median(floors):.3f}")
+        for m in fixed:
+            f = [r[m] / r["noise"] for r in rows if finite(r[m])]
+            if f:
+                print(f"median {m} / noise floor {statistics.median(f):.3f}")
+        chose = {}
+        for r in rows:
+            chose[r.get("auto_chose", "-")] = chose.get(r.get("auto_chose", "-"), 0) + 1
+        print("auto chose: " + ", ".join(f"{k} {v}" for k, v in sorted(chose.items())))
 
 
 if __name__ == "__main__":

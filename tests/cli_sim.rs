@@ -295,7 +295,7 @@ fn small_demo_scenario() -> String {
 }
 
 /// `demo` on the small scenario: one JSON document with finite raw_dph, poly_dph, mesh_dph,
-/// mesh_paper_dph and hybrid_dph, report/report.md and one models/KEY.fogm per model; the
+/// mesh_paper_dph, hybrid_dph and auto_dph, report/report.md and one models/KEY.fogm per model; the
 /// compensated figures are below half the raw one for poly, mesh and hybrid, and below raw
 /// for the paper's mesh (measured: raw 0.0116, poly 0.0041, mesh 0.0043, mesh_paper 0.0045,
 /// hybrid 0.0041 deg/h). The physics makes this so: the raw figure is the power-on warm-up
@@ -315,7 +315,7 @@ fn demo_compensates_below_raw() {
     assert_eq!(doc["sample_rate_hz"], 10.0);
     let value = |key: &str| doc[key].as_f64().unwrap_or_else(|| panic!("{key} missing: {doc}"));
     let raw = value("raw_dph");
-    let keys = ["poly_dph", "mesh_dph", "mesh_paper_dph", "hybrid_dph"];
+    let keys = ["poly_dph", "mesh_dph", "mesh_paper_dph", "hybrid_dph", "auto_dph"];
     eprintln!(
         "raw {raw:.5}, {}",
         keys.iter().map(|k| format!("{k} {:.5}", value(k))).collect::<Vec<_>>().join(", ")
@@ -326,13 +326,17 @@ fn demo_compensates_below_raw() {
         assert!(v.is_finite() && v > 0.0, "{key} {v}");
         assert!(v < raw, "{key} {v} is not below raw {raw}");
     }
-    for key in ["poly_dph", "mesh_dph", "hybrid_dph"] {
+    for key in ["poly_dph", "mesh_dph", "hybrid_dph", "auto_dph"] {
         assert!(value(key) < 0.5 * raw, "{key} {} is not below half of raw {raw}", value(key));
     }
 
     let models = doc["models"].as_array().expect("models[]");
     let model_keys: Vec<&str> = models.iter().filter_map(|m| m["key"].as_str()).collect();
-    assert_eq!(model_keys, ["poly", "mesh", "mesh_paper", "hybrid"]);
+    assert_eq!(model_keys, ["poly", "mesh", "mesh_paper", "hybrid", "auto"]);
+    // auto records its cross-validated choice (4 calibration runs: 4 folds).
+    let selection = &models[4]["selection"];
+    assert_eq!(selection["folds"], 4, "{selection}");
+    assert!(["cubic-t", "poly", "mesh", "hybrid"].contains(&selection["method"].as_str().unwrap_or("")));
     for m in models {
         let key = m["key"].as_str().expect("key");
         assert_eq!(m["compensated_dph"].as_f64(), Some(value(&format!("{key}_dph"))));

@@ -48,6 +48,16 @@ pub fn tool_version() -> String {
 /// if the core rejects the result (for example a sliver triangle whose f32 transform
 /// cannot reproduce its vertices).
 pub fn encode(model: &ModelFile) -> Result<Vec<u8>, CalError> {
+    encode_with_selection(model, &[])
+}
+
+/// [`encode`], recording per axis how its model kind was chosen in the axis header's
+/// `selection` field (`fogtemp_core::wire::AXIS_SELECTION`; axes beyond `selection` get 0,
+/// "the method was given"). Codes come from [`crate::selection::Selection::blob_code`].
+///
+/// # Errors
+/// As [`encode`]; [`CalError::SelfCheck`] for a code the core does not know.
+pub fn encode_with_selection(model: &ModelFile, selection: &[u16]) -> Result<Vec<u8>, CalError> {
     if model.axes.is_empty() || model.axes.len() > usize::from(MAX_AXES) {
         return Err(CalError::Encode(EncodeProblem::AxisCount {
             axes: model.axes.len(),
@@ -64,7 +74,7 @@ pub fn encode(model: &ModelFile) -> Result<Vec<u8>, CalError> {
     out[FILE_TOOL_VERSION.start..FILE_TOOL_VERSION.start + n].copy_from_slice(&version[..n]);
     out[FILE_INPUT_DIGEST].copy_from_slice(&model.input_digest);
     for (id, axis) in model.axes.iter().enumerate() {
-        encode_axis(&mut out, id as u16, axis)?;
+        encode_axis(&mut out, id as u16, axis, selection.get(id).copied().unwrap_or(0))?;
     }
     let total = out.len() + CRC_LEN;
     let total_u32 = u32::try_from(total)
@@ -76,7 +86,7 @@ pub fn encode(model: &ModelFile) -> Result<Vec<u8>, CalError> {
     Ok(out)
 }
 
-fn encode_axis(out: &mut Vec<u8>, id: u16, axis: &AxisModel) -> Result<(), CalError> {
+fn encode_axis(out: &mut Vec<u8>, id: u16, axis: &AxisModel, selection: u16) -> Result<(), CalError> {
     let empty = MeshModel {
         vertices: Vec::new(),
         triangles: Vec::new(),
@@ -135,6 +145,7 @@ fn encode_axis(out: &mut Vec<u8>, id: u16, axis: &AxisModel) -> Result<(), CalEr
     put_f32(h, AXIS_TEMP_MAX_C.start, p.temp_max_c);
     put_f32(h, AXIS_RATE_MIN_C_PER_MIN.start, p.rate_min_c_per_min);
     put_f32(h, AXIS_RATE_MAX_C_PER_MIN.start, p.rate_max_c_per_min);
+    put_u16(h, AXIS_SELECTION.start, selection);
 
     for t in &axis.poly {
         out.extend_from_slice(&[t.temp_power, t.rate_power, 0, 0]);

@@ -14,10 +14,12 @@ use crate::ingest::{read_from, read_log_with_progress, IngestOptions, IngestRepo
 use crate::mesh::{build_mesh, MeshPoint};
 use crate::metrics::{bias_stability, rms_over_runs, BiasStabilityOptions};
 use crate::poly_fit::{fit_poly, PolyFit, TermSelection};
+use crate::selection::{Selection, SelectionOptions};
 use crate::thin::{thin_greedy, thin_paper, GreedyThinning};
 
 /// Which model to fit.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
 pub enum Method {
     /// Polynomial in (T, dT/dt).
     Poly,
@@ -27,6 +29,22 @@ pub enum Method {
     Hybrid,
     /// A cubic in temperature alone (what PX4 and ArduPilot ship): the baseline.
     CubicT,
+    /// Chosen per axis among the others by cross-validation over the runs
+    /// ([`crate::selection`]), then fitted on all runs.
+    Auto,
+}
+
+impl Method {
+    /// The name `fit --method` takes (`poly`, `mesh`, `hybrid`, `cubic-t`, `auto`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Method::Poly => "poly",
+            Method::Mesh => "mesh",
+            Method::Hybrid => "hybrid",
+            Method::CubicT => "cubic-t",
+            Method::Auto => "auto",
+        }
+    }
 }
 
 /// How mesh nodes are chosen from the calibration points.
@@ -136,7 +154,7 @@ impl Default for CalibrationConfig {
             ingest: IngestOptions::default(),
             features: default_features(),
             target_window_s: 100.0,
-            method: Method::Hybrid,
+            method: Method::Auto,
             thinning: Thinning::GreedyAuto { noise_multiple: 1.5, max_nodes: 600 },
             poly: TermSelection::default_stepwise(),
             full_windows_only: false,
@@ -322,6 +340,10 @@ pub struct AxisFitReport {
     pub residual_max_abs_dph: f64,
     /// Estimated noise of the smoothed targets used for thinning, deg/h (NaN if unknown).
     pub target_noise_dph: f64,
+    /// The method fitted.
+    pub method: Method,
+    /// How `auto` chose the method (cross-validation table); null when it was given.
+    pub selection: Option<Selection>,
 }
 
 /// One fitted axis: what goes into the blob and what the fit did.
@@ -333,10 +355,12 @@ pub struct FittedAxis {
     pub report: AxisFitReport,
 }
 
-/// Fits one axis to its calibration points.
+/// Fits one axis to its calibration points with `config.method`.
 ///
 /// # Errors
-/// Fit or mesh errors ([`CalError::Fit`], [`CalError::DegenerateMesh`]).
+/// Fit or mesh errors ([`CalError::Fit`], [`CalError::DegenerateMesh`]);
+/// [`CalError::AutoNeedsRuns`] for [`Method::Auto`], which chooses by replaying whole runs
+/// ([`fit_model`]).
 pub fn fit_axis(
     calibration: &CalibrationPoints,
     config: &CalibrationConfig,
@@ -350,10 +374,13 @@ pub fn fit_axis(
     // One independent target per smoothing window (points are one per block).
     let block_s = f64::from(config.features.window_s) / f64::from(config.features.block_count);
     let n_eff = calibration.n_eff(block_s, config.target_window_s);
+    if config.method == Method::Auto {
+        return Err(CalError::AutoNeedsRuns);
+    }
     let poly = match config.method {
         Method::Poly | Method::Hybrid => Some(fit_poly(points, &normalisation, config.poly, n_eff)?),
         Method::CubicT => Some(fit_poly(points, &normalisation, TermSelection::CubicInTemperature, n_eff)?),
-        Method::Mesh => None,
+        Method::Mesh | Method::Auto => None,
     };
     let residual_points: Vec<MeshPoint> = points
         .iter()
@@ -382,7 +409,7 @@ pub fn fit_axis(
         _ => false,
     };
     let mesh = match config.method {
-        Method::Poly | Method::CubicT => None,
+        Method::Poly | Method::CubicT | Method::Auto => None,
         Method::Hybrid if poly_is_enough => None,
         Method::Mesh | Method::Hybrid => {
             let keep = match config.thinning {
@@ -469,6 +496,8 @@ pub fn fit_axis(
         residual_rms_dph,
         residual_max_abs_dph,
         target_noise_dph,
+        method: config.method,
+        selection: None,
     };
     Ok(FittedAxis { model: axis, report })
 }
@@ -482,18 +511,43 @@ pub struct FittedModel {
     pub axes: Vec<AxisFitReport>,
 }
 
-/// Fits every axis over all runs and encodes the blob.
+/// Fits every axis over all runs and encodes the blob. With [`Method::Auto`], each axis's
+/// method is chosen by leave-one-run-out cross-validation ([`crate::selection::select`],
+/// default [`SelectionOptions`]): the runs' logs must be readable again at their paths.
 ///
 /// # Errors
-/// As [`fit_axis`] and [`encode`].
+/// As [`fit_axis`] and [`encode`]; with [`Method::Auto`], as [`crate::selection::select`].
 pub fn fit_model(
     runs: &[RunFeatures],
     config: &CalibrationConfig,
     input_digest: [u8; 32],
 ) -> Result<FittedModel, CalError> {
+    fit_model_with(runs, config, input_digest, &SelectionOptions::default(), |_, _| {})
+}
+
+/// [`fit_model`] with the cross-validation of [`Method::Auto`] set up by `selection`
+/// (groups, candidates); `progress(fold, folds)` as each fold starts.
+///
+/// # Errors
+/// As [`fit_model`].
+pub fn fit_model_with(
+    runs: &[RunFeatures],
+    config: &CalibrationConfig,
+    input_digest: [u8; 32],
+    selection: &SelectionOptions,
+    progress: impl FnMut(usize, usize),
+) -> Result<FittedModel, CalError> {
+    let axis_count = config.ingest.format.gyro_columns.len();
+    let mut choices: Vec<Option<Selection>> = vec![None; axis_count];
+    if config.method == Method::Auto {
+        let selected = crate::selection::select(runs, config, selection, progress)?;
+        choices = selected.into_iter().map(Some).collect();
+    }
     let mut axes = Vec::new();
     let mut reports = Vec::new();
-    for axis in 0..config.ingest.format.gyro_columns.len() {
+    for (axis, choice) in choices.into_iter().enumerate() {
+        let method = choice.as_ref().map_or(config.method, |s| s.method);
+        let config = &CalibrationConfig { method, ..config.clone() };
         let block_s = f64::from(config.features.window_s) / f64::from(config.features.block_count);
         let calibration =
             calibration_points(runs, axis, config.full_windows_only, block_s, config.target_window_s);
@@ -505,11 +559,15 @@ pub fn fit_model(
             });
         }
         let noise = target_noise_dph(runs, axis, block_s, config.target_window_s);
-        let fitted = fit_axis(&calibration, config, noise)?;
+        let mut fitted = fit_axis(&calibration, config, noise)?;
+        fitted.report.selection = choice;
         axes.push(fitted.model);
         reports.push(fitted.report);
     }
-    let blob = encode(&ModelFile { tool_version: crate::blob::tool_version(), input_digest, axes })?;
+    let codes: Vec<u16> =
+        reports.iter().map(|r| r.selection.as_ref().map_or(0, Selection::blob_code)).collect();
+    let model = ModelFile { tool_version: crate::blob::tool_version(), input_digest, axes };
+    let blob = crate::blob::encode_with_selection(&model, &codes)?;
     Ok(FittedModel { blob, axes: reports })
 }
 

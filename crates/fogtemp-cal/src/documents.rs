@@ -389,6 +389,7 @@ impl ModelAxisDocument {
                 temp_max_c: f64::from(p.temp_max_c),
                 rate_min_c_per_min: f64::from(p.rate_min_c_per_min),
                 rate_max_c_per_min: f64::from(p.rate_max_c_per_min),
+                selection: crate::selection::describe_blob_code(axis.selection),
             },
             poly: axis.poly.map(|poly| {
                 poly.terms()
@@ -436,7 +437,7 @@ pub struct NormalisationDocument {
 }
 
 /// What the fit of an axis saw (`fogtemp_core::AxisProvenance`).
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct ProvenanceDocument {
     /// Calibration points fitted.
     pub fit_point_count: u32,
@@ -452,6 +453,9 @@ pub struct ProvenanceDocument {
     pub rate_min_c_per_min: f64,
     /// Highest temperature rate calibrated, deg C/min.
     pub rate_max_c_per_min: f64,
+    /// How `fit --method auto` chose the model kind (the blob's `selection` field, in
+    /// words), or null when the method was given.
+    pub selection: Option<String>,
 }
 
 /// One stored polynomial term (`fogtemp_core::PolyTerm`).

@@ -40,6 +40,11 @@ pub enum CalError {
         /// The longest silence the tracker bridges, seconds.
         max_gap_s: f32,
     },
+    /// `Method::Auto` given where there are no runs to cross-validate.
+    #[error(
+        "method auto chooses by replaying held-out runs: fit it with fit_model over the runs, not fit_axis"
+    )]
+    AutoNeedsRuns,
     /// A model does not fit the blob format's limits.
     #[error("model cannot be encoded: {0}")]
     Encode(EncodeProblem),

@@ -65,6 +65,7 @@ pub mod poly_fit;
 #[cfg(feature = "report")]
 pub mod report;
 pub mod runs;
+pub mod selection;
 pub mod thin;
 
 pub use blob::{encode, AxisModel, ModelFile};

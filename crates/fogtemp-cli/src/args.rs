@@ -25,7 +25,8 @@ pub struct Cli {
 /// The commands.
 #[derive(Debug, Subcommand)]
 pub enum Command {
-    /// Fit a model (polynomial, mesh or hybrid) to calibration logs and write the model file.
+    /// Fit a model (chosen by cross-validation, or polynomial, mesh, hybrid, cubic in T) to
+    /// calibration logs and write the model file.
     Fit(FitArgs),
     /// Compensate one log with a model and write the compensated CSV.
     Compensate(CompensateArgs),
@@ -197,6 +198,10 @@ pub enum MethodArg {
     /// A cubic in temperature alone (what PX4 and ArduPilot ship): the baseline.
     #[value(name = "cubic-t")]
     CubicT,
+    /// Per axis, the one of cubic-t, poly, mesh, hybrid with the best cross-validated bias
+    /// stability (leave one run, or with --runs one position, out; held-out runs replayed
+    /// through the firmware's Compensator), the simplest within one standard error.
+    Auto,
 }
 
 /// Mesh node selection.
@@ -232,8 +237,17 @@ pub struct FitArgs {
     #[arg(long, short)]
     pub out: PathBuf,
     /// Model kind.
-    #[arg(long, value_enum, default_value_t = MethodArg::Hybrid)]
+    #[arg(long, value_enum, default_value_t = MethodArg::Auto)]
     pub method: MethodArg,
+    /// Run metadata (CSV: run,position,input_rate_dph[,role]) describing every log: runs
+    /// with role `val` are left out of the fit; with 3 or more positions, `auto` leaves one
+    /// position out at a time instead of one run.
+    #[arg(long)]
+    pub runs: Option<PathBuf>,
+    /// Experimental: `auto` scores only the folds whose held-out runs lie within the
+    /// temperature and rate ranges of the other runs (docs/calibration-testbed.md).
+    #[arg(long, hide = true)]
+    pub cv_inside_range_only: bool,
     /// Feature window (smoothing of T and dT/dt), seconds.
     #[arg(long, default_value_t = 100.0, help_heading = "Features")]
     pub window_s: f32,
@@ -378,6 +392,10 @@ pub struct ValidateArgs {
     /// calibration fitted with --thinning paper and --thinning greedy). Repeatable.
     #[arg(long = "compare", value_name = "MODEL")]
     pub compare: Vec<PathBuf>,
+    /// Run metadata (CSV: run,position,input_rate_dph[,role]) describing every log: when it
+    /// gives roles, only the runs with role `val` are validated.
+    #[arg(long)]
+    pub runs: Option<PathBuf>,
     /// Bias stability definition.
     #[command(flatten)]
     pub stability: StabilityArgs,

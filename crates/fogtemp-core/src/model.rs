@@ -100,6 +100,9 @@ pub struct Axis<'a> {
     pub normalisation: Normalisation,
     /// Fit statistics.
     pub provenance: AxisProvenance,
+    /// How the model kind was chosen: the `selection` field (`wire::AXIS_SELECTION`; 0 when
+    /// the method was given).
+    pub selection: u16,
     /// Polynomial part, if any.
     pub poly: Option<Poly<'a>>,
     /// Mesh part, if any.
@@ -297,6 +300,16 @@ impl<'a> Model<'a> {
     }
 }
 
+/// A known `selection` code: no choice (0), or a chosen method with how it was chosen.
+fn valid_selection(code: u16) -> bool {
+    let [method, how] = code.to_le_bytes();
+    match method {
+        SELECTION_NONE => how == 0,
+        SELECTION_CUBIC_T..=SELECTION_HYBRID => how <= SELECTION_FALLBACK,
+        _ => false,
+    }
+}
+
 /// Strictly positive (false for NaN).
 fn positive(v: f32) -> bool {
     v > 0.0
@@ -325,6 +338,10 @@ fn parse_axis(body: &[u8], offset: usize, id: u16) -> Result<(Axis<'_>, usize), 
     }
     if h.get(AXIS_RESERVED).is_none_or(|r| r.iter().any(|&b| b != 0)) {
         return Err(bad("reserved"));
+    }
+    let selection = u16_at(h, AXIS_SELECTION.start).unwrap_or(u16::MAX);
+    if !valid_selection(selection) {
+        return Err(bad("selection"));
     }
     let (terms, vertices, triangles, hull) = (
         u32f(AXIS_POLY_TERM_COUNT),
@@ -397,6 +414,7 @@ fn parse_axis(body: &[u8], offset: usize, id: u16) -> Result<(Axis<'_>, usize), 
         features,
         normalisation,
         provenance,
+        selection,
         poly: has_poly.then(|| Poly::new(poly_bytes)),
         mesh: has_mesh.then_some(Mesh {
             vertices: vertex_bytes,

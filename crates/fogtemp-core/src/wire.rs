@@ -97,8 +97,31 @@ pub const AXIS_TEMP_MAX_C: Range<usize> = 76..80;
 pub const AXIS_RATE_MIN_C_PER_MIN: Range<usize> = 80..84;
 /// `rate_max_c_per_min`: f32.
 pub const AXIS_RATE_MAX_C_PER_MIN: Range<usize> = 84..88;
-/// `reserved`: 8 bytes, must be 0.
-pub const AXIS_RESERVED: Range<usize> = 88..96;
+/// `selection`: u16, how the model kind was chosen (provenance): low byte the method that
+/// `fit --method auto` chose ([`SELECTION_NONE`] when the method was given, else
+/// [`SELECTION_CUBIC_T`]..=[`SELECTION_HYBRID`]), high byte how
+/// ([`SELECTION_BY_RUNS`], [`SELECTION_BY_GROUPS`], [`SELECTION_FALLBACK`]; 0 with
+/// [`SELECTION_NONE`]).
+pub const AXIS_SELECTION: Range<usize> = 88..90;
+/// `reserved`: 6 bytes, must be 0.
+pub const AXIS_RESERVED: Range<usize> = 90..96;
+
+/// `selection` low byte: the method was given, not chosen.
+pub const SELECTION_NONE: u8 = 0;
+/// `selection` low byte: a cubic in temperature alone was chosen.
+pub const SELECTION_CUBIC_T: u8 = 1;
+/// `selection` low byte: the polynomial in (T, dT/dt) was chosen.
+pub const SELECTION_POLY: u8 = 2;
+/// `selection` low byte: the mesh was chosen.
+pub const SELECTION_MESH: u8 = 3;
+/// `selection` low byte: the hybrid (polynomial plus mesh) was chosen.
+pub const SELECTION_HYBRID: u8 = 4;
+/// `selection` high byte: by leave-one-run-out cross-validation.
+pub const SELECTION_BY_RUNS: u8 = 0;
+/// `selection` high byte: by leave-one-group-out (position) cross-validation.
+pub const SELECTION_BY_GROUPS: u8 = 1;
+/// `selection` high byte: too few runs to cross-validate; the stated default.
+pub const SELECTION_FALLBACK: u8 = 2;
 
 /// `model_kind` bit: the axis has a polynomial.
 pub const KIND_POLY: u16 = 1;

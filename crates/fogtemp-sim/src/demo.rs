@@ -12,6 +12,7 @@ use fogtemp_cal::calibrate::{
     self, CalibrationConfig, Method, RunFeatures, RunValidation, Thinning, Validation,
 };
 use fogtemp_cal::metrics::BiasStabilityOptions;
+use fogtemp_cal::selection::Selection;
 use fogtemp_cal::CalError;
 
 use crate::error::SimError;
@@ -35,7 +36,8 @@ pub struct DemoModel {
     pub config: CalibrationConfig,
 }
 
-/// The models of the demo: the paper's two, our defaults, and the hybrid.
+/// The models of the demo: the paper's two, our mesh, the hybrid, and the cross-validated
+/// choice (`auto`).
 pub fn default_models() -> Vec<DemoModel> {
     let base = CalibrationConfig::default();
     vec![
@@ -67,7 +69,14 @@ pub fn default_models() -> Vec<DemoModel> {
             key: "hybrid".into(),
             description: "polynomial plus a greedy mesh of its residuals (polynomial alone outside the hull)"
                 .into(),
-            config: CalibrationConfig { method: Method::Hybrid, ..base },
+            config: CalibrationConfig { method: Method::Hybrid, ..base.clone() },
+        },
+        DemoModel {
+            key: "auto".into(),
+            description: "per axis, the one of cubic-t, poly, mesh, hybrid with the best leave-one-run-out \
+                          cross-validated bias stability, the simplest within one standard error (`fit`'s default)"
+                .into(),
+            config: CalibrationConfig { method: Method::Auto, ..base },
         },
     ]
 }
@@ -122,6 +131,8 @@ pub struct ModelResult {
     pub improvement_ratio: f64,
     /// Per validation run: (name, compensated bias stability deg/h).
     pub runs: Vec<(String, f64)>,
+    /// For `auto`: the cross-validated choice of axis 0 (null for a given method).
+    pub selection: Option<Selection>,
 }
 
 /// Everything the demo measured.
@@ -256,6 +267,7 @@ pub fn run_demo(
     let started = Instant::now();
     progress.stage("fit", options.models.len() as u64);
     let mut blobs = Vec::new();
+    let mut selections = Vec::new();
     for model in &options.models {
         let features = feature_sets
             .iter()
@@ -269,6 +281,7 @@ pub fn run_demo(
         let residual = reports.first().map_or(f64::NAN, |r| r.residual_rms_dph);
         let nodes = reports.first().map_or(0, |r| r.mesh_nodes);
         let terms = reports.first().and_then(|r| r.poly.as_ref()).map_or(0, |p| p.terms.len());
+        selections.push(reports.first().and_then(|r| r.selection.clone()));
         blobs.push((path, blob, residual, nodes, terms));
         progress.advance(1);
     }
@@ -285,8 +298,8 @@ pub fn run_demo(
     let mut validations: Vec<(Vec<RunValidation>, f64)> = Vec::new();
     let mut raw_dph = f64::NAN;
     let mut raw_runs = Vec::new();
-    for ((model, (path, blob, residual, nodes, terms)), validation) in
-        options.models.iter().zip(&blobs).zip(outcomes)
+    for (((model, (path, blob, residual, nodes, terms)), validation), selection) in
+        options.models.iter().zip(&blobs).zip(outcomes).zip(selections)
     {
         let Validation { runs, raw_bias_stability_dph: raw, compensated_bias_stability_dph: comp } =
             validation;
@@ -303,6 +316,7 @@ pub fn run_demo(
             compensated_dph: comp,
             improvement_ratio: raw / comp,
             runs: runs.iter().map(|r| (run_name(&r.path), r.compensated_bias_stability_dph)).collect(),
+            selection,
         });
         validations.push((runs, raw));
     }
@@ -500,6 +514,18 @@ pub fn demo_markdown(r: &DemoResult) -> String {
             paper.map_or_else(|| "-".into(), |p| format!("{:.2}", PAPER_RAW_DPH / p)),
             m.improvement_ratio
         ));
+    }
+    for m in &r.models {
+        if let Some(s) = &m.selection {
+            md.push_str(&format!(
+                "\n`{}` chose `{}` by cross-validation on the calibration runs ({} folds; compensated bias \
+                 stability of the held-out runs, deg/h):\n\n```text\n{}```\n",
+                m.key,
+                s.method.name(),
+                s.folds,
+                s.table()
+            ));
+        }
     }
     md.push_str("\n## The models\n\n| model | what | mesh nodes | polynomial terms | fit residual RMS, deg/h | bytes |\n|---|---|---|---|---|---|\n");
     for m in &r.models {

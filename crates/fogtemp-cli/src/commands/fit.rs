@@ -4,6 +4,8 @@ use anyhow::{bail, Context, Result};
 use fogtemp_cal::calibrate::{self, CalibrationConfig, Method, Thinning};
 use fogtemp_cal::documents::FitDocument;
 use fogtemp_cal::poly_fit::TermSelection;
+use fogtemp_cal::runs::{Role, RunsFile};
+use fogtemp_cal::selection::{Grouping, SelectionOptions};
 use fogtemp_cal::thin::GreedyThinning;
 use fogtemp_core::{FeatureSettings, Model};
 
@@ -14,7 +16,7 @@ use crate::output::{digest_files, expand_logs, write_atomic, RowProgress};
 /// The `fit` command.
 pub fn fit(a: FitArgs) -> Result<()> {
     capacity_fits(a.blocks as usize, a.capacity).context("--blocks")?;
-    let logs = expand_logs(&a.logs)?;
+    let (logs, positions) = calibration_logs(&expand_logs(&a.logs)?, a.runs.as_deref())?;
     let config = CalibrationConfig {
         ingest: ingest_options(&a.ingest)?,
         features: FeatureSettings {
@@ -29,6 +31,7 @@ pub fn fit(a: FitArgs) -> Result<()> {
             MethodArg::Mesh => Method::Mesh,
             MethodArg::Hybrid => Method::Hybrid,
             MethodArg::CubicT => Method::CubicT,
+            MethodArg::Auto => Method::Auto,
         },
         thinning: match a.thinning {
             ThinningArg::Greedy => match a.tolerance_dph {
@@ -68,7 +71,23 @@ pub fn fit(a: FitArgs) -> Result<()> {
     let warnings = fogtemp_cal::identifiability::fit_warnings(&runs, &config, &a.identifiability());
     warnings.iter().for_each(|w| eprintln!("warning: {}", w.message));
     let digest = digest_files(&logs)?;
-    let fitted = calibrate::fit_model(&runs, &config, digest).context("fitting the model")?;
+    let selection = SelectionOptions {
+        positions,
+        inside_range_only: a.cv_inside_range_only,
+        ..SelectionOptions::default()
+    };
+    let bar = indicatif::ProgressBar::new(0).with_message("cross-validation (folds)");
+    let fitted = calibrate::fit_model_with(&runs, &config, digest, &selection, |fold, folds| {
+        bar.set_length(folds as u64);
+        bar.set_position(fold as u64);
+    })
+    .context("fitting the model")?;
+    bar.finish_and_clear();
+    for (axis, r) in fitted.axes.iter().enumerate() {
+        if let Some(warning) = r.selection.as_ref().and_then(|s| s.warning.as_ref()) {
+            eprintln!("warning: axis {axis}: {warning}");
+        }
+    }
     let (blob, reports) = (&fitted.blob, &fitted.axes);
     write_atomic(&a.out, |w| Ok(w.write_all(blob)?))?;
     if let Some(dir) = &a.report {
@@ -77,8 +96,16 @@ pub fn fit(a: FitArgs) -> Result<()> {
             .iter()
             .enumerate()
             .map(|(axis, r)| {
+                let table = r.selection.as_ref().map_or(String::new(), |s| {
+                    format!(
+                        "\n\n  method chosen by cross-validation ({} folds):\n\n```text\n{}```\n",
+                        s.folds,
+                        s.table()
+                    )
+                });
                 format!(
-                    "- axis {axis}: {} calibration points, residual RMS {:.5} deg/h, {} mesh nodes, {} polynomial terms",
+                    "- axis {axis}: {}, {} calibration points, residual RMS {:.5} deg/h, {} mesh nodes, {} polynomial terms{table}",
+                    r.method.name(),
                     r.points,
                     r.residual_rms_dph,
                     r.mesh_nodes,
@@ -94,8 +121,22 @@ pub fn fit(a: FitArgs) -> Result<()> {
     } else {
         println!("wrote {} ({} bytes) from {} logs", a.out.display(), blob.len(), logs.len());
         for (axis, r) in reports.iter().enumerate() {
+            if let Some(s) = &r.selection {
+                println!(
+                    "axis {axis}: method {} chosen by cross-validation ({} folds leaving one {} out; compensated \
+                     bias stability of the held-out runs, deg/h):",
+                    s.method.name(),
+                    s.folds,
+                    match s.grouping {
+                        Grouping::Runs => "run",
+                        Grouping::Positions => "position",
+                    }
+                );
+                print!("{}", s.table());
+            }
             println!(
-                "axis {axis}: {} points, fit residual RMS {:.5} deg/h (max {:.5}), {} mesh nodes, {} triangles{}",
+                "axis {axis}: {}, {} points, fit residual RMS {:.5} deg/h (max {:.5}), {} mesh nodes, {} triangles{}",
+                r.method.name(),
                 r.points,
                 r.residual_rms_dph,
                 r.residual_max_abs_dph,
@@ -116,4 +157,25 @@ pub fn fit(a: FitArgs) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// The logs to calibrate on and, with a runs file, each one's position: every log must have
+/// a row (and every row a log); runs with role `val` are left out.
+fn calibration_logs(
+    logs: &[std::path::PathBuf],
+    runs: Option<&std::path::Path>,
+) -> Result<(Vec<std::path::PathBuf>, Option<Vec<String>>)> {
+    let Some(path) = runs else { return Ok((logs.to_vec(), None)) };
+    let file = RunsFile::read(path)?;
+    let rows = file.for_logs(logs)?;
+    let (kept, positions): (Vec<_>, Vec<_>) = logs
+        .iter()
+        .zip(rows)
+        .filter(|(_, row)| row.role != Some(Role::Val))
+        .map(|(log, row)| (log.clone(), row.position.clone()))
+        .unzip();
+    if kept.is_empty() {
+        bail!("{}: every run has role 'val': none is left to calibrate on", path.display());
+    }
+    Ok((kept, Some(positions)))
 }

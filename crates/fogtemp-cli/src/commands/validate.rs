@@ -5,6 +5,7 @@ use anyhow::{bail, Context, Result};
 use fogtemp_cal::calibrate::{self, Validation};
 use fogtemp_cal::documents::{ComparedModel, ValidationDocument};
 use fogtemp_cal::metrics::BiasStabilityOptions;
+use fogtemp_cal::runs::{Role, RunsFile};
 use fogtemp_core::Model;
 
 use super::{check_capacity, ingest_options, print_json, read_model, report_skipped};
@@ -28,7 +29,7 @@ pub fn validate(a: ValidateArgs) -> Result<()> {
     let blob = read_model(&a.model)?;
     check_capacity(&a.model, &blob, a.capacity)?;
     let model = Model::from_bytes(&blob).map_err(|e| anyhow::anyhow!("{e}"))?;
-    let logs = expand_logs(&a.logs)?;
+    let logs = validation_logs(expand_logs(&a.logs)?, a.runs.as_deref())?;
     let ingest = ingest_options(&a.ingest)?;
     let options = stability_options(&a.stability)?;
     // The compared models are replayed in the same pass over each log as the primary one.
@@ -149,4 +150,24 @@ fn comparison_markdown(rows: &[ComparedModel]) -> String {
         ));
     }
     md
+}
+
+/// The logs to validate: with a runs file (which must describe every log, and only them)
+/// that gives roles, the runs with role `val`; else every log.
+fn validation_logs(
+    logs: Vec<std::path::PathBuf>,
+    runs: Option<&std::path::Path>,
+) -> Result<Vec<std::path::PathBuf>> {
+    let Some(path) = runs else { return Ok(logs) };
+    let file = RunsFile::read(path)?;
+    let rows = file.for_logs(&logs)?;
+    if rows.iter().all(|r| r.role.is_none()) {
+        return Ok(logs);
+    }
+    let kept: Vec<_> =
+        logs.iter().zip(rows).filter(|(_, r)| r.role == Some(Role::Val)).map(|(l, _)| l.clone()).collect();
+    if kept.is_empty() {
+        bail!("{}: no run has role 'val': nothing to validate", path.display());
+    }
+    Ok(kept)
 }

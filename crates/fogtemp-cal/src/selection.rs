@@ -1,0 +1,790 @@
+//! Model choice by cross-validation (`fit --method auto`, the default).
+//!
+//! Every candidate method ([`CANDIDATES`]: `cubic-t`, `poly`, `mesh`, `hybrid`) is fitted
+//! on the training runs of each fold with [`fit_model`] and its held-out runs are replayed
+//! through the core `Compensator` with [`validate_models`], exactly as `validate` replays
+//! logs. The features of every run are extracted once (by the caller) and reused in every
+//! fold; only the held-out logs are read again, once per fold for all candidates together.
+//!
+//! Definitions (per gyro axis):
+//! - folds: leave-one-run-out, or leave-one-group-out when groups (positions) are given and
+//!   there are at least 3 of them ([`cv_groups`], [`folds`]);
+//! - fold score `s_g(m)`: the compensated bias stability of candidate `m` on the held-out
+//!   runs of fold `g`, RMS over those runs (what `validate` reports overall; with one run
+//!   per fold, that run's bias stability);
+//! - cross-validated bias stability `S(m)`: the mean of `s_g(m)` over the `K` folds, with
+//!   standard error `sd_g(s_g(m)) / sqrt(K)`;
+//! - rule ([`choose`]): `best` has the lowest `S`; the chosen method is the simplest
+//!   candidate (order [`CANDIDATES`]) with `S(m) - S(best) <= SE_d(m)`, where
+//!   `SE_d(m) = sd_g(s_g(m) - s_g(best)) / sqrt(K)` is the standard error of the paired
+//!   per-fold difference.
+//!
+//! Why the paired standard error: every candidate is scored on the same held-out runs, and
+//! runs differ far more from each other (their noise, their temperature history) than the
+//! candidates differ on one run. The unpaired standard error of `S(best)` (the textbook
+//! one-standard-error rule) carries that run-to-run spread and would call a simpler model
+//! "as good" even when it is worse on every single run; the paired difference cancels what
+//! the runs share and measures only how much the candidates differ. (Decided before any
+//! result; both standard errors are reported.)
+//!
+//! Why this simplicity order: `cubic-t` has 4 coefficients in T alone; `poly` at most 15
+//! terms in (T, dT/dt), each admitted by an F-test; `mesh` one value per node (tens to
+//! hundreds); `hybrid` a polynomial plus a mesh. A simpler model extrapolates more
+//! predictably and carries less noise into the compensation, so it wins a tie.
+//!
+//! With fewer than [`MIN_FOLDS`] folds, cross-validation cannot estimate a standard error:
+//! the selection falls back to [`FALLBACK_METHOD`] and says so in [`Selection::warning`].
+
+use std::path::PathBuf;
+
+use fogtemp_core::wire::{
+    SELECTION_BY_GROUPS, SELECTION_BY_RUNS, SELECTION_CUBIC_T, SELECTION_FALLBACK, SELECTION_HYBRID,
+    SELECTION_MESH, SELECTION_NONE, SELECTION_POLY,
+};
+use fogtemp_core::Model;
+use serde::Serialize;
+
+use crate::calibrate::{fit_model, validate_models, CalibrationConfig, Method, RunFeatures};
+use crate::error::CalError;
+use crate::metrics::{rms_over_runs, BiasStabilityOptions};
+use crate::runs::run_name;
+
+/// The candidates, simplest first (the order the one-standard-error rule prefers).
+pub const CANDIDATES: [Method; 4] = [Method::CubicT, Method::Poly, Method::Mesh, Method::Hybrid];
+
+/// The method fitted when there are too few runs (or groups) to cross-validate: the
+/// stepwise polynomial, whose F-tests guard each term against the noise even without
+/// held-out runs (a mesh has no such guard).
+pub const FALLBACK_METHOD: Method = Method::Poly;
+
+/// Fewest folds for a cross-validated choice (a standard error needs at least 2 differences;
+/// 3 folds is the least that can tell one candidate from another at all).
+pub const MIN_FOLDS: usize = 3;
+
+/// The rule, in words (for reports).
+pub const RULE: &str = "the simplest candidate (cubic-t < poly < mesh < hybrid) whose cross-validated bias \
+    stability (mean over folds of the held-out runs' compensated bias stability, RMS within a fold) exceeds \
+    the lowest by at most one standard error of the paired per-fold difference";
+
+/// How cross-validation is set up.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SelectionOptions {
+    /// Candidate methods, simplest first.
+    pub candidates: Vec<Method>,
+    /// Per run (in the order of the runs given), its position or group label; `None`:
+    /// leave one run out.
+    pub positions: Option<Vec<String>>,
+    /// Bias stability of the held-out runs (as `validate`'s default: 100 s).
+    pub stability: BiasStabilityOptions,
+    /// Experimental (off by default): score only the folds whose held-out runs' features
+    /// lie within the temperature and rate ranges of the training runs (a fold that widens
+    /// the range tests an extrapolation the final model, fitted on every run, does not make
+    /// inside its calibrated range). See docs/calibration-testbed.md.
+    pub inside_range_only: bool,
+}
+
+impl Default for SelectionOptions {
+    fn default() -> Self {
+        Self {
+            candidates: CANDIDATES.to_vec(),
+            positions: None,
+            stability: BiasStabilityOptions::default(),
+            inside_range_only: false,
+        }
+    }
+}
+
+/// What a fold holds out.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Grouping {
+    /// One run per fold.
+    Runs,
+    /// One position (group) per fold.
+    Positions,
+}
+
+/// One fold: its label and the runs it holds out.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Fold {
+    /// The group label (the run's name when leaving one run out).
+    pub label: String,
+    /// Indices of the held-out runs.
+    pub held_out: Vec<usize>,
+}
+
+/// The group of every run: its position when `positions` names at least [`MIN_FOLDS`]
+/// distinct ones, else its own name.
+pub fn cv_groups(run_names: &[String], positions: Option<&[String]>) -> (Grouping, Vec<String>) {
+    if let Some(positions) = positions.filter(|p| p.len() == run_names.len()) {
+        let mut distinct: Vec<&String> = positions.iter().collect();
+        distinct.sort();
+        distinct.dedup();
+        if distinct.len() >= MIN_FOLDS {
+            return (Grouping::Positions, positions.to_vec());
+        }
+    }
+    (Grouping::Runs, run_names.to_vec())
+}
+
+/// One fold per distinct label, in order of first appearance, holding out every run with
+/// that label.
+pub fn folds(groups: &[String]) -> Vec<Fold> {
+    let mut out: Vec<Fold> = Vec::new();
+    for (i, g) in groups.iter().enumerate() {
+        match out.iter_mut().find(|f| &f.label == g) {
+            Some(f) => f.held_out.push(i),
+            None => out.push(Fold { label: g.clone(), held_out: vec![i] }),
+        }
+    }
+    out
+}
+
+/// Cross-validation statistics of one candidate over the folds.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FoldSummary {
+    /// Mean over folds of the fold score, deg/h.
+    pub mean_dph: f64,
+    /// Its standard error, `sd / sqrt(K)`, deg/h.
+    pub standard_error_dph: f64,
+    /// Mean minus the best candidate's mean, deg/h.
+    pub difference_dph: f64,
+    /// Standard error of the paired per-fold difference to the best, deg/h.
+    pub difference_standard_error_dph: f64,
+}
+
+/// The outcome of the rule.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Choice {
+    /// Index of the chosen candidate.
+    pub chosen: usize,
+    /// Index of the candidate with the lowest mean.
+    pub best: usize,
+    /// Per candidate (None where it had no scores).
+    pub summaries: Vec<Option<FoldSummary>>,
+}
+
+fn mean(v: &[f64]) -> f64 {
+    v.iter().sum::<f64>() / v.len() as f64
+}
+
+/// Standard error of the mean, `sd (n-1) / sqrt(n)` (NaN for fewer than 2 values).
+fn standard_error(v: &[f64]) -> f64 {
+    crate::metrics::sample_std(v) / (v.len() as f64).sqrt()
+}
+
+/// The one-standard-error rule over candidates given simplest first, each with its score on
+/// the same folds (`None`: the candidate could not be scored). Every score must be finite
+/// and every scored candidate must have the same number of folds, at least 2; `None`
+/// otherwise, or when no candidate has scores.
+pub fn choose(fold_scores: &[Option<Vec<f64>>]) -> Option<Choice> {
+    let k = fold_scores.iter().flatten().map(Vec::len).next()?;
+    let valid = |s: &Vec<f64>| s.len() == k && s.iter().all(|v| v.is_finite());
+    if k < 2 || !fold_scores.iter().flatten().all(valid) {
+        return None;
+    }
+    let best = fold_scores
+        .iter()
+        .enumerate()
+        .filter_map(|(i, s)| s.as_ref().map(|s| (i, mean(s))))
+        .min_by(|a, b| a.1.total_cmp(&b.1))?
+        .0;
+    let best_scores = fold_scores[best].as_ref()?;
+    let summaries: Vec<Option<FoldSummary>> = fold_scores
+        .iter()
+        .map(|s| {
+            let s = s.as_ref()?;
+            let diff: Vec<f64> = s.iter().zip(best_scores).map(|(a, b)| a - b).collect();
+            Some(FoldSummary {
+                mean_dph: mean(s),
+                standard_error_dph: standard_error(s),
+                difference_dph: mean(&diff),
+                difference_standard_error_dph: standard_error(&diff),
+            })
+        })
+        .collect();
+    let chosen = summaries
+        .iter()
+        .position(|s| s.is_some_and(|s| s.difference_dph <= s.difference_standard_error_dph))
+        .unwrap_or(best);
+    Some(Choice { chosen, best, summaries })
+}
+
+/// One held-out run's compensated bias stability.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct HeldOutRun {
+    /// The run (its log's file name without `.csv`).
+    pub run: String,
+    /// The fold that held it out (its group label).
+    pub group: String,
+    /// Compensated bias stability of the run by the model fitted without its fold, deg/h.
+    pub bias_stability_dph: f64,
+}
+
+/// One candidate's cross-validation.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct CandidateScore {
+    /// The method.
+    pub method: Method,
+    /// Cross-validated bias stability: mean over folds of the fold score, deg/h (NaN when
+    /// it could not be scored).
+    pub cv_bias_stability_dph: f64,
+    /// Standard error of that mean, deg/h.
+    pub standard_error_dph: f64,
+    /// Its excess over the best candidate, deg/h.
+    pub difference_from_best_dph: f64,
+    /// Standard error of the paired per-fold difference to the best, deg/h (what the rule
+    /// compares the excess with).
+    pub difference_standard_error_dph: f64,
+    /// Whether the excess is within one standard error (the chosen method is the simplest
+    /// such candidate).
+    pub within_one_standard_error: bool,
+    /// Every held-out run.
+    pub runs: Vec<HeldOutRun>,
+    /// Why the candidate was not scored (its fit failed in a fold), if so.
+    pub error: Option<String>,
+}
+
+/// The cross-validated choice of one axis (`fit --json`: `axes[].selection`).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Selection {
+    /// The chosen method (fitted on all runs).
+    pub method: Method,
+    /// The candidate with the lowest cross-validated bias stability (None without
+    /// cross-validation).
+    pub best: Option<Method>,
+    /// What a fold holds out.
+    pub grouping: Grouping,
+    /// Folds scored.
+    pub folds: usize,
+    /// The rule ([`RULE`]).
+    pub rule: &'static str,
+    /// Set when cross-validation was impossible and the default was fitted: why.
+    pub warning: Option<String>,
+    /// Every candidate, simplest first.
+    pub candidates: Vec<CandidateScore>,
+}
+
+impl Selection {
+    /// The blob's `selection` code for this choice (`fogtemp_core::wire::AXIS_SELECTION`).
+    pub fn blob_code(&self) -> u16 {
+        let method = match self.method {
+            Method::CubicT => SELECTION_CUBIC_T,
+            Method::Poly => SELECTION_POLY,
+            Method::Mesh => SELECTION_MESH,
+            Method::Hybrid => SELECTION_HYBRID,
+            Method::Auto => SELECTION_NONE,
+        };
+        let how = match (&self.warning, self.grouping) {
+            _ if method == SELECTION_NONE => 0,
+            (Some(_), _) => SELECTION_FALLBACK,
+            (None, Grouping::Runs) => SELECTION_BY_RUNS,
+            (None, Grouping::Positions) => SELECTION_BY_GROUPS,
+        };
+        u16::from_le_bytes([method, how])
+    }
+
+    /// The fallback when there are too few folds.
+    fn fallback(grouping: Grouping, folds: usize, why: &str) -> Self {
+        let unit = match grouping {
+            Grouping::Runs => "runs",
+            Grouping::Positions => "positions",
+        };
+        Self {
+            method: FALLBACK_METHOD,
+            best: None,
+            grouping,
+            folds: 0,
+            rule: RULE,
+            warning: Some(format!(
+                "{why} ({folds} {unit}; cross-validation needs at least {MIN_FOLDS}): fitted the default method, \
+                 {}, without a cross-validated choice",
+                FALLBACK_METHOD.name()
+            )),
+            candidates: Vec::new(),
+        }
+    }
+
+    /// The selection as a text table (for `fit`'s output and reports).
+    pub fn table(&self) -> String {
+        let mut out = String::new();
+        if let Some(w) = &self.warning {
+            out.push_str(&format!("  {w}\n"));
+            return out;
+        }
+        out.push_str(&format!(
+            "  {:<8} {:>16} {:>12} {:>14} {:>12}\n",
+            "method", "CV bias stab.", "std. error", "excess on best", "paired s.e."
+        ));
+        for c in &self.candidates {
+            let mark = if c.method == self.method { "  <- chosen" } else { "" };
+            match &c.error {
+                Some(e) => out.push_str(&format!("  {:<8} not scored: {e}\n", c.method.name())),
+                None => out.push_str(&format!(
+                    "  {:<8} {:>16.5} {:>12.5} {:>14.5} {:>12.5}{mark}\n",
+                    c.method.name(),
+                    c.cv_bias_stability_dph,
+                    c.standard_error_dph,
+                    c.difference_from_best_dph,
+                    c.difference_standard_error_dph
+                )),
+            }
+        }
+        out
+    }
+}
+
+/// The blob's `selection` code in words (`"poly, chosen by leave-one-run-out
+/// cross-validation"`), or `None` for 0 (the method was given) or an unknown code.
+pub fn describe_blob_code(code: u16) -> Option<String> {
+    let [method, how] = code.to_le_bytes();
+    let method = match method {
+        SELECTION_CUBIC_T => Method::CubicT,
+        SELECTION_POLY => Method::Poly,
+        SELECTION_MESH => Method::Mesh,
+        SELECTION_HYBRID => Method::Hybrid,
+        _ => return None,
+    };
+    let how = match how {
+        SELECTION_BY_RUNS => "chosen by leave-one-run-out cross-validation",
+        SELECTION_BY_GROUPS => "chosen by leave-one-position-out cross-validation",
+        SELECTION_FALLBACK => "the default: too few runs to cross-validate",
+        _ => return None,
+    };
+    Some(format!("{}, {how}", method.name()))
+}
+
+/// Cross-validates every candidate on `runs` (features extracted once, from logs that can
+/// be read again at their [`RunFeatures::path`]) and chooses a method per axis by [`RULE`].
+/// `progress(fold, folds)` is called as each fold starts.
+///
+/// # Errors
+/// Ingest errors while replaying a held-out log, [`CalError::SelfCheck`] for a blob the core
+/// rejects. A candidate whose fit fails in a fold is not an error: it is left out with
+/// [`CandidateScore::error`] set.
+pub fn select(
+    runs: &[RunFeatures],
+    config: &CalibrationConfig,
+    options: &SelectionOptions,
+    mut progress: impl FnMut(usize, usize),
+) -> Result<Vec<Selection>, CalError> {
+    let axes = config.ingest.format.gyro_columns.len();
+    let names: Vec<String> = runs.iter().map(|r| run_name(&r.path)).collect();
+    let (grouping, groups) = cv_groups(&names, options.positions.as_deref());
+    let folds = folds(&groups);
+    if folds.len() < MIN_FOLDS {
+        return Ok(vec![Selection::fallback(grouping, folds.len(), "too few calibration runs"); axes]);
+    }
+    let candidates = &options.candidates;
+    // Per candidate: per axis the held-out runs, and why it failed (if it did).
+    let mut held: Vec<Vec<Vec<HeldOutRun>>> = vec![vec![Vec::new(); axes]; candidates.len()];
+    let mut failed: Vec<Option<String>> = vec![None; candidates.len()];
+    for (f, fold) in folds.iter().enumerate() {
+        progress(f, folds.len());
+        let training: Vec<RunFeatures> = runs
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| !fold.held_out.contains(i))
+            .map(|(_, r)| r.clone())
+            .collect();
+        let mut fitted: Vec<(usize, Vec<u8>)> = Vec::new();
+        for (c, &method) in candidates.iter().enumerate() {
+            if failed[c].is_some() {
+                continue;
+            }
+            let candidate = CalibrationConfig { method, ..config.clone() };
+            match fit_model(&training, &candidate, [0; 32]) {
+                Ok(model) => fitted.push((c, model.blob)),
+                Err(e) => failed[c] = Some(format!("fit without '{}' failed: {e}", fold.label)),
+            }
+        }
+        let models: Vec<Model<'_>> = fitted
+            .iter()
+            .map(|(_, blob)| Model::from_bytes(blob).map_err(CalError::SelfCheck))
+            .collect::<Result<_, _>>()?;
+        let refs: Vec<&Model<'_>> = models.iter().collect();
+        let paths: Vec<PathBuf> = fold.held_out.iter().map(|&i| runs[i].path.clone()).collect();
+        let validations = validate_models(&paths, &refs, &config.ingest, &options.stability, |_, _, _| {})?;
+        for ((c, _), validation) in fitted.iter().zip(validations) {
+            for r in validation.runs {
+                if let Some(axis_runs) = held[*c].get_mut(r.axis) {
+                    axis_runs.push(HeldOutRun {
+                        run: run_name(&r.path),
+                        group: fold.label.clone(),
+                        bias_stability_dph: r.compensated_bias_stability_dph,
+                    });
+                }
+            }
+        }
+    }
+    Ok((0..axes)
+        .map(|axis| {
+            let inside: Vec<bool> = folds
+                .iter()
+                .map(|f| !options.inside_range_only || within_training_range(runs, axis, &f.held_out))
+                .collect();
+            axis_selection(axis, grouping, &folds, &inside, candidates, &held, &failed)
+        })
+        .collect())
+}
+
+/// (min T, max T, min rate, max rate) of the features of `runs` on `axis`.
+fn feature_range<'r>(runs: impl Iterator<Item = &'r RunFeatures>, axis: usize) -> [f64; 4] {
+    let mut r = [f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY];
+    for p in runs.filter_map(|run| run.axes.get(axis)).flat_map(|(points, _)| points) {
+        r = [r[0].min(p.temp_c), r[1].max(p.temp_c), r[2].min(p.rate_c_per_min), r[3].max(p.rate_c_per_min)];
+    }
+    r
+}
+
+/// Whether the held-out runs' features lie within the temperature and rate ranges of the
+/// other runs.
+fn within_training_range(runs: &[RunFeatures], axis: usize, held_out: &[usize]) -> bool {
+    let training = runs.iter().enumerate().filter(|(i, _)| !held_out.contains(i)).map(|(_, r)| r);
+    let held = held_out.iter().filter_map(|&i| runs.get(i));
+    let (t, h) = (feature_range(training, axis), feature_range(held, axis));
+    h[0] >= t[0] && h[1] <= t[1] && h[2] >= t[2] && h[3] <= t[3]
+}
+
+/// The choice for one axis from the held-out runs of every candidate.
+fn axis_selection(
+    axis: usize,
+    grouping: Grouping,
+    folds: &[Fold],
+    inside: &[bool],
+    candidates: &[Method],
+    held: &[Vec<Vec<HeldOutRun>>],
+    failed: &[Option<String>],
+) -> Selection {
+    // Fold scores per candidate (RMS over the fold's held-out runs; NaN if none finite).
+    let scores: Vec<Option<Vec<f64>>> = (0..candidates.len())
+        .map(|c| {
+            if failed[c].is_some() {
+                return None;
+            }
+            let runs = &held[c][axis];
+            Some(
+                folds
+                    .iter()
+                    .map(|f| {
+                        let v: Vec<f64> = runs
+                            .iter()
+                            .filter(|r| r.group == f.label)
+                            .map(|r| r.bias_stability_dph)
+                            .collect();
+                        rms_over_runs(&v)
+                    })
+                    .collect(),
+            )
+        })
+        .collect();
+    // A fold counts when every scored candidate has a finite score on it (a held-out run
+    // shorter than two averaging windows has none for any).
+    let usable: Vec<usize> = (0..folds.len())
+        .filter(|&g| inside[g] && scores.iter().flatten().all(|s| s[g].is_finite()))
+        .collect();
+    let kept: Vec<Option<Vec<f64>>> =
+        scores.iter().map(|s| s.as_ref().map(|s| usable.iter().map(|&g| s[g]).collect())).collect();
+    let choice = (usable.len() >= MIN_FOLDS).then(|| choose(&kept)).flatten();
+    let Some(choice) = choice else {
+        let why = if scores.iter().all(Option::is_none) {
+            "no candidate could be fitted in every fold"
+        } else {
+            "too few held-out runs long enough for a bias stability"
+        };
+        let mut s = Selection::fallback(grouping, usable.len(), why);
+        s.candidates = candidates
+            .iter()
+            .enumerate()
+            .map(|(c, &method)| unscored(method, &held[c][axis], failed[c].clone()))
+            .collect();
+        return s;
+    };
+    let candidate_scores = candidates
+        .iter()
+        .enumerate()
+        .map(|(c, &method)| match choice.summaries[c] {
+            Some(s) => CandidateScore {
+                method,
+                cv_bias_stability_dph: s.mean_dph,
+                standard_error_dph: s.standard_error_dph,
+                difference_from_best_dph: s.difference_dph,
+                difference_standard_error_dph: s.difference_standard_error_dph,
+                within_one_standard_error: s.difference_dph <= s.difference_standard_error_dph,
+                runs: held[c][axis].clone(),
+                error: None,
+            },
+            None => unscored(method, &held[c][axis], failed[c].clone()),
+        })
+        .collect();
+    Selection {
+        method: candidates[choice.chosen],
+        best: Some(candidates[choice.best]),
+        grouping,
+        folds: usable.len(),
+        rule: RULE,
+        warning: None,
+        candidates: candidate_scores,
+    }
+}
+
+fn unscored(method: Method, runs: &[HeldOutRun], error: Option<String>) -> CandidateScore {
+    CandidateScore {
+        method,
+        cv_bias_stability_dph: f64::NAN,
+        standard_error_dph: f64::NAN,
+        difference_from_best_dph: f64::NAN,
+        difference_standard_error_dph: f64::NAN,
+        within_one_standard_error: false,
+        runs: runs.to_vec(),
+        error,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn labels(v: &[&str]) -> Vec<String> {
+        v.iter().map(|s| s.to_string()).collect()
+    }
+
+    #[test]
+    fn folds_group_runs_by_label_in_order_of_first_appearance() {
+        let f = folds(&labels(&["up", "down", "up", "side"]));
+        assert_eq!(
+            f,
+            vec![
+                Fold { label: "up".into(), held_out: vec![0, 2] },
+                Fold { label: "down".into(), held_out: vec![1] },
+                Fold { label: "side".into(), held_out: vec![3] },
+            ]
+        );
+        assert_eq!(folds(&labels(&["a", "b", "c"])).len(), 3);
+    }
+
+    #[test]
+    fn positions_group_only_when_there_are_three_of_them() {
+        let names = labels(&["r1", "r2", "r3", "r4"]);
+        let two = labels(&["up", "up", "down", "down"]);
+        assert_eq!(cv_groups(&names, Some(&two)), (Grouping::Runs, names.clone()));
+        let three = labels(&["up", "down", "side", "up"]);
+        assert_eq!(cv_groups(&names, Some(&three)), (Grouping::Positions, three.clone()));
+        assert_eq!(cv_groups(&names, None), (Grouping::Runs, names.clone()));
+    }
+
+    #[test]
+    fn one_standard_error_rule_on_hand_computed_numbers() {
+        // Three folds. Best: mesh (index 2), mean 2.0.
+        // poly (index 1): scores 2.1, 2.4, 1.8 -> mean 2.1; differences to mesh
+        //   (2.0, 2.2, 1.8): 0.1, 0.2, 0.0 -> mean 0.1, sd 0.1, SE 0.1/sqrt 3 = 0.0577;
+        //   excess 0.1 > 0.0577: outside.
+        // cubic-t (index 0): scores 3, 3, 3 -> mean 3, far outside.
+        // hybrid (index 3): scores 2.0, 2.3, 1.8 -> mean 2.0333, close to mesh but not
+        //   simpler: mesh itself (excess 0) is the simplest within one SE.
+        let scores = vec![
+            Some(vec![3.0, 3.0, 3.0]),
+            Some(vec![2.1, 2.4, 1.8]),
+            Some(vec![2.0, 2.2, 1.8]),
+            Some(vec![2.0, 2.3, 1.8]),
+        ];
+        let c = choose(&scores).expect("a choice");
+        assert_eq!(c.best, 2);
+        assert_eq!(c.chosen, 2, "{:?}", c.summaries);
+        let poly = c.summaries[1].expect("scored");
+        assert!((poly.mean_dph - 2.1).abs() < 1e-12);
+        assert!((poly.difference_dph - 0.1).abs() < 1e-12);
+        assert!((poly.difference_standard_error_dph - 0.1 / 3f64.sqrt()).abs() < 1e-12);
+        // sd of (2.1, 2.4, 1.8) = 0.3 -> SE 0.3 / sqrt 3.
+        assert!((poly.standard_error_dph - 0.3 / 3f64.sqrt()).abs() < 1e-12);
+
+        // Make poly's excess smaller than its paired SE: differences 0.05, 0.25, -0.1 ->
+        // mean 0.0667, sd 0.1756, SE 0.1014: within one SE, and simpler than mesh.
+        let scores = vec![
+            Some(vec![3.0, 3.0, 3.0]),
+            Some(vec![2.05, 2.45, 1.7]),
+            Some(vec![2.0, 2.2, 1.8]),
+            Some(vec![2.0, 2.3, 1.8]),
+        ];
+        let c = choose(&scores).expect("a choice");
+        assert_eq!((c.best, c.chosen), (2, 1), "{:?}", c.summaries);
+        let poly = c.summaries[1].expect("scored");
+        let d = [0.05, 0.25, -0.1];
+        let m = d.iter().sum::<f64>() / 3.0;
+        let sd = (d.iter().map(|x| (x - m) * (x - m)).sum::<f64>() / 2.0).sqrt();
+        assert!((poly.difference_standard_error_dph - sd / 3f64.sqrt()).abs() < 1e-12);
+
+        // An unscored candidate is skipped; the best is then chosen when nothing simpler
+        // is within one SE.
+        let scores = vec![None, Some(vec![2.5, 2.6, 2.7]), Some(vec![2.0, 2.1, 2.2])];
+        let c = choose(&scores).expect("a choice");
+        assert_eq!((c.best, c.chosen), (2, 2));
+        assert!(c.summaries[0].is_none());
+    }
+
+    #[test]
+    fn the_rule_refuses_what_it_cannot_score() {
+        assert!(choose(&[None, None]).is_none());
+        assert!(choose(&[Some(vec![1.0])]).is_none(), "one fold has no standard error");
+        assert!(choose(&[Some(vec![1.0, 2.0]), Some(vec![1.0])]).is_none(), "unequal folds");
+        assert!(choose(&[Some(vec![1.0, f64::NAN])]).is_none());
+    }
+
+    use crate::calibrate::{extract_run, CalibrationConfig};
+    use rand::SeedableRng;
+    use rand_xoshiro::Xoshiro256PlusPlus;
+    use std::path::Path;
+
+    /// Writes 6 power-on runs of 40 min at 5 Hz into `dir`: the temperature settles from
+    /// `start` towards `start + step` with a 10 min time constant (starts -30..+45 C,
+    /// steps of either sign), quantised to 0.0625 C; gyro = `bias(T, dT/dt in C/min)` plus
+    /// white noise of 0.02 deg/h per sample (fixed seed). Returns the logs.
+    fn write_runs(dir: &Path, bias: impl Fn(f64, f64) -> f64) -> Vec<PathBuf> {
+        use rand::Rng;
+        let mut rng = Xoshiro256PlusPlus::seed_from_u64(11);
+        let mut gauss = move || {
+            let (u1, u2): (f64, f64) = (rng.gen::<f64>().max(1e-300), rng.gen::<f64>());
+            (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
+        };
+        let profiles =
+            [(-30.0, 20.0), (-15.0, -10.0), (0.0, 25.0), (15.0, -20.0), (30.0, 15.0), (45.0, -25.0)];
+        let mut logs = Vec::new();
+        for (k, (start_c, step_c)) in profiles.into_iter().enumerate() {
+            let mut csv = String::from("time_s,temp_c,gyro_dph\n");
+            for i in 0..(40 * 60 * 5) {
+                let t = f64::from(i) / 5.0;
+                let decay = (-t / 600.0).exp();
+                let temp_c = start_c + step_c * (1.0 - decay);
+                let rate_c_per_min = step_c * decay / 600.0 * 60.0;
+                let logged_c = (temp_c / 0.0625).round() * 0.0625;
+                let gyro = bias(temp_c, rate_c_per_min) + 0.02 * gauss();
+                csv.push_str(&format!("{t:.1},{logged_c:.4},{gyro:.6}\n"));
+            }
+            let path = dir.join(format!("run{k}.csv"));
+            std::fs::write(&path, csv).expect("write log");
+            logs.push(path);
+        }
+        logs
+    }
+
+    fn selection_for(bias: impl Fn(f64, f64) -> f64) -> Selection {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let logs = write_runs(dir.path(), bias);
+        let config = CalibrationConfig { method: Method::Auto, ..CalibrationConfig::default() };
+        let runs: Vec<RunFeatures> =
+            logs.iter().map(|l| extract_run(l, &config, |_, _| {}).expect("features")).collect();
+        let fitted = crate::calibrate::fit_model(&runs, &config, [0; 32]).expect("fits");
+        let selection = fitted.axes[0].selection.clone().expect("auto records its choice");
+        // The blob records the choice.
+        let model = Model::from_bytes(&fitted.blob).expect("valid blob");
+        assert_eq!(model.axis(0).expect("axis").selection, selection.blob_code());
+        assert_eq!(fitted.axes[0].method, selection.method);
+        eprintln!("{}", selection.table());
+        selection
+    }
+
+    #[test]
+    fn a_bias_cubic_in_temperature_alone_gets_a_temperature_model() {
+        // b(T) = 0.3 x + 0.2 x^2 - 0.15 x^3 deg/h with x = (T - 10) / 40: no rate term.
+        let s = selection_for(|t, _| {
+            let x = (t - 10.0) / 40.0;
+            0.3 * x + 0.2 * x * x - 0.15 * x * x * x
+        });
+        assert_eq!((s.folds, s.grouping, s.warning.as_deref()), (6, Grouping::Runs, None));
+        assert!(matches!(s.method, Method::CubicT | Method::Poly), "{}", s.table());
+        let chosen = s.candidates.iter().find(|c| c.method == s.method).expect("chosen is a candidate");
+        assert!(chosen.within_one_standard_error, "{}", s.table());
+        assert_eq!(chosen.runs.len(), 6);
+        // Each run is held out once, by its own fold.
+        let mut runs: Vec<&str> = chosen.runs.iter().map(|r| r.run.as_str()).collect();
+        runs.sort();
+        assert_eq!(runs, ["run0", "run1", "run2", "run3", "run4", "run5"]);
+        assert!(chosen.runs.iter().all(|r| r.run == r.group));
+    }
+
+    #[test]
+    fn a_bias_driven_by_the_temperature_rate_is_not_given_a_cubic_in_t() {
+        // b = 0.8 deg/h per C/min of dT/dt (the Shupe effect) plus a mild 0.05 x in T.
+        let s = selection_for(|t, rate| 0.8 * rate + 0.05 * (t - 10.0) / 40.0);
+        assert_ne!(s.method, Method::CubicT, "{}", s.table());
+        let score = |m: Method| s.candidates.iter().find(|c| c.method == m).expect("scored");
+        let (cubic, chosen) = (score(Method::CubicT), score(s.method));
+        // Not a near miss: cubic-t is outside one paired standard error of the best.
+        assert!(!cubic.within_one_standard_error, "{}", s.table());
+        assert!(cubic.cv_bias_stability_dph > chosen.cv_bias_stability_dph, "{}", s.table());
+    }
+
+    #[test]
+    fn too_few_runs_fall_back_to_the_stated_default_with_a_warning() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let logs = write_runs(dir.path(), |t, _| 0.01 * t);
+        let config = CalibrationConfig { method: Method::Auto, ..CalibrationConfig::default() };
+        let runs: Vec<RunFeatures> =
+            logs[..2].iter().map(|l| extract_run(l, &config, |_, _| {}).expect("features")).collect();
+        let fitted = crate::calibrate::fit_model(&runs, &config, [0; 32]).expect("fits");
+        let s = fitted.axes[0].selection.as_ref().expect("recorded");
+        assert_eq!(s.method, FALLBACK_METHOD);
+        assert_eq!(fitted.axes[0].method, FALLBACK_METHOD);
+        assert!(
+            s.warning.as_deref().is_some_and(|w| w.contains("2 runs") && w.contains("at least 3")),
+            "{s:?}"
+        );
+        let model = Model::from_bytes(&fitted.blob).expect("valid blob");
+        assert_eq!(
+            model.axis(0).expect("axis").selection,
+            u16::from_le_bytes([SELECTION_POLY, SELECTION_FALLBACK])
+        );
+    }
+
+    /// A run whose features span the given temperatures and rates.
+    fn run_spanning(points: &[(f64, f64)]) -> RunFeatures {
+        let features = points
+            .iter()
+            .map(|&(temp_c, rate_c_per_min)| crate::features::FeaturePoint {
+                time_s: 0.0,
+                temp_c,
+                rate_c_per_min,
+                window_full: true,
+                gyro_mean_dph: 0.0,
+                gyro_samples: 1,
+                segment: 0,
+            })
+            .collect();
+        RunFeatures {
+            path: PathBuf::from("r.csv"),
+            ingest: Default::default(),
+            axes: vec![(features, vec![0.0; points.len()])],
+        }
+    }
+
+    #[test]
+    fn a_fold_is_inside_the_range_only_when_no_held_out_feature_widens_it() {
+        let runs = [
+            run_spanning(&[(-30.0, 0.0), (0.0, 1.0)]),
+            run_spanning(&[(-10.0, 0.2), (10.0, 0.5)]),
+            run_spanning(&[(20.0, -0.5), (40.0, 0.8)]),
+            run_spanning(&[(35.0, 0.1)]),
+        ];
+        // Run 1 lies within the others' -30..40 C and -0.5..1 C/min.
+        assert!(within_training_range(&runs, 0, &[1]));
+        assert!(within_training_range(&runs, 0, &[3]));
+        // Run 0 holds the coldest point and the fastest rate; run 2 the hottest and the
+        // only cooling rate.
+        assert!(!within_training_range(&runs, 0, &[0]));
+        assert!(!within_training_range(&runs, 0, &[2]));
+        assert!(!within_training_range(&runs, 0, &[1, 2]), "a group is judged as a whole");
+    }
+
+    #[test]
+    fn blob_codes_name_method_and_how() {
+        let mut s = Selection::fallback(Grouping::Runs, 2, "few");
+        assert_eq!(s.blob_code(), u16::from_le_bytes([SELECTION_POLY, SELECTION_FALLBACK]));
+        s.warning = None;
+        s.method = Method::Mesh;
+        s.grouping = Grouping::Positions;
+        assert_eq!(s.blob_code(), u16::from_le_bytes([SELECTION_MESH, SELECTION_BY_GROUPS]));
+        s.method = Method::CubicT;
+        s.grouping = Grouping::Runs;
+        assert_eq!(s.blob_code(), u16::from_le_bytes([SELECTION_CUBIC_T, SELECTION_BY_RUNS]));
+    }
+}

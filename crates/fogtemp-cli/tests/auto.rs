@@ -1,0 +1,188 @@
+//! `fit --method auto` (the default) and `--runs FILE` for `fit` and `validate`, end to end
+//! through the binary: the `selection` JSON keys (docs/architecture.md, Contracts), the runs
+//! file's roles and positions, and its errors naming the file and the line.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use serde_json::Value;
+
+fn cal(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_fogtemp-cal")).args(args).output().expect("runs the binary")
+}
+
+fn ok_json(args: &[&str]) -> Value {
+    let out = cal(args);
+    assert!(out.status.success(), "{args:?}: {}", String::from_utf8_lossy(&out.stderr));
+    serde_json::from_slice(&out.stdout).expect("one JSON document")
+}
+
+fn err_text(args: &[&str]) -> String {
+    let out = cal(args);
+    assert!(!out.status.success(), "{args:?} should fail");
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
+/// Six 30-minute power-on runs at 2 Hz: temperature settling from `start` by `step` with a
+/// 6 min time constant; gyro = 0.01 deg/h per C plus 0.3 deg/h per C/min plus a
+/// deterministic pseudo-random +-0.02 deg/h (an LCG, so the test needs no generator).
+fn write_runs(dir: &Path) -> Vec<PathBuf> {
+    let mut state: u64 = 12345;
+    let mut noise = move || {
+        state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        ((state >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 0.04
+    };
+    let profiles = [(-20.0, 15.0), (-5.0, -10.0), (10.0, 20.0), (25.0, -15.0), (40.0, 10.0), (55.0, -20.0)];
+    profiles
+        .iter()
+        .enumerate()
+        .map(|(k, &(start_c, step_c))| {
+            let mut csv = String::from("time_s,temp_c,gyro_dph\n");
+            for i in 0..3600 {
+                let t = f64::from(i) / 2.0;
+                let decay = (-t / 360.0_f64).exp();
+                let temp_c: f64 = start_c + step_c * (1.0 - decay);
+                let rate_c_per_min = step_c * decay / 6.0;
+                let gyro = 0.01 * temp_c + 0.3 * rate_c_per_min + noise();
+                csv.push_str(&format!("{t:.1},{temp_c:.4},{gyro:.6}\n"));
+            }
+            let path = dir.join(format!("run{k}.csv"));
+            std::fs::write(&path, csv).expect("write log");
+            path
+        })
+        .collect()
+}
+
+fn strings(paths: &[PathBuf]) -> Vec<String> {
+    paths.iter().map(|p| p.display().to_string()).collect()
+}
+
+#[test]
+fn auto_is_the_default_and_reports_its_cross_validation() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let logs = strings(&write_runs(dir.path()));
+    let model = dir.path().join("m.fogm").display().to_string();
+    let mut args = vec!["fit", "--json", "--out", &model];
+    args.extend(logs.iter().map(String::as_str));
+    let doc = ok_json(&args);
+    let selection = &doc["axes"][0]["selection"];
+    let method = selection["method"].as_str().expect("selection.method");
+    assert_eq!(doc["axes"][0]["method"], method);
+    assert_eq!(selection["grouping"], "runs");
+    assert_eq!(selection["folds"], 6);
+    let candidates = selection["candidates"].as_array().expect("candidates[]");
+    let names: Vec<&str> = candidates.iter().filter_map(|c| c["method"].as_str()).collect();
+    assert_eq!(names, ["cubic-t", "poly", "mesh", "hybrid"]);
+    assert!(names.contains(&method));
+    for c in candidates {
+        let cv = c["cv_bias_stability_dph"].as_f64().expect("cv_bias_stability_dph");
+        assert!(cv > 0.0 && c["standard_error_dph"].as_f64().is_some(), "{c}");
+        let runs = c["runs"].as_array().expect("runs[]");
+        assert_eq!(runs.len(), 6);
+        // With one run per fold, the cross-validated value is the mean of the runs' values.
+        let mean = runs.iter().filter_map(|r| r["bias_stability_dph"].as_f64()).sum::<f64>() / 6.0;
+        assert!((mean - cv).abs() <= 1e-12 * cv.max(1.0), "{mean} vs {cv}");
+        assert!(runs.iter().all(|r| r["run"].as_str().is_some_and(|n| n.starts_with("run"))));
+    }
+    // The text output prints the table.
+    let mut text_args = vec!["fit", "--out", &model];
+    text_args.extend(logs.iter().map(String::as_str));
+    let text = cal(&text_args);
+    let stdout = String::from_utf8_lossy(&text.stdout);
+    assert!(stdout.contains("chosen by cross-validation") && stdout.contains("<- chosen"), "{stdout}");
+}
+
+#[test]
+fn runs_file_roles_and_positions_set_the_split_and_the_folds() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let logs = strings(&write_runs(dir.path()));
+    let runs = dir.path().join("runs.csv");
+    // Three positions over five calibration runs; run5 validates.
+    std::fs::write(
+        &runs,
+        "run,position,input_rate_dph,role\nrun0,a,1,cal\nrun1,b,1,cal\nrun2,c,1,cal\nrun3,a,1,cal\nrun4,b,1,cal\nrun5,c,1,val\n",
+    )
+    .expect("write runs");
+    let runs = runs.display().to_string();
+    let model = dir.path().join("m.fogm").display().to_string();
+    let mut args = vec!["fit", "--json", "--out", &model, "--runs", &runs];
+    args.extend(logs.iter().map(String::as_str));
+    let doc = ok_json(&args);
+    let read: Vec<&str> =
+        doc["runs"].as_array().expect("runs[]").iter().filter_map(|r| r["path"].as_str()).collect();
+    assert_eq!(read.len(), 5, "{read:?}");
+    assert!(!read.iter().any(|p| p.ends_with("run5.csv")), "the val run is left out of the fit");
+    let selection = &doc["axes"][0]["selection"];
+    assert_eq!(selection["grouping"], "positions");
+    assert_eq!(selection["folds"], 3);
+    let held: Vec<(&str, &str)> = selection["candidates"][0]["runs"]
+        .as_array()
+        .expect("runs[]")
+        .iter()
+        .map(|r| (r["run"].as_str().unwrap_or(""), r["group"].as_str().unwrap_or("")))
+        .collect();
+    assert_eq!(held, [("run0", "a"), ("run3", "a"), ("run1", "b"), ("run4", "b"), ("run2", "c")]);
+
+    let mut args = vec!["validate", "--json", "--model", &model, "--runs", &runs];
+    args.extend(logs.iter().map(String::as_str));
+    let doc = ok_json(&args);
+    let validated: Vec<&str> =
+        doc["runs"].as_array().expect("runs[]").iter().filter_map(|r| r["path"].as_str()).collect();
+    assert_eq!(validated.len(), 1);
+    assert!(validated[0].ends_with("run5.csv"));
+}
+
+#[test]
+fn fewer_than_three_runs_warn_and_fit_the_default() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let logs = strings(&write_runs(dir.path()));
+    let model = dir.path().join("m.fogm").display().to_string();
+    let out = cal(&["fit", "--json", "--out", &model, &logs[0], &logs[1]]);
+    assert!(out.status.success());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(stderr.contains("warning: axis 0: too few calibration runs (2 runs"), "{stderr}");
+    let doc: Value = serde_json::from_slice(&out.stdout).expect("json");
+    assert_eq!(doc["axes"][0]["selection"]["method"], "poly");
+    assert!(doc["axes"][0]["selection"]["warning"].as_str().is_some());
+}
+
+#[test]
+fn runs_file_problems_name_the_file_and_the_line() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let logs = strings(&write_runs(dir.path()));
+    let model = dir.path().join("m.fogm").display().to_string();
+    let fit_ok = ok_json(&["fit", "--method", "poly", "--json", "--out", &model, &logs[0]]);
+    assert!(fit_ok["axes"][0]["selection"].is_null(), "a given method has no selection");
+    let cases = [
+        (
+            "dup.csv",
+            "run,position,input_rate_dph\nrun0,a,1\nrun1,a,1\nrun0,b,1\n",
+            "dup.csv:4: run 'run0' is listed twice",
+        ),
+        (
+            "unknown.csv",
+            "run,position,input_rate_dph\nrun0,a,1\nrun1,a,1\nrun9,a,1\n",
+            "unknown.csv:4: run 'run9' has no log",
+        ),
+        ("missing.csv", "run,position,input_rate_dph\nrun0,a,1\n", "no row for the log"),
+        (
+            "role.csv",
+            "run,position,input_rate_dph,role\nrun0,a,1,cal\nrun1,a,1,test\n",
+            "role.csv:3: column 'role'",
+        ),
+    ];
+    for (name, text, needle) in cases {
+        let path = dir.path().join(name);
+        std::fs::write(&path, text).expect("write");
+        let path = path.display().to_string();
+        let fit = err_text(&["fit", "--out", &model, "--runs", &path, &logs[0], &logs[1]]);
+        assert!(fit.contains(needle), "fit {name}: {fit}");
+        let val = err_text(&["validate", "--model", &model, "--runs", &path, &logs[0], &logs[1]]);
+        assert!(val.contains(needle), "validate {name}: {val}");
+    }
+    let path = dir.path().join("allval.csv");
+    std::fs::write(&path, "run,position,input_rate_dph,role\nrun0,a,1,val\n").expect("write");
+    let path = path.display().to_string();
+    let fit = err_text(&["fit", "--out", &model, "--runs", &path, &logs[0]]);
+    assert!(fit.contains("allval.csv: every run has role 'val'"), "{fit}");
+}
