@@ -24,10 +24,8 @@ pub const METHOD_NAMES: [&str; 5] = ["auto", "poly", "mesh", "hybrid", "cubic-t"
 /// The one place a method name becomes a [`Method`].
 pub fn parse_method(name: &str) -> PyResult<Method> {
     Ok(match name {
-        // AUTO: `fogtemp_cal::calibrate::Method::Auto` (cross-validated choice) is being added
-        // to the calibration library; until it exists "auto" means what the command line's
-        // `fit` does by default today, the hybrid. At merge: `"auto" => Method::Auto`.
-        "auto" => Method::Hybrid,
+        // The command line's default: cross-validated choice among the others.
+        "auto" => Method::Auto,
         "poly" => Method::Poly,
         "mesh" => Method::Mesh,
         "hybrid" => Method::Hybrid,

@@ -15,7 +15,7 @@ pub mod data;
 pub mod figures;
 pub mod html;
 
-pub use cross_validation::{cross_validation_markdown, CrossValidationRow};
+pub use cross_validation::{cross_validation_markdown, selection_markdown, CrossValidationRow};
 pub use figures::{plot_drift, plot_grouped_bars, plot_run_bars, BarSeries, DriftRun, RAW_GREY};
 pub use html::write_html_beside;
 
@@ -817,6 +817,7 @@ mod tests {
                 cv_dph: 0.01,
                 se_dph: 0.001,
                 chosen: true,
+                within_one_se: true,
                 held_out_dph: vec![0.01, 0.01],
             }],
         );

@@ -96,13 +96,10 @@ pub fn fit(a: FitArgs) -> Result<()> {
             .iter()
             .enumerate()
             .map(|(axis, r)| {
-                let table = r.selection.as_ref().map_or(String::new(), |s| {
-                    format!(
-                        "\n\n  method chosen by cross-validation ({} folds):\n\n```text\n{}```\n",
-                        s.folds,
-                        s.table()
-                    )
-                });
+                let table = r
+                    .selection
+                    .as_ref()
+                    .map_or(String::new(), |s| format!("\n\n{}", fogtemp_cal::report::selection_markdown(axis, s)));
                 format!(
                     "- axis {axis}: {}, {} calibration points, residual RMS {:.5} deg/h, {} mesh nodes, {} polynomial terms{table}",
                     r.method.name(),
