@@ -176,6 +176,30 @@ fn check_sample(
     Ok(())
 }
 
+/// The replay of one run given as arrays through `models` (as
+/// [`crate::calibrate::replay_models`] replays a log file): the same row rules as
+/// [`extract_run_arrays`], then every model's `Compensator`.
+///
+/// # Errors
+/// As [`visit_rows`].
+pub fn replay_models_arrays(
+    run: &RunArrays<'_>,
+    models: &[&fogtemp_core::Model<'_>],
+    config: &CalibrationConfig,
+    block_s: f64,
+) -> Result<crate::calibrate::Replay, CalError> {
+    let axes = config.ingest.format.gyro_columns.len();
+    crate::calibrate::replay_with(run.name, models, &config.ingest, block_s, |visit| {
+        let mut failed = None;
+        let report = visit_rows(run, axes, config.ingest.skip_bad_rows, |row| {
+            if failed.is_none() {
+                failed = visit(row).err();
+            }
+        })?;
+        failed.map_or(Ok(report), Err)
+    })
+}
+
 /// Features and smoothed targets of one run given as arrays: what
 /// [`crate::calibrate::extract_run`] computes from a log holding the same samples.
 ///

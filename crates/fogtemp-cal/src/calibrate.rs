@@ -537,10 +537,31 @@ pub fn fit_model_with(
     selection: &SelectionOptions,
     progress: impl FnMut(usize, usize),
 ) -> Result<FittedModel, CalError> {
+    let replay_file = |run: usize, models: &[&Model<'_>]| match runs.get(run) {
+        Some(r) => replay_models(&r.path, models, &config.ingest, 1.0, |_, _| {}),
+        None => Err(CalError::Csv { path: PathBuf::new(), line: 0, message: format!("no run {run}") }),
+    };
+    fit_model_replaying(runs, config, input_digest, selection, progress, &replay_file)
+}
+
+/// [`fit_model_with`] for runs whose logs are not files (arrays in memory): `replay(run,
+/// models)` replays run `run` (its index in `runs`) through `models`, as [`replay_models`]
+/// does for a file; [`Method::Auto`]'s cross-validation replays the held-out runs with it.
+///
+/// # Errors
+/// As [`fit_model`], and what `replay` returns.
+pub fn fit_model_replaying(
+    runs: &[RunFeatures],
+    config: &CalibrationConfig,
+    input_digest: [u8; 32],
+    selection: &SelectionOptions,
+    progress: impl FnMut(usize, usize),
+    replay: &crate::selection::ReplayRun<'_>,
+) -> Result<FittedModel, CalError> {
     let axis_count = config.ingest.format.gyro_columns.len();
     let mut choices: Vec<Option<Selection>> = vec![None; axis_count];
     if config.method == Method::Auto {
-        let selected = crate::selection::select(runs, config, selection, progress)?;
+        let selected = crate::selection::select(runs, config, selection, progress, replay)?;
         choices = selected.into_iter().map(Some).collect();
     }
     let mut axes = Vec::new();
@@ -721,7 +742,7 @@ pub fn replay_models_from<R: Read + Send>(
 }
 
 /// The replay of one log whose rows `read` hands to the visitor it is given.
-fn replay_with(
+pub(crate) fn replay_with(
     path: &Path,
     models: &[&Model<'_>],
     ingest: &IngestOptions,
@@ -828,7 +849,7 @@ where
 }
 
 /// Bias stability raw vs compensated per model from the replays of every log.
-fn validations(
+pub(crate) fn validations(
     model_count: usize,
     replays: impl Iterator<Item = Result<(PathBuf, Replay), CalError>>,
     options: &BiasStabilityOptions,

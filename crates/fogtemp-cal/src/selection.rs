@@ -35,8 +35,6 @@
 //! With fewer than [`MIN_FOLDS`] folds, cross-validation cannot estimate a standard error:
 //! the selection falls back to [`FALLBACK_METHOD`] and says so in [`Selection::warning`].
 
-use std::path::PathBuf;
-
 use fogtemp_core::wire::{
     SELECTION_BY_GROUPS, SELECTION_BY_RUNS, SELECTION_CUBIC_T, SELECTION_FALLBACK, SELECTION_HYBRID,
     SELECTION_MESH, SELECTION_NONE, SELECTION_POLY,
@@ -44,7 +42,7 @@ use fogtemp_core::wire::{
 use fogtemp_core::Model;
 use serde::Serialize;
 
-use crate::calibrate::{fit_model, validate_models, CalibrationConfig, Method, RunFeatures};
+use crate::calibrate::{fit_model, validations, CalibrationConfig, Method, Replay, RunFeatures};
 use crate::error::CalError;
 use crate::metrics::{rms_over_runs, BiasStabilityOptions};
 use crate::runs::run_name;
@@ -65,6 +63,10 @@ pub const MIN_FOLDS: usize = 3;
 pub const RULE: &str = "the simplest candidate (cubic-t < poly < mesh < hybrid) whose cross-validated bias \
     stability (mean over folds of the held-out runs' compensated bias stability, RMS within a fold) exceeds \
     the lowest by at most one standard error of the paired per-fold difference";
+
+/// Replays run `run` (its index in the runs given) through `models` (a file's replay reads
+/// the log again; runs held in memory replay their arrays).
+pub type ReplayRun<'a> = dyn Fn(usize, &[&Model<'_>]) -> Result<Replay, CalError> + Sync + 'a;
 
 /// How cross-validation is set up.
 #[derive(Clone, Debug, PartialEq)]
@@ -367,6 +369,7 @@ pub fn select(
     config: &CalibrationConfig,
     options: &SelectionOptions,
     mut progress: impl FnMut(usize, usize),
+    replay: &ReplayRun<'_>,
 ) -> Result<Vec<Selection>, CalError> {
     let axes = config.ingest.format.gyro_columns.len();
     let names: Vec<String> = runs.iter().map(|r| run_name(&r.path)).collect();
@@ -403,8 +406,8 @@ pub fn select(
             .map(|(_, blob)| Model::from_bytes(blob).map_err(CalError::SelfCheck))
             .collect::<Result<_, _>>()?;
         let refs: Vec<&Model<'_>> = models.iter().collect();
-        let paths: Vec<PathBuf> = fold.held_out.iter().map(|&i| runs[i].path.clone()).collect();
-        let validations = validate_models(&paths, &refs, &config.ingest, &options.stability, |_, _, _| {})?;
+        let replays = fold.held_out.iter().map(|&i| Ok((runs[i].path.clone(), replay(i, &refs)?)));
+        let validations = validations(refs.len(), replays, &options.stability)?;
         for ((c, _), validation) in fitted.iter().zip(validations) {
             for r in validation.runs {
                 if let Some(axis_runs) = held[*c].get_mut(r.axis) {

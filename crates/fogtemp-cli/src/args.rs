@@ -147,21 +147,7 @@ impl IngestArgs {
 
 /// `--delimiter`: a name or one ASCII character.
 fn parse_delimiter(text: &str) -> Result<Delimiter, String> {
-    Ok(match text {
-        "auto" => Delimiter::Auto,
-        "comma" | "," => Delimiter::Byte(b','),
-        "semicolon" | ";" => Delimiter::Byte(b';'),
-        "tab" | "\t" | "\\t" => Delimiter::Byte(b'\t'),
-        "whitespace" | "space" => Delimiter::Whitespace,
-        _ => match text.as_bytes() {
-            [b] if b.is_ascii() => Delimiter::Byte(*b),
-            _ => {
-                return Err(format!(
-                    "expected auto, comma, semicolon, tab, whitespace or one ASCII character, got '{text}'"
-                ))
-            }
-        },
-    })
+    Delimiter::from_name(text)
 }
 
 /// Time units.

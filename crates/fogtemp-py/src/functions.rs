@@ -193,7 +193,7 @@ pub fn fit(
     }
     let mut o = Options::new("fit", options);
     let arrays = convert::is_arrays(&items[0])?;
-    if arrays && o.any_given(&COLUMN_KEYS[..9])? {
+    if arrays && o.any_given(&COLUMN_KEYS[..COLUMN_KEYS.len() - 1])? {
         return Err(PyTypeError::new_err(
             "fit(): column and unit options apply to log files; runs given as arrays are in time_s, temp_c, gyro_dph",
         ));
@@ -204,9 +204,31 @@ pub fn fit(
     let capacity = o.usize("capacity", fogtemp_core::DEFAULT_CAPACITY)?;
     o.finish()?;
     options::capacity_fits(config.features.block_count as usize, capacity)?;
-    let (runs, digest) =
-        if arrays { array_runs(py, &items, &mut config)? } else { file_runs(py, &items, &config, progress)? };
-    let fitted = py.detach(|| calibrate::fit_model(&runs, &config, digest)).map_err(errors::cal)?;
+    let fitted = if arrays {
+        let array_runs =
+            items.iter().enumerate().map(|(i, r)| ArrayRun::new(i, r)).collect::<PyResult<Vec<_>>>()?;
+        let (runs, digest) = array_features(py, &array_runs, &mut config)?;
+        let columns: Vec<ArrayColumns<'_>> =
+            array_runs.iter().map(ArrayColumns::new).collect::<PyResult<_>>()?;
+        // `auto` replays each held-out run from its arrays, as it rereads a file.
+        let replay = |run: usize, models: &[&fogtemp_core::Model<'_>]| match columns.get(run) {
+            Some(c) => fogtemp_cal::arrays::replay_models_arrays(&c.view(), models, &config, 1.0),
+            None => Err(fogtemp_cal::CalError::Csv {
+                path: PathBuf::from(format!("runs[{run}]")),
+                line: 0,
+                message: "no such run".into(),
+            }),
+        };
+        let selection = fogtemp_cal::selection::SelectionOptions::default();
+        let fitted = py.detach(|| {
+            calibrate::fit_model_replaying(&runs, &config, digest, &selection, |_, _| {}, &replay)
+        });
+        (fitted.map_err(errors::cal)?, runs, digest)
+    } else {
+        let (runs, digest) = file_runs(py, &items, &config, progress)?;
+        (py.detach(|| calibrate::fit_model(&runs, &config, digest)).map_err(errors::cal)?, runs, digest)
+    };
+    let (fitted, runs, digest) = fitted;
     let source = out.as_ref().map_or_else(|| "<fit>".to_string(), |p| p.display().to_string());
     let doc = FitDocument::new(Path::new(&source), &fitted, &runs, &digest);
     let json = serde_json::to_value(&doc).and_then(|v| serde_json::to_string(&v)).ok();
@@ -252,29 +274,44 @@ fn file_runs(
 }
 
 /// Features of every run given as arrays, and the digest of their values.
-fn array_runs(
+/// Borrowed slices of one run's arrays (valid while the run's read-only arrays live).
+struct ArrayColumns<'a> {
+    name: &'a Path,
+    time_s: &'a [f64],
+    temps_c: Vec<&'a [f64]>,
+    gyros_dph: Vec<&'a [f64]>,
+}
+
+impl<'a> ArrayColumns<'a> {
+    fn new(run: &'a ArrayRun<'_>) -> PyResult<Self> {
+        Ok(Self {
+            name: &run.name,
+            time_s: slice(&run.time_s, "time_s")?,
+            temps_c: run.temps_c.iter().map(|a| slice(a, "temp_c")).collect::<PyResult<_>>()?,
+            gyros_dph: run.gyros_dph.iter().map(|a| slice(a, "gyro_dph")).collect::<PyResult<_>>()?,
+        })
+    }
+
+    fn view(&self) -> RunArrays<'_> {
+        RunArrays { name: self.name, time_s: self.time_s, temps_c: &self.temps_c, gyros_dph: &self.gyros_dph }
+    }
+}
+
+/// Features of every run given as arrays (the same row rules and feature code as a file).
+fn array_features(
     py: Python<'_>,
-    items: &[Bound<'_, PyAny>],
+    runs: &[ArrayRun<'_>],
     config: &mut CalibrationConfig,
 ) -> PyResult<(Vec<RunFeatures>, [u8; 32])> {
     use sha2::Digest;
-    let runs: Vec<ArrayRun<'_>> =
-        items.iter().enumerate().map(|(i, r)| ArrayRun::new(i, r)).collect::<PyResult<_>>()?;
     let axes = runs[0].gyros_dph.len();
     config.ingest.format.gyro_columns = (0..axes).map(|k| format!("gyro_dph[{k}]")).collect();
     let mut hasher = sha2::Sha256::new();
     let mut features = Vec::with_capacity(runs.len());
-    for run in &runs {
+    for run in runs {
         run.digest_into(&mut hasher)?;
-        let temps: Vec<&[f64]> = run.temps_c.iter().map(|a| slice(a, "temp_c")).collect::<PyResult<_>>()?;
-        let gyros: Vec<&[f64]> =
-            run.gyros_dph.iter().map(|a| slice(a, "gyro_dph")).collect::<PyResult<_>>()?;
-        let view = RunArrays {
-            name: &run.name,
-            time_s: slice(&run.time_s, "time_s")?,
-            temps_c: &temps,
-            gyros_dph: &gyros,
-        };
+        let columns = ArrayColumns::new(run)?;
+        let view = columns.view();
         let f = py.detach(|| extract_run_arrays(&view, config)).map_err(array_error)?;
         if f.ingest.rows == 0 {
             return Err(errors::value(format!("{}: no samples", run.name.display())));

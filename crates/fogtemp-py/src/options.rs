@@ -4,7 +4,7 @@
 use std::collections::BTreeSet;
 
 use fogtemp_cal::calibrate::{CalibrationConfig, Thinning};
-use fogtemp_cal::ingest::{IngestOptions, LogFormat, RateUnit, TimeUnit};
+use fogtemp_cal::ingest::{Delimiter, IngestOptions, LogFormat, RateUnit, TimeUnit};
 use fogtemp_cal::metrics::BiasStabilityOptions;
 use fogtemp_cal::poly_fit::TermSelection;
 use fogtemp_cal::thin::GreedyThinning;
@@ -120,7 +120,7 @@ impl<'py> Options<'py> {
 }
 
 /// The log-column keywords (the command line's "Log columns" flags).
-pub const COLUMN_KEYS: [&str; 10] = [
+pub const COLUMN_KEYS: [&str; 14] = [
     "time_column",
     "time_unit",
     "temp_column",
@@ -130,6 +130,10 @@ pub const COLUMN_KEYS: [&str; 10] = [
     "gyro_unit",
     "gyro_scale",
     "delimiter",
+    "skip_lines",
+    "columns",
+    "sample_rate_hz",
+    "comment",
     "skip_bad_rows",
 ];
 
@@ -149,11 +153,10 @@ pub fn ingest(o: &mut Options<'_>) -> PyResult<IngestOptions> {
             return Err(errors::value(format!("gyro_unit must be 'dph', 'dps' or 'rps', got '{other}'")))
         }
     };
-    let delimiter = o.string("delimiter", ",")?;
-    let delimiter = match delimiter.as_bytes() {
-        [b] if b.is_ascii() => *b,
-        _ => return Err(errors::value(format!("delimiter must be one ASCII character, got '{delimiter}'"))),
-    };
+    let delimiter = Delimiter::from_name(&o.string("delimiter", "auto")?)
+        .map_err(|e| errors::value(format!("delimiter: {e}")))?;
+    let comment = o.string("comment", "#")?;
+    let columns = if o.any_given(&["columns"])? { o.strings("columns", "")? } else { Vec::new() };
     Ok(IngestOptions {
         format: LogFormat {
             time_column: o.string("time_column", "time_s")?,
@@ -165,6 +168,10 @@ pub fn ingest(o: &mut Options<'_>) -> PyResult<IngestOptions> {
             gyro_unit,
             gyro_scale: o.f64("gyro_scale", 1.0)?,
             delimiter,
+            skip_lines: o.usize("skip_lines", 0)? as u64,
+            comment: (!comment.is_empty()).then_some(comment),
+            column_names: columns.iter().map(|c| c.trim().to_string()).collect(),
+            sample_rate_hz: o.opt_f64("sample_rate_hz")?,
         },
         skip_bad_rows: o.bool("skip_bad_rows", false)?,
     })

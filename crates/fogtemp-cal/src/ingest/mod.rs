@@ -141,6 +141,27 @@ pub enum Delimiter {
 }
 
 impl Delimiter {
+    /// A delimiter by name (`auto`, `comma`, `semicolon`, `tab`, `whitespace`) or as one
+    /// ASCII character (the command line's `--delimiter`, Python's `delimiter=`).
+    ///
+    /// # Errors
+    /// A message naming what is accepted.
+    pub fn from_name(text: &str) -> Result<Delimiter, String> {
+        Ok(match text {
+            "auto" => Delimiter::Auto,
+            "comma" | "," => Delimiter::Byte(b','),
+            "semicolon" | ";" => Delimiter::Byte(b';'),
+            "tab" | "\t" | "\\t" => Delimiter::Byte(b'\t'),
+            "whitespace" | "space" => Delimiter::Whitespace,
+            _ => match text.as_bytes() {
+                [b] if b.is_ascii() => Delimiter::Byte(*b),
+                _ => return Err(format!(
+                    "expected auto, comma, semicolon, tab, whitespace or one ASCII character, got '{text}'"
+                )),
+            },
+        })
+    }
+
     /// The delimiter [`Delimiter::Auto`] picks for `line` (other variants return themselves).
     pub fn resolve(self, line: &[u8]) -> Delimiter {
         if self != Delimiter::Auto {
