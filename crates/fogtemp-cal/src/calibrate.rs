@@ -322,6 +322,8 @@ pub struct AxisFitReport {
     pub residual_max_abs_dph: f64,
     /// Estimated noise of the smoothed targets used for thinning, deg/h (NaN if unknown).
     pub target_noise_dph: f64,
+    /// How the mesh's smoothness weight was chosen (least-squares nodes only).
+    pub mesh_smoothing: Option<crate::mesh_fit::MeshSmoothing>,
 }
 
 /// One fitted axis: what goes into the blob and what the fit did.
@@ -381,9 +383,11 @@ pub fn fit_axis(
         }
         _ => false,
     };
+    let mut mesh_smoothing = None;
     let mesh = match config.method {
         Method::Poly | Method::CubicT => None,
-        Method::Hybrid if poly_is_enough => None,
+        // Least-squares nodes: cross-validation decides whether the hybrid keeps its mesh.
+        Method::Hybrid if poly_is_enough && !config.least_squares_nodes => None,
         Method::Mesh | Method::Hybrid => {
             let keep = match config.thinning {
                 Thinning::Paper { fast_rate_c_per_min, settled_every } => {
@@ -411,9 +415,14 @@ pub fn fit_axis(
                         (x, y, p.value_dph)
                     })
                     .collect();
-                crate::mesh_fit::fit_node_values(&mut mesh, &targets, 1e-3)?;
+                let hybrid = config.method == Method::Hybrid;
+                let (_, smoothing) = crate::mesh_fit::fit_node_values_cv(&mut mesh, &targets, runs, hybrid)?;
+                let keep = !smoothing.no_mesh();
+                mesh_smoothing = Some(smoothing);
+                keep.then_some(mesh)
+            } else {
+                Some(mesh)
             }
-            Some(mesh)
         }
     };
     let outside_policy =
@@ -438,6 +447,12 @@ pub fn fit_axis(
             rate_min_c_per_min: rate_min as f32,
             rate_max_c_per_min: rate_max as f32,
         },
+        // Outside the calibrated points the polynomial is held at their hull (no runaway
+        // extrapolation; flagged OUTSIDE_HULL).
+        region: crate::blob::calibrated_region(
+            &points.iter().map(|p| crate::mesh::normalised(p, &normalisation)).collect::<Vec<_>>(),
+        ),
+        poly_outside: fogtemp_core::PolyOutside::HoldAtBoundary,
     };
     // Residuals of the model as the firmware evaluates it (f32, through the core).
     let probe =
@@ -469,6 +484,7 @@ pub fn fit_axis(
         residual_rms_dph,
         residual_max_abs_dph,
         target_noise_dph,
+        mesh_smoothing,
     };
     Ok(FittedAxis { model: axis, report })
 }
