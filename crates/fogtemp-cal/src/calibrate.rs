@@ -128,6 +128,10 @@ pub struct CalibrationConfig {
     /// (1: both span [-1, 1], the default; the Delaunay triangulation and the thinning
     /// distances see this aspect ratio).
     pub rate_axis_weight: f64,
+    /// What the polynomial does outside the calibrated region (the convex hull of the
+    /// calibration points, always stored in the blob). Default: extrapolate; holding at the
+    /// boundary was worse on the testbed (docs/calibration-testbed.md).
+    pub poly_outside: fogtemp_core::PolyOutside,
 }
 
 impl Default for CalibrationConfig {
@@ -142,6 +146,7 @@ impl Default for CalibrationConfig {
             full_windows_only: false,
             least_squares_nodes: true,
             rate_axis_weight: 1.0,
+            poly_outside: fogtemp_core::PolyOutside::Extrapolate,
         }
     }
 }
@@ -447,12 +452,12 @@ pub fn fit_axis(
             rate_min_c_per_min: rate_min as f32,
             rate_max_c_per_min: rate_max as f32,
         },
-        // Outside the calibrated points the polynomial is held at their hull (no runaway
-        // extrapolation; flagged OUTSIDE_HULL).
+        // The calibrated region; with HoldAtBoundary the polynomial is held at its boundary
+        // outside (no runaway extrapolation; flagged OUTSIDE_HULL).
         region: crate::blob::calibrated_region(
             &points.iter().map(|p| crate::mesh::normalised(p, &normalisation)).collect::<Vec<_>>(),
         ),
-        poly_outside: fogtemp_core::PolyOutside::HoldAtBoundary,
+        poly_outside: config.poly_outside,
     };
     // Residuals of the model as the firmware evaluates it (f32, through the core).
     let probe =
