@@ -391,8 +391,8 @@ pub fn fit_axis(
     let mut mesh_smoothing = None;
     let mesh = match config.method {
         Method::Poly | Method::CubicT => None,
-        // Least-squares nodes: cross-validation decides whether the hybrid keeps its mesh.
-        Method::Hybrid if poly_is_enough && !config.least_squares_nodes => None,
+        // Otherwise (least-squares nodes) cross-validation decides whether it keeps its mesh.
+        Method::Hybrid if poly_is_enough => None,
         Method::Mesh | Method::Hybrid => {
             let keep = match config.thinning {
                 Thinning::Paper { fast_rate_c_per_min, settled_every } => {
