@@ -101,7 +101,8 @@ impl<'a> Region<'a> {
                 return a;
             }
             previous_t = t;
-            // Finite: |x|, |y| <= MAX_NORMALISED_COORD and the edge has a length.
+            // Finite: |x|, |y| <= MAX_NORMALISED_COORD and the edge has a length (as in
+            // `Mesh::nearest_hull_value`).
             let tc = t.clamp(0.0, 1.0);
             let (qx, qy) = (a.0 + tc * ex, a.1 + tc * ey);
             let d2 = (x - qx) * (x - qx) + (y - qy) * (y - qy);
