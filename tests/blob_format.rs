@@ -1,4 +1,4 @@
-//! The model blob, format version 1, from the writer's side: round trip through
+//! The model blob, format version 2, from the writer's side: round trip through
 //! `fogtemp_cal::encode` and the core reader, the layout against the spec, the committed golden
 //! bytes reproduced by today's writer, and rejection of corrupted written blobs without panics
 //! (single-byte flips, truncations, structured mutations, targeted corruptions with their
@@ -40,7 +40,7 @@ use fogtemp_core::{
 use rand::Rng;
 use shared::{
     core_digest, exercise, fix_crc, fix_len_and_crc, golden_queries, put_f32, put_u16, put_u32, u16_at,
-    u32_at, GOLDEN_BLOB, GOLDEN_CSV, GOLDEN_HEADER,
+    u32_at, GOLDEN_HEADER, GOLDEN_V2_BLOB, GOLDEN_V2_CSV,
 };
 
 // ---------------------------------------------------------------------------------------------
@@ -111,6 +111,8 @@ fn three_axis_model() -> ModelFile {
         rate_scale_per_c_per_min: 1.5,
     };
     let axis0 = AxisModel {
+        region: Vec::new(),
+        poly_outside: fogtemp_core::PolyOutside::Extrapolate,
         features: FeatureSettings { window_s: 60.0, block_count: 30, min_blocks: 5, max_gap_s: 2.5 },
         normalisation: NORMALISATION,
         outside_policy: OutsidePolicy::NearestHull,
@@ -127,6 +129,8 @@ fn three_axis_model() -> ModelFile {
         provenance: provenance(1.0),
     };
     let axis1 = AxisModel {
+        region: Vec::new(),
+        poly_outside: fogtemp_core::PolyOutside::Extrapolate,
         features: FEATURES,
         normalisation: n1,
         outside_policy: OutsidePolicy::NearestHull,
@@ -135,6 +139,8 @@ fn three_axis_model() -> ModelFile {
         provenance: provenance(2.0),
     };
     let axis2 = AxisModel {
+        region: Vec::new(),
+        poly_outside: fogtemp_core::PolyOutside::Extrapolate,
         features: FeatureSettings { window_s: 250.0, block_count: 4096, min_blocks: 4096, max_gap_s: 1.0e3 },
         normalisation: NORMALISATION,
         outside_policy: OutsidePolicy::Zero,
@@ -152,6 +158,8 @@ fn three_axis_model() -> ModelFile {
 /// A valid one-axis hybrid blob of about 2 KB (17 mesh nodes, 3 poly terms).
 fn two_kb_blob() -> Vec<u8> {
     let axis = AxisModel {
+        region: Vec::new(),
+        poly_outside: fogtemp_core::PolyOutside::Extrapolate,
         features: FEATURES,
         normalisation: NORMALISATION,
         outside_policy: OutsidePolicy::NearestHull,
@@ -286,7 +294,7 @@ fn blob_layout_follows_the_spec() {
     let file = three_axis_model();
     let blob = encode(&file).expect("encodes");
     assert_eq!(&blob[FILE_MAGIC], b"FOGM");
-    assert_eq!(u16_at(&blob, FILE_VERSION.start), 1);
+    assert_eq!(u16_at(&blob, FILE_VERSION.start), 2);
     assert_eq!(u16_at(&blob, FILE_HEADER_LEN_FIELD.start), 64);
     assert_eq!(u32_at(&blob, FILE_TOTAL_LEN.start) as usize, blob.len());
     assert_eq!(u16_at(&blob, FILE_AXIS_COUNT.start), 3);
@@ -304,8 +312,9 @@ fn blob_layout_follows_the_spec() {
         assert_eq!(kind & KIND_POLY != 0, !axis.poly.is_empty());
         assert_eq!(kind & KIND_MESH != 0, axis.mesh.is_some());
         assert_eq!(u32_at(&blob, s.start + AXIS_OUTSIDE_POLICY.start), axis.outside_policy.code());
-        assert!(blob[s.start + AXIS_RESERVED.start..s.start + AXIS_RESERVED.end].iter().all(|&b| b == 0));
-        let len = 96 + 8 * s.terms + 12 * s.vertices + 60 * s.triangles + 8 * s.hull;
+        assert_eq!(u32_at(&blob, s.start + AXIS_REGION_VERTEX_COUNT.start) as usize, axis.region.len());
+        assert_eq!(u32_at(&blob, s.start + AXIS_POLY_OUTSIDE.start), axis.poly_outside.code());
+        let len = 96 + 8 * s.terms + 12 * s.vertices + 60 * s.triangles + 8 * s.hull + 8 * axis.region.len();
         assert_eq!(u32_at(&blob, s.start + AXIS_SECTION_LEN.start) as usize, len);
         for (k, t) in axis.poly.iter().enumerate() {
             let at = s.poly_at + 8 * k;
@@ -327,7 +336,7 @@ fn blob_layout_follows_the_spec() {
 }
 
 // ---------------------------------------------------------------------------------------------
-// 2. Golden bytes of format version 1 (the reader's side: the core's tests)
+// 2. Golden bytes of format version 2 (the reader's side, and version 1's: the core's tests)
 // ---------------------------------------------------------------------------------------------
 
 /// A deterministic pseudo-random stream from an integer LCG (no float library functions, so
@@ -359,6 +368,8 @@ fn golden_model() -> ModelFile {
         }
     }
     let axis0 = AxisModel {
+        region: Vec::new(),
+        poly_outside: fogtemp_core::PolyOutside::Extrapolate,
         features: FEATURES,
         normalisation: NORMALISATION,
         outside_policy: OutsidePolicy::NearestHull,
@@ -373,6 +384,9 @@ fn golden_model() -> ModelFile {
         provenance: provenance(5.0),
     };
     let axis1 = AxisModel {
+        // A calibrated region (normalised plane) with the polynomial held at its boundary.
+        region: vec![[-0.8, -0.9], [0.8, -0.9], [0.9, 0.8], [-0.9, 0.9]],
+        poly_outside: fogtemp_core::PolyOutside::HoldAtBoundary,
         features: FeatureSettings { window_s: 50.0, block_count: 25, min_blocks: 8, max_gap_s: 3.0 },
         normalisation: Normalisation {
             temp_offset_c: 15.0,
@@ -417,9 +431,9 @@ fn bless_if_requested() {
             csv.push('\n');
         }
         std::fs::create_dir_all(golden_dir()).expect("create tests/golden");
-        std::fs::write(golden_dir().join(GOLDEN_BLOB), &blob).expect("write golden blob");
-        std::fs::write(golden_dir().join(GOLDEN_CSV), csv).expect("write golden csv");
-        eprintln!("FOGTEMP_BLESS=1: wrote {} ({} bytes) and {GOLDEN_CSV}", GOLDEN_BLOB, blob.len());
+        std::fs::write(golden_dir().join(GOLDEN_V2_BLOB), &blob).expect("write golden blob");
+        std::fs::write(golden_dir().join(GOLDEN_V2_CSV), csv).expect("write golden csv");
+        eprintln!("FOGTEMP_BLESS=1: wrote {} ({} bytes) and {GOLDEN_V2_CSV}", GOLDEN_V2_BLOB, blob.len());
     });
 }
 
@@ -432,8 +446,9 @@ fn read_golden(name: &str) -> Vec<u8> {
 }
 
 #[test]
-fn golden_v1_blob_is_reproduced_byte_for_byte_by_todays_writer() {
-    let golden = read_golden(GOLDEN_BLOB);
+fn golden_v2_blob_is_reproduced_byte_for_byte_by_todays_writer() {
+    // Version 1 (model-v1.fogm) is no longer written; the core's tests still read it.
+    let golden = read_golden(GOLDEN_V2_BLOB);
     let today = encode(&golden_model()).expect("encodes");
     if today != golden {
         let first =
@@ -690,8 +705,10 @@ fn find_slot(b: &[u8], s: Section, want: impl Fn(u32) -> bool) -> (usize, usize)
 fn targeted_header_corruptions_give_their_specific_errors() {
     let r = mutated(|b, _| b[0] = b'X');
     assert!(matches!(r, Err(Error::BadMagic)), "{r:?}");
-    let r = mutated(|b, _| put_u16(b, FILE_VERSION.start, 2));
-    assert!(matches!(r, Err(Error::UnsupportedVersion { expected: 1, found: 2 })), "{r:?}");
+    let r = mutated(|b, _| put_u16(b, FILE_VERSION.start, 3));
+    assert!(matches!(r, Err(Error::UnsupportedVersion { expected: 2, found: 3 })), "{r:?}");
+    let r = mutated(|b, _| put_u16(b, FILE_VERSION.start, 0));
+    assert!(matches!(r, Err(Error::UnsupportedVersion { expected: 2, found: 0 })), "{r:?}");
     for count in [0u16, 17, u16::MAX] {
         let r = mutated(|b, _| put_u16(b, FILE_AXIS_COUNT.start, count));
         assert!(matches!(r, Err(Error::BadValue { field: "axis_count", .. })), "axis_count {count}: {r:?}");
@@ -723,8 +740,10 @@ fn targeted_axis_corruptions_give_their_specific_errors() {
     assert!(matches!(r, Err(Error::BadValue { field: "model_kind", .. })), "{r:?}");
     let r = mutated(|b, s| put_u32(b, s.start + AXIS_OUTSIDE_POLICY.start, 2));
     assert!(matches!(r, Err(Error::BadValue { field: "outside_policy", .. })), "{r:?}");
-    let r = mutated(|b, s| b[s.start + AXIS_RESERVED.start + 3] = 1);
-    assert!(matches!(r, Err(Error::BadValue { field: "reserved", .. })), "{r:?}");
+    let r = mutated(|b, s| b[s.start + AXIS_REGION_VERTEX_COUNT.start + 3] = 1);
+    assert!(matches!(r, Err(Error::BadValue { field: "region_vertex_count", .. })), "{r:?}");
+    let r = mutated(|b, s| put_u32(b, s.start + AXIS_POLY_OUTSIDE.start, 2));
+    assert!(matches!(r, Err(Error::BadValue { field: "poly_outside", .. })), "{r:?}");
     let r = mutated(|b, s| put_u32(b, s.start + AXIS_SECTION_LEN.start, 96));
     assert!(matches!(r, Err(Error::LengthMismatch { field: "section_len", .. })), "{r:?}");
     let r = mutated(|b, s| put_f32(b, s.start + AXIS_WINDOW_S.start, f32::NAN));
@@ -856,6 +875,8 @@ fn vertex(x: f32, y: f32, value_dph: f32) -> Vertex {
 /// rejects it.
 fn encode_mesh(mesh: MeshModel) -> Result<Vec<u8>, Error> {
     let axis = AxisModel {
+        region: Vec::new(),
+        poly_outside: fogtemp_core::PolyOutside::Extrapolate,
         features: FEATURES,
         normalisation: NORMALISATION,
         outside_policy: OutsidePolicy::NearestHull,

@@ -7,7 +7,7 @@
 
 use fogtemp_cal::error::FitProblem;
 use fogtemp_cal::mesh::normalised;
-use fogtemp_cal::mesh_fit::fit_node_values;
+use fogtemp_cal::mesh_fit::fit_node_values_cv;
 use fogtemp_cal::metrics::{
     allan_deviation, bias_stability, fit_noise_terms, rms_over_runs, window_means, BiasStabilityOptions,
 };
@@ -553,38 +553,94 @@ fn interior_points(n: usize, seed: u64, noise: f64) -> Vec<(f32, f32, f64)> {
         .collect()
 }
 
+/// Five runs of consecutive points (the cross-validation groups).
+fn five_runs(n: usize) -> Vec<usize> {
+    (0..n).map(|i| i * 5 / n).collect()
+}
+
 #[test]
 fn node_fit_recovers_plane_from_wrong_nodes() {
     let nodes: Vec<MeshPoint> =
         grid(6, 5).into_iter().map(|p| MeshPoint { value_dph: p.value_dph + 0.1, ..p }).collect();
     let mut mesh = build_mesh(&nodes, &NORM).unwrap();
     let points = interior_points(2000, 51, 0.0);
-    let report = fit_node_values(&mut mesh, &points, 0.0).unwrap();
+    let (report, smoothing) = fit_node_values_cv(&mut mesh, &points, &five_runs(2000), false).unwrap();
+    assert_eq!((smoothing.folds, smoothing.fold_count), ("runs", 5));
+    assert!(!smoothing.no_mesh());
     assert_eq!((report.points_used, report.points_outside), (2000, 0));
     // Barycentric weights sum to 1, so a uniform +0.1 offset is 0.1 everywhere (f32 node values).
     assert!((report.rms_before_dph - 0.1).abs() < 1e-6, "{report:?}");
     assert!(report.rms_after_dph < 1e-6, "{report:?}");
     for v in &mesh.vertices {
         let truth = 0.3 + 0.2 * f64::from(v.x) - 0.1 * f64::from(v.y);
-        // Exact LS solution is the plane; 1e-6 covers f32 storage (~3e-8) and CGLS stopping.
+        // A plane is in the smoothness penalty's null space: every weight gives it exactly;
+        // 1e-6 covers f32 storage (~3e-8) and the solver's ridge.
         assert!((f64::from(v.value_dph) - truth).abs() < 1e-6, "{v:?} vs {truth}");
     }
 }
 
 #[test]
-fn node_fit_reduces_rms_on_noisy_points() {
+fn node_fit_on_a_noisy_plane_chooses_a_smooth_mesh() {
     let sigma = 0.01;
-    for ridge in [0.0, 1e-3] {
-        let nodes: Vec<MeshPoint> =
-            grid(6, 5).into_iter().map(|p| MeshPoint { value_dph: p.value_dph + 0.1, ..p }).collect();
-        let mut mesh = build_mesh(&nodes, &NORM).unwrap();
-        let points = interior_points(2000, 52, sigma);
-        let report = fit_node_values(&mut mesh, &points, ridge).unwrap();
-        // LS can only lower the data misfit relative to the starting values.
-        assert!(report.rms_after_dph <= report.rms_before_dph, "{report:?}");
-        // 30 nodes from 2000 points: rms after ~ sigma sqrt(1 - 30/2000); 10 % margin for sampling.
-        assert!((report.rms_after_dph / sigma - 1.0).abs() < 0.1, "{report:?}");
-    }
+    let nodes: Vec<MeshPoint> =
+        grid(6, 5).into_iter().map(|p| MeshPoint { value_dph: p.value_dph + 0.1, ..p }).collect();
+    let mut mesh = build_mesh(&nodes, &NORM).unwrap();
+    let points = interior_points(2000, 52, sigma);
+    let (report, smoothing) = fit_node_values_cv(&mut mesh, &points, &five_runs(2000), false).unwrap();
+    // The fit can only lower the data misfit relative to the starting values.
+    assert!(report.rms_after_dph <= report.rms_before_dph, "{report:?}");
+    // rms after ~ sigma sqrt(1 - df/2000) with df between 3 (plane) and 30; 10 % margin.
+    assert!((report.rms_after_dph / sigma - 1.0).abs() < 0.1, "{report:?}");
+    // Node errors against the true plane: the least-squares plane through 2000 points is off
+    // by about sigma sqrt(3/2000) = 0.04 sigma, an unregularised 30-node fit by about
+    // sigma sqrt(30/2000) = 0.12 sigma per node (more on the hull). Cross-validation must
+    // have chosen the smooth end: below 0.08 sigma.
+    let err: f64 = mesh
+        .vertices
+        .iter()
+        .map(|v| (f64::from(v.value_dph) - (0.3 + 0.2 * f64::from(v.x) - 0.1 * f64::from(v.y))).powi(2))
+        .sum::<f64>()
+        / mesh.vertices.len() as f64;
+    assert!(err.sqrt() < 0.08 * sigma, "node RMS error {} with {smoothing:?}", err.sqrt());
+}
+
+#[test]
+fn the_residual_mesh_is_dropped_when_held_out_runs_see_only_noise() {
+    // A hybrid's residual mesh on pure noise: "no mesh" is the simplest candidate and within
+    // one standard error of the best, so it is chosen and the node values are zero.
+    let nodes: Vec<MeshPoint> = grid(6, 5);
+    let mut mesh = build_mesh(&nodes, &NORM).unwrap();
+    let mut r = rng(54);
+    let points: Vec<(f32, f32, f64)> =
+        interior_points(2000, 54, 0.0).into_iter().map(|(x, y, _)| (x, y, 0.01 * gauss(&mut r))).collect();
+    let (_, smoothing) = fit_node_values_cv(&mut mesh, &points, &five_runs(2000), true).unwrap();
+    assert!(smoothing.no_mesh(), "{smoothing:?}");
+    assert_eq!(smoothing.curve[0].relative_weight, None);
+    assert!(mesh.vertices.iter().all(|v| v.value_dph == 0.0));
+}
+
+#[test]
+fn the_residual_mesh_is_kept_when_held_out_runs_share_its_structure() {
+    // A ripple in x (0.02 deg/h, 1.3 periods across the plane) over noise 0.005 deg/h, seen
+    // by every run (the points of each run are spread over the whole plane): held-out runs
+    // confirm it, so the mesh is kept and follows the ripple.
+    let ripple = |x: f32| 0.02 * (4.0 * f64::from(x)).sin();
+    let mut mesh = build_mesh(&grid(12, 5), &NORM).unwrap();
+    let mut r = rng(55);
+    let points: Vec<(f32, f32, f64)> = interior_points(3000, 55, 0.0)
+        .into_iter()
+        .map(|(x, y, _)| (x, y, ripple(x) + 0.005 * gauss(&mut r)))
+        .collect();
+    let (_, smoothing) = fit_node_values_cv(&mut mesh, &points, &five_runs(3000), true).unwrap();
+    assert!(!smoothing.no_mesh(), "{smoothing:?}");
+    let no_mesh = smoothing.curve[0].cv_rms_dph;
+    let best = smoothing.curve.iter().map(|c| c.cv_rms_dph).fold(f64::INFINITY, f64::min);
+    assert!(best < 0.5 * no_mesh, "{smoothing:?}");
+    // Nodes follow the ripple to well below its amplitude (linear interpolation between 12
+    // columns and the noise leave a few thousandths).
+    let err: f64 = mesh.vertices.iter().map(|v| (f64::from(v.value_dph) - ripple(v.x)).powi(2)).sum::<f64>()
+        / mesh.vertices.len() as f64;
+    assert!(err.sqrt() < 0.004, "node RMS error {}", err.sqrt());
 }
 
 /// Interpolates `(x, y)` on the mesh's own triangles (brute-force point location, f64).
@@ -618,7 +674,7 @@ fn node_fit_uses_the_mesh_triangles() {
     let mut mesh = build_mesh(&nodes, &NORM).unwrap();
     let points: Vec<(f32, f32, f64)> =
         interior_points(2000, 53, 0.0).into_iter().map(|(x, y, _)| (x, y, saddle(x, y))).collect();
-    let report = fit_node_values(&mut mesh, &points, 0.0).unwrap();
+    let (report, _) = fit_node_values_cv(&mut mesh, &points, &five_runs(2000), false).unwrap();
     let sq: f64 = points
         .iter()
         .map(|&(x, y, v)| (interpolate_on_mesh(&mesh, f64::from(x), f64::from(y)).unwrap() - v).powi(2))

@@ -611,6 +611,8 @@ fn mesh_model_removes_most_of_the_warm_up_bias_end_to_end() {
 
 fn axis_model(offset_dph: f32) -> AxisModel {
     AxisModel {
+        region: Vec::new(),
+        poly_outside: fogtemp_core::PolyOutside::Extrapolate,
         features: FEATURES,
         normalisation: NORMALISATION,
         outside_policy: OutsidePolicy::NearestHull,

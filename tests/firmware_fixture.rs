@@ -185,6 +185,8 @@ fn model_blob() -> (Vec<u8>, String) {
     let (temp_min_c, temp_max_c) = range(|p| p.temp_c);
     let (rate_min_c_per_min, rate_max_c_per_min) = range(|p| p.rate_c_per_min);
     let axis = AxisModel {
+        region: Vec::new(),
+        poly_outside: fogtemp_core::PolyOutside::Extrapolate,
         features: FEATURES,
         normalisation: NORMALISATION,
         outside_policy: OutsidePolicy::NearestHull,

@@ -77,6 +77,8 @@ pub fn provenance() -> AxisProvenance {
 pub fn mesh_blob(points: &[MeshPoint], policy: OutsidePolicy) -> Vec<u8> {
     let mesh = build_mesh(points, &NORMALISATION).expect("mesh builds");
     let axis = AxisModel {
+        region: Vec::new(),
+        poly_outside: fogtemp_core::PolyOutside::Extrapolate,
         features: FEATURES,
         normalisation: NORMALISATION,
         outside_policy: policy,
@@ -92,6 +94,8 @@ pub fn mesh_blob(points: &[MeshPoint], policy: OutsidePolicy) -> Vec<u8> {
 pub fn model_blob(poly: Vec<PolyTerm>, points: Option<&[MeshPoint]>, policy: OutsidePolicy) -> Vec<u8> {
     let mesh = points.map(|p| build_mesh(p, &NORMALISATION).expect("mesh builds"));
     let axis = AxisModel {
+        region: Vec::new(),
+        poly_outside: fogtemp_core::PolyOutside::Extrapolate,
         features: FEATURES,
         normalisation: NORMALISATION,
         outside_policy: policy,

@@ -1,9 +1,11 @@
-//! Model blob writer (format version 1; spec in `docs/model-format.md`, offsets in
+//! Model blob writer (format version 2; spec in `docs/model-format.md`, offsets in
 //! [`fogtemp_core::wire`]). Every blob is read back through `Model::from_bytes`
 //! before it is returned, so a writer bug is reported here instead of in firmware.
 
 use fogtemp_core::wire::*;
-use fogtemp_core::{AxisProvenance, FeatureSettings, Model, Normalisation, OutsidePolicy, PolyTerm};
+use fogtemp_core::{
+    AxisProvenance, FeatureSettings, Model, Normalisation, OutsidePolicy, PolyOutside, PolyTerm,
+};
 
 use crate::error::{CalError, EncodeProblem};
 use crate::mesh::MeshModel;
@@ -23,6 +25,11 @@ pub struct AxisModel {
     pub mesh: Option<MeshModel>,
     /// Fit statistics and calibrated range.
     pub provenance: AxisProvenance,
+    /// The calibrated region: counter-clockwise vertices of a convex polygon in the
+    /// normalised plane (see [`calibrated_region`]); empty for none.
+    pub region: Vec<[f32; 2]>,
+    /// What the polynomial does outside `region` (hold needs a region).
+    pub poly_outside: PolyOutside,
 }
 
 /// A whole model file.
@@ -41,7 +48,7 @@ pub fn tool_version() -> String {
     format!("fogtemp {}", env!("CARGO_PKG_VERSION"))
 }
 
-/// Encodes `model` as a version-1 blob and validates it with the core reader.
+/// Encodes `model` as a version-2 blob and validates it with the core reader.
 ///
 /// # Errors
 /// [`CalError::Encode`] if a count exceeds the format's limits; [`CalError::SelfCheck`]
@@ -100,19 +107,22 @@ fn encode_axis(out: &mut Vec<u8>, id: u16, axis: &AxisModel, selection: u16) -> 
     let count = |what: &'static str, n: usize| {
         u32::try_from(n).map_err(|_| CalError::Encode(EncodeProblem::TooLarge { what, count: n }))
     };
-    let (terms, vertices, triangles, hull) = (
+    let (terms, vertices, triangles, hull, region) = (
         count("poly terms", axis.poly.len())?,
         count("vertices", mesh.vertices.len())?,
         count("triangles", mesh.triangles.len())?,
         count("hull edges", mesh.hull.len())?,
+        count("region vertices", axis.region.len())?,
     );
     if mesh.neighbours.len() != mesh.triangles.len() {
         return Err(CalError::Encode(EncodeProblem::NeighbourMismatch));
     }
-    let section_len =
-        axis_section_len(terms, vertices, triangles, hull).and_then(|n| u32::try_from(n).ok()).ok_or(
-            CalError::Encode(EncodeProblem::TooLarge { what: "axis section", count: mesh.vertices.len() }),
-        )?;
+    let section_len = axis_section_len(terms, vertices, triangles, hull, region)
+        .and_then(|n| u32::try_from(n).ok())
+        .ok_or(CalError::Encode(EncodeProblem::TooLarge {
+            what: "axis section",
+            count: mesh.vertices.len(),
+        }))?;
     let kind =
         if axis.poly.is_empty() { 0 } else { KIND_POLY } | if axis.mesh.is_some() { KIND_MESH } else { 0 };
 
@@ -145,6 +155,9 @@ fn encode_axis(out: &mut Vec<u8>, id: u16, axis: &AxisModel, selection: u16) -> 
     put_f32(h, AXIS_TEMP_MAX_C.start, p.temp_max_c);
     put_f32(h, AXIS_RATE_MIN_C_PER_MIN.start, p.rate_min_c_per_min);
     put_f32(h, AXIS_RATE_MAX_C_PER_MIN.start, p.rate_max_c_per_min);
+    put_u32(h, AXIS_REGION_VERTEX_COUNT.start, region);
+    // Codes are 0 and 1 (PolyOutside::code); the field is a u16.
+    put_u16(h, AXIS_POLY_OUTSIDE.start, axis.poly_outside.code() as u16);
     put_u16(h, AXIS_SELECTION.start, selection);
 
     for t in &axis.poly {
@@ -173,8 +186,54 @@ fn encode_axis(out: &mut Vec<u8>, id: u16, axis: &AxisModel, selection: u16) -> 
         out.extend_from_slice(&t.to_le_bytes());
         out.extend_from_slice(&e.to_le_bytes());
     }
+    for v in &axis.region {
+        out.extend_from_slice(&v[0].to_le_bytes());
+        out.extend_from_slice(&v[1].to_le_bytes());
+    }
     debug_assert_eq!(out.len() - base, section_len as usize);
     Ok(())
+}
+
+/// The calibrated region of normalised points: their convex hull, counter-clockwise,
+/// without collinear vertices (Andrew's monotone chain, exact in f64 for f32 inputs),
+/// starting from the lowest-leftmost point. A hull of more than [`MAX_REGION_VERTICES`]
+/// vertices is reduced by repeatedly removing the vertex whose triangle with its neighbours
+/// has the smallest area: the polygon stays convex and only shrinks (the polynomial is held
+/// slightly inside the calibrated points, never outside them). Empty for fewer than 3
+/// non-collinear points (no region: the polynomial is extrapolated).
+pub fn calibrated_region(points: &[(f32, f32)]) -> Vec<[f32; 2]> {
+    let mut p: Vec<(f32, f32)> =
+        points.iter().copied().filter(|(x, y)| x.is_finite() && y.is_finite()).collect();
+    p.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.total_cmp(&b.1)));
+    p.dedup();
+    if p.len() < 3 {
+        return Vec::new();
+    }
+    let cross = |o: (f32, f32), a: (f32, f32), b: (f32, f32)| {
+        let (ox, oy) = (f64::from(o.0), f64::from(o.1));
+        (f64::from(a.0) - ox) * (f64::from(b.1) - oy) - (f64::from(a.1) - oy) * (f64::from(b.0) - ox)
+    };
+    let mut hull: Vec<(f32, f32)> = Vec::with_capacity(2 * p.len());
+    for pass in [p.clone(), p.iter().rev().copied().collect::<Vec<_>>()] {
+        let start = hull.len();
+        for q in pass {
+            while hull.len() >= start + 2 && cross(hull[hull.len() - 2], hull[hull.len() - 1], q) <= 0.0 {
+                hull.pop();
+            }
+            hull.push(q);
+        }
+        hull.pop();
+    }
+    if hull.len() < 3 {
+        return Vec::new();
+    }
+    while hull.len() > MAX_REGION_VERTICES as usize {
+        let n = hull.len();
+        let area = |i: usize| cross(hull[(i + n - 1) % n], hull[i], hull[(i + 1) % n]).abs();
+        let smallest = (0..n).min_by(|&a, &b| area(a).total_cmp(&area(b))).unwrap_or(0);
+        hull.remove(smallest);
+    }
+    hull.into_iter().map(|(x, y)| [x, y]).collect()
 }
 
 /// A triangle's stored transforms, relative to `origin` (vertex 2).

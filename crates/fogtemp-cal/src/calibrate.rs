@@ -146,6 +146,10 @@ pub struct CalibrationConfig {
     /// (1: both span [-1, 1], the default; the Delaunay triangulation and the thinning
     /// distances see this aspect ratio).
     pub rate_axis_weight: f64,
+    /// What the polynomial does outside the calibrated region (the convex hull of the
+    /// calibration points, always stored in the blob). Default: extrapolate; holding at the
+    /// boundary was worse on the testbed (docs/calibration-testbed.md).
+    pub poly_outside: fogtemp_core::PolyOutside,
 }
 
 impl Default for CalibrationConfig {
@@ -160,6 +164,7 @@ impl Default for CalibrationConfig {
             full_windows_only: false,
             least_squares_nodes: true,
             rate_axis_weight: 1.0,
+            poly_outside: fogtemp_core::PolyOutside::Extrapolate,
         }
     }
 }
@@ -344,6 +349,8 @@ pub struct AxisFitReport {
     pub method: Method,
     /// How `auto` chose the method (cross-validation table); null when it was given.
     pub selection: Option<Selection>,
+    /// How the mesh's smoothness weight was chosen (least-squares nodes only).
+    pub mesh_smoothing: Option<crate::mesh_fit::MeshSmoothing>,
 }
 
 /// One fitted axis: what goes into the blob and what the fit did.
@@ -408,8 +415,10 @@ pub fn fit_axis(
         }
         _ => false,
     };
+    let mut mesh_smoothing = None;
     let mesh = match config.method {
         Method::Poly | Method::CubicT | Method::Auto => None,
+        // Otherwise (least-squares nodes) cross-validation decides whether it keeps its mesh.
         Method::Hybrid if poly_is_enough => None,
         Method::Mesh | Method::Hybrid => {
             let keep = match config.thinning {
@@ -438,9 +447,14 @@ pub fn fit_axis(
                         (x, y, p.value_dph)
                     })
                     .collect();
-                crate::mesh_fit::fit_node_values(&mut mesh, &targets, 1e-3)?;
+                let hybrid = config.method == Method::Hybrid;
+                let (_, smoothing) = crate::mesh_fit::fit_node_values_cv(&mut mesh, &targets, runs, hybrid)?;
+                let keep = !smoothing.no_mesh();
+                mesh_smoothing = Some(smoothing);
+                keep.then_some(mesh)
+            } else {
+                Some(mesh)
             }
-            Some(mesh)
         }
     };
     let outside_policy =
@@ -465,6 +479,12 @@ pub fn fit_axis(
             rate_min_c_per_min: rate_min as f32,
             rate_max_c_per_min: rate_max as f32,
         },
+        // The calibrated region; with HoldAtBoundary the polynomial is held at its boundary
+        // outside (no runaway extrapolation; flagged OUTSIDE_HULL).
+        region: crate::blob::calibrated_region(
+            &points.iter().map(|p| crate::mesh::normalised(p, &normalisation)).collect::<Vec<_>>(),
+        ),
+        poly_outside: config.poly_outside,
     };
     // Residuals of the model as the firmware evaluates it (f32, through the core).
     let probe =
@@ -498,6 +518,7 @@ pub fn fit_axis(
         target_noise_dph,
         method: config.method,
         selection: None,
+        mesh_smoothing,
     };
     Ok(FittedAxis { model: axis, report })
 }

@@ -547,6 +547,7 @@ fn unscored(method: Method, runs: &[HeldOutRun], error: Option<String>) -> Candi
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::path::PathBuf;
 
     fn labels(v: &[&str]) -> Vec<String> {
         v.iter().map(|s| s.to_string()).collect()

@@ -38,6 +38,7 @@ mod features;
 mod mesh;
 mod model;
 mod poly;
+mod region;
 pub mod wire;
 
 pub use compensator::{AxisState, Compensator, Flags, Output, WrappingClock, DEFAULT_CAPACITY};
@@ -50,3 +51,4 @@ pub use model::{
     Axis, AxisProvenance, Evaluation, FeatureSettings, Model, Normalisation, MAX_NORMALISED_COORD,
 };
 pub use poly::{Poly, PolyTerm};
+pub use region::{PolyOutside, Region};

@@ -4,6 +4,7 @@ use crate::crc::crc32;
 use crate::error::Error;
 use crate::mesh::{barycentric, edge_vertices, plane_value, Mesh, OutsidePolicy, TriangleRecord, WalkHint};
 use crate::poly::{parse_term, Poly};
+use crate::region::{PolyOutside, Region};
 use crate::wire::*;
 
 /// Largest magnitude accepted for a normalised vertex coordinate. Keeps every product
@@ -85,7 +86,8 @@ pub struct AxisProvenance {
 pub struct Evaluation {
     /// Modelled bias, deg/h (polynomial plus mesh, whichever the axis has).
     pub value_dph: f32,
-    /// The query was outside the mesh hull; the outside policy produced the mesh part.
+    /// The query was outside the mesh hull (the outside policy produced the mesh part) or
+    /// outside the calibrated region with the polynomial held at its boundary.
     pub outside_hull: bool,
 }
 
@@ -107,6 +109,11 @@ pub struct Axis<'a> {
     pub poly: Option<Poly<'a>>,
     /// Mesh part, if any.
     pub mesh: Option<Mesh<'a>>,
+    /// The calibrated region (convex hull of the calibration points), if the blob has one
+    /// (format version 2).
+    pub region: Option<Region<'a>>,
+    /// What the polynomial does outside `region`.
+    pub poly_outside: PolyOutside,
 }
 
 impl Axis<'_> {
@@ -133,13 +140,29 @@ impl Axis<'_> {
             return Err(Error::NonFiniteSample);
         }
         let (x, y) = self.normalisation.apply(temp_c, rate_c_per_min);
-        let poly = self.poly.map_or(0.0, |p| p.evaluate(x, y));
+        let (poly, poly_held) = match self.poly {
+            Some(p) => self.poly_value(p, x, y),
+            None => (0.0, false),
+        };
         match &self.mesh {
             Some(mesh) => {
                 let m = mesh.interpolate(x, y, hint).map_err(|e| e.at_axis(self.id))?;
-                Ok(Evaluation { value_dph: poly + m.value_dph, outside_hull: m.outside_hull })
+                Ok(Evaluation { value_dph: poly + m.value_dph, outside_hull: m.outside_hull || poly_held })
             }
-            None => Ok(Evaluation { value_dph: poly, outside_hull: false }),
+            None => Ok(Evaluation { value_dph: poly, outside_hull: poly_held }),
+        }
+    }
+
+    /// The polynomial at `(x, y)`, or at the nearest boundary point of the calibrated region
+    /// when `(x, y)` is outside it and the policy holds (then `true`).
+    #[inline]
+    fn poly_value(&self, poly: Poly<'_>, x: f32, y: f32) -> (f32, bool) {
+        match (self.poly_outside, self.region) {
+            (PolyOutside::HoldAtBoundary, Some(region)) if !region.contains(x, y) => {
+                let (bx, by) = region.nearest_boundary_point(x, y);
+                (poly.evaluate(bx, by), true)
+            }
+            _ => (poly.evaluate(x, y), false),
         }
     }
 }
@@ -149,6 +172,7 @@ impl Axis<'_> {
 pub struct Model<'a> {
     bytes: &'a [u8],
     axis_count: u16,
+    version: u16,
 }
 
 impl<'a> Model<'a> {
@@ -168,7 +192,7 @@ impl<'a> Model<'a> {
             return Err(Error::BadMagic);
         }
         let version = u16_at(&header, FILE_VERSION.start).unwrap_or(0);
-        if version != FORMAT_VERSION {
+        if !(OLDEST_READABLE_VERSION..=FORMAT_VERSION).contains(&version) {
             return Err(Error::UnsupportedVersion { expected: FORMAT_VERSION, found: version });
         }
         let header_len = usize::from(u16_at(&header, FILE_HEADER_LEN_FIELD.start).unwrap_or(0));
@@ -204,10 +228,10 @@ impl<'a> Model<'a> {
         if u16_at(&header, FILE_RESERVED.start) != Some(0) {
             return Err(Error::BadValue { field: "reserved", axis: 0, index: 0 });
         }
-        let model = Model { bytes: body, axis_count };
+        let model = Model { bytes: body, axis_count, version };
         let mut offset = FILE_HEADER_LEN;
         for id in 0..axis_count {
-            let (axis, len) = parse_axis(body, offset, id)?;
+            let (axis, len) = parse_axis(body, offset, id, version)?;
             validate_axis(&axis)?;
             offset = offset.saturating_add(len);
         }
@@ -273,7 +297,7 @@ impl<'a> Model<'a> {
         }
         let mut offset = FILE_HEADER_LEN;
         for id in 0..self.axis_count {
-            let (axis, len) = parse_axis(self.bytes, offset, id)?;
+            let (axis, len) = parse_axis(self.bytes, offset, id, self.version)?;
             if usize::from(id) == index {
                 return Ok(axis);
             }
@@ -294,9 +318,9 @@ impl<'a> Model<'a> {
         array::<32>(self.bytes, FILE_INPUT_DIGEST.start).unwrap_or([0; 32])
     }
 
-    /// The format version (always [`FORMAT_VERSION`] for a model that parsed).
+    /// The blob's format version ([`OLDEST_READABLE_VERSION`] to [`FORMAT_VERSION`]).
     pub fn format_version(&self) -> u16 {
-        FORMAT_VERSION
+        self.version
     }
 }
 
@@ -319,9 +343,9 @@ fn truncated(field: &'static str, needed: usize, found: usize) -> Error {
     Error::Truncated { field, needed, found }
 }
 
-/// Parses the axis section at `offset` (header checks and slicing only); returns the axis
-/// and the section length.
-fn parse_axis(body: &[u8], offset: usize, id: u16) -> Result<(Axis<'_>, usize), Error> {
+/// Parses the axis section at `offset` of a blob of format `version` (header checks and
+/// slicing only); returns the axis and the section length.
+fn parse_axis(body: &[u8], offset: usize, id: u16, version: u16) -> Result<(Axis<'_>, usize), Error> {
     let found = body.len();
     let header_end = offset.saturating_add(AXIS_HEADER_LEN);
     let h = body.get(offset..header_end).ok_or(truncated("axis header", header_end, found))?;
@@ -336,12 +360,21 @@ fn parse_axis(body: &[u8], offset: usize, id: u16) -> Result<(Axis<'_>, usize), 
     if kind == 0 || kind & !(KIND_POLY | KIND_MESH) != 0 {
         return Err(bad("model_kind"));
     }
-    if h.get(AXIS_RESERVED).is_none_or(|r| r.iter().any(|&b| b != 0)) {
+    let region_count = u32f(AXIS_REGION_VERTEX_COUNT);
+    let poly_outside_code = u32::from(u16_at(h, AXIS_POLY_OUTSIDE.start).unwrap_or(u16::MAX));
+    let selection = u16_at(h, AXIS_SELECTION.start).unwrap_or(u16::MAX);
+    if version < 2 && (region_count != 0 || poly_outside_code != 0 || selection != 0) {
         return Err(bad("reserved"));
     }
-    let selection = u16_at(h, AXIS_SELECTION.start).unwrap_or(u16::MAX);
     if !valid_selection(selection) {
         return Err(bad("selection"));
+    }
+    let poly_outside = PolyOutside::from_code(poly_outside_code).ok_or(bad("poly_outside"))?;
+    if region_count != 0 && !(3..=MAX_REGION_VERTICES).contains(&region_count) {
+        return Err(bad("region_vertex_count"));
+    }
+    if poly_outside == PolyOutside::HoldAtBoundary && region_count == 0 {
+        return Err(bad("poly_outside"));
     }
     let (terms, vertices, triangles, hull) = (
         u32f(AXIS_POLY_TERM_COUNT),
@@ -368,7 +401,7 @@ fn parse_axis(body: &[u8], offset: usize, id: u16) -> Result<(Axis<'_>, usize), 
         return Err(bad("vertex_count"));
     }
     let section_len = u32f(AXIS_SECTION_LEN) as usize;
-    let expected = axis_section_len(terms, vertices, triangles, hull).unwrap_or(usize::MAX);
+    let expected = axis_section_len(terms, vertices, triangles, hull, region_count).unwrap_or(usize::MAX);
     if section_len != expected {
         return Err(Error::LengthMismatch { field: "section_len", expected, found: section_len });
     }
@@ -409,6 +442,7 @@ fn parse_axis(body: &[u8], offset: usize, id: u16) -> Result<(Axis<'_>, usize), 
     let vertex_bytes = take(vertices as usize * VERTEX_LEN);
     let triangle_bytes = take(triangles as usize * TRIANGLE_LEN);
     let hull_bytes = take(hull as usize * HULL_EDGE_LEN);
+    let region_bytes = take(region_count as usize * REGION_VERTEX_LEN);
     let axis = Axis {
         id,
         features,
@@ -423,6 +457,8 @@ fn parse_axis(body: &[u8], offset: usize, id: u16) -> Result<(Axis<'_>, usize), 
             policy,
             axis: id,
         }),
+        region: (region_count > 0).then(|| Region::new(region_bytes)),
+        poly_outside,
     };
     Ok((axis, section_len))
 }
@@ -483,6 +519,50 @@ fn validate_axis(axis: &Axis<'_>) -> Result<(), Error> {
     }
     if let Some(mesh) = &axis.mesh {
         validate_mesh(mesh, id)?;
+    }
+    if let Some(region) = &axis.region {
+        validate_region(region, id)?;
+    }
+    Ok(())
+}
+
+/// Region vertices finite and in range; the polygon counter-clockwise, convex (collinear
+/// vertices allowed, as f32 rounding may tilt them slightly), without repeated vertices, and
+/// going round once.
+fn validate_region(region: &Region<'_>, id: u16) -> Result<(), Error> {
+    let n = region.vertex_count();
+    let err = |check: &'static str, index: u32| Error::BadMesh { check, axis: id, index };
+    for i in 0..n {
+        let (x, y) = region.vertex(i).ok_or(err("region vertex", i))?;
+        for (field, c) in [("region.x", x), ("region.y", y)] {
+            if !c.is_finite() {
+                return Err(Error::NonFinite { field, axis: id, index: i });
+            }
+            if c.abs() > MAX_NORMALISED_COORD {
+                return Err(Error::BadValue { field, axis: id, index: i });
+            }
+        }
+    }
+    let upper = |dx: f32, dy: f32| dy > 0.0 || (dy == 0.0 && dx > 0.0);
+    let mut windings = 0u32;
+    for i in 0..n {
+        let vertex = |k: u32| region.vertex(k % n).ok_or(err("region vertex", k % n));
+        let (a, b, c) = (vertex(i)?, vertex(i + 1)?, vertex(i + 2)?);
+        let (e1x, e1y, e2x, e2y) = (b.0 - a.0, b.1 - a.1, c.0 - b.0, c.1 - b.1);
+        if e1x == 0.0 && e1y == 0.0 {
+            return Err(err("region vertices distinct", i));
+        }
+        let turn = e1x * e2y - e1y * e2x;
+        let scale = (e1x.abs() + e1y.abs()) * (e2x.abs() + e2y.abs());
+        if turn < -1.0e-5 * scale {
+            return Err(err("region convex", i));
+        }
+        if !upper(e1x, e1y) && upper(e2x, e2y) {
+            windings += 1;
+        }
+    }
+    if windings != 1 {
+        return Err(err("region goes round once", 0));
     }
     Ok(())
 }

@@ -1,4 +1,6 @@
-//! Byte layout of the model blob, format version 1 (spec: `docs/model-format.md`).
+//! Byte layout of the model blob, format version 2 (spec: `docs/model-format.md`). Version 1
+//! blobs (no calibrated region: the same layout with [`AXIS_REGION_VERTEX_COUNT`] and
+//! [`AXIS_POLY_OUTSIDE`] reserved as zero) are still read, with the polynomial extrapolated.
 //!
 //! Every offset is a named constant so the reader here and the writer in `fogtemp-cal`
 //! cannot drift apart. All integers and floats are little-endian; nothing is aligned,
@@ -14,6 +16,7 @@
 //! |                    |    vertices     V x 12 B
 //! |                    |    triangles    T x 60 B
 //! |                    |    hull edges   H x  8 B
+//! |                    |    region       R x  8 B  (version 2; R = 0 in version 1)
 //! +--------------------+
 //! | axis section 1 ... |
 //! +--------------------+  total_len - 4
@@ -25,8 +28,12 @@ use core::ops::Range;
 
 /// The four bytes every blob starts with.
 pub const MAGIC: [u8; 4] = *b"FOGM";
-/// The format version this build reads and writes.
-pub const FORMAT_VERSION: u16 = 1;
+/// The format version this build writes (and the newest it reads).
+pub const FORMAT_VERSION: u16 = 2;
+/// The oldest format version this build reads: version 1 has no calibrated region (its
+/// [`AXIS_REGION_VERTEX_COUNT`] and [`AXIS_POLY_OUTSIDE`] bytes are reserved, zero), so its
+/// polynomial is extrapolated as before.
+pub const OLDEST_READABLE_VERSION: u16 = 1;
 
 /// File header length in bytes.
 pub const FILE_HEADER_LEN: usize = 64;
@@ -97,14 +104,18 @@ pub const AXIS_TEMP_MAX_C: Range<usize> = 76..80;
 pub const AXIS_RATE_MIN_C_PER_MIN: Range<usize> = 80..84;
 /// `rate_max_c_per_min`: f32.
 pub const AXIS_RATE_MAX_C_PER_MIN: Range<usize> = 84..88;
-/// `selection`: u16, how the model kind was chosen (provenance): low byte the method that
+/// `region_vertex_count`: u32, vertices of the calibrated region (0, or 3..=
+/// [`MAX_REGION_VERTICES`]); reserved (0) in version 1.
+pub const AXIS_REGION_VERTEX_COUNT: Range<usize> = 88..92;
+/// `poly_outside`: u16, what the polynomial does outside the calibrated region, see
+/// [`crate::PolyOutside`]; reserved (0, extrapolate) in version 1.
+pub const AXIS_POLY_OUTSIDE: Range<usize> = 92..94;
+/// `selection`: u16 (reserved, 0, in version 1), how the model kind was chosen (provenance): low byte the method that
 /// `fit --method auto` chose ([`SELECTION_NONE`] when the method was given, else
 /// [`SELECTION_CUBIC_T`]..=[`SELECTION_HYBRID`]), high byte how
 /// ([`SELECTION_BY_RUNS`], [`SELECTION_BY_GROUPS`], [`SELECTION_FALLBACK`]; 0 with
 /// [`SELECTION_NONE`]).
-pub const AXIS_SELECTION: Range<usize> = 88..90;
-/// `reserved`: 6 bytes, must be 0.
-pub const AXIS_RESERVED: Range<usize> = 90..96;
+pub const AXIS_SELECTION: Range<usize> = 94..96;
 
 /// `selection` low byte: the method was given, not chosen.
 pub const SELECTION_NONE: u8 = 0;
@@ -148,6 +159,11 @@ pub const TRI_NEIGHBOURS: Range<usize> = 36..48;
 pub const TRI_VERTICES: Range<usize> = 48..60;
 /// Bytes per hull edge: `triangle` u32, `edge` u32 (the edge opposite vertex `edge`).
 pub const HULL_EDGE_LEN: usize = 8;
+/// Bytes per calibrated-region vertex: `x` f32, `y` f32 (normalised), counter-clockwise
+/// vertices of a convex polygon.
+pub const REGION_VERTEX_LEN: usize = 8;
+/// Most calibrated-region vertices per axis (bounds the cost of holding at the boundary).
+pub const MAX_REGION_VERTICES: u32 = 64;
 
 /// Neighbour value meaning "this edge is on the convex hull".
 pub const NO_NEIGHBOUR: u32 = u32::MAX;
@@ -163,12 +179,19 @@ pub const MAX_BLOCKS: u32 = 4096;
 pub const MAX_TRIANGLES: u32 = 1 << 22;
 
 /// Byte length of an axis section with the given counts, or `None` on overflow.
-pub fn axis_section_len(poly_terms: u32, vertices: u32, triangles: u32, hull_edges: u32) -> Option<usize> {
+pub fn axis_section_len(
+    poly_terms: u32,
+    vertices: u32,
+    triangles: u32,
+    hull_edges: u32,
+    region_vertices: u32,
+) -> Option<usize> {
     let parts = [
         (poly_terms as usize).checked_mul(POLY_TERM_LEN)?,
         (vertices as usize).checked_mul(VERTEX_LEN)?,
         (triangles as usize).checked_mul(TRIANGLE_LEN)?,
         (hull_edges as usize).checked_mul(HULL_EDGE_LEN)?,
+        (region_vertices as usize).checked_mul(REGION_VERTEX_LEN)?,
     ];
     parts.iter().try_fold(AXIS_HEADER_LEN, |acc, &p| acc.checked_add(p))
 }

@@ -1,4 +1,4 @@
-//! The model blob, format version 1, from the reader's side alone: the core's CRC against
+//! The model blob, format versions 1 and 2, from the reader's side alone: the core's CRC against
 //! `crc32fast`, the committed golden bytes read and evaluated bit-exactly, and arbitrary or
 //! once-crashing input rejected or evaluated without panics.
 //!
@@ -21,10 +21,11 @@ use std::path::PathBuf;
 
 use common::blob::{
     core_digest, exercise, fix_len_and_crc, golden_queries, put_u16, GOLDEN_BLOB, GOLDEN_CSV, GOLDEN_HEADER,
+    GOLDEN_V2_BLOB, GOLDEN_V2_CSV,
 };
 use common::rng;
 use fogtemp_core::wire::*;
-use fogtemp_core::{Model, WalkHint};
+use fogtemp_core::{Model, PolyOutside, WalkHint};
 use proptest::prelude::*;
 use proptest::test_runner::{Config, RngAlgorithm, RngSeed};
 use rand::Rng;
@@ -71,15 +72,31 @@ fn core_crc32_equals_crc32fast_on_random_bytes() {
 }
 
 // ---------------------------------------------------------------------------------------------
-// Golden bytes of format version 1
+// Golden bytes of format versions 1 and 2
 // ---------------------------------------------------------------------------------------------
 
 #[test]
 fn golden_v1_blob_parses_and_evaluates_every_expected_row_bit_exactly() {
-    let blob = read_golden(GOLDEN_BLOB);
-    let csv = String::from_utf8(read_golden(GOLDEN_CSV)).expect("utf-8");
-    let model = Model::from_bytes(&blob).expect("today's reader accepts the version-1 golden blob");
-    assert_eq!(model.format_version(), 1);
+    let model = check_golden(GOLDEN_BLOB, GOLDEN_CSV, 1);
+    // Version 1 has no region: its polynomial is extrapolated, as when it was written.
+    let a1 = model.axis(1).expect("axis 1");
+    assert!(a1.region.is_none() && a1.poly_outside == PolyOutside::Extrapolate);
+}
+
+#[test]
+fn golden_v2_blob_parses_and_evaluates_every_expected_row_bit_exactly() {
+    let model = check_golden(GOLDEN_V2_BLOB, GOLDEN_V2_CSV, 2);
+    let a1 = model.axis(1).expect("axis 1");
+    assert!(a1.region.is_some_and(|r| r.vertex_count() == 4));
+    assert_eq!(a1.poly_outside, PolyOutside::HoldAtBoundary);
+}
+
+/// Reads a golden blob of format `version` and checks every expected row bit for bit.
+fn check_golden(blob_name: &str, csv_name: &str, version: u16) -> Model<'static> {
+    let blob: &'static [u8] = Vec::leak(read_golden(blob_name));
+    let csv = String::from_utf8(read_golden(csv_name)).expect("utf-8");
+    let model = Model::from_bytes(blob).expect("today's reader accepts the golden blob");
+    assert_eq!(model.format_version(), version);
     assert_eq!(model.axis_count(), 2);
     assert_eq!(model.tool_version(), b"fogtemp golden");
     assert_eq!(model.input_digest(), core_digest());
@@ -113,6 +130,7 @@ fn golden_v1_blob_parses_and_evaluates_every_expected_row_bit_exactly() {
     }
     assert_eq!(rows, golden_queries().len());
     assert!(outside > 0 && outside < rows, "the golden queries cover inside and outside the hull");
+    model
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -78,6 +78,8 @@ fn large_mesh_blob() -> Vec<u8> {
             rate_min_c_per_min: 0.0,
             rate_max_c_per_min: 1.0,
         },
+        region: Vec::new(),
+        poly_outside: fogtemp_core::PolyOutside::Extrapolate,
     };
     let file = ModelFile { tool_version: "step_cost".into(), input_digest: [0; 32], axes: vec![axis] };
     encode(&file).expect("encodes")

@@ -15,7 +15,8 @@
 // Flag bit: features exist but the window is not yet full.
 #define FOGTEMP_FLAG_PARTIAL_WINDOW 2
 
-// Flag bit: the features lie outside the calibrated mesh; the outside policy gave the value.
+// Flag bit: the features lie outside the calibrated mesh (the mesh's outside policy gave its
+// value) or outside the calibrated region of a polynomial held at its boundary (blob format 2).
 #define FOGTEMP_FLAG_OUTSIDE_HULL 4
 
 // Flag bit: no temperature for longer than the model's `max_gap_s`; the bias is held.
@@ -243,8 +244,8 @@ fogtemp_status fogtemp_step_u32(const fogtemp_axis *axis,
                                 fogtemp_output *out);
 
 // The modelled bias (deg/h) of `*axis` at `temp_c` (deg C) and `rate_c_per_min`
-// (deg C/min) into `*bias_dph`, and whether the point is outside the mesh hull into
-// `*outside_hull` (may be NULL). Walks from, and moves, the state's walk hint; the tracker
+// (deg C/min) into `*bias_dph`, and whether the point is outside the mesh hull (or the
+// calibrated region of a held polynomial) into `*outside_hull` (may be NULL). Walks from, and moves, the state's walk hint; the tracker
 // is not touched.
 //
 // # Safety

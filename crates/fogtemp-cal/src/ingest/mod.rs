@@ -155,9 +155,11 @@ impl Delimiter {
             "whitespace" | "space" => Delimiter::Whitespace,
             _ => match text.as_bytes() {
                 [b] if b.is_ascii() => Delimiter::Byte(*b),
-                _ => return Err(format!(
+                _ => {
+                    return Err(format!(
                     "expected auto, comma, semicolon, tab, whitespace or one ASCII character, got '{text}'"
-                )),
+                ))
+                }
             },
         })
     }

@@ -116,11 +116,15 @@ pub fn exercise(model: &Model<'_>, seed: u64) -> usize {
 }
 
 // ---------------------------------------------------------------------------------------------
-// The golden files of format version 1 (`tests/golden/` of the workspace root)
+// The golden files of format versions 1 and 2 (`tests/golden/` of the workspace root)
 // ---------------------------------------------------------------------------------------------
 
 pub const GOLDEN_BLOB: &str = "model-v1.fogm";
 pub const GOLDEN_CSV: &str = "model-v1.expected.csv";
+/// The golden files of format version 2 (axis 1 carries a calibrated region, polynomial held at
+/// its boundary), written by today's writer.
+pub const GOLDEN_V2_BLOB: &str = "model-v2.fogm";
+pub const GOLDEN_V2_CSV: &str = "model-v2.expected.csv";
 pub const GOLDEN_HEADER: &str = "axis,temp_c,rate_c_per_min,value_dph_bits,outside";
 
 /// The input digest the golden model (and the root's three-axis model) carries.
