@@ -132,6 +132,8 @@ pub fn model_blob(poly: Vec<PolyTerm>, points: Option<&[MeshPoint]>) -> Vec<u8> 
         poly,
         mesh,
         provenance: provenance(),
+        region: Vec::new(),
+        poly_outside: fogtemp_core::PolyOutside::Extrapolate,
     };
     let file = ModelFile { tool_version: "fogtemp bench".into(), input_digest: [0; 32], axes: vec![axis] };
     encode(&file).expect("encodes")
