@@ -1,5 +1,7 @@
 //! Errors of the diagnosis: which check fired, on which run and sample.
 
+use std::path::PathBuf;
+
 use fogtemp_cal::CalError;
 
 /// Which member of a pair a series is.
@@ -121,6 +123,26 @@ pub enum DiagnoseError {
     /// A least-squares problem of the selection failed.
     #[error("fit failed: {0}")]
     Fit(&'static str),
+    /// A log holds a header but no data rows.
+    #[error("{}: no data rows (only a header)", path.display())]
+    NoDataRows {
+        /// The log.
+        path: PathBuf,
+    },
+    /// Simulated and recorded logs whose file names have no partner.
+    #[error("runs are paired by file name, and {} are not:\n  {}", unmatched.len(), unmatched.join("\n  "))]
+    UnpairedLogs {
+        /// One line per log without a partner (`simulated a.csv has no recorded log of that name`).
+        unmatched: Vec<String>,
+    },
+    /// The simulation's `manifest.json` is not valid JSON.
+    #[error("{}: not valid JSON", path.display())]
+    ManifestJson {
+        /// The manifest.
+        path: PathBuf,
+        /// The parser's error.
+        source: serde_json::Error,
+    },
     /// Reading, writing or a calibration-library step failed.
     #[error(transparent)]
     Cal(#[from] CalError),

@@ -1,7 +1,8 @@
 //! Discrepancy diagnosis: where, what physics, how much, and whether modelling it helps on
 //! runs it did not see, for a simulation of a lab experiment against its recordings.
 //!
-//! Pipeline (all in memory; the CLI reads the CSV logs and prints [`Diagnosis`] as JSON):
+//! Pipeline (all in memory; [`inputs`] reads the CSV logs for the CLI and the Python package,
+//! which print or return [`Diagnosis`] as JSON):
 //! 1. **Pair and grid** ([`prepare`]): runs are paired by name; both members are averaged
 //!    onto a common 1 s grid (any sample rate >= 1 Hz). Temperature and its rate are
 //!    smoothed with a centred least-squares line over `rate_window_s` (robust to a
@@ -32,6 +33,7 @@ pub mod concealed;
 pub mod documents;
 pub mod effects;
 pub mod error;
+pub mod inputs;
 pub mod linalg;
 pub mod locate;
 pub mod prepare;

@@ -2,15 +2,13 @@
 //! the command line's `diagnose --json` does it.
 //!
 //! The reading of logs into 1 s means, the pairing by file name and the run metadata from
-//! `runs` or the simulation's `manifest.json` follow `fogtemp-cli/src/commands/diagnose.rs`
-//! step for step (that glue lives in the command, not in a library; moving it into
-//! `fogtemp-diagnose` would let both callers share one copy).
+//! `runs` or the simulation's `manifest.json` are `fogtemp_diagnose::inputs`, which the
+//! command line calls too.
 
-use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 
-use fogtemp_cal::ingest::{read_log_with_progress, IngestOptions};
-use fogtemp_diagnose::{DiagnoseDocument, DiagnoseOptions, RunMeta, RunSeries};
+use fogtemp_cal::ingest::IngestOptions;
+use fogtemp_diagnose::{inputs, DiagnoseDocument, DiagnoseError, DiagnoseOptions, RunMeta, RunSeries};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
@@ -20,11 +18,25 @@ use crate::functions::expand_logs;
 use crate::options::{self, Options};
 use crate::progress::{self, Progress};
 
-fn file_name(p: &Path) -> String {
-    p.file_name().map_or_else(|| p.display().to_string(), |n| n.to_string_lossy().into_owned())
+/// A diagnosis error as a Python exception: the calibration library's errors as
+/// [`errors::cal`] maps them, every other as `ValueError` with its causes.
+fn diagnose_error(e: DiagnoseError) -> PyErr {
+    match e {
+        DiagnoseError::Cal(c) => errors::cal(c),
+        other => {
+            let mut message = other.to_string();
+            let mut cause = std::error::Error::source(&other);
+            while let Some(c) = cause {
+                message.push_str(&format!(": {c}"));
+                cause = c.source();
+            }
+            errors::value(message)
+        }
+    }
 }
 
-/// A log as `bin_s` means of time, temperature (NaN in bins without a reading) and gyro (axis 0).
+/// A log as `bin_s` means (`fogtemp_diagnose::inputs`), with a progress bar; also the number
+/// of bad rows skipped.
 fn read_series(
     path: &Path,
     ingest: &IngestOptions,
@@ -32,115 +44,10 @@ fn read_series(
     meta: RunMeta,
     show: bool,
 ) -> PyResult<(RunSeries, u64)> {
-    let mut series = RunSeries { name: file_name(path), meta, ..RunSeries::default() };
-    // (bin, n, sum t, n temp, sum temp, sum gyro)
-    let mut acc: (i64, f64, f64, f64, f64, f64) = (i64::MIN, 0.0, 0.0, 0.0, 0.0, 0.0);
-    let flush = |s: &mut RunSeries, a: &(i64, f64, f64, f64, f64, f64)| {
-        if a.1 > 0.0 {
-            s.time_s.push(a.2 / a.1);
-            s.temp_c.push(if a.3 > 0.0 { a.4 / a.3 } else { f64::NAN });
-            s.gyro_dph.push(a.5 / a.1);
-        }
-    };
-    let mut bar = Progress::new(format!("read {}", file_name(path)), show);
-    let report = read_log_with_progress(
-        path,
-        ingest,
-        |row| {
-            let bin = (row.time_s / bin_s).floor() as i64;
-            if bin != acc.0 {
-                flush(&mut series, &acc);
-                acc = (bin, 0.0, 0.0, 0.0, 0.0, 0.0);
-            }
-            acc.1 += 1.0;
-            acc.2 += row.time_s;
-            let temp = row.temp_c_for_axis(0);
-            if temp.is_finite() {
-                acc.3 += 1.0;
-                acc.4 += temp;
-            }
-            acc.5 += row.gyros_dph.first().copied().unwrap_or(f64::NAN);
-            Ok(())
-        },
-        |b, r| bar.rows(b, r),
-    );
+    let mut bar = Progress::new(format!("read {}", inputs::file_name(path)), show);
+    let read = inputs::read_series(path, ingest, bin_s, meta, |b, r| bar.rows(b, r));
     bar.finish();
-    let report = report.map_err(errors::cal)?;
-    flush(&mut series, &acc);
-    if report.rows == 0 {
-        return Err(errors::value(format!("{}: no data rows (only a header)", path.display())));
-    }
-    Ok((series, report.skipped))
-}
-
-/// Run metadata from `DIR/manifest.json` (written by `simulate`), keyed by file name.
-fn manifest_meta(dir: &Path) -> PyResult<BTreeMap<String, RunMeta>> {
-    let path = dir.join("manifest.json");
-    if !path.is_file() {
-        return Ok(BTreeMap::new());
-    }
-    let text = std::fs::read_to_string(&path)
-        .map_err(|source| errors::cal(fogtemp_cal::CalError::Io { path: path.clone(), source }))?;
-    let doc: serde_json::Value = serde_json::from_str(&text)
-        .map_err(|e| errors::value(format!("{}: not valid JSON: {e}", path.display())))?;
-    let mut out = BTreeMap::new();
-    for run in doc["runs"].as_array().map(Vec::as_slice).unwrap_or_default() {
-        let Some(name) = run["name"].as_str() else { continue };
-        out.insert(
-            format!("{name}.csv"),
-            RunMeta {
-                group: run["group"].as_str().filter(|g| !g.is_empty()).map(str::to_string),
-                input_rate_dph: run["input_rate_dph"].as_f64(),
-                power_on_at_s: None,
-            },
-        );
-    }
-    Ok(out)
-}
-
-/// Run metadata from a runs file, keyed by file name (every simulated log needs a row).
-fn runs_file_meta(path: &Path, simulated: &[PathBuf]) -> PyResult<BTreeMap<String, RunMeta>> {
-    let file = fogtemp_cal::runs::RunsFile::read(path).map_err(errors::cal)?;
-    let rows = file.for_logs(simulated).map_err(errors::cal)?;
-    Ok(simulated
-        .iter()
-        .zip(rows)
-        .map(|(log, row)| {
-            let meta = RunMeta {
-                group: Some(row.position.clone()),
-                input_rate_dph: Some(row.input_rate_dph),
-                power_on_at_s: None,
-            };
-            (file_name(log), meta)
-        })
-        .collect())
-}
-
-/// Pairs simulated and recorded logs by file name; every log must have a partner.
-fn pair(simulated: &[PathBuf], recorded: &[PathBuf]) -> PyResult<Vec<(PathBuf, PathBuf)>> {
-    let by_name: BTreeMap<String, &PathBuf> = recorded.iter().map(|p| (file_name(p), p)).collect();
-    let mut pairs = Vec::new();
-    let mut unmatched = Vec::new();
-    for s in simulated {
-        match by_name.get(&file_name(s)) {
-            Some(r) => pairs.push((s.clone(), (*r).clone())),
-            None => unmatched.push(format!("simulated {} has no recorded log of that name", file_name(s))),
-        }
-    }
-    let sim_names: BTreeSet<String> = simulated.iter().map(|p| file_name(p)).collect();
-    for r in recorded {
-        if !sim_names.contains(&file_name(r)) {
-            unmatched.push(format!("recorded {} has no simulated log of that name", file_name(r)));
-        }
-    }
-    if !unmatched.is_empty() {
-        return Err(errors::value(format!(
-            "runs are paired by file name, and {} are not:\n  {}",
-            unmatched.len(),
-            unmatched.join("\n  ")
-        )));
-    }
-    Ok(pairs)
+    read.map_err(diagnose_error)
 }
 
 /// Compares simulated and recorded runs (the command line's `diagnose --json`): where they
@@ -179,15 +86,16 @@ pub fn diagnose<'py>(
     }
     let simulated_logs = expand_logs(std::slice::from_ref(&simulated))?;
     let recorded_logs = expand_logs(std::slice::from_ref(&recorded))?;
-    let pairs = pair(&simulated_logs, &recorded_logs)?;
+    let pairs = inputs::pair(&simulated_logs, &recorded_logs).map_err(diagnose_error)?;
     let meta = match &runs {
-        Some(path) => runs_file_meta(path, &simulated_logs)?,
-        None => manifest_meta(&simulated)?,
-    };
+        Some(path) => inputs::runs_file_meta(path, &simulated_logs),
+        None => inputs::manifest_meta(&simulated),
+    }
+    .map_err(diagnose_error)?;
     let sim_ingest = IngestOptions::default();
     let (mut sims, mut recs) = (Vec::new(), Vec::new());
     for (s, r) in &pairs {
-        let m = meta.get(&file_name(s)).cloned().unwrap_or_default();
+        let m = meta.get(&inputs::file_name(s)).cloned().unwrap_or_default();
         let (series, _) = py.detach(|| read_series(s, &sim_ingest, bin_s, m.clone(), progress))?;
         sims.push(series);
         let (series, skipped) = py.detach(|| read_series(r, &recorded_ingest, bin_s, m, progress))?;
@@ -204,10 +112,7 @@ pub fn diagnose<'py>(
         })
     });
     bar.finish();
-    let diagnosis = diagnosis.map_err(|e| match e {
-        fogtemp_diagnose::DiagnoseError::Cal(c) => errors::cal(c),
-        other => errors::value(other.to_string()),
-    })?;
+    let diagnosis = diagnosis.map_err(diagnose_error)?;
     let doc = DiagnoseDocument {
         diagnosis: &diagnosis,
         seconds: started.elapsed().as_secs_f64(),

@@ -1,0 +1,252 @@
+//! Reading a diagnosis's inputs from files, shared by the command line (`diagnose`) and the
+//! Python package (`fogtemp.diagnose`): logs into 1 s (`bin_s`) means with constant memory
+//! per sample, simulated and recorded logs paired by file name, and run metadata (position,
+//! rate on the input axis) from a runs file or from the simulation's `manifest.json`.
+
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::{Path, PathBuf};
+
+use fogtemp_cal::ingest::{read_log_with_progress, IngestOptions};
+use fogtemp_cal::runs::RunsFile;
+use fogtemp_cal::CalError;
+
+use crate::{DiagnoseError, RunMeta, RunSeries};
+
+/// A log's file name (its run name), or the whole path when it has none.
+#[must_use]
+pub fn file_name(p: &Path) -> String {
+    p.file_name().map_or_else(|| p.display().to_string(), |n| n.to_string_lossy().into_owned())
+}
+
+/// Running sums of one `bin_s` bin: (bin, n, sum t, n temp, sum temp, sum gyro).
+type Bin = (i64, f64, f64, f64, f64, f64);
+
+fn flush(series: &mut RunSeries, a: &Bin) {
+    if a.1 > 0.0 {
+        series.time_s.push(a.2 / a.1);
+        series.temp_c.push(if a.3 > 0.0 { a.4 / a.3 } else { f64::NAN });
+        series.gyro_dph.push(a.5 / a.1);
+    }
+}
+
+/// Reads a log into `bin_s` means of time, temperature and gyro (axis 0). Bins without a
+/// temperature reading keep NaN temperature. `progress(bytes, rows)` is called as the file is
+/// read. Returns the series and the number of bad rows skipped (only with `skip_bad_rows`).
+///
+/// # Errors
+/// [`DiagnoseError::Cal`] when the log cannot be read or parsed;
+/// [`DiagnoseError::NoDataRows`] when it holds only a header.
+pub fn read_series(
+    path: &Path,
+    ingest: &IngestOptions,
+    bin_s: f64,
+    meta: RunMeta,
+    progress: impl FnMut(u64, u64),
+) -> Result<(RunSeries, u64), DiagnoseError> {
+    let mut series = RunSeries { name: file_name(path), meta, ..RunSeries::default() };
+    let mut acc: Bin = (i64::MIN, 0.0, 0.0, 0.0, 0.0, 0.0);
+    let report = read_log_with_progress(
+        path,
+        ingest,
+        |row| {
+            let bin = (row.time_s / bin_s).floor() as i64;
+            if bin != acc.0 {
+                flush(&mut series, &acc);
+                acc = (bin, 0.0, 0.0, 0.0, 0.0, 0.0);
+            }
+            acc.1 += 1.0;
+            acc.2 += row.time_s;
+            let temp = row.temp_c_for_axis(0);
+            if temp.is_finite() {
+                acc.3 += 1.0;
+                acc.4 += temp;
+            }
+            acc.5 += row.gyros_dph.first().copied().unwrap_or(f64::NAN);
+            Ok(())
+        },
+        progress,
+    )?;
+    flush(&mut series, &acc);
+    if report.rows == 0 {
+        return Err(DiagnoseError::NoDataRows { path: path.to_path_buf() });
+    }
+    Ok((series, report.skipped))
+}
+
+/// Run metadata from `DIR/manifest.json` (written by `simulate`), keyed by file name; empty
+/// when there is no manifest.
+///
+/// # Errors
+/// [`DiagnoseError::Cal`] ([`CalError::Io`]) when the manifest cannot be read;
+/// [`DiagnoseError::ManifestJson`] when it is not valid JSON.
+pub fn manifest_meta(dir: &Path) -> Result<BTreeMap<String, RunMeta>, DiagnoseError> {
+    let path = dir.join("manifest.json");
+    if !path.is_file() {
+        return Ok(BTreeMap::new());
+    }
+    let text = match std::fs::read_to_string(&path) {
+        Ok(text) => text,
+        Err(source) => return Err(CalError::Io { path, source }.into()),
+    };
+    let doc: serde_json::Value = match serde_json::from_str(&text) {
+        Ok(doc) => doc,
+        Err(source) => return Err(DiagnoseError::ManifestJson { path, source }),
+    };
+    let mut out = BTreeMap::new();
+    for run in doc["runs"].as_array().map(Vec::as_slice).unwrap_or_default() {
+        let Some(name) = run["name"].as_str() else { continue };
+        out.insert(
+            format!("{name}.csv"),
+            RunMeta {
+                group: run["group"].as_str().filter(|g| !g.is_empty()).map(str::to_string),
+                input_rate_dph: run["input_rate_dph"].as_f64(),
+                power_on_at_s: None,
+            },
+        );
+    }
+    Ok(out)
+}
+
+/// Run metadata from a runs file (`run,position,input_rate_dph`), keyed by file name. Every
+/// simulated log must have a row and every row a log.
+///
+/// # Errors
+/// [`DiagnoseError::Cal`] naming the file and line.
+pub fn runs_file_meta(
+    path: &Path,
+    simulated: &[PathBuf],
+) -> Result<BTreeMap<String, RunMeta>, DiagnoseError> {
+    let file = RunsFile::read(path)?;
+    let rows = file.for_logs(simulated)?;
+    Ok(simulated
+        .iter()
+        .zip(rows)
+        .map(|(log, row)| {
+            let meta = RunMeta {
+                group: Some(row.position.clone()),
+                input_rate_dph: Some(row.input_rate_dph),
+                power_on_at_s: None,
+            };
+            (file_name(log), meta)
+        })
+        .collect())
+}
+
+/// Pairs simulated and recorded logs by file name, in the order of `simulated`; every log
+/// must have a partner.
+///
+/// # Errors
+/// [`DiagnoseError::UnpairedLogs`] listing every log without one.
+pub fn pair(simulated: &[PathBuf], recorded: &[PathBuf]) -> Result<Vec<(PathBuf, PathBuf)>, DiagnoseError> {
+    let by_name: BTreeMap<String, &PathBuf> = recorded.iter().map(|p| (file_name(p), p)).collect();
+    let mut pairs = Vec::new();
+    let mut unmatched = Vec::new();
+    for s in simulated {
+        match by_name.get(&file_name(s)) {
+            Some(r) => pairs.push((s.clone(), (*r).clone())),
+            None => unmatched.push(format!("simulated {} has no recorded log of that name", file_name(s))),
+        }
+    }
+    let sim_names: BTreeSet<String> = simulated.iter().map(|p| file_name(p)).collect();
+    for r in recorded {
+        if !sim_names.contains(&file_name(r)) {
+            unmatched.push(format!("recorded {} has no simulated log of that name", file_name(r)));
+        }
+    }
+    if !unmatched.is_empty() {
+        return Err(DiagnoseError::UnpairedLogs { unmatched });
+    }
+    Ok(pairs)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn write(name: &str, text: &str) -> (tempfile::TempDir, PathBuf) {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let path = dir.path().join(name);
+        std::fs::write(&path, text).expect("write file");
+        (dir, path)
+    }
+
+    fn logs(names: &[&str]) -> Vec<PathBuf> {
+        names.iter().map(|n| PathBuf::from(format!("sim/{n}.csv"))).collect()
+    }
+
+    #[test]
+    fn runs_file_gives_every_log_its_position_and_rate() {
+        let (_dir, path) = write("runs.csv", "run,position,input_rate_dph\nb,down,-9.5\na,up,9.5\n");
+        let meta = runs_file_meta(&path, &logs(&["a", "b"])).expect("valid");
+        assert_eq!(meta["a.csv"].group.as_deref(), Some("up"));
+        assert_eq!(meta["a.csv"].input_rate_dph, Some(9.5));
+        assert_eq!(meta["b.csv"].group.as_deref(), Some("down"));
+        assert_eq!(meta["b.csv"].input_rate_dph, Some(-9.5));
+    }
+
+    #[test]
+    fn runs_file_errors_name_the_file_and_line() {
+        let message = |text: &str, names: &[&str]| {
+            let (_dir, path) = write("runs.csv", text);
+            let err = runs_file_meta(&path, &logs(names)).expect_err("must fail");
+            (err.to_string(), path.display().to_string())
+        };
+        let (m, file) = message("run,position,input_rate_dph\na,up,1\na,down,-1\n", &["a"]);
+        assert!(m.starts_with(&format!("{file}:3: ")) && m.contains("listed twice"), "{m}");
+        let (m, file) = message("run,position,input_rate_dph\na,up,1\nc,down,-1\n", &["a"]);
+        assert!(m.starts_with(&format!("{file}:3: ")) && m.contains("'c'"), "{m}");
+        let (m, file) = message("run,position,input_rate_dph\na,up,1\n", &["a", "b"]);
+        assert!(m.starts_with(&format!("{file}:")) && m.contains("b.csv"), "{m}");
+        let (m, file) = message("run,position\na,up\n", &["a"]);
+        assert!(m.starts_with(&format!("{file}:1: ")) && m.contains("input_rate_dph"), "{m}");
+    }
+
+    #[test]
+    fn pairing_lists_every_log_without_a_partner() {
+        let sim = logs(&["a", "b"]);
+        let rec = vec![PathBuf::from("rec/b.csv"), PathBuf::from("rec/c.csv")];
+        let err = pair(&sim, &rec).expect_err("a and c unpaired");
+        assert_eq!(
+            err.to_string(),
+            "runs are paired by file name, and 2 are not:\n  simulated a.csv has no recorded log of that \
+             name\n  recorded c.csv has no simulated log of that name"
+        );
+        let pairs = pair(&logs(&["b"]), &rec[..1]).expect("paired");
+        assert_eq!(pairs, vec![(PathBuf::from("sim/b.csv"), PathBuf::from("rec/b.csv"))]);
+    }
+
+    #[test]
+    fn manifest_gives_group_and_rate_and_bad_json_names_the_file() {
+        let (dir, _) = write(
+            "manifest.json",
+            r#"{"runs": [{"name": "r1", "group": "up", "input_rate_dph": 9.5}, {"name": "r2", "group": ""}]}"#,
+        );
+        let meta = manifest_meta(dir.path()).expect("valid");
+        assert_eq!(meta["r1.csv"].group.as_deref(), Some("up"));
+        assert_eq!(meta["r1.csv"].input_rate_dph, Some(9.5));
+        assert_eq!(meta["r2.csv"], RunMeta::default());
+        let (bad, path) = write("manifest.json", "{runs");
+        let err = manifest_meta(bad.path()).expect_err("not JSON");
+        assert_eq!(err.to_string(), format!("{}: not valid JSON", path.display()));
+        let empty = tempfile::tempdir().expect("temp dir");
+        assert!(manifest_meta(empty.path()).expect("no manifest").is_empty());
+    }
+
+    #[test]
+    fn series_are_bin_means_and_a_header_alone_is_an_error() {
+        let text = "time_s,temp_c,gyro_dph\n0.0,20,1\n0.5,22,3\n1.0,,5\n1.5,,7\n";
+        let (_dir, path) = write("r.csv", text);
+        let (series, skipped) =
+            read_series(&path, &IngestOptions::default(), 1.0, RunMeta::default(), |_, _| {}).expect("valid");
+        assert_eq!(skipped, 0);
+        assert_eq!(series.name, "r.csv");
+        assert_eq!(series.time_s, vec![0.25, 1.25]);
+        assert_eq!(series.temp_c[0], 21.0);
+        assert!(series.temp_c[1].is_nan());
+        assert_eq!(series.gyro_dph, vec![2.0, 6.0]);
+        let (_dir, path) = write("h.csv", "time_s,temp_c,gyro_dph\n");
+        let err = read_series(&path, &IngestOptions::default(), 1.0, RunMeta::default(), |_, _| {})
+            .expect_err("header only");
+        assert_eq!(err.to_string(), format!("{}: no data rows (only a header)", path.display()));
+    }
+}
