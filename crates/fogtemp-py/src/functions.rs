@@ -172,9 +172,10 @@ fn array_error(e: fogtemp_cal::CalError) -> PyErr {
 /// line's `fit` does by default), "poly", "mesh", "hybrid" or "cubic-t". Keywords: the command line's `fit` options (`window_s`, `blocks`,
 /// `min_blocks`, `max_gap_s`, `target_window_s`, `full_windows_only`, `thinning`,
 /// `tolerance_dph`, `max_nodes`, `interpolate_nodes`, `fast_rate`, `settled_every`, `poly`,
-/// `max_degree`, `p_enter`, `p_remove`, `capacity`) and, for files, its log-column options
-/// (`time_column`, `time_unit`, `temp_column`, `temp_scale`, `temp_offset`, `gyro_column`,
-/// `gyro_unit`, `gyro_scale`, `delimiter`, `skip_bad_rows`). `out` also writes the model
+/// `max_degree`, `p_enter`, `p_remove`, `capacity`, `operating_temp_c`) and, for files, its
+/// log-column options (`time_column`, `time_unit`, `temp_column`, `temp_scale`, `temp_offset`,
+/// `gyro_column`, `gyro_unit`, `gyro_scale`, `delimiter`, `skip_lines`, `columns`,
+/// `sample_rate_hz`, `comment`, `skip_bad_rows`); identifiability warnings as Python warnings. `out` also writes the model
 /// file; `progress` shows reading progress on stderr. Runs with the GIL released.
 #[pyfunction]
 #[pyo3(signature = (logs, method = "auto", *, out = None, progress = true, **options))]
@@ -202,6 +203,9 @@ pub fn fit(
     let mut config =
         options::calibration(&mut o, CalibrationConfig { ingest, method, ..CalibrationConfig::default() })?;
     let capacity = o.usize("capacity", fogtemp_core::DEFAULT_CAPACITY)?;
+    let identifiability = fogtemp_cal::identifiability::IdentifiabilitySettings {
+        operating_temp_c: o.opt_f64_pair("operating_temp_c")?,
+    };
     o.finish()?;
     options::capacity_fits(config.features.block_count as usize, capacity)?;
     let fitted = if arrays {
@@ -229,8 +233,13 @@ pub fn fit(
         (py.detach(|| calibrate::fit_model(&runs, &config, digest)).map_err(errors::cal)?, runs, digest)
     };
     let (fitted, runs, digest) = fitted;
+    // The command line's identifiability warnings: Python warnings, and in `fit_report`.
+    let warnings = fogtemp_cal::identifiability::fit_warnings(&runs, &config, &identifiability);
+    for w in &warnings {
+        progress::warn(py, &w.message)?;
+    }
     let source = out.as_ref().map_or_else(|| "<fit>".to_string(), |p| p.display().to_string());
-    let doc = FitDocument::new(Path::new(&source), &fitted, &runs, &digest);
+    let doc = FitDocument::new(Path::new(&source), &fitted, &runs, &digest).with_warnings(warnings);
     let json = serde_json::to_value(&doc).and_then(|v| serde_json::to_string(&v)).ok();
     let model = Model::new(fitted.blob, source, json)?;
     if let Some(path) = &out {

@@ -58,6 +58,22 @@ impl<'py> Options<'py> {
     }
 
     /// A non-negative integer option.
+    /// An optional `(min, max)` pair with min < max, both finite.
+    pub fn opt_f64_pair(&mut self, key: &str) -> PyResult<Option<(f64, f64)>> {
+        match self.get(key)? {
+            None => Ok(None),
+            Some(v) => {
+                let (lo, hi) =
+                    v.extract::<(f64, f64)>().map_err(|e| self.wrong(key, "a (min, max) pair", e))?;
+                if lo.is_finite() && hi.is_finite() && lo < hi {
+                    Ok(Some((lo, hi)))
+                } else {
+                    Err(errors::value(format!("{key} must be (min, max) with min < max, got ({lo}, {hi})")))
+                }
+            }
+        }
+    }
+
     pub fn usize(&mut self, key: &str, default: usize) -> PyResult<usize> {
         match self.get(key)? {
             Some(v) => v.extract::<usize>().map_err(|e| self.wrong(key, "a non-negative integer", e)),
