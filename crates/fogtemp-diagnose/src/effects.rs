@@ -7,7 +7,7 @@
 //! | `thermal_lag` | `a [g(L(T)) - g(T)]`, g = the simulation's own static prediction (a cubic in T fitted to the simulated logs with a rate term and one constant per run), L = a chain of 1 or 2 first-order lags of mean delay tau; tau 1-60 min, order |
 //! | `shupe_rate` | `c dT_coil/dt`, `T_coil = LPF_tau(T)` (the coil lags the sensor); tau 0-30 min |
 //! | `gradient_rate` | `c d2T/dt2` |
-//! | `warmup_transient` | `A exp(-(t - t_on) / tau_w)`; tau_w 1-60 min |
+//! | `warmup_transient` | `A exp(-(t - t_on) / tau_w) [+ A2 exp(-(t - t_on) / tau_2)]`, signs free; tau_w, tau_2 1-60 min (tau_2 >= 2 tau_w), one or two exponentials |
 //! | `orientation_offset` | one constant per position group, relative to the first group |
 //! | `hysteresis` | `s (h0 [+ h1 (T - T_ref)])`, s = +1 after heating faster than r0, -1 after cooling faster than r0, held in between (0 before the first), or s = (T - P_w(T)) / (w/2) with P_w the play operator of width w; r0 or w, degree |
 //! | `static_shape` | cubic B-splines in `LPF_tau(T)` (the coil's temperature) over the recorded range, shared by all runs; basis size, tau 0-10 min |
@@ -70,6 +70,14 @@ impl Effect {
             Effect::StaticShape => "static_shape",
             Effect::ScaleFactorTemperature => "scale_factor_temperature",
         }
+    }
+
+    /// Whether its discrete choices are nested refinements of one shape (more spline
+    /// functions, a second exponential) rather than distinct terms: then the simplest form
+    /// within one standard error of the lowest LORO error is chosen (see
+    /// `select::design::one_standard_error_choice`), so extra flexibility must earn its place.
+    pub fn nested_complexity(self) -> bool {
+        matches!(self, Effect::StaticShape | Effect::WarmupTransient)
     }
 
     /// The experiment that separates this effect from what it is confused with
@@ -228,6 +236,23 @@ const SHUPE_LAG_GRID_S: [f64; 9] = [1.0, 60.0, 120.0, 240.0, 420.0, 600.0, 900.0
 const SHAPE_LAG_GRID_S: [f64; 3] = [1.0, 300.0, 600.0];
 const WARMUP_GRID_S: [f64; 11] =
     [60.0, 120.0, 180.0, 300.0, 450.0, 600.0, 900.0, 1200.0, 1800.0, 2700.0, 3600.0];
+/// Smallest ratio of the two warm-up time constants: closer exponentials are nearly
+/// collinear over a 2 h run and their amplitudes would only trade off.
+const WARMUP_TAU_RATIO_MIN: f64 = 2.0;
+
+/// Warm-up grid `[tau_s, tau2_s, exponentials]`: every time constant alone (tau2 = 0), then
+/// every pair with `tau2 >= WARMUP_TAU_RATIO_MIN tau`. The number of exponentials is a
+/// discrete choice (by LORO error, like a degree); the time constants are profiled by BIC.
+fn warmup_grid() -> Vec<Vec<f64>> {
+    let one = WARMUP_GRID_S.iter().map(|t| vec![*t, 0.0, 1.0]);
+    let two = WARMUP_GRID_S.iter().flat_map(|t1| {
+        WARMUP_GRID_S
+            .iter()
+            .filter(move |t2| **t2 >= WARMUP_TAU_RATIO_MIN * t1)
+            .map(move |t2| vec![*t1, *t2, 2.0])
+    });
+    one.chain(two).collect()
+}
 const BRANCH_THRESHOLD_GRID_C_PER_MIN: [f64; 5] = [0.005, 0.01, 0.02, 0.05, 0.1];
 /// Widths of the play (backlash) operator of the hysteresis term, deg C.
 const PLAY_WIDTH_GRID_C: [f64; 5] = [0.5, 1.0, 2.0, 4.0, 8.0];
@@ -473,16 +498,37 @@ pub fn term_columns(prep: &Prepared, effect: Effect, theta: &[f64]) -> TermColum
             TermColumns { theta: theta_v, coefficients, per_run, penalty: None }
         }
         Effect::WarmupTransient => {
-            let tau_s = theta[0];
-            let per_run = one_column(prep, |r| {
-                r.sec.since_on_s.iter().map(|&t| if t >= 0.0 { (-t / tau_s).exp() } else { 0.0 }).collect()
-            });
-            TermColumns {
-                theta: theta_v,
-                coefficients: vec![coef("amplitude_dph", "deg/h")],
-                per_run,
-                penalty: None,
+            // One or two exponentials in time since power-on, each amplitude free in sign
+            // (a turn-on transient can overshoot: a fast decay and a slower one of the other
+            // sign). The second time constant is 0 for the one-exponential form.
+            let taus: Vec<f64> = [theta[0], theta.get(1).copied().unwrap_or(0.0)]
+                .into_iter()
+                .filter(|tau| *tau > 0.0)
+                .collect();
+            let per_run = prep
+                .runs
+                .iter()
+                .map(|r| {
+                    let cols: Vec<Vec<f64>> = taus
+                        .iter()
+                        .map(|tau_s| {
+                            let per_sec: Vec<f64> = r
+                                .sec
+                                .since_on_s
+                                .iter()
+                                .map(|&t| if t >= 0.0 { (-t / tau_s).exp() } else { 0.0 })
+                                .collect();
+                            block_average(r, &per_sec)
+                        })
+                        .collect();
+                    matrix_from_columns(&cols)
+                })
+                .collect();
+            let mut coefficients = vec![coef("amplitude_dph", "deg/h")];
+            if taus.len() == 2 {
+                coefficients.push(coef("amplitude2_dph", "deg/h (of the second time constant)"));
             }
+            TermColumns { theta: theta_v, coefficients, per_run, penalty: None }
         }
         Effect::OrientationOffset => {
             let g = groups(prep);
@@ -576,9 +622,14 @@ pub fn grid_of(effect: Effect) -> (Vec<ProfiledParam>, Vec<Vec<f64>>) {
             vec![p("tau_s", "s", true), p("lag_order", "1 (first-order lags in the chain)", false)],
             LAG_ORDERS.iter().flat_map(|o| LAG_GRID_S.iter().map(move |v| vec![*v, *o])).collect(),
         ),
-        Effect::WarmupTransient => {
-            (vec![p("tau_s", "s", true)], WARMUP_GRID_S.iter().map(|v| vec![*v]).collect())
-        }
+        Effect::WarmupTransient => (
+            vec![
+                p("tau_s", "s", true),
+                p("tau2_s", "s (0: one exponential)", true),
+                p("exponentials", "1", false),
+            ],
+            warmup_grid(),
+        ),
         Effect::Hysteresis => (
             vec![
                 p("rate_threshold_c_per_min", "deg C/min (branch form; 0 for the play form)", true),
@@ -774,6 +825,22 @@ mod play_tests {
         let e = (-t / 300.0f64).exp();
         assert!((y2[1200] - (1.0 - (1.0 + t / 300.0) * e)).abs() < 1e-2, "{}", y2[1200]);
         assert!((r2[1200] - 60.0 * t / 300.0f64.powi(2) * e).abs() < 1e-3, "{}", r2[1200]);
+    }
+
+    #[test]
+    fn warmup_grid_has_every_single_time_constant_and_well_separated_pairs() {
+        let grid = warmup_grid();
+        let singles: Vec<f64> = grid.iter().filter(|t| t[2] == 1.0).map(|t| t[0]).collect();
+        assert_eq!(singles, WARMUP_GRID_S.to_vec());
+        assert!(grid.iter().filter(|t| t[2] == 1.0).all(|t| t[1] == 0.0));
+        let pairs: Vec<&Vec<f64>> = grid.iter().filter(|t| t[2] == 2.0).collect();
+        // Hand count over the 11 time constants: pairs with tau2 >= 2 tau1.
+        assert_eq!(pairs.len(), 10 + 8 + 7 + 6 + 5 + 4 + 3 + 2 + 1);
+        assert!(pairs.iter().all(|t| t[1] >= 2.0 * t[0]));
+        assert!(pairs.contains(&&vec![180.0, 1200.0, 2.0]));
+        let (params, points) = grid_of(Effect::WarmupTransient);
+        assert_eq!(points, grid);
+        assert_eq!(params.iter().filter(|p| !p.continuous).count(), 1);
     }
 
     #[test]

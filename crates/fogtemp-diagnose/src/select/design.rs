@@ -201,8 +201,7 @@ pub(super) fn profile_candidate(
             profile_members(prep, grid, &evals, &members, n, n_eff)
         })
         .collect();
-    let penalised = grid.points.iter().any(|p| p.penalty.is_some());
-    let choice = if penalised {
+    let choice = if grid.effect.nested_complexity() {
         one_standard_error_choice(profiled)
     } else {
         profiled.into_iter().min_by(|a, b| total_cv(a).total_cmp(&total_cv(b)))
@@ -219,8 +218,10 @@ pub(super) fn total_cv(p: &Profiled) -> f64 {
 /// 7.10): the smallest basis whose LORO error is within one standard error of the smallest,
 /// the standard error from the spread of its per-run held-out errors. The penalty keeps a
 /// bigger basis smooth, so the LORO error is flat over sizes and its minimum is decided by
-/// noise; a bigger basis than needed is then judged (and rejected) as unstable. (Discrete
-/// choices between distinct terms, such as a polynomial degree, keep the smallest error.)
+/// noise; a bigger basis than needed is then judged (and rejected) as unstable. The same
+/// for a warm-up's second exponential, a nested refinement that can mimic other effects'
+/// power-on signatures. (Discrete choices between distinct terms, such as a polynomial
+/// degree or a hysteresis form, keep the smallest error.)
 pub(super) fn one_standard_error_choice(profiled: Vec<Profiled>) -> Option<Profiled> {
     let best = profiled.iter().min_by(|a, b| total_cv(a).total_cmp(&total_cv(b)))?;
     let g = best.fold_sse.len() as f64;

@@ -1,5 +1,6 @@
 //! The forward-selection loop: every open candidate profiled and judged at each step, the
-//! accepted one with the lowest LORO error enters, its continuous parameters refined.
+//! accepted one with the fewest coefficients within one standard error of the lowest LORO
+//! error enters, its continuous parameters refined.
 
 use std::collections::BTreeMap;
 
@@ -92,7 +93,6 @@ pub(super) type Pick = (Effect, usize, f64, Option<(String, f64)>);
 pub(super) struct Scored {
     pub(super) report: CandidateReport,
     pub(super) point: usize,
-    pub(super) cv_sse: f64,
     pub(super) accepted: bool,
 }
 
@@ -174,7 +174,7 @@ pub(super) fn judge(
         experiment,
         note,
     };
-    Scored { report, point: prof.point, cv_sse, accepted }
+    Scored { report, point: prof.point, accepted }
 }
 
 /// Most confusable other candidate: the largest R^2 of `v` on the model's terms plus
@@ -209,7 +209,7 @@ pub(super) fn run_step(ctx: &StepContext<'_>) -> Result<(Vec<CandidateReport>, O
         .filter_map(|(g, s)| s.as_ref().map(|(p, _)| (g.effect, &g.points[p.point])))
         .collect();
     let mut reports = Vec::new();
-    let mut best: Option<(f64, Pick)> = None;
+    let mut accepted: Vec<(Vec<f64>, usize, Pick)> = Vec::new();
     for (g, s) in open.iter().zip(&scored) {
         match (s, &g.unmet_requirement) {
             (_, Some(why)) => reports.push(not_evaluated(
@@ -227,14 +227,16 @@ pub(super) fn run_step(ctx: &StepContext<'_>) -> Result<(Vec<CandidateReport>, O
             (Some((prof, v)), None) => {
                 let confused = most_confused(ctx, g.effect, v, &profiled_cols);
                 let sc = judge(ctx, g, prof, v, confused.clone());
-                if sc.accepted && best.as_ref().is_none_or(|b| sc.cv_sse < b.0) {
-                    best = Some((sc.cv_sse, (g.effect, sc.point, sc.report.concealment_index, confused)));
+                if sc.accepted {
+                    let pick = (g.effect, sc.point, sc.report.concealment_index, confused);
+                    accepted.push((prof.fold_sse.clone(), g.points[sc.point].k(), pick));
                 }
                 reports.push(sc.report);
             }
         }
     }
-    if let Some((_, (effect, _, _, _))) = &best {
+    let best = parsimonious_pick(accepted);
+    if let Some((effect, _, _, _)) = &best {
         for r in &mut reports {
             if r.effect == effect.name() {
                 r.status = "selected".into();
@@ -244,7 +246,25 @@ pub(super) fn run_step(ctx: &StepContext<'_>) -> Result<(Vec<CandidateReport>, O
             }
         }
     }
-    Ok((reports, best.map(|b| b.1)))
+    Ok((reports, best))
+}
+
+/// Among accepted candidates `(held-out SSE per run, coefficients, pick)`, the one with the
+/// fewest coefficients whose LORO error is within one standard error of the lowest (the
+/// one-SE rule across effects: two effects that predict held-out runs equally well are
+/// told apart by parsimony, not by noise); ties in size go to the lower error.
+pub(super) fn parsimonious_pick(accepted: Vec<(Vec<f64>, usize, Pick)>) -> Option<Pick> {
+    let total = |f: &[f64]| f.iter().sum::<f64>();
+    let best = accepted.iter().min_by(|a, b| total(&a.0).total_cmp(&total(&b.0)))?;
+    let g = best.0.len() as f64;
+    let mean = total(&best.0) / g;
+    let sd = (best.0.iter().map(|e| (e - mean).powi(2)).sum::<f64>() / (g - 1.0).max(1.0)).sqrt();
+    let limit = total(&best.0) + sd * g.sqrt();
+    accepted
+        .into_iter()
+        .filter(|a| total(&a.0) <= limit)
+        .min_by(|a, b| a.1.cmp(&b.1).then(total(&a.0).total_cmp(&total(&b.0))))
+        .map(|a| a.2)
 }
 
 pub(super) fn model_names(chosen: &[ChosenTerm]) -> Vec<String> {
@@ -370,3 +390,33 @@ pub fn forward_select(
 
 /// Passes every rule at a step without being selected.
 pub(super) const RUNNER_UP_NOTE: &str = "passes the rules but another effect lowers the LORO error more";
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn cand(effect: Effect, fold_sse: &[f64], k: usize) -> (Vec<f64>, usize, Pick) {
+        (fold_sse.to_vec(), k, (effect, 0, 0.0, None))
+    }
+
+    #[test]
+    fn parsimonious_pick_takes_the_smallest_term_within_one_standard_error() {
+        // Best: total 4, per-run errors 0.5, 1.5, 1, 1: mean 1, sd sqrt(0.5 / 3) = 0.40825,
+        // limit 4 + 0.40825 x sqrt(4) = 4.8165.
+        let best = [0.5, 1.5, 1.0, 1.0];
+        let picked = parsimonious_pick(vec![
+            cand(Effect::WarmupTransient, &best, 2),
+            cand(Effect::GradientRate, &[1.2, 1.2, 1.0, 1.1], 1), // 4.5, within
+            cand(Effect::Hysteresis, &[1.0, 1.2, 1.0, 1.1], 1),   // 4.3, within, lower
+            cand(Effect::ShupeRate, &[1.3, 1.2, 1.2, 1.2], 1),    // 4.9, outside
+        ]);
+        assert_eq!(picked.map(|p| p.0), Some(Effect::Hysteresis));
+        // Equal per-run errors: sd 0, the limit is the best itself.
+        let picked = parsimonious_pick(vec![
+            cand(Effect::WarmupTransient, &[1.0; 4], 2),
+            cand(Effect::Hysteresis, &[1.0, 1.0, 1.0, 1.01], 1),
+        ]);
+        assert_eq!(picked.map(|p| p.0), Some(Effect::WarmupTransient));
+        assert!(parsimonious_pick(Vec::new()).is_none());
+    }
+}
