@@ -152,7 +152,7 @@ pub struct BiasParams {
     pub temperature_node: Node,
     /// Reference temperature of the polynomials, deg C.
     pub reference_temp_c: f64,
-    /// Static b(T) = sum_i static_dph[i] * (T - ref)^i, deg/h per deg C^i.
+    /// Static b(T) = sum_i `static_dph[i]` * (T - ref)^i, deg/h per deg C^i.
     pub static_dph: Vec<f64>,
     /// Shupe term S1 on the coil's dT/dt, deg/h per (deg C/min).
     pub shupe_dph_per_c_per_min: f64,
