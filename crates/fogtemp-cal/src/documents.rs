@@ -313,6 +313,12 @@ pub struct ModelAxisDocument {
     pub normalisation: NormalisationDocument,
     /// `nearest_hull` or `zero` with a mesh, `None` (null) without one.
     pub outside_policy: Option<&'static str>,
+    /// What the polynomial does outside the calibrated region: `extrapolate` or
+    /// `hold_at_boundary` (blob format 2); null without a polynomial.
+    pub poly_outside: Option<&'static str>,
+    /// Vertices of the calibrated region stored in the blob (its convex hull in the
+    /// normalised plane; 0 for none, as in format 1).
+    pub region_vertex_count: u32,
     /// What the fit saw.
     pub provenance: ProvenanceDocument,
     /// Polynomial terms, when the axis has a polynomial.
@@ -381,6 +387,11 @@ impl ModelAxisDocument {
                 rate_scale_per_c_per_min: f64::from(n.rate_scale_per_c_per_min),
             },
             outside_policy,
+            poly_outside: axis.poly.as_ref().map(|_| match axis.poly_outside {
+                fogtemp_core::PolyOutside::Extrapolate => "extrapolate",
+                fogtemp_core::PolyOutside::HoldAtBoundary => "hold_at_boundary",
+            }),
+            region_vertex_count: axis.region.as_ref().map_or(0, |r| r.vertex_count()),
             provenance: ProvenanceDocument {
                 fit_point_count: p.fit_point_count,
                 residual_rms_dph: f64::from(p.residual_rms_dph),

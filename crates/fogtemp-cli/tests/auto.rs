@@ -90,6 +90,12 @@ fn auto_is_the_default_and_reports_its_cross_validation() {
     let text = cal(&text_args);
     let stdout = String::from_utf8_lossy(&text.stdout);
     assert!(stdout.contains("chosen by cross-validation") && stdout.contains("<- chosen"), "{stdout}");
+    // The blob records the choice: `inspect` reads it back, in JSON and in text.
+    let inspected = ok_json(&["inspect", "--json", &model]);
+    let recorded = format!("{method}, chosen by leave-one-run-out cross-validation");
+    assert_eq!(inspected["axes"][0]["provenance"]["selection"], recorded.as_str());
+    let inspect_text = cal(&["inspect", &model]);
+    assert!(String::from_utf8_lossy(&inspect_text.stdout).contains(&format!("method: {recorded}")));
 }
 
 #[test]

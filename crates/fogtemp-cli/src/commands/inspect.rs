@@ -44,6 +44,15 @@ pub fn inspect(a: InspectArgs) -> Result<()> {
             json_text(&axis.provenance.rate_max_c_per_min),
             axis.features.blocks_needed
         );
+        if let Some(outside) = axis.poly_outside {
+            println!(
+                "  polynomial outside the calibrated region ({} vertices): {outside}",
+                axis.region_vertex_count
+            );
+        }
+        if let Some(selection) = &axis.provenance.selection {
+            println!("  method: {selection}");
+        }
     }
     Ok(())
 }
