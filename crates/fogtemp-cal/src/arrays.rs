@@ -15,7 +15,6 @@ use std::path::Path;
 
 use crate::calibrate::{CalibrationConfig, RunFeatures};
 use crate::error::CalError;
-use crate::features::{smoothed_gyro_dph, AxisFeatureStream};
 use crate::ingest::{BadRow, BadRowKind, IngestReport, Row, MAX_REPORTED_BAD_ROWS};
 
 /// One run as arrays of equal length.
@@ -188,15 +187,8 @@ pub fn replay_models_arrays(
     config: &CalibrationConfig,
     block_s: f64,
 ) -> Result<crate::calibrate::Replay, CalError> {
-    let axes = config.ingest.format.gyro_columns.len();
     crate::calibrate::replay_with(run.name, models, &config.ingest, block_s, |visit| {
-        let mut failed = None;
-        let report = visit_rows(run, axes, config.ingest.skip_bad_rows, |row| {
-            if failed.is_none() {
-                failed = visit(row).err();
-            }
-        })?;
-        failed.map_or(Ok(report), Err)
+        visit_rows_until_error(run, config, visit)
     })
 }
 
@@ -206,23 +198,24 @@ pub fn replay_models_arrays(
 /// # Errors
 /// As [`visit_rows`] (with `config.ingest.skip_bad_rows`), or bad feature settings.
 pub fn extract_run_arrays(run: &RunArrays<'_>, config: &CalibrationConfig) -> Result<RunFeatures, CalError> {
+    crate::calibrate::extract_with(run.name, config, |visit| visit_rows_until_error(run, config, visit))
+}
+
+/// [`visit_rows`] for a visitor that can fail: the first error it returns is the result
+/// (the remaining samples are still checked, as ingest reads a file to its end).
+fn visit_rows_until_error(
+    run: &RunArrays<'_>,
+    config: &CalibrationConfig,
+    visit: &mut dyn FnMut(&Row<'_>) -> Result<(), CalError>,
+) -> Result<IngestReport, CalError> {
     let axes = config.ingest.format.gyro_columns.len();
-    let mut streams =
-        (0..axes).map(|_| AxisFeatureStream::new(&config.features)).collect::<Result<Vec<_>, _>>()?;
-    let ingest = visit_rows(run, axes, config.ingest.skip_bad_rows, |row| {
-        for (axis, stream) in streams.iter_mut().enumerate() {
-            stream.push(row.time_s, row.gyros_dph[axis], row.temp_c_for_axis(axis));
+    let mut failed = None;
+    let report = visit_rows(run, axes, config.ingest.skip_bad_rows, |row| {
+        if failed.is_none() {
+            failed = visit(row).err();
         }
     })?;
-    let axes = streams
-        .into_iter()
-        .map(|s| {
-            let points = s.finish();
-            let targets = smoothed_gyro_dph(&points, config.target_window_s);
-            (points, targets)
-        })
-        .collect();
-    Ok(RunFeatures { path: run.name.to_path_buf(), ingest, axes })
+    failed.map_or(Ok(report), Err)
 }
 
 #[cfg(test)]

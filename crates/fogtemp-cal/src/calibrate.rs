@@ -213,7 +213,7 @@ pub fn extract_run_from<R: Read + Send>(
 }
 
 /// Features and targets of one run whose rows `read` hands to the visitor it is given.
-fn extract_with(
+pub(crate) fn extract_with(
     path: &Path,
     config: &CalibrationConfig,
     read: impl FnOnce(&mut dyn FnMut(&Row<'_>) -> Result<(), CalError>) -> Result<IngestReport, CalError>,
