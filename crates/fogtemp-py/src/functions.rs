@@ -435,15 +435,7 @@ fn model_arg(value: &Bound<'_, PyAny>) -> PyResult<(Vec<u8>, String)> {
     }
     let path: PathBuf =
         value.extract().map_err(|_| PyTypeError::new_err("model must be a fogtemp.Model or a path"))?;
-    let blob = std::fs::read(&path).map_err(|e| {
-        let message = format!("cannot read model {}: {e}", path.display());
-        if e.kind() == std::io::ErrorKind::NotFound {
-            PyFileNotFoundError::new_err(message)
-        } else {
-            pyo3::exceptions::PyOSError::new_err(message)
-        }
-    })?;
-    Ok((blob, path.display().to_string()))
+    Ok((crate::model::read_model_file(&path)?, path.display().to_string()))
 }
 
 /// Replays validation logs through the model exactly as firmware would (the command line's

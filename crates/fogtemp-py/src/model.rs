@@ -77,15 +77,7 @@ impl Model {
     /// valid model (the message names the field the core's validation refused).
     #[staticmethod]
     fn from_file(path: PathBuf) -> PyResult<Self> {
-        let blob = std::fs::read(&path).map_err(|e| {
-            let message = format!("cannot read model {}: {e}", path.display());
-            if e.kind() == std::io::ErrorKind::NotFound {
-                PyFileNotFoundError::new_err(message)
-            } else {
-                pyo3::exceptions::PyOSError::new_err(message)
-            }
-        })?;
-        Self::new(blob, path.display().to_string(), None)
+        Self::new(read_model_file(&path)?, path.display().to_string(), None)
     }
 
     /// A model from the bytes of a blob (validated by the core: a truncated or corrupted blob
@@ -316,4 +308,16 @@ pub fn flag_bits(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
         d.set_item(name, flag.0)?;
     }
     Ok(d)
+}
+
+/// The bytes of a model file: FileNotFoundError if there is none, OSError if it cannot be read.
+pub(crate) fn read_model_file(path: &std::path::Path) -> PyResult<Vec<u8>> {
+    std::fs::read(path).map_err(|e| {
+        let message = format!("cannot read model {}: {e}", path.display());
+        if e.kind() == std::io::ErrorKind::NotFound {
+            PyFileNotFoundError::new_err(message)
+        } else {
+            pyo3::exceptions::PyOSError::new_err(message)
+        }
+    })
 }
