@@ -556,27 +556,13 @@ pub fn allan<'py>(
     let ingest: IngestOptions = options::ingest(&mut o)?;
     o.finish()?;
     let path: PathBuf = log.extract()?;
-    let mut times = Vec::new();
-    let mut series: Vec<Vec<f64>> = vec![Vec::new(); ingest.format.gyro_columns.len()];
     let mut bar = Progress::new(format!("allan {}", file_name(&path)), progress);
-    let report = py.detach(|| {
-        read_log_with_progress(
-            &path,
-            &ingest,
-            |row| {
-                times.push(row.time_s);
-                for (s, g) in series.iter_mut().zip(row.gyros_dph) {
-                    s.push(*g);
-                }
-                Ok(())
-            },
-            |b, r| bar.rows(b, r),
-        )
-    });
+    let series = py.detach(|| fogtemp_cal::ingest::read_gyro_series(&path, &ingest, |b, r| bar.rows(b, r)));
     bar.finish();
-    warn_skipped(py, &report.map_err(errors::cal)?)?;
+    let series = series.map_err(errors::cal)?;
+    warn_skipped(py, &series.report)?;
     let doc = py
-        .detach(|| AllanDocument::new(&path, &ingest.format.gyro_columns, &times, &series))
+        .detach(|| AllanDocument::new(&path, &ingest.format.gyro_columns, &series.time_s, &series.gyros_dph))
         .ok_or_else(|| errors::value(format!("{}: the log needs at least two rows", path.display())))?;
     convert::document(py, &doc)
 }

@@ -388,6 +388,43 @@ where
     read_log_with_progress(path, options, visit, |bytes, _rows| progress(bytes))
 }
 
+/// A log's times and gyro columns in memory (what `allan` analyses).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct GyroSeries {
+    /// Sample times, s since the first accepted row.
+    pub time_s: Vec<f64>,
+    /// Gyro rates per axis, deg/h, one entry per row.
+    pub gyros_dph: Vec<Vec<f64>>,
+    /// What the read found (rows, skipped rows).
+    pub report: IngestReport,
+}
+
+/// Reads `path` into a [`GyroSeries`], with `progress` as [`read_log_with_progress`].
+///
+/// # Errors
+/// As [`read_log`].
+pub fn read_gyro_series(
+    path: &Path,
+    options: &IngestOptions,
+    progress: impl FnMut(u64, u64),
+) -> Result<GyroSeries, CalError> {
+    let mut time_s = Vec::new();
+    let mut gyros_dph: Vec<Vec<f64>> = vec![Vec::new(); options.format.gyro_columns.len()];
+    let report = read_log_with_progress(
+        path,
+        options,
+        |row| {
+            time_s.push(row.time_s);
+            for (series, gyro) in gyros_dph.iter_mut().zip(row.gyros_dph) {
+                series.push(*gyro);
+            }
+            Ok(())
+        },
+        progress,
+    )?;
+    Ok(GyroSeries { time_s, gyros_dph, report })
+}
+
 /// [`read_log`] with a progress callback that also gets the rows accepted so far:
 /// `progress(bytes, rows)`, about every 4 MiB and once at the end (with
 /// [`IngestReport::bytes`] and [`IngestReport::rows`]), enough for a bar showing bytes/s

@@ -10,25 +10,11 @@ use crate::output::RowProgress;
 /// The `allan` command.
 pub fn allan(a: AllanArgs) -> Result<()> {
     let ingest = ingest_options(&a.ingest)?;
-    let axes = ingest.format.gyro_columns.len();
-    let mut series: Vec<Vec<f64>> = vec![Vec::new(); axes];
-    let mut times = Vec::new();
     let bar = RowProgress::new(&a.log, "allan");
-    let report = fogtemp_cal::ingest::read_log_with_progress(
-        &a.log,
-        &ingest,
-        |row| {
-            times.push(row.time_s);
-            for (s, g) in series.iter_mut().zip(row.gyros_dph) {
-                s.push(*g);
-            }
-            Ok(())
-        },
-        |b, r| bar.update(b, r),
-    )?;
+    let series = fogtemp_cal::ingest::read_gyro_series(&a.log, &ingest, |b, r| bar.update(b, r))?;
     bar.finish_and_clear();
-    report_skipped(&report);
-    let doc = AllanDocument::new(&a.log, &ingest.format.gyro_columns, &times, &series)
+    report_skipped(&series.report);
+    let doc = AllanDocument::new(&a.log, &ingest.format.gyro_columns, &series.time_s, &series.gyros_dph)
         .with_context(|| format!("{}: the log needs at least two rows", a.log.display()))?;
     if a.json {
         return print_json(&doc);
