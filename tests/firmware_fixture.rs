@@ -340,13 +340,7 @@ fn check_fixture(
     assert!(printed <= 3000, "{printed} output lines is too many for semihosting");
 
     let any = |flag: Flags| outputs.iter().any(|o| o.flags.contains(flag));
-    for (name, flag) in [
-        ("WARMING_UP", Flags::WARMING_UP),
-        ("PARTIAL_WINDOW", Flags::PARTIAL_WINDOW),
-        ("OUTSIDE_HULL", Flags::OUTSIDE_HULL),
-        ("TEMP_STALE", Flags::TEMP_STALE),
-        ("BAD_INPUT", Flags::BAD_INPUT),
-    ] {
+    for (name, flag) in Flags::NAMED {
         assert!(any(flag), "the trajectory never raises {name}");
     }
     // The dropout restarts the tracker: WARMING_UP again after steady state.

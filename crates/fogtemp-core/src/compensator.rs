@@ -27,6 +27,15 @@ impl Flags {
     /// value is not finite.
     pub const BAD_INPUT: Flags = Flags(0x10);
 
+    /// Every flag with its name, in bit order (for bindings and reports).
+    pub const NAMED: [(&'static str, Flags); 5] = [
+        ("WARMING_UP", Flags::WARMING_UP),
+        ("PARTIAL_WINDOW", Flags::PARTIAL_WINDOW),
+        ("OUTSIDE_HULL", Flags::OUTSIDE_HULL),
+        ("TEMP_STALE", Flags::TEMP_STALE),
+        ("BAD_INPUT", Flags::BAD_INPUT),
+    ];
+
     /// No bits set.
     pub const fn empty() -> Flags {
         Flags(0)

@@ -298,13 +298,7 @@ fn evaluate_chunk(axis: &Axis<'_>, grid: Option<&StartGrid<'_>>, ts: &[f64], rs:
 /// `{name: bit}` of the compensator's flags.
 pub fn flag_bits(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
     let d = PyDict::new(py);
-    for (name, flag) in [
-        ("WARMING_UP", Flags::WARMING_UP),
-        ("PARTIAL_WINDOW", Flags::PARTIAL_WINDOW),
-        ("OUTSIDE_HULL", Flags::OUTSIDE_HULL),
-        ("TEMP_STALE", Flags::TEMP_STALE),
-        ("BAD_INPUT", Flags::BAD_INPUT),
-    ] {
+    for (name, flag) in Flags::NAMED {
         d.set_item(name, flag.0)?;
     }
     Ok(d)
