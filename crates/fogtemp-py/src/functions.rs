@@ -592,22 +592,10 @@ pub fn simulate<'py>(
         (Scenario::from_toml(&text, scenario).map_err(errors::sim)?, text)
     };
     // The command line's overrides (`simulate --rate --seed --duration-s`).
-    if let Some(rate) = rate {
-        sc.sample_rate_hz = rate;
-    }
-    if let Some(seed) = seed {
-        sc.seed = seed;
-    }
-    if let Some(duration) = duration_s {
-        if let Some(grid) = &mut sc.grid {
-            grid.duration_s = duration;
-        }
-        for run in &mut sc.runs {
-            run.duration_s = duration;
-        }
-    }
-    if rate.is_some() || seed.is_some() || duration_s.is_some() {
-        sc.validate().map_err(|e| errors::value(format!("scenario after the overrides: {e}")))?;
+    let overridden = sc
+        .apply_overrides(rate, seed, duration_s)
+        .map_err(|e| errors::value(format!("scenario after the overrides: {e}")))?;
+    if overridden {
         text = format!(
             "# {scenario} with overrides (rate {rate:?} Hz, seed {seed:?}, duration {duration_s:?} s)\n{}",
             sc.to_toml().map_err(errors::sim)?

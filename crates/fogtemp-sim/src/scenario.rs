@@ -525,6 +525,39 @@ impl Scenario {
         runs
     }
 
+    /// Applies the command line's overrides (`simulate --rate --seed --duration-s`, the same
+    /// keywords in Python): the sample rate, the seed, and every run's duration (and the grid's),
+    /// then validates. Returns whether anything was overridden.
+    ///
+    /// # Errors
+    /// As [`Scenario::validate`], for the scenario after the overrides.
+    pub fn apply_overrides(
+        &mut self,
+        rate_hz: Option<f64>,
+        seed: Option<u64>,
+        duration_s: Option<f64>,
+    ) -> Result<bool, String> {
+        if let Some(rate) = rate_hz {
+            self.sample_rate_hz = rate;
+        }
+        if let Some(seed) = seed {
+            self.seed = seed;
+        }
+        if let Some(duration) = duration_s {
+            if let Some(grid) = &mut self.grid {
+                grid.duration_s = duration;
+            }
+            for run in &mut self.runs {
+                run.duration_s = duration;
+            }
+        }
+        let overridden = rate_hz.is_some() || seed.is_some() || duration_s.is_some();
+        if overridden {
+            self.validate()?;
+        }
+        Ok(overridden)
+    }
+
     /// Checks every number that the simulator relies on.
     ///
     /// # Errors

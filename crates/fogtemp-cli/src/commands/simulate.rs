@@ -26,23 +26,10 @@ pub fn load_scenario(
             std::fs::read_to_string(name).with_context(|| format!("cannot read scenario file {name}"))?;
         (Scenario::from_toml(&text, name)?, text)
     };
-    let overridden = rate_hz.is_some() || seed.is_some() || duration_s.is_some();
-    if let Some(rate) = rate_hz {
-        scenario.sample_rate_hz = rate;
-    }
-    if let Some(seed) = seed {
-        scenario.seed = seed;
-    }
-    if let Some(duration) = duration_s {
-        if let Some(grid) = &mut scenario.grid {
-            grid.duration_s = duration;
-        }
-        for run in &mut scenario.runs {
-            run.duration_s = duration;
-        }
-    }
+    let overridden = scenario
+        .apply_overrides(rate_hz, seed, duration_s)
+        .map_err(|e| anyhow::anyhow!("scenario after command-line overrides: {e}"))?;
     if overridden {
-        scenario.validate().map_err(|e| anyhow::anyhow!("scenario after command-line overrides: {e}"))?;
         // Store what was simulated, not the file before the overrides.
         text = format!(
             "# {} with command-line overrides (rate {:?} Hz, seed {:?}, duration {:?} s)\n{}",
