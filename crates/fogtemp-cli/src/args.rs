@@ -209,6 +209,25 @@ pub enum PolyArg {
     Paper,
 }
 
+/// What the polynomial does outside the calibrated (T, dT/dt) region.
+#[derive(Debug, Clone, Copy, ValueEnum, PartialEq, Eq)]
+pub enum PolyOutsideArg {
+    /// Evaluate the polynomial at the query wherever it is.
+    Extrapolate,
+    /// Evaluate it at the nearest point of the region's boundary (flagged OUTSIDE_HULL).
+    #[value(alias = "hold")]
+    HoldAtBoundary,
+}
+
+impl From<PolyOutsideArg> for fogtemp_core::PolyOutside {
+    fn from(a: PolyOutsideArg) -> Self {
+        match a {
+            PolyOutsideArg::Extrapolate => fogtemp_core::PolyOutside::Extrapolate,
+            PolyOutsideArg::HoldAtBoundary => fogtemp_core::PolyOutside::HoldAtBoundary,
+        }
+    }
+}
+
 /// `fit` arguments.
 #[derive(Debug, Args)]
 pub struct FitArgs {
@@ -234,6 +253,12 @@ pub struct FitArgs {
     /// temperature and rate ranges of the other runs (docs/calibration-testbed.md).
     #[arg(long, hide = true)]
     pub cv_inside_range_only: bool,
+    /// What the polynomial (and the hybrid's polynomial) does outside the calibrated
+    /// (T, dT/dt) region, stored in the model: extrapolate (the default: measured better on
+    /// the independent testbed, docs/calibration-testbed.md) or hold-at-boundary (as the mesh
+    /// holds its hull value; no runaway on runs beyond the calibrated rates).
+    #[arg(long, value_enum, default_value_t = PolyOutsideArg::Extrapolate)]
+    pub poly_outside: PolyOutsideArg,
     /// Feature window (smoothing of T and dT/dt), seconds.
     #[arg(long, default_value_t = 100.0, help_heading = "Features")]
     pub window_s: f32,

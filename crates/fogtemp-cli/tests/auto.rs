@@ -192,3 +192,66 @@ fn runs_file_problems_name_the_file_and_the_line() {
     let fit = err_text(&["fit", "--out", &model, "--runs", &path, &logs[0]]);
     assert!(fit.contains("allval.csv: every run has role 'val'"), "{fit}");
 }
+
+/// `fit --poly-outside`: the policy is stored in the model (`inspect --json`); inside the
+/// calibrated region both policies give the same value bit for bit; far outside it the
+/// extrapolated polynomial equals an f64 evaluation of its own coefficients at the query,
+/// while the held one stays within the values the data can give (|0.01 T| <= 0.55 and
+/// |0.3 dT/dt| <= 0.3 x 20/6 over the runs' ranges, plus the noise and fit error, 0.1) and is
+/// flagged OUTSIDE_HULL.
+#[test]
+fn poly_outside_hold_stays_within_the_calibrated_values() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let logs = strings(&write_runs(dir.path()));
+    let points = dir.path().join("points.csv");
+    std::fs::write(&points, "temp_c,rate_c_per_min\n20,0\n20,50\n").expect("write points");
+    let points = points.display().to_string();
+    let (mut evaluated, mut reference) = (Vec::new(), f64::NAN);
+    for policy in ["extrapolate", "hold-at-boundary"] {
+        let model = dir.path().join(format!("{policy}.fogm")).display().to_string();
+        let mut args = vec!["fit", "--method", "poly", "--poly-outside", policy, "--out", &model];
+        args.extend(logs.iter().map(String::as_str));
+        let fit = cal(&args);
+        assert!(fit.status.success(), "{}", String::from_utf8_lossy(&fit.stderr));
+        let inspect = ok_json(&["inspect", "--json", &model]);
+        assert_eq!(inspect["axes"][0]["poly_outside"], policy.replace('-', "_").as_str(), "{inspect}");
+        if policy == "extrapolate" {
+            reference = poly_reference(&inspect["axes"][0], 20.0, 50.0);
+        }
+        let out = cal(&["evaluate", "--model", &model, "--points", &points]);
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        let rows: Vec<Vec<String>> = String::from_utf8_lossy(&out.stdout)
+            .lines()
+            .skip(1)
+            .map(|l| l.split(',').map(str::to_owned).collect())
+            .collect();
+        evaluated.push(rows);
+    }
+    let (extrapolated, held) = (&evaluated[0], &evaluated[1]);
+    assert_eq!(extrapolated[0], held[0], "inside the region both policies agree");
+    let value = |row: &[String]| row[2].parse::<f64>().expect("value_dph");
+    let tolerance_dph = 1e-5 * reference.abs().max(1.0);
+    assert!((value(&extrapolated[1]) - reference).abs() <= tolerance_dph, "{extrapolated:?} vs {reference}");
+    assert!(value(&held[1]).abs() <= 0.55 + 0.3 * 20.0 / 6.0 + 0.1, "{held:?}");
+    let outside_hull =
+        |row: &[String]| row[3].parse::<u8>().expect("flags") & fogtemp_core::Flags::OUTSIDE_HULL.0 != 0;
+    assert!(outside_hull(&held[1]) && !outside_hull(&extrapolated[1]), "{held:?} {extrapolated:?}");
+}
+
+/// The polynomial of an `inspect --json` axis at (temp_c, rate_c_per_min), in f64.
+fn poly_reference(axis: &Value, temp_c: f64, rate_c_per_min: f64) -> f64 {
+    let n = &axis["normalisation"];
+    let f = |key: &str| n[key].as_f64().expect("normalisation field");
+    let x = (temp_c - f("temp_offset_c")) * f("temp_scale_per_c");
+    let y = (rate_c_per_min - f("rate_offset_c_per_min")) * f("rate_scale_per_c_per_min");
+    let terms = axis["poly"].as_array().expect("poly terms");
+    terms
+        .iter()
+        .map(|t| {
+            let power = |key: &str| t[key].as_i64().expect("power") as i32;
+            t["coefficient_dph"].as_f64().expect("coefficient")
+                * x.powi(power("temp_power"))
+                * y.powi(power("rate_power"))
+        })
+        .sum()
+}

@@ -227,9 +227,19 @@ pub fn calibration(o: &mut Options<'_>, base: CalibrationConfig) -> PyResult<Cal
         "paper" => TermSelection::Paper,
         other => return Err(errors::value(format!("poly must be 'stepwise' or 'paper', got '{other}'"))),
     };
+    let poly_outside = match o.string("poly_outside", "extrapolate")?.as_str() {
+        "extrapolate" => fogtemp_core::PolyOutside::Extrapolate,
+        "hold_at_boundary" | "hold" => fogtemp_core::PolyOutside::HoldAtBoundary,
+        other => {
+            return Err(errors::value(format!(
+                "poly_outside must be 'extrapolate' or 'hold_at_boundary', got '{other}'"
+            )))
+        }
+    };
     Ok(CalibrationConfig {
         features,
         target_window_s,
+        poly_outside,
         thinning,
         poly,
         full_windows_only: o.bool("full_windows_only", false)?,

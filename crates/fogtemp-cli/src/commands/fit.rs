@@ -55,7 +55,7 @@ pub fn fit(a: FitArgs) -> Result<()> {
         full_windows_only: a.full_windows_only,
         least_squares_nodes: !a.interpolate_nodes,
         rate_axis_weight: 1.0,
-        poly_outside: CalibrationConfig::default().poly_outside,
+        poly_outside: a.poly_outside.into(),
     };
     let mut runs = Vec::with_capacity(logs.len());
     for log in &logs {
