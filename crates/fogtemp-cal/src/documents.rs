@@ -313,8 +313,8 @@ pub struct ModelAxisDocument {
     pub normalisation: NormalisationDocument,
     /// `nearest_hull` or `zero` with a mesh, `None` (null) without one.
     pub outside_policy: Option<&'static str>,
-    /// What the polynomial does outside the calibrated region: `extrapolate` or
-    /// `hold_at_boundary` (blob format 2); null without a polynomial.
+    /// What the polynomial does outside the calibrated region: `extrapolate`,
+    /// `hold_at_boundary` or `linear_from_boundary` (blob format 2); null without a polynomial.
     pub poly_outside: Option<&'static str>,
     /// Vertices of the calibrated region stored in the blob (its convex hull in the
     /// normalised plane; 0 for none, as in format 1).
@@ -390,6 +390,7 @@ impl ModelAxisDocument {
             poly_outside: axis.poly.as_ref().map(|_| match axis.poly_outside {
                 fogtemp_core::PolyOutside::Extrapolate => "extrapolate",
                 fogtemp_core::PolyOutside::HoldAtBoundary => "hold_at_boundary",
+                fogtemp_core::PolyOutside::LinearFromBoundary => "linear_from_boundary",
             }),
             region_vertex_count: axis.region.as_ref().map_or(0, |r| r.vertex_count()),
             provenance: ProvenanceDocument {

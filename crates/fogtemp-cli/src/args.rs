@@ -217,6 +217,10 @@ pub enum PolyOutsideArg {
     /// Evaluate it at the nearest point of the region's boundary (flagged OUTSIDE_HULL).
     #[value(alias = "hold")]
     HoldAtBoundary,
+    /// Continue it linearly from the nearest boundary point (its tangent plane there;
+    /// flagged OUTSIDE_HULL).
+    #[value(alias = "linear")]
+    LinearFromBoundary,
 }
 
 impl From<PolyOutsideArg> for fogtemp_core::PolyOutside {
@@ -224,6 +228,7 @@ impl From<PolyOutsideArg> for fogtemp_core::PolyOutside {
         match a {
             PolyOutsideArg::Extrapolate => fogtemp_core::PolyOutside::Extrapolate,
             PolyOutsideArg::HoldAtBoundary => fogtemp_core::PolyOutside::HoldAtBoundary,
+            PolyOutsideArg::LinearFromBoundary => fogtemp_core::PolyOutside::LinearFromBoundary,
         }
     }
 }

@@ -153,16 +153,22 @@ impl Axis<'_> {
         }
     }
 
-    /// The polynomial at `(x, y)`, or at the nearest boundary point of the calibrated region
-    /// when `(x, y)` is outside it and the policy holds (then `true`).
+    /// The polynomial at `(x, y)`; outside the calibrated region, per the policy, at (or
+    /// continued linearly from) the region's nearest boundary point (then `true`).
     #[inline]
     fn poly_value(&self, poly: Poly<'_>, x: f32, y: f32) -> (f32, bool) {
         match (self.poly_outside, self.region) {
-            (PolyOutside::HoldAtBoundary, Some(region)) if !region.contains(x, y) => {
+            (PolyOutside::Extrapolate, _) | (_, None) => (poly.evaluate(x, y), false),
+            (_, Some(region)) if region.contains(x, y) => (poly.evaluate(x, y), false),
+            (PolyOutside::HoldAtBoundary, Some(region)) => {
                 let (bx, by) = region.nearest_boundary_point(x, y);
                 (poly.evaluate(bx, by), true)
             }
-            _ => (poly.evaluate(x, y), false),
+            (PolyOutside::LinearFromBoundary, Some(region)) => {
+                let (bx, by) = region.nearest_boundary_point(x, y);
+                let (value, d_dx, d_dy) = poly.evaluate_with_gradient(bx, by);
+                (value + d_dx * (x - bx) + d_dy * (y - by), true)
+            }
         }
     }
 }
@@ -373,7 +379,7 @@ fn parse_axis(body: &[u8], offset: usize, id: u16, version: u16) -> Result<(Axis
     if region_count != 0 && !(3..=MAX_REGION_VERTICES).contains(&region_count) {
         return Err(bad("region_vertex_count"));
     }
-    if poly_outside == PolyOutside::HoldAtBoundary && region_count == 0 {
+    if poly_outside != PolyOutside::Extrapolate && region_count == 0 {
         return Err(bad("poly_outside"));
     }
     let (terms, vertices, triangles, hull) = (

@@ -59,6 +59,29 @@ impl<'a> Poly<'a> {
     }
 }
 
+impl Poly<'_> {
+    /// Value and gradient `(p, dp/dx, dp/dy)` in deg/h (per normalised unit) at `(x, y)`,
+    /// from the same power tables as [`Poly::evaluate`] (the value is bit-identical to it).
+    pub fn evaluate_with_gradient(&self, x: f32, y: f32) -> (f32, f32, f32) {
+        let xp = powers(x);
+        let yp = powers(y);
+        let power =
+            |table: &[f32; MAX_POWER as usize + 1], k: u8| table.get(usize::from(k)).copied().unwrap_or(0.0);
+        self.terms().fold((0.0, 0.0, 0.0), |(sum, d_dx, d_dy), t| {
+            let (i, j) = (t.temp_power, t.rate_power);
+            let (xi, yj) = (power(&xp, i), power(&yp, j));
+            // d/dx x^i = i x^(i-1); a power of 0 contributes nothing.
+            let dxi = if i > 0 { f32::from(i) * power(&xp, i - 1) } else { 0.0 };
+            let dyj = if j > 0 { f32::from(j) * power(&yp, j - 1) } else { 0.0 };
+            (
+                sum + t.coefficient_dph * xi * yj,
+                d_dx + t.coefficient_dph * dxi * yj,
+                d_dy + t.coefficient_dph * xi * dyj,
+            )
+        })
+    }
+}
+
 /// `[1, v, v^2, ..., v^MAX_POWER]`.
 fn powers(v: f32) -> [f32; MAX_POWER as usize + 1] {
     let mut p = [1.0f32; MAX_POWER as usize + 1];

@@ -4,7 +4,8 @@
 //! A polynomial fitted over a region can run away outside it (a cooling run at rates no
 //! calibration run had). With [`PolyOutside::HoldAtBoundary`] the polynomial is evaluated at
 //! the point of the region's boundary nearest the query instead, as the mesh holds its hull
-//! value, and the evaluation says `outside_hull` (the compensator flags `OUTSIDE_HULL`).
+//! value, and the evaluation says `outside_hull` (the compensator flags `OUTSIDE_HULL`);
+//! with [`PolyOutside::LinearFromBoundary`] it is continued by its tangent plane at that point.
 //! Inside (or on) the region the polynomial is evaluated at the query itself, bit for bit as
 //! without a region. Cost: at most [`MAX_REGION_VERTICES`] edge tests and projections.
 
@@ -18,6 +19,12 @@ pub enum PolyOutside {
     /// Evaluated at the nearest point of the region's boundary; flagged `OUTSIDE_HULL`.
     /// Blob code 1; needs a region.
     HoldAtBoundary,
+    /// Continued linearly from the nearest point `q` of the region's boundary: `p(q) +
+    /// grad p(q) . (x - q)` (the polynomial's tangent plane at `q`); flagged `OUTSIDE_HULL`.
+    /// A dependence that is linear in the rate (a Shupe term) extrapolates exactly; the
+    /// higher powers cannot run away (growth at most linear in the distance). Blob code 2;
+    /// needs a region.
+    LinearFromBoundary,
 }
 
 impl PolyOutside {
@@ -26,6 +33,7 @@ impl PolyOutside {
         match self {
             PolyOutside::Extrapolate => 0,
             PolyOutside::HoldAtBoundary => 1,
+            PolyOutside::LinearFromBoundary => 2,
         }
     }
 
@@ -34,6 +42,7 @@ impl PolyOutside {
         match code {
             0 => Some(PolyOutside::Extrapolate),
             1 => Some(PolyOutside::HoldAtBoundary),
+            2 => Some(PolyOutside::LinearFromBoundary),
             _ => None,
         }
     }

@@ -110,6 +110,54 @@ fn inside_the_region_the_value_is_bit_exact_and_outside_it_is_the_nearest_bounda
     assert!(inside > 1000 && outside > 10_000, "{inside} inside, {outside} outside");
 }
 
+/// Gradient of the f64 reference polynomial.
+fn poly_gradient_f64(x: f64, y: f64) -> (f64, f64) {
+    TERMS.iter().fold((0.0, 0.0), |(gx, gy), &(tp, rp, c)| {
+        let (i, j, c) = (i32::from(tp), i32::from(rp), f64::from(c));
+        let dx = if i > 0 { f64::from(i) * x.powi(i - 1) * y.powi(j) } else { 0.0 };
+        let dy = if j > 0 { f64::from(j) * x.powi(i) * y.powi(j - 1) } else { 0.0 };
+        (gx + c * dx, gy + c * dy)
+    })
+}
+
+#[test]
+fn linear_from_boundary_is_the_tangent_plane_at_the_nearest_boundary_point() {
+    let linear = poly_blob(2, &REGION, PolyOutside::LinearFromBoundary.code());
+    let free = poly_blob(2, &REGION, PolyOutside::Extrapolate.code());
+    let (linear, free) = (Model::from_bytes(&linear).unwrap(), Model::from_bytes(&free).unwrap());
+    let (linear, free) = (linear.axis(0).unwrap(), free.axis(0).unwrap());
+    assert_eq!(linear.poly_outside, PolyOutside::LinearFromBoundary);
+    let mut r = rng(12);
+    let (mut inside, mut outside) = (0, 0);
+    for _ in 0..20_000 {
+        let (x, y): (f32, f32) = (r.gen_range(-2.5..2.5), r.gen_range(-2.5..2.5));
+        let l = linear.evaluate(x, y, &mut WalkHint::default()).unwrap();
+        let f = free.evaluate(x, y, &mut WalkHint::default()).unwrap();
+        let (ref_inside, (qx, qy)) = reference(f64::from(x), f64::from(y));
+        if ref_inside {
+            inside += 1;
+            assert_eq!((l.value_dph.to_bits(), l.outside_hull), (f.value_dph.to_bits(), false), "({x}, {y})");
+        } else {
+            outside += 1;
+            let (gx, gy) = poly_gradient_f64(qx, qy);
+            let want = poly_f64(qx, qy) + gx * (f64::from(x) - qx) + gy * (f64::from(y) - qy);
+            // f32 projection, value and gradient: a few ulps of terms of order 1, times the
+            // distance (at most 3.5) for the gradient part.
+            assert!((f64::from(l.value_dph) - want).abs() <= 5e-5, "({x}, {y}): {} vs {want}", l.value_dph);
+            assert!(l.outside_hull, "({x}, {y}) outside but not flagged");
+        }
+    }
+    assert!(inside > 1000 && outside > 10_000, "{inside} inside, {outside} outside");
+    // Far out (x = 50, nearest the vertex (0.95, -0.3)) the continuation is still the tangent
+    // plane there, growing linearly, while the extrapolated cubic runs away.
+    let far =
+        |axis: &fogtemp_core::Axis<'_>| axis.evaluate(50.0, 0.0, &mut WalkHint::default()).unwrap().value_dph;
+    let (gx, gy) = poly_gradient_f64(0.95, -0.3);
+    let want = poly_f64(0.95, -0.3) + gx * (50.0 - 0.95) + gy * 0.3;
+    assert!((f64::from(far(&linear)) - want).abs() <= 1e-5 * want.abs(), "{} vs {want}", far(&linear));
+    assert!(f64::from(far(&free)) > 2000.0, "the cubic runs away: {}", far(&free));
+}
+
 #[test]
 fn the_held_value_is_continuous_across_the_boundary() {
     let blob = poly_blob(2, &REGION, PolyOutside::HoldAtBoundary.code());
@@ -166,6 +214,8 @@ fn malformed_regions_and_policies_are_refused() {
         Error::BadValue { field: "region_vertex_count", .. }
     ));
     assert!(matches!(bad(poly_blob(2, &[], hold)), Error::BadValue { field: "poly_outside", .. }));
+    let linear = PolyOutside::LinearFromBoundary.code();
+    assert!(matches!(bad(poly_blob(2, &[], linear)), Error::BadValue { field: "poly_outside", .. }));
     assert!(matches!(bad(poly_blob(2, &REGION, 7)), Error::BadValue { field: "poly_outside", .. }));
     // A NaN vertex.
     let mut nan = REGION;

@@ -230,11 +230,10 @@ pub fn calibration(o: &mut Options<'_>, base: CalibrationConfig) -> PyResult<Cal
     let poly_outside = match o.string("poly_outside", "extrapolate")?.as_str() {
         "extrapolate" => fogtemp_core::PolyOutside::Extrapolate,
         "hold_at_boundary" | "hold" => fogtemp_core::PolyOutside::HoldAtBoundary,
-        other => {
-            return Err(errors::value(format!(
-                "poly_outside must be 'extrapolate' or 'hold_at_boundary', got '{other}'"
-            )))
-        }
+        "linear_from_boundary" | "linear" => fogtemp_core::PolyOutside::LinearFromBoundary,
+        other => return Err(errors::value(format!(
+            "poly_outside must be 'extrapolate', 'hold_at_boundary' or 'linear_from_boundary', got '{other}'"
+        ))),
     };
     Ok(CalibrationConfig {
         features,
