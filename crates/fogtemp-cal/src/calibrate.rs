@@ -147,8 +147,9 @@ pub struct CalibrationConfig {
     /// distances see this aspect ratio).
     pub rate_axis_weight: f64,
     /// What the polynomial does outside the calibrated region (the convex hull of the
-    /// calibration points, always stored in the blob). Default: extrapolate; holding at the
-    /// boundary was worse on the testbed (docs/calibration-testbed.md).
+    /// calibration points, always stored in the blob). Default: continued linearly from the
+    /// nearest boundary point (no worse than extrapolating on the testbed, and no runaway);
+    /// holding at the boundary was worse (docs/calibration-testbed.md).
     pub poly_outside: fogtemp_core::PolyOutside,
 }
 
@@ -164,7 +165,7 @@ impl Default for CalibrationConfig {
             full_windows_only: false,
             least_squares_nodes: true,
             rate_axis_weight: 1.0,
-            poly_outside: fogtemp_core::PolyOutside::Extrapolate,
+            poly_outside: fogtemp_core::PolyOutside::LinearFromBoundary,
         }
     }
 }
@@ -479,13 +480,18 @@ pub fn fit_axis(
             rate_min_c_per_min: rate_min as f32,
             rate_max_c_per_min: rate_max as f32,
         },
-        // The calibrated region; with HoldAtBoundary the polynomial is held at its boundary
-        // outside (no runaway extrapolation; flagged OUTSIDE_HULL).
-        region: crate::blob::calibrated_region(
-            &points.iter().map(|p| crate::mesh::normalised(p, &normalisation)).collect::<Vec<_>>(),
-        ),
-        poly_outside: config.poly_outside,
+        region: Vec::new(),
+        poly_outside: fogtemp_core::PolyOutside::Extrapolate,
     };
+    // The calibrated region; outside it the policy holds or continues the polynomial from its
+    // boundary (no runaway; flagged OUTSIDE_HULL). Points without an area (collinear: one
+    // warm-up run) have no region, and a polynomial without one can only extrapolate.
+    axis.region = crate::blob::calibrated_region(
+        &points.iter().map(|p| crate::mesh::normalised(p, &normalisation)).collect::<Vec<_>>(),
+    );
+    if axis.region.len() >= 3 {
+        axis.poly_outside = config.poly_outside;
+    }
     // Residuals of the model as the firmware evaluates it (f32, through the core).
     let probe =
         encode(&ModelFile { tool_version: String::new(), input_digest: [0; 32], axes: vec![axis.clone()] })?;

@@ -259,10 +259,11 @@ pub struct FitArgs {
     #[arg(long, hide = true)]
     pub cv_inside_range_only: bool,
     /// What the polynomial (and the hybrid's polynomial) does outside the calibrated
-    /// (T, dT/dt) region, stored in the model: extrapolate (the default: measured better on
-    /// the independent testbed, docs/calibration-testbed.md) or hold-at-boundary (as the mesh
-    /// holds its hull value; no runaway on runs beyond the calibrated rates).
-    #[arg(long, value_enum, default_value_t = PolyOutsideArg::Extrapolate)]
+    /// (T, dT/dt) region, stored in the model: continued linearly from the region's nearest
+    /// boundary point (the default: no runaway of higher powers, exact for a linear rate
+    /// term), extrapolated, or held at the boundary as the mesh holds its hull value
+    /// (docs/calibration-testbed.md, "Continued linearly").
+    #[arg(long, value_enum, default_value_t = PolyOutsideArg::LinearFromBoundary)]
     pub poly_outside: PolyOutsideArg,
     /// Feature window (smoothing of T and dT/dt), seconds.
     #[arg(long, default_value_t = 100.0, help_heading = "Features")]

@@ -227,13 +227,15 @@ pub fn calibration(o: &mut Options<'_>, base: CalibrationConfig) -> PyResult<Cal
         "paper" => TermSelection::Paper,
         other => return Err(errors::value(format!("poly must be 'stepwise' or 'paper', got '{other}'"))),
     };
-    let poly_outside = match o.string("poly_outside", "extrapolate")?.as_str() {
+    let poly_outside = match o.string("poly_outside", "linear_from_boundary")?.as_str() {
         "extrapolate" => fogtemp_core::PolyOutside::Extrapolate,
         "hold_at_boundary" | "hold" => fogtemp_core::PolyOutside::HoldAtBoundary,
         "linear_from_boundary" | "linear" => fogtemp_core::PolyOutside::LinearFromBoundary,
-        other => return Err(errors::value(format!(
+        other => {
+            return Err(errors::value(format!(
             "poly_outside must be 'extrapolate', 'hold_at_boundary' or 'linear_from_boundary', got '{other}'"
-        ))),
+        )))
+        }
     };
     Ok(CalibrationConfig {
         features,
