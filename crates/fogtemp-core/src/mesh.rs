@@ -7,7 +7,7 @@
 use crate::error::Error;
 use crate::wire::{
     self, HULL_EDGE_LEN, NO_NEIGHBOUR, TRIANGLE_LEN, TRI_BARY, TRI_NEIGHBOURS, TRI_ORIGIN, TRI_PLANE,
-    VERTEX_LEN,
+    TRI_VERTICES, VERTEX_LEN,
 };
 
 /// A query counts as inside a triangle when every barycentric coordinate is at
@@ -438,24 +438,80 @@ impl<'a> Mesh<'a> {
         MeshValue { value_dph, triangle: end.triangle, outside_hull: true }
     }
 
-    /// Value at the point of the hull nearest to `(x, y)`, linear along the hull edge.
-    /// Scans every hull edge: O(hull edges), only for queries outside the hull.
+    /// Value at the point of the hull nearest to `(x, y)`, linear along the hull edge, for a
+    /// query outside the hull. O(log hull edges) in the typical case (see [`crate::hull`]):
+    /// the hull edge facing the query by a binary search over the fan of hull vertices
+    /// around an interior point, then a descent along the hull to the edge or vertex whose
+    /// normal cone holds the query, then the nearest of that edge and its two neighbours
+    /// with the arithmetic and tie rule of [`Mesh::nearest_hull_value_by_scan`], so the value
+    /// is that scan's bit for bit unless a far-away edge ties within f32 rounding. When the
+    /// geometry cannot be certified (a non-finite query, a degenerate hull, rounding right
+    /// on the hull), the scan decides.
     #[cold]
     #[inline(never)]
     pub fn nearest_hull_value(&self, x: f32, y: f32) -> f32 {
+        match crate::hull::nearest_edge(self, x, y) {
+            Some(owner) => self.nearest_of_neighbours(owner, x, y),
+            None => self.nearest_hull_value_by_scan(x, y),
+        }
+    }
+
+    /// The hull edge around which [`Mesh::nearest_hull_value`] certified the nearest hull point
+    /// of `(x, y)` (the point lies on this edge or at its start vertex), or `None` where it
+    /// falls back to the scan. For tests and benchmarks.
+    #[doc(hidden)]
+    pub fn nearest_hull_edge(&self, x: f32, y: f32) -> Option<u32> {
+        crate::hull::nearest_edge(self, x, y)
+    }
+
+    /// Value at the point of the hull nearest to `(x, y)` by scanning every hull edge: the
+    /// reference [`Mesh::nearest_hull_value`] must agree with, and its fallback. O(hull edges).
+    /// Ties go to the lower edge index; a NaN or infinite query gives 0.
+    pub fn nearest_hull_value_by_scan(&self, x: f32, y: f32) -> f32 {
         let mut best = (f32::INFINITY, 0.0f32);
         for h in 0..self.hull_edge_count() {
             let Some((a, b)) = self.hull_edge_vertices(h) else { continue };
-            let (dx, dy) = (b.x - a.x, b.y - a.y);
-            let len2 = dx * dx + dy * dy;
-            let s = if len2 > 0.0 { (((x - a.x) * dx + (y - a.y) * dy) / len2).clamp(0.0, 1.0) } else { 0.0 };
-            let (px, py) = (a.x + s * dx, a.y + s * dy);
-            let d2 = (x - px) * (x - px) + (y - py) * (y - py);
+            let (d2, value) = edge_nearest(&a, &b, x, y);
             if d2 < best.0 {
-                best = (d2, a.value_dph + s * (b.value_dph - a.value_dph));
+                best = (d2, value);
             }
         }
         best.1
+    }
+
+    /// The scan of [`Mesh::nearest_hull_value_by_scan`] restricted to hull edges
+    /// `owner - 1`, `owner`, `owner + 1` (cyclic; taken in index order, as the scan does).
+    fn nearest_of_neighbours(&self, owner: u32, x: f32, y: f32) -> f32 {
+        let n = self.hull_edge_count();
+        let mut edges = [crate::hull::cyclic(owner, -1, n), owner, crate::hull::cyclic(owner, 1, n)];
+        edges.sort_unstable();
+        // Distinct: `nearest_edge` answers only for hulls of at least 3 edges.
+        let mut best = (f32::INFINITY, 0.0f32);
+        for h in edges {
+            let Some((a, b)) = self.hull_edge_vertices(h) else { continue };
+            let (d2, value) = edge_nearest(&a, &b, x, y);
+            if d2 < best.0 {
+                best = (d2, value);
+            }
+        }
+        best.1
+    }
+
+    /// Position of the start vertex of hull edge `index` (the end vertex of edge `index - 1`),
+    /// read straight from the records.
+    #[inline]
+    pub(crate) fn hull_start(&self, index: u32) -> Option<[f32; 2]> {
+        let (t, e) = self.hull_edge(index)?;
+        // Edge e runs from vertex e + 1 to e + 2 of its triangle.
+        let k = match e {
+            0 => 1,
+            1 => 2,
+            2 => 0,
+            _ => return None,
+        };
+        let v = rec_u32(self.record(t)?, TRI_VERTICES.start + 4 * k);
+        let at = (v as usize).checked_mul(VERTEX_LEN)?;
+        Some([wire::f32_at(self.vertices, at)?, wire::f32_at(self.vertices, at.checked_add(4)?)?])
     }
 
     /// The start and end vertex of hull edge `index` (counter-clockwise order).
@@ -531,6 +587,18 @@ fn barycentric_rec(r: &[u8; TRIANGLE_LEN], x: f32, y: f32) -> [f32; 3] {
     let l0 = rec_f32(r, b) * dx + rec_f32(r, b + 4) * dy;
     let l1 = rec_f32(r, b + 8) * dx + rec_f32(r, b + 12) * dy;
     [l0, l1, 1.0 - l0 - l1]
+}
+
+/// Squared distance from `(x, y)` to segment `a b` and the value there (linear along the
+/// segment). The one arithmetic of every hull-value path, so they agree bit for bit.
+#[inline(always)]
+fn edge_nearest(a: &Vertex, b: &Vertex, x: f32, y: f32) -> (f32, f32) {
+    let (dx, dy) = (b.x - a.x, b.y - a.y);
+    let len2 = dx * dx + dy * dy;
+    let s = if len2 > 0.0 { (((x - a.x) * dx + (y - a.y) * dy) / len2).clamp(0.0, 1.0) } else { 0.0 };
+    let (px, py) = (a.x + s * dx, a.y + s * dy);
+    let d2 = (x - px) * (x - px) + (y - py) * (y - py);
+    (d2, a.value_dph + s * (b.value_dph - a.value_dph))
 }
 
 /// Vertex indices `(from, to)` of edge `edge` (the edge opposite vertex `edge`).
