@@ -1,6 +1,9 @@
 //! Instruction counts of the value at the nearest hull point, for callgrind: the search
 //! (`Mesh::nearest_hull_value`) against the scan of every hull edge
-//! (`Mesh::nearest_hull_value_by_scan`) on the same queries outside the hull.
+//! (`Mesh::nearest_hull_value_by_scan`) on the same queries outside the hull, and the whole
+//! outside query as `Model.evaluate` in Python runs it (`Mesh::interpolate_with_grid` from a
+//! start grid of about 4 cells per triangle: the walk to the hull, then the hull value from
+//! the edge the walk crossed, `hull_value_after_walk`).
 //!
 //! ```sh
 //! cargo build --release -p fogtemp-core --example hull_cost
@@ -17,7 +20,7 @@
 
 use std::hint::black_box;
 
-use fogtemp_core::{Location, Mesh, Model};
+use fogtemp_core::{Location, Mesh, Model, StartGrid, WalkHint};
 
 #[inline(never)]
 fn cost_search(mesh: &Mesh<'_>, x: f32, y: f32) -> f32 {
@@ -28,6 +31,11 @@ fn cost_search(mesh: &Mesh<'_>, x: f32, y: f32) -> f32 {
 fn cost_scan(mesh: &Mesh<'_>, x: f32, y: f32) -> f32 {
     black_box(1_u8); // distinct body: LLVM would merge identical wrappers
     mesh.nearest_hull_value_by_scan(black_box(x), black_box(y))
+}
+
+#[inline(never)]
+fn cost_grid_walk(mesh: &Mesh<'_>, grid: &StartGrid<'_>, hint: &mut WalkHint, x: f32, y: f32) -> f32 {
+    mesh.interpolate_with_grid(black_box(x), black_box(y), hint, grid).map_or(f32::NAN, |v| v.value_dph)
 }
 
 /// xorshift64*: a fixed-seed uniform generator in [0, 1) without dependencies.
@@ -63,14 +71,21 @@ fn main() {
             queries.push((x, y));
         }
     }
-    let (mut certified, mut differ) = (0usize, 0usize);
+    let side = ((mesh.triangle_count() as f32 * 4.0).sqrt() as u32).max(1);
+    let mut cells = vec![0u32; (side * side) as usize];
+    let grid = mesh.start_grid(side, &mut cells).expect("grid");
+    let mut hint = WalkHint::default();
+    let (mut certified, mut differ, mut walk_differ) = (0usize, 0usize, 0usize);
     for &(x, y) in &queries {
         let (fast, scan) = (cost_search(&mesh, x, y), cost_scan(&mesh, x, y));
+        let walked = cost_grid_walk(&mesh, &grid, &mut hint, x, y);
         differ += usize::from(fast.to_bits() != scan.to_bits());
+        walk_differ += usize::from(walked.to_bits() != fast.to_bits());
         certified += usize::from(mesh.nearest_hull_edge(x, y).is_some());
     }
     println!("calls cost_search {count}");
     println!("calls cost_scan {count}");
+    println!("calls cost_grid_walk {count} (start grid {side}x{side}; {walk_differ} values not bit-equal to the search)");
     println!(
         "hull edges {}, vertices {}, triangles {}; {certified} of {count} answered by the search, \
          {differ} not bit-equal to the scan",

@@ -1,12 +1,13 @@
-//! The hull edge nearest a query outside a mesh's convex hull, without scanning the hull.
+//! The point of a mesh's convex hull nearest a query outside it, without scanning the hull.
 //!
-//! The hull (validated: counter-clockwise, convex up to f32 rounding) is searched in two
-//! steps, with cross and dot products only (no `atan2`, no division, no allocation):
+//! The hull (validated: counter-clockwise, convex up to f32 rounding) is searched with cross
+//! and dot products only (no `atan2`, no allocation):
 //!
-//! 1. Facing edge, O(log n): the rays from an interior point `c` (the centroid of three hull
-//!    vertices a third of the hull apart) through the hull vertices cut the plane into
-//!    wedges, in counter-clockwise order. A binary search finds the wedge holding the query;
-//!    the segment from `c` to an outside query leaves the hull through that wedge's edge.
+//! 1. Facing edge, O(log n) ([`nearest_edge`], for `Mesh::nearest_hull_value`): the rays
+//!    from an interior point `c` (the centroid of three hull vertices a third of the hull
+//!    apart) through the hull vertices cut the plane into wedges, in counter-clockwise order.
+//!    A binary search finds the wedge holding the query; the segment from `c` to an outside
+//!    query leaves the hull through that wedge's edge.
 //! 2. Descent: from that edge, step along the hull towards the query's projection (back
 //!    while it falls before the edge's start, on while it falls past its end) until the
 //!    query lies in the normal cone of an edge (projection on the edge, query on its outer
@@ -14,13 +15,23 @@
 //!    start of the edge after it). For a convex polygon that is the characterisation of the
 //!    nearest point `q*`: `(p - q*) . (q - q*) <= 0` for every hull point `q`. The answer is
 //!    chosen by where the query lies, as `Region::nearest_boundary_point` does, not by
-//!    comparing distances that f32 cannot resolve far out.
+//!    comparing distances over the whole hull, which f32 cannot resolve far out.
+//! 3. Value: the edge owning the certified point (the point on it or at its start) and its two
+//!    neighbours are measured with the scan's own arithmetic and tie rule (lowest hull index
+//!    wins a tie), so the value is the scan's bit for bit unless a far edge ties within f32
+//!    rounding.
+//!
+//! A query that a walk took out of the mesh needs no step 1: the walk crossed a hull edge, and
+//! [`value_from_slot`] checks the same certificate on that edge and at its two ends, finding
+//! the neighbouring hull edges through the triangles around the end vertex (the blob has no
+//! map from a triangle to its hull index, and the format is a contract).
 //!
 //! Anything not certified (non-finite query, fewer than 3 edges, a degenerate fan, a zero
 //! length edge, rounding that puts the query on the inner side of its edge, no certificate
-//! within `n` steps) returns `None`, and the caller scans every edge instead.
+//! within `n` steps) returns `None`, and the caller searches (step 1) or scans every edge.
 
-use crate::mesh::Mesh;
+use crate::mesh::{edge_nearest, Mesh, Vertex};
+use crate::wire::NO_NEIGHBOUR;
 
 /// A point or a vector of the normalised plane.
 type P = [f32; 2];
@@ -143,4 +154,128 @@ fn dot(a: P, b: P) -> f32 {
 #[inline(always)]
 fn cross(a: P, b: P) -> f32 {
     a[0] * b[1] - a[1] * b[0]
+}
+
+/// Most triangles around one hull vertex visited to find the next or previous hull edge; a
+/// vertex with more (possible, not met on a writer's mesh) falls back to the search.
+const MAX_FAN: u32 = 64;
+
+/// A hull edge named by its triangle slot: edge `k` of triangle `t` (from its vertex `k + 1`
+/// to `k + 2`, neighbour [`NO_NEIGHBOUR`]), with the indices of its ends.
+#[derive(Clone, Copy)]
+struct Slot {
+    t: u32,
+    from: u32,
+    to: u32,
+}
+
+/// Edge `k` of triangle `t` if it is a hull edge.
+fn slot(mesh: &Mesh<'_>, t: u32, k: usize) -> Option<Slot> {
+    let (vs, nb) = mesh.corners(t)?;
+    if *nb.get(k)? != NO_NEIGHBOUR {
+        return None;
+    }
+    Some(Slot { t, from: *vs.get((k + 1) % 3)?, to: *vs.get((k + 2) % 3)? })
+}
+
+/// Position of vertex `v` in a triangle's vertex list.
+#[inline(always)]
+fn position(vs: [u32; 3], v: u32) -> Option<usize> {
+    vs.iter().position(|&w| w == v)
+}
+
+/// The hull edge after `s`: the triangles around its end vertex, turning clockwise from `s`'s
+/// triangle, up to the one whose edge starting at that vertex is on the hull.
+fn next_slot(mesh: &Mesh<'_>, s: Slot) -> Option<Slot> {
+    let pivot = s.to;
+    let mut t = s.t;
+    for _ in 0..MAX_FAN {
+        let (vs, nb) = mesh.corners(t)?;
+        // Edge j + 2 runs from vertex j (the pivot) to j + 1.
+        let j = position(vs, pivot)?;
+        let m = (j + 2) % 3;
+        match *nb.get(m)? {
+            NO_NEIGHBOUR => return Some(Slot { t, from: pivot, to: *vs.get((j + 1) % 3)? }),
+            n => t = n,
+        }
+    }
+    None
+}
+
+/// The hull edge before `s`: as [`next_slot`], around `s`'s start vertex, counter-clockwise.
+fn prev_slot(mesh: &Mesh<'_>, s: Slot) -> Option<Slot> {
+    let pivot = s.from;
+    let mut t = s.t;
+    for _ in 0..MAX_FAN {
+        let (vs, nb) = mesh.corners(t)?;
+        // Edge i + 1 runs from vertex i + 2 to i (the pivot).
+        let i = position(vs, pivot)?;
+        let m = (i + 1) % 3;
+        match *nb.get(m)? {
+            NO_NEIGHBOUR => return Some(Slot { t, from: *vs.get((i + 2) % 3)?, to: pivot }),
+            n => t = n,
+        }
+    }
+    None
+}
+
+/// `(along, len2, cross)` of `p` relative to the edge from `a` to `b`, with the arithmetic of
+/// [`descend`]: the projection parameter is `along / len2`.
+#[inline(always)]
+fn edge_frame(a: &Vertex, b: &Vertex, p: P) -> (f32, f32, f32) {
+    let (e, ap) = (sub([b.x, b.y], [a.x, a.y]), sub(p, [a.x, a.y]));
+    (dot(ap, e), dot(e, e), cross(e, ap))
+}
+
+/// The value at the nearest hull point of `p`, starting from the hull edge `k` of triangle
+/// `t` (the edge a walk crossed to leave the mesh): the certificate of [`descend`] checked on
+/// that edge and at its two ends only (the query's projection on the edge, or past the end of
+/// the edge before and before the start of this one, or past the end of this one and before
+/// the start of the next), then the nearest of the owning edge and its two neighbours as
+/// `Mesh::nearest_hull_value` takes it. `None` without a certificate there.
+pub(crate) fn value_from_slot(mesh: &Mesh<'_>, t: u32, k: usize, x: f32, y: f32) -> Option<f32> {
+    if !(x.is_finite() && y.is_finite()) || mesh.hull_edge_count() < 3 {
+        return None;
+    }
+    let p = [x, y];
+    let h = slot(mesh, t, k)?;
+    let (a, b) = (mesh.vertex(h.from)?, mesh.vertex(h.to)?);
+    let (along, len2, side) = edge_frame(&a, &b, p);
+    if !positive(len2) {
+        return None;
+    }
+    // The owner (the edge holding the nearest point on it or at its start) and its neighbours.
+    let [before, owner, after] = if along < 0.0 {
+        let prev = prev_slot(mesh, h)?;
+        let (along_prev, len2_prev, _) = edge_frame(&mesh.vertex(prev.from)?, &a, p);
+        (along_prev > len2_prev).then_some(())?;
+        [prev, h, next_slot(mesh, h)?]
+    } else if along > len2 {
+        let next = next_slot(mesh, h)?;
+        let (along_next, _, _) = edge_frame(&b, &mesh.vertex(next.to)?, p);
+        (along_next < 0.0).then_some(())?;
+        [h, next, next_slot(mesh, next)?]
+    } else if side <= 0.0 {
+        [prev_slot(mesh, h)?, h, next_slot(mesh, h)?]
+    } else {
+        return None;
+    };
+    // Hull edge order, as the scan takes them: owner - 1, owner, owner + 1, unless the owner
+    // or the edge after it is hull edge 0.
+    let first = mesh.hull_start_index(0)?;
+    let ordered = if owner.from == first {
+        [owner, after, before]
+    } else if after.from == first {
+        [after, before, owner]
+    } else {
+        [before, owner, after]
+    };
+    let mut best = (f32::INFINITY, 0.0f32);
+    for s in ordered {
+        let (d2, value) = edge_nearest(&mesh.vertex(s.from)?, &mesh.vertex(s.to)?, x, y);
+        if d2 < best.0 {
+            best = (d2, value);
+        }
+    }
+    Some(best.1)
 }

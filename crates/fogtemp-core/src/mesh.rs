@@ -432,14 +432,28 @@ impl<'a> Mesh<'a> {
             return MeshValue { value_dph, triangle: end.triangle, outside_hull: false };
         }
         let value_dph = match self.policy {
-            OutsidePolicy::NearestHull => self.nearest_hull_value(x, y),
+            OutsidePolicy::NearestHull => self.hull_value_after_walk(end, x, y),
             OutsidePolicy::Zero => 0.0,
         };
         MeshValue { value_dph, triangle: end.triangle, outside_hull: true }
     }
 
+    /// [`Mesh::nearest_hull_value`] for a query a walk took out of the mesh: starts from the
+    /// hull edge the walk crossed (the most negative barycentric coordinate of the last
+    /// triangle) instead of searching the hull for an edge facing the query. The same
+    /// certificate and the same three candidate edges, so the same value; the search when the
+    /// crossed edge's neighbourhood does not hold the nearest point.
+    #[inline(never)]
+    fn hull_value_after_walk(&self, end: &WalkEnd<'_>, x: f32, y: f32) -> f32 {
+        let (k, _) = most_negative(end.bary);
+        match crate::hull::value_from_slot(self, end.triangle, k, x, y) {
+            Some(value) => value,
+            None => self.nearest_hull_value(x, y),
+        }
+    }
+
     /// Value at the point of the hull nearest to `(x, y)`, linear along the hull edge, for a
-    /// query outside the hull. O(log hull edges) in the typical case (see [`crate::hull`]):
+    /// query outside the hull. O(log hull edges) in the typical case (see `src/hull.rs`):
     /// the hull edge facing the query by a binary search over the fan of hull vertices
     /// around an interior point, then a descent along the hull to the edge or vertex whose
     /// normal cone holds the query, then the nearest of that edge and its two neighbours
@@ -512,6 +526,25 @@ impl<'a> Mesh<'a> {
         let v = rec_u32(self.record(t)?, TRI_VERTICES.start + 4 * k);
         let at = (v as usize).checked_mul(VERTEX_LEN)?;
         Some([wire::f32_at(self.vertices, at)?, wire::f32_at(self.vertices, at.checked_add(4)?)?])
+    }
+
+    /// Vertex indices and neighbours of triangle `t`, read straight from its record.
+    #[inline(always)]
+    pub(crate) fn corners(&self, t: u32) -> Option<([u32; 3], [u32; 3])> {
+        let r = self.record(t)?;
+        let (v, n) = (TRI_VERTICES.start, TRI_NEIGHBOURS.start);
+        Some((
+            [rec_u32(r, v), rec_u32(r, v + 4), rec_u32(r, v + 8)],
+            [rec_u32(r, n), rec_u32(r, n + 4), rec_u32(r, n + 8)],
+        ))
+    }
+
+    /// Index of the start vertex of hull edge `index`.
+    #[inline]
+    pub(crate) fn hull_start_index(&self, index: u32) -> Option<u32> {
+        let (t, e) = self.hull_edge(index)?;
+        let (vertices, _) = self.corners(t)?;
+        vertices.get((e as usize + 1) % 3).copied()
     }
 
     /// The start and end vertex of hull edge `index` (counter-clockwise order).
@@ -592,7 +625,7 @@ fn barycentric_rec(r: &[u8; TRIANGLE_LEN], x: f32, y: f32) -> [f32; 3] {
 /// Squared distance from `(x, y)` to segment `a b` and the value there (linear along the
 /// segment). The one arithmetic of every hull-value path, so they agree bit for bit.
 #[inline(always)]
-fn edge_nearest(a: &Vertex, b: &Vertex, x: f32, y: f32) -> (f32, f32) {
+pub(crate) fn edge_nearest(a: &Vertex, b: &Vertex, x: f32, y: f32) -> (f32, f32) {
     let (dx, dy) = (b.x - a.x, b.y - a.y);
     let len2 = dx * dx + dy * dy;
     let s = if len2 > 0.0 { (((x - a.x) * dx + (y - a.y) * dy) / len2).clamp(0.0, 1.0) } else { 0.0 };

@@ -32,7 +32,7 @@ use std::path::PathBuf;
 use common::blob::{fix_len_and_crc, put_f32, put_u16, put_u32};
 use common::{rng, FEATURES};
 use fogtemp_core::wire::*;
-use fogtemp_core::{Mesh, Model};
+use fogtemp_core::{Mesh, Model, WalkHint};
 use rand::Rng;
 use spade::{DelaunayTriangulation, HasPosition, Point2, Triangulation};
 
@@ -337,6 +337,7 @@ struct Counts {
     certified: usize,
     bit_equal: usize,
     tie_mismatches: usize,
+    walked_outside: usize,
 }
 
 /// Every assertion of the module documentation for one mesh.
@@ -352,6 +353,7 @@ fn check_mesh(name: &str, mesh: &Mesh<'_>, seed: u64) -> Counts {
         .fold(0.0, f64::max);
     let hull_coord = hull.iter().map(|s| s.a[0].abs().max(s.a[1].abs())).fold(1.0, f64::max);
     let mut counts = Counts::default();
+    let mut hint = WalkHint::default();
     for p in queries(&hull, seed) {
         let (x, y) = (p[0] as f32, p[1] as f32);
         let q = [f64::from(x), f64::from(y)];
@@ -390,6 +392,12 @@ fn check_mesh(name: &str, mesh: &Mesh<'_>, seed: u64) -> Counts {
             assert!(certified.is_some(), "{at}: clearly outside but not certified");
             counts.clearly_outside += 1;
         }
+        // A walk that leaves the mesh starts from the edge it crossed: the same value.
+        let walked = mesh.interpolate(x, y, &mut hint).expect("finite query");
+        if walked.outside_hull {
+            assert_eq!(walked.value_dph.to_bits(), fast.to_bits(), "{at}: walk {walked:?}, search {fast}");
+            counts.walked_outside += 1;
+        }
         counts.queries += 1;
     }
     for (x, y) in [
@@ -421,6 +429,7 @@ fn fast_hull_value_equals_the_scan_and_the_f64_projection_on_synthetic_meshes() 
         total.certified += c.certified;
         total.bit_equal += c.bit_equal;
         total.tie_mismatches += c.tie_mismatches;
+        total.walked_outside += c.walked_outside;
     }
     println!("all synthetic meshes: {total:?}");
     assert!(total.clearly_outside > 10_000, "the queries reach outside the hulls");
