@@ -16,10 +16,11 @@
 //!    nearest point `q*`: `(p - q*) . (q - q*) <= 0` for every hull point `q`. The answer is
 //!    chosen by where the query lies, as `Region::nearest_boundary_point` does, not by
 //!    comparing distances over the whole hull, which f32 cannot resolve far out.
-//! 3. Value: the edge owning the certified point (the point on it or at its start) and its two
-//!    neighbours are measured with the scan's own arithmetic and tie rule (lowest hull index
-//!    wins a tie), so the value is the scan's bit for bit unless a far edge ties within f32
-//!    rounding.
+//! 3. Value, by the certificate: on an edge, that edge's value at the projection; at a vertex,
+//!    the scan's choice between the two edges meeting there (both give the vertex up to
+//!    rounding: the smaller f32 distance, on a tie the lower hull index), with the scan's own
+//!    arithmetic. So the value is the scan's bit for bit except where the scan's f32 distances
+//!    let another edge win by rounding (a tie).
 //!
 //! A query that a walk took out of the mesh needs no step 1: the walk crossed a hull edge, and
 //! [`value_from_slot`] checks the same certificate on that edge and at its two ends, finding
@@ -36,9 +37,30 @@ use crate::wire::NO_NEIGHBOUR;
 /// A point or a vector of the normalised plane.
 type P = [f32; 2];
 
-/// The hull edge whose normal cone (with that of its start vertex) holds `(x, y)`, or `None`
-/// when that cannot be certified (see the module documentation).
-pub(crate) fn nearest_edge(mesh: &Mesh<'_>, x: f32, y: f32) -> Option<u32> {
+/// Where the nearest hull point of a query lies, by hull edge index. The certificates are
+/// disjoint also where f32 puts a query exactly on the boundary of two (a projection exactly
+/// at an edge's end counts as the vertex), so every path that certifies agrees.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Nearest {
+    /// On edge `h` (its projection parameter in `(0, 1)`, the query on its outer side).
+    Edge(u32),
+    /// At the start vertex of edge `h` (projection parameter at least 1 on edge `h - 1`, at most
+    /// 0 on edge `h`).
+    Vertex(u32),
+}
+
+impl Nearest {
+    /// The edge holding the point (on it, or at its start).
+    pub(crate) fn edge(self) -> u32 {
+        match self {
+            Nearest::Edge(h) | Nearest::Vertex(h) => h,
+        }
+    }
+}
+
+/// The hull edge or vertex whose normal cone holds `(x, y)`, or `None` when that cannot be
+/// certified (see the module documentation).
+pub(crate) fn nearest_edge(mesh: &Mesh<'_>, x: f32, y: f32) -> Option<Nearest> {
     if !(x.is_finite() && y.is_finite()) {
         return None;
     }
@@ -105,7 +127,7 @@ fn first_half(d0: P, u: P) -> bool {
 
 /// From edge `start`, the edge (or the edge starting at the vertex) whose normal cone holds
 /// `p`, stepping one way only; `None` without a certificate.
-fn descend(at: &impl Fn(u32) -> Option<P>, n: u32, start: u32, p: P) -> Option<u32> {
+fn descend(at: &impl Fn(u32) -> Option<P>, n: u32, start: u32, p: P) -> Option<Nearest> {
     let mut h = start;
     let mut direction = 0i32;
     for _ in 0..n {
@@ -116,20 +138,20 @@ fn descend(at: &impl Fn(u32) -> Option<P>, n: u32, start: u32, p: P) -> Option<u
             return None;
         }
         let along = dot(ap, e);
-        if along < 0.0 {
+        if along <= 0.0 {
             // Before the start of h: coming from h + 1 (past its end), vertex a is the answer.
             if direction > 0 {
-                return Some(h);
+                return Some(Nearest::Vertex(h));
             }
             (direction, h) = (-1, cyclic(h, -1, n));
-        } else if along > len2 {
+        } else if along >= len2 {
             if direction < 0 {
-                return Some(cyclic(h, 1, n));
+                return Some(Nearest::Vertex(cyclic(h, 1, n)));
             }
             (direction, h) = (1, cyclic(h, 1, n));
         } else {
             // The projection falls on h: the answer if p is on its outer (right) side.
-            return (cross(e, ap) <= 0.0).then_some(h);
+            return (cross(e, ap) <= 0.0).then_some(Nearest::Edge(h));
         }
     }
     None
@@ -227,55 +249,66 @@ fn edge_frame(a: &Vertex, b: &Vertex, p: P) -> (f32, f32, f32) {
     (dot(ap, e), dot(e, e), cross(e, ap))
 }
 
+/// Most hull edges [`value_from_slot`] steps along before it leaves the query to the search.
+const MAX_HULL_STEPS: u32 = 16;
+
 /// The value at the nearest hull point of `p`, starting from the hull edge `k` of triangle
-/// `t` (the edge a walk crossed to leave the mesh): the certificate of [`descend`] checked on
-/// that edge and at its two ends only (the query's projection on the edge, or past the end of
-/// the edge before and before the start of this one, or past the end of this one and before
-/// the start of the next), then the nearest of the owning edge and its two neighbours as
-/// `Mesh::nearest_hull_value` takes it. `None` without a certificate there.
+/// `t` (the edge a walk crossed to leave the mesh): the descent of [`descend`], stepping from
+/// one hull edge to the next through the triangles around their shared vertex, and the value
+/// as `Mesh::nearest_hull_value` takes it. `None` without a certificate within
+/// [`MAX_HULL_STEPS`] edges.
 pub(crate) fn value_from_slot(mesh: &Mesh<'_>, t: u32, k: usize, x: f32, y: f32) -> Option<f32> {
     if !(x.is_finite() && y.is_finite()) || mesh.hull_edge_count() < 3 {
         return None;
     }
     let p = [x, y];
-    let h = slot(mesh, t, k)?;
-    let (a, b) = (mesh.vertex(h.from)?, mesh.vertex(h.to)?);
-    let (along, len2, side) = edge_frame(&a, &b, p);
-    if !positive(len2) {
-        return None;
-    }
-    // The owner (the edge holding the nearest point on it or at its start) and its neighbours.
-    let [before, owner, after] = if along < 0.0 {
-        let prev = prev_slot(mesh, h)?;
-        let (along_prev, len2_prev, _) = edge_frame(&mesh.vertex(prev.from)?, &a, p);
-        (along_prev > len2_prev).then_some(())?;
-        [prev, h, next_slot(mesh, h)?]
-    } else if along > len2 {
-        let next = next_slot(mesh, h)?;
-        let (along_next, _, _) = edge_frame(&b, &mesh.vertex(next.to)?, p);
-        (along_next < 0.0).then_some(())?;
-        [h, next, next_slot(mesh, next)?]
-    } else if side <= 0.0 {
-        [prev_slot(mesh, h)?, h, next_slot(mesh, h)?]
-    } else {
-        return None;
-    };
-    // Hull edge order, as the scan takes them: owner - 1, owner, owner + 1, unless the owner
-    // or the edge after it is hull edge 0.
-    let first = mesh.hull_start_index(0)?;
-    let ordered = if owner.from == first {
-        [owner, after, before]
-    } else if after.from == first {
-        [after, before, owner]
-    } else {
-        [before, owner, after]
-    };
-    let mut best = (f32::INFINITY, 0.0f32);
-    for s in ordered {
-        let (d2, value) = edge_nearest(&mesh.vertex(s.from)?, &mesh.vertex(s.to)?, x, y);
-        if d2 < best.0 {
-            best = (d2, value);
+    let mut current = slot(mesh, t, k)?;
+    // The edge visited before `current` and the direction of the step (+1 on, -1 back).
+    let mut came: Option<(Slot, i32)> = None;
+    for _ in 0..MAX_HULL_STEPS {
+        let (a, b) = (mesh.vertex(current.from)?, mesh.vertex(current.to)?);
+        let (along, len2, side) = edge_frame(&a, &b, p);
+        if !positive(len2) {
+            return None;
+        }
+        if along <= 0.0 {
+            if let Some((last, 1)) = came {
+                // Past the end of `last`, before the start of `current`: their shared vertex.
+                let before = mesh.vertex(last.from)?;
+                let first = mesh.hull_start_index(0)? == current.from;
+                return Some(vertex_value((&before, &a), (&a, &b), first, x, y));
+            }
+            (came, current) = (Some((current, -1)), prev_slot(mesh, current)?);
+        } else if along >= len2 {
+            if let Some((last, -1)) = came {
+                let after = mesh.vertex(last.to)?;
+                let first = mesh.hull_start_index(0)? == last.from;
+                return Some(vertex_value((&a, &b), (&b, &after), first, x, y));
+            }
+            (came, current) = (Some((current, 1)), next_slot(mesh, current)?);
+        } else {
+            return (side <= 0.0).then(|| edge_nearest(&a, &b, x, y).1);
         }
     }
-    Some(best.1)
+    None
+}
+
+/// The value at the vertex between hull edges `before` (ending there) and `after` (starting
+/// there): the scan's choice between the two (the smaller f32 squared distance; on a tie the
+/// lower hull index, which is `before` unless `after` is hull edge 0). Each gives the vertex up
+/// to rounding; taking it as the scan does keeps the value the scan's bit for bit.
+pub(crate) fn vertex_value(
+    before: (&Vertex, &Vertex),
+    after: (&Vertex, &Vertex),
+    after_is_first: bool,
+    x: f32,
+    y: f32,
+) -> f32 {
+    let (b, a) = (edge_nearest(before.0, before.1, x, y), edge_nearest(after.0, after.1, x, y));
+    let (low, high) = if after_is_first { (a, b) } else { (b, a) };
+    if high.0 < low.0 {
+        high.1
+    } else {
+        low.1
+    }
 }

@@ -441,8 +441,9 @@ impl<'a> Mesh<'a> {
     /// [`Mesh::nearest_hull_value`] for a query a walk took out of the mesh: starts from the
     /// hull edge the walk crossed (the most negative barycentric coordinate of the last
     /// triangle) instead of searching the hull for an edge facing the query. The same
-    /// certificate and the same three candidate edges, so the same value; the search when the
-    /// crossed edge's neighbourhood does not hold the nearest point.
+    /// certificates and the same value rule, so the same value (two certificates can both hold
+    /// only within rounding of a Voronoi boundary); the search when the crossed edge and its
+    /// ends do not hold the nearest point.
     #[inline(never)]
     fn hull_value_after_walk(&self, end: &WalkEnd<'_>, x: f32, y: f32) -> f32 {
         let (k, _) = most_negative(end.bary);
@@ -456,16 +457,16 @@ impl<'a> Mesh<'a> {
     /// query outside the hull. O(log hull edges) in the typical case (see `src/hull.rs`):
     /// the hull edge facing the query by a binary search over the fan of hull vertices
     /// around an interior point, then a descent along the hull to the edge or vertex whose
-    /// normal cone holds the query, then the nearest of that edge and its two neighbours
-    /// with the arithmetic and tie rule of [`Mesh::nearest_hull_value_by_scan`], so the value
-    /// is that scan's bit for bit unless a far-away edge ties within f32 rounding. When the
+    /// normal cone holds the query; the value there with the arithmetic of
+    /// [`Mesh::nearest_hull_value_by_scan`] (at a vertex, its choice between the two edges),
+    /// so it is that scan's bit for bit unless another edge ties within f32 rounding. When the
     /// geometry cannot be certified (a non-finite query, a degenerate hull, rounding right
     /// on the hull), the scan decides.
     #[cold]
     #[inline(never)]
     pub fn nearest_hull_value(&self, x: f32, y: f32) -> f32 {
-        match crate::hull::nearest_edge(self, x, y) {
-            Some(owner) => self.nearest_of_neighbours(owner, x, y),
+        match crate::hull::nearest_edge(self, x, y).and_then(|n| self.certified_value(n, x, y)) {
+            Some(value) => value,
             None => self.nearest_hull_value_by_scan(x, y),
         }
     }
@@ -475,7 +476,7 @@ impl<'a> Mesh<'a> {
     /// falls back to the scan. For tests and benchmarks.
     #[doc(hidden)]
     pub fn nearest_hull_edge(&self, x: f32, y: f32) -> Option<u32> {
-        crate::hull::nearest_edge(self, x, y)
+        crate::hull::nearest_edge(self, x, y).map(crate::hull::Nearest::edge)
     }
 
     /// Value at the point of the hull nearest to `(x, y)` by scanning every hull edge: the
@@ -493,22 +494,19 @@ impl<'a> Mesh<'a> {
         best.1
     }
 
-    /// The scan of [`Mesh::nearest_hull_value_by_scan`] restricted to hull edges
-    /// `owner - 1`, `owner`, `owner + 1` (cyclic; taken in index order, as the scan does).
-    fn nearest_of_neighbours(&self, owner: u32, x: f32, y: f32) -> f32 {
-        let n = self.hull_edge_count();
-        let mut edges = [crate::hull::cyclic(owner, -1, n), owner, crate::hull::cyclic(owner, 1, n)];
-        edges.sort_unstable();
-        // Distinct: `nearest_edge` answers only for hulls of at least 3 edges.
-        let mut best = (f32::INFINITY, 0.0f32);
-        for h in edges {
-            let Some((a, b)) = self.hull_edge_vertices(h) else { continue };
-            let (d2, value) = edge_nearest(&a, &b, x, y);
-            if d2 < best.0 {
-                best = (d2, value);
+    /// The value at a certified nearest point (see `src/hull.rs`, step 3).
+    fn certified_value(&self, nearest: crate::hull::Nearest, x: f32, y: f32) -> Option<f32> {
+        match nearest {
+            crate::hull::Nearest::Edge(h) => {
+                let (a, b) = self.hull_edge_vertices(h)?;
+                Some(edge_nearest(&a, &b, x, y).1)
+            }
+            crate::hull::Nearest::Vertex(h) => {
+                let before = self.hull_edge_vertices(crate::hull::cyclic(h, -1, self.hull_edge_count()))?;
+                let after = self.hull_edge_vertices(h)?;
+                Some(crate::hull::vertex_value((&before.0, &before.1), (&after.0, &after.1), h == 0, x, y))
             }
         }
-        best.1
     }
 
     /// Position of the start vertex of hull edge `index` (the end vertex of edge `index - 1`),
