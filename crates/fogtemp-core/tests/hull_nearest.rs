@@ -1,6 +1,8 @@
 //! `Mesh::nearest_hull_value` (a binary search over the hull fan, then a descent to the normal
-//! cone holding the query; `src/hull.rs`) against the full scan it replaced
-//! (`Mesh::nearest_hull_value_by_scan`) and against an f64 projection onto the hull.
+//! cone holding the query; `src/hull.rs`) and the hull value of a walk that leaves the mesh
+//! (`Mesh::interpolate`, descending from the hull edge the walk crossed) against the full scan
+//! they replaced (`Mesh::nearest_hull_value_by_scan`) and against an f64 projection onto the
+//! hull.
 //!
 //! Meshes: random point sets (fixed seeds), a hull of 200 points on a circle, thin and long
 //! hulls, hulls with exactly collinear and nearly collinear points, and the meshes of the
@@ -20,8 +22,8 @@
 //! except where two or more candidates tie, and there the scan's value is right too; where
 //! the fast search certifies an edge, a tie candidate lies on that edge or its neighbours;
 //! every query clearly outside (f64 distance above `CLEARLY_OUTSIDE`) and not far out is
-//! certified (the scan is a fallback for rounding, not the common path); NaN and infinite
-//! queries give the scan's value.
+//! certified (the scan is a fallback for rounding, not the common path); a walk that leaves the
+//! mesh gives the search's value bit for bit; NaN and infinite queries give the scan's value.
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::indexing_slicing, clippy::panic)] // test code: a failed expectation is the test failing
 
 mod common;
