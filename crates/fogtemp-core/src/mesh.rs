@@ -542,7 +542,14 @@ impl<'a> Mesh<'a> {
     pub(crate) fn hull_start_index(&self, index: u32) -> Option<u32> {
         let (t, e) = self.hull_edge(index)?;
         let (vertices, _) = self.corners(t)?;
-        vertices.get((e as usize + 1) % 3).copied()
+        // Edge e runs from vertex e + 1 to e + 2 of its triangle.
+        let k = match e {
+            0 => 1,
+            1 => 2,
+            2 => 0,
+            _ => return None,
+        };
+        vertices.get(k).copied()
     }
 
     /// The start and end vertex of hull edge `index` (counter-clockwise order).
