@@ -31,7 +31,7 @@ fn config() -> Criterion {
 criterion_group! {
     name = benches;
     config = config();
-    targets = interp::coherent, interp::random_order, poly::evaluate, runtime::step, runtime::push,
+    targets = interp::coherent, interp::random_order, interp::outside_hull, poly::evaluate, runtime::step, runtime::push,
         ingest::throughput
 }
 criterion_main!(benches);

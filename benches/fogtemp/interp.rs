@@ -14,6 +14,15 @@
 //!   walk from the query's cell of a start grid (about four triangles per cell).
 //! - `fogtemp_scan`: `Mesh::locate_by_scan` plus the triangle's plane, O(triangles) per
 //!   query; measured on every `SCAN_STRIDE`-th query of the same stream.
+//!
+//! `interp/outside_hull`: random-order queries outside the hull only (the outside policy's
+//! cost), per mesh:
+//! - `fogtemp_nearest_hull_value`: `Mesh::nearest_hull_value` (fan binary search, descent,
+//!   three edges).
+//! - `fogtemp_nearest_hull_value_by_scan`: `Mesh::nearest_hull_value_by_scan`, every hull
+//!   edge (the implementation before the search).
+//! - `fogtemp_grid_walk`: `Mesh::interpolate_with_grid`, the whole outside query (walk from
+//!   the start grid to the hull, then the hull value).
 
 use std::hint::black_box;
 use std::time::Duration;
@@ -24,11 +33,14 @@ use spade::handles::FixedVertexHandle;
 use spade::{DelaunayTriangulation, FloatTriangulation, PositionInTriangulation, Triangulation};
 
 use crate::fixtures::{self, Node, Query};
+use rand::Rng;
 
 /// Queries in the coherent stream.
 const COHERENT_QUERIES: usize = 1 << 17;
 /// Queries in the random-order stream.
 const RANDOM_QUERIES: usize = 1 << 14;
+/// Queries in the outside-hull stream.
+const OUTSIDE_QUERIES: usize = 1 << 14;
 /// The scan peer runs on every `SCAN_STRIDE`-th query (it is O(triangles) per query).
 const SCAN_STRIDE: usize = 64;
 
@@ -245,6 +257,89 @@ pub fn random_order(c: &mut Criterion) {
         let mesh = model.axis(0).expect("axis 0").mesh.expect("mesh");
         let queries = fixtures::random_inside_queries(&mesh, &s.dt, RANDOM_QUERIES, 11);
         bench_peers(&mut group, s, &queries);
+    }
+    group.finish();
+}
+
+/// `n` queries uniform over `mesh`'s bounding box grown by `margin` of its span on every side,
+/// kept only when outside the hull (by the scan), in random order.
+fn random_outside_queries(mesh: &Mesh<'_>, n: usize, margin: f32, seed: u64) -> Vec<Query> {
+    let (mut lo, mut hi) = ([f32::INFINITY; 2], [f32::NEG_INFINITY; 2]);
+    for i in 0..mesh.vertex_count() {
+        let v = mesh.vertex(i).expect("vertex exists");
+        lo = [lo[0].min(v.x), lo[1].min(v.y)];
+        hi = [hi[0].max(v.x), hi[1].max(v.y)];
+    }
+    let grow = [margin * (hi[0] - lo[0]), margin * (hi[1] - lo[1])];
+    let mut r = fixtures::rng(seed);
+    let mut out = Vec::with_capacity(n);
+    while out.len() < n {
+        let q = Query::normalised(
+            r.gen_range(lo[0] - grow[0]..hi[0] + grow[0]),
+            r.gen_range(lo[1] - grow[1]..hi[1] + grow[1]),
+        );
+        if matches!(mesh.locate_by_scan(q.x, q.y), Location::Outside { .. }) {
+            out.push(q);
+        }
+    }
+    out
+}
+
+/// `interp/outside_hull`: the value at the nearest hull point, by the search and by the scan,
+/// and the whole outside query, on random points of the box 30 % larger than the mesh's that
+/// fall outside its hull.
+pub fn outside_hull(c: &mut Criterion) {
+    let mut group = c.benchmark_group("interp/outside_hull");
+    configure(&mut group);
+    for s in &subjects() {
+        let model = Model::from_bytes(&s.blob).expect("valid blob");
+        let mesh = model.axis(0).expect("axis 0").mesh.expect("mesh");
+        let queries = random_outside_queries(&mesh, OUTSIDE_QUERIES, 0.3, 13);
+        // The search agrees with the scan: bit for bit, or (a tie f32 cannot resolve) to the
+        // value tolerance of `check_agreement`.
+        let mut certified = 0usize;
+        let mut differ = 0usize;
+        for (i, q) in queries.iter().enumerate() {
+            let (fast, scan) = (mesh.nearest_hull_value(q.x, q.y), mesh.nearest_hull_value_by_scan(q.x, q.y));
+            assert!((fast - scan).abs() < 1e-4, "{}: search and scan disagree at query {i}", s.name);
+            differ += usize::from(fast.to_bits() != scan.to_bits());
+            certified += usize::from(mesh.nearest_hull_edge(q.x, q.y).is_some());
+        }
+        eprintln!(
+            "{}: {} hull edges, {} outside queries, {certified} answered by the search, \
+             {differ} not bit-equal to the scan",
+            s.name,
+            mesh.hull_edge_count(),
+            queries.len(),
+        );
+        group.throughput(Throughput::Elements(queries.len() as u64));
+        group.bench_function(BenchmarkId::new("fogtemp_nearest_hull_value", &s.name), |b| {
+            b.iter(|| {
+                for q in black_box(&queries) {
+                    black_box(mesh.nearest_hull_value(q.x, q.y));
+                }
+            })
+        });
+        group.bench_function(BenchmarkId::new("fogtemp_nearest_hull_value_by_scan", &s.name), |b| {
+            b.iter(|| {
+                for q in black_box(&queries) {
+                    black_box(mesh.nearest_hull_value_by_scan(q.x, q.y));
+                }
+            })
+        });
+        let side = grid_side(&mesh);
+        let mut cells = vec![0u32; (side * side) as usize];
+        let grid = mesh.start_grid(side, &mut cells).expect("grid fits");
+        let mut hint = WalkHint::default();
+        group.bench_function(BenchmarkId::new("fogtemp_grid_walk", &s.name), |b| {
+            b.iter(|| {
+                for q in black_box(&queries) {
+                    black_box(
+                        mesh.interpolate_with_grid(q.x, q.y, &mut hint, &grid).map_or(0.0, |v| v.value_dph),
+                    );
+                }
+            })
+        });
     }
     group.finish();
 }

@@ -35,6 +35,7 @@ mod compensator;
 pub mod crc;
 mod error;
 mod features;
+mod hull;
 mod mesh;
 mod model;
 mod poly;

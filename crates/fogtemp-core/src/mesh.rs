@@ -7,7 +7,7 @@
 use crate::error::Error;
 use crate::wire::{
     self, HULL_EDGE_LEN, NO_NEIGHBOUR, TRIANGLE_LEN, TRI_BARY, TRI_NEIGHBOURS, TRI_ORIGIN, TRI_PLANE,
-    VERTEX_LEN,
+    TRI_VERTICES, VERTEX_LEN,
 };
 
 /// A query counts as inside a triangle when every barycentric coordinate is at
@@ -432,30 +432,124 @@ impl<'a> Mesh<'a> {
             return MeshValue { value_dph, triangle: end.triangle, outside_hull: false };
         }
         let value_dph = match self.policy {
-            OutsidePolicy::NearestHull => self.nearest_hull_value(x, y),
+            OutsidePolicy::NearestHull => self.hull_value_after_walk(end, x, y),
             OutsidePolicy::Zero => 0.0,
         };
         MeshValue { value_dph, triangle: end.triangle, outside_hull: true }
     }
 
-    /// Value at the point of the hull nearest to `(x, y)`, linear along the hull edge.
-    /// Scans every hull edge: O(hull edges), only for queries outside the hull.
+    /// [`Mesh::nearest_hull_value`] for a query a walk took out of the mesh: starts from the
+    /// hull edge the walk crossed (the most negative barycentric coordinate of the last
+    /// triangle) instead of searching the hull for an edge facing the query. The same
+    /// certificates and the same value rule, so the same value (two certificates can both hold
+    /// only within rounding of a Voronoi boundary); the search when the crossed edge and its
+    /// ends do not hold the nearest point.
+    #[inline(never)]
+    fn hull_value_after_walk(&self, end: &WalkEnd<'_>, x: f32, y: f32) -> f32 {
+        let (k, _) = most_negative(end.bary);
+        match crate::hull::value_from_slot(self, end.triangle, k, x, y) {
+            Some(value) => value,
+            None => self.nearest_hull_value(x, y),
+        }
+    }
+
+    /// Value at the point of the hull nearest to `(x, y)`, linear along the hull edge, for a
+    /// query outside the hull. O(log hull edges) in the typical case (see `src/hull.rs`):
+    /// the hull edge facing the query by a binary search over the fan of hull vertices
+    /// around an interior point, then a descent along the hull to the edge or vertex whose
+    /// normal cone holds the query; the value there with the arithmetic of
+    /// [`Mesh::nearest_hull_value_by_scan`] (at a vertex, its choice between the two edges),
+    /// so it is that scan's bit for bit unless another edge ties within f32 rounding. When the
+    /// geometry cannot be certified (a non-finite query, a degenerate hull, rounding right
+    /// on the hull), the scan decides.
     #[cold]
     #[inline(never)]
     pub fn nearest_hull_value(&self, x: f32, y: f32) -> f32 {
+        match crate::hull::nearest_edge(self, x, y).and_then(|n| self.certified_value(n, x, y)) {
+            Some(value) => value,
+            None => self.nearest_hull_value_by_scan(x, y),
+        }
+    }
+
+    /// The hull edge around which [`Mesh::nearest_hull_value`] certified the nearest hull point
+    /// of `(x, y)` (the point lies on this edge or at its start vertex), or `None` where it
+    /// falls back to the scan. For tests and benchmarks.
+    #[doc(hidden)]
+    pub fn nearest_hull_edge(&self, x: f32, y: f32) -> Option<u32> {
+        crate::hull::nearest_edge(self, x, y).map(crate::hull::Nearest::edge)
+    }
+
+    /// Value at the point of the hull nearest to `(x, y)` by scanning every hull edge: the
+    /// reference [`Mesh::nearest_hull_value`] must agree with, and its fallback. O(hull edges).
+    /// Ties go to the lower edge index; a NaN or infinite query gives 0.
+    pub fn nearest_hull_value_by_scan(&self, x: f32, y: f32) -> f32 {
         let mut best = (f32::INFINITY, 0.0f32);
         for h in 0..self.hull_edge_count() {
             let Some((a, b)) = self.hull_edge_vertices(h) else { continue };
-            let (dx, dy) = (b.x - a.x, b.y - a.y);
-            let len2 = dx * dx + dy * dy;
-            let s = if len2 > 0.0 { (((x - a.x) * dx + (y - a.y) * dy) / len2).clamp(0.0, 1.0) } else { 0.0 };
-            let (px, py) = (a.x + s * dx, a.y + s * dy);
-            let d2 = (x - px) * (x - px) + (y - py) * (y - py);
+            let (d2, value) = edge_nearest(&a, &b, x, y);
             if d2 < best.0 {
-                best = (d2, a.value_dph + s * (b.value_dph - a.value_dph));
+                best = (d2, value);
             }
         }
         best.1
+    }
+
+    /// The value at a certified nearest point (see `src/hull.rs`, step 3).
+    fn certified_value(&self, nearest: crate::hull::Nearest, x: f32, y: f32) -> Option<f32> {
+        match nearest {
+            crate::hull::Nearest::Edge(h) => {
+                let (a, b) = self.hull_edge_vertices(h)?;
+                Some(edge_nearest(&a, &b, x, y).1)
+            }
+            crate::hull::Nearest::Vertex(h) => {
+                let before = self.hull_edge_vertices(crate::hull::cyclic(h, -1, self.hull_edge_count()))?;
+                let after = self.hull_edge_vertices(h)?;
+                Some(crate::hull::vertex_value((&before.0, &before.1), (&after.0, &after.1), h == 0, x, y))
+            }
+        }
+    }
+
+    /// Position of the start vertex of hull edge `index` (the end vertex of edge `index - 1`),
+    /// read straight from the records.
+    #[inline]
+    pub(crate) fn hull_start(&self, index: u32) -> Option<[f32; 2]> {
+        let (t, e) = self.hull_edge(index)?;
+        // Edge e runs from vertex e + 1 to e + 2 of its triangle.
+        let k = match e {
+            0 => 1,
+            1 => 2,
+            2 => 0,
+            _ => return None,
+        };
+        let v = rec_u32(self.record(t)?, TRI_VERTICES.start + 4 * k);
+        let at = (v as usize).checked_mul(VERTEX_LEN)?;
+        Some([wire::f32_at(self.vertices, at)?, wire::f32_at(self.vertices, at.checked_add(4)?)?])
+    }
+
+    /// Vertex indices and neighbours of triangle `t`, read straight from its record.
+    #[inline(always)]
+    pub(crate) fn corners(&self, t: u32) -> Option<([u32; 3], [u32; 3])> {
+        let r = self.record(t)?;
+        let (v, n) = (TRI_VERTICES.start, TRI_NEIGHBOURS.start);
+        Some((
+            [rec_u32(r, v), rec_u32(r, v + 4), rec_u32(r, v + 8)],
+            [rec_u32(r, n), rec_u32(r, n + 4), rec_u32(r, n + 8)],
+        ))
+    }
+
+    /// Index of the start vertex of hull edge `index`.
+    #[inline]
+    pub(crate) fn hull_start_index(&self, index: u32) -> Option<u32> {
+        let (t, e) = self.hull_edge(index)?;
+        let (vertices, _) = self.corners(t)?;
+        // Edge e runs from vertex e + 1 to e + 2 of its triangle.
+        let k = match e {
+            0 => 1,
+            1 => 2,
+            2 => 0,
+            _ => return None,
+        };
+        vertices.get(k).copied()
     }
 
     /// The start and end vertex of hull edge `index` (counter-clockwise order).
@@ -531,6 +625,18 @@ fn barycentric_rec(r: &[u8; TRIANGLE_LEN], x: f32, y: f32) -> [f32; 3] {
     let l0 = rec_f32(r, b) * dx + rec_f32(r, b + 4) * dy;
     let l1 = rec_f32(r, b + 8) * dx + rec_f32(r, b + 12) * dy;
     [l0, l1, 1.0 - l0 - l1]
+}
+
+/// Squared distance from `(x, y)` to segment `a b` and the value there (linear along the
+/// segment). The one arithmetic of every hull-value path, so they agree bit for bit.
+#[inline(always)]
+pub(crate) fn edge_nearest(a: &Vertex, b: &Vertex, x: f32, y: f32) -> (f32, f32) {
+    let (dx, dy) = (b.x - a.x, b.y - a.y);
+    let len2 = dx * dx + dy * dy;
+    let s = if len2 > 0.0 { (((x - a.x) * dx + (y - a.y) * dy) / len2).clamp(0.0, 1.0) } else { 0.0 };
+    let (px, py) = (a.x + s * dx, a.y + s * dy);
+    let d2 = (x - px) * (x - px) + (y - py) * (y - py);
+    (d2, a.value_dph + s * (b.value_dph - a.value_dph))
 }
 
 /// Vertex indices `(from, to)` of edge `edge` (the edge opposite vertex `edge`).
