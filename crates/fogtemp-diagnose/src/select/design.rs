@@ -159,6 +159,8 @@ pub(super) struct Profiled {
     pub(super) stability_t: f64,
     /// Smallest share `c_j` of the full-data contribution that a fold reproduces.
     pub(super) min_fold_share: f64,
+    /// Held-out residual of each run, predicted by its fold's fit (at the fold's point).
+    pub(super) fold_resid: Vec<Vec<f64>>,
 }
 
 pub(super) fn profile_candidate(
@@ -168,7 +170,6 @@ pub(super) fn profile_candidate(
     ys: &[Vec<f64>],
     n_eff: f64,
 ) -> Result<Profiled, DiagnoseError> {
-    let n = prep.n_blocks();
     let p_base = 1 + base.iter().map(|t| t.k()).sum::<usize>();
     let evals: Vec<(FoldEval, usize, Vec<f64>)> = grid
         .points
@@ -198,7 +199,7 @@ pub(super) fn profile_candidate(
         .iter()
         .map(|key| {
             let members: Vec<usize> = (0..evals.len()).filter(|&j| discrete(j) == *key).collect();
-            profile_members(prep, grid, &evals, &members, n, n_eff)
+            profile_members(prep, base, grid, &evals, &members, ys, n_eff)
         })
         .collect();
     let choice = if grid.effect.nested_complexity() {
@@ -238,12 +239,14 @@ pub(super) fn one_standard_error_choice(profiled: Vec<Profiled>) -> Option<Profi
 /// BIC profile over `members` (grid points differing only in continuous parameters).
 pub(super) fn profile_members(
     prep: &Prepared,
+    base: &[&TermColumns],
     grid: &EffectGrid,
     evals: &[(FoldEval, usize, Vec<f64>)],
     members: &[usize],
-    n: usize,
+    ys: &[Vec<f64>],
     n_eff: f64,
 ) -> Profiled {
+    let n = prep.n_blocks();
     let pick = |score: &dyn Fn(usize) -> f64| -> usize {
         members.iter().copied().min_by(|&a, &b| score(a).total_cmp(&score(b))).unwrap_or(members[0])
     };
@@ -256,6 +259,15 @@ pub(super) fn profile_members(
         })
         .collect();
     let fold_sse = fold_points.iter().enumerate().map(|(j, &g)| evals[g].0.fold_sse[j]).collect();
+    let fold_resid = fold_points
+        .iter()
+        .enumerate()
+        .map(|(j, &g)| {
+            let mut parts = base.to_vec();
+            parts.push(&grid.points[g]);
+            run_residual(&parts, &evals[g].0.fold_beta[j], &evals[g].2, j, &ys[j])
+        })
+        .collect();
     let (eval, k, scale) = &evals[best];
     let full = contribution(prep, &grid.points[best], &eval.full_beta, scale);
     let folds: Vec<Vec<Vec<f64>>> = fold_points
@@ -272,7 +284,35 @@ pub(super) fn profile_members(
         design_scale: scale.clone(),
         stability_t: stability_t(&fold_shares(&full, &folds)),
         min_fold_share: training_fold_shares(&full, &folds).into_iter().fold(f64::INFINITY, f64::min),
+        fold_resid,
     }
+}
+
+/// Residual `y - [1 | parts] beta` of run `r`, with `beta` on the design scaled by `scale`
+/// (see [`build_design`]).
+pub(super) fn run_residual(
+    parts: &[&TermColumns],
+    beta: &DVector<f64>,
+    scale: &[f64],
+    r: usize,
+    y: &[f64],
+) -> Vec<f64> {
+    let constant = beta[0] / scale[0];
+    y.iter()
+        .enumerate()
+        .map(|(i, yi)| {
+            let mut at = 1;
+            let mut fitted = constant;
+            for t in parts {
+                let m = &t.per_run[r];
+                for c in 0..t.k() {
+                    fitted += m[(i, c)] * beta[at + c] / scale[at + c];
+                }
+                at += t.k();
+            }
+            yi - fitted
+        })
+        .collect()
 }
 
 /// R^2 of `v` (per run) on the columns of `z` (per run, holding a constant), computed from

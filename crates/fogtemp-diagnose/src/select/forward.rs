@@ -51,6 +51,8 @@ pub(super) struct StepContext<'a> {
     pub(super) base_parts: Vec<&'a TermColumns>,
     pub(super) base: Design,
     pub(super) base_eval: FoldEval,
+    /// Held-out residual of each run under the current model.
+    pub(super) base_heldout: Vec<Vec<f64>>,
     pub(super) n_eff: f64,
     pub(super) in_model: Vec<Effect>,
     /// Candidates evaluated at this step (for the Bonferroni correction).
@@ -120,7 +122,7 @@ pub(super) fn judge(
     let cv_sse: f64 = prof.fold_sse.iter().sum();
     let material = material_runs(v, ctx.prep.noise_sigma_dph);
     let (improved, informative) = fold_counts(&ctx.base_eval.fold_sse, &prof.fold_sse, &material);
-    let gain_t = fold_gain_t(&ctx.base_eval.fold_sse, &prof.fold_sse, &material);
+    let gain_t = fold_gain_t(&clark_west_gains(&ctx.base_heldout, &prof.fold_resid));
     let base_bic = bic(ctx.base_eval.full_rss, ctx.base.p(), n, ctx.n_eff);
     let delta_bic = prof.bic - base_bic;
     let (conceal, conceal_runs) = concealment(ctx.prep, &ctx.base, v);
@@ -134,7 +136,7 @@ pub(super) fn judge(
         folds_informative: informative,
         min_fold_fraction: ctx.options.min_fold_fraction,
         fold_gain_t: gain_t,
-        fold_gain_limit: fold_gain_limit(informative, ctx.tests),
+        fold_gain_limit: fold_gain_limit(ctx.prep.runs.len(), ctx.tests),
         delta_bic,
         coefficients: grid.points[prof.point].k(),
         min_fold_share: prof.min_fold_share,
@@ -347,6 +349,7 @@ pub fn forward_select(
         let acf = autocorrelations(&base_resid, &indices, prep.hac_lag_blocks);
         let rho = acf.first().copied().unwrap_or(0.0);
         let n_eff = effective_n(prep.n_blocks(), &acf);
+        let base_heldout = heldout_residuals(&base, &base_eval, &ys);
         let ctx = StepContext {
             prep,
             grids,
@@ -355,6 +358,7 @@ pub fn forward_select(
             base_parts,
             base,
             base_eval,
+            base_heldout,
             n_eff,
             in_model: chosen.iter().map(|c| c.effect).collect(),
             tests: grids

@@ -19,7 +19,9 @@
 //!   its mean over all runs, has an RMS of at least a quarter of the noise of one short
 //!   mean; a term is accepted when it is identifiable, lowers the total LORO error,
 //!   improves at least `min_fold_fraction` of the informative folds (and at least two) or
-//!   their held-out gains are significantly positive (paired t, see `rules::fold_gain_limit`),
+//!   the runs' Clark-West held-out gains are significantly positive (paired t over all runs
+//!   above the stability rule's limit, see `rules::clark_west_gains` and
+//!   `rules::fold_gain_limit`),
 //!   lowers BIC, and is stable across folds (jackknife t of its contribution, see
 //!   [`stability_t`], above the two-sided Student-t limit with runs - 1 degrees of freedom
 //!   at 5 % / number of candidates; for a flexible term with more than two coefficients, a
