@@ -1,5 +1,5 @@
 //! Node values of the mesh: a penalised least-squares fit to all calibration points, with
-//! the smoothness weight chosen by cross-validation over runs.
+//! the smoothness weight chosen by cross-validation within runs.
 //!
 //! The paper interpolates through thinned, smoothed points: every node value carries the
 //! full noise of one smoothed target, and the interpolation hands that noise to the
@@ -33,6 +33,12 @@
 //! weight is scored on the same blocks). For a hybrid's residual mesh the candidates also
 //! include "no mesh" (all node values zero), the simplest of all: the hybrid keeps its mesh
 //! only when held-out blocks say it helps.
+//!
+//! Measured limit (docs/calibration-testbed.md, last section): a held-out block also takes
+//! away the data of the nodes thinning placed on it, so at small weights those nodes are
+//! extrapolated from noisy neighbours; validation runs that follow the calibration runs' path
+//! never see that, and in the paper's design the CV over-smooths (validation is best at the
+//! smallest weights there).
 
 use nalgebra::{DMatrix, DVector};
 
