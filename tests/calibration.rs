@@ -7,7 +7,7 @@
 
 use fogtemp_cal::error::FitProblem;
 use fogtemp_cal::mesh::normalised;
-use fogtemp_cal::mesh_fit::fit_node_values_cv;
+use fogtemp_cal::mesh_fit::{fit_node_values_cv, MeshCv};
 use fogtemp_cal::metrics::{
     allan_deviation, bias_stability, fit_noise_terms, rms_over_runs, window_means, BiasStabilityOptions,
 };
@@ -564,8 +564,9 @@ fn node_fit_recovers_plane_from_wrong_nodes() {
         grid(6, 5).into_iter().map(|p| MeshPoint { value_dph: p.value_dph + 0.1, ..p }).collect();
     let mut mesh = build_mesh(&nodes, &NORM).unwrap();
     let points = interior_points(2000, 51, 0.0);
-    let (report, smoothing) = fit_node_values_cv(&mut mesh, &points, &five_runs(2000), false).unwrap();
-    assert_eq!((smoothing.folds, smoothing.fold_count), ("runs", 5));
+    let (report, smoothing) =
+        fit_node_values_cv(&mut mesh, &points, &five_runs(2000), false, MeshCv::default()).unwrap();
+    assert_eq!((smoothing.folds, smoothing.fold_count), ("run blocks", 5));
     assert!(!smoothing.no_mesh());
     assert_eq!((report.points_used, report.points_outside), (2000, 0));
     // Barycentric weights sum to 1, so a uniform +0.1 offset is 0.1 everywhere (f32 node values).
@@ -586,7 +587,8 @@ fn node_fit_on_a_noisy_plane_chooses_a_smooth_mesh() {
         grid(6, 5).into_iter().map(|p| MeshPoint { value_dph: p.value_dph + 0.1, ..p }).collect();
     let mut mesh = build_mesh(&nodes, &NORM).unwrap();
     let points = interior_points(2000, 52, sigma);
-    let (report, smoothing) = fit_node_values_cv(&mut mesh, &points, &five_runs(2000), false).unwrap();
+    let (report, smoothing) =
+        fit_node_values_cv(&mut mesh, &points, &five_runs(2000), false, MeshCv::default()).unwrap();
     // The fit can only lower the data misfit relative to the starting values.
     assert!(report.rms_after_dph <= report.rms_before_dph, "{report:?}");
     // rms after ~ sigma sqrt(1 - df/2000) with df between 3 (plane) and 30; 10 % margin.
@@ -613,7 +615,8 @@ fn the_residual_mesh_is_dropped_when_held_out_runs_see_only_noise() {
     let mut r = rng(54);
     let points: Vec<(f32, f32, f64)> =
         interior_points(2000, 54, 0.0).into_iter().map(|(x, y, _)| (x, y, 0.01 * gauss(&mut r))).collect();
-    let (_, smoothing) = fit_node_values_cv(&mut mesh, &points, &five_runs(2000), true).unwrap();
+    let (_, smoothing) =
+        fit_node_values_cv(&mut mesh, &points, &five_runs(2000), true, MeshCv::default()).unwrap();
     assert!(smoothing.no_mesh(), "{smoothing:?}");
     assert_eq!(smoothing.curve[0].relative_weight, None);
     assert!(mesh.vertices.iter().all(|v| v.value_dph == 0.0));
@@ -631,7 +634,8 @@ fn the_residual_mesh_is_kept_when_held_out_runs_share_its_structure() {
         .into_iter()
         .map(|(x, y, _)| (x, y, ripple(x) + 0.005 * gauss(&mut r)))
         .collect();
-    let (_, smoothing) = fit_node_values_cv(&mut mesh, &points, &five_runs(3000), true).unwrap();
+    let (_, smoothing) =
+        fit_node_values_cv(&mut mesh, &points, &five_runs(3000), true, MeshCv::default()).unwrap();
     assert!(!smoothing.no_mesh(), "{smoothing:?}");
     let no_mesh = smoothing.curve[0].cv_rms_dph;
     let best = smoothing.curve.iter().map(|c| c.cv_rms_dph).fold(f64::INFINITY, f64::min);
@@ -674,7 +678,8 @@ fn node_fit_uses_the_mesh_triangles() {
     let mut mesh = build_mesh(&nodes, &NORM).unwrap();
     let points: Vec<(f32, f32, f64)> =
         interior_points(2000, 53, 0.0).into_iter().map(|(x, y, _)| (x, y, saddle(x, y))).collect();
-    let (report, _) = fit_node_values_cv(&mut mesh, &points, &five_runs(2000), false).unwrap();
+    let (report, _) =
+        fit_node_values_cv(&mut mesh, &points, &five_runs(2000), false, MeshCv::default()).unwrap();
     let sq: f64 = points
         .iter()
         .map(|&(x, y, v)| (interpolate_on_mesh(&mesh, f64::from(x), f64::from(y)).unwrap() - v).powi(2))

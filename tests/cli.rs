@@ -261,7 +261,7 @@ fn round_trip(method: &str) {
     }
     let axis = &arr(&doc["axes"])[0];
     assert!(axis["points"].as_u64().unwrap_or(0) > 1000, "{axis}");
-    // A hybrid keeps its residual mesh only when leave-one-run-out cross-validation says it
+    // A hybrid keeps its residual mesh only when (blocked) cross-validation says it
     // helps (on these logs it does not: "no mesh" is within one standard error of the best).
     let has_mesh = match method {
         "poly" => false,

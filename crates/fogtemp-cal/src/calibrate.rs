@@ -449,7 +449,13 @@ pub fn fit_axis(
                     })
                     .collect();
                 let hybrid = config.method == Method::Hybrid;
-                let (_, smoothing) = crate::mesh_fit::fit_node_values_cv(&mut mesh, &targets, runs, hybrid)?;
+                // Guard: one smoothing window of points (targets that share raw samples).
+                let cv = crate::mesh_fit::MeshCv {
+                    guard_points: (config.target_window_s / block_s).round().max(0.0) as usize,
+                    ..crate::mesh_fit::MeshCv::default()
+                };
+                let (_, smoothing) =
+                    crate::mesh_fit::fit_node_values_cv(&mut mesh, &targets, runs, hybrid, cv)?;
                 let keep = !smoothing.no_mesh();
                 mesh_smoothing = Some(smoothing);
                 keep.then_some(mesh)

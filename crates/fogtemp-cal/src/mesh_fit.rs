@@ -1,5 +1,5 @@
 //! Node values of the mesh: a penalised least-squares fit to all calibration points, with
-//! the smoothness weight chosen by cross-validation over runs.
+//! the smoothness weight chosen by cross-validation within runs.
 //!
 //! The paper interpolates through thinned, smoothed points: every node value carries the
 //! full noise of one smoothed target, and the interpolation hands that noise to the
@@ -17,12 +17,28 @@
 //! by a third of their combined area. Its null space is the planes, so a very large `lambda`
 //! gives the least-squares plane in (T, dT/dt); a small one the unregularised fit.
 //!
-//! `lambda` is chosen from a log-spaced grid by leave-one-run-out cross-validation
-//! ([`CalibrationPoints::run_of`](crate::calibrate::CalibrationPoints)), with the
-//! one-standard-error rule toward the smoother model. For a hybrid's residual mesh the
-//! candidates also include "no mesh" (all node values zero), the simplest of all: the hybrid
-//! keeps its mesh only when held-out runs say it helps. The held-out error of a run is taken
-//! about its own mean, as the validation's bias stability ignores a run's constant offset.
+//! `lambda` is chosen from a log-spaced grid by blocked K-fold cross-validation within runs
+//! ([`MeshCv`]): each run (its points in time order,
+//! [`CalibrationPoints::run_of`](crate::calibrate::CalibrationPoints)) is cut into
+//! [`BLOCK_FOLDS`] contiguous blocks, block `j` of run `r` is in fold `(j + r) mod K`, so every
+//! fold leaves a gap in every run that the run's own data on both sides, and other runs'
+//! data nearby, can bridge: the score tests interpolation, what a validation run over the
+//! same temperatures needs. Leaving whole runs out instead scored extrapolation across a
+//! missing run whenever each region of the (T, dT/dt) plane is crossed by one run only (the
+//! paper's design). Training also drops the points within `guard_points` of a held-out block
+//! in its run, whose moving-average targets share raw samples with it. Every point gets its
+//! out-of-fold prediction; the error is taken about its run's mean (the validation's bias
+//! stability ignores a run's constant offset) and the one-standard-error rule picks the
+//! smoother model (one standard error of the paired per-block differences to the best: every
+//! weight is scored on the same blocks). For a hybrid's residual mesh the candidates also
+//! include "no mesh" (all node values zero), the simplest of all: the hybrid keeps its mesh
+//! only when held-out blocks say it helps.
+//!
+//! Measured limit (docs/calibration-testbed.md, last section): a held-out block also takes
+//! away the data of the nodes thinning placed on it, so at small weights those nodes are
+//! extrapolated from noisy neighbours; validation runs that follow the calibration runs' path
+//! never see that, and in the paper's design the CV over-smooths (validation is best at the
+//! smallest weights there).
 
 use nalgebra::{DMatrix, DVector};
 
@@ -33,9 +49,31 @@ use crate::mesh::MeshModel;
 /// and penalty terms: 1e-4 (nearly unregularised) to 1e8 (the least-squares plane).
 pub const RELATIVE_WEIGHTS: [f64; 13] = [1e-4, 1e-3, 1e-2, 1e-1, 1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8];
 
-/// Fewest groups for cross-validation; with fewer runs each run is cut into contiguous
-/// pieces to reach it.
-pub const MIN_FOLDS: usize = 5;
+/// Folds `K` of the blocked cross-validation: each run is cut into this many contiguous
+/// blocks. Five is the usual K-fold choice (each model trained on 80 % of the data); here it
+/// also makes each held-out block a fifth of its run: long against the 100 s target window
+/// (so the guard bands drop little data), short against a run's temperature span (a 2 h run
+/// warming 10 C leaves 2 C gaps to bridge).
+pub const BLOCK_FOLDS: usize = 5;
+
+/// How the smoothness weight is cross-validated (see the module docs).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct MeshCv {
+    /// Folds `K`: each run cut into `K` contiguous blocks of points, block `j` of run `r` in
+    /// fold `(j + r) mod K`.
+    pub folds: usize,
+    /// Points of a run left out of training on each side of its held-out block: targets
+    /// within one smoothing window of the block share raw samples with the block's targets.
+    /// One smoothing window in points (`target_window_s / block_s`) for logs whose
+    /// temperature fills every block (more time, so safer, where points are sparse).
+    pub guard_points: usize,
+}
+
+impl Default for MeshCv {
+    fn default() -> Self {
+        Self { folds: BLOCK_FOLDS, guard_points: 0 }
+    }
+}
 
 /// What the node-value fit did.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -55,11 +93,16 @@ pub struct NodeFitReport {
 pub struct CvCandidate {
     /// Smoothness weight relative to the data/penalty balance; `None` for "no mesh".
     pub relative_weight: Option<f64>,
-    /// Cross-validated RMS error (each held-out run about its own mean, mean over runs), deg/h.
+    /// Cross-validated RMS error: out-of-fold errors about their run's mean, mean square per
+    /// run block, mean over blocks, deg/h.
     pub cv_rms_dph: f64,
-    /// Standard error of the mean squared error over the held-out groups, expressed as the
+    /// Standard error of the mean squared error over the run blocks, expressed as the
     /// RMS at one standard error above the mean minus `cv_rms_dph`, deg/h.
     pub cv_se_dph: f64,
+    /// Mean squared held-out error of every run block (NaN: a block without points), deg^2/h^2;
+    /// the one-standard-error rule compares candidates block by block.
+    #[serde(skip)]
+    pub block_mse: Vec<f64>,
 }
 
 /// How the mesh's smoothness weight was chosen (`fit --json`: `axes[].mesh_smoothing`).
@@ -71,11 +114,12 @@ pub struct MeshSmoothing {
     pub weight: Option<f64>,
     /// "no mesh" was a candidate (hybrid residual meshes).
     pub no_mesh_allowed: bool,
-    /// Held-out groups: "runs" (leave one run out) or "run pieces" (fewer than
-    /// [`MIN_FOLDS`] runs, each cut into contiguous pieces).
+    /// How points were held out: "run blocks" (blocked K-fold within runs).
     pub folds: &'static str,
-    /// Number of held-out groups.
+    /// Number of folds `K`.
     pub fold_count: usize,
+    /// Points of a run left out of training on each side of a held-out block.
+    pub guard_points: usize,
     /// Every candidate, simplest first ("no mesh", then the largest weight down).
     pub curve: Vec<CvCandidate>,
     /// RMS of (mesh - target) over the calibration points before and after the fit, deg/h.
@@ -97,13 +141,21 @@ struct Row {
     vertex: [usize; 3],
     weight: [f64; 3],
     value: f64,
-    group: usize,
+    /// Run rank (0..runs).
+    run: usize,
+    /// Index of the point among its run's points (in or out of the mesh), and their count.
+    position: usize,
+    run_count: usize,
+    /// Block of the run (0..K), and the fold (block + run) mod K.
+    block: usize,
+    fold: usize,
 }
 
 /// Fits `mesh`'s vertex values to `points` (normalised `x`, `y` as f32 exactly as the firmware
-/// computes them, and the target value; `run_of[i]` is point `i`'s run) with the smoothness
-/// weight chosen by cross-validation (see the module docs). With `allow_no_mesh`, "no mesh" is
-/// a candidate; when it wins the vertex values are all set to zero and
+/// computes them, and the target value; `run_of[i]` is point `i`'s run, each run's points
+/// consecutive and in time order) with the smoothness weight chosen by blocked
+/// cross-validation `cv` (see the module docs). With `allow_no_mesh`, "no mesh" is a
+/// candidate; when it wins the vertex values are all set to zero and
 /// [`MeshSmoothing::no_mesh`] is true (the caller drops the mesh).
 ///
 /// # Errors
@@ -113,13 +165,14 @@ pub fn fit_node_values_cv(
     points: &[(f32, f32, f64)],
     run_of: &[usize],
     allow_no_mesh: bool,
+    cv: MeshCv,
 ) -> Result<(NodeFitReport, MeshSmoothing), CalError> {
     let n = mesh.vertices.len();
-    let (mut rows, points_outside) = design_rows(mesh, points, run_of);
+    let folds = cv.folds.max(2);
+    let (rows, points_outside) = design_rows(mesh, points, run_of, folds);
     if rows.is_empty() {
         return Err(CalError::DegenerateMesh { reason: "no calibration point lies in the mesh", points: n });
     }
-    let (folds, fold_count) = assign_groups(&mut rows);
     let penalty = gradient_jump_penalty(mesh)?;
     let gram = normal_matrix(&rows, n, |_| true);
     let rhs = normal_rhs(&rows, n, |_| true);
@@ -131,20 +184,23 @@ pub fn fit_node_values_cv(
     let mut curve = Vec::new();
     if allow_no_mesh {
         let zero = vec![0.0; n];
-        let errors: Vec<f64> = (0..fold_count).map(|g| held_out_mse(&rows, g, &zero)).collect();
-        curve.push(candidate(None, &errors));
+        curve.push(candidate(None, &block_scores(&rows, folds, |_| zero.as_slice())));
     }
+    // The training normal equations of every fold, once for all weights.
+    let training: Vec<(DMatrix<f64>, DVector<f64>)> = (0..folds)
+        .map(|f| {
+            let train = |r: &Row| trains_fold(r, f, folds, cv.guard_points);
+            (normal_matrix(&rows, n, train), normal_rhs(&rows, n, train))
+        })
+        .collect();
+    let nan = vec![f64::NAN; n];
     for &relative in RELATIVE_WEIGHTS.iter().rev() {
         let lambda = relative * balance;
-        let errors: Vec<f64> = (0..fold_count)
-            .map(|g| {
-                let train = |r: &Row| r.group != g;
-                let m = normal_matrix(&rows, n, train) + &penalty * lambda;
-                solve(m, normal_rhs(&rows, n, train), ridge)
-                    .map_or(f64::INFINITY, |v| held_out_mse(&rows, g, &v))
-            })
+        let per_fold: Vec<Vec<f64>> = training
+            .iter()
+            .map(|(m, b)| solve(m + &penalty * lambda, b.clone(), ridge).unwrap_or_else(|| nan.clone()))
             .collect();
-        curve.push(candidate(Some(relative), &errors));
+        curve.push(candidate(Some(relative), &block_scores(&rows, folds, |f| per_fold[f].as_slice())));
     }
     let chosen = one_standard_error(&curve);
     let relative_weight = curve.get(chosen).and_then(|c| c.relative_weight);
@@ -162,8 +218,9 @@ pub fn fit_node_values_cv(
         relative_weight,
         weight: relative_weight.map(|r| r * balance),
         no_mesh_allowed: allow_no_mesh,
-        folds,
-        fold_count,
+        folds: "run blocks",
+        fold_count: folds,
+        guard_points: cv.guard_points,
         curve,
         rms_before_dph,
         rms_after_dph,
@@ -171,17 +228,85 @@ pub fn fit_node_values_cv(
     Ok((report, smoothing))
 }
 
-/// Barycentric rows of every point inside the mesh (run index in `group` for now), and the
-/// number of points outside it.
-fn design_rows(mesh: &MeshModel, points: &[(f32, f32, f64)], run_of: &[usize]) -> (Vec<Row>, usize) {
+/// Block and fold of the point at `position` of a run of `count` points (run rank `run`):
+/// block `j = position * K / count` (K contiguous blocks of equal size), fold `(j + run) mod K`.
+pub fn block_and_fold(position: usize, count: usize, run: usize, folds: usize) -> (usize, usize) {
+    let folds = folds.max(1);
+    let block = (position * folds / count.max(1)).min(folds - 1);
+    (block, (block + run) % folds)
+}
+
+/// First position of block `block` of a run of `count` points: the smallest `p` with
+/// `p * K / count >= block` (the inverse of [`block_and_fold`]'s block).
+fn block_start(block: usize, count: usize, folds: usize) -> usize {
+    (block * count).div_ceil(folds)
+}
+
+/// Whether row `r` trains fold `f`: it is not in the fold, and not within `guard` points of
+/// its run's held-out block.
+fn trains_fold(r: &Row, f: usize, folds: usize, guard: usize) -> bool {
+    if r.fold == f {
+        return false;
+    }
+    // The block of this run held out in fold f: (block + run) mod K = f.
+    let held = (f + folds - r.run % folds) % folds;
+    let (start, end) = (block_start(held, r.run_count, folds), block_start(held + 1, r.run_count, folds));
+    r.position + guard < start || r.position >= end + guard
+}
+
+/// Per run block: the mean square of the out-of-fold errors (each point predicted by the node
+/// values `values_of(fold)` fitted without its fold) about their run's mean error. Blocks
+/// without points are NaN (skipped by [`candidate`]).
+fn block_scores<'a>(rows: &[Row], folds: usize, values_of: impl Fn(usize) -> &'a [f64]) -> Vec<f64> {
+    let errors: Vec<f64> = rows.iter().map(|r| predict(r, values_of(r.fold)) - r.value).collect();
+    let runs = rows.iter().map(|r| r.run + 1).max().unwrap_or(0);
+    let mut run_sum = vec![(0.0, 0usize); runs];
+    for (r, e) in rows.iter().zip(&errors) {
+        run_sum[r.run].0 += e;
+        run_sum[r.run].1 += 1;
+    }
+    let mut blocks = vec![(0.0, 0usize); runs * folds];
+    for (r, e) in rows.iter().zip(&errors) {
+        let (sum, count) = run_sum[r.run];
+        let d = e - sum / count as f64;
+        let slot = &mut blocks[r.run * folds + r.block];
+        slot.0 += d * d;
+        slot.1 += 1;
+    }
+    blocks.iter().map(|&(sq, count)| if count == 0 { f64::NAN } else { sq / count as f64 }).collect()
+}
+
+/// Barycentric rows of every point inside the mesh with its run, position, block and fold
+/// ([`block_and_fold`]), and the number of points outside the mesh.
+fn design_rows(
+    mesh: &MeshModel,
+    points: &[(f32, f32, f64)],
+    run_of: &[usize],
+    folds: usize,
+) -> (Vec<Row>, usize) {
+    let run_at = |i: usize| run_of.get(i).copied().unwrap_or(0);
+    // Run ranks (run indices need not be contiguous), point counts and positions.
+    let mut runs: Vec<usize> = (0..points.len()).map(run_at).collect();
+    runs.sort_unstable();
+    runs.dedup();
+    let rank = |run: usize| runs.binary_search(&run).unwrap_or(0);
+    let mut counts = vec![0usize; runs.len()];
+    for i in 0..points.len() {
+        counts[rank(run_at(i))] += 1;
+    }
+    let mut seen = vec![0usize; runs.len()];
     let transforms: Vec<Option<crate::blob::TriangleTransform>> =
         mesh.triangles.iter().map(|&tri| crate::blob::triangle_transform(mesh, tri)).collect();
     let mut rows = Vec::with_capacity(points.len());
     let (mut outside, mut hint) = (0, 0);
     for (i, &(x, y, value)) in points.iter().enumerate() {
+        let run = rank(run_at(i));
+        let position = seen[run];
+        seen[run] += 1;
         match locate(mesh, &transforms, x, y, &mut hint) {
             Some((vertex, weight)) => {
-                rows.push(Row { vertex, weight, value, group: run_of.get(i).copied().unwrap_or(0) })
+                let (block, fold) = block_and_fold(position, counts[run], run, folds);
+                rows.push(Row { vertex, weight, value, run, position, run_count: counts[run], block, fold })
             }
             None => outside += 1,
         }
@@ -227,35 +352,6 @@ fn locate(
     let clamped = l.map(|w| w.max(0.0));
     let sum: f64 = clamped.iter().sum();
     Some((mesh.triangles[t].map(|v| v as usize), clamped.map(|w| w / sum)))
-}
-
-/// Cross-validation groups: the runs when there are at least [`MIN_FOLDS`], otherwise each
-/// run cut into contiguous pieces (points are in time order within a run) so that there are
-/// about [`MIN_FOLDS`]. Rewrites `group` to 0..count and returns the kind and the count.
-fn assign_groups(rows: &mut [Row]) -> (&'static str, usize) {
-    let mut runs: Vec<usize> = rows.iter().map(|r| r.group).collect();
-    runs.sort_unstable();
-    runs.dedup();
-    let index_of = |run: usize| runs.binary_search(&run).unwrap_or(0);
-    if runs.len() >= MIN_FOLDS {
-        for r in rows.iter_mut() {
-            r.group = index_of(r.group);
-        }
-        return ("runs", runs.len());
-    }
-    let pieces = MIN_FOLDS.div_ceil(runs.len().max(1));
-    let mut counts = vec![0usize; runs.len()];
-    for r in rows.iter() {
-        counts[index_of(r.group)] += 1;
-    }
-    let mut seen = vec![0usize; runs.len()];
-    for r in rows.iter_mut() {
-        let run = index_of(r.group);
-        let piece = (seen[run] * pieces / counts[run].max(1)).min(pieces - 1);
-        seen[run] += 1;
-        r.group = run * pieces + piece;
-    }
-    ("run pieces", runs.len() * pieces)
 }
 
 /// `R'R` of the gradient-jump penalty (see the module docs).
@@ -342,29 +438,33 @@ fn predict(r: &Row, v: &[f64]) -> f64 {
     (0..3).map(|k| r.weight[k] * v[r.vertex[k]]).sum()
 }
 
-/// Mean squared error of the group-`g` rows about their own mean error.
-fn held_out_mse(rows: &[Row], g: usize, v: &[f64]) -> f64 {
-    let errors: Vec<f64> = rows.iter().filter(|r| r.group == g).map(|r| predict(r, v) - r.value).collect();
-    if errors.is_empty() {
-        return f64::NAN;
+/// A candidate from the per-block held-out mean squares (blocks without points are skipped).
+fn candidate(relative_weight: Option<f64>, block_mse: &[f64]) -> CvCandidate {
+    let (mean, se) = mean_and_se(block_mse.iter().copied());
+    let cv_rms_dph = mean.sqrt();
+    CvCandidate {
+        relative_weight,
+        cv_rms_dph,
+        cv_se_dph: (mean + se).sqrt() - cv_rms_dph,
+        block_mse: block_mse.to_vec(),
     }
-    let mean = errors.iter().sum::<f64>() / errors.len() as f64;
-    errors.iter().map(|e| (e - mean).powi(2)).sum::<f64>() / errors.len() as f64
 }
 
-/// A candidate from the per-group held-out MSEs (groups without points are skipped).
-fn candidate(relative_weight: Option<f64>, errors: &[f64]) -> CvCandidate {
-    let e: Vec<f64> = errors.iter().copied().filter(|x| !x.is_nan()).collect();
-    let k = e.len().max(1) as f64;
-    let mean = e.iter().sum::<f64>() / k;
-    let var = e.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (k - 1.0).max(1.0);
-    let se = (var / k).sqrt();
-    let cv_rms_dph = mean.sqrt();
-    CvCandidate { relative_weight, cv_rms_dph, cv_se_dph: (mean + se).sqrt() - cv_rms_dph }
+/// Mean and standard error of the mean of the non-NaN values.
+fn mean_and_se(values: impl Iterator<Item = f64>) -> (f64, f64) {
+    let v: Vec<f64> = values.filter(|x| !x.is_nan()).collect();
+    let k = v.len().max(1) as f64;
+    let mean = v.iter().sum::<f64>() / k;
+    let var = v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (k - 1.0).max(1.0);
+    (mean, (var / k).sqrt())
 }
 
 /// Index of the simplest candidate (the curve is ordered simplest first) whose mean squared
-/// error is within one standard error of the smallest.
+/// error exceeds the smallest by at most one standard error of their paired per-block
+/// differences. Every candidate is scored on the same held-out blocks, whose noise dominates
+/// each block's score alike; the paired difference measures what separates two candidates,
+/// where the standard error of the best candidate's own mean would mostly measure how the
+/// blocks differ from each other.
 fn one_standard_error(curve: &[CvCandidate]) -> usize {
     let mse = |c: &CvCandidate| c.cv_rms_dph * c.cv_rms_dph;
     let Some((best, min)) = curve
@@ -375,11 +475,300 @@ fn one_standard_error(curve: &[CvCandidate]) -> usize {
     else {
         return 0;
     };
-    let limit = (min.cv_rms_dph + min.cv_se_dph).powi(2);
-    curve.iter().position(|c| mse(c) <= limit).unwrap_or(best)
+    curve
+        .iter()
+        .position(|c| {
+            let differences = c.block_mse.iter().zip(&min.block_mse).map(|(a, b)| a - b);
+            let (mean, se) = mean_and_se(differences);
+            mse(c).is_finite() && mean <= se
+        })
+        .unwrap_or(best)
 }
 
 fn rms_misfit(rows: &[Row], v: &[f64]) -> f64 {
     let sum: f64 = rows.iter().map(|r| (predict(r, v) - r.value).powi(2)).sum();
     (sum / rows.len().max(1) as f64).sqrt()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::{build_mesh, MeshPoint};
+    use fogtemp_core::Normalisation;
+    use rand::{Rng, SeedableRng};
+    use rand_xoshiro::Xoshiro256PlusPlus;
+
+    /// Identity normalisation: physical (T, rate) are the normalised (x, y).
+    const IDENTITY: Normalisation = Normalisation {
+        temp_offset_c: 0.0,
+        temp_scale_per_c: 1.0,
+        rate_offset_c_per_min: 0.0,
+        rate_scale_per_c_per_min: 1.0,
+    };
+
+    /// A regular `nx` x `ny` grid of nodes over [-1, 1]^2 (values zero).
+    fn grid_mesh(nx: usize, ny: usize) -> MeshModel {
+        let nodes: Vec<MeshPoint> = (0..nx)
+            .flat_map(|i| {
+                (0..ny).map(move |j| MeshPoint {
+                    temp_c: -1.0 + 2.0 * i as f64 / (nx - 1) as f64,
+                    rate_c_per_min: -1.0 + 2.0 * j as f64 / (ny - 1) as f64,
+                    value_dph: 0.0,
+                })
+            })
+            .collect();
+        build_mesh(&nodes, &IDENTITY).expect("grid mesh")
+    }
+
+    /// The paper's design in miniature: `runs` runs, each crossing its own band of x (one run
+    /// per band, bands side by side) while its rate y decays, `per_run` points in time order;
+    /// value `f(x, y)` plus white noise `sigma`. Returns the points and their runs.
+    fn banded_runs(
+        runs: usize,
+        per_run: usize,
+        sigma: f64,
+        seed: u64,
+        f: impl Fn(f64, f64) -> f64,
+    ) -> (Vec<(f32, f32, f64)>, Vec<usize>) {
+        let mut rng = Xoshiro256PlusPlus::seed_from_u64(seed);
+        let mut gauss = move || {
+            let u1: f64 = 1.0 - rng.gen::<f64>();
+            let u2: f64 = rng.gen::<f64>();
+            (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
+        };
+        let band = 1.9 / runs as f64;
+        let (mut points, mut run_of) = (Vec::new(), Vec::new());
+        for r in 0..runs {
+            for i in 0..per_run {
+                let t = i as f64 / (per_run - 1) as f64;
+                let x = (-0.95 + band * (r as f64 + t)) as f32;
+                let y = (0.9 - 1.8 * t.sqrt()) as f32;
+                points.push((x, y, f(f64::from(x), f64::from(y)) + sigma * gauss()));
+                run_of.push(r);
+            }
+        }
+        (points, run_of)
+    }
+
+    fn plane(x: f64, y: f64) -> f64 {
+        0.3 + 0.2 * x - 0.1 * y
+    }
+
+    #[test]
+    fn a_plane_is_reproduced_exactly_at_every_weight() {
+        // The penalty's null space is the planes: noise-free plane data give the plane's node
+        // values for every weight (1e-9: f64 solve with a 1e-10 relative ridge).
+        let mesh = grid_mesh(7, 5);
+        let (points, run_of) = banded_runs(4, 300, 0.0, 1, plane);
+        let (rows, outside) = design_rows(&mesh, &points, &run_of, BLOCK_FOLDS);
+        assert_eq!(outside, 0);
+        let n = mesh.vertices.len();
+        let penalty = gradient_jump_penalty(&mesh).unwrap();
+        let gram = normal_matrix(&rows, n, |_| true);
+        let balance = gram.trace() / penalty.trace();
+        // No ridge here: data plus penalty determine every node (the ridge, 1e-10 of the data's
+        // mean diagonal in the fit, pulls nodes without data toward zero by up to 1e-5
+        // relative at the smallest weight, a separate and deliberate bias).
+        for relative in RELATIVE_WEIGHTS {
+            let system = &gram + &penalty * (relative * balance);
+            // Cholesky is backward stable: error up to about eps * condition number (which
+            // grows with the weight, as the data alone fix the plane); 100x that, and 1e-12.
+            let eig = system.symmetric_eigenvalues();
+            let condition = eig.max() / eig.min();
+            let tolerance = (100.0 * f64::EPSILON * condition * 0.6).max(1e-12); // 0.6: the largest |plane|
+            let v = solve(system, normal_rhs(&rows, n, |_| true), 0.0).unwrap();
+            for (vertex, value) in mesh.vertices.iter().zip(&v) {
+                let truth = plane(f64::from(vertex.x), f64::from(vertex.y));
+                // Nodes far from every point are set by the penalty alone: still the plane.
+                assert!(
+                    (value - truth).abs() < tolerance,
+                    "r = {relative}: {vertex:?} -> {value} vs {truth}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn folds_hold_out_one_contiguous_block_of_every_run() {
+        for count in [1usize, 4, 5, 23, 100, 101] {
+            for run in 0..7 {
+                let assigned: Vec<(usize, usize)> =
+                    (0..count).map(|p| block_and_fold(p, count, run, BLOCK_FOLDS)).collect();
+                // Blocks are contiguous, non-decreasing, sizes differ by at most one.
+                assert!(assigned.windows(2).all(|w| w[1].0 == w[0].0 || w[1].0 == w[0].0 + 1));
+                let sizes: Vec<usize> =
+                    (0..BLOCK_FOLDS).map(|j| assigned.iter().filter(|a| a.0 == j).count()).collect();
+                let (lo, hi) = (sizes.iter().min().unwrap(), sizes.iter().max().unwrap());
+                assert!(hi - lo <= 1, "{count}: {sizes:?}");
+                for (p, &(block, fold)) in assigned.iter().enumerate() {
+                    assert_eq!(fold, (block + run) % BLOCK_FOLDS);
+                    assert!(block_start(block, count, BLOCK_FOLDS) <= p);
+                    assert!(p < block_start(block + 1, count, BLOCK_FOLDS));
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn guard_bands_drop_the_points_within_guard_of_the_held_out_block() {
+        // Brute force: a training point is dropped iff it is in the fold, or within `guard`
+        // positions of a held-out point of its own run.
+        let (count, folds) = (37, BLOCK_FOLDS);
+        for run in 0..3 {
+            let fold_of: Vec<usize> = (0..count).map(|p| block_and_fold(p, count, run, folds).1).collect();
+            for guard in [0usize, 1, 3, 10] {
+                for f in 0..folds {
+                    for p in 0..count {
+                        let (block, fold) = block_and_fold(p, count, run, folds);
+                        let row = Row {
+                            vertex: [0; 3],
+                            weight: [1.0, 0.0, 0.0],
+                            value: 0.0,
+                            run,
+                            position: p,
+                            run_count: count,
+                            block,
+                            fold,
+                        };
+                        let near_held_out = (0..count).any(|q| fold_of[q] == f && p.abs_diff(q) <= guard);
+                        assert_eq!(
+                            trains_fold(&row, f, folds, guard),
+                            !near_held_out,
+                            "run {run} guard {guard} f {f} p {p}"
+                        );
+                    }
+                }
+            }
+        }
+    }
+
+    /// Brute-force blocked cross-validation: dense design matrix from an f64 point location
+    /// over all triangles, LU solves, out-of-fold errors, per-block scores and the
+    /// one-standard-error rule written out directly. Returns (relative weight, cv rms) pairs
+    /// in the module's order and the chosen relative weight.
+    fn brute_force_cv(
+        mesh: &MeshModel,
+        points: &[(f32, f32, f64)],
+        run_of: &[usize],
+        guard: usize,
+    ) -> (Vec<(f64, f64)>, f64) {
+        let k = BLOCK_FOLDS;
+        let n = mesh.vertices.len();
+        let vx = |i: u32| (f64::from(mesh.vertices[i as usize].x), f64::from(mesh.vertices[i as usize].y));
+        let weights_of = |x: f64, y: f64| -> Vec<f64> {
+            for t in &mesh.triangles {
+                let ((ax, ay), (bx, by), (cx, cy)) = (vx(t[0]), vx(t[1]), vx(t[2]));
+                let det = (bx - ax) * (cy - ay) - (cx - ax) * (by - ay);
+                let wb = ((x - ax) * (cy - ay) - (cx - ax) * (y - ay)) / det;
+                let wc = ((bx - ax) * (y - ay) - (x - ax) * (by - ay)) / det;
+                let wa = 1.0 - wb - wc;
+                if wa >= -1e-9 && wb >= -1e-9 && wc >= -1e-9 {
+                    let mut row = vec![0.0; n];
+                    row[t[0] as usize] = wa;
+                    row[t[1] as usize] = wb;
+                    row[t[2] as usize] = wc;
+                    return row;
+                }
+            }
+            panic!("point outside the mesh");
+        };
+        let m = points.len();
+        let a = DMatrix::from_fn(m, n, |i, j| weights_of(f64::from(points[i].0), f64::from(points[i].1))[j]);
+        let y = DVector::from_iterator(m, points.iter().map(|p| p.2));
+        // Run positions (runs are consecutive) and folds.
+        let count = |r: usize| run_of.iter().filter(|&&q| q == r).count();
+        let first = |r: usize| run_of.iter().position(|&q| q == r).unwrap();
+        let pos: Vec<usize> = (0..m).map(|i| i - first(run_of[i])).collect();
+        let block: Vec<usize> = (0..m).map(|i| pos[i] * k / count(run_of[i])).collect();
+        let fold: Vec<usize> = (0..m).map(|i| (block[i] + run_of[i]) % k).collect();
+        let penalty = gradient_jump_penalty(mesh).unwrap();
+        let ata = a.transpose() * &a;
+        let balance = ata.trace() / penalty.trace();
+        let ridge = 1e-10 * ata.trace() / n as f64;
+        let runs = run_of.iter().max().unwrap() + 1;
+        let mut curve = Vec::new();
+        for &relative in RELATIVE_WEIGHTS.iter().rev() {
+            let mut error = vec![0.0; m];
+            for f in 0..k {
+                let train: Vec<usize> = (0..m)
+                    .filter(|&i| {
+                        !(0..m).any(|q| {
+                            run_of[q] == run_of[i] && fold[q] == f && pos[i].abs_diff(pos[q]) <= guard
+                        })
+                    })
+                    .collect();
+                let at = DMatrix::from_fn(train.len(), n, |r, c| a[(train[r], c)]);
+                let yt = DVector::from_iterator(train.len(), train.iter().map(|&i| y[i]));
+                let lhs =
+                    at.transpose() * &at + &penalty * (relative * balance) + DMatrix::identity(n, n) * ridge;
+                let v = lhs.lu().solve(&(at.transpose() * yt)).unwrap();
+                for i in (0..m).filter(|&i| fold[i] == f) {
+                    error[i] = (a.row(i) * &v)[(0, 0)] - y[i];
+                }
+            }
+            let mut scores = Vec::new();
+            for r in 0..runs {
+                let idx: Vec<usize> = (0..m).filter(|&i| run_of[i] == r).collect();
+                let mean = idx.iter().map(|&i| error[i]).sum::<f64>() / idx.len() as f64;
+                for b in 0..k {
+                    let e: Vec<f64> =
+                        idx.iter().filter(|&&i| block[i] == b).map(|&i| error[i] - mean).collect();
+                    scores.push(e.iter().map(|d| d * d).sum::<f64>() / e.len() as f64);
+                }
+            }
+            let mean = scores.iter().sum::<f64>() / scores.len() as f64;
+            curve.push((relative, mean, scores));
+        }
+        // Paired one-standard-error rule: the smoothest weight whose per-block excess over the
+        // best has a mean within one standard error.
+        let best = curve.iter().min_by(|p, q| p.1.total_cmp(&q.1)).unwrap().2.clone();
+        let chosen = curve
+            .iter()
+            .find(|c| {
+                let d: Vec<f64> = c.2.iter().zip(&best).map(|(a, b)| a - b).collect();
+                let k = d.len() as f64;
+                let mean = d.iter().sum::<f64>() / k;
+                let sd = (d.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (k - 1.0)).sqrt();
+                mean <= sd / k.sqrt()
+            })
+            .unwrap()
+            .0;
+        (curve.iter().map(|c| (c.0, c.1.sqrt())).collect(), chosen)
+    }
+
+    #[test]
+    fn the_chosen_weight_on_a_ripple_matches_a_brute_force_reference() {
+        // One run per band of x (the paper's design), a ripple in x of period 0.8 (the bands
+        // are 0.32 wide) and white noise; fixed seed.
+        let ripple = |x: f64, _y: f64| 0.01 * (std::f64::consts::TAU * x / 0.8).sin();
+        let mut mesh = grid_mesh(11, 4);
+        let (points, run_of) = banded_runs(6, 150, 0.003, 7, ripple);
+        let guard = 4;
+        let (reference, chosen) = brute_force_cv(&mesh, &points, &run_of, guard);
+        let cv = MeshCv { folds: BLOCK_FOLDS, guard_points: guard };
+        let (_, smoothing) = fit_node_values_cv(&mut mesh, &points, &run_of, false, cv).unwrap();
+        assert_eq!(smoothing.curve.len(), reference.len());
+        for (c, (relative, rms)) in smoothing.curve.iter().zip(&reference) {
+            assert_eq!(c.relative_weight, Some(*relative));
+            // Same arithmetic up to summation order and the solver (Cholesky vs LU): 1e-9.
+            assert!((c.cv_rms_dph - rms).abs() <= 1e-9 * rms, "{c:?} vs {rms}");
+        }
+        assert_eq!(smoothing.relative_weight, Some(chosen));
+        // And the choice follows the ripple: at the points, the fitted surface is much closer
+        // to the true ripple than the least-squares plane (the smoothest candidate) is.
+        assert!(chosen < 1e6, "chose {chosen}: {smoothing:?}");
+        let (rows, _) = design_rows(&mesh, &points, &run_of, BLOCK_FOLDS);
+        let truth: Vec<f64> = points.iter().map(|p| ripple(f64::from(p.0), 0.0)).collect();
+        let error_rms = |v: &[f64]| {
+            let sq: f64 = rows.iter().zip(&truth).map(|(r, t)| (predict(r, v) - t).powi(2)).sum();
+            (sq / rows.len() as f64).sqrt()
+        };
+        let fitted: Vec<f64> = mesh.vertices.iter().map(|v| f64::from(v.value_dph)).collect();
+        let n = fitted.len();
+        let (gram, penalty) = (normal_matrix(&rows, n, |_| true), gradient_jump_penalty(&mesh).unwrap());
+        let lambda = 1e8 * gram.trace() / penalty.trace();
+        let plane = solve(gram + penalty * lambda, normal_rhs(&rows, n, |_| true), 0.0).unwrap();
+        let (e_fit, e_plane) = (error_rms(&fitted), error_rms(&plane));
+        assert!(e_fit < 0.5 * e_plane, "chose {chosen}: error {e_fit} vs the plane's {e_plane}");
+    }
 }
