@@ -398,17 +398,7 @@ impl<'a> Mesh<'a> {
     /// # Errors
     /// [`Error::BadValue`] if `side` is 0 or `cells` is too short.
     pub fn start_grid<'g>(&self, side: u32, cells: &'g mut [u32]) -> Result<StartGrid<'g>, Error> {
-        let needed = (side as usize).checked_mul(side as usize).filter(|&n| n > 0);
-        let Some(needed) = needed.filter(|&n| n <= cells.len()) else {
-            return Err(Error::BadValue { field: "start grid side", axis: self.axis, index: side });
-        };
-        let (mut lo, mut hi) = ([f32::INFINITY; 2], [f32::NEG_INFINITY; 2]);
-        for v in (0..self.vertex_count()).filter_map(|i| self.vertex(i)) {
-            lo = [lo[0].min(v.x), lo[1].min(v.y)];
-            hi = [hi[0].max(v.x), hi[1].max(v.y)];
-        }
-        let span = [(hi[0] - lo[0]).max(f32::MIN_POSITIVE), (hi[1] - lo[1]).max(f32::MIN_POSITIVE)];
-        let per_unit = [side as f32 / span[0], side as f32 / span[1]];
+        let (needed, lo, per_unit) = self.grid_frame(side, cells.len())?;
         let mut hint = WalkHint::default();
         for (k, cell) in cells.iter_mut().take(needed).enumerate() {
             let (i, j) = ((k % side as usize) as f32, (k / side as usize) as f32);
@@ -419,6 +409,33 @@ impl<'a> Mesh<'a> {
         }
         let cells: &'g [u32] = cells;
         Ok(StartGrid { lo, per_unit, side, cells: cells.get(..needed).unwrap_or(&[]) })
+    }
+
+    /// A start grid from `cells` that [`Mesh::start_grid`] filled earlier with the same `side`
+    /// for this mesh (kept by a caller that evaluates many batches). Any cell content is safe:
+    /// a start triangle out of range is clamped, a wrong one only lengthens the walk.
+    ///
+    /// # Errors
+    /// [`Error::BadValue`] if `side` is 0 or `cells` is too short.
+    pub fn grid_from_cells<'g>(&self, side: u32, cells: &'g [u32]) -> Result<StartGrid<'g>, Error> {
+        let (needed, lo, per_unit) = self.grid_frame(side, cells.len())?;
+        Ok(StartGrid { lo, per_unit, side, cells: cells.get(..needed).unwrap_or(&[]) })
+    }
+
+    /// Cells needed, lower corner and cells per unit of a `side x side` grid over the mesh's
+    /// bounding box.
+    fn grid_frame(&self, side: u32, cells_len: usize) -> Result<(usize, [f32; 2], [f32; 2]), Error> {
+        let needed = (side as usize).checked_mul(side as usize).filter(|&n| n > 0);
+        let Some(needed) = needed.filter(|&n| n <= cells_len) else {
+            return Err(Error::BadValue { field: "start grid side", axis: self.axis, index: side });
+        };
+        let (mut lo, mut hi) = ([f32::INFINITY; 2], [f32::NEG_INFINITY; 2]);
+        for v in (0..self.vertex_count()).filter_map(|i| self.vertex(i)) {
+            lo = [lo[0].min(v.x), lo[1].min(v.y)];
+            hi = [hi[0].max(v.x), hi[1].max(v.y)];
+        }
+        let span = [(hi[0] - lo[0]).max(f32::MIN_POSITIVE), (hi[1] - lo[1]).max(f32::MIN_POSITIVE)];
+        Ok((needed, lo, [side as f32 / span[0], side as f32 / span[1]]))
     }
 
     /// The value at a walk's end: the plane inside, the outside policy beyond the hull.
@@ -432,7 +449,12 @@ impl<'a> Mesh<'a> {
             return MeshValue { value_dph, triangle: end.triangle, outside_hull: false };
         }
         let value_dph = match self.policy {
-            OutsidePolicy::NearestHull => self.hull_value_after_walk(end, x, y),
+            // Scalars, not `end` by reference: the hot inside path keeps the walk's end in
+            // registers (with `&WalkEnd` passed on, the inside points of the 1 M-point Python
+            // benchmark took 20 % longer, docs/performance.md).
+            OutsidePolicy::NearestHull => {
+                self.hull_value_after_walk(end.triangle, most_negative(end.bary).0, x, y)
+            }
             OutsidePolicy::Zero => 0.0,
         };
         MeshValue { value_dph, triangle: end.triangle, outside_hull: true }
@@ -444,10 +466,10 @@ impl<'a> Mesh<'a> {
     /// certificates and the same value rule, so the same value (two certificates can both hold
     /// only within rounding of a Voronoi boundary); the search when the crossed edge and its
     /// ends do not hold the nearest point.
+    #[cold]
     #[inline(never)]
-    fn hull_value_after_walk(&self, end: &WalkEnd<'_>, x: f32, y: f32) -> f32 {
-        let (k, _) = most_negative(end.bary);
-        match crate::hull::value_from_slot(self, end.triangle, k, x, y) {
+    fn hull_value_after_walk(&self, triangle: u32, k: usize, x: f32, y: f32) -> f32 {
+        match crate::hull::value_from_slot(self, triangle, k, x, y) {
             Some(value) => value,
             None => self.nearest_hull_value(x, y),
         }

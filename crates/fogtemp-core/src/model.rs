@@ -2,7 +2,10 @@
 
 use crate::crc::crc32;
 use crate::error::Error;
-use crate::mesh::{barycentric, edge_vertices, plane_value, Mesh, OutsidePolicy, TriangleRecord, WalkHint};
+use crate::mesh::{
+    barycentric, edge_vertices, plane_value, Mesh, MeshValue, OutsidePolicy, StartGrid, TriangleRecord,
+    WalkHint,
+};
 use crate::poly::{parse_term, Poly};
 use crate::region::{PolyOutside, Region};
 use crate::wire::*;
@@ -116,7 +119,7 @@ pub struct Axis<'a> {
     pub poly_outside: PolyOutside,
 }
 
-impl Axis<'_> {
+impl<'a> Axis<'a> {
     /// Tracker capacity (blocks) this axis needs: its `block_count`
     /// ([`FeatureSettings::blocks_needed`]). `Compensator::<N>::new` and
     /// [`Axis::state`] refuse an `N` below it with [`Error::CapacityTooSmall`].
@@ -136,6 +139,33 @@ impl Axis<'_> {
         rate_c_per_min: f32,
         hint: &mut WalkHint,
     ) -> Result<Evaluation, Error> {
+        self.evaluate_by(temp_c, rate_c_per_min, |mesh, x, y| mesh.interpolate(x, y, hint))
+    }
+
+    /// [`Axis::evaluate`] with the mesh located from a start grid of this axis's mesh
+    /// ([`Mesh::start_grid`]; for many points in random order): the same value and flag.
+    ///
+    /// # Errors
+    /// As [`Axis::evaluate`].
+    #[inline]
+    pub fn evaluate_with_grid(
+        &self,
+        temp_c: f32,
+        rate_c_per_min: f32,
+        hint: &mut WalkHint,
+        grid: &StartGrid<'_>,
+    ) -> Result<Evaluation, Error> {
+        self.evaluate_by(temp_c, rate_c_per_min, |mesh, x, y| mesh.interpolate_with_grid(x, y, hint, grid))
+    }
+
+    /// The evaluation with the mesh interpolated by `interpolate`.
+    #[inline(always)]
+    fn evaluate_by(
+        &self,
+        temp_c: f32,
+        rate_c_per_min: f32,
+        interpolate: impl FnOnce(&Mesh<'a>, f32, f32) -> Result<MeshValue, Error>,
+    ) -> Result<Evaluation, Error> {
         if !(temp_c.is_finite() && rate_c_per_min.is_finite()) {
             return Err(Error::NonFiniteSample);
         }
@@ -146,7 +176,7 @@ impl Axis<'_> {
         };
         match &self.mesh {
             Some(mesh) => {
-                let m = mesh.interpolate(x, y, hint).map_err(|e| e.at_axis(self.id))?;
+                let m = interpolate(mesh, x, y).map_err(|e| e.at_axis(self.id))?;
                 Ok(Evaluation { value_dph: poly + m.value_dph, outside_hull: m.outside_hull || poly_held })
             }
             None => Ok(Evaluation { value_dph: poly, outside_hull: poly_held }),

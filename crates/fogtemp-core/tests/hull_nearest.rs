@@ -451,3 +451,48 @@ fn fast_hull_value_equals_the_scan_and_the_f64_projection_on_the_golden_model() 
     }
     assert!(meshes > 0, "the golden model has a mesh");
 }
+
+/// `Axis::evaluate_with_grid` (a start grid, also one rebuilt from kept cells by
+/// `Mesh::grid_from_cells`) gives `Axis::evaluate`'s value and flag bit for bit, inside and
+/// outside the hull of every axis of the golden model (polynomial, mesh and hybrid axes).
+#[test]
+fn evaluate_with_grid_equals_evaluate_on_the_golden_model() {
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../tests/golden/model-v2.fogm");
+    let blob = std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let model = Model::from_bytes(&blob).expect("golden model");
+    let mut compared = 0;
+    for a in 0..model.axis_count() {
+        let axis = model.axis(a).expect("axis");
+        let Some(mesh) = axis.mesh else { continue };
+        let mut cells = vec![0u32; 16 * 16];
+        mesh.start_grid(16, &mut cells).expect("grid");
+        let grid = mesh.grid_from_cells(16, &cells).expect("grid from kept cells");
+        let mut r = rng(300 + a as u64);
+        let (mut plain_hint, mut grid_hint, mut outside) = (WalkHint::default(), WalkHint::default(), 0);
+        let (t, rate) = (
+            axis.provenance.temp_min_c..axis.provenance.temp_max_c,
+            axis.provenance.rate_min_c_per_min..axis.provenance.rate_max_c_per_min,
+        );
+        let widen = |v: std::ops::Range<f32>| (v.start - (v.end - v.start), v.end + (v.end - v.start));
+        let ((t0, t1), (r0, r1)) = (widen(t), widen(rate));
+        for _ in 0..20_000 {
+            let (temp_c, rate_c_per_min): (f32, f32) = (r.gen_range(t0..t1), r.gen_range(r0..r1));
+            let plain = axis.evaluate(temp_c, rate_c_per_min, &mut plain_hint).expect("evaluate");
+            let gridded =
+                axis.evaluate_with_grid(temp_c, rate_c_per_min, &mut grid_hint, &grid).expect("grid");
+            assert_eq!(
+                (plain.value_dph.to_bits(), plain.outside_hull),
+                (gridded.value_dph.to_bits(), gridded.outside_hull),
+                "axis {a} at ({temp_c}, {rate_c_per_min})"
+            );
+            outside += usize::from(plain.outside_hull);
+            compared += 1;
+        }
+        assert!(outside > 1000, "axis {a}: {outside} of 20000 outside");
+    }
+    assert!(compared > 0, "the golden model has a mesh axis");
+    assert!(matches!(
+        model.axis(0).expect("axis").mesh.map(|m| m.grid_from_cells(16, &[0; 10])),
+        Some(Err(fogtemp_core::Error::BadValue { .. })) | None
+    ));
+}

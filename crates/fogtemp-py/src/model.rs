@@ -14,9 +14,11 @@ use crate::convert::{self, f64_array, f64_vector, slice};
 use crate::errors;
 
 /// Below this many points an evaluation walks from the last triangle only; above it a start
-/// grid over the mesh (built once per call, about four cells per triangle) makes random-order
-/// queries a step or two each.
+/// grid over the mesh makes random-order queries a step or two each.
 const GRID_MIN_POINTS: usize = 4096;
+/// Start-grid cells per mesh triangle (measured on the paper-like 573-node mesh, 1 M random
+/// points inside the hull: 31 ms with 1/4 cell per triangle, 18 ms with 4, 17 ms with 16).
+const GRID_CELLS_PER_TRIANGLE: usize = 4;
 /// Below this many points an evaluation runs on one thread.
 const PARALLEL_MIN_POINTS: usize = 1 << 16;
 
@@ -31,13 +33,19 @@ pub struct Model {
     source: String,
     /// The `fit --json` document when this model was fitted in this process.
     fit_json: Option<String>,
+    /// Per axis, the start grid of its mesh (side, cells), built with the model as scipy's
+    /// interpolator builds its search structure at construction; `None` without a mesh.
+    grids: Vec<Option<(u32, Vec<u32>)>>,
 }
 
 impl Model {
     /// A model from `blob` after the core's validation.
     pub fn new(blob: Vec<u8>, source: String, fit_json: Option<String>) -> PyResult<Self> {
-        CoreModel::from_bytes(&blob).map_err(|e| errors::model(&source, e))?;
-        Ok(Self { blob, source, fit_json })
+        let core = CoreModel::from_bytes(&blob).map_err(|e| errors::model(&source, e))?;
+        let grids = (0..core.axis_count())
+            .map(|i| core.axis(i).ok().and_then(|a| a.mesh).and_then(|mesh| start_grid(&mesh, usize::MAX)))
+            .collect();
+        Ok(Self { blob, source, fit_json, grids })
     }
 
     /// The blob.
@@ -153,7 +161,8 @@ impl Model {
         let (ts, rs) = (slice(&t, "temp_c")?, slice(&r, "rate_c_per_min")?);
         let threads =
             threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get())).max(1);
-        let values = py.detach(|| evaluate_points(&core_axis, ts, rs, threads));
+        let cached = self.grids.get(axis).and_then(Option::as_ref);
+        let values = py.detach(|| evaluate_points(&core_axis, cached, ts, rs, threads));
         PyArray1::from_vec(py, values).reshape(shape).map(Bound::into_any)
     }
 
@@ -248,23 +257,43 @@ impl Model {
     }
 }
 
-/// Evaluates every point (NaN where an input is not finite), on up to `threads` threads.
-fn evaluate_points(axis: &Axis<'_>, ts: &[f64], rs: &[f64], threads: usize) -> Vec<f64> {
+/// A start grid of about [`GRID_CELLS_PER_TRIANGLE`] cells per triangle, but at most
+/// `max_cells` (side, cells); `None` if the mesh cannot give one.
+fn start_grid(mesh: &fogtemp_core::Mesh<'_>, max_cells: usize) -> Option<(u32, Vec<u32>)> {
+    let cells_wanted = (GRID_CELLS_PER_TRIANGLE * mesh.triangle_count() as usize).min(max_cells).max(1);
+    let side = u32::try_from((cells_wanted as f64).sqrt() as u64).ok()?.max(1);
+    let mut cells = vec![0u32; (side as usize).checked_mul(side as usize)?];
+    mesh.start_grid(side, &mut cells).ok()?;
+    Some((side, cells))
+}
+
+/// Evaluates every point (NaN where an input is not finite), on up to `threads` threads,
+/// through `Axis::evaluate_with_grid` (the firmware's evaluation, the mesh located from a
+/// start grid). The model's own grid serves calls of at least four points per cell; a smaller
+/// call builds a smaller grid (never more cells than a quarter of the points, so that
+/// building it stays a small part of the call).
+fn evaluate_points(
+    axis: &Axis<'_>,
+    cached: Option<&(u32, Vec<u32>)>,
+    ts: &[f64],
+    rs: &[f64],
+    threads: usize,
+) -> Vec<f64> {
     let mut out = vec![f64::NAN; ts.len()];
-    let mut cells = Vec::new();
-    let grid = match &axis.mesh {
-        Some(mesh) if ts.len() >= GRID_MIN_POINTS => {
-            // About 4 cells per triangle (measured on the paper-like 573-node mesh, 1 M random
-            // points inside the hull: 31 ms with 1/4 cell per triangle, 18 ms with 4, 17 ms with
-            // 16), but never more cells than a quarter of the points, so that building the grid
-            // (one short walk per cell) stays a small part of the call.
-            let cells_wanted = (4 * mesh.triangle_count() as usize).min(ts.len() / 4).max(1);
-            let side = ((cells_wanted as f64).sqrt() as u32).max(1);
-            cells.resize((side * side) as usize, 0u32);
-            mesh.start_grid(side, &mut cells).ok()
-        }
+    let own = match (&axis.mesh, cached) {
+        (Some(_), Some(c)) if c.1.len() <= ts.len() / 4 => None,
+        (Some(mesh), _) if ts.len() >= GRID_MIN_POINTS => start_grid(mesh, ts.len() / 4),
         _ => None,
     };
+    let (side, cells) = match (&own, cached) {
+        (Some((side, cells)), _) => (*side, cells.as_slice()),
+        (None, Some((side, cells))) if ts.len() >= GRID_MIN_POINTS && cells.len() <= ts.len() / 4 => {
+            (*side, cells.as_slice())
+        }
+        _ => (0, &[][..]),
+    };
+    let grid =
+        axis.mesh.as_ref().filter(|_| side > 0).and_then(|mesh| mesh.grid_from_cells(side, cells).ok());
     let threads = if ts.len() >= PARALLEL_MIN_POINTS { threads } else { 1 };
     let chunk = ts.len().div_ceil(threads).max(1);
     std::thread::scope(|scope| {
@@ -281,17 +310,11 @@ fn evaluate_chunk(axis: &Axis<'_>, grid: Option<&StartGrid<'_>>, ts: &[f64], rs:
     let mut hint = WalkHint::default();
     for ((o, &t), &r) in out.iter_mut().zip(ts).zip(rs) {
         let (t, r) = (t as f32, r as f32);
-        *o = match (grid, &axis.mesh) {
-            // `Axis::evaluate` with the mesh located from the start grid: the same
-            // normalisation, polynomial and mesh interpolation (and outside policy).
-            (Some(grid), Some(mesh)) if t.is_finite() && r.is_finite() => {
-                let (x, y) = axis.normalisation.apply(t, r);
-                let poly = axis.poly.map_or(0.0, |p| p.evaluate(x, y));
-                mesh.interpolate_with_grid(x, y, &mut hint, grid)
-                    .map_or(f64::NAN, |m| f64::from(poly + m.value_dph))
-            }
-            _ => axis.evaluate(t, r, &mut hint).map_or(f64::NAN, |e| f64::from(e.value_dph)),
+        let evaluation = match grid {
+            Some(grid) => axis.evaluate_with_grid(t, r, &mut hint, grid),
+            None => axis.evaluate(t, r, &mut hint),
         };
+        *o = evaluation.map_or(f64::NAN, |e| f64::from(e.value_dph));
     }
 }
 

@@ -44,9 +44,13 @@ def test_mesh_matches_scipy_linear_interpolation_on_the_nodes(mesh_model):
     assert worst <= 1e-4 * span, (worst, span)
 
 
-def test_polynomial_matches_numpy_polynomial_on_the_terms(poly_model):
-    axis = poly_model.inspect()["axes"][0]
-    assert axis["kind"] == ["poly"]
+def test_polynomial_matches_numpy_polynomial_on_the_terms(cal_logs, poly_model):
+    # Extrapolated everywhere, so every point of the box is the terms' own value; the
+    # default (linear from the calibrated region's boundary) agrees with it inside the region.
+    extrapolated = fogtemp.fit(cal_logs, method="poly", poly_outside="extrapolate", progress=False)
+    axis = extrapolated.inspect()["axes"][0]
+    assert axis["kind"] == ["poly"] and axis["poly_outside"] == "extrapolate"
+    assert poly_model.inspect()["axes"][0]["poly_outside"] == "linear_from_boundary"
     terms = axis["poly"]
     degree = max(max(t["temp_power"], t["rate_power"]) for t in terms)
     coefficients = np.zeros((degree + 1, degree + 1))
@@ -55,11 +59,16 @@ def test_polynomial_matches_numpy_polynomial_on_the_terms(poly_model):
     temp, rate = random_points_in_range(axis, 100_000, seed=12)
     x, y = normalise(axis, temp, rate)
     theirs = P.polyval2d(x, y, coefficients)
-    ours = poly_model.evaluate(temp, rate)
+    ours = extrapolated.evaluate(temp, rate)
     span = theirs.max() - theirs.min()
     worst = np.max(np.abs(ours - theirs))
     # The core evaluates in f32: a relative error of a few 1e-7 of the terms' magnitudes.
     assert worst <= 1e-4 * span, (worst, span)
+    # Same terms, so the default model equals the extrapolated one bit for bit wherever the
+    # compensator does not flag OUTSIDE_HULL (inside the region), and differs beyond it.
+    default = poly_model.evaluate(temp, rate)
+    same = default == ours
+    assert 0 < same.sum() < same.size, same.sum()
 
 
 def test_any_shape_broadcasting_and_nan(mesh_model):
