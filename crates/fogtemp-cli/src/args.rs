@@ -209,6 +209,15 @@ pub enum PolyArg {
     Paper,
 }
 
+/// How `auto` scores a held-out run (hidden; docs/calibration-testbed.md).
+#[derive(Debug, Clone, Copy, ValueEnum, PartialEq, Eq)]
+pub enum CvScoringArg {
+    /// Every 100 s window of the held-out run.
+    WholeRun,
+    /// Only the windows inside the training runs' calibrated region.
+    InsideRegion,
+}
+
 /// `fit` arguments.
 #[derive(Debug, Args)]
 pub struct FitArgs {
@@ -234,6 +243,10 @@ pub struct FitArgs {
     /// temperature and rate ranges of the other runs (docs/calibration-testbed.md).
     #[arg(long, hide = true)]
     pub cv_inside_range_only: bool,
+    /// How `auto` scores a held-out run: every window, or only the windows inside the
+    /// training runs' calibrated region (docs/calibration-testbed.md).
+    #[arg(long, value_enum, default_value_t = CvScoringArg::WholeRun, hide = true)]
+    pub cv_scoring: CvScoringArg,
     /// Feature window (smoothing of T and dT/dt), seconds.
     #[arg(long, default_value_t = 100.0, help_heading = "Features")]
     pub window_s: f32,
