@@ -47,6 +47,7 @@ use crate::calibrate::{
     ReplaySeries, RunFeatures,
 };
 use crate::error::CalError;
+use crate::features::FeaturePoint;
 use crate::mesh::MeshPoint;
 use crate::metrics::{rms_over_runs, BiasStabilityOptions};
 use crate::runs::run_name;
@@ -89,6 +90,10 @@ pub struct SelectionOptions {
     pub inside_range_only: bool,
     /// How a held-out run is scored ([`CvScoring`]).
     pub scoring: CvScoring,
+    /// How folds are formed ([`CvScheme`]).
+    pub scheme: CvScheme,
+    /// Blocks per run (K) for [`CvScheme::BlockedKFold`].
+    pub blocks: usize,
 }
 
 impl Default for SelectionOptions {
@@ -99,9 +104,32 @@ impl Default for SelectionOptions {
             stability: BiasStabilityOptions::default(),
             inside_range_only: false,
             scoring: CvScoring::WholeRun,
+            scheme: CvScheme::LeaveOneGroupOut,
+            blocks: DEFAULT_BLOCKS,
         }
     }
 }
+
+/// How the folds of the cross-validation are formed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum CvScheme {
+    /// Leave one run (or position) out ([`cv_groups`], [`folds`]).
+    LeaveOneGroupOut,
+    /// Blocked K-fold within runs: every run cut into K contiguous time blocks, block `j`
+    /// of run `r` held out by fold `(j + r) mod K`; each run's out-of-fold compensated
+    /// output (every sample compensated by the model of the fold that held its block out)
+    /// is scored as `validate` scores a run, and the rule pairs the candidates over the
+    /// runs. Every fold trains on every run (all temperatures and rates, minus one block of
+    /// each), so a held-out block is interpolated, not extrapolated; training targets
+    /// within half a target window of a held-out block are left out too (their centred
+    /// smoothing reaches into it).
+    BlockedKFold,
+}
+
+/// Default K of [`CvScheme::BlockedKFold`] (the usual 5-fold: each fold trains on 80 % of
+/// every run). Chosen before measuring.
+pub const DEFAULT_BLOCKS: usize = 5;
 
 /// How a held-out run's compensated output is scored.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
@@ -318,6 +346,11 @@ pub struct Selection {
     pub folds: usize,
     /// How held-out runs were scored.
     pub scoring: CvScoring,
+    /// How the folds were formed. With [`CvScheme::BlockedKFold`], `folds` counts the runs
+    /// scored (the units the rule pairs) and `blocks` is K.
+    pub scheme: CvScheme,
+    /// K, with [`CvScheme::BlockedKFold`].
+    pub blocks: Option<usize>,
     /// Folds left out of the rule, with why (empty when every fold was scored).
     pub skipped_folds: Vec<SkippedFold>,
     /// The rule ([`RULE`]).
@@ -359,6 +392,8 @@ impl Selection {
             grouping,
             folds: 0,
             scoring: CvScoring::WholeRun,
+            scheme: CvScheme::LeaveOneGroupOut,
+            blocks: None,
             skipped_folds: Vec::new(),
             rule: RULE,
             warning: Some(format!(
@@ -403,6 +438,12 @@ impl Selection {
     /// for whole-run scoring with every fold scored).
     pub fn scoring_note(&self) -> String {
         let mut out = String::new();
+        if let (CvScheme::BlockedKFold, Some(k)) = (self.scheme, self.blocks) {
+            out.push_str(&format!(
+                "  blocked {k}-fold within runs: each run's out-of-fold output scored, the rule pairs {} runs\n",
+                self.folds
+            ));
+        }
         if self.scoring == CvScoring::InsideRegion {
             out.push_str(&format!(
                 "  scored on the averaging windows inside each fold's training region ({} folds)\n",
@@ -451,6 +492,9 @@ pub fn select(
     mut progress: impl FnMut(usize, usize),
     replay: &ReplayRun<'_>,
 ) -> Result<Vec<Selection>, CalError> {
+    if options.scheme == CvScheme::BlockedKFold {
+        return select_blocked(runs, config, options, progress, replay);
+    }
     let axes = config.ingest.format.gyro_columns.len();
     let names: Vec<String> = runs.iter().map(|r| run_name(&r.path)).collect();
     let (grouping, groups) = cv_groups(&names, options.positions.as_deref());
@@ -519,6 +563,189 @@ pub fn select(
                 .collect();
             let mut s = axis_selection(axis, grouping, &folds, &inside, candidates, &held, &failed);
             s.scoring = options.scoring;
+            s
+        })
+        .collect())
+}
+
+/// The time blocks of one run: K equal spans of its feature times; times before the first
+/// or after the last belong to the first or last block.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RunBlocks {
+    /// First feature time, seconds.
+    pub start_s: f64,
+    /// Length of one block, seconds.
+    pub block_s: f64,
+    /// K.
+    pub count: usize,
+}
+
+impl RunBlocks {
+    /// The blocks of `run` (over the feature times of every axis).
+    pub fn of(run: &RunFeatures, count: usize) -> Self {
+        let times = run.axes.iter().flat_map(|(points, _)| points.iter().map(|p| p.time_s));
+        let (lo, hi) = times.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), t| (a.min(t), b.max(t)));
+        let (start_s, span_s) = if lo.is_finite() { (lo, (hi - lo).max(0.0)) } else { (0.0, 0.0) };
+        Self { start_s, block_s: span_s / count.max(1) as f64, count: count.max(1) }
+    }
+
+    /// The block holding time `t_s`.
+    pub fn block_of(&self, t_s: f64) -> usize {
+        if self.block_s.is_nan() || self.block_s <= 0.0 {
+            return 0;
+        }
+        let k = ((t_s - self.start_s) / self.block_s).floor();
+        k.clamp(0.0, (self.count - 1) as f64) as usize
+    }
+
+    /// Seconds from `t_s` to block `j` (0 inside it; the first and last blocks reach out
+    /// to the ends).
+    pub fn distance_to(&self, t_s: f64, j: usize) -> f64 {
+        let lo = if j == 0 { f64::NEG_INFINITY } else { self.start_s + j as f64 * self.block_s };
+        let hi =
+            if j + 1 >= self.count { f64::INFINITY } else { self.start_s + (j + 1) as f64 * self.block_s };
+        (lo - t_s).max(t_s - hi).max(0.0)
+    }
+}
+
+/// The block of run `run` that fold `fold` holds out (`(j + r) mod K = fold`).
+pub fn held_out_block(fold: usize, run: usize, k: usize) -> usize {
+    (fold + k - run % k) % k
+}
+
+/// `run` without block `j` and without the targets within `guard_s` of it; the points after
+/// the gap get their own segment numbers (`2 s + 1`; before it `2 s`), so that nothing
+/// treats the two sides as contiguous.
+pub fn without_block(run: &RunFeatures, blocks: &RunBlocks, j: usize, guard_s: f64) -> RunFeatures {
+    let axes = run
+        .axes
+        .iter()
+        .map(|(points, targets)| {
+            points
+                .iter()
+                .zip(targets)
+                .filter(|(p, _)| blocks.block_of(p.time_s) != j && blocks.distance_to(p.time_s, j) >= guard_s)
+                .map(|(p, &t)| {
+                    let after = blocks.block_of(p.time_s) > j;
+                    (
+                        FeaturePoint {
+                            segment: p.segment.saturating_mul(2).saturating_add(u32::from(after)),
+                            ..*p
+                        },
+                        t,
+                    )
+                })
+                .unzip()
+        })
+        .collect();
+    RunFeatures { path: run.path.clone(), ingest: run.ingest.clone(), axes }
+}
+
+/// [`select`] with [`CvScheme::BlockedKFold`].
+fn select_blocked(
+    runs: &[RunFeatures],
+    config: &CalibrationConfig,
+    options: &SelectionOptions,
+    mut progress: impl FnMut(usize, usize),
+    replay: &ReplayRun<'_>,
+) -> Result<Vec<Selection>, CalError> {
+    let axes = config.ingest.format.gyro_columns.len();
+    let names: Vec<String> = runs.iter().map(|r| run_name(&r.path)).collect();
+    let k = options.blocks;
+    if runs.len() < MIN_FOLDS || k < 2 {
+        let why =
+            if k < 2 { "blocked k-fold needs at least 2 blocks per run" } else { "too few calibration runs" };
+        return Ok(vec![Selection::fallback(Grouping::Runs, runs.len(), why); axes]);
+    }
+    let blocks: Vec<RunBlocks> = runs.iter().map(|r| RunBlocks::of(r, k)).collect();
+    let guard_s = config.target_window_s / 2.0;
+    let candidates = &options.candidates;
+    // Per candidate, per run: the out-of-fold series per axis (filled block by block).
+    let mut assembled: Vec<Vec<Vec<ReplaySeries>>> = vec![vec![Vec::new(); runs.len()]; candidates.len()];
+    let mut failed: Vec<Option<String>> = vec![None; candidates.len()];
+    for fold in 0..k {
+        progress(fold, k);
+        let training: Vec<RunFeatures> = runs
+            .iter()
+            .enumerate()
+            .map(|(r, run)| without_block(run, &blocks[r], held_out_block(fold, r, k), guard_s))
+            .collect();
+        let mut fitted: Vec<(usize, Vec<u8>)> = Vec::new();
+        for (c, &method) in candidates.iter().enumerate() {
+            if failed[c].is_some() {
+                continue;
+            }
+            let candidate = CalibrationConfig { method, ..config.clone() };
+            match fit_model(&training, &candidate, [0; 32]) {
+                Ok(model) => fitted.push((c, model.blob)),
+                Err(e) => failed[c] = Some(format!("fit without block fold {fold} failed: {e}")),
+            }
+        }
+        let models: Vec<Model<'_>> = fitted
+            .iter()
+            .map(|(_, blob)| Model::from_bytes(blob).map_err(CalError::SelfCheck))
+            .collect::<Result<_, _>>()?;
+        let refs: Vec<&Model<'_>> = models.iter().collect();
+        for r in 0..runs.len() {
+            let j = held_out_block(fold, r, k);
+            let Replay { models: per_model, .. } = replay(r, &refs)?;
+            for ((c, _), per_axis) in fitted.iter().zip(per_model) {
+                let slot = &mut assembled[*c][r];
+                if slot.is_empty() {
+                    *slot = per_axis;
+                    continue;
+                }
+                for (into, from) in slot.iter_mut().zip(&per_axis) {
+                    for (i, &t) in from.time_s.iter().enumerate() {
+                        if blocks[r].block_of(t) == j {
+                            if let (Some(a), Some(&b)) =
+                                (into.compensated_dph.get_mut(i), from.compensated_dph.get(i))
+                            {
+                                *a = b;
+                            }
+                            if let (Some(a), Some(&b)) = (into.bias_dph.get_mut(i), from.bias_dph.get(i)) {
+                                *a = b;
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+    // The first fold's replay filled every block; blocks held out by the first fold are
+    // its out-of-fold output, every other block was overwritten by its own fold above.
+    let held: Vec<Vec<Vec<HeldOutRun>>> = assembled
+        .iter()
+        .map(|per_run| {
+            (0..axes)
+                .map(|axis| {
+                    per_run
+                        .iter()
+                        .zip(&names)
+                        .filter_map(|(series, name)| {
+                            let series = series.get(axis)?;
+                            let scored = score_held_out(series, None, &options.stability);
+                            Some(HeldOutRun {
+                                run: name.clone(),
+                                group: name.clone(),
+                                bias_stability_dph: scored.bias_stability_dph,
+                                whole_run_bias_stability_dph: scored.bias_stability_dph,
+                                windows_scored: scored.windows_scored,
+                                windows_outside_region: 0,
+                            })
+                        })
+                        .collect()
+                })
+                .collect()
+        })
+        .collect();
+    let per_run = folds(&names);
+    let inside = vec![true; per_run.len()];
+    Ok((0..axes)
+        .map(|axis| {
+            let mut s = axis_selection(axis, Grouping::Runs, &per_run, &inside, candidates, &held, &failed);
+            s.scheme = CvScheme::BlockedKFold;
+            s.blocks = Some(k);
             s
         })
         .collect())
@@ -758,6 +985,8 @@ fn axis_selection(
         grouping,
         folds: usable.len(),
         scoring: CvScoring::WholeRun,
+        scheme: CvScheme::LeaveOneGroupOut,
+        blocks: None,
         skipped_folds,
         rule: RULE,
         warning: None,
@@ -1178,6 +1407,65 @@ mod tests {
         for r in runs_of(Method::Poly) {
             assert_eq!(r.bias_stability_dph.is_finite(), r.windows_scored >= MIN_SCORED_WINDOWS, "{r:?}");
         }
+    }
+
+    #[test]
+    fn blocked_k_fold_cuts_runs_into_blocks_and_rotates_them_over_the_folds() {
+        // Features every 10 s from 0 to 1000 s, one segment: K = 5 blocks of 200 s.
+        let mut run = run_spanning(&[(0.0, 0.0); 101]);
+        for (i, p) in run.axes[0].0.iter_mut().enumerate() {
+            p.time_s = 10.0 * i as f64;
+        }
+        let blocks = RunBlocks::of(&run, 5);
+        assert_eq!((blocks.start_s, blocks.block_s, blocks.count), (0.0, 200.0, 5));
+        assert_eq!([blocks.block_of(-5.0), blocks.block_of(199.9), blocks.block_of(200.0)], [0, 0, 1]);
+        assert_eq!(blocks.block_of(1000.0), 4, "the end belongs to the last block");
+        assert_eq!(
+            [blocks.distance_to(150.0, 1), blocks.distance_to(450.0, 1), blocks.distance_to(300.0, 1)],
+            [50.0, 50.0, 0.0]
+        );
+        assert_eq!(blocks.distance_to(-100.0, 0), 0.0, "the first block reaches to the start");
+        // Fold f holds out block (f - r) mod K of run r: every (run, block) exactly once.
+        for r in 0..7 {
+            let mut held: Vec<usize> = (0..5).map(|f| held_out_block(f, r, 5)).collect();
+            assert_eq!(held_out_block(r % 5, r, 5), 0);
+            held.sort();
+            assert_eq!(held, [0, 1, 2, 3, 4]);
+        }
+        // Block 2 (400..600 s) out, with a 50 s guard: times 360..640 s go (29 points).
+        let cut = without_block(&run, &blocks, 2, 50.0);
+        let times: Vec<f64> = cut.axes[0].0.iter().map(|p| p.time_s).collect();
+        assert_eq!(times.len(), 101 - 29);
+        assert!(times.iter().all(|&t| !(355.0..645.0).contains(&t)), "{times:?}");
+        assert_eq!(cut.axes[0].1.len(), times.len());
+        let segments: Vec<(f64, u32)> = cut.axes[0].0.iter().map(|p| (p.time_s, p.segment)).collect();
+        assert!(segments.iter().all(|&(t, s)| s == u32::from(t > 500.0)), "{segments:?}");
+    }
+
+    #[test]
+    fn blocked_k_fold_scores_every_run_out_of_fold() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let logs = write_runs(dir.path(), |t, rate| 0.8 * rate + 0.05 * (t - 10.0) / 40.0);
+        let config = CalibrationConfig { method: Method::Auto, ..CalibrationConfig::default() };
+        let runs: Vec<RunFeatures> =
+            logs.iter().map(|l| extract_run(l, &config, |_, _| {}).expect("features")).collect();
+        let options = SelectionOptions { scheme: CvScheme::BlockedKFold, ..SelectionOptions::default() };
+        let fitted =
+            crate::calibrate::fit_model_with(&runs, &config, [0; 32], &options, |_, _| {}).expect("fits");
+        let s = fitted.axes[0].selection.clone().expect("auto records its choice");
+        eprintln!("{}", s.table());
+        assert_eq!((s.scheme, s.blocks, s.folds), (CvScheme::BlockedKFold, Some(DEFAULT_BLOCKS), 6));
+        assert_ne!(s.method, Method::CubicT, "{}", s.table());
+        let cubic = s.candidates.iter().find(|c| c.method == Method::CubicT).expect("cubic-t");
+        assert!(!cubic.within_one_standard_error, "{}", s.table());
+        // Each run scored once, over its whole length (40 min: 23 or 24 windows after the
+        // tracker's start-up).
+        assert_eq!(cubic.runs.len(), 6);
+        assert!(
+            cubic.runs.iter().all(|r| r.windows_scored >= 23 && r.bias_stability_dph.is_finite()),
+            "{:?}",
+            cubic.runs
+        );
     }
 
     #[test]

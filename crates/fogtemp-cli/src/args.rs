@@ -218,6 +218,15 @@ pub enum CvScoringArg {
     InsideRegion,
 }
 
+/// How `auto` forms its folds (hidden; docs/calibration-testbed.md).
+#[derive(Debug, Clone, Copy, ValueEnum, PartialEq, Eq)]
+pub enum CvSchemeArg {
+    /// Leave one run (or position) out.
+    LeaveOneOut,
+    /// Every run cut into --cv-blocks contiguous blocks, one block of each run per fold.
+    BlockedKFold,
+}
+
 /// `fit` arguments.
 #[derive(Debug, Args)]
 pub struct FitArgs {
@@ -247,6 +256,13 @@ pub struct FitArgs {
     /// training runs' calibrated region (docs/calibration-testbed.md).
     #[arg(long, value_enum, default_value_t = CvScoringArg::WholeRun, hide = true)]
     pub cv_scoring: CvScoringArg,
+    /// How `auto` forms its folds: leave one run (position) out, or blocked K-fold within
+    /// runs (docs/calibration-testbed.md).
+    #[arg(long, value_enum, default_value_t = CvSchemeArg::LeaveOneOut, hide = true)]
+    pub cv_scheme: CvSchemeArg,
+    /// Blocks per run (K) for `--cv-scheme blocked-k-fold`.
+    #[arg(long, default_value_t = fogtemp_cal::selection::DEFAULT_BLOCKS, hide = true)]
+    pub cv_blocks: usize,
     /// Feature window (smoothing of T and dT/dt), seconds.
     #[arg(long, default_value_t = 100.0, help_heading = "Features")]
     pub window_s: f32,

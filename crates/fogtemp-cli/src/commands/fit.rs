@@ -5,12 +5,12 @@ use fogtemp_cal::calibrate::{self, CalibrationConfig, Method, Thinning};
 use fogtemp_cal::documents::FitDocument;
 use fogtemp_cal::poly_fit::TermSelection;
 use fogtemp_cal::runs::{Role, RunsFile};
-use fogtemp_cal::selection::{CvScoring, Grouping, SelectionOptions};
+use fogtemp_cal::selection::{CvScheme, CvScoring, Grouping, SelectionOptions};
 use fogtemp_cal::thin::GreedyThinning;
 use fogtemp_core::{FeatureSettings, Model};
 
 use super::{capacity_fits, ingest_options, print_json, report_skipped};
-use crate::args::{CvScoringArg, FitArgs, MethodArg, PolyArg, ThinningArg};
+use crate::args::{CvSchemeArg, CvScoringArg, FitArgs, MethodArg, PolyArg, ThinningArg};
 use crate::output::{digest_files, expand_logs, write_atomic, RowProgress};
 
 /// The `fit` command.
@@ -79,6 +79,11 @@ pub fn fit(a: FitArgs) -> Result<()> {
             CvScoringArg::WholeRun => CvScoring::WholeRun,
             CvScoringArg::InsideRegion => CvScoring::InsideRegion,
         },
+        scheme: match a.cv_scheme {
+            CvSchemeArg::LeaveOneOut => CvScheme::LeaveOneGroupOut,
+            CvSchemeArg::BlockedKFold => CvScheme::BlockedKFold,
+        },
+        blocks: a.cv_blocks,
         ..SelectionOptions::default()
     };
     let bar = indicatif::ProgressBar::new(0).with_message("cross-validation (folds)");
