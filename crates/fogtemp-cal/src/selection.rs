@@ -103,7 +103,7 @@ impl Default for SelectionOptions {
             positions: None,
             stability: BiasStabilityOptions::default(),
             inside_range_only: false,
-            scoring: CvScoring::WholeRun,
+            scoring: CvScoring::InsideRegion,
             scheme: CvScheme::LeaveOneGroupOut,
             blocks: DEFAULT_BLOCKS,
         }
@@ -1179,7 +1179,12 @@ mod tests {
             let x = (t - 10.0) / 40.0;
             0.3 * x + 0.2 * x * x - 0.15 * x * x * x
         });
-        assert_eq!((s.folds, s.grouping, s.warning.as_deref()), (6, Grouping::Runs, None));
+        assert_eq!((s.folds, s.grouping, s.warning.as_deref()), (4, Grouping::Runs, None));
+        // Scored inside each fold's training region (the default): run1 (cooling -15 ->
+        // -25 C) is the only run cooling below -15 C, run4 (heating 30 -> 45 C) the only
+        // one heating above 30 C, so no window of theirs lies inside the others' region.
+        let skipped: Vec<&str> = s.skipped_folds.iter().map(|f| f.group.as_str()).collect();
+        assert_eq!(skipped, ["run1", "run4"], "{}", s.table());
         assert!(matches!(s.method, Method::CubicT | Method::Poly), "{}", s.table());
         let chosen = s.candidates.iter().find(|c| c.method == s.method).expect("chosen is a candidate");
         assert!(chosen.within_one_standard_error, "{}", s.table());

@@ -254,7 +254,7 @@ pub struct FitArgs {
     pub cv_inside_range_only: bool,
     /// How `auto` scores a held-out run: every window, or only the windows inside the
     /// training runs' calibrated region (docs/calibration-testbed.md).
-    #[arg(long, value_enum, default_value_t = CvScoringArg::WholeRun, hide = true)]
+    #[arg(long, value_enum, default_value_t = CvScoringArg::InsideRegion, hide = true)]
     pub cv_scoring: CvScoringArg,
     /// How `auto` forms its folds: leave one run (position) out, or blocked K-fold within
     /// runs (docs/calibration-testbed.md).
