@@ -2,7 +2,7 @@
 //!
 //! Every candidate method ([`CANDIDATES`]: `cubic-t`, `poly`, `mesh`, `hybrid`) is fitted
 //! on the training runs of each fold with [`fit_model`] and its held-out runs are replayed
-//! through the core `Compensator` with [`validate_models`], exactly as `validate` replays
+//! through the core `Compensator` with [`validate_models`](crate::calibrate::validate_models), exactly as `validate` replays
 //! logs. The features of every run are extracted once (by the caller) and reused in every
 //! fold; only the held-out logs are read again, once per fold for all candidates together.
 //!
@@ -11,7 +11,13 @@
 //!   there are at least 3 of them ([`cv_groups`], [`folds`]);
 //! - fold score `s_g(m)`: the compensated bias stability of candidate `m` on the held-out
 //!   runs of fold `g`, RMS over those runs (what `validate` reports overall; with one run
-//!   per fold, that run's bias stability);
+//!   per fold, that run's bias stability). By default ([`CvScoring::InsideRegion`]) a
+//!   held-out run is scored only on its averaging windows inside the training runs'
+//!   calibrated region: a held-out run outside the other runs' (T, dT/dt) range would
+//!   otherwise make the fold an extrapolation test, which the final model, fitted on every
+//!   run, does not face on validation runs inside its region. A fold without a scored run
+//!   is skipped ([`Selection::skipped_folds`]). [`CvScheme::BlockedKFold`] is a second,
+//!   optional scheme (blocks of every run instead of whole runs);
 //! - cross-validated bias stability `S(m)`: the mean of `s_g(m)` over the `K` folds, with
 //!   standard error `sd_g(s_g(m)) / sqrt(K)`;
 //! - rule ([`choose`]): `best` has the lowest `S`; the chosen method is the simplest
