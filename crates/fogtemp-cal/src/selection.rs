@@ -3,8 +3,9 @@
 //! Every candidate method ([`CANDIDATES`]: `cubic-t`, `poly`, `mesh`, `hybrid`) is fitted
 //! on the training runs of each fold with [`fit_model`] and its held-out runs are replayed
 //! through the core `Compensator` as
-//! [`validate_models`](crate::calibrate::validate_models) replays logs for `validate`. The features of every run are extracted once (by the caller) and reused in every
-//! fold; only the held-out logs are read again, once per fold for all candidates together.
+//! [`validate_models`](crate::calibrate::validate_models) replays logs for `validate`. The
+//! features of every run are extracted once (by the caller) and reused in every fold; only
+//! the held-out logs are read again, once per fold for all candidates together.
 //!
 //! Definitions (per gyro axis):
 //! - folds: leave-one-run-out, or leave-one-group-out when groups (positions) are given and
