@@ -17,6 +17,8 @@ Usage:
   python3 scripts/testbed_calibration.py [--bin target/release/fogtemp-cal] \\
       [--methods cubic-t,poly,mesh,hybrid,auto] [--json > rows.json] TB/seed1 ...
   python3 scripts/testbed_calibration.py --rows rows.json     # the table again from saved rows
+  python3 scripts/testbed_calibration.py --rows rows.json --auto-rows auto-X.json
+      # the fixed-method columns of rows.json with the auto columns of an `--methods auto` run
 """
 import argparse
 import csv
@@ -83,6 +85,20 @@ def case_rows(binary, case_dir, methods, tmp):
     return row
 
 
+def merge_auto(rows, auto_rows):
+    """`rows` with the auto columns of the same case replaced by those of `auto_rows`."""
+    by_case = {r["case"]: r for r in auto_rows}
+    missing = [r["case"] for r in rows if r["case"] not in by_case]
+    if missing:
+        raise SystemExit(f"--auto-rows has no row for {', '.join(missing)}")
+    merged = []
+    for r in rows:
+        r = {k: v for k, v in r.items() if not k.startswith("auto")}
+        r.update({k: v for k, v in by_case[r["case"]].items() if k.startswith("auto")})
+        merged.append(r)
+    return merged
+
+
 def finite(v):
     return v == v
 
@@ -93,12 +109,16 @@ def main():
     ap.add_argument("--methods", default="cubic-t,poly,mesh,hybrid,auto")
     ap.add_argument("--json", action="store_true", help="print the rows as JSON instead of Markdown")
     ap.add_argument("--rows", help="render the table from rows saved with --json instead of running")
+    ap.add_argument("--auto-rows", help="with --rows: take the auto columns (auto, auto_chose, auto_cv) of "
+                    "each case from this file (rows of an `--methods auto --json` run)")
     ap.add_argument("seeds", nargs="*", help="folders written by gen.py --out")
     a = ap.parse_args()
     methods = a.methods.split(",")
     rows = []
     if a.rows:
         rows = json.load(open(a.rows))
+    if a.auto_rows:
+        rows = merge_auto(rows, json.load(open(a.auto_rows)))
     with tempfile.TemporaryDirectory() as tmp:
         for seed in a.seeds:
             for case in sorted(glob.glob(os.path.join(seed, "case*"))):

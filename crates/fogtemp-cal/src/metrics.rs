@@ -104,7 +104,7 @@ pub fn sample_std(values: &[f64]) -> f64 {
     (values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (values.len() - 1) as f64).sqrt()
 }
 
-fn detrend(values: &mut [f64]) {
+pub(crate) fn detrend(values: &mut [f64]) {
     let n = values.len() as f64;
     if n < 3.0 {
         return;

@@ -2,16 +2,23 @@
 //!
 //! Every candidate method ([`CANDIDATES`]: `cubic-t`, `poly`, `mesh`, `hybrid`) is fitted
 //! on the training runs of each fold with [`fit_model`] and its held-out runs are replayed
-//! through the core `Compensator` with [`validate_models`], exactly as `validate` replays
-//! logs. The features of every run are extracted once (by the caller) and reused in every
-//! fold; only the held-out logs are read again, once per fold for all candidates together.
+//! through the core `Compensator` as
+//! [`validate_models`](crate::calibrate::validate_models) replays logs for `validate`. The
+//! features of every run are extracted once (by the caller) and reused in every fold; only
+//! the held-out logs are read again, once per fold for all candidates together.
 //!
 //! Definitions (per gyro axis):
 //! - folds: leave-one-run-out, or leave-one-group-out when groups (positions) are given and
 //!   there are at least 3 of them ([`cv_groups`], [`folds`]);
 //! - fold score `s_g(m)`: the compensated bias stability of candidate `m` on the held-out
 //!   runs of fold `g`, RMS over those runs (what `validate` reports overall; with one run
-//!   per fold, that run's bias stability);
+//!   per fold, that run's bias stability). By default ([`CvScoring::InsideRegion`]) a
+//!   held-out run is scored only on its averaging windows inside the training runs'
+//!   calibrated region: a held-out run outside the other runs' (T, dT/dt) range would
+//!   otherwise make the fold an extrapolation test, which the final model, fitted on every
+//!   run, does not face on validation runs inside its region. A fold without a scored run
+//!   is skipped ([`Selection::skipped_folds`]). [`CvScheme::BlockedKFold`] is a second,
+//!   optional scheme (blocks of every run instead of whole runs);
 //! - cross-validated bias stability `S(m)`: the mean of `s_g(m)` over the `K` folds, with
 //!   standard error `sd_g(s_g(m)) / sqrt(K)`;
 //! - rule ([`choose`]): `best` has the lowest `S`; the chosen method is the simplest
@@ -39,11 +46,16 @@ use fogtemp_core::wire::{
     SELECTION_BY_GROUPS, SELECTION_BY_RUNS, SELECTION_CUBIC_T, SELECTION_FALLBACK, SELECTION_HYBRID,
     SELECTION_MESH, SELECTION_NONE, SELECTION_POLY,
 };
-use fogtemp_core::Model;
+use fogtemp_core::{Model, Normalisation};
 use serde::Serialize;
 
-use crate::calibrate::{fit_model, validations, CalibrationConfig, Method, Replay, RunFeatures};
+use crate::calibrate::{
+    calibration_points, choose_normalisation, fit_model, validations, CalibrationConfig, Method, Replay,
+    ReplaySeries, RunFeatures,
+};
 use crate::error::CalError;
+use crate::features::FeaturePoint;
+use crate::mesh::MeshPoint;
 use crate::metrics::{rms_over_runs, BiasStabilityOptions};
 use crate::runs::run_name;
 
@@ -83,6 +95,12 @@ pub struct SelectionOptions {
     /// the range tests an extrapolation the final model, fitted on every run, does not make
     /// inside its calibrated range). See docs/calibration-testbed.md.
     pub inside_range_only: bool,
+    /// How a held-out run is scored ([`CvScoring`]).
+    pub scoring: CvScoring,
+    /// How folds are formed ([`CvScheme`]).
+    pub scheme: CvScheme,
+    /// Blocks per run (K) for [`CvScheme::BlockedKFold`].
+    pub blocks: usize,
 }
 
 impl Default for SelectionOptions {
@@ -92,9 +110,66 @@ impl Default for SelectionOptions {
             positions: None,
             stability: BiasStabilityOptions::default(),
             inside_range_only: false,
+            scoring: CvScoring::InsideRegion,
+            scheme: CvScheme::LeaveOneGroupOut,
+            blocks: DEFAULT_BLOCKS,
         }
     }
 }
+
+/// How the folds of the cross-validation are formed.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum CvScheme {
+    /// Leave one run (or position) out ([`cv_groups`], [`folds`]).
+    LeaveOneGroupOut,
+    /// Blocked K-fold within runs: every run cut into K contiguous time blocks, block `j`
+    /// of run `r` held out by fold `(j + r) mod K`; each run's out-of-fold compensated
+    /// output (every sample compensated by the model of the fold that held its block out)
+    /// is scored as `validate` scores a run, and the rule pairs the candidates over the
+    /// runs. Every fold trains on every run (all temperatures and rates, minus one block of
+    /// each), so a held-out block is interpolated, not extrapolated; training targets
+    /// within half a target window of a held-out block are left out too (their centred
+    /// smoothing reaches into it).
+    BlockedKFold,
+}
+
+/// Default K of [`CvScheme::BlockedKFold`] (the usual 5-fold: each fold trains on 80 % of
+/// every run). Chosen before measuring.
+pub const DEFAULT_BLOCKS: usize = 5;
+
+/// How a held-out run's compensated output is scored.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum CvScoring {
+    /// Every averaging window of the run (as `validate` scores a run).
+    WholeRun,
+    /// Only the averaging windows whose every 1 s block lies inside the training runs'
+    /// calibrated region (the convex hull of their calibration points in the normalised
+    /// (T, dT/dt) plane, the blob's region): what the model fitted on the training runs
+    /// interpolates, as the final model does on validation runs inside its calibrated
+    /// region. The same windows for every candidate (the tracker, hence the block
+    /// features, does not depend on the model).
+    InsideRegion,
+}
+
+impl CvScoring {
+    /// The name `fit --cv-scoring` takes.
+    pub fn name(self) -> &'static str {
+        match self {
+            CvScoring::WholeRun => "whole-run",
+            CvScoring::InsideRegion => "inside-region",
+        }
+    }
+}
+
+/// Fewest averaging windows inside the training region for a held-out run to be scored
+/// with [`CvScoring::InsideRegion`]. The sample standard deviation of `n` window means has a
+/// relative standard error of about `1 / sqrt(2 (n - 1))`: 71 % with the 2 windows a
+/// standard deviation needs at all, 24 % with 10 (1000 s of 100 s windows); a held-out run
+/// scored on fewer would add more sampling noise to its fold's score than the candidates
+/// differ by. Chosen before measuring.
+pub const MIN_SCORED_WINDOWS: usize = 10;
 
 /// What a fold holds out.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
@@ -219,8 +294,25 @@ pub struct HeldOutRun {
     pub run: String,
     /// The fold that held it out (its group label).
     pub group: String,
-    /// Compensated bias stability of the run by the model fitted without its fold, deg/h.
+    /// Compensated bias stability of the run by the model fitted without its fold, deg/h,
+    /// over the windows scored (NaN when too few: see [`MIN_SCORED_WINDOWS`]).
     pub bias_stability_dph: f64,
+    /// The same over every window of the run (as `validate` scores it), deg/h.
+    pub whole_run_bias_stability_dph: f64,
+    /// Averaging windows scored.
+    pub windows_scored: usize,
+    /// Averaging windows left out because some block lies outside the training runs'
+    /// calibrated region (0 with [`CvScoring::WholeRun`]).
+    pub windows_outside_region: usize,
+}
+
+/// A fold the rule did not use, and why.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct SkippedFold {
+    /// The fold's group label.
+    pub group: String,
+    /// Why it was skipped.
+    pub reason: String,
 }
 
 /// One candidate's cross-validation.
@@ -259,6 +351,15 @@ pub struct Selection {
     pub grouping: Grouping,
     /// Folds scored.
     pub folds: usize,
+    /// How held-out runs were scored.
+    pub scoring: CvScoring,
+    /// How the folds were formed. With [`CvScheme::BlockedKFold`], `folds` counts the runs
+    /// scored (the units the rule pairs) and `blocks` is K.
+    pub scheme: CvScheme,
+    /// K, with [`CvScheme::BlockedKFold`].
+    pub blocks: Option<usize>,
+    /// Folds left out of the rule, with why (empty when every fold was scored).
+    pub skipped_folds: Vec<SkippedFold>,
     /// The rule ([`RULE`]).
     pub rule: &'static str,
     /// Set when cross-validation was impossible and the default was fitted: why.
@@ -297,6 +398,10 @@ impl Selection {
             best: None,
             grouping,
             folds: 0,
+            scoring: CvScoring::WholeRun,
+            scheme: CvScheme::LeaveOneGroupOut,
+            blocks: None,
+            skipped_folds: Vec::new(),
             rule: RULE,
             warning: Some(format!(
                 "{why} ({folds} {unit}; cross-validation needs at least {MIN_FOLDS}): fitted the default method, \
@@ -331,6 +436,29 @@ impl Selection {
                     c.difference_standard_error_dph
                 )),
             }
+        }
+        out.push_str(&self.scoring_note());
+        out
+    }
+
+    /// How the held-out runs were scored and which folds were skipped, one line each (empty
+    /// for whole-run scoring with every fold scored).
+    pub fn scoring_note(&self) -> String {
+        let mut out = String::new();
+        if let (CvScheme::BlockedKFold, Some(k)) = (self.scheme, self.blocks) {
+            out.push_str(&format!(
+                "  blocked {k}-fold within runs: each run's out-of-fold output scored, the rule pairs {} runs\n",
+                self.folds
+            ));
+        }
+        if self.scoring == CvScoring::InsideRegion {
+            out.push_str(&format!(
+                "  scored on the averaging windows inside each fold's training region ({} folds)\n",
+                self.folds
+            ));
+        }
+        for f in &self.skipped_folds {
+            out.push_str(&format!("  fold '{}' skipped: {}\n", f.group, f.reason));
         }
         out
     }
@@ -371,6 +499,9 @@ pub fn select(
     mut progress: impl FnMut(usize, usize),
     replay: &ReplayRun<'_>,
 ) -> Result<Vec<Selection>, CalError> {
+    if options.scheme == CvScheme::BlockedKFold {
+        return select_blocked(runs, config, options, progress, replay);
+    }
     let axes = config.ingest.format.gyro_columns.len();
     let names: Vec<String> = runs.iter().map(|r| run_name(&r.path)).collect();
     let (grouping, groups) = cv_groups(&names, options.positions.as_deref());
@@ -408,15 +539,26 @@ pub fn select(
         let refs: Vec<&Model<'_>> = models.iter().collect();
         let replays = fold.held_out.iter().map(|&i| Ok((runs[i].path.clone(), replay(i, &refs)?)));
         let validations = validations(refs.len(), replays, &options.stability)?;
+        // Per axis, the training runs' calibrated region (with inside-region scoring).
+        let regions: Vec<Option<TrainingRegion>> = (0..axes)
+            .map(|axis| {
+                (options.scoring == CvScoring::InsideRegion)
+                    .then(|| TrainingRegion::of(&training, axis, config))
+            })
+            .collect();
         for ((c, _), validation) in fitted.iter().zip(validations) {
             for r in validation.runs {
-                if let Some(axis_runs) = held[*c].get_mut(r.axis) {
-                    axis_runs.push(HeldOutRun {
-                        run: run_name(&r.path),
-                        group: fold.label.clone(),
-                        bias_stability_dph: r.compensated_bias_stability_dph,
-                    });
-                }
+                let Some(axis_runs) = held[*c].get_mut(r.axis) else { continue };
+                let region = regions.get(r.axis).and_then(Option::as_ref);
+                let scored = score_held_out(&r.series, region, &options.stability);
+                axis_runs.push(HeldOutRun {
+                    run: run_name(&r.path),
+                    group: fold.label.clone(),
+                    bias_stability_dph: scored.bias_stability_dph,
+                    whole_run_bias_stability_dph: r.compensated_bias_stability_dph,
+                    windows_scored: scored.windows_scored,
+                    windows_outside_region: scored.windows_outside_region,
+                });
             }
         }
     }
@@ -426,9 +568,324 @@ pub fn select(
                 .iter()
                 .map(|f| !options.inside_range_only || within_training_range(runs, axis, &f.held_out))
                 .collect();
-            axis_selection(axis, grouping, &folds, &inside, candidates, &held, &failed)
+            let mut s = axis_selection(axis, grouping, &folds, &inside, candidates, &held, &failed);
+            s.scoring = options.scoring;
+            s
         })
         .collect())
+}
+
+/// The time blocks of one run: K equal spans of its feature times; times before the first
+/// or after the last belong to the first or last block.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RunBlocks {
+    /// First feature time, seconds.
+    pub start_s: f64,
+    /// Length of one block, seconds.
+    pub block_s: f64,
+    /// K.
+    pub count: usize,
+}
+
+impl RunBlocks {
+    /// The blocks of `run` (over the feature times of every axis).
+    pub fn of(run: &RunFeatures, count: usize) -> Self {
+        let times = run.axes.iter().flat_map(|(points, _)| points.iter().map(|p| p.time_s));
+        let (lo, hi) = times.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), t| (a.min(t), b.max(t)));
+        let (start_s, span_s) = if lo.is_finite() { (lo, (hi - lo).max(0.0)) } else { (0.0, 0.0) };
+        Self { start_s, block_s: span_s / count.max(1) as f64, count: count.max(1) }
+    }
+
+    /// The block holding time `t_s`.
+    pub fn block_of(&self, t_s: f64) -> usize {
+        if self.block_s.is_nan() || self.block_s <= 0.0 {
+            return 0;
+        }
+        let k = ((t_s - self.start_s) / self.block_s).floor();
+        k.clamp(0.0, (self.count - 1) as f64) as usize
+    }
+
+    /// Seconds from `t_s` to block `j` (0 inside it; the first and last blocks reach out
+    /// to the ends).
+    pub fn distance_to(&self, t_s: f64, j: usize) -> f64 {
+        let lo = if j == 0 { f64::NEG_INFINITY } else { self.start_s + j as f64 * self.block_s };
+        let hi =
+            if j + 1 >= self.count { f64::INFINITY } else { self.start_s + (j + 1) as f64 * self.block_s };
+        (lo - t_s).max(t_s - hi).max(0.0)
+    }
+}
+
+/// The block of run `run` that fold `fold` holds out (`(j + r) mod K = fold`).
+pub fn held_out_block(fold: usize, run: usize, k: usize) -> usize {
+    (fold + k - run % k) % k
+}
+
+/// `run` without block `j` and without the targets within `guard_s` of it; the points after
+/// the gap get their own segment numbers (`2 s + 1`; before it `2 s`), so that nothing
+/// treats the two sides as contiguous.
+pub fn without_block(run: &RunFeatures, blocks: &RunBlocks, j: usize, guard_s: f64) -> RunFeatures {
+    let axes = run
+        .axes
+        .iter()
+        .map(|(points, targets)| {
+            points
+                .iter()
+                .zip(targets)
+                .filter(|(p, _)| blocks.block_of(p.time_s) != j && blocks.distance_to(p.time_s, j) >= guard_s)
+                .map(|(p, &t)| {
+                    let after = blocks.block_of(p.time_s) > j;
+                    (
+                        FeaturePoint {
+                            segment: p.segment.saturating_mul(2).saturating_add(u32::from(after)),
+                            ..*p
+                        },
+                        t,
+                    )
+                })
+                .unzip()
+        })
+        .collect();
+    RunFeatures { path: run.path.clone(), ingest: run.ingest.clone(), axes }
+}
+
+/// [`select`] with [`CvScheme::BlockedKFold`].
+fn select_blocked(
+    runs: &[RunFeatures],
+    config: &CalibrationConfig,
+    options: &SelectionOptions,
+    mut progress: impl FnMut(usize, usize),
+    replay: &ReplayRun<'_>,
+) -> Result<Vec<Selection>, CalError> {
+    let axes = config.ingest.format.gyro_columns.len();
+    let names: Vec<String> = runs.iter().map(|r| run_name(&r.path)).collect();
+    let k = options.blocks;
+    if runs.len() < MIN_FOLDS || k < 2 {
+        let why =
+            if k < 2 { "blocked k-fold needs at least 2 blocks per run" } else { "too few calibration runs" };
+        return Ok(vec![Selection::fallback(Grouping::Runs, runs.len(), why); axes]);
+    }
+    let blocks: Vec<RunBlocks> = runs.iter().map(|r| RunBlocks::of(r, k)).collect();
+    let guard_s = config.target_window_s / 2.0;
+    let candidates = &options.candidates;
+    // Per candidate, per run: the out-of-fold series per axis (filled block by block).
+    let mut assembled: Vec<Vec<Vec<ReplaySeries>>> = vec![vec![Vec::new(); runs.len()]; candidates.len()];
+    let mut failed: Vec<Option<String>> = vec![None; candidates.len()];
+    for fold in 0..k {
+        progress(fold, k);
+        let training: Vec<RunFeatures> = runs
+            .iter()
+            .enumerate()
+            .map(|(r, run)| without_block(run, &blocks[r], held_out_block(fold, r, k), guard_s))
+            .collect();
+        let mut fitted: Vec<(usize, Vec<u8>)> = Vec::new();
+        for (c, &method) in candidates.iter().enumerate() {
+            if failed[c].is_some() {
+                continue;
+            }
+            let candidate = CalibrationConfig { method, ..config.clone() };
+            match fit_model(&training, &candidate, [0; 32]) {
+                Ok(model) => fitted.push((c, model.blob)),
+                Err(e) => failed[c] = Some(format!("fit without block fold {fold} failed: {e}")),
+            }
+        }
+        let models: Vec<Model<'_>> = fitted
+            .iter()
+            .map(|(_, blob)| Model::from_bytes(blob).map_err(CalError::SelfCheck))
+            .collect::<Result<_, _>>()?;
+        let refs: Vec<&Model<'_>> = models.iter().collect();
+        for r in 0..runs.len() {
+            let j = held_out_block(fold, r, k);
+            let Replay { models: per_model, .. } = replay(r, &refs)?;
+            for ((c, _), per_axis) in fitted.iter().zip(per_model) {
+                let slot = &mut assembled[*c][r];
+                if slot.is_empty() {
+                    *slot = per_axis;
+                    continue;
+                }
+                for (into, from) in slot.iter_mut().zip(&per_axis) {
+                    for (i, &t) in from.time_s.iter().enumerate() {
+                        if blocks[r].block_of(t) == j {
+                            if let (Some(a), Some(&b)) =
+                                (into.compensated_dph.get_mut(i), from.compensated_dph.get(i))
+                            {
+                                *a = b;
+                            }
+                            if let (Some(a), Some(&b)) = (into.bias_dph.get_mut(i), from.bias_dph.get(i)) {
+                                *a = b;
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+    // The first fold's replay filled every block; blocks held out by the first fold are
+    // its out-of-fold output, every other block was overwritten by its own fold above.
+    let held: Vec<Vec<Vec<HeldOutRun>>> = assembled
+        .iter()
+        .map(|per_run| {
+            (0..axes)
+                .map(|axis| {
+                    per_run
+                        .iter()
+                        .zip(&names)
+                        .filter_map(|(series, name)| {
+                            let series = series.get(axis)?;
+                            let scored = score_held_out(series, None, &options.stability);
+                            Some(HeldOutRun {
+                                run: name.clone(),
+                                group: name.clone(),
+                                bias_stability_dph: scored.bias_stability_dph,
+                                whole_run_bias_stability_dph: scored.bias_stability_dph,
+                                windows_scored: scored.windows_scored,
+                                windows_outside_region: 0,
+                            })
+                        })
+                        .collect()
+                })
+                .collect()
+        })
+        .collect();
+    let per_run = folds(&names);
+    let inside = vec![true; per_run.len()];
+    Ok((0..axes)
+        .map(|axis| {
+            let mut s = axis_selection(axis, Grouping::Runs, &per_run, &inside, candidates, &held, &failed);
+            s.scheme = CvScheme::BlockedKFold;
+            s.blocks = Some(k);
+            s
+        })
+        .collect())
+}
+
+/// The calibrated region of the training runs of a fold on one axis, as `fit` stores it in
+/// the blob: the convex hull of their calibration points in the normalised plane.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TrainingRegion {
+    normalisation: Normalisation,
+    /// Counter-clockwise vertices (empty: fewer than 3 distinct points, nothing is inside).
+    vertices: Vec<[f32; 2]>,
+}
+
+impl TrainingRegion {
+    /// The region of `training`'s calibration points on `axis`, with `fit`'s normalisation.
+    pub fn of(training: &[RunFeatures], axis: usize, config: &CalibrationConfig) -> Self {
+        let block_s = f64::from(config.features.window_s) / f64::from(config.features.block_count);
+        let calibration =
+            calibration_points(training, axis, config.full_windows_only, block_s, config.target_window_s);
+        let Ok(mut normalisation) = choose_normalisation(&calibration.points) else {
+            let normalisation = Normalisation {
+                temp_offset_c: 0.0,
+                temp_scale_per_c: 1.0,
+                rate_offset_c_per_min: 0.0,
+                rate_scale_per_c_per_min: 1.0,
+            };
+            return Self { normalisation, vertices: Vec::new() };
+        };
+        if config.rate_axis_weight.is_finite() && config.rate_axis_weight > 0.0 {
+            normalisation.rate_scale_per_c_per_min *= config.rate_axis_weight as f32;
+        }
+        Self::from_points(&calibration.points, normalisation)
+    }
+
+    /// The hull of `points` in the plane of `normalisation`.
+    pub fn from_points(points: &[MeshPoint], normalisation: Normalisation) -> Self {
+        let plane: Vec<(f32, f32)> =
+            points.iter().map(|p| crate::mesh::normalised(p, &normalisation)).collect();
+        Self { normalisation, vertices: crate::blob::calibrated_region(&plane) }
+    }
+
+    /// Whether `(temp_c, rate_c_per_min)` lies inside or on the region (the core's test,
+    /// `fogtemp_core::Region::contains`); false for non-finite features.
+    pub fn contains(&self, temp_c: f64, rate_c_per_min: f64) -> bool {
+        if self.vertices.len() < 3 || !temp_c.is_finite() || !rate_c_per_min.is_finite() {
+            return false;
+        }
+        let (x, y) = self.normalisation.apply(temp_c as f32, rate_c_per_min as f32);
+        let n = self.vertices.len();
+        (0..n).all(|i| {
+            let ([ax, ay], [bx, by]) = (self.vertices[i], self.vertices[(i + 1) % n]);
+            (bx - ax) * (y - ay) - (by - ay) * (x - ax) >= 0.0
+        })
+    }
+}
+
+/// A held-out run's score over the windows scored.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct HeldOutScore {
+    /// Compensated bias stability over the windows scored, deg/h (NaN with too few).
+    pub bias_stability_dph: f64,
+    /// Windows scored.
+    pub windows_scored: usize,
+    /// Full windows left out because a block lies outside the region.
+    pub windows_outside_region: usize,
+}
+
+/// Scores a replayed held-out run as `validate` does (from the first compensated block, the
+/// same averaging windows), over every window (`region` None) or only over the windows whose
+/// every block's tracker features lie inside `region`; with a region, fewer than
+/// [`MIN_SCORED_WINDOWS`] such windows give NaN.
+pub fn score_held_out(
+    series: &ReplaySeries,
+    region: Option<&TrainingRegion>,
+    options: &BiasStabilityOptions,
+) -> HeldOutScore {
+    let from = series.first_compensated_block(1.0).min(series.time_s.len());
+    let times = &series.time_s[from..];
+    let values = series.compensated_dph.get(from..).unwrap_or_default();
+    let inside: Option<Vec<bool>> = region.map(|region| {
+        let temps = series.temp_c.get(from..).unwrap_or_default();
+        let rates = series.rate_c_per_min.get(from..).unwrap_or_default();
+        temps.iter().zip(rates).map(|(&t, &r)| region.contains(t, r)).collect()
+    });
+    let (mut means, outside) = window_means_inside(times, values, inside.as_deref(), options);
+    if options.detrend {
+        crate::metrics::detrend(&mut means);
+    }
+    let enough = region.is_none() || means.len() >= MIN_SCORED_WINDOWS;
+    HeldOutScore {
+        bias_stability_dph: if enough { crate::metrics::sample_std(&means) } else { f64::NAN },
+        windows_scored: means.len(),
+        windows_outside_region: outside,
+    }
+}
+
+/// The window means of [`crate::metrics::window_means`] (same windows, same fullness rule),
+/// keeping only the windows whose every sample has `inside` set (all when `inside` is
+/// None); also returns how many full windows were left out for a sample outside.
+pub fn window_means_inside(
+    times_s: &[f64],
+    values: &[f64],
+    inside: Option<&[bool]>,
+    options: &BiasStabilityOptions,
+) -> (Vec<f64>, usize) {
+    let start = times_s.first().copied().unwrap_or(0.0) + options.exclude_first_s;
+    let step = if options.overlapping { 10 } else { 1 };
+    let sub_s = options.tau_s / step as f64;
+    // Per sub-window: sum, count, every sample inside.
+    let mut subs: Vec<(f64, usize, bool)> = Vec::new();
+    for (i, (&t, &v)) in times_s.iter().zip(values).enumerate() {
+        if t < start || !v.is_finite() {
+            continue;
+        }
+        let k = ((t - start) / sub_s) as usize;
+        if subs.len() <= k {
+            subs.resize(k + 1, (0.0, 0, true));
+        }
+        subs[k].0 += v;
+        subs[k].1 += 1;
+        subs[k].2 &= inside.is_none_or(|m| m.get(i).copied().unwrap_or(false));
+    }
+    let windows: Vec<(f64, usize, bool)> = subs
+        .windows(step)
+        .step_by(if options.overlapping { 1 } else { step })
+        .map(|w| w.iter().fold((0.0, 0, true), |a, b| (a.0 + b.0, a.1 + b.1, a.2 && b.2)))
+        .collect();
+    let fullest = windows.iter().map(|w| w.1).max().unwrap_or(0);
+    let threshold = ((fullest as f64 * 0.9).ceil() as usize).max(1);
+    let full = windows.into_iter().filter(|w| w.1 >= threshold);
+    let (kept, outside): (Vec<_>, Vec<_>) = full.partition(|w| w.2);
+    (kept.into_iter().map(|(s, c, _)| s / c as f64).collect(), outside.len())
 }
 
 /// (min T, max T, min rate, max rate) of the features of `runs` on `axis`.
@@ -482,9 +939,17 @@ fn axis_selection(
         })
         .collect();
     // A fold counts when every scored candidate has a finite score on it (a held-out run
-    // shorter than two averaging windows has none for any).
+    // shorter than two averaging windows, or with fewer than MIN_SCORED_WINDOWS inside the
+    // training region, has none for any: the windows do not depend on the candidate).
     let usable: Vec<usize> = (0..folds.len())
         .filter(|&g| inside[g] && scores.iter().flatten().all(|s| s[g].is_finite()))
+        .collect();
+    let reference = held.iter().zip(failed).find(|(_, f)| f.is_none()).map(|(h, _)| &h[axis]);
+    let skipped_folds: Vec<SkippedFold> = folds
+        .iter()
+        .enumerate()
+        .filter(|(g, _)| !usable.contains(g))
+        .map(|(g, f)| SkippedFold { group: f.label.clone(), reason: skip_reason(inside[g], f, reference) })
         .collect();
     let kept: Vec<Option<Vec<f64>>> =
         scores.iter().map(|s| s.as_ref().map(|s| usable.iter().map(|&g| s[g]).collect())).collect();
@@ -493,7 +958,7 @@ fn axis_selection(
         let why = if scores.iter().all(Option::is_none) {
             "no candidate could be fitted in every fold"
         } else {
-            "too few held-out runs long enough for a bias stability"
+            "too few folds with a score (see skipped_folds)"
         };
         let mut s = Selection::fallback(grouping, usable.len(), why);
         s.candidates = candidates
@@ -501,6 +966,7 @@ fn axis_selection(
             .enumerate()
             .map(|(c, &method)| unscored(method, &held[c][axis], failed[c].clone()))
             .collect();
+        s.skipped_folds = skipped_folds;
         return s;
     };
     let candidate_scores = candidates
@@ -525,10 +991,36 @@ fn axis_selection(
         best: Some(candidates[choice.best]),
         grouping,
         folds: usable.len(),
+        scoring: CvScoring::WholeRun,
+        scheme: CvScheme::LeaveOneGroupOut,
+        blocks: None,
+        skipped_folds,
         rule: RULE,
         warning: None,
         candidates: candidate_scores,
     }
+}
+
+/// Why fold `fold` has no score: outside the training range (`--cv-inside-range-only`), or
+/// its held-out runs (as scored for `reference`, any candidate that was fitted: the windows
+/// are the same for all) had too few windows.
+fn skip_reason(inside_range: bool, fold: &Fold, reference: Option<&Vec<HeldOutRun>>) -> String {
+    if !inside_range {
+        return "held-out runs outside the training runs' temperature or rate range".to_string();
+    }
+    let runs: Vec<&HeldOutRun> =
+        reference.map_or(Vec::new(), |h| h.iter().filter(|r| r.group == fold.label).collect());
+    let windows: Vec<String> = runs
+        .iter()
+        .map(|r| {
+            format!("{}: {} scored, {} outside the region", r.run, r.windows_scored, r.windows_outside_region)
+        })
+        .collect();
+    format!(
+        "no held-out run with a bias stability (at least 2 windows; {MIN_SCORED_WINDOWS} inside the training region \
+         when scoring inside it): {}",
+        windows.join("; ")
+    )
 }
 
 fn unscored(method: Method, runs: &[HeldOutRun], error: Option<String>) -> CandidateScore {
@@ -694,7 +1186,12 @@ mod tests {
             let x = (t - 10.0) / 40.0;
             0.3 * x + 0.2 * x * x - 0.15 * x * x * x
         });
-        assert_eq!((s.folds, s.grouping, s.warning.as_deref()), (6, Grouping::Runs, None));
+        assert_eq!((s.folds, s.grouping, s.warning.as_deref()), (4, Grouping::Runs, None));
+        // Scored inside each fold's training region (the default): run1 (cooling -15 ->
+        // -25 C) is the only run cooling below -15 C, run4 (heating 30 -> 45 C) the only
+        // one heating above 30 C, so no window of theirs lies inside the others' region.
+        let skipped: Vec<&str> = s.skipped_folds.iter().map(|f| f.group.as_str()).collect();
+        assert_eq!(skipped, ["run1", "run4"], "{}", s.table());
         assert!(matches!(s.method, Method::CubicT | Method::Poly), "{}", s.table());
         let chosen = s.candidates.iter().find(|c| c.method == s.method).expect("chosen is a candidate");
         assert!(chosen.within_one_standard_error, "{}", s.table());
@@ -777,6 +1274,210 @@ mod tests {
         assert!(!within_training_range(&runs, 0, &[0]));
         assert!(!within_training_range(&runs, 0, &[2]));
         assert!(!within_training_range(&runs, 0, &[1, 2]), "a group is judged as a whole");
+    }
+
+    /// The region of the square T in [0, `t_max_c`] C, dT/dt in [-1, 1] C/min (its corners and
+    /// centre as calibration points).
+    fn square_region(t_max_c: f64) -> TrainingRegion {
+        let points: Vec<MeshPoint> =
+            [(0.0, -1.0), (t_max_c, -1.0), (t_max_c, 1.0), (0.0, 1.0), (t_max_c / 2.0, 0.0)]
+                .iter()
+                .map(|&(temp_c, rate_c_per_min)| MeshPoint { temp_c, rate_c_per_min, value_dph: 0.0 })
+                .collect();
+        let normalisation = choose_normalisation(&points).expect("points");
+        TrainingRegion::from_points(&points, normalisation)
+    }
+
+    #[test]
+    fn the_training_region_is_the_hull_of_its_points() {
+        let r = square_region(15.0);
+        assert!(r.contains(7.0, 0.3));
+        assert!(r.contains(15.0, 1.0), "a corner is on the boundary");
+        assert!(r.contains(0.0, 0.0), "an edge is on the boundary");
+        assert!(!r.contains(15.1, 0.0));
+        assert!(!r.contains(7.0, -1.05));
+        assert!(!r.contains(f64::NAN, 0.0));
+        let empty = TrainingRegion::from_points(&[], r.normalisation);
+        assert!(!empty.contains(7.0, 0.0), "no region: nothing is inside");
+    }
+
+    /// 3000 s of 1 s blocks, compensating from the start: T = i / 100 C (0 -> 30 C), rate
+    /// 0.5 C/min except 2 C/min at block 350; compensated output `k mod 3` deg/h in 100 s
+    /// window k.
+    fn ramp_series() -> ReplaySeries {
+        let n = 3000;
+        let time_s: Vec<f64> = (0..n).map(|i| f64::from(i) + 0.5).collect();
+        ReplaySeries {
+            compensated_dph: (0..n).map(|i| f64::from((i / 100) % 3)).collect(),
+            raw_dph: vec![0.0; n as usize],
+            bias_dph: vec![0.0; n as usize],
+            temp_c: (0..n).map(|i| f64::from(i) / 100.0).collect(),
+            rate_c_per_min: (0..n).map(|i| if i == 350 { 2.0 } else { 0.5 }).collect(),
+            compensating_from_s: 0.0,
+            time_s,
+            ..ReplaySeries::default()
+        }
+    }
+
+    #[test]
+    fn windows_are_scored_only_where_every_block_is_inside_the_region() {
+        let series = ramp_series();
+        let options = BiasStabilityOptions::default();
+        // T <= 15 C up to block 1500 (on the boundary): windows 0..=14 inside, except window 3
+        // (block 350's rate is outside); windows 15..=29 hold blocks above 15 C.
+        let scored = score_held_out(&series, Some(&square_region(15.0)), &options);
+        assert_eq!((scored.windows_scored, scored.windows_outside_region), (14, 16));
+        let means: Vec<f64> =
+            [0, 1, 2, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14].iter().map(|k| f64::from(k % 3)).collect();
+        // Hand-computed: 4 zeros, 5 ones, 5 twos: mean 15/14, sum of squares 25 - 14 (15/14)^2.
+        let m = 15.0 / 14.0;
+        let expected = ((25.0 - 14.0 * m * m) / 13.0f64).sqrt();
+        assert!((crate::metrics::sample_std(&means) - expected).abs() < 1e-12);
+        assert!((scored.bias_stability_dph - expected).abs() < 1e-12, "{scored:?}");
+
+        // Whole-run scoring: validate's own figure over all 30 windows (0, 1, 2 ten times
+        // each: sd = sqrt(20 / 29)).
+        let whole = score_held_out(&series, None, &options);
+        assert_eq!((whole.windows_scored, whole.windows_outside_region), (30, 0));
+        assert!((whole.bias_stability_dph - (20.0f64 / 29.0).sqrt()).abs() < 1e-12);
+        let oracle = crate::metrics::bias_stability(&series.time_s, &series.compensated_dph, &options);
+        assert!((whole.bias_stability_dph - oracle).abs() < 1e-12);
+
+        // T <= 5 C: windows 0, 1, 2, 4 inside, fewer than MIN_SCORED_WINDOWS: no score.
+        let few = score_held_out(&series, Some(&square_region(5.0)), &options);
+        assert_eq!((few.windows_scored, few.windows_outside_region), (4, 26));
+        assert!(few.bias_stability_dph.is_nan());
+    }
+
+    fn held(run: &str, stability: f64) -> HeldOutRun {
+        HeldOutRun {
+            run: run.into(),
+            group: run.into(),
+            bias_stability_dph: stability,
+            whole_run_bias_stability_dph: stability,
+            windows_scored: if stability.is_finite() { 20 } else { 3 },
+            windows_outside_region: if stability.is_finite() { 0 } else { 50 },
+        }
+    }
+
+    #[test]
+    fn a_fold_without_a_score_is_skipped_and_reported() {
+        // Four runs; run "c" has too few windows inside the region. Over the other three
+        // folds: cubic-t 2, 2, 2 (best), poly 3, 3, 3.
+        let folds = folds(&labels(&["a", "b", "c", "d"]));
+        let cubic: Vec<HeldOutRun> =
+            vec![held("a", 2.0), held("b", 2.0), held("c", f64::NAN), held("d", 2.0)];
+        let poly: Vec<HeldOutRun> = vec![held("a", 3.0), held("b", 3.0), held("c", f64::NAN), held("d", 3.0)];
+        let s = axis_selection(
+            0,
+            Grouping::Runs,
+            &folds,
+            &[true; 4],
+            &[Method::CubicT, Method::Poly],
+            &[vec![cubic], vec![poly]],
+            &[None, None],
+        );
+        assert_eq!((s.method, s.folds), (Method::CubicT, 3));
+        assert_eq!(s.skipped_folds.len(), 1);
+        assert_eq!(s.skipped_folds[0].group, "c");
+        assert!(
+            s.skipped_folds[0].reason.contains("c: 3 scored, 50 outside the region"),
+            "{:?}",
+            s.skipped_folds
+        );
+        assert!((s.candidates[1].cv_bias_stability_dph - 3.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn inside_region_scoring_leaves_out_what_the_training_runs_do_not_cover() {
+        // The rate-driven bias of the test above, scored inside each fold's region.
+        let dir = tempfile::tempdir().expect("tempdir");
+        let logs = write_runs(dir.path(), |t, rate| 0.8 * rate + 0.05 * (t - 10.0) / 40.0);
+        let config = CalibrationConfig { method: Method::Auto, ..CalibrationConfig::default() };
+        let runs: Vec<RunFeatures> =
+            logs.iter().map(|l| extract_run(l, &config, |_, _| {}).expect("features")).collect();
+        let options = SelectionOptions { scoring: CvScoring::InsideRegion, ..SelectionOptions::default() };
+        let fitted =
+            crate::calibrate::fit_model_with(&runs, &config, [0; 32], &options, |_, _| {}).expect("fits");
+        let s = fitted.axes[0].selection.clone().expect("auto records its choice");
+        eprintln!("{}", s.table());
+        assert_eq!(s.scoring, CvScoring::InsideRegion);
+        assert_ne!(s.method, Method::CubicT, "{}", s.table());
+        let runs_of = |m: Method| &s.candidates.iter().find(|c| c.method == m).expect("candidate").runs;
+        // The same windows for every candidate.
+        let windows = |m: Method| {
+            runs_of(m).iter().map(|r| (r.windows_scored, r.windows_outside_region)).collect::<Vec<_>>()
+        };
+        assert_eq!(windows(Method::CubicT), windows(Method::Poly));
+        // run0 (-30 -> -10 C) is the coldest: the others reach -25 C at the coldest (run1,
+        // -15 -> -25 C), so its first windows lie outside their region.
+        let run0 = runs_of(Method::Poly).iter().find(|r| r.run == "run0").expect("run0");
+        assert!(run0.windows_outside_region > 0, "{run0:?}");
+        // Every scored run has at least MIN_SCORED_WINDOWS windows; the folds scored plus
+        // the folds skipped are all six.
+        assert_eq!(s.folds + s.skipped_folds.len(), 6);
+        for r in runs_of(Method::Poly) {
+            assert_eq!(r.bias_stability_dph.is_finite(), r.windows_scored >= MIN_SCORED_WINDOWS, "{r:?}");
+        }
+    }
+
+    #[test]
+    fn blocked_k_fold_cuts_runs_into_blocks_and_rotates_them_over_the_folds() {
+        // Features every 10 s from 0 to 1000 s, one segment: K = 5 blocks of 200 s.
+        let mut run = run_spanning(&[(0.0, 0.0); 101]);
+        for (i, p) in run.axes[0].0.iter_mut().enumerate() {
+            p.time_s = 10.0 * i as f64;
+        }
+        let blocks = RunBlocks::of(&run, 5);
+        assert_eq!((blocks.start_s, blocks.block_s, blocks.count), (0.0, 200.0, 5));
+        assert_eq!([blocks.block_of(-5.0), blocks.block_of(199.9), blocks.block_of(200.0)], [0, 0, 1]);
+        assert_eq!(blocks.block_of(1000.0), 4, "the end belongs to the last block");
+        assert_eq!(
+            [blocks.distance_to(150.0, 1), blocks.distance_to(450.0, 1), blocks.distance_to(300.0, 1)],
+            [50.0, 50.0, 0.0]
+        );
+        assert_eq!(blocks.distance_to(-100.0, 0), 0.0, "the first block reaches to the start");
+        // Fold f holds out block (f - r) mod K of run r: every (run, block) exactly once.
+        for r in 0..7 {
+            let mut held: Vec<usize> = (0..5).map(|f| held_out_block(f, r, 5)).collect();
+            assert_eq!(held_out_block(r % 5, r, 5), 0);
+            held.sort();
+            assert_eq!(held, [0, 1, 2, 3, 4]);
+        }
+        // Block 2 (400..600 s) out, with a 50 s guard: times 360..640 s go (29 points).
+        let cut = without_block(&run, &blocks, 2, 50.0);
+        let times: Vec<f64> = cut.axes[0].0.iter().map(|p| p.time_s).collect();
+        assert_eq!(times.len(), 101 - 29);
+        assert!(times.iter().all(|&t| !(355.0..645.0).contains(&t)), "{times:?}");
+        assert_eq!(cut.axes[0].1.len(), times.len());
+        let segments: Vec<(f64, u32)> = cut.axes[0].0.iter().map(|p| (p.time_s, p.segment)).collect();
+        assert!(segments.iter().all(|&(t, s)| s == u32::from(t > 500.0)), "{segments:?}");
+    }
+
+    #[test]
+    fn blocked_k_fold_scores_every_run_out_of_fold() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let logs = write_runs(dir.path(), |t, rate| 0.8 * rate + 0.05 * (t - 10.0) / 40.0);
+        let config = CalibrationConfig { method: Method::Auto, ..CalibrationConfig::default() };
+        let runs: Vec<RunFeatures> =
+            logs.iter().map(|l| extract_run(l, &config, |_, _| {}).expect("features")).collect();
+        let options = SelectionOptions { scheme: CvScheme::BlockedKFold, ..SelectionOptions::default() };
+        let fitted =
+            crate::calibrate::fit_model_with(&runs, &config, [0; 32], &options, |_, _| {}).expect("fits");
+        let s = fitted.axes[0].selection.clone().expect("auto records its choice");
+        eprintln!("{}", s.table());
+        assert_eq!((s.scheme, s.blocks, s.folds), (CvScheme::BlockedKFold, Some(DEFAULT_BLOCKS), 6));
+        assert_ne!(s.method, Method::CubicT, "{}", s.table());
+        let cubic = s.candidates.iter().find(|c| c.method == Method::CubicT).expect("cubic-t");
+        assert!(!cubic.within_one_standard_error, "{}", s.table());
+        // Each run scored once, over its whole length (40 min: 23 or 24 windows after the
+        // tracker's start-up).
+        assert_eq!(cubic.runs.len(), 6);
+        assert!(
+            cubic.runs.iter().all(|r| r.windows_scored >= 23 && r.bias_stability_dph.is_finite()),
+            "{:?}",
+            cubic.runs
+        );
     }
 
     #[test]

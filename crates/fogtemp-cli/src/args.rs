@@ -233,6 +233,24 @@ impl From<PolyOutsideArg> for fogtemp_core::PolyOutside {
     }
 }
 
+/// How `auto` scores a held-out run (hidden; docs/calibration-testbed.md).
+#[derive(Debug, Clone, Copy, ValueEnum, PartialEq, Eq)]
+pub enum CvScoringArg {
+    /// Every 100 s window of the held-out run.
+    WholeRun,
+    /// Only the windows inside the training runs' calibrated region.
+    InsideRegion,
+}
+
+/// How `auto` forms its folds (hidden; docs/calibration-testbed.md).
+#[derive(Debug, Clone, Copy, ValueEnum, PartialEq, Eq)]
+pub enum CvSchemeArg {
+    /// Leave one run (or position) out.
+    LeaveOneOut,
+    /// Every run cut into --cv-blocks contiguous blocks, one block of each run per fold.
+    BlockedKFold,
+}
+
 /// `fit` arguments.
 #[derive(Debug, Args)]
 pub struct FitArgs {
@@ -265,6 +283,17 @@ pub struct FitArgs {
     /// (docs/calibration-testbed.md, "Continued linearly").
     #[arg(long, value_enum, default_value_t = PolyOutsideArg::LinearFromBoundary)]
     pub poly_outside: PolyOutsideArg,
+    /// How `auto` scores a held-out run: every window, or only the windows inside the
+    /// training runs' calibrated region (docs/calibration-testbed.md).
+    #[arg(long, value_enum, default_value_t = CvScoringArg::InsideRegion, hide = true)]
+    pub cv_scoring: CvScoringArg,
+    /// How `auto` forms its folds: leave one run (position) out, or blocked K-fold within
+    /// runs (docs/calibration-testbed.md).
+    #[arg(long, value_enum, default_value_t = CvSchemeArg::LeaveOneOut, hide = true)]
+    pub cv_scheme: CvSchemeArg,
+    /// Blocks per run (K) for `--cv-scheme blocked-k-fold`.
+    #[arg(long, default_value_t = fogtemp_cal::selection::DEFAULT_BLOCKS, hide = true)]
+    pub cv_blocks: usize,
     /// Feature window (smoothing of T and dT/dt), seconds.
     #[arg(long, default_value_t = 100.0, help_heading = "Features")]
     pub window_s: f32,

@@ -69,7 +69,13 @@ fn auto_is_the_default_and_reports_its_cross_validation() {
     let method = selection["method"].as_str().expect("selection.method");
     assert_eq!(doc["axes"][0]["method"], method);
     assert_eq!(selection["grouping"], "runs");
-    assert_eq!(selection["folds"], 6);
+    // Held-out runs are scored inside the training runs' calibrated region (the default):
+    // a fold whose run has fewer than 10 windows there is skipped and named.
+    assert_eq!(selection["scoring"], "inside-region");
+    let folds = selection["folds"].as_u64().expect("folds");
+    let skipped = selection["skipped_folds"].as_array().expect("skipped_folds[]");
+    assert_eq!(folds as usize + skipped.len(), 6, "{selection}");
+    assert!(folds >= 3, "{selection}");
     let candidates = selection["candidates"].as_array().expect("candidates[]");
     let names: Vec<&str> = candidates.iter().filter_map(|c| c["method"].as_str()).collect();
     assert_eq!(names, ["cubic-t", "poly", "mesh", "hybrid"]);
@@ -79,9 +85,19 @@ fn auto_is_the_default_and_reports_its_cross_validation() {
         assert!(cv > 0.0 && c["standard_error_dph"].as_f64().is_some(), "{c}");
         let runs = c["runs"].as_array().expect("runs[]");
         assert_eq!(runs.len(), 6);
-        // With one run per fold, the cross-validated value is the mean of the runs' values.
-        let mean = runs.iter().filter_map(|r| r["bias_stability_dph"].as_f64()).sum::<f64>() / 6.0;
+        // With one run per fold, the cross-validated value is the mean of the scored runs'
+        // values; a skipped fold's run has none (null) and fewer than 10 windows scored.
+        let scored: Vec<f64> = runs.iter().filter_map(|r| r["bias_stability_dph"].as_f64()).collect();
+        assert_eq!(scored.len() as u64, folds);
+        let mean = scored.iter().sum::<f64>() / scored.len() as f64;
         assert!((mean - cv).abs() <= 1e-12 * cv.max(1.0), "{mean} vs {cv}");
+        for r in runs {
+            let windows = r["windows_scored"].as_u64().expect("windows_scored");
+            assert!(
+                r["windows_outside_region"].as_u64().is_some() && r["whole_run_bias_stability_dph"].is_f64()
+            );
+            assert_eq!(r["bias_stability_dph"].is_f64(), windows >= 10, "{r}");
+        }
         assert!(runs.iter().all(|r| r["run"].as_str().is_some_and(|n| n.starts_with("run"))));
     }
     // The text output prints the table.
@@ -111,7 +127,9 @@ fn runs_file_roles_and_positions_set_the_split_and_the_folds() {
     .expect("write runs");
     let runs = runs.display().to_string();
     let model = dir.path().join("m.fogm").display().to_string();
-    let mut args = vec!["fit", "--json", "--out", &model, "--runs", &runs];
+    // Whole-run scoring (hidden option): in these runs, 15 C apart, holding a position out
+    // leaves too little of its runs inside the others' region for the default scoring.
+    let mut args = vec!["fit", "--json", "--out", &model, "--runs", &runs, "--cv-scoring", "whole-run"];
     args.extend(logs.iter().map(String::as_str));
     let doc = ok_json(&args);
     let read: Vec<&str> =

@@ -95,7 +95,13 @@ pub fn selection_markdown(axis: usize, selection: &crate::selection::Selection) 
                 .collect(),
         })
         .collect();
-    cross_validation_markdown(axis, &held_out, &rows)
+    let mut md = cross_validation_markdown(axis, &held_out, &rows);
+    // How the held-out runs were scored and the skipped folds (their runs show "-").
+    let note: Vec<String> = selection.scoring_note().lines().map(|l| format!("- {}", l.trim())).collect();
+    if !note.is_empty() {
+        md.push_str(&format!("{}\n\n", note.join("\n")));
+    }
+    md
 }
 
 #[cfg(test)]
@@ -131,5 +137,49 @@ mod tests {
         assert!(md.contains("| `hybrid` | - | - | no |  | - | - |"), "{md}");
         assert!(md.contains("| held out a, deg/h | held out b, deg/h |"));
         assert!(md.contains("|---|---|---|---|---|---|---|\n"));
+    }
+
+    #[test]
+    fn the_selection_table_says_how_runs_were_scored_and_which_folds_were_skipped() {
+        use crate::selection::{
+            CandidateScore, CvScheme, CvScoring, Grouping, HeldOutRun, Selection, SkippedFold,
+        };
+        let run = |name: &str, v: f64| HeldOutRun {
+            run: name.into(),
+            group: name.into(),
+            bias_stability_dph: v,
+            whole_run_bias_stability_dph: v,
+            windows_scored: if v.is_finite() { 70 } else { 0 },
+            windows_outside_region: if v.is_finite() { 2 } else { 72 },
+        };
+        let selection = Selection {
+            method: crate::calibrate::Method::Poly,
+            best: Some(crate::calibrate::Method::Poly),
+            grouping: Grouping::Runs,
+            folds: 3,
+            scoring: CvScoring::InsideRegion,
+            scheme: CvScheme::LeaveOneGroupOut,
+            blocks: None,
+            skipped_folds: vec![SkippedFold { group: "d".into(), reason: "no windows inside".into() }],
+            rule: crate::selection::RULE,
+            warning: None,
+            candidates: vec![CandidateScore {
+                method: crate::calibrate::Method::Poly,
+                cv_bias_stability_dph: 0.004,
+                standard_error_dph: 0.001,
+                difference_from_best_dph: 0.0,
+                difference_standard_error_dph: 0.0,
+                within_one_standard_error: true,
+                runs: vec![run("a", 0.003), run("b", 0.004), run("c", 0.005), run("d", f64::NAN)],
+                error: None,
+            }],
+        };
+        let md = selection_markdown(0, &selection);
+        assert!(md.contains("| 0.00300 | 0.00400 | 0.00500 | - |"), "{md}");
+        assert!(
+            md.contains("- scored on the averaging windows inside each fold's training region (3 folds)\n"),
+            "{md}"
+        );
+        assert!(md.contains("- fold 'd' skipped: no windows inside\n"), "{md}");
     }
 }

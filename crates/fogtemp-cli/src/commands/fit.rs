@@ -5,12 +5,12 @@ use fogtemp_cal::calibrate::{self, CalibrationConfig, Method, Thinning};
 use fogtemp_cal::documents::FitDocument;
 use fogtemp_cal::poly_fit::TermSelection;
 use fogtemp_cal::runs::{Role, RunsFile};
-use fogtemp_cal::selection::{Grouping, SelectionOptions};
+use fogtemp_cal::selection::{CvScheme, CvScoring, Grouping, SelectionOptions};
 use fogtemp_cal::thin::GreedyThinning;
 use fogtemp_core::{FeatureSettings, Model};
 
 use super::{capacity_fits, ingest_options, print_json, report_skipped};
-use crate::args::{FitArgs, MethodArg, PolyArg, ThinningArg};
+use crate::args::{CvSchemeArg, CvScoringArg, FitArgs, MethodArg, PolyArg, ThinningArg};
 use crate::output::{digest_files, expand_logs, write_atomic, RowProgress};
 
 /// The `fit` command.
@@ -75,6 +75,15 @@ pub fn fit(a: FitArgs) -> Result<()> {
     let selection = SelectionOptions {
         positions,
         inside_range_only: a.cv_inside_range_only,
+        scoring: match a.cv_scoring {
+            CvScoringArg::WholeRun => CvScoring::WholeRun,
+            CvScoringArg::InsideRegion => CvScoring::InsideRegion,
+        },
+        scheme: match a.cv_scheme {
+            CvSchemeArg::LeaveOneOut => CvScheme::LeaveOneGroupOut,
+            CvSchemeArg::BlockedKFold => CvScheme::BlockedKFold,
+        },
+        blocks: a.cv_blocks,
         ..SelectionOptions::default()
     };
     let bar = indicatif::ProgressBar::new(0).with_message("cross-validation (folds)");
