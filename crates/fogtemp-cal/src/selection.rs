@@ -393,6 +393,7 @@ impl Selection {
             Grouping::Runs => "runs",
             Grouping::Positions => "positions",
         };
+        let counted = if why.starts_with("too few folds with a score") { "scored" } else { "given" };
         Self {
             method: FALLBACK_METHOD,
             best: None,
@@ -404,8 +405,8 @@ impl Selection {
             skipped_folds: Vec::new(),
             rule: RULE,
             warning: Some(format!(
-                "{why} ({folds} {unit}; cross-validation needs at least {MIN_FOLDS}): fitted the default method, \
-                 {}, without a cross-validated choice",
+                "{why} ({folds} {unit} {counted}; cross-validation needs at least {MIN_FOLDS}): fitted the default \
+                 method, {}, without a cross-validated choice",
                 FALLBACK_METHOD.name()
             )),
             candidates: Vec::new(),
@@ -956,11 +957,11 @@ fn axis_selection(
     let choice = (usable.len() >= MIN_FOLDS).then(|| choose(&kept)).flatten();
     let Some(choice) = choice else {
         let why = if scores.iter().all(Option::is_none) {
-            "no candidate could be fitted in every fold"
+            "no candidate could be fitted in every fold".to_owned()
         } else {
-            "too few folds with a score (see skipped_folds)"
+            format!("too few folds with a score, {} of {} (see skipped_folds)", usable.len(), folds.len())
         };
-        let mut s = Selection::fallback(grouping, usable.len(), why);
+        let mut s = Selection::fallback(grouping, usable.len(), &why);
         s.candidates = candidates
             .iter()
             .enumerate()
