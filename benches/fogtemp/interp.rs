@@ -10,8 +10,8 @@
 //!   then barycentric weights of that face (f64).
 //! - `spade_barycentric`: `dt.barycentric().interpolate(..)`, spade's own barycentric
 //!   interpolation with its built-in last-used-vertex hint (the reference).
-//! - `fogtemp_grid_walk`: `Mesh::interpolate_with_grid`: the hint triangle first, else a
-//!   walk from the query's cell of a start grid (about four triangles per cell).
+//! - `fogtemp_grid_walk`: `Mesh::interpolate_with_grid`: the triangle of the query's cell of
+//!   a start grid first, else a walk from it.
 //! - `fogtemp_scan`: `Mesh::locate_by_scan` plus the triangle's plane, O(triangles) per
 //!   query; measured on every `SCAN_STRIDE`-th query of the same stream.
 //!
