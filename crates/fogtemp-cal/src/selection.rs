@@ -1165,12 +1165,19 @@ mod tests {
     }
 
     fn selection_for(bias: impl Fn(f64, f64) -> f64) -> Selection {
+        selection_with(bias, &SelectionOptions::default())
+    }
+
+    /// `fit --method auto` on [`write_runs`]'s six runs with `bias`, cross-validated per
+    /// `options`; checks that the blob and the fit report record the choice.
+    fn selection_with(bias: impl Fn(f64, f64) -> f64, options: &SelectionOptions) -> Selection {
         let dir = tempfile::tempdir().expect("tempdir");
         let logs = write_runs(dir.path(), bias);
         let config = CalibrationConfig { method: Method::Auto, ..CalibrationConfig::default() };
         let runs: Vec<RunFeatures> =
             logs.iter().map(|l| extract_run(l, &config, |_, _| {}).expect("features")).collect();
-        let fitted = crate::calibrate::fit_model(&runs, &config, [0; 32]).expect("fits");
+        let fitted =
+            crate::calibrate::fit_model_with(&runs, &config, [0; 32], options, |_, _| {}).expect("fits");
         let selection = fitted.axes[0].selection.clone().expect("auto records its choice");
         // The blob records the choice.
         let model = Model::from_bytes(&fitted.blob).expect("valid blob");
@@ -1392,16 +1399,8 @@ mod tests {
     #[test]
     fn inside_region_scoring_leaves_out_what_the_training_runs_do_not_cover() {
         // The rate-driven bias of the test above, scored inside each fold's region.
-        let dir = tempfile::tempdir().expect("tempdir");
-        let logs = write_runs(dir.path(), |t, rate| 0.8 * rate + 0.05 * (t - 10.0) / 40.0);
-        let config = CalibrationConfig { method: Method::Auto, ..CalibrationConfig::default() };
-        let runs: Vec<RunFeatures> =
-            logs.iter().map(|l| extract_run(l, &config, |_, _| {}).expect("features")).collect();
         let options = SelectionOptions { scoring: CvScoring::InsideRegion, ..SelectionOptions::default() };
-        let fitted =
-            crate::calibrate::fit_model_with(&runs, &config, [0; 32], &options, |_, _| {}).expect("fits");
-        let s = fitted.axes[0].selection.clone().expect("auto records its choice");
-        eprintln!("{}", s.table());
+        let s = selection_with(|t, rate| 0.8 * rate + 0.05 * (t - 10.0) / 40.0, &options);
         assert_eq!(s.scoring, CvScoring::InsideRegion);
         assert_ne!(s.method, Method::CubicT, "{}", s.table());
         let runs_of = |m: Method| &s.candidates.iter().find(|c| c.method == m).expect("candidate").runs;
@@ -1457,16 +1456,8 @@ mod tests {
 
     #[test]
     fn blocked_k_fold_scores_every_run_out_of_fold() {
-        let dir = tempfile::tempdir().expect("tempdir");
-        let logs = write_runs(dir.path(), |t, rate| 0.8 * rate + 0.05 * (t - 10.0) / 40.0);
-        let config = CalibrationConfig { method: Method::Auto, ..CalibrationConfig::default() };
-        let runs: Vec<RunFeatures> =
-            logs.iter().map(|l| extract_run(l, &config, |_, _| {}).expect("features")).collect();
         let options = SelectionOptions { scheme: CvScheme::BlockedKFold, ..SelectionOptions::default() };
-        let fitted =
-            crate::calibrate::fit_model_with(&runs, &config, [0; 32], &options, |_, _| {}).expect("fits");
-        let s = fitted.axes[0].selection.clone().expect("auto records its choice");
-        eprintln!("{}", s.table());
+        let s = selection_with(|t, rate| 0.8 * rate + 0.05 * (t - 10.0) / 40.0, &options);
         assert_eq!((s.scheme, s.blocks, s.folds), (CvScheme::BlockedKFold, Some(DEFAULT_BLOCKS), 6));
         assert_ne!(s.method, Method::CubicT, "{}", s.table());
         let cubic = s.candidates.iter().find(|c| c.method == Method::CubicT).expect("cubic-t");
