@@ -542,16 +542,7 @@ impl<'a> Mesh<'a> {
     /// read straight from the records.
     #[inline]
     pub(crate) fn hull_start(&self, index: u32) -> Option<[f32; 2]> {
-        let (t, e) = self.hull_edge(index)?;
-        // Edge e runs from vertex e + 1 to e + 2 of its triangle.
-        let k = match e {
-            0 => 1,
-            1 => 2,
-            2 => 0,
-            _ => return None,
-        };
-        let v = rec_u32(self.record(t)?, TRI_VERTICES.start + 4 * k);
-        let at = (v as usize).checked_mul(VERTEX_LEN)?;
+        let at = (self.hull_start_index(index)? as usize).checked_mul(VERTEX_LEN)?;
         Some([wire::f32_at(self.vertices, at)?, wire::f32_at(self.vertices, at.checked_add(4)?)?])
     }
 
@@ -570,7 +561,6 @@ impl<'a> Mesh<'a> {
     #[inline]
     pub(crate) fn hull_start_index(&self, index: u32) -> Option<u32> {
         let (t, e) = self.hull_edge(index)?;
-        let (vertices, _) = self.corners(t)?;
         // Edge e runs from vertex e + 1 to e + 2 of its triangle.
         let k = match e {
             0 => 1,
@@ -578,7 +568,7 @@ impl<'a> Mesh<'a> {
             2 => 0,
             _ => return None,
         };
-        vertices.get(k).copied()
+        Some(rec_u32(self.record(t)?, TRI_VERTICES.start + 4 * k))
     }
 
     /// The start and end vertex of hull edge `index` (counter-clockwise order).
