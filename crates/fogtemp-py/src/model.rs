@@ -280,20 +280,17 @@ fn evaluate_points(
     threads: usize,
 ) -> Vec<f64> {
     let mut out = vec![f64::NAN; ts.len()];
-    let own = match (&axis.mesh, cached) {
-        (Some(_), Some(c)) if c.1.len() <= ts.len() / 4 => None,
-        (Some(mesh), _) if ts.len() >= GRID_MIN_POINTS => start_grid(mesh, ts.len() / 4),
+    let large = ts.len() >= GRID_MIN_POINTS;
+    let kept = cached.filter(|(_, cells)| large && cells.len() <= ts.len() / 4);
+    let own = match (&axis.mesh, kept) {
+        (Some(mesh), None) if large => start_grid(mesh, ts.len() / 4),
         _ => None,
     };
-    let (side, cells) = match (&own, cached) {
-        (Some((side, cells)), _) => (*side, cells.as_slice()),
-        (None, Some((side, cells))) if ts.len() >= GRID_MIN_POINTS && cells.len() <= ts.len() / 4 => {
-            (*side, cells.as_slice())
-        }
-        _ => (0, &[][..]),
-    };
-    let grid =
-        axis.mesh.as_ref().filter(|_| side > 0).and_then(|mesh| mesh.grid_from_cells(side, cells).ok());
+    let grid = axis
+        .mesh
+        .as_ref()
+        .zip(own.as_ref().or(kept))
+        .and_then(|(mesh, (side, cells))| mesh.grid_from_cells(*side, cells).ok());
     let threads = if ts.len() >= PARALLEL_MIN_POINTS { threads } else { 1 };
     let chunk = ts.len().div_ceil(threads).max(1);
     std::thread::scope(|scope| {
