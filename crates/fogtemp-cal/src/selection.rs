@@ -387,13 +387,13 @@ impl Selection {
         u16::from_le_bytes([method, how])
     }
 
-    /// The fallback when there are too few folds.
-    fn fallback(grouping: Grouping, folds: usize, why: &str) -> Self {
+    /// The fallback when there are too few folds: `folds` of them, `counted` ("given" or
+    /// "scored").
+    fn fallback(grouping: Grouping, folds: usize, counted: &str, why: &str) -> Self {
         let unit = match grouping {
             Grouping::Runs => "runs",
             Grouping::Positions => "positions",
         };
-        let counted = if why.starts_with("too few folds with a score") { "scored" } else { "given" };
         Self {
             method: FALLBACK_METHOD,
             best: None,
@@ -508,7 +508,10 @@ pub fn select(
     let (grouping, groups) = cv_groups(&names, options.positions.as_deref());
     let folds = folds(&groups);
     if folds.len() < MIN_FOLDS {
-        return Ok(vec![Selection::fallback(grouping, folds.len(), "too few calibration runs"); axes]);
+        return Ok(vec![
+            Selection::fallback(grouping, folds.len(), "given", "too few calibration runs");
+            axes
+        ]);
     }
     let candidates = &options.candidates;
     // Per candidate: per axis the held-out runs, and why it failed (if it did).
@@ -663,7 +666,7 @@ fn select_blocked(
     if runs.len() < MIN_FOLDS || k < 2 {
         let why =
             if k < 2 { "blocked k-fold needs at least 2 blocks per run" } else { "too few calibration runs" };
-        return Ok(vec![Selection::fallback(Grouping::Runs, runs.len(), why); axes]);
+        return Ok(vec![Selection::fallback(Grouping::Runs, runs.len(), "given", why); axes]);
     }
     let blocks: Vec<RunBlocks> = runs.iter().map(|r| RunBlocks::of(r, k)).collect();
     let guard_s = config.target_window_s / 2.0;
@@ -956,12 +959,19 @@ fn axis_selection(
         scores.iter().map(|s| s.as_ref().map(|s| usable.iter().map(|&g| s[g]).collect())).collect();
     let choice = (usable.len() >= MIN_FOLDS).then(|| choose(&kept)).flatten();
     let Some(choice) = choice else {
-        let why = if scores.iter().all(Option::is_none) {
-            "no candidate could be fitted in every fold".to_owned()
+        let (counted, why) = if scores.iter().all(Option::is_none) {
+            ("given", "no candidate could be fitted in every fold".to_owned())
         } else {
-            format!("too few folds with a score, {} of {} (see skipped_folds)", usable.len(), folds.len())
+            (
+                "scored",
+                format!(
+                    "too few folds with a score, {} of {} (see skipped_folds)",
+                    usable.len(),
+                    folds.len()
+                ),
+            )
         };
-        let mut s = Selection::fallback(grouping, usable.len(), &why);
+        let mut s = Selection::fallback(grouping, usable.len(), counted, &why);
         s.candidates = candidates
             .iter()
             .enumerate()
@@ -1474,7 +1484,7 @@ mod tests {
 
     #[test]
     fn blob_codes_name_method_and_how() {
-        let mut s = Selection::fallback(Grouping::Runs, 2, "few");
+        let mut s = Selection::fallback(Grouping::Runs, 2, "given", "few");
         assert_eq!(s.blob_code(), u16::from_le_bytes([SELECTION_POLY, SELECTION_FALLBACK]));
         s.warning = None;
         s.method = Method::Mesh;
