@@ -471,6 +471,14 @@ pub fn fit_axis(
     };
     let (temp_min, temp_max) = range(&|p| p.temp_c);
     let (rate_min, rate_max) = range(&|p| p.rate_c_per_min);
+    // The calibrated region; outside it the policy holds or continues the polynomial from its
+    // boundary (no runaway; flagged OUTSIDE_HULL). Points without an area (collinear: one
+    // warm-up run) have no region, and a polynomial without one can only extrapolate.
+    let region = crate::blob::calibrated_region(
+        &points.iter().map(|p| crate::mesh::normalised(p, &normalisation)).collect::<Vec<_>>(),
+    );
+    let poly_outside =
+        if region.len() >= 3 { config.poly_outside } else { fogtemp_core::PolyOutside::Extrapolate };
     let mut axis = AxisModel {
         features: config.features,
         normalisation,
@@ -486,18 +494,9 @@ pub fn fit_axis(
             rate_min_c_per_min: rate_min as f32,
             rate_max_c_per_min: rate_max as f32,
         },
-        region: Vec::new(),
-        poly_outside: fogtemp_core::PolyOutside::Extrapolate,
+        region,
+        poly_outside,
     };
-    // The calibrated region; outside it the policy holds or continues the polynomial from its
-    // boundary (no runaway; flagged OUTSIDE_HULL). Points without an area (collinear: one
-    // warm-up run) have no region, and a polynomial without one can only extrapolate.
-    axis.region = crate::blob::calibrated_region(
-        &points.iter().map(|p| crate::mesh::normalised(p, &normalisation)).collect::<Vec<_>>(),
-    );
-    if axis.region.len() >= 3 {
-        axis.poly_outside = config.poly_outside;
-    }
     // Residuals of the model as the firmware evaluates it (f32, through the core).
     let probe =
         encode(&ModelFile { tool_version: String::new(), input_digest: [0; 32], axes: vec![axis.clone()] })?;
