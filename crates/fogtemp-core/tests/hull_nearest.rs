@@ -31,8 +31,8 @@ mod common;
 use std::collections::HashMap;
 use std::path::PathBuf;
 
-use common::blob::{fix_len_and_crc, put_f32, put_u16, put_u32};
-use common::{rng, FEATURES};
+use common::blob::{fix_len_and_crc, put_u32};
+use common::{axis_header, one_axis_file_header, rng};
 use fogtemp_core::wire::*;
 use fogtemp_core::{Mesh, Model, WalkHint};
 use rand::Rng;
@@ -113,22 +113,10 @@ fn mesh_blob(points: &[[f32; 2]]) -> Vec<u8> {
     }
     assert_eq!(hull.len(), hull_by_start.len(), "one closed hull");
 
-    let mut b = vec![0u8; FILE_HEADER_LEN];
-    b[FILE_MAGIC].copy_from_slice(&MAGIC);
-    put_u16(&mut b, FILE_VERSION.start, FORMAT_VERSION);
-    put_u16(&mut b, FILE_HEADER_LEN_FIELD.start, FILE_HEADER_LEN as u16);
-    put_u16(&mut b, FILE_AXIS_COUNT.start, 1);
+    let mut b = one_axis_file_header(FORMAT_VERSION);
     let (nv, nt, nh) = (vertices.len() as u32, triangles.len() as u32, hull.len() as u32);
     let section = axis_section_len(0, nv, nt, nh, 0).unwrap();
-    let mut h = vec![0u8; AXIS_HEADER_LEN];
-    put_u32(&mut h, AXIS_SECTION_LEN.start, section as u32);
-    put_u16(&mut h, AXIS_MODEL_KIND.start, KIND_MESH);
-    put_f32(&mut h, AXIS_WINDOW_S.start, FEATURES.window_s);
-    put_u32(&mut h, AXIS_BLOCK_COUNT.start, FEATURES.block_count);
-    put_u32(&mut h, AXIS_MIN_BLOCKS.start, FEATURES.min_blocks);
-    put_f32(&mut h, AXIS_MAX_GAP_S.start, FEATURES.max_gap_s);
-    put_f32(&mut h, AXIS_TEMP_SCALE_PER_C.start, 1.0);
-    put_f32(&mut h, AXIS_RATE_SCALE_PER_C_PER_MIN.start, 1.0);
+    let mut h = axis_header(section, KIND_MESH);
     put_u32(&mut h, AXIS_VERTEX_COUNT.start, nv);
     put_u32(&mut h, AXIS_TRIANGLE_COUNT.start, nt);
     put_u32(&mut h, AXIS_HULL_EDGE_COUNT.start, nh);

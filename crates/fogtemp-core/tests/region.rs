@@ -7,8 +7,8 @@
 
 mod common;
 
-use common::blob::{fix_len_and_crc, put_f32, put_u16, put_u32};
-use common::{rng, FEATURES};
+use common::blob::{fix_len_and_crc, put_u32};
+use common::{axis_header, one_axis_file_header, rng};
 use fogtemp_core::wire::*;
 use fogtemp_core::{Compensator, Error, Flags, Model, PolyOutside, WalkHint};
 use rand::Rng;
@@ -24,21 +24,9 @@ const REGION: [[f32; 2]; 6] =
 /// A one-axis polynomial blob (identity normalisation: x = T, y = dT/dt) of format
 /// `version` with `region` and the `poly_outside` code.
 fn poly_blob(version: u16, region: &[[f32; 2]], poly_outside: u32) -> Vec<u8> {
-    let mut b = vec![0u8; FILE_HEADER_LEN];
-    b[FILE_MAGIC].copy_from_slice(&MAGIC);
-    put_u16(&mut b, FILE_VERSION.start, version);
-    put_u16(&mut b, FILE_HEADER_LEN_FIELD.start, FILE_HEADER_LEN as u16);
-    put_u16(&mut b, FILE_AXIS_COUNT.start, 1);
+    let mut b = one_axis_file_header(version);
     let section = axis_section_len(TERMS.len() as u32, 0, 0, 0, region.len() as u32).unwrap();
-    let mut h = vec![0u8; AXIS_HEADER_LEN];
-    put_u32(&mut h, AXIS_SECTION_LEN.start, section as u32);
-    put_u16(&mut h, AXIS_MODEL_KIND.start, KIND_POLY);
-    put_f32(&mut h, AXIS_WINDOW_S.start, FEATURES.window_s);
-    put_u32(&mut h, AXIS_BLOCK_COUNT.start, FEATURES.block_count);
-    put_u32(&mut h, AXIS_MIN_BLOCKS.start, FEATURES.min_blocks);
-    put_f32(&mut h, AXIS_MAX_GAP_S.start, FEATURES.max_gap_s);
-    put_f32(&mut h, AXIS_TEMP_SCALE_PER_C.start, 1.0);
-    put_f32(&mut h, AXIS_RATE_SCALE_PER_C_PER_MIN.start, 1.0);
+    let mut h = axis_header(section, KIND_POLY);
     put_u32(&mut h, AXIS_POLY_TERM_COUNT.start, TERMS.len() as u32);
     put_u32(&mut h, AXIS_REGION_VERTEX_COUNT.start, region.len() as u32);
     put_u32(&mut h, AXIS_POLY_OUTSIDE.start, poly_outside);
