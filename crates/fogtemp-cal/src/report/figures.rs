@@ -6,7 +6,10 @@ use std::path::Path;
 use plotters::prelude::*;
 
 use super::data::{RelativeMeans, RunBar};
-use super::{draw_legend_at, draw_run_legend, finite_range, plot_err, run_colour, tick, write_svg};
+use super::{
+    draw_legend_at, draw_run_legend, finite_range, plot_err, run_colour, tick, time_panel_with, write_svg,
+    PanelLayout,
+};
 use crate::error::CalError;
 
 /// One validation run for the drift figure, over the metric's span.
@@ -58,22 +61,8 @@ pub fn plot_drift(
         let (left, right) = bottom.split_horizontally(600);
 
         let temp_range = finite_range(runs.iter().flat_map(|r| r.temp_c.iter().copied()));
-        let mut chart = ChartBuilder::on(&top)
-            .margin(8)
-            .margin_right(20)
-            .x_label_area_size(35)
-            .y_label_area_size(70)
-            .build_cartesian_2d(0.0..t_max_min, temp_range.0..temp_range.1)
-            .map_err(|e| plot_err(path, e))?;
-        chart
-            .configure_mesh()
-            .x_desc("time since power-on, min")
-            .y_desc("temperature, deg C")
-            .x_label_formatter(&tick)
-            .y_label_formatter(&tick)
-            .light_line_style(WHITE.mix(0.0))
-            .draw()
-            .map_err(|e| plot_err(path, e))?;
+        let top_layout = PanelLayout { margin_right: 20, ..PanelLayout::default() };
+        let mut chart = time_panel_with(&top, path, t_max_min, temp_range, "temperature, deg C", top_layout)?;
         for (i, run) in runs.iter().enumerate() {
             let series = run
                 .time_s
@@ -92,23 +81,9 @@ pub fn plot_drift(
             (&right, format!("compensated: bias stability {:.4} deg/h", stability_dph.1), true),
         ];
         for (area, caption, compensated) in panels {
-            let mut chart = ChartBuilder::on(area)
-                .caption(caption, ("sans-serif", 17))
-                .margin(8)
-                .margin_right(20)
-                .x_label_area_size(35)
-                .y_label_area_size(80)
-                .build_cartesian_2d(0.0..t_max_min, y.0..y.1)
-                .map_err(|e| plot_err(path, e))?;
-            chart
-                .configure_mesh()
-                .x_desc("time since power-on, min")
-                .y_desc(format!("{tau_s} s mean - run mean, deg/h"))
-                .x_label_formatter(&tick)
-                .y_label_formatter(&tick)
-                .light_line_style(WHITE.mix(0.0))
-                .draw()
-                .map_err(|e| plot_err(path, e))?;
+            let layout = PanelLayout { caption: Some(&caption), margin_right: 20, y_label_area: 80 };
+            let y_label = format!("{tau_s} s mean - run mean, deg/h");
+            let mut chart = time_panel_with(area, path, t_max_min, y, &y_label, layout)?;
             chart
                 .draw_series(std::iter::once(PathElement::new(
                     vec![(0.0, 0.0), (t_max_min, 0.0)],

@@ -73,8 +73,26 @@ pub fn write_svg(
     write_file_atomic(path, |w| w.write_all(svg.as_bytes()))
 }
 
+/// How a [`time_panel_with`] panel is laid out: an optional caption above it, the right
+/// margin (room for the last tick label) and the width of the y-label area.
+#[derive(Debug, Clone, Copy)]
+pub struct PanelLayout<'c> {
+    /// Drawn above the panel at 17 px.
+    pub caption: Option<&'c str>,
+    /// Pixels right of the plot.
+    pub margin_right: u32,
+    /// Pixels left of the plot for the tick labels and the axis label.
+    pub y_label_area: u32,
+}
+
+impl Default for PanelLayout<'_> {
+    fn default() -> Self {
+        PanelLayout { caption: None, margin_right: 8, y_label_area: 70 }
+    }
+}
+
 /// A panel against time since power-on (minutes, 0..`t_max_min`) with `y_range` and the
-/// axis label `y_label`, mesh drawn.
+/// axis label `y_label`, mesh drawn, laid out by default.
 ///
 /// # Errors
 /// [`CalError::Io`] naming `path` if drawing fails.
@@ -84,20 +102,40 @@ pub fn time_panel<'a>(
     t_max_min: f64,
     y_range: (f64, f64),
     y_label: &str,
-) -> Result<
-    ChartContext<
-        'a,
-        SVGBackend<'a>,
-        Cartesian2d<plotters::coord::types::RangedCoordf64, plotters::coord::types::RangedCoordf64>,
-    >,
-    CalError,
-> {
-    let mut chart = ChartBuilder::on(area)
+) -> Result<TimeChart<'a>, CalError> {
+    time_panel_with(area, path, t_max_min, y_range, y_label, PanelLayout::default())
+}
+
+/// A chart against time in minutes, as [`time_panel`] draws it.
+pub type TimeChart<'a> = ChartContext<
+    'a,
+    SVGBackend<'a>,
+    Cartesian2d<plotters::coord::types::RangedCoordf64, plotters::coord::types::RangedCoordf64>,
+>;
+
+/// [`time_panel`] laid out by `layout`.
+///
+/// # Errors
+/// [`CalError::Io`] naming `path` if drawing fails.
+pub fn time_panel_with<'a>(
+    area: &DrawingArea<SVGBackend<'a>, plotters::coord::Shift>,
+    path: &Path,
+    t_max_min: f64,
+    y_range: (f64, f64),
+    y_label: &str,
+    layout: PanelLayout<'_>,
+) -> Result<TimeChart<'a>, CalError> {
+    let mut builder = ChartBuilder::on(area);
+    builder
         .margin(8)
+        .margin_right(layout.margin_right)
         .x_label_area_size(35)
-        .y_label_area_size(70)
-        .build_cartesian_2d(0.0..t_max_min, y_range.0..y_range.1)
-        .map_err(|e| plot_err(path, e))?;
+        .y_label_area_size(layout.y_label_area);
+    if let Some(caption) = layout.caption {
+        builder.caption(caption, ("sans-serif", 17));
+    }
+    let mut chart =
+        builder.build_cartesian_2d(0.0..t_max_min, y_range.0..y_range.1).map_err(|e| plot_err(path, e))?;
     chart
         .configure_mesh()
         .x_desc("time since power-on, min")
