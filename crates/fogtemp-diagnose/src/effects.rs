@@ -80,6 +80,31 @@ impl Effect {
         matches!(self, Effect::StaticShape | Effect::WarmupTransient)
     }
 
+    /// Non-linear parameters estimated from the data at the grid point `theta` (see
+    /// [`grid_of`]), what BIC counts besides the linear coefficients: the coordinates that
+    /// pick the term among the grid's terms of the same complexity (a time constant, a lag;
+    /// for hysteresis the form, branch or play, and its rate threshold or width). Not
+    /// counted: a parameter that is inactive at the point (the second time constant of one
+    /// exponential, the threshold of the play form, the width of the branch form), a
+    /// complexity index whose complexity is the linear coefficients it adds (degree, number
+    /// of exponentials, spline functions), and a choice with one value (the lag order).
+    pub fn estimated_parameters(self, theta: &[f64]) -> usize {
+        match self {
+            Effect::ThermalLag | Effect::ShupeRate | Effect::GradientRate | Effect::StaticShape => 1,
+            // theta = [tau, tau2, exponentials]
+            Effect::WarmupTransient => {
+                if theta.get(2).is_some_and(|e| *e >= 2.0) {
+                    2
+                } else {
+                    1
+                }
+            }
+            // theta = [rate threshold, degree, play width]: the form and its scale.
+            Effect::Hysteresis => 2,
+            Effect::OrientationOffset | Effect::ScaleFactorTemperature => 0,
+        }
+    }
+
     /// The experiment that separates this effect from what it is confused with
     /// (docs/physics.md section 4).
     pub fn experiment(self) -> &'static str {
