@@ -117,8 +117,12 @@ fn thermal_lag_hidden_behind_shupe_is_named_and_recovered() {
     assert_named_first(&d, "thermal_lag");
     // A Shupe term explains nearly the same residual (b(T - tau dT/dt) ~ b - b' tau dT/dt):
     // the report must say that these runs hardly separate the two, and how to separate them.
+    // Shupe comes first (alternatives are in catalogue order); since the signed-rank
+    // fold rule (docs/diagnose.md, sixth session) gradient_rate, a rate term of the same
+    // lagged temperature, also passes at that step and is listed after it.
     let lag = &d.left_out[0];
-    assert_eq!(lag.alternatives, ["shupe_rate"], "{}", lag.statement);
+    assert_eq!(lag.alternatives.first().map(String::as_str), Some("shupe_rate"), "{}", lag.statement);
+    assert!(lag.alternatives.iter().all(|a| a == "shupe_rate" || a == "gradient_rate"), "{}", lag.statement);
     assert!(lag.statement.contains("alternative explanation: shupe_rate"), "{}", lag.statement);
     assert_recovered(&d, "thermal_lag", "gain", truth["gain"], 0.16823);
     assert_recovered(&d, "thermal_lag", "tau_s", truth["tau_s"], 125.00141);
@@ -239,14 +243,15 @@ fn hysteresis_from_power_on_runs_only_is_reported_not_identifiable() {
 /// `cargo run --release -p fogtemp-cal --example diagnose_confusion -- 20 5000 2`), per
 /// dataset with an identifiable injected effect: (label, seeds where the injected effect was
 /// named, seeds where it was named or listed in `alternatives` of a named effect).
+/// (Sixth session's x2 matrix, "Signed-rank fold rule" in docs/diagnose.md.)
 const DOCUMENTED_X2: [(&str, usize, usize); 8] = [
-    ("thermal_lag", 14, 17),
+    ("thermal_lag", 14, 20),
     ("shupe_rate", 17, 20),
     ("gradient_rate", 19, 19),
     ("warmup_transient", 20, 20),
     ("orientation_offset", 16, 16),
-    ("hysteresis", 12, 12),
-    ("static_shape", 15, 15),
+    ("hysteresis", 14, 14),
+    ("static_shape", 18, 18),
     ("scale_factor_temperature", 17, 17),
 ];
 

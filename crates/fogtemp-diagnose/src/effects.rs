@@ -80,6 +80,20 @@ impl Effect {
         matches!(self, Effect::StaticShape | Effect::WarmupTransient)
     }
 
+    /// Profiled parameters of [`grid_of`] that the term does not depend on at the grid point
+    /// `theta`: the second time constant of a single exponential (`tau2_s` = 0), and the
+    /// rate threshold of the play form or the play width of the branch form (one of the two
+    /// is 0). BIC counts the others: an inactive parameter is not a parameter of that term.
+    pub fn inactive_parameters(self, theta: &[f64]) -> usize {
+        match self {
+            // theta = [tau, tau2, exponentials]
+            Effect::WarmupTransient => usize::from(theta.get(2).is_none_or(|e| *e < 2.0)),
+            // theta = [rate threshold, degree, play width]: one form or the other.
+            Effect::Hysteresis => 1,
+            _ => 0,
+        }
+    }
+
     /// The experiment that separates this effect from what it is confused with
     /// (docs/physics.md section 4).
     pub fn experiment(self) -> &'static str {
@@ -825,6 +839,28 @@ mod play_tests {
         let e = (-t / 300.0f64).exp();
         assert!((y2[1200] - (1.0 - (1.0 + t / 300.0) * e)).abs() < 1e-2, "{}", y2[1200]);
         assert!((r2[1200] - 60.0 * t / 300.0f64.powi(2) * e).abs() < 1e-3, "{}", r2[1200]);
+    }
+
+    #[test]
+    fn inactive_parameters_are_exactly_the_zero_ones_of_each_grid_point() {
+        // An inactive parameter sits at 0 on the grid (tau2 of one exponential, the threshold
+        // of the play form, the width of the branch form); every other profiled value is > 0
+        // or a count (degree 0 of hysteresis is a count, not a parameter value).
+        let (_, warmup) = grid_of(Effect::WarmupTransient);
+        for theta in &warmup {
+            let zeros = usize::from(theta[1] == 0.0);
+            assert_eq!(Effect::WarmupTransient.inactive_parameters(theta), zeros, "{theta:?}");
+            assert_eq!(zeros == 1, theta[2] == 1.0, "{theta:?}");
+        }
+        let (_, hysteresis) = grid_of(Effect::Hysteresis);
+        for theta in &hysteresis {
+            let zeros = usize::from(theta[0] == 0.0) + usize::from(theta[2] == 0.0);
+            assert_eq!(Effect::Hysteresis.inactive_parameters(theta), zeros, "{theta:?}");
+        }
+        for e in [Effect::ThermalLag, Effect::ShupeRate, Effect::StaticShape, Effect::ScaleFactorTemperature]
+        {
+            assert!(grid_of(e).1.iter().all(|t| e.inactive_parameters(t) == 0 && t.iter().all(|v| *v > 0.0)));
+        }
     }
 
     #[test]

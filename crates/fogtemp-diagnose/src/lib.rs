@@ -266,6 +266,13 @@ pub struct CandidateReport {
     /// Folds (held-out runs) where the term's contribution is material: RMS about its mean
     /// over all runs >= a quarter of the noise of one short mean.
     pub folds_informative: usize,
+    /// Paired t over runs of the held-out Clark-West gains (the fold rule passes when it
+    /// reaches the stability rule's limit, even with fewer improved folds; NaN if not evaluated).
+    pub fold_gain_t: f64,
+    /// Exact two-sided Wilcoxon signed-rank p of the same gains, towards positive gains (the
+    /// fold rule also passes when it is at most 5 % / (2 x the step's candidates); NaN if not
+    /// evaluated).
+    pub fold_gain_rank_p: f64,
     /// BIC(model + term) - BIC(model) on the effective sample size (negative favours the term).
     pub delta_bic: f64,
     /// Fold-to-fold stability: 1 / (delete-one-run jackknife SE of the LORO contributions

@@ -178,7 +178,7 @@ pub(super) fn profile_candidate(
             let mut parts = base.to_vec();
             parts.push(cols);
             let design = build_design(prep, &parts);
-            let k = p_base + cols.k() + grid.params.len();
+            let k = p_base + cols.k() + grid.params.len() - grid.effect.inactive_parameters(&cols.theta);
             fold_eval(&design, ys).map(|e| (e, k, design.scale))
         })
         .collect::<Result<_, _>>()?;

@@ -73,6 +73,8 @@ pub(super) fn not_evaluated(
         cv_improvement: f64::NAN,
         folds_improved: 0,
         folds_informative: 0,
+        fold_gain_t: f64::NAN,
+        fold_gain_rank_p: f64::NAN,
         delta_bic: f64::NAN,
         stability_t: f64::NAN,
         min_fold_share: f64::NAN,
@@ -122,7 +124,9 @@ pub(super) fn judge(
     let cv_sse: f64 = prof.fold_sse.iter().sum();
     let material = material_runs(v, ctx.prep.noise_sigma_dph);
     let (improved, informative) = fold_counts(&ctx.base_eval.fold_sse, &prof.fold_sse, &material);
-    let gain_t = fold_gain_t(&clark_west_gains(&ctx.base_heldout, &prof.fold_resid));
+    let gains = clark_west_gains(&ctx.base_heldout, &prof.fold_resid);
+    let gain_t = fold_gain_t(&gains);
+    let rank_p = signed_rank_p(&gains);
     let base_bic = bic(ctx.base_eval.full_rss, ctx.base.p(), n, ctx.n_eff);
     let delta_bic = prof.bic - base_bic;
     let (conceal, conceal_runs) = concealment(ctx.prep, &ctx.base, v);
@@ -137,6 +141,8 @@ pub(super) fn judge(
         min_fold_fraction: ctx.options.min_fold_fraction,
         fold_gain_t: gain_t,
         fold_gain_limit: fold_gain_limit(ctx.prep.runs.len(), ctx.tests),
+        fold_gain_rank_p: rank_p,
+        fold_gain_alpha: fold_gain_alpha(ctx.tests),
         delta_bic,
         coefficients: grid.points[prof.point].k(),
         min_fold_share: prof.min_fold_share,
@@ -166,6 +172,8 @@ pub(super) fn judge(
         cv_improvement,
         folds_improved: improved,
         folds_informative: informative,
+        fold_gain_t: gain_t,
+        fold_gain_rank_p: rank_p,
         delta_bic,
         stability_t: prof.stability_t,
         min_fold_share: prof.min_fold_share,

@@ -14,14 +14,15 @@
 //! - BIC = `n_eff ln(RSS / n) + k ln(n_eff)`, `n_eff = n / (1 + 2 sum_k w_k rho_k)`, rho_k
 //!   the autocorrelations at lags 1..L (L = the Newey-West bandwidth) of the current
 //!   model's residual short means within runs, Bartlett weights `w_k = 1 - k/(L+1)`, k =
-//!   linear coefficients + profiled parameters;
+//!   linear coefficients + the profiled parameters the term depends on at its grid point
+//!   (`Effect::inactive_parameters`);
 //! - a fold (held-out run) is informative when the term's fitted contribution there, about
 //!   its mean over all runs, has an RMS of at least a quarter of the noise of one short
 //!   mean; a term is accepted when it is identifiable, lowers the total LORO error,
 //!   improves at least `min_fold_fraction` of the informative folds (and at least two) or
 //!   the runs' Clark-West held-out gains are significantly positive (paired t over all runs
-//!   above the stability rule's limit, see `rules::clark_west_gains` and
-//!   `rules::fold_gain_limit`),
+//!   or the exact Wilcoxon signed-rank test, each at 5 % / (2 x number of candidates), see
+//!   `rules::clark_west_gains`, `rules::fold_gain_limit` and `rules::signed_rank_p`),
 //!   lowers BIC, and is stable across folds (jackknife t of its contribution, see
 //!   [`stability_t`], above the two-sided Student-t limit with runs - 1 degrees of freedom
 //!   at 5 % / number of candidates; for a flexible term with more than two coefficients, a
