@@ -498,7 +498,8 @@ impl<'a> Mesh<'a> {
     #[cold]
     #[inline(never)]
     fn hull_value_after_walk(&self, triangle: u32, k: usize, x: f32, y: f32) -> f32 {
-        match crate::hull::value_from_slot(self, triangle, k, x, y) {
+        let on_edge = crate::hull::value_on_crossed_edge(self, triangle, k, x, y);
+        match on_edge.or_else(|| crate::hull::value_from_slot(self, triangle, k, x, y)) {
             Some(value) => value,
             None => self.nearest_hull_value(x, y),
         }
