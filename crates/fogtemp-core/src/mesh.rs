@@ -301,35 +301,43 @@ impl<'a> Mesh<'a> {
         let b = TRI_BARY.start;
         let l0 = rec_f32(r, b) * dx + rec_f32(r, b + 4) * dy;
         let l1 = rec_f32(r, b + 8) * dx + rec_f32(r, b + 12) * dy;
-        let bary = [l0, l1, 1.0 - l0 - l1];
-        let (exit, lmin) = most_negative(bary);
+        let (exit, lmin) = most_negative([l0, l1, 1.0 - l0 - l1]);
         let p = TRI_PLANE.start;
         let value_dph = rec_f32(r, p) * dx + rec_f32(r, p + 4) * dy + rec_f32(r, p + 8);
         Some(HintTest {
             inside: lmin >= -INSIDE_EPS,
             value: MeshValue { value_dph, triangle: t, outside_hull: false },
             record: r,
-            delta: (dx, dy),
-            bary,
             exit,
         })
     }
 
-    /// The walk from a start triangle `t` that [`Mesh::hint_test`] found not to hold the query:
-    /// what [`Mesh::walk_or_scan`] from `t` does, without testing `t` again (its first step,
-    /// with the test's own numbers: across the edge of the most negative coordinate, or out of
-    /// the mesh if that is a hull edge).
+    /// The value at a query that a start triangle `t` (at `start` of the grid) was found by
+    /// [`Mesh::hint_test`] not to hold: what [`Mesh::walk_or_scan`] from `t` and
+    /// [`Mesh::value_at`] give, without testing `t` again. The walk's first step with the
+    /// test's own numbers: across the edge of the most negative coordinate into the neighbour,
+    /// or, when that is a hull edge, out of the mesh there (most outside queries), straight to
+    /// the outside policy.
     #[inline(always)]
-    fn walk_past(&self, t: u32, test: &HintTest<'a>, x: f32, y: f32) -> Option<WalkEnd<'a>> {
+    fn value_past(
+        &self,
+        t: u32,
+        test: &HintTest<'a>,
+        x: f32,
+        y: f32,
+        hint: &mut WalkHint,
+    ) -> Option<MeshValue> {
         let next = rec_u32(test.record, TRI_NEIGHBOURS.start + 4 * test.exit);
         if next == NO_NEIGHBOUR {
-            let (record, delta, bary) = (test.record, test.delta, test.bary);
-            return Some(WalkEnd { triangle: t, record, delta, bary, inside: false });
+            hint.0 = t;
+            return Some(self.outside_value(t, test.exit, x, y));
         }
-        match self.walk(t, next, x, y, self.triangle_count().saturating_sub(1)) {
-            Some(end) => Some(end),
-            None => self.scan_end(x, y),
-        }
+        let end = match self.walk(t, next, x, y, self.triangle_count().saturating_sub(1)) {
+            Some(end) => end,
+            None => self.scan_end(x, y)?,
+        };
+        hint.0 = end.triangle;
+        Some(self.value_at(&end, x, y))
     }
 
     /// The general path of [`Mesh::interpolate`]: checks, walks, moves the hint. Out of line,
@@ -382,15 +390,9 @@ impl<'a> Mesh<'a> {
                 hint.0 = start;
                 Ok(test.value)
             }
-            Some(test) if !test.inside && x.is_finite() && y.is_finite() => {
-                let end = self.walk_past(start, &test, x, y).ok_or(Error::BadMesh {
-                    check: "walk",
-                    axis: self.axis,
-                    index: start,
-                })?;
-                hint.0 = end.triangle;
-                Ok(self.value_at(&end, x, y))
-            }
+            Some(test) if !test.inside && x.is_finite() && y.is_finite() => self
+                .value_past(start, &test, x, y, hint)
+                .ok_or(Error::BadMesh { check: "walk", axis: self.axis, index: start }),
             _ => self.interpolate_grid_general(x, y, hint, grid),
         }
     }
@@ -477,16 +479,21 @@ impl<'a> Mesh<'a> {
             let value_dph = rec_f32(r, p) * dx + rec_f32(r, p + 4) * dy + rec_f32(r, p + 8);
             return MeshValue { value_dph, triangle: end.triangle, outside_hull: false };
         }
+        self.outside_value(end.triangle, most_negative(end.bary).0, x, y)
+    }
+
+    /// The outside policy's value at a query a walk took out of the mesh across edge `k` of
+    /// `triangle`.
+    #[inline(always)]
+    fn outside_value(&self, triangle: u32, k: usize, x: f32, y: f32) -> MeshValue {
         let value_dph = match self.policy {
-            // Scalars, not `end` by reference: the hot inside path keeps the walk's end in
-            // registers (with `&WalkEnd` passed on, the inside points of the 1 M-point Python
+            // Scalars, not the walk's end by reference: the hot inside path keeps the walk's end
+            // in registers (with `&WalkEnd` passed on, the inside points of the 1 M-point Python
             // benchmark took 20 % longer, docs/performance.md).
-            OutsidePolicy::NearestHull => {
-                self.hull_value_after_walk(end.triangle, most_negative(end.bary).0, x, y)
-            }
+            OutsidePolicy::NearestHull => self.hull_value_after_walk(triangle, k, x, y),
             OutsidePolicy::Zero => 0.0,
         };
-        MeshValue { value_dph, triangle: end.triangle, outside_hull: true }
+        MeshValue { value_dph, triangle, outside_hull: true }
     }
 
     /// [`Mesh::nearest_hull_value`] for a query a walk took out of the mesh: starts from the
@@ -612,10 +619,6 @@ struct HintTest<'a> {
     value: MeshValue,
     /// The hint triangle's record.
     record: &'a [u8; TRIANGLE_LEN],
-    /// The query relative to the record's origin.
-    delta: (f32, f32),
-    /// The query's barycentric coordinates in the hint triangle.
-    bary: [f32; 3],
     /// The index of the most negative coordinate: the edge a walk leaves across.
     exit: usize,
 }
