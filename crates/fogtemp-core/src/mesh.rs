@@ -397,6 +397,19 @@ impl<'a> Mesh<'a> {
         }
     }
 
+    /// The first step of [`Mesh::interpolate_with_grid`] alone: the plane of the triangle at
+    /// the query's grid cell there, and whether that triangle holds the query with a finite
+    /// value (then the value is [`Mesh::interpolate_with_grid`]'s, bit for bit). No branch on
+    /// the outcome; see [`crate::Axis::evaluate_in_grid_cell`].
+    #[inline]
+    pub fn interpolate_in_grid_cell(&self, x: f32, y: f32, grid: &StartGrid<'_>) -> (MeshValue, bool) {
+        let start = grid.start(x, y).min(self.triangle_count().saturating_sub(1));
+        match self.hint_test(x, y, start) {
+            Some(test) => (test.value, test.inside & test.value.value_dph.is_finite()),
+            None => (MeshValue { value_dph: f32::NAN, triangle: start, outside_hull: false }, false),
+        }
+    }
+
     /// The general path of [`Mesh::interpolate_with_grid`]: a non-finite query, a hint past
     /// the last triangle, a non-finite plane value. Out of line.
     #[cold]
