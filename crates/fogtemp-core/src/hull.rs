@@ -298,7 +298,7 @@ pub(crate) fn value_from_slot(mesh: &Mesh<'_>, t: u32, k: usize, x: f32, y: f32)
 /// [`value_from_slot`] with its arithmetic, so `Some` only where [`value_from_slot`] returns the
 /// same value on that step; `None` for anything else (the projection off the edge, the query
 /// on its inner side, a degenerate edge), which [`value_from_slot`] then decides. Reads the one
-/// record and the edge's two vertices, without the hull count or the descent's bookkeeping.
+/// record and the edge's two vertices, without the descent's bookkeeping.
 #[inline]
 pub(crate) fn value_on_crossed_edge(mesh: &Mesh<'_>, t: u32, k: usize, x: f32, y: f32) -> Option<f32> {
     if !(x.is_finite() && y.is_finite()) || mesh.hull_edge_count() < 3 {

@@ -312,9 +312,9 @@ impl<'a> Mesh<'a> {
         })
     }
 
-    /// The value at a query that a start triangle `t` (at `start` of the grid) was found by
-    /// [`Mesh::hint_test`] not to hold: what [`Mesh::walk_or_scan`] from `t` and
-    /// [`Mesh::value_at`] give, without testing `t` again. The walk's first step with the
+    /// The value at a query that [`Mesh::hint_test`] found start triangle `t` not to hold:
+    /// what [`Mesh::walk_or_scan`] from `t` and [`Mesh::value_at`] give, without testing `t`
+    /// again. The walk's first step with the
     /// test's own numbers: across the edge of the most negative coordinate into the neighbour,
     /// or, when that is a hull edge, out of the mesh there (most outside queries), straight to
     /// the outside policy.

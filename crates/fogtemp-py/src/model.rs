@@ -307,6 +307,8 @@ fn evaluate_points(
 /// Points per block of [`evaluate_chunk`]'s two passes: the block's pending list (2 bytes a
 /// point) stays in the first-level cache.
 const BLOCK_POINTS: usize = 1024;
+// The pending list holds a block's indices as u16.
+const _: () = assert!(BLOCK_POINTS <= 1 << 16);
 
 /// One thread's points, with its own walk hint. With a start grid, block by block in two
 /// passes: first every point's grid-cell triangle (`Axis::evaluate_in_grid_cell`), its value
