@@ -293,6 +293,24 @@ pub(crate) fn value_from_slot(mesh: &Mesh<'_>, t: u32, k: usize, x: f32, y: f32)
     None
 }
 
+/// The value at the nearest hull point of `p` when it lies on the hull edge `k` of triangle `t`
+/// itself (the edge a walk crossed; most outside queries of a fine mesh): the first step of
+/// [`value_from_slot`] with its arithmetic, so `Some` only where [`value_from_slot`] returns the
+/// same value on that step; `None` for anything else (the projection off the edge, the query
+/// on its inner side, a degenerate edge), which [`value_from_slot`] then decides. Reads the one
+/// record and the edge's two vertices, without the descent's bookkeeping.
+#[inline]
+pub(crate) fn value_on_crossed_edge(mesh: &Mesh<'_>, t: u32, k: usize, x: f32, y: f32) -> Option<f32> {
+    if !(x.is_finite() && y.is_finite()) || mesh.hull_edge_count() < 3 {
+        return None;
+    }
+    let edge = slot(mesh, t, k)?;
+    let (a, b) = (mesh.vertex(edge.from)?, mesh.vertex(edge.to)?);
+    let (along, len2, side) = edge_frame(&a, &b, [x, y]);
+    let on_edge = positive(len2) && along > 0.0 && along < len2 && side <= 0.0;
+    on_edge.then(|| edge_nearest(&a, &b, x, y).1)
+}
+
 /// The value at the vertex between hull edges `before` (ending there) and `after` (starting
 /// there): the scan's choice between the two (the smaller f32 squared distance; on a tie the
 /// lower hull index, which is `before` unless `after` is hull edge 0). Each gives the vertex up

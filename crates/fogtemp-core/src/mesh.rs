@@ -179,10 +179,10 @@ impl<'a> Mesh<'a> {
 
     /// The visibility walk from triangle `t` (see [`Mesh::locate`]), reading per step only
     /// the origin and the transform, and one neighbour when it moves on. `None` when the
-    /// walk does not settle within `max_steps`.
+    /// walk does not settle within `max_steps`. `previous` is the triangle the walk came
+    /// from ([`NO_NEIGHBOUR`] for a fresh walk).
     #[inline(always)]
-    fn walk(&self, mut t: u32, x: f32, y: f32, max_steps: u32) -> Option<WalkEnd<'a>> {
-        let mut previous = NO_NEIGHBOUR;
+    fn walk(&self, mut previous: u32, mut t: u32, x: f32, y: f32, max_steps: u32) -> Option<WalkEnd<'a>> {
         for _ in 0..=max_steps {
             let r = self.record(t)?;
             let (dx, dy) = (x - rec_f32(r, TRI_ORIGIN.start), y - rec_f32(r, TRI_ORIGIN.start + 4));
@@ -211,7 +211,7 @@ impl<'a> Mesh<'a> {
     /// Walks from `hint` (clamped), falling back to a full scan if the walk does not settle.
     #[inline(always)]
     fn walk_or_scan(&self, x: f32, y: f32, start: u32) -> Option<WalkEnd<'a>> {
-        match self.walk(start, x, y, self.triangle_count()) {
+        match self.walk(NO_NEIGHBOUR, start, x, y, self.triangle_count()) {
             Some(end) => Some(end),
             None => self.scan_end(x, y),
         }
@@ -295,19 +295,49 @@ impl<'a> Mesh<'a> {
     /// NaN or infinity absorbs any addend). Every other outcome goes to the general path,
     /// which checks the query.
     #[inline(always)]
-    fn hint_test(&self, x: f32, y: f32, t: u32) -> Option<HintTest> {
+    fn hint_test(&self, x: f32, y: f32, t: u32) -> Option<HintTest<'a>> {
         let r = self.record(t)?;
         let (dx, dy) = (x - rec_f32(r, TRI_ORIGIN.start), y - rec_f32(r, TRI_ORIGIN.start + 4));
         let b = TRI_BARY.start;
         let l0 = rec_f32(r, b) * dx + rec_f32(r, b + 4) * dy;
         let l1 = rec_f32(r, b + 8) * dx + rec_f32(r, b + 12) * dy;
-        let (_, lmin) = most_negative([l0, l1, 1.0 - l0 - l1]);
+        let (exit, lmin) = most_negative([l0, l1, 1.0 - l0 - l1]);
         let p = TRI_PLANE.start;
         let value_dph = rec_f32(r, p) * dx + rec_f32(r, p + 4) * dy + rec_f32(r, p + 8);
         Some(HintTest {
             inside: lmin >= -INSIDE_EPS,
             value: MeshValue { value_dph, triangle: t, outside_hull: false },
+            record: r,
+            exit,
         })
+    }
+
+    /// The value at a query that [`Mesh::hint_test`] found start triangle `t` not to hold:
+    /// what [`Mesh::walk_or_scan`] from `t` and [`Mesh::value_at`] give, without testing `t`
+    /// again. The walk's first step with the
+    /// test's own numbers: across the edge of the most negative coordinate into the neighbour,
+    /// or, when that is a hull edge, out of the mesh there (most outside queries), straight to
+    /// the outside policy.
+    #[inline(always)]
+    fn value_past(
+        &self,
+        t: u32,
+        test: &HintTest<'a>,
+        x: f32,
+        y: f32,
+        hint: &mut WalkHint,
+    ) -> Option<MeshValue> {
+        let next = rec_u32(test.record, TRI_NEIGHBOURS.start + 4 * test.exit);
+        if next == NO_NEIGHBOUR {
+            hint.0 = t;
+            return Some(self.outside_value(t, test.exit, x, y));
+        }
+        let end = match self.walk(t, next, x, y, self.triangle_count().saturating_sub(1)) {
+            Some(end) => end,
+            None => self.scan_end(x, y)?,
+        };
+        hint.0 = end.triangle;
+        Some(self.value_at(&end, x, y))
     }
 
     /// The general path of [`Mesh::interpolate`]: checks, walks, moves the hint. Out of line,
@@ -360,16 +390,23 @@ impl<'a> Mesh<'a> {
                 hint.0 = start;
                 Ok(test.value)
             }
-            Some(test) if !test.inside && x.is_finite() && y.is_finite() => {
-                let end = self.walk_or_scan(x, y, start).ok_or(Error::BadMesh {
-                    check: "walk",
-                    axis: self.axis,
-                    index: start,
-                })?;
-                hint.0 = end.triangle;
-                Ok(self.value_at(&end, x, y))
-            }
+            Some(test) if !test.inside && x.is_finite() && y.is_finite() => self
+                .value_past(start, &test, x, y, hint)
+                .ok_or(Error::BadMesh { check: "walk", axis: self.axis, index: start }),
             _ => self.interpolate_grid_general(x, y, hint, grid),
+        }
+    }
+
+    /// The first step of [`Mesh::interpolate_with_grid`] alone: the plane of the triangle at
+    /// the query's grid cell there, and whether that triangle holds the query with a finite
+    /// value (then the value is [`Mesh::interpolate_with_grid`]'s, bit for bit). No branch on
+    /// the outcome; see [`crate::Axis::evaluate_in_grid_cell`].
+    #[inline]
+    pub fn interpolate_in_grid_cell(&self, x: f32, y: f32, grid: &StartGrid<'_>) -> (MeshValue, bool) {
+        let start = grid.start(x, y).min(self.triangle_count().saturating_sub(1));
+        match self.hint_test(x, y, start) {
+            Some(test) => (test.value, test.inside & test.value.value_dph.is_finite()),
+            None => (MeshValue { value_dph: f32::NAN, triangle: start, outside_hull: false }, false),
         }
     }
 
@@ -389,7 +426,7 @@ impl<'a> Mesh<'a> {
         }
         let count = self.triangle_count();
         let start = if hint.0 < count { hint.0 } else { 0 };
-        let end = match self.walk(start, x, y, 0) {
+        let end = match self.walk(NO_NEIGHBOUR, start, x, y, 0) {
             Some(end) if end.inside => Some(end),
             _ => self.walk_or_scan(x, y, grid.start(x, y).min(count.saturating_sub(1))),
         }
@@ -455,16 +492,21 @@ impl<'a> Mesh<'a> {
             let value_dph = rec_f32(r, p) * dx + rec_f32(r, p + 4) * dy + rec_f32(r, p + 8);
             return MeshValue { value_dph, triangle: end.triangle, outside_hull: false };
         }
+        self.outside_value(end.triangle, most_negative(end.bary).0, x, y)
+    }
+
+    /// The outside policy's value at a query a walk took out of the mesh across edge `k` of
+    /// `triangle`.
+    #[inline(always)]
+    fn outside_value(&self, triangle: u32, k: usize, x: f32, y: f32) -> MeshValue {
         let value_dph = match self.policy {
-            // Scalars, not `end` by reference: the hot inside path keeps the walk's end in
-            // registers (with `&WalkEnd` passed on, the inside points of the 1 M-point Python
+            // Scalars, not the walk's end by reference: the hot inside path keeps the walk's end
+            // in registers (with `&WalkEnd` passed on, the inside points of the 1 M-point Python
             // benchmark took 20 % longer, docs/performance.md).
-            OutsidePolicy::NearestHull => {
-                self.hull_value_after_walk(end.triangle, most_negative(end.bary).0, x, y)
-            }
+            OutsidePolicy::NearestHull => self.hull_value_after_walk(triangle, k, x, y),
             OutsidePolicy::Zero => 0.0,
         };
-        MeshValue { value_dph, triangle: end.triangle, outside_hull: true }
+        MeshValue { value_dph, triangle, outside_hull: true }
     }
 
     /// [`Mesh::nearest_hull_value`] for a query a walk took out of the mesh: starts from the
@@ -476,7 +518,8 @@ impl<'a> Mesh<'a> {
     #[cold]
     #[inline(never)]
     fn hull_value_after_walk(&self, triangle: u32, k: usize, x: f32, y: f32) -> f32 {
-        match crate::hull::value_from_slot(self, triangle, k, x, y) {
+        let on_edge = crate::hull::value_on_crossed_edge(self, triangle, k, x, y);
+        match on_edge.or_else(|| crate::hull::value_from_slot(self, triangle, k, x, y)) {
             Some(value) => value,
             None => self.nearest_hull_value(x, y),
         }
@@ -582,11 +625,15 @@ impl<'a> Mesh<'a> {
 
 /// What [`Mesh::hint_test`] found in the hint triangle.
 #[derive(Clone, Copy)]
-struct HintTest {
+struct HintTest<'a> {
     /// The query is inside (or on the boundary of) the hint triangle.
     inside: bool,
     /// The hint triangle's plane at the query (meaningful when `inside`).
     value: MeshValue,
+    /// The hint triangle's record.
+    record: &'a [u8; TRIANGLE_LEN],
+    /// The index of the most negative coordinate: the edge a walk leaves across.
+    exit: usize,
 }
 
 /// Where a walk ended: the triangle, its record, the query's barycentric coordinates in it,
@@ -614,12 +661,23 @@ impl StartGrid<'_> {
     /// The start triangle for `(x, y)` (the nearest cell for points off the grid).
     #[inline(always)]
     fn start(&self, x: f32, y: f32) -> u32 {
-        let max = self.side.saturating_sub(1) as f32;
-        // `as usize` saturates, and NaN gives 0: never out of range.
-        let i = ((x - self.lo[0]) * self.per_unit[0]).clamp(0.0, max) as usize;
-        let j = ((y - self.lo[1]) * self.per_unit[1]).clamp(0.0, max) as usize;
+        let i = cell_index((x - self.lo[0]) * self.per_unit[0], self.side);
+        let j = cell_index((y - self.lo[1]) * self.per_unit[1], self.side);
         self.cells.get(j * self.side as usize + i).copied().unwrap_or(0)
     }
+}
+
+/// The cell holding grid coordinate `v` (cells per unit from the grid's corner) on a side of
+/// `side` cells, the nearest cell off the grid; 0 for NaN.
+///
+/// Truncated to an integer first and clamped there: `as i32` saturates (NaN gives 0), so this
+/// is the cell of clamping `v` to `[0, side - 1]` before truncating, in about a third of the
+/// instructions (a float-to-`usize` conversion with its saturation costs two conversions and
+/// several fix-ups on x86-64, and the float clamp a branch; docs/performance.md).
+#[inline(always)]
+fn cell_index(v: f32, side: u32) -> usize {
+    let last = i32::try_from(side).unwrap_or(i32::MAX).saturating_sub(1);
+    (v as i32).min(last).max(0) as usize
 }
 
 /// f32 at a fixed offset of a triangle record (inlined to a plain load).

@@ -158,6 +158,37 @@ impl<'a> Axis<'a> {
         self.evaluate_by(temp_c, rate_c_per_min, |mesh, x, y| mesh.interpolate_with_grid(x, y, hint, grid))
     }
 
+    /// The first step of [`Axis::evaluate_with_grid`] alone, without a branch on its outcome:
+    /// the evaluation as the mesh's triangle at the query's grid cell gives it, and whether that
+    /// triangle holds the query. When it does (`true`), the evaluation is
+    /// [`Axis::evaluate_with_grid`]'s, bit for bit (that function tests the same triangle first
+    /// with the same arithmetic and stops there); when not, the caller evaluates the point with
+    /// [`Axis::evaluate_with_grid`]. An axis without a mesh always gives `true` (the
+    /// polynomial alone), a NaN or infinite input `false`.
+    ///
+    /// For batches in random order: a caller that first runs this over a block of points,
+    /// noting the `false` ones without branching, then evaluates those, does not mispredict the
+    /// outcome of the cell test at every point where the cell's triangle does not hold it
+    /// (outside the hull, near a triangle edge), as a loop over `evaluate_with_grid` does.
+    #[inline]
+    pub fn evaluate_in_grid_cell(
+        &self,
+        temp_c: f32,
+        rate_c_per_min: f32,
+        grid: &StartGrid<'_>,
+    ) -> (Evaluation, bool) {
+        let mut held = self.mesh.is_none();
+        let evaluation = self.evaluate_by(temp_c, rate_c_per_min, |mesh, x, y| {
+            let (value, inside) = mesh.interpolate_in_grid_cell(x, y, grid);
+            held = inside;
+            Ok(value)
+        });
+        match evaluation {
+            Ok(evaluation) => (evaluation, held),
+            Err(_) => (Evaluation { value_dph: f32::NAN, outside_hull: false }, false),
+        }
+    }
+
     /// The evaluation with the mesh interpolated by `interpolate`.
     #[inline(always)]
     fn evaluate_by(

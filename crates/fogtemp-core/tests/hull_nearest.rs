@@ -484,3 +484,78 @@ fn evaluate_with_grid_equals_evaluate_on_the_golden_model() {
         Some(Err(fogtemp_core::Error::BadValue { .. })) | None
     ));
 }
+
+/// `Axis::evaluate_in_grid_cell`, the first step of `evaluate_with_grid` alone: where it says
+/// the cell's triangle holds the point, its evaluation is `Axis::evaluate`'s bit for bit; a NaN
+/// or infinite input is never held; and the two-pass batch the Python package runs (the held
+/// points' values kept, the others by `evaluate_with_grid`) equals `evaluate` at every point,
+/// inside and outside the hull of every mesh axis of the golden model.
+#[test]
+fn evaluate_in_grid_cell_is_the_first_step_of_evaluate_with_grid() {
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../tests/golden/model-v2.fogm");
+    let blob = std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let model = Model::from_bytes(&blob).expect("golden model");
+    let mut axes = 0;
+    for a in 0..model.axis_count() {
+        let axis = model.axis(a).expect("axis");
+        let Some(mesh) = axis.mesh else { continue };
+        let mut cells = vec![0u32; 16 * 16];
+        let grid = mesh.start_grid(16, &mut cells).expect("grid");
+        let mut r = rng(400 + a as u64);
+        let (t, rate) = (
+            axis.provenance.temp_min_c..axis.provenance.temp_max_c,
+            axis.provenance.rate_min_c_per_min..axis.provenance.rate_max_c_per_min,
+        );
+        let widen = |v: std::ops::Range<f32>| (v.start - (v.end - v.start), v.end + (v.end - v.start));
+        let ((t0, t1), (r0, r1)) = (widen(t), widen(rate));
+        let mut points: Vec<(f32, f32)> =
+            (0..20_000).map(|_| (r.gen_range(t0..t1), r.gen_range(r0..r1))).collect();
+        points.extend([(f32::NAN, 0.0), (20.0, f32::INFINITY), (f32::NEG_INFINITY, f32::NAN)]);
+        // The two passes: the cell test everywhere, then the points it did not hold.
+        let mut batch: Vec<(f32, bool)> = points
+            .iter()
+            .map(|&(temp_c, rate_c_per_min)| {
+                let (evaluation, held) = axis.evaluate_in_grid_cell(temp_c, rate_c_per_min, &grid);
+                (evaluation.value_dph, held)
+            })
+            .collect();
+        let mut grid_hint = WalkHint::default();
+        for (&(temp_c, rate_c_per_min), value) in points.iter().zip(batch.iter_mut()) {
+            if !value.1 {
+                value.0 = axis
+                    .evaluate_with_grid(temp_c, rate_c_per_min, &mut grid_hint, &grid)
+                    .map_or(f32::NAN, |e| e.value_dph);
+            }
+        }
+        let (mut plain_hint, mut held, mut outside) = (WalkHint::default(), 0, 0);
+        for (&(temp_c, rate_c_per_min), &(value, in_cell)) in points.iter().zip(&batch) {
+            let plain = axis.evaluate(temp_c, rate_c_per_min, &mut plain_hint);
+            match plain {
+                Ok(plain) => {
+                    assert_eq!(
+                        plain.value_dph.to_bits(),
+                        value.to_bits(),
+                        "axis {a} at ({temp_c}, {rate_c_per_min})"
+                    );
+                    if in_cell {
+                        let (first, _) = axis.evaluate_in_grid_cell(temp_c, rate_c_per_min, &grid);
+                        assert_eq!(
+                            first.outside_hull, plain.outside_hull,
+                            "axis {a} at ({temp_c}, {rate_c_per_min})"
+                        );
+                    }
+                    outside += usize::from(plain.outside_hull);
+                }
+                Err(_) => {
+                    assert!(value.is_nan() && !in_cell, "axis {a}: non-finite ({temp_c}, {rate_c_per_min})")
+                }
+            }
+            held += usize::from(in_cell);
+        }
+        // Both passes did work (the widened box is mostly outside the golden meshes' hulls).
+        assert!(held > 100 && points.len() - held > 100, "axis {a}: {held} of {} held", points.len());
+        assert!(outside > 1000, "axis {a}: {outside} of {} outside", points.len());
+        axes += 1;
+    }
+    assert!(axes > 0, "the golden model has a mesh axis");
+}

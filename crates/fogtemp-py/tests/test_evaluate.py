@@ -114,6 +114,25 @@ def test_threads_and_start_grid_agree_with_the_command_line(mesh_model, tmp_path
     np.testing.assert_allclose(one_thread, cli_values, rtol=0, atol=1e-5)
 
 
+def test_non_finite_points_of_a_large_input_give_nan_and_leave_the_others_alone(mesh_model):
+    # A large input (start grid, two passes per block): NaN exactly at the non-finite points,
+    # every other value bit for bit the value without them.
+    axis = mesh_model.inspect()["axes"][0]
+    temp, rate = random_points_in_range(axis, 50_000, seed=17)
+    temp = np.concatenate([temp, [-80.0, 120.0]])
+    rate = np.concatenate([rate, [3.0, -3.0]])
+    clean = mesh_model.evaluate(temp, rate, threads=1)
+    bad = np.zeros(temp.size, dtype=bool)
+    bad[::997] = True
+    spoiled_temp = np.where(bad, np.nan, temp)
+    spoiled_rate = np.where(np.roll(bad, 1), np.inf, rate)
+    spoiled = mesh_model.evaluate(spoiled_temp, spoiled_rate, threads=1)
+    hit = bad | np.roll(bad, 1)
+    assert np.isnan(spoiled[hit]).all()
+    np.testing.assert_array_equal(spoiled[~hit], clean[~hit])
+    assert np.isfinite(clean).all()
+
+
 def test_axis_out_of_range_is_a_value_error(mesh_model):
     with pytest.raises(ValueError, match="axis 3 does not exist"):
         mesh_model.evaluate(20.0, 0.0, axis=3)
