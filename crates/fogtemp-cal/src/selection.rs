@@ -111,7 +111,7 @@ impl Default for SelectionOptions {
             stability: BiasStabilityOptions::default(),
             inside_range_only: false,
             scoring: CvScoring::InsideRegion,
-            scheme: CvScheme::LeaveOneGroupOut,
+            scheme: CvScheme::RunsAndBlocks,
             blocks: DEFAULT_BLOCKS,
         }
     }
@@ -132,6 +132,14 @@ pub enum CvScheme {
     /// within half a target window of a held-out block are left out too (their centred
     /// smoothing reaches into it).
     BlockedKFold,
+    /// Both, per held-out run (the default): its leave-one-group-out score (a new run, its
+    /// region covered only by the other runs) and its blocked out-of-fold score (the same
+    /// path, its region covered by its own other blocks), combined by [`combined_score`];
+    /// the rule pairs the candidates over the leave-one-group-out folds. A validation run
+    /// is a new run over the calibrated path: between the two. Leave-one-run-out cannot see
+    /// structure in b(T) that only one run covers (the paper's design: one run per 15 C
+    /// band), and the blocks alone share the held-out run's slow noise with its training.
+    RunsAndBlocks,
 }
 
 /// Default K of [`CvScheme::BlockedKFold`] (the usual 5-fold: each fold trains on 80 % of
@@ -217,17 +225,23 @@ pub fn folds(groups: &[String]) -> Vec<Fold> {
     out
 }
 
-/// Cross-validation statistics of one candidate over the folds.
+/// Cross-validation statistics of one candidate over the folds. The rule works on the
+/// logarithm of the fold scores ([`choose`]); the deg/h figures are that scale mapped back.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct FoldSummary {
-    /// Mean over folds of the fold score, deg/h.
+    /// Geometric mean over folds of the fold score, `exp(mean_g ln s_g)`, deg/h.
     pub mean_dph: f64,
-    /// Its standard error, `sd / sqrt(K)`, deg/h.
+    /// Its standard error, `mean_dph * sd_g(ln s_g) / sqrt(K)` (first order), deg/h.
     pub standard_error_dph: f64,
     /// Mean minus the best candidate's mean, deg/h.
     pub difference_dph: f64,
-    /// Standard error of the paired per-fold difference to the best, deg/h.
+    /// The excess the rule allows, `best mean * (exp(SE_d) - 1)`, deg/h: `difference_dph`
+    /// is within it exactly when `log_ratio <= log_ratio_standard_error`.
     pub difference_standard_error_dph: f64,
+    /// Mean over folds of `ln(s_g / s_g(best))`: the relative excess on the best.
+    pub log_ratio: f64,
+    /// Its standard error, `SE_d = sd_g(ln(s_g / s_g(best))) / sqrt(K)`.
+    pub log_ratio_standard_error: f64,
 }
 
 /// The outcome of the rule.
@@ -251,38 +265,56 @@ fn standard_error(v: &[f64]) -> f64 {
 }
 
 /// The one-standard-error rule over candidates given simplest first, each with its score on
-/// the same folds (`None`: the candidate could not be scored). Every score must be finite
-/// and every scored candidate must have the same number of folds, at least 2; `None`
-/// otherwise, or when no candidate has scores.
+/// the same folds (`None`: the candidate could not be scored), on the log scale: `best` has
+/// the lowest mean of `ln s_g`, and the chosen candidate is the simplest whose mean paired
+/// log ratio to the best is within one standard error of that ratio.
+///
+/// Why logarithms: a fold score is a standard deviation of window means, whose sampling
+/// error is proportional to its size (relative standard error about `1 / sqrt(2 (n - 1))`
+/// for `n` windows), and the held-out runs differ in size (a run with more slow noise, a
+/// shorter run). On the log scale every fold's score has about the same sampling noise, so
+/// each fold weighs alike in the mean and in the standard error of the paired differences,
+/// instead of the largest run deciding both; and a log ratio is the relative excess, the
+/// scale on which models are compared. (A design change after seeing results:
+/// docs/calibration-testbed.md, "Auto: log-scale rule, runs and blocks".)
+///
+/// Every score must be finite and positive and every scored candidate must have the same
+/// number of folds, at least 2; `None` otherwise, or when no candidate has scores.
 pub fn choose(fold_scores: &[Option<Vec<f64>>]) -> Option<Choice> {
     let k = fold_scores.iter().flatten().map(Vec::len).next()?;
-    let valid = |s: &Vec<f64>| s.len() == k && s.iter().all(|v| v.is_finite());
+    let valid = |s: &Vec<f64>| s.len() == k && s.iter().all(|v| v.is_finite() && *v > 0.0);
     if k < 2 || !fold_scores.iter().flatten().all(valid) {
         return None;
     }
-    let best = fold_scores
+    let logs: Vec<Option<Vec<f64>>> =
+        fold_scores.iter().map(|s| s.as_ref().map(|s| s.iter().map(|v| v.ln()).collect())).collect();
+    let best = logs
         .iter()
         .enumerate()
         .filter_map(|(i, s)| s.as_ref().map(|s| (i, mean(s))))
         .min_by(|a, b| a.1.total_cmp(&b.1))?
         .0;
-    let best_scores = fold_scores[best].as_ref()?;
-    let summaries: Vec<Option<FoldSummary>> = fold_scores
+    let best_logs = logs[best].as_ref()?;
+    let best_mean_dph = mean(best_logs).exp();
+    let summaries: Vec<Option<FoldSummary>> = logs
         .iter()
         .map(|s| {
             let s = s.as_ref()?;
-            let diff: Vec<f64> = s.iter().zip(best_scores).map(|(a, b)| a - b).collect();
+            let ratio: Vec<f64> = s.iter().zip(best_logs).map(|(a, b)| a - b).collect();
+            let (mean_dph, ratio_se) = (mean(s).exp(), standard_error(&ratio));
             Some(FoldSummary {
-                mean_dph: mean(s),
-                standard_error_dph: standard_error(s),
-                difference_dph: mean(&diff),
-                difference_standard_error_dph: standard_error(&diff),
+                mean_dph,
+                standard_error_dph: mean_dph * standard_error(s),
+                difference_dph: mean_dph - best_mean_dph,
+                difference_standard_error_dph: best_mean_dph * ratio_se.exp_m1(),
+                log_ratio: mean(&ratio),
+                log_ratio_standard_error: ratio_se,
             })
         })
         .collect();
     let chosen = summaries
         .iter()
-        .position(|s| s.is_some_and(|s| s.difference_dph <= s.difference_standard_error_dph))
+        .position(|s| s.is_some_and(|s| s.log_ratio <= s.log_ratio_standard_error))
         .unwrap_or(best);
     Some(Choice { chosen, best, summaries })
 }
@@ -304,6 +336,13 @@ pub struct HeldOutRun {
     /// Averaging windows left out because some block lies outside the training runs'
     /// calibrated region (0 with [`CvScoring::WholeRun`]).
     pub windows_outside_region: usize,
+    /// With [`CvScheme::RunsAndBlocks`]: the run's leave-one-group-out score (what
+    /// `bias_stability_dph` is under [`CvScheme::LeaveOneGroupOut`]), deg/h (NaN when not
+    /// scored by that scheme).
+    pub left_out_bias_stability_dph: f64,
+    /// The run's blocked out-of-fold score (whole run), deg/h (NaN when not scored by that
+    /// scheme).
+    pub blocked_bias_stability_dph: f64,
 }
 
 /// A fold the rule did not use, and why.
@@ -330,6 +369,11 @@ pub struct CandidateScore {
     /// Standard error of the paired per-fold difference to the best, deg/h (what the rule
     /// compares the excess with).
     pub difference_standard_error_dph: f64,
+    /// Mean over folds of the log ratio of its fold score to the best candidate's: the
+    /// relative excess the rule compares (NaN when not scored).
+    pub log_ratio_to_best: f64,
+    /// Standard error of that mean (paired over the folds).
+    pub log_ratio_standard_error: f64,
     /// Whether the excess is within one standard error (the chosen method is the simplest
     /// such candidate).
     pub within_one_standard_error: bool,
@@ -446,11 +490,16 @@ impl Selection {
     /// for whole-run scoring with every fold scored).
     pub fn scoring_note(&self) -> String {
         let mut out = String::new();
-        if let (CvScheme::BlockedKFold, Some(k)) = (self.scheme, self.blocks) {
-            out.push_str(&format!(
+        match (self.scheme, self.blocks) {
+            (CvScheme::BlockedKFold, Some(k)) => out.push_str(&format!(
                 "  blocked {k}-fold within runs: each run's out-of-fold output scored, the rule pairs {} runs\n",
                 self.folds
-            ));
+            )),
+            (CvScheme::RunsAndBlocks, Some(k)) => out.push_str(&format!(
+                "  each held-out run scored left out and by blocked {k}-fold within runs (geometric mean of \
+                 the two)\n"
+            )),
+            _ => {}
         }
         if self.scoring == CvScoring::InsideRegion {
             out.push_str(&format!(
@@ -500,23 +549,112 @@ pub fn select(
     mut progress: impl FnMut(usize, usize),
     replay: &ReplayRun<'_>,
 ) -> Result<Vec<Selection>, CalError> {
-    if options.scheme == CvScheme::BlockedKFold {
-        return select_blocked(runs, config, options, progress, replay);
-    }
     let axes = config.ingest.format.gyro_columns.len();
     let names: Vec<String> = runs.iter().map(|r| run_name(&r.path)).collect();
-    let (grouping, groups) = cv_groups(&names, options.positions.as_deref());
+    let k = options.blocks;
+    if options.scheme != CvScheme::LeaveOneGroupOut && k < 2 {
+        let why = "blocked k-fold needs at least 2 blocks per run";
+        return Ok(vec![Selection::fallback(Grouping::Runs, runs.len(), "given", why); axes]);
+    }
+    let (grouping, groups) = match options.scheme {
+        // Blocked alone: every run is its own unit.
+        CvScheme::BlockedKFold => (Grouping::Runs, names.clone()),
+        _ => cv_groups(&names, options.positions.as_deref()),
+    };
     let folds = folds(&groups);
     if folds.len() < MIN_FOLDS {
-        return Ok(vec![
-            Selection::fallback(grouping, folds.len(), "given", "too few calibration runs");
-            axes
-        ]);
+        let why = "too few calibration runs";
+        return Ok(vec![Selection::fallback(grouping, folds.len(), "given", why); axes]);
     }
+    let held = match options.scheme {
+        CvScheme::LeaveOneGroupOut => held_out_by_groups(runs, config, options, &folds, &mut progress, replay)?,
+        CvScheme::BlockedKFold => held_out_by_blocks(runs, config, options, 0, &mut progress, replay)?,
+        CvScheme::RunsAndBlocks => {
+            let mut by_groups =
+                held_out_by_groups(runs, config, options, &folds, &mut |f, n| progress(f, n + k), replay)?;
+            let by_blocks = held_out_by_blocks(runs, config, options, folds.len(), &mut progress, replay)?;
+            by_groups.add_blocked(&by_blocks);
+            by_groups
+        }
+    };
+    Ok((0..axes)
+        .map(|axis| {
+            let inside: Vec<bool> = folds
+                .iter()
+                .map(|f| {
+                    options.scheme == CvScheme::BlockedKFold
+                        || !options.inside_range_only
+                        || within_training_range(runs, axis, &f.held_out)
+                })
+                .collect();
+            let mut s =
+                axis_selection(axis, grouping, &folds, &inside, &options.candidates, &held.runs, &held.failed);
+            s.scheme = options.scheme;
+            s.scoring = options.scoring;
+            s.blocks = (options.scheme != CvScheme::LeaveOneGroupOut).then_some(k);
+            s
+        })
+        .collect())
+}
+
+/// Every candidate's held-out runs: per candidate, per axis, the runs scored; and per
+/// candidate why its fit failed in some fold (if it did).
+#[derive(Clone, Debug, Default)]
+struct HeldOut {
+    runs: Vec<Vec<Vec<HeldOutRun>>>,
+    failed: Vec<Option<String>>,
+}
+
+impl HeldOut {
+    fn new(candidates: usize, axes: usize) -> Self {
+        Self { runs: vec![vec![Vec::new(); axes]; candidates], failed: vec![None; candidates] }
+    }
+
+    /// Adds each run's blocked out-of-fold score to its held-out score
+    /// ([`CvScheme::RunsAndBlocks`]): the run's score becomes [`combined_score`] of the
+    /// two; a candidate that failed in either scheme is failed.
+    fn add_blocked(&mut self, blocked: &HeldOut) {
+        for (c, per_axis) in self.runs.iter_mut().enumerate() {
+            for (axis, runs) in per_axis.iter_mut().enumerate() {
+                let others = blocked.runs.get(c).and_then(|a| a.get(axis));
+                for r in runs.iter_mut() {
+                    let b = others.and_then(|o| o.iter().find(|b| b.run == r.run));
+                    r.blocked_bias_stability_dph = b.map_or(f64::NAN, |b| b.bias_stability_dph);
+                    r.left_out_bias_stability_dph = r.bias_stability_dph;
+                    r.bias_stability_dph = combined_score(r.bias_stability_dph, r.blocked_bias_stability_dph);
+                }
+            }
+            if self.failed[c].is_none() {
+                self.failed[c] = blocked.failed.get(c).cloned().flatten();
+            }
+        }
+    }
+}
+
+/// A held-out run's score from its two schemes: the geometric mean of the finite, positive
+/// ones (the rule's log scale: the mean of their logarithms), NaN when neither is.
+pub fn combined_score(left_out_dph: f64, blocked_dph: f64) -> f64 {
+    let logs: Vec<f64> =
+        [left_out_dph, blocked_dph].iter().filter(|v| v.is_finite() && **v > 0.0).map(|v| v.ln()).collect();
+    if logs.is_empty() {
+        return f64::NAN;
+    }
+    mean(&logs).exp()
+}
+
+/// Leave-one-group-out: per fold, every candidate fitted on the other runs, the held-out
+/// runs replayed and scored ([`score_held_out`], inside the training region by default).
+fn held_out_by_groups(
+    runs: &[RunFeatures],
+    config: &CalibrationConfig,
+    options: &SelectionOptions,
+    folds: &[Fold],
+    progress: &mut dyn FnMut(usize, usize),
+    replay: &ReplayRun<'_>,
+) -> Result<HeldOut, CalError> {
+    let axes = config.ingest.format.gyro_columns.len();
     let candidates = &options.candidates;
-    // Per candidate: per axis the held-out runs, and why it failed (if it did).
-    let mut held: Vec<Vec<Vec<HeldOutRun>>> = vec![vec![Vec::new(); axes]; candidates.len()];
-    let mut failed: Vec<Option<String>> = vec![None; candidates.len()];
+    let mut out = HeldOut::new(candidates.len(), axes);
     for (f, fold) in folds.iter().enumerate() {
         progress(f, folds.len());
         let training: Vec<RunFeatures> = runs
@@ -525,17 +663,7 @@ pub fn select(
             .filter(|(i, _)| !fold.held_out.contains(i))
             .map(|(_, r)| r.clone())
             .collect();
-        let mut fitted: Vec<(usize, Vec<u8>)> = Vec::new();
-        for (c, &method) in candidates.iter().enumerate() {
-            if failed[c].is_some() {
-                continue;
-            }
-            let candidate = CalibrationConfig { method, ..config.clone() };
-            match fit_model(&training, &candidate, [0; 32]) {
-                Ok(model) => fitted.push((c, model.blob)),
-                Err(e) => failed[c] = Some(format!("fit without '{}' failed: {e}", fold.label)),
-            }
-        }
+        let fitted = fit_candidates(&training, config, candidates, &mut out.failed, &fold.label)?;
         let models: Vec<Model<'_>> = fitted
             .iter()
             .map(|(_, blob)| Model::from_bytes(blob).map_err(CalError::SelfCheck))
@@ -552,7 +680,7 @@ pub fn select(
             .collect();
         for ((c, _), validation) in fitted.iter().zip(validations) {
             for r in validation.runs {
-                let Some(axis_runs) = held[*c].get_mut(r.axis) else { continue };
+                let Some(axis_runs) = out.runs[*c].get_mut(r.axis) else { continue };
                 let region = regions.get(r.axis).and_then(Option::as_ref);
                 let scored = score_held_out(&r.series, region, &options.stability);
                 axis_runs.push(HeldOutRun {
@@ -562,21 +690,36 @@ pub fn select(
                     whole_run_bias_stability_dph: r.compensated_bias_stability_dph,
                     windows_scored: scored.windows_scored,
                     windows_outside_region: scored.windows_outside_region,
+                    left_out_bias_stability_dph: scored.bias_stability_dph,
+                    blocked_bias_stability_dph: f64::NAN,
                 });
             }
         }
     }
-    Ok((0..axes)
-        .map(|axis| {
-            let inside: Vec<bool> = folds
-                .iter()
-                .map(|f| !options.inside_range_only || within_training_range(runs, axis, &f.held_out))
-                .collect();
-            let mut s = axis_selection(axis, grouping, &folds, &inside, candidates, &held, &failed);
-            s.scoring = options.scoring;
-            s
-        })
-        .collect())
+    Ok(out)
+}
+
+/// Fits every candidate not yet failed on `training`; a failure is recorded in `failed`
+/// (named after `fold`), not returned. Returns (candidate index, blob) of the fits.
+fn fit_candidates(
+    training: &[RunFeatures],
+    config: &CalibrationConfig,
+    candidates: &[Method],
+    failed: &mut [Option<String>],
+    fold: &str,
+) -> Result<Vec<(usize, Vec<u8>)>, CalError> {
+    let mut fitted = Vec::new();
+    for (c, &method) in candidates.iter().enumerate() {
+        if failed[c].is_some() {
+            continue;
+        }
+        let candidate = CalibrationConfig { method, ..config.clone() };
+        match fit_model(training, &candidate, [0; 32]) {
+            Ok(model) => fitted.push((c, model.blob)),
+            Err(e) => failed[c] = Some(format!("fit without '{fold}' failed: {e}")),
+        }
+    }
+    Ok(fitted)
 }
 
 /// The time blocks of one run: K equal spans of its feature times; times before the first
@@ -652,114 +795,132 @@ pub fn without_block(run: &RunFeatures, blocks: &RunBlocks, j: usize, guard_s: f
     RunFeatures { path: run.path.clone(), ingest: run.ingest.clone(), axes }
 }
 
-/// [`select`] with [`CvScheme::BlockedKFold`].
-fn select_blocked(
+/// Blocked K-fold within runs ([`CvScheme::BlockedKFold`]): per fold, every candidate
+/// fitted on every run without one block of each; each run's out-of-fold output assembled
+/// and scored over the whole run. `progress` counts folds from `first_fold`.
+fn held_out_by_blocks(
     runs: &[RunFeatures],
     config: &CalibrationConfig,
     options: &SelectionOptions,
-    mut progress: impl FnMut(usize, usize),
+    first_fold: usize,
+    progress: &mut dyn FnMut(usize, usize),
     replay: &ReplayRun<'_>,
-) -> Result<Vec<Selection>, CalError> {
+) -> Result<HeldOut, CalError> {
     let axes = config.ingest.format.gyro_columns.len();
     let names: Vec<String> = runs.iter().map(|r| run_name(&r.path)).collect();
     let k = options.blocks;
-    if runs.len() < MIN_FOLDS || k < 2 {
-        let why =
-            if k < 2 { "blocked k-fold needs at least 2 blocks per run" } else { "too few calibration runs" };
-        return Ok(vec![Selection::fallback(Grouping::Runs, runs.len(), "given", why); axes]);
-    }
     let blocks: Vec<RunBlocks> = runs.iter().map(|r| RunBlocks::of(r, k)).collect();
     let guard_s = config.target_window_s / 2.0;
     let candidates = &options.candidates;
-    // Per candidate, per run: the out-of-fold series per axis (filled block by block).
+    let mut out = HeldOut::new(candidates.len(), axes);
+    // Per candidate, per run: the out-of-fold series per axis (filled block by block); per
+    // run and axis, whether each block lies inside the training region of the fold that
+    // held it out (with inside-region scoring; the same for every candidate).
     let mut assembled: Vec<Vec<Vec<ReplaySeries>>> = vec![vec![Vec::new(); runs.len()]; candidates.len()];
-    let mut failed: Vec<Option<String>> = vec![None; candidates.len()];
+    let mut inside: Vec<Vec<Vec<bool>>> = vec![vec![Vec::new(); axes]; runs.len()];
     for fold in 0..k {
-        progress(fold, k);
+        progress(first_fold + fold, first_fold + k);
         let training: Vec<RunFeatures> = runs
             .iter()
             .enumerate()
             .map(|(r, run)| without_block(run, &blocks[r], held_out_block(fold, r, k), guard_s))
             .collect();
-        let mut fitted: Vec<(usize, Vec<u8>)> = Vec::new();
-        for (c, &method) in candidates.iter().enumerate() {
-            if failed[c].is_some() {
-                continue;
-            }
-            let candidate = CalibrationConfig { method, ..config.clone() };
-            match fit_model(&training, &candidate, [0; 32]) {
-                Ok(model) => fitted.push((c, model.blob)),
-                Err(e) => failed[c] = Some(format!("fit without block fold {fold} failed: {e}")),
-            }
-        }
+        let label = format!("block fold {fold}");
+        let fitted = fit_candidates(&training, config, candidates, &mut out.failed, &label)?;
         let models: Vec<Model<'_>> = fitted
             .iter()
             .map(|(_, blob)| Model::from_bytes(blob).map_err(CalError::SelfCheck))
             .collect::<Result<_, _>>()?;
         let refs: Vec<&Model<'_>> = models.iter().collect();
+        let regions: Vec<Option<TrainingRegion>> = (0..axes)
+            .map(|axis| {
+                (options.scoring == CvScoring::InsideRegion)
+                    .then(|| TrainingRegion::of(&training, axis, config))
+            })
+            .collect();
         for r in 0..runs.len() {
             let j = held_out_block(fold, r, k);
             let Replay { models: per_model, .. } = replay(r, &refs)?;
+            if let Some(per_axis) = per_model.first() {
+                for ((mask, series), region) in inside[r].iter_mut().zip(per_axis).zip(&regions) {
+                    mark_inside(mask, series, region.as_ref(), &blocks[r], j);
+                }
+            }
             for ((c, _), per_axis) in fitted.iter().zip(per_model) {
-                let slot = &mut assembled[*c][r];
-                if slot.is_empty() {
-                    *slot = per_axis;
-                    continue;
-                }
-                for (into, from) in slot.iter_mut().zip(&per_axis) {
-                    for (i, &t) in from.time_s.iter().enumerate() {
-                        if blocks[r].block_of(t) == j {
-                            if let (Some(a), Some(&b)) =
-                                (into.compensated_dph.get_mut(i), from.compensated_dph.get(i))
-                            {
-                                *a = b;
-                            }
-                            if let (Some(a), Some(&b)) = (into.bias_dph.get_mut(i), from.bias_dph.get(i)) {
-                                *a = b;
-                            }
-                        }
-                    }
-                }
+                keep_block(&mut assembled[*c][r], per_axis, &blocks[r], j);
             }
         }
     }
-    // The first fold's replay filled every block; blocks held out by the first fold are
-    // its out-of-fold output, every other block was overwritten by its own fold above.
-    let held: Vec<Vec<Vec<HeldOutRun>>> = assembled
-        .iter()
-        .map(|per_run| {
-            (0..axes)
-                .map(|axis| {
-                    per_run
-                        .iter()
-                        .zip(&names)
-                        .filter_map(|(series, name)| {
-                            let series = series.get(axis)?;
-                            let scored = score_held_out(series, None, &options.stability);
-                            Some(HeldOutRun {
-                                run: name.clone(),
-                                group: name.clone(),
-                                bias_stability_dph: scored.bias_stability_dph,
-                                whole_run_bias_stability_dph: scored.bias_stability_dph,
-                                windows_scored: scored.windows_scored,
-                                windows_outside_region: 0,
-                            })
-                        })
-                        .collect()
+    for (c, per_run) in assembled.iter().enumerate() {
+        for (axis, axis_runs) in out.runs[c].iter_mut().enumerate() {
+            *axis_runs = per_run
+                .iter()
+                .zip(&names)
+                .zip(&inside)
+                .filter_map(|((series, name), inside)| {
+                    let mask = (options.scoring == CvScoring::InsideRegion).then(|| inside[axis].as_slice());
+                    let scored = score_masked(series.get(axis)?, mask, &options.stability);
+                    Some(HeldOutRun {
+                        run: name.clone(),
+                        group: name.clone(),
+                        bias_stability_dph: scored.bias_stability_dph,
+                        whole_run_bias_stability_dph: scored.bias_stability_dph,
+                        windows_scored: scored.windows_scored,
+                        windows_outside_region: scored.windows_outside_region,
+                        left_out_bias_stability_dph: f64::NAN,
+                        blocked_bias_stability_dph: scored.bias_stability_dph,
+                    })
                 })
-                .collect()
-        })
-        .collect();
-    let per_run = folds(&names);
-    let inside = vec![true; per_run.len()];
-    Ok((0..axes)
-        .map(|axis| {
-            let mut s = axis_selection(axis, Grouping::Runs, &per_run, &inside, candidates, &held, &failed);
-            s.scheme = CvScheme::BlockedKFold;
-            s.blocks = Some(k);
-            s
-        })
-        .collect())
+                .collect();
+        }
+    }
+    Ok(out)
+}
+
+/// Marks in `mask` (per block of a run's series, sized on first use) whether the blocks of
+/// block `j` lie inside `region` (every block inside when there is no region).
+fn mark_inside(
+    mask: &mut Vec<bool>,
+    series: &ReplaySeries,
+    region: Option<&TrainingRegion>,
+    blocks: &RunBlocks,
+    j: usize,
+) {
+    if mask.len() != series.time_s.len() {
+        *mask = vec![false; series.time_s.len()];
+    }
+    for (i, &t) in series.time_s.iter().enumerate() {
+        if blocks.block_of(t) == j {
+            let (temp, rate) = (series.temp_c.get(i).copied(), series.rate_c_per_min.get(i).copied());
+            mask[i] = match region {
+                None => true,
+                Some(region) => region.contains(temp.unwrap_or(f64::NAN), rate.unwrap_or(f64::NAN)),
+            };
+        }
+    }
+}
+
+/// Puts block `j` of a fold's replay (`from`, per axis) into a run's out-of-fold series
+/// (`into`). The first fold's replay fills every block; each later fold overwrites the
+/// block it held out, so at the end every block comes from the fold that held it out.
+fn keep_block(into: &mut Vec<ReplaySeries>, from: Vec<ReplaySeries>, blocks: &RunBlocks, j: usize) {
+    if into.is_empty() {
+        *into = from;
+        return;
+    }
+    for (into, from) in into.iter_mut().zip(&from) {
+        for (i, &t) in from.time_s.iter().enumerate() {
+            if blocks.block_of(t) != j {
+                continue;
+            }
+            if let (Some(a), Some(&b)) = (into.compensated_dph.get_mut(i), from.compensated_dph.get(i)) {
+                *a = b;
+            }
+            if let (Some(a), Some(&b)) = (into.bias_dph.get_mut(i), from.bias_dph.get(i)) {
+                *a = b;
+            }
+        }
+    }
 }
 
 /// The calibrated region of the training runs of a fold on one axis, as `fit` stores it in
@@ -834,19 +995,24 @@ pub fn score_held_out(
     region: Option<&TrainingRegion>,
     options: &BiasStabilityOptions,
 ) -> HeldOutScore {
+    let inside: Option<Vec<bool>> = region.map(|region| {
+        series.temp_c.iter().zip(&series.rate_c_per_min).map(|(&t, &r)| region.contains(t, r)).collect()
+    });
+    score_masked(series, inside.as_deref(), options)
+}
+
+/// [`score_held_out`] with the blocks inside the region given as a mask over the series
+/// (`inside[i]` for block `i`; None: every window is scored, with no minimum).
+pub fn score_masked(series: &ReplaySeries, inside: Option<&[bool]>, options: &BiasStabilityOptions) -> HeldOutScore {
     let from = series.first_compensated_block(1.0).min(series.time_s.len());
     let times = &series.time_s[from..];
     let values = series.compensated_dph.get(from..).unwrap_or_default();
-    let inside: Option<Vec<bool>> = region.map(|region| {
-        let temps = series.temp_c.get(from..).unwrap_or_default();
-        let rates = series.rate_c_per_min.get(from..).unwrap_or_default();
-        temps.iter().zip(rates).map(|(&t, &r)| region.contains(t, r)).collect()
-    });
-    let (mut means, outside) = window_means_inside(times, values, inside.as_deref(), options);
+    let mask = inside.map(|m| m.get(from..).unwrap_or_default());
+    let (mut means, outside) = window_means_inside(times, values, mask, options);
     if options.detrend {
         crate::metrics::detrend(&mut means);
     }
-    let enough = region.is_none() || means.len() >= MIN_SCORED_WINDOWS;
+    let enough = inside.is_none() || means.len() >= MIN_SCORED_WINDOWS;
     HeldOutScore {
         bias_stability_dph: if enough { crate::metrics::sample_std(&means) } else { f64::NAN },
         windows_scored: means.len(),
@@ -990,7 +1156,9 @@ fn axis_selection(
                 standard_error_dph: s.standard_error_dph,
                 difference_from_best_dph: s.difference_dph,
                 difference_standard_error_dph: s.difference_standard_error_dph,
-                within_one_standard_error: s.difference_dph <= s.difference_standard_error_dph,
+                log_ratio_to_best: s.log_ratio,
+                log_ratio_standard_error: s.log_ratio_standard_error,
+                within_one_standard_error: s.log_ratio <= s.log_ratio_standard_error,
                 runs: held[c][axis].clone(),
                 error: None,
             },
@@ -1041,6 +1209,8 @@ fn unscored(method: Method, runs: &[HeldOutRun], error: Option<String>) -> Candi
         standard_error_dph: f64::NAN,
         difference_from_best_dph: f64::NAN,
         difference_standard_error_dph: f64::NAN,
+        log_ratio_to_best: f64::NAN,
+        log_ratio_standard_error: f64::NAN,
         within_one_standard_error: false,
         runs: runs.to_vec(),
         error,
@@ -1080,15 +1250,20 @@ mod tests {
         assert_eq!(cv_groups(&names, None), (Grouping::Runs, names.clone()));
     }
 
+    /// Mean and standard error of the mean of `v` (the oracle for the rule's statistics).
+    fn mean_and_se(v: &[f64]) -> (f64, f64) {
+        let n = v.len() as f64;
+        let m = v.iter().sum::<f64>() / n;
+        let sd = (v.iter().map(|x| (x - m) * (x - m)).sum::<f64>() / (n - 1.0)).sqrt();
+        (m, sd / n.sqrt())
+    }
+
     #[test]
     fn one_standard_error_rule_on_hand_computed_numbers() {
-        // Three folds. Best: mesh (index 2), mean 2.0.
-        // poly (index 1): scores 2.1, 2.4, 1.8 -> mean 2.1; differences to mesh
-        //   (2.0, 2.2, 1.8): 0.1, 0.2, 0.0 -> mean 0.1, sd 0.1, SE 0.1/sqrt 3 = 0.0577;
-        //   excess 0.1 > 0.0577: outside.
-        // cubic-t (index 0): scores 3, 3, 3 -> mean 3, far outside.
-        // hybrid (index 3): scores 2.0, 2.3, 1.8 -> mean 2.0333, close to mesh but not
-        //   simpler: mesh itself (excess 0) is the simplest within one SE.
+        // Three folds, on the log scale. Mean ln: mesh (2.0, 2.2, 1.8) 0.6898 (best), hybrid
+        // (2.0, 2.3, 1.8) 0.7046, poly (2.1, 2.4, 1.8) 0.7351, cubic-t ln 3 = 1.0986.
+        // poly's log ratios to mesh: ln 1.05, ln(2.4 / 2.2), 0 -> mean 0.0453, SE 0.0252:
+        // outside. hybrid is not simpler: mesh itself (excess 0) is chosen.
         let scores = vec![
             Some(vec![3.0, 3.0, 3.0]),
             Some(vec![2.1, 2.4, 1.8]),
@@ -1096,17 +1271,31 @@ mod tests {
             Some(vec![2.0, 2.3, 1.8]),
         ];
         let c = choose(&scores).expect("a choice");
-        assert_eq!(c.best, 2);
-        assert_eq!(c.chosen, 2, "{:?}", c.summaries);
+        assert_eq!((c.best, c.chosen), (2, 2), "{:?}", c.summaries);
         let poly = c.summaries[1].expect("scored");
-        assert!((poly.mean_dph - 2.1).abs() < 1e-12);
-        assert!((poly.difference_dph - 0.1).abs() < 1e-12);
-        assert!((poly.difference_standard_error_dph - 0.1 / 3f64.sqrt()).abs() < 1e-12);
-        // sd of (2.1, 2.4, 1.8) = 0.3 -> SE 0.3 / sqrt 3.
-        assert!((poly.standard_error_dph - 0.3 / 3f64.sqrt()).abs() < 1e-12);
+        let ratios = [1.05f64.ln(), (2.4f64 / 2.2).ln(), 0.0];
+        let (m, se) = mean_and_se(&ratios);
+        assert!((poly.log_ratio - m).abs() < 1e-12 && (poly.log_ratio_standard_error - se).abs() < 1e-12);
+        assert!((m - 0.04527).abs() < 1e-5 && (se - 0.02518).abs() < 1e-5, "{m} {se}");
+        // Geometric means and their deg/h mapping.
+        let geo = |v: [f64; 3]| (v.iter().map(|x| x.ln()).sum::<f64>() / 3.0).exp();
+        let (poly_geo, mesh_geo) = (geo([2.1, 2.4, 1.8]), geo([2.0, 2.2, 1.8]));
+        assert!((poly.mean_dph - poly_geo).abs() < 1e-12);
+        assert!((poly.difference_dph - (poly_geo - mesh_geo)).abs() < 1e-12);
+        assert!((poly.difference_standard_error_dph - mesh_geo * se.exp_m1()).abs() < 1e-12);
+        let logs = [2.1f64.ln(), 2.4f64.ln(), 1.8f64.ln()];
+        assert!((poly.standard_error_dph - poly_geo * mean_and_se(&logs).1).abs() < 1e-12);
+        // Within one SE in deg/h exactly when within on the log scale.
+        for s in c.summaries.iter().flatten() {
+            assert_eq!(
+                s.difference_dph <= s.difference_standard_error_dph,
+                s.log_ratio <= s.log_ratio_standard_error,
+                "{s:?}"
+            );
+        }
 
-        // Make poly's excess smaller than its paired SE: differences 0.05, 0.25, -0.1 ->
-        // mean 0.0667, sd 0.1756, SE 0.1014: within one SE, and simpler than mesh.
+        // Make poly's log excess smaller than its SE: ratios ln(2.05 / 2), ln(2.45 / 2.2),
+        // ln(1.7 / 1.8) -> mean 0.0251, SE 0.0476: within, and simpler than mesh.
         let scores = vec![
             Some(vec![3.0, 3.0, 3.0]),
             Some(vec![2.05, 2.45, 1.7]),
@@ -1116,10 +1305,8 @@ mod tests {
         let c = choose(&scores).expect("a choice");
         assert_eq!((c.best, c.chosen), (2, 1), "{:?}", c.summaries);
         let poly = c.summaries[1].expect("scored");
-        let d = [0.05, 0.25, -0.1];
-        let m = d.iter().sum::<f64>() / 3.0;
-        let sd = (d.iter().map(|x| (x - m) * (x - m)).sum::<f64>() / 2.0).sqrt();
-        assert!((poly.difference_standard_error_dph - sd / 3f64.sqrt()).abs() < 1e-12);
+        let (m, se) = mean_and_se(&[(2.05f64 / 2.0).ln(), (2.45f64 / 2.2).ln(), (1.7f64 / 1.8).ln()]);
+        assert!(m <= se && (poly.log_ratio_standard_error - se).abs() < 1e-12);
 
         // An unscored candidate is skipped; the best is then chosen when nothing simpler
         // is within one SE.
@@ -1130,11 +1317,37 @@ mod tests {
     }
 
     #[test]
+    fn one_noisy_fold_does_not_decide_the_rule() {
+        // cubic-t is 20 % worse than poly on four folds and 10 % better on a fifth whose
+        // scores are ten times larger. Arithmetic means: cubic-t 2.86 < poly 2.90, so a rule
+        // on deg/h differences would take cubic-t; on the log scale every fold weighs alike:
+        // ratios ln 1.2 (four times) and ln(9.5 / 10.5) -> mean 0.1258, SE 0.0565.
+        let scores = vec![Some(vec![1.2, 1.2, 1.2, 1.2, 9.5]), Some(vec![1.0, 1.0, 1.0, 1.0, 10.5])];
+        let c = choose(&scores).expect("a choice");
+        assert_eq!((c.best, c.chosen), (1, 1), "{:?}", c.summaries);
+        let cubic = c.summaries[0].expect("scored");
+        let r = [1.2f64.ln(), 1.2f64.ln(), 1.2f64.ln(), 1.2f64.ln(), (9.5f64 / 10.5).ln()];
+        let (m, se) = mean_and_se(&r);
+        assert!((cubic.log_ratio - m).abs() < 1e-12 && (cubic.log_ratio_standard_error - se).abs() < 1e-12);
+        assert!((m - 0.1258).abs() < 1e-4 && (se - 0.0565).abs() < 1e-4, "{m} {se}");
+    }
+
+    #[test]
+    fn a_run_scored_by_both_schemes_gets_their_geometric_mean() {
+        assert!((combined_score(0.004, 0.009) - 0.006).abs() < 1e-15);
+        assert_eq!(combined_score(f64::NAN, 0.005), 0.005);
+        assert_eq!(combined_score(0.003, f64::NAN), 0.003);
+        assert_eq!(combined_score(0.0, 0.004), 0.004, "a zero score has no logarithm: left out");
+        assert!(combined_score(f64::NAN, f64::NAN).is_nan());
+    }
+
+    #[test]
     fn the_rule_refuses_what_it_cannot_score() {
         assert!(choose(&[None, None]).is_none());
         assert!(choose(&[Some(vec![1.0])]).is_none(), "one fold has no standard error");
         assert!(choose(&[Some(vec![1.0, 2.0]), Some(vec![1.0])]).is_none(), "unequal folds");
         assert!(choose(&[Some(vec![1.0, f64::NAN])]).is_none());
+        assert!(choose(&[Some(vec![1.0, 0.0])]).is_none(), "no logarithm of 0");
     }
 
     use crate::calibrate::{extract_run, CalibrationConfig};
@@ -1174,8 +1387,10 @@ mod tests {
         logs
     }
 
+    /// [`selection_with`] leaving one run out (scored inside the training region).
     fn selection_for(bias: impl Fn(f64, f64) -> f64) -> Selection {
-        selection_with(bias, &SelectionOptions::default())
+        let options = SelectionOptions { scheme: CvScheme::LeaveOneGroupOut, ..SelectionOptions::default() };
+        selection_with(bias, &options)
     }
 
     /// `fit --method auto` on [`write_runs`]'s six runs with `bias`, cross-validated per
@@ -1375,6 +1590,8 @@ mod tests {
             whole_run_bias_stability_dph: stability,
             windows_scored: if stability.is_finite() { 20 } else { 3 },
             windows_outside_region: if stability.is_finite() { 0 } else { 50 },
+            left_out_bias_stability_dph: stability,
+            blocked_bias_stability_dph: f64::NAN,
         }
     }
 
@@ -1409,7 +1626,11 @@ mod tests {
     #[test]
     fn inside_region_scoring_leaves_out_what_the_training_runs_do_not_cover() {
         // The rate-driven bias of the test above, scored inside each fold's region.
-        let options = SelectionOptions { scoring: CvScoring::InsideRegion, ..SelectionOptions::default() };
+        let options = SelectionOptions {
+            scoring: CvScoring::InsideRegion,
+            scheme: CvScheme::LeaveOneGroupOut,
+            ..SelectionOptions::default()
+        };
         let s = selection_with(|t, rate| 0.8 * rate + 0.05 * (t - 10.0) / 40.0, &options);
         assert_eq!(s.scoring, CvScoring::InsideRegion);
         assert_ne!(s.method, Method::CubicT, "{}", s.table());
@@ -1480,6 +1701,30 @@ mod tests {
             "{:?}",
             cubic.runs
         );
+    }
+
+    #[test]
+    fn the_default_scores_every_run_left_out_and_by_blocks() {
+        let s = selection_with(|t, rate| 0.8 * rate + 0.05 * (t - 10.0) / 40.0, &SelectionOptions::default());
+        assert_eq!((s.scheme, s.scoring, s.blocks), (CvScheme::RunsAndBlocks, CvScoring::InsideRegion, Some(5)));
+        // run1 and run4 have no window inside the other runs' region (the test above), but a
+        // blocked score: no fold is skipped.
+        assert_eq!((s.folds, s.skipped_folds.len()), (6, 0), "{}", s.table());
+        assert_ne!(s.method, Method::CubicT, "{}", s.table());
+        for c in &s.candidates {
+            let mut logs = Vec::new();
+            for r in &c.runs {
+                let (left, blocked) = (r.left_out_bias_stability_dph, r.blocked_bias_stability_dph);
+                assert!(blocked.is_finite(), "{r:?}");
+                let expected = if left.is_finite() { (left * blocked).sqrt() } else { blocked };
+                assert!((r.bias_stability_dph - expected).abs() <= 1e-12 * expected, "{r:?}");
+                logs.push(r.bias_stability_dph.ln());
+            }
+            assert!(c.runs.iter().any(|r| r.left_out_bias_stability_dph.is_nan()), "run1, run4");
+            // One run per fold: the CV value is the geometric mean of the runs' scores.
+            let geo = (logs.iter().sum::<f64>() / logs.len() as f64).exp();
+            assert!((c.cv_bias_stability_dph - geo).abs() <= 1e-12 * geo, "{c:?}");
+        }
     }
 
     #[test]

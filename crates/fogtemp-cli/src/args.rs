@@ -249,6 +249,8 @@ pub enum CvSchemeArg {
     LeaveOneOut,
     /// Every run cut into --cv-blocks contiguous blocks, one block of each run per fold.
     BlockedKFold,
+    /// Both: each held-out run scored by leaving it out and by its blocks, combined.
+    RunsAndBlocks,
 }
 
 /// `fit` arguments.
@@ -287,9 +289,9 @@ pub struct FitArgs {
     /// training runs' calibrated region (docs/calibration-testbed.md).
     #[arg(long, value_enum, default_value_t = CvScoringArg::InsideRegion, hide = true)]
     pub cv_scoring: CvScoringArg,
-    /// How `auto` forms its folds: leave one run (position) out, or blocked K-fold within
-    /// runs (docs/calibration-testbed.md).
-    #[arg(long, value_enum, default_value_t = CvSchemeArg::LeaveOneOut, hide = true)]
+    /// How `auto` forms its folds: leave one run (position) out, blocked K-fold within
+    /// runs, or both combined per run (the default; docs/calibration-testbed.md).
+    #[arg(long, value_enum, default_value_t = CvSchemeArg::RunsAndBlocks, hide = true)]
     pub cv_scheme: CvSchemeArg,
     /// Blocks per run (K) for `--cv-scheme blocked-k-fold`.
     #[arg(long, default_value_t = fogtemp_cal::selection::DEFAULT_BLOCKS, hide = true)]

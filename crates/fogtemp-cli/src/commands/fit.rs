@@ -82,6 +82,7 @@ pub fn fit(a: FitArgs) -> Result<()> {
         scheme: match a.cv_scheme {
             CvSchemeArg::LeaveOneOut => CvScheme::LeaveOneGroupOut,
             CvSchemeArg::BlockedKFold => CvScheme::BlockedKFold,
+            CvSchemeArg::RunsAndBlocks => CvScheme::RunsAndBlocks,
         },
         blocks: a.cv_blocks,
         ..SelectionOptions::default()
