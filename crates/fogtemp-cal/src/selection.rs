@@ -17,22 +17,15 @@
 //!   calibrated region: a held-out run outside the other runs' (T, dT/dt) range would
 //!   otherwise make the fold an extrapolation test, which the final model, fitted on every
 //!   run, does not face on validation runs inside its region. A fold without a scored run
-//!   is skipped ([`Selection::skipped_folds`]). [`CvScheme::BlockedKFold`] is a second,
-//!   optional scheme (blocks of every run instead of whole runs);
+//!   is skipped ([`Selection::skipped_folds`]). [`CvScheme::BlockedKFold`] (blocks of every
+//!   run instead of whole runs) and [`CvScheme::RunsAndBlocks`] (each held-out run scored
+//!   both ways) are optional schemes;
 //! - cross-validated bias stability `S(m)`: the mean of `s_g(m)` over the `K` folds, with
 //!   standard error `sd_g(s_g(m)) / sqrt(K)`;
 //! - rule ([`choose`]): `best` has the lowest `S`; the chosen method is the simplest
 //!   candidate (order [`CANDIDATES`]) with `S(m) - S(best) <= SE_d(m)`, where
 //!   `SE_d(m) = sd_g(s_g(m) - s_g(best)) / sqrt(K)` is the standard error of the paired
-//!   per-fold difference.
-//!
-//! Why the paired standard error: every candidate is scored on the same held-out runs, and
-//! runs differ far more from each other (their noise, their temperature history) than the
-//! candidates differ on one run. The unpaired standard error of `S(best)` (the textbook
-//! one-standard-error rule) carries that run-to-run spread and would call a simpler model
-//! "as good" even when it is worse on every single run; the paired difference cancels what
-//! the runs share and measures only how much the candidates differ. (Decided before any
-//! result; both standard errors are reported.)
+//!   per-fold difference ([`RuleScale::Log`]: the same on `ln s_g`, optional).
 //!
 //! Why this simplicity order: `cubic-t` has 4 coefficients in T alone; `poly` at most 15
 //! terms in (T, dT/dt), each admitted by an F-test; `mesh` one value per node (tens to
@@ -76,6 +69,11 @@ pub const RULE: &str = "the simplest candidate (cubic-t < poly < mesh < hybrid) 
     stability (mean over folds of the held-out runs' compensated bias stability, RMS within a fold) exceeds \
     the lowest by at most one standard error of the paired per-fold difference";
 
+/// The rule on the log scale ([`RuleScale::Log`]), in words.
+pub const RULE_LOG_SCALE: &str = "the simplest candidate (cubic-t < poly < mesh < hybrid) whose cross-validated \
+    bias stability (geometric mean over folds of the held-out runs' compensated bias stability, RMS within a \
+    fold) exceeds the lowest by at most one standard error of the paired per-fold log ratio";
+
 /// Replays run `run` (its index in the runs given) through `models` (a file's replay reads
 /// the log again; runs held in memory replay their arrays).
 pub type ReplayRun<'a> = dyn Fn(usize, &[&Model<'_>]) -> Result<Replay, CalError> + Sync + 'a;
@@ -99,8 +97,27 @@ pub struct SelectionOptions {
     pub scoring: CvScoring,
     /// How folds are formed ([`CvScheme`]).
     pub scheme: CvScheme,
-    /// Blocks per run (K) for [`CvScheme::BlockedKFold`].
+    /// Blocks per run (K) for [`CvScheme::BlockedKFold`] and [`CvScheme::RunsAndBlocks`].
     pub blocks: usize,
+    /// The scale the one-standard-error rule works on ([`RuleScale`]).
+    pub scale: RuleScale,
+}
+
+/// The scale of the one-standard-error rule ([`choose`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum RuleScale {
+    /// Fold scores in deg/h: arithmetic means, paired differences (the default).
+    DegPerHour,
+    /// Their logarithms: geometric means, paired log ratios (relative excess). The case for
+    /// it: a fold score is a standard deviation of window means, whose sampling error is
+    /// proportional to its size, so on the log scale every fold would weigh alike instead
+    /// of the largest held-out run deciding the mean and the standard error. Measured
+    /// against the default in docs/calibration-testbed.md ("Auto: the rule's scale and a
+    /// second score per run"): not better, and worse where a fold's score rests on few
+    /// windows (its relative error is then not like the others'); an option, not the
+    /// default.
+    Log,
 }
 
 impl Default for SelectionOptions {
@@ -111,8 +128,9 @@ impl Default for SelectionOptions {
             stability: BiasStabilityOptions::default(),
             inside_range_only: false,
             scoring: CvScoring::InsideRegion,
-            scheme: CvScheme::RunsAndBlocks,
+            scheme: CvScheme::LeaveOneGroupOut,
             blocks: DEFAULT_BLOCKS,
+            scale: RuleScale::DegPerHour,
         }
     }
 }
@@ -132,13 +150,15 @@ pub enum CvScheme {
     /// within half a target window of a held-out block are left out too (their centred
     /// smoothing reaches into it).
     BlockedKFold,
-    /// Both, per held-out run (the default): its leave-one-group-out score (a new run, its
+    /// Both, per held-out run: its leave-one-group-out score (a new run, its
     /// region covered only by the other runs) and its blocked out-of-fold score (the same
     /// path, its region covered by its own other blocks), combined by [`combined_score`];
     /// the rule pairs the candidates over the leave-one-group-out folds. A validation run
     /// is a new run over the calibrated path: between the two. Leave-one-run-out cannot see
     /// structure in b(T) that only one run covers (the paper's design: one run per 15 C
     /// band), and the blocks alone share the held-out run's slow noise with its training.
+    /// Measured against the default in docs/calibration-testbed.md ("Auto: the rule's scale
+    /// and a second score per run"): an option, not the default.
     RunsAndBlocks,
 }
 
@@ -225,22 +245,27 @@ pub fn folds(groups: &[String]) -> Vec<Fold> {
     out
 }
 
-/// Cross-validation statistics of one candidate over the folds. The rule works on the
-/// logarithm of the fold scores ([`choose`]); the deg/h figures are that scale mapped back.
+/// Cross-validation statistics of one candidate over the folds ([`choose`]). On the log
+/// scale ([`RuleScale::Log`]) the deg/h figures are that scale mapped back.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct FoldSummary {
-    /// Geometric mean over folds of the fold score, `exp(mean_g ln s_g)`, deg/h.
+    /// Mean over folds of the fold score, deg/h (log scale: the geometric mean,
+    /// `exp(mean_g ln s_g)`).
     pub mean_dph: f64,
-    /// Its standard error, `mean_dph * sd_g(ln s_g) / sqrt(K)` (first order), deg/h.
+    /// Its standard error, `sd_g(s_g) / sqrt(K)` (log scale: `mean_dph * sd_g(ln s_g) /
+    /// sqrt(K)`, first order), deg/h.
     pub standard_error_dph: f64,
     /// Mean minus the best candidate's mean, deg/h.
     pub difference_dph: f64,
-    /// The excess the rule allows, `best mean * (exp(SE_d) - 1)`, deg/h: `difference_dph`
-    /// is within it exactly when `log_ratio <= log_ratio_standard_error`.
+    /// Standard error of the paired per-fold difference to the best, deg/h (log scale: the
+    /// excess the rule allows, `best mean * (exp(SE_d) - 1)`, so that `difference_dph` is
+    /// within it exactly when `log_ratio <= log_ratio_standard_error`).
     pub difference_standard_error_dph: f64,
-    /// Mean over folds of `ln(s_g / s_g(best))`: the relative excess on the best.
+    /// Log scale only (NaN otherwise): mean over folds of `ln(s_g / s_g(best))`, the
+    /// relative excess on the best.
     pub log_ratio: f64,
-    /// Its standard error, `SE_d = sd_g(ln(s_g / s_g(best))) / sqrt(K)`.
+    /// Log scale only (NaN otherwise): its standard error, `sd_g(ln(s_g / s_g(best))) /
+    /// sqrt(K)`.
     pub log_ratio_standard_error: f64,
 }
 
@@ -265,58 +290,74 @@ fn standard_error(v: &[f64]) -> f64 {
 }
 
 /// The one-standard-error rule over candidates given simplest first, each with its score on
-/// the same folds (`None`: the candidate could not be scored), on the log scale: `best` has
-/// the lowest mean of `ln s_g`, and the chosen candidate is the simplest whose mean paired
-/// log ratio to the best is within one standard error of that ratio.
+/// the same folds (`None`: the candidate could not be scored), on the given scale.
 ///
-/// Why logarithms: a fold score is a standard deviation of window means, whose sampling
-/// error is proportional to its size (relative standard error about `1 / sqrt(2 (n - 1))`
-/// for `n` windows), and the held-out runs differ in size (a run with more slow noise, a
-/// shorter run). On the log scale every fold's score has about the same sampling noise, so
-/// each fold weighs alike in the mean and in the standard error of the paired differences,
-/// instead of the largest run deciding both; and a log ratio is the relative excess, the
-/// scale on which models are compared. (A design change after seeing results:
-/// docs/calibration-testbed.md, "Auto: log-scale rule, runs and blocks".)
+/// [`RuleScale::DegPerHour`] (the default): `best` has the lowest mean score; the chosen
+/// candidate is the simplest whose mean paired difference to the best is within one
+/// standard error of that difference. [`RuleScale::Log`]: the same on `ln s_g`, so that
+/// `best` has the lowest geometric mean and the excess is the mean paired log ratio.
 ///
-/// Every score must be finite and positive and every scored candidate must have the same
-/// number of folds, at least 2; `None` otherwise, or when no candidate has scores.
-pub fn choose(fold_scores: &[Option<Vec<f64>>]) -> Option<Choice> {
+/// Every score must be finite (and positive on the log scale) and every scored candidate
+/// must have the same number of folds, at least 2; `None` otherwise, or when no candidate
+/// has scores.
+pub fn choose(fold_scores: &[Option<Vec<f64>>], scale: RuleScale) -> Option<Choice> {
     let k = fold_scores.iter().flatten().map(Vec::len).next()?;
-    let valid = |s: &Vec<f64>| s.len() == k && s.iter().all(|v| v.is_finite() && *v > 0.0);
+    let log = scale == RuleScale::Log;
+    let valid = |s: &Vec<f64>| s.len() == k && s.iter().all(|v| v.is_finite() && (!log || *v > 0.0));
     if k < 2 || !fold_scores.iter().flatten().all(valid) {
         return None;
     }
-    let logs: Vec<Option<Vec<f64>>> =
-        fold_scores.iter().map(|s| s.as_ref().map(|s| s.iter().map(|v| v.ln()).collect())).collect();
-    let best = logs
+    let to_scale = |v: &f64| if log { v.ln() } else { *v };
+    let scaled: Vec<Option<Vec<f64>>> =
+        fold_scores.iter().map(|s| s.as_ref().map(|s| s.iter().map(to_scale).collect())).collect();
+    let best = scaled
         .iter()
         .enumerate()
         .filter_map(|(i, s)| s.as_ref().map(|s| (i, mean(s))))
         .min_by(|a, b| a.1.total_cmp(&b.1))?
         .0;
-    let best_logs = logs[best].as_ref()?;
-    let best_mean_dph = mean(best_logs).exp();
-    let summaries: Vec<Option<FoldSummary>> = logs
-        .iter()
-        .map(|s| {
-            let s = s.as_ref()?;
-            let ratio: Vec<f64> = s.iter().zip(best_logs).map(|(a, b)| a - b).collect();
-            let (mean_dph, ratio_se) = (mean(s).exp(), standard_error(&ratio));
-            Some(FoldSummary {
-                mean_dph,
-                standard_error_dph: mean_dph * standard_error(s),
-                difference_dph: mean_dph - best_mean_dph,
-                difference_standard_error_dph: best_mean_dph * ratio_se.exp_m1(),
-                log_ratio: mean(&ratio),
-                log_ratio_standard_error: ratio_se,
-            })
-        })
-        .collect();
-    let chosen = summaries
-        .iter()
-        .position(|s| s.is_some_and(|s| s.log_ratio <= s.log_ratio_standard_error))
-        .unwrap_or(best);
+    let best_scaled = scaled[best].as_ref()?;
+    let summaries: Vec<Option<FoldSummary>> =
+        scaled.iter().map(|s| s.as_ref().map(|s| summary(s, best_scaled, log))).collect();
+    let chosen = summaries.iter().position(|s| s.is_some_and(|s| s.within_one_standard_error())).unwrap_or(best);
     Some(Choice { chosen, best, summaries })
+}
+
+/// One candidate's statistics from its scaled fold scores `s` and the best candidate's.
+fn summary(s: &[f64], best: &[f64], log: bool) -> FoldSummary {
+    let d: Vec<f64> = s.iter().zip(best).map(|(a, b)| a - b).collect();
+    let (d_mean, d_se) = (mean(&d), standard_error(&d));
+    if !log {
+        return FoldSummary {
+            mean_dph: mean(s),
+            standard_error_dph: standard_error(s),
+            difference_dph: d_mean,
+            difference_standard_error_dph: d_se,
+            log_ratio: f64::NAN,
+            log_ratio_standard_error: f64::NAN,
+        };
+    }
+    let (mean_dph, best_dph) = (mean(s).exp(), mean(best).exp());
+    FoldSummary {
+        mean_dph,
+        standard_error_dph: mean_dph * standard_error(s),
+        difference_dph: mean_dph - best_dph,
+        difference_standard_error_dph: best_dph * d_se.exp_m1(),
+        log_ratio: d_mean,
+        log_ratio_standard_error: d_se,
+    }
+}
+
+impl FoldSummary {
+    /// Whether the excess on the best is within one standard error, on the rule's scale
+    /// (the deg/h figures of the log scale are mapped so that both tests agree).
+    pub fn within_one_standard_error(&self) -> bool {
+        if self.log_ratio.is_nan() {
+            self.difference_dph <= self.difference_standard_error_dph
+        } else {
+            self.log_ratio <= self.log_ratio_standard_error
+        }
+    }
 }
 
 /// One held-out run's compensated bias stability.
@@ -404,7 +445,9 @@ pub struct Selection {
     pub blocks: Option<usize>,
     /// Folds left out of the rule, with why (empty when every fold was scored).
     pub skipped_folds: Vec<SkippedFold>,
-    /// The rule ([`RULE`]).
+    /// The scale the rule worked on.
+    pub scale: RuleScale,
+    /// The rule ([`RULE`], or [`RULE_LOG_SCALE`]).
     pub rule: &'static str,
     /// Set when cross-validation was impossible and the default was fitted: why.
     pub warning: Option<String>,
@@ -447,6 +490,7 @@ impl Selection {
             scheme: CvScheme::LeaveOneGroupOut,
             blocks: None,
             skipped_folds: Vec::new(),
+            scale: RuleScale::DegPerHour,
             rule: RULE,
             warning: Some(format!(
                 "{why} ({folds} {unit} {counted}; cross-validation needs at least {MIN_FOLDS}): fitted the default \
@@ -588,7 +632,7 @@ pub fn select(
                 })
                 .collect();
             let mut s =
-                axis_selection(axis, grouping, &folds, &inside, &options.candidates, &held.runs, &held.failed);
+                axis_selection(axis, grouping, &folds, &inside, &options.candidates, &held, options.scale);
             s.scheme = options.scheme;
             s.scoring = options.scoring;
             s.blocks = (options.scheme != CvScheme::LeaveOneGroupOut).then_some(k);
@@ -1083,9 +1127,10 @@ fn axis_selection(
     folds: &[Fold],
     inside: &[bool],
     candidates: &[Method],
-    held: &[Vec<Vec<HeldOutRun>>],
-    failed: &[Option<String>],
+    held_out: &HeldOut,
+    scale: RuleScale,
 ) -> Selection {
+    let (held, failed) = (&held_out.runs, &held_out.failed);
     // Fold scores per candidate (RMS over the fold's held-out runs; NaN if none finite).
     let scores: Vec<Option<Vec<f64>>> = (0..candidates.len())
         .map(|c| {
@@ -1123,7 +1168,7 @@ fn axis_selection(
         .collect();
     let kept: Vec<Option<Vec<f64>>> =
         scores.iter().map(|s| s.as_ref().map(|s| usable.iter().map(|&g| s[g]).collect())).collect();
-    let choice = (usable.len() >= MIN_FOLDS).then(|| choose(&kept)).flatten();
+    let choice = (usable.len() >= MIN_FOLDS).then(|| choose(&kept, scale)).flatten();
     let Some(choice) = choice else {
         let (counted, why) = if scores.iter().all(Option::is_none) {
             ("given", "no candidate could be fitted in every fold".to_owned())
@@ -1158,7 +1203,7 @@ fn axis_selection(
                 difference_standard_error_dph: s.difference_standard_error_dph,
                 log_ratio_to_best: s.log_ratio,
                 log_ratio_standard_error: s.log_ratio_standard_error,
-                within_one_standard_error: s.log_ratio <= s.log_ratio_standard_error,
+                within_one_standard_error: s.within_one_standard_error(),
                 runs: held[c][axis].clone(),
                 error: None,
             },
@@ -1174,7 +1219,8 @@ fn axis_selection(
         scheme: CvScheme::LeaveOneGroupOut,
         blocks: None,
         skipped_folds,
-        rule: RULE,
+        scale,
+        rule: if scale == RuleScale::Log { RULE_LOG_SCALE } else { RULE },
         warning: None,
         candidates: candidate_scores,
     }
@@ -1250,6 +1296,55 @@ mod tests {
         assert_eq!(cv_groups(&names, None), (Grouping::Runs, names.clone()));
     }
 
+    #[test]
+    fn one_standard_error_rule_on_hand_computed_numbers() {
+        // Three folds. Best: mesh (index 2), mean 2.0.
+        // poly (index 1): scores 2.1, 2.4, 1.8 -> mean 2.1; differences to mesh
+        //   (2.0, 2.2, 1.8): 0.1, 0.2, 0.0 -> mean 0.1, sd 0.1, SE 0.1/sqrt 3 = 0.0577;
+        //   excess 0.1 > 0.0577: outside.
+        // cubic-t (index 0): scores 3, 3, 3 -> mean 3, far outside.
+        // hybrid (index 3): scores 2.0, 2.3, 1.8 -> mean 2.0333, close to mesh but not
+        //   simpler: mesh itself (excess 0) is the simplest within one SE.
+        let scores = vec![
+            Some(vec![3.0, 3.0, 3.0]),
+            Some(vec![2.1, 2.4, 1.8]),
+            Some(vec![2.0, 2.2, 1.8]),
+            Some(vec![2.0, 2.3, 1.8]),
+        ];
+        let c = choose(&scores, RuleScale::DegPerHour).expect("a choice");
+        assert_eq!(c.best, 2);
+        assert_eq!(c.chosen, 2, "{:?}", c.summaries);
+        let poly = c.summaries[1].expect("scored");
+        assert!((poly.mean_dph - 2.1).abs() < 1e-12);
+        assert!((poly.difference_dph - 0.1).abs() < 1e-12);
+        assert!((poly.difference_standard_error_dph - 0.1 / 3f64.sqrt()).abs() < 1e-12);
+        // sd of (2.1, 2.4, 1.8) = 0.3 -> SE 0.3 / sqrt 3.
+        assert!((poly.standard_error_dph - 0.3 / 3f64.sqrt()).abs() < 1e-12);
+
+        // Make poly's excess smaller than its paired SE: differences 0.05, 0.25, -0.1 ->
+        // mean 0.0667, sd 0.1756, SE 0.1014: within one SE, and simpler than mesh.
+        let scores = vec![
+            Some(vec![3.0, 3.0, 3.0]),
+            Some(vec![2.05, 2.45, 1.7]),
+            Some(vec![2.0, 2.2, 1.8]),
+            Some(vec![2.0, 2.3, 1.8]),
+        ];
+        let c = choose(&scores, RuleScale::DegPerHour).expect("a choice");
+        assert_eq!((c.best, c.chosen), (2, 1), "{:?}", c.summaries);
+        let poly = c.summaries[1].expect("scored");
+        let d = [0.05, 0.25, -0.1];
+        let m = d.iter().sum::<f64>() / 3.0;
+        let sd = (d.iter().map(|x| (x - m) * (x - m)).sum::<f64>() / 2.0).sqrt();
+        assert!((poly.difference_standard_error_dph - sd / 3f64.sqrt()).abs() < 1e-12);
+
+        // An unscored candidate is skipped; the best is then chosen when nothing simpler
+        // is within one SE.
+        let scores = vec![None, Some(vec![2.5, 2.6, 2.7]), Some(vec![2.0, 2.1, 2.2])];
+        let c = choose(&scores, RuleScale::DegPerHour).expect("a choice");
+        assert_eq!((c.best, c.chosen), (2, 2));
+        assert!(c.summaries[0].is_none());
+    }
+
     /// Mean and standard error of the mean of `v` (the oracle for the rule's statistics).
     fn mean_and_se(v: &[f64]) -> (f64, f64) {
         let n = v.len() as f64;
@@ -1259,7 +1354,7 @@ mod tests {
     }
 
     #[test]
-    fn one_standard_error_rule_on_hand_computed_numbers() {
+    fn one_standard_error_rule_on_the_log_scale_on_hand_computed_numbers() {
         // Three folds, on the log scale. Mean ln: mesh (2.0, 2.2, 1.8) 0.6898 (best), hybrid
         // (2.0, 2.3, 1.8) 0.7046, poly (2.1, 2.4, 1.8) 0.7351, cubic-t ln 3 = 1.0986.
         // poly's log ratios to mesh: ln 1.05, ln(2.4 / 2.2), 0 -> mean 0.0453, SE 0.0252:
@@ -1270,7 +1365,7 @@ mod tests {
             Some(vec![2.0, 2.2, 1.8]),
             Some(vec![2.0, 2.3, 1.8]),
         ];
-        let c = choose(&scores).expect("a choice");
+        let c = choose(&scores, RuleScale::Log).expect("a choice");
         assert_eq!((c.best, c.chosen), (2, 2), "{:?}", c.summaries);
         let poly = c.summaries[1].expect("scored");
         let ratios = [1.05f64.ln(), (2.4f64 / 2.2).ln(), 0.0];
@@ -1302,7 +1397,7 @@ mod tests {
             Some(vec![2.0, 2.2, 1.8]),
             Some(vec![2.0, 2.3, 1.8]),
         ];
-        let c = choose(&scores).expect("a choice");
+        let c = choose(&scores, RuleScale::Log).expect("a choice");
         assert_eq!((c.best, c.chosen), (2, 1), "{:?}", c.summaries);
         let poly = c.summaries[1].expect("scored");
         let (m, se) = mean_and_se(&[(2.05f64 / 2.0).ln(), (2.45f64 / 2.2).ln(), (1.7f64 / 1.8).ln()]);
@@ -1311,7 +1406,7 @@ mod tests {
         // An unscored candidate is skipped; the best is then chosen when nothing simpler
         // is within one SE.
         let scores = vec![None, Some(vec![2.5, 2.6, 2.7]), Some(vec![2.0, 2.1, 2.2])];
-        let c = choose(&scores).expect("a choice");
+        let c = choose(&scores, RuleScale::Log).expect("a choice");
         assert_eq!((c.best, c.chosen), (2, 2));
         assert!(c.summaries[0].is_none());
     }
@@ -1323,7 +1418,7 @@ mod tests {
         // on deg/h differences would take cubic-t; on the log scale every fold weighs alike:
         // ratios ln 1.2 (four times) and ln(9.5 / 10.5) -> mean 0.1258, SE 0.0565.
         let scores = vec![Some(vec![1.2, 1.2, 1.2, 1.2, 9.5]), Some(vec![1.0, 1.0, 1.0, 1.0, 10.5])];
-        let c = choose(&scores).expect("a choice");
+        let c = choose(&scores, RuleScale::Log).expect("a choice");
         assert_eq!((c.best, c.chosen), (1, 1), "{:?}", c.summaries);
         let cubic = c.summaries[0].expect("scored");
         let r = [1.2f64.ln(), 1.2f64.ln(), 1.2f64.ln(), 1.2f64.ln(), (9.5f64 / 10.5).ln()];
@@ -1334,20 +1429,24 @@ mod tests {
 
     #[test]
     fn a_run_scored_by_both_schemes_gets_their_geometric_mean() {
-        assert!((combined_score(0.004, 0.009) - 0.006).abs() < 1e-15);
-        assert_eq!(combined_score(f64::NAN, 0.005), 0.005);
-        assert_eq!(combined_score(0.003, f64::NAN), 0.003);
-        assert_eq!(combined_score(0.0, 0.004), 0.004, "a zero score has no logarithm: left out");
+        let close = |a: f64, b: f64| (a - b).abs() <= 1e-12 * b;
+        assert!(close(combined_score(0.004, 0.009), 0.006));
+        assert!(close(combined_score(f64::NAN, 0.005), 0.005));
+        assert!(close(combined_score(0.003, f64::NAN), 0.003));
+        assert!(close(combined_score(0.0, 0.004), 0.004), "a zero score has no logarithm: left out");
         assert!(combined_score(f64::NAN, f64::NAN).is_nan());
     }
 
     #[test]
     fn the_rule_refuses_what_it_cannot_score() {
-        assert!(choose(&[None, None]).is_none());
-        assert!(choose(&[Some(vec![1.0])]).is_none(), "one fold has no standard error");
-        assert!(choose(&[Some(vec![1.0, 2.0]), Some(vec![1.0])]).is_none(), "unequal folds");
-        assert!(choose(&[Some(vec![1.0, f64::NAN])]).is_none());
-        assert!(choose(&[Some(vec![1.0, 0.0])]).is_none(), "no logarithm of 0");
+        for scale in [RuleScale::DegPerHour, RuleScale::Log] {
+            assert!(choose(&[None, None], scale).is_none());
+            assert!(choose(&[Some(vec![1.0])], scale).is_none(), "one fold has no standard error");
+            assert!(choose(&[Some(vec![1.0, 2.0]), Some(vec![1.0])], scale).is_none(), "unequal folds");
+            assert!(choose(&[Some(vec![1.0, f64::NAN])], scale).is_none());
+        }
+        assert!(choose(&[Some(vec![1.0, 0.0])], RuleScale::Log).is_none(), "no logarithm of 0");
+        assert!(choose(&[Some(vec![1.0, 0.0])], RuleScale::DegPerHour).is_some());
     }
 
     use crate::calibrate::{extract_run, CalibrationConfig};
@@ -1387,10 +1486,8 @@ mod tests {
         logs
     }
 
-    /// [`selection_with`] leaving one run out (scored inside the training region).
     fn selection_for(bias: impl Fn(f64, f64) -> f64) -> Selection {
-        let options = SelectionOptions { scheme: CvScheme::LeaveOneGroupOut, ..SelectionOptions::default() };
-        selection_with(bias, &options)
+        selection_with(bias, &SelectionOptions::default())
     }
 
     /// `fit --method auto` on [`write_runs`]'s six runs with `bias`, cross-validated per
@@ -1609,8 +1706,8 @@ mod tests {
             &folds,
             &[true; 4],
             &[Method::CubicT, Method::Poly],
-            &[vec![cubic], vec![poly]],
-            &[None, None],
+            &HeldOut { runs: vec![vec![cubic], vec![poly]], failed: vec![None, None] },
+            RuleScale::DegPerHour,
         );
         assert_eq!((s.method, s.folds), (Method::CubicT, 3));
         assert_eq!(s.skipped_folds.len(), 1);
@@ -1626,11 +1723,7 @@ mod tests {
     #[test]
     fn inside_region_scoring_leaves_out_what_the_training_runs_do_not_cover() {
         // The rate-driven bias of the test above, scored inside each fold's region.
-        let options = SelectionOptions {
-            scoring: CvScoring::InsideRegion,
-            scheme: CvScheme::LeaveOneGroupOut,
-            ..SelectionOptions::default()
-        };
+        let options = SelectionOptions { scoring: CvScoring::InsideRegion, ..SelectionOptions::default() };
         let s = selection_with(|t, rate| 0.8 * rate + 0.05 * (t - 10.0) / 40.0, &options);
         assert_eq!(s.scoring, CvScoring::InsideRegion);
         assert_ne!(s.method, Method::CubicT, "{}", s.table());
@@ -1687,7 +1780,12 @@ mod tests {
 
     #[test]
     fn blocked_k_fold_scores_every_run_out_of_fold() {
-        let options = SelectionOptions { scheme: CvScheme::BlockedKFold, ..SelectionOptions::default() };
+        // Whole-run scoring: every window of the assembled out-of-fold series.
+        let options = SelectionOptions {
+            scheme: CvScheme::BlockedKFold,
+            scoring: CvScoring::WholeRun,
+            ..SelectionOptions::default()
+        };
         let s = selection_with(|t, rate| 0.8 * rate + 0.05 * (t - 10.0) / 40.0, &options);
         assert_eq!((s.scheme, s.blocks, s.folds), (CvScheme::BlockedKFold, Some(DEFAULT_BLOCKS), 6));
         assert_ne!(s.method, Method::CubicT, "{}", s.table());
@@ -1704,8 +1802,13 @@ mod tests {
     }
 
     #[test]
-    fn the_default_scores_every_run_left_out_and_by_blocks() {
-        let s = selection_with(|t, rate| 0.8 * rate + 0.05 * (t - 10.0) / 40.0, &SelectionOptions::default());
+    fn runs_and_blocks_scores_every_run_left_out_and_by_blocks() {
+        let options = SelectionOptions {
+            scheme: CvScheme::RunsAndBlocks,
+            scale: RuleScale::Log,
+            ..SelectionOptions::default()
+        };
+        let s = selection_with(|t, rate| 0.8 * rate + 0.05 * (t - 10.0) / 40.0, &options);
         assert_eq!((s.scheme, s.scoring, s.blocks), (CvScheme::RunsAndBlocks, CvScoring::InsideRegion, Some(5)));
         // run1 and run4 have no window inside the other runs' region (the test above), but a
         // blocked score: no fold is skipped.

@@ -253,6 +253,15 @@ pub enum CvSchemeArg {
     RunsAndBlocks,
 }
 
+/// The scale of `auto`'s rule (hidden; docs/calibration-testbed.md).
+#[derive(Debug, Clone, Copy, ValueEnum, PartialEq, Eq)]
+pub enum RuleScaleArg {
+    /// Fold scores in deg/h.
+    DegPerHour,
+    /// Their logarithms.
+    Log,
+}
+
 /// `fit` arguments.
 #[derive(Debug, Args)]
 pub struct FitArgs {
@@ -290,10 +299,14 @@ pub struct FitArgs {
     #[arg(long, value_enum, default_value_t = CvScoringArg::InsideRegion, hide = true)]
     pub cv_scoring: CvScoringArg,
     /// How `auto` forms its folds: leave one run (position) out, blocked K-fold within
-    /// runs, or both combined per run (the default; docs/calibration-testbed.md).
-    #[arg(long, value_enum, default_value_t = CvSchemeArg::RunsAndBlocks, hide = true)]
+    /// runs, or both combined per run (docs/calibration-testbed.md).
+    #[arg(long, value_enum, default_value_t = CvSchemeArg::LeaveOneOut, hide = true)]
     pub cv_scheme: CvSchemeArg,
-    /// Blocks per run (K) for `--cv-scheme blocked-k-fold`.
+    /// The scale of `auto`'s one-standard-error rule: deg/h differences, or log ratios
+    /// (docs/calibration-testbed.md).
+    #[arg(long, value_enum, default_value_t = RuleScaleArg::DegPerHour, hide = true)]
+    pub cv_rule_scale: RuleScaleArg,
+    /// Blocks per run (K) for `--cv-scheme blocked-k-fold` and `runs-and-blocks`.
     #[arg(long, default_value_t = fogtemp_cal::selection::DEFAULT_BLOCKS, hide = true)]
     pub cv_blocks: usize,
     /// Feature window (smoothing of T and dT/dt), seconds.

@@ -163,6 +163,7 @@ mod tests {
             scheme: CvScheme::LeaveOneGroupOut,
             blocks: None,
             skipped_folds: vec![SkippedFold { group: "d".into(), reason: "no windows inside".into() }],
+            scale: crate::selection::RuleScale::DegPerHour,
             rule: crate::selection::RULE,
             warning: None,
             candidates: vec![CandidateScore {
