@@ -70,7 +70,8 @@ pub const RULE: &str = "the simplest candidate (cubic-t < poly < mesh < hybrid) 
     the lowest by at most one standard error of the paired per-fold difference";
 
 /// The rule on the log scale ([`RuleScale::Log`]), in words.
-pub const RULE_LOG_SCALE: &str = "the simplest candidate (cubic-t < poly < mesh < hybrid) whose cross-validated \
+pub const RULE_LOG_SCALE: &str =
+    "the simplest candidate (cubic-t < poly < mesh < hybrid) whose cross-validated \
     bias stability (geometric mean over folds of the held-out runs' compensated bias stability, RMS within a \
     fold) exceeds the lowest by at most one standard error of the paired per-fold log ratio";
 
@@ -319,7 +320,8 @@ pub fn choose(fold_scores: &[Option<Vec<f64>>], scale: RuleScale) -> Option<Choi
     let best_scaled = scaled[best].as_ref()?;
     let summaries: Vec<Option<FoldSummary>> =
         scaled.iter().map(|s| s.as_ref().map(|s| summary(s, best_scaled, log))).collect();
-    let chosen = summaries.iter().position(|s| s.is_some_and(|s| s.within_one_standard_error())).unwrap_or(best);
+    let chosen =
+        summaries.iter().position(|s| s.is_some_and(|s| s.within_one_standard_error())).unwrap_or(best);
     Some(Choice { chosen, best, summaries })
 }
 
@@ -611,7 +613,9 @@ pub fn select(
         return Ok(vec![Selection::fallback(grouping, folds.len(), "given", why); axes]);
     }
     let held = match options.scheme {
-        CvScheme::LeaveOneGroupOut => held_out_by_groups(runs, config, options, &folds, &mut progress, replay)?,
+        CvScheme::LeaveOneGroupOut => {
+            held_out_by_groups(runs, config, options, &folds, &mut progress, replay)?
+        }
         CvScheme::BlockedKFold => held_out_by_blocks(runs, config, options, 0, &mut progress, replay)?,
         CvScheme::RunsAndBlocks => {
             let mut by_groups =
@@ -1047,7 +1051,11 @@ pub fn score_held_out(
 
 /// [`score_held_out`] with the blocks inside the region given as a mask over the series
 /// (`inside[i]` for block `i`; None: every window is scored, with no minimum).
-pub fn score_masked(series: &ReplaySeries, inside: Option<&[bool]>, options: &BiasStabilityOptions) -> HeldOutScore {
+pub fn score_masked(
+    series: &ReplaySeries,
+    inside: Option<&[bool]>,
+    options: &BiasStabilityOptions,
+) -> HeldOutScore {
     let from = series.first_compensated_block(1.0).min(series.time_s.len());
     let times = &series.time_s[from..];
     let values = series.compensated_dph.get(from..).unwrap_or_default();
@@ -1809,7 +1817,10 @@ mod tests {
             ..SelectionOptions::default()
         };
         let s = selection_with(|t, rate| 0.8 * rate + 0.05 * (t - 10.0) / 40.0, &options);
-        assert_eq!((s.scheme, s.scoring, s.blocks), (CvScheme::RunsAndBlocks, CvScoring::InsideRegion, Some(5)));
+        assert_eq!(
+            (s.scheme, s.scoring, s.blocks),
+            (CvScheme::RunsAndBlocks, CvScoring::InsideRegion, Some(5))
+        );
         // run1 and run4 have no window inside the other runs' region (the test above), but a
         // blocked score: no fold is skipped.
         assert_eq!((s.folds, s.skipped_folds.len()), (6, 0), "{}", s.table());
