@@ -107,13 +107,27 @@ def choose(scores, log):
     return best
 
 
+def relative_standard_errors(scores):
+    """Per candidate other than the best (deg/h): SE of the paired differences over the best's mean."""
+    if len(scores["poly"]) < 3:
+        return []
+    means = {m: statistics.mean(v) for m, v in scores.items()}
+    best = min(CANDIDATES, key=lambda m: means[m])
+    out = []
+    for m in CANDIDATES:
+        d = [a - b for a, b in zip(scores[m], scores[best])]
+        if m != best and any(abs(x) > 1e-15 for x in d):
+            out.append(statistics.stdev(d) / math.sqrt(len(d)) / means[best])
+    return out
+
+
 def table(a):
     rows = {"/".join(r["case"].split("/")[-2:]): r for r in json.load(open(a.rows))}
     seeds = a.seeds.split(",") if a.seeds else None
     results = {label: [] for label, _, _ in VARIANTS}
     print("| case | best fixed | " + " | ".join(label for label, _, _ in VARIANTS) + " |")
     print("|---|---|" + "---|" * len(VARIANTS))
-    problems = []
+    problems, resolution = [], []
     for path in sorted(glob.glob(os.path.join(a.dump, "seed*_case*.json"))):
         seed, case = os.path.basename(path)[:-5].split("_", 1)
         if seeds and seed not in seeds:
@@ -125,6 +139,7 @@ def table(a):
         validation = (doc.get("validation") or {}).get("compensated_bias_stability_dph")
         if validation is None or abs(validation - row[selection["method"]]) > 1e-9:
             problems.append(f"{key}: auto validated {validation}, fixed {selection['method']} {row[selection['method']]}")
+        resolution.extend(relative_standard_errors(fold_scores(selection, "left")))
         cells = []
         for label, kind, log in VARIANTS:
             scores = fold_scores(selection, kind)
@@ -148,6 +163,9 @@ def table(a):
         print(f"| {label} | {len(res)} | {sum(x <= 1.05 for x in ratios)} | {max(ratios):.3f} | "
               f"{statistics.median(r[1] for r in res):.3f} | {chose} |")
     print()
+    print("paired standard error of a candidate's excess on the best, relative to the best's CV value (left out, "
+          f"deg/h; candidates whose scores differ from the best's): median {statistics.median(resolution):.4f}, "
+          f"quartiles {', '.join(f'{q:.4f}' for q in statistics.quantiles(resolution, n=4))}, n = {len(resolution)}")
     print("checks: " + ("all passed" if not problems else "; ".join(problems)))
 
 

@@ -115,8 +115,8 @@ pub enum RuleScale {
     /// proportional to its size, so on the log scale every fold would weigh alike instead
     /// of the largest held-out run deciding the mean and the standard error. Measured
     /// against the default in docs/calibration-testbed.md ("Auto: the rule's scale and a
-    /// second score per run"): not better, and worse where a fold's score rests on few
-    /// windows (its relative error is then not like the others'); an option, not the
+    /// second score per run"): not better on the development seeds (worse where one run
+    /// with an unusually low score has a large relative difference); an option, not the
     /// default.
     Log,
 }
