@@ -249,6 +249,17 @@ pub enum CvSchemeArg {
     LeaveOneOut,
     /// Every run cut into --cv-blocks contiguous blocks, one block of each run per fold.
     BlockedKFold,
+    /// Both: each held-out run scored by leaving it out and by its blocks, combined.
+    RunsAndBlocks,
+}
+
+/// The scale of `auto`'s rule (hidden; docs/calibration-testbed.md).
+#[derive(Debug, Clone, Copy, ValueEnum, PartialEq, Eq)]
+pub enum RuleScaleArg {
+    /// Fold scores in deg/h.
+    DegPerHour,
+    /// Their logarithms.
+    Log,
 }
 
 /// `fit` arguments.
@@ -287,11 +298,15 @@ pub struct FitArgs {
     /// training runs' calibrated region (docs/calibration-testbed.md).
     #[arg(long, value_enum, default_value_t = CvScoringArg::InsideRegion, hide = true)]
     pub cv_scoring: CvScoringArg,
-    /// How `auto` forms its folds: leave one run (position) out, or blocked K-fold within
-    /// runs (docs/calibration-testbed.md).
+    /// How `auto` forms its folds: leave one run (position) out, blocked K-fold within
+    /// runs, or both combined per run (docs/calibration-testbed.md).
     #[arg(long, value_enum, default_value_t = CvSchemeArg::LeaveOneOut, hide = true)]
     pub cv_scheme: CvSchemeArg,
-    /// Blocks per run (K) for `--cv-scheme blocked-k-fold`.
+    /// The scale of `auto`'s one-standard-error rule: deg/h differences, or log ratios
+    /// (docs/calibration-testbed.md).
+    #[arg(long, value_enum, default_value_t = RuleScaleArg::DegPerHour, hide = true)]
+    pub cv_rule_scale: RuleScaleArg,
+    /// Blocks per run (K) for `--cv-scheme blocked-k-fold` and `runs-and-blocks`.
     #[arg(long, default_value_t = fogtemp_cal::selection::DEFAULT_BLOCKS, hide = true)]
     pub cv_blocks: usize,
     /// Feature window (smoothing of T and dT/dt), seconds.

@@ -273,3 +273,39 @@ fn poly_reference(axis: &Value, temp_c: f64, rate_c_per_min: f64) -> f64 {
         })
         .sum()
 }
+
+#[test]
+fn the_rule_scale_and_the_runs_and_blocks_scheme_are_options() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let logs = strings(&write_runs(dir.path()));
+    let model = dir.path().join("m.fogm").display().to_string();
+    let mut args =
+        vec!["fit", "--json", "--out", &model, "--cv-scheme", "runs-and-blocks", "--cv-rule-scale", "log"];
+    args.extend(logs.iter().map(String::as_str));
+    let doc = ok_json(&args);
+    let selection = &doc["axes"][0]["selection"];
+    assert_eq!(
+        (selection["scheme"].as_str(), selection["scale"].as_str()),
+        (Some("runs-and-blocks"), Some("log"))
+    );
+    assert!(selection["rule"].as_str().is_some_and(|r| r.contains("log ratio")), "{selection}");
+    for c in selection["candidates"].as_array().expect("candidates[]") {
+        for r in c["runs"].as_array().expect("runs[]") {
+            // Every run has its blocked score; its score is the geometric mean of the two
+            // (or the blocked one alone when it has no left-out score).
+            let blocked = r["blocked_bias_stability_dph"].as_f64().expect("blocked score");
+            let score = r["bias_stability_dph"].as_f64().expect("score");
+            let expected =
+                r["left_out_bias_stability_dph"].as_f64().map_or(blocked, |l| (l * blocked).sqrt());
+            assert!((score - expected).abs() <= 1e-12 * expected, "{r}");
+        }
+    }
+    // The default is leave-one-run-out on the deg/h scale.
+    let mut args = vec!["fit", "--json", "--out", &model];
+    args.extend(logs.iter().map(String::as_str));
+    let selection = &ok_json(&args)["axes"][0]["selection"];
+    assert_eq!(
+        (selection["scheme"].as_str(), selection["scale"].as_str()),
+        (Some("leave-one-group-out"), Some("deg-per-hour"))
+    );
+}

@@ -151,6 +151,8 @@ mod tests {
             whole_run_bias_stability_dph: v,
             windows_scored: if v.is_finite() { 70 } else { 0 },
             windows_outside_region: if v.is_finite() { 2 } else { 72 },
+            left_out_bias_stability_dph: v,
+            blocked_bias_stability_dph: f64::NAN,
         };
         let selection = Selection {
             method: crate::calibrate::Method::Poly,
@@ -161,6 +163,7 @@ mod tests {
             scheme: CvScheme::LeaveOneGroupOut,
             blocks: None,
             skipped_folds: vec![SkippedFold { group: "d".into(), reason: "no windows inside".into() }],
+            scale: crate::selection::RuleScale::DegPerHour,
             rule: crate::selection::RULE,
             warning: None,
             candidates: vec![CandidateScore {
@@ -169,6 +172,8 @@ mod tests {
                 standard_error_dph: 0.001,
                 difference_from_best_dph: 0.0,
                 difference_standard_error_dph: 0.0,
+                log_ratio_to_best: 0.0,
+                log_ratio_standard_error: 0.0,
                 within_one_standard_error: true,
                 runs: vec![run("a", 0.003), run("b", 0.004), run("c", 0.005), run("d", f64::NAN)],
                 error: None,

@@ -5,12 +5,12 @@ use fogtemp_cal::calibrate::{self, CalibrationConfig, Method, Thinning};
 use fogtemp_cal::documents::FitDocument;
 use fogtemp_cal::poly_fit::TermSelection;
 use fogtemp_cal::runs::{Role, RunsFile};
-use fogtemp_cal::selection::{CvScheme, CvScoring, Grouping, SelectionOptions};
+use fogtemp_cal::selection::{CvScheme, CvScoring, Grouping, RuleScale, SelectionOptions};
 use fogtemp_cal::thin::GreedyThinning;
 use fogtemp_core::{FeatureSettings, Model};
 
 use super::{capacity_fits, ingest_options, print_json, report_skipped};
-use crate::args::{CvSchemeArg, CvScoringArg, FitArgs, MethodArg, PolyArg, ThinningArg};
+use crate::args::{CvSchemeArg, CvScoringArg, FitArgs, MethodArg, PolyArg, RuleScaleArg, ThinningArg};
 use crate::output::{digest_files, expand_logs, write_atomic, RowProgress};
 
 /// The `fit` command.
@@ -82,8 +82,13 @@ pub fn fit(a: FitArgs) -> Result<()> {
         scheme: match a.cv_scheme {
             CvSchemeArg::LeaveOneOut => CvScheme::LeaveOneGroupOut,
             CvSchemeArg::BlockedKFold => CvScheme::BlockedKFold,
+            CvSchemeArg::RunsAndBlocks => CvScheme::RunsAndBlocks,
         },
         blocks: a.cv_blocks,
+        scale: match a.cv_rule_scale {
+            RuleScaleArg::DegPerHour => RuleScale::DegPerHour,
+            RuleScaleArg::Log => RuleScale::Log,
+        },
         ..SelectionOptions::default()
     };
     let bar = indicatif::ProgressBar::new(0).with_message("cross-validation (folds)");
