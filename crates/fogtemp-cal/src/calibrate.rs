@@ -454,8 +454,24 @@ pub fn fit_axis(
                     guard_points: (config.target_window_s / block_s).round().max(0.0) as usize,
                     ..crate::mesh_fit::MeshCv::default()
                 };
-                let (_, smoothing) =
-                    crate::mesh_fit::fit_node_values_cv(&mut mesh, &targets, runs, hybrid, cv)?;
+                // A plain mesh's penalty leaves the polynomial's admitted terms free (a
+                // hybrid's residual has them fitted already).
+                let free_terms: Vec<(u8, u8)> = if hybrid {
+                    Vec::new()
+                } else {
+                    // A polynomial that cannot be fitted leaves the planes only.
+                    fit_poly(points, &normalisation, config.poly, n_eff)
+                        .map(|f| f.terms.iter().map(|t| (t.temp_power, t.rate_power)).collect())
+                        .unwrap_or_default()
+                };
+                let (_, smoothing) = crate::mesh_fit::fit_node_values_cv_with_free_terms(
+                    &mut mesh,
+                    &targets,
+                    runs,
+                    hybrid,
+                    cv,
+                    &free_terms,
+                )?;
                 let keep = !smoothing.no_mesh();
                 mesh_smoothing = Some(smoothing);
                 keep.then_some(mesh)
