@@ -18,7 +18,8 @@
 //! gives the least-squares plane in (T, dT/dt); a small one the unregularised fit.
 //!
 //! Free terms: a plain mesh (no polynomial under it) passes the terms the polynomial's
-//! stepwise selection admitted (`x^i y^j`, normalised axes) as free terms, and the penalty
+//! stepwise selection admitted (`x^i y^j`, normalised axes) of the physical form
+//! b(T) + c(T) dT/dt (rate power at most one; `calibrate::fit_axis`) as free terms, and the penalty
 //! becomes `min_c (v - B c)' R'R (v - B c)` (`B`: the free terms at the nodes), so it charges
 //! only the curvature beyond them. Shrinking toward a plane charged b(T)'s own curvature,
 //! which the polynomial carries for free: on smooth data every weight was worse than the
