@@ -454,8 +454,31 @@ pub fn fit_axis(
                     guard_points: (config.target_window_s / block_s).round().max(0.0) as usize,
                     ..crate::mesh_fit::MeshCv::default()
                 };
-                let (_, smoothing) =
-                    crate::mesh_fit::fit_node_values_cv(&mut mesh, &targets, runs, hybrid, cv)?;
+                // A plain mesh's penalty leaves free the polynomial's admitted terms of the
+                // physical form b(T) + c(T) dT/dt (static bias, Shupe and lag terms: rate
+                // power at most one, docs/physics.md); a hybrid's residual has them fitted.
+                let free_terms: Vec<(u8, u8)> = if hybrid {
+                    Vec::new()
+                } else {
+                    // A polynomial that cannot be fitted leaves the planes only.
+                    fit_poly(points, &normalisation, config.poly, n_eff)
+                        .map(|f| {
+                            f.terms
+                                .iter()
+                                .filter(|t| t.rate_power <= 1)
+                                .map(|t| (t.temp_power, t.rate_power))
+                                .collect()
+                        })
+                        .unwrap_or_default()
+                };
+                let (_, smoothing) = crate::mesh_fit::fit_node_values_cv_with_free_terms(
+                    &mut mesh,
+                    &targets,
+                    runs,
+                    hybrid,
+                    cv,
+                    &free_terms,
+                )?;
                 let keep = !smoothing.no_mesh();
                 mesh_smoothing = Some(smoothing);
                 keep.then_some(mesh)

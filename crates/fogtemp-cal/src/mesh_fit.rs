@@ -17,6 +17,18 @@
 //! by a third of their combined area. Its null space is the planes, so a very large `lambda`
 //! gives the least-squares plane in (T, dT/dt); a small one the unregularised fit.
 //!
+//! Free terms: a plain mesh (no polynomial under it) passes the terms the polynomial's
+//! stepwise selection admitted (`x^i y^j`, normalised axes) of the physical form
+//! b(T) + c(T) dT/dt (rate power at most one; `calibrate::fit_axis`) as free terms, and the penalty
+//! becomes `min_c (v - B c)' R'R (v - B c)` (`B`: the free terms at the nodes), so it charges
+//! only the curvature beyond them. Shrinking toward a plane charged b(T)'s own curvature,
+//! which the polynomial carries for free: on smooth data every weight was worse than the
+//! polynomial, a small one by the nodes' noise, a large one by the missing curvature
+//! (docs/calibration-testbed.md, "Mesh weight by blocked cross-validation within runs").
+//! With free terms a very large `lambda` gives the least-squares fit of the polynomial's
+//! own terms through the mesh's interpolation, a small one still the unregularised fit; the
+//! cross-validation below chooses between them as before.
+//!
 //! `lambda` is chosen from a log-spaced grid by blocked K-fold cross-validation within runs
 //! ([`MeshCv`]): each run (its points in time order,
 //! [`CalibrationPoints::run_of`](crate::calibrate::CalibrationPoints)) is cut into
@@ -122,6 +134,9 @@ pub struct MeshSmoothing {
     pub guard_points: usize,
     /// Every candidate, simplest first ("no mesh", then the largest weight down).
     pub curve: Vec<CvCandidate>,
+    /// Terms `(temperature power, rate power)` the penalty leaves free besides the planes
+    /// (the polynomial's stepwise selection, for a plain mesh; empty for a hybrid's residual).
+    pub free_terms: Vec<(u8, u8)>,
     /// RMS of (mesh - target) over the calibration points before and after the fit, deg/h.
     pub rms_before_dph: f64,
     /// See `rms_before_dph`.
@@ -167,13 +182,29 @@ pub fn fit_node_values_cv(
     allow_no_mesh: bool,
     cv: MeshCv,
 ) -> Result<(NodeFitReport, MeshSmoothing), CalError> {
+    fit_node_values_cv_with_free_terms(mesh, points, run_of, allow_no_mesh, cv, &[])
+}
+
+/// [`fit_node_values_cv`] with a penalty that also leaves the terms `x^i y^j` of `free_terms`
+/// (`(i, j)`, normalised axes) free, as it leaves the planes free (see the module docs).
+///
+/// # Errors
+/// As [`fit_node_values_cv`].
+pub fn fit_node_values_cv_with_free_terms(
+    mesh: &mut MeshModel,
+    points: &[(f32, f32, f64)],
+    run_of: &[usize],
+    allow_no_mesh: bool,
+    cv: MeshCv,
+    free_terms: &[(u8, u8)],
+) -> Result<(NodeFitReport, MeshSmoothing), CalError> {
     let n = mesh.vertices.len();
     let folds = cv.folds.max(2);
     let (rows, points_outside) = design_rows(mesh, points, run_of, folds);
     if rows.is_empty() {
         return Err(CalError::DegenerateMesh { reason: "no calibration point lies in the mesh", points: n });
     }
-    let penalty = gradient_jump_penalty(mesh)?;
+    let penalty = free_terms_projected_out(gradient_jump_penalty(mesh)?, &free_basis(mesh, free_terms));
     let gram = normal_matrix(&rows, n, |_| true);
     let rhs = normal_rhs(&rows, n, |_| true);
     let balance = gram.trace() / penalty.trace().max(f64::MIN_POSITIVE);
@@ -222,6 +253,7 @@ pub fn fit_node_values_cv(
         fold_count: folds,
         guard_points: cv.guard_points,
         curve,
+        free_terms: free_terms.to_vec(),
         rms_before_dph,
         rms_after_dph,
     };
@@ -395,6 +427,30 @@ fn gradient_jump_penalty(mesh: &MeshModel) -> Result<DMatrix<f64>, CalError> {
         }
     }
     Ok(p)
+}
+
+/// The terms `x^i y^j` of `terms` of degree two or more at the mesh's vertices, one column per
+/// term (lower degrees are planes, already free).
+fn free_basis(mesh: &MeshModel, terms: &[(u8, u8)]) -> DMatrix<f64> {
+    let curved: Vec<(u8, u8)> = terms.iter().copied().filter(|&(i, j)| i + j >= 2).collect();
+    DMatrix::from_fn(mesh.vertices.len(), curved.len(), |k, c| {
+        let (v, (i, j)) = (&mesh.vertices[k], curved[c]);
+        f64::from(v.x).powi(i32::from(i)) * f64::from(v.y).powi(i32::from(j))
+    })
+}
+
+/// The penalty `min_c (v - B c)' P (v - B c) = v' (P - P B (B'PB)^-1 B'P) v`: the columns of
+/// `b` cost nothing. `p` unchanged when `b` has no columns, or when `B'PB` is singular (a free
+/// term the mesh cannot tell from a plane, e.g. on nodes along one line).
+fn free_terms_projected_out(p: DMatrix<f64>, b: &DMatrix<f64>) -> DMatrix<f64> {
+    if b.ncols() == 0 {
+        return p;
+    }
+    let pb = &p * b;
+    let Some(gram) = (b.transpose() * &pb).cholesky() else { return p };
+    let projected = &p - &pb * gram.solve(&pb.transpose());
+    // Symmetric in exact arithmetic; averaged so that the Cholesky solves see it so.
+    (&projected + projected.transpose()) * 0.5
 }
 
 /// `A'A` over the rows `keep` accepts.
@@ -586,6 +642,81 @@ mod tests {
                 );
             }
         }
+    }
+
+    /// The free terms of the tests: a cubic in x with a cross term, the shape the stepwise
+    /// selection admits for a temperature curve.
+    const FREE: [(u8, u8); 5] = [(1, 0), (0, 1), (2, 0), (3, 0), (1, 1)];
+
+    fn at_nodes(mesh: &MeshModel, f: impl Fn(f64, f64) -> f64) -> DVector<f64> {
+        DVector::from_iterator(
+            mesh.vertices.len(),
+            mesh.vertices.iter().map(|v| f(f64::from(v.x), f64::from(v.y))),
+        )
+    }
+
+    #[test]
+    fn free_terms_cost_nothing_and_other_curvature_still_does() {
+        let mesh = grid_mesh(9, 6);
+        let plain = gradient_jump_penalty(&mesh).unwrap();
+        let projected = free_terms_projected_out(plain.clone(), &free_basis(&mesh, &FREE));
+        let scale = plain.norm();
+        // Planes and every free term: zero up to rounding (1e-12 of |P| |v|^2).
+        let free: [&dyn Fn(f64, f64) -> f64; 4] =
+            [&|x, y| plane(x, y), &|x, _| x * x, &|x, _| x * x * x - 0.5 * x, &|x, y| x * y + 2.0 * y];
+        for f in free {
+            let v = at_nodes(&mesh, f);
+            let cost = (v.transpose() * &projected * &v)[(0, 0)];
+            assert!(cost.abs() <= 1e-12 * scale * v.norm_squared(), "cost {cost}");
+        }
+        // Curvature along y is not free: it still costs, no more than before (a minimum over
+        // the free terms), and more than 10 % of it (y^2 is far from the free terms).
+        let v = at_nodes(&mesh, |_, y| y * y);
+        let (before, after) =
+            ((v.transpose() * &plain * &v)[(0, 0)], (v.transpose() * &projected * &v)[(0, 0)]);
+        assert!(after <= before * (1.0 + 1e-12) && after > 0.1 * before, "{after} vs {before}");
+        // Symmetric and positive semi-definite (eigenvalues above -1e-12 |P|).
+        assert!((&projected - projected.transpose()).norm() <= 1e-14 * scale);
+        assert!(projected.clone().symmetric_eigenvalues().min() >= -1e-12 * scale);
+        // Without free terms the penalty is unchanged.
+        assert_eq!(free_terms_projected_out(plain.clone(), &free_basis(&mesh, &[])), plain);
+    }
+
+    #[test]
+    fn the_largest_weight_gives_the_least_squares_fit_of_the_free_terms() {
+        // Reference: least squares over node values restricted to span(1, x, y, free terms),
+        // through the same barycentric rows (dense, SVD). The penalised fit at relative weight
+        // 1e8 departs from that span by O(1 / weight): 1e-6 of the values' scale.
+        let mut mesh = grid_mesh(9, 6);
+        let curve = |x: f64, y: f64| 0.3 + 0.2 * x - 0.1 * y + 0.05 * x * x - 0.04 * x * x * x;
+        let (points, run_of) = banded_runs(5, 200, 0.002, 3, curve);
+        let (rows, outside) = design_rows(&mesh, &points, &run_of, BLOCK_FOLDS);
+        assert_eq!(outside, 0);
+        let n = mesh.vertices.len();
+        let penalty =
+            free_terms_projected_out(gradient_jump_penalty(&mesh).unwrap(), &free_basis(&mesh, &FREE));
+        let gram = normal_matrix(&rows, n, |_| true);
+        let lambda = 1e8 * gram.trace() / penalty.trace();
+        let fitted = solve(gram + penalty * lambda, normal_rhs(&rows, n, |_| true), 0.0).unwrap();
+        let basis = DMatrix::from_fn(n, 6, |k, c| {
+            let (x, y) = (f64::from(mesh.vertices[k].x), f64::from(mesh.vertices[k].y));
+            [1.0, x, y, x * x, x * x * x, x * y][c]
+        });
+        let a = DMatrix::from_fn(rows.len(), n, |i, j| {
+            (0..3).filter(|&k| rows[i].vertex[k] == j).map(|k| rows[i].weight[k]).sum::<f64>()
+        });
+        let y = DVector::from_iterator(rows.len(), rows.iter().map(|r| r.value));
+        let coefficients = (&a * &basis).svd(true, true).solve(&y, 1e-14).unwrap();
+        let reference = &basis * coefficients;
+        let scale = reference.amax();
+        for (k, (v, r)) in fitted.iter().zip(reference.iter()).enumerate() {
+            assert!((v - r).abs() <= 1e-6 * scale, "node {k}: {v} vs {r}");
+        }
+        // And the cross-validated fit with free terms runs end to end and reports them.
+        let (_, smoothing) =
+            fit_node_values_cv_with_free_terms(&mut mesh, &points, &run_of, false, MeshCv::default(), &FREE)
+                .unwrap();
+        assert_eq!(smoothing.free_terms, FREE.to_vec());
     }
 
     #[test]
