@@ -21,8 +21,8 @@
 //!   spread over folds has a degree of freedom beyond one difference.
 //! - `narrow_temperature_range`: when the temperature range the model will be used over is
 //!   known, any part of it outside the calibrated range (there a mesh holds its boundary
-//!   value and a polynomial, by default, continues linearly from it). Otherwise a calibrated span below
-//!   [`MIN_TEMP_SPAN_C`] = 20 C: one power-on's self-heating alone spans 5-20 C
+//!   value and a polynomial, by default, continues linearly from it). Otherwise a
+//!   calibrated span below [`MIN_TEMP_SPAN_C`] = 20 C: one power-on's self-heating alone spans 5-20 C
 //!   (docs/physics.md, ranges), so a narrower calibration has not varied the ambient
 //!   temperature and cannot tell the temperature's effect from the warm-up's.
 //! - `heating_only` / `cooling_only`: the 99th percentile of dT/dt at or above
