@@ -18,6 +18,8 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic, clippy::indexing_slicing)]
 #![allow(missing_docs)]
 
+mod common;
+
 use std::hint::black_box;
 
 use fogtemp_core::{Axis, Model, StartGrid, WalkHint};
@@ -56,18 +58,6 @@ fn cost_two_passes(axis: &Axis<'_>, grid: &StartGrid<'_>, points: &[(f32, f32)],
     held_total
 }
 
-/// xorshift64*: a fixed-seed uniform generator in [0, 1) without dependencies.
-struct Uniform(u64);
-
-impl Uniform {
-    fn next(&mut self) -> f32 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        (self.0.wrapping_mul(0x2545_F491_4F6C_DD1D) >> 40) as f32 / (1u64 << 24) as f32
-    }
-}
-
 fn main() {
     let path = std::env::args().nth(1).expect("usage: grid_batch_cost MODEL.fogm [POINTS]");
     let count: usize = std::env::args().nth(2).map_or(1_000_000, |s| s.parse().expect("a count"));
@@ -76,7 +66,7 @@ fn main() {
     let axis = model.axis(0).expect("axis 0");
     let mesh = axis.mesh.expect("a mesh on axis 0");
     let p = axis.provenance;
-    let mut u = Uniform(0x9E37_79B9_7F4A_7C15);
+    let mut u = common::Uniform(0x9E37_79B9_7F4A_7C15);
     let points: Vec<(f32, f32)> = (0..count)
         .map(|_| {
             let t = p.temp_min_c + u.next() * (p.temp_max_c - p.temp_min_c);

@@ -18,6 +18,8 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, clippy::panic)]
 #![allow(missing_docs)]
 
+mod common;
+
 use std::hint::black_box;
 
 use fogtemp_core::{Location, Mesh, Model, StartGrid, WalkHint};
@@ -38,18 +40,6 @@ fn cost_grid_walk(mesh: &Mesh<'_>, grid: &StartGrid<'_>, hint: &mut WalkHint, x:
     mesh.interpolate_with_grid(black_box(x), black_box(y), hint, grid).map_or(f32::NAN, |v| v.value_dph)
 }
 
-/// xorshift64*: a fixed-seed uniform generator in [0, 1) without dependencies.
-struct Uniform(u64);
-
-impl Uniform {
-    fn next(&mut self) -> f32 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        (self.0.wrapping_mul(0x2545_F491_4F6C_DD1D) >> 40) as f32 / (1u64 << 24) as f32
-    }
-}
-
 fn main() {
     let path = std::env::args().nth(1).expect("usage: hull_cost MODEL.fogm [QUERIES]");
     let count: usize = std::env::args().nth(2).map_or(10_000, |s| s.parse().expect("a count"));
@@ -62,7 +52,7 @@ fn main() {
         hi = [hi[0].max(v.x), hi[1].max(v.y)];
     }
     let grow = [0.3 * (hi[0] - lo[0]), 0.3 * (hi[1] - lo[1])];
-    let mut u = Uniform(0x9E37_79B9_7F4A_7C15);
+    let mut u = common::Uniform(0x9E37_79B9_7F4A_7C15);
     let mut queries = Vec::with_capacity(count);
     while queries.len() < count {
         let x = lo[0] - grow[0] + u.next() * (hi[0] - lo[0] + 2.0 * grow[0]);
