@@ -384,7 +384,7 @@ impl<'a> Mesh<'a> {
         // The query's grid cell first, not the hint: with a few cells per triangle the cell's
         // triangle holds the query about as often as the hint of an ordered stream does, and
         // random-order queries (what a grid is for) skip a failed hint test.
-        let start = grid.start(x, y).min(self.triangle_count().saturating_sub(1));
+        let start = self.grid_cell_triangle(grid, x, y);
         match self.hint_test(x, y, start) {
             Some(test) if test.inside & test.value.value_dph.is_finite() => {
                 hint.0 = start;
@@ -397,13 +397,20 @@ impl<'a> Mesh<'a> {
         }
     }
 
+    /// The start triangle of `(x, y)`'s grid cell, never past this mesh's last triangle
+    /// whatever the grid's cells hold.
+    #[inline(always)]
+    fn grid_cell_triangle(&self, grid: &StartGrid<'_>, x: f32, y: f32) -> u32 {
+        grid.start(x, y).min(self.triangle_count().saturating_sub(1))
+    }
+
     /// The first step of [`Mesh::interpolate_with_grid`] alone: the plane of the triangle at
     /// the query's grid cell there, and whether that triangle holds the query with a finite
     /// value (then the value is [`Mesh::interpolate_with_grid`]'s, bit for bit). No branch on
     /// the outcome; see [`crate::Axis::evaluate_in_grid_cell`].
     #[inline]
     pub fn interpolate_in_grid_cell(&self, x: f32, y: f32, grid: &StartGrid<'_>) -> (MeshValue, bool) {
-        let start = grid.start(x, y).min(self.triangle_count().saturating_sub(1));
+        let start = self.grid_cell_triangle(grid, x, y);
         match self.hint_test(x, y, start) {
             Some(test) => (test.value, test.inside & test.value.value_dph.is_finite()),
             None => (MeshValue { value_dph: f32::NAN, triangle: start, outside_hull: false }, false),
@@ -428,7 +435,7 @@ impl<'a> Mesh<'a> {
         let start = if hint.0 < count { hint.0 } else { 0 };
         let end = match self.walk(NO_NEIGHBOUR, start, x, y, 0) {
             Some(end) if end.inside => Some(end),
-            _ => self.walk_or_scan(x, y, grid.start(x, y).min(count.saturating_sub(1))),
+            _ => self.walk_or_scan(x, y, self.grid_cell_triangle(grid, x, y)),
         }
         .ok_or(Error::BadMesh { check: "walk", axis: self.axis, index: start })?;
         hint.0 = end.triangle;
