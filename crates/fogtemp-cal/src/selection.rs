@@ -711,7 +711,7 @@ fn held_out_by_groups(
             .filter(|(i, _)| !fold.held_out.contains(i))
             .map(|(_, r)| r.clone())
             .collect();
-        let fitted = fit_candidates(&training, config, candidates, &mut out.failed, &fold.label)?;
+        let fitted = fit_candidates(&training, config, candidates, &mut out.failed, &fold.label);
         let models: Vec<Model<'_>> = fitted
             .iter()
             .map(|(_, blob)| Model::from_bytes(blob).map_err(CalError::SelfCheck))
@@ -755,7 +755,7 @@ fn fit_candidates(
     candidates: &[Method],
     failed: &mut [Option<String>],
     fold: &str,
-) -> Result<Vec<(usize, Vec<u8>)>, CalError> {
+) -> Vec<(usize, Vec<u8>)> {
     let mut fitted = Vec::new();
     for (c, &method) in candidates.iter().enumerate() {
         if failed[c].is_some() {
@@ -767,7 +767,7 @@ fn fit_candidates(
             Err(e) => failed[c] = Some(format!("fit without '{fold}' failed: {e}")),
         }
     }
-    Ok(fitted)
+    fitted
 }
 
 /// The time blocks of one run: K equal spans of its feature times; times before the first
@@ -874,7 +874,7 @@ fn held_out_by_blocks(
             .map(|(r, run)| without_block(run, &blocks[r], held_out_block(fold, r, k), guard_s))
             .collect();
         let label = format!("block fold {fold}");
-        let fitted = fit_candidates(&training, config, candidates, &mut out.failed, &label)?;
+        let fitted = fit_candidates(&training, config, candidates, &mut out.failed, &label);
         let models: Vec<Model<'_>> = fitted
             .iter()
             .map(|(_, blob)| Model::from_bytes(blob).map_err(CalError::SelfCheck))
