@@ -363,6 +363,21 @@ pub struct FittedAxis {
     pub report: AxisFitReport,
 }
 
+/// The terms `(temperature power, rate power)` a plain mesh's smoothness penalty leaves free:
+/// the polynomial's stepwise selection on the same points, restricted to the physical form
+/// b(T) + c(T) dT/dt (static bias, Shupe and lag terms: rate power at most one,
+/// docs/physics.md). A polynomial that cannot be fitted leaves the planes only (none).
+fn mesh_free_terms(
+    points: &[MeshPoint],
+    normalisation: &Normalisation,
+    config: &CalibrationConfig,
+    n_eff: f64,
+) -> Vec<(u8, u8)> {
+    fit_poly(points, normalisation, config.poly, n_eff)
+        .map(|f| f.terms.iter().filter(|t| t.rate_power <= 1).map(|t| (t.temp_power, t.rate_power)).collect())
+        .unwrap_or_default()
+}
+
 /// Fits one axis to its calibration points with `config.method`.
 ///
 /// # Errors
@@ -454,23 +469,9 @@ pub fn fit_axis(
                     guard_points: (config.target_window_s / block_s).round().max(0.0) as usize,
                     ..crate::mesh_fit::MeshCv::default()
                 };
-                // A plain mesh's penalty leaves free the polynomial's admitted terms of the
-                // physical form b(T) + c(T) dT/dt (static bias, Shupe and lag terms: rate
-                // power at most one, docs/physics.md); a hybrid's residual has them fitted.
-                let free_terms: Vec<(u8, u8)> = if hybrid {
-                    Vec::new()
-                } else {
-                    // A polynomial that cannot be fitted leaves the planes only.
-                    fit_poly(points, &normalisation, config.poly, n_eff)
-                        .map(|f| {
-                            f.terms
-                                .iter()
-                                .filter(|t| t.rate_power <= 1)
-                                .map(|t| (t.temp_power, t.rate_power))
-                                .collect()
-                        })
-                        .unwrap_or_default()
-                };
+                // A hybrid's residual has the polynomial's terms fitted already.
+                let free_terms =
+                    if hybrid { Vec::new() } else { mesh_free_terms(points, &normalisation, config, n_eff) };
                 let (_, smoothing) = crate::mesh_fit::fit_node_values_cv_with_free_terms(
                     &mut mesh,
                     &targets,
