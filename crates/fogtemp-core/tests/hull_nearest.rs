@@ -34,7 +34,7 @@ use std::path::PathBuf;
 use common::blob::{fix_len_and_crc, put_u32};
 use common::{axis_header, one_axis_file_header, rng};
 use fogtemp_core::wire::*;
-use fogtemp_core::{Mesh, Model, WalkHint};
+use fogtemp_core::{AxisProvenance, Mesh, Model, WalkHint};
 use rand::Rng;
 use spade::{DelaunayTriangulation, HasPosition, Point2, Triangulation};
 
@@ -425,10 +425,22 @@ fn fast_hull_value_equals_the_scan_and_the_f64_projection_on_synthetic_meshes() 
     assert!(total.clearly_outside > 10_000, "the queries reach outside the hulls");
 }
 
+/// The golden model's bytes (tests/golden/model-v2.fogm).
+fn golden_blob() -> Vec<u8> {
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../tests/golden/model-v2.fogm");
+    std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+}
+
+/// The axis's calibrated (T, rate) box widened by its own width on every side: (T range, rate
+/// range), so that queries reach well outside the hull.
+fn widened_box(p: &AxisProvenance) -> ((f32, f32), (f32, f32)) {
+    let widen = |lo: f32, hi: f32| (lo - (hi - lo), hi + (hi - lo));
+    (widen(p.temp_min_c, p.temp_max_c), widen(p.rate_min_c_per_min, p.rate_max_c_per_min))
+}
+
 #[test]
 fn fast_hull_value_equals_the_scan_and_the_f64_projection_on_the_golden_model() {
-    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../tests/golden/model-v2.fogm");
-    let blob = std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let blob = golden_blob();
     let model = Model::from_bytes(&blob).expect("golden model");
     let mut meshes = 0;
     for a in 0..model.axis_count() {
@@ -445,8 +457,7 @@ fn fast_hull_value_equals_the_scan_and_the_f64_projection_on_the_golden_model() 
 /// outside the hull of every axis of the golden model (polynomial, mesh and hybrid axes).
 #[test]
 fn evaluate_with_grid_equals_evaluate_on_the_golden_model() {
-    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../tests/golden/model-v2.fogm");
-    let blob = std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let blob = golden_blob();
     let model = Model::from_bytes(&blob).expect("golden model");
     let mut compared = 0;
     for a in 0..model.axis_count() {
@@ -457,12 +468,7 @@ fn evaluate_with_grid_equals_evaluate_on_the_golden_model() {
         let grid = mesh.grid_from_cells(16, &cells).expect("grid from kept cells");
         let mut r = rng(300 + a as u64);
         let (mut plain_hint, mut grid_hint, mut outside) = (WalkHint::default(), WalkHint::default(), 0);
-        let (t, rate) = (
-            axis.provenance.temp_min_c..axis.provenance.temp_max_c,
-            axis.provenance.rate_min_c_per_min..axis.provenance.rate_max_c_per_min,
-        );
-        let widen = |v: std::ops::Range<f32>| (v.start - (v.end - v.start), v.end + (v.end - v.start));
-        let ((t0, t1), (r0, r1)) = (widen(t), widen(rate));
+        let ((t0, t1), (r0, r1)) = widened_box(&axis.provenance);
         for _ in 0..20_000 {
             let (temp_c, rate_c_per_min): (f32, f32) = (r.gen_range(t0..t1), r.gen_range(r0..r1));
             let plain = axis.evaluate(temp_c, rate_c_per_min, &mut plain_hint).expect("evaluate");
@@ -492,8 +498,7 @@ fn evaluate_with_grid_equals_evaluate_on_the_golden_model() {
 /// inside and outside the hull of every mesh axis of the golden model.
 #[test]
 fn evaluate_in_grid_cell_is_the_first_step_of_evaluate_with_grid() {
-    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../tests/golden/model-v2.fogm");
-    let blob = std::fs::read(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let blob = golden_blob();
     let model = Model::from_bytes(&blob).expect("golden model");
     let mut axes = 0;
     for a in 0..model.axis_count() {
@@ -502,12 +507,7 @@ fn evaluate_in_grid_cell_is_the_first_step_of_evaluate_with_grid() {
         let mut cells = vec![0u32; 16 * 16];
         let grid = mesh.start_grid(16, &mut cells).expect("grid");
         let mut r = rng(400 + a as u64);
-        let (t, rate) = (
-            axis.provenance.temp_min_c..axis.provenance.temp_max_c,
-            axis.provenance.rate_min_c_per_min..axis.provenance.rate_max_c_per_min,
-        );
-        let widen = |v: std::ops::Range<f32>| (v.start - (v.end - v.start), v.end + (v.end - v.start));
-        let ((t0, t1), (r0, r1)) = (widen(t), widen(rate));
+        let ((t0, t1), (r0, r1)) = widened_box(&axis.provenance);
         let mut points: Vec<(f32, f32)> =
             (0..20_000).map(|_| (r.gen_range(t0..t1), r.gen_range(r0..r1))).collect();
         points.extend([(f32::NAN, 0.0), (20.0, f32::INFINITY), (f32::NEG_INFINITY, f32::NAN)]);
