@@ -26,20 +26,28 @@
 //! every run of a design that many times (new names, so independent noise): the design with
 //! more runs.
 
+use std::collections::HashMap;
 use std::time::Instant;
 
 use fogtemp_diagnose::concealed::{
-    datasets_at, effect_size, generate, ConcealedDataset, RESIDUAL_NOISE_100S_DPH,
+    datasets_at, effect_size, generate, ConcealedDataset, RESIDUAL_NOISE_100S_DPH, RUN_S,
 };
 use fogtemp_diagnose::effects::Effect;
 use fogtemp_diagnose::linalg::{autocorrelations, effective_n};
 use fogtemp_diagnose::prepare::{prepare, Prepared};
 use fogtemp_diagnose::select::{bic, material_runs, stability_limit};
 use fogtemp_diagnose::{DiagnoseOptions, RunSeries};
+use fogtemp_sim::noise::{flicker_term_variance, white_sigma_dph};
+use fogtemp_sim::scenario::NoiseParams;
 use fogtemp_sim::RunTruth;
+use nalgebra::{Cholesky, DMatrix, DVector, Dyn};
+use statrs::distribution::{ContinuousCDF, Normal};
 
 /// Candidates of one selection step (every catalogue effect).
 const CANDIDATES: usize = Effect::ALL.len();
+
+/// Family-wise level of one selection step: 5 % over 2 tests x the candidates.
+const FW_ALPHA: f64 = 0.05 / (2 * CANDIDATES) as f64;
 
 /// Seeds out of 20 the issue asks for.
 const GOAL_OF_20: f64 = 15.0;
@@ -53,6 +61,8 @@ struct Case {
     y: Vec<Vec<f64>>,
     v: Vec<Vec<f64>>,
     block_index: Vec<Vec<usize>>,
+    /// Seconds `[first, end)` of every block, per run (for the exact noise covariance).
+    block_spans: Vec<Vec<(usize, usize)>>,
     hac_lag_blocks: usize,
     noise_sigma_dph: f64,
 }
@@ -128,6 +138,12 @@ struct OracleStats {
 
 fn mean(x: &[f64]) -> f64 {
     x.iter().sum::<f64>() / x.len().max(1) as f64
+}
+
+/// Mean and sample SD.
+fn mean_sd(x: &[f64]) -> (f64, f64) {
+    let m = mean(x);
+    (m, (x.iter().map(|a| (a - m).powi(2)).sum::<f64>() / (x.len().max(2) - 1) as f64).sqrt())
 }
 
 /// Delete-one-group jackknife SE of estimates made with each group left out.
@@ -306,9 +322,95 @@ impl Detect {
 
 /// One-sided 5 % Student-t limit with `runs - 1` degrees of freedom.
 fn one_sided_5(runs: usize) -> f64 {
-    use statrs::distribution::{ContinuousCDF, StudentsT};
+    use statrs::distribution::StudentsT;
     let dof = (runs.max(2) - 1) as f64;
     StudentsT::new(0.0, 1.0, dof).map_or(2.0, |t| t.inverse_cdf(0.95))
+}
+
+/// Autocovariance of the residual's 1 s values at lags `0..=max_lag` s, (deg/h)^2: recorded
+/// minus simulated noise, two independent gyros with the scenario's noise law (white rate
+/// noise plus one stationary Gauss-Markov term per decade of correlation time, each updated
+/// every sample at 1 Hz: `noise::NoiseGenerator`). `None` for a law this does not cover
+/// (rate random walk, angle quantisation, another sample rate).
+fn residual_acov(noise: &NoiseParams, rate_hz: f64, max_lag: usize) -> Option<Vec<f64>> {
+    if rate_hz != 1.0 || noise.rrw_dph_per_sqrt_h != 0.0 || noise.angle_lsb_arcsec != 0.0 {
+        return None;
+    }
+    let q = flicker_term_variance(noise.bias_instability_dph);
+    let mut phis = Vec::new();
+    let mut tau_s = noise.flicker_tau_min_s;
+    while q > 0.0 && tau_s <= noise.flicker_tau_max_s * (1.0 + 1e-9) {
+        phis.push((-1.0 / tau_s).exp());
+        tau_s *= 10.0;
+    }
+    let white = white_sigma_dph(noise.arw_deg_per_sqrt_h, rate_hz).powi(2);
+    Some(
+        (0..=max_lag)
+            .map(|h| {
+                let flicker: f64 = phis.iter().map(|phi| q * phi.powi(h as i32)).sum();
+                2.0 * (flicker + if h == 0 { white } else { 0.0 })
+            })
+            .collect(),
+    )
+}
+
+/// Covariance of two block means over the seconds `[a0, a1)` and `[b0, b1)`.
+fn block_cov(acov: &[f64], (a0, a1): (usize, usize), (b0, b1): (usize, usize)) -> f64 {
+    let mut sum = 0.0;
+    for s in a0..a1 {
+        for t in b0..b1 {
+            sum += acov.get(s.abs_diff(t)).copied().unwrap_or(0.0);
+        }
+    }
+    sum / ((a1 - a0) * (b1 - b0)).max(1) as f64
+}
+
+/// The generalised-least-squares oracle: knows the shape and the noise law exactly.
+struct Gls {
+    acov: Vec<f64>,
+    /// Cholesky factor of each run's block covariance, by the run's block spans.
+    cache: HashMap<Vec<(usize, usize)>, Cholesky<f64, Dyn>>,
+}
+
+impl Gls {
+    fn factor(&mut self, spans: &[(usize, usize)]) -> Option<&Cholesky<f64, Dyn>> {
+        if !self.cache.contains_key(spans) {
+            let n = spans.len();
+            let cov = DMatrix::from_fn(n, n, |i, j| block_cov(&self.acov, spans[i], spans[j]));
+            self.cache.insert(spans.to_vec(), cov.cholesky()?);
+        }
+        self.cache.get(spans)
+    }
+
+    /// `(a, sd)` of `y + (k - 1) v = c + a v + e` by GLS with the known block covariance
+    /// (runs independent); `sd` is exact, not estimated.
+    fn fit(&mut self, case: &Case, k: f64) -> Option<(f64, f64)> {
+        let (mut a, mut b) = (DMatrix::<f64>::zeros(2, 2), DVector::<f64>::zeros(2));
+        for ((y, v), spans) in case.y.iter().zip(&case.v).zip(&case.block_spans) {
+            let n = y.len();
+            let x = DMatrix::from_fn(n, 2, |i, j| if j == 0 { 1.0 } else { v[i] });
+            let yk = DVector::from_fn(n, |i, _| y[i] + (k - 1.0) * v[i]);
+            let sx = self.factor(spans)?.solve(&x);
+            a += x.transpose() * &sx;
+            b += sx.transpose() * yk;
+        }
+        let det = a[(0, 0)] * a[(1, 1)] - a[(0, 1)] * a[(1, 0)];
+        if det <= 0.0 || !det.is_finite() {
+            return None;
+        }
+        let est = (a[(0, 0)] * b[1] - a[(1, 0)] * b[0]) / det;
+        Some((est, (a[(0, 0)] / det).sqrt()))
+    }
+}
+
+/// Standard normal quantile.
+fn z_quantile(p: f64) -> f64 {
+    Normal::new(0.0, 1.0).map_or(f64::NAN, |n| n.inverse_cdf(p))
+}
+
+/// Standard normal distribution function.
+fn z_cdf(x: f64) -> f64 {
+    Normal::new(0.0, 1.0).map_or(f64::NAN, |n| n.cdf(x))
 }
 
 /// A series with the same times and temperatures as `like` and the noise-free output of
@@ -344,7 +446,16 @@ fn case_of(dataset: &ConcealedDataset, seed: u64) -> Result<Case, String> {
             dataset.label
         ));
     }
-    Ok(Case { y, v, block_index, hac_lag_blocks: prep.hac_lag_blocks, noise_sigma_dph: prep.noise_sigma_dph })
+    let block_spans =
+        prep.runs.iter().map(|r| r.blocks.iter().map(|b| (b.first_sec, b.end_sec)).collect()).collect();
+    Ok(Case {
+        y,
+        v,
+        block_index,
+        block_spans,
+        hac_lag_blocks: prep.hac_lag_blocks,
+        noise_sigma_dph: prep.noise_sigma_dph,
+    })
 }
 
 /// Repeats every run of both scenarios `reps` times (new names: independent noise).
@@ -381,6 +492,7 @@ fn self_check() -> Result<(f64, f64), String> {
         y: c1.v.iter().map(|r| r.iter().map(|x| 0.3 + 0.7 * x).collect()).collect(),
         v: c1.v.clone(),
         block_index: c1.block_index.clone(),
+        block_spans: c1.block_spans.clone(),
         hac_lag_blocks: c1.hac_lag_blocks,
         noise_sigma_dph: c1.noise_sigma_dph,
     };
@@ -419,6 +531,69 @@ struct Row {
     null_plain: [usize; 4],
     needed: [String; 4],
     amplitude: (f64, f64, f64, usize),
+    gls: GlsRow,
+}
+
+/// The GLS oracle's numbers for one design.
+struct GlsRow {
+    fw: usize,
+    plain: usize,
+    x2: usize,
+    null_fw: usize,
+    null_plain: usize,
+    /// Exact SD of the amplitude at x1 (the same for every seed up to edge blocks).
+    exact_sd: f64,
+    /// Expected power at x1: family-wise two-sided, and one-sided 5 %.
+    power_fw: f64,
+    power_5: f64,
+    /// Size where the expected power is 15/20, at each level.
+    needed_fw: f64,
+    needed_5: f64,
+    /// Mean and SD of the amplitude over seeds, seeds within 30 % of the truth.
+    amplitude: (f64, f64, usize),
+    /// Probability of an amplitude within 30 % of the truth.
+    within_30_expected: f64,
+    check: CovCheck,
+}
+
+/// Block lags (short means) at which the noise law is checked against the null data.
+const CHECK_LAGS: [usize; 6] = [0, 1, 3, 10, 30, 100];
+
+/// Empirical against modelled block-mean covariances of the null residual (`y - v`, about
+/// zero: recorded and simulated share every bias term), pooled over runs and seeds.
+#[derive(Clone, Default)]
+struct CovCheck {
+    empirical: [f64; 6],
+    model: [f64; 6],
+    pairs: [usize; 6],
+}
+
+impl CovCheck {
+    fn add(&mut self, case: &Case, acov: &[f64]) {
+        for ((y, v), (idx, spans)) in
+            case.y.iter().zip(&case.v).zip(case.block_index.iter().zip(&case.block_spans))
+        {
+            for (l, lag) in CHECK_LAGS.iter().enumerate() {
+                for i in 0..y.len() {
+                    // Blocks are few; a scan finds the one `lag` blocks later.
+                    if let Some(j) = (i..y.len()).find(|&j| idx[j] == idx[i] + lag) {
+                        self.empirical[l] += (y[i] - v[i]) * (y[j] - v[j]);
+                        self.model[l] += block_cov(acov, spans[i], spans[j]);
+                        self.pairs[l] += 1;
+                    }
+                }
+            }
+        }
+    }
+
+    /// Empirical / model covariance at each lag.
+    fn ratios(&self) -> Vec<f64> {
+        self.empirical
+            .iter()
+            .zip(&self.model)
+            .map(|(e, m)| if *m != 0.0 { e / m } else { f64::NAN })
+            .collect()
+    }
 }
 
 fn counts(stats: &[(OracleStats, usize)], fw: bool) -> [usize; 5] {
@@ -467,10 +642,22 @@ fn main() {
                 Err(e) => eprintln!("skipped: {e}"),
             }
         }
+        let Some(acov) = residual_acov(&ds.recorded.noise, ds.recorded.sample_rate_hz, RUN_S as usize + 1)
+        else {
+            eprintln!("{}: noise law not covered by the GLS oracle", ds.label);
+            continue;
+        };
+        let mut gls = Gls { acov, cache: HashMap::new() };
         let mut null_stats = Vec::new();
+        let mut null_z = Vec::new();
+        let mut check = CovCheck::default();
         for seed in null_first..null_first + null_seeds {
             match case_of(&ds, seed) {
-                Ok(c) => null_stats.push((oracle(&c, 0.0), c.y.len())),
+                Ok(c) => {
+                    null_stats.push((oracle(&c, 0.0), c.y.len()));
+                    null_z.push(gls.fit(&c, 0.0).map_or(0.0, |(a, sd)| a / sd));
+                    check.add(&c, &gls.acov);
+                }
                 Err(e) => eprintln!("skipped: {e}"),
             }
         }
@@ -481,11 +668,32 @@ fn main() {
         let plain = counts(&x1, false);
         let null_plain = counts(&null_stats, false);
         let amps: Vec<f64> = x1.iter().map(|(s, _)| s.a_hat).collect();
-        let m = mean(&amps);
-        let sd = (amps.iter().map(|a| (a - m).powi(2)).sum::<f64>() / (amps.len().max(2) - 1) as f64).sqrt();
+        let (m, sd) = mean_sd(&amps);
         let se = mean(&x1.iter().map(|(s, _)| s.a_se).collect::<Vec<_>>());
         let within_30 = amps.iter().filter(|a| (*a - 1.0).abs() <= 0.3).count();
         let n = cases.len();
+        let gls_x1: Vec<(f64, f64)> = cases.iter().filter_map(|c| gls.fit(c, 1.0)).collect();
+        let gls_x2: Vec<(f64, f64)> = cases.iter().filter_map(|c| gls.fit(c, 2.0)).collect();
+        let (z_fw, z_5) = (z_quantile(1.0 - FW_ALPHA / 2.0), z_quantile(0.95));
+        let hits = |v: &[(f64, f64)], z: f64| v.iter().filter(|(a, sd)| a / sd >= z).count();
+        let gls_amps: Vec<f64> = gls_x1.iter().map(|(a, _)| *a).collect();
+        let (g_mean, g_sd) = mean_sd(&gls_amps);
+        let exact_sd = mean(&gls_x1.iter().map(|(_, sd)| *sd).collect::<Vec<_>>());
+        let gls_row = GlsRow {
+            fw: hits(&gls_x1, z_fw),
+            plain: hits(&gls_x1, z_5),
+            x2: hits(&gls_x2, z_fw),
+            null_fw: null_z.iter().filter(|z| **z >= z_fw).count(),
+            null_plain: null_z.iter().filter(|z| **z >= z_5).count(),
+            exact_sd,
+            power_fw: z_cdf(1.0 / exact_sd - z_fw),
+            power_5: z_cdf(1.0 / exact_sd - z_5),
+            needed_fw: exact_sd * (z_fw + z_quantile(GOAL_OF_20 / 20.0)),
+            needed_5: exact_sd * (z_5 + z_quantile(GOAL_OF_20 / 20.0)),
+            amplitude: (g_mean, g_sd, gls_amps.iter().filter(|a| (*a - 1.0).abs() <= 0.3).count()),
+            within_30_expected: 2.0 * z_cdf(0.3 / exact_sd) - 1.0,
+            check,
+        };
         let row = Row {
             label: ds.label.clone(),
             runs: ds.recorded.runs.len(),
@@ -502,6 +710,7 @@ fn main() {
                 size_needed(&cases, n, Detect::any),
             ],
             amplitude: (m, sd, se, within_30),
+            gls: gls_row,
         };
         eprintln!("{}: {:.0} s", ds.label, t0.elapsed().as_secs_f64());
         rows.push(row);
@@ -560,6 +769,33 @@ fn main() {
     println!("|---|---|---|---|---|");
     for r in &rows {
         println!("| {} | {} | {} | {} | {} |", r.label, r.needed[0], r.needed[1], r.needed[2], r.needed[3]);
+    }
+    println!("\nGLS oracle (knows the shape and the noise law; exact SD of the amplitude): detections of {seeds} at x1, expected power, size for 15/20:\n");
+    println!("| design | SD of a | fw x1 | expected fw | 5 % x1 | expected 5 % | fw x2 | false alarms fw | 5 % | size for 15/20 fw | 5 % |");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|");
+    for r in &rows {
+        let g = &r.gls;
+        println!(
+            "| {} | {:.3} | {} | {:.2} | {} | {:.2} | {} | {}/{null_seeds} | {}/{null_seeds} | x{:.2} | x{:.2} |",
+            r.label, g.exact_sd, g.fw, g.power_fw, g.plain, g.power_5, g.x2, g.null_fw, g.null_plain, g.needed_fw, g.needed_5
+        );
+    }
+    println!("\nNoise law check: empirical / modelled covariance of the null residual's short means at block lags {CHECK_LAGS:?}:\n");
+    println!("| design | ratios |");
+    println!("|---|---|");
+    for r in &rows {
+        let ratios: Vec<String> = r.gls.check.ratios().iter().map(|x| format!("{x:.2}")).collect();
+        println!("| {} | {} |", r.label, ratios.join(", "));
+    }
+    println!("\nGLS amplitude at x1 (truth 1):\n");
+    println!("| design | mean | SD over seeds | exact SD | within 30 % | expected within 30 % |");
+    println!("|---|---|---|---|---|---|");
+    for r in &rows {
+        let (m, sd, w) = r.gls.amplitude;
+        println!(
+            "| {} | {m:.3} | {sd:.3} | {:.3} | {w}/{seeds} | {:.2} |",
+            r.label, r.gls.exact_sd, r.gls.within_30_expected
+        );
     }
     println!("\nAmplitude at x1 (global offset, truth 1):\n");
     println!("| design | mean | SD over seeds | mean jackknife SE | within 30 % |");
