@@ -541,11 +541,17 @@ struct GlsRow {
     x2: usize,
     null_fw: usize,
     null_plain: usize,
+    /// Mean and SD of the null z (0 and 1 if the noise law is right).
+    null_z: (f64, f64),
     /// Exact SD of the amplitude at x1 (the same for every seed up to edge blocks).
     exact_sd: f64,
     /// Expected power at x1: family-wise two-sided, and one-sided 5 %.
     power_fw: f64,
     power_5: f64,
+    /// Expected power at x1 and the size for 15/20 at one-sided 2 % (the whole
+    /// false-alarm budget spent on this one effect).
+    power_2: f64,
+    needed_2: f64,
     /// Size where the expected power is 15/20, at each level.
     needed_fw: f64,
     needed_5: f64,
@@ -685,9 +691,12 @@ fn main() {
             x2: hits(&gls_x2, z_fw),
             null_fw: null_z.iter().filter(|z| **z >= z_fw).count(),
             null_plain: null_z.iter().filter(|z| **z >= z_5).count(),
+            null_z: mean_sd(&null_z),
             exact_sd,
             power_fw: z_cdf(1.0 / exact_sd - z_fw),
             power_5: z_cdf(1.0 / exact_sd - z_5),
+            power_2: z_cdf(1.0 / exact_sd - z_quantile(0.98)),
+            needed_2: exact_sd * (z_quantile(0.98) + z_quantile(GOAL_OF_20 / 20.0)),
             needed_fw: exact_sd * (z_fw + z_quantile(GOAL_OF_20 / 20.0)),
             needed_5: exact_sd * (z_5 + z_quantile(GOAL_OF_20 / 20.0)),
             amplitude: (g_mean, g_sd, gls_amps.iter().filter(|a| (*a - 1.0).abs() <= 0.3).count()),
@@ -771,13 +780,13 @@ fn main() {
         println!("| {} | {} | {} | {} | {} |", r.label, r.needed[0], r.needed[1], r.needed[2], r.needed[3]);
     }
     println!("\nGLS oracle (knows the shape and the noise law; exact SD of the amplitude): detections of {seeds} at x1, expected power, size for 15/20:\n");
-    println!("| design | SD of a | fw x1 | expected fw | 5 % x1 | expected 5 % | fw x2 | false alarms fw | 5 % | size for 15/20 fw | 5 % |");
-    println!("|---|---|---|---|---|---|---|---|---|---|---|");
+    println!("| design | SD of a | fw x1 | expected fw | 5 % x1 | expected 5 % | fw x2 | false alarms fw | 5 % | null z mean, SD | size for 15/20 fw | 5 % | expected at 2 % | size for 15/20 at 2 % |");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|---|---|");
     for r in &rows {
         let g = &r.gls;
         println!(
-            "| {} | {:.3} | {} | {:.2} | {} | {:.2} | {} | {}/{null_seeds} | {}/{null_seeds} | x{:.2} | x{:.2} |",
-            r.label, g.exact_sd, g.fw, g.power_fw, g.plain, g.power_5, g.x2, g.null_fw, g.null_plain, g.needed_fw, g.needed_5
+            "| {} | {:.3} | {} | {:.2} | {} | {:.2} | {} | {}/{null_seeds} | {}/{null_seeds} | {:+.2}, {:.2} | x{:.2} | x{:.2} | {:.2} | x{:.2} |",
+            r.label, g.exact_sd, g.fw, g.power_fw, g.plain, g.power_5, g.x2, g.null_fw, g.null_plain, g.null_z.0, g.null_z.1, g.needed_fw, g.needed_5, g.power_2, g.needed_2
         );
     }
     println!("\nNoise law check: empirical / modelled covariance of the null residual's short means at block lags {CHECK_LAGS:?}:\n");
