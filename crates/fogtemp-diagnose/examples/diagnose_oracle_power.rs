@@ -448,6 +448,124 @@ impl Gls {
     }
 }
 
+/// One run structure's whitening for the two-level noise family `Sigma = alpha D + beta S_f`
+/// (`D` the diagonal white part, `S_f` the flicker part, both at unit level):
+/// `D^-1/2 S_f D^-1/2 = U diag(lambda) U^T`, so `Sigma^-1` is diagonal in `U^T D^-1/2`.
+struct Whitener {
+    d_inv_sqrt: Vec<f64>,
+    u: DMatrix<f64>,
+    lambda: Vec<f64>,
+}
+
+/// Grid of each noise level as a multiple of the scenario's: 2^(i/4), i = -16..=16
+/// (1/16 to 16 times; a level at the edge is counted).
+const LEVEL_STEPS: i32 = 16;
+
+/// The plug-in GLS oracle: knows the shape and the noise **family** (white rate noise plus
+/// the scenario's Gauss-Markov decades), estimates the two levels (N^2 and B^2) from the same
+/// runs by REML with the shape in the model, then tests `a` with that covariance.
+struct PlugIn {
+    /// Autocovariance of the residual's 1 s values at unit white level and at unit flicker level.
+    acov_white: Vec<f64>,
+    acov_flicker: Vec<f64>,
+    /// The scenario's levels (grid centre): N^2 and B^2.
+    levels: (f64, f64),
+    cache: HashMap<Vec<(usize, usize)>, Whitener>,
+}
+
+/// `(estimate, SD, at the grid's edge)` of the plug-in GLS.
+type PlugInFit = (f64, f64, bool);
+
+impl PlugIn {
+    fn new(noise: &NoiseParams, rate_hz: f64, max_lag: usize) -> Option<Self> {
+        let white = NoiseParams { arw_deg_per_sqrt_h: 1.0, bias_instability_dph: 0.0, ..noise.clone() };
+        let flicker = NoiseParams { arw_deg_per_sqrt_h: 0.0, bias_instability_dph: 1.0, ..noise.clone() };
+        Some(PlugIn {
+            acov_white: residual_acov(&white, rate_hz, max_lag)?,
+            acov_flicker: residual_acov(&flicker, rate_hz, max_lag)?,
+            levels: (noise.arw_deg_per_sqrt_h.powi(2), noise.bias_instability_dph.powi(2)),
+            cache: HashMap::new(),
+        })
+    }
+
+    fn whitener(&mut self, spans: &[(usize, usize)]) -> &Whitener {
+        let (acov_white, acov_flicker) = (&self.acov_white, &self.acov_flicker);
+        self.cache.entry(spans.to_vec()).or_insert_with(|| {
+            let n = spans.len();
+            let d_inv_sqrt: Vec<f64> =
+                spans.iter().map(|&sp| block_cov(acov_white, sp, sp).powf(-0.5)).collect();
+            let c = DMatrix::from_fn(n, n, |i, j| {
+                d_inv_sqrt[i] * block_cov(acov_flicker, spans[i], spans[j]) * d_inv_sqrt[j]
+            });
+            let eig = c.symmetric_eigen();
+            Whitener {
+                d_inv_sqrt,
+                lambda: eig.eigenvalues.iter().map(|l| l.max(0.0)).collect(),
+                u: eig.eigenvectors,
+            }
+        })
+    }
+
+    fn fit(&mut self, case: &Case, k: f64) -> Option<PlugInFit> {
+        // Rotated data per run: columns 1, v, y (y at size k).
+        let mut rotated: Vec<(DMatrix<f64>, Vec<f64>)> = Vec::new();
+        for ((y, v), spans) in case.y.iter().zip(&case.v).zip(&case.block_spans) {
+            let w = self.whitener(spans);
+            let n = y.len();
+            let m = DMatrix::from_fn(n, 3, |i, j| {
+                w.d_inv_sqrt[i]
+                    * match j {
+                        0 => 1.0,
+                        1 => v[i],
+                        _ => y[i] + (k - 1.0) * v[i],
+                    }
+            });
+            rotated.push((w.u.transpose() * m, w.lambda.clone()));
+        }
+        let (alpha0, beta0) = self.levels;
+        let mut best: Option<(f64, f64, f64, bool)> = None;
+        for i in -LEVEL_STEPS..=LEVEL_STEPS {
+            for j in -LEVEL_STEPS..=LEVEL_STEPS {
+                let (alpha, beta) = (alpha0 * 2f64.powf(i as f64 / 4.0), beta0 * 2f64.powf(j as f64 / 4.0));
+                let Some((reml, est, sd)) = reml_at(&rotated, alpha, beta) else { continue };
+                let edge = i.abs() == LEVEL_STEPS || j.abs() == LEVEL_STEPS;
+                if best.is_none_or(|b| reml > b.0) {
+                    best = Some((reml, est, sd, edge));
+                }
+            }
+        }
+        best.map(|(_, est, sd, edge)| (est, sd, edge))
+    }
+}
+
+/// Restricted log-likelihood (up to a constant), GLS estimate of `a` and its SD for the
+/// levels `(alpha, beta)` on rotated runs (`Sigma^-1` diagonal: `1 / (alpha + beta lambda)`).
+fn reml_at(rotated: &[(DMatrix<f64>, Vec<f64>)], alpha: f64, beta: f64) -> Option<(f64, f64, f64)> {
+    let (mut a, mut b, mut yy, mut log_det) = ([[0.0f64; 2]; 2], [0.0f64; 2], 0.0, 0.0);
+    for (m, lambda) in rotated {
+        for (i, l) in lambda.iter().enumerate() {
+            let var = alpha + beta * l;
+            let wgt = 1.0 / var;
+            let (x0, x1, y) = (m[(i, 0)], m[(i, 1)], m[(i, 2)]);
+            a[0][0] += wgt * x0 * x0;
+            a[0][1] += wgt * x0 * x1;
+            a[1][1] += wgt * x1 * x1;
+            b[0] += wgt * x0 * y;
+            b[1] += wgt * x1 * y;
+            yy += wgt * y * y;
+            log_det += var.ln();
+        }
+    }
+    let det = a[0][0] * a[1][1] - a[0][1] * a[0][1];
+    if det <= 0.0 || !det.is_finite() {
+        return None;
+    }
+    let est = (a[0][0] * b[1] - a[0][1] * b[0]) / det;
+    let c = (a[1][1] * b[0] - a[0][1] * b[1]) / det;
+    let rss = yy - (c * b[0] + est * b[1]);
+    Some((-0.5 * (rss + log_det + det.ln()), est, (a[0][0] / det).sqrt()))
+}
+
 /// Standard normal quantile.
 fn z_quantile(p: f64) -> f64 {
     Normal::new(0.0, 1.0).map_or(f64::NAN, |n| n.inverse_cdf(p))
@@ -587,6 +705,20 @@ struct Row {
     amplitude: (f64, f64, f64, usize),
     gls: GlsRow,
     separation: Option<SepRow>,
+    plug_in: Option<PlugRow>,
+}
+
+/// The plug-in GLS oracle's numbers for one design.
+struct PlugRow {
+    fw: usize,
+    plain: usize,
+    x2: usize,
+    null_fw: usize,
+    null_plain: usize,
+    /// Fits (x1 and null) whose REML levels lie at the edge of the grid, of `fits`.
+    edges: usize,
+    fits: usize,
+    amplitude: (f64, f64),
 }
 
 /// Pairs (design, other effect) whose exact shapes on the same runs are tested against
@@ -743,12 +875,14 @@ fn main() {
         let mut null_stats = Vec::new();
         let mut null_z = Vec::new();
         let mut check = CovCheck::default();
+        let mut null_cases = Vec::new();
         for seed in null_first..null_first + null_seeds {
             match case_of(&ds, seed) {
                 Ok(c) => {
                     null_stats.push((oracle(&c, 0.0), c.y.len()));
                     null_z.push(gls.fit(&c, 0.0).map_or(0.0, |(a, sd)| a / sd));
                     check.add(&c, &gls.acov);
+                    null_cases.push(c);
                 }
                 Err(e) => eprintln!("skipped: {e}"),
             }
@@ -771,6 +905,24 @@ fn main() {
         let gls_amps: Vec<f64> = gls_x1.iter().map(|(a, _)| *a).collect();
         let (g_mean, g_sd) = mean_sd(&gls_amps);
         let exact_sd = mean(&gls_x1.iter().map(|(_, sd)| *sd).collect::<Vec<_>>());
+        let plug_in =
+            PlugIn::new(&ds.recorded.noise, ds.recorded.sample_rate_hz, RUN_S as usize + 1).map(|mut pl| {
+                let x1: Vec<PlugInFit> = cases.iter().filter_map(|c| pl.fit(c, 1.0)).collect();
+                let x2: Vec<PlugInFit> = cases.iter().filter_map(|c| pl.fit(c, 2.0)).collect();
+                let null: Vec<PlugInFit> = null_cases.iter().filter_map(|c| pl.fit(c, 0.0)).collect();
+                let count = |v: &[PlugInFit], z: f64| v.iter().filter(|(a, sd, _)| a / sd >= z).count();
+                let amps: Vec<f64> = x1.iter().map(|(a, _, _)| *a).collect();
+                PlugRow {
+                    fw: count(&x1, z_fw),
+                    plain: count(&x1, z_5),
+                    x2: count(&x2, z_fw),
+                    null_fw: count(&null, z_fw),
+                    null_plain: count(&null, z_5),
+                    edges: x1.iter().chain(&null).filter(|f| f.2).count(),
+                    fits: x1.len() + null.len(),
+                    amplitude: mean_sd(&amps),
+                }
+            });
         let separation = separation_of(&ds.label, reps, first).and_then(|other_v| {
             let fits: Vec<(f64, f64)> =
                 cases.iter().filter_map(|c| gls.fit_with(c, 1.0, &[&other_v])).collect();
@@ -827,6 +979,7 @@ fn main() {
             amplitude: (m, sd, se, within_30),
             gls: gls_row,
             separation,
+            plug_in,
         };
         eprintln!("{}: {:.0} s", ds.label, t0.elapsed().as_secs_f64());
         rows.push(row);
@@ -917,6 +1070,26 @@ fn main() {
                     sp.needed_2
                 );
             }
+        }
+    }
+    println!("\nPlug-in GLS (knows the shape and the noise family; N^2 and B^2 by REML from the same runs, grid 1/16-16 x the scenario's):\n");
+    println!("| design | fw x1 | 5 % x1 | fw x2 | false alarms fw | 5 % | levels at the grid edge | amplitude mean, SD |");
+    println!("|---|---|---|---|---|---|---|---|");
+    for r in &rows {
+        if let Some(p) = &r.plug_in {
+            println!(
+                "| {} | {} | {} | {} | {}/{null_seeds} | {}/{null_seeds} | {}/{} | {:.3}, {:.3} |",
+                r.label,
+                p.fw,
+                p.plain,
+                p.x2,
+                p.null_fw,
+                p.null_plain,
+                p.edges,
+                p.fits,
+                p.amplitude.0,
+                p.amplitude.1
+            );
         }
     }
     println!("\nNoise law check: empirical / modelled covariance of the null residual's short means at block lags {CHECK_LAGS:?}:\n");
