@@ -19,7 +19,8 @@
 //! - a fold (held-out run) is informative when the term's fitted contribution there, about
 //!   its mean over all runs, has an RMS of at least a quarter of the noise of one short
 //!   mean; a term is accepted when it is identifiable, lowers the total LORO error,
-//!   improves at least `min_fold_fraction` of the informative folds (and at least two) or
+//!   improves at least `min_fold_fraction` of the informative folds (and at least two; a
+//!   flexible term five, the fewest with which a sign test can reach 5 %) or
 //!   the runs' Clark-West held-out gains are significantly positive (paired t over all runs
 //!   or the exact Wilcoxon signed-rank test, each at 5 % / (2 x number of candidates), see
 //!   `rules::clark_west_gains`, `rules::fold_gain_limit` and `rules::signed_rank_p`),
@@ -44,4 +45,4 @@ pub use design::{
 };
 pub use final_fit::{evaluate_final, heldout_bias_stability, FinalOutcome};
 pub use forward::{chosen_parts, forward_select, ChosenTerm, Selection};
-pub use rules::{fold_counts, folds_pass, material_runs, stability_limit};
+pub use rules::{fold_counts, folds_pass, material_runs, stability_limit, MIN_INFORMATIVE_FOLDS};
