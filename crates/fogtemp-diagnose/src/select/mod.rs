@@ -28,7 +28,9 @@
 //!   [`stability_t`], above the two-sided Student-t limit with runs - 1 degrees of freedom
 //!   at 5 % / number of candidates; for a flexible term with more than two coefficients, a
 //!   basis in T whose local coefficients a left-out run moves, every fold must instead
-//!   reproduce, on its training runs, at least half of the full-data contribution). Of the accepted candidates, the one with the fewest coefficients within one
+//!   reproduce, on its training runs, at least half of the full-data contribution), and a
+//!   coefficient that is a physical share has its sign (`thermal_lag`'s gain is positive,
+//!   `Effect::positive_coefficient`). Of the accepted candidates, the one with the fewest coefficients within one
 //!   standard error of the lowest LORO error enters (`forward::parsimonious_pick`); selection
 //!   stops when no candidate is accepted or `max_effects` are in.
 //! - concealment index: R^2 of the candidate's fitted contribution on the terms already

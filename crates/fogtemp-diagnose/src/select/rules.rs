@@ -275,6 +275,8 @@ pub(super) struct RuleInputs {
     pub(super) stability_t: f64,
     /// The t a term needs (see [`stability_limit`]).
     pub(super) stability_limit: f64,
+    /// False when a coefficient that must be positive (`Effect::positive_coefficient`) is not.
+    pub(super) sign_ok: bool,
 }
 
 /// The acceptance rules a candidate fails (empty: accepted, identifiability aside): the LORO
@@ -306,6 +308,7 @@ pub(super) fn acceptance_failures(x: &RuleInputs) -> Vec<&'static str> {
         ),
         (x.delta_bic < 0.0, "BIC (n_eff) does not fall"),
         stable,
+        (x.sign_ok, "its coefficient has the unphysical sign (a lag's gain is a positive share)"),
     ];
     checks.iter().filter(|(ok, _)| !ok).map(|(_, why)| *why).collect()
 }
@@ -437,6 +440,7 @@ mod tests {
             min_fold_share: f64::NAN,
             stability_t: 5.0,
             stability_limit: 4.0,
+            sign_ok: true,
         }
     }
 
@@ -472,6 +476,10 @@ mod tests {
             ["too few informative folds improve"]
         );
         assert!(fails(RuleInputs { folds_improved: 4, folds_informative: 5, ..flexible }).is_empty());
+        assert_eq!(
+            fails(RuleInputs { sign_ok: false, ..ok }),
+            ["its coefficient has the unphysical sign (a lag's gain is a positive share)"]
+        );
         assert!(fails(RuleInputs { folds_improved: 2, folds_informative: 2, fold_gain_t: 3.0, ..flexible })
             .is_empty());
     }
