@@ -11,7 +11,8 @@ and the effects it names are compared with answer.json's `effect`:
 - named: the injected effect is in `left_out`;
 - alternative: it is not named, but listed in a named effect's `alternatives`;
 - missed: neither. For the null case (`none`) "named" means nothing was named.
-Also printed: what was named instead, the main parameter against the truth where both have
+Also printed: what was named instead, the main parameter (with its reported standard error and
+z = (estimate - truth) / SE) against the truth where both have
 one, and the total wall-clock time.
 
 Usage: testbed_diagnose.py --bin PATH/fogtemp-cal DIR/seed1 [DIR/seed2 ...] [--no-runs]
@@ -29,7 +30,8 @@ import time
 # catalogue term and the testbed share a meaning. The testbed's scale-factor truth is ppm/C
 # of the *extra* scale factor; the diagnosis reports it as s1_ppm_per_c.
 PARAMETER_CHECKS = {
-    "orientation_offset": ("down_minus_up_dph", "offset_pos2_minus_pos1_dph"),
+    # The fitted offset is named offset_<position>_minus_<position>_dph (see fitted_value).
+    "orientation_offset": ("down_minus_up_dph", "offset_down_minus_up_dph"),
     "scale_factor_temperature": ("extra_ppm_per_c", "s1_ppm_per_c"),
     "shupe_rate": ("extra_dph_per_c_per_min", "coefficient_dph_per_c_per_min"),
     "hysteresis": ("half_gap_dph", "half_gap_dph"),
@@ -59,6 +61,19 @@ def diagnose(binary, case, use_runs):
     return json.loads(p.stdout), seconds, []
 
 
+def fitted_value(params, key):
+    """(value, standard error or None) of `key`; an orientation offset reported the other way
+    round (offset_up_minus_down_dph for offset_down_minus_up_dph) is negated."""
+    if key in params:
+        return params[key]["value"], params[key].get("std_error")
+    if key.startswith("offset_") and key.endswith("_dph"):
+        a, b = key[len("offset_"):-len("_dph")].split("_minus_")
+        flipped = params.get(f"offset_{b}_minus_{a}_dph")
+        if flipped is not None:
+            return -flipped["value"], flipped.get("std_error")
+    return None
+
+
 def score(case, doc):
     with open(os.path.join(case, "answer.json")) as f:
         answer = json.load(f)
@@ -76,11 +91,14 @@ def score(case, doc):
     param = ""
     if doc and truth in PARAMETER_CHECKS and truth in named:
         key_truth, key_fit = PARAMETER_CHECKS[truth]
-        fitted = next(e for e in doc["left_out"] if e["effect"] == truth)["parameters"].get(key_fit)
+        params = next(e for e in doc["left_out"] if e["effect"] == truth)["parameters"]
+        fitted = fitted_value(params, key_fit)
         value = answer["parameters"].get(key_truth)
         if fitted is not None and value:
-            ratio = fitted["value"] / value
-            param = f"{key_fit} {fitted['value']:.4g} vs {value:.4g} (ratio {ratio:.2f})"
+            est, se = fitted
+            ratio = est / value
+            z = f", z {(est - value) / se:+.1f}" if se else ""
+            param = f"{key_fit} {est:.4g} +- {se or float('nan'):.2g} vs {value:.4g} (ratio {ratio:.2f}{z})"
     return {"case": case, "truth": truth, "size": answer["effect_rms_over_noise"], "named": named,
             "alternatives": alternatives, "verdict": verdict, "parameter": param}
 

@@ -243,10 +243,11 @@ fn hysteresis_from_power_on_runs_only_is_reported_not_identifiable() {
 /// `cargo run --release -p fogtemp-cal --example diagnose_confusion -- 20 5000 2`), per
 /// dataset with an identifiable injected effect: (label, seeds where the injected effect was
 /// named, seeds where it was named or listed in `alternatives` of a named effect).
-/// (Sixth session's x2 matrix, "Signed-rank fold rule" in docs/diagnose.md.)
+/// (Seventh session's x2 matrix, "False alarms: fold counts of flexible terms and the sign
+/// of a lag's gain" in docs/diagnose.md.)
 const DOCUMENTED_X2: [(&str, usize, usize); 8] = [
     ("thermal_lag", 14, 20),
-    ("shupe_rate", 17, 20),
+    ("shupe_rate", 20, 20),
     ("gradient_rate", 19, 19),
     ("warmup_transient", 20, 20),
     ("orientation_offset", 16, 16),

@@ -33,13 +33,15 @@ fn print_candidates(d: &Diagnosis) {
     for step in &d.selection {
         for c in &step.candidates {
             eprintln!(
-                "    step {:?} {:<26} {:<16} cv {:+.3} folds {}/{} dBIC {:8.1} t {:6.1} share {:5.2} conceal {:.3} confused {:?} {:?} {}",
+                "    step {:?} {:<26} {:<16} cv {:+.3} folds {}/{} gain t {:.2} rank p {:.4} dBIC {:8.1} t {:6.1} share {:5.2} conceal {:.3} confused {:?} {:?} {}",
                 step.model,
                 c.effect,
                 c.status,
                 c.cv_improvement,
                 c.folds_improved,
                 c.folds_informative,
+                c.fold_gain_t,
+                c.fold_gain_rank_p,
                 c.delta_bic,
                 c.stability_t,
                 c.min_fold_share,

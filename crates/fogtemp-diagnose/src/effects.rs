@@ -94,6 +94,16 @@ impl Effect {
         }
     }
 
+    /// Whether the term's single linear coefficient is a physical share that must be
+    /// positive: `thermal_lag`'s gain, the share of the simulation's static bias that acts
+    /// through the lagged (coil) temperature. A negative gain is not a lag: to first order
+    /// `g(L(T)) - g(T) ~ -g'(T) tau dT/dt`, so it is the bias *leading* the sensor, a rate
+    /// term, which `shupe_rate` and `gradient_rate` describe; fitted with the sign
+    /// constraint, a negative unconstrained gain is a gain of 0 (no lag).
+    pub fn positive_coefficient(self) -> bool {
+        matches!(self, Effect::ThermalLag)
+    }
+
     /// The experiment that separates this effect from what it is confused with
     /// (docs/physics.md section 4).
     pub fn experiment(self) -> &'static str {

@@ -7,7 +7,7 @@ use statrs::distribution::{ContinuousCDF, Normal};
 use super::effects::EffectGrid;
 use super::linalg::hac_se_of_mean;
 use super::prepare::{longest_finite, short_mean_noise, Prepared, RunData};
-use super::select::{fold_counts, folds_pass, material_runs, FinalOutcome, Selection};
+use super::select::{fold_counts, folds_pass, material_runs, FinalOutcome, Selection, MIN_INFORMATIVE_FOLDS};
 use super::{
     AllanRow, DiagnoseOptions, Diagnosis, Location, MapCell, NoiseLevel, RunTraceOut, SpanFinding, TableTest,
     TemperatureComparison, TemperatureRun, Unexplained,
@@ -394,7 +394,7 @@ fn table_test(
         cv_improvement: 1.0 - (a / b).sqrt(),
         folds_improved: improved,
         folds_informative: informative,
-        structured: a < b && folds_pass(improved, informative, min_fraction),
+        structured: a < b && folds_pass(improved, informative, min_fraction, MIN_INFORMATIVE_FOLDS),
     }
 }
 

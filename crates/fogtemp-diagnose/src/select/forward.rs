@@ -148,6 +148,7 @@ pub(super) fn judge(
         min_fold_share: prof.min_fold_share,
         stability_t: prof.stability_t,
         stability_limit: stability_limit(ctx.prep.runs.len(), ctx.tests),
+        sign_ok: !grid.effect.positive_coefficient() || last_coefficient(prof) > 0.0,
     });
     let accepted = !concealed && failed.is_empty();
     let (status, note, experiment) = if concealed {
@@ -185,6 +186,15 @@ pub(super) fn judge(
         note,
     };
     Scored { report, point: prof.point, accepted }
+}
+
+/// The full-data coefficient of the candidate's last column (unscaled).
+pub(super) fn last_coefficient(prof: &Profiled) -> f64 {
+    let p = prof.full_beta.len();
+    match (p.checked_sub(1), prof.design_scale.last()) {
+        (Some(last), Some(scale)) if *scale != 0.0 => prof.full_beta[last] / scale,
+        _ => f64::NAN,
+    }
 }
 
 /// Most confusable other candidate: the largest R^2 of `v` on the model's terms plus

@@ -19,7 +19,8 @@
 //! - a fold (held-out run) is informative when the term's fitted contribution there, about
 //!   its mean over all runs, has an RMS of at least a quarter of the noise of one short
 //!   mean; a term is accepted when it is identifiable, lowers the total LORO error,
-//!   improves at least `min_fold_fraction` of the informative folds (and at least two) or
+//!   improves at least `min_fold_fraction` of the informative folds (and at least two; a
+//!   flexible term five, the fewest with which a sign test can reach 5 %) or
 //!   the runs' Clark-West held-out gains are significantly positive (paired t over all runs
 //!   or the exact Wilcoxon signed-rank test, each at 5 % / (2 x number of candidates), see
 //!   `rules::clark_west_gains`, `rules::fold_gain_limit` and `rules::signed_rank_p`),
@@ -27,7 +28,9 @@
 //!   [`stability_t`], above the two-sided Student-t limit with runs - 1 degrees of freedom
 //!   at 5 % / number of candidates; for a flexible term with more than two coefficients, a
 //!   basis in T whose local coefficients a left-out run moves, every fold must instead
-//!   reproduce, on its training runs, at least half of the full-data contribution). Of the accepted candidates, the one with the fewest coefficients within one
+//!   reproduce, on its training runs, at least half of the full-data contribution), and a
+//!   coefficient that is a physical share has its sign (`thermal_lag`'s gain is positive,
+//!   `Effect::positive_coefficient`). Of the accepted candidates, the one with the fewest coefficients within one
 //!   standard error of the lowest LORO error enters (`forward::parsimonious_pick`); selection
 //!   stops when no candidate is accepted or `max_effects` are in.
 //! - concealment index: R^2 of the candidate's fitted contribution on the terms already
@@ -44,4 +47,4 @@ pub use design::{
 };
 pub use final_fit::{evaluate_final, heldout_bias_stability, FinalOutcome};
 pub use forward::{chosen_parts, forward_select, ChosenTerm, Selection};
-pub use rules::{fold_counts, folds_pass, material_runs, stability_limit};
+pub use rules::{fold_counts, folds_pass, material_runs, stability_limit, MIN_INFORMATIVE_FOLDS};

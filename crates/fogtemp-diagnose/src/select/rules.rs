@@ -122,9 +122,23 @@ pub fn fold_counts(before: &[f64], after: &[f64], informative: &[bool]) -> (usiz
     (improved, count)
 }
 
-/// Whether fold counts pass the acceptance rule.
-pub fn folds_pass(improved: usize, informative: usize, min_fraction: f64) -> bool {
-    informative >= 2 && improved as f64 >= min_fraction * informative as f64
+/// Whether fold counts pass the acceptance rule: at least `min_informative` informative
+/// folds, of which at least `min_fraction` improve.
+pub fn folds_pass(improved: usize, informative: usize, min_fraction: f64, min_informative: usize) -> bool {
+    informative >= min_informative.max(1) && improved as f64 >= min_fraction * informative as f64
+}
+
+/// Fewest informative folds for the fold count of any term (one fold is no comparison).
+pub const MIN_INFORMATIVE_FOLDS: usize = 2;
+
+/// One-sided level at which a flexible term's fold count must be able to be evidence.
+pub(super) const FOLD_COUNT_LEVEL: f64 = 0.05;
+
+/// Fewest informative folds with which a fold count can be evidence at one-sided `level`:
+/// the smallest `m` whose all-improved sign-test p, `2^-m`, is at most `level` (5 at 5 %:
+/// 1/32; 2 of 2 folds has p 1/4 and is no evidence).
+pub(super) fn sign_test_min_folds(level: f64) -> usize {
+    (1..64).find(|m| 0.5f64.powi(*m as i32) <= level).unwrap_or(64)
 }
 
 /// Clark-West held-out gain of each run (Clark & West 2007, *J. Econometrics* 138): for
@@ -261,27 +275,40 @@ pub(super) struct RuleInputs {
     pub(super) stability_t: f64,
     /// The t a term needs (see [`stability_limit`]).
     pub(super) stability_limit: f64,
+    /// False when a coefficient that must be positive (`Effect::positive_coefficient`) is not.
+    pub(super) sign_ok: bool,
 }
 
 /// The acceptance rules a candidate fails (empty: accepted, identifiability aside): the LORO
 /// error falls, enough informative folds improve, BIC falls, and the term is stable (a
 /// flexible term: every fold reproduces half of the shape; otherwise the jackknife t).
+///
+/// The fold count of a flexible term needs as many informative folds as a sign test needs
+/// to reach 5 % ([`sign_test_min_folds`]): a term with at most two coefficients must also
+/// pass the jackknife t at the family-wise level, a test of its contribution across runs,
+/// so its count is a consistency screen; a flexible term's fold-share rule is not a test,
+/// so its count must be able to be evidence (else it passes only on the tests of the
+/// gains). 2 of 2 informative folds named a static shape on a null case.
 pub(super) fn acceptance_failures(x: &RuleInputs) -> Vec<&'static str> {
-    let stable = if x.coefficients > FLEXIBLE_TERM_COEFFICIENTS {
+    let flexible = x.coefficients > FLEXIBLE_TERM_COEFFICIENTS;
+    let stable = if flexible {
         (x.min_fold_share >= MIN_FOLD_SHARE, "a fold reproduces less than half of the fitted shape")
     } else {
         (x.stability_t >= x.stability_limit, "not stable across folds (jackknife t)")
     };
+    let min_informative =
+        if flexible { sign_test_min_folds(FOLD_COUNT_LEVEL) } else { MIN_INFORMATIVE_FOLDS };
     let checks = [
         (x.cv_sse < x.base_cv_sse, "LORO error does not fall"),
         (
-            folds_pass(x.folds_improved, x.folds_informative, x.min_fold_fraction)
+            folds_pass(x.folds_improved, x.folds_informative, x.min_fold_fraction, min_informative)
                 || x.fold_gain_t >= x.fold_gain_limit
                 || x.fold_gain_rank_p <= x.fold_gain_alpha,
             "too few informative folds improve",
         ),
         (x.delta_bic < 0.0, "BIC (n_eff) does not fall"),
         stable,
+        (x.sign_ok, "its coefficient has the unphysical sign (a lag's gain is a positive share)"),
     ];
     checks.iter().filter(|(ok, _)| !ok).map(|(_, why)| *why).collect()
 }
@@ -307,12 +334,24 @@ mod tests {
     }
 
     #[test]
-    fn folds_pass_needs_two_informative_folds_and_the_fraction() {
-        assert!(folds_pass(3, 4, 0.75)); // 3 >= 0.75 x 4
-        assert!(!folds_pass(2, 3, 0.75)); // 2 < 2.25
-        assert!(!folds_pass(12, 17, 0.75)); // 12 < 12.75
-        assert!(!folds_pass(1, 1, 0.5)); // one informative fold is not enough
-        assert!(folds_pass(2, 2, 1.0));
+    fn folds_pass_needs_the_informative_folds_and_the_fraction() {
+        assert!(folds_pass(3, 4, 0.75, 2)); // 3 >= 0.75 x 4
+        assert!(!folds_pass(2, 3, 0.75, 2)); // 2 < 2.25
+        assert!(!folds_pass(12, 17, 0.75, 2)); // 12 < 12.75
+        assert!(!folds_pass(1, 1, 0.5, 2)); // one informative fold is not enough
+        assert!(folds_pass(2, 2, 1.0, 2));
+        assert!(!folds_pass(4, 4, 0.75, 5)); // too few informative folds
+        assert!(folds_pass(4, 5, 0.75, 5)); // 4 >= 3.75
+        assert!(!folds_pass(0, 0, 0.0, 0)); // no fold is never a pass
+    }
+
+    #[test]
+    fn sign_test_min_folds_is_the_fewest_folds_whose_all_improved_p_reaches_the_level() {
+        // 2^-4 = 0.0625 > 0.05 >= 2^-5 = 0.03125; 2^-1 = 0.5; 2^-6 = 0.015625 <= 0.02.
+        assert_eq!(sign_test_min_folds(0.05), 5);
+        assert_eq!(sign_test_min_folds(0.5), 1);
+        assert_eq!(sign_test_min_folds(0.02), 6);
+        assert_eq!(sign_test_min_folds(0.0625), 4);
     }
 
     #[test]
@@ -401,6 +440,7 @@ mod tests {
             min_fold_share: f64::NAN,
             stability_t: 5.0,
             stability_limit: 4.0,
+            sign_ok: true,
         }
     }
 
@@ -427,6 +467,21 @@ mod tests {
             fails(RuleInputs { min_fold_share: 0.49, ..flexible }),
             ["a fold reproduces less than half of the fitted shape"]
         );
+        // A flexible term's count needs 5 informative folds (2^-5 <= 5 %), a small term's 2:
+        // 2 of 2 passes a small term, not a flexible one (unless the gains' tests pass it).
+        let two_of_two = RuleInputs { folds_improved: 2, folds_informative: 2, ..ok };
+        assert!(fails(two_of_two).is_empty());
+        assert_eq!(
+            fails(RuleInputs { folds_improved: 2, folds_informative: 2, ..flexible }),
+            ["too few informative folds improve"]
+        );
+        assert!(fails(RuleInputs { folds_improved: 4, folds_informative: 5, ..flexible }).is_empty());
+        assert_eq!(
+            fails(RuleInputs { sign_ok: false, ..ok }),
+            ["its coefficient has the unphysical sign (a lag's gain is a positive share)"]
+        );
+        assert!(fails(RuleInputs { folds_improved: 2, folds_informative: 2, fold_gain_t: 3.0, ..flexible })
+            .is_empty());
     }
 
     #[test]
