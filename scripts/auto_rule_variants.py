@@ -15,7 +15,11 @@ the script checks it against the binary's own `validate` of its auto model.
 Usage (stdlib only):
   python3 scripts/auto_rule_variants.py run --bin target/release/fogtemp-cal --out DUMP \\
       [--fit-args "--cv-scheme runs-and-blocks --cv-rule-scale log"] TB/seed1 ... TB/seed5
-  python3 scripts/auto_rule_variants.py table --dump DUMP --rows rows.json [--seeds seed1,seed2]
+  python3 scripts/auto_rule_variants.py table --dump DUMP --rows rows.json [--seeds seed1,seed2] [--variants left,whole]
+
+Every scheme also records each left-out run's score over all its windows
+(`whole_run_bias_stability_dph`, what `--cv-scoring whole-run` scores), so the "whole run"
+variants need no run of their own either.
 """
 import argparse
 import csv
@@ -36,6 +40,8 @@ VARIANTS = [
     ("blocked, log", "blocked", True),
     ("runs and blocks, deg/h", "both", False),
     ("runs and blocks, log", "both", True),
+    ("whole run, deg/h", "whole", False),
+    ("whole run, log", "whole", True),
 ]
 
 
@@ -76,6 +82,10 @@ def usable(v):
 
 def run_score(r, kind):
     left, blocked = r["left_out_bias_stability_dph"], r["blocked_bias_stability_dph"]
+    if kind == "whole":
+        # the left-out run over every window (`--cv-scoring whole-run`), recorded by every scheme
+        whole = r["whole_run_bias_stability_dph"]
+        return whole if usable(whole) else None
     if kind == "left":
         return left if usable(left) else None
     if kind == "blocked":
@@ -124,9 +134,10 @@ def relative_standard_errors(scores):
 def table(a):
     rows = {"/".join(r["case"].split("/")[-2:]): r for r in json.load(open(a.rows))}
     seeds = a.seeds.split(",") if a.seeds else None
-    results = {label: [] for label, _, _ in VARIANTS}
-    print("| case | best fixed | " + " | ".join(label for label, _, _ in VARIANTS) + " |")
-    print("|---|---|" + "---|" * len(VARIANTS))
+    variants = [v for v in VARIANTS if not a.variants or v[1] in a.variants.split(",")]
+    results = {label: [] for label, _, _ in variants}
+    print("| case | best fixed | " + " | ".join(label for label, _, _ in variants) + " |")
+    print("|---|---|" + "---|" * len(variants))
     problems, resolution = [], []
     for path in sorted(glob.glob(os.path.join(a.dump, "seed*_case*.json"))):
         seed, case = os.path.basename(path)[:-5].split("_", 1)
@@ -141,13 +152,14 @@ def table(a):
             problems.append(f"{key}: auto validated {validation}, fixed {selection['method']} {row[selection['method']]}")
         resolution.extend(relative_standard_errors(fold_scores(selection, "left")))
         cells = []
-        for label, kind, log in VARIANTS:
+        for label, kind, log in variants:
             scores = fold_scores(selection, kind)
             chosen = choose(scores, log) if len(scores["poly"]) >= 3 else "poly"
             if label.endswith("(default)") and chosen != row["auto_chose"]:
                 problems.append(f"{key}: {label} gives {chosen}, the default binary chose {row['auto_chose']}")
             scale = selection.get("scale", a.binary_scale)
-            ran = (selection["scheme"] == "runs-and-blocks", scale == "log") == (kind == "both", log)
+            whole_run = selection.get("scoring") == "whole-run"
+            ran = (selection["scheme"] == "runs-and-blocks", scale == "log", whole_run) == (kind == "both", log, kind == "whole")
             if ran and chosen != selection["method"]:
                 problems.append(f"{key}: {label} gives {chosen}, the binary chose {selection['method']}")
             ratio = row[chosen] / row[best]
@@ -181,6 +193,8 @@ def main():
     t.add_argument("--dump", required=True)
     t.add_argument("--rows", required=True)
     t.add_argument("--seeds")
+    t.add_argument("--variants", help="per-run scores to tabulate, comma-separated among left,blocked,both,whole "
+                   "(default all; a dump of the default scheme has no blocked scores: left,whole)")
     t.add_argument("--binary-scale", default="deg-per-hour",
                    help="the rule's scale of a binary whose JSON does not record it (commit 81c3a0e: log)")
     a = ap.parse_args()
