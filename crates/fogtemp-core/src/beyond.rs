@@ -85,7 +85,7 @@ fn weighted_gradient(mesh: &Mesh<'_>, weight: impl Fn(&Vertex) -> f32) -> Option
     for (w, v) in nodes().filter(|(w, _)| *w > 0.0) {
         (sw, sx, sy, sv) = (sw + w, sx + w * v.x, sy + w * v.y, sv + w * v.value_dph);
     }
-    if !(sw > 0.0) {
+    if !positive(sw) {
         return None;
     }
     let (mx, my, mv) = (sx / sw, sy / sw, sv / sw);
@@ -122,7 +122,7 @@ fn nearest_by_scan(mesh: &Mesh<'_>, x: f32, y: f32) -> Option<Nearest> {
         let (d2, _) = edge_nearest(&a, &b, x, y);
         let e = sub([b.x, b.y], [a.x, a.y]);
         let along = dot(sub([x, y], [a.x, a.y]), e);
-        let at = if !(along > 0.0) {
+        let at = if !positive(along) {
             Nearest::Vertex(h)
         } else if along >= dot(e, e) {
             Nearest::Vertex(cyclic(h, 1, n))
@@ -144,4 +144,10 @@ fn sub(a: P, b: P) -> P {
 #[inline(always)]
 fn dot(a: P, b: P) -> f32 {
     a[0] * b[0] + a[1] * b[1]
+}
+
+/// `v > 0` (false for NaN).
+#[inline(always)]
+fn positive(v: f32) -> bool {
+    v > 0.0
 }
