@@ -738,7 +738,10 @@ fn targeted_axis_corruptions_give_their_specific_errors() {
     assert!(matches!(r, Err(Error::BadValue { field: "axis_id", .. })), "{r:?}");
     let r = mutated(|b, s| put_u16(b, s.start + AXIS_MODEL_KIND.start, 4));
     assert!(matches!(r, Err(Error::BadValue { field: "model_kind", .. })), "{r:?}");
+    // Codes 0 to 2 are policies (2, linear from the boundary, since the mesh's continuation).
     let r = mutated(|b, s| put_u32(b, s.start + AXIS_OUTSIDE_POLICY.start, 2));
+    assert!(r.is_ok(), "{r:?}");
+    let r = mutated(|b, s| put_u32(b, s.start + AXIS_OUTSIDE_POLICY.start, 3));
     assert!(matches!(r, Err(Error::BadValue { field: "outside_policy", .. })), "{r:?}");
     let r = mutated(|b, s| b[s.start + AXIS_REGION_VERTEX_COUNT.start + 3] = 1);
     assert!(matches!(r, Err(Error::BadValue { field: "region_vertex_count", .. })), "{r:?}");

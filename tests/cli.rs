@@ -479,7 +479,12 @@ fn evaluate_matches_f64_barycentric_reference() {
     let dir = TempDir::new().expect("tempdir");
     let model = dir.path().join("mesh.fogm");
     let runs: Vec<PathBuf> = [0, 2, 4, 6].iter().map(|i| logs.cal.join(format!("run{i}.csv"))).collect();
-    fit("mesh", &model, &runs.iter().map(PathBuf::as_path).collect::<Vec<_>>());
+    // The held hull value is this test's reference outside the hull (the default, continued
+    // linearly, is checked against its own f64 reference in tests/mesh_beyond_hull.rs).
+    let mut args = args!["fit", "--method", "mesh", "--mesh-outside", "hold", "--json", "--out", &model];
+    args.extend(FAST_FIT.split(' ').map(OsString::from));
+    args.extend(runs.iter().map(OsString::from));
+    run_ok(args);
     let inspect = json(&run_ok(args!["inspect", "--json", &model]));
     let axis = &arr(&inspect["axes"])[0];
     assert_eq!(axis["outside_policy"], "nearest_hull");

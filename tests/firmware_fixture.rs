@@ -163,8 +163,8 @@ fn calibration_points() -> Vec<MeshPoint> {
     out
 }
 
-/// The model blob, and a line describing its mesh.
-fn model_blob() -> (Vec<u8>, String) {
+/// The model blob with the mesh's `policy` outside its hull, and a line describing its mesh.
+fn model_blob(policy: OutsidePolicy) -> (Vec<u8>, String) {
     let points = calibration_points();
     let mesh = build_mesh(&points, &NORMALISATION).expect("mesh builds");
     let about = format!(
@@ -189,7 +189,7 @@ fn model_blob() -> (Vec<u8>, String) {
         poly_outside: fogtemp_core::PolyOutside::Extrapolate,
         features: FEATURES,
         normalisation: NORMALISATION,
-        outside_policy: OutsidePolicy::NearestHull,
+        outside_policy: policy,
         poly: poly_terms(),
         mesh: Some(mesh),
         provenance: AxisProvenance {
@@ -371,20 +371,46 @@ fn check_fixture(
     )
 }
 
-/// What today's code produces: (file name, bytes).
+/// What today's code produces: (file name, bytes). The second model is the same with the
+/// mesh continued linearly beyond its hull (`OutsidePolicy::LinearFromBoundary`), the same
+/// trajectory through it: `.ci/run` runs the firmware on both.
 fn generate() -> (Vec<(&'static str, Vec<u8>)>, String) {
-    let (blob, about_model) = model_blob();
+    let (blob, about_model) = model_blob(OutsidePolicy::NearestHull);
     let records = trajectory();
     let trajectory_bytes = encode_trajectory(&records);
     let outputs = compensate(&blob, &records);
     let lines = expected_lines(&outputs);
     let about_run = check_fixture(&blob, &trajectory_bytes, &records, &outputs, &lines);
+    let (linear_blob, _) = model_blob(OutsidePolicy::LinearFromBoundary);
+    let linear_outputs = compensate(&linear_blob, &records);
+    let about_linear = check_linear(&outputs, &linear_outputs);
+    let linear_lines = expected_lines(&linear_outputs);
     let files = vec![
         ("model.fogm", blob),
         ("trajectory.bin", trajectory_bytes),
         ("expected_out.txt", lines.into_bytes()),
+        ("model-linear.fogm", linear_blob),
+        ("expected_out-linear.txt", linear_lines.into_bytes()),
     ];
-    (files, format!("{about_model}\n{about_run}"))
+    (files, format!("{about_model}\n{about_run}\n{about_linear}"))
+}
+
+/// The linear policy changes only what is flagged `OUTSIDE_HULL`, and changes some of it (the
+/// heater burst leaves the hull), so the second firmware run exercises the continuation.
+fn check_linear(held: &[Output], linear: &[Output]) -> String {
+    assert_eq!(held.len(), linear.len());
+    let mut changed = 0usize;
+    for (h, l) in held.iter().zip(linear) {
+        assert_eq!(h.flags, l.flags, "the policy does not change the flags");
+        if h.flags.contains(Flags::OUTSIDE_HULL) {
+            changed += usize::from(h.rate_dph.to_bits() != l.rate_dph.to_bits());
+        } else {
+            assert_eq!(h.rate_dph.to_bits(), l.rate_dph.to_bits(), "inside the hull the policies agree");
+        }
+    }
+    let outside = held.iter().filter(|o| o.flags.contains(Flags::OUTSIDE_HULL)).count();
+    assert!(changed > 0, "no OUTSIDE_HULL sample changes with the linear policy ({outside} flagged)");
+    format!("model-linear.fogm: {changed} of {outside} OUTSIDE_HULL outputs differ from the held ones")
 }
 
 #[test]

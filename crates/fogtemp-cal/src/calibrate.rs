@@ -151,6 +151,12 @@ pub struct CalibrationConfig {
     /// nearest boundary point (no worse than extrapolating on the testbed, and no runaway);
     /// holding at the boundary was worse (docs/calibration-testbed.md).
     pub poly_outside: fogtemp_core::PolyOutside,
+    /// What a mesh model's mesh does outside its hull: continued linearly from the nearest hull
+    /// point (the default, chosen on testbed seeds 1-2 after seeing them) or held there
+    /// (docs/calibration-testbed.md, "Mesh beyond its hull"). The
+    /// hybrid's mesh, a residual on the polynomial, is always zero outside (the polynomial's
+    /// own continuation carries the trend there).
+    pub mesh_outside: OutsidePolicy,
 }
 
 impl Default for CalibrationConfig {
@@ -166,6 +172,7 @@ impl Default for CalibrationConfig {
             least_squares_nodes: true,
             rate_axis_weight: 1.0,
             poly_outside: fogtemp_core::PolyOutside::LinearFromBoundary,
+            mesh_outside: OutsidePolicy::LinearFromBoundary,
         }
     }
 }
@@ -489,7 +496,7 @@ pub fn fit_axis(
         }
     };
     let outside_policy =
-        if config.method == Method::Hybrid { OutsidePolicy::Zero } else { OutsidePolicy::NearestHull };
+        if config.method == Method::Hybrid { OutsidePolicy::Zero } else { config.mesh_outside };
     let range = |f: &dyn Fn(&MeshPoint) -> f64| {
         points.iter().map(f).fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(v), b.max(v)))
     };

@@ -348,6 +348,7 @@ impl ModelAxisDocument {
             outside_policy = Some(match mesh.outside_policy() {
                 OutsidePolicy::NearestHull => "nearest_hull",
                 OutsidePolicy::Zero => "zero",
+                OutsidePolicy::LinearFromBoundary => "linear_from_boundary",
             });
             for v in (0..mesh.vertex_count()).filter_map(|k| mesh.vertex(k)) {
                 let (temp_c, rate_c_per_min) = crate::mesh::to_physical(n, f64::from(v.x), f64::from(v.y));

@@ -233,6 +233,27 @@ impl From<PolyOutsideArg> for fogtemp_core::PolyOutside {
     }
 }
 
+/// What a mesh model's mesh does outside its hull.
+#[derive(Debug, Clone, Copy, ValueEnum, PartialEq, Eq)]
+pub enum MeshOutsideArg {
+    /// The value at the nearest hull point (flagged OUTSIDE_HULL).
+    #[value(alias = "nearest-hull")]
+    Hold,
+    /// Continued linearly from the nearest hull point, with the slope across the hull of the
+    /// hull triangle's neighbourhood (flagged OUTSIDE_HULL).
+    #[value(alias = "linear")]
+    LinearFromBoundary,
+}
+
+impl From<MeshOutsideArg> for fogtemp_core::OutsidePolicy {
+    fn from(a: MeshOutsideArg) -> Self {
+        match a {
+            MeshOutsideArg::Hold => fogtemp_core::OutsidePolicy::NearestHull,
+            MeshOutsideArg::LinearFromBoundary => fogtemp_core::OutsidePolicy::LinearFromBoundary,
+        }
+    }
+}
+
 /// How `auto` scores a held-out run (hidden; docs/calibration-testbed.md).
 #[derive(Debug, Clone, Copy, ValueEnum, PartialEq, Eq)]
 pub enum CvScoringArg {
@@ -294,6 +315,12 @@ pub struct FitArgs {
     /// (docs/calibration-testbed.md, "Continued linearly").
     #[arg(long, value_enum, default_value_t = PolyOutsideArg::LinearFromBoundary)]
     pub poly_outside: PolyOutsideArg,
+    /// What a mesh model's mesh does outside its hull, stored in the model: continued linearly
+    /// from the nearest hull point as the polynomial is (the default), or held there
+    /// (docs/calibration-testbed.md, "Mesh beyond its hull"). The hybrid's mesh is zero
+    /// outside its hull either way.
+    #[arg(long, value_enum, default_value_t = MeshOutsideArg::LinearFromBoundary)]
+    pub mesh_outside: MeshOutsideArg,
     /// How `auto` scores a held-out run: every window, or only the windows inside the
     /// training runs' calibrated region (docs/calibration-testbed.md).
     #[arg(long, value_enum, default_value_t = CvScoringArg::InsideRegion, hide = true)]

@@ -309,3 +309,42 @@ fn the_rule_scale_and_the_runs_and_blocks_scheme_are_options() {
         (Some("leave-one-group-out"), Some("deg-per-hour"))
     );
 }
+
+/// `fit --mesh-outside` stores the mesh's policy, `inspect` names it, and it acts only outside
+/// the hull: inside, hold and linear give the same value bit for bit; far outside (50 C/min,
+/// beyond every run) both are flagged OUTSIDE_HULL and the linear one differs from the held
+/// hull value. The values themselves are checked against closed forms and an f64 reference in
+/// tests/mesh_beyond_hull.rs.
+#[test]
+fn mesh_outside_is_stored_named_and_acts_only_outside_the_hull() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let logs = strings(&write_runs(dir.path()));
+    let points = dir.path().join("points.csv");
+    std::fs::write(&points, "temp_c,rate_c_per_min\n20,0\n20,50\n").expect("write points");
+    let points = points.display().to_string();
+    let mut evaluated = Vec::new();
+    for (policy, stored) in [("hold", "nearest_hull"), ("linear-from-boundary", "linear_from_boundary")] {
+        let model = dir.path().join(format!("{policy}.fogm")).display().to_string();
+        let mut args = vec!["fit", "--method", "mesh", "--mesh-outside", policy, "--out", &model];
+        args.extend(logs.iter().map(String::as_str));
+        let fit = cal(&args);
+        assert!(fit.status.success(), "{}", String::from_utf8_lossy(&fit.stderr));
+        let inspect = ok_json(&["inspect", "--json", &model]);
+        assert_eq!(inspect["axes"][0]["outside_policy"], stored, "{inspect}");
+        let out = cal(&["evaluate", "--model", &model, "--points", &points]);
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        let rows: Vec<Vec<String>> = String::from_utf8_lossy(&out.stdout)
+            .lines()
+            .skip(1)
+            .map(|l| l.split(',').map(str::to_owned).collect())
+            .collect();
+        evaluated.push(rows);
+    }
+    let (held, linear) = (&evaluated[0], &evaluated[1]);
+    let outside_hull =
+        |row: &[String]| row[3].parse::<u8>().expect("flags") & fogtemp_core::Flags::OUTSIDE_HULL.0 != 0;
+    assert_eq!(held[0], linear[0], "inside the hull both policies agree");
+    assert!(!outside_hull(&held[0]), "{held:?}");
+    assert!(outside_hull(&held[1]) && outside_hull(&linear[1]), "{held:?} {linear:?}");
+    assert_ne!(held[1][2], linear[1][2], "beyond the hull the continuation moves the value");
+}

@@ -31,6 +31,7 @@
 #![no_std]
 #![forbid(unsafe_code)]
 
+mod beyond;
 mod compensator;
 pub mod crc;
 mod error;
@@ -42,6 +43,7 @@ mod poly;
 mod region;
 pub mod wire;
 
+pub use beyond::GRADIENT_RADIUS;
 pub use compensator::{AxisState, Compensator, Flags, Output, WrappingClock, DEFAULT_CAPACITY};
 pub use error::Error;
 pub use features::{BlockStorage, BlockTracker, FeatureTracker, Features, PushOutcome};

@@ -23,6 +23,13 @@ pub enum OutsidePolicy {
     /// Zero: the mesh contributes nothing outside (hybrid models fall back to the
     /// polynomial). Blob code 1.
     Zero,
+    /// The value at the nearest hull point `q` continued linearly to the query, with the
+    /// gradient of the weighted least-squares plane of the nodes within
+    /// [`crate::GRADIENT_RADIUS`] of `q` (`src/beyond.rs`): the mesh's first-order
+    /// continuation, as the polynomial's `PolyOutside::LinearFromBoundary`. Continuous
+    /// across the hull, exact for a plane. Blob code 2 (a reader that knows only 0 and 1
+    /// refuses the blob).
+    LinearFromBoundary,
 }
 
 impl OutsidePolicy {
@@ -31,6 +38,7 @@ impl OutsidePolicy {
         match self {
             OutsidePolicy::NearestHull => 0,
             OutsidePolicy::Zero => 1,
+            OutsidePolicy::LinearFromBoundary => 2,
         }
     }
 
@@ -39,6 +47,7 @@ impl OutsidePolicy {
         match code {
             0 => Some(OutsidePolicy::NearestHull),
             1 => Some(OutsidePolicy::Zero),
+            2 => Some(OutsidePolicy::LinearFromBoundary),
             _ => None,
         }
     }
@@ -512,8 +521,20 @@ impl<'a> Mesh<'a> {
             // benchmark took 20 % longer, docs/performance.md).
             OutsidePolicy::NearestHull => self.hull_value_after_walk(triangle, k, x, y),
             OutsidePolicy::Zero => 0.0,
+            OutsidePolicy::LinearFromBoundary => self.linear_value_after_walk(triangle, k, x, y),
         };
         MeshValue { value_dph, triangle, outside_hull: true }
+    }
+
+    /// The policy `LinearFromBoundary`'s value (see `src/beyond.rs`); where the nearest hull
+    /// point cannot be found (a non-finite query), the hull value as `NearestHull` gives it.
+    #[cold]
+    #[inline(never)]
+    fn linear_value_after_walk(&self, triangle: u32, k: usize, x: f32, y: f32) -> f32 {
+        match crate::beyond::linear_value(self, x, y) {
+            Some(value) => value,
+            None => self.hull_value_after_walk(triangle, k, x, y),
+        }
     }
 
     /// [`Mesh::nearest_hull_value`] for a query a walk took out of the mesh: starts from the

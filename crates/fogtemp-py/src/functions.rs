@@ -172,7 +172,7 @@ fn array_error(e: fogtemp_cal::CalError) -> PyErr {
 /// line's `fit` does by default), "poly", "mesh", "hybrid" or "cubic-t". Keywords: the command line's `fit` options (`window_s`, `blocks`,
 /// `min_blocks`, `max_gap_s`, `target_window_s`, `full_windows_only`, `thinning`,
 /// `tolerance_dph`, `max_nodes`, `interpolate_nodes`, `fast_rate`, `settled_every`, `poly`,
-/// `max_degree`, `p_enter`, `p_remove`, `poly_outside`, `capacity`, `operating_temp_c`) and, for files, its
+/// `max_degree`, `p_enter`, `p_remove`, `poly_outside`, `mesh_outside`, `capacity`, `operating_temp_c`) and, for files, its
 /// log-column options (`time_column`, `time_unit`, `temp_column`, `temp_scale`, `temp_offset`,
 /// `gyro_column`, `gyro_unit`, `gyro_scale`, `delimiter`, `skip_lines`, `columns`,
 /// `sample_rate_hz`, `comment`, `skip_bad_rows`); identifiability warnings as Python warnings. `out` also writes the model

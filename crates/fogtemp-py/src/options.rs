@@ -237,10 +237,20 @@ pub fn calibration(o: &mut Options<'_>, base: CalibrationConfig) -> PyResult<Cal
         )))
         }
     };
+    let mesh_outside = match o.string("mesh_outside", mesh_outside_name(base.mesh_outside))?.as_str() {
+        "hold" | "nearest_hull" => fogtemp_core::OutsidePolicy::NearestHull,
+        "linear_from_boundary" | "linear" => fogtemp_core::OutsidePolicy::LinearFromBoundary,
+        other => {
+            return Err(errors::value(format!(
+                "mesh_outside must be 'hold' or 'linear_from_boundary', got '{other}'"
+            )))
+        }
+    };
     Ok(CalibrationConfig {
         features,
         target_window_s,
         poly_outside,
+        mesh_outside,
         thinning,
         poly,
         full_windows_only: o.bool("full_windows_only", false)?,
@@ -275,4 +285,12 @@ pub fn capacity_fits(needed: usize, capacity: usize) -> PyResult<()> {
         )));
     }
     Ok(())
+}
+
+/// The Python name of a mesh outside policy (the default of `mesh_outside`).
+fn mesh_outside_name(policy: fogtemp_core::OutsidePolicy) -> &'static str {
+    match policy {
+        fogtemp_core::OutsidePolicy::LinearFromBoundary => "linear_from_boundary",
+        fogtemp_core::OutsidePolicy::NearestHull | fogtemp_core::OutsidePolicy::Zero => "hold",
+    }
 }

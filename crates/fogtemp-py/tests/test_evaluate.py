@@ -136,3 +136,22 @@ def test_non_finite_points_of_a_large_input_give_nan_and_leave_the_others_alone(
 def test_axis_out_of_range_is_a_value_error(mesh_model):
     with pytest.raises(ValueError, match="axis 3 does not exist"):
         mesh_model.evaluate(20.0, 0.0, axis=3)
+
+
+def test_mesh_outside_is_an_option_and_acts_only_outside_the_hull(cal_logs, mesh_model):
+    # The default continues the mesh linearly beyond its hull; "hold" keeps the hull value.
+    # Inside the hull both are the same interpolation bit for bit; beyond it they differ.
+    held = fogtemp.fit(cal_logs, method="mesh", mesh_outside="hold", progress=False)
+    assert held.inspect()["axes"][0]["outside_policy"] == "nearest_hull"
+    assert mesh_model.inspect()["axes"][0]["outside_policy"] == "linear_from_boundary"
+    axis = mesh_model.inspect()["axes"][0]
+    temp, rate = random_points_in_range(axis, 20_000, seed=13)
+    xy = np.array([[v["x"], v["y"]] for v in axis["nodes"]])
+    inside = np.isfinite(LinearNDInterpolator(xy, np.zeros(len(xy)))(*normalise(axis, temp, rate)))
+    ours, theirs = mesh_model.evaluate(temp, rate), held.evaluate(temp, rate)
+    # Away from the hull's edge (scipy and the core may disagree within rounding on it).
+    assert inside.sum() > 1000 and (~inside).sum() > 100
+    assert np.mean(ours[inside] == theirs[inside]) > 0.99
+    assert np.any(ours[~inside] != theirs[~inside])
+    with pytest.raises(ValueError, match="mesh_outside"):
+        fogtemp.fit(cal_logs, method="mesh", mesh_outside="sideways", progress=False)

@@ -56,6 +56,7 @@ pub fn fit(a: FitArgs) -> Result<()> {
         least_squares_nodes: !a.interpolate_nodes,
         rate_axis_weight: 1.0,
         poly_outside: a.poly_outside.into(),
+        mesh_outside: a.mesh_outside.into(),
     };
     let mut runs = Vec::with_capacity(logs.len());
     for log in &logs {

@@ -1,0 +1,153 @@
+//! The mesh continued linearly beyond its hull ([`crate::OutsidePolicy::LinearFromBoundary`]):
+//! the first-order continuation from the nearest hull point, the idea of the polynomial's
+//! `PolyOutside::LinearFromBoundary` (its tangent plane at the nearest boundary point).
+//!
+//! For a query `p` outside the hull with nearest hull point `q`, the value is
+//! `m(q) + g(q) . (p - q)`, with `m(q)` the held value (linear along the hull edge) and
+//! `g(q)` the gradient of a weighted least-squares plane through the mesh nodes around `q`:
+//! weights `(1 - r^2 / R^2)^2` for a node at distance `r < R` from `q`, with
+//! `R = GRADIENT_RADIUS` (normalised units).
+//!
+//! Why not a triangle's own gradient: a mesh's nodes carry noise (`sigma` each), and a
+//! gradient from nodes spread over a baseline `b` carries `sigma / b` of it, which the
+//! continuation multiplies by the distance. Along the hull the baselines are short: Delaunay
+//! hull triangles are slivers, and a settled run end puts tens of nodes within a fraction of
+//! a degree. A fixed radius makes the baseline a fixed share of the calibrated span (the
+//! normalisation maps the calibration points' bounding box to `[-1, 1]^2`, so `R = 0.5` is a
+//! quarter of each axis's span), whatever the local node spacing. The biweight makes `g(q)`
+//! continuous in `q`, and `q` is continuous in `p`, so the value is continuous everywhere,
+//! and equal to the held value on the hull. For a plane mesh every weighted fit is the
+//! plane, so the continuation is exact.
+//!
+//! Where the nodes within `R` do not span a plane (their weighted positions' correlation
+//! `|rho| > 0.995`, or a single node) the fit uses every node with equal weights (the mesh's overall linear trend); a
+//! mesh whose nodes do not span a plane cannot be written.
+//!
+//! Cost: one pass over the vertices per outside query (O(V), no allocation), plus the
+//! nearest hull point (`src/hull.rs`, a scan of every hull edge where that is not certified).
+
+use crate::hull::{self, cyclic, Nearest};
+use crate::mesh::{edge_nearest, Mesh, Vertex};
+
+/// A point or a vector of the normalised plane.
+type P = [f32; 2];
+
+/// Radius of the nodes that set the continuation's gradient, normalised units (a quarter of
+/// the calibrated span of each axis; see the module documentation).
+pub const GRADIENT_RADIUS: f32 = 0.5;
+
+/// The continued value at an outside query `(x, y)`, or `None` when the nearest hull point
+/// cannot be found (a non-finite query, a broken hull); the caller then holds the hull value.
+pub(crate) fn linear_value(mesh: &Mesh<'_>, x: f32, y: f32) -> Option<f32> {
+    if !(x.is_finite() && y.is_finite()) {
+        return None;
+    }
+    let nearest = hull::nearest_edge(mesh, x, y).or_else(|| nearest_by_scan(mesh, x, y))?;
+    let (q, held) = match nearest {
+        Nearest::Edge(h) => {
+            let (a, b) = mesh.hull_edge_vertices(h)?;
+            let e = sub([b.x, b.y], [a.x, a.y]);
+            let len2 = dot(e, e);
+            let s = if len2 > 0.0 { (dot(sub([x, y], [a.x, a.y]), e) / len2).clamp(0.0, 1.0) } else { 0.0 };
+            ([a.x + s * e[0], a.y + s * e[1]], edge_nearest(&a, &b, x, y).1)
+        }
+        Nearest::Vertex(h) => {
+            let v = mesh.vertex(mesh.hull_start_index(h)?)?;
+            ([v.x, v.y], v.value_dph)
+        }
+    };
+    let g = local_gradient(mesh, q)?;
+    Some(held + dot(g, sub([x, y], q)))
+}
+
+/// Gradient at `q` (see the module documentation): the biweight fit within
+/// [`GRADIENT_RADIUS`], else the equal-weight fit of every node.
+fn local_gradient(mesh: &Mesh<'_>, q: P) -> Option<P> {
+    let r2 = GRADIENT_RADIUS * GRADIENT_RADIUS;
+    let biweight = |v: &Vertex| {
+        let d2 = dot(sub([v.x, v.y], q), sub([v.x, v.y], q));
+        if d2 < r2 {
+            let u = 1.0 - d2 / r2;
+            u * u
+        } else {
+            0.0
+        }
+    };
+    weighted_gradient(mesh, biweight).or_else(|| weighted_gradient(mesh, |_| 1.0))
+}
+
+/// Gradient `(a, b)` of the plane `v = a x + b y + c` fitted to the mesh nodes by weighted
+/// least squares (weights `weight(node)`); two passes, the moments centred on the weighted
+/// mean so f32 keeps its digits; `None` when the weighted positions do not span a plane.
+fn weighted_gradient(mesh: &Mesh<'_>, weight: impl Fn(&Vertex) -> f32) -> Option<P> {
+    let nodes = || (0..mesh.vertex_count()).filter_map(|i| mesh.vertex(i)).map(|v| (weight(&v), v));
+    let (mut sw, mut sx, mut sy, mut sv) = (0.0f32, 0.0f32, 0.0f32, 0.0f32);
+    for (w, v) in nodes().filter(|(w, _)| *w > 0.0) {
+        (sw, sx, sy, sv) = (sw + w, sx + w * v.x, sy + w * v.y, sv + w * v.value_dph);
+    }
+    if !positive(sw) {
+        return None;
+    }
+    let (mx, my, mv) = (sx / sw, sy / sw, sv / sw);
+    let (mut cxx, mut cxy, mut cyy, mut cxv, mut cyv) = (0.0f32, 0.0f32, 0.0f32, 0.0f32, 0.0f32);
+    for (w, v) in nodes().filter(|(w, _)| *w > 0.0) {
+        let (dx, dy, dv) = (v.x - mx, v.y - my, v.value_dph - mv);
+        cxx += w * dx * dx;
+        cxy += w * dx * dy;
+        cyy += w * dy * dy;
+        cxv += w * dx * dv;
+        cyv += w * dy * dv;
+    }
+    let det = cxx * cyy - cxy * cxy;
+    // `det / (cxx cyy) = 1 - rho^2`, rho the weighted correlation of x and y: at least 1e-2
+    // (|rho| <= 0.995), else the positions lie too close to a line for a plane's second
+    // slope (its f32 error grows as 1 / (1 - rho^2)).
+    if !(det > MIN_SPAN * cxx * cyy && det.is_finite()) {
+        return None;
+    }
+    let gradient = [(cyy * cxv - cxy * cyv) / det, (cxx * cyv - cxy * cxv) / det];
+    gradient.iter().all(|g| g.is_finite()).then_some(gradient)
+}
+
+/// Least `1 - rho^2` of the weighted node positions for a plane fit (see `weighted_gradient`).
+const MIN_SPAN: f32 = 1e-2;
+
+/// The nearest hull edge or vertex of `(x, y)` by scanning every hull edge (the smallest f32
+/// distance, ties to the lower index); for queries `hull::nearest_edge` cannot certify.
+fn nearest_by_scan(mesh: &Mesh<'_>, x: f32, y: f32) -> Option<Nearest> {
+    let n = mesh.hull_edge_count();
+    let mut best: Option<(f32, Nearest)> = None;
+    for h in 0..n {
+        let Some((a, b)) = mesh.hull_edge_vertices(h) else { continue };
+        let (d2, _) = edge_nearest(&a, &b, x, y);
+        let e = sub([b.x, b.y], [a.x, a.y]);
+        let along = dot(sub([x, y], [a.x, a.y]), e);
+        let at = if !positive(along) {
+            Nearest::Vertex(h)
+        } else if along >= dot(e, e) {
+            Nearest::Vertex(cyclic(h, 1, n))
+        } else {
+            Nearest::Edge(h)
+        };
+        if best.is_none_or(|(d, _)| d2 < d) {
+            best = Some((d2, at));
+        }
+    }
+    best.map(|(_, at)| at)
+}
+
+#[inline(always)]
+fn sub(a: P, b: P) -> P {
+    [a[0] - b[0], a[1] - b[1]]
+}
+
+#[inline(always)]
+fn dot(a: P, b: P) -> f32 {
+    a[0] * b[0] + a[1] * b[1]
+}
+
+/// `v > 0` (false for NaN).
+#[inline(always)]
+fn positive(v: f32) -> bool {
+    v > 0.0
+}
