@@ -151,9 +151,10 @@ pub struct CalibrationConfig {
     /// nearest boundary point (no worse than extrapolating on the testbed, and no runaway);
     /// holding at the boundary was worse (docs/calibration-testbed.md).
     pub poly_outside: fogtemp_core::PolyOutside,
-    /// What a mesh model's mesh does outside its hull: continued linearly from the nearest hull
-    /// point (the default, chosen on testbed seeds 1-2 after seeing them) or held there
-    /// (docs/calibration-testbed.md, "Mesh beyond its hull"). The
+    /// What a mesh model's mesh does outside its hull: held at the nearest hull point (the
+    /// default: one outside query stays a walk, not a pass over every node) or continued
+    /// linearly from it (better on the testbed's null cases; docs/calibration-testbed.md,
+    /// "Mesh beyond its hull"). The
     /// hybrid's mesh, a residual on the polynomial, is always zero outside (the polynomial's
     /// own continuation carries the trend there).
     pub mesh_outside: OutsidePolicy,
@@ -172,7 +173,7 @@ impl Default for CalibrationConfig {
             least_squares_nodes: true,
             rate_axis_weight: 1.0,
             poly_outside: fogtemp_core::PolyOutside::LinearFromBoundary,
-            mesh_outside: OutsidePolicy::LinearFromBoundary,
+            mesh_outside: OutsidePolicy::NearestHull,
         }
     }
 }

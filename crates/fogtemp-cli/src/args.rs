@@ -239,8 +239,8 @@ pub enum MeshOutsideArg {
     /// The value at the nearest hull point (flagged OUTSIDE_HULL).
     #[value(alias = "nearest-hull")]
     Hold,
-    /// Continued linearly from the nearest hull point, with the slope across the hull of the
-    /// hull triangle's neighbourhood (flagged OUTSIDE_HULL).
+    /// Continued linearly from the nearest hull point, with the slope of the weighted
+    /// least-squares plane of the nodes near it (flagged OUTSIDE_HULL).
     #[value(alias = "linear")]
     LinearFromBoundary,
 }
@@ -315,11 +315,11 @@ pub struct FitArgs {
     /// (docs/calibration-testbed.md, "Continued linearly").
     #[arg(long, value_enum, default_value_t = PolyOutsideArg::LinearFromBoundary)]
     pub poly_outside: PolyOutsideArg,
-    /// What a mesh model's mesh does outside its hull, stored in the model: continued linearly
-    /// from the nearest hull point as the polynomial is (the default), or held there
-    /// (docs/calibration-testbed.md, "Mesh beyond its hull"). The hybrid's mesh is zero
-    /// outside its hull either way.
-    #[arg(long, value_enum, default_value_t = MeshOutsideArg::LinearFromBoundary)]
+    /// What a mesh model's mesh does outside its hull, stored in the model: held at the
+    /// nearest hull point (the default), or continued linearly from it as the polynomial is
+    /// (costs one pass over the mesh's nodes per outside query; docs/calibration-testbed.md,
+    /// "Mesh beyond its hull"). The hybrid's mesh is zero outside its hull either way.
+    #[arg(long, value_enum, default_value_t = MeshOutsideArg::Hold)]
     pub mesh_outside: MeshOutsideArg,
     /// How `auto` scores a held-out run: every window, or only the windows inside the
     /// training runs' calibrated region (docs/calibration-testbed.md).

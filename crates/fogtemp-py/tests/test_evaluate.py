@@ -26,7 +26,7 @@ def random_points_in_range(axis, count, seed):
 
 
 def test_mesh_matches_scipy_linear_interpolation_on_the_nodes(mesh_model):
-    axis = mesh_model.inspect()["axes"][0]
+    axis = linear.inspect()["axes"][0]
     assert axis["kind"] == ["mesh"]
     nodes = axis["nodes"]
     assert len(nodes) >= 10
@@ -139,16 +139,17 @@ def test_axis_out_of_range_is_a_value_error(mesh_model):
 
 
 def test_mesh_outside_is_an_option_and_acts_only_outside_the_hull(cal_logs, mesh_model):
-    # The default continues the mesh linearly beyond its hull; "hold" keeps the hull value.
+    # The default holds the hull value; "linear_from_boundary" continues the mesh linearly.
     # Inside the hull both are the same interpolation bit for bit; beyond it they differ.
-    held = fogtemp.fit(cal_logs, method="mesh", mesh_outside="hold", progress=False)
+    held = mesh_model
+    linear = fogtemp.fit(cal_logs, method="mesh", mesh_outside="linear_from_boundary", progress=False)
     assert held.inspect()["axes"][0]["outside_policy"] == "nearest_hull"
-    assert mesh_model.inspect()["axes"][0]["outside_policy"] == "linear_from_boundary"
+    assert linear.inspect()["axes"][0]["outside_policy"] == "linear_from_boundary"
     axis = mesh_model.inspect()["axes"][0]
     temp, rate = random_points_in_range(axis, 20_000, seed=13)
     xy = np.array([[v["x"], v["y"]] for v in axis["nodes"]])
     inside = np.isfinite(LinearNDInterpolator(xy, np.zeros(len(xy)))(*normalise(axis, temp, rate)))
-    ours, theirs = mesh_model.evaluate(temp, rate), held.evaluate(temp, rate)
+    ours, theirs = linear.evaluate(temp, rate), held.evaluate(temp, rate)
     # Away from the hull's edge (scipy and the core may disagree within rounding on it).
     assert inside.sum() > 1000 and (~inside).sum() > 100
     assert np.mean(ours[inside] == theirs[inside]) > 0.99
