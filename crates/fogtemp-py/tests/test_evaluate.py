@@ -26,7 +26,7 @@ def random_points_in_range(axis, count, seed):
 
 
 def test_mesh_matches_scipy_linear_interpolation_on_the_nodes(mesh_model):
-    axis = linear.inspect()["axes"][0]
+    axis = mesh_model.inspect()["axes"][0]
     assert axis["kind"] == ["mesh"]
     nodes = axis["nodes"]
     assert len(nodes) >= 10
@@ -145,7 +145,7 @@ def test_mesh_outside_is_an_option_and_acts_only_outside_the_hull(cal_logs, mesh
     linear = fogtemp.fit(cal_logs, method="mesh", mesh_outside="linear_from_boundary", progress=False)
     assert held.inspect()["axes"][0]["outside_policy"] == "nearest_hull"
     assert linear.inspect()["axes"][0]["outside_policy"] == "linear_from_boundary"
-    axis = mesh_model.inspect()["axes"][0]
+    axis = linear.inspect()["axes"][0]
     temp, rate = random_points_in_range(axis, 20_000, seed=13)
     xy = np.array([[v["x"], v["y"]] for v in axis["nodes"]])
     inside = np.isfinite(LinearNDInterpolator(xy, np.zeros(len(xy)))(*normalise(axis, temp, rate)))
