@@ -41,7 +41,7 @@ use fogtemp_diagnose::concealed::{
 use fogtemp_diagnose::effects::Effect;
 use fogtemp_diagnose::linalg::{autocorrelations, effective_n};
 use fogtemp_diagnose::prepare::{prepare, Prepared};
-use fogtemp_diagnose::select::{bic, material_runs, stability_limit};
+use fogtemp_diagnose::select::{bic, material_runs, signed_rank_p, stability_limit};
 use fogtemp_diagnose::{DiagnoseOptions, RunSeries};
 use fogtemp_sim::noise::{flicker_term_variance, white_sigma_dph};
 use fogtemp_sim::scenario::NoiseParams;
@@ -177,43 +177,6 @@ fn paired_t(d: &[f64]) -> f64 {
     let mu = mean(d);
     let sd = (d.iter().map(|x| (x - mu).powi(2)).sum::<f64>() / (m - 1.0)).sqrt();
     t_of(mu, sd / m.sqrt())
-}
-
-/// Exact two-sided Wilcoxon signed-rank p towards positive values (1 when the positive
-/// ranks do not exceed their mean): the null distribution of the positive doubled-rank sum
-/// counted over all sign patterns by dynamic programming (zeros dropped, ties by mid-rank).
-fn signed_rank_p(d: &[f64]) -> f64 {
-    let mut abs: Vec<(f64, bool)> =
-        d.iter().filter(|x| **x != 0.0 && x.is_finite()).map(|x| (x.abs(), *x > 0.0)).collect();
-    let n = abs.len();
-    if n == 0 {
-        return 1.0;
-    }
-    abs.sort_by(|a, b| a.0.total_cmp(&b.0));
-    let mut rank2 = vec![0usize; n];
-    let mut i = 0;
-    while i < n {
-        let mut j = i;
-        while j + 1 < n && abs[j + 1].0 == abs[i].0 {
-            j += 1;
-        }
-        rank2[i..=j].fill(i + j + 2);
-        i = j + 1;
-    }
-    let total: usize = rank2.iter().sum();
-    let w_pos: usize = rank2.iter().zip(&abs).filter(|(_, a)| a.1).map(|(r, _)| r).sum();
-    if 2 * w_pos <= total {
-        return 1.0;
-    }
-    let mut ways = vec![0.0f64; total + 1];
-    ways[0] = 1.0;
-    for r in &rank2 {
-        for s in (*r..=total).rev() {
-            ways[s] += ways[s - r];
-        }
-    }
-    let upper: f64 = ways[w_pos..].iter().sum::<f64>() / 2f64.powi(n as i32);
-    (2.0 * upper).min(1.0)
 }
 
 /// The oracle at effect size `k` (times the design's): `y + (k - 1) v` against `k v`.

@@ -47,4 +47,6 @@ pub use design::{
 };
 pub use final_fit::{evaluate_final, heldout_bias_stability, FinalOutcome};
 pub use forward::{chosen_parts, forward_select, ChosenTerm, Selection};
-pub use rules::{fold_counts, folds_pass, material_runs, stability_limit, MIN_INFORMATIVE_FOLDS};
+pub use rules::{
+    fold_counts, folds_pass, material_runs, signed_rank_p, stability_limit, MIN_INFORMATIVE_FOLDS,
+};

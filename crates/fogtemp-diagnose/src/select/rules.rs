@@ -208,7 +208,7 @@ pub(super) fn fold_gain_alpha(tests: usize) -> f64 {
 /// signal-to-noise). Zero gains are dropped, tied sizes get their mean rank (Wilcoxon 1945;
 /// scipy.stats.wilcoxon's "wilcox" zero method); the null distribution is counted exactly
 /// over the `2^n` sign patterns.
-pub(super) fn signed_rank_p(d: &[f64]) -> f64 {
+pub fn signed_rank_p(d: &[f64]) -> f64 {
     let mut abs: Vec<(f64, bool)> =
         d.iter().filter(|x| **x != 0.0 && x.is_finite()).map(|x| (x.abs(), *x > 0.0)).collect();
     let n = abs.len();
