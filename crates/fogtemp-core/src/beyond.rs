@@ -26,11 +26,8 @@
 //! Cost: one pass over the vertices per outside query (O(V), no allocation), plus the
 //! nearest hull point (`src/hull.rs`, a scan of every hull edge where that is not certified).
 
-use crate::hull::{self, cyclic, Nearest};
+use crate::hull::{self, cyclic, dot, positive, sub, Nearest, P};
 use crate::mesh::{edge_nearest, Mesh, Vertex};
-
-/// A point or a vector of the normalised plane.
-type P = [f32; 2];
 
 /// Radius of the nodes that set the continuation's gradient, normalised units (a quarter of
 /// the calibrated span of each axis; see the module documentation).
@@ -134,20 +131,4 @@ fn nearest_by_scan(mesh: &Mesh<'_>, x: f32, y: f32) -> Option<Nearest> {
         }
     }
     best.map(|(_, at)| at)
-}
-
-#[inline(always)]
-fn sub(a: P, b: P) -> P {
-    [a[0] - b[0], a[1] - b[1]]
-}
-
-#[inline(always)]
-fn dot(a: P, b: P) -> f32 {
-    a[0] * b[0] + a[1] * b[1]
-}
-
-/// `v > 0` (false for NaN).
-#[inline(always)]
-fn positive(v: f32) -> bool {
-    v > 0.0
 }

@@ -35,7 +35,7 @@ use crate::mesh::{edge_nearest, Mesh, Vertex};
 use crate::wire::NO_NEIGHBOUR;
 
 /// A point or a vector of the normalised plane.
-type P = [f32; 2];
+pub(crate) type P = [f32; 2];
 
 /// Where the nearest hull point of a query lies, by hull edge index. The certificates are
 /// disjoint also where f32 puts a query exactly on the boundary of two (a projection exactly
@@ -159,17 +159,17 @@ fn descend(at: &impl Fn(u32) -> Option<P>, n: u32, start: u32, p: P) -> Option<N
 
 /// `v > 0` (false for NaN).
 #[inline(always)]
-fn positive(v: f32) -> bool {
+pub(crate) fn positive(v: f32) -> bool {
     v > 0.0
 }
 
 #[inline(always)]
-fn sub(a: P, b: P) -> P {
+pub(crate) fn sub(a: P, b: P) -> P {
     [a[0] - b[0], a[1] - b[1]]
 }
 
 #[inline(always)]
-fn dot(a: P, b: P) -> f32 {
+pub(crate) fn dot(a: P, b: P) -> f32 {
     a[0] * b[0] + a[1] * b[1]
 }
 
