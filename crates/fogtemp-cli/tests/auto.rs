@@ -236,14 +236,7 @@ fn poly_outside_hold_stays_within_the_calibrated_values() {
         if policy == "extrapolate" {
             reference = poly_reference(&inspect["axes"][0], 20.0, 50.0);
         }
-        let out = cal(&["evaluate", "--model", &model, "--points", &points]);
-        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-        let rows: Vec<Vec<String>> = String::from_utf8_lossy(&out.stdout)
-            .lines()
-            .skip(1)
-            .map(|l| l.split(',').map(str::to_owned).collect())
-            .collect();
-        evaluated.push(rows);
+        evaluated.push(evaluate_rows(&model, &points));
     }
     let (extrapolated, held) = (&evaluated[0], &evaluated[1]);
     assert_eq!(extrapolated[0], held[0], "inside the region both policies agree");
@@ -315,6 +308,17 @@ fn the_rule_scale_and_the_runs_and_blocks_scheme_are_options() {
 /// beyond every run) both are flagged OUTSIDE_HULL and the linear one differs from the held
 /// hull value. The values themselves are checked against closed forms and an f64 reference in
 /// tests/mesh_beyond_hull.rs.
+/// `fogtemp-cal evaluate --model MODEL --points POINTS`: its CSV rows after the header.
+fn evaluate_rows(model: &str, points: &str) -> Vec<Vec<String>> {
+    let out = cal(&["evaluate", "--model", model, "--points", points]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    String::from_utf8_lossy(&out.stdout)
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').map(str::to_owned).collect())
+        .collect()
+}
+
 #[test]
 fn mesh_outside_is_stored_named_and_acts_only_outside_the_hull() {
     let dir = tempfile::tempdir().expect("tempdir");
@@ -331,14 +335,7 @@ fn mesh_outside_is_stored_named_and_acts_only_outside_the_hull() {
         assert!(fit.status.success(), "{}", String::from_utf8_lossy(&fit.stderr));
         let inspect = ok_json(&["inspect", "--json", &model]);
         assert_eq!(inspect["axes"][0]["outside_policy"], stored, "{inspect}");
-        let out = cal(&["evaluate", "--model", &model, "--points", &points]);
-        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-        let rows: Vec<Vec<String>> = String::from_utf8_lossy(&out.stdout)
-            .lines()
-            .skip(1)
-            .map(|l| l.split(',').map(str::to_owned).collect())
-            .collect();
-        evaluated.push(rows);
+        evaluated.push(evaluate_rows(&model, &points));
     }
     let (held, linear) = (&evaluated[0], &evaluated[1]);
     let outside_hull =
