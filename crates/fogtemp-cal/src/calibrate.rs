@@ -158,6 +158,9 @@ pub struct CalibrationConfig {
     /// hybrid's mesh, a residual on the polynomial, is always zero outside (the polynomial's
     /// own continuation carries the trend there).
     pub mesh_outside: OutsidePolicy,
+    /// Insert Steiner nodes where a plain mesh's triangles are too large to carry the
+    /// polynomial part its node fit leaves free (`refine`; least-squares nodes only).
+    pub refine_mesh: bool,
 }
 
 impl Default for CalibrationConfig {
@@ -174,6 +177,7 @@ impl Default for CalibrationConfig {
             rate_axis_weight: 1.0,
             poly_outside: fogtemp_core::PolyOutside::LinearFromBoundary,
             mesh_outside: OutsidePolicy::NearestHull,
+            refine_mesh: true,
         }
     }
 }
@@ -360,6 +364,9 @@ pub struct AxisFitReport {
     pub selection: Option<Selection>,
     /// How the mesh's smoothness weight was chosen (least-squares nodes only).
     pub mesh_smoothing: Option<crate::mesh_fit::MeshSmoothing>,
+    /// Steiner nodes a plain mesh got where its triangles could not carry the polynomial part
+    /// its node fit leaves free (`refine`); null when not refined.
+    pub mesh_refinement: Option<crate::refine::Refinement>,
 }
 
 /// One fitted axis: what goes into the blob and what the fit did.
@@ -375,15 +382,31 @@ pub struct FittedAxis {
 /// the polynomial's stepwise selection on the same points, restricted to the physical form
 /// b(T) + c(T) dT/dt (static bias, Shupe and lag terms: rate power at most one,
 /// docs/physics.md). A polynomial that cannot be fitted leaves the planes only (none).
-fn mesh_free_terms(
-    points: &[MeshPoint],
-    normalisation: &Normalisation,
-    config: &CalibrationConfig,
-    n_eff: f64,
-) -> Vec<(u8, u8)> {
-    fit_poly(points, normalisation, config.poly, n_eff)
-        .map(|f| f.terms.iter().filter(|t| t.rate_power <= 1).map(|t| (t.temp_power, t.rate_power)).collect())
+fn mesh_free_terms(poly: Option<&PolyFit>) -> Vec<(u8, u8)> {
+    poly.map(|f| f.terms.iter().filter(|t| t.rate_power <= 1).map(|t| (t.temp_power, t.rate_power)).collect())
         .unwrap_or_default()
+}
+
+/// Most Steiner nodes refinement may add: as many as thinning may place (so the mesh at most
+/// doubles; the node fit's dense solve grows with the cube of the count).
+fn max_refinement_nodes(thinning: Thinning) -> usize {
+    match thinning {
+        Thinning::Greedy(g) => g.max_nodes,
+        Thinning::GreedyAuto { max_nodes, .. } => max_nodes,
+        Thinning::Paper { .. } => GreedyThinning::default().max_nodes,
+    }
+}
+
+/// The surface a plain mesh's refinement aims to carry: the polynomial's terms the node fit
+/// leaves free ([`mesh_free_terms`]), with the polynomial's coefficients, on the normalised axes.
+fn free_surface(poly: &PolyFit) -> impl Fn(f64, f64) -> f64 + '_ {
+    move |x, y| {
+        poly.terms
+            .iter()
+            .filter(|t| t.rate_power <= 1)
+            .map(|t| t.coefficient_dph * x.powi(i32::from(t.temp_power)) * y.powi(i32::from(t.rate_power)))
+            .sum()
+    }
 }
 
 /// Fits one axis to its calibration points with `config.method`.
@@ -440,6 +463,7 @@ pub fn fit_axis(
         _ => false,
     };
     let mut mesh_smoothing = None;
+    let mut mesh_refinement = None;
     let mesh = match config.method {
         Method::Poly | Method::CubicT | Method::Auto => None,
         // Otherwise (least-squares nodes) cross-validation decides whether it keeps its mesh.
@@ -461,8 +485,33 @@ pub fn fit_axis(
                     thin_greedy(&residual_points, &normalisation, &g)?.keep
                 }
             };
-            let nodes: Vec<MeshPoint> = keep.iter().map(|&i| residual_points[i]).collect();
-            let mut mesh = build_mesh(&nodes, &normalisation)?;
+            let mut nodes: Vec<MeshPoint> = keep.iter().map(|&i| residual_points[i]).collect();
+            let hybrid = config.method == Method::Hybrid;
+            // A plain mesh's node fit leaves the polynomial's terms free: that polynomial, once.
+            let free_poly = if hybrid || !config.least_squares_nodes {
+                None
+            } else {
+                fit_poly(points, &normalisation, config.poly, n_eff).ok()
+            };
+            // Refined: Steiner nodes tied to the thinned nodes' mesh (`refine`, `mesh_fit::Tie`).
+            let (mut mesh, tie) = match &free_poly {
+                Some(poly) if config.refine_mesh => {
+                    let tolerance_dph = crate::refine::SURFACE_TOLERANCE_NOISE * auto_tolerance_dph(1.0);
+                    let surface = free_surface(poly);
+                    let refined = crate::refine::refine_for_surface(
+                        &mut nodes,
+                        &normalisation,
+                        &surface,
+                        tolerance_dph,
+                        max_refinement_nodes(config.thinning),
+                    )?;
+                    mesh_refinement = Some(refined.report);
+                    let tie = (refined.report.added_nodes > 0)
+                        .then(|| crate::refine::tie(&refined.mesh, refined.coarse, &surface));
+                    (refined.mesh, tie)
+                }
+                _ => (build_mesh(&nodes, &normalisation)?, None),
+            };
             if config.least_squares_nodes {
                 let targets: Vec<(f32, f32, f64)> = residual_points
                     .iter()
@@ -471,23 +520,31 @@ pub fn fit_axis(
                         (x, y, p.value_dph)
                     })
                     .collect();
-                let hybrid = config.method == Method::Hybrid;
                 // Guard: one smoothing window of points (targets that share raw samples).
                 let cv = crate::mesh_fit::MeshCv {
                     guard_points: (config.target_window_s / block_s).round().max(0.0) as usize,
                     ..crate::mesh_fit::MeshCv::default()
                 };
                 // A hybrid's residual has the polynomial's terms fitted already.
-                let free_terms =
-                    if hybrid { Vec::new() } else { mesh_free_terms(points, &normalisation, config, n_eff) };
-                let (_, smoothing) = crate::mesh_fit::fit_node_values_cv_with_free_terms(
-                    &mut mesh,
-                    &targets,
-                    runs,
-                    hybrid,
-                    cv,
-                    &free_terms,
-                )?;
+                let free_terms = mesh_free_terms(free_poly.as_ref());
+                let (_, smoothing) = match &tie {
+                    Some(tie) => crate::mesh_fit::fit_node_values_cv_tied(
+                        &mut mesh,
+                        tie,
+                        &targets,
+                        runs,
+                        cv,
+                        &free_terms,
+                    )?,
+                    None => crate::mesh_fit::fit_node_values_cv_with_free_terms(
+                        &mut mesh,
+                        &targets,
+                        runs,
+                        hybrid,
+                        cv,
+                        &free_terms,
+                    )?,
+                };
                 let keep = !smoothing.no_mesh();
                 mesh_smoothing = Some(smoothing);
                 keep.then_some(mesh)
@@ -562,6 +619,7 @@ pub fn fit_axis(
         method: config.method,
         selection: None,
         mesh_smoothing,
+        mesh_refinement,
     };
     Ok(FittedAxis { model: axis, report })
 }

@@ -62,6 +62,7 @@ pub mod mesh_fit;
 pub mod metrics;
 pub mod output;
 pub mod poly_fit;
+pub mod refine;
 #[cfg(feature = "report")]
 pub mod report;
 pub mod runs;

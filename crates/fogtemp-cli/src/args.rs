@@ -369,6 +369,12 @@ pub struct FitArgs {
     /// node values by least squares to all calibration points (default).
     #[arg(long, help_heading = "Mesh")]
     pub interpolate_nodes: bool,
+    /// Do not insert Steiner nodes where a plain mesh's triangles are too large to follow the
+    /// polynomial part its node fit leaves free (by default nodes are added until the linear
+    /// interpolation of that surface is within a tenth of the target noise, at most
+    /// --max-nodes more).
+    #[arg(long, help_heading = "Mesh")]
+    pub no_mesh_refinement: bool,
     /// Paper thinning: keep every point while |rate| >= this, deg C/min.
     #[arg(long, default_value_t = 0.05, help_heading = "Mesh")]
     pub fast_rate: f64,

@@ -255,6 +255,7 @@ pub fn calibration(o: &mut Options<'_>, base: CalibrationConfig) -> PyResult<Cal
         poly,
         full_windows_only: o.bool("full_windows_only", false)?,
         least_squares_nodes: !o.bool("interpolate_nodes", false)?,
+        refine_mesh: o.bool("refine_mesh", base.refine_mesh)?,
         ..base
     })
 }
