@@ -493,8 +493,9 @@ pub fn fit_axis(
             } else {
                 fit_poly(points, &normalisation, config.poly, n_eff).ok()
             };
-            // Refined: Steiner nodes tied to the thinned nodes' mesh (`refine`, `mesh_fit::Tie`).
-            let (mut mesh, tie) = match &free_poly {
+            // Refined: Steiner nodes tied to the thinned nodes' mesh (`refine`), whose values
+            // the node fit below fits as without refinement.
+            let (mut mesh, refined) = match &free_poly {
                 Some(poly) if config.refine_mesh => {
                     let tolerance_dph = crate::refine::SURFACE_TOLERANCE_NOISE * auto_tolerance_dph(1.0);
                     let surface = free_surface(poly);
@@ -506,9 +507,11 @@ pub fn fit_axis(
                         max_refinement_nodes(config.thinning),
                     )?;
                     mesh_refinement = Some(refined.report);
-                    let tie = (refined.report.added_nodes > 0)
-                        .then(|| crate::refine::tie(&refined.mesh, refined.coarse, &surface));
-                    (refined.mesh, tie)
+                    let coarse = refined.coarse.clone();
+                    let tie = (refined.report.added_nodes > 0).then(|| {
+                        (refined.mesh.clone(), crate::refine::tie(&refined.mesh, refined.coarse, &surface))
+                    });
+                    (coarse, tie)
                 }
                 _ => (build_mesh(&nodes, &normalisation)?, None),
             };
@@ -527,24 +530,22 @@ pub fn fit_axis(
                 };
                 // A hybrid's residual has the polynomial's terms fitted already.
                 let free_terms = mesh_free_terms(free_poly.as_ref());
-                let (_, smoothing) = match &tie {
-                    Some(tie) => crate::mesh_fit::fit_node_values_cv_tied(
-                        &mut mesh,
-                        tie,
-                        &targets,
-                        runs,
-                        cv,
-                        &free_terms,
-                    )?,
-                    None => crate::mesh_fit::fit_node_values_cv_with_free_terms(
-                        &mut mesh,
-                        &targets,
-                        runs,
-                        hybrid,
-                        cv,
-                        &free_terms,
-                    )?,
-                };
+                let (_, smoothing) = crate::mesh_fit::fit_node_values_cv_with_free_terms(
+                    &mut mesh,
+                    &targets,
+                    runs,
+                    hybrid,
+                    cv,
+                    &free_terms,
+                )?;
+                if let Some((mut fine, tie)) = refined {
+                    let coarse_values: Vec<f64> =
+                        mesh.vertices.iter().map(|v| f64::from(v.value_dph)).collect();
+                    for (vertex, value) in fine.vertices.iter_mut().zip(tie.apply(&coarse_values)) {
+                        vertex.value_dph = value as f32;
+                    }
+                    mesh = fine;
+                }
                 let keep = !smoothing.no_mesh();
                 mesh_smoothing = Some(smoothing);
                 keep.then_some(mesh)

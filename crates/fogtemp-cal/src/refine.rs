@@ -23,7 +23,6 @@ use fogtemp_core::Normalisation;
 
 use crate::error::CalError;
 use crate::mesh::{build_mesh, to_physical, MeshModel, MeshPoint};
-use crate::mesh_fit::Tie;
 
 /// Interpolation tolerance as a fraction of the smoothed target's noise (see the module docs).
 pub const SURFACE_TOLERANCE_NOISE: f64 = 0.1;
@@ -93,6 +92,28 @@ pub fn refine_for_surface(
             added_nodes += 1;
         }
         round += 1;
+    }
+}
+
+/// A refined mesh's vertex values as affine functions of the coarse mesh's: refined vertex `k`
+/// is `sum_j weight[j] * coarse[vertex[j]] + constant_dph`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Tie {
+    /// The coarse mesh (the thinned nodes' own).
+    pub coarse: MeshModel,
+    /// Per refined vertex: coarse vertices, their weights, and the constant, deg/h.
+    pub map: Vec<([usize; 3], [f64; 3], f64)>,
+}
+
+impl Tie {
+    /// The refined mesh's vertex values from the coarse mesh's (`coarse_values[j]` of coarse
+    /// vertex `j`; a missing one counts as zero).
+    pub fn apply(&self, coarse_values: &[f64]) -> Vec<f64> {
+        let value = |j: usize| coarse_values.get(j).copied().unwrap_or(0.0);
+        self.map
+            .iter()
+            .map(|(v, w, constant)| (0..3).map(|j| w[j] * value(v[j])).sum::<f64>() + constant)
+            .collect()
     }
 }
 
@@ -271,9 +292,9 @@ mod tests {
             refined.coarse.vertices.iter().map(|v| surface(f64::from(v.x), f64::from(v.y))).collect();
         let tie = tie(&refined.mesh, refined.coarse.clone(), &surface);
         assert_eq!(tie.map.len(), refined.mesh.vertices.len());
+        let applied = tie.apply(&coarse_values);
         let mut kept = 0;
-        for (v, (vertex, weight, constant)) in refined.mesh.vertices.iter().zip(&tie.map) {
-            let tied: f64 = (0..3).map(|j| weight[j] * coarse_values[vertex[j]]).sum::<f64>() + constant;
+        for ((v, (_, weight, constant)), tied) in refined.mesh.vertices.iter().zip(&tie.map).zip(applied) {
             let truth = surface(f64::from(v.x), f64::from(v.y));
             assert!((tied - truth).abs() < 1e-12, "{tied} vs {truth}");
             assert!((weight.iter().sum::<f64>() - 1.0).abs() < 1e-12);
@@ -282,5 +303,19 @@ mod tests {
             }
         }
         assert_eq!(kept, refined.coarse.vertices.len(), "every coarse vertex ties to itself");
+        // Linear in the coarse values: adding a plane to them adds the same plane (which
+        // barycentric weights reproduce exactly) to every refined vertex.
+        let plane = |x: f64, y: f64| 0.7 - 0.2 * x + 0.4 * y;
+        let shifted: Vec<f64> = refined
+            .coarse
+            .vertices
+            .iter()
+            .zip(&coarse_values)
+            .map(|(v, c)| c + plane(f64::from(v.x), f64::from(v.y)))
+            .collect();
+        for (v, tied) in refined.mesh.vertices.iter().zip(tie.apply(&shifted)) {
+            let (x, y) = (f64::from(v.x), f64::from(v.y));
+            assert!((tied - surface(x, y) - plane(x, y)).abs() < 1e-12);
+        }
     }
 }
