@@ -397,16 +397,38 @@ fn max_refinement_nodes(thinning: Thinning) -> usize {
     }
 }
 
-/// The surface a plain mesh's refinement aims to carry: the polynomial's terms the node fit
-/// leaves free ([`mesh_free_terms`]), with the polynomial's coefficients, on the normalised axes.
-fn free_surface(poly: &PolyFit) -> impl Fn(f64, f64) -> f64 + '_ {
-    move |x, y| {
-        poly.terms
-            .iter()
-            .filter(|t| t.rate_power <= 1)
-            .map(|t| t.coefficient_dph * x.powi(i32::from(t.temp_power)) * y.powi(i32::from(t.rate_power)))
-            .sum()
-    }
+/// The surface a plain mesh's refinement aims to carry: the least-squares fit to `points` of
+/// the terms its node fit leaves free ([`mesh_free_terms`], with the constant and the planes),
+/// as `(temperature power, rate power, coefficient)` on the normalised axes. Refitted, not the
+/// stepwise polynomial's own coefficients: those were fitted jointly with its other terms (rate
+/// powers above one), without which they are not the fit of these. `None` if the fit fails.
+fn free_surface_terms(
+    points: &[MeshPoint],
+    normalisation: &Normalisation,
+    free: &[(u8, u8)],
+) -> Option<Vec<(u8, u8, f64)>> {
+    let planes = [(0, 0), (1, 0), (0, 1)];
+    let terms: Vec<(u8, u8)> =
+        planes.iter().chain(free.iter().filter(|t| !planes.contains(t))).copied().collect();
+    let xy: Vec<(f64, f64)> = points
+        .iter()
+        .map(|p| crate::poly_fit::normalised_f64(normalisation, p.temp_c, p.rate_c_per_min))
+        .collect();
+    let design = nalgebra::DMatrix::from_fn(points.len(), terms.len(), |r, c| {
+        let (x, y) = xy[r];
+        x.powi(i32::from(terms[c].0)) * y.powi(i32::from(terms[c].1))
+    });
+    let target = nalgebra::DVector::from_iterator(points.len(), points.iter().map(|p| p.value_dph));
+    let coefficients = design.svd(true, true).solve(&target, 1e-12).ok()?;
+    coefficients
+        .iter()
+        .all(|c| c.is_finite())
+        .then(|| terms.iter().zip(coefficients.iter()).map(|(&(i, j), &c)| (i, j, c)).collect())
+}
+
+/// The polynomial `terms` (`free_surface_terms`) as a function of the normalised `(x, y)`.
+fn surface_of(terms: &[(u8, u8, f64)]) -> impl Fn(f64, f64) -> f64 + '_ {
+    move |x, y| terms.iter().map(|&(i, j, c)| c * x.powi(i32::from(i)) * y.powi(i32::from(j))).sum()
 }
 
 /// Fits one axis to its calibration points with `config.method`.
@@ -498,7 +520,12 @@ pub fn fit_axis(
             let (mut mesh, refined) = match &free_poly {
                 Some(poly) if config.refine_mesh => {
                     let tolerance_dph = crate::refine::SURFACE_TOLERANCE_NOISE * auto_tolerance_dph(1.0);
-                    let surface = free_surface(poly);
+                    let terms = free_surface_terms(points, &normalisation, &mesh_free_terms(Some(poly)))
+                        .ok_or(CalError::DegenerateMesh {
+                            reason: "mesh refinement surface fit failed",
+                            points: nodes.len(),
+                        })?;
+                    let surface = surface_of(&terms);
                     let refined = crate::refine::refine_for_surface(
                         &mut nodes,
                         &normalisation,
