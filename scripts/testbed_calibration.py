@@ -57,7 +57,7 @@ def runs_with_roles(case_dir, tmp):
     return dst
 
 
-def case_rows(binary, case_dir, methods, tmp):
+def case_rows(binary, case_dir, methods, tmp, fit_args=()):
     recorded = os.path.join(case_dir, "recorded")
     cal = sorted(glob.glob(os.path.join(recorded, "up_*.csv")))
     val = sorted(glob.glob(os.path.join(recorded, "down_*.csv")))
@@ -70,7 +70,7 @@ def case_rows(binary, case_dir, methods, tmp):
     for method in methods:
         model = os.path.join(tmp, f"{method}.fogm")
         try:
-            fit = run_json([binary, "fit", "--method", method, "--out", model, "--json", *cal])
+            fit = run_json([binary, "fit", "--method", method, *fit_args, "--out", model, "--json", *cal])
             doc = run_json([binary, "validate", "--model", model, "--json", *val])
         except RuntimeError as e:
             print(f"warning: {case_dir} {method}: {e}", file=sys.stderr)
@@ -111,6 +111,9 @@ def main():
     ap.add_argument("--rows", help="render the table from rows saved with --json instead of running")
     ap.add_argument("--auto-rows", help="with --rows: take the auto columns (auto, auto_chose, auto_cv) of "
                     "each case from this file (rows of an `--methods auto --json` run)")
+    ap.add_argument("--cases", default="case*", help="case folders of each seed to run (a glob, e.g. 'case[07]_*')")
+    ap.add_argument("--fit-args", default="", help="extra arguments for every `fit`, one string "
+                    "(e.g. '--mesh-outside linear-from-boundary')")
     ap.add_argument("seeds", nargs="*", help="folders written by gen.py --out")
     a = ap.parse_args()
     methods = a.methods.split(",")
@@ -121,8 +124,8 @@ def main():
         rows = merge_auto(rows, json.load(open(a.auto_rows)))
     with tempfile.TemporaryDirectory() as tmp:
         for seed in a.seeds:
-            for case in sorted(glob.glob(os.path.join(seed, "case*"))):
-                rows.append(case_rows(a.bin, case, methods, tmp))
+            for case in sorted(glob.glob(os.path.join(seed, a.cases))):
+                rows.append(case_rows(a.bin, case, methods, tmp, a.fit_args.split()))
     if a.json:
         print(json.dumps(rows, indent=1))
         return
