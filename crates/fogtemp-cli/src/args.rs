@@ -362,7 +362,8 @@ pub struct FitArgs {
     /// the smoothed gyro, so the mesh follows the data down to its noise and no further).
     #[arg(long, help_heading = "Mesh")]
     pub tolerance_dph: Option<f64>,
-    /// Greedy thinning: at most this many nodes.
+    /// Greedy thinning: at most this many nodes (refinement may add as many again; see
+    /// --no-mesh-refinement).
     #[arg(long, default_value_t = 600, help_heading = "Mesh")]
     pub max_nodes: usize,
     /// Use each node's own smoothed target as its value (the paper) instead of fitting the
