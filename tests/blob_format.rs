@@ -184,7 +184,8 @@ fn encode_then_from_bytes_returns_every_field_bit_exactly() {
     let file = three_axis_model();
     let blob = encode(&file).expect("encodes");
     let model = Model::from_bytes(&blob).expect("parses");
-    assert_eq!(model.format_version(), FORMAT_VERSION);
+    // No axis continues its mesh with stored gradients: written as version 2.
+    assert_eq!(model.format_version(), FORMAT_VERSION_WITHOUT_GRADIENTS);
     assert_eq!(model.tool_version(), file.tool_version.as_bytes());
     assert_eq!(model.input_digest(), file.input_digest);
     assert_eq!(model.axis_count(), 3);
@@ -705,10 +706,12 @@ fn find_slot(b: &[u8], s: Section, want: impl Fn(u32) -> bool) -> (usize, usize)
 fn targeted_header_corruptions_give_their_specific_errors() {
     let r = mutated(|b, _| b[0] = b'X');
     assert!(matches!(r, Err(Error::BadMagic)), "{r:?}");
-    let r = mutated(|b, _| put_u16(b, FILE_VERSION.start, 3));
-    assert!(matches!(r, Err(Error::UnsupportedVersion { expected: 2, found: 3 })), "{r:?}");
+    let r = mutated(|b, _| put_u16(b, FILE_VERSION.start, 4));
+    assert!(matches!(r, Err(Error::UnsupportedVersion { expected: 3, found: 4 })), "{r:?}");
     let r = mutated(|b, _| put_u16(b, FILE_VERSION.start, 0));
-    assert!(matches!(r, Err(Error::UnsupportedVersion { expected: 2, found: 0 })), "{r:?}");
+    assert!(matches!(r, Err(Error::UnsupportedVersion { expected: 3, found: 0 })), "{r:?}");
+    // Version 3 differs from 2 only with outside_policy 3: this blob reads the same as either.
+    assert!(mutated(|b, _| put_u16(b, FILE_VERSION.start, 3)).is_ok());
     for count in [0u16, 17, u16::MAX] {
         let r = mutated(|b, _| put_u16(b, FILE_AXIS_COUNT.start, count));
         assert!(matches!(r, Err(Error::BadValue { field: "axis_count", .. })), "axis_count {count}: {r:?}");
@@ -741,7 +744,14 @@ fn targeted_axis_corruptions_give_their_specific_errors() {
     // Codes 0 to 2 are policies (2, linear from the boundary, since the mesh's continuation).
     let r = mutated(|b, s| put_u32(b, s.start + AXIS_OUTSIDE_POLICY.start, 2));
     assert!(r.is_ok(), "{r:?}");
+    // Code 3 (stored gradients) needs format version 3: in this version-2 blob it is refused by
+    // name; 4 is no policy in any version.
     let r = mutated(|b, s| put_u32(b, s.start + AXIS_OUTSIDE_POLICY.start, 3));
+    assert!(matches!(r, Err(Error::BadValue { field: "outside_policy", .. })), "{r:?}");
+    let r = mutated(|b, s| {
+        put_u16(b, FILE_VERSION.start, 3);
+        put_u32(b, s.start + AXIS_OUTSIDE_POLICY.start, 4);
+    });
     assert!(matches!(r, Err(Error::BadValue { field: "outside_policy", .. })), "{r:?}");
     let r = mutated(|b, s| b[s.start + AXIS_REGION_VERTEX_COUNT.start + 3] = 1);
     assert!(matches!(r, Err(Error::BadValue { field: "region_vertex_count", .. })), "{r:?}");
@@ -982,4 +992,150 @@ fn hull_that_does_not_go_round_exactly_once_is_rejected() {
         "a disconnected mesh whose hull list goes round one piece twice was accepted; inside the \
          other piece, (hint 0, hint 3, scan) give {detail:?}"
     );
+}
+
+// ---------------------------------------------------------------------------------------------
+// 5. Stored hull gradients (format version 3, outside_policy 3)
+// ---------------------------------------------------------------------------------------------
+
+/// The mesh of [`two_kb_blob`] with the policy `StoredGradients`, and the blob.
+fn gradient_blob() -> (MeshModel, Vec<u8>) {
+    let mesh = build_mesh(&random_points(17, 21, bias_surface), &NORMALISATION).expect("mesh");
+    let axis = AxisModel {
+        region: Vec::new(),
+        poly_outside: fogtemp_core::PolyOutside::Extrapolate,
+        features: FEATURES,
+        normalisation: NORMALISATION,
+        outside_policy: OutsidePolicy::StoredGradients,
+        poly: vec![term(0, 0, 0.01), term(1, 0, 0.2), term(1, 1, -0.03)],
+        mesh: Some(mesh.clone()),
+        provenance: provenance(4.0),
+    };
+    let blob =
+        encode(&ModelFile { tool_version: "fogtemp grad".into(), input_digest: [3; 32], axes: vec![axis] })
+            .expect("encodes");
+    (mesh, blob)
+}
+
+/// Byte offset of axis 0's hull gradients (after its hull; these blobs have no region).
+fn gradients_at(s: &Section) -> usize {
+    s.hull_at + s.hull * HULL_EDGE_LEN
+}
+
+#[test]
+fn stored_gradients_are_written_as_version_3_after_the_hull_and_read_back_bit_exactly() {
+    let (mesh, blob) = gradient_blob();
+    assert_eq!(u16_at(&blob, FILE_VERSION.start), 3);
+    let s = section(&blob, 0);
+    let expected = fogtemp_cal::blob::hull_gradients(&mesh).expect("gradients");
+    assert_eq!(expected.len(), s.hull);
+    // The section: the version-2 layout plus one 8-byte gradient per hull edge, then the CRC.
+    assert_eq!(
+        u32_at(&blob, s.start + AXIS_SECTION_LEN.start) as usize,
+        gradients_at(&s) + 8 * s.hull - s.start
+    );
+    assert_eq!(gradients_at(&s) + 8 * s.hull + CRC_LEN, blob.len());
+    let model = Model::from_bytes(&blob).expect("parses");
+    assert_eq!(model.format_version(), 3);
+    let read = model.axis(0).expect("axis").mesh.expect("mesh");
+    assert_eq!(read.outside_policy(), OutsidePolicy::StoredGradients);
+    for (h, g) in expected.iter().enumerate() {
+        let at = gradients_at(&s) + 8 * h;
+        let stored = [
+            f32::from_le_bytes(blob[at..at + 4].try_into().expect("4")),
+            f32::from_le_bytes(blob[at + 4..at + 8].try_into().expect("4")),
+        ];
+        assert_eq!(stored.map(bits), g.map(bits), "hull gradient {h} in the bytes");
+        assert_eq!(read.hull_gradient(h as u32).map(|g| g.map(bits)), Some(g.map(bits)), "hull gradient {h}");
+    }
+    assert!(read.hull_gradient(s.hull as u32).is_none());
+    // The same mesh held: version 2, no gradients, every other byte of the section the same.
+    let held = two_kb_blob();
+    assert_eq!(u16_at(&held, FILE_VERSION.start), 2);
+    assert_eq!(held.len() + 8 * s.hull, blob.len());
+    assert!(Model::from_bytes(&held)
+        .expect("parses")
+        .axis(0)
+        .expect("axis")
+        .mesh
+        .expect("mesh")
+        .hull_gradient(0)
+        .is_none());
+}
+
+fn gradient_mutated(f: impl FnOnce(&mut Vec<u8>, Section)) -> Result<(), Error> {
+    let (_, mut b) = gradient_blob();
+    let s = section(&b, 0);
+    f(&mut b, s);
+    fix_crc(&mut b);
+    Model::from_bytes(&b).map(|_| ())
+}
+
+#[test]
+fn corrupt_or_missing_stored_gradients_give_their_specific_errors() {
+    assert!(gradient_mutated(|_, _| {}).is_ok());
+    for (k, v) in [(0, f32::NAN), (4, f32::INFINITY), (4, f32::NEG_INFINITY)] {
+        let r = gradient_mutated(|b, s| put_f32(b, gradients_at(&s) + 8 * 2 + k, v));
+        assert!(
+            matches!(r, Err(Error::NonFinite { field: "hull_gradients", index: 2, .. })),
+            "{v} at {k}: {r:?}"
+        );
+    }
+    // Version 2 has no gradients: the policy is refused by name.
+    let r = gradient_mutated(|b, _| put_u16(b, FILE_VERSION.start, 2));
+    assert!(matches!(r, Err(Error::BadValue { field: "outside_policy", .. })), "{r:?}");
+    // Another policy does not expect the gradients that are there.
+    for code in [0, 1, 2] {
+        let r = gradient_mutated(|b, s| put_u32(b, s.start + AXIS_OUTSIDE_POLICY.start, code));
+        assert!(matches!(r, Err(Error::LengthMismatch { field: "section_len", .. })), "code {code}: {r:?}");
+    }
+    let r = gradient_mutated(|b, s| put_u32(b, s.start + AXIS_OUTSIDE_POLICY.start, 4));
+    assert!(matches!(r, Err(Error::BadValue { field: "outside_policy", .. })), "{r:?}");
+    // One gradient short, with total_len and section_len patched to match: the count the hull
+    // implies is not there.
+    let r = gradient_mutated(|b, s| {
+        let end = b.len() - CRC_LEN;
+        b.drain(end - 8..end);
+        let section_len = u32_at(b, s.start + AXIS_SECTION_LEN.start) - 8;
+        put_u32(b, s.start + AXIS_SECTION_LEN.start, section_len);
+        let total = b.len() as u32;
+        put_u32(b, FILE_TOTAL_LEN.start, total);
+    });
+    assert!(matches!(r, Err(Error::LengthMismatch { field: "section_len", .. })), "{r:?}");
+}
+
+#[test]
+fn every_truncation_and_byte_flip_of_a_gradient_blob_is_rejected_or_evaluates_without_panic() {
+    let (_, blob) = gradient_blob();
+    for len in 0..blob.len() {
+        assert!(Model::from_bytes(&blob[..len]).is_err(), "truncated to {len} accepted");
+        let mut b = blob[..len].to_vec();
+        fix_len_and_crc(&mut b);
+        assert!(Model::from_bytes(&b).is_err(), "truncated to {len} with length and CRC fixed accepted");
+    }
+    let mut outcomes: BTreeMap<String, usize> = BTreeMap::new();
+    let mut evaluations = 0;
+    // The flips of the hull and gradient bytes and of the header (the rest is the layout of
+    // the version-2 tests above).
+    let s = section(&blob, 0);
+    let positions = (0..FILE_HEADER_LEN + AXIS_HEADER_LEN).chain(s.hull_at..blob.len() - CRC_LEN);
+    for at in positions {
+        for mask in MASKS {
+            let mut b = blob.clone();
+            b[at] ^= mask;
+            assert!(Model::from_bytes(&b).is_err(), "flip {mask:#04x} at {at} passed the CRC");
+            fix_crc(&mut b);
+            let result = catch_unwind(AssertUnwindSafe(|| match Model::from_bytes(&b) {
+                Ok(model) => (String::from("accepted"), exercise(&model, at as u64)),
+                Err(e) => (variant(&e), 0),
+            }));
+            let (outcome, n) = result.unwrap_or_else(|_| panic!("panic on flip {mask:#04x} at byte {at}"));
+            *outcomes.entry(outcome).or_default() += 1;
+            evaluations += n;
+        }
+    }
+    println!(
+        "gradient blob flips with CRC fixed: {outcomes:?}; {evaluations} evaluations of accepted mutants"
+    );
+    assert!(outcomes.get("accepted").copied().unwrap_or(0) > 0, "finite gradient flips are valid");
 }

@@ -173,7 +173,7 @@ impl Default for CalibrationConfig {
             least_squares_nodes: true,
             rate_axis_weight: 1.0,
             poly_outside: fogtemp_core::PolyOutside::LinearFromBoundary,
-            mesh_outside: OutsidePolicy::NearestHull,
+            mesh_outside: OutsidePolicy::StoredGradients,
         }
     }
 }
@@ -496,8 +496,13 @@ pub fn fit_axis(
             }
         }
     };
-    let outside_policy =
-        if config.method == Method::Hybrid { OutsidePolicy::Zero } else { config.mesh_outside };
+    // Stored gradients need a mesh (and format version 3): an axis without one stores 0, so a
+    // polynomial's blob stays version 2, byte for byte as before.
+    let outside_policy = match (config.method, config.mesh_outside) {
+        (Method::Hybrid, _) => OutsidePolicy::Zero,
+        (_, OutsidePolicy::StoredGradients) if mesh.is_none() => OutsidePolicy::NearestHull,
+        (_, policy) => policy,
+    };
     let range = |f: &dyn Fn(&MeshPoint) -> f64| {
         points.iter().map(f).fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(v), b.max(v)))
     };

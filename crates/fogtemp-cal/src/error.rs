@@ -189,6 +189,13 @@ pub enum EncodeProblem {
         /// Triangle index.
         triangle: usize,
     },
+    /// No continuation gradient at a hull vertex: the mesh's nodes do not span a plane (or a
+    /// hull entry is out of range).
+    #[error("no gradient at the start of hull edge {hull_edge}: the mesh nodes do not span a plane")]
+    NoHullGradient {
+        /// Hull edge index.
+        hull_edge: usize,
+    },
     /// The feature tracker settings are outside what the core accepts.
     #[error("feature settings: {0}")]
     FeatureSettings(fogtemp_core::Error),
