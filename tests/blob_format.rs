@@ -1027,7 +1027,9 @@ fn stored_gradients_are_written_as_version_3_after_the_hull_and_read_back_bit_ex
     let (mesh, blob) = gradient_blob();
     assert_eq!(u16_at(&blob, FILE_VERSION.start), 3);
     let s = section(&blob, 0);
-    let expected = fogtemp_cal::blob::hull_gradients(&mesh).expect("gradients");
+    // The writer numbers the hull vertices first (hull vertex h is vertex h), then fits.
+    let renumbered = fogtemp_cal::blob::hull_vertices_first(&mesh).expect("renumbers");
+    let expected = fogtemp_cal::blob::hull_gradients(&renumbered).expect("gradients");
     assert_eq!(expected.len(), s.hull);
     // The section: the version-2 layout plus one 8-byte gradient per hull edge, then the CRC.
     assert_eq!(
@@ -1049,6 +1051,41 @@ fn stored_gradients_are_written_as_version_3_after_the_hull_and_read_back_bit_ex
         assert_eq!(read.hull_gradient(h as u32).map(|g| g.map(bits)), Some(g.map(bits)), "hull gradient {h}");
     }
     assert!(read.hull_gradient(s.hull as u32).is_none());
+    for h in 0..s.hull as u32 {
+        let (a, _) = read.hull_edge_vertices(h).expect("hull edge");
+        let v = read.vertex(h).expect("vertex");
+        assert_eq!(
+            [a.x, a.y, a.value_dph].map(bits),
+            [v.x, v.y, v.value_dph].map(bits),
+            "hull vertex {h} is vertex {h}"
+        );
+    }
+    // Renumbering moves no node: the same nodes, and the same value wherever the policies
+    // agree (inside the hull), bit for bit.
+    let held_model_bytes = two_kb_blob();
+    let held_model = Model::from_bytes(&held_model_bytes).expect("parses");
+    let held_mesh = held_model.axis(0).expect("axis").mesh.expect("mesh");
+    let sorted = |m: &fogtemp_core::Mesh<'_>| {
+        let mut v: Vec<[u32; 3]> = (0..m.vertex_count())
+            .map(|i| m.vertex(i).expect("vertex"))
+            .map(|v| [v.x, v.y, v.value_dph].map(bits))
+            .collect();
+        v.sort_unstable();
+        v
+    };
+    assert_eq!(sorted(&read), sorted(&held_mesh));
+    let mut r = rng(5);
+    let mut inside = 0;
+    for _ in 0..2000 {
+        let (x, y) = (r.gen_range(-1.0f32..1.0), r.gen_range(-1.0f32..1.0));
+        let a = read.interpolate(x, y, &mut WalkHint::default()).expect("finite");
+        let b = held_mesh.interpolate(x, y, &mut WalkHint::default()).expect("finite");
+        if !a.outside_hull {
+            inside += 1;
+            assert_eq!((bits(a.value_dph), a.triangle), (bits(b.value_dph), b.triangle), "({x}, {y})");
+        }
+    }
+    assert!(inside > 100, "{inside} queries inside");
     // The same mesh held: version 2, no gradients, every other byte of the section the same.
     let held = two_kb_blob();
     assert_eq!(u16_at(&held, FILE_VERSION.start), 2);
@@ -1091,6 +1128,15 @@ fn corrupt_or_missing_stored_gradients_give_their_specific_errors() {
     }
     let r = gradient_mutated(|b, s| put_u32(b, s.start + AXIS_OUTSIDE_POLICY.start, 4));
     assert!(matches!(r, Err(Error::BadValue { field: "outside_policy", .. })), "{r:?}");
+    // The hull listed from its second vertex: still a valid hull, but hull vertex 0 is not
+    // vertex 0, so a gradient could not be found by vertex index.
+    let r = gradient_mutated(|b, s| b[s.hull_at..s.hull_at + 8 * s.hull].rotate_left(8));
+    assert!(
+        matches!(r, Err(Error::BadMesh { check: "hull vertices numbered first", index: 0, .. })),
+        "{r:?}"
+    );
+    // The same hull order in a held blob is fine (no gradients to find).
+    assert!(mutated(|b, s| b[s.hull_at..s.hull_at + 8 * s.hull].rotate_left(8)).is_ok());
     // One gradient short, with total_len and section_len patched to match: the count the hull
     // implies is not there.
     let r = gradient_mutated(|b, s| {

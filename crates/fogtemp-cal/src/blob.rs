@@ -108,6 +108,15 @@ fn encode_axis(out: &mut Vec<u8>, id: u16, axis: &AxisModel, selection: u16) -> 
         moved_flat: Vec::new(),
     };
     let mesh = axis.mesh.as_ref().unwrap_or(&empty);
+    // Stored gradients: the hull vertices numbered first, in hull order (their gradients are
+    // then found by vertex index as well as by hull index; the core checks it).
+    let renumbered;
+    let mesh = if axis.outside_policy == OutsidePolicy::StoredGradients {
+        renumbered = hull_vertices_first(mesh).map_err(CalError::Encode)?;
+        &renumbered
+    } else {
+        mesh
+    };
     let count = |what: &'static str, n: usize| {
         u32::try_from(n).map_err(|_| CalError::Encode(EncodeProblem::TooLarge { what, count: n }))
     };
@@ -243,6 +252,48 @@ pub fn calibrated_region(points: &[(f32, f32)]) -> Vec<[f32; 2]> {
         hull.remove(smallest);
     }
     hull.into_iter().map(|(x, y)| [x, y]).collect()
+}
+
+/// `mesh` with its vertices renumbered so that hull vertex h (the start of hull edge h) is
+/// vertex h, the others after them in their order; triangles, neighbours and hull entries
+/// unchanged but for the vertex indices, so every position, value and transform is the same.
+///
+/// # Errors
+/// [`EncodeProblem::BadTriangle`] for a hull entry or vertex index out of range, or a hull
+/// that visits a vertex twice.
+pub fn hull_vertices_first(mesh: &MeshModel) -> Result<MeshModel, EncodeProblem> {
+    const UNSET: u32 = u32::MAX;
+    let n = mesh.vertices.len();
+    let mut new_index = vec![UNSET; n];
+    let mut order = Vec::with_capacity(n);
+    for &(t, e) in &mesh.hull {
+        let bad = EncodeProblem::BadTriangle { triangle: t as usize };
+        let start = *mesh
+            .triangles
+            .get(t as usize)
+            .and_then(|tri| tri.get((e as usize + 1) % 3))
+            .ok_or(bad.clone())?;
+        let slot = new_index.get_mut(start as usize).filter(|i| **i == UNSET).ok_or(bad)?;
+        *slot = order.len() as u32;
+        order.push(start);
+    }
+    for v in 0..n {
+        if new_index[v] == UNSET {
+            new_index[v] = order.len() as u32;
+            order.push(v as u32);
+        }
+    }
+    let mut triangles = Vec::with_capacity(mesh.triangles.len());
+    for (t, tri) in mesh.triangles.iter().enumerate() {
+        let renumber =
+            |v: u32| new_index.get(v as usize).copied().ok_or(EncodeProblem::BadTriangle { triangle: t });
+        triangles.push([renumber(tri[0])?, renumber(tri[1])?, renumber(tri[2])?]);
+    }
+    Ok(MeshModel {
+        vertices: order.iter().map(|&v| mesh.vertices[v as usize]).collect(),
+        triangles,
+        ..mesh.clone()
+    })
 }
 
 /// The continuation gradients of `OutsidePolicy::StoredGradients`, one per hull edge, at its

@@ -40,7 +40,11 @@
 //! it gives up: on a long hull edge the gradient in its middle is interpolated, not fitted
 //! there (the query-time policy's fit at the middle sees other nodes).
 //!
-//! Cost per outside query: the nearest hull point (O(log H) typically) and O(1).
+//! The writer numbers the hull vertices first, in hull order (vertex h starts hull edge h,
+//! validated), so a gradient is found by vertex index as well as by hull index: a walk that
+//! leaves the mesh across a hull edge whose normal strip holds the query (most outside
+//! queries) needs no search at all. Cost per outside query: O(1) there, else the nearest hull
+//! point (O(log H) typically) and O(1).
 
 use crate::hull::{self, cyclic, dot, positive, sub, Nearest, P};
 use crate::mesh::{edge_nearest, Mesh, Vertex};
@@ -63,15 +67,51 @@ pub(crate) fn linear_value(mesh: &Mesh<'_>, x: f32, y: f32) -> Option<f32> {
 /// (a blob of another policy).
 pub(crate) fn stored_gradient_value(mesh: &Mesh<'_>, x: f32, y: f32) -> Option<f32> {
     let foot = Foot::of(mesh, x, y)?;
-    let start = mesh.hull_gradient(foot.edge)?;
-    let g = if foot.along > 0.0 {
-        let end = mesh.hull_gradient(cyclic(foot.edge, 1, mesh.hull_edge_count()))?;
-        let s = foot.along;
+    // Hull vertex h is vertex h (validated), so edge h runs from vertex h to vertex h + 1.
+    let end = if foot.along > 0.0 { cyclic(foot.edge, 1, mesh.hull_edge_count()) } else { foot.edge };
+    stored_continuation(mesh, foot.edge, end, foot.along, foot.q, foot.held, x, y)
+}
+
+/// [`stored_gradient_value`] for a query a walk took out of the mesh across edge `k` of
+/// triangle `t`: where the nearest hull point lies on that edge (most outside queries of a
+/// fine mesh), straight from it, with its two vertices' gradients (their vertex indices are
+/// their hull indices); elsewhere the search. The same foot either way (the certificates are
+/// disjoint), so the same value.
+pub(crate) fn stored_gradient_value_after_walk(
+    mesh: &Mesh<'_>,
+    t: u32,
+    k: usize,
+    x: f32,
+    y: f32,
+) -> Option<f32> {
+    match hull::foot_on_crossed_edge(mesh, t, k, x, y) {
+        Some((from, to, s, q, held)) => stored_continuation(mesh, from, to, s, q, held, x, y),
+        None => stored_gradient_value(mesh, x, y),
+    }
+}
+
+/// `held + g . (p - q)` with `g` linear from hull vertex `from`'s gradient (at `s = 0`) to
+/// `to`'s (at `s = 1`).
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn stored_continuation(
+    mesh: &Mesh<'_>,
+    from: u32,
+    to: u32,
+    s: f32,
+    q: P,
+    held: f32,
+    x: f32,
+    y: f32,
+) -> Option<f32> {
+    let start = mesh.hull_gradient(from)?;
+    let g = if s > 0.0 {
+        let end = mesh.hull_gradient(to)?;
         [start[0] + s * (end[0] - start[0]), start[1] + s * (end[1] - start[1])]
     } else {
         start
     };
-    Some(foot.held + dot(g, sub([x, y], foot.q)))
+    Some(held + dot(g, sub([x, y], q)))
 }
 
 /// The nearest hull point of an outside query.

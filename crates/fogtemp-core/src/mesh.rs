@@ -159,9 +159,10 @@ impl<'a> Mesh<'a> {
         self.policy
     }
 
-    /// The stored continuation gradient `[d/dx, d/dy]` (deg/h per normalised unit) at the start
-    /// vertex of hull edge `index`; `None` unless the policy is
-    /// [`OutsidePolicy::StoredGradients`] and the edge exists.
+    /// The stored continuation gradient `[d/dx, d/dy]` (deg/h per normalised unit) at hull
+    /// vertex `index`: the start of hull edge `index`, which with this policy is also vertex
+    /// `index` (the writer numbers the hull vertices first, validated). `None` unless the
+    /// policy is [`OutsidePolicy::StoredGradients`] and the hull vertex exists.
     pub fn hull_gradient(&self, index: u32) -> Option<[f32; 2]> {
         let start = (index as usize).checked_mul(wire::HULL_GRADIENT_LEN)?;
         let g = wire::array::<{ wire::HULL_GRADIENT_LEN }>(self.gradients, start)?;
@@ -563,7 +564,7 @@ impl<'a> Mesh<'a> {
     #[cold]
     #[inline(never)]
     fn stored_value_after_walk(&self, triangle: u32, k: usize, x: f32, y: f32) -> f32 {
-        match crate::beyond::stored_gradient_value(self, x, y) {
+        match crate::beyond::stored_gradient_value_after_walk(self, triangle, k, x, y) {
             Some(value) => value,
             None => self.hull_value_after_walk(triangle, k, x, y),
         }

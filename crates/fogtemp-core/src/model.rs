@@ -697,13 +697,17 @@ fn validate_mesh(mesh: &Mesh<'_>, id: u16) -> Result<(), Error> {
     validate_gradients(mesh, id)
 }
 
-/// With stored gradients, one finite pair per hull edge (the count is implied by
-/// `hull_edge_count` and checked with `section_len`).
+/// With stored gradients, hull vertex h is vertex h (the start of hull edge h), and one finite
+/// pair per hull edge (the count is implied by `hull_edge_count` and checked with
+/// `section_len`).
 fn validate_gradients(mesh: &Mesh<'_>, id: u16) -> Result<(), Error> {
     if mesh.policy != OutsidePolicy::StoredGradients {
         return Ok(());
     }
     for h in 0..mesh.hull_edge_count() {
+        if mesh.hull_start_index(h) != Some(h) {
+            return Err(Error::BadMesh { check: "hull vertices numbered first", axis: id, index: h });
+        }
         let g = mesh.hull_gradient(h).ok_or(Error::BadMesh { check: "hull gradient", axis: id, index: h })?;
         if !g.iter().all(|v| v.is_finite()) {
             return Err(Error::NonFinite { field: "hull_gradients", axis: id, index: h });

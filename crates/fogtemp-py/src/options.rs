@@ -241,9 +241,11 @@ pub fn calibration(o: &mut Options<'_>, base: CalibrationConfig) -> PyResult<Cal
         "hold" | "nearest_hull" => fogtemp_core::OutsidePolicy::NearestHull,
         "linear_from_boundary" | "linear" => fogtemp_core::OutsidePolicy::LinearFromBoundary,
         "linear_stored_gradients" => fogtemp_core::OutsidePolicy::StoredGradients,
-        other => return Err(errors::value(format!(
+        other => {
+            return Err(errors::value(format!(
             "mesh_outside must be 'hold', 'linear_from_boundary' or 'linear_stored_gradients', got '{other}'"
-        ))),
+        )))
+        }
     };
     Ok(CalibrationConfig {
         features,
