@@ -302,11 +302,12 @@ pub fn hull_vertices_first(mesh: &MeshModel) -> Result<MeshModel, EncodeProblem>
 /// `R = fogtemp_core::GRADIENT_RADIUS` of `q`, or of every node with equal weights where
 /// those do not span a plane (`1 - rho^2 < 1e-2` of their weighted positions), the rule of the
 /// query-time policy (`fogtemp-core`'s `src/beyond.rs`), here in f64 from the f32 nodes the
-/// blob stores. Empty for a mesh without hull edges.
+/// blob stores. Where not even every node spans a plane (a thin mesh: one warm-up run), zero:
+/// the value is held there, as the query-time policy holds it when it finds no gradient.
+/// Empty for a mesh without hull edges.
 ///
 /// # Errors
-/// [`EncodeProblem::NoHullGradient`] where not even every node spans a plane, or a hull entry
-/// is out of range.
+/// [`EncodeProblem::NoHullGradient`] for a hull entry out of range.
 pub fn hull_gradients(mesh: &MeshModel) -> Result<Vec<[f32; 2]>, EncodeProblem> {
     let nodes: Vec<[f64; 3]> =
         mesh.vertices.iter().map(|v| [f64::from(v.x), f64::from(v.y), f64::from(v.value_dph)]).collect();
@@ -316,7 +317,7 @@ pub fn hull_gradients(mesh: &MeshModel) -> Result<Vec<[f32; 2]>, EncodeProblem> 
         let missing = EncodeProblem::NoHullGradient { hull_edge: h };
         // Edge e runs from vertex e + 1 to e + 2 of its triangle: its start vertex.
         let start = mesh.triangles.get(t as usize).and_then(|tri| tri.get((e as usize + 1) % 3));
-        let q = start.and_then(|&i| nodes.get(i as usize)).ok_or(missing.clone())?;
+        let q = start.and_then(|&i| nodes.get(i as usize)).ok_or(missing)?;
         let biweight = |p: &[f64; 3]| {
             let r2 = ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2)) / radius2;
             if r2 < 1.0 {
@@ -326,7 +327,7 @@ pub fn hull_gradients(mesh: &MeshModel) -> Result<Vec<[f32; 2]>, EncodeProblem> 
             }
         };
         let g =
-            plane_gradient(&nodes, biweight).or_else(|| plane_gradient(&nodes, |_| 1.0)).ok_or(missing)?;
+            plane_gradient(&nodes, biweight).or_else(|| plane_gradient(&nodes, |_| 1.0)).unwrap_or([0.0; 2]);
         out.push([g[0] as f32, g[1] as f32]);
     }
     Ok(out)

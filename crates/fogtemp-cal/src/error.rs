@@ -189,9 +189,9 @@ pub enum EncodeProblem {
         /// Triangle index.
         triangle: usize,
     },
-    /// No continuation gradient at a hull vertex: the mesh's nodes do not span a plane (or a
-    /// hull entry is out of range).
-    #[error("no gradient at the start of hull edge {hull_edge}: the mesh nodes do not span a plane")]
+    /// A hull entry names a triangle or vertex that does not exist, so its gradient cannot be
+    /// computed.
+    #[error("no gradient at the start of hull edge {hull_edge}: its triangle or vertex does not exist")]
     NoHullGradient {
         /// Hull edge index.
         hull_edge: usize,

@@ -30,7 +30,8 @@
 //!
 //! The same continuation `m(q) + g(q) . (p - q)` without the pass over the nodes: the writer
 //! stores `g` at each hull vertex (the biweight fit above around that vertex, computed in f64
-//! from the stored f32 nodes), and on a hull edge `g` is linear between its two vertices'
+//! from the stored f32 nodes; zero where not even all nodes span a plane, so the value is held
+//! there, as the query-time policy holds it when it finds no gradient), and on a hull edge `g` is linear between its two vertices'
 //! gradients. Why per hull vertex and linear along the edge: it is the one piecewise-linear
 //! rule that keeps `g(q)` continuous along the hull (at a vertex both edges give that
 //! vertex's gradient), so the value stays continuous in `p` and equal to the held value on the
