@@ -151,12 +151,13 @@ pub struct CalibrationConfig {
     /// nearest boundary point (no worse than extrapolating on the testbed, and no runaway);
     /// holding at the boundary was worse (docs/calibration-testbed.md).
     pub poly_outside: fogtemp_core::PolyOutside,
-    /// What a mesh model's mesh does outside its hull: held at the nearest hull point (the
-    /// default: one outside query stays a walk, not a pass over every node) or continued
-    /// linearly from it (better on the testbed's null cases; docs/calibration-testbed.md,
-    /// "Mesh beyond its hull"). The
-    /// hybrid's mesh, a residual on the polynomial, is always zero outside (the polynomial's
-    /// own continuation carries the trend there).
+    /// What a mesh model's mesh does outside its hull: continued linearly from the nearest hull
+    /// point with gradients stored per hull vertex (the default, chosen after measuring it:
+    /// the testbed's null cases within 3 % of the polynomial, the Python whole-box benchmark
+    /// above 10x scipy; docs/calibration-testbed.md, "Mesh continuation with stored
+    /// gradients"), the same with the gradient fitted per query, or held. The hybrid's mesh, a
+    /// residual on the polynomial, is always zero outside (the polynomial's own continuation
+    /// carries the trend there). A polynomial-only axis stores hold (no mesh to continue).
     pub mesh_outside: OutsidePolicy,
 }
 

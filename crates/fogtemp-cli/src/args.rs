@@ -320,10 +320,12 @@ pub struct FitArgs {
     /// (docs/calibration-testbed.md, "Continued linearly").
     #[arg(long, value_enum, default_value_t = PolyOutsideArg::LinearFromBoundary)]
     pub poly_outside: PolyOutsideArg,
-    /// What a mesh model's mesh does outside its hull, stored in the model: held at the
-    /// nearest hull point (the default), or continued linearly from it as the polynomial is
-    /// (costs one pass over the mesh's nodes per outside query; docs/calibration-testbed.md,
-    /// "Mesh beyond its hull"). The hybrid's mesh is zero outside its hull either way.
+    /// What a mesh model's mesh does outside its hull, stored in the model: continued linearly
+    /// from the nearest hull point as the polynomial is, with the slope stored per hull vertex
+    /// (the default: an outside query costs about what holding costs; model format 3), the
+    /// same with the slope fitted per query (one pass over the mesh's nodes per outside query),
+    /// or held at the nearest hull point (docs/calibration-testbed.md, "Mesh continuation with
+    /// stored gradients"). The hybrid's mesh is zero outside its hull either way.
     #[arg(long, value_enum, default_value_t = MeshOutsideArg::LinearStoredGradients)]
     pub mesh_outside: MeshOutsideArg,
     /// How `auto` scores a held-out run: every window, or only the windows inside the
