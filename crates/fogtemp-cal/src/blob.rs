@@ -277,9 +277,9 @@ pub fn hull_vertices_first(mesh: &MeshModel) -> Result<MeshModel, EncodeProblem>
         *slot = order.len() as u32;
         order.push(start);
     }
-    for v in 0..n {
-        if new_index[v] == UNSET {
-            new_index[v] = order.len() as u32;
+    for (v, index) in new_index.iter_mut().enumerate() {
+        if *index == UNSET {
+            *index = order.len() as u32;
             order.push(v as u32);
         }
     }
@@ -341,7 +341,7 @@ fn plane_gradient(nodes: &[[f64; 3]], weight: impl Fn(&[f64; 3]) -> f64) -> Opti
     let weighted: Vec<(f64, &[f64; 3])> =
         nodes.iter().map(|p| (weight(p), p)).filter(|(w, _)| *w > 0.0).collect();
     let sw: f64 = weighted.iter().map(|(w, _)| w).sum();
-    if !(sw > 0.0) {
+    if sw.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
         return None;
     }
     let mean = |k: usize| weighted.iter().map(|(w, p)| w * p[k]).sum::<f64>() / sw;
