@@ -1,4 +1,4 @@
-//! The model blob, format version 2, from the writer's side: round trip through
+//! The model blob, format versions 2 and 3, from the writer's side: round trip through
 //! `fogtemp_cal::encode` and the core reader, the layout against the spec, the committed golden
 //! bytes reproduced by today's writer, and rejection of corrupted written blobs without panics
 //! (single-byte flips, truncations, structured mutations, targeted corruptions with their
@@ -40,7 +40,7 @@ use fogtemp_core::{
 use rand::Rng;
 use shared::{
     core_digest, exercise, fix_crc, fix_len_and_crc, golden_queries, put_f32, put_u16, put_u32, u16_at,
-    u32_at, GOLDEN_HEADER, GOLDEN_V2_BLOB, GOLDEN_V2_CSV,
+    u32_at, GOLDEN_HEADER, GOLDEN_V2_BLOB, GOLDEN_V2_CSV, GOLDEN_V3_BLOB, GOLDEN_V3_CSV,
 };
 
 // ---------------------------------------------------------------------------------------------
@@ -409,6 +409,14 @@ fn golden_model() -> ModelFile {
     ModelFile { tool_version: "fogtemp golden".into(), input_digest: core_digest(), axes: vec![axis0, axis1] }
 }
 
+/// The version-3 golden model: the version-2 one with axis 0's mesh continued by stored hull
+/// gradients.
+fn golden_model_v3() -> ModelFile {
+    let mut model = golden_model();
+    model.axes[0].outside_policy = OutsidePolicy::StoredGradients;
+    model
+}
+
 /// One expected row: evaluated with a fresh default hint, so the row does not depend on the
 /// order of the queries.
 fn golden_row(model: &Model<'_>, (axis, temp_c, rate): (usize, f32, f32)) -> String {
@@ -423,18 +431,23 @@ fn bless_if_requested() {
         if std::env::var("FOGTEMP_BLESS").as_deref() != Ok("1") {
             return;
         }
-        let blob = encode(&golden_model()).expect("golden model encodes");
-        let model = Model::from_bytes(&blob).expect("parses");
-        let mut csv = String::from(GOLDEN_HEADER);
-        csv.push('\n');
-        for q in golden_queries() {
-            csv.push_str(&golden_row(&model, q));
-            csv.push('\n');
-        }
         std::fs::create_dir_all(golden_dir()).expect("create tests/golden");
-        std::fs::write(golden_dir().join(GOLDEN_V2_BLOB), &blob).expect("write golden blob");
-        std::fs::write(golden_dir().join(GOLDEN_V2_CSV), csv).expect("write golden csv");
-        eprintln!("FOGTEMP_BLESS=1: wrote {} ({} bytes) and {GOLDEN_V2_CSV}", GOLDEN_V2_BLOB, blob.len());
+        for (model, blob_name, csv_name) in [
+            (golden_model(), GOLDEN_V2_BLOB, GOLDEN_V2_CSV),
+            (golden_model_v3(), GOLDEN_V3_BLOB, GOLDEN_V3_CSV),
+        ] {
+            let blob = encode(&model).expect("golden model encodes");
+            let parsed = Model::from_bytes(&blob).expect("parses");
+            let mut csv = String::from(GOLDEN_HEADER);
+            csv.push('\n');
+            for q in golden_queries() {
+                csv.push_str(&golden_row(&parsed, q));
+                csv.push('\n');
+            }
+            std::fs::write(golden_dir().join(blob_name), &blob).expect("write golden blob");
+            std::fs::write(golden_dir().join(csv_name), csv).expect("write golden csv");
+            eprintln!("FOGTEMP_BLESS=1: wrote {blob_name} ({} bytes) and {csv_name}", blob.len());
+        }
     });
 }
 
@@ -463,6 +476,29 @@ fn golden_v2_blob_is_reproduced_byte_for_byte_by_todays_writer() {
             golden.len()
         );
     }
+}
+
+#[test]
+fn golden_v3_blob_is_reproduced_byte_for_byte_by_todays_writer() {
+    let golden = read_golden(GOLDEN_V3_BLOB);
+    let today = encode(&golden_model_v3()).expect("encodes");
+    assert_eq!(u16_at(&golden, FILE_VERSION.start), 3);
+    assert!(today == golden, "the writer's output for the version-3 golden model changed");
+    // Only axis 0's policy, hull gradients and vertex numbering differ from version 2; the
+    // values inside the hull are version 2's bit for bit (the golden queries beyond it differ).
+    let v2 = read_golden(GOLDEN_V2_BLOB);
+    let (m2, m3) = (Model::from_bytes(&v2).expect("v2"), Model::from_bytes(&golden).expect("v3"));
+    let mut differ = 0;
+    for (axis, t, r) in golden_queries() {
+        let e2 = m2.axis(axis).expect("axis").evaluate(t, r, &mut WalkHint::default()).expect("finite");
+        let e3 = m3.axis(axis).expect("axis").evaluate(t, r, &mut WalkHint::default()).expect("finite");
+        assert_eq!(e2.outside_hull, e3.outside_hull);
+        if !e2.outside_hull {
+            assert_eq!(bits(e2.value_dph), bits(e3.value_dph), "({axis}, {t}, {r})");
+        }
+        differ += usize::from(bits(e2.value_dph) != bits(e3.value_dph));
+    }
+    assert!(differ > 0, "the golden queries reach beyond the hull");
 }
 
 // ---------------------------------------------------------------------------------------------
