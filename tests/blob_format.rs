@@ -1,4 +1,4 @@
-//! The model blob, format version 2, from the writer's side: round trip through
+//! The model blob, format versions 2 and 3, from the writer's side: round trip through
 //! `fogtemp_cal::encode` and the core reader, the layout against the spec, the committed golden
 //! bytes reproduced by today's writer, and rejection of corrupted written blobs without panics
 //! (single-byte flips, truncations, structured mutations, targeted corruptions with their
@@ -40,7 +40,7 @@ use fogtemp_core::{
 use rand::Rng;
 use shared::{
     core_digest, exercise, fix_crc, fix_len_and_crc, golden_queries, put_f32, put_u16, put_u32, u16_at,
-    u32_at, GOLDEN_HEADER, GOLDEN_V2_BLOB, GOLDEN_V2_CSV,
+    u32_at, GOLDEN_HEADER, GOLDEN_V2_BLOB, GOLDEN_V2_CSV, GOLDEN_V3_BLOB, GOLDEN_V3_CSV,
 };
 
 // ---------------------------------------------------------------------------------------------
@@ -184,7 +184,8 @@ fn encode_then_from_bytes_returns_every_field_bit_exactly() {
     let file = three_axis_model();
     let blob = encode(&file).expect("encodes");
     let model = Model::from_bytes(&blob).expect("parses");
-    assert_eq!(model.format_version(), FORMAT_VERSION);
+    // No axis continues its mesh with stored gradients: written as version 2.
+    assert_eq!(model.format_version(), FORMAT_VERSION_WITHOUT_GRADIENTS);
     assert_eq!(model.tool_version(), file.tool_version.as_bytes());
     assert_eq!(model.input_digest(), file.input_digest);
     assert_eq!(model.axis_count(), 3);
@@ -408,6 +409,14 @@ fn golden_model() -> ModelFile {
     ModelFile { tool_version: "fogtemp golden".into(), input_digest: core_digest(), axes: vec![axis0, axis1] }
 }
 
+/// The version-3 golden model: the version-2 one with axis 0's mesh continued by stored hull
+/// gradients.
+fn golden_model_v3() -> ModelFile {
+    let mut model = golden_model();
+    model.axes[0].outside_policy = OutsidePolicy::StoredGradients;
+    model
+}
+
 /// One expected row: evaluated with a fresh default hint, so the row does not depend on the
 /// order of the queries.
 fn golden_row(model: &Model<'_>, (axis, temp_c, rate): (usize, f32, f32)) -> String {
@@ -422,18 +431,23 @@ fn bless_if_requested() {
         if std::env::var("FOGTEMP_BLESS").as_deref() != Ok("1") {
             return;
         }
-        let blob = encode(&golden_model()).expect("golden model encodes");
-        let model = Model::from_bytes(&blob).expect("parses");
-        let mut csv = String::from(GOLDEN_HEADER);
-        csv.push('\n');
-        for q in golden_queries() {
-            csv.push_str(&golden_row(&model, q));
-            csv.push('\n');
-        }
         std::fs::create_dir_all(golden_dir()).expect("create tests/golden");
-        std::fs::write(golden_dir().join(GOLDEN_V2_BLOB), &blob).expect("write golden blob");
-        std::fs::write(golden_dir().join(GOLDEN_V2_CSV), csv).expect("write golden csv");
-        eprintln!("FOGTEMP_BLESS=1: wrote {} ({} bytes) and {GOLDEN_V2_CSV}", GOLDEN_V2_BLOB, blob.len());
+        for (model, blob_name, csv_name) in [
+            (golden_model(), GOLDEN_V2_BLOB, GOLDEN_V2_CSV),
+            (golden_model_v3(), GOLDEN_V3_BLOB, GOLDEN_V3_CSV),
+        ] {
+            let blob = encode(&model).expect("golden model encodes");
+            let parsed = Model::from_bytes(&blob).expect("parses");
+            let mut csv = String::from(GOLDEN_HEADER);
+            csv.push('\n');
+            for q in golden_queries() {
+                csv.push_str(&golden_row(&parsed, q));
+                csv.push('\n');
+            }
+            std::fs::write(golden_dir().join(blob_name), &blob).expect("write golden blob");
+            std::fs::write(golden_dir().join(csv_name), csv).expect("write golden csv");
+            eprintln!("FOGTEMP_BLESS=1: wrote {blob_name} ({} bytes) and {csv_name}", blob.len());
+        }
     });
 }
 
@@ -462,6 +476,29 @@ fn golden_v2_blob_is_reproduced_byte_for_byte_by_todays_writer() {
             golden.len()
         );
     }
+}
+
+#[test]
+fn golden_v3_blob_is_reproduced_byte_for_byte_by_todays_writer() {
+    let golden = read_golden(GOLDEN_V3_BLOB);
+    let today = encode(&golden_model_v3()).expect("encodes");
+    assert_eq!(u16_at(&golden, FILE_VERSION.start), 3);
+    assert!(today == golden, "the writer's output for the version-3 golden model changed");
+    // Only axis 0's policy, hull gradients and vertex numbering differ from version 2; the
+    // values inside the hull are version 2's bit for bit (the golden queries beyond it differ).
+    let v2 = read_golden(GOLDEN_V2_BLOB);
+    let (m2, m3) = (Model::from_bytes(&v2).expect("v2"), Model::from_bytes(&golden).expect("v3"));
+    let mut differ = 0;
+    for (axis, t, r) in golden_queries() {
+        let e2 = m2.axis(axis).expect("axis").evaluate(t, r, &mut WalkHint::default()).expect("finite");
+        let e3 = m3.axis(axis).expect("axis").evaluate(t, r, &mut WalkHint::default()).expect("finite");
+        assert_eq!(e2.outside_hull, e3.outside_hull);
+        if !e2.outside_hull {
+            assert_eq!(bits(e2.value_dph), bits(e3.value_dph), "({axis}, {t}, {r})");
+        }
+        differ += usize::from(bits(e2.value_dph) != bits(e3.value_dph));
+    }
+    assert!(differ > 0, "the golden queries reach beyond the hull");
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -705,10 +742,12 @@ fn find_slot(b: &[u8], s: Section, want: impl Fn(u32) -> bool) -> (usize, usize)
 fn targeted_header_corruptions_give_their_specific_errors() {
     let r = mutated(|b, _| b[0] = b'X');
     assert!(matches!(r, Err(Error::BadMagic)), "{r:?}");
-    let r = mutated(|b, _| put_u16(b, FILE_VERSION.start, 3));
-    assert!(matches!(r, Err(Error::UnsupportedVersion { expected: 2, found: 3 })), "{r:?}");
+    let r = mutated(|b, _| put_u16(b, FILE_VERSION.start, 4));
+    assert!(matches!(r, Err(Error::UnsupportedVersion { expected: 3, found: 4 })), "{r:?}");
     let r = mutated(|b, _| put_u16(b, FILE_VERSION.start, 0));
-    assert!(matches!(r, Err(Error::UnsupportedVersion { expected: 2, found: 0 })), "{r:?}");
+    assert!(matches!(r, Err(Error::UnsupportedVersion { expected: 3, found: 0 })), "{r:?}");
+    // Version 3 differs from 2 only with outside_policy 3: this blob reads the same as either.
+    assert!(mutated(|b, _| put_u16(b, FILE_VERSION.start, 3)).is_ok());
     for count in [0u16, 17, u16::MAX] {
         let r = mutated(|b, _| put_u16(b, FILE_AXIS_COUNT.start, count));
         assert!(matches!(r, Err(Error::BadValue { field: "axis_count", .. })), "axis_count {count}: {r:?}");
@@ -741,7 +780,14 @@ fn targeted_axis_corruptions_give_their_specific_errors() {
     // Codes 0 to 2 are policies (2, linear from the boundary, since the mesh's continuation).
     let r = mutated(|b, s| put_u32(b, s.start + AXIS_OUTSIDE_POLICY.start, 2));
     assert!(r.is_ok(), "{r:?}");
+    // Code 3 (stored gradients) needs format version 3: in this version-2 blob it is refused by
+    // name; 4 is no policy in any version.
     let r = mutated(|b, s| put_u32(b, s.start + AXIS_OUTSIDE_POLICY.start, 3));
+    assert!(matches!(r, Err(Error::BadValue { field: "outside_policy", .. })), "{r:?}");
+    let r = mutated(|b, s| {
+        put_u16(b, FILE_VERSION.start, 3);
+        put_u32(b, s.start + AXIS_OUTSIDE_POLICY.start, 4);
+    });
     assert!(matches!(r, Err(Error::BadValue { field: "outside_policy", .. })), "{r:?}");
     let r = mutated(|b, s| b[s.start + AXIS_REGION_VERTEX_COUNT.start + 3] = 1);
     assert!(matches!(r, Err(Error::BadValue { field: "region_vertex_count", .. })), "{r:?}");
@@ -982,4 +1028,196 @@ fn hull_that_does_not_go_round_exactly_once_is_rejected() {
         "a disconnected mesh whose hull list goes round one piece twice was accepted; inside the \
          other piece, (hint 0, hint 3, scan) give {detail:?}"
     );
+}
+
+// ---------------------------------------------------------------------------------------------
+// 5. Stored hull gradients (format version 3, outside_policy 3)
+// ---------------------------------------------------------------------------------------------
+
+/// The mesh of [`two_kb_blob`] with the policy `StoredGradients`, and the blob.
+fn gradient_blob() -> (MeshModel, Vec<u8>) {
+    let mesh = build_mesh(&random_points(17, 21, bias_surface), &NORMALISATION).expect("mesh");
+    let axis = AxisModel {
+        region: Vec::new(),
+        poly_outside: fogtemp_core::PolyOutside::Extrapolate,
+        features: FEATURES,
+        normalisation: NORMALISATION,
+        outside_policy: OutsidePolicy::StoredGradients,
+        poly: vec![term(0, 0, 0.01), term(1, 0, 0.2), term(1, 1, -0.03)],
+        mesh: Some(mesh.clone()),
+        provenance: provenance(4.0),
+    };
+    let blob =
+        encode(&ModelFile { tool_version: "fogtemp grad".into(), input_digest: [3; 32], axes: vec![axis] })
+            .expect("encodes");
+    (mesh, blob)
+}
+
+/// Byte offset of axis 0's hull gradients (after its hull; these blobs have no region).
+fn gradients_at(s: &Section) -> usize {
+    s.hull_at + s.hull * HULL_EDGE_LEN
+}
+
+#[test]
+fn stored_gradients_are_written_as_version_3_after_the_hull_and_read_back_bit_exactly() {
+    let (mesh, blob) = gradient_blob();
+    assert_eq!(u16_at(&blob, FILE_VERSION.start), 3);
+    let s = section(&blob, 0);
+    // The writer numbers the hull vertices first (hull vertex h is vertex h), then fits.
+    let renumbered = fogtemp_cal::blob::hull_vertices_first(&mesh).expect("renumbers");
+    let expected = fogtemp_cal::blob::hull_gradients(&renumbered).expect("gradients");
+    assert_eq!(expected.len(), s.hull);
+    // The section: the version-2 layout plus one 8-byte gradient per hull edge, then the CRC.
+    assert_eq!(
+        u32_at(&blob, s.start + AXIS_SECTION_LEN.start) as usize,
+        gradients_at(&s) + 8 * s.hull - s.start
+    );
+    assert_eq!(gradients_at(&s) + 8 * s.hull + CRC_LEN, blob.len());
+    let model = Model::from_bytes(&blob).expect("parses");
+    assert_eq!(model.format_version(), 3);
+    let read = model.axis(0).expect("axis").mesh.expect("mesh");
+    assert_eq!(read.outside_policy(), OutsidePolicy::StoredGradients);
+    for (h, g) in expected.iter().enumerate() {
+        let at = gradients_at(&s) + 8 * h;
+        let stored = [
+            f32::from_le_bytes(blob[at..at + 4].try_into().expect("4")),
+            f32::from_le_bytes(blob[at + 4..at + 8].try_into().expect("4")),
+        ];
+        assert_eq!(stored.map(bits), g.map(bits), "hull gradient {h} in the bytes");
+        assert_eq!(read.hull_gradient(h as u32).map(|g| g.map(bits)), Some(g.map(bits)), "hull gradient {h}");
+    }
+    assert!(read.hull_gradient(s.hull as u32).is_none());
+    for h in 0..s.hull as u32 {
+        let (a, _) = read.hull_edge_vertices(h).expect("hull edge");
+        let v = read.vertex(h).expect("vertex");
+        assert_eq!(
+            [a.x, a.y, a.value_dph].map(bits),
+            [v.x, v.y, v.value_dph].map(bits),
+            "hull vertex {h} is vertex {h}"
+        );
+    }
+    // Renumbering moves no node: the same nodes, and the same value wherever the policies
+    // agree (inside the hull), bit for bit.
+    let held_model_bytes = two_kb_blob();
+    let held_model = Model::from_bytes(&held_model_bytes).expect("parses");
+    let held_mesh = held_model.axis(0).expect("axis").mesh.expect("mesh");
+    let sorted = |m: &fogtemp_core::Mesh<'_>| {
+        let mut v: Vec<[u32; 3]> = (0..m.vertex_count())
+            .map(|i| m.vertex(i).expect("vertex"))
+            .map(|v| [v.x, v.y, v.value_dph].map(bits))
+            .collect();
+        v.sort_unstable();
+        v
+    };
+    assert_eq!(sorted(&read), sorted(&held_mesh));
+    let mut r = rng(5);
+    let mut inside = 0;
+    for _ in 0..2000 {
+        let (x, y) = (r.gen_range(-1.0f32..1.0), r.gen_range(-1.0f32..1.0));
+        let a = read.interpolate(x, y, &mut WalkHint::default()).expect("finite");
+        let b = held_mesh.interpolate(x, y, &mut WalkHint::default()).expect("finite");
+        if !a.outside_hull {
+            inside += 1;
+            assert_eq!((bits(a.value_dph), a.triangle), (bits(b.value_dph), b.triangle), "({x}, {y})");
+        }
+    }
+    assert!(inside > 100, "{inside} queries inside");
+    // The same mesh held: version 2, no gradients, every other byte of the section the same.
+    let held = two_kb_blob();
+    assert_eq!(u16_at(&held, FILE_VERSION.start), 2);
+    assert_eq!(held.len() + 8 * s.hull, blob.len());
+    assert!(Model::from_bytes(&held)
+        .expect("parses")
+        .axis(0)
+        .expect("axis")
+        .mesh
+        .expect("mesh")
+        .hull_gradient(0)
+        .is_none());
+}
+
+fn gradient_mutated(f: impl FnOnce(&mut Vec<u8>, Section)) -> Result<(), Error> {
+    let (_, mut b) = gradient_blob();
+    let s = section(&b, 0);
+    f(&mut b, s);
+    fix_crc(&mut b);
+    Model::from_bytes(&b).map(|_| ())
+}
+
+#[test]
+fn corrupt_or_missing_stored_gradients_give_their_specific_errors() {
+    assert!(gradient_mutated(|_, _| {}).is_ok());
+    for (k, v) in [(0, f32::NAN), (4, f32::INFINITY), (4, f32::NEG_INFINITY)] {
+        let r = gradient_mutated(|b, s| put_f32(b, gradients_at(&s) + 8 * 2 + k, v));
+        assert!(
+            matches!(r, Err(Error::NonFinite { field: "hull_gradients", index: 2, .. })),
+            "{v} at {k}: {r:?}"
+        );
+    }
+    // Version 2 has no gradients: the policy is refused by name.
+    let r = gradient_mutated(|b, _| put_u16(b, FILE_VERSION.start, 2));
+    assert!(matches!(r, Err(Error::BadValue { field: "outside_policy", .. })), "{r:?}");
+    // Another policy does not expect the gradients that are there.
+    for code in [0, 1, 2] {
+        let r = gradient_mutated(|b, s| put_u32(b, s.start + AXIS_OUTSIDE_POLICY.start, code));
+        assert!(matches!(r, Err(Error::LengthMismatch { field: "section_len", .. })), "code {code}: {r:?}");
+    }
+    let r = gradient_mutated(|b, s| put_u32(b, s.start + AXIS_OUTSIDE_POLICY.start, 4));
+    assert!(matches!(r, Err(Error::BadValue { field: "outside_policy", .. })), "{r:?}");
+    // The hull listed from its second vertex: still a valid hull, but hull vertex 0 is not
+    // vertex 0, so a gradient could not be found by vertex index.
+    let r = gradient_mutated(|b, s| b[s.hull_at..s.hull_at + 8 * s.hull].rotate_left(8));
+    assert!(
+        matches!(r, Err(Error::BadMesh { check: "hull vertices numbered first", index: 0, .. })),
+        "{r:?}"
+    );
+    // The same hull order in a held blob is fine (no gradients to find).
+    assert!(mutated(|b, s| b[s.hull_at..s.hull_at + 8 * s.hull].rotate_left(8)).is_ok());
+    // One gradient short, with total_len and section_len patched to match: the count the hull
+    // implies is not there.
+    let r = gradient_mutated(|b, s| {
+        let end = b.len() - CRC_LEN;
+        b.drain(end - 8..end);
+        let section_len = u32_at(b, s.start + AXIS_SECTION_LEN.start) - 8;
+        put_u32(b, s.start + AXIS_SECTION_LEN.start, section_len);
+        let total = b.len() as u32;
+        put_u32(b, FILE_TOTAL_LEN.start, total);
+    });
+    assert!(matches!(r, Err(Error::LengthMismatch { field: "section_len", .. })), "{r:?}");
+}
+
+#[test]
+fn every_truncation_and_byte_flip_of_a_gradient_blob_is_rejected_or_evaluates_without_panic() {
+    let (_, blob) = gradient_blob();
+    for len in 0..blob.len() {
+        assert!(Model::from_bytes(&blob[..len]).is_err(), "truncated to {len} accepted");
+        let mut b = blob[..len].to_vec();
+        fix_len_and_crc(&mut b);
+        assert!(Model::from_bytes(&b).is_err(), "truncated to {len} with length and CRC fixed accepted");
+    }
+    let mut outcomes: BTreeMap<String, usize> = BTreeMap::new();
+    let mut evaluations = 0;
+    // The flips of the hull and gradient bytes and of the header (the rest is the layout of
+    // the version-2 tests above).
+    let s = section(&blob, 0);
+    let positions = (0..FILE_HEADER_LEN + AXIS_HEADER_LEN).chain(s.hull_at..blob.len() - CRC_LEN);
+    for at in positions {
+        for mask in MASKS {
+            let mut b = blob.clone();
+            b[at] ^= mask;
+            assert!(Model::from_bytes(&b).is_err(), "flip {mask:#04x} at {at} passed the CRC");
+            fix_crc(&mut b);
+            let result = catch_unwind(AssertUnwindSafe(|| match Model::from_bytes(&b) {
+                Ok(model) => (String::from("accepted"), exercise(&model, at as u64)),
+                Err(e) => (variant(&e), 0),
+            }));
+            let (outcome, n) = result.unwrap_or_else(|_| panic!("panic on flip {mask:#04x} at byte {at}"));
+            *outcomes.entry(outcome).or_default() += 1;
+            evaluations += n;
+        }
+    }
+    println!(
+        "gradient blob flips with CRC fixed: {outcomes:?}; {evaluations} evaluations of accepted mutants"
+    );
+    assert!(outcomes.get("accepted").copied().unwrap_or(0) > 0, "finite gradient flips are valid");
 }

@@ -479,7 +479,7 @@ fn evaluate_matches_f64_barycentric_reference() {
     let dir = TempDir::new().expect("tempdir");
     let model = dir.path().join("mesh.fogm");
     let runs: Vec<PathBuf> = [0, 2, 4, 6].iter().map(|i| logs.cal.join(format!("run{i}.csv"))).collect();
-    // The held hull value (the default, named here) is this test's reference outside the hull;
+    // The held hull value (named here; the default continues linearly) is this test's reference outside the hull;
     // the linear continuation is checked against its own f64 reference in tests/mesh_beyond_hull.rs.
     let mut args = args!["fit", "--method", "mesh", "--mesh-outside", "hold", "--json", "--out", &model];
     args.extend(FAST_FIT.split(' ').map(OsString::from));

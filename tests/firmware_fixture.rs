@@ -372,8 +372,10 @@ fn check_fixture(
 }
 
 /// What today's code produces: (file name, bytes). The second model is the same with the
-/// mesh continued linearly beyond its hull (`OutsidePolicy::LinearFromBoundary`), the same
-/// trajectory through it: `.ci/run` runs the firmware on both.
+/// mesh continued linearly beyond its hull (`OutsidePolicy::LinearFromBoundary`), the third
+/// with that continuation's gradients stored in the blob (`OutsidePolicy::StoredGradients`,
+/// format version 3), the same trajectory through each: `.ci/run` runs the firmware on all
+/// three.
 fn generate() -> (Vec<(&'static str, Vec<u8>)>, String) {
     let (blob, about_model) = model_blob(OutsidePolicy::NearestHull);
     let records = trajectory();
@@ -385,18 +387,26 @@ fn generate() -> (Vec<(&'static str, Vec<u8>)>, String) {
     let linear_outputs = compensate(&linear_blob, &records);
     let about_linear = check_linear(&outputs, &linear_outputs);
     let linear_lines = expected_lines(&linear_outputs);
+    let (stored_blob, _) = model_blob(OutsidePolicy::StoredGradients);
+    assert_eq!(Model::from_bytes(&stored_blob).expect("parses").format_version(), 3);
+    let stored_outputs = compensate(&stored_blob, &records);
+    let about_stored = check_linear(&outputs, &stored_outputs).replace("model-linear", "model-gradients");
+    let stored_lines = expected_lines(&stored_outputs);
     let files = vec![
         ("model.fogm", blob),
         ("trajectory.bin", trajectory_bytes),
         ("expected_out.txt", lines.into_bytes()),
         ("model-linear.fogm", linear_blob),
         ("expected_out-linear.txt", linear_lines.into_bytes()),
+        ("model-gradients.fogm", stored_blob),
+        ("expected_out-gradients.txt", stored_lines.into_bytes()),
     ];
-    (files, format!("{about_model}\n{about_run}\n{about_linear}"))
+    (files, format!("{about_model}\n{about_run}\n{about_linear}\n{about_stored}"))
 }
 
-/// The linear policy changes only what is flagged `OUTSIDE_HULL`, and changes some of it (the
-/// heater burst leaves the hull), so the second firmware run exercises the continuation.
+/// A linear policy changes only what is flagged `OUTSIDE_HULL`, and changes some of it (the
+/// heater burst leaves the hull), so the second and third firmware runs exercise the
+/// continuation.
 fn check_linear(held: &[Output], linear: &[Output]) -> String {
     assert_eq!(held.len(), linear.len());
     let mut changed = 0usize;

@@ -300,3 +300,220 @@ fn the_axis_flags_outside_hull_and_the_blob_records_the_policy() {
     let inside = axis.evaluate(30.0, 0.1, &mut WalkHint::default()).expect("finite");
     assert!(!inside.outside_hull);
 }
+
+// ---------------------------------------------------------------------------------------------
+// Stored gradients (`OutsidePolicy::StoredGradients`, blob code 3): the writer's gradient at
+// each hull vertex, linear along each hull edge.
+// ---------------------------------------------------------------------------------------------
+
+/// The stored gradient at every hull vertex against the f64 reference of the rule (the test's
+/// own `weighted_least_squares` around the vertex, equal weights where the biweight
+/// neighbourhood does not span a plane). Tolerance: the writer rounds an f64 result to f32
+/// (relative 6e-8); both sum the same moments in f64 in different orders (relative ~1e-13
+/// times the conditioning, at most 1 / (1 - rho^2) = 100 by the span test): 1e-6 relative.
+#[test]
+fn stored_gradients_equal_the_f64_reference_fit_at_each_hull_vertex() {
+    let radius = f64::from(GRADIENT_RADIUS);
+    for (name, points) in [
+        ("random n=25", random_points(25, 31, bias_surface)),
+        ("random n=600", random_points(600, 32, bias_surface)),
+        ("paper per_run=12", paper_points(12, bias_surface)),
+        ("paper per_run=70", paper_points(70, bias_surface)),
+    ] {
+        let (_, mesh) = load(mesh_blob(&points, OutsidePolicy::StoredGradients));
+        let reference = Reference::new(&mesh);
+        let mut fallbacks = 0usize;
+        for h in 0..mesh.hull_edge_count() {
+            let (a, _) = mesh.hull_edge_vertices(h).expect("hull edge");
+            let q = [f64::from(a.x), f64::from(a.y)];
+            let biweight = |p: &[f64; 3]| {
+                let r2 = ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2)) / (radius * radius);
+                if r2 < 1.0 {
+                    (1.0 - r2).powi(2)
+                } else {
+                    0.0
+                }
+            };
+            let local = weighted_least_squares(&reference.nodes, biweight);
+            fallbacks += usize::from(local.is_none());
+            let expected =
+                local.or_else(|| weighted_least_squares(&reference.nodes, |_| 1.0)).expect("spans a plane");
+            let stored = mesh.hull_gradient(h).expect("stored gradient");
+            for k in 0..2 {
+                let err = (f64::from(stored[k]) - expected[k]).abs();
+                assert!(
+                    err <= 1e-6 * (1.0 + expected[k].abs()),
+                    "{name}: hull vertex {h}, d/d{}: stored {}, reference {}",
+                    ["x", "y"][k],
+                    stored[k],
+                    expected[k]
+                );
+            }
+        }
+        println!("{name}: {} hull vertices, {fallbacks} with the all-node fit", mesh.hull_edge_count());
+    }
+}
+
+/// The value outside by the rule's closed form in f64, from the blob's own stored gradients:
+/// the nearest hull point `q` by scanning every hull edge (edge `h`, parameter `s`), the held
+/// value there, and `g = (1 - s) g_h + s g_(h+1)`.
+fn stored_rule_f64(mesh: &Mesh<'_>, x: f64, y: f64) -> (f64, f64) {
+    let n = mesh.hull_edge_count();
+    let mut best = (f64::INFINITY, 0u32, 0.0, [0.0; 2], 0.0);
+    for h in 0..n {
+        let (a, b) = mesh.hull_edge_vertices(h).expect("hull edge");
+        let (a, b) = (
+            [f64::from(a.x), f64::from(a.y), f64::from(a.value_dph)],
+            [f64::from(b.x), f64::from(b.y), f64::from(b.value_dph)],
+        );
+        let e = [b[0] - a[0], b[1] - a[1]];
+        let s = (((x - a[0]) * e[0] + (y - a[1]) * e[1]) / (e[0] * e[0] + e[1] * e[1])).clamp(0.0, 1.0);
+        let q = [a[0] + s * e[0], a[1] + s * e[1]];
+        let d2 = (x - q[0]).powi(2) + (y - q[1]).powi(2);
+        if d2 < best.0 {
+            best = (d2, h, s, q, a[2] + s * (b[2] - a[2]));
+        }
+    }
+    let (d2, h, s, q, held) = best;
+    let g = |h: u32| mesh.hull_gradient(h % n).expect("stored gradient").map(f64::from);
+    let (g0, g1) = (g(h), g(h + 1));
+    let grad = [(1.0 - s) * g0[0] + s * g1[0], (1.0 - s) * g0[1] + s * g1[1]];
+    (held + grad[0] * (x - q[0]) + grad[1] * (y - q[1]), d2.sqrt())
+}
+
+#[test]
+fn stored_gradients_continue_linearly_along_each_edge_as_the_closed_form_says() {
+    for (name, points) in [
+        ("random n=40", random_points(40, 13, bias_surface)),
+        ("paper per_run=30", paper_points(30, bias_surface)),
+    ] {
+        let (_, mesh) = load(mesh_blob(&points, OutsidePolicy::StoredGradients));
+        let values = outside_values(&mesh, 61, 4000);
+        assert!(values.len() > 1000, "{name}: most of the box is outside");
+        let mut worst = 0.0f64;
+        for &(x, y, value) in &values {
+            let (expected, distance) = stored_rule_f64(&mesh, f64::from(x), f64::from(y));
+            let err = (f64::from(value) - expected).abs();
+            worst = worst.max(err);
+            // Values ~0.3 deg/h, slopes ~0.5 per unit over up to ~3 units: f32 rounding of
+            // q, s and the products, a few 1e-7; 1e-5.
+            assert!(err < 1e-5, "{name}: ({x}, {y}) at {distance:.3}: core {value}, closed form {expected}");
+        }
+        println!("{name}: {} outside queries, worst {worst:.2e}", values.len());
+    }
+}
+
+#[test]
+fn stored_gradients_continue_a_plane_exactly() {
+    for (name, points) in [
+        ("random n=40", random_points(40, 11, plane)),
+        ("random n=600", random_points(600, 12, plane)),
+        ("paper per_run=30", paper_points(30, plane)),
+    ] {
+        let (_, mesh) = load(mesh_blob(&points, OutsidePolicy::StoredGradients));
+        let values = outside_values(&mesh, 21, 4000);
+        assert!(values.len() > 1000, "{name}: most of the box is outside");
+        let mut worst = 0.0f64;
+        for &(x, y, value) in &values {
+            let expected = plane_normalised(f64::from(x), f64::from(y));
+            let err = (f64::from(value) - expected).abs();
+            worst = worst.max(err);
+            assert!(err < 1e-4, "{name}: ({x}, {y}) gives {value}, the plane {expected}");
+        }
+        println!("{name}: {} outside queries, worst error {worst:.2e}", values.len());
+    }
+}
+
+#[test]
+fn stored_gradients_are_continuous_at_the_hull_and_along_it() {
+    let (_, stored) = load(mesh_blob(&paper_points(40, bias_surface), OutsidePolicy::StoredGradients));
+    let (_, held) = load(mesh_blob(&paper_points(40, bias_surface), OutsidePolicy::NearestHull));
+    // At the hull: along the ray from the nearest hull point the rise over the held value is
+    // linear in the distance, so it vanishes at the hull.
+    let mut checked = 0usize;
+    for (x, y, value) in outside_values(&stored, 51, 2000) {
+        let hold = held.interpolate(x, y, &mut WalkHint::default()).expect("finite").value_dph;
+        let rise = f64::from(value) - f64::from(hold);
+        let q = nearest_hull_point(&held, f64::from(x), f64::from(y));
+        for t in [0.5, 1e-2, 1e-4] {
+            let (xt, yt) =
+                ((q[0] + t * (f64::from(x) - q[0])) as f32, (q[1] + t * (f64::from(y) - q[1])) as f32);
+            let vt = stored.interpolate(xt, yt, &mut WalkHint::default()).expect("finite");
+            if !vt.outside_hull {
+                continue;
+            }
+            let ht = held.interpolate(xt, yt, &mut WalkHint::default()).expect("finite").value_dph;
+            let rise_t = f64::from(vt.value_dph) - f64::from(ht);
+            assert!((rise_t - t * rise).abs() < 2e-6, "t={t} at ({x}, {y}): {rise_t} vs {}", t * rise);
+            checked += 1;
+        }
+    }
+    assert!(checked > 1000, "{checked} ray points checked");
+    // Along the hull: at each hull vertex v, a query 0.5 units out along the outward normal of
+    // the edge starting there lies on the boundary of v's cone; moved by 1e-4 units along that
+    // edge it is in the edge's cone (gradient interpolated at s ~ 1e-4 / length), moved back,
+    // in the vertex's (the vertex's gradient). The two values differ by O(1e-4).
+    let n = stored.hull_edge_count();
+    let mut compared = 0usize;
+    for h in 0..n {
+        let (a, b) = stored.hull_edge_vertices(h).expect("hull edge");
+        let e = [f64::from(b.x - a.x), f64::from(b.y - a.y)];
+        let len = e[0].hypot(e[1]);
+        let (u, normal) = ([e[0] / len, e[1] / len], [e[1] / len, -e[0] / len]);
+        let at = |shift: f64| {
+            let x = f64::from(a.x) + 0.5 * normal[0] + shift * u[0];
+            let y = f64::from(a.y) + 0.5 * normal[1] + shift * u[1];
+            stored.interpolate(x as f32, y as f32, &mut WalkHint::default()).expect("finite")
+        };
+        let (on_edge, at_vertex) = (at(1e-4), at(-1e-4));
+        if !(on_edge.outside_hull && at_vertex.outside_hull) || len < 1e-2 {
+            continue;
+        }
+        let diff = (f64::from(on_edge.value_dph) - f64::from(at_vertex.value_dph)).abs();
+        // Slopes up to ~1 deg/h per unit over 2e-4 units, the gradient's change over
+        // 1e-4 / len of the edge times 0.5 units: 1e-3 allows ten times that.
+        assert!(diff < 1e-3, "hull vertex {h}: {} vs {}", on_edge.value_dph, at_vertex.value_dph);
+        compared += 1;
+    }
+    assert!(compared > n as usize / 2, "{compared} of {n} hull vertices compared");
+}
+
+#[test]
+fn stored_gradients_agree_with_the_query_time_fit_where_it_is_taken_at_a_hull_vertex() {
+    // In a hull vertex's cone both policies use the fit around that vertex: the stored one in
+    // f64, the query-time one in f32 (its bound against f64 above: 1e-4).
+    let points = paper_points(40, bias_surface);
+    let (_, stored) = load(mesh_blob(&points, OutsidePolicy::StoredGradients));
+    let (_, query) = load(mesh_blob(&points, OutsidePolicy::LinearFromBoundary));
+    let (mut at_vertex, mut worst_vertex, mut worst_edge) = (0usize, 0.0f64, 0.0f64);
+    for (x, y, value) in outside_values(&stored, 71, 3000) {
+        let other = query.interpolate(x, y, &mut WalkHint::default()).expect("finite").value_dph;
+        let diff = (f64::from(value) - f64::from(other)).abs();
+        if is_hull_vertex_value(&stored, stored.nearest_hull_value(x, y)) {
+            at_vertex += 1;
+            worst_vertex = worst_vertex.max(diff);
+            assert!(diff < 1e-4, "({x}, {y}): stored {value}, query-time {other}");
+        } else {
+            worst_edge = worst_edge.max(diff);
+        }
+    }
+    println!(
+        "{at_vertex} queries held at a vertex, worst {worst_vertex:.2e}; on edges worst {worst_edge:.2e}"
+    );
+    assert!(at_vertex > 100, "the vertex cones are exercised");
+}
+
+#[test]
+fn the_axis_flags_outside_hull_with_stored_gradients() {
+    let (model, mesh) = load(mesh_blob(&paper_points(20, bias_surface), OutsidePolicy::StoredGradients));
+    assert_eq!(mesh.outside_policy(), OutsidePolicy::StoredGradients);
+    assert_eq!(OutsidePolicy::from_code(3), Some(OutsidePolicy::StoredGradients));
+    assert_eq!(OutsidePolicy::StoredGradients.code(), 3);
+    assert_eq!(OutsidePolicy::from_code(4), None);
+    let axis = model.axis(0).expect("axis");
+    let e = axis.evaluate(100.0, 3.0, &mut WalkHint::default()).expect("finite");
+    assert!(e.outside_hull && e.value_dph.is_finite());
+    let inside = axis.evaluate(30.0, 0.1, &mut WalkHint::default()).expect("finite");
+    assert!(!inside.outside_hull);
+    assert!(axis.evaluate(f32::NAN, 0.1, &mut WalkHint::default()).is_err());
+}

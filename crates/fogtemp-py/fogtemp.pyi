@@ -93,8 +93,8 @@ def fit(
     Options: the ``fogtemp-cal fit`` flags as keywords (window_s, blocks, min_blocks, max_gap_s,
     target_window_s, full_windows_only, thinning, tolerance_dph, max_nodes, interpolate_nodes,
     fast_rate, settled_every, poly, max_degree, p_enter, p_remove, poly_outside ("linear_from_boundary",
-    the default, "extrapolate" or "hold_at_boundary"), mesh_outside ("hold", the
-    default, or "linear_from_boundary"; a mesh model's mesh beyond its hull), capacity, operating_temp_c as a
+    the default, "extrapolate" or "hold_at_boundary"), mesh_outside ("linear_stored_gradients",
+    the default, "hold" or "linear_from_boundary"; a mesh model's mesh beyond its hull), capacity, operating_temp_c as a
     (min, max) pair) and, for files, the log-column options (time_column, time_unit, temp_column,
     temp_scale, temp_offset, gyro_column, gyro_unit, gyro_scale, delimiter, skip_lines, columns,
     sample_rate_hz, comment, skip_bad_rows). Identifiability warnings (too few runs, heating only,

@@ -1,4 +1,4 @@
-//! Model blob writer (format version 2; spec in `docs/model-format.md`, offsets in
+//! Model blob writer (format version 2, or 3 with a mesh continued by stored gradients; spec in `docs/model-format.md`, offsets in
 //! [`fogtemp_core::wire`]). Every blob is read back through `Model::from_bytes`
 //! before it is returned, so a writer bug is reported here instead of in firmware.
 
@@ -73,7 +73,11 @@ pub fn encode_with_selection(model: &ModelFile, selection: &[u16]) -> Result<Vec
     }
     let mut out = vec![0u8; FILE_HEADER_LEN];
     out[FILE_MAGIC].copy_from_slice(&MAGIC);
-    put_u16(&mut out, FILE_VERSION.start, FORMAT_VERSION);
+    // The lowest version that holds the model: 3 only where the hull gradients need it, so
+    // every other blob is byte for byte what it was, and readers of version 2 still take it.
+    let needs_gradients = model.axes.iter().any(|a| a.outside_policy == OutsidePolicy::StoredGradients);
+    let version = if needs_gradients { FORMAT_VERSION } else { FORMAT_VERSION_WITHOUT_GRADIENTS };
+    put_u16(&mut out, FILE_VERSION.start, version);
     put_u16(&mut out, FILE_HEADER_LEN_FIELD.start, FILE_HEADER_LEN as u16);
     put_u16(&mut out, FILE_AXIS_COUNT.start, model.axes.len() as u16);
     let version = model.tool_version.as_bytes();
@@ -104,6 +108,15 @@ fn encode_axis(out: &mut Vec<u8>, id: u16, axis: &AxisModel, selection: u16) -> 
         moved_flat: Vec::new(),
     };
     let mesh = axis.mesh.as_ref().unwrap_or(&empty);
+    // Stored gradients: the hull vertices numbered first, in hull order (their gradients are
+    // then found by vertex index as well as by hull index; the core checks it).
+    let renumbered;
+    let mesh = if axis.outside_policy == OutsidePolicy::StoredGradients {
+        renumbered = hull_vertices_first(mesh).map_err(CalError::Encode)?;
+        &renumbered
+    } else {
+        mesh
+    };
     let count = |what: &'static str, n: usize| {
         u32::try_from(n).map_err(|_| CalError::Encode(EncodeProblem::TooLarge { what, count: n }))
     };
@@ -117,7 +130,12 @@ fn encode_axis(out: &mut Vec<u8>, id: u16, axis: &AxisModel, selection: u16) -> 
     if mesh.neighbours.len() != mesh.triangles.len() {
         return Err(CalError::Encode(EncodeProblem::NeighbourMismatch));
     }
-    let section_len = axis_section_len(terms, vertices, triangles, hull, region)
+    let gradients = if axis.outside_policy == OutsidePolicy::StoredGradients {
+        hull_gradients(mesh).map_err(CalError::Encode)?
+    } else {
+        Vec::new()
+    };
+    let section_len = axis_section_len(terms, vertices, triangles, hull, region, gradients.len() as u32)
         .and_then(|n| u32::try_from(n).ok())
         .ok_or(CalError::Encode(EncodeProblem::TooLarge {
             what: "axis section",
@@ -186,7 +204,7 @@ fn encode_axis(out: &mut Vec<u8>, id: u16, axis: &AxisModel, selection: u16) -> 
         out.extend_from_slice(&t.to_le_bytes());
         out.extend_from_slice(&e.to_le_bytes());
     }
-    for v in &axis.region {
+    for v in axis.region.iter().chain(&gradients) {
         out.extend_from_slice(&v[0].to_le_bytes());
         out.extend_from_slice(&v[1].to_le_bytes());
     }
@@ -234,6 +252,115 @@ pub fn calibrated_region(points: &[(f32, f32)]) -> Vec<[f32; 2]> {
         hull.remove(smallest);
     }
     hull.into_iter().map(|(x, y)| [x, y]).collect()
+}
+
+/// `mesh` with its vertices renumbered so that hull vertex h (the start of hull edge h) is
+/// vertex h, the others after them in their order; triangles, neighbours and hull entries
+/// unchanged but for the vertex indices, so every position, value and transform is the same.
+///
+/// # Errors
+/// [`EncodeProblem::BadTriangle`] for a hull entry or vertex index out of range, or a hull
+/// that visits a vertex twice.
+pub fn hull_vertices_first(mesh: &MeshModel) -> Result<MeshModel, EncodeProblem> {
+    const UNSET: u32 = u32::MAX;
+    let n = mesh.vertices.len();
+    let mut new_index = vec![UNSET; n];
+    let mut order = Vec::with_capacity(n);
+    for &(t, e) in &mesh.hull {
+        let bad = EncodeProblem::BadTriangle { triangle: t as usize };
+        let start = *mesh
+            .triangles
+            .get(t as usize)
+            .and_then(|tri| tri.get((e as usize + 1) % 3))
+            .ok_or(bad.clone())?;
+        let slot = new_index.get_mut(start as usize).filter(|i| **i == UNSET).ok_or(bad)?;
+        *slot = order.len() as u32;
+        order.push(start);
+    }
+    for (v, index) in new_index.iter_mut().enumerate() {
+        if *index == UNSET {
+            *index = order.len() as u32;
+            order.push(v as u32);
+        }
+    }
+    let mut triangles = Vec::with_capacity(mesh.triangles.len());
+    for (t, tri) in mesh.triangles.iter().enumerate() {
+        let renumber =
+            |v: u32| new_index.get(v as usize).copied().ok_or(EncodeProblem::BadTriangle { triangle: t });
+        triangles.push([renumber(tri[0])?, renumber(tri[1])?, renumber(tri[2])?]);
+    }
+    Ok(MeshModel {
+        vertices: order.iter().map(|&v| mesh.vertices[v as usize]).collect(),
+        triangles,
+        ..mesh.clone()
+    })
+}
+
+/// The continuation gradients of `OutsidePolicy::StoredGradients`, one per hull edge, at its
+/// start vertex `q` (deg/h per normalised unit): the gradient of the weighted least-squares
+/// plane of the mesh nodes with biweight weights `(1 - r^2 / R^2)^2` within
+/// `R = fogtemp_core::GRADIENT_RADIUS` of `q`, or of every node with equal weights where
+/// those do not span a plane (`1 - rho^2 < 1e-2` of their weighted positions), the rule of the
+/// query-time policy (`fogtemp-core`'s `src/beyond.rs`), here in f64 from the f32 nodes the
+/// blob stores. Where not even every node spans a plane (a thin mesh: one warm-up run), zero:
+/// the value is held there, as the query-time policy holds it when it finds no gradient.
+/// Empty for a mesh without hull edges.
+///
+/// # Errors
+/// [`EncodeProblem::NoHullGradient`] for a hull entry out of range.
+pub fn hull_gradients(mesh: &MeshModel) -> Result<Vec<[f32; 2]>, EncodeProblem> {
+    let nodes: Vec<[f64; 3]> =
+        mesh.vertices.iter().map(|v| [f64::from(v.x), f64::from(v.y), f64::from(v.value_dph)]).collect();
+    let radius2 = f64::from(fogtemp_core::GRADIENT_RADIUS).powi(2);
+    let mut out = Vec::with_capacity(mesh.hull.len());
+    for (h, &(t, e)) in mesh.hull.iter().enumerate() {
+        let missing = EncodeProblem::NoHullGradient { hull_edge: h };
+        // Edge e runs from vertex e + 1 to e + 2 of its triangle: its start vertex.
+        let start = mesh.triangles.get(t as usize).and_then(|tri| tri.get((e as usize + 1) % 3));
+        let q = start.and_then(|&i| nodes.get(i as usize)).ok_or(missing)?;
+        let biweight = |p: &[f64; 3]| {
+            let r2 = ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2)) / radius2;
+            if r2 < 1.0 {
+                (1.0 - r2).powi(2)
+            } else {
+                0.0
+            }
+        };
+        let g =
+            plane_gradient(&nodes, biweight).or_else(|| plane_gradient(&nodes, |_| 1.0)).unwrap_or([0.0; 2]);
+        out.push([g[0] as f32, g[1] as f32]);
+    }
+    Ok(out)
+}
+
+/// Gradient of the plane `v = a x + b y + c` fitted to `nodes` (x, y, value) by least squares
+/// with weights `weight(node)`, the moments centred on the weighted mean; `None` when the
+/// weighted positions do not span a plane (`1 - rho^2 < 1e-2`, the core's test) or the
+/// result is not finite in f32.
+fn plane_gradient(nodes: &[[f64; 3]], weight: impl Fn(&[f64; 3]) -> f64) -> Option<[f64; 2]> {
+    let weighted: Vec<(f64, &[f64; 3])> =
+        nodes.iter().map(|p| (weight(p), p)).filter(|(w, _)| *w > 0.0).collect();
+    let sw: f64 = weighted.iter().map(|(w, _)| w).sum();
+    if sw.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
+        return None;
+    }
+    let mean = |k: usize| weighted.iter().map(|(w, p)| w * p[k]).sum::<f64>() / sw;
+    let m = [mean(0), mean(1), mean(2)];
+    let (mut sxx, mut sxy, mut syy, mut sxv, mut syv) = (0.0, 0.0, 0.0, 0.0, 0.0);
+    for (w, p) in &weighted {
+        let (dx, dy, dv) = (p[0] - m[0], p[1] - m[1], p[2] - m[2]);
+        sxx += w * dx * dx;
+        sxy += w * dx * dy;
+        syy += w * dy * dy;
+        sxv += w * dx * dv;
+        syv += w * dy * dv;
+    }
+    let det = sxx * syy - sxy * sxy;
+    if !(det > 1e-2 * sxx * syy && det.is_finite()) {
+        return None;
+    }
+    let g = [(syy * sxv - sxy * syv) / det, (sxx * syv - sxy * sxv) / det];
+    g.iter().all(|v| (*v as f32).is_finite()).then_some(g)
 }
 
 /// A triangle's stored transforms, relative to `origin` (vertex 2).

@@ -151,12 +151,13 @@ pub struct CalibrationConfig {
     /// nearest boundary point (no worse than extrapolating on the testbed, and no runaway);
     /// holding at the boundary was worse (docs/calibration-testbed.md).
     pub poly_outside: fogtemp_core::PolyOutside,
-    /// What a mesh model's mesh does outside its hull: held at the nearest hull point (the
-    /// default: one outside query stays a walk, not a pass over every node) or continued
-    /// linearly from it (better on the testbed's null cases; docs/calibration-testbed.md,
-    /// "Mesh beyond its hull"). The
-    /// hybrid's mesh, a residual on the polynomial, is always zero outside (the polynomial's
-    /// own continuation carries the trend there).
+    /// What a mesh model's mesh does outside its hull: continued linearly from the nearest hull
+    /// point with gradients stored per hull vertex (the default, chosen after measuring it:
+    /// the testbed's null cases within 3 % of the polynomial, the Python whole-box benchmark
+    /// above 10x scipy; docs/calibration-testbed.md, "Mesh continuation with stored
+    /// gradients"), the same with the gradient fitted per query, or held. The hybrid's mesh, a
+    /// residual on the polynomial, is always zero outside (the polynomial's own continuation
+    /// carries the trend there). A polynomial-only axis stores hold (no mesh to continue).
     pub mesh_outside: OutsidePolicy,
     /// Insert Steiner nodes where a plain mesh's triangles are too large to carry the
     /// polynomial part its node fit leaves free (`refine`; least-squares nodes only).
@@ -176,7 +177,7 @@ impl Default for CalibrationConfig {
             least_squares_nodes: true,
             rate_axis_weight: 1.0,
             poly_outside: fogtemp_core::PolyOutside::LinearFromBoundary,
-            mesh_outside: OutsidePolicy::NearestHull,
+            mesh_outside: OutsidePolicy::StoredGradients,
             refine_mesh: true,
         }
     }
@@ -581,8 +582,13 @@ pub fn fit_axis(
             }
         }
     };
-    let outside_policy =
-        if config.method == Method::Hybrid { OutsidePolicy::Zero } else { config.mesh_outside };
+    // Stored gradients need a mesh (and format version 3): an axis without one stores 0, so a
+    // polynomial's blob stays version 2, byte for byte as before.
+    let outside_policy = match (config.method, config.mesh_outside) {
+        (Method::Hybrid, _) => OutsidePolicy::Zero,
+        (_, OutsidePolicy::StoredGradients) if mesh.is_none() => OutsidePolicy::NearestHull,
+        (_, policy) => policy,
+    };
     let range = |f: &dyn Fn(&MeshPoint) -> f64| {
         points.iter().map(f).fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(v), b.max(v)))
     };

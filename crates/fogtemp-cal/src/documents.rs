@@ -349,6 +349,7 @@ impl ModelAxisDocument {
                 OutsidePolicy::NearestHull => "nearest_hull",
                 OutsidePolicy::Zero => "zero",
                 OutsidePolicy::LinearFromBoundary => "linear_from_boundary",
+                OutsidePolicy::StoredGradients => "linear_stored_gradients",
             });
             for v in (0..mesh.vertex_count()).filter_map(|k| mesh.vertex(k)) {
                 let (temp_c, rate_c_per_min) = crate::mesh::to_physical(n, f64::from(v.x), f64::from(v.y));

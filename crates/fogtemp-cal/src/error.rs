@@ -189,6 +189,13 @@ pub enum EncodeProblem {
         /// Triangle index.
         triangle: usize,
     },
+    /// A hull entry names a triangle or vertex that does not exist, so its gradient cannot be
+    /// computed.
+    #[error("no gradient at the start of hull edge {hull_edge}: its triangle or vertex does not exist")]
+    NoHullGradient {
+        /// Hull edge index.
+        hull_edge: usize,
+    },
     /// The feature tracker settings are outside what the core accepts.
     #[error("feature settings: {0}")]
     FeatureSettings(fogtemp_core::Error),

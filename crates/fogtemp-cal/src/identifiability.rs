@@ -21,7 +21,7 @@
 //!   spread over folds has a degree of freedom beyond one difference.
 //! - `narrow_temperature_range`: when the temperature range the model will be used over is
 //!   known, any part of it outside the calibrated range (there a polynomial, by default,
-//!   continues linearly from its boundary and a mesh holds its hull value). Otherwise a
+//!   continues linearly from its boundary and a mesh from its hull). Otherwise a
 //!   calibrated span below [`MIN_TEMP_SPAN_C`] = 20 C: one power-on's self-heating alone spans 5-20 C
 //!   (docs/physics.md, ranges), so a narrower calibration has not varied the ambient
 //!   temperature and cannot tell the temperature's effect from the warm-up's.
@@ -209,7 +209,7 @@ fn temperature_range(
                 format!(
                     "axis {axis}: the calibration covers {lo:.1} to {hi:.1} C but the model is used over \
                      {op_lo:.1} to {op_hi:.1} C: {below:.1} C below and {above:.1} C above are not calibrated \
-                     (by default a polynomial continues linearly from its boundary and a mesh holds its hull value); extend the chamber's range"
+                     (by default a polynomial continues linearly from its boundary and a mesh from its hull's nearest point); extend the chamber's range"
                 ),
                 &[
                     ("temp_min_c", lo),
@@ -262,7 +262,7 @@ fn rate_signs(points: &CalibrationPoints, axis: usize) -> Option<Warning> {
         format!(
             "axis {axis}: the calibration only {what} (dT/dt from {p01:.3} to {p99:.3} C/min, 1st to 99th \
              percentile; changing means beyond +-{MOVING_RATE_C_PER_MIN} C/min): {missing} rates are outside \
-             the calibrated region (by default a polynomial continues linearly from its boundary and a mesh holds its hull value) and heating/cooling hysteresis \
+             the calibrated region (by default a polynomial continues linearly from its boundary and a mesh from its hull's nearest point) and heating/cooling hysteresis \
              cannot be seen; add {missing} runs"
         ),
         &[

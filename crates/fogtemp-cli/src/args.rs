@@ -243,6 +243,10 @@ pub enum MeshOutsideArg {
     /// least-squares plane of the nodes near it (flagged OUTSIDE_HULL).
     #[value(alias = "linear")]
     LinearFromBoundary,
+    /// As `linear-from-boundary`, with the slope computed once by `fit` at each hull vertex
+    /// and stored in the model (linear along each hull edge): an outside query costs the
+    /// nearest hull point, no pass over the nodes (flagged OUTSIDE_HULL; model format 3).
+    LinearStoredGradients,
 }
 
 impl From<MeshOutsideArg> for fogtemp_core::OutsidePolicy {
@@ -250,6 +254,7 @@ impl From<MeshOutsideArg> for fogtemp_core::OutsidePolicy {
         match a {
             MeshOutsideArg::Hold => fogtemp_core::OutsidePolicy::NearestHull,
             MeshOutsideArg::LinearFromBoundary => fogtemp_core::OutsidePolicy::LinearFromBoundary,
+            MeshOutsideArg::LinearStoredGradients => fogtemp_core::OutsidePolicy::StoredGradients,
         }
     }
 }
@@ -315,11 +320,13 @@ pub struct FitArgs {
     /// (docs/calibration-testbed.md, "Continued linearly").
     #[arg(long, value_enum, default_value_t = PolyOutsideArg::LinearFromBoundary)]
     pub poly_outside: PolyOutsideArg,
-    /// What a mesh model's mesh does outside its hull, stored in the model: held at the
-    /// nearest hull point (the default), or continued linearly from it as the polynomial is
-    /// (costs one pass over the mesh's nodes per outside query; docs/calibration-testbed.md,
-    /// "Mesh beyond its hull"). The hybrid's mesh is zero outside its hull either way.
-    #[arg(long, value_enum, default_value_t = MeshOutsideArg::Hold)]
+    /// What a mesh model's mesh does outside its hull, stored in the model: continued linearly
+    /// from the nearest hull point as the polynomial is, with the slope stored per hull vertex
+    /// (the default: an outside query costs about what holding costs; model format 3), the
+    /// same with the slope fitted per query (one pass over the mesh's nodes per outside query),
+    /// or held at the nearest hull point (docs/calibration-testbed.md, "Mesh continuation with
+    /// stored gradients"). The hybrid's mesh is zero outside its hull either way.
+    #[arg(long, value_enum, default_value_t = MeshOutsideArg::LinearStoredGradients)]
     pub mesh_outside: MeshOutsideArg,
     /// How `auto` scores a held-out run: every window, or only the windows inside the
     /// training runs' calibrated region (docs/calibration-testbed.md).

@@ -327,9 +327,18 @@ fn mesh_outside_is_stored_named_and_acts_only_outside_the_hull() {
     std::fs::write(&points, "temp_c,rate_c_per_min\n20,0\n20,50\n").expect("write points");
     let points = points.display().to_string();
     let mut evaluated = Vec::new();
-    for (policy, stored) in [("hold", "nearest_hull"), ("linear-from-boundary", "linear_from_boundary")] {
+    // The default (no flag) is the continuation with stored gradients.
+    for (policy, stored) in [
+        ("hold", "nearest_hull"),
+        ("linear-from-boundary", "linear_from_boundary"),
+        ("", "linear_stored_gradients"),
+        ("linear-stored-gradients", "linear_stored_gradients"),
+    ] {
         let model = dir.path().join(format!("{policy}.fogm")).display().to_string();
-        let mut args = vec!["fit", "--method", "mesh", "--mesh-outside", policy, "--out", &model];
+        let mut args = vec!["fit", "--method", "mesh", "--out", &model];
+        if !policy.is_empty() {
+            args.extend(["--mesh-outside", policy]);
+        }
         args.extend(logs.iter().map(String::as_str));
         let fit = cal(&args);
         assert!(fit.status.success(), "{}", String::from_utf8_lossy(&fit.stderr));
@@ -344,4 +353,9 @@ fn mesh_outside_is_stored_named_and_acts_only_outside_the_hull() {
     assert!(!outside_hull(&held[0]), "{held:?}");
     assert!(outside_hull(&held[1]) && outside_hull(&linear[1]), "{held:?} {linear:?}");
     assert_ne!(held[1][2], linear[1][2], "beyond the hull the continuation moves the value");
+    let (default, stored) = (&evaluated[2], &evaluated[3]);
+    assert_eq!(default, stored, "the default is linear-stored-gradients");
+    assert_eq!(held[0], stored[0], "inside the hull the stored-gradient policy agrees");
+    assert!(outside_hull(&stored[1]), "{stored:?}");
+    assert_ne!(held[1][2], stored[1][2], "beyond the hull the stored continuation moves the value");
 }

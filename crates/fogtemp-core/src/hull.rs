@@ -311,6 +311,33 @@ pub(crate) fn value_on_crossed_edge(mesh: &Mesh<'_>, t: u32, k: usize, x: f32, y
     on_edge.then(|| edge_nearest(&a, &b, x, y).1)
 }
 
+/// The nearest hull point of `(x, y)` when it lies on the hull edge `k` of triangle `t` itself
+/// (the edge a walk crossed), by [`value_on_crossed_edge`]'s certificate: the edge's start and
+/// end vertex indices, the projection parameter `s`, the point and the value there (as
+/// `src/beyond.rs` computes them for a certified edge, so the same bits); `None` where that
+/// certificate does not hold.
+#[inline]
+pub(crate) fn foot_on_crossed_edge(
+    mesh: &Mesh<'_>,
+    t: u32,
+    k: usize,
+    x: f32,
+    y: f32,
+) -> Option<(u32, u32, f32, P, f32)> {
+    if !(x.is_finite() && y.is_finite()) || mesh.hull_edge_count() < 3 {
+        return None;
+    }
+    let edge = slot(mesh, t, k)?;
+    let (a, b) = (mesh.vertex(edge.from)?, mesh.vertex(edge.to)?);
+    let (along, len2, side) = edge_frame(&a, &b, [x, y]);
+    if !(positive(len2) && along > 0.0 && along < len2 && side <= 0.0) {
+        return None;
+    }
+    let e = sub([b.x, b.y], [a.x, a.y]);
+    let s = (dot(sub([x, y], [a.x, a.y]), e) / len2).clamp(0.0, 1.0);
+    Some((edge.from, edge.to, s, [a.x + s * e[0], a.y + s * e[1]], edge_nearest(&a, &b, x, y).1))
+}
+
 /// The value at the vertex between hull edges `before` (ending there) and `after` (starting
 /// there): the scan's choice between the two (the smaller f32 squared distance; on a tie the
 /// lower hull index, which is `before` unless `after` is hull edge 0). Each gives the vertex up

@@ -28,8 +28,14 @@ pub enum OutsidePolicy {
     /// [`crate::GRADIENT_RADIUS`] of `q` (`src/beyond.rs`): the mesh's first-order
     /// continuation, as the polynomial's `PolyOutside::LinearFromBoundary`. Continuous
     /// across the hull, exact for a plane. Blob code 2 (a reader that knows only 0 and 1
-    /// refuses the blob).
+    /// refuses the blob). One pass over every node per outside query.
     LinearFromBoundary,
+    /// As [`OutsidePolicy::LinearFromBoundary`], with the gradient stored in the blob: the
+    /// writer's least-squares gradient at each hull vertex (the same biweight neighbourhood),
+    /// linear along each hull edge between its two vertices' (`src/beyond.rs`). An outside
+    /// query costs the nearest hull point and O(1), no pass over the nodes. Blob code 3,
+    /// format version 3 (the gradients follow the region).
+    StoredGradients,
 }
 
 impl OutsidePolicy {
@@ -39,6 +45,7 @@ impl OutsidePolicy {
             OutsidePolicy::NearestHull => 0,
             OutsidePolicy::Zero => 1,
             OutsidePolicy::LinearFromBoundary => 2,
+            OutsidePolicy::StoredGradients => 3,
         }
     }
 
@@ -48,6 +55,7 @@ impl OutsidePolicy {
             0 => Some(OutsidePolicy::NearestHull),
             1 => Some(OutsidePolicy::Zero),
             2 => Some(OutsidePolicy::LinearFromBoundary),
+            3 => Some(OutsidePolicy::StoredGradients),
             _ => None,
         }
     }
@@ -122,6 +130,9 @@ pub struct Mesh<'a> {
     pub(crate) vertices: &'a [u8],
     pub(crate) triangles: &'a [u8],
     pub(crate) hull: &'a [u8],
+    /// Hull gradients ([`wire::HULL_GRADIENT_LEN`] each), one per hull edge with
+    /// [`OutsidePolicy::StoredGradients`], else empty.
+    pub(crate) gradients: &'a [u8],
     pub(crate) policy: OutsidePolicy,
     /// The axis this mesh belongs to (named in errors).
     pub(crate) axis: u16,
@@ -146,6 +157,16 @@ impl<'a> Mesh<'a> {
     /// The outside-hull policy stored in the blob.
     pub fn outside_policy(&self) -> OutsidePolicy {
         self.policy
+    }
+
+    /// The stored continuation gradient `[d/dx, d/dy]` (deg/h per normalised unit) at hull
+    /// vertex `index`: the start of hull edge `index`, which with this policy is also vertex
+    /// `index` (the writer numbers the hull vertices first, validated). `None` unless the
+    /// policy is [`OutsidePolicy::StoredGradients`] and the hull vertex exists.
+    pub fn hull_gradient(&self, index: u32) -> Option<[f32; 2]> {
+        let start = (index as usize).checked_mul(wire::HULL_GRADIENT_LEN)?;
+        let g = wire::array::<{ wire::HULL_GRADIENT_LEN }>(self.gradients, start)?;
+        Some([wire::f32_at(&g, 0)?, wire::f32_at(&g, 4)?])
     }
 
     /// Vertex `index`, if it exists.
@@ -522,6 +543,7 @@ impl<'a> Mesh<'a> {
             OutsidePolicy::NearestHull => self.hull_value_after_walk(triangle, k, x, y),
             OutsidePolicy::Zero => 0.0,
             OutsidePolicy::LinearFromBoundary => self.linear_value_after_walk(triangle, k, x, y),
+            OutsidePolicy::StoredGradients => self.stored_value_after_walk(triangle, k, x, y),
         };
         MeshValue { value_dph, triangle, outside_hull: true }
     }
@@ -532,6 +554,17 @@ impl<'a> Mesh<'a> {
     #[inline(never)]
     fn linear_value_after_walk(&self, triangle: u32, k: usize, x: f32, y: f32) -> f32 {
         match crate::beyond::linear_value(self, x, y) {
+            Some(value) => value,
+            None => self.hull_value_after_walk(triangle, k, x, y),
+        }
+    }
+
+    /// The policy `StoredGradients`'s value (see `src/beyond.rs`); where the nearest hull point
+    /// cannot be found (a non-finite query), the hull value as `NearestHull` gives it.
+    #[cold]
+    #[inline(never)]
+    fn stored_value_after_walk(&self, triangle: u32, k: usize, x: f32, y: f32) -> f32 {
+        match crate::beyond::stored_gradient_value_after_walk(self, triangle, k, x, y) {
             Some(value) => value,
             None => self.hull_value_after_walk(triangle, k, x, y),
         }

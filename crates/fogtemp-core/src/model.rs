@@ -467,8 +467,15 @@ fn parse_axis(body: &[u8], offset: usize, id: u16, version: u16) -> Result<(Axis
     } else if vertices != 0 || triangles != 0 || hull != 0 {
         return Err(bad("vertex_count"));
     }
+    // Hull gradients: one per hull edge with policy 3, which needs the version that has them
+    // (a code unknown to this reader or to the blob's version is refused by name here).
+    let policy = OutsidePolicy::from_code(u32f(AXIS_OUTSIDE_POLICY))
+        .filter(|p| *p != OutsidePolicy::StoredGradients || version >= FIRST_VERSION_WITH_GRADIENTS)
+        .ok_or(bad("outside_policy"))?;
+    let gradients = if policy == OutsidePolicy::StoredGradients { hull } else { 0 };
     let section_len = u32f(AXIS_SECTION_LEN) as usize;
-    let expected = axis_section_len(terms, vertices, triangles, hull, region_count).unwrap_or(usize::MAX);
+    let expected =
+        axis_section_len(terms, vertices, triangles, hull, region_count, gradients).unwrap_or(usize::MAX);
     if section_len != expected {
         return Err(Error::LengthMismatch { field: "section_len", expected, found: section_len });
     }
@@ -496,7 +503,6 @@ fn parse_axis(body: &[u8], offset: usize, id: u16, version: u16) -> Result<(Axis
         rate_min_c_per_min: f32f(AXIS_RATE_MIN_C_PER_MIN),
         rate_max_c_per_min: f32f(AXIS_RATE_MAX_C_PER_MIN),
     };
-    let policy = OutsidePolicy::from_code(u32f(AXIS_OUTSIDE_POLICY)).ok_or(bad("outside_policy"))?;
 
     // Payload slices, in order. Lengths were checked against section_len above.
     let mut cursor = AXIS_HEADER_LEN;
@@ -510,6 +516,7 @@ fn parse_axis(body: &[u8], offset: usize, id: u16, version: u16) -> Result<(Axis
     let triangle_bytes = take(triangles as usize * TRIANGLE_LEN);
     let hull_bytes = take(hull as usize * HULL_EDGE_LEN);
     let region_bytes = take(region_count as usize * REGION_VERTEX_LEN);
+    let gradient_bytes = take(gradients as usize * HULL_GRADIENT_LEN);
     let axis = Axis {
         id,
         features,
@@ -521,6 +528,7 @@ fn parse_axis(body: &[u8], offset: usize, id: u16, version: u16) -> Result<(Axis
             vertices: vertex_bytes,
             triangles: triangle_bytes,
             hull: hull_bytes,
+            gradients: gradient_bytes,
             policy,
             axis: id,
         }),
@@ -685,7 +693,27 @@ fn validate_mesh(mesh: &Mesh<'_>, id: u16) -> Result<(), Error> {
             found: mesh.hull_edge_count() as usize,
         });
     }
-    validate_hull(mesh, id)
+    validate_hull(mesh, id)?;
+    validate_gradients(mesh, id)
+}
+
+/// With stored gradients, hull vertex h is vertex h (the start of hull edge h), and one finite
+/// pair per hull edge (the count is implied by `hull_edge_count` and checked with
+/// `section_len`).
+fn validate_gradients(mesh: &Mesh<'_>, id: u16) -> Result<(), Error> {
+    if mesh.policy != OutsidePolicy::StoredGradients {
+        return Ok(());
+    }
+    for h in 0..mesh.hull_edge_count() {
+        if mesh.hull_start_index(h) != Some(h) {
+            return Err(Error::BadMesh { check: "hull vertices numbered first", axis: id, index: h });
+        }
+        let g = mesh.hull_gradient(h).ok_or(Error::BadMesh { check: "hull gradient", axis: id, index: h })?;
+        if !g.iter().all(|v| v.is_finite()) {
+            return Err(Error::NonFinite { field: "hull_gradients", axis: id, index: h });
+        }
+    }
+    Ok(())
 }
 
 fn validate_triangle_indices(

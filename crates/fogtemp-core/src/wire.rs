@@ -1,6 +1,9 @@
-//! Byte layout of the model blob, format version 2 (spec: `docs/model-format.md`). Version 1
-//! blobs (no calibrated region: the same layout with [`AXIS_REGION_VERTEX_COUNT`] and
-//! [`AXIS_POLY_OUTSIDE`] reserved as zero) are still read, with the polynomial extrapolated.
+//! Byte layout of the model blob, format version 3 (spec: `docs/model-format.md`). Version 3
+//! adds the hull gradients that `outside_policy = 3` needs (after the region, only with that
+//! policy); a blob without that policy is written as version 2, byte for byte as before.
+//! Version 1 blobs (no calibrated region: the same layout with [`AXIS_REGION_VERTEX_COUNT`]
+//! and [`AXIS_POLY_OUTSIDE`] reserved as zero) are still read, with the polynomial
+//! extrapolated.
 //!
 //! Every offset is a named constant so the reader here and the writer in `fogtemp-cal`
 //! cannot drift apart. All integers and floats are little-endian; nothing is aligned,
@@ -17,6 +20,7 @@
 //! |                    |    triangles    T x 60 B
 //! |                    |    hull edges   H x  8 B
 //! |                    |    region       R x  8 B  (version 2; R = 0 in version 1)
+//! |                    |    hull grads   H x  8 B  (version 3, outside_policy 3 only)
 //! +--------------------+
 //! | axis section 1 ... |
 //! +--------------------+  total_len - 4
@@ -28,8 +32,14 @@ use core::ops::Range;
 
 /// The four bytes every blob starts with.
 pub const MAGIC: [u8; 4] = *b"FOGM";
-/// The format version this build writes (and the newest it reads).
-pub const FORMAT_VERSION: u16 = 2;
+/// The newest format version this build reads, and the one it writes for a blob with a mesh
+/// continued by stored gradients (`outside_policy = 3`, which needs it).
+pub const FORMAT_VERSION: u16 = 3;
+/// The version this build writes for every other blob: version 2, whose layout it has, so
+/// those blobs stay byte for byte what they were and readers of version 2 keep reading them.
+pub const FORMAT_VERSION_WITHOUT_GRADIENTS: u16 = 2;
+/// The oldest format version whose `outside_policy` may be 3 (hull gradients present).
+pub const FIRST_VERSION_WITH_GRADIENTS: u16 = 3;
 /// The oldest format version this build reads: version 1 has no calibrated region (its
 /// [`AXIS_REGION_VERTEX_COUNT`] and [`AXIS_POLY_OUTSIDE`] bytes are reserved, zero), so its
 /// polynomial is extrapolated as before.
@@ -162,6 +172,10 @@ pub const HULL_EDGE_LEN: usize = 8;
 /// Bytes per calibrated-region vertex: `x` f32, `y` f32 (normalised), counter-clockwise
 /// vertices of a convex polygon.
 pub const REGION_VERTEX_LEN: usize = 8;
+/// Bytes per hull gradient (version 3, `outside_policy = 3` only): `d_dx` f32, `d_dy` f32, the
+/// mesh's continuation gradient (deg/h per normalised unit) at the start vertex of the hull
+/// edge of the same index.
+pub const HULL_GRADIENT_LEN: usize = 8;
 /// Most calibrated-region vertices per axis (bounds the cost of holding at the boundary).
 pub const MAX_REGION_VERTICES: u32 = 64;
 
@@ -179,12 +193,14 @@ pub const MAX_BLOCKS: u32 = 4096;
 pub const MAX_TRIANGLES: u32 = 1 << 22;
 
 /// Byte length of an axis section with the given counts, or `None` on overflow.
+/// `hull_gradients` is `hull_edges` with `outside_policy = 3`, else 0.
 pub fn axis_section_len(
     poly_terms: u32,
     vertices: u32,
     triangles: u32,
     hull_edges: u32,
     region_vertices: u32,
+    hull_gradients: u32,
 ) -> Option<usize> {
     let parts = [
         (poly_terms as usize).checked_mul(POLY_TERM_LEN)?,
@@ -192,6 +208,7 @@ pub fn axis_section_len(
         (triangles as usize).checked_mul(TRIANGLE_LEN)?,
         (hull_edges as usize).checked_mul(HULL_EDGE_LEN)?,
         (region_vertices as usize).checked_mul(REGION_VERTEX_LEN)?,
+        (hull_gradients as usize).checked_mul(HULL_GRADIENT_LEN)?,
     ];
     parts.iter().try_fold(AXIS_HEADER_LEN, |acc, &p| acc.checked_add(p))
 }

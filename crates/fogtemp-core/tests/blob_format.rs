@@ -1,4 +1,4 @@
-//! The model blob, format versions 1 and 2, from the reader's side alone: the core's CRC against
+//! The model blob, format versions 1, 2 and 3, from the reader's side alone: the core's CRC against
 //! `crc32fast`, the committed golden bytes read and evaluated bit-exactly, and arbitrary or
 //! once-crashing input rejected or evaluated without panics.
 //!
@@ -21,11 +21,11 @@ use std::path::PathBuf;
 
 use common::blob::{
     core_digest, exercise, fix_len_and_crc, golden_queries, put_u16, GOLDEN_BLOB, GOLDEN_CSV, GOLDEN_HEADER,
-    GOLDEN_V2_BLOB, GOLDEN_V2_CSV,
+    GOLDEN_V2_BLOB, GOLDEN_V2_CSV, GOLDEN_V3_BLOB, GOLDEN_V3_CSV,
 };
 use common::rng;
 use fogtemp_core::wire::*;
-use fogtemp_core::{Model, PolyOutside, WalkHint};
+use fogtemp_core::{Model, OutsidePolicy, PolyOutside, WalkHint};
 use proptest::prelude::*;
 use proptest::test_runner::{Config, RngAlgorithm, RngSeed};
 use rand::Rng;
@@ -89,6 +89,14 @@ fn golden_v2_blob_parses_and_evaluates_every_expected_row_bit_exactly() {
     let a1 = model.axis(1).expect("axis 1");
     assert!(a1.region.is_some_and(|r| r.vertex_count() == 4));
     assert_eq!(a1.poly_outside, PolyOutside::HoldAtBoundary);
+}
+
+#[test]
+fn golden_v3_blob_parses_and_evaluates_every_expected_row_bit_exactly() {
+    let model = check_golden(GOLDEN_V3_BLOB, GOLDEN_V3_CSV, 3);
+    let mesh = model.axis(0).expect("axis 0").mesh.expect("mesh");
+    assert_eq!(mesh.outside_policy(), OutsidePolicy::StoredGradients);
+    assert!((0..mesh.hull_edge_count()).all(|h| mesh.hull_gradient(h).is_some()));
 }
 
 /// Reads a golden blob of format `version` and checks every expected row bit for bit.

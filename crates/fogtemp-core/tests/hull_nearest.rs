@@ -115,7 +115,7 @@ fn mesh_blob(points: &[[f32; 2]]) -> Vec<u8> {
 
     let mut b = one_axis_file_header(FORMAT_VERSION);
     let (nv, nt, nh) = (vertices.len() as u32, triangles.len() as u32, hull.len() as u32);
-    let section = axis_section_len(0, nv, nt, nh, 0).unwrap();
+    let section = axis_section_len(0, nv, nt, nh, 0, 0).unwrap();
     let mut h = axis_header(section, KIND_MESH);
     put_u32(&mut h, AXIS_VERTEX_COUNT.start, nv);
     put_u32(&mut h, AXIS_TRIANGLE_COUNT.start, nt);

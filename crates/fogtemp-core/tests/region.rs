@@ -25,7 +25,7 @@ const REGION: [[f32; 2]; 6] =
 /// `version` with `region` and the `poly_outside` code.
 fn poly_blob(version: u16, region: &[[f32; 2]], poly_outside: u32) -> Vec<u8> {
     let mut b = one_axis_file_header(version);
-    let section = axis_section_len(TERMS.len() as u32, 0, 0, 0, region.len() as u32).unwrap();
+    let section = axis_section_len(TERMS.len() as u32, 0, 0, 0, region.len() as u32, 0).unwrap();
     let mut h = axis_header(section, KIND_POLY);
     put_u32(&mut h, AXIS_POLY_TERM_COUNT.start, TERMS.len() as u32);
     put_u32(&mut h, AXIS_REGION_VERTEX_COUNT.start, region.len() as u32);
@@ -211,8 +211,9 @@ fn malformed_regions_and_policies_are_refused() {
     assert!(matches!(bad(poly_blob(2, &nan, hold)), Error::NonFinite { field: "region.x", .. }));
     // Version 1 has no region: the bytes are reserved.
     assert!(matches!(bad(poly_blob(1, &REGION, hold)), Error::BadValue { field: "reserved", .. }));
-    // Version 3 is not known.
-    assert!(matches!(bad(poly_blob(3, &REGION, hold)), Error::UnsupportedVersion { expected: 2, found: 3 }));
+    // Version 4 is not known (3 adds the mesh's stored hull gradients, none here).
+    assert!(matches!(bad(poly_blob(4, &REGION, hold)), Error::UnsupportedVersion { expected: 3, found: 4 }));
+    assert!(Model::from_bytes(&poly_blob(3, &REGION, hold)).is_ok());
     // Version 1 without a region reads, and extrapolates.
     let v1 = poly_blob(1, &[], 0);
     let m = Model::from_bytes(&v1).unwrap();

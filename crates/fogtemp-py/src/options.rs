@@ -240,10 +240,11 @@ pub fn calibration(o: &mut Options<'_>, base: CalibrationConfig) -> PyResult<Cal
     let mesh_outside = match o.string("mesh_outside", mesh_outside_name(base.mesh_outside))?.as_str() {
         "hold" | "nearest_hull" => fogtemp_core::OutsidePolicy::NearestHull,
         "linear_from_boundary" | "linear" => fogtemp_core::OutsidePolicy::LinearFromBoundary,
+        "linear_stored_gradients" => fogtemp_core::OutsidePolicy::StoredGradients,
         other => {
             return Err(errors::value(format!(
-                "mesh_outside must be 'hold' or 'linear_from_boundary', got '{other}'"
-            )))
+            "mesh_outside must be 'hold', 'linear_from_boundary' or 'linear_stored_gradients', got '{other}'"
+        )))
         }
     };
     Ok(CalibrationConfig {
@@ -292,6 +293,7 @@ pub fn capacity_fits(needed: usize, capacity: usize) -> PyResult<()> {
 fn mesh_outside_name(policy: fogtemp_core::OutsidePolicy) -> &'static str {
     match policy {
         fogtemp_core::OutsidePolicy::LinearFromBoundary => "linear_from_boundary",
+        fogtemp_core::OutsidePolicy::StoredGradients => "linear_stored_gradients",
         fogtemp_core::OutsidePolicy::NearestHull | fogtemp_core::OutsidePolicy::Zero => "hold",
     }
 }

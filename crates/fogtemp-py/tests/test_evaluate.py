@@ -139,20 +139,25 @@ def test_axis_out_of_range_is_a_value_error(mesh_model):
 
 
 def test_mesh_outside_is_an_option_and_acts_only_outside_the_hull(cal_logs, mesh_model):
-    # The default holds the hull value; "linear_from_boundary" continues the mesh linearly.
-    # Inside the hull both are the same interpolation bit for bit; beyond it they differ.
-    held = mesh_model
+    # The default continues the mesh linearly with gradients stored per hull vertex; "hold"
+    # holds the hull value, "linear_from_boundary" fits the gradient at query time. Inside the
+    # hull all are the same interpolation bit for bit; beyond it they differ.
+    stored = mesh_model
+    held = fogtemp.fit(cal_logs, method="mesh", mesh_outside="hold", progress=False)
     linear = fogtemp.fit(cal_logs, method="mesh", mesh_outside="linear_from_boundary", progress=False)
+    assert stored.inspect()["axes"][0]["outside_policy"] == "linear_stored_gradients"
     assert held.inspect()["axes"][0]["outside_policy"] == "nearest_hull"
     assert linear.inspect()["axes"][0]["outside_policy"] == "linear_from_boundary"
     axis = linear.inspect()["axes"][0]
     temp, rate = random_points_in_range(axis, 20_000, seed=13)
     xy = np.array([[v["x"], v["y"]] for v in axis["nodes"]])
     inside = np.isfinite(LinearNDInterpolator(xy, np.zeros(len(xy)))(*normalise(axis, temp, rate)))
-    ours, theirs = linear.evaluate(temp, rate), held.evaluate(temp, rate)
+    ours, theirs, kept = linear.evaluate(temp, rate), held.evaluate(temp, rate), stored.evaluate(temp, rate)
     # Away from the hull's edge (scipy and the core may disagree within rounding on it).
     assert inside.sum() > 1000 and (~inside).sum() > 100
     assert np.mean(ours[inside] == theirs[inside]) > 0.99
+    assert np.mean(kept[inside] == theirs[inside]) > 0.99
     assert np.any(ours[~inside] != theirs[~inside])
+    assert np.any(kept[~inside] != theirs[~inside])
     with pytest.raises(ValueError, match="mesh_outside"):
         fogtemp.fit(cal_logs, method="mesh", mesh_outside="sideways", progress=False)

@@ -116,7 +116,7 @@ pub fn exercise(model: &Model<'_>, seed: u64) -> usize {
 }
 
 // ---------------------------------------------------------------------------------------------
-// The golden files of format versions 1 and 2 (`tests/golden/` of the workspace root)
+// The golden files of format versions 1, 2 and 3 (`tests/golden/` of the workspace root)
 // ---------------------------------------------------------------------------------------------
 
 pub const GOLDEN_BLOB: &str = "model-v1.fogm";
@@ -125,6 +125,10 @@ pub const GOLDEN_CSV: &str = "model-v1.expected.csv";
 /// its boundary), written by today's writer.
 pub const GOLDEN_V2_BLOB: &str = "model-v2.fogm";
 pub const GOLDEN_V2_CSV: &str = "model-v2.expected.csv";
+/// The golden files of format version 3: the version-2 golden model with axis 0's mesh
+/// continued by stored hull gradients (`outside_policy = 3`).
+pub const GOLDEN_V3_BLOB: &str = "model-v3.fogm";
+pub const GOLDEN_V3_CSV: &str = "model-v3.expected.csv";
 pub const GOLDEN_HEADER: &str = "axis,temp_c,rate_c_per_min,value_dph_bits,outside";
 
 /// The input digest the golden model (and the root's three-axis model) carries.
