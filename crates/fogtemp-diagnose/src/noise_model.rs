@@ -1,0 +1,504 @@
+//! A noise model for the residual's short means and a generalised-least-squares (GLS) test
+//! of a candidate term (issue 10, eighth session; docs/diagnose.md, "A noise model in the
+//! acceptance").
+//!
+//! Family (IEEE Std 952 terms, docs/physics.md): white rate noise (a level per 1 s second,
+//! `alpha`) plus bias instability as a sum of stationary Gauss-Markov terms, one per decade
+//! of correlation time [`FLICKER_DECADES_S`], each of the same variance (`beta` per decade:
+//! the decade approximation of a flat Allan deviation). The decades are fixed by the
+//! physics (from the 1 s grid to beyond the longest run), not by any simulator's scenario;
+//! the two levels are estimated by REML from the runs with the current model in place. Runs
+//! are independent. The model is checked against the data (time-ordered innovations
+//! aggregated over windows, [`NoiseCheck`]); a caller falls back to its own rules when the
+//! check fails.
+//!
+//! Per run, with `D` the white part and `S` the flicker part at unit levels,
+//! `D^-1/2 S D^-1/2 = U diag(lambda) U^T`, so `Sigma = alpha D^1/2 U (I + r Lambda) U^T D^1/2`
+//! (`r = beta / alpha`) is diagonal in the rotated coordinates `U^T D^-1/2 y`: every REML
+//! evaluation is a weighted sum over those coordinates.
+
+use std::collections::HashMap;
+
+use nalgebra::{DMatrix, DVector};
+use rayon::prelude::*;
+use statrs::distribution::{ChiSquared, ContinuousCDF};
+
+/// Correlation times of the bias-instability decades, seconds.
+pub const FLICKER_DECADES_S: [f64; 6] = [1.0, 10.0, 100.0, 1e3, 1e4, 1e5];
+
+/// Ratios `beta / alpha` searched by REML: 10^(i/8) for i in -80..=16, and 0.
+const RATIO_STEPS: (i32, i32) = (-80, 16);
+
+/// Windows (in short means) of the innovation check.
+pub const CHECK_WINDOWS: [usize; 4] = [1, 4, 16, 64];
+
+/// Family-wise level of the innovation check over its windows (one-sided: excess variance;
+/// a model that overstates the noise only costs power).
+pub const CHECK_LEVEL: f64 = 0.01;
+
+/// Fewest windows a window size needs to be checked.
+const MIN_CHECK_WINDOWS: usize = 10;
+
+/// Seconds `[first, end)` of a short mean on the run's 1 s grid.
+pub type Span = (usize, usize);
+
+/// Sum over `s in a`, `t in b` of `phi^|s - t|` (a unit Gauss-Markov term on the 1 s grid).
+fn ar1_pair_sum(phi: f64, a: Span, b: Span) -> f64 {
+    let geo = |len: usize| if phi < 1.0 { (1.0 - phi.powi(len as i32)) / (1.0 - phi) } else { len as f64 };
+    let (la, lb) = (a.1.saturating_sub(a.0), b.1.saturating_sub(b.0));
+    if a.1 <= b.0 {
+        geo(la) * geo(lb) * phi.powi((b.0 - a.1 + 1) as i32)
+    } else if b.1 <= a.0 {
+        ar1_pair_sum(phi, b, a)
+    } else {
+        let mut sum = 0.0;
+        for s in a.0..a.1 {
+            for t in b.0..b.1 {
+                sum += phi.powi(s.abs_diff(t) as i32);
+            }
+        }
+        sum
+    }
+}
+
+/// Covariance of two short means (spans `a`, `b`) of the unit white part (variance 1 per
+/// second) and of the unit flicker part (every decade of variance 1).
+pub fn unit_block_cov(a: Span, b: Span) -> (f64, f64) {
+    let (la, lb) = (a.1.saturating_sub(a.0) as f64, b.1.saturating_sub(b.0) as f64);
+    let norm = (la * lb).max(1.0);
+    let overlap = a.1.min(b.1).saturating_sub(a.0.max(b.0)) as f64;
+    let flicker: f64 = FLICKER_DECADES_S.iter().map(|tau| ar1_pair_sum((-1.0 / tau).exp(), a, b)).sum();
+    (overlap / norm, flicker / norm)
+}
+
+/// Covariance matrix of one run's short means at levels `(alpha, beta)`.
+pub fn run_covariance(spans: &[Span], alpha: f64, beta: f64) -> DMatrix<f64> {
+    let n = spans.len();
+    DMatrix::from_fn(n, n, |i, j| {
+        let (w, f) = unit_block_cov(spans[i], spans[j]);
+        alpha * w + beta * f
+    })
+}
+
+/// One run structure's joint diagonalisation (see the module documentation).
+#[derive(Clone, Debug)]
+struct Rotation {
+    /// `U^T D^-1/2`.
+    rotate: DMatrix<f64>,
+    lambda: Vec<f64>,
+}
+
+impl Rotation {
+    fn of(spans: &[Span]) -> Option<Self> {
+        let n = spans.len();
+        let d_inv_sqrt: Vec<f64> = spans.iter().map(|&sp| unit_block_cov(sp, sp).0.powf(-0.5)).collect();
+        if d_inv_sqrt.iter().any(|d| !d.is_finite()) {
+            return None;
+        }
+        let c = DMatrix::from_fn(n, n, |i, j| d_inv_sqrt[i] * unit_block_cov(spans[i], spans[j]).1 * d_inv_sqrt[j]);
+        let eig = c.symmetric_eigen();
+        let mut rotate = eig.eigenvectors.transpose();
+        for (j, d) in d_inv_sqrt.iter().enumerate() {
+            rotate.column_mut(j).scale_mut(*d);
+        }
+        Some(Rotation { rotate, lambda: eig.eigenvalues.iter().map(|l| l.max(0.0)).collect() })
+    }
+}
+
+/// The fitted noise model of one set of runs.
+#[derive(Clone, Debug)]
+pub struct NoiseFit {
+    /// White level: variance of one second's residual, (deg/h)^2.
+    pub white_var: f64,
+    /// Flicker level: variance of each Gauss-Markov decade, (deg/h)^2.
+    pub flicker_var: f64,
+    /// Whether the REML maximum lay at the edge of the searched ratios.
+    pub at_edge: bool,
+    /// The innovation check at the fitted levels.
+    pub check: NoiseCheck,
+    /// Per run: `diag(var^-1/2) U^T D^-1/2` (whitens the run's short means).
+    whiten: Vec<DMatrix<f64>>,
+}
+
+/// Innovation check: `(window, windows, ratio, p)` for each window size checked, and
+/// whether every p is above its share of [`CHECK_LEVEL`].
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct NoiseCheck {
+    /// `(window in short means, windows, mean square of the window sums / window, one-sided p)`.
+    pub windows: Vec<(usize, usize, f64, f64)>,
+    /// The model fits (no window shows excess variance at the family-wise level).
+    pub passed: bool,
+}
+
+/// Rotated design `[x | y]` per run with its eigenvalues.
+struct Rotated {
+    m: DMatrix<f64>,
+    lambda: Vec<f64>,
+}
+
+/// Profile REML at ratio `r` (`alpha` profiled out): `(log-likelihood up to a constant, alpha)`.
+fn profile_reml(rotated: &[Rotated], p: usize, r: f64) -> Option<(f64, f64)> {
+    let mut a = DMatrix::<f64>::zeros(p, p);
+    let mut b = DVector::<f64>::zeros(p);
+    let (mut yy, mut log_det, mut n) = (0.0, 0.0, 0usize);
+    for rot in rotated {
+        let mut mw = rot.m.clone();
+        for (i, l) in rot.lambda.iter().enumerate() {
+            let v = 1.0 + r * l;
+            log_det += v.ln();
+            mw.row_mut(i).unscale_mut(v);
+        }
+        let x = rot.m.columns(0, p);
+        let xw = mw.columns(0, p);
+        a += x.transpose() * xw;
+        b += xw.transpose() * rot.m.column(p);
+        yy += rot.m.column(p).dot(&mw.column(p));
+        n += rot.lambda.len();
+    }
+    let chol = a.clone().cholesky()?;
+    let rss = yy - b.dot(&chol.solve(&b));
+    let dof = n.checked_sub(p).filter(|d| *d > 0)? as f64;
+    if rss <= 0.0 || !rss.is_finite() {
+        return None;
+    }
+    let log_det_a: f64 = chol.l().diagonal().iter().map(|d| 2.0 * d.ln()).sum();
+    Some((-0.5 * (dof * rss.ln() + log_det + log_det_a), rss / dof))
+}
+
+/// Fits the noise model by REML with the design `x` (per run, the same columns) in place:
+/// the ratio `beta / alpha` on a log grid then refined by golden section between the grid
+/// neighbours, `alpha` in closed form. `None` when the design is singular or a run has no
+/// short means.
+pub fn fit_noise(spans: &[Vec<Span>], x: &[DMatrix<f64>], y: &[Vec<f64>]) -> Option<NoiseFit> {
+    let p = x.first()?.ncols();
+    let mut cache: HashMap<Vec<Span>, Rotation> = HashMap::new();
+    for s in spans {
+        if !cache.contains_key(s) {
+            cache.insert(s.clone(), Rotation::of(s)?);
+        }
+    }
+    let rotated: Vec<Rotated> = spans
+        .iter()
+        .zip(x)
+        .zip(y)
+        .map(|((s, xr), yr)| {
+            let rot = &cache[s];
+            let mut m = DMatrix::zeros(yr.len(), p + 1);
+            m.columns_mut(0, p).copy_from(xr);
+            m.column_mut(p).copy_from_slice(yr);
+            Rotated { m: &rot.rotate * m, lambda: rot.lambda.clone() }
+        })
+        .collect();
+    let ratio = |i: i32| if i < RATIO_STEPS.0 { 0.0 } else { 10f64.powf(i as f64 / 8.0) };
+    let grid: Vec<(i32, f64)> = (RATIO_STEPS.0 - 1..=RATIO_STEPS.1)
+        .into_par_iter()
+        .filter_map(|i| profile_reml(&rotated, p, ratio(i)).map(|(l, _)| (i, l)))
+        .collect();
+    let (best_i, _) = grid.iter().copied().max_by(|a, b| a.1.total_cmp(&b.1))?;
+    let at_edge = best_i == RATIO_STEPS.1;
+    let r = if best_i > RATIO_STEPS.0 && best_i < RATIO_STEPS.1 {
+        golden_max(|lr| profile_reml(&rotated, p, lr.exp()).map_or(f64::NEG_INFINITY, |v| v.0), (
+            ratio(best_i - 1).ln(),
+            ratio(best_i + 1).ln(),
+        ))
+        .exp()
+    } else {
+        ratio(best_i)
+    };
+    let (_, alpha) = profile_reml(&rotated, p, r)?;
+    let beta = alpha * r;
+    let whiten: Vec<DMatrix<f64>> = spans
+        .iter()
+        .map(|s| {
+            let rot = &cache[s];
+            let mut w = rot.rotate.clone();
+            for (i, l) in rot.lambda.iter().enumerate() {
+                w.row_mut(i).unscale_mut((alpha * (1.0 + r * l)).sqrt());
+            }
+            w
+        })
+        .collect();
+    let check = innovation_check(spans, x, y, alpha, beta, &whiten)?;
+    Some(NoiseFit { white_var: alpha, flicker_var: beta, at_edge, check, whiten })
+}
+
+/// Maximum of a unimodal `f` on `[lo, hi]` by golden section (40 steps).
+fn golden_max(f: impl Fn(f64) -> f64, (mut lo, mut hi): (f64, f64)) -> f64 {
+    let g = (5f64.sqrt() - 1.0) / 2.0;
+    let (mut c, mut d) = (hi - g * (hi - lo), lo + g * (hi - lo));
+    let (mut fc, mut fd) = (f(c), f(d));
+    for _ in 0..40 {
+        if fc > fd {
+            hi = d;
+            d = c;
+            fd = fc;
+            c = hi - g * (hi - lo);
+            fc = f(c);
+        } else {
+            lo = c;
+            c = d;
+            fc = fd;
+            d = lo + g * (hi - lo);
+            fd = f(d);
+        }
+    }
+    (lo + hi) / 2.0
+}
+
+/// GLS coefficients of `x` under the fitted model (all runs).
+fn gls_beta(x: &[DMatrix<f64>], y: &[Vec<f64>], whiten: &[DMatrix<f64>]) -> Option<DVector<f64>> {
+    let p = x.first()?.ncols();
+    let mut a = DMatrix::<f64>::zeros(p, p);
+    let mut b = DVector::<f64>::zeros(p);
+    for ((xr, yr), w) in x.iter().zip(y).zip(whiten) {
+        let xw = w * xr;
+        let yw = w * DVector::from_column_slice(yr);
+        a += xw.transpose() * &xw;
+        b += xw.transpose() * yw;
+    }
+    Some(crate::linalg::least_squares(&a, &b)?)
+}
+
+/// Time-ordered innovations of the GLS residual (`L^-1 e`, `L` the Cholesky factor of the
+/// run's covariance) summed over non-overlapping windows of consecutive short means: under
+/// the model each window sum over `sqrt(window)` is standard normal and independent, so the
+/// sum of their squares is chi-square with as many degrees of freedom as windows. Excess
+/// variance at long windows is slow noise the family does not hold (e.g. rate random walk).
+fn innovation_check(
+    spans: &[Vec<Span>],
+    x: &[DMatrix<f64>],
+    y: &[Vec<f64>],
+    alpha: f64,
+    beta: f64,
+    whiten: &[DMatrix<f64>],
+) -> Option<NoiseCheck> {
+    let coef = gls_beta(x, y, whiten)?;
+    let innovations: Vec<Vec<f64>> = spans
+        .par_iter()
+        .zip(x)
+        .zip(y)
+        .map(|((s, xr), yr)| {
+            let e = DVector::from_column_slice(yr) - xr * &coef;
+            let chol = run_covariance(s, alpha, beta).cholesky()?;
+            let innov = chol.l().solve_lower_triangular(&e)?;
+            Some(innov.iter().copied().collect())
+        })
+        .collect::<Option<_>>()?;
+    let sizes: Vec<usize> = CHECK_WINDOWS
+        .iter()
+        .copied()
+        .filter(|m| innovations.iter().map(|r| r.len() / m).sum::<usize>() >= MIN_CHECK_WINDOWS)
+        .collect();
+    let level = CHECK_LEVEL / sizes.len().max(1) as f64;
+    let mut windows = Vec::new();
+    for m in sizes {
+        let sums: Vec<f64> = innovations
+            .iter()
+            .flat_map(|r| r.chunks_exact(m).map(|c| c.iter().sum::<f64>().powi(2) / m as f64))
+            .collect();
+        let count = sums.len();
+        let total: f64 = sums.iter().sum();
+        let p = ChiSquared::new(count as f64).map_or(f64::NAN, |c| c.sf(total));
+        windows.push((m, count, total / count as f64, p));
+    }
+    let passed = !windows.is_empty() && windows.iter().all(|w| w.3 >= level);
+    Some(NoiseCheck { windows, passed })
+}
+
+/// Whitened, stacked data for GLS tests at the fitted levels: the response and an
+/// orthonormal basis of the current model's columns (all runs stacked).
+pub struct GlsTester<'a> {
+    fit: &'a NoiseFit,
+    y: DVector<f64>,
+    base: DMatrix<f64>,
+    rows: Vec<usize>,
+}
+
+/// Relative size below which a whitened column adds no new direction.
+const RANK_TOLERANCE: f64 = 1e-8;
+
+impl<'a> GlsTester<'a> {
+    /// Whitens `y` and the current model's design `x` (per run).
+    pub fn new(fit: &'a NoiseFit, x: &[DMatrix<f64>], y: &[Vec<f64>]) -> Option<Self> {
+        let rows: Vec<usize> = y.iter().map(Vec::len).collect();
+        let yw = stack(&fit.whiten, &y.iter().map(|r| DMatrix::from_column_slice(r.len(), 1, r)).collect::<Vec<_>>())?;
+        let xw = stack(&fit.whiten, x)?;
+        let base = orthonormal(&xw, None);
+        Some(GlsTester { fit, y: yw.column(0).into_owned(), base, rows })
+    }
+
+    /// Stacked whitened rows.
+    pub fn n(&self) -> usize {
+        self.y.len()
+    }
+
+    /// Orthonormal basis (whitened, orthogonal to the current model) of a candidate's
+    /// columns `c` (per run); `None` if the shapes do not match.
+    pub fn candidate_basis(&self, c: &[DMatrix<f64>]) -> Option<DMatrix<f64>> {
+        if c.len() != self.rows.len() || c.iter().zip(&self.rows).any(|(m, n)| m.nrows() != *n) {
+            return None;
+        }
+        let cw = stack(&self.fit.whiten, c)?;
+        Some(orthonormal(&cw, Some(&self.base)))
+    }
+
+    /// GLS Wald statistic of a candidate (`||Q^T y_w||^2`, chi-square with `Q`'s columns
+    /// degrees of freedom under the null) and its upper-tail p.
+    pub fn wald(&self, q: &DMatrix<f64>) -> (f64, f64) {
+        let w = (q.transpose() * &self.y).norm_squared();
+        (w, chi2_sf(w, q.ncols()))
+    }
+}
+
+/// Upper tail of chi-square with `dof` degrees of freedom (1 with none).
+pub fn chi2_sf(x: f64, dof: usize) -> f64 {
+    if dof == 0 {
+        return 1.0;
+    }
+    ChiSquared::new(dof as f64).map_or(1.0, |c| c.sf(x))
+}
+
+/// `diag(W_r) * m_r` stacked over runs.
+fn stack(whiten: &[DMatrix<f64>], m: &[DMatrix<f64>]) -> Option<DMatrix<f64>> {
+    let cols = m.first()?.ncols();
+    let rows: usize = m.iter().map(|r| r.nrows()).sum();
+    let mut out = DMatrix::zeros(rows, cols);
+    let mut at = 0;
+    for (w, r) in whiten.iter().zip(m) {
+        if w.ncols() != r.nrows() || r.ncols() != cols {
+            return None;
+        }
+        out.view_mut((at, 0), (r.nrows(), cols)).copy_from(&(w * r));
+        at += r.nrows();
+    }
+    Some(out)
+}
+
+/// Orthonormal basis of the columns of `m` after removing `against` (itself orthonormal),
+/// by modified Gram-Schmidt twice; columns that keep less than [`RANK_TOLERANCE`] of their
+/// norm are dropped.
+fn orthonormal(m: &DMatrix<f64>, against: Option<&DMatrix<f64>>) -> DMatrix<f64> {
+    let mut kept: Vec<DVector<f64>> = Vec::new();
+    for j in 0..m.ncols() {
+        let mut v = m.column(j).into_owned();
+        let norm0 = v.norm();
+        if norm0 <= 0.0 || !norm0.is_finite() {
+            continue;
+        }
+        for _ in 0..2 {
+            if let Some(b) = against {
+                let c = b.transpose() * &v;
+                v -= b * c;
+            }
+            for q in &kept {
+                let c = q.dot(&v);
+                v.axpy(-c, q, 1.0);
+            }
+        }
+        let norm = v.norm();
+        if norm > RANK_TOLERANCE * norm0 {
+            kept.push(v / norm);
+        }
+    }
+    if kept.is_empty() {
+        DMatrix::zeros(m.nrows(), 0)
+    } else {
+        DMatrix::from_columns(&kept)
+    }
+}
+
+/// SplitMix64 (fixed-seed standard normals for the simulated null; Box-Muller).
+struct Normals(u64);
+
+impl Normals {
+    fn next_u64(&mut self) -> u64 {
+        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+        let mut z = self.0;
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+
+    fn uniform(&mut self) -> f64 {
+        ((self.next_u64() >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+    }
+
+    fn pair(&mut self) -> (f64, f64) {
+        let (u, v) = (self.uniform(), self.uniform());
+        let r = (-2.0 * u.ln()).sqrt();
+        let a = std::f64::consts::TAU * v;
+        (r * a.cos(), r * a.sin())
+    }
+}
+
+/// Null distribution of the smallest Wald p over every basis in `bases` (all candidates'
+/// grid points of one step), by simulation under the fitted model: the whitened null data
+/// orthogonal to the current model are standard normal, so each simulated statistic is
+/// `||Q^T z||^2` with `z ~ N(0, I)` (`sims` draws, seed `seed`). Returns the sorted minima.
+pub fn simulated_min_p(n: usize, bases: &[&DMatrix<f64>], sims: usize, seed: u64) -> Vec<f64> {
+    const CHUNK: usize = 100;
+    let chunks = sims.div_ceil(CHUNK);
+    let mut minima: Vec<f64> = (0..chunks)
+        .into_par_iter()
+        .flat_map_iter(|c| {
+            let cols = CHUNK.min(sims - c * CHUNK);
+            let mut g = Normals(seed ^ (c as u64).wrapping_mul(0xA24B_AED4_963E_E407));
+            let mut z = DMatrix::zeros(n, cols);
+            for v in z.iter_mut() {
+                *v = g.pair().0;
+            }
+            let mut best = vec![1.0f64; cols];
+            for q in bases.iter().filter(|q| q.ncols() > 0) {
+                let t = q.transpose() * &z;
+                for (s, b) in best.iter_mut().enumerate() {
+                    *b = b.min(chi2_sf(t.column(s).norm_squared(), q.ncols()));
+                }
+            }
+            best
+        })
+        .collect();
+    minima.sort_by(f64::total_cmp);
+    minima
+}
+
+/// Monte Carlo p of an observed smallest p against simulated minima (sorted):
+/// `(1 + #{sim <= observed}) / (sims + 1)`.
+pub fn monte_carlo_p(observed: f64, minima: &[f64]) -> f64 {
+    let below = minima.partition_point(|m| *m <= observed);
+    (1 + below) as f64 / (minima.len() + 1) as f64
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn spans(n: usize, len: usize) -> Vec<Span> {
+        (0..n).map(|i| (i * len, (i + 1) * len)).collect()
+    }
+
+    #[test]
+    fn block_covariance_matches_the_double_sum() {
+        let phi = (-1.0f64 / 10.0).exp();
+        for (a, b) in [((0, 20), (0, 20)), ((0, 20), (20, 40)), ((40, 60), (0, 20)), ((5, 25), (10, 30))] {
+            let mut direct = 0.0;
+            for s in a.0..a.1 {
+                for t in b.0..b.1 {
+                    direct += phi.powi((s as i64 - t as i64).unsigned_abs() as i32);
+                }
+            }
+            let closed = ar1_pair_sum(phi, a, b);
+            assert!((closed - direct).abs() <= 1e-12 * direct.abs().max(1.0), "{a:?} {b:?}: {closed} vs {direct}");
+        }
+        // White: a 20 s mean of unit seconds has variance 1/20; disjoint means are uncorrelated.
+        assert_eq!(unit_block_cov((0, 20), (0, 20)).0, 0.05);
+        assert_eq!(unit_block_cov((0, 20), (20, 40)).0, 0.0);
+    }
+
+    #[test]
+    fn orthonormal_basis_drops_dependent_columns() {
+        let m = DMatrix::from_row_slice(4, 3, &[1.0, 2.0, 1.0, 1.0, 2.0, 0.0, 1.0, 2.0, 0.0, 1.0, 2.0, 1.0]);
+        let q = orthonormal(&m, None);
+        assert_eq!(q.ncols(), 2);
+        assert!((q.transpose() * &q - DMatrix::identity(2, 2)).abs().max() < 1e-12);
+    }
+}
