@@ -86,22 +86,34 @@ struct Rotation {
     /// `U^T D^-1/2`.
     rotate: DMatrix<f64>,
     lambda: Vec<f64>,
+    /// The unit white (diagonal) and flicker covariances.
+    white: Vec<f64>,
+    flicker: DMatrix<f64>,
 }
 
 impl Rotation {
     fn of(spans: &[Span]) -> Option<Self> {
         let n = spans.len();
-        let d_inv_sqrt: Vec<f64> = spans.iter().map(|&sp| unit_block_cov(sp, sp).0.powf(-0.5)).collect();
+        let white: Vec<f64> = spans.iter().map(|&sp| unit_block_cov(sp, sp).0).collect();
+        let d_inv_sqrt: Vec<f64> = white.iter().map(|w| w.powf(-0.5)).collect();
         if d_inv_sqrt.iter().any(|d| !d.is_finite()) {
             return None;
         }
-        let c = DMatrix::from_fn(n, n, |i, j| d_inv_sqrt[i] * unit_block_cov(spans[i], spans[j]).1 * d_inv_sqrt[j]);
+        let mut flicker = DMatrix::zeros(n, n);
+        for i in 0..n {
+            for j in i..n {
+                let f = unit_block_cov(spans[i], spans[j]).1;
+                flicker[(i, j)] = f;
+                flicker[(j, i)] = f;
+            }
+        }
+        let c = DMatrix::from_fn(n, n, |i, j| d_inv_sqrt[i] * flicker[(i, j)] * d_inv_sqrt[j]);
         let eig = c.symmetric_eigen();
         let mut rotate = eig.eigenvectors.transpose();
         for (j, d) in d_inv_sqrt.iter().enumerate() {
             rotate.column_mut(j).scale_mut(*d);
         }
-        Some(Rotation { rotate, lambda: eig.eigenvalues.iter().map(|l| l.max(0.0)).collect() })
+        Some(Rotation { rotate, lambda: eig.eigenvalues.iter().map(|l| l.max(0.0)).collect(), white, flicker })
     }
 }
 
@@ -218,7 +230,18 @@ pub fn fit_noise(spans: &[Vec<Span>], x: &[DMatrix<f64>], y: &[Vec<f64>]) -> Opt
             w
         })
         .collect();
-    let check = innovation_check(spans, x, y, alpha, beta, &whiten)?;
+    let covariances: Vec<DMatrix<f64>> = spans
+        .iter()
+        .map(|s| {
+            let rot = &cache[s];
+            let mut c = &rot.flicker * beta;
+            for (i, w) in rot.white.iter().enumerate() {
+                c[(i, i)] += alpha * w;
+            }
+            c
+        })
+        .collect();
+    let check = innovation_check(&covariances, x, y, &whiten)?;
     Some(NoiseFit { white_var: alpha, flicker_var: beta, at_edge, check, whiten })
 }
 
@@ -265,21 +288,19 @@ fn gls_beta(x: &[DMatrix<f64>], y: &[Vec<f64>], whiten: &[DMatrix<f64>]) -> Opti
 /// sum of their squares is chi-square with as many degrees of freedom as windows. Excess
 /// variance at long windows is slow noise the family does not hold (e.g. rate random walk).
 fn innovation_check(
-    spans: &[Vec<Span>],
+    covariances: &[DMatrix<f64>],
     x: &[DMatrix<f64>],
     y: &[Vec<f64>],
-    alpha: f64,
-    beta: f64,
     whiten: &[DMatrix<f64>],
 ) -> Option<NoiseCheck> {
     let coef = gls_beta(x, y, whiten)?;
-    let innovations: Vec<Vec<f64>> = spans
+    let innovations: Vec<Vec<f64>> = covariances
         .par_iter()
         .zip(x)
         .zip(y)
-        .map(|((s, xr), yr)| {
+        .map(|((cov, xr), yr)| {
             let e = DVector::from_column_slice(yr) - xr * &coef;
-            let chol = run_covariance(s, alpha, beta).cholesky()?;
+            let chol = cov.clone().cholesky()?;
             let innov = chol.l().solve_lower_triangular(&e)?;
             Some(innov.iter().copied().collect())
         })
@@ -431,41 +452,77 @@ impl Normals {
     }
 }
 
-/// Null distribution of the smallest Wald p over every basis in `bases` (all candidates'
-/// grid points of one step), by simulation under the fitted model: the whitened null data
-/// orthogonal to the current model are standard normal, so each simulated statistic is
-/// `||Q^T z||^2` with `z ~ N(0, I)` (`sims` draws, seed `seed`). Returns the sorted minima.
-pub fn simulated_min_p(n: usize, bases: &[&DMatrix<f64>], sims: usize, seed: u64) -> Vec<f64> {
+/// Family-wise p of observed smallest Wald p's, by simulation under the fitted model: the
+/// whitened null data orthogonal to the current model are standard normal, so each
+/// simulated statistic of a basis `Q` (all candidates' grid points of one step) is
+/// `||Q^T z||^2` with `z ~ N(0, I)` (`sims` draws, seed `seed`). For each observed p, the
+/// Monte Carlo p `(1 + #{draws whose smallest p over all bases <= observed}) / (sims + 1)`.
+/// (Compared as statistics: each basis's chi-square limit at the observed p.)
+pub fn family_p(n: usize, bases: &[&DMatrix<f64>], observed: &[f64], sims: usize, seed: u64) -> Vec<f64> {
     const CHUNK: usize = 100;
-    let chunks = sims.div_ceil(CHUNK);
-    let mut minima: Vec<f64> = (0..chunks)
-        .into_par_iter()
-        .flat_map_iter(|c| {
-            let cols = CHUNK.min(sims - c * CHUNK);
-            let mut g = Normals(seed ^ (c as u64).wrapping_mul(0xA24B_AED4_963E_E407));
-            let mut z = DMatrix::zeros(n, cols);
-            for v in z.iter_mut() {
-                *v = g.pair().0;
-            }
-            let mut best = vec![1.0f64; cols];
-            for q in bases.iter().filter(|q| q.ncols() > 0) {
-                let t = q.transpose() * &z;
-                for (s, b) in best.iter_mut().enumerate() {
-                    *b = b.min(chi2_sf(t.column(s).norm_squared(), q.ncols()));
-                }
-            }
-            best
+    let bases: Vec<&DMatrix<f64>> = bases.iter().copied().filter(|q| q.ncols() > 0).collect();
+    // limits[b][o]: the statistic of basis b whose p equals observed[o].
+    let limits: Vec<Vec<f64>> = bases
+        .iter()
+        .map(|q| {
+            let chi = ChiSquared::new(q.ncols() as f64).ok();
+            observed
+                .iter()
+                .map(|p| match &chi {
+                    Some(c) if *p < 1.0 => c.inverse_cdf(1.0 - p.max(1e-15)),
+                    Some(_) => 0.0,
+                    None => f64::INFINITY,
+                })
+                .collect()
         })
         .collect();
-    minima.sort_by(f64::total_cmp);
-    minima
-}
-
-/// Monte Carlo p of an observed smallest p against simulated minima (sorted):
-/// `(1 + #{sim <= observed}) / (sims + 1)`.
-pub fn monte_carlo_p(observed: f64, minima: &[f64]) -> f64 {
-    let below = minima.partition_point(|m| *m <= observed);
-    (1 + below) as f64 / (minima.len() + 1) as f64
+    // All bases side by side: one product per chunk of draws.
+    let widths: Vec<usize> = bases.iter().map(|q| q.ncols()).collect();
+    let total: usize = widths.iter().sum();
+    let mut all = DMatrix::zeros(n, total);
+    let mut at = 0;
+    for q in &bases {
+        all.columns_mut(at, q.ncols()).copy_from(q);
+        at += q.ncols();
+    }
+    let all_t = all.transpose();
+    let chunks = sims.div_ceil(CHUNK);
+    let counts: Vec<Vec<usize>> = (0..chunks)
+        .into_par_iter()
+        .map(|c| {
+            let cols = CHUNK.min(sims - c * CHUNK);
+            let mut g = Normals(seed ^ (c as u64 + 1).wrapping_mul(0xA24B_AED4_963E_E407));
+            let mut z = DMatrix::zeros(n, cols);
+            let mut spare = None;
+            for v in z.iter_mut() {
+                *v = match spare.take() {
+                    Some(x) => x,
+                    None => {
+                        let (a, b) = g.pair();
+                        spare = Some(b);
+                        a
+                    }
+                };
+            }
+            let t = &all_t * z;
+            let mut hit = vec![vec![false; observed.len()]; cols];
+            for (s, h) in hit.iter_mut().enumerate() {
+                let col = t.column(s);
+                let mut at = 0;
+                for (w, lim) in widths.iter().zip(&limits) {
+                    let stat: f64 = col.rows(at, *w).norm_squared();
+                    at += w;
+                    for (o, l) in lim.iter().enumerate() {
+                        h[o] |= stat >= *l;
+                    }
+                }
+            }
+            (0..observed.len()).map(|o| hit.iter().filter(|h| h[o]).count()).collect()
+        })
+        .collect();
+    (0..observed.len())
+        .map(|o| (1 + counts.iter().map(|c| c[o]).sum::<usize>()) as f64 / (sims + 1) as f64)
+        .collect()
 }
 
 #[cfg(test)]
@@ -500,5 +557,126 @@ mod tests {
         let q = orthonormal(&m, None);
         assert_eq!(q.ncols(), 2);
         assert!((q.transpose() * &q - DMatrix::identity(2, 2)).abs().max() < 1e-12);
+    }
+    /// `runs` runs of `blocks` 20 s short means drawn from the model at `(alpha, beta)` plus
+    /// `rrw` (deg/h per sqrt(s)) of rate random walk, fixed seed.
+    fn simulate(runs: usize, blocks: usize, alpha: f64, beta: f64, rrw: f64, seed: u64) -> Vec<Vec<f64>> {
+        let sp = spans(blocks, 20);
+        let chol = run_covariance(&sp, alpha, beta).cholesky().map(|c| c.l());
+        let mut g = Normals(seed);
+        (0..runs)
+            .map(|_| {
+                let z = DVector::from_fn(blocks, |_, _| g.pair().0);
+                let mut y: Vec<f64> = chol.as_ref().map_or(Vec::new(), |l| (l * z).iter().copied().collect());
+                // Random walk: block means of a per-second walk, approximated by a walk of block steps.
+                let mut walk = 0.0;
+                for v in &mut y {
+                    walk += rrw * 20f64.sqrt() * g.pair().0;
+                    *v += walk;
+                }
+                y
+            })
+            .collect()
+    }
+
+    fn intercepts(runs: usize, blocks: usize) -> Vec<DMatrix<f64>> {
+        (0..runs).map(|_| DMatrix::from_element(blocks, 1, 1.0)).collect()
+    }
+
+    #[test]
+    fn reml_recovers_known_levels_and_the_check_passes() {
+        // 16 runs x 360 short means (2 h each), the paper scenario's order of levels: white
+        // 9e-4 (deg/h)^2 per second, flicker 2e-6 per decade. Tolerances: 10 % for the white
+        // level (5760 means: its REML SD is about 2 %), 35 % for the flicker level (its
+        // slow decades are seen in 16 runs only).
+        let (alpha, beta) = (9e-4, 2e-6);
+        let (runs, blocks) = (16, 360);
+        let y = simulate(runs, blocks, alpha, beta, 0.0, 11);
+        let sp = vec![spans(blocks, 20); runs];
+        let fit = fit_noise(&sp, &intercepts(runs, blocks), &y).expect("fit");
+        assert!((fit.white_var / alpha - 1.0).abs() < 0.10, "white {:.3e}", fit.white_var);
+        assert!((fit.flicker_var / beta - 1.0).abs() < 0.35, "flicker {:.3e}", fit.flicker_var);
+        assert!(!fit.at_edge);
+        assert!(fit.check.passed, "{:?}", fit.check);
+    }
+
+    #[test]
+    fn the_check_fails_on_a_rate_random_walk_the_family_does_not_hold() {
+        // The same runs plus a rate random walk whose drift over a run (sqrt(7200) x 1e-4 =
+        // 0.0085 deg/h) is several times the flicker's: excess variance at long windows.
+        let (runs, blocks) = (16, 360);
+        let y = simulate(runs, blocks, 9e-4, 2e-6, 1e-4, 12);
+        let sp = vec![spans(blocks, 20); runs];
+        let fit = fit_noise(&sp, &intercepts(runs, blocks), &y).expect("fit");
+        assert!(!fit.check.passed, "{:?}", fit.check);
+    }
+
+    #[test]
+    fn gls_wald_statistic_matches_a_dense_reference() {
+        // 3 runs of 15 short means, base [1, t], candidate two columns; levels fitted.
+        let (runs, blocks) = (3, 15);
+        let y = simulate(runs, blocks, 9e-4, 2e-5, 0.0, 13);
+        let sp = vec![spans(blocks, 20); runs];
+        let x: Vec<DMatrix<f64>> =
+            (0..runs).map(|r| DMatrix::from_fn(blocks, 2, |i, j| if j == 0 { 1.0 } else { (i + r) as f64 })).collect();
+        let c: Vec<DMatrix<f64>> = (0..runs)
+            .map(|r| DMatrix::from_fn(blocks, 2, |i, j| ((i * (j + 2) + r) as f64 * 0.7).sin()))
+            .collect();
+        let fit = fit_noise(&sp, &x, &y).expect("fit");
+        let tester = GlsTester::new(&fit, &x, &y).expect("tester");
+        let q = tester.candidate_basis(&c).expect("basis");
+        let (w, p) = tester.wald(&q);
+        // Dense: block-diagonal Sigma, GLS RSS with and without the candidate.
+        let n = runs * blocks;
+        let sigma_run = run_covariance(&sp[0], fit.white_var, fit.flicker_var);
+        let mut sigma = DMatrix::zeros(n, n);
+        for r in 0..runs {
+            sigma.view_mut((r * blocks, r * blocks), (blocks, blocks)).copy_from(&sigma_run);
+        }
+        let inv = sigma.try_inverse().expect("inverse");
+        let yv = DVector::from_iterator(n, y.iter().flatten().copied());
+        let stacked = |m: &[DMatrix<f64>]| {
+            let k = m[0].ncols();
+            DMatrix::from_fn(n, k, |i, j| m[i / blocks][(i % blocks, j)])
+        };
+        let rss = |xm: &DMatrix<f64>| {
+            let a = xm.transpose() * &inv * xm;
+            let b = xm.transpose() * &inv * &yv;
+            let beta = a.try_inverse().expect("normal equations") * b;
+            let e = &yv - xm * beta;
+            (e.transpose() * &inv * e)[(0, 0)]
+        };
+        let xb = stacked(&x);
+        let mut xf = DMatrix::zeros(n, 4);
+        xf.columns_mut(0, 2).copy_from(&xb);
+        xf.columns_mut(2, 2).copy_from(&stacked(&c));
+        let dense = rss(&xb) - rss(&xf);
+        assert!((w - dense).abs() <= 1e-8 * dense.abs().max(1.0), "{w} vs {dense}");
+        assert_eq!(q.ncols(), 2);
+        // scipy.stats.chi2.sf(x, 2) = exp(-x / 2).
+        assert!((p - (-w / 2.0).exp()).abs() < 1e-12);
+    }
+
+    #[test]
+    fn family_p_of_one_column_is_its_own_p_and_of_two_is_sidak() {
+        // One unit column: the family-wise p of an observed p is that p (2000 draws; the
+        // Monte Carlo p's SD at 0.05 is 0.0049, tolerance 0.02).
+        let n = 50;
+        let mut q = DMatrix::zeros(n, 1);
+        q[(3, 0)] = 1.0;
+        let one = family_p(n, &[&q], &[0.05, 1.0], 2000, 7);
+        assert!((one[0] - 0.05).abs() < 0.02, "{one:?}");
+        assert_eq!(one[1], 1.0);
+        // Two orthogonal columns tested separately: 1 - 0.95^2 = 0.0975 (tolerance 0.027).
+        let mut q2 = DMatrix::zeros(n, 1);
+        q2[(7, 0)] = 1.0;
+        let two = family_p(n, &[&q, &q2], &[0.05], 2000, 8);
+        assert!((two[0] - 0.0975).abs() < 0.027, "{two:?}");
+        // Two columns in one basis (2 dof) against the closed form exp(-x / 2).
+        let mut q3 = DMatrix::zeros(n, 2);
+        q3[(3, 0)] = 1.0;
+        q3[(7, 1)] = 1.0;
+        let joint = family_p(n, &[&q3], &[0.05], 2000, 9);
+        assert!((joint[0] - 0.05).abs() < 0.02, "{joint:?}");
     }
 }
