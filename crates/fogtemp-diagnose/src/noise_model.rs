@@ -177,18 +177,37 @@ fn profile_reml(rotated: &[Rotated], p: usize, r: f64) -> Option<(f64, f64)> {
     Some((-0.5 * (dof * rss.ln() + log_det + log_det_a), rss / dof))
 }
 
+/// The runs' short-mean spans with each distinct run structure's rotation (built once per
+/// diagnosis; the noise model is refitted at every step of the selection).
+pub struct NoiseBasis {
+    spans: Vec<Vec<Span>>,
+    cache: HashMap<Vec<Span>, Rotation>,
+}
+
+impl NoiseBasis {
+    /// `None` when a run has an empty short mean.
+    pub fn new(spans: &[Vec<Span>]) -> Option<Self> {
+        let distinct: Vec<&Vec<Span>> = {
+            let mut seen: Vec<&Vec<Span>> = Vec::new();
+            for s in spans {
+                if !seen.contains(&s) {
+                    seen.push(s);
+                }
+            }
+            seen
+        };
+        let rotations: Vec<Rotation> = distinct.par_iter().map(|s| Rotation::of(s)).collect::<Option<_>>()?;
+        let cache = distinct.into_iter().cloned().zip(rotations).collect();
+        Some(NoiseBasis { spans: spans.to_vec(), cache })
+    }
+}
+
 /// Fits the noise model by REML with the design `x` (per run, the same columns) in place:
 /// the ratio `beta / alpha` on a log grid then refined by golden section between the grid
-/// neighbours, `alpha` in closed form. `None` when the design is singular or a run has no
-/// short means.
-pub fn fit_noise(spans: &[Vec<Span>], x: &[DMatrix<f64>], y: &[Vec<f64>]) -> Option<NoiseFit> {
+/// neighbours, `alpha` in closed form. `None` when the design is singular.
+pub fn fit_noise(basis: &NoiseBasis, x: &[DMatrix<f64>], y: &[Vec<f64>]) -> Option<NoiseFit> {
     let p = x.first()?.ncols();
-    let mut cache: HashMap<Vec<Span>, Rotation> = HashMap::new();
-    for s in spans {
-        if !cache.contains_key(s) {
-            cache.insert(s.clone(), Rotation::of(s)?);
-        }
-    }
+    let (spans, cache) = (&basis.spans, &basis.cache);
     let rotated: Vec<Rotated> = spans
         .iter()
         .zip(x)
@@ -485,14 +504,21 @@ pub fn family_p(n: usize, bases: &[&DMatrix<f64>], observed: &[f64], sims: usize
         all.columns_mut(at, q.ncols()).copy_from(q);
         at += q.ncols();
     }
-    let all_t = all.transpose();
+    // The statistics depend on z only through all^T z ~ N(0, all^T all): draw that vector
+    // directly as G u, G = V Lambda^1/2 from the eigen-decomposition of the Gram matrix
+    // (size: the bases' columns, not the data).
+    let eig = (all.transpose() * &all).symmetric_eigen();
+    let mut gen = eig.eigenvectors;
+    for (j, l) in eig.eigenvalues.iter().enumerate() {
+        gen.column_mut(j).scale_mut(l.max(0.0).sqrt());
+    }
     let chunks = sims.div_ceil(CHUNK);
     let counts: Vec<Vec<usize>> = (0..chunks)
         .into_par_iter()
         .map(|c| {
             let cols = CHUNK.min(sims - c * CHUNK);
             let mut g = Normals(seed ^ (c as u64 + 1).wrapping_mul(0xA24B_AED4_963E_E407));
-            let mut z = DMatrix::zeros(n, cols);
+            let mut z = DMatrix::zeros(total, cols);
             let mut spare = None;
             for v in z.iter_mut() {
                 *v = match spare.take() {
@@ -504,7 +530,7 @@ pub fn family_p(n: usize, bases: &[&DMatrix<f64>], observed: &[f64], sims: usize
                     }
                 };
             }
-            let t = &all_t * z;
+            let t = &gen * z;
             let mut hit = vec![vec![false; observed.len()]; cols];
             for (s, h) in hit.iter_mut().enumerate() {
                 let col = t.column(s);
@@ -593,7 +619,7 @@ mod tests {
         let (runs, blocks) = (16, 360);
         let y = simulate(runs, blocks, alpha, beta, 0.0, 11);
         let sp = vec![spans(blocks, 20); runs];
-        let fit = fit_noise(&sp, &intercepts(runs, blocks), &y).expect("fit");
+        let fit = fit_noise(&NoiseBasis::new(&sp).expect("basis"), &intercepts(runs, blocks), &y).expect("fit");
         assert!((fit.white_var / alpha - 1.0).abs() < 0.10, "white {:.3e}", fit.white_var);
         assert!((fit.flicker_var / beta - 1.0).abs() < 0.35, "flicker {:.3e}", fit.flicker_var);
         assert!(!fit.at_edge);
@@ -607,7 +633,7 @@ mod tests {
         let (runs, blocks) = (16, 360);
         let y = simulate(runs, blocks, 9e-4, 2e-6, 1e-4, 12);
         let sp = vec![spans(blocks, 20); runs];
-        let fit = fit_noise(&sp, &intercepts(runs, blocks), &y).expect("fit");
+        let fit = fit_noise(&NoiseBasis::new(&sp).expect("basis"), &intercepts(runs, blocks), &y).expect("fit");
         assert!(!fit.check.passed, "{:?}", fit.check);
     }
 
@@ -622,7 +648,7 @@ mod tests {
         let c: Vec<DMatrix<f64>> = (0..runs)
             .map(|r| DMatrix::from_fn(blocks, 2, |i, j| ((i * (j + 2) + r) as f64 * 0.7).sin()))
             .collect();
-        let fit = fit_noise(&sp, &x, &y).expect("fit");
+        let fit = fit_noise(&NoiseBasis::new(&sp).expect("basis"), &x, &y).expect("fit");
         let tester = GlsTester::new(&fit, &x, &y).expect("tester");
         let q = tester.candidate_basis(&c).expect("basis");
         let (w, p) = tester.wald(&q);

@@ -368,6 +368,13 @@ pub fn forward_select(
     let indices = block_indices(prep);
     let mut chosen: Vec<ChosenTerm> = Vec::new();
     let mut steps = Vec::new();
+    let noise_basis = if options.noise_model_acceptance {
+        let spans: Vec<Vec<(usize, usize)>> =
+            prep.runs.iter().map(|r| r.blocks.iter().map(|b| (b.first_sec, b.end_sec)).collect()).collect();
+        crate::noise_model::NoiseBasis::new(&spans)
+    } else {
+        None
+    };
     for step in 0..=options.max_effects {
         progress(
             &format!("forward selection, step {}", step + 1),
@@ -382,10 +389,9 @@ pub fn forward_select(
         let n_eff = effective_n(prep.n_blocks(), &acf);
         let base_heldout = heldout_residuals(&base, &base_eval, &ys);
         let in_model: Vec<Effect> = chosen.iter().map(|c| c.effect).collect();
-        let gls = if options.noise_model_acceptance && step < options.max_effects {
-            GlsStep::of(prep, &base, &ys, grids, &in_model, step)
-        } else {
-            None
+        let gls = match &noise_basis {
+            Some(basis) if step < options.max_effects => GlsStep::of(basis, &base, &ys, grids, &in_model, step),
+            _ => None,
         };
         let ctx = StepContext {
             prep,
@@ -465,7 +471,7 @@ impl GlsStep {
     /// Fits the noise model with the current model in place; `None` when it cannot be
     /// fitted or fails its innovation check (the run-level rules then decide alone).
     pub(super) fn of(
-        prep: &Prepared,
+        basis: &crate::noise_model::NoiseBasis,
         base: &Design,
         ys: &[Vec<f64>],
         grids: &[EffectGrid],
@@ -473,9 +479,7 @@ impl GlsStep {
         step: usize,
     ) -> Option<Self> {
         use crate::noise_model::{family_p, fit_noise, GlsTester};
-        let spans: Vec<Vec<(usize, usize)>> =
-            prep.runs.iter().map(|r| r.blocks.iter().map(|b| (b.first_sec, b.end_sec)).collect()).collect();
-        let fit = fit_noise(&spans, &base.per_run, ys)?;
+        let fit = fit_noise(basis, &base.per_run, ys)?;
         if !fit.check.passed {
             return None;
         }
@@ -491,7 +495,17 @@ impl GlsStep {
         let min_ps: Vec<f64> =
             bases.iter().map(|b| b.iter().map(|q| tester.wald(q).1).fold(1.0, f64::min)).collect();
         let all: Vec<&DMatrix<f64>> = bases.iter().flatten().collect();
-        let family = family_p(tester.n(), &all, &min_ps, GLS_SIMULATIONS, GLS_SEED + step as u64);
+        // A family-wise p lies between the candidate's own smallest p and its Bonferroni
+        // bound over every basis of the step: when each candidate is decided by those
+        // bounds (all above the level, or the bound at it), the simulation is skipped and
+        // the bound that decides is reported.
+        let bonferroni: Vec<f64> = min_ps.iter().map(|p| (p * all.len() as f64).min(1.0)).collect();
+        let undecided = min_ps.iter().zip(&bonferroni).any(|(p, b)| *p <= GLS_FAMILY_LEVEL && *b > GLS_FAMILY_LEVEL);
+        let family = if undecided {
+            family_p(tester.n(), &all, &min_ps, GLS_SIMULATIONS, GLS_SEED + step as u64)
+        } else {
+            min_ps.iter().zip(&bonferroni).map(|(p, b)| if *b <= GLS_FAMILY_LEVEL { *b } else { *p }).collect()
+        };
         let verdicts = open
             .iter()
             .zip(min_ps.iter().zip(&family))
