@@ -113,7 +113,12 @@ impl Rotation {
         for (j, d) in d_inv_sqrt.iter().enumerate() {
             rotate.column_mut(j).scale_mut(*d);
         }
-        Some(Rotation { rotate, lambda: eig.eigenvalues.iter().map(|l| l.max(0.0)).collect(), white, flicker })
+        Some(Rotation {
+            rotate,
+            lambda: eig.eigenvalues.iter().map(|l| l.max(0.0)).collect(),
+            white,
+            flicker,
+        })
     }
 }
 
@@ -228,10 +233,10 @@ pub fn fit_noise(basis: &NoiseBasis, x: &[DMatrix<f64>], y: &[Vec<f64>]) -> Opti
     let (best_i, _) = grid.iter().copied().max_by(|a, b| a.1.total_cmp(&b.1))?;
     let at_edge = best_i == RATIO_STEPS.1;
     let r = if best_i > RATIO_STEPS.0 && best_i < RATIO_STEPS.1 {
-        golden_max(|lr| profile_reml(&rotated, p, lr.exp()).map_or(f64::NEG_INFINITY, |v| v.0), (
-            ratio(best_i - 1).ln(),
-            ratio(best_i + 1).ln(),
-        ))
+        golden_max(
+            |lr| profile_reml(&rotated, p, lr.exp()).map_or(f64::NEG_INFINITY, |v| v.0),
+            (ratio(best_i - 1).ln(), ratio(best_i + 1).ln()),
+        )
         .exp()
     } else {
         ratio(best_i)
@@ -298,7 +303,7 @@ fn gls_beta(x: &[DMatrix<f64>], y: &[Vec<f64>], whiten: &[DMatrix<f64>]) -> Opti
         a += xw.transpose() * &xw;
         b += xw.transpose() * yw;
     }
-    Some(crate::linalg::least_squares(&a, &b)?)
+    crate::linalg::least_squares(&a, &b)
 }
 
 /// Time-ordered innovations of the GLS residual (`L^-1 e`, `L` the Cholesky factor of the
@@ -361,7 +366,10 @@ impl<'a> GlsTester<'a> {
     /// Whitens `y` and the current model's design `x` (per run).
     pub fn new(fit: &'a NoiseFit, x: &[DMatrix<f64>], y: &[Vec<f64>]) -> Option<Self> {
         let rows: Vec<usize> = y.iter().map(Vec::len).collect();
-        let yw = stack(&fit.whiten, &y.iter().map(|r| DMatrix::from_column_slice(r.len(), 1, r)).collect::<Vec<_>>())?;
+        let yw = stack(
+            &fit.whiten,
+            &y.iter().map(|r| DMatrix::from_column_slice(r.len(), 1, r)).collect::<Vec<_>>(),
+        )?;
         let xw = stack(&fit.whiten, x)?;
         let base = orthonormal(&xw, None);
         Some(GlsTester { fit, y: yw.column(0).into_owned(), base, rows })
@@ -570,7 +578,10 @@ mod tests {
                 }
             }
             let closed = ar1_pair_sum(phi, a, b);
-            assert!((closed - direct).abs() <= 1e-12 * direct.abs().max(1.0), "{a:?} {b:?}: {closed} vs {direct}");
+            assert!(
+                (closed - direct).abs() <= 1e-12 * direct.abs().max(1.0),
+                "{a:?} {b:?}: {closed} vs {direct}"
+            );
         }
         // White: a 20 s mean of unit seconds has variance 1/20; disjoint means are uncorrelated.
         assert_eq!(unit_block_cov((0, 20), (0, 20)).0, 0.05);
@@ -619,7 +630,8 @@ mod tests {
         let (runs, blocks) = (16, 360);
         let y = simulate(runs, blocks, alpha, beta, 0.0, 11);
         let sp = vec![spans(blocks, 20); runs];
-        let fit = fit_noise(&NoiseBasis::new(&sp).expect("basis"), &intercepts(runs, blocks), &y).expect("fit");
+        let fit =
+            fit_noise(&NoiseBasis::new(&sp).expect("basis"), &intercepts(runs, blocks), &y).expect("fit");
         assert!((fit.white_var / alpha - 1.0).abs() < 0.10, "white {:.3e}", fit.white_var);
         assert!((fit.flicker_var / beta - 1.0).abs() < 0.35, "flicker {:.3e}", fit.flicker_var);
         assert!(!fit.at_edge);
@@ -633,7 +645,8 @@ mod tests {
         let (runs, blocks) = (16, 360);
         let y = simulate(runs, blocks, 9e-4, 2e-6, 1e-4, 12);
         let sp = vec![spans(blocks, 20); runs];
-        let fit = fit_noise(&NoiseBasis::new(&sp).expect("basis"), &intercepts(runs, blocks), &y).expect("fit");
+        let fit =
+            fit_noise(&NoiseBasis::new(&sp).expect("basis"), &intercepts(runs, blocks), &y).expect("fit");
         assert!(!fit.check.passed, "{:?}", fit.check);
     }
 
@@ -643,8 +656,9 @@ mod tests {
         let (runs, blocks) = (3, 15);
         let y = simulate(runs, blocks, 9e-4, 2e-5, 0.0, 13);
         let sp = vec![spans(blocks, 20); runs];
-        let x: Vec<DMatrix<f64>> =
-            (0..runs).map(|r| DMatrix::from_fn(blocks, 2, |i, j| if j == 0 { 1.0 } else { (i + r) as f64 })).collect();
+        let x: Vec<DMatrix<f64>> = (0..runs)
+            .map(|r| DMatrix::from_fn(blocks, 2, |i, j| if j == 0 { 1.0 } else { (i + r) as f64 }))
+            .collect();
         let c: Vec<DMatrix<f64>> = (0..runs)
             .map(|r| DMatrix::from_fn(blocks, 2, |i, j| ((i * (j + 2) + r) as f64 * 0.7).sin()))
             .collect();

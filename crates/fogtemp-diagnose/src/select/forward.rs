@@ -390,7 +390,9 @@ pub fn forward_select(
         let base_heldout = heldout_residuals(&base, &base_eval, &ys);
         let in_model: Vec<Effect> = chosen.iter().map(|c| c.effect).collect();
         let gls = match &noise_basis {
-            Some(basis) if step < options.max_effects => GlsStep::of(basis, &base, &ys, grids, &in_model, step),
+            Some(basis) if step < options.max_effects => {
+                GlsStep::of(basis, &base, &ys, grids, &in_model, step)
+            }
             _ => None,
         };
         let ctx = StepContext {
@@ -484,10 +486,8 @@ impl GlsStep {
             return None;
         }
         let tester = GlsTester::new(&fit, &base.per_run, ys)?;
-        let open: Vec<&EffectGrid> = grids
-            .iter()
-            .filter(|g| g.unmet_requirement.is_none() && !in_model.contains(&g.effect))
-            .collect();
+        let open: Vec<&EffectGrid> =
+            grids.iter().filter(|g| g.unmet_requirement.is_none() && !in_model.contains(&g.effect)).collect();
         let bases: Vec<Vec<DMatrix<f64>>> = open
             .par_iter()
             .map(|g| g.points.par_iter().filter_map(|pt| tester.candidate_basis(&pt.per_run)).collect())
@@ -500,11 +500,16 @@ impl GlsStep {
         // bounds (all above the level, or the bound at it), the simulation is skipped and
         // the bound that decides is reported.
         let bonferroni: Vec<f64> = min_ps.iter().map(|p| (p * all.len() as f64).min(1.0)).collect();
-        let undecided = min_ps.iter().zip(&bonferroni).any(|(p, b)| *p <= GLS_FAMILY_LEVEL && *b > GLS_FAMILY_LEVEL);
+        let undecided =
+            min_ps.iter().zip(&bonferroni).any(|(p, b)| *p <= GLS_FAMILY_LEVEL && *b > GLS_FAMILY_LEVEL);
         let family = if undecided {
             family_p(tester.n(), &all, &min_ps, GLS_SIMULATIONS, GLS_SEED + step as u64)
         } else {
-            min_ps.iter().zip(&bonferroni).map(|(p, b)| if *b <= GLS_FAMILY_LEVEL { *b } else { *p }).collect()
+            min_ps
+                .iter()
+                .zip(&bonferroni)
+                .map(|(p, b)| if *b <= GLS_FAMILY_LEVEL { *b } else { *p })
+                .collect()
         };
         let verdicts = open
             .iter()
