@@ -442,7 +442,7 @@ pub fn forward_select(
 /// every point of its grid, by simulation). The false-alarm budget is 2 of 100 null
 /// datasets and the run-level rules already spend about that on the null designs
 /// (docs/diagnose.md), so the route gets a tenth of the budget. (1 % was tried first: 3 of
-/// 100 on the null design and 4 of 100 on a beyond-recovery design; docs/diagnose.md,
+/// 100 on the null design and 5 of 100 on a beyond-recovery design; docs/diagnose.md,
 /// eighth session.)
 pub const GLS_FAMILY_LEVEL: f64 = 0.002;
 
