@@ -36,6 +36,7 @@ pub mod error;
 pub mod inputs;
 pub mod linalg;
 pub mod locate;
+pub mod noise_model;
 pub mod prepare;
 #[cfg(feature = "report")]
 pub mod report;
@@ -113,6 +114,11 @@ pub struct DiagnoseOptions {
     pub window_coverage: f64,
     /// Fraction of a short mean's seconds that must hold data (0.9).
     pub block_coverage: f64,
+    /// Also accept a candidate by a GLS test of its coefficients under a noise model fitted
+    /// to the residual's short means (white + bias-instability decades, levels by REML),
+    /// when the model passes its innovation check (`noise_model`; docs/diagnose.md, "A
+    /// noise model in the acceptance").
+    pub noise_model_acceptance: bool,
 }
 
 impl Default for DiagnoseOptions {
@@ -132,6 +138,7 @@ impl Default for DiagnoseOptions {
             temp_tolerance_c: 0.25,
             window_coverage: 0.5,
             block_coverage: 0.9,
+            noise_model_acceptance: true,
         }
     }
 }

@@ -35,6 +35,15 @@
 //!   stops when no candidate is accepted or `max_effects` are in.
 //! - concealment index: R^2 of the candidate's fitted contribution on the terms already
 //!   in the model.
+//! - noise-model route (`DiagnoseOptions::noise_model_acceptance`, on by default): at each
+//!   step a noise model (white rate noise + bias-instability decades, two levels by REML
+//!   with the current model in place, `crate::noise_model`) is fitted to the residual short
+//!   means; if it passes its innovation check, a candidate that fails the run-level tests is
+//!   still accepted when its GLS Wald test (smallest p over its grid) is significant at
+//!   `forward::GLS_FAMILY_LEVEL` family-wise over every open candidate and grid point (the
+//!   null distribution of the step's smallest p simulated under the fitted model), its LORO
+//!   error falls and its sign is physical. If the model does not fit, the run-level rules
+//!   decide alone.
 
 mod design;
 mod final_fit;
