@@ -73,6 +73,15 @@ impl HasPosition for Node {
     }
 }
 
+/// Identity normalisation for tests: physical (T, rate) are the normalised (x, y).
+#[cfg(test)]
+pub(crate) const IDENTITY: Normalisation = Normalisation {
+    temp_offset_c: 0.0,
+    temp_scale_per_c: 1.0,
+    rate_offset_c_per_min: 0.0,
+    rate_scale_per_c_per_min: 1.0,
+};
+
 /// Normalised f32 position of a point, exactly as the firmware computes it.
 pub fn normalised(point: &MeshPoint, normalisation: &Normalisation) -> (f32, f32) {
     normalisation.apply(point.temp_c as f32, point.rate_c_per_min as f32)

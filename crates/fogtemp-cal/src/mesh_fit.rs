@@ -550,17 +550,10 @@ fn rms_misfit(rows: &[Row], v: &[f64]) -> f64 {
 mod tests {
     use super::*;
     use crate::mesh::{build_mesh, MeshPoint};
-    use fogtemp_core::Normalisation;
     use rand::{Rng, SeedableRng};
     use rand_xoshiro::Xoshiro256PlusPlus;
 
-    /// Identity normalisation: physical (T, rate) are the normalised (x, y).
-    const IDENTITY: Normalisation = Normalisation {
-        temp_offset_c: 0.0,
-        temp_scale_per_c: 1.0,
-        rate_offset_c_per_min: 0.0,
-        rate_scale_per_c_per_min: 1.0,
-    };
+    use crate::mesh::IDENTITY;
 
     /// A regular `nx` x `ny` grid of nodes over [-1, 1]^2 (values zero).
     fn grid_mesh(nx: usize, ny: usize) -> MeshModel {

@@ -211,12 +211,7 @@ fn interpolation_error(
 mod tests {
     use super::*;
 
-    const IDENTITY: Normalisation = Normalisation {
-        temp_offset_c: 0.0,
-        temp_scale_per_c: 1.0,
-        rate_offset_c_per_min: 0.0,
-        rate_scale_per_c_per_min: 1.0,
-    };
+    use crate::mesh::IDENTITY;
 
     fn square_corners(surface: impl Fn(f64, f64) -> f64) -> Vec<MeshPoint> {
         [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)]
