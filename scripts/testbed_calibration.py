@@ -113,7 +113,8 @@ def main():
                     "each case from this file (rows of an `--methods auto --json` run)")
     ap.add_argument("--cases", default="case*", help="case folders of each seed to run (a glob, e.g. 'case[07]_*')")
     ap.add_argument("--fit-args", default="", help="extra arguments for every `fit`, one string "
-                    "(e.g. '--mesh-outside linear-from-boundary')")
+                    "(e.g. '--mesh-outside linear-from-boundary'; a single option needs the = form: "
+                    "--fit-args=--mesh-refinement)")
     ap.add_argument("seeds", nargs="*", help="folders written by gen.py --out")
     a = ap.parse_args()
     methods = a.methods.split(",")

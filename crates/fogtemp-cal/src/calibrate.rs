@@ -568,12 +568,17 @@ pub fn fit_axis(
                     cv,
                     &free_terms,
                 )?;
-                if let Some((mut fine, tie)) = refined {
-                    let coarse_values: Vec<f64> =
-                        mesh.vertices.iter().map(|v| f64::from(v.value_dph)).collect();
-                    for (vertex, value) in fine.vertices.iter_mut().zip(tie.apply(&coarse_values)) {
-                        vertex.value_dph = value as f32;
-                    }
+                // The refined mesh: its values refitted once, at the weight the coarse mesh's
+                // cross-validation chose, through the refined mesh's own interpolation.
+                if let (Some((mut fine, tie)), Some(relative)) = (refined, smoothing.relative_weight) {
+                    crate::mesh_fit::fit_node_values_tied_at(
+                        &mut fine,
+                        &tie,
+                        &targets,
+                        runs,
+                        relative,
+                        &free_terms,
+                    )?;
                     mesh = fine;
                 }
                 let keep = !smoothing.no_mesh();

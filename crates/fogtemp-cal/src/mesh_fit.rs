@@ -150,11 +150,17 @@ impl MeshSmoothing {
     }
 }
 
-/// One point's row of the design matrix: three (vertex, barycentric weight) pairs.
+/// Most parameters one point's row touches: three mesh vertices, each tied to at most three
+/// fitted vertices ([`Tie`]).
+const MAX_ENTRIES: usize = 9;
+
+/// One point's row of the design matrix: (fitted vertex, weight) pairs, the first `len` used.
 #[derive(Clone, Copy, Debug)]
 struct Row {
-    vertex: [usize; 3],
-    weight: [f64; 3],
+    vertex: [usize; MAX_ENTRIES],
+    weight: [f64; MAX_ENTRIES],
+    len: usize,
+    /// The target, less the row's constant part (a tied mesh's curvature correction).
     value: f64,
     /// Run rank (0..runs).
     run: usize,
@@ -164,6 +170,12 @@ struct Row {
     /// Block of the run (0..K), and the fold (block + run) mod K.
     block: usize,
     fold: usize,
+}
+
+impl Row {
+    fn entries(&self) -> impl Iterator<Item = (usize, f64)> + '_ {
+        self.vertex.iter().copied().zip(self.weight.iter().copied()).take(self.len)
+    }
 }
 
 /// Fits `mesh`'s vertex values to `points` (normalised `x`, `y` as f32 exactly as the firmware
@@ -260,6 +272,48 @@ pub fn fit_node_values_cv_with_free_terms(
     Ok((report, smoothing))
 }
 
+/// The node fit of a refined mesh at a given smoothness weight (the one the coarse mesh's
+/// cross-validation chose): the coarse mesh's values (`tie.coarse`, its penalty and free terms)
+/// fitted through the refined mesh's interpolation, exactly as the firmware interpolates it,
+/// with every refined vertex tied to them (`refine::Tie`); writes the refined mesh's values.
+/// Returns the RMS misfit over the points in the mesh, deg/h.
+///
+/// # Errors
+/// [`CalError::DegenerateMesh`] if the tie does not match `mesh`, a triangle is degenerate, no
+/// point lies in the mesh or the system is singular.
+pub fn fit_node_values_tied_at(
+    mesh: &mut MeshModel,
+    tie: &crate::refine::Tie,
+    points: &[(f32, f32, f64)],
+    run_of: &[usize],
+    relative_weight: f64,
+    free_terms: &[(u8, u8)],
+) -> Result<f64, CalError> {
+    let coarse = &tie.coarse;
+    let n = coarse.vertices.len();
+    let mismatch =
+        CalError::DegenerateMesh { reason: "tie does not match the mesh", points: mesh.vertices.len() };
+    if tie.map.len() != mesh.vertices.len() || tie.map.iter().any(|(v, _, _)| v.iter().any(|&j| j >= n)) {
+        return Err(mismatch);
+    }
+    let (mut rows, _) = design_rows(mesh, points, run_of, BLOCK_FOLDS);
+    rows.iter_mut().for_each(|r| tie_row(r, tie));
+    if rows.is_empty() {
+        return Err(CalError::DegenerateMesh { reason: "no calibration point lies in the mesh", points: n });
+    }
+    let penalty = free_terms_projected_out(gradient_jump_penalty(coarse)?, &free_basis(coarse, free_terms));
+    let gram = normal_matrix(&rows, n, |_| true);
+    let rhs = normal_rhs(&rows, n, |_| true);
+    let balance = gram.trace() / penalty.trace().max(f64::MIN_POSITIVE);
+    let ridge = 1e-10 * gram.trace() / n.max(1) as f64;
+    let values = solve(gram + &penalty * (relative_weight * balance), rhs, ridge)
+        .ok_or(CalError::DegenerateMesh { reason: "mesh node fit is singular", points: n })?;
+    for (vertex, value) in mesh.vertices.iter_mut().zip(tie.apply(&values)) {
+        vertex.value_dph = value as f32;
+    }
+    Ok(rms_misfit(&rows, &values))
+}
+
 /// Block and fold of the point at `position` of a run of `count` points (run rank `run`):
 /// block `j = position * K / count` (K contiguous blocks of equal size), fold `(j + run) mod K`.
 pub fn block_and_fold(position: usize, count: usize, run: usize, folds: usize) -> (usize, usize) {
@@ -338,12 +392,48 @@ fn design_rows(
         match locate(mesh, &transforms, x, y, &mut hint) {
             Some((vertex, weight)) => {
                 let (block, fold) = block_and_fold(position, counts[run], run, folds);
-                rows.push(Row { vertex, weight, value, run, position, run_count: counts[run], block, fold })
+                let mut row = Row {
+                    vertex: [0; MAX_ENTRIES],
+                    weight: [0.0; MAX_ENTRIES],
+                    len: 3,
+                    value,
+                    run,
+                    position,
+                    run_count: counts[run],
+                    block,
+                    fold,
+                };
+                row.vertex[..3].copy_from_slice(&vertex);
+                row.weight[..3].copy_from_slice(&weight);
+                rows.push(row)
             }
             None => outside += 1,
         }
     }
     (rows, outside)
+}
+
+/// Rewrites a row on the refined mesh's vertices as one on the coarse mesh's (`tie`), its
+/// constant moved into the target.
+fn tie_row(r: &mut Row, tie: &crate::refine::Tie) {
+    let fine: Vec<(usize, f64)> = r.entries().collect();
+    let mut tied = Row { len: 0, ..*r };
+    for (k, w) in fine {
+        let Some((vertex, weight, constant)) = tie.map.get(k) else { continue };
+        tied.value -= w * constant;
+        for j in 0..3 {
+            match tied.vertex[..tied.len].iter().position(|&v| v == vertex[j]) {
+                Some(slot) => tied.weight[slot] += w * weight[j],
+                None if tied.len < MAX_ENTRIES => {
+                    tied.vertex[tied.len] = vertex[j];
+                    tied.weight[tied.len] = w * weight[j];
+                    tied.len += 1;
+                }
+                None => {}
+            }
+        }
+    }
+    *r = tied;
 }
 
 /// The triangle containing `(x, y)` (tried first: `hint`, the previous point's triangle, as
@@ -457,9 +547,9 @@ fn free_terms_projected_out(p: DMatrix<f64>, b: &DMatrix<f64>) -> DMatrix<f64> {
 fn normal_matrix(rows: &[Row], n: usize, keep: impl Fn(&Row) -> bool) -> DMatrix<f64> {
     let mut m = DMatrix::<f64>::zeros(n, n);
     for r in rows.iter().filter(|r| keep(r)) {
-        for a in 0..3 {
-            for b in 0..3 {
-                m[(r.vertex[a], r.vertex[b])] += r.weight[a] * r.weight[b];
+        for (va, wa) in r.entries() {
+            for (vb, wb) in r.entries() {
+                m[(va, vb)] += wa * wb;
             }
         }
     }
@@ -470,8 +560,8 @@ fn normal_matrix(rows: &[Row], n: usize, keep: impl Fn(&Row) -> bool) -> DMatrix
 fn normal_rhs(rows: &[Row], n: usize, keep: impl Fn(&Row) -> bool) -> DVector<f64> {
     let mut b = DVector::<f64>::zeros(n);
     for r in rows.iter().filter(|r| keep(r)) {
-        for a in 0..3 {
-            b[r.vertex[a]] += r.weight[a] * r.value;
+        for (v, w) in r.entries() {
+            b[v] += w * r.value;
         }
     }
     b
@@ -491,7 +581,7 @@ fn solve(mut m: DMatrix<f64>, b: DVector<f64>, ridge: f64) -> Option<Vec<f64>> {
 }
 
 fn predict(r: &Row, v: &[f64]) -> f64 {
-    (0..3).map(|k| r.weight[k] * v[r.vertex[k]]).sum()
+    r.entries().map(|(k, w)| w * v[k]).sum()
 }
 
 /// A candidate from the per-block held-out mean squares (blocks without points are skipped).
@@ -696,7 +786,7 @@ mod tests {
             [1.0, x, y, x * x, x * x * x, x * y][c]
         });
         let a = DMatrix::from_fn(rows.len(), n, |i, j| {
-            (0..3).filter(|&k| rows[i].vertex[k] == j).map(|k| rows[i].weight[k]).sum::<f64>()
+            rows[i].entries().filter(|&(k, _)| k == j).map(|(_, w)| w).sum::<f64>()
         });
         let y = DVector::from_iterator(rows.len(), rows.iter().map(|r| r.value));
         let coefficients = (&a * &basis).svd(true, true).solve(&y, 1e-14).unwrap();
@@ -710,6 +800,55 @@ mod tests {
             fit_node_values_cv_with_free_terms(&mut mesh, &points, &run_of, false, MeshCv::default(), &FREE)
                 .unwrap();
         assert_eq!(smoothing.free_terms, FREE.to_vec());
+    }
+
+    /// A tied row is the refined row times the tie (dense oracle): `A_tied = A_fine S` and
+    /// the target less `A_fine s0`; and the tied fit at a weight writes refined values that
+    /// reproduce a free-term surface sampled without noise (the penalty leaves it free at every
+    /// weight).
+    #[test]
+    fn tied_rows_are_the_refined_rows_through_the_tie() {
+        let curve = |x: f64, y: f64| 0.3 + 0.2 * x - 0.1 * y + 0.05 * x * x - 0.04 * x * x * x;
+        let mut nodes: Vec<MeshPoint> = (0..4)
+            .flat_map(|i| (0..3).map(move |j| (-1.0 + 2.0 * f64::from(i) / 3.0, -1.0 + f64::from(j))))
+            .map(|(t, r)| MeshPoint { temp_c: t, rate_c_per_min: r, value_dph: 0.0 })
+            .collect();
+        let refined =
+            crate::refine::refine_for_surface(&mut nodes, &IDENTITY, &curve, 1e-4, 300).expect("mesh");
+        assert!(refined.report.added_nodes > 0);
+        let tie = crate::refine::tie(&refined.mesh, refined.coarse.clone(), &curve);
+        let (points, run_of) = banded_runs(5, 200, 0.0, 3, curve);
+        let (rows, _) = design_rows(&refined.mesh, &points, &run_of, BLOCK_FOLDS);
+        let (fine_n, coarse_n) = (refined.mesh.vertices.len(), refined.coarse.vertices.len());
+        let dense = |rows: &[Row], n: usize| {
+            DMatrix::from_fn(rows.len(), n, |i, j| {
+                rows[i].entries().filter(|&(k, _)| k == j).map(|(_, w)| w).sum::<f64>()
+            })
+        };
+        let a_fine = dense(&rows, fine_n);
+        let s = DMatrix::from_fn(fine_n, coarse_n, |k, j| {
+            let (v, w, _) = tie.map[k];
+            (0..3).filter(|&m| v[m] == j).map(|m| w[m]).sum::<f64>()
+        });
+        let s0 = DVector::from_iterator(fine_n, tie.map.iter().map(|m| m.2));
+        let mut tied = rows.clone();
+        tied.iter_mut().for_each(|r| tie_row(r, &tie));
+        let a_tied = dense(&tied, coarse_n);
+        assert!((&a_tied - &a_fine * &s).amax() < 1e-12);
+        let shifted = &a_fine * &s0;
+        for (i, (r, t)) in rows.iter().zip(&tied).enumerate() {
+            assert!((r.value - shifted[i] - t.value).abs() < 1e-12);
+        }
+        let mut mesh = refined.mesh.clone();
+        let free = [(2u8, 0u8), (3, 0)];
+        fit_node_values_tied_at(&mut mesh, &tie, &points, &run_of, 1.0, &free).expect("fit");
+        // Exact up to the refinement's interpolation tolerance (1e-4: the refined mesh's
+        // interpolation of the curve misses the samples by that much, and least squares
+        // spreads it over the nodes): a few tolerances.
+        for v in &mesh.vertices {
+            let truth = curve(f64::from(v.x), f64::from(v.y));
+            assert!((f64::from(v.value_dph) - truth).abs() < 5e-4, "{} vs {truth}", v.value_dph);
+        }
     }
 
     #[test]
@@ -744,9 +883,10 @@ mod tests {
                 for f in 0..folds {
                     for p in 0..count {
                         let (block, fold) = block_and_fold(p, count, run, folds);
-                        let row = Row {
-                            vertex: [0; 3],
-                            weight: [1.0, 0.0, 0.0],
+                        let mut row = Row {
+                            vertex: [0; MAX_ENTRIES],
+                            weight: [0.0; MAX_ENTRIES],
+                            len: 1,
                             value: 0.0,
                             run,
                             position: p,
@@ -754,6 +894,7 @@ mod tests {
                             block,
                             fold,
                         };
+                        row.weight[0] = 1.0;
                         let near_held_out = (0..count).any(|q| fold_of[q] == f && p.abs_diff(q) <= guard);
                         assert_eq!(
                             trains_fold(&row, f, folds, guard),
