@@ -160,9 +160,8 @@ pub struct CalibrationConfig {
     /// carries the trend there). A polynomial-only axis stores hold (no mesh to continue).
     pub mesh_outside: OutsidePolicy,
     /// Insert Steiner nodes where a plain mesh's triangles are too large to carry the
-    /// polynomial part its node fit leaves free (`refine`; least-squares nodes only). Off by
-    /// default: better on the testbed, 3 % worse on the 1 kHz paper demo
-    /// (docs/calibration-testbed.md, "Steiner nodes between the calibration paths").
+    /// polynomial part its node fit leaves free (`refine`; least-squares nodes only). On by
+    /// default (docs/calibration-testbed.md, "Steiner nodes between the calibration paths").
     pub refine_mesh: bool,
 }
 
@@ -180,7 +179,7 @@ impl Default for CalibrationConfig {
             rate_axis_weight: 1.0,
             poly_outside: fogtemp_core::PolyOutside::LinearFromBoundary,
             mesh_outside: OutsidePolicy::StoredGradients,
-            refine_mesh: false,
+            refine_mesh: true,
         }
     }
 }

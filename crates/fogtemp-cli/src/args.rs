@@ -369,19 +369,19 @@ pub struct FitArgs {
     /// the smoothed gyro, so the mesh follows the data down to its noise and no further).
     #[arg(long, help_heading = "Mesh")]
     pub tolerance_dph: Option<f64>,
-    /// Greedy thinning: at most this many nodes (--mesh-refinement may add as many again).
+    /// Greedy thinning: at most this many nodes (refinement may add as many again; --no-mesh-refinement).
     #[arg(long, default_value_t = 600, help_heading = "Mesh")]
     pub max_nodes: usize,
     /// Use each node's own smoothed target as its value (the paper) instead of fitting the
     /// node values by least squares to all calibration points (default).
     #[arg(long, help_heading = "Mesh")]
     pub interpolate_nodes: bool,
-    /// Insert Steiner nodes where a plain mesh's triangles are too large to follow the
-    /// polynomial part its node fit leaves free, until the linear interpolation of that surface
-    /// is within a tenth of the target noise (at most --max-nodes more). Off by default: better
-    /// on an independent lab's data, 3 % worse on the 1 kHz paper demo.
+    /// Do not insert Steiner nodes where a plain mesh's triangles are too large to follow the
+    /// polynomial part its node fit leaves free (by default nodes are added until the linear
+    /// interpolation of that surface is within a tenth of the target noise, at most --max-nodes
+    /// more, and the mesh is refitted through them at the cross-validated weight).
     #[arg(long, help_heading = "Mesh")]
-    pub mesh_refinement: bool,
+    pub no_mesh_refinement: bool,
     /// Paper thinning: keep every point while |rate| >= this, deg C/min.
     #[arg(long, default_value_t = 0.05, help_heading = "Mesh")]
     pub fast_rate: f64,

@@ -57,7 +57,7 @@ pub fn fit(a: FitArgs) -> Result<()> {
         rate_axis_weight: 1.0,
         poly_outside: a.poly_outside.into(),
         mesh_outside: a.mesh_outside.into(),
-        refine_mesh: a.mesh_refinement,
+        refine_mesh: !a.no_mesh_refinement,
     };
     let mut runs = Vec::with_capacity(logs.len());
     for log in &logs {
