@@ -528,19 +528,22 @@ pub fn fit_axis(
                             points: nodes.len(),
                         })?;
                     let surface = surface_of(&terms);
-                    let refined = crate::refine::refine_for_surface(
-                        &mut nodes,
-                        &normalisation,
-                        &surface,
-                        tolerance_dph,
-                        max_refinement_nodes(config.thinning),
-                    )?;
-                    mesh_refinement = Some(refined.report);
-                    let coarse = refined.coarse.clone();
-                    let tie = (refined.report.added_nodes > 0).then(|| {
-                        (refined.mesh.clone(), crate::refine::tie(&refined.mesh, refined.coarse, &surface))
-                    });
-                    (coarse, tie)
+                    let crate::refine::Refined { mesh: fine, coarse, report } =
+                        crate::refine::refine_for_surface(
+                            &mut nodes,
+                            &normalisation,
+                            &surface,
+                            tolerance_dph,
+                            max_refinement_nodes(config.thinning),
+                        )?;
+                    mesh_refinement = Some(report);
+                    if report.added_nodes > 0 {
+                        // The tie keeps the coarse geometry; the node fit below fits a copy's values.
+                        let tie = crate::refine::tie(&fine, coarse, &surface);
+                        (tie.coarse.clone(), Some((fine, tie)))
+                    } else {
+                        (coarse, None)
+                    }
                 }
                 _ => (build_mesh(&nodes, &normalisation)?, None),
             };

@@ -216,11 +216,7 @@ pub fn fit_node_values_cv_with_free_terms(
     if rows.is_empty() {
         return Err(CalError::DegenerateMesh { reason: "no calibration point lies in the mesh", points: n });
     }
-    let penalty = free_terms_projected_out(gradient_jump_penalty(mesh)?, &free_basis(mesh, free_terms));
-    let gram = normal_matrix(&rows, n, |_| true);
-    let rhs = normal_rhs(&rows, n, |_| true);
-    let balance = gram.trace() / penalty.trace().max(f64::MIN_POSITIVE);
-    let ridge = 1e-10 * gram.trace() / n.max(1) as f64;
+    let NormalSystem { penalty, gram, rhs, balance, ridge } = NormalSystem::new(&rows, mesh, free_terms)?;
     let v0: Vec<f64> = mesh.vertices.iter().map(|v| f64::from(v.value_dph)).collect();
     let rms_before_dph = rms_misfit(&rows, &v0);
 
@@ -301,17 +297,37 @@ pub fn fit_node_values_tied_at(
     if rows.is_empty() {
         return Err(CalError::DegenerateMesh { reason: "no calibration point lies in the mesh", points: n });
     }
-    let penalty = free_terms_projected_out(gradient_jump_penalty(coarse)?, &free_basis(coarse, free_terms));
-    let gram = normal_matrix(&rows, n, |_| true);
-    let rhs = normal_rhs(&rows, n, |_| true);
-    let balance = gram.trace() / penalty.trace().max(f64::MIN_POSITIVE);
-    let ridge = 1e-10 * gram.trace() / n.max(1) as f64;
+    let NormalSystem { penalty, gram, rhs, balance, ridge } = NormalSystem::new(&rows, coarse, free_terms)?;
     let values = solve(gram + &penalty * (relative_weight * balance), rhs, ridge)
         .ok_or(CalError::DegenerateMesh { reason: "mesh node fit is singular", points: n })?;
     for (vertex, value) in mesh.vertices.iter_mut().zip(tie.apply(&values)) {
         vertex.value_dph = value as f32;
     }
     Ok(rms_misfit(&rows, &values))
+}
+
+/// The penalised normal equations of a node fit: the penalty `R'R` with `free_terms` left free
+/// (on `fitted`, whose vertices are the unknowns), the data term `A'A`, `A'y`, their balance
+/// `trace(A'A) / trace(R'R)` (the unit of the relative weights) and the tiny ridge.
+struct NormalSystem {
+    penalty: DMatrix<f64>,
+    gram: DMatrix<f64>,
+    rhs: DVector<f64>,
+    balance: f64,
+    ridge: f64,
+}
+
+impl NormalSystem {
+    fn new(rows: &[Row], fitted: &MeshModel, free_terms: &[(u8, u8)]) -> Result<Self, CalError> {
+        let n = fitted.vertices.len();
+        let penalty =
+            free_terms_projected_out(gradient_jump_penalty(fitted)?, &free_basis(fitted, free_terms));
+        let gram = normal_matrix(rows, n, |_| true);
+        let rhs = normal_rhs(rows, n, |_| true);
+        let balance = gram.trace() / penalty.trace().max(f64::MIN_POSITIVE);
+        let ridge = 1e-10 * gram.trace() / n.max(1) as f64;
+        Ok(Self { penalty, gram, rhs, balance, ridge })
+    }
 }
 
 /// Block and fold of the point at `position` of a run of `count` points (run rank `run`):
