@@ -52,6 +52,7 @@
 pub mod arrays;
 pub mod blob;
 pub mod calibrate;
+pub mod cv_correction;
 pub mod documents;
 pub mod error;
 pub mod features;

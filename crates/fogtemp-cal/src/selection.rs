@@ -46,6 +46,7 @@ use crate::calibrate::{
     calibration_points, choose_normalisation, fit_model, validations, CalibrationConfig, Method, Replay,
     ReplaySeries, RunFeatures,
 };
+use crate::cv_correction::{corrected, fold_corrections, mean_run_score, CvCorrection};
 use crate::error::CalError;
 use crate::features::FeaturePoint;
 use crate::mesh::MeshPoint;
@@ -102,6 +103,9 @@ pub struct SelectionOptions {
     pub blocks: usize,
     /// The scale the one-standard-error rule works on ([`RuleScale`]).
     pub scale: RuleScale,
+    /// How fold scores are corrected before the rule ([`CvCorrection`]; leave-one-group-out
+    /// only).
+    pub correction: CvCorrection,
 }
 
 /// The scale of the one-standard-error rule ([`choose`]).
@@ -132,6 +136,7 @@ impl Default for SelectionOptions {
             scheme: CvScheme::LeaveOneGroupOut,
             blocks: DEFAULT_BLOCKS,
             scale: RuleScale::DegPerHour,
+            correction: CvCorrection::None,
         }
     }
 }
@@ -420,6 +425,10 @@ pub struct CandidateScore {
     /// Whether the excess is within one standard error (the chosen method is the simplest
     /// such candidate).
     pub within_one_standard_error: bool,
+    /// With [`CvCorrection::TrainingSize`]: the mean over the folds scored of the
+    /// correction `e_full - e_g` added to the fold scores (included in
+    /// `cv_bias_stability_dph`), deg/h; NaN without it.
+    pub training_size_correction_dph: f64,
     /// Every held-out run.
     pub runs: Vec<HeldOutRun>,
     /// Why the candidate was not scored (its fit failed in a fold), if so.
@@ -449,6 +458,8 @@ pub struct Selection {
     pub skipped_folds: Vec<SkippedFold>,
     /// The scale the rule worked on.
     pub scale: RuleScale,
+    /// How the fold scores were corrected before the rule.
+    pub correction: CvCorrection,
     /// The rule ([`RULE`], or [`RULE_LOG_SCALE`]).
     pub rule: &'static str,
     /// Set when cross-validation was impossible and the default was fitted: why.
@@ -493,6 +504,7 @@ impl Selection {
             blocks: None,
             skipped_folds: Vec::new(),
             scale: RuleScale::DegPerHour,
+            correction: CvCorrection::None,
             rule: RULE,
             warning: Some(format!(
                 "{why} ({folds} {unit} {counted}; cross-validation needs at least {MIN_FOLDS}): fitted the default \
@@ -546,6 +558,12 @@ impl Selection {
                  the two)\n"
             )),
             _ => {}
+        }
+        if self.correction == CvCorrection::TrainingSize {
+            out.push_str(
+                "  fold scores corrected for the folds' smaller training set (Burman 1989; column \
+                 'training-size correction' of the JSON)\n",
+            );
         }
         if self.scoring == CvScoring::InsideRegion {
             out.push_str(&format!(
@@ -614,7 +632,11 @@ pub fn select(
     }
     let held = match options.scheme {
         CvScheme::LeaveOneGroupOut => {
-            held_out_by_groups(runs, config, options, &folds, &mut progress, replay)?
+            let mut held = held_out_by_groups(runs, config, options, &folds, &mut progress, replay)?;
+            if options.correction == CvCorrection::TrainingSize {
+                add_full_errors(runs, config, options, &mut held);
+            }
+            held
         }
         CvScheme::BlockedKFold => held_out_by_blocks(runs, config, options, 0, &mut progress, replay)?,
         CvScheme::RunsAndBlocks => {
@@ -651,11 +673,21 @@ pub fn select(
 struct HeldOut {
     runs: Vec<Vec<Vec<HeldOutRun>>>,
     failed: Vec<Option<String>>,
+    /// With [`CvCorrection::TrainingSize`]: per candidate, per axis, per fold, the fold
+    /// model's mean run score over every run, `e_g` (empty otherwise).
+    fold_errors: Vec<Vec<Vec<f64>>>,
+    /// The same for the model fitted on every run, `e_full`, per candidate, per axis.
+    full_errors: Vec<Vec<f64>>,
 }
 
 impl HeldOut {
     fn new(candidates: usize, axes: usize) -> Self {
-        Self { runs: vec![vec![Vec::new(); axes]; candidates], failed: vec![None; candidates] }
+        Self {
+            runs: vec![vec![Vec::new(); axes]; candidates],
+            failed: vec![None; candidates],
+            fold_errors: vec![vec![Vec::new(); axes]; candidates],
+            full_errors: vec![vec![f64::NAN; axes]; candidates],
+        }
     }
 
     /// Adds each run's blocked out-of-fold score to its held-out score
@@ -726,6 +758,21 @@ fn held_out_by_groups(
                     .then(|| TrainingRegion::of(&training, axis, config))
             })
             .collect();
+        if options.correction == CvCorrection::TrainingSize {
+            for ((c, _), model) in fitted.iter().zip(&models) {
+                for (axis, region) in regions.iter().enumerate() {
+                    let e = mean_run_score(
+                        model,
+                        axis,
+                        runs,
+                        &fold.held_out,
+                        region.as_ref(),
+                        &options.stability,
+                    );
+                    out.fold_errors[*c][axis].push(e);
+                }
+            }
+        }
         for ((c, _), validation) in fitted.iter().zip(validations) {
             for r in validation.runs {
                 let Some(axis_runs) = out.runs[*c].get_mut(r.axis) else { continue };
@@ -745,6 +792,27 @@ fn held_out_by_groups(
         }
     }
     Ok(out)
+}
+
+/// [`CvCorrection::TrainingSize`]: every candidate fitted on every run, its mean run score
+/// over every run (`e_full`) into `held.full_errors`; a failed fit fails the candidate.
+fn add_full_errors(
+    runs: &[RunFeatures],
+    config: &CalibrationConfig,
+    options: &SelectionOptions,
+    held: &mut HeldOut,
+) {
+    let axes = config.ingest.format.gyro_columns.len();
+    let fitted = fit_candidates(runs, config, &options.candidates, &mut held.failed, "every run");
+    for (c, blob) in fitted {
+        let Ok(model) = Model::from_bytes(&blob) else {
+            held.failed[c] = Some("the model fitted on every run failed the core's check".to_owned());
+            continue;
+        };
+        for axis in 0..axes {
+            held.full_errors[c][axis] = mean_run_score(&model, axis, runs, &[], None, &options.stability);
+        }
+    }
 }
 
 /// Fits every candidate not yet failed on `training`; a failure is recorded in `failed`
@@ -1146,19 +1214,16 @@ fn axis_selection(
                 return None;
             }
             let runs = &held[c][axis];
-            Some(
-                folds
-                    .iter()
-                    .map(|f| {
-                        let v: Vec<f64> = runs
-                            .iter()
-                            .filter(|r| r.group == f.label)
-                            .map(|r| r.bias_stability_dph)
-                            .collect();
-                        rms_over_runs(&v)
-                    })
-                    .collect(),
-            )
+            let measured: Vec<f64> = folds
+                .iter()
+                .map(|f| {
+                    let v: Vec<f64> =
+                        runs.iter().filter(|r| r.group == f.label).map(|r| r.bias_stability_dph).collect();
+                    rms_over_runs(&v)
+                })
+                .collect();
+            let (full, per_fold) = (held_out.full_errors[c][axis], &held_out.fold_errors[c][axis]);
+            Some(if per_fold.is_empty() { measured } else { corrected(&measured, full, per_fold) })
         })
         .collect();
     // A fold counts when every scored candidate has a finite score on it (a held-out run
@@ -1212,6 +1277,7 @@ fn axis_selection(
                 log_ratio_to_best: s.log_ratio,
                 log_ratio_standard_error: s.log_ratio_standard_error,
                 within_one_standard_error: s.within_one_standard_error(),
+                training_size_correction_dph: mean_correction(held_out, c, axis, &usable),
                 runs: held[c][axis].clone(),
                 error: None,
             },
@@ -1228,9 +1294,30 @@ fn axis_selection(
         blocks: None,
         skipped_folds,
         scale,
+        correction: if held_out.fold_errors.iter().any(|a| a.get(axis).is_some_and(|f| !f.is_empty())) {
+            CvCorrection::TrainingSize
+        } else {
+            CvCorrection::None
+        },
         rule: if scale == RuleScale::Log { RULE_LOG_SCALE } else { RULE },
         warning: None,
         candidates: candidate_scores,
+    }
+}
+
+/// The mean over the folds `usable` of candidate `c`'s training-size correction on `axis`
+/// (NaN without one).
+fn mean_correction(held_out: &HeldOut, c: usize, axis: usize, usable: &[usize]) -> f64 {
+    let per_fold = &held_out.fold_errors[c][axis];
+    if per_fold.is_empty() {
+        return f64::NAN;
+    }
+    let corrections = fold_corrections(held_out.full_errors[c][axis], per_fold);
+    let used: Vec<f64> = usable.iter().filter_map(|&g| corrections.get(g).copied()).collect();
+    if used.is_empty() {
+        f64::NAN
+    } else {
+        mean(&used)
     }
 }
 
@@ -1266,6 +1353,7 @@ fn unscored(method: Method, runs: &[HeldOutRun], error: Option<String>) -> Candi
         log_ratio_to_best: f64::NAN,
         log_ratio_standard_error: f64::NAN,
         within_one_standard_error: false,
+        training_size_correction_dph: f64::NAN,
         runs: runs.to_vec(),
         error,
     }
@@ -1554,6 +1642,34 @@ mod tests {
     }
 
     #[test]
+    fn the_training_size_correction_shifts_each_candidate_by_what_it_reports() {
+        // The same runs with and without the correction: the folds and their measured scores
+        // are identical, so each candidate's corrected CV mean is its uncorrected mean plus
+        // the mean correction it reports (1e-12), and every candidate has one.
+        let bias = |t: f64, rate: f64| 0.4 * rate + 0.1 * ((t - 10.0) / 40.0).powi(2);
+        let plain = selection_for(bias);
+        let options =
+            SelectionOptions { correction: CvCorrection::TrainingSize, ..SelectionOptions::default() };
+        let fixed = selection_with(bias, &options);
+        assert_eq!((plain.correction, fixed.correction), (CvCorrection::None, CvCorrection::TrainingSize));
+        assert_eq!(plain.folds, fixed.folds);
+        assert!(fixed.table().contains("Burman 1989"), "{}", fixed.table());
+        for (p, f) in plain.candidates.iter().zip(&fixed.candidates) {
+            assert_eq!(p.method, f.method);
+            assert!(p.training_size_correction_dph.is_nan());
+            let c = f.training_size_correction_dph;
+            assert!(c.is_finite(), "{:?}: {c}", f.method);
+            let shifted = p.cv_bias_stability_dph + c;
+            assert!(
+                (f.cv_bias_stability_dph - shifted).abs() < 1e-12,
+                "{:?}: {} vs {shifted}",
+                f.method,
+                f.cv_bias_stability_dph
+            );
+        }
+    }
+
+    #[test]
     fn too_few_runs_fall_back_to_the_stated_default_with_a_warning() {
         let dir = tempfile::tempdir().expect("tempdir");
         let logs = write_runs(dir.path(), |t, _| 0.01 * t);
@@ -1701,6 +1817,48 @@ mod tests {
     }
 
     #[test]
+    fn the_training_size_correction_can_change_the_choice_on_hand_computed_numbers() {
+        // Three folds: cubic-t 2.0 each, poly 2.2 each: cubic-t is best as measured. With
+        // e_full 1.0 for both, cubic-t's fold models' e_g 0.9 (correction +0.1 -> 2.1) and
+        // poly's 1.2 (-0.2 -> 2.0): poly is best and cubic-t's excess 0.1 exceeds its paired
+        // standard error 0, so poly is chosen; the reported corrections are +0.1 and -0.2.
+        let folds = folds(&labels(&["a", "b", "c"]));
+        let runs = |v: f64| vec![held("a", v), held("b", v), held("c", v)];
+        let held_out = HeldOut {
+            runs: vec![vec![runs(2.0)], vec![runs(2.2)]],
+            failed: vec![None, None],
+            fold_errors: vec![vec![vec![0.9; 3]], vec![vec![1.2; 3]]],
+            full_errors: vec![vec![1.0], vec![1.0]],
+        };
+        let candidates = [Method::CubicT, Method::Poly];
+        let s = axis_selection(
+            0,
+            Grouping::Runs,
+            &folds,
+            &[true; 3],
+            &candidates,
+            &held_out,
+            RuleScale::DegPerHour,
+        );
+        assert_eq!(
+            (s.method, s.best, s.correction),
+            (Method::Poly, Some(Method::Poly), CvCorrection::TrainingSize)
+        );
+        let close = |a: f64, b: f64| (a - b).abs() < 1e-12;
+        assert!(
+            close(s.candidates[0].cv_bias_stability_dph, 2.1)
+                && close(s.candidates[1].cv_bias_stability_dph, 2.0)
+        );
+        assert!(close(s.candidates[0].training_size_correction_dph, 0.1));
+        assert!(close(s.candidates[1].training_size_correction_dph, -0.2));
+        // Without the fold errors: cubic-t, as measured.
+        let plain = HeldOut { fold_errors: vec![vec![Vec::new()]; 2], ..held_out };
+        let s =
+            axis_selection(0, Grouping::Runs, &folds, &[true; 3], &candidates, &plain, RuleScale::DegPerHour);
+        assert_eq!((s.method, s.correction), (Method::CubicT, CvCorrection::None));
+    }
+
+    #[test]
     fn a_fold_without_a_score_is_skipped_and_reported() {
         // Four runs; run "c" has too few windows inside the region. Over the other three
         // folds: cubic-t 2, 2, 2 (best), poly 3, 3, 3.
@@ -1714,7 +1872,7 @@ mod tests {
             &folds,
             &[true; 4],
             &[Method::CubicT, Method::Poly],
-            &HeldOut { runs: vec![vec![cubic], vec![poly]], failed: vec![None, None] },
+            &HeldOut { runs: vec![vec![cubic], vec![poly]], failed: vec![None, None], ..HeldOut::new(2, 1) },
             RuleScale::DegPerHour,
         );
         assert_eq!((s.method, s.folds), (Method::CubicT, 3));

@@ -164,6 +164,7 @@ mod tests {
             blocks: None,
             skipped_folds: vec![SkippedFold { group: "d".into(), reason: "no windows inside".into() }],
             scale: crate::selection::RuleScale::DegPerHour,
+            correction: crate::cv_correction::CvCorrection::None,
             rule: crate::selection::RULE,
             warning: None,
             candidates: vec![CandidateScore {
@@ -175,6 +176,7 @@ mod tests {
                 log_ratio_to_best: 0.0,
                 log_ratio_standard_error: 0.0,
                 within_one_standard_error: true,
+                training_size_correction_dph: f64::NAN,
                 runs: vec![run("a", 0.003), run("b", 0.004), run("c", 0.005), run("d", f64::NAN)],
                 error: None,
             }],

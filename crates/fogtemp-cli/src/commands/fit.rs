@@ -2,6 +2,7 @@
 
 use anyhow::{bail, Context, Result};
 use fogtemp_cal::calibrate::{self, CalibrationConfig, Method, Thinning};
+use fogtemp_cal::cv_correction::CvCorrection;
 use fogtemp_cal::documents::FitDocument;
 use fogtemp_cal::poly_fit::TermSelection;
 use fogtemp_cal::runs::{Role, RunsFile};
@@ -10,7 +11,9 @@ use fogtemp_cal::thin::GreedyThinning;
 use fogtemp_core::{FeatureSettings, Model};
 
 use super::{capacity_fits, ingest_options, print_json, report_skipped};
-use crate::args::{CvSchemeArg, CvScoringArg, FitArgs, MethodArg, PolyArg, RuleScaleArg, ThinningArg};
+use crate::args::{
+    CvCorrectionArg, CvSchemeArg, CvScoringArg, FitArgs, MethodArg, PolyArg, RuleScaleArg, ThinningArg,
+};
 use crate::output::{digest_files, expand_logs, write_atomic, RowProgress};
 
 /// The `fit` command.
@@ -90,6 +93,10 @@ pub fn fit(a: FitArgs) -> Result<()> {
         scale: match a.cv_rule_scale {
             RuleScaleArg::DegPerHour => RuleScale::DegPerHour,
             RuleScaleArg::Log => RuleScale::Log,
+        },
+        correction: match a.cv_correction {
+            CvCorrectionArg::None => CvCorrection::None,
+            CvCorrectionArg::TrainingSize => CvCorrection::TrainingSize,
         },
         ..SelectionOptions::default()
     };
