@@ -13,26 +13,15 @@ use std::collections::BTreeMap;
 use std::fs;
 use std::path::{Path, PathBuf};
 
-use assert_cmd::Command;
+use common::{cal, run_err, run_ok};
 use fogtemp_sim::{simulate_in_memory, Scenario, PAPER_TOML};
 use serde_json::Value;
 use tempfile::TempDir;
 
-fn cal() -> Command {
-    Command::new(common::fogtemp_cal_bin())
-}
-
 /// Runs `fogtemp-cal args...`, requires success, parses stdout as JSON.
 fn run_json(args: &[&str]) -> Value {
-    let out = cal().args(args).assert().success();
-    let stdout = String::from_utf8_lossy(&out.get_output().stdout).into_owned();
+    let stdout = run_ok(args);
     serde_json::from_str(&stdout).unwrap_or_else(|e| panic!("stdout is not JSON ({e}):\n{stdout}"))
-}
-
-/// Runs `fogtemp-cal args...`, requires failure, returns stderr.
-fn run_err(args: &[&str]) -> String {
-    let out = cal().args(args).assert().failure();
-    String::from_utf8_lossy(&out.get_output().stderr).into_owned()
 }
 
 fn s(p: &Path) -> &str {

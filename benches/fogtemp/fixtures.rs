@@ -220,6 +220,17 @@ pub fn coherent_queries(n: usize) -> Vec<Query> {
         .collect()
 }
 
+/// The bounding box of `mesh`'s nodes (normalised): lowest and highest `[x, y]`.
+pub fn node_box(mesh: &Mesh<'_>) -> ([f32; 2], [f32; 2]) {
+    let (mut lo, mut hi) = ([f32::INFINITY; 2], [f32::NEG_INFINITY; 2]);
+    for i in 0..mesh.vertex_count() {
+        let v = mesh.vertex(i).expect("vertex exists");
+        lo = [lo[0].min(v.x), lo[1].min(v.y)];
+        hi = [hi[0].max(v.x), hi[1].max(v.y)];
+    }
+    (lo, hi)
+}
+
 /// `n` queries uniform over the bounding box of `mesh`'s nodes, kept only when inside the
 /// hull for both the walk and spade (outside the hull the peers do different things), in
 /// random order: every query starts the walk from an unrelated triangle.
@@ -229,12 +240,7 @@ pub fn random_inside_queries(
     n: usize,
     seed: u64,
 ) -> Vec<Query> {
-    let (mut lo, mut hi) = ([f32::INFINITY; 2], [f32::NEG_INFINITY; 2]);
-    for i in 0..mesh.vertex_count() {
-        let v = mesh.vertex(i).expect("vertex exists");
-        lo = [lo[0].min(v.x), lo[1].min(v.y)];
-        hi = [hi[0].max(v.x), hi[1].max(v.y)];
-    }
+    let (lo, hi) = node_box(mesh);
     let mut r = rng(seed);
     let mut out = Vec::with_capacity(n);
     while out.len() < n {

@@ -264,12 +264,7 @@ pub fn random_order(c: &mut Criterion) {
 /// `n` queries uniform over `mesh`'s bounding box grown by `margin` of its span on every side,
 /// kept only when outside the hull (by the scan), in random order.
 fn random_outside_queries(mesh: &Mesh<'_>, n: usize, margin: f32, seed: u64) -> Vec<Query> {
-    let (mut lo, mut hi) = ([f32::INFINITY; 2], [f32::NEG_INFINITY; 2]);
-    for i in 0..mesh.vertex_count() {
-        let v = mesh.vertex(i).expect("vertex exists");
-        lo = [lo[0].min(v.x), lo[1].min(v.y)];
-        hi = [hi[0].max(v.x), hi[1].max(v.y)];
-    }
+    let (lo, hi) = fixtures::node_box(mesh);
     let grow = [margin * (hi[0] - lo[0]), margin * (hi[1] - lo[1])];
     let mut r = fixtures::rng(seed);
     let mut out = Vec::with_capacity(n);
