@@ -155,18 +155,23 @@ fn three_axis_model() -> ModelFile {
     }
 }
 
-/// A valid one-axis hybrid blob of about 2 KB (17 mesh nodes, 3 poly terms).
-fn two_kb_blob() -> Vec<u8> {
-    let axis = AxisModel {
+/// A hybrid axis of 17 mesh nodes and 3 poly terms, continued outside the hull by `policy`.
+fn two_kb_axis(policy: OutsidePolicy) -> AxisModel {
+    AxisModel {
         region: Vec::new(),
         poly_outside: fogtemp_core::PolyOutside::Extrapolate,
         features: FEATURES,
         normalisation: NORMALISATION,
-        outside_policy: OutsidePolicy::NearestHull,
+        outside_policy: policy,
         poly: vec![term(0, 0, 0.01), term(1, 0, 0.2), term(1, 1, -0.03)],
         mesh: Some(build_mesh(&random_points(17, 21, bias_surface), &NORMALISATION).expect("mesh")),
         provenance: provenance(4.0),
-    };
+    }
+}
+
+/// A valid one-axis hybrid blob of about 2 KB ([`two_kb_axis`], nearest-hull policy).
+fn two_kb_blob() -> Vec<u8> {
+    let axis = two_kb_axis(OutsidePolicy::NearestHull);
     encode(&ModelFile { tool_version: "fogtemp 2k".into(), input_digest: [3; 32], axes: vec![axis] })
         .expect("encodes")
 }
@@ -1038,17 +1043,8 @@ fn hull_that_does_not_go_round_exactly_once_is_rejected() {
 
 /// The mesh of [`two_kb_blob`] with the policy `StoredGradients`, and the blob.
 fn gradient_blob() -> (MeshModel, Vec<u8>) {
-    let mesh = build_mesh(&random_points(17, 21, bias_surface), &NORMALISATION).expect("mesh");
-    let axis = AxisModel {
-        region: Vec::new(),
-        poly_outside: fogtemp_core::PolyOutside::Extrapolate,
-        features: FEATURES,
-        normalisation: NORMALISATION,
-        outside_policy: OutsidePolicy::StoredGradients,
-        poly: vec![term(0, 0, 0.01), term(1, 0, 0.2), term(1, 1, -0.03)],
-        mesh: Some(mesh.clone()),
-        provenance: provenance(4.0),
-    };
+    let axis = two_kb_axis(OutsidePolicy::StoredGradients);
+    let mesh = axis.mesh.clone().expect("the axis has a mesh");
     let blob =
         encode(&ModelFile { tool_version: "fogtemp grad".into(), input_digest: [3; 32], axes: vec![axis] })
             .expect("encodes");

@@ -234,7 +234,7 @@ fn simulate_rejects_a_bad_scenario_file() {
         let file = dir.path().join(name);
         fs::write(&file, &text).expect("write");
         let line = text.lines().position(|l| l.contains(needle)).expect("needle") + 1;
-        let err = run_err(&["simulate", "--scenario", s(&file), "--out", s(&out)]);
+        let err = run_err(["simulate", "--scenario", s(&file), "--out", s(&out)]);
         assert!(err.contains(s(&file)), "{name}: the file is named: {err}");
         assert!(err.contains(&format!("line {line}")), "{name}: line {line}: {err}");
         assert!(err.contains(needle), "{name}: {err}");
@@ -247,21 +247,21 @@ fn simulate_rejects_a_bad_scenario_file() {
         SMALL.replace("case_heat_capacity_j_per_k = 1000.0", "case_heat_capacity_j_per_k = -5.0"),
     )
     .expect("write");
-    let err = run_err(&["simulate", "--scenario", s(&file), "--out", s(&out)]);
+    let err = run_err(["simulate", "--scenario", s(&file), "--out", s(&out)]);
     assert!(err.contains(s(&file)) && err.contains("thermal.case_heat_capacity_j_per_k"), "{err}");
 
     let file = dir.path().join("duplicate.toml");
     fs::write(&file, SMALL.replace("name = \"ramp\"", "name = \"hold\"")).expect("write");
-    let err = run_err(&["simulate", "--scenario", s(&file), "--out", s(&out)]);
+    let err = run_err(["simulate", "--scenario", s(&file), "--out", s(&out)]);
     assert!(err.contains("two runs are named 'hold'"), "{err}");
 
     let missing = dir.path().join("missing.toml");
-    let err = run_err(&["simulate", "--scenario", s(&missing), "--out", s(&out)]);
+    let err = run_err(["simulate", "--scenario", s(&missing), "--out", s(&out)]);
     assert!(err.contains(s(&missing)), "{err}");
 
     let file = dir.path().join("small.toml");
     fs::write(&file, SMALL).expect("write");
-    let err = run_err(&["simulate", "--scenario", s(&file), "--out", s(&out), "--rate", "0"]);
+    let err = run_err(["simulate", "--scenario", s(&file), "--out", s(&out), "--rate", "0"]);
     assert!(err.contains("sample_rate_hz"), "{err}");
     assert!(!out.exists(), "nothing written");
 }
@@ -366,7 +366,7 @@ fn demo_without_a_validation_position_fails() {
     let file = dir.path().join("nopos.toml");
     fs::write(&file, text).expect("write");
     let out = dir.path().join("demo");
-    let err = run_err(&["demo", "--scenario", s(&file), "--out", s(&out), "--no-report", "--json"]);
+    let err = run_err(["demo", "--scenario", s(&file), "--out", s(&out), "--no-report", "--json"]);
     assert!(err.contains("no runs in position 'pos1'"), "{err}");
 }
 
@@ -457,7 +457,7 @@ fn diagnose_refuses_unpaired_runs() {
     for name in ["pos1_-40C.csv", "pos1_-25C.csv"] {
         fs::copy(simulated.join(name), recorded.join(name)).expect("copy");
     }
-    let err = run_err(&["diagnose", "--simulated", s(&simulated), "--recorded", s(&recorded)]);
+    let err = run_err(["diagnose", "--simulated", s(&simulated), "--recorded", s(&recorded)]);
     assert!(err.contains("paired by file name") && err.contains("pos2_60C.csv"), "{err}");
 }
 

@@ -6,7 +6,7 @@
 
 use fogtemp_cal::{build_mesh, encode, AxisModel, MeshPoint, ModelFile};
 use fogtemp_core::{
-    AxisProvenance, FeatureSettings, Location, Mesh, Normalisation, OutsidePolicy, PolyTerm, WalkHint,
+    AxisProvenance, FeatureSettings, Location, Mesh, Model, Normalisation, OutsidePolicy, PolyTerm, WalkHint,
 };
 use rand::{Rng, SeedableRng};
 use rand_xoshiro::Xoshiro256PlusPlus;
@@ -137,6 +137,12 @@ pub fn model_blob(poly: Vec<PolyTerm>, points: Option<&[MeshPoint]>) -> Vec<u8> 
     };
     let file = ModelFile { tool_version: "fogtemp bench".into(), input_digest: [0; 32], axes: vec![axis] };
     encode(&file).expect("encodes")
+}
+
+/// The mesh of axis 0 of a model `blob`.
+pub fn mesh_of(blob: &[u8]) -> Mesh<'_> {
+    let model = Model::from_bytes(blob).expect("valid blob");
+    model.axis(0).expect("axis 0").mesh.expect("mesh")
 }
 
 /// A spade vertex: normalised position (f64) and value (deg/h).
