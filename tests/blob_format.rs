@@ -155,18 +155,23 @@ fn three_axis_model() -> ModelFile {
     }
 }
 
-/// A valid one-axis hybrid blob of about 2 KB (17 mesh nodes, 3 poly terms).
-fn two_kb_blob() -> Vec<u8> {
-    let axis = AxisModel {
+/// A hybrid axis of 17 mesh nodes and 3 poly terms, continued outside the hull by `policy`.
+fn two_kb_axis(policy: OutsidePolicy) -> AxisModel {
+    AxisModel {
         region: Vec::new(),
         poly_outside: fogtemp_core::PolyOutside::Extrapolate,
         features: FEATURES,
         normalisation: NORMALISATION,
-        outside_policy: OutsidePolicy::NearestHull,
+        outside_policy: policy,
         poly: vec![term(0, 0, 0.01), term(1, 0, 0.2), term(1, 1, -0.03)],
         mesh: Some(build_mesh(&random_points(17, 21, bias_surface), &NORMALISATION).expect("mesh")),
         provenance: provenance(4.0),
-    };
+    }
+}
+
+/// A valid one-axis hybrid blob of about 2 KB ([`two_kb_axis`], nearest-hull policy).
+fn two_kb_blob() -> Vec<u8> {
+    let axis = two_kb_axis(OutsidePolicy::NearestHull);
     encode(&ModelFile { tool_version: "fogtemp 2k".into(), input_digest: [3; 32], axes: vec![axis] })
         .expect("encodes")
 }
@@ -531,12 +536,8 @@ fn every_single_byte_flip_with_crc_recomputed_is_rejected_or_evaluates_without_p
         for mask in MASKS {
             let mut b = blob.clone();
             b[at] ^= mask;
-            fix_crc(&mut b);
-            let result = catch_unwind(AssertUnwindSafe(|| match Model::from_bytes(&b) {
-                Ok(model) => (String::from("accepted"), exercise(&model, at as u64)),
-                Err(e) => (variant(&e), 0),
-            }));
-            let (outcome, n) = result.unwrap_or_else(|_| panic!("panic on flip {mask:#04x} at byte {at}"));
+            let (outcome, n) = read_mutant(&mut b, at as u64)
+                .unwrap_or_else(|_| panic!("panic on flip {mask:#04x} at byte {at}"));
             *outcomes.entry(outcome).or_default() += 1;
             evaluations += n;
         }
@@ -555,6 +556,17 @@ fn every_truncation_is_rejected() {
         fix_len_and_crc(&mut b);
         assert!(Model::from_bytes(&b).is_err(), "truncated to {len} with length and CRC fixed accepted");
     }
+}
+
+/// Reads the mutant `b` after fixing its CRC: `("accepted", evaluations)` after exercising
+/// every read-side API with `seed`, or `(variant, 0)` for the error; `Err` if anything panicked.
+fn read_mutant(b: &mut [u8], seed: u64) -> std::thread::Result<(String, usize)> {
+    fix_crc(b);
+    let b: &[u8] = b;
+    catch_unwind(AssertUnwindSafe(|| match Model::from_bytes(b) {
+        Ok(model) => (String::from("accepted"), exercise(&model, seed)),
+        Err(e) => (variant(&e), 0),
+    }))
 }
 
 /// The name of an error variant (for statistics).
@@ -696,12 +708,7 @@ fn random_mutations_with_crc_recomputed_never_panic_and_accepted_ones_evaluate()
             apply(&mut b, &m);
             mutations.push(m);
         }
-        fix_crc(&mut b);
-        let result = catch_unwind(AssertUnwindSafe(|| match Model::from_bytes(&b) {
-            Ok(model) => (String::from("accepted"), exercise(&model, case)),
-            Err(e) => (variant(&e), 0),
-        }));
-        let Ok((outcome, n)) = result else {
+        let Ok((outcome, n)) = read_mutant(&mut b, case) else {
             std::fs::create_dir_all(&panics_dir).expect("dir");
             let path = panics_dir.join(format!("case-{case}.fogm"));
             std::fs::write(&path, &b).expect("write");
@@ -1036,17 +1043,8 @@ fn hull_that_does_not_go_round_exactly_once_is_rejected() {
 
 /// The mesh of [`two_kb_blob`] with the policy `StoredGradients`, and the blob.
 fn gradient_blob() -> (MeshModel, Vec<u8>) {
-    let mesh = build_mesh(&random_points(17, 21, bias_surface), &NORMALISATION).expect("mesh");
-    let axis = AxisModel {
-        region: Vec::new(),
-        poly_outside: fogtemp_core::PolyOutside::Extrapolate,
-        features: FEATURES,
-        normalisation: NORMALISATION,
-        outside_policy: OutsidePolicy::StoredGradients,
-        poly: vec![term(0, 0, 0.01), term(1, 0, 0.2), term(1, 1, -0.03)],
-        mesh: Some(mesh.clone()),
-        provenance: provenance(4.0),
-    };
+    let axis = two_kb_axis(OutsidePolicy::StoredGradients);
+    let mesh = axis.mesh.clone().expect("the axis has a mesh");
     let blob =
         encode(&ModelFile { tool_version: "fogtemp grad".into(), input_digest: [3; 32], axes: vec![axis] })
             .expect("encodes");
@@ -1206,12 +1204,8 @@ fn every_truncation_and_byte_flip_of_a_gradient_blob_is_rejected_or_evaluates_wi
             let mut b = blob.clone();
             b[at] ^= mask;
             assert!(Model::from_bytes(&b).is_err(), "flip {mask:#04x} at {at} passed the CRC");
-            fix_crc(&mut b);
-            let result = catch_unwind(AssertUnwindSafe(|| match Model::from_bytes(&b) {
-                Ok(model) => (String::from("accepted"), exercise(&model, at as u64)),
-                Err(e) => (variant(&e), 0),
-            }));
-            let (outcome, n) = result.unwrap_or_else(|_| panic!("panic on flip {mask:#04x} at byte {at}"));
+            let (outcome, n) = read_mutant(&mut b, at as u64)
+                .unwrap_or_else(|_| panic!("panic on flip {mask:#04x} at byte {at}"));
             *outcomes.entry(outcome).or_default() += 1;
             evaluations += n;
         }

@@ -24,41 +24,15 @@ use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
-use assert_cmd::Command;
+use common::{cal, gaussian, rng, run_err, run_ok};
 use predicates::prelude::*;
-use rand::{Rng, SeedableRng};
-use rand_xoshiro::Xoshiro256PlusPlus;
+use rand::Rng;
 use serde_json::Value;
 use tempfile::TempDir;
 
 // ---------------------------------------------------------------------------------------
-// The binary
+// The binary (run by `common::{cal, run_ok, run_err}`) and its output
 // ---------------------------------------------------------------------------------------
-
-/// A command line for `fogtemp-cal`.
-fn cal() -> Command {
-    Command::new(common::fogtemp_cal_bin())
-}
-
-/// Runs `fogtemp-cal args...`, requires success, returns stdout.
-fn run_ok<I, S>(args: I) -> String
-where
-    I: IntoIterator<Item = S>,
-    S: AsRef<OsStr>,
-{
-    let out = cal().args(args).assert().success();
-    String::from_utf8_lossy(&out.get_output().stdout).into_owned()
-}
-
-/// Runs `fogtemp-cal args...`, requires failure, returns stderr.
-fn run_err<I, S>(args: I) -> String
-where
-    I: IntoIterator<Item = S>,
-    S: AsRef<OsStr>,
-{
-    let out = cal().args(args).assert().failure();
-    String::from_utf8_lossy(&out.get_output().stderr).into_owned()
-}
 
 fn json(text: &str) -> Value {
     serde_json::from_str(text).unwrap_or_else(|e| panic!("not one JSON document ({e}):\n{text}"))
@@ -128,17 +102,6 @@ fn warmup_temp(start_c: f64, t_min: f64) -> f64 {
     start_c + SELF_HEAT_C * (1.0 - (-t_min / TAU_MIN).exp())
 }
 
-fn rng(seed: u64) -> Xoshiro256PlusPlus {
-    Xoshiro256PlusPlus::seed_from_u64(seed)
-}
-
-/// Standard normal deviate (Box-Muller).
-fn gauss(rng: &mut Xoshiro256PlusPlus) -> f64 {
-    let u1: f64 = rng.gen_range(f64::MIN_POSITIVE..1.0);
-    let u2: f64 = rng.gen();
-    (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
-}
-
 /// Writes a power-on warm-up log: `time_s,temp_c,gyro_dph` at [`RATE_HZ`] for `minutes`.
 fn write_warmup(path: &Path, start_c: f64, minutes: f64, seed: u64) {
     let mut r = rng(seed);
@@ -150,7 +113,7 @@ fn write_warmup(path: &Path, start_c: f64, minutes: f64, seed: u64) {
         let t_min = t_s / 60.0;
         let temp = warmup_temp(start_c, t_min);
         let rate = MAX_RATE * (-t_min / TAU_MIN).exp();
-        let gyro = true_bias_dph(temp, rate) + NOISE_DPH * gauss(&mut r);
+        let gyro = true_bias_dph(temp, rate) + NOISE_DPH * gaussian(&mut r);
         writeln!(w, "{t_s:.2},{:.4},{gyro:.5}", quantise(temp)).expect("write log");
     }
     w.flush().expect("flush log");
@@ -616,6 +579,15 @@ fn short_log(dir: &Path, name: &str) -> (PathBuf, Vec<String>) {
     (path, lines)
 }
 
+/// [`short_log`] `ok.csv` in `dir` and a model `model_name` fitted on it by `method`:
+/// the log, its lines and the model.
+fn short_log_and_model(dir: &Path, method: &str, model_name: &str) -> (PathBuf, Vec<String>, PathBuf) {
+    let (ok, lines) = short_log(dir, "ok.csv");
+    let model = dir.join(model_name);
+    run_ok(args!["fit", "--method", method, "--out", &model, &ok]);
+    (ok, lines, model)
+}
+
 fn write_lines(path: &Path, lines: &[String]) {
     fs::write(path, lines.join("\n") + "\n").expect("write log");
 }
@@ -623,9 +595,7 @@ fn write_lines(path: &Path, lines: &[String]) {
 #[test]
 fn bad_log_rows_are_located_and_nothing_is_written() {
     let dir = TempDir::new().expect("tempdir");
-    let (ok, lines) = short_log(dir.path(), "ok.csv");
-    let model = dir.path().join("ok.fogm");
-    run_ok(args!["fit", "--method", "poly", "--out", &model, &ok]);
+    let (_, lines, model) = short_log_and_model(dir.path(), "poly", "ok.fogm");
     let out_model = dir.path().join("out.fogm");
     let out_csv = dir.path().join("out.csv");
     // (name, line 101 rewritten, column, reason)
@@ -669,9 +639,7 @@ fn bad_log_rows_are_located_and_nothing_is_written() {
 #[test]
 fn bad_log_files_are_named_and_nothing_is_written() {
     let dir = TempDir::new().expect("tempdir");
-    let (ok, lines) = short_log(dir.path(), "ok.csv");
-    let model = dir.path().join("ok.fogm");
-    run_ok(args!["fit", "--method", "poly", "--out", &model, &ok]);
+    let (ok, lines, model) = short_log_and_model(dir.path(), "poly", "ok.fogm");
     let out_model = dir.path().join("out.fogm");
     let out_csv = dir.path().join("out.csv");
 
@@ -707,9 +675,7 @@ fn bad_log_files_are_named_and_nothing_is_written() {
 #[test]
 fn empty_or_header_only_log_is_rejected_naming_the_file() {
     let dir = TempDir::new().expect("tempdir");
-    let (ok, lines) = short_log(dir.path(), "ok.csv");
-    let model = dir.path().join("ok.fogm");
-    run_ok(args!["fit", "--method", "poly", "--out", &model, &ok]);
+    let (ok, lines, model) = short_log_and_model(dir.path(), "poly", "ok.fogm");
     let header = dir.path().join("header_only.csv");
     write_lines(&header, &lines[..1]);
     let empty = dir.path().join("empty.csv");
@@ -737,9 +703,7 @@ fn empty_or_header_only_log_is_rejected_naming_the_file() {
 #[test]
 fn corrupt_and_truncated_models_are_rejected() {
     let dir = TempDir::new().expect("tempdir");
-    let (ok, _) = short_log(dir.path(), "ok.csv");
-    let good = dir.path().join("good.fogm");
-    run_ok(args!["fit", "--method", "hybrid", "--out", &good, &ok]);
+    let (ok, _, good) = short_log_and_model(dir.path(), "hybrid", "good.fogm");
     let blob = fs::read(&good).expect("read model");
     let points = dir.path().join("points.csv");
     fs::write(&points, "temp_c,rate_c_per_min\n21.0,0.5\n").expect("write points");
@@ -777,9 +741,7 @@ fn corrupt_and_truncated_models_are_rejected() {
 #[test]
 fn evaluate_points_with_bad_cells_are_located() {
     let dir = TempDir::new().expect("tempdir");
-    let (ok, _) = short_log(dir.path(), "ok.csv");
-    let model = dir.path().join("m.fogm");
-    run_ok(args!["fit", "--method", "poly", "--out", &model, &ok]);
+    let (_, _, model) = short_log_and_model(dir.path(), "poly", "m.fogm");
     let out = dir.path().join("values.csv");
     // (points file, what follows the file name in the error)
     let cases = [
@@ -809,7 +771,11 @@ fn degenerate_point_sets() {
     let mut r = rng(3);
     let mut text = String::from("time_s,temp_c,gyro_dph\n");
     for k in 0..(RATE_HZ as usize * 600) {
-        text.push_str(&format!("{:.2},25.0000,{:.5}\n", k as f64 / RATE_HZ, 1.0 + NOISE_DPH * gauss(&mut r)));
+        text.push_str(&format!(
+            "{:.2},25.0000,{:.5}\n",
+            k as f64 / RATE_HZ,
+            1.0 + NOISE_DPH * gaussian(&mut r)
+        ));
     }
     fs::write(&flat, text).expect("write flat log");
     let out = dir.path().join("flat.fogm");
@@ -907,9 +873,7 @@ fn skip_bad_rows_reports_count_and_where() {
 #[test]
 fn validate_reports_skipped_rows() {
     let dir = TempDir::new().expect("tempdir");
-    let (ok, mut lines) = short_log(dir.path(), "ok.csv");
-    let model = dir.path().join("m.fogm");
-    run_ok(args!["fit", "--method", "poly", "--out", &model, &ok]);
+    let (_, mut lines, model) = short_log_and_model(dir.path(), "poly", "m.fogm");
     let c: Vec<String> = lines[49].split(',').map(String::from).collect();
     lines[49] = format!("{},{},abc", c[0], c[1]);
     let log = dir.path().join("one_bad.csv");
@@ -975,9 +939,7 @@ fn unknown_command_or_option_fails() {
 #[test]
 fn outputs_are_atomic() {
     let dir = TempDir::new().expect("tempdir");
-    let (ok, lines) = short_log(dir.path(), "ok.csv");
-    let model = dir.path().join("m.fogm");
-    run_ok(args!["fit", "--method", "poly", "--out", &model, &ok]);
+    let (ok, lines, model) = short_log_and_model(dir.path(), "poly", "m.fogm");
     let points = dir.path().join("points.csv");
     fs::write(&points, "temp_c,rate_c_per_min\n21,0.5\n").expect("write points");
 
@@ -1049,9 +1011,7 @@ fn outputs_are_atomic() {
 #[test]
 fn export_c_failure_leaves_no_header_behind() {
     let dir = TempDir::new().expect("tempdir");
-    let (ok, _) = short_log(dir.path(), "ok.csv");
-    let model = dir.path().join("m.fogm");
-    run_ok(args!["fit", "--method", "poly", "--out", &model, &ok]);
+    let (_, _, model) = short_log_and_model(dir.path(), "poly", "m.fogm");
     let out = dir.path().join("model.c");
     fs::create_dir(&out).expect("mkdir");
     let args = args!["export", "--model", &model, "--format", "c", "--out", &out];
@@ -1064,9 +1024,7 @@ fn export_c_failure_leaves_no_header_behind() {
 fn outputs_get_the_usual_file_mode() {
     use std::os::unix::fs::PermissionsExt;
     let dir = TempDir::new().expect("tempdir");
-    let (ok, _) = short_log(dir.path(), "ok.csv");
-    let model = dir.path().join("m.fogm");
-    run_ok(args!["fit", "--method", "poly", "--out", &model, &ok]);
+    let (_, _, model) = short_log_and_model(dir.path(), "poly", "m.fogm");
     let plain = dir.path().join("plain");
     fs::write(&plain, b"").expect("write");
     let mode = |p: &Path| fs::metadata(p).expect("stat").permissions().mode() & 0o777;
@@ -1103,7 +1061,7 @@ fn allan_recovers_white_noise_arw() {
     let mut w = BufWriter::new(fs::File::create(&log).expect("create"));
     writeln!(w, "time_s,temp_c,gyro_dph").expect("write");
     for k in 0..60_000u32 {
-        writeln!(w, "{:.2},25.0000,{:.5}", f64::from(k) / HZ, 0.5 + sigma * gauss(&mut r)).expect("write");
+        writeln!(w, "{:.2},25.0000,{:.5}", f64::from(k) / HZ, 0.5 + sigma * gaussian(&mut r)).expect("write");
     }
     w.flush().expect("flush");
     drop(w);

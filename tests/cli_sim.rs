@@ -13,26 +13,15 @@ use std::collections::BTreeMap;
 use std::fs;
 use std::path::{Path, PathBuf};
 
-use assert_cmd::Command;
+use common::{cal, run_err, run_ok};
 use fogtemp_sim::{simulate_in_memory, Scenario, PAPER_TOML};
 use serde_json::Value;
 use tempfile::TempDir;
 
-fn cal() -> Command {
-    Command::new(common::fogtemp_cal_bin())
-}
-
 /// Runs `fogtemp-cal args...`, requires success, parses stdout as JSON.
 fn run_json(args: &[&str]) -> Value {
-    let out = cal().args(args).assert().success();
-    let stdout = String::from_utf8_lossy(&out.get_output().stdout).into_owned();
+    let stdout = run_ok(args);
     serde_json::from_str(&stdout).unwrap_or_else(|e| panic!("stdout is not JSON ({e}):\n{stdout}"))
-}
-
-/// Runs `fogtemp-cal args...`, requires failure, returns stderr.
-fn run_err(args: &[&str]) -> String {
-    let out = cal().args(args).assert().failure();
-    String::from_utf8_lossy(&out.get_output().stderr).into_owned()
 }
 
 fn s(p: &Path) -> &str {
@@ -245,7 +234,7 @@ fn simulate_rejects_a_bad_scenario_file() {
         let file = dir.path().join(name);
         fs::write(&file, &text).expect("write");
         let line = text.lines().position(|l| l.contains(needle)).expect("needle") + 1;
-        let err = run_err(&["simulate", "--scenario", s(&file), "--out", s(&out)]);
+        let err = run_err(["simulate", "--scenario", s(&file), "--out", s(&out)]);
         assert!(err.contains(s(&file)), "{name}: the file is named: {err}");
         assert!(err.contains(&format!("line {line}")), "{name}: line {line}: {err}");
         assert!(err.contains(needle), "{name}: {err}");
@@ -258,21 +247,21 @@ fn simulate_rejects_a_bad_scenario_file() {
         SMALL.replace("case_heat_capacity_j_per_k = 1000.0", "case_heat_capacity_j_per_k = -5.0"),
     )
     .expect("write");
-    let err = run_err(&["simulate", "--scenario", s(&file), "--out", s(&out)]);
+    let err = run_err(["simulate", "--scenario", s(&file), "--out", s(&out)]);
     assert!(err.contains(s(&file)) && err.contains("thermal.case_heat_capacity_j_per_k"), "{err}");
 
     let file = dir.path().join("duplicate.toml");
     fs::write(&file, SMALL.replace("name = \"ramp\"", "name = \"hold\"")).expect("write");
-    let err = run_err(&["simulate", "--scenario", s(&file), "--out", s(&out)]);
+    let err = run_err(["simulate", "--scenario", s(&file), "--out", s(&out)]);
     assert!(err.contains("two runs are named 'hold'"), "{err}");
 
     let missing = dir.path().join("missing.toml");
-    let err = run_err(&["simulate", "--scenario", s(&missing), "--out", s(&out)]);
+    let err = run_err(["simulate", "--scenario", s(&missing), "--out", s(&out)]);
     assert!(err.contains(s(&missing)), "{err}");
 
     let file = dir.path().join("small.toml");
     fs::write(&file, SMALL).expect("write");
-    let err = run_err(&["simulate", "--scenario", s(&file), "--out", s(&out), "--rate", "0"]);
+    let err = run_err(["simulate", "--scenario", s(&file), "--out", s(&out), "--rate", "0"]);
     assert!(err.contains("sample_rate_hz"), "{err}");
     assert!(!out.exists(), "nothing written");
 }
@@ -377,7 +366,7 @@ fn demo_without_a_validation_position_fails() {
     let file = dir.path().join("nopos.toml");
     fs::write(&file, text).expect("write");
     let out = dir.path().join("demo");
-    let err = run_err(&["demo", "--scenario", s(&file), "--out", s(&out), "--no-report", "--json"]);
+    let err = run_err(["demo", "--scenario", s(&file), "--out", s(&out), "--no-report", "--json"]);
     assert!(err.contains("no runs in position 'pos1'"), "{err}");
 }
 
@@ -468,7 +457,7 @@ fn diagnose_refuses_unpaired_runs() {
     for name in ["pos1_-40C.csv", "pos1_-25C.csv"] {
         fs::copy(simulated.join(name), recorded.join(name)).expect("copy");
     }
-    let err = run_err(&["diagnose", "--simulated", s(&simulated), "--recorded", s(&recorded)]);
+    let err = run_err(["diagnose", "--simulated", s(&simulated), "--recorded", s(&recorded)]);
     assert!(err.contains("paired by file name") && err.contains("pos2_60C.csv"), "{err}");
 }
 

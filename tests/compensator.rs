@@ -6,7 +6,7 @@
 
 mod common;
 
-use common::{bias_surface, mesh_blob, model_blob, paper_points, FEATURES, NORMALISATION};
+use common::{bias_surface, gaussian, mesh_blob, model_blob, paper_points, FEATURES, NORMALISATION};
 use fogtemp_cal::{encode, AxisModel, ModelFile};
 use fogtemp_core::{
     Axis, Compensator, Error, Features, Flags, Model, Output, OutsidePolicy, PolyTerm, WalkHint,
@@ -104,13 +104,6 @@ fn poly_axis_evaluate_is_poly_at_normalised_inputs() {
 // ---------------------------------------------------------------------------------------
 // Synthetic runs
 // ---------------------------------------------------------------------------------------
-
-/// Standard normal (Box-Muller).
-fn gaussian(r: &mut impl Rng) -> f64 {
-    let u1: f64 = r.gen_range(f64::MIN_POSITIVE..1.0);
-    let u2: f64 = r.gen();
-    (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
-}
 
 /// One input sample and the truth behind it.
 #[derive(Clone, Copy, Debug)]
@@ -315,6 +308,17 @@ fn flag_phases(phases: &mut Vec<(Flags, u64)>, out: &Output, time_us: u64) {
     }
 }
 
+/// The flag phases of a tracker (re)started at `start_us` with the paper's features:
+/// WARMING_UP, PARTIAL_WINDOW after `min_blocks` (10) one-second blocks, none once the
+/// 100 s window is full.
+fn warm_up_phases(start_us: u64) -> [(Flags, u64); 3] {
+    [
+        (Flags::WARMING_UP, start_us),
+        (Flags::PARTIAL_WINDOW, start_us + 10_000_000),
+        (Flags::empty(), start_us + 100_000_000),
+    ]
+}
+
 // ---------------------------------------------------------------------------------------
 // Replays
 // ---------------------------------------------------------------------------------------
@@ -343,15 +347,7 @@ fn replay_outputs_equal_gyro_minus_bias_of_latest_features_and_flags_progress() 
                 last_time = Some(f.time_us);
             }
         });
-        assert_eq!(
-            phases,
-            vec![
-                (Flags::WARMING_UP, START_US),
-                (Flags::PARTIAL_WINDOW, START_US + 10_000_000),
-                (Flags::empty(), START_US + 100_000_000),
-            ],
-            "temperature every {temp_every} samples"
-        );
+        assert_eq!(phases, warm_up_phases(START_US).to_vec(), "temperature every {temp_every} samples");
         assert_eq!(updates, duration_s as usize - 10, "one feature update per block after min_blocks");
         assert!(fresh <= FRESH_HINT_TOL_DPH, "fresh-hint difference {fresh}");
     }
@@ -452,18 +448,8 @@ fn temperature_dropout_longer_than_max_gap_sets_temp_stale_then_restarts() {
         }
     });
     let last_reading = dropout_us.start - 100_000;
-    assert_eq!(
-        phases,
-        vec![
-            (Flags::WARMING_UP, START_US),
-            (Flags::PARTIAL_WINDOW, START_US + 10_000_000),
-            (Flags::empty(), START_US + 100_000_000),
-            (Flags::TEMP_STALE, last_reading + 5_000_000 + GYRO_PERIOD_US),
-            (Flags::WARMING_UP, dropout_us.end),
-            (Flags::PARTIAL_WINDOW, dropout_us.end + 10_000_000),
-            (Flags::empty(), dropout_us.end + 100_000_000),
-        ]
-    );
+    let stale = [(Flags::TEMP_STALE, last_reading + 5_000_000 + GYRO_PERIOD_US)];
+    assert_eq!(phases, [&warm_up_phases(START_US)[..], &stale, &warm_up_phases(dropout_us.end)].concat());
 }
 
 /// NaN and infinite gyro values set BAD_INPUT (rate not finite, bias unchanged) and leave

@@ -16,7 +16,6 @@ mod common;
 
 use std::time::Instant;
 
-use fogtemp_diagnose::effects::bspline_basis;
 use fogtemp_diagnose::{
     diagnose, write_diagnosis_report, DiagnoseError, DiagnoseOptions, Diagnosis, RunMeta, RunSeries,
     SeriesProblem, Side,
@@ -517,11 +516,7 @@ fn static_shape_is_named_for_a_ripple_in_temperature() {
     let (lo, hi) = (param(&d, "static_shape", "t_min_c").0, param(&d, "static_shape", "t_max_c").0);
     let k = param(&d, "static_shape", "basis_functions").0 as usize;
     let coef: Vec<f64> = (1..k).map(|j| param(&d, "static_shape", &format!("spline_{j}_dph")).0).collect();
-    let grid: Vec<f64> = (0..=80).map(|i| lo + (hi - lo) * (0.1 + 0.8 * f64::from(i) / 80.0)).collect();
-    let fitted: Vec<f64> = grid
-        .iter()
-        .map(|&t| bspline_basis(t, lo, hi, k).iter().skip(1).zip(&coef).map(|(b, c)| b * c).sum())
-        .collect();
+    let (grid, fitted) = common::static_shape_on_central_grid(lo, hi, k, &coef);
     let truth: Vec<f64> = grid.iter().map(|t| 0.005 * (std::f64::consts::TAU * t / 35.0).sin()).collect();
     let r = common::correlation(&fitted, &truth);
     assert!(r > 0.7, "correlation of fitted and injected shape {r}");

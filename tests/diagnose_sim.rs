@@ -21,7 +21,6 @@
 mod common;
 
 use fogtemp_diagnose::concealed::{datasets_at, generate, truth_map, ConcealedDataset};
-use fogtemp_diagnose::effects::bspline_basis;
 use fogtemp_diagnose::{diagnose, DiagnoseOptions, Diagnosis};
 
 /// Repetition seed of every test (the simulated and recorded noise seeds derive from it).
@@ -180,11 +179,7 @@ fn static_ripple_across_overlapping_runs_is_named_and_its_shape_recovered() {
     let coef: Vec<f64> = (1..k).map(|j| get(&format!("spline_{j}_dph"))).collect();
     // The fitted shape (a function of the coil temperature) follows the injected ripple over
     // the central 80 % of the range: correlation > 0.7, and peak-to-peak within 50 %.
-    let grid: Vec<f64> = (0..=80).map(|i| lo + (hi - lo) * (0.1 + 0.8 * f64::from(i) / 80.0)).collect();
-    let fitted: Vec<f64> = grid
-        .iter()
-        .map(|&t| bspline_basis(t, lo, hi, k).iter().skip(1).zip(&coef).map(|(b, c)| b * c).sum())
-        .collect();
+    let (grid, fitted) = common::static_shape_on_central_grid(lo, hi, k, &coef);
     let amplitude = truth["peak_to_peak_dph"] / 2.0;
     let injected: Vec<f64> =
         grid.iter().map(|t| amplitude * (std::f64::consts::TAU * t / 20.0).sin()).collect();

@@ -8,9 +8,10 @@
 
 mod common;
 
-use common::{bias_surface, mesh_blob, paper_points, random_points, rng, NORMALISATION};
+use common::{bias_surface, load, mesh_blob, paper_points, random_points, rng, NORMALISATION};
 use fogtemp_cal::MeshPoint;
 use fogtemp_core::{Mesh, Model, OutsidePolicy, WalkHint, GRADIENT_RADIUS};
+use rand::Rng;
 
 /// The held value equals a hull vertex's value (the nearest hull point is that vertex, the
 /// query in its cone), bit for bit.
@@ -19,14 +20,6 @@ fn is_hull_vertex_value(mesh: &Mesh<'_>, held: f32) -> bool {
         let (a, _) = mesh.hull_edge_vertices(h).expect("hull edge");
         a.value_dph.to_bits() == held.to_bits()
     })
-}
-use rand::Rng;
-
-fn load(blob: Vec<u8>) -> (Model<'static>, Mesh<'static>) {
-    let bytes: &'static [u8] = Box::leak(blob.into_boxed_slice());
-    let model = Model::from_bytes(bytes).expect("writer output parses");
-    let mesh = model.axis(0).expect("axis 0").mesh.expect("axis has a mesh");
-    (model, mesh)
 }
 
 /// A plane in physical units, deg/h.
@@ -55,24 +48,51 @@ fn outside_values(mesh: &Mesh<'_>, seed: u64, n: usize) -> Vec<(f32, f32, f32)> 
         .collect()
 }
 
-#[test]
-fn a_plane_continued_beyond_the_hull_is_the_plane() {
-    for (name, points) in [
+/// The point sets the plane is sampled on.
+fn plane_point_sets() -> [(&'static str, Vec<MeshPoint>); 3] {
+    [
         ("random n=40", random_points(40, 11, plane)),
         ("random n=600", random_points(600, 12, plane)),
         ("paper per_run=30", paper_points(30, plane)),
-    ] {
-        let (_, mesh) = load(mesh_blob(&points, OutsidePolicy::LinearFromBoundary));
-        let values = outside_values(&mesh, 21, 4000);
-        assert!(values.len() > 1000, "{name}: most of the box is outside");
-        let mut worst = 0.0f64;
-        for &(x, y, value) in &values {
-            let expected = plane_normalised(f64::from(x), f64::from(y));
-            let err = (f64::from(value) - expected).abs();
-            worst = worst.max(err);
-            // Values up to ~1 deg/h, distances up to ~3 units: 1e-4 is ~800 ulp of 1.
-            assert!(err < 1e-4, "{name}: ({x}, {y}) gives {value}, the plane {expected}");
-        }
+    ]
+}
+
+/// The point sets of the curved surface the f64 references are checked on.
+fn curved_point_sets() -> [(&'static str, Vec<MeshPoint>); 4] {
+    [
+        ("random n=25", random_points(25, 31, bias_surface)),
+        ("random n=600", random_points(600, 32, bias_surface)),
+        ("paper per_run=12", paper_points(12, bias_surface)),
+        ("paper per_run=70", paper_points(70, bias_surface)),
+    ]
+}
+
+/// Requires the mesh of [`plane`]'s `points`, continued by `policy`, to be the plane at most
+/// of 4000 queries in the box around the hull; returns them (with the core's value) and the
+/// worst error.
+fn assert_continues_the_plane(
+    name: &str,
+    points: &[MeshPoint],
+    policy: OutsidePolicy,
+) -> (Vec<(f32, f32, f32)>, f64) {
+    let (_, mesh) = load(mesh_blob(points, policy));
+    let values = outside_values(&mesh, 21, 4000);
+    assert!(values.len() > 1000, "{name}: most of the box is outside");
+    let mut worst = 0.0f64;
+    for &(x, y, value) in &values {
+        let expected = plane_normalised(f64::from(x), f64::from(y));
+        let err = (f64::from(value) - expected).abs();
+        worst = worst.max(err);
+        // Values up to ~1 deg/h, distances up to ~3 units: 1e-4 is ~800 ulp of 1.
+        assert!(err < 1e-4, "{name}: ({x}, {y}) gives {value}, the plane {expected}");
+    }
+    (values, worst)
+}
+
+#[test]
+fn a_plane_continued_beyond_the_hull_is_the_plane() {
+    for (name, points) in plane_point_sets() {
+        let (values, worst) = assert_continues_the_plane(name, &points, OutsidePolicy::LinearFromBoundary);
         // Holding would be off by the plane's rise (0.24 deg/h per normalised unit in x).
         let (_, held) = load(mesh_blob(&points, OutsidePolicy::NearestHull));
         let held_worst = values
@@ -162,28 +182,30 @@ impl Reference {
     fn value(&self, x: f64, y: f64) -> f64 {
         let mut best = (f64::INFINITY, [0.0; 2], 0.0);
         for (a, b) in &self.edges {
-            let e = [b[0] - a[0], b[1] - a[1]];
-            let s = (((x - a[0]) * e[0] + (y - a[1]) * e[1]) / (e[0] * e[0] + e[1] * e[1])).clamp(0.0, 1.0);
-            let q = [a[0] + s * e[0], a[1] + s * e[1]];
-            let d2 = (x - q[0]).powi(2) + (y - q[1]).powi(2);
+            let (s, q, d2) = nearest_on_segment(x, y, [a[0], a[1]], [b[0], b[1]]);
             if d2 < best.0 {
                 best = (d2, q, a[2] + s * (b[2] - a[2]));
             }
         }
         let (_, q, held) = best;
-        let radius = f64::from(GRADIENT_RADIUS);
-        let biweight = |p: &[f64; 3]| {
-            let r2 = ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2)) / (radius * radius);
-            if r2 < 1.0 {
-                (1.0 - r2).powi(2)
-            } else {
-                0.0
-            }
-        };
-        let g = weighted_least_squares(&self.nodes, biweight)
+        let g = weighted_least_squares(&self.nodes, biweight_around(q))
             .or_else(|| weighted_least_squares(&self.nodes, |_| 1.0))
             .expect("the mesh spans a plane");
         held + g[0] * (x - q[0]) + g[1] * (y - q[1])
+    }
+}
+
+/// The biweight of a node (x, y, value) at distance r from `q`: (1 - (r / GRADIENT_RADIUS)^2)^2
+/// within the radius, 0 beyond.
+fn biweight_around(q: [f64; 2]) -> impl Fn(&[f64; 3]) -> f64 {
+    let radius = f64::from(GRADIENT_RADIUS);
+    move |p: &[f64; 3]| {
+        let r2 = ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2)) / (radius * radius);
+        if r2 < 1.0 {
+            (1.0 - r2).powi(2)
+        } else {
+            0.0
+        }
     }
 }
 
@@ -212,12 +234,7 @@ fn weighted_least_squares(nodes: &[[f64; 3]], weight: impl Fn(&[f64; 3]) -> f64)
 
 #[test]
 fn a_curved_mesh_continued_beyond_the_hull_matches_the_f64_reference() {
-    for (name, points) in [
-        ("random n=25", random_points(25, 31, bias_surface)),
-        ("random n=600", random_points(600, 32, bias_surface)),
-        ("paper per_run=12", paper_points(12, bias_surface)),
-        ("paper per_run=70", paper_points(70, bias_surface)),
-    ] {
+    for (name, points) in curved_point_sets() {
         let (_, mesh) = load(mesh_blob(&points, OutsidePolicy::LinearFromBoundary));
         let reference = Reference::new(&mesh);
         let (mut at_vertex, mut worst) = (0usize, 0.0f64);
@@ -245,18 +262,26 @@ fn the_continuation_is_continuous_at_the_hull_and_linear_along_each_ray() {
     // the held value's own interpolation).
     let (_, lin) = load(mesh_blob(&paper_points(40, bias_surface), OutsidePolicy::LinearFromBoundary));
     let (_, held) = load(mesh_blob(&paper_points(40, bias_surface), OutsidePolicy::NearestHull));
+    assert_rise_is_linear_along_rays(&lin, &held);
+}
+
+/// At 2000 queries p outside the hull of `continued`, with q the nearest hull point of `held`
+/// (the same nodes, held at the hull): the rise of `continued` over `held` at q + t (p - q) is
+/// t times the rise at p, for t = 0.5, 1e-2, 1e-4 (where that point is still outside); more
+/// than 1000 such points.
+fn assert_rise_is_linear_along_rays(continued: &Mesh<'_>, held: &Mesh<'_>) {
     let mut checked = 0usize;
-    for (x, y, value) in outside_values(&lin, 51, 2000) {
+    for (x, y, value) in outside_values(continued, 51, 2000) {
         let hold = held.interpolate(x, y, &mut WalkHint::default()).expect("finite").value_dph;
         let rise = f64::from(value) - f64::from(hold);
         // The nearest hull point: bisect along the ray towards the inside until the held value
         // stops changing is overkill; the core's own nearest point is where holding evaluates,
         // so use points between p and the hull along the reference's direction instead.
-        let q = nearest_hull_point(&held, f64::from(x), f64::from(y));
+        let q = nearest_hull_point(held, f64::from(x), f64::from(y));
         for t in [0.5, 1e-2, 1e-4] {
             let (xt, yt) =
                 ((q[0] + t * (f64::from(x) - q[0])) as f32, (q[1] + t * (f64::from(y) - q[1])) as f32);
-            let vt = lin.interpolate(xt, yt, &mut WalkHint::default()).expect("finite");
+            let vt = continued.interpolate(xt, yt, &mut WalkHint::default()).expect("finite");
             let ht = held.interpolate(xt, yt, &mut WalkHint::default()).expect("finite").value_dph;
             if !vt.outside_hull {
                 continue;
@@ -270,16 +295,22 @@ fn the_continuation_is_continuous_at_the_hull_and_linear_along_each_ray() {
     assert!(checked > 1000, "{checked} ray points checked");
 }
 
+/// The point of the segment `a`-`b` nearest `(x, y)`, in f64: its parameter along the segment
+/// (0 at `a`, 1 at `b`), the point, and its squared distance from `(x, y)`.
+fn nearest_on_segment(x: f64, y: f64, a: [f64; 2], b: [f64; 2]) -> (f64, [f64; 2], f64) {
+    let e = [b[0] - a[0], b[1] - a[1]];
+    let s = (((x - a[0]) * e[0] + (y - a[1]) * e[1]) / (e[0] * e[0] + e[1] * e[1])).clamp(0.0, 1.0);
+    let q = [a[0] + s * e[0], a[1] + s * e[1]];
+    (s, q, (x - q[0]).powi(2) + (y - q[1]).powi(2))
+}
+
 /// The hull point nearest `(x, y)` in f64 by scanning every hull edge.
 fn nearest_hull_point(mesh: &Mesh<'_>, x: f64, y: f64) -> [f64; 2] {
     let mut best = (f64::INFINITY, [0.0, 0.0]);
     for h in 0..mesh.hull_edge_count() {
         let (a, b) = mesh.hull_edge_vertices(h).expect("hull edge");
-        let (a, b) = ([f64::from(a.x), f64::from(a.y)], [f64::from(b.x), f64::from(b.y)]);
-        let e = [b[0] - a[0], b[1] - a[1]];
-        let s = (((x - a[0]) * e[0] + (y - a[1]) * e[1]) / (e[0] * e[0] + e[1] * e[1])).clamp(0.0, 1.0);
-        let q = [a[0] + s * e[0], a[1] + s * e[1]];
-        let d2 = (x - q[0]).powi(2) + (y - q[1]).powi(2);
+        let (_, q, d2) =
+            nearest_on_segment(x, y, [f64::from(a.x), f64::from(a.y)], [f64::from(b.x), f64::from(b.y)]);
         if d2 < best.0 {
             best = (d2, q);
         }
@@ -293,8 +324,14 @@ fn the_axis_flags_outside_hull_and_the_blob_records_the_policy() {
     let (model, mesh) = load(blob);
     assert_eq!(mesh.outside_policy(), OutsidePolicy::LinearFromBoundary);
     assert_eq!(OutsidePolicy::from_code(2), Some(OutsidePolicy::LinearFromBoundary));
+    assert_axis_flags_far_outside(&model);
+}
+
+/// Axis 0 of `model` (a mesh of the paper points) flags 100 C at 3 C/min, far beyond every
+/// warm-up (normalised x 1.33, y 5), as outside the hull with a finite value, and 30 C at
+/// 0.1 C/min not.
+fn assert_axis_flags_far_outside(model: &Model<'_>) {
     let axis = model.axis(0).expect("axis");
-    // 100 C at 3 C/min: far beyond every warm-up (normalised x 1.33, y 5).
     let e = axis.evaluate(100.0, 3.0, &mut WalkHint::default()).expect("finite");
     assert!(e.outside_hull && e.value_dph.is_finite());
     let inside = axis.evaluate(30.0, 0.1, &mut WalkHint::default()).expect("finite");
@@ -313,28 +350,14 @@ fn the_axis_flags_outside_hull_and_the_blob_records_the_policy() {
 /// times the conditioning, at most 1 / (1 - rho^2) = 100 by the span test): 1e-6 relative.
 #[test]
 fn stored_gradients_equal_the_f64_reference_fit_at_each_hull_vertex() {
-    let radius = f64::from(GRADIENT_RADIUS);
-    for (name, points) in [
-        ("random n=25", random_points(25, 31, bias_surface)),
-        ("random n=600", random_points(600, 32, bias_surface)),
-        ("paper per_run=12", paper_points(12, bias_surface)),
-        ("paper per_run=70", paper_points(70, bias_surface)),
-    ] {
+    for (name, points) in curved_point_sets() {
         let (_, mesh) = load(mesh_blob(&points, OutsidePolicy::StoredGradients));
         let reference = Reference::new(&mesh);
         let mut fallbacks = 0usize;
         for h in 0..mesh.hull_edge_count() {
             let (a, _) = mesh.hull_edge_vertices(h).expect("hull edge");
-            let q = [f64::from(a.x), f64::from(a.y)];
-            let biweight = |p: &[f64; 3]| {
-                let r2 = ((p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2)) / (radius * radius);
-                if r2 < 1.0 {
-                    (1.0 - r2).powi(2)
-                } else {
-                    0.0
-                }
-            };
-            let local = weighted_least_squares(&reference.nodes, biweight);
+            let local =
+                weighted_least_squares(&reference.nodes, biweight_around([f64::from(a.x), f64::from(a.y)]));
             fallbacks += usize::from(local.is_none());
             let expected =
                 local.or_else(|| weighted_least_squares(&reference.nodes, |_| 1.0)).expect("spans a plane");
@@ -366,10 +389,7 @@ fn stored_rule_f64(mesh: &Mesh<'_>, x: f64, y: f64) -> (f64, f64) {
             [f64::from(a.x), f64::from(a.y), f64::from(a.value_dph)],
             [f64::from(b.x), f64::from(b.y), f64::from(b.value_dph)],
         );
-        let e = [b[0] - a[0], b[1] - a[1]];
-        let s = (((x - a[0]) * e[0] + (y - a[1]) * e[1]) / (e[0] * e[0] + e[1] * e[1])).clamp(0.0, 1.0);
-        let q = [a[0] + s * e[0], a[1] + s * e[1]];
-        let d2 = (x - q[0]).powi(2) + (y - q[1]).powi(2);
+        let (s, q, d2) = nearest_on_segment(x, y, [a[0], a[1]], [b[0], b[1]]);
         if d2 < best.0 {
             best = (d2, h, s, q, a[2] + s * (b[2] - a[2]));
         }
@@ -405,21 +425,8 @@ fn stored_gradients_continue_linearly_along_each_edge_as_the_closed_form_says() 
 
 #[test]
 fn stored_gradients_continue_a_plane_exactly() {
-    for (name, points) in [
-        ("random n=40", random_points(40, 11, plane)),
-        ("random n=600", random_points(600, 12, plane)),
-        ("paper per_run=30", paper_points(30, plane)),
-    ] {
-        let (_, mesh) = load(mesh_blob(&points, OutsidePolicy::StoredGradients));
-        let values = outside_values(&mesh, 21, 4000);
-        assert!(values.len() > 1000, "{name}: most of the box is outside");
-        let mut worst = 0.0f64;
-        for &(x, y, value) in &values {
-            let expected = plane_normalised(f64::from(x), f64::from(y));
-            let err = (f64::from(value) - expected).abs();
-            worst = worst.max(err);
-            assert!(err < 1e-4, "{name}: ({x}, {y}) gives {value}, the plane {expected}");
-        }
+    for (name, points) in plane_point_sets() {
+        let (values, worst) = assert_continues_the_plane(name, &points, OutsidePolicy::StoredGradients);
         println!("{name}: {} outside queries, worst error {worst:.2e}", values.len());
     }
 }
@@ -430,25 +437,7 @@ fn stored_gradients_are_continuous_at_the_hull_and_along_it() {
     let (_, held) = load(mesh_blob(&paper_points(40, bias_surface), OutsidePolicy::NearestHull));
     // At the hull: along the ray from the nearest hull point the rise over the held value is
     // linear in the distance, so it vanishes at the hull.
-    let mut checked = 0usize;
-    for (x, y, value) in outside_values(&stored, 51, 2000) {
-        let hold = held.interpolate(x, y, &mut WalkHint::default()).expect("finite").value_dph;
-        let rise = f64::from(value) - f64::from(hold);
-        let q = nearest_hull_point(&held, f64::from(x), f64::from(y));
-        for t in [0.5, 1e-2, 1e-4] {
-            let (xt, yt) =
-                ((q[0] + t * (f64::from(x) - q[0])) as f32, (q[1] + t * (f64::from(y) - q[1])) as f32);
-            let vt = stored.interpolate(xt, yt, &mut WalkHint::default()).expect("finite");
-            if !vt.outside_hull {
-                continue;
-            }
-            let ht = held.interpolate(xt, yt, &mut WalkHint::default()).expect("finite").value_dph;
-            let rise_t = f64::from(vt.value_dph) - f64::from(ht);
-            assert!((rise_t - t * rise).abs() < 2e-6, "t={t} at ({x}, {y}): {rise_t} vs {}", t * rise);
-            checked += 1;
-        }
-    }
-    assert!(checked > 1000, "{checked} ray points checked");
+    assert_rise_is_linear_along_rays(&stored, &held);
     // Along the hull: at each hull vertex v, a query 0.5 units out along the outward normal of
     // the edge starting there lies on the boundary of v's cone; moved by 1e-4 units along that
     // edge it is in the edge's cone (gradient interpolated at s ~ 1e-4 / length), moved back,
@@ -510,10 +499,7 @@ fn the_axis_flags_outside_hull_with_stored_gradients() {
     assert_eq!(OutsidePolicy::from_code(3), Some(OutsidePolicy::StoredGradients));
     assert_eq!(OutsidePolicy::StoredGradients.code(), 3);
     assert_eq!(OutsidePolicy::from_code(4), None);
+    assert_axis_flags_far_outside(&model);
     let axis = model.axis(0).expect("axis");
-    let e = axis.evaluate(100.0, 3.0, &mut WalkHint::default()).expect("finite");
-    assert!(e.outside_hull && e.value_dph.is_finite());
-    let inside = axis.evaluate(30.0, 0.1, &mut WalkHint::default()).expect("finite");
-    assert!(!inside.outside_hull);
     assert!(axis.evaluate(f32::NAN, 0.1, &mut WalkHint::default()).is_err());
 }

@@ -9,9 +9,9 @@ mod common;
 use std::collections::{HashMap, HashSet};
 use std::sync::OnceLock;
 
-use common::{bias_surface, mesh_blob, model_blob, paper_points, random_points, rng, NORMALISATION};
+use common::{bias_surface, load, mesh_blob, model_blob, paper_points, random_points, rng, NORMALISATION};
 use fogtemp_cal::{build_mesh, CalError, MeshPoint};
-use fogtemp_core::{Location, Mesh, Model, OutsidePolicy, PolyTerm, TriangleRecord, WalkHint, INSIDE_EPS};
+use fogtemp_core::{Location, Mesh, OutsidePolicy, PolyTerm, TriangleRecord, WalkHint, INSIDE_EPS};
 use proptest::prelude::*;
 use proptest::test_runner::{Config, RngAlgorithm, RngSeed};
 use rand::Rng;
@@ -153,14 +153,6 @@ impl Oracle {
 // ---------------------------------------------------------------------------------------------
 // Helpers
 // ---------------------------------------------------------------------------------------------
-
-/// Parses a leaked copy of `blob` (tests keep meshes for their whole run).
-fn load(blob: Vec<u8>) -> (Model<'static>, Mesh<'static>) {
-    let bytes: &'static [u8] = Box::leak(blob.into_boxed_slice());
-    let model = Model::from_bytes(bytes).expect("writer output parses");
-    let mesh = model.axis(0).expect("axis 0").mesh.expect("axis has a mesh");
-    (model, mesh)
-}
 
 /// Barycentric coordinates of `(x, y)` in `rec`, computed exactly as the format defines them
 /// (f32, relative to the origin). Used to check which triangles contain a point.

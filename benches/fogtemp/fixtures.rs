@@ -6,7 +6,7 @@
 
 use fogtemp_cal::{build_mesh, encode, AxisModel, MeshPoint, ModelFile};
 use fogtemp_core::{
-    AxisProvenance, FeatureSettings, Location, Mesh, Normalisation, OutsidePolicy, PolyTerm, WalkHint,
+    AxisProvenance, FeatureSettings, Location, Mesh, Model, Normalisation, OutsidePolicy, PolyTerm, WalkHint,
 };
 use rand::{Rng, SeedableRng};
 use rand_xoshiro::Xoshiro256PlusPlus;
@@ -139,6 +139,12 @@ pub fn model_blob(poly: Vec<PolyTerm>, points: Option<&[MeshPoint]>) -> Vec<u8> 
     encode(&file).expect("encodes")
 }
 
+/// The mesh of axis 0 of a model `blob`.
+pub fn mesh_of(blob: &[u8]) -> Mesh<'_> {
+    let model = Model::from_bytes(blob).expect("valid blob");
+    model.axis(0).expect("axis 0").mesh.expect("mesh")
+}
+
 /// A spade vertex: normalised position (f64) and value (deg/h).
 #[derive(Clone, Copy, Debug)]
 pub struct Node {
@@ -220,6 +226,17 @@ pub fn coherent_queries(n: usize) -> Vec<Query> {
         .collect()
 }
 
+/// The bounding box of `mesh`'s nodes (normalised): lowest and highest `[x, y]`.
+pub fn node_box(mesh: &Mesh<'_>) -> ([f32; 2], [f32; 2]) {
+    let (mut lo, mut hi) = ([f32::INFINITY; 2], [f32::NEG_INFINITY; 2]);
+    for i in 0..mesh.vertex_count() {
+        let v = mesh.vertex(i).expect("vertex exists");
+        lo = [lo[0].min(v.x), lo[1].min(v.y)];
+        hi = [hi[0].max(v.x), hi[1].max(v.y)];
+    }
+    (lo, hi)
+}
+
 /// `n` queries uniform over the bounding box of `mesh`'s nodes, kept only when inside the
 /// hull for both the walk and spade (outside the hull the peers do different things), in
 /// random order: every query starts the walk from an unrelated triangle.
@@ -229,12 +246,7 @@ pub fn random_inside_queries(
     n: usize,
     seed: u64,
 ) -> Vec<Query> {
-    let (mut lo, mut hi) = ([f32::INFINITY; 2], [f32::NEG_INFINITY; 2]);
-    for i in 0..mesh.vertex_count() {
-        let v = mesh.vertex(i).expect("vertex exists");
-        lo = [lo[0].min(v.x), lo[1].min(v.y)];
-        hi = [hi[0].max(v.x), hi[1].max(v.y)];
-    }
+    let (lo, hi) = node_box(mesh);
     let mut r = rng(seed);
     let mut out = Vec::with_capacity(n);
     while out.len() < n {

@@ -54,8 +54,7 @@ struct Subject {
 impl Subject {
     fn new(name: &'static str, points: &[fogtemp_cal::MeshPoint]) -> Self {
         let blob = fixtures::model_blob(Vec::new(), Some(points));
-        let model = Model::from_bytes(&blob).expect("valid blob");
-        let mesh = model.axis(0).expect("axis 0").mesh.expect("mesh");
+        let mesh = fixtures::mesh_of(&blob);
         let dt = fixtures::spade_of(&mesh);
         assert_eq!(dt.num_vertices(), mesh.vertex_count() as usize, "spade keeps every node");
         Subject { name: format!("{name}{}", mesh.vertex_count()), blob, dt }
@@ -253,8 +252,7 @@ pub fn random_order(c: &mut Criterion) {
     let mut group = c.benchmark_group("interp/random_order");
     configure(&mut group);
     for s in &subjects() {
-        let model = Model::from_bytes(&s.blob).expect("valid blob");
-        let mesh = model.axis(0).expect("axis 0").mesh.expect("mesh");
+        let mesh = fixtures::mesh_of(&s.blob);
         let queries = fixtures::random_inside_queries(&mesh, &s.dt, RANDOM_QUERIES, 11);
         bench_peers(&mut group, s, &queries);
     }
@@ -264,12 +262,7 @@ pub fn random_order(c: &mut Criterion) {
 /// `n` queries uniform over `mesh`'s bounding box grown by `margin` of its span on every side,
 /// kept only when outside the hull (by the scan), in random order.
 fn random_outside_queries(mesh: &Mesh<'_>, n: usize, margin: f32, seed: u64) -> Vec<Query> {
-    let (mut lo, mut hi) = ([f32::INFINITY; 2], [f32::NEG_INFINITY; 2]);
-    for i in 0..mesh.vertex_count() {
-        let v = mesh.vertex(i).expect("vertex exists");
-        lo = [lo[0].min(v.x), lo[1].min(v.y)];
-        hi = [hi[0].max(v.x), hi[1].max(v.y)];
-    }
+    let (lo, hi) = fixtures::node_box(mesh);
     let grow = [margin * (hi[0] - lo[0]), margin * (hi[1] - lo[1])];
     let mut r = fixtures::rng(seed);
     let mut out = Vec::with_capacity(n);
@@ -292,8 +285,7 @@ pub fn outside_hull(c: &mut Criterion) {
     let mut group = c.benchmark_group("interp/outside_hull");
     configure(&mut group);
     for s in &subjects() {
-        let model = Model::from_bytes(&s.blob).expect("valid blob");
-        let mesh = model.axis(0).expect("axis 0").mesh.expect("mesh");
+        let mesh = fixtures::mesh_of(&s.blob);
         let queries = random_outside_queries(&mesh, OUTSIDE_QUERIES, 0.3, 13);
         // The search agrees with the scan: bit for bit, or (a tie f32 cannot resolve) to the
         // value tolerance of `check_agreement`.

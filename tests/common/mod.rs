@@ -2,7 +2,7 @@
 #![allow(dead_code, missing_docs)]
 
 use fogtemp_cal::{build_mesh, encode, AxisModel, MeshPoint, ModelFile};
-use fogtemp_core::{AxisProvenance, FeatureSettings, Normalisation, OutsidePolicy, PolyTerm};
+use fogtemp_core::{AxisProvenance, FeatureSettings, Mesh, Model, Normalisation, OutsidePolicy, PolyTerm};
 use rand::{Rng, SeedableRng};
 use rand_xoshiro::Xoshiro256PlusPlus;
 
@@ -20,6 +20,13 @@ pub const NORMALISATION: Normalisation = Normalisation {
 
 pub fn rng(seed: u64) -> Xoshiro256PlusPlus {
     Xoshiro256PlusPlus::seed_from_u64(seed)
+}
+
+/// Standard normal deviate (Box-Muller), so the tests need no distribution crate.
+pub fn gaussian(r: &mut impl Rng) -> f64 {
+    let u1: f64 = r.gen_range(f64::MIN_POSITIVE..1.0);
+    let u2: f64 = r.gen();
+    (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
 }
 
 /// A smooth, non-planar bias surface in deg/h.
@@ -75,19 +82,7 @@ pub fn provenance() -> AxisProvenance {
 
 /// A one-axis mesh model blob of `points`.
 pub fn mesh_blob(points: &[MeshPoint], policy: OutsidePolicy) -> Vec<u8> {
-    let mesh = build_mesh(points, &NORMALISATION).expect("mesh builds");
-    let axis = AxisModel {
-        region: Vec::new(),
-        poly_outside: fogtemp_core::PolyOutside::Extrapolate,
-        features: FEATURES,
-        normalisation: NORMALISATION,
-        outside_policy: policy,
-        poly: Vec::new(),
-        mesh: Some(mesh),
-        provenance: provenance(),
-    };
-    encode(&ModelFile { tool_version: "fogtemp test".into(), input_digest: [7; 32], axes: vec![axis] })
-        .expect("encodes")
+    model_blob(Vec::new(), Some(points), policy)
 }
 
 /// A one-axis model with the given polynomial terms and optional mesh points.
@@ -105,6 +100,14 @@ pub fn model_blob(poly: Vec<PolyTerm>, points: Option<&[MeshPoint]>, policy: Out
     };
     encode(&ModelFile { tool_version: "fogtemp test".into(), input_digest: [7; 32], axes: vec![axis] })
         .expect("encodes")
+}
+
+/// Parses a leaked copy of a one-axis mesh `blob` (tests keep meshes for their whole run).
+pub fn load(blob: Vec<u8>) -> (Model<'static>, Mesh<'static>) {
+    let bytes: &'static [u8] = Box::leak(blob.into_boxed_slice());
+    let model = Model::from_bytes(bytes).expect("writer output parses");
+    let mesh = model.axis(0).expect("axis 0").mesh.expect("axis has a mesh");
+    (model, mesh)
 }
 
 /// Path of the `fogtemp-cal` executable for the command-line tests: `FOGTEMP_CAL_BIN` if set,
@@ -139,6 +142,50 @@ pub fn fogtemp_cal_bin() -> &'static std::path::Path {
             .find_map(|m| m["executable"].as_str().map(std::path::PathBuf::from))
             .expect("cargo reported no fogtemp-cal executable")
     })
+}
+
+/// A command line for `fogtemp-cal`.
+pub fn cal() -> assert_cmd::Command {
+    assert_cmd::Command::new(fogtemp_cal_bin())
+}
+
+/// Runs `fogtemp-cal args...`, requires success, returns stdout.
+pub fn run_ok<I, S>(args: I) -> String
+where
+    I: IntoIterator<Item = S>,
+    S: AsRef<std::ffi::OsStr>,
+{
+    let out = cal().args(args).assert().success();
+    String::from_utf8_lossy(&out.get_output().stdout).into_owned()
+}
+
+/// Runs `fogtemp-cal args...`, requires failure, returns stderr.
+pub fn run_err<I, S>(args: I) -> String
+where
+    I: IntoIterator<Item = S>,
+    S: AsRef<std::ffi::OsStr>,
+{
+    let out = cal().args(args).assert().failure();
+    String::from_utf8_lossy(&out.get_output().stderr).into_owned()
+}
+
+/// A fitted static shape on 81 points of the central 80 % of `lo..hi`: the B-spline basis of
+/// `k` functions there, the first (the constant) left out, weighted by `coef` (the reported
+/// `spline_1..` coefficients). Returns the grid and the shape on it.
+pub fn static_shape_on_central_grid(lo: f64, hi: f64, k: usize, coef: &[f64]) -> (Vec<f64>, Vec<f64>) {
+    let grid: Vec<f64> = (0..=80).map(|i| lo + (hi - lo) * (0.1 + 0.8 * f64::from(i) / 80.0)).collect();
+    let fitted = grid
+        .iter()
+        .map(|&t| {
+            fogtemp_diagnose::effects::bspline_basis(t, lo, hi, k)
+                .iter()
+                .skip(1)
+                .zip(coef)
+                .map(|(b, c)| b * c)
+                .sum()
+        })
+        .collect();
+    (grid, fitted)
 }
 
 /// Pearson correlation of two equally long series.

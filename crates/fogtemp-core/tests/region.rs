@@ -77,21 +77,37 @@ fn inside_the_region_the_value_is_bit_exact_and_outside_it_is_the_nearest_bounda
     let (held, free) = (Model::from_bytes(&held).unwrap(), Model::from_bytes(&free).unwrap());
     assert_eq!(held.format_version(), 2);
     let (held, free) = (held.axis(0).unwrap(), free.axis(0).unwrap());
-    let mut r = rng(11);
+    // f32 projection and evaluation: a few ulps of the terms (|x|, |y| <= 1 on the boundary).
+    assert_inside_as_extrapolated_outside_as_reference(&held, &free, 11, 1e-5, |_, _, (qx, qy)| {
+        poly_f64(qx, qy)
+    });
+}
+
+/// At 20 000 seeded points of [-2.5, 2.5]^2 (more than 1000 inside the region, more than
+/// 10 000 outside): inside (by [`reference`]) `axis` gives the extrapolating axis `free`'s
+/// value bit for bit, unflagged; outside it is flagged and within `tol` of `want(x, y, q)`,
+/// q the nearest boundary point.
+fn assert_inside_as_extrapolated_outside_as_reference(
+    axis: &fogtemp_core::Axis<'_>,
+    free: &fogtemp_core::Axis<'_>,
+    seed: u64,
+    tol: f64,
+    want: impl Fn(f64, f64, (f64, f64)) -> f64,
+) {
+    let mut r = rng(seed);
     let (mut inside, mut outside) = (0, 0);
     for _ in 0..20_000 {
         let (x, y): (f32, f32) = (r.gen_range(-2.5..2.5), r.gen_range(-2.5..2.5));
-        let h = held.evaluate(x, y, &mut WalkHint::default()).unwrap();
+        let h = axis.evaluate(x, y, &mut WalkHint::default()).unwrap();
         let f = free.evaluate(x, y, &mut WalkHint::default()).unwrap();
-        let (ref_inside, (qx, qy)) = reference(f64::from(x), f64::from(y));
+        let (ref_inside, q) = reference(f64::from(x), f64::from(y));
         if ref_inside {
             inside += 1;
             assert_eq!((h.value_dph.to_bits(), h.outside_hull), (f.value_dph.to_bits(), false), "({x}, {y})");
         } else {
             outside += 1;
-            let want = poly_f64(qx, qy);
-            // f32 projection and evaluation: a few ulps of the terms (|x|, |y| <= 1 on the boundary).
-            assert!((f64::from(h.value_dph) - want).abs() <= 1e-5, "({x}, {y}): {} vs {want}", h.value_dph);
+            let want = want(f64::from(x), f64::from(y), q);
+            assert!((f64::from(h.value_dph) - want).abs() <= tol, "({x}, {y}): {} vs {want}", h.value_dph);
             assert!(h.outside_hull, "({x}, {y}) outside but not flagged");
         }
     }
@@ -115,27 +131,12 @@ fn linear_from_boundary_is_the_tangent_plane_at_the_nearest_boundary_point() {
     let (linear, free) = (Model::from_bytes(&linear).unwrap(), Model::from_bytes(&free).unwrap());
     let (linear, free) = (linear.axis(0).unwrap(), free.axis(0).unwrap());
     assert_eq!(linear.poly_outside, PolyOutside::LinearFromBoundary);
-    let mut r = rng(12);
-    let (mut inside, mut outside) = (0, 0);
-    for _ in 0..20_000 {
-        let (x, y): (f32, f32) = (r.gen_range(-2.5..2.5), r.gen_range(-2.5..2.5));
-        let l = linear.evaluate(x, y, &mut WalkHint::default()).unwrap();
-        let f = free.evaluate(x, y, &mut WalkHint::default()).unwrap();
-        let (ref_inside, (qx, qy)) = reference(f64::from(x), f64::from(y));
-        if ref_inside {
-            inside += 1;
-            assert_eq!((l.value_dph.to_bits(), l.outside_hull), (f.value_dph.to_bits(), false), "({x}, {y})");
-        } else {
-            outside += 1;
-            let (gx, gy) = poly_gradient_f64(qx, qy);
-            let want = poly_f64(qx, qy) + gx * (f64::from(x) - qx) + gy * (f64::from(y) - qy);
-            // f32 projection, value and gradient: a few ulps of terms of order 1, times the
-            // distance (at most 3.5) for the gradient part.
-            assert!((f64::from(l.value_dph) - want).abs() <= 5e-5, "({x}, {y}): {} vs {want}", l.value_dph);
-            assert!(l.outside_hull, "({x}, {y}) outside but not flagged");
-        }
-    }
-    assert!(inside > 1000 && outside > 10_000, "{inside} inside, {outside} outside");
+    // f32 projection, value and gradient: a few ulps of terms of order 1, times the
+    // distance (at most 3.5) for the gradient part.
+    assert_inside_as_extrapolated_outside_as_reference(&linear, &free, 12, 5e-5, |x, y, (qx, qy)| {
+        let (gx, gy) = poly_gradient_f64(qx, qy);
+        poly_f64(qx, qy) + gx * (x - qx) + gy * (y - qy)
+    });
     // Far out (x = 50, nearest the vertex (0.95, -0.3)) the continuation is still the tangent
     // plane there, growing linearly, while the extrapolated cubic runs away.
     let far =
