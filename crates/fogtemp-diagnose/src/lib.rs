@@ -119,6 +119,14 @@ pub struct DiagnoseOptions {
     /// when the model passes its innovation check (`noise_model`; docs/diagnose.md, "A
     /// noise model in the acceptance").
     pub noise_model_acceptance: bool,
+    /// In that route, fit each candidate's noise levels by REML with the candidate (at its
+    /// smallest-p grid point) in the model and check the model with it in place, as the
+    /// oracle's plug-in GLS does (docs/diagnose.md, ninth session).
+    pub noise_model_candidate_levels: bool,
+    /// In that route, measure the held-out claim (leave-one-run-out error falls, the sign of
+    /// a lag's gain) by GLS in the noise model's metric at the candidate's smallest-p point,
+    /// instead of by the run-level least-squares LORO error (docs/diagnose.md, ninth session).
+    pub noise_model_heldout: bool,
 }
 
 impl Default for DiagnoseOptions {
@@ -139,6 +147,8 @@ impl Default for DiagnoseOptions {
             window_coverage: 0.5,
             block_coverage: 0.9,
             noise_model_acceptance: true,
+            noise_model_candidate_levels: true,
+            noise_model_heldout: true,
         }
     }
 }

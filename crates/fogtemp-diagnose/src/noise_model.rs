@@ -133,6 +133,8 @@ pub struct NoiseFit {
     pub at_edge: bool,
     /// The innovation check at the fitted levels.
     pub check: NoiseCheck,
+    /// Mean variance of one short mean at the fitted levels, (deg/h)^2.
+    pub block_var: f64,
     /// Per run: `diag(var^-1/2) U^T D^-1/2` (whitens the run's short means).
     whiten: Vec<DMatrix<f64>>,
 }
@@ -266,7 +268,9 @@ pub fn fit_noise(basis: &NoiseBasis, x: &[DMatrix<f64>], y: &[Vec<f64>]) -> Opti
         })
         .collect();
     let check = innovation_check(&covariances, x, y, &whiten)?;
-    Some(NoiseFit { white_var: alpha, flicker_var: beta, at_edge, check, whiten })
+    let blocks: usize = covariances.iter().map(|c| c.nrows()).sum();
+    let block_var = covariances.iter().map(|c| c.trace()).sum::<f64>() / blocks.max(1) as f64;
+    Some(NoiseFit { white_var: alpha, flicker_var: beta, at_edge, check, block_var, whiten })
 }
 
 /// Maximum of a unimodal `f` on `[lo, hi]` by golden section (40 steps).
@@ -304,6 +308,56 @@ fn gls_beta(x: &[DMatrix<f64>], y: &[Vec<f64>], whiten: &[DMatrix<f64>]) -> Opti
         b += xw.transpose() * yw;
     }
     crate::linalg::least_squares(&a, &b)
+}
+
+/// Leave-one-run-out GLS under a fitted model: the full-data GLS coefficients of `x`
+/// and the held-out error in the model's own metric, `sum_r e_r^T Sigma_r^-1 e_r` with
+/// `e_r` run `r`'s residual from the coefficients fitted to the other runs. (The claim the
+/// diagnosis makes for a term, that it predicts held-out runs better, measured where a run's
+/// slow flicker offset counts as much as the model says it is likely, not as its square.)
+#[derive(Clone, Debug, PartialEq)]
+pub struct HeldOut {
+    /// Full-data GLS coefficients.
+    pub beta: DVector<f64>,
+    /// Held-out whitened sum of squares over all runs.
+    pub sse: f64,
+}
+
+/// See [`HeldOut`]. `penalty`: pseudo-observations of 0 on the coefficients (rows x p, in
+/// the units of a short mean, as in the run-level fits); each row is weighted as one short
+/// mean of the model's mean variance, so it is as heavy as in the run-level fits. `None`
+/// when a fit fails or the shapes do not match.
+pub fn heldout_gls(
+    fit: &NoiseFit,
+    x: &[DMatrix<f64>],
+    y: &[Vec<f64>],
+    penalty: Option<&DMatrix<f64>>,
+) -> Option<HeldOut> {
+    let p = x.first()?.ncols();
+    if x.len() != y.len() || x.len() != fit.whiten.len() || penalty.is_some_and(|m| m.ncols() != p) {
+        return None;
+    }
+    let pen_gram = penalty.map_or_else(|| DMatrix::zeros(p, p), |m| m.transpose() * m / fit.block_var);
+    let mut parts = Vec::with_capacity(x.len());
+    for ((xr, yr), w) in x.iter().zip(y).zip(&fit.whiten) {
+        if xr.nrows() != yr.len() || w.ncols() != yr.len() || xr.ncols() != p {
+            return None;
+        }
+        let xw = w * xr;
+        let yw = w * DVector::from_column_slice(yr);
+        let a = xw.transpose() * &xw;
+        let b = xw.transpose() * &yw;
+        parts.push((xw, yw, a, b));
+    }
+    let a_all = parts.iter().fold(pen_gram, |acc, q| acc + &q.2);
+    let b_all = parts.iter().fold(DVector::<f64>::zeros(p), |acc, q| acc + &q.3);
+    let beta = crate::linalg::least_squares(&a_all, &b_all)?;
+    let mut sse = 0.0;
+    for (xw, yw, a, b) in &parts {
+        let beta_out = crate::linalg::least_squares(&(&a_all - a), &(&b_all - b))?;
+        sse += (yw - xw * beta_out).norm_squared();
+    }
+    Some(HeldOut { beta, sse })
 }
 
 /// Time-ordered innovations of the GLS residual (`L^-1 e`, `L` the Cholesky factor of the
