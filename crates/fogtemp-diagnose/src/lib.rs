@@ -119,9 +119,11 @@ pub struct DiagnoseOptions {
     /// when the model passes its innovation check (`noise_model`; docs/diagnose.md, "A
     /// noise model in the acceptance").
     pub noise_model_acceptance: bool,
-    /// In that route, fit each candidate's noise levels by REML with the candidate (at its
-    /// smallest-p grid point) in the model and check the model with it in place, as the
-    /// oracle's plug-in GLS does (docs/diagnose.md, ninth session).
+    /// In that route, when the current model fails its innovation check: fit each
+    /// candidate's noise levels by REML with the candidate (at its smallest-p grid point) in
+    /// the model, check that model, and test the candidate at its levels (the oracle's way).
+    /// Not used when the current model passes: refitted levels absorb slow noise under the
+    /// null (docs/diagnose.md, ninth session).
     pub noise_model_candidate_levels: bool,
     /// In that route, measure the held-out claim (leave-one-run-out error falls, the sign of
     /// a lag's gain) by GLS in the noise model's metric at the candidate's smallest-p point,

@@ -12,6 +12,7 @@ use super::rules::*;
 use crate::effects::{term_columns, Effect, EffectGrid, TermColumns};
 use crate::error::DiagnoseError;
 use crate::linalg::{autocorrelations, effective_n, parabola_vertex};
+use crate::noise_model::heldout_gls;
 use crate::prepare::Prepared;
 use crate::{CandidateReport, DiagnoseOptions, SelectionStep};
 
@@ -525,7 +526,8 @@ fn family_p_of(min_p: f64, total: usize, simulate: impl FnOnce() -> f64) -> f64 
     }
 }
 
-/// Held-out GLS claim of a candidate's grid point under `fit`: (error falls, sign holds).
+/// Held-out GLS claim of a candidate's grid point under `fit`: (error falls below the
+/// current model's `without_sse`, sign holds).
 /// The spline penalties of the current model and of the candidate are kept, as in the
 /// run-level LORO fits.
 fn heldout_claim(
@@ -534,8 +536,8 @@ fn heldout_claim(
     ys: &[Vec<f64>],
     grid: &EffectGrid,
     point: usize,
+    without_sse: f64,
 ) -> Option<(bool, bool)> {
-    use crate::noise_model::heldout_gls;
     let cols = &grid.points[point];
     let with: Vec<DMatrix<f64>> =
         (0..base.per_run.len()).map(|r| concat(base, &[&cols.per_run[r]], r)).collect();
@@ -552,11 +554,10 @@ fn heldout_claim(
         }
         m
     });
-    let without = heldout_gls(fit, &base.per_run, ys, base.penalty.as_ref())?;
     let with = heldout_gls(fit, &with, ys, pen_with.as_ref())?;
     let last = with.beta.len().checked_sub(1).map_or(f64::NAN, |i| with.beta[i]);
     let sign = !grid.effect.positive_coefficient() || last > 0.0;
-    Some((with.sse < without.sse, sign))
+    Some((with.sse < without_sse, sign))
 }
 
 impl GlsStep {
@@ -606,16 +607,23 @@ impl GlsStep {
                     }
                     let own_tester = GlsTester::new(&own, &base.per_run, ys)?;
                     let mine = grid_test(&own_tester, g);
+                    let heldout = if options.noise_model_heldout {
+                        let without = heldout_gls(&own, &base.per_run, ys, base.penalty.as_ref())?;
+                        heldout_claim(&own, base, ys, g, mine.best, without.sse)
+                    } else {
+                        None
+                    };
+                    // The simulation (the whole step at this candidate's levels) is only
+                    // needed when the held-out claim holds; else NaN: not simulated.
+                    let claim = heldout.is_none_or(|(falls, sign)| falls && sign);
                     let family_p = family_p_of(mine.min_p, total, || {
+                        if !claim {
+                            return f64::NAN;
+                        }
                         let all: Vec<GridTest> = open.iter().map(|h| grid_test(&own_tester, h)).collect();
                         let refs: Vec<&DMatrix<f64>> = all.iter().flat_map(|t| &t.bases).collect();
                         family_p(own_tester.n(), &refs, &[mine.min_p], GLS_SIMULATIONS, seed)[0]
                     });
-                    let heldout = if options.noise_model_heldout {
-                        heldout_claim(&own, base, ys, g, mine.best)
-                    } else {
-                        None
-                    };
                     let v = GlsVerdict {
                         min_p: mine.min_p,
                         family_p,
@@ -638,16 +646,17 @@ impl GlsStep {
             } else {
                 min_ps.clone()
             };
+            let without = options
+                .noise_model_heldout
+                .then(|| heldout_gls(&fit, &base.per_run, ys, base.penalty.as_ref()))
+                .flatten();
             open.iter()
                 .zip(&tests)
                 .zip(&simulated)
                 .map(|((g, t), sim)| {
                     let family_p = family_p_of(t.min_p, total, || *sim);
-                    let heldout = if options.noise_model_heldout {
-                        heldout_claim(&fit, base, ys, g, t.best)
-                    } else {
-                        None
-                    };
+                    let heldout =
+                        without.as_ref().and_then(|w| heldout_claim(&fit, base, ys, g, t.best, w.sse));
                     (g.effect, GlsVerdict { min_p: t.min_p, family_p, levels, heldout, own_levels: false })
                 })
                 .collect()
@@ -663,8 +672,8 @@ impl GlsStep {
 fn gls_note(v: Option<GlsVerdict>) -> String {
     v.map_or_else(String::new, |v| {
         format!(
-            "family-wise p {:.4}, {GLS_FAMILY_LEVEL} needed; smallest Wald p over the grid {:.2e}; noise{}: white {:.2e} (deg/h)^2 per s, bias-instability decade {:.2e} (deg/h)^2{}",
-            v.family_p,
+            "family-wise p {}, {GLS_FAMILY_LEVEL} needed; smallest Wald p over the grid {:.2e}; noise{}: white {:.2e} (deg/h)^2 per s, bias-instability decade {:.2e} (deg/h)^2{}",
+            if v.family_p.is_nan() { "not simulated".to_string() } else { format!("{:.4}", v.family_p) },
             v.min_p,
             if v.own_levels { " (levels with the candidate)" } else { "" },
             v.levels.0,
@@ -690,6 +699,35 @@ mod tests {
 
     fn cand(effect: Effect, fold_sse: &[f64], k: usize) -> (Vec<f64>, usize, Pick) {
         (fold_sse.to_vec(), k, (effect, 0, 0.0, None))
+    }
+
+    #[test]
+    fn the_route_accepts_only_a_family_wise_significant_candidate_whose_claim_holds() {
+        let v = |family_p: f64, heldout: Option<(bool, bool)>| GlsVerdict {
+            min_p: family_p,
+            family_p,
+            levels: (1e-3, 1e-6),
+            heldout,
+            own_levels: false,
+        };
+        // Held-out claim in the model's metric: the run-level LORO error and sign do not count.
+        assert!(v(0.002, Some((true, true))).accepts(false, false));
+        assert!(!v(0.0021, Some((true, true))).accepts(true, true));
+        assert!(!v(0.001, Some((false, true))).accepts(true, true));
+        assert!(!v(0.001, Some((true, false))).accepts(true, true));
+        // Without it: the run-level LORO error and sign decide the claim.
+        assert!(v(0.001, None).accepts(true, true));
+        assert!(!v(0.001, None).accepts(false, true));
+        assert!(!v(0.001, None).accepts(true, false));
+    }
+
+    #[test]
+    fn family_p_of_uses_the_bounds_before_simulating() {
+        // Own p above the level: reported as is. Bonferroni bound 1e-5 x 100 = 1e-3 at the
+        // level: the bound. Between: the simulation.
+        assert_eq!(family_p_of(0.01, 100, || f64::NAN), 0.01);
+        assert!((family_p_of(1e-5, 100, || f64::NAN) - 1e-3).abs() < 1e-15);
+        assert_eq!(family_p_of(1e-4, 100, || 0.0042), 0.0042);
     }
 
     #[test]
