@@ -7,8 +7,8 @@
 //! `cargo run --release -p fogtemp-diagnose --example diagnose_confusion -- [SEEDS] [FIRST_SEED] [SCALE] [LABEL...]`
 //! (defaults: 20 seeds from 5000, sizes x1, every dataset; docs/diagnose.md gives the commands
 //! it was made with). SCALE multiplies every injected size (`concealed::datasets_at`).
-//! `-v` anywhere prints each diagnosis's candidate table; `--no-candidate-levels` and
-//! `--no-gls-heldout` turn off the ninth session's two options (docs/diagnose.md).
+//! `-v` anywhere prints each diagnosis's candidate table; `--candidate-levels` turns on and
+//! `--no-gls-heldout` turns off the ninth session's two options (docs/diagnose.md).
 
 use std::collections::BTreeMap;
 use std::time::Instant;
@@ -68,7 +68,7 @@ fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let verbose = args.iter().any(|a| a == "-v");
     let options = DiagnoseOptions {
-        noise_model_candidate_levels: !args.iter().any(|a| a == "--no-candidate-levels"),
+        noise_model_candidate_levels: args.iter().any(|a| a == "--candidate-levels"),
         noise_model_heldout: !args.iter().any(|a| a == "--no-gls-heldout"),
         ..DiagnoseOptions::default()
     };

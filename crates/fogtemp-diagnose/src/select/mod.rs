@@ -46,7 +46,7 @@
 //!   leave-one-run-out GLS error in the model's metric falls with the candidate at its
 //!   smallest-p point and the GLS sign is physical (`noise_model::heldout_gls`), else the
 //!   run-level LORO error falls and the sign is physical. If the model does not fit, with
-//!   `DiagnoseOptions::noise_model_candidate_levels` (default) each candidate's levels are
+//!   `DiagnoseOptions::noise_model_candidate_levels` (off by default) each candidate's levels are
 //!   refitted with it in the model and the candidate is tested at them if that model passes
 //!   the check; otherwise the run-level rules decide alone (docs/diagnose.md, ninth session).
 
