@@ -544,6 +544,11 @@ fn heldout_claim(
     let (p, k) = (base.p(), cols.k());
     let base_rows = base.penalty.as_ref().map_or(0, |m| m.nrows());
     let cand_rows = cols.penalty.as_ref().map_or(0, |m| m.nrows());
+    if base.penalty.as_ref().is_some_and(|m| m.ncols() != p)
+        || cols.penalty.as_ref().is_some_and(|m| m.ncols() != k)
+    {
+        return None;
+    }
     let pen_with = (base_rows + cand_rows > 0).then(|| {
         let mut m = DMatrix::zeros(base_rows + cand_rows, p + k);
         if let Some(b) = &base.penalty {
