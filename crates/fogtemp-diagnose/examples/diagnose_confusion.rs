@@ -7,7 +7,8 @@
 //! `cargo run --release -p fogtemp-diagnose --example diagnose_confusion -- [SEEDS] [FIRST_SEED] [SCALE] [LABEL...]`
 //! (defaults: 20 seeds from 5000, sizes x1, every dataset; docs/diagnose.md gives the commands
 //! it was made with). SCALE multiplies every injected size (`concealed::datasets_at`).
-//! `-v` anywhere prints each diagnosis's candidate table.
+//! `-v` anywhere prints each diagnosis's candidate table; `--candidate-levels` turns on and
+//! `--no-gls-heldout` turns off the ninth session's two options (docs/diagnose.md).
 
 use std::collections::BTreeMap;
 use std::time::Instant;
@@ -66,7 +67,12 @@ fn print_candidates(d: &Diagnosis) {
 fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let verbose = args.iter().any(|a| a == "-v");
-    let positional: Vec<&String> = args.iter().filter(|a| *a != "-v").collect();
+    let options = DiagnoseOptions {
+        noise_model_candidate_levels: args.iter().any(|a| a == "--candidate-levels"),
+        noise_model_heldout: !args.iter().any(|a| a == "--no-gls-heldout"),
+        ..DiagnoseOptions::default()
+    };
+    let positional: Vec<&String> = args.iter().filter(|a| !a.starts_with('-')).collect();
     let seeds: u64 = positional.first().and_then(|v| v.parse().ok()).unwrap_or(20);
     let first: u64 = positional.get(1).and_then(|v| v.parse().ok()).unwrap_or(5000);
     let scale: f64 = positional.get(2).and_then(|v| v.parse().ok()).unwrap_or(1.0);
@@ -91,8 +97,7 @@ fn main() {
             }
             let truth = truth_map(ds, &g);
             let t0 = Instant::now();
-            let d = diagnose(&g.simulated, &g.recorded, &DiagnoseOptions::default(), |_, _| {})
-                .expect("diagnosis runs");
+            let d = diagnose(&g.simulated, &g.recorded, &options, |_, _| {}).expect("diagnosis runs");
             let named: Vec<&str> = d.left_out.iter().map(|e| e.effect.as_str()).collect();
             eprintln!("{} seed {seed}: {:?} ({:.1} s)", ds.label, named, t0.elapsed().as_secs_f64());
             if verbose {

@@ -119,6 +119,17 @@ pub struct DiagnoseOptions {
     /// when the model passes its innovation check (`noise_model`; docs/diagnose.md, "A
     /// noise model in the acceptance").
     pub noise_model_acceptance: bool,
+    /// In that route, when the current model fails its innovation check: fit each
+    /// candidate's noise levels by REML with the candidate (at its smallest-p grid point) in
+    /// the model, check that model, and test the candidate at its levels (the oracle's way).
+    /// Not used when the current model passes: refitted levels absorb slow noise under the
+    /// null. Off by default: it changed no measured count and let `hysteresis` pass as an
+    /// alternative to a strong lag not yet in the model (docs/diagnose.md, ninth session).
+    pub noise_model_candidate_levels: bool,
+    /// In that route, measure the held-out claim (leave-one-run-out error falls, the sign of
+    /// a lag's gain) by GLS in the noise model's metric at the candidate's smallest-p point,
+    /// instead of by the run-level least-squares LORO error (docs/diagnose.md, ninth session).
+    pub noise_model_heldout: bool,
 }
 
 impl Default for DiagnoseOptions {
@@ -139,6 +150,8 @@ impl Default for DiagnoseOptions {
             window_coverage: 0.5,
             block_coverage: 0.9,
             noise_model_acceptance: true,
+            noise_model_candidate_levels: false,
+            noise_model_heldout: true,
         }
     }
 }

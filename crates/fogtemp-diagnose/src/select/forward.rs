@@ -12,6 +12,7 @@ use super::rules::*;
 use crate::effects::{term_columns, Effect, EffectGrid, TermColumns};
 use crate::error::DiagnoseError;
 use crate::linalg::{autocorrelations, effective_n, parabola_vertex};
+use crate::noise_model::heldout_gls;
 use crate::prepare::Prepared;
 use crate::{CandidateReport, DiagnoseOptions, SelectionStep};
 
@@ -156,7 +157,7 @@ pub(super) fn judge(
     let gls = ctx.gls.as_ref().and_then(|g| g.verdict(grid.effect));
     // The route replaces the run-level tests of significance (fold rule, BIC, stability),
     // not the claim the diagnosis makes: the term predicts held-out runs better.
-    let gls_accepts = gls.is_some_and(|v| v.family_p <= GLS_FAMILY_LEVEL) && sign_ok && cv_sse < base_cv;
+    let gls_accepts = gls.is_some_and(|v| v.accepts(cv_sse < base_cv, sign_ok));
     let accepted = !concealed && (failed.is_empty() || gls_accepts);
     let (status, note, experiment) = if concealed {
         (
@@ -391,7 +392,7 @@ pub fn forward_select(
         let in_model: Vec<Effect> = chosen.iter().map(|c| c.effect).collect();
         let gls = match &noise_basis {
             Some(basis) if step < options.max_effects => {
-                GlsStep::of(basis, &base, &ys, grids, &in_model, step)
+                GlsStep::of(basis, &base, &ys, grids, &in_model, step, options)
             }
             _ => None,
         };
@@ -462,16 +463,115 @@ pub(super) struct GlsVerdict {
     pub(super) family_p: f64,
     /// Fitted levels: white (deg/h)^2 per second, flicker (deg/h)^2 per decade.
     pub(super) levels: (f64, f64),
+    /// With [`DiagnoseOptions::noise_model_heldout`]: whether the held-out GLS error (the
+    /// noise model's metric) falls with the candidate at its smallest-p point, and whether
+    /// its GLS coefficient has the physical sign. `None`: the run-level LORO error decides.
+    pub(super) heldout: Option<(bool, bool)>,
+    /// Whether the levels were fitted with the candidate in the model.
+    pub(super) own_levels: bool,
 }
 
-/// The noise-model route at one step: the fitted model and every candidate's verdict.
+impl GlsVerdict {
+    /// The route accepts: family-wise significant, and the held-out claim holds (in the
+    /// model's metric when measured there, else the run-level LORO error `cv_falls` and
+    /// the run-level sign `sign_ok`).
+    pub(super) fn accepts(&self, cv_falls: bool, sign_ok: bool) -> bool {
+        let claim = match self.heldout {
+            Some((falls, sign)) => falls && sign,
+            None => cv_falls && sign_ok,
+        };
+        self.family_p <= GLS_FAMILY_LEVEL && claim
+    }
+}
+
+/// The noise-model route at one step: every candidate's verdict.
 pub(super) struct GlsStep {
     verdicts: Vec<(Effect, GlsVerdict)>,
 }
 
+/// A candidate's whitened grid bases, their Wald p's and the smallest.
+struct GridTest {
+    bases: Vec<DMatrix<f64>>,
+    min_p: f64,
+    /// Grid point of the smallest p.
+    best: usize,
+}
+
+fn grid_test(tester: &crate::noise_model::GlsTester<'_>, grid: &EffectGrid) -> GridTest {
+    let (points, bases): (Vec<usize>, Vec<DMatrix<f64>>) = grid
+        .points
+        .par_iter()
+        .enumerate()
+        .filter_map(|(i, pt)| tester.candidate_basis(&pt.per_run).map(|q| (i, q)))
+        .unzip();
+    let (best, min_p) = points
+        .iter()
+        .zip(&bases)
+        .map(|(i, q)| (*i, tester.wald(q).1))
+        .fold((0, 1.0), |acc, (i, p)| if p < acc.1 { (i, p) } else { acc });
+    GridTest { bases, min_p, best }
+}
+
+/// The family-wise p of one candidate's smallest p (`min_p`) among `total` bases of the
+/// step: its own p when above the level, its Bonferroni bound when that is at the level,
+/// else `simulate()` (the simulated null of the step's smallest p).
+fn family_p_of(min_p: f64, total: usize, simulate: impl FnOnce() -> f64) -> f64 {
+    let bonferroni = (min_p * total as f64).min(1.0);
+    if min_p > GLS_FAMILY_LEVEL {
+        min_p
+    } else if bonferroni <= GLS_FAMILY_LEVEL {
+        bonferroni
+    } else {
+        simulate()
+    }
+}
+
+/// Held-out GLS claim of a candidate's grid point under `fit`: (error falls below the
+/// current model's `without_sse`, sign holds).
+/// The spline penalties of the current model and of the candidate are kept, as in the
+/// run-level LORO fits.
+fn heldout_claim(
+    fit: &crate::noise_model::NoiseFit,
+    base: &Design,
+    ys: &[Vec<f64>],
+    grid: &EffectGrid,
+    point: usize,
+    without_sse: f64,
+) -> Option<(bool, bool)> {
+    let cols = &grid.points[point];
+    let with: Vec<DMatrix<f64>> =
+        (0..base.per_run.len()).map(|r| concat(base, &[&cols.per_run[r]], r)).collect();
+    let (p, k) = (base.p(), cols.k());
+    let base_rows = base.penalty.as_ref().map_or(0, |m| m.nrows());
+    let cand_rows = cols.penalty.as_ref().map_or(0, |m| m.nrows());
+    if base.penalty.as_ref().is_some_and(|m| m.ncols() != p)
+        || cols.penalty.as_ref().is_some_and(|m| m.ncols() != k)
+    {
+        return None;
+    }
+    let pen_with = (base_rows + cand_rows > 0).then(|| {
+        let mut m = DMatrix::zeros(base_rows + cand_rows, p + k);
+        if let Some(b) = &base.penalty {
+            m.view_mut((0, 0), (base_rows, p)).copy_from(b);
+        }
+        if let Some(c) = &cols.penalty {
+            m.view_mut((base_rows, p), (cand_rows, k)).copy_from(c);
+        }
+        m
+    });
+    let with = heldout_gls(fit, &with, ys, pen_with.as_ref())?;
+    let last = with.beta.len().checked_sub(1).map_or(f64::NAN, |i| with.beta[i]);
+    let sign = !grid.effect.positive_coefficient() || last > 0.0;
+    Some((with.sse < without_sse, sign))
+}
+
 impl GlsStep {
-    /// Fits the noise model with the current model in place; `None` when it cannot be
-    /// fitted or fails its innovation check (the run-level rules then decide alone).
+    /// The route at one step. Without `own_levels`: the noise model is fitted with the
+    /// current model in place; `None` when it cannot be fitted or fails its innovation
+    /// check (the run-level rules then decide alone). With `own_levels`: each candidate's
+    /// levels are refitted with it (at its smallest-p point under the current model's
+    /// levels) in the model, its innovation check is made on that model, and its grid is
+    /// tested at those levels; a candidate whose model fails the check gets no verdict.
     pub(super) fn of(
         basis: &crate::noise_model::NoiseBasis,
         base: &Design,
@@ -479,45 +579,93 @@ impl GlsStep {
         grids: &[EffectGrid],
         in_model: &[Effect],
         step: usize,
+        options: &DiagnoseOptions,
     ) -> Option<Self> {
         use crate::noise_model::{family_p, fit_noise, GlsTester};
         let fit = fit_noise(basis, &base.per_run, ys)?;
-        if !fit.check.passed {
+        // Under the null (no open candidate) the current model is the true one: its levels
+        // make the simulated family-wise p exact for the whole procedure. Levels refitted
+        // with the smallest-p candidate absorb part of the slow noise under the null (the
+        // point is chosen to fit it), so they are used only where the current model fails
+        // its check, i.e. where the null model is already rejected by the data.
+        let own_levels = options.noise_model_candidate_levels && !fit.check.passed;
+        if !own_levels && !fit.check.passed {
             return None;
         }
         let tester = GlsTester::new(&fit, &base.per_run, ys)?;
         let open: Vec<&EffectGrid> =
             grids.iter().filter(|g| g.unmet_requirement.is_none() && !in_model.contains(&g.effect)).collect();
-        let bases: Vec<Vec<DMatrix<f64>>> = open
-            .par_iter()
-            .map(|g| g.points.par_iter().filter_map(|pt| tester.candidate_basis(&pt.per_run)).collect())
-            .collect();
-        let min_ps: Vec<f64> =
-            bases.iter().map(|b| b.iter().map(|q| tester.wald(q).1).fold(1.0, f64::min)).collect();
-        let all: Vec<&DMatrix<f64>> = bases.iter().flatten().collect();
-        // A family-wise p lies between the candidate's own smallest p and its Bonferroni
-        // bound over every basis of the step: when each candidate is decided by those
-        // bounds (all above the level, or the bound at it), the simulation is skipped and
-        // the bound that decides is reported.
-        let bonferroni: Vec<f64> = min_ps.iter().map(|p| (p * all.len() as f64).min(1.0)).collect();
-        let undecided =
-            min_ps.iter().zip(&bonferroni).any(|(p, b)| *p <= GLS_FAMILY_LEVEL && *b > GLS_FAMILY_LEVEL);
-        let family = if undecided {
-            family_p(tester.n(), &all, &min_ps, GLS_SIMULATIONS, GLS_SEED + step as u64)
+        let tests: Vec<GridTest> = open.par_iter().map(|g| grid_test(&tester, g)).collect();
+        let total: usize = tests.iter().map(|t| t.bases.len()).sum();
+        let seed = GLS_SEED + step as u64;
+        let levels = (fit.white_var, fit.flicker_var);
+        let verdicts: Vec<(Effect, GlsVerdict)> = if own_levels {
+            open.par_iter()
+                .zip(&tests)
+                .filter_map(|(g, t)| {
+                    let cols = &g.points[t.best];
+                    let with: Vec<DMatrix<f64>> =
+                        (0..base.per_run.len()).map(|r| concat(base, &[&cols.per_run[r]], r)).collect();
+                    let own = fit_noise(basis, &with, ys)?;
+                    if !own.check.passed {
+                        return None;
+                    }
+                    let own_tester = GlsTester::new(&own, &base.per_run, ys)?;
+                    let mine = grid_test(&own_tester, g);
+                    let heldout = if options.noise_model_heldout {
+                        let without = heldout_gls(&own, &base.per_run, ys, base.penalty.as_ref())?;
+                        heldout_claim(&own, base, ys, g, mine.best, without.sse)
+                    } else {
+                        None
+                    };
+                    // The simulation (the whole step at this candidate's levels) is only
+                    // needed when the held-out claim holds; else NaN: not simulated.
+                    let claim = heldout.is_none_or(|(falls, sign)| falls && sign);
+                    let family_p = family_p_of(mine.min_p, total, || {
+                        if !claim {
+                            return f64::NAN;
+                        }
+                        let all: Vec<GridTest> = open.iter().map(|h| grid_test(&own_tester, h)).collect();
+                        let refs: Vec<&DMatrix<f64>> = all.iter().flat_map(|t| &t.bases).collect();
+                        family_p(own_tester.n(), &refs, &[mine.min_p], GLS_SIMULATIONS, seed)[0]
+                    });
+                    let v = GlsVerdict {
+                        min_p: mine.min_p,
+                        family_p,
+                        levels: (own.white_var, own.flicker_var),
+                        heldout,
+                        own_levels: true,
+                    };
+                    Some((g.effect, v))
+                })
+                .collect()
         } else {
-            min_ps
+            // One simulation covers every candidate whose bounds do not decide it.
+            let min_ps: Vec<f64> = tests.iter().map(|t| t.min_p).collect();
+            let undecided = min_ps
                 .iter()
-                .zip(&bonferroni)
-                .map(|(p, b)| if *b <= GLS_FAMILY_LEVEL { *b } else { *p })
+                .any(|p| *p <= GLS_FAMILY_LEVEL && (p * total as f64).min(1.0) > GLS_FAMILY_LEVEL);
+            let simulated = if undecided {
+                let refs: Vec<&DMatrix<f64>> = tests.iter().flat_map(|t| &t.bases).collect();
+                family_p(tester.n(), &refs, &min_ps, GLS_SIMULATIONS, seed)
+            } else {
+                min_ps.clone()
+            };
+            let without = options
+                .noise_model_heldout
+                .then(|| heldout_gls(&fit, &base.per_run, ys, base.penalty.as_ref()))
+                .flatten();
+            open.iter()
+                .zip(&tests)
+                .zip(&simulated)
+                .map(|((g, t), sim)| {
+                    let family_p = family_p_of(t.min_p, total, || *sim);
+                    let heldout =
+                        without.as_ref().and_then(|w| heldout_claim(&fit, base, ys, g, t.best, w.sse));
+                    (g.effect, GlsVerdict { min_p: t.min_p, family_p, levels, heldout, own_levels: false })
+                })
                 .collect()
         };
-        let verdicts = open
-            .iter()
-            .zip(min_ps.iter().zip(&family))
-            .map(|(g, (p, f))| {
-                (g.effect, GlsVerdict { min_p: *p, family_p: *f, levels: (fit.white_var, fit.flicker_var) })
-            })
-            .collect();
         Some(GlsStep { verdicts })
     }
 
@@ -529,8 +677,20 @@ impl GlsStep {
 fn gls_note(v: Option<GlsVerdict>) -> String {
     v.map_or_else(String::new, |v| {
         format!(
-            "family-wise p {:.4}, {GLS_FAMILY_LEVEL} needed; smallest Wald p over the grid {:.2e}; noise: white {:.2e} (deg/h)^2 per s, bias-instability decade {:.2e} (deg/h)^2",
-            v.family_p, v.min_p, v.levels.0, v.levels.1
+            "family-wise p {}, {GLS_FAMILY_LEVEL} needed; smallest Wald p over the grid {:.2e}; noise{}: white {:.2e} (deg/h)^2 per s, bias-instability decade {:.2e} (deg/h)^2{}",
+            if v.family_p.is_nan() { "not simulated".to_string() } else { format!("{:.4}", v.family_p) },
+            v.min_p,
+            if v.own_levels { " (levels with the candidate)" } else { "" },
+            v.levels.0,
+            v.levels.1,
+            match v.heldout {
+                Some((falls, sign)) => format!(
+                    "; held-out GLS error {}{}",
+                    if falls { "falls" } else { "does not fall" },
+                    if sign { "" } else { "; GLS coefficient has the unphysical sign" }
+                ),
+                None => String::new(),
+            }
         )
     })
 }
@@ -544,6 +704,35 @@ mod tests {
 
     fn cand(effect: Effect, fold_sse: &[f64], k: usize) -> (Vec<f64>, usize, Pick) {
         (fold_sse.to_vec(), k, (effect, 0, 0.0, None))
+    }
+
+    #[test]
+    fn the_route_accepts_only_a_family_wise_significant_candidate_whose_claim_holds() {
+        let v = |family_p: f64, heldout: Option<(bool, bool)>| GlsVerdict {
+            min_p: family_p,
+            family_p,
+            levels: (1e-3, 1e-6),
+            heldout,
+            own_levels: false,
+        };
+        // Held-out claim in the model's metric: the run-level LORO error and sign do not count.
+        assert!(v(0.002, Some((true, true))).accepts(false, false));
+        assert!(!v(0.0021, Some((true, true))).accepts(true, true));
+        assert!(!v(0.001, Some((false, true))).accepts(true, true));
+        assert!(!v(0.001, Some((true, false))).accepts(true, true));
+        // Without it: the run-level LORO error and sign decide the claim.
+        assert!(v(0.001, None).accepts(true, true));
+        assert!(!v(0.001, None).accepts(false, true));
+        assert!(!v(0.001, None).accepts(true, false));
+    }
+
+    #[test]
+    fn family_p_of_uses_the_bounds_before_simulating() {
+        // Own p above the level: reported as is. Bonferroni bound 1e-5 x 100 = 1e-3 at the
+        // level: the bound. Between: the simulation.
+        assert_eq!(family_p_of(0.01, 100, || f64::NAN), 0.01);
+        assert!((family_p_of(1e-5, 100, || f64::NAN) - 1e-3).abs() < 1e-15);
+        assert_eq!(family_p_of(1e-4, 100, || 0.0042), 0.0042);
     }
 
     #[test]

@@ -41,9 +41,14 @@
 //!   means; if it passes its innovation check, a candidate that fails the run-level tests is
 //!   still accepted when its GLS Wald test (smallest p over its grid) is significant at
 //!   `forward::GLS_FAMILY_LEVEL` family-wise over every open candidate and grid point (the
-//!   null distribution of the step's smallest p simulated under the fitted model), its LORO
-//!   error falls and its sign is physical. If the model does not fit, the run-level rules
-//!   decide alone.
+//!   null distribution of the step's smallest p simulated under the fitted model) and its
+//!   held-out claim holds: with `DiagnoseOptions::noise_model_heldout` (default) the
+//!   leave-one-run-out GLS error in the model's metric falls with the candidate at its
+//!   smallest-p point and the GLS sign is physical (`noise_model::heldout_gls`), else the
+//!   run-level LORO error falls and the sign is physical. If the model does not fit, with
+//!   `DiagnoseOptions::noise_model_candidate_levels` (off by default) each candidate's levels are
+//!   refitted with it in the model and the candidate is tested at them if that model passes
+//!   the check; otherwise the run-level rules decide alone (docs/diagnose.md, ninth session).
 
 mod design;
 mod final_fit;
