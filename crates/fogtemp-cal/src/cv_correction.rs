@@ -1,5 +1,6 @@
-//! The training-size correction of cross-validation (optional; `fit --cv-correction
-//! training-size`).
+//! The training-size correction of cross-validation (the default since 2026-11-26, adopted by a
+//! test written down before it was measured: docs/calibration-testbed.md; `fit --cv-correction
+//! none` turns it off).
 //!
 //! A fold's model is fitted on fewer runs than the final model, and a flexible model loses
 //! more from the missing run than a rigid one (its learning curve is steeper), so
@@ -31,9 +32,10 @@ use crate::selection::{window_means_inside, TrainingRegion, MIN_SCORED_WINDOWS};
 #[serde(rename_all = "kebab-case")]
 pub enum CvCorrection {
     /// The fold scores as measured.
-    #[default]
     None,
-    /// Burman's (1989) correction for the fold models' smaller training set (this module).
+    /// Burman's (1989) correction for the fold models' smaller training set (this module; the
+    /// default).
+    #[default]
     TrainingSize,
 }
 

@@ -22,6 +22,9 @@
 //!   both ways) are optional schemes;
 //! - cross-validated bias stability `S(m)`: the mean of `s_g(m)` over the `K` folds, with
 //!   standard error `sd_g(s_g(m)) / sqrt(K)`;
+//! - by default ([`CvCorrection::TrainingSize`], [`crate::cv_correction`]) each fold score
+//!   is first corrected for the fold model's smaller training set (Burman 1989):
+//!   `s_g + e_full - e_g`;
 //! - rule ([`choose`]): `best` has the lowest `S`; the chosen method is the simplest
 //!   candidate (order [`CANDIDATES`]) with `S(m) - S(best) <= SE_d(m)`, where
 //!   `SE_d(m) = sd_g(s_g(m) - s_g(best)) / sqrt(K)` is the standard error of the paired
@@ -136,7 +139,7 @@ impl Default for SelectionOptions {
             scheme: CvScheme::LeaveOneGroupOut,
             blocks: DEFAULT_BLOCKS,
             scale: RuleScale::DegPerHour,
-            correction: CvCorrection::None,
+            correction: CvCorrection::TrainingSize,
         }
     }
 }
@@ -1643,14 +1646,14 @@ mod tests {
 
     #[test]
     fn the_training_size_correction_shifts_each_candidate_by_what_it_reports() {
-        // The same runs with and without the correction: the folds and their measured scores
+        // The same runs without and with the correction (the default): the folds and their measured scores
         // are identical, so each candidate's corrected CV mean is its uncorrected mean plus
         // the mean correction it reports (1e-12), and every candidate has one.
         let bias = |t: f64, rate: f64| 0.4 * rate + 0.1 * ((t - 10.0) / 40.0).powi(2);
-        let plain = selection_for(bias);
-        let options =
-            SelectionOptions { correction: CvCorrection::TrainingSize, ..SelectionOptions::default() };
-        let fixed = selection_with(bias, &options);
+        let options = SelectionOptions { correction: CvCorrection::None, ..SelectionOptions::default() };
+        let plain = selection_with(bias, &options);
+        // The default corrects.
+        let fixed = selection_for(bias);
         assert_eq!((plain.correction, fixed.correction), (CvCorrection::None, CvCorrection::TrainingSize));
         assert_eq!(plain.folds, fixed.folds);
         assert!(fixed.table().contains("Burman 1989"), "{}", fixed.table());

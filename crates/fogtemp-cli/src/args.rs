@@ -349,11 +349,11 @@ pub struct FitArgs {
     /// (docs/calibration-testbed.md).
     #[arg(long, value_enum, default_value_t = RuleScaleArg::DegPerHour, hide = true)]
     pub cv_rule_scale: RuleScaleArg,
-    /// How `auto` corrects the fold scores before its rule: as measured, or for the fold
-    /// models' smaller training set (Burman 1989: each fold score plus the difference between
-    /// the full model's and the fold model's mean run score over every run; leave-one-out
-    /// folds only; docs/calibration-testbed.md).
-    #[arg(long, value_enum, default_value_t = CvCorrectionArg::None, hide = true)]
+    /// How `auto` corrects the fold scores before its rule: for the fold models' smaller
+    /// training set (the default; Burman 1989: each fold score plus the difference between the
+    /// full model's and the fold model's mean run score over every run; leave-one-out folds
+    /// only), or not at all (docs/calibration-testbed.md).
+    #[arg(long, value_enum, default_value_t = CvCorrectionArg::TrainingSize, hide = true)]
     pub cv_correction: CvCorrectionArg,
     /// Blocks per run (K) for `--cv-scheme blocked-k-fold` and `runs-and-blocks`.
     #[arg(long, default_value_t = fogtemp_cal::selection::DEFAULT_BLOCKS, hide = true)]
