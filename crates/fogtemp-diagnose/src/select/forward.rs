@@ -60,6 +60,8 @@ pub(super) struct StepContext<'a> {
     pub(super) tests: usize,
     /// The noise-model route's verdicts at this step (None: off, or the model does not fit).
     pub(super) gls: Option<GlsStep>,
+    /// The noise model's basis (None: the route is off), for the encompassing tie-break.
+    pub(super) noise_basis: Option<&'a crate::noise_model::NoiseBasis>,
 }
 
 pub(super) fn not_evaluated(
@@ -269,11 +271,31 @@ pub(super) fn run_step(ctx: &StepContext<'_>) -> Result<(Vec<CandidateReport>, O
             }
         }
     }
-    let best = parsimonious_pick(accepted);
+    let mut set = parsimonious_set(accepted).into_iter().map(|a| a.2);
+    let (first, second) = (set.next(), set.next());
+    // Two rivals of one size within one SE: the LORO error cannot tell them apart, so the
+    // one that encompasses the other in the noise model's metric enters.
+    let tie = match (&first, &second, ctx.noise_basis) {
+        (Some(a), Some(b), Some(basis)) if ctx.options.encompassing_tie_break => {
+            let a_given_b = wald_p_given(ctx, basis, a, b);
+            let b_given_a = wald_p_given(ctx, basis, b, a);
+            a_given_b.zip(b_given_a).map(|(ab, ba)| (ab, ba, encompassing_prefers_second(ab, ba)))
+        }
+        _ => None,
+    };
+    let best = match (tie, second) {
+        (Some((_, _, true)), Some(b)) => Some(b),
+        _ => first,
+    };
     if let Some((effect, _, _, _)) = &best {
         for r in &mut reports {
             if r.effect == effect.name() {
                 r.status = "selected".into();
+                if let Some((ab, ba, _)) = tie {
+                    r.note.push_str(&format!(
+                        "; encompassing tie-break (GLS Wald p of the LORO winner with the runner-up in the model {ab:.2e}, of the runner-up with the winner in {ba:.2e})"
+                    ));
+                }
             } else if r.status == "accepted" {
                 r.status = "rejected".into();
                 r.note = RUNNER_UP_NOTE.into();
@@ -283,22 +305,62 @@ pub(super) fn run_step(ctx: &StepContext<'_>) -> Result<(Vec<CandidateReport>, O
     Ok((reports, best))
 }
 
+/// GLS Wald p of `add` (at its profiled point) with `given` (at its) in the current model,
+/// the noise levels refitted by REML on that model; `None` when the noise model does not fit
+/// it (innovation check) or `add` has no direction beyond it.
+fn wald_p_given(
+    ctx: &StepContext<'_>,
+    basis: &crate::noise_model::NoiseBasis,
+    add: &Pick,
+    given: &Pick,
+) -> Option<f64> {
+    use crate::noise_model::{fit_noise, GlsTester};
+    let cols_of = |p: &Pick| ctx.grids.iter().find(|g| g.effect == p.0).and_then(|g| g.points.get(p.1));
+    let (add_cols, given_cols) = (cols_of(add)?, cols_of(given)?);
+    let with: Vec<DMatrix<f64>> =
+        (0..ctx.base.per_run.len()).map(|r| concat(&ctx.base, &[&given_cols.per_run[r]], r)).collect();
+    let fit = fit_noise(basis, &with, ctx.ys)?;
+    if !fit.check.passed {
+        return None;
+    }
+    let tester = GlsTester::new(&fit, &with, ctx.ys)?;
+    let q = tester.candidate_basis(&add_cols.per_run)?;
+    (q.ncols() > 0).then(|| tester.wald(&q).1)
+}
+
+/// Encompassing between the LORO winner `a` and the runner-up `b`: `a_given_b` is the GLS
+/// Wald p of `a` with `b` in the model, `b_given_a` the reverse. The runner-up enters when
+/// the winner adds less beyond it than it adds beyond the winner (a larger p); ties keep the
+/// winner.
+pub(super) fn encompassing_prefers_second(a_given_b: f64, b_given_a: f64) -> bool {
+    a_given_b > b_given_a
+}
+
 /// Among accepted candidates `(held-out SSE per run, coefficients, pick)`, the one with the
 /// fewest coefficients whose LORO error is within one standard error of the lowest (the
 /// one-SE rule across effects: two effects that predict held-out runs equally well are
 /// told apart by parsimony, not by noise); ties in size go to the lower error.
+#[cfg(test)]
 pub(super) fn parsimonious_pick(accepted: Vec<(Vec<f64>, usize, Pick)>) -> Option<Pick> {
+    parsimonious_set(accepted).into_iter().next().map(|a| a.2)
+}
+
+/// The candidates [`parsimonious_pick`] chooses among: those with the fewest coefficients
+/// within one standard error of the lowest LORO error, lowest error first.
+pub(super) fn parsimonious_set(accepted: Vec<(Vec<f64>, usize, Pick)>) -> Vec<(Vec<f64>, usize, Pick)> {
     let total = |f: &[f64]| f.iter().sum::<f64>();
-    let best = accepted.iter().min_by(|a, b| total(&a.0).total_cmp(&total(&b.0)))?;
+    let Some(best) = accepted.iter().min_by(|a, b| total(&a.0).total_cmp(&total(&b.0))) else {
+        return Vec::new();
+    };
     let g = best.0.len() as f64;
     let mean = total(&best.0) / g;
     let sd = (best.0.iter().map(|e| (e - mean).powi(2)).sum::<f64>() / (g - 1.0).max(1.0)).sqrt();
     let limit = total(&best.0) + sd * g.sqrt();
-    accepted
-        .into_iter()
-        .filter(|a| total(&a.0) <= limit)
-        .min_by(|a, b| a.1.cmp(&b.1).then(total(&a.0).total_cmp(&total(&b.0))))
-        .map(|a| a.2)
+    let mut within: Vec<(Vec<f64>, usize, Pick)> = accepted.into_iter().filter(|a| total(&a.0) <= limit).collect();
+    let Some(fewest) = within.iter().map(|a| a.1).min() else { return Vec::new() };
+    within.retain(|a| a.1 == fewest);
+    within.sort_by(|a, b| total(&a.0).total_cmp(&total(&b.0)));
+    within
 }
 
 pub(super) fn model_names(chosen: &[ChosenTerm]) -> Vec<String> {
@@ -408,6 +470,7 @@ pub fn forward_select(
             n_eff,
             in_model,
             gls,
+            noise_basis: noise_basis.as_ref(),
             tests: grids
                 .iter()
                 .filter(|g| g.unmet_requirement.is_none() && !chosen.iter().any(|c| c.effect == g.effect))
