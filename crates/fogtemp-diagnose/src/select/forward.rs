@@ -378,7 +378,8 @@ pub(super) fn parsimonious_set(accepted: Vec<(Vec<f64>, usize, Pick)>) -> Vec<(V
     let mean = total(&best.0) / g;
     let sd = (best.0.iter().map(|e| (e - mean).powi(2)).sum::<f64>() / (g - 1.0).max(1.0)).sqrt();
     let limit = total(&best.0) + sd * g.sqrt();
-    let mut within: Vec<(Vec<f64>, usize, Pick)> = accepted.into_iter().filter(|a| total(&a.0) <= limit).collect();
+    let mut within: Vec<(Vec<f64>, usize, Pick)> =
+        accepted.into_iter().filter(|a| total(&a.0) <= limit).collect();
     let Some(fewest) = within.iter().map(|a| a.1).min() else { return Vec::new() };
     within.retain(|a| a.1 == fewest);
     within.sort_by(|a, b| total(&a.0).total_cmp(&total(&b.0)));
@@ -882,11 +883,12 @@ mod tests {
     #[test]
     fn encompassing_p_finds_the_term_in_the_data() {
         // 6 runs of 180 short means of 20 s, white noise of SD 0.01 per short mean (level
-        // 2e-3 per second), an intercept per run. The data hold 0.02 x a (a = sin of the
+        // 2e-3 per second), an intercept per run. The data hold 0.004 x a (a = sin of the
         // short-mean index / 9, offset by run); the rival b = a + c with c = cos(i / 4),
         // R^2(a, b) about 0.5. a's Wald p with b in the model: its statistic is about
-        // (0.02 x |a perp b| / 0.01)^2 with a perp b about (a - c) / 2, |a perp b|^2 about
-        // 45 per run, 270 in all: a statistic near 1000, p far below 1e-6.
+        // (0.004 x |a perp b| / 0.01)^2 with a perp b about (a - c) / 2, |a perp b|^2 about
+        // 45 per run, 270 in all: a statistic near 43, p about 1e-10 (1.6e-12 here). (The size is small
+        // enough that the model with b alone still passes the innovation check.)
         // b's with a in: c alone, absent from the data: p not small (here > 0.01).
         let (runs, blocks) = (6, 180);
         let spans: Vec<Vec<(usize, usize)>> =
@@ -901,7 +903,7 @@ mod tests {
         let ys: Vec<Vec<f64>> = (0..runs)
             .map(|r| {
                 let e = normals(100 + r as u64, blocks);
-                (0..blocks).map(|i| 0.02 * a[r][(i, 0)] + 0.01 * e[i]).collect()
+                (0..blocks).map(|i| 0.004 * a[r][(i, 0)] + 0.01 * e[i]).collect()
             })
             .collect();
         let a_given_b = encompassing_p(&basis, &base, &ys, &a, &b).expect("a given b");
