@@ -1,6 +1,7 @@
 //! The forward-selection loop: every open candidate profiled and judged at each step, the
 //! accepted one with the fewest coefficients within one standard error of the lowest LORO
-//! error enters, its continuous parameters refined.
+//! error enters (two such rivals told apart by encompassing in the noise model's metric),
+//! its continuous parameters refined.
 
 use std::collections::BTreeMap;
 
