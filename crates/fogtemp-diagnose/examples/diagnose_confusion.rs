@@ -8,7 +8,8 @@
 //! (defaults: 20 seeds from 5000, sizes x1, every dataset; docs/diagnose.md gives the commands
 //! it was made with). SCALE multiplies every injected size (`concealed::datasets_at`).
 //! `-v` anywhere prints each diagnosis's candidate table; `--candidate-levels` turns on and
-//! `--no-gls-heldout` turns off the ninth session's two options (docs/diagnose.md).
+//! `--no-gls-heldout` turns off the ninth session's two options, `--no-encompassing` the
+//! tenth session's tie-break (docs/diagnose.md).
 
 use std::collections::BTreeMap;
 use std::time::Instant;
@@ -70,6 +71,7 @@ fn main() {
     let options = DiagnoseOptions {
         noise_model_candidate_levels: args.iter().any(|a| a == "--candidate-levels"),
         noise_model_heldout: !args.iter().any(|a| a == "--no-gls-heldout"),
+        encompassing_tie_break: !args.iter().any(|a| a == "--no-encompassing"),
         ..DiagnoseOptions::default()
     };
     let positional: Vec<&String> = args.iter().filter(|a| !a.starts_with('-')).collect();

@@ -130,6 +130,12 @@ pub struct DiagnoseOptions {
     /// a lag's gain) by GLS in the noise model's metric at the candidate's smallest-p point,
     /// instead of by the run-level least-squares LORO error (docs/diagnose.md, ninth session).
     pub noise_model_heldout: bool,
+    /// When two accepted candidates of the fewest coefficients are within one standard
+    /// error of the lowest LORO error, choose between them by encompassing in the noise
+    /// model's metric (each one's GLS Wald p with the other in the model; the one the other
+    /// adds less to enters) instead of by the lower LORO error (docs/diagnose.md, tenth
+    /// session).
+    pub encompassing_tie_break: bool,
 }
 
 impl Default for DiagnoseOptions {
@@ -152,6 +158,7 @@ impl Default for DiagnoseOptions {
             noise_model_acceptance: true,
             noise_model_candidate_levels: false,
             noise_model_heldout: true,
+            encompassing_tie_break: true,
         }
     }
 }

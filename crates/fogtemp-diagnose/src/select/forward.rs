@@ -1,6 +1,7 @@
 //! The forward-selection loop: every open candidate profiled and judged at each step, the
 //! accepted one with the fewest coefficients within one standard error of the lowest LORO
-//! error enters, its continuous parameters refined.
+//! error enters (two such rivals told apart by encompassing in the noise model's metric),
+//! its continuous parameters refined.
 
 use std::collections::BTreeMap;
 
@@ -60,6 +61,8 @@ pub(super) struct StepContext<'a> {
     pub(super) tests: usize,
     /// The noise-model route's verdicts at this step (None: off, or the model does not fit).
     pub(super) gls: Option<GlsStep>,
+    /// The noise model's basis (None: the route is off), for the encompassing tie-break.
+    pub(super) noise_basis: Option<&'a crate::noise_model::NoiseBasis>,
 }
 
 pub(super) fn not_evaluated(
@@ -269,11 +272,31 @@ pub(super) fn run_step(ctx: &StepContext<'_>) -> Result<(Vec<CandidateReport>, O
             }
         }
     }
-    let best = parsimonious_pick(accepted);
+    let mut set = parsimonious_set(accepted).into_iter().map(|a| a.2);
+    let (first, second) = (set.next(), set.next());
+    // Two rivals of one size within one SE: the LORO error cannot tell them apart, so the
+    // one that encompasses the other in the noise model's metric enters.
+    let tie = match (&first, &second, ctx.noise_basis) {
+        (Some(a), Some(b), Some(basis)) if ctx.options.encompassing_tie_break => {
+            let a_given_b = wald_p_given(ctx, basis, a, b);
+            let b_given_a = wald_p_given(ctx, basis, b, a);
+            a_given_b.zip(b_given_a).map(|(ab, ba)| (ab, ba, encompassing_prefers_second(ab, ba)))
+        }
+        _ => None,
+    };
+    let best = match (tie, second) {
+        (Some((_, _, true)), Some(b)) => Some(b),
+        _ => first,
+    };
     if let Some((effect, _, _, _)) = &best {
         for r in &mut reports {
             if r.effect == effect.name() {
                 r.status = "selected".into();
+                if let Some((ab, ba, _)) = tie {
+                    r.note.push_str(&format!(
+                        "; encompassing tie-break (GLS Wald p of the LORO winner with the runner-up in the model {ab:.2e}, of the runner-up with the winner in {ba:.2e})"
+                    ));
+                }
             } else if r.status == "accepted" {
                 r.status = "rejected".into();
                 r.note = RUNNER_UP_NOTE.into();
@@ -283,22 +306,85 @@ pub(super) fn run_step(ctx: &StepContext<'_>) -> Result<(Vec<CandidateReport>, O
     Ok((reports, best))
 }
 
+/// GLS Wald p of `add` (at its profiled point) with `given` (at its) in the current model;
+/// see [`encompassing_p`].
+fn wald_p_given(
+    ctx: &StepContext<'_>,
+    basis: &crate::noise_model::NoiseBasis,
+    add: &Pick,
+    given: &Pick,
+) -> Option<f64> {
+    let cols_of = |p: &Pick| ctx.grids.iter().find(|g| g.effect == p.0).and_then(|g| g.points.get(p.1));
+    encompassing_p(basis, &ctx.base.per_run, ctx.ys, &cols_of(add)?.per_run, &cols_of(given)?.per_run)
+}
+
+/// GLS Wald p of the columns `add` (per run) with the model `base` plus `given` in place,
+/// the noise levels refitted by REML on that model; `None` when the noise model does not
+/// fit it (innovation check) or `add` has no direction beyond it.
+pub(super) fn encompassing_p(
+    basis: &crate::noise_model::NoiseBasis,
+    base: &[DMatrix<f64>],
+    ys: &[Vec<f64>],
+    add: &[DMatrix<f64>],
+    given: &[DMatrix<f64>],
+) -> Option<f64> {
+    use crate::noise_model::{fit_noise, GlsTester};
+    if given.len() != base.len() || base.iter().zip(given).any(|(b, g)| b.nrows() != g.nrows()) {
+        return None;
+    }
+    let with: Vec<DMatrix<f64>> = base
+        .iter()
+        .zip(given)
+        .map(|(b, g)| {
+            let mut m = DMatrix::zeros(b.nrows(), b.ncols() + g.ncols());
+            m.view_mut((0, 0), b.shape()).copy_from(b);
+            m.view_mut((0, b.ncols()), g.shape()).copy_from(g);
+            m
+        })
+        .collect();
+    let fit = fit_noise(basis, &with, ys)?;
+    if !fit.check.passed {
+        return None;
+    }
+    let tester = GlsTester::new(&fit, &with, ys)?;
+    let q = tester.candidate_basis(add)?;
+    (q.ncols() > 0).then(|| tester.wald(&q).1)
+}
+
+/// Encompassing between the LORO winner `a` and the runner-up `b`: `a_given_b` is the GLS
+/// Wald p of `a` with `b` in the model, `b_given_a` the reverse. The runner-up enters when
+/// the winner adds less beyond it than it adds beyond the winner (a larger p); ties keep the
+/// winner.
+pub(super) fn encompassing_prefers_second(a_given_b: f64, b_given_a: f64) -> bool {
+    a_given_b > b_given_a
+}
+
 /// Among accepted candidates `(held-out SSE per run, coefficients, pick)`, the one with the
 /// fewest coefficients whose LORO error is within one standard error of the lowest (the
 /// one-SE rule across effects: two effects that predict held-out runs equally well are
 /// told apart by parsimony, not by noise); ties in size go to the lower error.
+#[cfg(test)]
 pub(super) fn parsimonious_pick(accepted: Vec<(Vec<f64>, usize, Pick)>) -> Option<Pick> {
+    parsimonious_set(accepted).into_iter().next().map(|a| a.2)
+}
+
+/// The candidates [`parsimonious_pick`] chooses among: those with the fewest coefficients
+/// within one standard error of the lowest LORO error, lowest error first.
+pub(super) fn parsimonious_set(accepted: Vec<(Vec<f64>, usize, Pick)>) -> Vec<(Vec<f64>, usize, Pick)> {
     let total = |f: &[f64]| f.iter().sum::<f64>();
-    let best = accepted.iter().min_by(|a, b| total(&a.0).total_cmp(&total(&b.0)))?;
+    let Some(best) = accepted.iter().min_by(|a, b| total(&a.0).total_cmp(&total(&b.0))) else {
+        return Vec::new();
+    };
     let g = best.0.len() as f64;
     let mean = total(&best.0) / g;
     let sd = (best.0.iter().map(|e| (e - mean).powi(2)).sum::<f64>() / (g - 1.0).max(1.0)).sqrt();
     let limit = total(&best.0) + sd * g.sqrt();
-    accepted
-        .into_iter()
-        .filter(|a| total(&a.0) <= limit)
-        .min_by(|a, b| a.1.cmp(&b.1).then(total(&a.0).total_cmp(&total(&b.0))))
-        .map(|a| a.2)
+    let mut within: Vec<(Vec<f64>, usize, Pick)> =
+        accepted.into_iter().filter(|a| total(&a.0) <= limit).collect();
+    let Some(fewest) = within.iter().map(|a| a.1).min() else { return Vec::new() };
+    within.retain(|a| a.1 == fewest);
+    within.sort_by(|a, b| total(&a.0).total_cmp(&total(&b.0)));
+    within
 }
 
 pub(super) fn model_names(chosen: &[ChosenTerm]) -> Vec<String> {
@@ -408,6 +494,7 @@ pub fn forward_select(
             n_eff,
             in_model,
             gls,
+            noise_basis: noise_basis.as_ref(),
             tests: grids
                 .iter()
                 .filter(|g| g.unmet_requirement.is_none() && !chosen.iter().any(|c| c.effect == g.effect))
@@ -754,5 +841,80 @@ mod tests {
         ]);
         assert_eq!(picked.map(|p| p.0), Some(Effect::WarmupTransient));
         assert!(parsimonious_pick(Vec::new()).is_none());
+    }
+
+    #[test]
+    fn parsimonious_set_keeps_the_fewest_coefficients_within_the_limit_lowest_error_first() {
+        // The first case above: limit 4.8165; warm-up has two coefficients, shupe 4.9 is
+        // outside; hysteresis 4.3 and gradient 4.5 remain, in that order.
+        let best = [0.5, 1.5, 1.0, 1.0];
+        let set: Vec<Effect> = parsimonious_set(vec![
+            cand(Effect::WarmupTransient, &best, 2),
+            cand(Effect::GradientRate, &[1.2, 1.2, 1.0, 1.1], 1),
+            cand(Effect::Hysteresis, &[1.0, 1.2, 1.0, 1.1], 1),
+            cand(Effect::ShupeRate, &[1.3, 1.2, 1.2, 1.2], 1),
+        ])
+        .into_iter()
+        .map(|a| a.2 .0)
+        .collect();
+        assert_eq!(set, vec![Effect::Hysteresis, Effect::GradientRate]);
+        assert!(parsimonious_set(Vec::new()).is_empty());
+    }
+
+    #[test]
+    fn encompassing_prefers_the_candidate_the_other_adds_less_to() {
+        // Winner adds p 0.01 beyond the runner-up, the runner-up p 0.3 beyond the winner: keep.
+        assert!(!encompassing_prefers_second(0.01, 0.3));
+        // Reversed: the runner-up explains what the winner does and more.
+        assert!(encompassing_prefers_second(0.3, 0.01));
+        // Equal: the LORO winner stays.
+        assert!(!encompassing_prefers_second(0.2, 0.2));
+    }
+
+    /// Standard normals from a fixed-seed 64-bit LCG (Box-Muller).
+    fn normals(seed: u64, n: usize) -> Vec<f64> {
+        let mut s = seed;
+        let mut u = || {
+            s = s.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1_442_695_040_888_963_407);
+            ((s >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+        };
+        (0..n).map(|_| (-2.0 * u().ln()).sqrt() * (std::f64::consts::TAU * u()).cos()).collect()
+    }
+
+    #[test]
+    fn encompassing_p_finds_the_term_in_the_data() {
+        // 6 runs of 180 short means of 20 s, white noise of SD 0.01 per short mean (level
+        // 2e-3 per second), an intercept per run. The data hold 0.004 x a (a = sin of the
+        // short-mean index / 9, offset by run); the rival b = a + c with c = cos(i / 4),
+        // R^2(a, b) about 0.5. a's Wald p with b in the model: its statistic is about
+        // (0.004 x |a perp b| / 0.01)^2 with a perp b about (a - c) / 2, |a perp b|^2 about
+        // 45 per run, 270 in all: a statistic near 43, p about 1e-10 (1.6e-12 here). (The size is small
+        // enough that the model with b alone still passes the innovation check.)
+        // b's with a in: c alone, absent from the data: p not small (here > 0.01).
+        let (runs, blocks) = (6, 180);
+        let spans: Vec<Vec<(usize, usize)>> =
+            vec![(0..blocks).map(|i| (20 * i, 20 * i + 20)).collect(); runs];
+        let basis = crate::noise_model::NoiseBasis::new(&spans).expect("basis");
+        let col = |f: &dyn Fn(usize, usize) -> f64| -> Vec<DMatrix<f64>> {
+            (0..runs).map(|r| DMatrix::from_fn(blocks, 1, |i, _| f(r, i))).collect()
+        };
+        let a = col(&|r, i| ((i + 17 * r) as f64 / 9.0).sin());
+        let b = col(&|r, i| ((i + 17 * r) as f64 / 9.0).sin() + (i as f64 / 4.0).cos());
+        let base = col(&|_, _| 1.0);
+        let ys: Vec<Vec<f64>> = (0..runs)
+            .map(|r| {
+                let e = normals(100 + r as u64, blocks);
+                (0..blocks).map(|i| 0.004 * a[r][(i, 0)] + 0.01 * e[i]).collect()
+            })
+            .collect();
+        let a_given_b = encompassing_p(&basis, &base, &ys, &a, &b).expect("a given b");
+        let b_given_a = encompassing_p(&basis, &base, &ys, &b, &a).expect("b given a");
+        assert!(a_given_b < 1e-6, "a given b {a_given_b:.3e}");
+        assert!(b_given_a > 0.01, "b given a {b_given_a:.3e}");
+        // With b (the runner-up here) as LORO winner, a enters.
+        assert!(encompassing_prefers_second(b_given_a, a_given_b));
+        // A column inside the model plus the other adds no direction: no p.
+        let two_a = col(&|r, i| 2.0 * ((i + 17 * r) as f64 / 9.0).sin());
+        assert!(encompassing_p(&basis, &base, &ys, &two_a, &a).is_none());
     }
 }
