@@ -72,6 +72,7 @@ fn auto_is_the_default_and_reports_its_cross_validation() {
     // Held-out runs are scored inside the training runs' calibrated region (the default):
     // a fold whose run has fewer than 10 windows there is skipped and named.
     assert_eq!(selection["scoring"], "inside-region");
+    assert_eq!(selection["correction"], "training-size");
     let folds = selection["folds"].as_u64().expect("folds");
     let skipped = selection["skipped_folds"].as_array().expect("skipped_folds[]");
     assert_eq!(folds as usize + skipped.len(), 6, "{selection}");
@@ -86,10 +87,13 @@ fn auto_is_the_default_and_reports_its_cross_validation() {
         let runs = c["runs"].as_array().expect("runs[]");
         assert_eq!(runs.len(), 6);
         // With one run per fold, the cross-validated value is the mean of the scored runs'
-        // values; a skipped fold's run has none (null) and fewer than 10 windows scored.
+        // values plus the training-size correction (the default; the mean of the per-fold
+        // corrections over the folds scored); a skipped fold's run has none (null) and fewer
+        // than 10 windows scored.
         let scored: Vec<f64> = runs.iter().filter_map(|r| r["bias_stability_dph"].as_f64()).collect();
         assert_eq!(scored.len() as u64, folds);
-        let mean = scored.iter().sum::<f64>() / scored.len() as f64;
+        let correction = c["training_size_correction_dph"].as_f64().expect("training_size_correction_dph");
+        let mean = scored.iter().sum::<f64>() / scored.len() as f64 + correction;
         assert!((mean - cv).abs() <= 1e-12 * cv.max(1.0), "{mean} vs {cv}");
         for r in runs {
             let windows = r["windows_scored"].as_u64().expect("windows_scored");
