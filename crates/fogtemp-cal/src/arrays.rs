@@ -4,8 +4,8 @@
 //! A run's samples go through the same row rules as ingest (time finite and strictly
 //! increasing, gyro finite, temperature finite or NaN for "no reading"; bad samples stop
 //! the read or, with `skip_bad_rows`, are skipped and listed) and then through exactly the
-//! feature code the CSV route uses (the core's tracker via [`AxisFeatureStream`], then
-//! [`smoothed_gyro_dph`]), so [`crate::calibrate::fit_model`] on these runs gives the same
+//! feature code the CSV route uses (the core's tracker via [`crate::features::AxisFeatureStream`], then
+//! [`crate::features::smoothed_gyro_dph`]), so [`crate::calibrate::fit_model`] on these runs gives the same
 //! model as on the same samples written as CSV (only the caller's input digest differs).
 //! The arrays are in the log contract's units: seconds, deg C, deg/h; the column and unit
 //! options of [`crate::ingest::LogFormat`] do not apply (only the number of gyro columns,

@@ -155,7 +155,7 @@ pub(super) struct Profiled {
     pub(super) full_beta: DVector<f64>,
     pub(super) fold_sse: Vec<f64>,
     pub(super) design_scale: Vec<f64>,
-    /// Jackknife t of the contribution over LORO folds (see [`stability_t`]).
+    /// Jackknife t of the contribution over LORO folds (see [`super::rules::stability_t`]).
     pub(super) stability_t: f64,
     /// Smallest share `c_j` of the full-data contribution that a fold reproduces.
     pub(super) min_fold_share: f64,

@@ -368,7 +368,7 @@ pub(super) fn parsimonious_pick(accepted: Vec<(Vec<f64>, usize, Pick)>) -> Optio
     parsimonious_set(accepted).into_iter().next().map(|a| a.2)
 }
 
-/// The candidates [`parsimonious_pick`] chooses among: those with the fewest coefficients
+/// The candidates `parsimonious_pick` chooses among: those with the fewest coefficients
 /// within one standard error of the lowest LORO error, lowest error first.
 pub(super) fn parsimonious_set(accepted: Vec<(Vec<f64>, usize, Pick)>) -> Vec<(Vec<f64>, usize, Pick)> {
     let total = |f: &[f64]| f.iter().sum::<f64>();

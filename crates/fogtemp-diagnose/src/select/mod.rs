@@ -10,7 +10,7 @@
 //!   re-chosen in each fold from the training runs only; its complexity (basis size,
 //!   polynomial degree) is the one with the lowest LORO error (slightly optimistic: a
 //!   choice among at most 7 values), the size of a penalised spline basis the smallest
-//!   within one standard error of it (see [`one_standard_error_choice`]);
+//!   within one standard error of it (see `design::one_standard_error_choice`);
 //! - BIC = `n_eff ln(RSS / n) + k ln(n_eff)`, `n_eff = n / (1 + 2 sum_k w_k rho_k)`, rho_k
 //!   the autocorrelations at lags 1..L (L = the Newey-West bandwidth) of the current
 //!   model's residual short means within runs, Bartlett weights `w_k = 1 - k/(L+1)`, k =
@@ -25,7 +25,7 @@
 //!   or the exact Wilcoxon signed-rank test, each at 5 % / (2 x number of candidates), see
 //!   `rules::clark_west_gains`, `rules::fold_gain_limit` and `rules::signed_rank_p`),
 //!   lowers BIC, and is stable across folds (jackknife t of its contribution, see
-//!   [`stability_t`], above the two-sided Student-t limit with runs - 1 degrees of freedom
+//!   `rules::stability_t`, above the two-sided Student-t limit with runs - 1 degrees of freedom
 //!   at 5 % / number of candidates; for a flexible term with more than two coefficients, a
 //!   basis in T whose local coefficients a left-out run moves, every fold must instead
 //!   reproduce, on its training runs, at least half of the full-data contribution), and a
