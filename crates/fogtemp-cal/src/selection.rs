@@ -525,16 +525,24 @@ impl Selection {
             out.push_str(&format!("  {w}\n"));
             return out;
         }
+        let corrected = self.correction == CvCorrection::TrainingSize;
         out.push_str(&format!(
-            "  {:<8} {:>16} {:>12} {:>14} {:>12}\n",
-            "method", "CV bias stab.", "std. error", "excess on best", "paired s.e."
+            "  {:<8} {:>16} {:>12} {:>14} {:>12}{}\n",
+            "method",
+            "CV bias stab.",
+            "std. error",
+            "excess on best",
+            "paired s.e.",
+            if corrected { format!(" {:>16}", "of which corr.") } else { String::new() }
         ));
         for c in &self.candidates {
             let mark = if c.method == self.method { "  <- chosen" } else { "" };
+            let correction =
+                if corrected { format!(" {:>+16.5}", c.training_size_correction_dph) } else { String::new() };
             match &c.error {
                 Some(e) => out.push_str(&format!("  {:<8} not scored: {e}\n", c.method.name())),
                 None => out.push_str(&format!(
-                    "  {:<8} {:>16.5} {:>12.5} {:>14.5} {:>12.5}{mark}\n",
+                    "  {:<8} {:>16.5} {:>12.5} {:>14.5} {:>12.5}{correction}{mark}\n",
                     c.method.name(),
                     c.cv_bias_stability_dph,
                     c.standard_error_dph,
@@ -564,8 +572,8 @@ impl Selection {
         }
         if self.correction == CvCorrection::TrainingSize {
             out.push_str(
-                "  fold scores corrected for the folds' smaller training set (Burman 1989; column \
-                 'training-size correction' of the JSON)\n",
+                "  fold scores corrected for the fold models' smaller training set (Burman 1989): \
+                 the CV column includes 'of which corr.' (JSON: training_size_correction_dph)\n",
             );
         }
         if self.scoring == CvScoring::InsideRegion {
@@ -1657,6 +1665,12 @@ mod tests {
         assert_eq!((plain.correction, fixed.correction), (CvCorrection::None, CvCorrection::TrainingSize));
         assert_eq!(plain.folds, fixed.folds);
         assert!(fixed.table().contains("Burman 1989"), "{}", fixed.table());
+        assert!(fixed.table().contains("of which corr."), "{}", fixed.table());
+        assert!(
+            !plain.table().contains("of which corr.") && !plain.table().contains("Burman"),
+            "{}",
+            plain.table()
+        );
         for (p, f) in plain.candidates.iter().zip(&fixed.candidates) {
             assert_eq!(p.method, f.method);
             assert!(p.training_size_correction_dph.is_nan());
