@@ -24,8 +24,8 @@ use fogtemp_core::{Model, WalkHint};
 
 use crate::calibrate::RunFeatures;
 use crate::features::FeaturePoint;
-use crate::metrics::{sample_std, BiasStabilityOptions};
-use crate::selection::{window_means_inside, TrainingRegion, MIN_SCORED_WINDOWS};
+use crate::metrics::BiasStabilityOptions;
+use crate::selection::{score_series, TrainingRegion};
 
 /// How cross-validated scores are corrected before the rule compares them.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
@@ -50,10 +50,9 @@ impl CvCorrection {
 }
 
 /// Compensated bias stability of one run's features on `axis` of `model`: the feature
-/// points' gyro means minus the model at their (T, dT/dt), in averaging windows as
-/// `validate` forms them; with `region`, only the windows whose every point lies inside it
-/// (NaN with fewer than [`MIN_SCORED_WINDOWS`]). NaN when the axis cannot be read or fewer
-/// than two windows remain.
+/// points' gyro means minus the model at their (T, dT/dt), scored by
+/// [`score_series`] as a replayed run is (with `region`, only the windows whose every point
+/// lies inside it). NaN when the axis cannot be read or too few windows remain.
 pub fn feature_score(
     model: &Model<'_>,
     axis: usize,
@@ -73,14 +72,7 @@ pub fn feature_score(
         .collect();
     let inside: Option<Vec<bool>> =
         region.map(|r| points.iter().map(|p| r.contains(p.temp_c, p.rate_c_per_min)).collect());
-    let (mut means, _) = window_means_inside(&times, &compensated, inside.as_deref(), options);
-    if options.detrend {
-        crate::metrics::detrend(&mut means);
-    }
-    if region.is_some() && means.len() < MIN_SCORED_WINDOWS {
-        return f64::NAN;
-    }
-    sample_std(&means)
+    score_series(&times, &compensated, inside.as_deref(), options).bias_stability_dph
 }
 
 /// `e(model)`: the mean of [`feature_score`] over every run of `runs`, the runs in

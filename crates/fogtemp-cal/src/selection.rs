@@ -1139,7 +1139,20 @@ pub fn score_masked(
     let times = &series.time_s[from..];
     let values = series.compensated_dph.get(from..).unwrap_or_default();
     let mask = inside.map(|m| m.get(from..).unwrap_or_default());
-    let (mut means, outside) = window_means_inside(times, values, mask, options);
+    score_series(times, values, mask, options)
+}
+
+/// Bias stability of a compensated series (`values` at `times_s`) as `validate` scores a
+/// run: its averaging windows ([`window_means_inside`], only the windows wholly inside
+/// `inside` when given), detrended if asked; with a mask, NaN for fewer than
+/// [`MIN_SCORED_WINDOWS`] windows.
+pub fn score_series(
+    times_s: &[f64],
+    values: &[f64],
+    inside: Option<&[bool]>,
+    options: &BiasStabilityOptions,
+) -> HeldOutScore {
+    let (mut means, outside) = window_means_inside(times_s, values, inside, options);
     if options.detrend {
         crate::metrics::detrend(&mut means);
     }
