@@ -573,7 +573,8 @@ impl Selection {
         if self.correction == CvCorrection::TrainingSize {
             out.push_str(
                 "  fold scores corrected for the fold models' smaller training set (Burman 1989): \
-                 the CV column includes 'of which corr.' (JSON: training_size_correction_dph)\n",
+                 the CV column includes the correction shown (JSON: training_size_correction_dph); \
+                 the per-run scores are uncorrected\n",
             );
         }
         if self.scoring == CvScoring::InsideRegion {

@@ -22,6 +22,17 @@ pub struct CrossValidationRow {
     /// Compensated bias stability per held-out run (or group), deg/h, in the order of the
     /// table's `held_out` names.
     pub held_out_dph: Vec<f64>,
+    /// The training-size correction included in `cv_dph` (`fit --cv-correction
+    /// training-size`), deg/h; `None` without it (the table then has no such column).
+    pub correction_dph: Option<f64>,
+}
+
+fn signed(v: f64) -> String {
+    if v.is_finite() {
+        format!("{v:+.5}")
+    } else {
+        "-".into()
+    }
 }
 
 fn number(v: f64) -> String {
@@ -43,11 +54,15 @@ pub fn cross_validation_markdown(axis: usize, held_out: &[String], rows: &[Cross
          difference) is chosen.\n\n\
          | method | CV bias stability, deg/h | standard error, deg/h | within 1 SE of the best | chosen |"
     );
+    let corrected = rows.iter().any(|r| r.correction_dph.is_some());
+    if corrected {
+        md.push_str(" of which training-size correction, deg/h |");
+    }
     for name in held_out {
         md.push_str(&format!(" held out {name}, deg/h |"));
     }
     md.push_str("\n|---|---|---|---|---|");
-    md.push_str(&"---|".repeat(held_out.len()));
+    md.push_str(&"---|".repeat(held_out.len() + usize::from(corrected)));
     md.push('\n');
     for r in rows {
         let method = if r.chosen { format!("**`{}`**", r.method) } else { format!("`{}`", r.method) };
@@ -58,6 +73,9 @@ pub fn cross_validation_markdown(axis: usize, held_out: &[String], rows: &[Cross
             number(r.se_dph),
             if r.chosen { "**chosen**" } else { "" }
         ));
+        if corrected {
+            md.push_str(&format!(" {} |", signed(r.correction_dph.unwrap_or(f64::NAN))));
+        }
         for k in 0..held_out.len() {
             md.push_str(&format!(" {} |", number(r.held_out_dph.get(k).copied().unwrap_or(f64::NAN))));
         }
@@ -93,6 +111,8 @@ pub fn selection_markdown(axis: usize, selection: &crate::selection::Selection) 
                 .iter()
                 .map(|name| c.runs.iter().find(|r| &r.run == name).map_or(f64::NAN, |r| r.bias_stability_dph))
                 .collect(),
+            correction_dph: (selection.correction == crate::cv_correction::CvCorrection::TrainingSize)
+                .then_some(c.training_size_correction_dph),
         })
         .collect();
     let mut md = cross_validation_markdown(axis, &held_out, &rows);
@@ -116,6 +136,7 @@ mod tests {
             chosen,
             within_one_se,
             held_out_dph: vec![cv, 2.0 * cv],
+            correction_dph: None,
         }
     }
 
@@ -139,8 +160,12 @@ mod tests {
         assert!(md.contains("|---|---|---|---|---|---|---|\n"));
     }
 
-    #[test]
-    fn the_selection_table_says_how_runs_were_scored_and_which_folds_were_skipped() {
+    /// A selection of one scored candidate (`poly`, CV 0.004 deg/h) over held-out runs a-d
+    /// (d not scored), scored inside the fold regions, with `correction`.
+    fn one_candidate_selection(
+        correction: crate::cv_correction::CvCorrection,
+        correction_dph: f64,
+    ) -> crate::selection::Selection {
         use crate::selection::{
             CandidateScore, CvScheme, CvScoring, Grouping, HeldOutRun, Selection, SkippedFold,
         };
@@ -154,7 +179,7 @@ mod tests {
             left_out_bias_stability_dph: v,
             blocked_bias_stability_dph: f64::NAN,
         };
-        let selection = Selection {
+        Selection {
             method: crate::calibrate::Method::Poly,
             best: Some(crate::calibrate::Method::Poly),
             grouping: Grouping::Runs,
@@ -164,7 +189,7 @@ mod tests {
             blocks: None,
             skipped_folds: vec![SkippedFold { group: "d".into(), reason: "no windows inside".into() }],
             scale: crate::selection::RuleScale::DegPerHour,
-            correction: crate::cv_correction::CvCorrection::None,
+            correction,
             rule: crate::selection::RULE,
             warning: None,
             candidates: vec![CandidateScore {
@@ -176,17 +201,36 @@ mod tests {
                 log_ratio_to_best: 0.0,
                 log_ratio_standard_error: 0.0,
                 within_one_standard_error: true,
-                training_size_correction_dph: f64::NAN,
+                training_size_correction_dph: correction_dph,
                 runs: vec![run("a", 0.003), run("b", 0.004), run("c", 0.005), run("d", f64::NAN)],
                 error: None,
             }],
-        };
+        }
+    }
+
+    #[test]
+    fn the_selection_table_says_how_runs_were_scored_and_which_folds_were_skipped() {
+        let selection = one_candidate_selection(crate::cv_correction::CvCorrection::None, f64::NAN);
         let md = selection_markdown(0, &selection);
-        assert!(md.contains("| 0.00300 | 0.00400 | 0.00500 | - |"), "{md}");
+        assert!(md.contains("| **chosen** | 0.00300 | 0.00400 | 0.00500 | - |"), "{md}");
+        assert!(!md.contains("training-size correction"), "{md}");
         assert!(
             md.contains("- scored on the averaging windows inside each fold's training region (3 folds)\n"),
             "{md}"
         );
         assert!(md.contains("- fold 'd' skipped: no windows inside\n"), "{md}");
+    }
+
+    #[test]
+    fn a_corrected_selection_shows_the_correction_the_cv_column_includes() {
+        let selection = one_candidate_selection(crate::cv_correction::CvCorrection::TrainingSize, -0.00012);
+        let md = selection_markdown(0, &selection);
+        assert!(
+            md.contains("| chosen | of which training-size correction, deg/h | held out a, deg/h |"),
+            "{md}"
+        );
+        assert!(md.contains("| **chosen** | -0.00012 | 0.00300 | 0.00400 | 0.00500 | - |"), "{md}");
+        assert!(md.contains("|---|---|---|---|---|---|---|---|---|---|\n"), "{md}");
+        assert!(md.contains("- fold scores corrected for the fold models' smaller training set"), "{md}");
     }
 }

@@ -857,6 +857,7 @@ mod tests {
                 chosen: true,
                 within_one_se: true,
                 held_out_dph: vec![0.01, 0.01],
+                correction_dph: None,
             }],
         );
         write_fit_report(
