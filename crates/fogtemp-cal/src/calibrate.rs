@@ -163,6 +163,10 @@ pub struct CalibrationConfig {
     /// polynomial part its node fit leaves free (`refine`; least-squares nodes only). On by
     /// default (docs/calibration-testbed.md, "Steiner nodes between the calibration paths").
     pub refine_mesh: bool,
+    /// The mesh's smoothness weight relative to the data/penalty balance, given instead of
+    /// cross-validated (a diagnostic: `fit --mesh-relative-weight`, hidden); `None` (the
+    /// default): chosen by cross-validation within runs (`mesh_fit`).
+    pub mesh_relative_weight: Option<f64>,
 }
 
 impl Default for CalibrationConfig {
@@ -180,6 +184,7 @@ impl Default for CalibrationConfig {
             poly_outside: fogtemp_core::PolyOutside::LinearFromBoundary,
             mesh_outside: OutsidePolicy::StoredGradients,
             refine_mesh: true,
+            mesh_relative_weight: None,
         }
     }
 }
@@ -558,6 +563,7 @@ pub fn fit_axis(
                 // Guard: one smoothing window of points (targets that share raw samples).
                 let cv = crate::mesh_fit::MeshCv {
                     guard_points: (config.target_window_s / block_s).round().max(0.0) as usize,
+                    given_relative_weight: config.mesh_relative_weight,
                     ..crate::mesh_fit::MeshCv::default()
                 };
                 // A hybrid's residual has the polynomial's terms fitted already.

@@ -69,7 +69,7 @@ pub const RELATIVE_WEIGHTS: [f64; 13] = [1e-4, 1e-3, 1e-2, 1e-1, 1e0, 1e1, 1e2, 
 pub const BLOCK_FOLDS: usize = 5;
 
 /// How the smoothness weight is cross-validated (see the module docs).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct MeshCv {
     /// Folds `K`: each run cut into `K` contiguous blocks of points, block `j` of run `r` in
     /// fold `(j + r) mod K`.
@@ -79,11 +79,15 @@ pub struct MeshCv {
     /// One smoothing window in points (`target_window_s / block_s`) for logs whose
     /// temperature fills every block (more time, so safer, where points are sparse).
     pub guard_points: usize,
+    /// A relative weight given by the user (`fit --mesh-relative-weight`, a diagnostic): the
+    /// cross-validation still runs and is reported, but this weight is used. `None`: the
+    /// cross-validated choice.
+    pub given_relative_weight: Option<f64>,
 }
 
 impl Default for MeshCv {
     fn default() -> Self {
-        Self { folds: BLOCK_FOLDS, guard_points: 0 }
+        Self { folds: BLOCK_FOLDS, guard_points: 0, given_relative_weight: None }
     }
 }
 
@@ -120,8 +124,10 @@ pub struct CvCandidate {
 /// How the mesh's smoothness weight was chosen (`fit --json`: `axes[].mesh_smoothing`).
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct MeshSmoothing {
-    /// The chosen relative weight (`None`: no mesh).
+    /// The relative weight used (`None`: no mesh).
     pub relative_weight: Option<f64>,
+    /// Where it came from: "cross-validation", or "given" (`fit --mesh-relative-weight`).
+    pub weight_source: &'static str,
     /// The chosen absolute weight `lambda` (`None`: no mesh).
     pub weight: Option<f64>,
     /// "no mesh" was a candidate (hybrid residual meshes).
@@ -242,7 +248,10 @@ pub fn fit_node_values_cv_with_free_terms(
         curve.push(candidate(Some(relative), &block_scores(&rows, folds, |f| per_fold[f].as_slice())));
     }
     let chosen = one_standard_error(&curve);
-    let relative_weight = curve.get(chosen).and_then(|c| c.relative_weight);
+    let relative_weight = match cv.given_relative_weight {
+        Some(given) => Some(given),
+        None => curve.get(chosen).and_then(|c| c.relative_weight),
+    };
     let values = match relative_weight {
         Some(relative) => solve(gram + &penalty * (relative * balance), rhs, ridge)
             .ok_or(CalError::DegenerateMesh { reason: "mesh node fit is singular", points: n })?,
@@ -255,6 +264,7 @@ pub fn fit_node_values_cv_with_free_terms(
     let report = NodeFitReport { points_used: rows.len(), points_outside, rms_before_dph, rms_after_dph };
     let smoothing = MeshSmoothing {
         relative_weight,
+        weight_source: if cv.given_relative_weight.is_some() { "given" } else { "cross-validation" },
         weight: relative_weight.map(|r| r * balance),
         no_mesh_allowed: allow_no_mesh,
         folds: "run blocks",
@@ -923,17 +933,9 @@ mod tests {
         }
     }
 
-    /// Brute-force blocked cross-validation: dense design matrix from an f64 point location
-    /// over all triangles, LU solves, out-of-fold errors, per-block scores and the
-    /// one-standard-error rule written out directly. Returns (relative weight, cv rms) pairs
-    /// in the module's order and the chosen relative weight.
-    fn brute_force_cv(
-        mesh: &MeshModel,
-        points: &[(f32, f32, f64)],
-        run_of: &[usize],
-        guard: usize,
-    ) -> (Vec<(f64, f64)>, f64) {
-        let k = BLOCK_FOLDS;
+    /// The dense design matrix of `points` in `mesh`: barycentric weights from an f64 point
+    /// location over all triangles (an independent reference for `design_rows`).
+    fn dense_design(mesh: &MeshModel, points: &[(f32, f32, f64)]) -> DMatrix<f64> {
         let n = mesh.vertices.len();
         let vx = |i: u32| (f64::from(mesh.vertices[i as usize].x), f64::from(mesh.vertices[i as usize].y));
         let weights_of = |x: f64, y: f64| -> Vec<f64> {
@@ -953,8 +955,25 @@ mod tests {
             }
             panic!("point outside the mesh");
         };
+        DMatrix::from_fn(points.len(), n, |i, j| {
+            weights_of(f64::from(points[i].0), f64::from(points[i].1))[j]
+        })
+    }
+
+    /// Brute-force blocked cross-validation: dense design matrix from an f64 point location
+    /// over all triangles, LU solves, out-of-fold errors, per-block scores and the
+    /// one-standard-error rule written out directly. Returns (relative weight, cv rms) pairs
+    /// in the module's order and the chosen relative weight.
+    fn brute_force_cv(
+        mesh: &MeshModel,
+        points: &[(f32, f32, f64)],
+        run_of: &[usize],
+        guard: usize,
+    ) -> (Vec<(f64, f64)>, f64) {
+        let k = BLOCK_FOLDS;
+        let n = mesh.vertices.len();
         let m = points.len();
-        let a = DMatrix::from_fn(m, n, |i, j| weights_of(f64::from(points[i].0), f64::from(points[i].1))[j]);
+        let a = dense_design(mesh, points);
         let y = DVector::from_iterator(m, points.iter().map(|p| p.2));
         // Run positions (runs are consecutive) and folds.
         let count = |r: usize| run_of.iter().filter(|&&q| q == r).count();
@@ -1026,7 +1045,7 @@ mod tests {
         let (points, run_of) = banded_runs(6, 150, 0.003, 7, ripple);
         let guard = 4;
         let (reference, chosen) = brute_force_cv(&mesh, &points, &run_of, guard);
-        let cv = MeshCv { folds: BLOCK_FOLDS, guard_points: guard };
+        let cv = MeshCv { folds: BLOCK_FOLDS, guard_points: guard, given_relative_weight: None };
         let (_, smoothing) = fit_node_values_cv(&mut mesh, &points, &run_of, false, cv).unwrap();
         assert_eq!(smoothing.curve.len(), reference.len());
         for (c, (relative, rms)) in smoothing.curve.iter().zip(&reference) {
@@ -1051,5 +1070,39 @@ mod tests {
         let plane = solve(gram + penalty * lambda, normal_rhs(&rows, n, |_| true), 0.0).unwrap();
         let (e_fit, e_plane) = (error_rms(&fitted), error_rms(&plane));
         assert!(e_fit < 0.5 * e_plane, "chose {chosen}: error {e_fit} vs the plane's {e_plane}");
+    }
+
+    #[test]
+    fn a_given_weight_is_used_and_matches_a_dense_reference_fit() {
+        // The ripple data of the test above; a weight the cross-validation does not choose.
+        let ripple = |x: f64, _y: f64| 0.01 * (std::f64::consts::TAU * x / 0.8).sin();
+        let (points, run_of) = banded_runs(6, 150, 0.003, 7, ripple);
+        let given = 1e6;
+        let mut chosen_mesh = grid_mesh(11, 4);
+        let cv = MeshCv { folds: BLOCK_FOLDS, guard_points: 4, given_relative_weight: None };
+        let (_, chosen) = fit_node_values_cv(&mut chosen_mesh, &points, &run_of, false, cv).unwrap();
+        assert_ne!(chosen.relative_weight, Some(given), "pick a weight the CV does not choose");
+        let mut mesh = grid_mesh(11, 4);
+        let cv = MeshCv { given_relative_weight: Some(given), ..cv };
+        let (_, smoothing) = fit_node_values_cv(&mut mesh, &points, &run_of, false, cv).unwrap();
+        assert_eq!(smoothing.relative_weight, Some(given));
+        assert_eq!(smoothing.weight_source, "given");
+        assert_eq!(chosen.weight_source, "cross-validation");
+        // The cross-validation is still run and reported, the same curve.
+        assert_eq!(smoothing.curve, chosen.curve);
+        // Reference: the dense penalised least-squares solve at that weight (LU), as f32.
+        let a = dense_design(&mesh, &points);
+        let y = DVector::from_iterator(points.len(), points.iter().map(|p| p.2));
+        let penalty = gradient_jump_penalty(&mesh).unwrap();
+        let ata = a.transpose() * &a;
+        let n = mesh.vertices.len();
+        let lambda = given * ata.trace() / penalty.trace();
+        let ridge = 1e-10 * ata.trace() / n as f64;
+        let lhs = &ata + &penalty * lambda + DMatrix::identity(n, n) * ridge;
+        let reference = lhs.lu().solve(&(a.transpose() * y)).unwrap();
+        for (v, r) in mesh.vertices.iter().zip(reference.iter()) {
+            // f32 storage: 1e-8 deg/h, 1e-6 of the ripple amplitude (0.01 deg/h).
+            assert!((f64::from(v.value_dph) - r).abs() <= 1e-8, "{} vs {r}", v.value_dph);
+        }
     }
 }

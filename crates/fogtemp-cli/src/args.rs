@@ -397,6 +397,11 @@ pub struct FitArgs {
     /// more, and the mesh is refitted through them at the cross-validated weight).
     #[arg(long, help_heading = "Mesh")]
     pub no_mesh_refinement: bool,
+    /// Use this smoothness weight for the mesh's node fit (relative to the data/penalty
+    /// balance; the cross-validated grid is 1e-4 to 1e8) instead of the cross-validated one.
+    /// A diagnostic: the cross-validation still runs and is reported in the JSON.
+    #[arg(long, value_parser = positive_finite, hide = true, help_heading = "Mesh")]
+    pub mesh_relative_weight: Option<f64>,
     /// Paper thinning: keep every point while |rate| >= this, deg C/min.
     #[arg(long, default_value_t = 0.05, help_heading = "Mesh")]
     pub fast_rate: f64,
@@ -439,6 +444,13 @@ impl FitArgs {
 }
 
 /// `MIN,MAX` with MIN < MAX, both finite.
+fn positive_finite(text: &str) -> Result<f64, String> {
+    match text.trim().parse::<f64>() {
+        Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
+        _ => Err(format!("expected a positive finite number, got '{text}'")),
+    }
+}
+
 fn parse_range(text: &str) -> Result<(f64, f64), String> {
     let parsed =
         text.split_once(',').and_then(|(a, b)| Some((a.trim().parse().ok()?, b.trim().parse().ok()?)));

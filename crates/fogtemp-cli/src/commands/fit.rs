@@ -61,6 +61,7 @@ pub fn fit(a: FitArgs) -> Result<()> {
         poly_outside: a.poly_outside.into(),
         mesh_outside: a.mesh_outside.into(),
         refine_mesh: !a.no_mesh_refinement,
+        mesh_relative_weight: a.mesh_relative_weight,
     };
     let mut runs = Vec::with_capacity(logs.len());
     for log in &logs {
