@@ -397,11 +397,9 @@ fn design_rows(
     folds: usize,
 ) -> (Vec<Row>, usize) {
     let run_at = |i: usize| run_of.get(i).copied().unwrap_or(0);
-    // Run ranks (run indices need not be contiguous), point counts and positions.
-    let mut runs: Vec<usize> = (0..points.len()).map(run_at).collect();
-    runs.sort_unstable();
-    runs.dedup();
-    let rank = |run: usize| runs.binary_search(&run).unwrap_or(0);
+    // Run ranks by content (run indices need not be contiguous), point counts and positions.
+    let runs = runs_by_content(points, run_of);
+    let rank = |run: usize| runs.binary_search_by_key(&run, |&(id, _)| id).map_or(0, |k| runs[k].1);
     let mut counts = vec![0usize; runs.len()];
     for i in 0..points.len() {
         counts[rank(run_at(i))] += 1;
@@ -437,6 +435,38 @@ fn design_rows(
         }
     }
     (rows, outside)
+}
+
+/// Every run of `run_of` (sorted by run index) with its rank among the runs ordered by
+/// content: by their first point's `(x, y, value)`, then their point count, then their index.
+/// The folds ([`block_and_fold`]) use this rank, so the chosen weight does not depend on the
+/// order in which the runs were given (the same logs listed in another order get the same
+/// folds).
+fn runs_by_content(points: &[(f32, f32, f64)], run_of: &[usize]) -> Vec<(usize, usize)> {
+    let run_at = |i: usize| run_of.get(i).copied().unwrap_or(0);
+    // (run index, first point, count), in run-index order.
+    let mut runs: Vec<(usize, (f32, f32, f64), usize)> = Vec::new();
+    for (i, &point) in points.iter().enumerate() {
+        let run = run_at(i);
+        match runs.binary_search_by_key(&run, |r| r.0) {
+            Ok(k) => runs[k].2 += 1,
+            Err(k) => runs.insert(k, (run, point, 1)),
+        }
+    }
+    let mut order: Vec<usize> = (0..runs.len()).collect();
+    order.sort_by(|&a, &b| {
+        let ((_, pa, ca), (_, pb, cb)) = (runs[a], runs[b]);
+        pa.0.total_cmp(&pb.0)
+            .then(pa.1.total_cmp(&pb.1))
+            .then(pa.2.total_cmp(&pb.2))
+            .then(ca.cmp(&cb))
+            .then(a.cmp(&b))
+    });
+    let mut ranked: Vec<(usize, usize)> = runs.iter().map(|r| (r.0, 0)).collect();
+    for (rank, &k) in order.iter().enumerate() {
+        ranked[k].1 = rank;
+    }
+    ranked
 }
 
 /// Rewrites a row on the refined mesh's vertices as one on the coarse mesh's (`tie`), its
@@ -1104,5 +1134,38 @@ mod tests {
             // f32 storage: 1e-8 deg/h, 1e-6 of the ripple amplitude (0.01 deg/h).
             assert!((f64::from(v.value_dph) - r).abs() <= 1e-8, "{} vs {r}", v.value_dph);
         }
+    }
+
+    #[test]
+    fn the_runs_order_does_not_change_the_folds_or_the_fit() {
+        // The ripple data of the tests above, its runs given in reverse order (and renumbered):
+        // the same weight and node values up to summation order. Before the folds used the
+        // content rank, the fold of a block depended on its run's index.
+        let ripple = |x: f64, _y: f64| 0.01 * (std::f64::consts::TAU * x / 0.8).sin();
+        let (points, run_of) = banded_runs(6, 150, 0.003, 7, ripple);
+        let runs = run_of.iter().max().unwrap() + 1;
+        let mut reversed_points = Vec::new();
+        let mut reversed_run_of = Vec::new();
+        for r in (0..runs).rev() {
+            for (p, _) in points.iter().zip(&run_of).filter(|(_, &q)| q == r) {
+                reversed_points.push(*p);
+                reversed_run_of.push(runs - 1 - r);
+            }
+        }
+        let cv = MeshCv { folds: BLOCK_FOLDS, guard_points: 4, given_relative_weight: None };
+        let (mut given, mut reversed) = (grid_mesh(11, 4), grid_mesh(11, 4));
+        let (_, a) = fit_node_values_cv(&mut given, &points, &run_of, false, cv).unwrap();
+        let (_, b) =
+            fit_node_values_cv(&mut reversed, &reversed_points, &reversed_run_of, false, cv).unwrap();
+        assert_eq!(a.relative_weight, b.relative_weight);
+        for (ca, cb) in a.curve.iter().zip(&b.curve) {
+            assert!((ca.cv_rms_dph - cb.cv_rms_dph).abs() <= 1e-9 * ca.cv_rms_dph, "{ca:?} vs {cb:?}");
+        }
+        for (va, vb) in given.vertices.iter().zip(&reversed.vertices) {
+            // f32 node values: 1e-8 deg/h, 1e-6 of the ripple amplitude.
+            assert!((va.value_dph - vb.value_dph).abs() <= 1e-8, "{} vs {}", va.value_dph, vb.value_dph);
+        }
+        // The ranks follow the first points (here increasing x), whatever the run indices.
+        assert_eq!(runs_by_content(&reversed_points, &reversed_run_of)[0], (0, runs - 1));
     }
 }
