@@ -32,7 +32,9 @@
 //! `lambda` is chosen from a log-spaced grid by blocked K-fold cross-validation within runs
 //! ([`MeshCv`]): each run (its points in time order,
 //! [`CalibrationPoints::run_of`](crate::calibrate::CalibrationPoints)) is cut into
-//! [`BLOCK_FOLDS`] contiguous blocks, block `j` of run `r` is in fold `(j + r) mod K`, so every
+//! [`BLOCK_FOLDS`] contiguous blocks, block `j` of run `r` is in fold `(j + r) mod K` (`r`: the
+//! run's rank by a hash of its content, so that the order in which the logs are given does not
+//! change the folds; since 2026-11-26), so every
 //! fold leaves a gap in every run that the run's own data on both sides, and other runs'
 //! data nearby, can bridge: the score tests interpolation, what a validation run over the
 //! same temperatures needs. Leaving whole runs out instead scored extrapolation across a
@@ -71,8 +73,8 @@ pub const BLOCK_FOLDS: usize = 5;
 /// How the smoothness weight is cross-validated (see the module docs).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct MeshCv {
-    /// Folds `K`: each run cut into `K` contiguous blocks of points, block `j` of run `r` in
-    /// fold `(j + r) mod K`.
+    /// Folds `K`: each run cut into `K` contiguous blocks of points, block `j` of run `r` (the
+    /// run's rank by a hash of its content) in fold `(j + r) mod K`.
     pub folds: usize,
     /// Points of a run left out of training on each side of its held-out block: targets
     /// within one smoothing window of the block share raw samples with the block's targets.
@@ -437,11 +439,15 @@ fn design_rows(
     (rows, outside)
 }
 
-/// Every run of `run_of` (sorted by run index) with its rank among the runs ordered by
-/// content: by their first point's `(x, y, value)`, then their point count, then their index.
-/// The folds ([`block_and_fold`]) use this rank, so the chosen weight does not depend on the
-/// order in which the runs were given (the same logs listed in another order get the same
-/// folds).
+/// Every run of `run_of` (sorted by run index) with its rank among the runs ordered by a hash
+/// of their content (first point's `(x, y, value)` bits and point count; ties by those values,
+/// then by index). The folds ([`block_and_fold`]) use this rank, so the chosen weight does not
+/// depend on the order in which the runs were given (the same logs listed in another order get
+/// the same folds). A hash rather than the values themselves: ranked by their first point
+/// (that is, by starting temperature), runs next to each other in the plane got neighbouring
+/// fold offsets, an assignment tied to the plane that K-fold cross-validation's random
+/// assignment is not (docs/calibration-testbed.md, "The mesh weight's folds and the order of
+/// the logs").
 fn runs_by_content(points: &[(f32, f32, f64)], run_of: &[usize]) -> Vec<(usize, usize)> {
     let run_at = |i: usize| run_of.get(i).copied().unwrap_or(0);
     // (run index, first point, count), in run-index order.
@@ -454,9 +460,14 @@ fn runs_by_content(points: &[(f32, f32, f64)], run_of: &[usize]) -> Vec<(usize, 
         }
     }
     let mut order: Vec<usize> = (0..runs.len()).collect();
+    let key = |(_, p, count): (usize, (f32, f32, f64), usize)| {
+        content_hash(&[u64::from(p.0.to_bits()), u64::from(p.1.to_bits()), p.2.to_bits(), count as u64])
+    };
     order.sort_by(|&a, &b| {
         let ((_, pa, ca), (_, pb, cb)) = (runs[a], runs[b]);
-        pa.0.total_cmp(&pb.0)
+        key(runs[a])
+            .cmp(&key(runs[b]))
+            .then(pa.0.total_cmp(&pb.0))
             .then(pa.1.total_cmp(&pb.1))
             .then(pa.2.total_cmp(&pb.2))
             .then(ca.cmp(&cb))
@@ -467,6 +478,17 @@ fn runs_by_content(points: &[(f32, f32, f64)], run_of: &[usize]) -> Vec<(usize, 
         ranked[k].1 = rank;
     }
     ranked
+}
+
+/// A 64-bit hash of `words` (SplitMix64's finaliser over a running sum; deterministic on
+/// every platform).
+fn content_hash(words: &[u64]) -> u64 {
+    words.iter().fold(0x853c_49e6_748f_ea9b, |h, &w| {
+        let mut z = (h ^ w).wrapping_add(0x9e37_79b9_7f4a_7c15);
+        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        z ^ (z >> 31)
+    })
 }
 
 /// Rewrites a row on the refined mesh's vertices as one on the coarse mesh's (`tie`), its
@@ -1010,12 +1032,28 @@ mod tests {
         let first = |r: usize| run_of.iter().position(|&q| q == r).unwrap();
         let pos: Vec<usize> = (0..m).map(|i| i - first(run_of[i])).collect();
         let block: Vec<usize> = (0..m).map(|i| pos[i] * k / count(run_of[i])).collect();
-        let fold: Vec<usize> = (0..m).map(|i| (block[i] + run_of[i]) % k).collect();
+        // Runs ranked by the hash of their first point and count (distinct here).
+        let runs = run_of.iter().max().unwrap() + 1;
+        let hash = |r: usize| {
+            let p = points[first(r)];
+            content_hash(&[
+                u64::from(p.0.to_bits()),
+                u64::from(p.1.to_bits()),
+                p.2.to_bits(),
+                count(r) as u64,
+            ])
+        };
+        let mut by_hash: Vec<usize> = (0..runs).collect();
+        by_hash.sort_by_key(|&r| hash(r));
+        let mut rank = vec![0; runs];
+        for (k, &r) in by_hash.iter().enumerate() {
+            rank[r] = k;
+        }
+        let fold: Vec<usize> = (0..m).map(|i| (block[i] + rank[run_of[i]]) % k).collect();
         let penalty = gradient_jump_penalty(mesh).unwrap();
         let ata = a.transpose() * &a;
         let balance = ata.trace() / penalty.trace();
         let ridge = 1e-10 * ata.trace() / n as f64;
-        let runs = run_of.iter().max().unwrap() + 1;
         let mut curve = Vec::new();
         for &relative in RELATIVE_WEIGHTS.iter().rev() {
             let mut error = vec![0.0; m];
@@ -1165,7 +1203,14 @@ mod tests {
             // f32 node values: 1e-8 deg/h, 1e-6 of the ripple amplitude.
             assert!((va.value_dph - vb.value_dph).abs() <= 1e-8, "{} vs {}", va.value_dph, vb.value_dph);
         }
-        // The ranks follow the first points (here increasing x), whatever the run indices.
-        assert_eq!(runs_by_content(&reversed_points, &reversed_run_of)[0], (0, runs - 1));
+        // Each run has the same rank whatever its index, and the ranks are a permutation.
+        let (ranks, reversed_ranks) =
+            (runs_by_content(&points, &run_of), runs_by_content(&reversed_points, &reversed_run_of));
+        for r in 0..runs {
+            assert_eq!(ranks[r].1, reversed_ranks[runs - 1 - r].1, "run {r}");
+        }
+        let mut sorted: Vec<usize> = ranks.iter().map(|r| r.1).collect();
+        sorted.sort_unstable();
+        assert_eq!(sorted, (0..runs).collect::<Vec<_>>());
     }
 }
