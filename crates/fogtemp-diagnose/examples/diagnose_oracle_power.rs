@@ -875,6 +875,11 @@ fn main() {
                 let null: Vec<PlugInFit> = null_cases.iter().filter_map(|c| pl.fit(c, 0.0)).collect();
                 let count = |v: &[PlugInFit], z: f64| v.iter().filter(|(a, sd, _)| a / sd >= z).count();
                 let amps: Vec<f64> = x1.iter().map(|(a, _, _)| *a).collect();
+                if std::env::var_os("ORACLE_PER_SEED").is_some() {
+                    for (i, ((a, sd, _), g)) in x1.iter().zip(&gls_x1).enumerate() {
+                        println!("per-seed {} {}: plug-in z {:.3} exact z {:.3}", ds.label, first + i as u64, a / sd, g.0 / g.1);
+                    }
+                }
                 PlugRow {
                     fw: count(&x1, z_fw),
                     plain: count(&x1, z_5),

@@ -136,6 +136,13 @@ pub struct DiagnoseOptions {
     /// adds less to enters) instead of by the lower LORO error (docs/diagnose.md, tenth
     /// session).
     pub encompassing_tie_break: bool,
+    /// In the noise-model route, split the family-wise level evenly over the open
+    /// candidates (Bonferroni over effects) and judge each candidate by its own smallest p
+    /// over its own grid (simulated), instead of by the smallest p over every candidate's
+    /// grid together: a candidate without a profiled grid (`scale_factor_temperature`,
+    /// `orientation_offset`) is then not charged for the other candidates' grid points
+    /// (docs/diagnose.md, eleventh session).
+    pub noise_model_level_per_candidate: bool,
 }
 
 impl Default for DiagnoseOptions {
@@ -159,6 +166,7 @@ impl Default for DiagnoseOptions {
             noise_model_candidate_levels: false,
             noise_model_heldout: true,
             encompassing_tie_break: true,
+            noise_model_level_per_candidate: false,
         }
     }
 }

@@ -556,6 +556,10 @@ pub(super) struct GlsVerdict {
     pub(super) heldout: Option<(bool, bool)>,
     /// Whether the levels were fitted with the candidate in the model.
     pub(super) own_levels: bool,
+    /// With [`DiagnoseOptions::noise_model_level_per_candidate`]: the number of open
+    /// candidates the level is split over (the family-wise p is that many times the
+    /// candidate's own p over its own grid); `None`: the smallest p over every grid.
+    pub(super) split_over: Option<usize>,
 }
 
 impl GlsVerdict {
@@ -610,6 +614,28 @@ fn family_p_of(min_p: f64, total: usize, simulate: impl FnOnce() -> f64) -> f64 
         bonferroni
     } else {
         simulate()
+    }
+}
+
+/// Simulated null draws of one candidate's own smallest p over its grid when the level is
+/// split over the candidates: its share of the level (0.002 / 7 = 2.9e-4 for 7 open
+/// candidates) is then resolved by about 11 draws.
+pub const GLS_OWN_SIMULATIONS: usize = 40_000;
+
+/// The family-wise p of one candidate's smallest p (`min_p`, over its `points` grid bases)
+/// when the level is split evenly over `candidates` open candidates (Bonferroni over
+/// effects): `candidates` times its own p, which lies between `min_p` (one point) and
+/// `points x min_p` (Bonferroni over its grid). The bounds decide when they can; else
+/// `simulate()` gives the own p (the simulated null of its smallest p over its grid).
+fn split_family_p(min_p: f64, points: usize, candidates: usize, simulate: impl FnOnce() -> f64) -> f64 {
+    let m = candidates.max(1) as f64;
+    let (lower, upper) = (min_p * m, min_p * m * points.max(1) as f64);
+    if lower > GLS_FAMILY_LEVEL {
+        lower.min(1.0)
+    } else if upper <= GLS_FAMILY_LEVEL {
+        upper
+    } else {
+        (m * simulate()).min(1.0)
     }
 }
 
@@ -722,8 +748,43 @@ impl GlsStep {
                         levels: (own.white_var, own.flicker_var),
                         heldout,
                         own_levels: true,
+                        split_over: None,
                     };
                     Some((g.effect, v))
+                })
+                .collect()
+        } else if options.noise_model_level_per_candidate {
+            let without = options
+                .noise_model_heldout
+                .then(|| heldout_gls(&fit, &base.per_run, ys, base.penalty.as_ref()))
+                .flatten();
+            let candidates = tests.iter().filter(|t| !t.bases.is_empty()).count();
+            open.par_iter()
+                .zip(&tests)
+                .enumerate()
+                .map(|(i, (g, t))| {
+                    let heldout =
+                        without.as_ref().and_then(|w| heldout_claim(&fit, base, ys, g, t.best, w.sse));
+                    // The simulation of the candidate's own grid is needed only when its claim
+                    // holds; else NaN: not simulated.
+                    let claim = heldout.is_none_or(|(falls, sign)| falls && sign);
+                    let family_p = split_family_p(t.min_p, t.bases.len(), candidates, || {
+                        if !claim {
+                            return f64::NAN;
+                        }
+                        let refs: Vec<&DMatrix<f64>> = t.bases.iter().collect();
+                        let stream = seed ^ (i as u64 + 1).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+                        family_p(tester.n(), &refs, &[t.min_p], GLS_OWN_SIMULATIONS, stream)[0]
+                    });
+                    let v = GlsVerdict {
+                        min_p: t.min_p,
+                        family_p,
+                        levels,
+                        heldout,
+                        own_levels: false,
+                        split_over: Some(candidates),
+                    };
+                    (g.effect, v)
                 })
                 .collect()
         } else {
@@ -749,7 +810,15 @@ impl GlsStep {
                     let family_p = family_p_of(t.min_p, total, || *sim);
                     let heldout =
                         without.as_ref().and_then(|w| heldout_claim(&fit, base, ys, g, t.best, w.sse));
-                    (g.effect, GlsVerdict { min_p: t.min_p, family_p, levels, heldout, own_levels: false })
+                    let v = GlsVerdict {
+                        min_p: t.min_p,
+                        family_p,
+                        levels,
+                        heldout,
+                        own_levels: false,
+                        split_over: None,
+                    };
+                    (g.effect, v)
                 })
                 .collect()
         };
@@ -764,8 +833,11 @@ impl GlsStep {
 fn gls_note(v: Option<GlsVerdict>) -> String {
     v.map_or_else(String::new, |v| {
         format!(
-            "family-wise p {}, {GLS_FAMILY_LEVEL} needed; smallest Wald p over the grid {:.2e}; noise{}: white {:.2e} (deg/h)^2 per s, bias-instability decade {:.2e} (deg/h)^2{}",
+            "family-wise p {}{}, {GLS_FAMILY_LEVEL} needed; smallest Wald p over the grid {:.2e}; noise{}: white {:.2e} (deg/h)^2 per s, bias-instability decade {:.2e} (deg/h)^2{}",
             if v.family_p.is_nan() { "not simulated".to_string() } else { format!("{:.4}", v.family_p) },
+            v.split_over.map_or_else(String::new, |m| format!(
+                " ({m} x the candidate's own p over its grid: the level split over {m} open candidates)"
+            )),
             v.min_p,
             if v.own_levels { " (levels with the candidate)" } else { "" },
             v.levels.0,
@@ -801,6 +873,7 @@ mod tests {
             levels: (1e-3, 1e-6),
             heldout,
             own_levels: false,
+            split_over: None,
         };
         // Held-out claim in the model's metric: the run-level LORO error and sign do not count.
         assert!(v(0.002, Some((true, true))).accepts(false, false));
