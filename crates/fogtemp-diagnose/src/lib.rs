@@ -143,6 +143,13 @@ pub struct DiagnoseOptions {
     /// `orientation_offset`) is then not charged for the other candidates' grid points
     /// (docs/diagnose.md, eleventh session).
     pub noise_model_level_per_candidate: bool,
+    /// In the noise-model route, when both are open, split the family-wise level in two
+    /// equal shares: one for the candidates that depend on the run's orientation
+    /// (`scale_factor_temperature`, `orientation_offset`: they test the contrast between
+    /// positions) and one for the rest (functions of temperature and time since power-on),
+    /// each family judged by the smallest p over its own candidates' grids
+    /// (docs/diagnose.md, eleventh session).
+    pub noise_model_orientation_families: bool,
 }
 
 impl Default for DiagnoseOptions {
@@ -167,6 +174,7 @@ impl Default for DiagnoseOptions {
             noise_model_heldout: true,
             encompassing_tie_break: true,
             noise_model_level_per_candidate: false,
+            noise_model_orientation_families: true,
         }
     }
 }

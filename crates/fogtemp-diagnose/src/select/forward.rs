@@ -556,10 +556,22 @@ pub(super) struct GlsVerdict {
     pub(super) heldout: Option<(bool, bool)>,
     /// Whether the levels were fitted with the candidate in the model.
     pub(super) own_levels: bool,
-    /// With [`DiagnoseOptions::noise_model_level_per_candidate`]: the number of open
-    /// candidates the level is split over (the family-wise p is that many times the
-    /// candidate's own p over its own grid); `None`: the smallest p over every grid.
-    pub(super) split_over: Option<usize>,
+    /// How the family-wise level was shared at this step.
+    pub(super) split: LevelSplit,
+}
+
+/// How the noise-model route's family-wise level is shared among the open candidates.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum LevelSplit {
+    /// One family: the smallest p over every candidate's grid.
+    None,
+    /// [`DiagnoseOptions::noise_model_level_per_candidate`]: evenly over this many open
+    /// candidates (the family-wise p is that many times the candidate's own p over its grid).
+    Candidates(usize),
+    /// [`DiagnoseOptions::noise_model_orientation_families`]: half the level to the
+    /// orientation-dependent candidates, half to the rest, each family's smallest p over
+    /// its own grids (the family-wise p is twice the family's own).
+    OrientationFamilies,
 }
 
 impl GlsVerdict {
@@ -603,14 +615,61 @@ fn grid_test(tester: &crate::noise_model::GlsTester<'_>, grid: &EffectGrid) -> G
     GridTest { bases, min_p, best }
 }
 
+/// Family-wise p's of candidates `(whitened grid bases, smallest p, family)` at `level`,
+/// and how many families are present. One family (all `false`, or all `true`): the
+/// smallest p over every basis, by `sims` simulated draws where the bounds do not decide
+/// ([`family_p_at`]). Two families (some of each with a basis): each gets half the level
+/// and judges its candidates by the smallest p over its own bases, by twice the draws so
+/// that its share is resolved as the whole level is; the family-wise p is twice the
+/// family's own (Bonferroni over the two families). A family's stream is `seed` for the
+/// first (`false`) family, so that with one family the result is the unsplit route's.
+pub(super) fn shared_family_ps(
+    n: usize,
+    members: &[(&[DMatrix<f64>], f64, bool)],
+    level: f64,
+    sims: usize,
+    seed: u64,
+) -> (Vec<f64>, usize) {
+    use crate::noise_model::family_p;
+    let present = [false, true]
+        .iter()
+        .filter(|f| members.iter().any(|(b, _, fam)| fam == *f && !b.is_empty()))
+        .count()
+        .max(1);
+    let share = level / present as f64;
+    let mut out = vec![f64::NAN; members.len()];
+    for (f, fam) in [false, true].into_iter().enumerate() {
+        let idx: Vec<usize> = (0..members.len()).filter(|&i| members[i].2 == fam).collect();
+        let total: usize = idx.iter().map(|&i| members[i].0.len()).sum();
+        let min_ps: Vec<f64> = idx.iter().map(|&i| members[i].1).collect();
+        let undecided = min_ps.iter().any(|p| *p <= share && (p * total as f64).min(1.0) > share);
+        let simulated = if undecided {
+            let refs: Vec<&DMatrix<f64>> = idx.iter().flat_map(|&i| members[i].0).collect();
+            let stream = if f == 0 { seed } else { seed ^ 0x0D1E_5EED };
+            family_p(n, &refs, &min_ps, sims * present, stream)
+        } else {
+            min_ps.clone()
+        };
+        for ((&i, p), sim) in idx.iter().zip(&min_ps).zip(&simulated) {
+            out[i] = (present as f64 * family_p_at(*p, total, share, || *sim)).min(1.0);
+        }
+    }
+    (out, present)
+}
+
 /// The family-wise p of one candidate's smallest p (`min_p`) among `total` bases of the
 /// step: its own p when above the level, its Bonferroni bound when that is at the level,
 /// else `simulate()` (the simulated null of the step's smallest p).
 fn family_p_of(min_p: f64, total: usize, simulate: impl FnOnce() -> f64) -> f64 {
+    family_p_at(min_p, total, GLS_FAMILY_LEVEL, simulate)
+}
+
+/// [`family_p_of`] at the level `level` (a family's share of the route's level).
+fn family_p_at(min_p: f64, total: usize, level: f64, simulate: impl FnOnce() -> f64) -> f64 {
     let bonferroni = (min_p * total as f64).min(1.0);
-    if min_p > GLS_FAMILY_LEVEL {
+    if min_p > level {
         min_p
-    } else if bonferroni <= GLS_FAMILY_LEVEL {
+    } else if bonferroni <= level {
         bonferroni
     } else {
         simulate()
@@ -748,7 +807,7 @@ impl GlsStep {
                         levels: (own.white_var, own.flicker_var),
                         heldout,
                         own_levels: true,
-                        split_over: None,
+                        split: LevelSplit::None,
                     };
                     Some((g.effect, v))
                 })
@@ -782,23 +841,23 @@ impl GlsStep {
                         levels,
                         heldout,
                         own_levels: false,
-                        split_over: Some(candidates),
+                        split: LevelSplit::Candidates(candidates),
                     };
                     (g.effect, v)
                 })
                 .collect()
         } else {
-            // One simulation covers every candidate whose bounds do not decide it.
-            let min_ps: Vec<f64> = tests.iter().map(|t| t.min_p).collect();
-            let undecided = min_ps
+            let members: Vec<(&[DMatrix<f64>], f64, bool)> = open
                 .iter()
-                .any(|p| *p <= GLS_FAMILY_LEVEL && (p * total as f64).min(1.0) > GLS_FAMILY_LEVEL);
-            let simulated = if undecided {
-                let refs: Vec<&DMatrix<f64>> = tests.iter().flat_map(|t| &t.bases).collect();
-                family_p(tester.n(), &refs, &min_ps, GLS_SIMULATIONS, seed)
-            } else {
-                min_ps.clone()
-            };
+                .zip(&tests)
+                .map(|(g, t)| {
+                    let family = options.noise_model_orientation_families && g.effect.orientation_dependent();
+                    (t.bases.as_slice(), t.min_p, family)
+                })
+                .collect();
+            let (simulated, present) =
+                shared_family_ps(tester.n(), &members, GLS_FAMILY_LEVEL, GLS_SIMULATIONS, seed);
+            let split = if present > 1 { LevelSplit::OrientationFamilies } else { LevelSplit::None };
             let without = options
                 .noise_model_heldout
                 .then(|| heldout_gls(&fit, &base.per_run, ys, base.penalty.as_ref()))
@@ -806,17 +865,16 @@ impl GlsStep {
             open.iter()
                 .zip(&tests)
                 .zip(&simulated)
-                .map(|((g, t), sim)| {
-                    let family_p = family_p_of(t.min_p, total, || *sim);
+                .map(|((g, t), family_p)| {
                     let heldout =
                         without.as_ref().and_then(|w| heldout_claim(&fit, base, ys, g, t.best, w.sse));
                     let v = GlsVerdict {
                         min_p: t.min_p,
-                        family_p,
+                        family_p: *family_p,
                         levels,
                         heldout,
                         own_levels: false,
-                        split_over: None,
+                        split,
                     };
                     (g.effect, v)
                 })
@@ -835,9 +893,13 @@ fn gls_note(v: Option<GlsVerdict>) -> String {
         format!(
             "family-wise p {}{}, {GLS_FAMILY_LEVEL} needed; smallest Wald p over the grid {:.2e}; noise{}: white {:.2e} (deg/h)^2 per s, bias-instability decade {:.2e} (deg/h)^2{}",
             if v.family_p.is_nan() { "not simulated".to_string() } else { format!("{:.4}", v.family_p) },
-            v.split_over.map_or_else(String::new, |m| format!(
-                " ({m} x the candidate's own p over its grid: the level split over {m} open candidates)"
-            )),
+            match v.split {
+                LevelSplit::None => String::new(),
+                LevelSplit::Candidates(m) => format!(
+                    " ({m} x the candidate's own p over its grid: the level split over {m} open candidates)"
+                ),
+                LevelSplit::OrientationFamilies => " (2 x its family's p: the level split between the orientation-dependent candidates and the rest)".to_string(),
+            },
             v.min_p,
             if v.own_levels { " (levels with the candidate)" } else { "" },
             v.levels.0,
@@ -873,7 +935,7 @@ mod tests {
             levels: (1e-3, 1e-6),
             heldout,
             own_levels: false,
-            split_over: None,
+            split: LevelSplit::None,
         };
         // Held-out claim in the model's metric: the run-level LORO error and sign do not count.
         assert!(v(0.002, Some((true, true))).accepts(false, false));
@@ -893,6 +955,93 @@ mod tests {
         assert_eq!(family_p_of(0.01, 100, || f64::NAN), 0.01);
         assert!((family_p_of(1e-5, 100, || f64::NAN) - 1e-3).abs() < 1e-15);
         assert_eq!(family_p_of(1e-4, 100, || 0.0042), 0.0042);
+    }
+
+    #[test]
+    fn split_family_p_is_the_candidates_times_the_own_p_within_its_bounds() {
+        // 7 candidates, level 0.002: own p 1e-3 -> 7e-3 (lower bound, above); one point at
+        // 2e-4 -> 1.4e-3 (the bounds meet); 1e-4 over 3 points -> between 7e-4 and 2.1e-3:
+        // 7 x the simulated own p.
+        assert!((split_family_p(1e-3, 3, 7, || f64::NAN) - 7e-3).abs() < 1e-15);
+        assert!((split_family_p(2e-4, 1, 7, || f64::NAN) - 1.4e-3).abs() < 1e-15);
+        assert!((split_family_p(1e-4, 3, 7, || 1.5e-4) - 1.05e-3).abs() < 1e-15);
+        assert_eq!(split_family_p(0.5, 3, 7, || f64::NAN), 1.0);
+    }
+
+    /// Orthonormal columns `cols` of an n x k basis: unit vectors e_j (cos a) + e_{j+1} (sin a)
+    /// spread over the rows, so that neighbouring grid points share a direction.
+    fn grid_bases(n: usize, first_row: usize, points: usize, angle: f64) -> Vec<DMatrix<f64>> {
+        (0..points)
+            .map(|k| {
+                let mut q = DMatrix::zeros(n, 1);
+                q[(first_row, 0)] = (angle * k as f64).cos();
+                q[(first_row + 1, 0)] = (angle * k as f64).sin();
+                q
+            })
+            .collect()
+    }
+
+    fn smallest_p(bases: &[DMatrix<f64>], z: &nalgebra::DVector<f64>) -> f64 {
+        use crate::noise_model::chi2_sf;
+        bases.iter().map(|q| chi2_sf((q.transpose() * z).norm_squared(), q.ncols())).fold(1.0, f64::min)
+    }
+
+    #[test]
+    fn shared_family_ps_with_one_family_are_the_unsplit_ones_and_with_two_twice_the_own() {
+        // One 1-column candidate per family, orthogonal: the bounds decide, 2 x its p.
+        let n = 20;
+        let a = grid_bases(n, 0, 1, 0.0);
+        let b = grid_bases(n, 4, 1, 0.0);
+        let (two, present) =
+            shared_family_ps(n, &[(a.as_slice(), 1e-4, false), (b.as_slice(), 0.3, true)], 0.002, 4000, 1);
+        assert_eq!(present, 2);
+        assert!((two[0] - 2e-4).abs() < 1e-15 && (two[1] - 0.6).abs() < 1e-15, "{two:?}");
+        // Both in one family: the unsplit route (family_p_of over their 2 bases).
+        let (one, present) =
+            shared_family_ps(n, &[(a.as_slice(), 1e-4, false), (b.as_slice(), 0.3, false)], 0.002, 4000, 1);
+        assert_eq!(present, 1);
+        assert_eq!(one, vec![family_p_of(1e-4, 2, || f64::NAN), 0.3]);
+        // A family whose candidates have no basis is absent: the other keeps the whole level.
+        let none: Vec<DMatrix<f64>> = Vec::new();
+        let (_, present) =
+            shared_family_ps(n, &[(a.as_slice(), 1e-4, false), (none.as_slice(), 1.0, true)], 0.002, 4000, 1);
+        assert_eq!(present, 1);
+    }
+
+    #[test]
+    fn shared_family_ps_hold_the_family_wise_level_under_the_null() {
+        // Null data z ~ N(0, I_30) (fixed seeds), three candidates: a 1-column one and a
+        // 2-point grid (60 degrees apart) in the orientation family, a 6-point grid (20
+        // degrees apart) in the other. Level 0.05 (so that 1000 datasets resolve it), 1000
+        // draws per simulation. Bonferroni over the two families holds the level: share of
+        // datasets with any family-wise p <= 0.05 at most 0.05 + 3.5 binomial SD (0.0069),
+        // and each family's share near its half, 0.025 (3.5 SD: 0.017).
+        let n = 30;
+        let one = grid_bases(n, 0, 1, 0.0);
+        let two = grid_bases(n, 2, 2, std::f64::consts::FRAC_PI_3);
+        let six = grid_bases(n, 6, 6, std::f64::consts::PI / 9.0);
+        let datasets = 1000;
+        let (mut any, mut orientation, mut rest) = (0, 0, 0);
+        for d in 0..datasets {
+            let z = nalgebra::DVector::from_vec(normals(5000 + d as u64, n));
+            let members = [
+                (one.as_slice(), smallest_p(&one, &z), true),
+                (two.as_slice(), smallest_p(&two, &z), true),
+                (six.as_slice(), smallest_p(&six, &z), false),
+            ];
+            let (ps, present) = shared_family_ps(n, &members, 0.05, 1000, 77 + d as u64);
+            assert_eq!(present, 2);
+            let hit_o = ps[0] <= 0.05 || ps[1] <= 0.05;
+            let hit_r = ps[2] <= 0.05;
+            any += usize::from(hit_o || hit_r);
+            orientation += usize::from(hit_o);
+            rest += usize::from(hit_r);
+        }
+        let share = |k: usize| k as f64 / datasets as f64;
+        eprintln!("null shares: any {}, orientation {}, rest {}", share(any), share(orientation), share(rest));
+        assert!(share(any) <= 0.05 + 3.5 * 0.0069, "any {}", share(any));
+        assert!((share(orientation) - 0.025).abs() <= 0.017, "orientation {}", share(orientation));
+        assert!((share(rest) - 0.025).abs() <= 0.017, "rest {}", share(rest));
     }
 
     #[test]
