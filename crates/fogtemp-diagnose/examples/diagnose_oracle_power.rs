@@ -879,7 +879,12 @@ fn main() {
                 if std::env::var_os("ORACLE_PER_SEED").is_some() {
                     for (i, ((a, sd, _), g)) in x1.iter().zip(&gls_x1).enumerate() {
                         let seed = first + i as u64;
-                        println!("per-seed {} {seed}: plug-in z {:.3} exact z {:.3}", ds.label, a / sd, g.0 / g.1);
+                        println!(
+                            "per-seed {} {seed}: plug-in z {:.3} exact z {:.3}",
+                            ds.label,
+                            a / sd,
+                            g.0 / g.1
+                        );
                     }
                 }
                 PlugRow {

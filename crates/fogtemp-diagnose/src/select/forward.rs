@@ -1038,7 +1038,12 @@ mod tests {
             rest += usize::from(hit_r);
         }
         let share = |k: usize| k as f64 / datasets as f64;
-        eprintln!("null shares: any {}, orientation {}, rest {}", share(any), share(orientation), share(rest));
+        eprintln!(
+            "null shares: any {}, orientation {}, rest {}",
+            share(any),
+            share(orientation),
+            share(rest)
+        );
         assert!(share(any) <= 0.05 + 3.5 * 0.0069, "any {}", share(any));
         assert!((share(orientation) - 0.025).abs() <= 0.017, "orientation {}", share(orientation));
         assert!((share(rest) - 0.025).abs() <= 0.017, "rest {}", share(rest));
