@@ -141,14 +141,16 @@ pub struct DiagnoseOptions {
     /// over its own grid (simulated), instead of by the smallest p over every candidate's
     /// grid together: a candidate without a profiled grid (`scale_factor_temperature`,
     /// `orientation_offset`) is then not charged for the other candidates' grid points
-    /// (docs/diagnose.md, eleventh session).
+    /// (docs/diagnose.md, eleventh session). Off by default: it cost hysteresis and
+    /// static_shape a seed or two of 20 (their large grids get one share each).
     pub noise_model_level_per_candidate: bool,
     /// In the noise-model route, when both are open, split the family-wise level in two
     /// equal shares: one for the candidates that depend on the run's orientation
     /// (`scale_factor_temperature`, `orientation_offset`: they test the contrast between
     /// positions) and one for the rest (functions of temperature and time since power-on),
-    /// each family judged by the smallest p over its own candidates' grids
-    /// (docs/diagnose.md, eleventh session).
+    /// each family judged by the smallest p over its own candidates' grids. On by default:
+    /// it named the scale factor in one more seed of 20 and changed no other measured count
+    /// or verdict (docs/diagnose.md, eleventh session).
     pub noise_model_orientation_families: bool,
 }
 
