@@ -152,6 +152,11 @@ pub struct DiagnoseOptions {
     /// it named the scale factor in one more seed of 20 and changed no other measured count
     /// or verdict (docs/diagnose.md, eleventh session).
     pub noise_model_orientation_families: bool,
+    /// With that split: the orientation family's noise levels fitted by REML with its
+    /// candidates' whole grid span (every grid point's columns; fixed before the data are
+    /// seen, so the null stays exact) in the model, as the oracle's plug-in GLS does with the
+    /// exact shape (docs/diagnose.md, eleventh session).
+    pub noise_model_family_levels: bool,
 }
 
 impl Default for DiagnoseOptions {
@@ -177,6 +182,7 @@ impl Default for DiagnoseOptions {
             encompassing_tie_break: true,
             noise_model_level_per_candidate: false,
             noise_model_orientation_families: true,
+            noise_model_family_levels: false,
         }
     }
 }

@@ -452,6 +452,29 @@ impl<'a> GlsTester<'a> {
     }
 }
 
+/// Columns (per run) that span what `extra` adds to `base` (per run, the same columns in
+/// every run; coefficients shared across runs): the stacked columns of `extra` made
+/// orthonormal after `base`'s, dropping those without a new direction, split back by run.
+/// `None` when the shapes do not match.
+pub fn independent_extension(base: &[DMatrix<f64>], extra: &[DMatrix<f64>]) -> Option<Vec<DMatrix<f64>>> {
+    if base.len() != extra.len() || base.iter().zip(extra).any(|(b, e)| b.nrows() != e.nrows()) {
+        return None;
+    }
+    let identity: Vec<DMatrix<f64>> = base.iter().map(|b| DMatrix::identity(b.nrows(), b.nrows())).collect();
+    let b = orthonormal(&stack(&identity, base)?, None);
+    let q = orthonormal(&stack(&identity, extra)?, Some(&b));
+    let mut at = 0;
+    Some(
+        base.iter()
+            .map(|r| {
+                let part = q.rows(at, r.nrows()).into_owned();
+                at += r.nrows();
+                part
+            })
+            .collect(),
+    )
+}
+
 /// Upper tail of chi-square with `dof` degrees of freedom (1 with none).
 pub fn chi2_sf(x: f64, dof: usize) -> f64 {
     if dof == 0 {

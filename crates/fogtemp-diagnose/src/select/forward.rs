@@ -676,6 +676,46 @@ fn family_p_at(min_p: f64, total: usize, level: f64, simulate: impl FnOnce() -> 
     }
 }
 
+/// Noise levels by REML with the current model plus the whole span of `family`'s grids
+/// (every grid point's columns, reduced to independent directions) in place; `None` when
+/// that design is singular or the model fails its innovation check.
+fn family_span_fit(
+    basis: &crate::noise_model::NoiseBasis,
+    base: &Design,
+    ys: &[Vec<f64>],
+    family: &[&EffectGrid],
+) -> Option<crate::noise_model::NoiseFit> {
+    let runs = base.per_run.len();
+    let extra: Vec<DMatrix<f64>> = (0..runs)
+        .map(|r| {
+            let cols: Vec<&DMatrix<f64>> =
+                family.iter().flat_map(|g| g.points.iter().filter_map(move |pt| pt.per_run.get(r))).collect();
+            let width: usize = cols.iter().map(|c| c.ncols()).sum();
+            let mut m = DMatrix::zeros(base.per_run[r].nrows(), width);
+            let mut at = 0;
+            for c in cols {
+                m.columns_mut(at, c.ncols()).copy_from(c);
+                at += c.ncols();
+            }
+            m
+        })
+        .collect();
+    let span = crate::noise_model::independent_extension(&base.per_run, &extra)?;
+    let with: Vec<DMatrix<f64>> = base
+        .per_run
+        .iter()
+        .zip(&span)
+        .map(|(b, e)| {
+            let mut m = DMatrix::zeros(b.nrows(), b.ncols() + e.ncols());
+            m.columns_mut(0, b.ncols()).copy_from(b);
+            m.columns_mut(b.ncols(), e.ncols()).copy_from(e);
+            m
+        })
+        .collect();
+    let fit = crate::noise_model::fit_noise(basis, &with, ys)?;
+    fit.check.passed.then_some(fit)
+}
+
 /// Simulated null draws of one candidate's own smallest p over its grid when the level is
 /// split over the candidates: its share of the level (0.002 / 7 = 2.9e-4 for 7 open
 /// candidates) is then resolved by about 11 draws.
@@ -847,33 +887,58 @@ impl GlsStep {
                 })
                 .collect()
         } else {
+            let in_family = |e: Effect| options.noise_model_orientation_families && e.orientation_dependent();
+            // The orientation family's own levels: REML with its candidates' whole grid span
+            // in the model (a choice that does not depend on the data), when both families
+            // are open and that model passes its check; else the current model's.
+            let both_open = [false, true].iter().all(|f| {
+                open.iter().zip(&tests).any(|(g, t)| in_family(g.effect) == *f && !t.bases.is_empty())
+            });
+            let family_fit = (options.noise_model_family_levels && both_open)
+                .then(|| {
+                    let family: Vec<&EffectGrid> = open.iter().copied().filter(|g| in_family(g.effect)).collect();
+                    family_span_fit(basis, base, ys, &family)
+                })
+                .flatten();
+            let family_tester = family_fit.as_ref().and_then(|f| GlsTester::new(f, &base.per_run, ys));
+            let family_tests: Vec<Option<GridTest>> = open
+                .par_iter()
+                .map(|g| match &family_tester {
+                    Some(ft) if in_family(g.effect) => Some(grid_test(ft, g)),
+                    _ => None,
+                })
+                .collect();
+            let chosen: Vec<&GridTest> =
+                tests.iter().zip(&family_tests).map(|(t, ft)| ft.as_ref().unwrap_or(t)).collect();
             let members: Vec<(&[DMatrix<f64>], f64, bool)> = open
                 .iter()
-                .zip(&tests)
-                .map(|(g, t)| {
-                    let family = options.noise_model_orientation_families && g.effect.orientation_dependent();
-                    (t.bases.as_slice(), t.min_p, family)
-                })
+                .zip(&chosen)
+                .map(|(g, t)| (t.bases.as_slice(), t.min_p, in_family(g.effect)))
                 .collect();
             let (simulated, present) =
                 shared_family_ps(tester.n(), &members, GLS_FAMILY_LEVEL, GLS_SIMULATIONS, seed);
             let split = if present > 1 { LevelSplit::OrientationFamilies } else { LevelSplit::None };
-            let without = options
-                .noise_model_heldout
-                .then(|| heldout_gls(&fit, &base.per_run, ys, base.penalty.as_ref()))
-                .flatten();
+            let heldout_of = |f: &crate::noise_model::NoiseFit| {
+                options.noise_model_heldout.then(|| heldout_gls(f, &base.per_run, ys, base.penalty.as_ref())).flatten()
+            };
+            let without = heldout_of(&fit);
+            let family_without = family_fit.as_ref().and_then(|f| heldout_of(f));
             open.iter()
-                .zip(&tests)
+                .zip(&chosen)
+                .zip(&family_tests)
                 .zip(&simulated)
-                .map(|((g, t), family_p)| {
-                    let heldout =
-                        without.as_ref().and_then(|w| heldout_claim(&fit, base, ys, g, t.best, w.sse));
+                .map(|(((g, t), ft), family_p)| {
+                    let (f, w) = match (ft, &family_fit) {
+                        (Some(_), Some(ff)) => (ff, family_without.as_ref()),
+                        _ => (&fit, without.as_ref()),
+                    };
+                    let heldout = w.and_then(|w| heldout_claim(f, base, ys, g, t.best, w.sse));
                     let v = GlsVerdict {
                         min_p: t.min_p,
                         family_p: *family_p,
-                        levels,
+                        levels: (f.white_var, f.flicker_var),
                         heldout,
-                        own_levels: false,
+                        own_levels: ft.is_some(),
                         split,
                     };
                     (g.effect, v)
