@@ -75,7 +75,7 @@ fn main() {
         encompassing_tie_break: !args.iter().any(|a| a == "--no-encompassing"),
         noise_model_level_per_candidate: args.iter().any(|a| a == "--level-per-candidate"),
         noise_model_orientation_families: !args.iter().any(|a| a == "--no-orientation-families"),
-        noise_model_family_levels: args.iter().any(|a| a == "--family-levels"),
+        noise_model_family_levels: !args.iter().any(|a| a == "--no-family-levels"),
         ..DiagnoseOptions::default()
     };
     let positional: Vec<&String> = args.iter().filter(|a| !a.starts_with('-')).collect();

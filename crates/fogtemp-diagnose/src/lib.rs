@@ -182,7 +182,7 @@ impl Default for DiagnoseOptions {
             encompassing_tie_break: true,
             noise_model_level_per_candidate: false,
             noise_model_orientation_families: true,
-            noise_model_family_levels: false,
+            noise_model_family_levels: true,
         }
     }
 }
