@@ -896,7 +896,8 @@ impl GlsStep {
             });
             let family_fit = (options.noise_model_family_levels && both_open)
                 .then(|| {
-                    let family: Vec<&EffectGrid> = open.iter().copied().filter(|g| in_family(g.effect)).collect();
+                    let family: Vec<&EffectGrid> =
+                        open.iter().copied().filter(|g| in_family(g.effect)).collect();
                     family_span_fit(basis, base, ys, &family)
                 })
                 .flatten();
@@ -919,10 +920,13 @@ impl GlsStep {
                 shared_family_ps(tester.n(), &members, GLS_FAMILY_LEVEL, GLS_SIMULATIONS, seed);
             let split = if present > 1 { LevelSplit::OrientationFamilies } else { LevelSplit::None };
             let heldout_of = |f: &crate::noise_model::NoiseFit| {
-                options.noise_model_heldout.then(|| heldout_gls(f, &base.per_run, ys, base.penalty.as_ref())).flatten()
+                options
+                    .noise_model_heldout
+                    .then(|| heldout_gls(f, &base.per_run, ys, base.penalty.as_ref()))
+                    .flatten()
             };
             let without = heldout_of(&fit);
-            let family_without = family_fit.as_ref().and_then(|f| heldout_of(f));
+            let family_without = family_fit.as_ref().and_then(heldout_of);
             open.iter()
                 .zip(&chosen)
                 .zip(&family_tests)
