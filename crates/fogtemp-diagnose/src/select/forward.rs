@@ -970,7 +970,11 @@ fn gls_note(v: Option<GlsVerdict>) -> String {
                 LevelSplit::OrientationFamilies => " (2 x its family's p: the level split between the orientation-dependent candidates and the rest)".to_string(),
             },
             v.min_p,
-            if v.own_levels { " (levels with the candidate)" } else { "" },
+            match (v.own_levels, v.split) {
+                (false, _) => "",
+                (true, LevelSplit::OrientationFamilies) => " (levels with the family's grid span)",
+                (true, _) => " (levels with the candidate)",
+            },
             v.levels.0,
             v.levels.1,
             match v.heldout {
