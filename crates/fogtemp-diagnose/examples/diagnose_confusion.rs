@@ -9,7 +9,9 @@
 //! it was made with). SCALE multiplies every injected size (`concealed::datasets_at`).
 //! `-v` anywhere prints each diagnosis's candidate table; `--candidate-levels` turns on and
 //! `--no-gls-heldout` turns off the ninth session's two options, `--no-encompassing` the
-//! tenth session's tie-break (docs/diagnose.md).
+//! tenth session's tie-break, `--level-per-candidate` turns on and `--no-orientation-families` off the
+//! eleventh session's two splits of the noise-model route's family-wise level, `--family-levels`
+//! turns on its orientation family's own levels (docs/diagnose.md).
 
 use std::collections::BTreeMap;
 use std::time::Instant;
@@ -72,6 +74,9 @@ fn main() {
         noise_model_candidate_levels: args.iter().any(|a| a == "--candidate-levels"),
         noise_model_heldout: !args.iter().any(|a| a == "--no-gls-heldout"),
         encompassing_tie_break: !args.iter().any(|a| a == "--no-encompassing"),
+        noise_model_level_per_candidate: args.iter().any(|a| a == "--level-per-candidate"),
+        noise_model_orientation_families: !args.iter().any(|a| a == "--no-orientation-families"),
+        noise_model_family_levels: args.iter().any(|a| a == "--family-levels"),
         ..DiagnoseOptions::default()
     };
     let positional: Vec<&String> = args.iter().filter(|a| !a.starts_with('-')).collect();

@@ -30,7 +30,8 @@
 //! `cargo run --release -p fogtemp-diagnose --example diagnose_oracle_power -- [SEEDS] [FIRST_SEED] [NULL_SEEDS] [NULL_FIRST] [REPS] [LABEL...]`
 //! (defaults 20 5000 100 7000 1, every design with an injected effect). `REPS` > 1 repeats
 //! every run of a design that many times (new names, so independent noise): the design with
-//! more runs.
+//! more runs. With the environment variable `ORACLE_PER_SEED` set, each design's plug-in and
+//! exact GLS z per seed at x1 are printed too (`per-seed LABEL SEED: ...`).
 
 use std::collections::HashMap;
 use std::time::Instant;
@@ -875,6 +876,17 @@ fn main() {
                 let null: Vec<PlugInFit> = null_cases.iter().filter_map(|c| pl.fit(c, 0.0)).collect();
                 let count = |v: &[PlugInFit], z: f64| v.iter().filter(|(a, sd, _)| a / sd >= z).count();
                 let amps: Vec<f64> = x1.iter().map(|(a, _, _)| *a).collect();
+                if std::env::var_os("ORACLE_PER_SEED").is_some() {
+                    for (i, ((a, sd, _), g)) in x1.iter().zip(&gls_x1).enumerate() {
+                        let seed = first + i as u64;
+                        println!(
+                            "per-seed {} {seed}: plug-in z {:.3} exact z {:.3}",
+                            ds.label,
+                            a / sd,
+                            g.0 / g.1
+                        );
+                    }
+                }
                 PlugRow {
                     fw: count(&x1, z_fw),
                     plain: count(&x1, z_5),

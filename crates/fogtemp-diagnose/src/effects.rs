@@ -104,6 +104,13 @@ impl Effect {
         matches!(self, Effect::ThermalLag)
     }
 
+    /// Whether the term depends on the run's orientation (its position or input rate): in
+    /// runs at two orientations it is tested by the contrast between them, the other terms
+    /// (functions of temperature and time since power-on) by what the runs share.
+    pub fn orientation_dependent(self) -> bool {
+        matches!(self, Effect::ScaleFactorTemperature | Effect::OrientationOffset)
+    }
+
     /// The experiment that separates this effect from what it is confused with
     /// (docs/physics.md section 4).
     pub fn experiment(self) -> &'static str {

@@ -452,6 +452,29 @@ impl<'a> GlsTester<'a> {
     }
 }
 
+/// Columns (per run) that span what `extra` adds to `base` (per run, the same columns in
+/// every run; coefficients shared across runs): the stacked columns of `extra` made
+/// orthonormal after `base`'s, dropping those without a new direction, split back by run.
+/// `None` when the shapes do not match.
+pub fn independent_extension(base: &[DMatrix<f64>], extra: &[DMatrix<f64>]) -> Option<Vec<DMatrix<f64>>> {
+    if base.len() != extra.len() || base.iter().zip(extra).any(|(b, e)| b.nrows() != e.nrows()) {
+        return None;
+    }
+    let identity: Vec<DMatrix<f64>> = base.iter().map(|b| DMatrix::identity(b.nrows(), b.nrows())).collect();
+    let b = orthonormal(&stack(&identity, base)?, None);
+    let q = orthonormal(&stack(&identity, extra)?, Some(&b));
+    let mut at = 0;
+    Some(
+        base.iter()
+            .map(|r| {
+                let part = q.rows(at, r.nrows()).into_owned();
+                at += r.nrows();
+                part
+            })
+            .collect(),
+    )
+}
+
 /// Upper tail of chi-square with `dof` degrees of freedom (1 with none).
 pub fn chi2_sf(x: f64, dof: usize) -> f64 {
     if dof == 0 {
@@ -815,6 +838,100 @@ mod tests {
         assert!((got.sse - sse).abs() <= 1e-8 * sse, "{} vs {sse}", got.sse);
         let full = normal(None);
         assert!((&got.beta - &full).norm() <= 1e-8 * full.norm(), "{} vs {full}", got.beta);
+    }
+
+    #[test]
+    fn independent_extension_spans_what_the_extra_columns_add() {
+        // 3 runs x 5 short means, base = an intercept; extra = [a, 2a + 1 (no new direction
+        // beyond a and the base), b]: two columns come back, orthonormal when stacked,
+        // orthogonal to the base, and a and b lie in the span of base and them (1e-12).
+        let (runs, blocks) = (3, 5);
+        let base = intercepts(runs, blocks);
+        let a = |r: usize, i: usize| ((i + 2 * r) as f64).sin();
+        let b = |r: usize, i: usize| if r == 1 { (i * i) as f64 } else { 0.0 };
+        let extra: Vec<DMatrix<f64>> = (0..runs)
+            .map(|r| {
+                DMatrix::from_fn(blocks, 3, |i, j| match j {
+                    0 => a(r, i),
+                    1 => 2.0 * a(r, i) + 1.0,
+                    _ => b(r, i),
+                })
+            })
+            .collect();
+        let q = independent_extension(&base, &extra).expect("shapes");
+        assert!(q.iter().all(|m| m.ncols() == 2 && m.nrows() == blocks));
+        let identity: Vec<DMatrix<f64>> = (0..runs).map(|_| DMatrix::identity(blocks, blocks)).collect();
+        let qs = stack(&identity, &q).expect("stack");
+        let gram = qs.transpose() * &qs;
+        assert!((gram - DMatrix::identity(2, 2)).amax() < 1e-12);
+        let ones = stack(&identity, &base).expect("stack");
+        assert!((ones.transpose() * &qs).amax() < 1e-12);
+        let mut span = DMatrix::zeros(runs * blocks, 3);
+        span.column_mut(0).copy_from(&ones.column(0));
+        span.columns_mut(1, 2).copy_from(&qs);
+        let (u, _) = (span.clone().qr().q(), ());
+        let xs = stack(&identity, &extra).expect("stack");
+        let left = &xs - &u * (u.transpose() * &xs);
+        assert!(left.amax() < 1e-12 * xs.amax(), "{}", left.amax());
+        // Mismatched shapes: None.
+        assert!(independent_extension(&base, &extra[..2]).is_none());
+    }
+
+    #[test]
+    fn an_orientation_candidates_wald_p_is_nominal_at_the_current_levels_not_at_its_spans() {
+        // The orientation family's shape: 8 runs in two positions (4 each), null data from
+        // the model (1000 fixed seeds); the family's grid = a per-position constant, a ramp of
+        // opposite sign by position with a per-run offset (the scale factor's degree 1) and
+        // that ramp with its square (degree 2). The degree-1 column's Wald p:
+        // - at the current model's levels (REML with the intercept only: the route's default)
+        //   its share at 0.05 and 0.01 is within 3.5 binomial SD (0.024, 0.011) of nominal;
+        // - at levels fitted with the family's whole span in the model
+        //   (`DiagnoseOptions::noise_model_family_levels`) it is heavier-tailed than
+        //   chi-square(1): the variance is then estimated from what the column does not
+        //   touch, few per-run degrees of freedom of the flicker, an F-like statistic. Its
+        //   share at 0.01 is more than 3.5 SD above nominal; that is why the option is off.
+        let (runs, blocks, draws) = (8, 90, 1000);
+        let sp = vec![spans(blocks, 20); runs];
+        let basis = NoiseBasis::new(&sp).expect("basis");
+        let base = intercepts(runs, blocks);
+        let sign = |r: usize| if r < 4 { 1.0 } else { -1.0 };
+        let ramp = |r: usize, i: usize| sign(r) * ((i as f64 / blocks as f64) + r as f64 % 4.0 - 1.5);
+        let family: Vec<DMatrix<f64>> = (0..runs)
+            .map(|r| {
+                DMatrix::from_fn(blocks, 4, |i, j| match j {
+                    0 => f64::from(u8::from(r >= 4)),
+                    1 | 2 => ramp(r, i),
+                    _ => sign(r) * ramp(r, i).powi(2),
+                })
+            })
+            .collect();
+        let span = independent_extension(&base, &family).expect("span");
+        assert!(span.iter().all(|m| m.ncols() == 3), "three directions beyond the intercept");
+        let with: Vec<DMatrix<f64>> = base
+            .iter()
+            .zip(&span)
+            .map(|(b, e)| DMatrix::from_fn(blocks, 4, |i, j| if j == 0 { b[(i, 0)] } else { e[(i, j - 1)] }))
+            .collect();
+        let degree_one: Vec<DMatrix<f64>> = family.iter().map(|m| m.columns(1, 1).into_owned()).collect();
+        let shares = |levels_design: &[DMatrix<f64>]| -> (f64, f64) {
+            let ps: Vec<f64> = (0..draws)
+                .into_par_iter()
+                .map(|d| {
+                    let y = simulate(runs, blocks, 9e-4, 2e-6, 0.0, 3000 + d as u64);
+                    let fit = fit_noise(&basis, levels_design, &y).expect("fit");
+                    let tester = GlsTester::new(&fit, &base, &y).expect("tester");
+                    tester.wald(&tester.candidate_basis(&degree_one).expect("basis")).1
+                })
+                .collect();
+            let share = |level: f64| ps.iter().filter(|p| **p <= level).count() as f64 / draws as f64;
+            (share(0.05), share(0.01))
+        };
+        let (current_05, current_01) = shares(&base);
+        let (span_05, span_01) = shares(&with);
+        eprintln!("current levels: {current_05} {current_01}; family-span levels: {span_05} {span_01}");
+        assert!((current_05 - 0.05).abs() <= 0.024, "current levels: {current_05} at 0.05");
+        assert!((current_01 - 0.01).abs() <= 0.011, "current levels: {current_01} at 0.01");
+        assert!(span_01 > 0.01 + 0.011, "family-span levels: {span_01} at 0.01");
     }
 
     #[test]

@@ -556,6 +556,22 @@ pub(super) struct GlsVerdict {
     pub(super) heldout: Option<(bool, bool)>,
     /// Whether the levels were fitted with the candidate in the model.
     pub(super) own_levels: bool,
+    /// How the family-wise level was shared at this step.
+    pub(super) split: LevelSplit,
+}
+
+/// How the noise-model route's family-wise level is shared among the open candidates.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum LevelSplit {
+    /// One family: the smallest p over every candidate's grid.
+    None,
+    /// [`DiagnoseOptions::noise_model_level_per_candidate`]: evenly over this many open
+    /// candidates (the family-wise p is that many times the candidate's own p over its grid).
+    Candidates(usize),
+    /// [`DiagnoseOptions::noise_model_orientation_families`]: half the level to the
+    /// orientation-dependent candidates, half to the rest, each family's smallest p over
+    /// its own grids (the family-wise p is twice the family's own).
+    OrientationFamilies,
 }
 
 impl GlsVerdict {
@@ -599,17 +615,126 @@ fn grid_test(tester: &crate::noise_model::GlsTester<'_>, grid: &EffectGrid) -> G
     GridTest { bases, min_p, best }
 }
 
+/// Family-wise p's of candidates `(whitened grid bases, smallest p, family)` at `level`,
+/// and how many families are present. One family (all `false`, or all `true`): the
+/// smallest p over every basis, by `sims` simulated draws where the bounds do not decide
+/// ([`family_p_at`]). Two families (some of each with a basis): each gets half the level
+/// and judges its candidates by the smallest p over its own bases, by twice the draws so
+/// that its share is resolved as the whole level is; the family-wise p is twice the
+/// family's own (Bonferroni over the two families). A family's stream is `seed` for the
+/// first (`false`) family, so that with one family the result is the unsplit route's.
+pub(super) fn shared_family_ps(
+    n: usize,
+    members: &[(&[DMatrix<f64>], f64, bool)],
+    level: f64,
+    sims: usize,
+    seed: u64,
+) -> (Vec<f64>, usize) {
+    use crate::noise_model::family_p;
+    let present = [false, true]
+        .iter()
+        .filter(|f| members.iter().any(|(b, _, fam)| fam == *f && !b.is_empty()))
+        .count()
+        .max(1);
+    let share = level / present as f64;
+    let mut out = vec![f64::NAN; members.len()];
+    for (f, fam) in [false, true].into_iter().enumerate() {
+        let idx: Vec<usize> = (0..members.len()).filter(|&i| members[i].2 == fam).collect();
+        let total: usize = idx.iter().map(|&i| members[i].0.len()).sum();
+        let min_ps: Vec<f64> = idx.iter().map(|&i| members[i].1).collect();
+        let undecided = min_ps.iter().any(|p| *p <= share && (p * total as f64).min(1.0) > share);
+        let simulated = if undecided {
+            let refs: Vec<&DMatrix<f64>> = idx.iter().flat_map(|&i| members[i].0).collect();
+            let stream = if f == 0 { seed } else { seed ^ 0x0D1E_5EED };
+            family_p(n, &refs, &min_ps, sims * present, stream)
+        } else {
+            min_ps.clone()
+        };
+        for ((&i, p), sim) in idx.iter().zip(&min_ps).zip(&simulated) {
+            out[i] = (present as f64 * family_p_at(*p, total, share, || *sim)).min(1.0);
+        }
+    }
+    (out, present)
+}
+
 /// The family-wise p of one candidate's smallest p (`min_p`) among `total` bases of the
 /// step: its own p when above the level, its Bonferroni bound when that is at the level,
 /// else `simulate()` (the simulated null of the step's smallest p).
 fn family_p_of(min_p: f64, total: usize, simulate: impl FnOnce() -> f64) -> f64 {
+    family_p_at(min_p, total, GLS_FAMILY_LEVEL, simulate)
+}
+
+/// [`family_p_of`] at the level `level` (a family's share of the route's level).
+fn family_p_at(min_p: f64, total: usize, level: f64, simulate: impl FnOnce() -> f64) -> f64 {
     let bonferroni = (min_p * total as f64).min(1.0);
-    if min_p > GLS_FAMILY_LEVEL {
+    if min_p > level {
         min_p
-    } else if bonferroni <= GLS_FAMILY_LEVEL {
+    } else if bonferroni <= level {
         bonferroni
     } else {
         simulate()
+    }
+}
+
+/// Noise levels by REML with the current model plus the whole span of `family`'s grids
+/// (every grid point's columns, reduced to independent directions) in place; `None` when
+/// that design is singular or the model fails its innovation check.
+fn family_span_fit(
+    basis: &crate::noise_model::NoiseBasis,
+    base: &Design,
+    ys: &[Vec<f64>],
+    family: &[&EffectGrid],
+) -> Option<crate::noise_model::NoiseFit> {
+    let runs = base.per_run.len();
+    let extra: Vec<DMatrix<f64>> = (0..runs)
+        .map(|r| {
+            let cols: Vec<&DMatrix<f64>> =
+                family.iter().flat_map(|g| g.points.iter().filter_map(move |pt| pt.per_run.get(r))).collect();
+            let width: usize = cols.iter().map(|c| c.ncols()).sum();
+            let mut m = DMatrix::zeros(base.per_run[r].nrows(), width);
+            let mut at = 0;
+            for c in cols {
+                m.columns_mut(at, c.ncols()).copy_from(c);
+                at += c.ncols();
+            }
+            m
+        })
+        .collect();
+    let span = crate::noise_model::independent_extension(&base.per_run, &extra)?;
+    let with: Vec<DMatrix<f64>> = base
+        .per_run
+        .iter()
+        .zip(&span)
+        .map(|(b, e)| {
+            let mut m = DMatrix::zeros(b.nrows(), b.ncols() + e.ncols());
+            m.columns_mut(0, b.ncols()).copy_from(b);
+            m.columns_mut(b.ncols(), e.ncols()).copy_from(e);
+            m
+        })
+        .collect();
+    let fit = crate::noise_model::fit_noise(basis, &with, ys)?;
+    fit.check.passed.then_some(fit)
+}
+
+/// Simulated null draws of one candidate's own smallest p over its grid when the level is
+/// split over the candidates: its share of the level (0.002 / 7 = 2.9e-4 for 7 open
+/// candidates) is then resolved by about 11 draws.
+pub const GLS_OWN_SIMULATIONS: usize = 40_000;
+
+/// The family-wise p of one candidate's smallest p (`min_p`, over its `points` grid bases)
+/// when the level is split evenly over `candidates` open candidates (Bonferroni over
+/// effects): `candidates` times its own p, which lies between `min_p` (one point) and
+/// `points x min_p` (Bonferroni over its grid). The bounds decide when they can; else
+/// `simulate()` gives the own p (the simulated null of its smallest p over its grid).
+fn split_family_p(min_p: f64, points: usize, candidates: usize, simulate: impl FnOnce() -> f64) -> f64 {
+    let m = candidates.max(1) as f64;
+    let (lower, upper) = (min_p * m, min_p * m * points.max(1) as f64);
+    if lower > GLS_FAMILY_LEVEL {
+        lower.min(1.0)
+    } else if upper <= GLS_FAMILY_LEVEL {
+        upper
+    } else {
+        (m * simulate()).min(1.0)
     }
 }
 
@@ -722,34 +847,105 @@ impl GlsStep {
                         levels: (own.white_var, own.flicker_var),
                         heldout,
                         own_levels: true,
+                        split: LevelSplit::None,
                     };
                     Some((g.effect, v))
                 })
                 .collect()
-        } else {
-            // One simulation covers every candidate whose bounds do not decide it.
-            let min_ps: Vec<f64> = tests.iter().map(|t| t.min_p).collect();
-            let undecided = min_ps
-                .iter()
-                .any(|p| *p <= GLS_FAMILY_LEVEL && (p * total as f64).min(1.0) > GLS_FAMILY_LEVEL);
-            let simulated = if undecided {
-                let refs: Vec<&DMatrix<f64>> = tests.iter().flat_map(|t| &t.bases).collect();
-                family_p(tester.n(), &refs, &min_ps, GLS_SIMULATIONS, seed)
-            } else {
-                min_ps.clone()
-            };
+        } else if options.noise_model_level_per_candidate {
             let without = options
                 .noise_model_heldout
                 .then(|| heldout_gls(&fit, &base.per_run, ys, base.penalty.as_ref()))
                 .flatten();
-            open.iter()
+            let candidates = tests.iter().filter(|t| !t.bases.is_empty()).count();
+            open.par_iter()
                 .zip(&tests)
-                .zip(&simulated)
-                .map(|((g, t), sim)| {
-                    let family_p = family_p_of(t.min_p, total, || *sim);
+                .enumerate()
+                .map(|(i, (g, t))| {
                     let heldout =
                         without.as_ref().and_then(|w| heldout_claim(&fit, base, ys, g, t.best, w.sse));
-                    (g.effect, GlsVerdict { min_p: t.min_p, family_p, levels, heldout, own_levels: false })
+                    // The simulation of the candidate's own grid is needed only when its claim
+                    // holds; else NaN: not simulated.
+                    let claim = heldout.is_none_or(|(falls, sign)| falls && sign);
+                    let family_p = split_family_p(t.min_p, t.bases.len(), candidates, || {
+                        if !claim {
+                            return f64::NAN;
+                        }
+                        let refs: Vec<&DMatrix<f64>> = t.bases.iter().collect();
+                        let stream = seed ^ (i as u64 + 1).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+                        family_p(tester.n(), &refs, &[t.min_p], GLS_OWN_SIMULATIONS, stream)[0]
+                    });
+                    let v = GlsVerdict {
+                        min_p: t.min_p,
+                        family_p,
+                        levels,
+                        heldout,
+                        own_levels: false,
+                        split: LevelSplit::Candidates(candidates),
+                    };
+                    (g.effect, v)
+                })
+                .collect()
+        } else {
+            let in_family = |e: Effect| options.noise_model_orientation_families && e.orientation_dependent();
+            // The orientation family's own levels: REML with its candidates' whole grid span
+            // in the model (a choice that does not depend on the data), when both families
+            // are open and that model passes its check; else the current model's.
+            let both_open = [false, true].iter().all(|f| {
+                open.iter().zip(&tests).any(|(g, t)| in_family(g.effect) == *f && !t.bases.is_empty())
+            });
+            let family_fit = (options.noise_model_family_levels && both_open)
+                .then(|| {
+                    let family: Vec<&EffectGrid> =
+                        open.iter().copied().filter(|g| in_family(g.effect)).collect();
+                    family_span_fit(basis, base, ys, &family)
+                })
+                .flatten();
+            let family_tester = family_fit.as_ref().and_then(|f| GlsTester::new(f, &base.per_run, ys));
+            let family_tests: Vec<Option<GridTest>> = open
+                .par_iter()
+                .map(|g| match &family_tester {
+                    Some(ft) if in_family(g.effect) => Some(grid_test(ft, g)),
+                    _ => None,
+                })
+                .collect();
+            let chosen: Vec<&GridTest> =
+                tests.iter().zip(&family_tests).map(|(t, ft)| ft.as_ref().unwrap_or(t)).collect();
+            let members: Vec<(&[DMatrix<f64>], f64, bool)> = open
+                .iter()
+                .zip(&chosen)
+                .map(|(g, t)| (t.bases.as_slice(), t.min_p, in_family(g.effect)))
+                .collect();
+            let (simulated, present) =
+                shared_family_ps(tester.n(), &members, GLS_FAMILY_LEVEL, GLS_SIMULATIONS, seed);
+            let split = if present > 1 { LevelSplit::OrientationFamilies } else { LevelSplit::None };
+            let heldout_of = |f: &crate::noise_model::NoiseFit| {
+                options
+                    .noise_model_heldout
+                    .then(|| heldout_gls(f, &base.per_run, ys, base.penalty.as_ref()))
+                    .flatten()
+            };
+            let without = heldout_of(&fit);
+            let family_without = family_fit.as_ref().and_then(heldout_of);
+            open.iter()
+                .zip(&chosen)
+                .zip(&family_tests)
+                .zip(&simulated)
+                .map(|(((g, t), ft), family_p)| {
+                    let (f, w) = match (ft, &family_fit) {
+                        (Some(_), Some(ff)) => (ff, family_without.as_ref()),
+                        _ => (&fit, without.as_ref()),
+                    };
+                    let heldout = w.and_then(|w| heldout_claim(f, base, ys, g, t.best, w.sse));
+                    let v = GlsVerdict {
+                        min_p: t.min_p,
+                        family_p: *family_p,
+                        levels: (f.white_var, f.flicker_var),
+                        heldout,
+                        own_levels: ft.is_some(),
+                        split,
+                    };
+                    (g.effect, v)
                 })
                 .collect()
         };
@@ -764,10 +960,21 @@ impl GlsStep {
 fn gls_note(v: Option<GlsVerdict>) -> String {
     v.map_or_else(String::new, |v| {
         format!(
-            "family-wise p {}, {GLS_FAMILY_LEVEL} needed; smallest Wald p over the grid {:.2e}; noise{}: white {:.2e} (deg/h)^2 per s, bias-instability decade {:.2e} (deg/h)^2{}",
+            "family-wise p {}{}, {GLS_FAMILY_LEVEL} needed; smallest Wald p over the grid {:.2e}; noise{}: white {:.2e} (deg/h)^2 per s, bias-instability decade {:.2e} (deg/h)^2{}",
             if v.family_p.is_nan() { "not simulated".to_string() } else { format!("{:.4}", v.family_p) },
+            match v.split {
+                LevelSplit::None => String::new(),
+                LevelSplit::Candidates(m) => format!(
+                    " ({m} x the candidate's own p over its grid: the level split over {m} open candidates)"
+                ),
+                LevelSplit::OrientationFamilies => " (2 x its family's p: the level split between the orientation-dependent candidates and the rest)".to_string(),
+            },
             v.min_p,
-            if v.own_levels { " (levels with the candidate)" } else { "" },
+            match (v.own_levels, v.split) {
+                (false, _) => "",
+                (true, LevelSplit::OrientationFamilies) => " (levels with the family's grid span)",
+                (true, _) => " (levels with the candidate)",
+            },
             v.levels.0,
             v.levels.1,
             match v.heldout {
@@ -801,6 +1008,7 @@ mod tests {
             levels: (1e-3, 1e-6),
             heldout,
             own_levels: false,
+            split: LevelSplit::None,
         };
         // Held-out claim in the model's metric: the run-level LORO error and sign do not count.
         assert!(v(0.002, Some((true, true))).accepts(false, false));
@@ -820,6 +1028,98 @@ mod tests {
         assert_eq!(family_p_of(0.01, 100, || f64::NAN), 0.01);
         assert!((family_p_of(1e-5, 100, || f64::NAN) - 1e-3).abs() < 1e-15);
         assert_eq!(family_p_of(1e-4, 100, || 0.0042), 0.0042);
+    }
+
+    #[test]
+    fn split_family_p_is_the_candidates_times_the_own_p_within_its_bounds() {
+        // 7 candidates, level 0.002: own p 1e-3 -> 7e-3 (lower bound, above); one point at
+        // 2e-4 -> 1.4e-3 (the bounds meet); 1e-4 over 3 points -> between 7e-4 and 2.1e-3:
+        // 7 x the simulated own p.
+        assert!((split_family_p(1e-3, 3, 7, || f64::NAN) - 7e-3).abs() < 1e-15);
+        assert!((split_family_p(2e-4, 1, 7, || f64::NAN) - 1.4e-3).abs() < 1e-15);
+        assert!((split_family_p(1e-4, 3, 7, || 1.5e-4) - 1.05e-3).abs() < 1e-15);
+        assert_eq!(split_family_p(0.5, 3, 7, || f64::NAN), 1.0);
+    }
+
+    /// Orthonormal columns `cols` of an n x k basis: unit vectors e_j (cos a) + e_{j+1} (sin a)
+    /// spread over the rows, so that neighbouring grid points share a direction.
+    fn grid_bases(n: usize, first_row: usize, points: usize, angle: f64) -> Vec<DMatrix<f64>> {
+        (0..points)
+            .map(|k| {
+                let mut q = DMatrix::zeros(n, 1);
+                q[(first_row, 0)] = (angle * k as f64).cos();
+                q[(first_row + 1, 0)] = (angle * k as f64).sin();
+                q
+            })
+            .collect()
+    }
+
+    fn smallest_p(bases: &[DMatrix<f64>], z: &nalgebra::DVector<f64>) -> f64 {
+        use crate::noise_model::chi2_sf;
+        bases.iter().map(|q| chi2_sf((q.transpose() * z).norm_squared(), q.ncols())).fold(1.0, f64::min)
+    }
+
+    #[test]
+    fn shared_family_ps_with_one_family_are_the_unsplit_ones_and_with_two_twice_the_own() {
+        // One 1-column candidate per family, orthogonal: the bounds decide, 2 x its p.
+        let n = 20;
+        let a = grid_bases(n, 0, 1, 0.0);
+        let b = grid_bases(n, 4, 1, 0.0);
+        let (two, present) =
+            shared_family_ps(n, &[(a.as_slice(), 1e-4, false), (b.as_slice(), 0.3, true)], 0.002, 4000, 1);
+        assert_eq!(present, 2);
+        assert!((two[0] - 2e-4).abs() < 1e-15 && (two[1] - 0.6).abs() < 1e-15, "{two:?}");
+        // Both in one family: the unsplit route (family_p_of over their 2 bases).
+        let (one, present) =
+            shared_family_ps(n, &[(a.as_slice(), 1e-4, false), (b.as_slice(), 0.3, false)], 0.002, 4000, 1);
+        assert_eq!(present, 1);
+        assert_eq!(one, vec![family_p_of(1e-4, 2, || f64::NAN), 0.3]);
+        // A family whose candidates have no basis is absent: the other keeps the whole level.
+        let none: Vec<DMatrix<f64>> = Vec::new();
+        let (_, present) =
+            shared_family_ps(n, &[(a.as_slice(), 1e-4, false), (none.as_slice(), 1.0, true)], 0.002, 4000, 1);
+        assert_eq!(present, 1);
+    }
+
+    #[test]
+    fn shared_family_ps_hold_the_family_wise_level_under_the_null() {
+        // Null data z ~ N(0, I_30) (fixed seeds), three candidates: a 1-column one and a
+        // 2-point grid (60 degrees apart) in the orientation family, a 6-point grid (20
+        // degrees apart) in the other. Level 0.05 (so that 1000 datasets resolve it), 1000
+        // draws per simulation. Bonferroni over the two families holds the level: share of
+        // datasets with any family-wise p <= 0.05 at most 0.05 + 3.5 binomial SD (0.0069),
+        // and each family's share near its half, 0.025 (3.5 SD: 0.017).
+        let n = 30;
+        let one = grid_bases(n, 0, 1, 0.0);
+        let two = grid_bases(n, 2, 2, std::f64::consts::FRAC_PI_3);
+        let six = grid_bases(n, 6, 6, std::f64::consts::PI / 9.0);
+        let datasets = 1000;
+        let (mut any, mut orientation, mut rest) = (0, 0, 0);
+        for d in 0..datasets {
+            let z = nalgebra::DVector::from_vec(normals(5000 + d as u64, n));
+            let members = [
+                (one.as_slice(), smallest_p(&one, &z), true),
+                (two.as_slice(), smallest_p(&two, &z), true),
+                (six.as_slice(), smallest_p(&six, &z), false),
+            ];
+            let (ps, present) = shared_family_ps(n, &members, 0.05, 1000, 77 + d as u64);
+            assert_eq!(present, 2);
+            let hit_o = ps[0] <= 0.05 || ps[1] <= 0.05;
+            let hit_r = ps[2] <= 0.05;
+            any += usize::from(hit_o || hit_r);
+            orientation += usize::from(hit_o);
+            rest += usize::from(hit_r);
+        }
+        let share = |k: usize| k as f64 / datasets as f64;
+        eprintln!(
+            "null shares: any {}, orientation {}, rest {}",
+            share(any),
+            share(orientation),
+            share(rest)
+        );
+        assert!(share(any) <= 0.05 + 3.5 * 0.0069, "any {}", share(any));
+        assert!((share(orientation) - 0.025).abs() <= 0.017, "orientation {}", share(orientation));
+        assert!((share(rest) - 0.025).abs() <= 0.017, "rest {}", share(rest));
     }
 
     #[test]
