@@ -1,0 +1,61 @@
+#!/usr/bin/env python3
+"""Does the mesh fit depend on the order in which the logs are given?
+
+For every case folder (written by ../shared/testbed/gen.py): `fit --method mesh` on all recorded
+logs with the case's runs file (roles: `up_*` cal, `down_*` val) in 6 orders (sorted, then 5
+shuffles from random.Random(1)), each validated on the `down_*` runs (`validate --json`). Prints
+per case the (chosen relative weight, mesh / poly) pairs of the 6 orders; poly is fitted once.
+
+Usage:
+  python3 scripts/mesh_order_check.py --bin target/release/fogtemp-cal TB/seed1/case0_none ...
+Stdlib only.
+"""
+import argparse
+import csv
+import glob
+import json
+import os
+import random
+import subprocess
+import tempfile
+
+
+def run_json(cmd):
+    return json.loads(subprocess.run(cmd, capture_output=True, text=True, check=True).stdout)
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--bin", default="target/release/fogtemp-cal")
+    ap.add_argument("--orders", type=int, default=6)
+    ap.add_argument("cases", nargs="+")
+    a = ap.parse_args()
+    rng = random.Random(1)
+    with tempfile.TemporaryDirectory() as tmp:
+        for case in a.cases:
+            rows = list(csv.DictReader(open(os.path.join(case, "runs.csv"))))
+            runs = os.path.join(tmp, "runs.csv")
+            with open(runs, "w", newline="") as f:
+                w = csv.writer(f)
+                w.writerow(["run", "position", "input_rate_dph", "role"])
+                for r in rows:
+                    role = "cal" if r["run"].startswith("up_") else "val"
+                    w.writerow([r["run"], r["position"], r["input_rate_dph"], role])
+            logs = sorted(glob.glob(os.path.join(case, "recorded", "*.csv")))
+            model = os.path.join(tmp, "m.fogm")
+            run_json([a.bin, "fit", "--method", "poly", "--out", model, "--json", *logs, "--runs", runs])
+            poly = run_json([a.bin, "validate", "--model", model, "--json", *logs, "--runs", runs])
+            out = []
+            for k in range(a.orders):
+                order = list(logs)
+                if k:
+                    rng.shuffle(order)
+                fit = run_json([a.bin, "fit", "--method", "mesh", "--out", model, "--json", *order, "--runs", runs])
+                mesh = run_json([a.bin, "validate", "--model", model, "--json", *logs, "--runs", runs])
+                ratio = mesh["compensated_bias_stability_dph"] / poly["compensated_bias_stability_dph"]
+                out.append((fit["axes"][0]["mesh_smoothing"]["relative_weight"], round(ratio, 3)))
+            print(case, out, flush=True)
+
+
+if __name__ == "__main__":
+    main()
