@@ -11,13 +11,14 @@ Usage:
 Stdlib only.
 """
 import argparse
-import csv
 import glob
 import json
 import os
 import random
 import subprocess
 import tempfile
+
+from testbed_calibration import runs_with_roles  # the runs file with roles (up_* cal, down_* val)
 
 
 def run_json(cmd):
@@ -33,14 +34,7 @@ def main():
     rng = random.Random(1)
     with tempfile.TemporaryDirectory() as tmp:
         for case in a.cases:
-            rows = list(csv.DictReader(open(os.path.join(case, "runs.csv"))))
-            runs = os.path.join(tmp, "runs.csv")
-            with open(runs, "w", newline="") as f:
-                w = csv.writer(f)
-                w.writerow(["run", "position", "input_rate_dph", "role"])
-                for r in rows:
-                    role = "cal" if r["run"].startswith("up_") else "val"
-                    w.writerow([r["run"], r["position"], r["input_rate_dph"], role])
+            runs = runs_with_roles(case, tmp)
             logs = sorted(glob.glob(os.path.join(case, "recorded", "*.csv")))
             model = os.path.join(tmp, "m.fogm")
             run_json([a.bin, "fit", "--method", "poly", "--out", model, "--json", *logs, "--runs", runs])

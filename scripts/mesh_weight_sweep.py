@@ -22,6 +22,8 @@ import statistics
 import subprocess
 import tempfile
 
+from testbed_calibration import runs_with_roles  # the runs file with roles (up_* cal, down_* val)
+
 WEIGHTS = (1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8)
 
 
@@ -29,19 +31,8 @@ def run_json(cmd):
     return json.loads(subprocess.run(cmd, capture_output=True, text=True, check=True).stdout)
 
 
-def runs_file(case, tmp):
-    rows = list(csv.DictReader(open(os.path.join(case, "runs.csv"))))
-    path = os.path.join(tmp, "runs.csv")
-    with open(path, "w", newline="") as f:
-        w = csv.writer(f)
-        w.writerow(["run", "position", "input_rate_dph", "role"])
-        for r in rows:
-            w.writerow([r["run"], r["position"], r["input_rate_dph"], "cal" if r["run"].startswith("up_") else "val"])
-    return path
-
-
 def sweep_case(binary, case, tmp):
-    runs = runs_file(case, tmp)
+    runs = runs_with_roles(case, tmp)
     logs = sorted(glob.glob(os.path.join(case, "recorded", "*.csv")))
     model = os.path.join(tmp, "m.fogm")
 

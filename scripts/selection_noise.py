@@ -39,20 +39,10 @@ import statistics
 import subprocess
 import tempfile
 
+from testbed_calibration import runs_with_roles  # the runs file with roles (up_* cal, down_* val)
+
 METHODS = ("cubic-t", "poly", "mesh")
 WARMING_UP, OUTSIDE_HULL = 0x01, 0x04
-
-
-def runs_file(case, tmp):
-    rows = list(csv.DictReader(open(os.path.join(case, "runs.csv"))))
-    path = os.path.join(tmp, "runs.csv")
-    with open(path, "w", newline="") as f:
-        w = csv.writer(f)
-        w.writerow(["run", "position", "input_rate_dph", "role"])
-        for r in rows:
-            role = "cal" if r["run"].startswith("up_") else "val"
-            w.writerow([r["run"], r["position"], r["input_rate_dph"], role])
-    return path
 
 
 def run(cmd):
@@ -75,7 +65,7 @@ def windows(binary, model, log, tmp):
 
 
 def score_case(binary, case, tmp):
-    runs = runs_file(case, tmp)
+    runs = runs_with_roles(case, tmp)
     logs = sorted(glob.glob(os.path.join(case, "recorded", "*.csv")))
     val = [l for l in logs if os.path.basename(l).startswith("down_")]
     models, out = {}, {"runs": [os.path.basename(v) for v in val], "methods": {}}
