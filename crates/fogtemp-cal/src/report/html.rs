@@ -13,7 +13,7 @@ use crate::output::write_file_atomic;
 
 /// Page style: readable width, ruled tables, figures scaled to the page.
 const STYLE: &str = "body{font-family:sans-serif;max-width:1200px;margin:1em auto;padding:0 1em;color:#222;line-height:1.4}\
-table{border-collapse:collapse;margin:0.6em 0}th,td{border:1px solid #bbb;padding:0.2em 0.6em;text-align:left}\
+table{border-collapse:collapse;margin:0.6em 0;display:block;max-width:100%;overflow-x:auto}td code{white-space:nowrap}th,td{border:1px solid #bbb;padding:0.2em 0.6em;text-align:left}\
 th{background:#eee}td{font-variant-numeric:tabular-nums}code{background:#f3f3f3;padding:0 0.2em}\
 figure{margin:1em 0}figure svg{max-width:100%;height:auto;display:block}figcaption{color:#555;font-size:0.9em}";
 
