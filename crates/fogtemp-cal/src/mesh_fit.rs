@@ -250,10 +250,8 @@ pub fn fit_node_values_cv_with_free_terms(
         curve.push(candidate(Some(relative), &block_scores(&rows, folds, |f| per_fold[f].as_slice())));
     }
     let chosen = one_standard_error(&curve);
-    let relative_weight = match cv.given_relative_weight {
-        Some(given) => Some(given),
-        None => curve.get(chosen).and_then(|c| c.relative_weight),
-    };
+    let relative_weight =
+        cv.given_relative_weight.or_else(|| curve.get(chosen).and_then(|c| c.relative_weight));
     let values = match relative_weight {
         Some(relative) => solve(gram + &penalty * (relative * balance), rhs, ridge)
             .ok_or(CalError::DegenerateMesh { reason: "mesh node fit is singular", points: n })?,
@@ -401,10 +399,10 @@ fn design_rows(
     let run_at = |i: usize| run_of.get(i).copied().unwrap_or(0);
     // Run ranks by content (run indices need not be contiguous), point counts and positions.
     let runs = runs_by_content(points, run_of);
-    let rank = |run: usize| runs.binary_search_by_key(&run, |&(id, _)| id).map_or(0, |k| runs[k].1);
+    let rank = |run: usize| runs.binary_search_by_key(&run, |r| r.index).map_or(0, |k| runs[k].rank);
     let mut counts = vec![0usize; runs.len()];
-    for i in 0..points.len() {
-        counts[rank(run_at(i))] += 1;
+    for r in &runs {
+        counts[r.rank] = r.points;
     }
     let mut seen = vec![0usize; runs.len()];
     let transforms: Vec<Option<crate::blob::TriangleTransform>> =
@@ -439,16 +437,27 @@ fn design_rows(
     (rows, outside)
 }
 
+/// One run of [`runs_by_content`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct RankedRun {
+    /// The run's index in `run_of`.
+    index: usize,
+    /// Its rank by content (0..runs).
+    rank: usize,
+    /// Its number of points.
+    points: usize,
+}
+
 /// Every run of `run_of` (sorted by run index) with its rank among the runs ordered by a hash
-/// of their content (first point's `(x, y, value)` bits and point count; ties by those values,
-/// then by index). The folds ([`block_and_fold`]) use this rank, so the chosen weight does not
-/// depend on the order in which the runs were given (the same logs listed in another order get
-/// the same folds). A hash rather than the values themselves: ranked by their first point
-/// (that is, by starting temperature), runs next to each other in the plane got neighbouring
-/// fold offsets, an assignment tied to the plane that K-fold cross-validation's random
-/// assignment is not (docs/calibration-testbed.md, "The mesh weight's folds and the order of
-/// the logs").
-fn runs_by_content(points: &[(f32, f32, f64)], run_of: &[usize]) -> Vec<(usize, usize)> {
+/// of their content (first point's `(x, y, value)` bits and point count; ties, i.e. runs of the
+/// same content, by index) and its point count. The folds ([`block_and_fold`]) use this rank,
+/// so the chosen weight does not depend on the order in which the runs were given (the same
+/// logs listed in another order get the same folds). A hash rather than the values
+/// themselves: ranked by their first point (that is, by starting temperature), runs next to
+/// each other in the plane got neighbouring fold offsets, an assignment tied to the plane that
+/// K-fold cross-validation's random assignment is not (docs/calibration-testbed.md, "The mesh
+/// weight's folds and the order of the logs").
+fn runs_by_content(points: &[(f32, f32, f64)], run_of: &[usize]) -> Vec<RankedRun> {
     let run_at = |i: usize| run_of.get(i).copied().unwrap_or(0);
     // (run index, first point, count), in run-index order.
     let mut runs: Vec<(usize, (f32, f32, f64), usize)> = Vec::new();
@@ -459,23 +468,15 @@ fn runs_by_content(points: &[(f32, f32, f64)], run_of: &[usize]) -> Vec<(usize, 
             Err(k) => runs.insert(k, (run, point, 1)),
         }
     }
-    let mut order: Vec<usize> = (0..runs.len()).collect();
-    let key = |(_, p, count): (usize, (f32, f32, f64), usize)| {
+    let hash = |&(_, p, count): &(usize, (f32, f32, f64), usize)| {
         content_hash(&[u64::from(p.0.to_bits()), u64::from(p.1.to_bits()), p.2.to_bits(), count as u64])
     };
-    order.sort_by(|&a, &b| {
-        let ((_, pa, ca), (_, pb, cb)) = (runs[a], runs[b]);
-        key(runs[a])
-            .cmp(&key(runs[b]))
-            .then(pa.0.total_cmp(&pb.0))
-            .then(pa.1.total_cmp(&pb.1))
-            .then(pa.2.total_cmp(&pb.2))
-            .then(ca.cmp(&cb))
-            .then(a.cmp(&b))
-    });
-    let mut ranked: Vec<(usize, usize)> = runs.iter().map(|r| (r.0, 0)).collect();
+    let mut order: Vec<usize> = (0..runs.len()).collect();
+    order.sort_by_key(|&k| (hash(&runs[k]), k));
+    let mut ranked: Vec<RankedRun> =
+        runs.iter().map(|&(index, _, points)| RankedRun { index, rank: 0, points }).collect();
     for (rank, &k) in order.iter().enumerate() {
-        ranked[k].1 = rank;
+        ranked[k].rank = rank;
     }
     ranked
 }
@@ -1207,9 +1208,9 @@ mod tests {
         let (ranks, reversed_ranks) =
             (runs_by_content(&points, &run_of), runs_by_content(&reversed_points, &reversed_run_of));
         for r in 0..runs {
-            assert_eq!(ranks[r].1, reversed_ranks[runs - 1 - r].1, "run {r}");
+            assert_eq!(ranks[r].rank, reversed_ranks[runs - 1 - r].rank, "run {r}");
         }
-        let mut sorted: Vec<usize> = ranks.iter().map(|r| r.1).collect();
+        let mut sorted: Vec<usize> = ranks.iter().map(|r| r.rank).collect();
         sorted.sort_unstable();
         assert_eq!(sorted, (0..runs).collect::<Vec<_>>());
     }
