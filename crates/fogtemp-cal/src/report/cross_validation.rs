@@ -27,19 +27,12 @@ pub struct CrossValidationRow {
     pub correction_dph: Option<f64>,
 }
 
-fn signed(v: f64) -> String {
-    if v.is_finite() {
-        format!("{v:+.5}")
-    } else {
-        "-".into()
-    }
-}
-
-fn number(v: f64) -> String {
-    if v.is_finite() {
-        format!("{v:.5}")
-    } else {
-        "-".into()
+/// `v` to 5 decimals (`+` sign with `signed`), "-" when not finite.
+fn number_or_dash(v: f64, signed: bool) -> String {
+    match (v.is_finite(), signed) {
+        (false, _) => "-".into(),
+        (true, true) => format!("{v:+.5}"),
+        (true, false) => format!("{v:.5}"),
     }
 }
 
@@ -69,15 +62,18 @@ pub fn cross_validation_markdown(axis: usize, held_out: &[String], rows: &[Cross
         let within = if r.within_one_se { "yes" } else { "no" };
         md.push_str(&format!(
             "| {method} | {} | {} | {within} | {} |",
-            number(r.cv_dph),
-            number(r.se_dph),
+            number_or_dash(r.cv_dph, false),
+            number_or_dash(r.se_dph, false),
             if r.chosen { "**chosen**" } else { "" }
         ));
         if corrected {
-            md.push_str(&format!(" {} |", signed(r.correction_dph.unwrap_or(f64::NAN))));
+            md.push_str(&format!(" {} |", number_or_dash(r.correction_dph.unwrap_or(f64::NAN), true)));
         }
         for k in 0..held_out.len() {
-            md.push_str(&format!(" {} |", number(r.held_out_dph.get(k).copied().unwrap_or(f64::NAN))));
+            md.push_str(&format!(
+                " {} |",
+                number_or_dash(r.held_out_dph.get(k).copied().unwrap_or(f64::NAN), false)
+            ));
         }
         md.push('\n');
     }
