@@ -811,6 +811,13 @@ impl GlsStep {
         let total: usize = tests.iter().map(|t| t.bases.len()).sum();
         let seed = GLS_SEED + step as u64;
         let levels = (fit.white_var, fit.flicker_var);
+        // The current model's held-out GLS error under levels `f` (with the option on).
+        let heldout_of = |f: &crate::noise_model::NoiseFit| {
+            options
+                .noise_model_heldout
+                .then(|| heldout_gls(f, &base.per_run, ys, base.penalty.as_ref()))
+                .flatten()
+        };
         let verdicts: Vec<(Effect, GlsVerdict)> = if own_levels {
             open.par_iter()
                 .zip(&tests)
@@ -853,10 +860,7 @@ impl GlsStep {
                 })
                 .collect()
         } else if options.noise_model_level_per_candidate {
-            let without = options
-                .noise_model_heldout
-                .then(|| heldout_gls(&fit, &base.per_run, ys, base.penalty.as_ref()))
-                .flatten();
+            let without = heldout_of(&fit);
             let candidates = tests.iter().filter(|t| !t.bases.is_empty()).count();
             open.par_iter()
                 .zip(&tests)
@@ -919,12 +923,6 @@ impl GlsStep {
             let (simulated, present) =
                 shared_family_ps(tester.n(), &members, GLS_FAMILY_LEVEL, GLS_SIMULATIONS, seed);
             let split = if present > 1 { LevelSplit::OrientationFamilies } else { LevelSplit::None };
-            let heldout_of = |f: &crate::noise_model::NoiseFit| {
-                options
-                    .noise_model_heldout
-                    .then(|| heldout_gls(f, &base.per_run, ys, base.penalty.as_ref()))
-                    .flatten()
-            };
             let without = heldout_of(&fit);
             let family_without = family_fit.as_ref().and_then(heldout_of);
             open.iter()
