@@ -639,3 +639,37 @@ fn speed_18_runs_2h_10hz() {
     eprintln!("18 runs x 2 h x 10 Hz: diagnosis took {secs:.2} s; left out {:?}", names(&d));
     assert!(secs <= 30.0, "took {secs} s");
 }
+
+/// The permutation test's relabelled columns (`effects::orientation_columns` with permuted
+/// labels) are exactly the catalogue's columns of runs that carry those labels (oracle:
+/// `term_columns` on a copy of the prepared runs with their position and input rate moved).
+#[test]
+fn relabelled_orientation_columns_are_the_columns_of_relabelled_runs() {
+    use fogtemp_diagnose::effects::{orientation_columns, run_labels, term_columns, Effect};
+    let (sim, rec) = make_set(&two_position_runs(EARTH_UP_DPH, -EARTH_UP_DPH), Injected::None, 1.0, 21);
+    let prep = fogtemp_diagnose::prepare::prepare(&sim, &rec, &DiagnoseOptions::default()).expect("prepared");
+    // Run r takes the labels of run order[r]: a rotation by three moves runs across positions.
+    let n = prep.runs.len();
+    let order: Vec<usize> = (0..n).map(|r| (r + 3) % n).collect();
+    let labels = run_labels(&prep);
+    let permuted: Vec<_> = order.iter().map(|&r| labels[r]).collect();
+    let mut relabelled = prep.clone();
+    for (run, &from) in relabelled.runs.iter_mut().zip(&order) {
+        run.group = prep.runs[from].group.clone();
+        run.input_rate_dph = prep.runs[from].input_rate_dph;
+    }
+    for (effect, theta) in [(Effect::OrientationOffset, vec![]), (Effect::ScaleFactorTemperature, vec![2.0])]
+    {
+        let got = orientation_columns(&prep, effect, &theta, &permuted);
+        let want = term_columns(&relabelled, effect, &theta);
+        assert_eq!(got.coefficients, want.coefficients, "{effect:?}");
+        assert_eq!(got.per_run, want.per_run, "{effect:?}");
+        // And with the runs' own labels they are the catalogue's columns of the runs as recorded.
+        assert_eq!(
+            orientation_columns(&prep, effect, &theta, &labels).per_run,
+            term_columns(&prep, effect, &theta).per_run
+        );
+        // The relabelling changed something (the test is not vacuous).
+        assert_ne!(got.per_run, term_columns(&prep, effect, &theta).per_run, "{effect:?}");
+    }
+}

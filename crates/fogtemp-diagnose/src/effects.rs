@@ -459,7 +459,7 @@ pub fn groups(prep: &Prepared) -> Vec<String> {
 
 /// The group label of a run.
 pub fn group_of(run: &RunData) -> String {
-    run.group.clone().unwrap_or_else(|| "(unlabelled)".to_string())
+    run.group.clone().unwrap_or_else(|| UNLABELLED.to_string())
 }
 
 /// Rate of the first-order lag `y = LPF_tau(T)` (the coil behind the sensor) from the
@@ -561,23 +561,8 @@ pub fn term_columns(prep: &Prepared, effect: Effect, theta: &[f64]) -> TermColum
             }
             TermColumns { theta: theta_v, coefficients, per_run, penalty: None }
         }
-        Effect::OrientationOffset => {
-            let g = groups(prep);
-            let reference = g.first().cloned().unwrap_or_default();
-            let others: Vec<String> = g.iter().skip(1).cloned().collect();
-            let per_run = prep
-                .runs
-                .iter()
-                .map(|r| {
-                    let mine = group_of(r);
-                    DMatrix::from_fn(r.blocks.len(), others.len(), |_, j| {
-                        f64::from(u8::from(others[j] == mine))
-                    })
-                })
-                .collect();
-            let coefficients =
-                others.iter().map(|o| coef(format!("offset_{o}_minus_{reference}_dph"), "deg/h")).collect();
-            TermColumns { theta: theta_v, coefficients, per_run, penalty: None }
+        Effect::OrientationOffset | Effect::ScaleFactorTemperature => {
+            orientation_columns(prep, effect, theta, &run_labels(prep))
         }
         Effect::Hysteresis => {
             let (threshold, degree) = (theta[0], theta[1]);
@@ -623,15 +608,63 @@ pub fn term_columns(prep: &Prepared, effect: Effect, theta: &[f64]) -> TermColum
             let coefficients = (1..k).map(|j| coef(format!("spline_{j}_dph"), "deg/h")).collect();
             TermColumns { theta: theta_v, coefficients, per_run, penalty: Some(second_differences(k - 1)) }
         }
-        Effect::ScaleFactorTemperature => {
-            let degree = theta[0] as i32;
+    }
+}
+
+/// What a run's orientation is: its position label and its input rate (deg/h).
+pub type RunLabel<'a> = (Option<&'a str>, Option<f64>);
+
+/// Every run's own [`RunLabel`], in run order.
+pub fn run_labels(prep: &Prepared) -> Vec<RunLabel<'_>> {
+    prep.runs.iter().map(|r| (r.group.as_deref(), r.input_rate_dph)).collect()
+}
+
+/// The columns of an orientation-dependent term (`Effect::orientation_dependent`) with run
+/// `r` given the orientation `labels[r]`: with the runs' own labels these are its
+/// [`term_columns`]; with the labels permuted over the runs, the same term under a
+/// relabelling of the positions (the permutation test of `select::permutation`). Other
+/// effects do not depend on the labels and get no columns.
+pub fn orientation_columns(
+    prep: &Prepared,
+    effect: Effect,
+    theta: &[f64],
+    labels: &[RunLabel<'_>],
+) -> TermColumns {
+    let theta_v = theta.to_vec();
+    let group = |r: usize| labels.get(r).and_then(|l| l.0).unwrap_or(UNLABELLED).to_string();
+    match effect {
+        Effect::OrientationOffset => {
+            let mut g: Vec<String> = (0..prep.runs.len()).map(group).collect();
+            g.sort();
+            g.dedup();
+            let reference = g.first().cloned().unwrap_or_default();
+            let others: Vec<String> = g.iter().skip(1).cloned().collect();
             let per_run = prep
                 .runs
                 .iter()
-                .map(|r| {
-                    let omega = r.input_rate_dph.unwrap_or(0.0) * 1e-6;
+                .enumerate()
+                .map(|(r, run)| {
+                    let mine = group(r);
+                    DMatrix::from_fn(run.blocks.len(), others.len(), |_, j| {
+                        f64::from(u8::from(others[j] == mine))
+                    })
+                })
+                .collect();
+            let coefficients =
+                others.iter().map(|o| coef(format!("offset_{o}_minus_{reference}_dph"), "deg/h")).collect();
+            TermColumns { theta: theta_v, coefficients, per_run, penalty: None }
+        }
+        Effect::ScaleFactorTemperature => {
+            let degree = theta.first().copied().unwrap_or(1.0) as i32;
+            let t_ref = prep.temp_ref_c;
+            let per_run = prep
+                .runs
+                .iter()
+                .enumerate()
+                .map(|(r, run)| {
+                    let omega = labels.get(r).and_then(|l| l.1).unwrap_or(0.0) * 1e-6;
                     let cols: Vec<Vec<f64>> = (1..=degree)
-                        .map(|d| r.blocks.iter().map(|b| omega * (b.temp_c - t_ref).powi(d)).collect())
+                        .map(|d| run.blocks.iter().map(|b| omega * (b.temp_c - t_ref).powi(d)).collect())
                         .collect();
                     matrix_from_columns(&cols)
                 })
@@ -642,8 +675,12 @@ pub fn term_columns(prep: &Prepared, effect: Effect, theta: &[f64]) -> TermColum
             }
             TermColumns { theta: theta_v, coefficients, per_run, penalty: None }
         }
+        _ => TermColumns { theta: theta_v, coefficients: Vec::new(), per_run: Vec::new(), penalty: None },
     }
 }
+
+/// The group of runs without a position label.
+const UNLABELLED: &str = "(unlabelled)";
 
 /// Profiled parameters and their grid for `effect`.
 pub fn grid_of(effect: Effect) -> (Vec<ProfiledParam>, Vec<Vec<f64>>) {

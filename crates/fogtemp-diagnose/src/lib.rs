@@ -159,6 +159,14 @@ pub struct DiagnoseOptions {
     /// orientation-shaped column, `noise_model` tests), so its family-wise p is not valid
     /// (docs/diagnose.md, eleventh session).
     pub noise_model_family_levels: bool,
+    /// A term that depends on the run's orientation passes the run-level rules only if a
+    /// permutation test of the runs' position labels also finds it (its profiled LORO error
+    /// against the same under random relabellings, at 5 % / (2 x candidates)). The rules'
+    /// fold gains share the one between-position contrast, so alone they named an
+    /// orientation term in 12 and 4 of 100 null datasets with two orientations; with 8 runs
+    /// in two positions the permutation cannot reach the level and the noise-model route
+    /// decides alone (docs/diagnose.md, twelfth session).
+    pub position_permutation: bool,
 }
 
 impl Default for DiagnoseOptions {
@@ -185,6 +193,7 @@ impl Default for DiagnoseOptions {
             noise_model_level_per_candidate: false,
             noise_model_orientation_families: true,
             noise_model_family_levels: false,
+            position_permutation: true,
         }
     }
 }
@@ -350,6 +359,11 @@ pub struct CandidateReport {
     pub experiment: Option<String>,
     /// Why it was (not) chosen.
     pub note: String,
+    /// For an orientation-dependent term that passed the run-level rules: the Monte Carlo p
+    /// of the permutation test of the runs' position labels (a lower bound when the test
+    /// stopped early because the p could no longer reach its level).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub position_permutation_p: Option<f64>,
 }
 
 /// One step of forward selection.

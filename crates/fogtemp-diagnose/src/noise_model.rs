@@ -532,11 +532,12 @@ fn orthonormal(m: &DMatrix<f64>, against: Option<&DMatrix<f64>>) -> DMatrix<f64>
     }
 }
 
-/// SplitMix64 (fixed-seed standard normals for the simulated null; Box-Muller).
-struct Normals(u64);
+/// SplitMix64 (Steele, Lea & Flood 2014): fixed-seed standard normals for the simulated
+/// null (Box-Muller), and the relabellings of `select::permutation` (Fisher-Yates).
+pub(crate) struct SplitMix64(pub(crate) u64);
 
-impl Normals {
-    fn next_u64(&mut self) -> u64 {
+impl SplitMix64 {
+    pub(crate) fn next_u64(&mut self) -> u64 {
         self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
         let mut z = self.0;
         z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
@@ -553,6 +554,15 @@ impl Normals {
         let r = (-2.0 * u.ln()).sqrt();
         let a = std::f64::consts::TAU * v;
         (r * a.cos(), r * a.sin())
+    }
+
+    /// Shuffles `items` uniformly (Fisher-Yates; the modulo bias of `next_u64 % n` is below
+    /// 2^-50 for the few dozen runs of a diagnosis).
+    pub(crate) fn shuffle<T>(&mut self, items: &mut [T]) {
+        for i in (1..items.len()).rev() {
+            let j = (self.next_u64() % (i as u64 + 1)) as usize;
+            items.swap(i, j);
+        }
     }
 }
 
@@ -602,7 +612,7 @@ pub fn family_p(n: usize, bases: &[&DMatrix<f64>], observed: &[f64], sims: usize
         .into_par_iter()
         .map(|c| {
             let cols = CHUNK.min(sims - c * CHUNK);
-            let mut g = Normals(seed ^ (c as u64 + 1).wrapping_mul(0xA24B_AED4_963E_E407));
+            let mut g = SplitMix64(seed ^ (c as u64 + 1).wrapping_mul(0xA24B_AED4_963E_E407));
             let mut z = DMatrix::zeros(total, cols);
             let mut spare = None;
             for v in z.iter_mut() {
@@ -677,7 +687,7 @@ mod tests {
     fn simulate(runs: usize, blocks: usize, alpha: f64, beta: f64, rrw: f64, seed: u64) -> Vec<Vec<f64>> {
         let sp = spans(blocks, 20);
         let chol = run_covariance(&sp, alpha, beta).cholesky().map(|c| c.l());
-        let mut g = Normals(seed);
+        let mut g = SplitMix64(seed);
         (0..runs)
             .map(|_| {
                 let z = DVector::from_fn(blocks, |_, _| g.pair().0);

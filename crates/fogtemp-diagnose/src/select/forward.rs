@@ -9,6 +9,7 @@ use nalgebra::DMatrix;
 use rayon::prelude::*;
 
 use super::design::*;
+use super::permutation::{position_permutation, PermutationTest};
 use super::rules::*;
 use crate::effects::{term_columns, Effect, EffectGrid, TermColumns};
 use crate::error::DiagnoseError;
@@ -90,6 +91,7 @@ pub(super) fn not_evaluated(
         identifiable: false,
         experiment,
         note,
+        position_permutation_p: None,
     }
 }
 
@@ -124,7 +126,7 @@ pub(super) fn judge(
     prof: &Profiled,
     v: &[Vec<f64>],
     confused: Option<(String, f64)>,
-) -> Scored {
+) -> Result<Scored, DiagnoseError> {
     let n = ctx.prep.n_blocks();
     let base_cv: f64 = ctx.base_eval.fold_sse.iter().sum();
     let cv_sse: f64 = prof.fold_sse.iter().sum();
@@ -140,7 +142,7 @@ pub(super) fn judge(
     let cv_rms = (cv_sse / n as f64).sqrt();
     let cv_improvement = 1.0 - cv_rms / (base_cv / n as f64).sqrt();
     let sign_ok = !grid.effect.positive_coefficient() || last_coefficient(prof) > 0.0;
-    let failed = acceptance_failures(&RuleInputs {
+    let mut failed: Vec<String> = acceptance_failures(&RuleInputs {
         cv_sse,
         base_cv_sse: base_cv,
         folds_improved: improved,
@@ -156,11 +158,31 @@ pub(super) fn judge(
         stability_t: prof.stability_t,
         stability_limit: stability_limit(ctx.prep.runs.len(), ctx.tests),
         sign_ok,
-    });
+    })
+    .into_iter()
+    .map(String::from)
+    .collect::<Vec<String>>();
     let gls = ctx.gls.as_ref().and_then(|g| g.verdict(grid.effect));
     // The route replaces the run-level tests of significance (fold rule, BIC, stability),
     // not the claim the diagnosis makes: the term predicts held-out runs better.
     let gls_accepts = gls.is_some_and(|v| v.accepts(cv_sse < base_cv, sign_ok));
+    // The run-level rules' fold gains of an orientation-dependent term share one contrast:
+    // their claim is checked against relabellings of the runs' positions.
+    let permutation = if ctx.options.position_permutation
+        && grid.effect.orientation_dependent()
+        && failed.is_empty()
+        && !concealed
+        && !gls_accepts
+    {
+        let level = fold_gain_alpha(ctx.tests);
+        let test = position_permutation(ctx, grid, cv_sse, level)?;
+        if test.p() > level {
+            failed.push(permutation_failure(&test, level));
+        }
+        Some(test)
+    } else {
+        None
+    };
     let accepted = !concealed && (failed.is_empty() || gls_accepts);
     let (status, note, experiment) = if concealed {
         (
@@ -172,7 +194,16 @@ pub(super) fn judge(
             Some(crate::effects::separating_experiment(grid.effect, &crate::effects::run_content(ctx.prep))),
         )
     } else if accepted && failed.is_empty() {
-        ("accepted", "passes LORO, fold, BIC and concealment rules".to_string(), None)
+        let rules = "passes LORO, fold, BIC and concealment rules";
+        let note = match &permutation {
+            Some(t) => format!(
+                "{rules} and the permutation test of the position labels (p {:.4}, {} relabellings)",
+                t.p(),
+                t.evaluated
+            ),
+            None => rules.to_string(),
+        };
+        ("accepted", note, None)
     } else if accepted {
         ("accepted", format!("passes the noise-model GLS test ({})", gls_note(gls)), None)
     } else {
@@ -201,8 +232,23 @@ pub(super) fn judge(
         identifiable: !concealed,
         experiment,
         note,
+        position_permutation_p: permutation.map(|t| t.p()),
     };
-    Scored { report, point: prof.point, accepted }
+    Ok(Scored { report, point: prof.point, accepted })
+}
+
+/// Why the permutation test of the position labels failed a candidate.
+fn permutation_failure(test: &PermutationTest, level: f64) -> String {
+    let reach = if test.complete() {
+        String::new()
+    } else {
+        format!(", stopped after {} of {}: it can no longer reach the level", test.evaluated, test.planned)
+    };
+    format!(
+        "permutation of the position labels: p {:.4} > {level:.2e} ({} of the relabellings at least as good{reach}; the folds share one contrast between positions)",
+        test.p(),
+        test.as_good
+    )
 }
 
 /// The full-data coefficient of the candidate's last column (unscaled).
@@ -263,7 +309,7 @@ pub(super) fn run_step(ctx: &StepContext<'_>) -> Result<(Vec<CandidateReport>, O
             )),
             (Some((prof, v)), None) => {
                 let confused = most_confused(ctx, g.effect, v, &profiled_cols);
-                let sc = judge(ctx, g, prof, v, confused.clone());
+                let sc = judge(ctx, g, prof, v, confused.clone())?;
                 if sc.accepted {
                     let pick = (g.effect, sc.point, sc.report.concealment_index, confused);
                     accepted.push((prof.fold_sse.clone(), g.points[sc.point].k(), pick));

@@ -53,10 +53,17 @@
 //!   `DiagnoseOptions::noise_model_candidate_levels` (off by default) each candidate's levels are
 //!   refitted with it in the model and the candidate is tested at them if that model passes
 //!   the check; otherwise the run-level rules decide alone (docs/diagnose.md, ninth session).
+//! - position-label permutation (`DiagnoseOptions::position_permutation`, on by default): a
+//!   term that depends on the run's orientation (`Effect::orientation_dependent`) passes the
+//!   run-level rules only if its profiled LORO error is also better than under random
+//!   relabellings of the runs' positions, at the signed-rank test's level (5 % / (2 x
+//!   candidates), `permutation`); with 8 runs in two positions it cannot reach that level
+//!   and only the noise-model route can accept such a term (docs/diagnose.md, twelfth session).
 
 mod design;
 mod final_fit;
 mod forward;
+mod permutation;
 mod rules;
 
 pub use design::{
