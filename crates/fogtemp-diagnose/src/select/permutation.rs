@@ -65,7 +65,7 @@ impl PermutationTest {
 /// to three relabellings as good as the observed one (`4 / (1 + planned) <= level`), so the
 /// Monte Carlo error costs little power (at least 99).
 pub(super) fn draws_for(level: f64) -> usize {
-    if !(level > 0.0) {
+    if level.is_nan() || level <= 0.0 {
         return 99;
     }
     ((4.0 / level).ceil() as usize).saturating_sub(1).clamp(99, 100_000)
