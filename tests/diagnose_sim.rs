@@ -110,6 +110,34 @@ fn null_dataset_names_nothing() {
     );
 }
 
+/// Two-orientation designs with every injected size 0: the seeds (of 7000-7099) where the
+/// run-level rules alone named an orientation term (docs/diagnose.md, twelfth session; 12 of
+/// the 16 alarms of both designs). With the permutation test of the position labels, an
+/// orientation-dependent term is not named on any of them; without it, on each.
+#[test]
+fn two_orientation_nulls_name_no_orientation_term() {
+    let alarms = [
+        ("orientation_offset", 7043),
+        ("orientation_offset", 7058),
+        ("scale_factor_temperature", 7002),
+        ("scale_factor_temperature", 7015),
+    ];
+    let off = DiagnoseOptions { position_permutation: false, ..DiagnoseOptions::default() };
+    for (label, seed) in alarms {
+        let g = generate(&dataset(label, 0.0), seed);
+        let orientation = |options: &DiagnoseOptions| -> Vec<String> {
+            let d = diagnose(&g.simulated, &g.recorded, options, |_, _| {}).expect("diagnosis runs");
+            d.left_out
+                .iter()
+                .map(|e| e.effect.clone())
+                .filter(|e| e == "orientation_offset" || e == "scale_factor_temperature")
+                .collect()
+        };
+        assert!(orientation(&DiagnoseOptions::default()).is_empty(), "{label} seed {seed}");
+        assert!(!orientation(&off).is_empty(), "{label} seed {seed}: the old rules no longer alarm here");
+    }
+}
+
 #[test]
 fn thermal_lag_hidden_behind_shupe_is_named_and_recovered() {
     let (d, truth) = run("thermal_lag", 1.0);
