@@ -284,7 +284,8 @@ impl CalibrationPoints {
 }
 
 /// Calibration points of one axis over all runs, with the run index of each and the time
-/// they cover (in tracker blocks of `block_s`, at most `target_window_s` per point).
+/// they cover (in tracker blocks of `block_s`, at most `target_window_s` per point). Runs
+/// come in [`canonical_run_order`], each run's points in time order.
 pub fn calibration_points(
     runs: &[RunFeatures],
     axis: usize,
@@ -294,8 +295,8 @@ pub fn calibration_points(
 ) -> CalibrationPoints {
     let max_blocks = (target_window_s / block_s).round().max(1.0);
     let mut out = CalibrationPoints::default();
-    for (r, run) in runs.iter().enumerate() {
-        let Some((features, targets)) = run.axes.get(axis) else { continue };
+    for r in canonical_run_order(runs, axis) {
+        let Some((features, targets)) = runs[r].axes.get(axis) else { continue };
         let mut previous: Option<&FeaturePoint> = None;
         for (f, &target) in features.iter().zip(targets) {
             // Whole blocks since the previous update of this segment (rounded: block close
@@ -319,6 +320,28 @@ pub fn calibration_points(
         }
     }
     out
+}
+
+/// The runs in an order fixed by their content (a hash of the axis's first feature point and
+/// point count; equal contents by index), not by the order the logs were given in: the
+/// mesh's greedy thinning keeps the first of nearby points and least-squares sums round in
+/// the order of their terms, so the same logs in another order gave another model (seed 5's
+/// null case: 950 vs 947 mesh nodes; docs/calibration-testbed.md).
+fn canonical_run_order(runs: &[RunFeatures], axis: usize) -> Vec<usize> {
+    let key = |r: &RunFeatures| {
+        r.axes.get(axis).map_or(0, |(features, targets)| {
+            let first = features.first();
+            crate::mesh_fit::content_hash(&[
+                first.map_or(0, |f| f.temp_c.to_bits()),
+                first.map_or(0, |f| f.rate_c_per_min.to_bits()),
+                targets.first().map_or(0, |t| t.to_bits()),
+                features.len() as u64,
+            ])
+        })
+    };
+    let mut order: Vec<usize> = (0..runs.len()).collect();
+    order.sort_by_key(|&r| (key(&runs[r]), r));
+    order
 }
 
 /// Normalisation mapping the points' bounding box to [-1, 1] on both axes.
@@ -1134,5 +1157,43 @@ mod tests {
         let c = calibration_points(std::slice::from_ref(&run), 0, false, 1.0, 100.0);
         assert!(!c.points.is_empty());
         assert_eq!(c.block_equivalents, c.points.len() as f64);
+    }
+
+    /// A 3000 s ramp from `start_c` at `rate_c_per_min`, bias 0.01 T + 0.002 sin(T).
+    fn ramp_log(start_c: f64, rate_c_per_min: f64) -> String {
+        let mut csv = String::from("time_s,temp_c,gyro_dph\n");
+        for k in 0..3000 {
+            let t = f64::from(k);
+            let temp_c = start_c + rate_c_per_min * t / 60.0;
+            csv.push_str(&format!("{t:.1},{temp_c:.4},{:.6}\n", 0.01 * temp_c + 0.002 * temp_c.sin()));
+        }
+        csv
+    }
+
+    /// The same logs in another order give the same calibration points in the same order
+    /// (each with its own run's index) and a byte-identical mesh model.
+    #[test]
+    fn the_order_of_the_logs_does_not_change_the_points_or_the_model() {
+        let config = CalibrationConfig { method: Method::Mesh, ..CalibrationConfig::default() };
+        let read = |name: &str, start_c: f64, rate: f64| {
+            extract_run_from(ramp_log(start_c, rate).as_bytes(), Path::new(name), &config).expect("reads")
+        };
+        let given = vec![read("a.csv", -10.0, 0.5), read("b.csv", 0.0, -0.3), read("c.csv", 5.0, 0.2)];
+        let rotated: Vec<RunFeatures> = [2, 0, 1].iter().map(|&r| given[r].clone()).collect();
+        let (p, q) = (
+            calibration_points(&given, 0, false, 1.0, 100.0),
+            calibration_points(&rotated, 0, false, 1.0, 100.0),
+        );
+        assert!(p.points == q.points, "the points come in another order ({} points)", p.points.len());
+        // Run r of `rotated` is run [2, 0, 1][r] of `given`.
+        let back: Vec<usize> = q.run_of.iter().map(|&r| [2, 0, 1][r]).collect();
+        assert!(p.run_of == back, "the points' runs differ");
+        let (a, b) = (
+            fit_model(&given, &config, [0; 32]).expect("fits"),
+            fit_model(&rotated, &config, [0; 32]).expect("fits"),
+        );
+        assert_eq!(a.axes[0].mesh_nodes, b.axes[0].mesh_nodes);
+        assert!(a.axes[0].mesh_nodes > 3, "{}", a.axes[0].mesh_nodes);
+        assert!(a.blob == b.blob, "the blobs differ");
     }
 }

@@ -483,7 +483,7 @@ fn runs_by_content(points: &[(f32, f32, f64)], run_of: &[usize]) -> Vec<RankedRu
 
 /// A 64-bit hash of `words` (SplitMix64's finaliser over a running sum; deterministic on
 /// every platform).
-fn content_hash(words: &[u64]) -> u64 {
+pub(crate) fn content_hash(words: &[u64]) -> u64 {
     words.iter().fold(0x853c_49e6_748f_ea9b, |h, &w| {
         let mut z = (h ^ w).wrapping_add(0x9e37_79b9_7f4a_7c15);
         z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
