@@ -839,7 +839,7 @@ impl GlsStep {
         step: usize,
         options: &DiagnoseOptions,
     ) -> Option<Self> {
-        use crate::noise_model::{family_p, fit_noise, GlsTester};
+        use crate::noise_model::{fit_noise, GlsTester};
         let fit = fit_noise(basis, &base.per_run, ys)?;
         // Under the null (no open candidate) the current model is the true one: its levels
         // make the simulated family-wise p exact for the whole procedure. Levels refitted
@@ -854,150 +854,214 @@ impl GlsStep {
         let open: Vec<&EffectGrid> =
             grids.iter().filter(|g| g.unmet_requirement.is_none() && !in_model.contains(&g.effect)).collect();
         let tests: Vec<GridTest> = open.par_iter().map(|g| grid_test(&tester, g)).collect();
-        let total: usize = tests.iter().map(|t| t.bases.len()).sum();
-        let seed = GLS_SEED + step as u64;
-        let levels = (fit.white_var, fit.flicker_var);
-        // The current model's held-out GLS error under levels `f` (with the option on).
-        let heldout_of = |f: &crate::noise_model::NoiseFit| {
-            options
-                .noise_model_heldout
-                .then(|| heldout_gls(f, &base.per_run, ys, base.penalty.as_ref()))
-                .flatten()
+        let route = RouteStep {
+            basis,
+            base,
+            ys,
+            options,
+            fit: &fit,
+            tester: &tester,
+            open,
+            tests,
+            seed: GLS_SEED + step as u64,
         };
-        let verdicts: Vec<(Effect, GlsVerdict)> = if own_levels {
-            open.par_iter()
-                .zip(&tests)
-                .filter_map(|(g, t)| {
-                    let cols = &g.points[t.best];
-                    let with: Vec<DMatrix<f64>> =
-                        (0..base.per_run.len()).map(|r| concat(base, &[&cols.per_run[r]], r)).collect();
-                    let own = fit_noise(basis, &with, ys)?;
-                    if !own.check.passed {
-                        return None;
-                    }
-                    let own_tester = GlsTester::new(&own, &base.per_run, ys)?;
-                    let mine = grid_test(&own_tester, g);
-                    let heldout = if options.noise_model_heldout {
-                        let without = heldout_gls(&own, &base.per_run, ys, base.penalty.as_ref())?;
-                        heldout_claim(&own, base, ys, g, mine.best, without.sse)
-                    } else {
-                        None
-                    };
-                    // The simulation (the whole step at this candidate's levels) is only
-                    // needed when the held-out claim holds; else NaN: not simulated.
-                    let claim = heldout.is_none_or(|(falls, sign)| falls && sign);
-                    let family_p = family_p_of(mine.min_p, total, || {
-                        if !claim {
-                            return f64::NAN;
-                        }
-                        let all: Vec<GridTest> = open.iter().map(|h| grid_test(&own_tester, h)).collect();
-                        let refs: Vec<&DMatrix<f64>> = all.iter().flat_map(|t| &t.bases).collect();
-                        family_p(own_tester.n(), &refs, &[mine.min_p], GLS_SIMULATIONS, seed)[0]
-                    });
-                    let v = GlsVerdict {
-                        min_p: mine.min_p,
-                        family_p,
-                        levels: (own.white_var, own.flicker_var),
-                        heldout,
-                        own_levels: true,
-                        split: LevelSplit::None,
-                    };
-                    Some((g.effect, v))
-                })
-                .collect()
+        let verdicts = if own_levels {
+            route.own_level_verdicts()
         } else if options.noise_model_level_per_candidate {
-            let without = heldout_of(&fit);
-            let candidates = tests.iter().filter(|t| !t.bases.is_empty()).count();
-            open.par_iter()
-                .zip(&tests)
-                .enumerate()
-                .map(|(i, (g, t))| {
-                    let heldout =
-                        without.as_ref().and_then(|w| heldout_claim(&fit, base, ys, g, t.best, w.sse));
-                    // The simulation of the candidate's own grid is needed only when its claim
-                    // holds; else NaN: not simulated.
-                    let claim = heldout.is_none_or(|(falls, sign)| falls && sign);
-                    let family_p = split_family_p(t.min_p, t.bases.len(), candidates, || {
-                        if !claim {
-                            return f64::NAN;
-                        }
-                        let refs: Vec<&DMatrix<f64>> = t.bases.iter().collect();
-                        let stream = seed ^ (i as u64 + 1).wrapping_mul(0x9E37_79B9_7F4A_7C15);
-                        family_p(tester.n(), &refs, &[t.min_p], GLS_OWN_SIMULATIONS, stream)[0]
-                    });
-                    let v = GlsVerdict {
-                        min_p: t.min_p,
-                        family_p,
-                        levels,
-                        heldout,
-                        own_levels: false,
-                        split: LevelSplit::Candidates(candidates),
-                    };
-                    (g.effect, v)
-                })
-                .collect()
+            route.per_candidate_verdicts()
         } else {
-            let in_family = |e: Effect| options.noise_model_orientation_families && e.orientation_dependent();
-            // The orientation family's own levels: REML with its candidates' whole grid span
-            // in the model (a choice that does not depend on the data), when both families
-            // are open and that model passes its check; else the current model's.
-            let both_open = [false, true].iter().all(|f| {
-                open.iter().zip(&tests).any(|(g, t)| in_family(g.effect) == *f && !t.bases.is_empty())
-            });
-            let family_fit = (options.noise_model_family_levels && both_open)
-                .then(|| {
-                    let family: Vec<&EffectGrid> =
-                        open.iter().copied().filter(|g| in_family(g.effect)).collect();
-                    family_span_fit(basis, base, ys, &family)
-                })
-                .flatten();
-            let family_tester = family_fit.as_ref().and_then(|f| GlsTester::new(f, &base.per_run, ys));
-            let family_tests: Vec<Option<GridTest>> = open
-                .par_iter()
-                .map(|g| match &family_tester {
-                    Some(ft) if in_family(g.effect) => Some(grid_test(ft, g)),
-                    _ => None,
-                })
-                .collect();
-            let chosen: Vec<&GridTest> =
-                tests.iter().zip(&family_tests).map(|(t, ft)| ft.as_ref().unwrap_or(t)).collect();
-            let members: Vec<(&[DMatrix<f64>], f64, bool)> = open
-                .iter()
-                .zip(&chosen)
-                .map(|(g, t)| (t.bases.as_slice(), t.min_p, in_family(g.effect)))
-                .collect();
-            let (simulated, present) =
-                shared_family_ps(tester.n(), &members, GLS_FAMILY_LEVEL, GLS_SIMULATIONS, seed);
-            let split = if present > 1 { LevelSplit::OrientationFamilies } else { LevelSplit::None };
-            let without = heldout_of(&fit);
-            let family_without = family_fit.as_ref().and_then(heldout_of);
-            open.iter()
-                .zip(&chosen)
-                .zip(&family_tests)
-                .zip(&simulated)
-                .map(|(((g, t), ft), family_p)| {
-                    let (f, w) = match (ft, &family_fit) {
-                        (Some(_), Some(ff)) => (ff, family_without.as_ref()),
-                        _ => (&fit, without.as_ref()),
-                    };
-                    let heldout = w.and_then(|w| heldout_claim(f, base, ys, g, t.best, w.sse));
-                    let v = GlsVerdict {
-                        min_p: t.min_p,
-                        family_p: *family_p,
-                        levels: (f.white_var, f.flicker_var),
-                        heldout,
-                        own_levels: ft.is_some(),
-                        split,
-                    };
-                    (g.effect, v)
-                })
-                .collect()
+            route.family_split_verdicts()
         };
         Some(GlsStep { verdicts })
     }
 
     pub(super) fn verdict(&self, effect: Effect) -> Option<GlsVerdict> {
         self.verdicts.iter().find(|(e, _)| *e == effect).map(|(_, v)| *v)
+    }
+}
+
+/// What the route's three ways of judging the open candidates share at one step.
+struct RouteStep<'a> {
+    basis: &'a crate::noise_model::NoiseBasis,
+    base: &'a Design,
+    ys: &'a [Vec<f64>],
+    options: &'a DiagnoseOptions,
+    /// The noise model fitted with the current model in place.
+    fit: &'a crate::noise_model::NoiseFit,
+    tester: &'a crate::noise_model::GlsTester<'a>,
+    open: Vec<&'a EffectGrid>,
+    /// Each open candidate's grid tested at the current model's levels.
+    tests: Vec<GridTest>,
+    /// Seed of the step's simulated null.
+    seed: u64,
+}
+
+impl RouteStep<'_> {
+    /// The current model's held-out GLS error under levels `f` (with the option on).
+    fn heldout_of(&self, f: &crate::noise_model::NoiseFit) -> Option<crate::noise_model::HeldOut> {
+        self.options
+            .noise_model_heldout
+            .then(|| heldout_gls(f, &self.base.per_run, self.ys, self.base.penalty.as_ref()))
+            .flatten()
+    }
+
+    /// [`DiagnoseOptions::noise_model_candidate_levels`]: each candidate at levels refitted
+    /// with it in the model (see [`GlsStep::of`]).
+    fn own_level_verdicts(&self) -> Vec<(Effect, GlsVerdict)> {
+        use crate::noise_model::{family_p, fit_noise, GlsTester};
+        let (base, ys) = (self.base, self.ys);
+        let total: usize = self.tests.iter().map(|t| t.bases.len()).sum();
+        self.open
+            .par_iter()
+            .zip(&self.tests)
+            .filter_map(|(g, t)| {
+                let cols = &g.points[t.best];
+                let with: Vec<DMatrix<f64>> =
+                    (0..base.per_run.len()).map(|r| concat(base, &[&cols.per_run[r]], r)).collect();
+                let own = fit_noise(self.basis, &with, ys)?;
+                if !own.check.passed {
+                    return None;
+                }
+                let own_tester = GlsTester::new(&own, &base.per_run, ys)?;
+                let mine = grid_test(&own_tester, g);
+                let heldout = if self.options.noise_model_heldout {
+                    let without = heldout_gls(&own, &base.per_run, ys, base.penalty.as_ref())?;
+                    heldout_claim(&own, base, ys, g, mine.best, without.sse)
+                } else {
+                    None
+                };
+                // The simulation (the whole step at this candidate's levels) is only
+                // needed when the held-out claim holds; else NaN: not simulated.
+                let claim = heldout.is_none_or(|(falls, sign)| falls && sign);
+                let family_p = family_p_of(mine.min_p, total, || {
+                    if !claim {
+                        return f64::NAN;
+                    }
+                    let all: Vec<GridTest> = self.open.iter().map(|h| grid_test(&own_tester, h)).collect();
+                    let refs: Vec<&DMatrix<f64>> = all.iter().flat_map(|t| &t.bases).collect();
+                    family_p(own_tester.n(), &refs, &[mine.min_p], GLS_SIMULATIONS, self.seed)[0]
+                });
+                let v = GlsVerdict {
+                    min_p: mine.min_p,
+                    family_p,
+                    levels: (own.white_var, own.flicker_var),
+                    heldout,
+                    own_levels: true,
+                    split: LevelSplit::None,
+                };
+                Some((g.effect, v))
+            })
+            .collect()
+    }
+
+    /// [`DiagnoseOptions::noise_model_level_per_candidate`]: the level split evenly over the
+    /// open candidates, each judged by its own grid.
+    fn per_candidate_verdicts(&self) -> Vec<(Effect, GlsVerdict)> {
+        use crate::noise_model::family_p;
+        let without = self.heldout_of(self.fit);
+        let candidates = self.tests.iter().filter(|t| !t.bases.is_empty()).count();
+        self.open
+            .par_iter()
+            .zip(&self.tests)
+            .enumerate()
+            .map(|(i, (g, t))| {
+                let heldout = without
+                    .as_ref()
+                    .and_then(|w| heldout_claim(self.fit, self.base, self.ys, g, t.best, w.sse));
+                // The simulation of the candidate's own grid is needed only when its claim
+                // holds; else NaN: not simulated.
+                let claim = heldout.is_none_or(|(falls, sign)| falls && sign);
+                let family_p = split_family_p(t.min_p, t.bases.len(), candidates, || {
+                    if !claim {
+                        return f64::NAN;
+                    }
+                    let refs: Vec<&DMatrix<f64>> = t.bases.iter().collect();
+                    let stream = self.seed ^ (i as u64 + 1).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+                    family_p(self.tester.n(), &refs, &[t.min_p], GLS_OWN_SIMULATIONS, stream)[0]
+                });
+                let v = GlsVerdict {
+                    min_p: t.min_p,
+                    family_p,
+                    levels: (self.fit.white_var, self.fit.flicker_var),
+                    heldout,
+                    own_levels: false,
+                    split: LevelSplit::Candidates(candidates),
+                };
+                (g.effect, v)
+            })
+            .collect()
+    }
+
+    /// The default: every open candidate against the smallest p over its family's grids
+    /// (one family, or with [`DiagnoseOptions::noise_model_orientation_families`] the
+    /// orientation-dependent candidates and the rest, each with half the level).
+    fn family_split_verdicts(&self) -> Vec<(Effect, GlsVerdict)> {
+        let options = self.options;
+        let in_family = |e: Effect| options.noise_model_orientation_families && e.orientation_dependent();
+        let family_fit = self.orientation_family_fit(&in_family);
+        let family_tester = family_fit
+            .as_ref()
+            .and_then(|f| crate::noise_model::GlsTester::new(f, &self.base.per_run, self.ys));
+        let family_tests: Vec<Option<GridTest>> = self
+            .open
+            .par_iter()
+            .map(|g| match &family_tester {
+                Some(ft) if in_family(g.effect) => Some(grid_test(ft, g)),
+                _ => None,
+            })
+            .collect();
+        let chosen: Vec<&GridTest> =
+            self.tests.iter().zip(&family_tests).map(|(t, ft)| ft.as_ref().unwrap_or(t)).collect();
+        let members: Vec<(&[DMatrix<f64>], f64, bool)> = self
+            .open
+            .iter()
+            .zip(&chosen)
+            .map(|(g, t)| (t.bases.as_slice(), t.min_p, in_family(g.effect)))
+            .collect();
+        let (simulated, present) =
+            shared_family_ps(self.tester.n(), &members, GLS_FAMILY_LEVEL, GLS_SIMULATIONS, self.seed);
+        let split = if present > 1 { LevelSplit::OrientationFamilies } else { LevelSplit::None };
+        let without = self.heldout_of(self.fit);
+        let family_without = family_fit.as_ref().and_then(|f| self.heldout_of(f));
+        self.open
+            .iter()
+            .zip(&chosen)
+            .zip(&family_tests)
+            .zip(&simulated)
+            .map(|(((g, t), ft), family_p)| {
+                let (f, w) = match (ft, &family_fit) {
+                    (Some(_), Some(ff)) => (ff, family_without.as_ref()),
+                    _ => (self.fit, without.as_ref()),
+                };
+                let heldout = w.and_then(|w| heldout_claim(f, self.base, self.ys, g, t.best, w.sse));
+                let v = GlsVerdict {
+                    min_p: t.min_p,
+                    family_p: *family_p,
+                    levels: (f.white_var, f.flicker_var),
+                    heldout,
+                    own_levels: ft.is_some(),
+                    split,
+                };
+                (g.effect, v)
+            })
+            .collect()
+    }
+
+    /// With [`DiagnoseOptions::noise_model_family_levels`]: the orientation family's own
+    /// levels, REML with its candidates' whole grid span in the model (a choice that does not
+    /// depend on the data), when both families are open and that model passes its check.
+    fn orientation_family_fit(
+        &self,
+        in_family: &dyn Fn(Effect) -> bool,
+    ) -> Option<crate::noise_model::NoiseFit> {
+        let both_open = [false, true].iter().all(|f| {
+            self.open.iter().zip(&self.tests).any(|(g, t)| in_family(g.effect) == *f && !t.bases.is_empty())
+        });
+        if !(self.options.noise_model_family_levels && both_open) {
+            return None;
+        }
+        let family: Vec<&EffectGrid> = self.open.iter().copied().filter(|g| in_family(g.effect)).collect();
+        family_span_fit(self.basis, self.base, self.ys, &family)
     }
 }
 
