@@ -91,6 +91,11 @@ where
     F: Fn(&[usize]) -> Result<f64, DiagnoseError> + Sync,
 {
     let mut test = PermutationTest { planned, evaluated: 0, as_good: 0 };
+    if !observed.is_finite() {
+        // Nothing to compare against: the p is 1 without a draw.
+        test.as_good = planned;
+        return Ok(test);
+    }
     let limit = observed + TIE_TOLERANCE * observed.abs();
     while !test.complete() {
         let chunk = CHUNK.min(planned - test.evaluated);
@@ -104,7 +109,8 @@ where
             })
             .collect::<Result<_, _>>()?;
         test.evaluated += chunk;
-        test.as_good += values.iter().filter(|v| **v <= limit).count();
+        // A relabelling whose statistic is not a number counts against the observed one.
+        test.as_good += values.iter().filter(|v| v.is_nan() || **v <= limit).count();
         if test.p() > level {
             break;
         }
@@ -244,6 +250,17 @@ mod tests {
         // At the run-level rules' level for 8 candidates (0.05 / 16) it stops in the first chunk.
         let stopped = permutation_p(8, observed, 0.05 / 16.0, draws_for(0.05 / 16.0), 11, stat).unwrap();
         assert!(!stopped.complete() && stopped.p() > 0.05 / 16.0, "{stopped:?}");
+    }
+
+    #[test]
+    fn a_statistic_that_is_not_a_number_never_makes_the_observed_one_significant() {
+        let nan = |_: &[usize]| -> Result<f64, DiagnoseError> { Ok(f64::NAN) };
+        let t = permutation_p(10, f64::NAN, 0.01, 399, 3, nan).unwrap();
+        assert_eq!((t.p(), t.evaluated), (1.0, 0));
+        // Every relabelling NaN: each counts as good, the test stops after the first chunk.
+        let t = permutation_p(10, 1.0, 0.01, 399, 3, nan).unwrap();
+        assert_eq!(t.as_good, CHUNK);
+        assert!(t.p() > 0.01);
     }
 
     #[test]
