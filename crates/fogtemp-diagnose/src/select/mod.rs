@@ -71,7 +71,7 @@ pub use design::{
     targets, Design, FoldEval,
 };
 pub use final_fit::{evaluate_final, heldout_bias_stability, FinalOutcome};
-pub use forward::{chosen_parts, forward_select, ChosenTerm, Selection};
+pub use forward::{chosen_parts, forward_select, ChosenTerm, Selection, GLS_FAMILY_LEVEL};
 pub use rules::{
     fold_counts, folds_pass, material_runs, signed_rank_p, stability_limit, MIN_INFORMATIVE_FOLDS,
 };
