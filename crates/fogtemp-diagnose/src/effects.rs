@@ -287,7 +287,12 @@ fn warmup_grid() -> Vec<Vec<f64>> {
 const BRANCH_THRESHOLD_GRID_C_PER_MIN: [f64; 5] = [0.005, 0.01, 0.02, 0.05, 0.1];
 /// Widths of the play (backlash) operator of the hysteresis term, deg C.
 const PLAY_WIDTH_GRID_C: [f64; 5] = [0.5, 1.0, 2.0, 4.0, 8.0];
-const SPLINE_SIZE_GRID: [f64; 7] = [4.0, 5.0, 6.0, 8.0, 10.0, 12.0, 14.0];
+/// Cubic B-spline basis sizes of `static_shape` over the recorded range. Up to 14 a bump of
+/// 4-8 C; 18, 24 and 32 put a knot every 2-3.5 C on a 60-100 C range, a quarter of a 10-14 C
+/// ripple period (tried in the fourth session and reverted when only the run-level rules
+/// judged; kept in the twelfth, where the noise-model route names ripples with them:
+/// docs/diagnose.md).
+const SPLINE_SIZE_GRID: [f64; 10] = [4.0, 5.0, 6.0, 8.0, 10.0, 12.0, 14.0, 18.0, 24.0, 32.0];
 /// Cooling rate that counts as "cooling" for the hysteresis requirement, deg C/min.
 const COOLING_C_PER_MIN: f64 = -0.02;
 
