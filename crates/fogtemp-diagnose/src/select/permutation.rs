@@ -123,7 +123,8 @@ where
 /// input rate) labels permuted over the runs, the model's other terms unchanged.
 ///
 /// # Errors
-/// [`DiagnoseError::Fit`] if a relabelled least-squares problem fails.
+/// None at present (a relabelling whose fit fails counts against the observed labels); the
+/// signature follows [`permutation_p`].
 pub(super) fn position_permutation(
     ctx: &StepContext<'_>,
     grid: &EffectGrid,
@@ -134,7 +135,10 @@ pub(super) fn position_permutation(
     let statistic = |order: &[usize]| -> Result<f64, DiagnoseError> {
         let relabelled: Vec<RunLabel<'_>> = order.iter().map(|&r| labels[r]).collect();
         let permuted = relabelled_grid(ctx, grid, &relabelled);
-        profile_candidate(ctx.prep, &ctx.base_parts, &permuted, ctx.ys, ctx.n_eff).map(|p| total_cv(&p))
+        // A relabelling whose fit fails is not evidence for the observed labels: NaN, counted
+        // against them, rather than failing the whole diagnosis.
+        Ok(profile_candidate(ctx.prep, &ctx.base_parts, &permuted, ctx.ys, ctx.n_eff)
+            .map_or(f64::NAN, |p| total_cv(&p)))
     };
     let seed = PERMUTATION_SEED ^ ((ctx.in_model.len() as u64) << 32);
     permutation_p(labels.len(), observed_cv_sse, level, draws_for(level), seed, statistic)
