@@ -16,14 +16,9 @@ import glob
 import json
 import os
 import random
-import subprocess
 import tempfile
 
-from testbed_calibration import runs_with_roles  # the runs file with roles (up_* cal, down_* val)
-
-
-def run_json(cmd):
-    return json.loads(subprocess.run(cmd, capture_output=True, text=True, check=True).stdout)
+from testbed_calibration import run_json, runs_with_roles  # runs_with_roles: the runs file with roles (up_* cal, down_* val)
 
 
 def main():

@@ -19,16 +19,11 @@ import glob
 import json
 import os
 import statistics
-import subprocess
 import tempfile
 
-from testbed_calibration import runs_with_roles  # the runs file with roles (up_* cal, down_* val)
+from testbed_calibration import run_json, runs_with_roles  # runs_with_roles: the runs file with roles (up_* cal, down_* val)
 
 WEIGHTS = (1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8)
-
-
-def run_json(cmd):
-    return json.loads(subprocess.run(cmd, capture_output=True, text=True, check=True).stdout)
 
 
 def sweep_case(binary, case, tmp):

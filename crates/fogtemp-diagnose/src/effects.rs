@@ -456,10 +456,20 @@ fn coef(name: impl Into<String>, units: &str) -> (String, String) {
 
 /// Sorted distinct groups (unlabelled runs form the group `(unlabelled)`).
 pub fn groups(prep: &Prepared) -> Vec<String> {
-    let mut g: Vec<String> = prep.runs.iter().map(group_of).collect();
+    distinct_groups(&run_labels(prep))
+}
+
+/// Sorted distinct groups of `labels`.
+fn distinct_groups(labels: &[RunLabel<'_>]) -> Vec<String> {
+    let mut g: Vec<String> = labels.iter().map(group_name).collect();
     g.sort();
     g.dedup();
     g
+}
+
+/// The group of a run with orientation `label`.
+fn group_name(label: &RunLabel<'_>) -> String {
+    label.0.unwrap_or(UNLABELLED).to_string()
 }
 
 /// The group label of a run.
@@ -636,12 +646,10 @@ pub fn orientation_columns(
     labels: &[RunLabel<'_>],
 ) -> TermColumns {
     let theta_v = theta.to_vec();
-    let group = |r: usize| labels.get(r).and_then(|l| l.0).unwrap_or(UNLABELLED).to_string();
+    let group = |r: usize| labels.get(r).map_or_else(|| UNLABELLED.to_string(), group_name);
     match effect {
         Effect::OrientationOffset => {
-            let mut g: Vec<String> = (0..prep.runs.len()).map(group).collect();
-            g.sort();
-            g.dedup();
+            let g = distinct_groups(labels);
             let reference = g.first().cloned().unwrap_or_default();
             let others: Vec<String> = g.iter().skip(1).cloned().collect();
             let per_run = prep

@@ -707,6 +707,13 @@ mod tests {
         (0..runs).map(|_| DMatrix::from_element(blocks, 1, 1.0)).collect()
     }
 
+    /// `runs` runs of `blocks` contiguous 20 s short means: the noise basis and the
+    /// intercept-only design.
+    fn intercept_model(runs: usize, blocks: usize) -> (NoiseBasis, Vec<DMatrix<f64>>) {
+        let sp = vec![spans(blocks, 20); runs];
+        (NoiseBasis::new(&sp).expect("basis"), intercepts(runs, blocks))
+    }
+
     #[test]
     fn reml_recovers_known_levels_and_the_check_passes() {
         // 16 runs x 360 short means (2 h each), the paper scenario's order of levels: white
@@ -879,7 +886,7 @@ mod tests {
         let mut span = DMatrix::zeros(runs * blocks, 3);
         span.column_mut(0).copy_from(&ones.column(0));
         span.columns_mut(1, 2).copy_from(&qs);
-        let (u, _) = (span.clone().qr().q(), ());
+        let u = span.qr().q();
         let xs = stack(&identity, &extra).expect("stack");
         let left = &xs - &u * (u.transpose() * &xs);
         assert!(left.amax() < 1e-12 * xs.amax(), "{}", left.amax());
@@ -901,9 +908,7 @@ mod tests {
         //   touch, few per-run degrees of freedom of the flicker, an F-like statistic. Its
         //   share at 0.01 is more than 3.5 SD above nominal; that is why the option is off.
         let (runs, blocks, draws) = (8, 90, 1000);
-        let sp = vec![spans(blocks, 20); runs];
-        let basis = NoiseBasis::new(&sp).expect("basis");
-        let base = intercepts(runs, blocks);
+        let (basis, base) = intercept_model(runs, blocks);
         let sign = |r: usize| if r < 4 { 1.0 } else { -1.0 };
         let ramp = |r: usize, i: usize| sign(r) * ((i as f64 / blocks as f64) + r as f64 % 4.0 - 1.5);
         let family: Vec<DMatrix<f64>> = (0..runs)
@@ -951,9 +956,7 @@ mod tests {
         // candidate in the model, Wald p at those levels. Share of p <= 0.05 and <= 0.20:
         // binomial SDs 0.0126 and 0.023; tolerances 3.5 SD (0.044 and 0.081).
         let (runs, blocks, draws) = (8, 90, 300);
-        let sp = vec![spans(blocks, 20); runs];
-        let basis = NoiseBasis::new(&sp).expect("basis");
-        let base = intercepts(runs, blocks);
+        let (basis, base) = intercept_model(runs, blocks);
         let cand: Vec<DMatrix<f64>> = (0..runs)
             .map(|r| {
                 DMatrix::from_fn(blocks, 1, |i, _| if r % 2 == 0 { i as f64 / blocks as f64 } else { 0.0 })

@@ -350,14 +350,19 @@ pub(super) fn contribution(
         .collect()
 }
 
-/// Per-run design `[base | extra]` unscaled (for R^2 only).
+/// Per-run design `[base | extra]` unscaled.
 pub(super) fn concat(base: &Design, extra: &[&DMatrix<f64>], r: usize) -> DMatrix<f64> {
     let b = &base.per_run[r];
-    let k: usize = extra.iter().map(|m| m.ncols()).sum();
-    let mut m = DMatrix::zeros(b.nrows(), b.ncols() + k);
-    m.view_mut((0, 0), b.shape()).copy_from(b);
-    let mut at = b.ncols();
-    for e in extra {
+    let parts: Vec<&DMatrix<f64>> = std::iter::once(b).chain(extra.iter().copied()).collect();
+    hcat(b.nrows(), &parts)
+}
+
+/// `parts` side by side, each `rows` tall.
+pub(super) fn hcat(rows: usize, parts: &[&DMatrix<f64>]) -> DMatrix<f64> {
+    let k: usize = parts.iter().map(|m| m.ncols()).sum();
+    let mut m = DMatrix::zeros(rows, k);
+    let mut at = 0;
+    for e in parts {
         m.view_mut((0, at), e.shape()).copy_from(*e);
         at += e.ncols();
     }

@@ -736,28 +736,11 @@ fn family_span_fit(
         .map(|r| {
             let cols: Vec<&DMatrix<f64>> =
                 family.iter().flat_map(|g| g.points.iter().filter_map(move |pt| pt.per_run.get(r))).collect();
-            let width: usize = cols.iter().map(|c| c.ncols()).sum();
-            let mut m = DMatrix::zeros(base.per_run[r].nrows(), width);
-            let mut at = 0;
-            for c in cols {
-                m.columns_mut(at, c.ncols()).copy_from(c);
-                at += c.ncols();
-            }
-            m
+            hcat(base.per_run[r].nrows(), &cols)
         })
         .collect();
     let span = crate::noise_model::independent_extension(&base.per_run, &extra)?;
-    let with: Vec<DMatrix<f64>> = base
-        .per_run
-        .iter()
-        .zip(&span)
-        .map(|(b, e)| {
-            let mut m = DMatrix::zeros(b.nrows(), b.ncols() + e.ncols());
-            m.columns_mut(0, b.ncols()).copy_from(b);
-            m.columns_mut(b.ncols(), e.ncols()).copy_from(e);
-            m
-        })
-        .collect();
+    let with: Vec<DMatrix<f64>> = (0..runs).map(|r| concat(base, &[&span[r]], r)).collect();
     let fit = crate::noise_model::fit_noise(basis, &with, ys)?;
     fit.check.passed.then_some(fit)
 }
@@ -774,14 +757,7 @@ pub const GLS_OWN_SIMULATIONS: usize = 40_000;
 /// `simulate()` gives the own p (the simulated null of its smallest p over its grid).
 fn split_family_p(min_p: f64, points: usize, candidates: usize, simulate: impl FnOnce() -> f64) -> f64 {
     let m = candidates.max(1) as f64;
-    let (lower, upper) = (min_p * m, min_p * m * points.max(1) as f64);
-    if lower > GLS_FAMILY_LEVEL {
-        lower.min(1.0)
-    } else if upper <= GLS_FAMILY_LEVEL {
-        upper
-    } else {
-        (m * simulate()).min(1.0)
-    }
+    (m * family_p_at(min_p, points, GLS_FAMILY_LEVEL / m, simulate)).min(1.0)
 }
 
 /// Held-out GLS claim of a candidate's grid point under `fit`: (error falls below the
