@@ -7,8 +7,9 @@
 //! `cargo run --release -p fogtemp-diagnose --example diagnose_confusion -- [SEEDS] [FIRST_SEED] [SCALE] [LABEL...]`
 //! (defaults: 20 seeds from 5000, sizes x1, every dataset; docs/diagnose.md gives the commands
 //! it was made with). SCALE multiplies every injected size (`concealed::datasets_at`).
-//! `-v` anywhere prints each diagnosis's candidate table; `--candidate-levels` turns on and
-//! `--no-gls-heldout` turns off the ninth session's two options, `--no-encompassing` the
+//! `-v` anywhere prints each diagnosis's candidate table; `--no-candidate-levels` and
+//! `--no-gls-heldout` turn off the ninth session's two options (the first on since the
+//! thirteenth session), `--no-encompassing` the
 //! tenth session's tie-break, `--level-per-candidate` turns on and `--no-orientation-families` off the
 //! eleventh session's two splits of the noise-model route's family-wise level, `--family-levels`
 //! turns on its orientation family's own levels, `--no-position-permutation` turns off the twelfth
@@ -72,7 +73,7 @@ fn main() {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let verbose = args.iter().any(|a| a == "-v");
     let options = DiagnoseOptions {
-        noise_model_candidate_levels: args.iter().any(|a| a == "--candidate-levels"),
+        noise_model_candidate_levels: !args.iter().any(|a| a == "--no-candidate-levels"),
         noise_model_heldout: !args.iter().any(|a| a == "--no-gls-heldout"),
         encompassing_tie_break: !args.iter().any(|a| a == "--no-encompassing"),
         noise_model_level_per_candidate: args.iter().any(|a| a == "--level-per-candidate"),

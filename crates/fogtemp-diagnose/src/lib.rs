@@ -123,8 +123,12 @@ pub struct DiagnoseOptions {
     /// candidate's noise levels by REML with the candidate (at its smallest-p grid point) in
     /// the model, check that model, and test the candidate at its levels (the oracle's way).
     /// Not used when the current model passes: refitted levels absorb slow noise under the
-    /// null. Off by default: it changed no measured count and let `hysteresis` pass as an
-    /// alternative to a strong lag not yet in the model (docs/diagnose.md, ninth session).
+    /// null. Where an effect is large enough to make the current model fail its check
+    /// (e.g. a ripple in b(T)), the route is otherwise closed to every candidate. On by
+    /// default since the thirteenth session (ripples named 6 -> 10 of 10; docs/diagnose.md);
+    /// the ninth session had left it off because it let `hysteresis` pass as an alternative
+    /// to a strong lag its LORO error was far from, now not listed (alternatives must be
+    /// within one standard error of the lowest LORO error).
     pub noise_model_candidate_levels: bool,
     /// In that route, measure the held-out claim (leave-one-run-out error falls, the sign of
     /// a lag's gain) by GLS in the noise model's metric at the candidate's smallest-p point,
@@ -187,7 +191,7 @@ impl Default for DiagnoseOptions {
             window_coverage: 0.5,
             block_coverage: 0.9,
             noise_model_acceptance: true,
-            noise_model_candidate_levels: false,
+            noise_model_candidate_levels: true,
             noise_model_heldout: true,
             encompassing_tie_break: true,
             noise_model_level_per_candidate: false,

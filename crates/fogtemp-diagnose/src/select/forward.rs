@@ -318,6 +318,7 @@ pub(super) fn run_step(ctx: &StepContext<'_>) -> Result<(Vec<CandidateReport>, O
             }
         }
     }
+    let held_out_sse: Vec<(Effect, f64)> = accepted.iter().map(|a| (a.2 .0, a.0.iter().sum())).collect();
     let mut set = parsimonious_set(accepted).into_iter().map(|a| a.2);
     let (first, second) = (set.next(), set.next());
     // Two rivals of one size within one SE: the LORO error cannot tell them apart, so the
@@ -345,7 +346,14 @@ pub(super) fn run_step(ctx: &StepContext<'_>) -> Result<(Vec<CandidateReport>, O
                 }
             } else if r.status == "accepted" {
                 r.status = "rejected".into();
-                r.note = RUNNER_UP_NOTE.into();
+                let sse_of = |name: &str| held_out_sse.iter().find(|(e, _)| e.name() == name).map(|x| x.1);
+                let base_sse: f64 = ctx.base_eval.fold_sse.iter().sum();
+                let share = match (sse_of(&r.effect), sse_of(effect.name())) {
+                    (Some(mine), Some(chosen)) => explained_share(base_sse, mine, chosen),
+                    _ => 0.0,
+                };
+                r.note =
+                    if share >= ALTERNATIVE_SHARE { RUNNER_UP_NOTE } else { RUNNER_UP_PARTIAL_NOTE }.into();
             }
         }
     }
@@ -414,17 +422,41 @@ pub(super) fn parsimonious_pick(accepted: Vec<(Vec<f64>, usize, Pick)>) -> Optio
     parsimonious_set(accepted).into_iter().next().map(|a| a.2)
 }
 
+/// The one-standard-error limit on the total LORO error among accepted candidates
+/// `(held-out SSE per run, ..)`: the lowest total plus its standard error (`G` x the SD of
+/// its per-run errors over `sqrt(G)`); `None` when nothing was accepted.
+pub(super) fn one_se_limit<T>(accepted: &[(Vec<f64>, usize, T)]) -> Option<f64> {
+    let total = |f: &[f64]| f.iter().sum::<f64>();
+    let best = accepted.iter().min_by(|a, b| total(&a.0).total_cmp(&total(&b.0)))?;
+    let g = best.0.len() as f64;
+    let mean = total(&best.0) / g;
+    let sd = (best.0.iter().map(|e| (e - mean).powi(2)).sum::<f64>() / (g - 1.0).max(1.0)).sqrt();
+    Some(total(&best.0) + sd * g.sqrt())
+}
+
+/// Smallest share of the selected effect's fall in LORO error that a runner-up must reach
+/// to be listed as an alternative explanation: at least half of what the selected effect
+/// explains in held-out runs (the same "half" a flexible term's folds must reproduce,
+/// [`MIN_FOLD_SHARE`]).
+pub(super) const ALTERNATIVE_SHARE: f64 = 0.5;
+
+/// A runner-up's fall in LORO error over the current model (`base_sse`) as a share of the
+/// selected effect's: `(base - mine) / (base - chosen)`; 0 when the selected effect lowers
+/// nothing.
+pub(super) fn explained_share(base_sse: f64, mine_sse: f64, chosen_sse: f64) -> f64 {
+    let chosen_gain = base_sse - chosen_sse;
+    if chosen_gain > 0.0 {
+        (base_sse - mine_sse) / chosen_gain
+    } else {
+        0.0
+    }
+}
+
 /// The candidates `parsimonious_pick` chooses among: those with the fewest coefficients
 /// within one standard error of the lowest LORO error, lowest error first.
 pub(super) fn parsimonious_set(accepted: Vec<(Vec<f64>, usize, Pick)>) -> Vec<(Vec<f64>, usize, Pick)> {
     let total = |f: &[f64]| f.iter().sum::<f64>();
-    let Some(best) = accepted.iter().min_by(|a, b| total(&a.0).total_cmp(&total(&b.0))) else {
-        return Vec::new();
-    };
-    let g = best.0.len() as f64;
-    let mean = total(&best.0) / g;
-    let sd = (best.0.iter().map(|e| (e - mean).powi(2)).sum::<f64>() / (g - 1.0).max(1.0)).sqrt();
-    let limit = total(&best.0) + sd * g.sqrt();
+    let Some(limit) = one_se_limit(&accepted) else { return Vec::new() };
     let mut within: Vec<(Vec<f64>, usize, Pick)> =
         accepted.into_iter().filter(|a| total(&a.0) <= limit).collect();
     let Some(fewest) = within.iter().map(|a| a.1).min() else { return Vec::new() };
@@ -1073,8 +1105,16 @@ fn gls_note(v: Option<GlsVerdict>) -> String {
     })
 }
 
-/// Passes every rule at a step without being selected.
+/// Passes every rule at a step without being selected, and lowers the LORO error by at
+/// least [`ALTERNATIVE_SHARE`] of what the selected effect lowers it by: an alternative
+/// explanation these runs hardly separate.
 pub(super) const RUNNER_UP_NOTE: &str = "passes the rules but another effect lowers the LORO error more";
+
+/// Passes every rule at a step without being selected, but lowers the LORO error by less
+/// than [`ALTERNATIVE_SHARE`] of what the selected effect lowers it by: it explains part of
+/// what another effect explains better, so it is not listed as an alternative.
+pub(super) const RUNNER_UP_PARTIAL_NOTE: &str =
+    "passes the rules but explains less than half of what the selected effect explains in held-out runs";
 
 #[cfg(test)]
 mod tests {
@@ -1225,6 +1265,27 @@ mod tests {
         ]);
         assert_eq!(picked.map(|p| p.0), Some(Effect::WarmupTransient));
         assert!(parsimonious_pick(Vec::new()).is_none());
+    }
+
+    #[test]
+    fn explained_share_is_the_runner_ups_fall_over_the_selected_ones() {
+        // Base 10, selected 6 (falls 4), runner-up 8 (falls 2): half.
+        assert!((explained_share(10.0, 8.0, 6.0) - 0.5).abs() < 1e-15);
+        assert!((explained_share(10.0, 5.0, 6.0) - 1.25).abs() < 1e-15); // lower error than the selected
+        assert!(explained_share(10.0, 11.0, 6.0) < 0.0); // rises
+        assert_eq!(explained_share(10.0, 8.0, 10.0), 0.0); // the selected lowers nothing
+    }
+
+    #[test]
+    fn one_se_limit_is_the_lowest_total_plus_its_standard_error() {
+        // Lowest total 4 (per-run 0.5, 1.5, 1, 1): sd sqrt(0.5 / 3), limit 4 + sd x 2.
+        let limit = one_se_limit(&[
+            cand(Effect::ShupeRate, &[1.3, 1.2, 1.2, 1.2], 1),
+            cand(Effect::WarmupTransient, &[0.5, 1.5, 1.0, 1.0], 2),
+        ]);
+        let expected = 4.0 + (0.5f64 / 3.0).sqrt() * 2.0;
+        assert!(limit.is_some_and(|l| (l - expected).abs() < 1e-12), "{limit:?}");
+        assert!(one_se_limit::<Pick>(&[]).is_none());
     }
 
     #[test]
