@@ -346,14 +346,7 @@ pub(super) fn run_step(ctx: &StepContext<'_>) -> Result<(Vec<CandidateReport>, O
                 }
             } else if r.status == "accepted" {
                 r.status = "rejected".into();
-                let sse_of = |name: &str| held_out_sse.iter().find(|(e, _)| e.name() == name).map(|x| x.1);
-                let base_sse: f64 = ctx.base_eval.fold_sse.iter().sum();
-                let share = match (sse_of(&r.effect), sse_of(effect.name())) {
-                    (Some(mine), Some(chosen)) => explained_share(base_sse, mine, chosen),
-                    _ => 0.0,
-                };
-                r.note =
-                    if share >= ALTERNATIVE_SHARE { RUNNER_UP_NOTE } else { RUNNER_UP_PARTIAL_NOTE }.into();
+                r.note = runner_up_note(ctx, &held_out_sse, &r.effect, *effect).into();
             }
         }
     }
@@ -422,18 +415,6 @@ pub(super) fn parsimonious_pick(accepted: Vec<(Vec<f64>, usize, Pick)>) -> Optio
     parsimonious_set(accepted).into_iter().next().map(|a| a.2)
 }
 
-/// The one-standard-error limit on the total LORO error among accepted candidates
-/// `(held-out SSE per run, ..)`: the lowest total plus its standard error (`G` x the SD of
-/// its per-run errors over `sqrt(G)`); `None` when nothing was accepted.
-pub(super) fn one_se_limit<T>(accepted: &[(Vec<f64>, usize, T)]) -> Option<f64> {
-    let total = |f: &[f64]| f.iter().sum::<f64>();
-    let best = accepted.iter().min_by(|a, b| total(&a.0).total_cmp(&total(&b.0)))?;
-    let g = best.0.len() as f64;
-    let mean = total(&best.0) / g;
-    let sd = (best.0.iter().map(|e| (e - mean).powi(2)).sum::<f64>() / (g - 1.0).max(1.0)).sqrt();
-    Some(total(&best.0) + sd * g.sqrt())
-}
-
 /// Smallest share of the selected effect's fall in LORO error that a runner-up must reach
 /// to be listed as an alternative explanation: at least half of what the selected effect
 /// explains in held-out runs (the same "half" a flexible term's folds must reproduce,
@@ -452,11 +433,39 @@ pub(super) fn explained_share(base_sse: f64, mine_sse: f64, chosen_sse: f64) -> 
     }
 }
 
+/// The note of an accepted candidate `runner_up` that was not selected: an alternative
+/// explanation only if it explains at least [`ALTERNATIVE_SHARE`] of what `selected` does
+/// (`held_out_sse`: each accepted candidate's total LORO error).
+fn runner_up_note(
+    ctx: &StepContext<'_>,
+    held_out_sse: &[(Effect, f64)],
+    runner_up: &str,
+    selected: Effect,
+) -> &'static str {
+    let sse_of = |name: &str| held_out_sse.iter().find(|(e, _)| e.name() == name).map(|x| x.1);
+    let base_sse: f64 = ctx.base_eval.fold_sse.iter().sum();
+    let share = match (sse_of(runner_up), sse_of(selected.name())) {
+        (Some(mine), Some(chosen)) => explained_share(base_sse, mine, chosen),
+        _ => 0.0,
+    };
+    if share >= ALTERNATIVE_SHARE {
+        RUNNER_UP_NOTE
+    } else {
+        RUNNER_UP_PARTIAL_NOTE
+    }
+}
+
 /// The candidates `parsimonious_pick` chooses among: those with the fewest coefficients
 /// within one standard error of the lowest LORO error, lowest error first.
 pub(super) fn parsimonious_set(accepted: Vec<(Vec<f64>, usize, Pick)>) -> Vec<(Vec<f64>, usize, Pick)> {
     let total = |f: &[f64]| f.iter().sum::<f64>();
-    let Some(limit) = one_se_limit(&accepted) else { return Vec::new() };
+    let Some(best) = accepted.iter().min_by(|a, b| total(&a.0).total_cmp(&total(&b.0))) else {
+        return Vec::new();
+    };
+    let g = best.0.len() as f64;
+    let mean = total(&best.0) / g;
+    let sd = (best.0.iter().map(|e| (e - mean).powi(2)).sum::<f64>() / (g - 1.0).max(1.0)).sqrt();
+    let limit = total(&best.0) + sd * g.sqrt();
     let mut within: Vec<(Vec<f64>, usize, Pick)> =
         accepted.into_iter().filter(|a| total(&a.0) <= limit).collect();
     let Some(fewest) = within.iter().map(|a| a.1).min() else { return Vec::new() };
@@ -1274,18 +1283,6 @@ mod tests {
         assert!((explained_share(10.0, 5.0, 6.0) - 1.25).abs() < 1e-15); // lower error than the selected
         assert!(explained_share(10.0, 11.0, 6.0) < 0.0); // rises
         assert_eq!(explained_share(10.0, 8.0, 10.0), 0.0); // the selected lowers nothing
-    }
-
-    #[test]
-    fn one_se_limit_is_the_lowest_total_plus_its_standard_error() {
-        // Lowest total 4 (per-run 0.5, 1.5, 1, 1): sd sqrt(0.5 / 3), limit 4 + sd x 2.
-        let limit = one_se_limit(&[
-            cand(Effect::ShupeRate, &[1.3, 1.2, 1.2, 1.2], 1),
-            cand(Effect::WarmupTransient, &[0.5, 1.5, 1.0, 1.0], 2),
-        ]);
-        let expected = 4.0 + (0.5f64 / 3.0).sqrt() * 2.0;
-        assert!(limit.is_some_and(|l| (l - expected).abs() < 1e-12), "{limit:?}");
-        assert!(one_se_limit::<Pick>(&[]).is_none());
     }
 
     #[test]
