@@ -673,3 +673,32 @@ fn relabelled_orientation_columns_are_the_columns_of_relabelled_runs() {
         assert_ne!(got.per_run, term_columns(&prep, effect, &theta).per_run, "{effect:?}");
     }
 }
+
+/// A 12 C ripple in b(T) that the current model cannot absorb makes that model fail the noise
+/// model's innovation check, which closed the noise-model route to every candidate until the
+/// candidates' own levels were used there (`noise_model_candidate_levels`, docs/diagnose.md,
+/// thirteenth session). Named and followed in each of three seeds; with the fallback off, not
+/// named in at least one (so the test exercises it). (At 0.008 deg/h neither names it.)
+#[test]
+fn a_ripple_that_fails_the_noise_check_is_named_at_the_candidates_levels() {
+    let (amp, period) = (0.012, 12.0);
+    let off = DiagnoseOptions { noise_model_candidate_levels: false, ..DiagnoseOptions::default() };
+    let mut named_without = 0;
+    for seed in 31..34 {
+        let (sim, rec) = make_set(&overlapping_runs(), Injected::StaticRipple(amp, period), 1.0, seed);
+        let d = diagnose(&sim, &rec, &DiagnoseOptions::default(), |_, _| {}).expect("diagnosis runs");
+        assert_eq!(names(&d), ["static_shape"], "seed {seed}: {}", d.summary);
+        let (lo, hi) = (param(&d, "static_shape", "t_min_c").0, param(&d, "static_shape", "t_max_c").0);
+        let k = param(&d, "static_shape", "basis_functions").0 as usize;
+        let coef: Vec<f64> =
+            (1..k).map(|j| param(&d, "static_shape", &format!("spline_{j}_dph")).0).collect();
+        let (grid, fitted) = common::static_shape_on_central_grid(lo, hi, k, &coef);
+        let truth: Vec<f64> = grid.iter().map(|t| amp * (std::f64::consts::TAU * t / period).sin()).collect();
+        let r = common::correlation(&fitted, &truth);
+        eprintln!("seed {seed}: {k} functions, correlation {r}");
+        assert!(r > 0.7, "seed {seed}: correlation of fitted and injected shape {r}");
+        let d_off = diagnose(&sim, &rec, &off, |_, _| {}).expect("diagnosis runs");
+        named_without += usize::from(names(&d_off).contains(&"static_shape"));
+    }
+    assert!(named_without < 3, "the fallback decided nothing here");
+}
