@@ -374,6 +374,16 @@ pub struct TriangleTransform {
     pub plane: [f64; 3],
 }
 
+impl TriangleTransform {
+    /// Barycentric coordinates `[l0, l1, 1 - l0 - l1]` of `(x, y)` (all in `[0, 1]` inside).
+    pub fn barycentric(&self, x: f64, y: f64) -> [f64; 3] {
+        let (dx, dy) = (x - f64::from(self.origin[0]), y - f64::from(self.origin[1]));
+        let l0 = self.bary[0] * dx + self.bary[1] * dy;
+        let l1 = self.bary[2] * dx + self.bary[3] * dy;
+        [l0, l1, 1.0 - l0 - l1]
+    }
+}
+
 /// Barycentric transform and value plane of triangle `tri`, in f64 from the f32 vertex
 /// positions the blob stores, relative to vertex 2 (so small triangles far from the
 /// origin keep their precision in f32). `None` for a bad index or a zero-area triangle.

@@ -527,11 +527,7 @@ fn locate(
 ) -> Option<([usize; 3], [f64; 3])> {
     const EDGE_TOL: f64 = 1e-6;
     let bary = |t: usize| -> Option<([f64; 3], f64)> {
-        let tf = transforms.get(t)?.as_ref()?;
-        let (dx, dy) = (f64::from(x) - f64::from(tf.origin[0]), f64::from(y) - f64::from(tf.origin[1]));
-        let l0 = tf.bary[0] * dx + tf.bary[1] * dy;
-        let l1 = tf.bary[2] * dx + tf.bary[3] * dy;
-        let l = [l0, l1, 1.0 - l0 - l1];
+        let l = transforms.get(t)?.as_ref()?.barycentric(f64::from(x), f64::from(y));
         Some((l, l.iter().copied().fold(f64::INFINITY, f64::min)))
     };
     let mut best: Option<(usize, [f64; 3], f64)> = None;

@@ -164,10 +164,7 @@ fn holding_triangle(
     let mut best: Option<(usize, [f64; 3], f64)> = None;
     for (t, tf) in transforms.iter().enumerate() {
         let Some(tf) = tf else { continue };
-        let (dx, dy) = (x - f64::from(tf.origin[0]), y - f64::from(tf.origin[1]));
-        let l0 = tf.bary[0] * dx + tf.bary[1] * dy;
-        let l1 = tf.bary[2] * dx + tf.bary[3] * dy;
-        let l = [l0, l1, 1.0 - l0 - l1];
+        let l = tf.barycentric(x, y);
         let worst = l.iter().copied().fold(f64::INFINITY, f64::min);
         if best.as_ref().is_none_or(|b| worst > b.2) {
             best = Some((t, l, worst));
