@@ -456,6 +456,8 @@ fn thermal_lag_is_named_and_its_time_constant_recovered() {
         let text = std::fs::read_to_string(dir.path().join(svg)).expect(svg);
         assert!(text.starts_with("<svg"), "{svg}");
     }
+    // The static-shape figure only when static_shape is named.
+    assert!(!dir.path().join("static_shape.svg").exists() && !md.contains("static_shape.svg"));
 }
 
 /// The CLI prints the diagnosis as JSON; the contract keys are there with the right types.
@@ -697,6 +699,15 @@ fn a_ripple_that_fails_the_noise_check_is_named_at_the_candidates_levels() {
         let r = common::correlation(&fitted, &truth);
         eprintln!("seed {seed}: {k} functions, correlation {r}");
         assert!(r > 0.7, "seed {seed}: correlation of fitted and injected shape {r}");
+        if seed == 31 {
+            // The report draws the named shape.
+            let dir = tempfile::tempdir().expect("temp dir");
+            write_diagnosis_report(dir.path(), &d).expect("report written");
+            let md = std::fs::read_to_string(dir.path().join("report.md")).expect("report.md");
+            assert!(md.contains("![static shape](static_shape.svg)"), "{md}");
+            let svg = std::fs::read_to_string(dir.path().join("static_shape.svg")).expect("static_shape.svg");
+            assert!(svg.starts_with("<svg") && svg.contains("fitted shape over the coil temperature"));
+        }
         let d_off = diagnose(&sim, &rec, &off, |_, _| {}).expect("diagnosis runs");
         named_without += usize::from(names(&d_off).contains(&"static_shape"));
     }

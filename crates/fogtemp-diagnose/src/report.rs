@@ -1,5 +1,6 @@
 //! The diagnosis report: `report.md` with every definition, and SVG figures (residual vs
-//! time per run before/after, the (T, dT/dt) map, Allan deviation against the floor).
+//! time per run before/after, the (T, dT/dt) map, Allan deviation against the floor, and a
+//! named static shape against temperature).
 
 use std::fmt::Write as _;
 use std::path::Path;
@@ -14,7 +15,8 @@ use fogtemp_cal::metrics::AllanPoint;
 use fogtemp_cal::output::write_file_atomic;
 
 use fogtemp_cal::report::{
-    draw_legend, finite_range as range, plot_err as io_err, run_colour as colour, tick, time_panel, write_svg,
+    draw_legend, draw_legend_at, finite_range as range, plot_err as io_err, run_colour as colour, tick,
+    time_panel, write_svg,
 };
 
 /// Blue (negative) to red (positive) through white, for `t` in [-1, 1].
@@ -137,6 +139,97 @@ fn allan_curves(d: &Diagnosis) -> Vec<(String, Vec<AllanPoint>)> {
     ]
 }
 
+/// Width of the temperature bins of the static-shape figure's residual means, deg C.
+const SHAPE_BIN_C: f64 = 2.0;
+
+/// Points `(temperature deg C, deg/h)` of one curve.
+type Curve = Vec<(f64, f64)>;
+
+/// A named static shape, as the report draws it: the fitted change of b over the coil
+/// temperature (the reported B-spline coefficients on their knots), and the raw residual's
+/// means in [`SHAPE_BIN_C`] bins of the recorded temperature; each centred on its own mean
+/// over the bins both cover. `None` when the parameters are incomplete.
+fn static_shape_curves(d: &Diagnosis, e: &super::LeftOutEffect) -> Option<(Curve, Curve)> {
+    let value = |name: &str| e.parameters.get(name).map(|p| p.value);
+    let (lo, hi, k) = (value("t_min_c")?, value("t_max_c")?, value("basis_functions")? as usize);
+    let coef: Vec<f64> = (1..k).map(|j| value(&format!("spline_{j}_dph"))).collect::<Option<_>>()?;
+    let shape_at = |t: f64| -> f64 {
+        let b = crate::effects::bspline_basis(t, lo, hi, k);
+        b.iter().skip(1).zip(&coef).map(|(x, c)| x * c).sum()
+    };
+    let bins = ((hi - lo) / SHAPE_BIN_C).ceil().max(1.0) as usize;
+    let mut sums = vec![(0.0, 0usize); bins];
+    for t in &d.traces {
+        for (temp, r) in t.temp_c.iter().zip(&t.before_dph) {
+            if temp.is_finite() && r.is_finite() && (lo..=hi).contains(temp) {
+                let i = (((temp - lo) / SHAPE_BIN_C) as usize).min(bins - 1);
+                sums[i].0 += r;
+                sums[i].1 += 1;
+            }
+        }
+    }
+    let centre = |i: usize| lo + (i as f64 + 0.5) * SHAPE_BIN_C;
+    let means: Vec<(f64, f64)> = sums
+        .iter()
+        .enumerate()
+        .filter(|(_, s)| s.1 > 0)
+        .map(|(i, s)| (centre(i), s.0 / s.1 as f64))
+        .collect();
+    if means.is_empty() {
+        return None;
+    }
+    let mean_resid = means.iter().map(|m| m.1).sum::<f64>() / means.len() as f64;
+    let mean_shape = means.iter().map(|m| shape_at(m.0)).sum::<f64>() / means.len() as f64;
+    let line = (0..=400)
+        .map(|i| lo + (hi - lo) * f64::from(i) / 400.0)
+        .map(|t| (t, shape_at(t) - mean_shape))
+        .collect();
+    Some((line, means.into_iter().map(|(t, m)| (t, m - mean_resid)).collect()))
+}
+
+/// The static-shape figure (see [`static_shape_curves`]).
+fn plot_static_shape(
+    path: &Path,
+    line: &[(f64, f64)],
+    means: &[(f64, f64)],
+    lag_s: f64,
+) -> Result<(), CalError> {
+    write_svg(path, (1000, 560), |root| {
+        root.fill(&WHITE).map_err(|e| io_err(path, e))?;
+        let x = range(line.iter().map(|p| p.0));
+        let y = range(line.iter().chain(means).map(|p| p.1));
+        // Room above the curves for the legend.
+        let y = (y.0, y.1 + 0.3 * (y.1 - y.0));
+        let mut chart = ChartBuilder::on(&root)
+            .caption("static_shape: the fitted change of the bias with temperature", ("sans-serif", 20))
+            .margin(12)
+            .x_label_area_size(40)
+            .y_label_area_size(80)
+            .build_cartesian_2d(x.0..x.1, y.0..y.1)
+            .map_err(|e| io_err(path, e))?;
+        chart
+            .configure_mesh()
+            .x_desc("temperature, deg C")
+            .y_desc("deg/h (each curve about its mean)")
+            .x_label_formatter(&tick)
+            .y_label_formatter(&tick)
+            .draw()
+            .map_err(|e| io_err(path, e))?;
+        chart
+            .draw_series(means.iter().map(|p| Circle::new(*p, 4, colour(1).filled())))
+            .map_err(|e| io_err(path, e))?
+            .label(format!("raw residual, mean per {SHAPE_BIN_C} C of recorded temperature"))
+            .legend(|(x, y)| Circle::new((x + 8, y), 4, colour(1).filled()));
+        chart
+            .draw_series(LineSeries::new(line.iter().copied(), colour(0).stroke_width(3)))
+            .map_err(|e| io_err(path, e))?
+            .label(format!("fitted shape over the coil temperature (the recorded one lagged {lag_s:.0} s)"))
+            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], colour(0).stroke_width(3)));
+        draw_legend_at(&mut chart, path, SeriesLabelPosition::UpperLeft)?;
+        root.present().map_err(|e| io_err(path, e))
+    })
+}
+
 fn opt(v: Option<f64>) -> String {
     v.map_or_else(|| "-".into(), |x| format!("{x:.4}"))
 }
@@ -170,6 +263,9 @@ fn markdown(d: &Diagnosis) -> String {
         );
         for (name, p) in &e.parameters {
             let _ = writeln!(md, "| {name} | {:.6} | {} | {} |", p.value, opt(p.std_error), p.units);
+        }
+        if e.effect == "static_shape" && static_shape_curves(d, e).is_some() {
+            let _ = writeln!(md, "\n![static shape](static_shape.svg)");
         }
         let _ = writeln!(
             md,
@@ -320,7 +416,8 @@ fn location_markdown(d: &Diagnosis) -> String {
     md
 }
 
-/// Writes `report.md`, `residuals.svg`, `map.svg` and `allan.svg` into `dir`.
+/// Writes `report.md`, `residuals.svg`, `map.svg`, `allan.svg` and, when `static_shape` is
+/// named, `static_shape.svg` into `dir`.
 ///
 /// # Errors
 /// [`DiagnoseError::Cal`] with [`fogtemp_cal::CalError::Io`] when a file cannot be written.
@@ -339,6 +436,12 @@ pub fn write_diagnosis_report(dir: &Path, d: &Diagnosis) -> Result<(), DiagnoseE
             "Residual Allan deviation (RMS over runs)",
             &curves,
         )?;
+    }
+    for e in d.left_out.iter().filter(|e| e.effect == "static_shape") {
+        if let Some((line, means)) = static_shape_curves(d, e) {
+            let lag_s = e.parameters.get("coil_lag_s").map_or(0.0, |p| p.value);
+            plot_static_shape(&dir.join("static_shape.svg"), &line, &means, lag_s)?;
+        }
     }
     let path = dir.join("report.md");
     Ok(write_file_atomic(&path, |w| w.write_all(markdown(d).as_bytes()))?)
