@@ -50,9 +50,13 @@
 //!   leave-one-run-out GLS error in the model's metric falls with the candidate at its
 //!   smallest-p point and the GLS sign is physical (`noise_model::heldout_gls`), else the
 //!   run-level LORO error falls and the sign is physical. If the model does not fit, with
-//!   `DiagnoseOptions::noise_model_candidate_levels` (off by default) each candidate's levels are
-//!   refitted with it in the model and the candidate is tested at them if that model passes
-//!   the check; otherwise the run-level rules decide alone (docs/diagnose.md, ninth session).
+//!   `DiagnoseOptions::noise_model_candidate_levels` (on by default since the thirteenth
+//!   session) each candidate's levels are refitted with it in the model and the candidate is
+//!   tested at them if that model passes the check; otherwise the run-level rules decide alone
+//!   (docs/diagnose.md, ninth and thirteenth sessions).
+//! - alternatives: a runner-up that passed every rule is listed as an alternative explanation
+//!   only when its fall in LORO error is at least half of the selected effect's
+//!   (`forward::ALTERNATIVE_SHARE`).
 //! - position-label permutation (`DiagnoseOptions::position_permutation`, on by default): a
 //!   term that depends on the run's orientation (`Effect::orientation_dependent`) passes the
 //!   run-level rules only if its profiled LORO error is also better than under random
