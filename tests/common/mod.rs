@@ -174,17 +174,8 @@ where
 /// `spline_1..` coefficients). Returns the grid and the shape on it.
 pub fn static_shape_on_central_grid(lo: f64, hi: f64, k: usize, coef: &[f64]) -> (Vec<f64>, Vec<f64>) {
     let grid: Vec<f64> = (0..=80).map(|i| lo + (hi - lo) * (0.1 + 0.8 * f64::from(i) / 80.0)).collect();
-    let fitted = grid
-        .iter()
-        .map(|&t| {
-            fogtemp_diagnose::effects::bspline_basis(t, lo, hi, k)
-                .iter()
-                .skip(1)
-                .zip(coef)
-                .map(|(b, c)| b * c)
-                .sum()
-        })
-        .collect();
+    let fitted =
+        grid.iter().map(|&t| fogtemp_diagnose::effects::static_shape_value(t, lo, hi, k, coef)).collect();
     (grid, fitted)
 }
 

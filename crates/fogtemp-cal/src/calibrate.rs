@@ -340,7 +340,7 @@ fn canonical_run_order(runs: &[RunFeatures], axis: usize) -> Vec<usize> {
         })
     };
     let mut order: Vec<usize> = (0..runs.len()).collect();
-    order.sort_by_key(|&r| (key(&runs[r]), r));
+    order.sort_by_cached_key(|&r| (key(&runs[r]), r));
     order
 }
 

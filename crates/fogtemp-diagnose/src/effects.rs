@@ -384,6 +384,13 @@ pub fn branch(rate_c_per_min: &[f64], threshold_c_per_min: f64) -> Vec<f64> {
         .collect()
 }
 
+/// The static shape at `t`: `sum_j coef_j B_{j+1}(t)` over the basis of `k` functions on
+/// `[lo, hi]` without its first function (as `static_shape`'s columns; `coef` holds its
+/// `k - 1` coefficients).
+pub fn static_shape_value(t: f64, lo: f64, hi: f64, k: usize, coef: &[f64]) -> f64 {
+    bspline_basis(t, lo, hi, k).iter().skip(1).zip(coef).map(|(b, c)| b * c).sum()
+}
+
 /// Clamped uniform cubic B-spline basis with `k >= 4` functions on `[lo, hi]` at `x`
 /// (clamped into the interval); the values sum to 1.
 pub fn bspline_basis(x: f64, lo: f64, hi: f64, k: usize) -> Vec<f64> {

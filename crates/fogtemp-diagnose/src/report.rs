@@ -153,10 +153,7 @@ fn static_shape_curves(d: &Diagnosis, e: &super::LeftOutEffect) -> Option<(Curve
     let value = |name: &str| e.parameters.get(name).map(|p| p.value);
     let (lo, hi, k) = (value("t_min_c")?, value("t_max_c")?, value("basis_functions")? as usize);
     let coef: Vec<f64> = (1..k).map(|j| value(&format!("spline_{j}_dph"))).collect::<Option<_>>()?;
-    let shape_at = |t: f64| -> f64 {
-        let b = crate::effects::bspline_basis(t, lo, hi, k);
-        b.iter().skip(1).zip(&coef).map(|(x, c)| x * c).sum()
-    };
+    let shape_at = |t: f64| crate::effects::static_shape_value(t, lo, hi, k, &coef);
     let bins = ((hi - lo) / SHAPE_BIN_C).ceil().max(1.0) as usize;
     let mut sums = vec![(0.0, 0usize); bins];
     for t in &d.traces {
@@ -234,7 +231,8 @@ fn opt(v: Option<f64>) -> String {
     v.map_or_else(|| "-".into(), |x| format!("{x:.4}"))
 }
 
-fn markdown(d: &Diagnosis) -> String {
+/// `report.md`; `static_shape_figure`: whether `static_shape.svg` was drawn.
+fn markdown(d: &Diagnosis, static_shape_figure: bool) -> String {
     let mut md = String::new();
     let _ = writeln!(md, "# Diagnosis: simulated vs recorded\n\n{}\n", d.summary);
     let _ = writeln!(md, "## Definitions\n");
@@ -264,7 +262,7 @@ fn markdown(d: &Diagnosis) -> String {
         for (name, p) in &e.parameters {
             let _ = writeln!(md, "| {name} | {:.6} | {} | {} |", p.value, opt(p.std_error), p.units);
         }
-        if e.effect == "static_shape" && static_shape_curves(d, e).is_some() {
+        if e.effect == "static_shape" && static_shape_figure {
             let _ = writeln!(md, "\n![static shape](static_shape.svg)");
         }
         let _ = writeln!(
@@ -437,12 +435,14 @@ pub fn write_diagnosis_report(dir: &Path, d: &Diagnosis) -> Result<(), DiagnoseE
             &curves,
         )?;
     }
+    let mut static_shape_figure = false;
     for e in d.left_out.iter().filter(|e| e.effect == "static_shape") {
         if let Some((line, means)) = static_shape_curves(d, e) {
             let lag_s = e.parameters.get("coil_lag_s").map_or(0.0, |p| p.value);
             plot_static_shape(&dir.join("static_shape.svg"), &line, &means, lag_s)?;
+            static_shape_figure = true;
         }
     }
     let path = dir.join("report.md");
-    Ok(write_file_atomic(&path, |w| w.write_all(markdown(d).as_bytes()))?)
+    Ok(write_file_atomic(&path, |w| w.write_all(markdown(d, static_shape_figure).as_bytes()))?)
 }

@@ -357,6 +357,11 @@ pub(super) fn concat(base: &Design, extra: &[&DMatrix<f64>], r: usize) -> DMatri
     hcat(b.nrows(), &parts)
 }
 
+/// Per run, `[base | extra_r]` unscaled: the current model with one term's columns added.
+pub(super) fn concat_runs(base: &Design, extra: &[DMatrix<f64>]) -> Vec<DMatrix<f64>> {
+    extra.iter().enumerate().map(|(r, e)| concat(base, &[e], r)).collect()
+}
+
 /// `parts` side by side, each `rows` tall.
 pub(super) fn hcat(rows: usize, parts: &[&DMatrix<f64>]) -> DMatrix<f64> {
     let k: usize = parts.iter().map(|m| m.ncols()).sum();

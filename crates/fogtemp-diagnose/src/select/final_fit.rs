@@ -126,8 +126,7 @@ pub(super) fn parameters_of(
         let k = cols.theta[0] as usize;
         let shape: Vec<f64> = (0..=100)
             .map(|i| {
-                let b = crate::effects::bspline_basis(lo + (hi - lo) * f64::from(i) / 100.0, lo, hi, k);
-                b.iter().skip(1).zip(coef).map(|(x, c)| x * c).sum()
+                crate::effects::static_shape_value(lo + (hi - lo) * f64::from(i) / 100.0, lo, hi, k, coef)
             })
             .collect();
         let (mn, mx) =

@@ -781,7 +781,7 @@ fn family_span_fit(
         })
         .collect();
     let span = crate::noise_model::independent_extension(&base.per_run, &extra)?;
-    let with: Vec<DMatrix<f64>> = (0..runs).map(|r| concat(base, &[&span[r]], r)).collect();
+    let with = concat_runs(base, &span);
     let fit = crate::noise_model::fit_noise(basis, &with, ys)?;
     fit.check.passed.then_some(fit)
 }
@@ -814,8 +814,7 @@ fn heldout_claim(
     without_sse: f64,
 ) -> Option<(bool, bool)> {
     let cols = &grid.points[point];
-    let with: Vec<DMatrix<f64>> =
-        (0..base.per_run.len()).map(|r| concat(base, &[&cols.per_run[r]], r)).collect();
+    let with = concat_runs(base, &cols.per_run);
     let (p, k) = (base.p(), cols.k());
     let base_rows = base.penalty.as_ref().map_or(0, |m| m.nrows());
     let cand_rows = cols.penalty.as_ref().map_or(0, |m| m.nrows());
@@ -933,8 +932,7 @@ impl RouteStep<'_> {
             .zip(&self.tests)
             .filter_map(|(g, t)| {
                 let cols = &g.points[t.best];
-                let with: Vec<DMatrix<f64>> =
-                    (0..base.per_run.len()).map(|r| concat(base, &[&cols.per_run[r]], r)).collect();
+                let with = concat_runs(base, &cols.per_run);
                 let own = fit_noise(self.basis, &with, ys)?;
                 if !own.check.passed {
                     return None;
