@@ -23,7 +23,6 @@ use rayon::prelude::*;
 use super::design::{profile_candidate, total_cv};
 use super::forward::StepContext;
 use crate::effects::{orientation_columns, run_labels, EffectGrid, RunLabel};
-use crate::error::DiagnoseError;
 use crate::noise_model::SplitMix64;
 
 /// Seed of the relabellings (one stream per step).
@@ -77,8 +76,6 @@ pub(super) fn draws_for(level: f64) -> usize {
 /// stream per draw, evaluated in parallel chunks; the test stops as soon as its p cannot
 /// reach `level` any more.
 ///
-/// # Errors
-/// The first error of `statistic`.
 pub(super) fn permutation_p<F>(
     items: usize,
     observed: f64,
@@ -86,15 +83,15 @@ pub(super) fn permutation_p<F>(
     planned: usize,
     seed: u64,
     statistic: F,
-) -> Result<PermutationTest, DiagnoseError>
+) -> PermutationTest
 where
-    F: Fn(&[usize]) -> Result<f64, DiagnoseError> + Sync,
+    F: Fn(&[usize]) -> f64 + Sync,
 {
     let mut test = PermutationTest { planned, evaluated: 0, as_good: 0 };
     if !observed.is_finite() {
         // Nothing to compare against: the p is 1 without a draw.
         test.as_good = planned;
-        return Ok(test);
+        return test;
     }
     let limit = observed + TIE_TOLERANCE * observed.abs();
     while !test.complete() {
@@ -107,7 +104,7 @@ where
                 SplitMix64(seed ^ (draw as u64 + 1).wrapping_mul(0xA24B_AED4_963E_E407)).shuffle(&mut order);
                 statistic(&order)
             })
-            .collect::<Result<_, _>>()?;
+            .collect();
         test.evaluated += chunk;
         // A relabelling whose statistic is not a number counts against the observed one.
         test.as_good += values.iter().filter(|v| v.is_nan() || **v <= limit).count();
@@ -115,30 +112,27 @@ where
             break;
         }
     }
-    Ok(test)
+    test
 }
 
 /// The permutation test of the position labels for an orientation-dependent candidate:
 /// its profiled LORO error (`observed_cv_sse`) against the same with the runs' (position,
 /// input rate) labels permuted over the runs, the model's other terms unchanged.
-///
-/// # Errors
-/// None at present (a relabelling whose fit fails counts against the observed labels); the
-/// signature follows [`permutation_p`].
+/// A relabelling whose fit fails counts against the observed labels.
 pub(super) fn position_permutation(
     ctx: &StepContext<'_>,
     grid: &EffectGrid,
     observed_cv_sse: f64,
     level: f64,
-) -> Result<PermutationTest, DiagnoseError> {
+) -> PermutationTest {
     let labels = run_labels(ctx.prep);
-    let statistic = |order: &[usize]| -> Result<f64, DiagnoseError> {
+    let statistic = |order: &[usize]| -> f64 {
         let relabelled: Vec<RunLabel<'_>> = order.iter().map(|&r| labels[r]).collect();
         let permuted = relabelled_grid(ctx, grid, &relabelled);
         // A relabelling whose fit fails is not evidence for the observed labels: NaN, counted
         // against them, rather than failing the whole diagnosis.
-        Ok(profile_candidate(ctx.prep, &ctx.base_parts, &permuted, ctx.ys, ctx.n_eff)
-            .map_or(f64::NAN, |p| total_cv(&p)))
+        profile_candidate(ctx.prep, &ctx.base_parts, &permuted, ctx.ys, ctx.n_eff)
+            .map_or(f64::NAN, |p| total_cv(&p))
     };
     let seed = PERMUTATION_SEED ^ ((ctx.in_model.len() as u64) << 32);
     permutation_p(labels.len(), observed_cv_sse, level, draws_for(level), seed, statistic)
@@ -177,15 +171,12 @@ mod tests {
         as_good as f64 / masks.len() as f64
     }
 
-    fn mean_difference(
-        values: &[f64],
-        k: usize,
-    ) -> impl Fn(&[usize]) -> Result<f64, DiagnoseError> + Sync + '_ {
+    fn mean_difference(values: &[f64], k: usize) -> impl Fn(&[usize]) -> f64 + Sync + '_ {
         move |order: &[usize]| {
             // The first k places carry the first group's label; run order[i] gets the label of place i.
             let a: f64 = order.iter().take(k).map(|&r| values[r]).sum::<f64>() / k as f64;
             let b: f64 = order.iter().skip(k).map(|&r| values[r]).sum::<f64>() / (values.len() - k) as f64;
-            Ok(-(a - b))
+            -(a - b)
         }
     }
 
@@ -200,8 +191,8 @@ mod tests {
                 base.iter().enumerate().map(|(i, v)| v + if i < 5 { shift } else { 0.0 }).collect();
             let exact = exact_mean_difference_p(&values, 5);
             let stat = mean_difference(&values, 5);
-            let observed = stat(&(0..12).collect::<Vec<_>>()).unwrap();
-            let test = permutation_p(12, observed, 1.0, 2000, 7, &stat).unwrap();
+            let observed = stat(&(0..12).collect::<Vec<_>>());
+            let test = permutation_p(12, observed, 1.0, 2000, 7, &stat);
             assert!(test.complete());
             let sd = (exact * (1.0 - exact) / test.planned as f64).sqrt();
             assert!(
@@ -216,9 +207,9 @@ mod tests {
     fn the_test_stops_once_its_p_cannot_reach_the_level_and_runs_to_the_end_otherwise() {
         let values = [0.3, -1.2, 0.7, 0.1, -0.4, 1.1, -0.8, 0.2, -0.3, 0.9, -1.0, 0.4, 0.6, -0.2, -0.7, 0.5];
         let stat = mean_difference(&values, 5);
-        let observed = stat(&(0..16).collect::<Vec<_>>()).unwrap();
+        let observed = stat(&(0..16).collect::<Vec<_>>());
         let level = 0.003;
-        let stopped = permutation_p(16, observed, level, draws_for(level), 7, &stat).unwrap();
+        let stopped = permutation_p(16, observed, level, draws_for(level), 7, &stat);
         assert!(!stopped.complete(), "{stopped:?}");
         assert_eq!(stopped.evaluated, CHUNK);
         assert!(stopped.p() > level);
@@ -226,8 +217,8 @@ mod tests {
         let shifted: Vec<f64> =
             values.iter().enumerate().map(|(i, v)| v + if i < 5 { 10.0 } else { 0.0 }).collect();
         let stat = mean_difference(&shifted, 5);
-        let observed = stat(&(0..16).collect::<Vec<_>>()).unwrap();
-        let full = permutation_p(16, observed, level, draws_for(level), 7, &stat).unwrap();
+        let observed = stat(&(0..16).collect::<Vec<_>>());
+        let full = permutation_p(16, observed, level, draws_for(level), 7, &stat);
         assert!(full.complete());
         // Only relabellings that keep the same five runs together are as good: 1 in
         // C(16, 5) = 4368, expected 0.3 in the 1333 draws.
@@ -241,28 +232,28 @@ mod tests {
         // A huge shift: only the observed labelling and its mirror image (for a statistic
         // symmetric in the two groups) are as good; every draw is evaluated at level 1.
         let values: Vec<f64> = (0..8).map(|i| if i < 4 { 100.0 + i as f64 } else { i as f64 }).collect();
-        let stat = |order: &[usize]| -> Result<f64, DiagnoseError> {
+        let stat = |order: &[usize]| -> f64 {
             let a: f64 = order.iter().take(4).map(|&r| values[r]).sum::<f64>() / 4.0;
             let b: f64 = order.iter().skip(4).map(|&r| values[r]).sum::<f64>() / 4.0;
-            Ok(-(a - b).abs())
+            -(a - b).abs()
         };
-        let observed = stat(&(0..8).collect::<Vec<_>>()).unwrap();
-        let test = permutation_p(8, observed, 1.0, 3000, 11, stat).unwrap();
+        let observed = stat(&(0..8).collect::<Vec<_>>());
+        let test = permutation_p(8, observed, 1.0, 3000, 11, stat);
         let share = test.as_good as f64 / test.planned as f64;
         let sd = (2.0 / 70.0 * (68.0 / 70.0) / test.planned as f64).sqrt();
         assert!((share - 2.0 / 70.0).abs() <= 4.0 * sd, "{share}");
         // At the run-level rules' level for 8 candidates (0.05 / 16) it stops in the first chunk.
-        let stopped = permutation_p(8, observed, 0.05 / 16.0, draws_for(0.05 / 16.0), 11, stat).unwrap();
+        let stopped = permutation_p(8, observed, 0.05 / 16.0, draws_for(0.05 / 16.0), 11, stat);
         assert!(!stopped.complete() && stopped.p() > 0.05 / 16.0, "{stopped:?}");
     }
 
     #[test]
     fn a_statistic_that_is_not_a_number_never_makes_the_observed_one_significant() {
-        let nan = |_: &[usize]| -> Result<f64, DiagnoseError> { Ok(f64::NAN) };
-        let t = permutation_p(10, f64::NAN, 0.01, 399, 3, nan).unwrap();
+        let nan = |_: &[usize]| -> f64 { f64::NAN };
+        let t = permutation_p(10, f64::NAN, 0.01, 399, 3, nan);
         assert_eq!((t.p(), t.evaluated), (1.0, 0));
         // Every relabelling NaN: each counts as good, the test stops after the first chunk.
-        let t = permutation_p(10, 1.0, 0.01, 399, 3, nan).unwrap();
+        let t = permutation_p(10, 1.0, 0.01, 399, 3, nan);
         assert_eq!(t.as_good, CHUNK);
         assert!(t.p() > 0.01);
     }
