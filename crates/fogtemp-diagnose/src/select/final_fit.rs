@@ -265,6 +265,29 @@ pub(super) fn alternatives(steps: &[SelectionStep], k: usize) -> Vec<(String, f6
         .collect()
 }
 
+/// The chosen terms as the final fit reports them: a term that only the noise-model route
+/// accepted at the grid point of its lowest held-out GLS error, the metric of the test that
+/// accepted it (a term the run-level rules accept is profiled by the LORO error, theirs).
+/// The LORO error of a term those rules rejected can barely move over the grid and pick a
+/// much smoother shape (a ripple in b(T) that the route found with 32 spline functions,
+/// reported with 4), which describes something the evidence did not show. Selection itself
+/// keeps the profiled columns, so the names do not change.
+pub(super) fn reported_terms(grids: &[EffectGrid], chosen: &[ChosenTerm]) -> Vec<ChosenTerm> {
+    chosen
+        .iter()
+        .map(|c| {
+            let at_route = c
+                .route_point
+                .filter(|p| *p != c.point)
+                .and_then(|p| grids.iter().find(|g| g.effect == c.effect)?.points.get(p));
+            match at_route {
+                Some(columns) => ChosenTerm { columns: columns.clone(), ..c.clone() },
+                None => c.clone(),
+            }
+        })
+        .collect()
+}
+
 /// Held-out evaluation of the chosen model, each effect's contribution, and parameters.
 ///
 /// # Errors
@@ -276,7 +299,8 @@ pub fn evaluate_final(
     options: &DiagnoseOptions,
 ) -> Result<FinalOutcome, DiagnoseError> {
     let ys = targets(prep);
-    let chosen = &selection.chosen;
+    let reported = reported_terms(grids, &selection.chosen);
+    let chosen = &reported;
     let design = build_design(prep, &chosen_parts(chosen));
     let eval = fold_eval(&design, &ys)?;
     let heldout = heldout_residuals(&design, &eval, &ys);
@@ -313,6 +337,17 @@ pub fn evaluate_final(
             improved,
             informative
         );
+        if let Some(route_point) = c.route_point {
+            statement.push_str("; accepted by the noise-model GLS test, not by the run-level rules");
+            if route_point != c.point {
+                let profile: Vec<String> =
+                    grid.params.iter().zip(&cols.theta).map(|(p, v)| format!("{} {v}", p.name)).collect();
+                statement.push_str(&format!(
+                    ", and reported where its held-out GLS error is lowest ({})",
+                    profile.join(", ")
+                ));
+            }
+        }
         if let Some((other, r2)) =
             c.most_confused_with.as_ref().filter(|(_, r2)| *r2 > options.concealment_limit)
         {
@@ -364,4 +399,57 @@ pub fn evaluate_final(
         heldout_resid: heldout,
         baseline_heldout,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn columns(theta: f64) -> TermColumns {
+        TermColumns {
+            theta: vec![theta],
+            coefficients: vec![("c".into(), "deg/h".into())],
+            per_run: vec![DMatrix::from_element(3, 1, theta)],
+            penalty: None,
+        }
+    }
+
+    fn chosen(point: usize, route_point: Option<usize>, refined: f64) -> ChosenTerm {
+        ChosenTerm {
+            effect: Effect::StaticShape,
+            point,
+            columns: columns(refined),
+            concealment_index: 0.0,
+            most_confused_with: None,
+            route_point,
+        }
+    }
+
+    #[test]
+    fn reported_terms_move_only_a_route_accepted_term_to_its_route_point() {
+        let grid = EffectGrid {
+            effect: Effect::StaticShape,
+            params: Vec::new(),
+            points: vec![columns(4.0), columns(18.0), columns(32.0)],
+            unmet_requirement: None,
+        };
+        let terms = [
+            // Accepted by the run-level rules: its refined profile stays.
+            chosen(0, None, 4.5),
+            // Route alone, at another point: that point's columns.
+            chosen(0, Some(2), 4.5),
+            // Route alone, at its own profiled point: the refined columns stay.
+            chosen(1, Some(1), 17.0),
+            // A route point outside the grid: nothing to move to.
+            chosen(0, Some(7), 4.5),
+        ];
+        let reported = reported_terms(&[grid], &terms);
+        let thetas: Vec<f64> = reported.iter().map(|c| c.columns.theta[0]).collect();
+        assert_eq!(thetas, [4.5, 32.0, 17.0, 4.5]);
+        // Everything else about the term is kept.
+        assert!(reported
+            .iter()
+            .zip(&terms)
+            .all(|(r, t)| r.point == t.point && r.route_point == t.route_point));
+    }
 }

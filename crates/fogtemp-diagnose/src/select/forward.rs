@@ -31,6 +31,10 @@ pub struct ChosenTerm {
     pub concealment_index: f64,
     /// Most confusable other effect when it entered.
     pub most_confused_with: Option<(String, f64)>,
+    /// Accepted by the noise-model route alone: the grid point of its lowest held-out GLS
+    /// error (the route's metric). Selection goes on with the LORO-profiled `columns`; the
+    /// final fit reports the term at this point (`final_fit::reported_terms`).
+    pub route_point: Option<usize>,
 }
 
 /// Result of forward selection.
@@ -98,14 +102,26 @@ pub(super) fn not_evaluated(
 /// A profiled candidate with its fitted contribution per run.
 pub(super) type ScoredProfile = (Profiled, Vec<Vec<f64>>);
 
-/// The candidate a step adds: effect, grid point, concealment index, most confused effect.
-pub(super) type Pick = (Effect, usize, f64, Option<(String, f64)>);
+/// The candidate a step adds.
+#[derive(Clone, Debug, PartialEq)]
+pub(super) struct Pick {
+    pub(super) effect: Effect,
+    /// Its LORO-profiled grid point.
+    pub(super) point: usize,
+    pub(super) concealment_index: f64,
+    pub(super) most_confused_with: Option<(String, f64)>,
+    /// Where only the noise-model route accepted it: the route's reporting point
+    /// ([`GlsVerdict::point`]).
+    pub(super) route_point: Option<usize>,
+}
 
 /// Scores of one evaluated candidate.
 pub(super) struct Scored {
     pub(super) report: CandidateReport,
     pub(super) point: usize,
     pub(super) accepted: bool,
+    /// Accepted by the noise-model route alone: the route's grid point.
+    pub(super) route_point: Option<usize>,
 }
 
 pub(super) fn score_candidate(
@@ -184,6 +200,7 @@ pub(super) fn judge(
         None
     };
     let accepted = !concealed && (failed.is_empty() || gls_accepts);
+    let route_point = gls.filter(|_| accepted && !failed.is_empty()).map(|v| v.point);
     let (status, note, experiment) = if concealed {
         (
             "not_identifiable",
@@ -234,7 +251,7 @@ pub(super) fn judge(
         note,
         position_permutation_p: permutation.map(|t| t.p()),
     };
-    Ok(Scored { report, point: prof.point, accepted })
+    Ok(Scored { report, point: prof.point, accepted, route_point })
 }
 
 /// Why the permutation test of the position labels failed a candidate.
@@ -311,14 +328,20 @@ pub(super) fn run_step(ctx: &StepContext<'_>) -> Result<(Vec<CandidateReport>, O
                 let confused = most_confused(ctx, g.effect, v, &profiled_cols);
                 let sc = judge(ctx, g, prof, v, confused.clone())?;
                 if sc.accepted {
-                    let pick = (g.effect, sc.point, sc.report.concealment_index, confused);
+                    let pick = Pick {
+                        effect: g.effect,
+                        point: sc.point,
+                        concealment_index: sc.report.concealment_index,
+                        most_confused_with: confused,
+                        route_point: sc.route_point,
+                    };
                     accepted.push((prof.fold_sse.clone(), g.points[sc.point].k(), pick));
                 }
                 reports.push(sc.report);
             }
         }
     }
-    let held_out_sse: Vec<(Effect, f64)> = accepted.iter().map(|a| (a.2 .0, a.0.iter().sum())).collect();
+    let held_out_sse: Vec<(Effect, f64)> = accepted.iter().map(|a| (a.2.effect, a.0.iter().sum())).collect();
     let mut set = parsimonious_set(accepted).into_iter().map(|a| a.2);
     let (first, second) = (set.next(), set.next());
     // Two rivals of one size within one SE: the LORO error cannot tell them apart, so the
@@ -335,7 +358,7 @@ pub(super) fn run_step(ctx: &StepContext<'_>) -> Result<(Vec<CandidateReport>, O
         (Some((_, _, true)), Some(b)) => Some(b),
         _ => first,
     };
-    if let Some((effect, _, _, _)) = &best {
+    if let Some(Pick { effect, .. }) = &best {
         for r in &mut reports {
             if r.effect == effect.name() {
                 r.status = "selected".into();
@@ -361,7 +384,8 @@ fn wald_p_given(
     add: &Pick,
     given: &Pick,
 ) -> Option<f64> {
-    let cols_of = |p: &Pick| ctx.grids.iter().find(|g| g.effect == p.0).and_then(|g| g.points.get(p.1));
+    let cols_of =
+        |p: &Pick| ctx.grids.iter().find(|g| g.effect == p.effect).and_then(|g| g.points.get(p.point));
     encompassing_p(basis, &ctx.base.per_run, ctx.ys, &cols_of(add)?.per_run, &cols_of(given)?.per_run)
 }
 
@@ -596,16 +620,23 @@ pub fn forward_select(
             n_eff,
             rho,
             candidates,
-            added: pick.as_ref().map(|p| p.0.name().to_string()),
+            added: pick.as_ref().map(|p| p.effect.name().to_string()),
         });
         match pick {
-            Some((effect, point, concealment_index, most_confused_with)) => {
+            Some(Pick { effect, point, concealment_index, most_confused_with, route_point }) => {
                 let grid = grids
                     .iter()
                     .find(|g| g.effect == effect)
                     .ok_or(DiagnoseError::Fit("effect grid missing"))?;
                 let columns = refine(prep, &chosen_parts(&chosen), grid, point, &ys);
-                chosen.push(ChosenTerm { effect, point, columns, concealment_index, most_confused_with })
+                chosen.push(ChosenTerm {
+                    effect,
+                    point,
+                    columns,
+                    concealment_index,
+                    most_confused_with,
+                    route_point,
+                })
             }
             None => break,
         }
@@ -632,6 +663,10 @@ const GLS_SEED: u64 = 0x5EED_0010;
 pub(super) struct GlsVerdict {
     /// Smallest Wald p over the candidate's grid points.
     pub(super) min_p: f64,
+    /// Where the route is significant and its held-out claim holds: the grid point of the
+    /// lowest held-out GLS error ([`route_report_point`]); a term the route alone accepts is
+    /// reported there, not at its LORO-profiled point. Otherwise the smallest-p point.
+    pub(super) point: usize,
     /// Family-wise p: the simulated null probability that any open candidate's smallest p
     /// is at least as small.
     pub(super) family_p: f64,
@@ -801,19 +836,15 @@ fn split_family_p(min_p: f64, points: usize, candidates: usize, simulate: impl F
     (m * family_p_at(min_p, points, GLS_FAMILY_LEVEL / m, simulate)).min(1.0)
 }
 
-/// Held-out GLS claim of a candidate's grid point under `fit`: (error falls below the
-/// current model's `without_sse`, sign holds).
-/// The spline penalties of the current model and of the candidate are kept, as in the
-/// run-level LORO fits.
-fn heldout_claim(
+/// Held-out GLS fit (leave one run out, under the levels of `fit`) of the current model
+/// with `cols` added. The spline penalties of the current model and of the candidate are
+/// kept, as in the run-level LORO fits.
+fn heldout_with(
     fit: &crate::noise_model::NoiseFit,
     base: &Design,
     ys: &[Vec<f64>],
-    grid: &EffectGrid,
-    point: usize,
-    without_sse: f64,
-) -> Option<(bool, bool)> {
-    let cols = &grid.points[point];
+    cols: &TermColumns,
+) -> Option<crate::noise_model::HeldOut> {
     let with = concat_runs(base, &cols.per_run);
     let (p, k) = (base.p(), cols.k());
     let base_rows = base.penalty.as_ref().map_or(0, |m| m.nrows());
@@ -833,10 +864,51 @@ fn heldout_claim(
         }
         m
     });
-    let with = heldout_gls(fit, &with, ys, pen_with.as_ref())?;
+    heldout_gls(fit, &with, ys, pen_with.as_ref())
+}
+
+/// Held-out GLS claim of a candidate's grid point under `fit`: (error falls below the
+/// current model's `without_sse`, sign holds).
+fn heldout_claim(
+    fit: &crate::noise_model::NoiseFit,
+    base: &Design,
+    ys: &[Vec<f64>],
+    grid: &EffectGrid,
+    point: usize,
+    without_sse: f64,
+) -> Option<(bool, bool)> {
+    let with = heldout_with(fit, base, ys, &grid.points[point])?;
     let last = with.beta.len().checked_sub(1).map_or(f64::NAN, |i| with.beta[i]);
     let sign = !grid.effect.positive_coefficient() || last > 0.0;
     Some((with.sse < without_sse, sign))
+}
+
+/// The grid point at which a term the route accepts is reported: where its held-out GLS
+/// error under `fit` is lowest (the route's metric, as the LORO error profiles a term the
+/// run-level rules accept). Only computed when the route is significant and its claim holds
+/// (`route_accepts`); otherwise, or when no point can be fitted, the smallest-p point.
+fn route_report_point(
+    fit: &crate::noise_model::NoiseFit,
+    base: &Design,
+    ys: &[Vec<f64>],
+    grid: &EffectGrid,
+    smallest_p_point: usize,
+    route_accepts: bool,
+) -> usize {
+    if !route_accepts {
+        return smallest_p_point;
+    }
+    grid.points
+        .par_iter()
+        .enumerate()
+        .filter_map(|(i, cols)| heldout_with(fit, base, ys, cols).map(|h| (i, h.sse)))
+        .min_by(|a, b| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0)))
+        .map_or(smallest_p_point, |(i, _)| i)
+}
+
+/// Whether the route's verdict is significant and its held-out claim (when measured) holds.
+fn route_significant(family_p: f64, heldout: Option<(bool, bool)>) -> bool {
+    family_p <= GLS_FAMILY_LEVEL && heldout.is_none_or(|(falls, sign)| falls && sign)
 }
 
 impl GlsStep {
@@ -956,8 +1028,11 @@ impl RouteStep<'_> {
                     let refs: Vec<&DMatrix<f64>> = all.iter().flat_map(|t| &t.bases).collect();
                     family_p(own_tester.n(), &refs, &[mine.min_p], GLS_SIMULATIONS, self.seed)[0]
                 });
+                let point =
+                    route_report_point(&own, base, ys, g, mine.best, route_significant(family_p, heldout));
                 let v = GlsVerdict {
                     min_p: mine.min_p,
+                    point,
                     family_p,
                     levels: (own.white_var, own.flicker_var),
                     heldout,
@@ -994,8 +1069,11 @@ impl RouteStep<'_> {
                     let stream = self.seed ^ (i as u64 + 1).wrapping_mul(0x9E37_79B9_7F4A_7C15);
                     family_p(self.tester.n(), &refs, &[t.min_p], GLS_OWN_SIMULATIONS, stream)[0]
                 });
+                let route_accepts = route_significant(family_p, heldout);
+                let point = route_report_point(self.fit, self.base, self.ys, g, t.best, route_accepts);
                 let v = GlsVerdict {
                     min_p: t.min_p,
+                    point,
                     family_p,
                     levels: (self.fit.white_var, self.fit.flicker_var),
                     heldout,
@@ -1049,8 +1127,17 @@ impl RouteStep<'_> {
                     _ => (self.fit, without.as_ref()),
                 };
                 let heldout = w.and_then(|w| heldout_claim(f, self.base, self.ys, g, t.best, w.sse));
+                let point = route_report_point(
+                    f,
+                    self.base,
+                    self.ys,
+                    g,
+                    t.best,
+                    route_significant(*family_p, heldout),
+                );
                 let v = GlsVerdict {
                     min_p: t.min_p,
+                    point,
                     family_p: *family_p,
                     levels: (f.white_var, f.flicker_var),
                     heldout,
@@ -1128,13 +1215,18 @@ mod tests {
     use super::*;
 
     fn cand(effect: Effect, fold_sse: &[f64], k: usize) -> (Vec<f64>, usize, Pick) {
-        (fold_sse.to_vec(), k, (effect, 0, 0.0, None))
+        (
+            fold_sse.to_vec(),
+            k,
+            Pick { effect, point: 0, concealment_index: 0.0, most_confused_with: None, route_point: None },
+        )
     }
 
     #[test]
     fn the_route_accepts_only_a_family_wise_significant_candidate_whose_claim_holds() {
         let v = |family_p: f64, heldout: Option<(bool, bool)>| GlsVerdict {
             min_p: family_p,
+            point: 0,
             family_p,
             levels: (1e-3, 1e-6),
             heldout,
@@ -1264,13 +1356,13 @@ mod tests {
             cand(Effect::Hysteresis, &[1.0, 1.2, 1.0, 1.1], 1),   // 4.3, within, lower
             cand(Effect::ShupeRate, &[1.3, 1.2, 1.2, 1.2], 1),    // 4.9, outside
         ]);
-        assert_eq!(picked.map(|p| p.0), Some(Effect::Hysteresis));
+        assert_eq!(picked.map(|p| p.effect), Some(Effect::Hysteresis));
         // Equal per-run errors: sd 0, the limit is the best itself.
         let picked = parsimonious_pick(vec![
             cand(Effect::WarmupTransient, &[1.0; 4], 2),
             cand(Effect::Hysteresis, &[1.0, 1.0, 1.0, 1.01], 1),
         ]);
-        assert_eq!(picked.map(|p| p.0), Some(Effect::WarmupTransient));
+        assert_eq!(picked.map(|p| p.effect), Some(Effect::WarmupTransient));
         assert!(parsimonious_pick(Vec::new()).is_none());
     }
 
@@ -1295,7 +1387,7 @@ mod tests {
             cand(Effect::ShupeRate, &[1.3, 1.2, 1.2, 1.2], 1),
         ])
         .into_iter()
-        .map(|a| a.2 .0)
+        .map(|a| a.2.effect)
         .collect();
         assert_eq!(set, vec![Effect::Hysteresis, Effect::GradientRate]);
         assert!(parsimonious_set(Vec::new()).is_empty());
@@ -1319,6 +1411,65 @@ mod tests {
             ((s >> 11) as f64 + 0.5) / (1u64 << 53) as f64
         };
         (0..n).map(|_| (-2.0 * u().ln()).sqrt() * (std::f64::consts::TAU * u()).cos()).collect()
+    }
+
+    #[test]
+    fn a_term_the_route_accepts_is_reported_where_its_heldout_gls_error_is_lowest() {
+        // 6 runs of 180 short means of 20 s, white noise of SD 0.01 per short mean, an
+        // intercept per run. The data hold a slow trend 0.004 x sin(i / 9) and a ripple
+        // 0.004 x sin(i / 2). Grid: the trend alone (point 0), trend and ripple (point 1), the
+        // trend and a ripple of the wrong frequency (point 2). Leaving the ripple out adds its
+        // variance, 0.004^2 / 2 = 8e-6 per short mean (8.6e-3 over 1080 means), to the
+        // held-out error, 86 x the noise variance 1e-4 that one needless coefficient costs
+        // (the wrong ripple of point 2 costs about that); so point 1 is the lowest by far.
+        // Not significant: the smallest-p point is kept.
+        let (runs, blocks) = (6, 180);
+        let spans: Vec<Vec<(usize, usize)>> =
+            vec![(0..blocks).map(|i| (20 * i, 20 * i + 20)).collect(); runs];
+        let basis = crate::noise_model::NoiseBasis::new(&spans).expect("basis");
+        let trend = |r: usize, i: usize| ((i + 17 * r) as f64 / 9.0).sin();
+        let ripple = |r: usize, i: usize| ((i + 5 * r) as f64 / 2.0).sin();
+        let wrong = |r: usize, i: usize| ((i + 5 * r) as f64 / 3.0).sin();
+        let term = |fs: &[&dyn Fn(usize, usize) -> f64]| TermColumns {
+            theta: vec![],
+            coefficients: vec![("c".into(), "deg/h".into()); fs.len()],
+            per_run: (0..runs).map(|r| DMatrix::from_fn(blocks, fs.len(), |i, j| fs[j](r, i))).collect(),
+            penalty: None,
+        };
+        let grid = EffectGrid {
+            effect: Effect::StaticShape,
+            params: vec![],
+            points: vec![term(&[&trend]), term(&[&trend, &ripple]), term(&[&trend, &wrong])],
+            unmet_requirement: None,
+        };
+        let base = Design {
+            per_run: (0..runs).map(|_| DMatrix::from_element(blocks, 1, 1.0)).collect(),
+            scale: vec![1.0],
+            penalty: None,
+        };
+        let ys: Vec<Vec<f64>> = (0..runs)
+            .map(|r| {
+                let e = normals(200 + r as u64, blocks);
+                (0..blocks).map(|i| 0.004 * (trend(r, i) + ripple(r, i)) + 0.01 * e[i]).collect()
+            })
+            .collect();
+        let fit = crate::noise_model::fit_noise(&basis, &base.per_run, &ys).expect("noise fit");
+        assert_eq!(route_report_point(&fit, &base, &ys, &grid, 0, true), 1);
+        assert_eq!(route_report_point(&fit, &base, &ys, &grid, 2, false), 2);
+        // The held-out errors behind it (whitened: about 1 per short mean, so one needless
+        // coefficient costs about 1): point 1 lowest, more than 10 below the others.
+        let sse: Vec<f64> =
+            grid.points.iter().map(|c| heldout_with(&fit, &base, &ys, c).expect("fit").sse).collect();
+        assert!(sse[1] + 10.0 < sse[0].min(sse[2]), "{sse:?}");
+    }
+
+    #[test]
+    fn the_route_reports_only_a_significant_verdict_whose_claim_holds() {
+        assert!(route_significant(GLS_FAMILY_LEVEL, Some((true, true))));
+        assert!(route_significant(GLS_FAMILY_LEVEL / 2.0, None));
+        assert!(!route_significant(GLS_FAMILY_LEVEL * 1.01, Some((true, true))));
+        assert!(!route_significant(0.0, Some((false, true))));
+        assert!(!route_significant(0.0, Some((true, false))));
     }
 
     #[test]
