@@ -699,6 +699,21 @@ fn a_ripple_that_fails_the_noise_check_is_named_at_the_candidates_levels() {
         let r = common::correlation(&fitted, &truth);
         eprintln!("seed {seed}: {k} functions, correlation {r}");
         assert!(r > 0.7, "seed {seed}: correlation of fitted and injected shape {r}");
+        // The statement says which test accepted the term, as the selection step does.
+        let selected = d
+            .selection
+            .iter()
+            .flat_map(|s| &s.candidates)
+            .find(|c| c.status == "selected" && c.effect == "static_shape")
+            .expect("selection step of static_shape");
+        let statement = &d.left_out[0].statement;
+        assert_eq!(
+            statement.contains("accepted by the noise-model GLS test"),
+            selected.note.starts_with("passes the noise-model GLS test"),
+            "seed {seed}: {statement} / {}",
+            selected.note
+        );
+        eprintln!("seed {seed}: {statement} (profiled {:?})", selected.profile);
         if seed == 31 {
             // The report draws the named shape.
             let dir = tempfile::tempdir().expect("temp dir");
