@@ -1,12 +1,12 @@
 #!/usr/bin/env python3
-"""How well a named ripple's reported static shape follows the injected one.
+"""How well a named ripple's (or the testbed's bump's) reported static shape follows the injected one.
 
 For each case made by scripts/ripple_variants.py, runs `fogtemp-cal diagnose ... --runs
 runs.csv --json`, rebuilds the reported `static_shape` from its B-spline coefficients (the
 same clamped cubic B-splines on uniform knots over [t_min_c, t_max_c] as
 `fogtemp_diagnose::effects::bspline_basis`, the first function dropped) and prints, over the
-central 80 % of that range, its correlation with the injected A sin(2 pi T / P) (both
-mean-removed) and the ratio of their RMS.
+central 80 % of that range, its correlation with the injected A sin(2 pi T / P), or with the
+testbed's bump A exp(-((T - centre) / width)^2 / 2), both mean-removed, and the ratio of their RMS.
 
 Usage: python3 scripts/ripple_shape_check.py --bin BIN CASE_DIR...   (stdlib only)
 """
@@ -28,6 +28,14 @@ def bspline_basis(x, lo, hi, k):
     return b[:k]
 
 
+def injected_shape(p):
+    """The injected change of the bias with T: a ripple (ripple_variants.py) or the testbed's
+    Gaussian bump (gen.py's static_shape case)."""
+    if "ripple_dph" in p:
+        return lambda t: p["ripple_dph"] * math.sin(2 * math.pi * t / p["period_c"])
+    return lambda t: p["bump_dph"] * math.exp(-0.5 * ((t - p["centre_c"]) / p["width_c"]) ** 2)
+
+
 def centred(v):
     m = sum(v) / len(v)
     return [x - m for x in v]
@@ -39,8 +47,7 @@ def main():
     ap.add_argument("cases", nargs="+")
     a = ap.parse_args()
     for case in a.cases:
-        answer = json.load(open(f"{case}/answer.json"))
-        amp, period = answer["parameters"]["ripple_dph"], answer["parameters"]["period_c"]
+        truth_of = injected_shape(json.load(open(f"{case}/answer.json"))["parameters"])
         out = subprocess.run([a.bin, "diagnose", "--simulated", f"{case}/simulated", "--recorded",
                               f"{case}/recorded", "--runs", f"{case}/runs.csv", "--json"],
                              capture_output=True, text=True)
@@ -54,7 +61,7 @@ def main():
         coef = [p[f"spline_{j}_dph"] for j in range(1, k)]
         grid = [lo + (hi - lo) * (0.1 + 0.8 * i / 400) for i in range(401)]
         fitted = centred([sum(c * b for c, b in zip(coef, bspline_basis(t, lo, hi, k)[1:])) for t in grid])
-        truth = centred([amp * math.sin(2 * math.pi * t / period) for t in grid])
+        truth = centred([truth_of(t) for t in grid])
         dot = sum(f * t for f, t in zip(fitted, truth))
         nf, nt = math.sqrt(sum(f * f for f in fitted)), math.sqrt(sum(t * t for t in truth))
         print(f"{case}: {k} functions, coil lag {p.get('coil_lag_s', float('nan')):.0f} s, "
