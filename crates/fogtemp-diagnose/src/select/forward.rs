@@ -31,10 +31,24 @@ pub struct ChosenTerm {
     pub concealment_index: f64,
     /// Most confusable other effect when it entered.
     pub most_confused_with: Option<(String, f64)>,
-    /// Accepted by the noise-model route alone: the grid point of its lowest held-out GLS
-    /// error (the route's metric). Selection goes on with the LORO-profiled `columns`; the
-    /// final fit reports the term at this point (`final_fit::reported_terms`).
-    pub route_point: Option<usize>,
+    /// Accepted by the noise-model route alone: what the route measured. Selection goes on
+    /// with the LORO-profiled `columns`; the final fit reports the term at the route's point
+    /// (`final_fit::reported_terms`).
+    pub route: Option<RouteEvidence>,
+}
+
+/// What the noise-model route measured for a term it accepted and the run-level rules did not.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RouteEvidence {
+    /// Grid point of the lowest held-out GLS error (the route's metric), where it is reported.
+    pub point: usize,
+    /// Smallest GLS Wald p over the grid.
+    pub min_p: f64,
+    /// Family-wise p of that smallest p.
+    pub family_p: f64,
+    /// Held-out GLS error at `point` relative to the current model's, `1 - with / without`
+    /// (`None`: not measured).
+    pub heldout_gls_fall: Option<f64>,
 }
 
 /// Result of forward selection.
@@ -110,9 +124,8 @@ pub(super) struct Pick {
     pub(super) point: usize,
     pub(super) concealment_index: f64,
     pub(super) most_confused_with: Option<(String, f64)>,
-    /// Where only the noise-model route accepted it: the route's reporting point
-    /// ([`GlsVerdict::point`]).
-    pub(super) route_point: Option<usize>,
+    /// Where only the noise-model route accepted it: what the route measured.
+    pub(super) route: Option<RouteEvidence>,
 }
 
 /// Scores of one evaluated candidate.
@@ -120,8 +133,8 @@ pub(super) struct Scored {
     pub(super) report: CandidateReport,
     pub(super) point: usize,
     pub(super) accepted: bool,
-    /// Accepted by the noise-model route alone: the route's grid point.
-    pub(super) route_point: Option<usize>,
+    /// Accepted by the noise-model route alone: what the route measured.
+    pub(super) route: Option<RouteEvidence>,
 }
 
 pub(super) fn score_candidate(
@@ -200,7 +213,12 @@ pub(super) fn judge(
         None
     };
     let accepted = !concealed && (failed.is_empty() || gls_accepts);
-    let route_point = gls.filter(|_| accepted && !failed.is_empty()).map(|v| v.point);
+    let route = gls.filter(|_| accepted && !failed.is_empty()).map(|v| RouteEvidence {
+        point: v.point,
+        min_p: v.min_p,
+        family_p: v.family_p,
+        heldout_gls_fall: v.heldout_gls_fall,
+    });
     let (status, note, experiment) = if concealed {
         (
             "not_identifiable",
@@ -251,7 +269,7 @@ pub(super) fn judge(
         note,
         position_permutation_p: permutation.map(|t| t.p()),
     };
-    Ok(Scored { report, point: prof.point, accepted, route_point })
+    Ok(Scored { report, point: prof.point, accepted, route })
 }
 
 /// Why the permutation test of the position labels failed a candidate.
@@ -333,7 +351,7 @@ pub(super) fn run_step(ctx: &StepContext<'_>) -> Result<(Vec<CandidateReport>, O
                         point: sc.point,
                         concealment_index: sc.report.concealment_index,
                         most_confused_with: confused,
-                        route_point: sc.route_point,
+                        route: sc.route,
                     };
                     accepted.push((prof.fold_sse.clone(), g.points[sc.point].k(), pick));
                 }
@@ -623,7 +641,7 @@ pub fn forward_select(
             added: pick.as_ref().map(|p| p.effect.name().to_string()),
         });
         match pick {
-            Some(Pick { effect, point, concealment_index, most_confused_with, route_point }) => {
+            Some(Pick { effect, point, concealment_index, most_confused_with, route }) => {
                 let grid = grids
                     .iter()
                     .find(|g| g.effect == effect)
@@ -635,7 +653,7 @@ pub fn forward_select(
                     columns,
                     concealment_index,
                     most_confused_with,
-                    route_point,
+                    route,
                 })
             }
             None => break,
@@ -667,6 +685,9 @@ pub(super) struct GlsVerdict {
     /// lowest held-out GLS error ([`route_report_point`]); a term the route alone accepts is
     /// reported there, not at its LORO-profiled point. Otherwise the smallest-p point.
     pub(super) point: usize,
+    /// The held-out GLS error at `point` relative to the current model's, `1 - with /
+    /// without`, where `point` is the route's profile (`None`: not computed).
+    pub(super) heldout_gls_fall: Option<f64>,
     /// Family-wise p: the simulated null probability that any open candidate's smallest p
     /// is at least as small.
     pub(super) family_p: f64,
@@ -885,7 +906,8 @@ fn heldout_claim(
 
 /// The grid point at which a term the route accepts is reported: where its held-out GLS
 /// error under `fit` is lowest (the route's metric, as the LORO error profiles a term the
-/// run-level rules accept). Only computed when the route is significant and its claim holds
+/// run-level rules accept), with that error's fall below the current model's `without_sse`
+/// (`1 - with / without`). Only computed when the route is significant and its claim holds
 /// (`route_accepts`); otherwise, or when no point can be fitted, the smallest-p point.
 fn route_report_point(
     fit: &crate::noise_model::NoiseFit,
@@ -894,16 +916,17 @@ fn route_report_point(
     grid: &EffectGrid,
     smallest_p_point: usize,
     route_accepts: bool,
-) -> usize {
+    without_sse: Option<f64>,
+) -> (usize, Option<f64>) {
     if !route_accepts {
-        return smallest_p_point;
+        return (smallest_p_point, None);
     }
     grid.points
         .par_iter()
         .enumerate()
         .filter_map(|(i, cols)| heldout_with(fit, base, ys, cols).map(|h| (i, h.sse)))
         .min_by(|a, b| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0)))
-        .map_or(smallest_p_point, |(i, _)| i)
+        .map_or((smallest_p_point, None), |(i, sse)| (i, without_sse.map(|w| 1.0 - sse / w)))
 }
 
 /// Whether the route's verdict is significant and its held-out claim (when measured) holds.
@@ -1011,12 +1034,12 @@ impl RouteStep<'_> {
                 }
                 let own_tester = GlsTester::new(&own, &base.per_run, ys)?;
                 let mine = grid_test(&own_tester, g);
-                let heldout = if self.options.noise_model_heldout {
-                    let without = heldout_gls(&own, &base.per_run, ys, base.penalty.as_ref())?;
-                    heldout_claim(&own, base, ys, g, mine.best, without.sse)
+                let without_sse = if self.options.noise_model_heldout {
+                    Some(heldout_gls(&own, &base.per_run, ys, base.penalty.as_ref())?.sse)
                 } else {
                     None
                 };
+                let heldout = without_sse.and_then(|w| heldout_claim(&own, base, ys, g, mine.best, w));
                 // The simulation (the whole step at this candidate's levels) is only
                 // needed when the held-out claim holds; else NaN: not simulated.
                 let claim = heldout.is_none_or(|(falls, sign)| falls && sign);
@@ -1028,11 +1051,13 @@ impl RouteStep<'_> {
                     let refs: Vec<&DMatrix<f64>> = all.iter().flat_map(|t| &t.bases).collect();
                     family_p(own_tester.n(), &refs, &[mine.min_p], GLS_SIMULATIONS, self.seed)[0]
                 });
-                let point =
-                    route_report_point(&own, base, ys, g, mine.best, route_significant(family_p, heldout));
+                let accepts = route_significant(family_p, heldout);
+                let (point, heldout_gls_fall) =
+                    route_report_point(&own, base, ys, g, mine.best, accepts, without_sse);
                 let v = GlsVerdict {
                     min_p: mine.min_p,
                     point,
+                    heldout_gls_fall,
                     family_p,
                     levels: (own.white_var, own.flicker_var),
                     heldout,
@@ -1069,11 +1094,14 @@ impl RouteStep<'_> {
                     let stream = self.seed ^ (i as u64 + 1).wrapping_mul(0x9E37_79B9_7F4A_7C15);
                     family_p(self.tester.n(), &refs, &[t.min_p], GLS_OWN_SIMULATIONS, stream)[0]
                 });
-                let route_accepts = route_significant(family_p, heldout);
-                let point = route_report_point(self.fit, self.base, self.ys, g, t.best, route_accepts);
+                let accepts = route_significant(family_p, heldout);
+                let without_sse = without.as_ref().map(|w| w.sse);
+                let (point, heldout_gls_fall) =
+                    route_report_point(self.fit, self.base, self.ys, g, t.best, accepts, without_sse);
                 let v = GlsVerdict {
                     min_p: t.min_p,
                     point,
+                    heldout_gls_fall,
                     family_p,
                     levels: (self.fit.white_var, self.fit.flicker_var),
                     heldout,
@@ -1127,17 +1155,13 @@ impl RouteStep<'_> {
                     _ => (self.fit, without.as_ref()),
                 };
                 let heldout = w.and_then(|w| heldout_claim(f, self.base, self.ys, g, t.best, w.sse));
-                let point = route_report_point(
-                    f,
-                    self.base,
-                    self.ys,
-                    g,
-                    t.best,
-                    route_significant(*family_p, heldout),
-                );
+                let accepts = route_significant(*family_p, heldout);
+                let (point, heldout_gls_fall) =
+                    route_report_point(f, self.base, self.ys, g, t.best, accepts, w.map(|w| w.sse));
                 let v = GlsVerdict {
                     min_p: t.min_p,
                     point,
+                    heldout_gls_fall,
                     family_p: *family_p,
                     levels: (f.white_var, f.flicker_var),
                     heldout,
@@ -1218,7 +1242,7 @@ mod tests {
         (
             fold_sse.to_vec(),
             k,
-            Pick { effect, point: 0, concealment_index: 0.0, most_confused_with: None, route_point: None },
+            Pick { effect, point: 0, concealment_index: 0.0, most_confused_with: None, route: None },
         )
     }
 
@@ -1227,6 +1251,7 @@ mod tests {
         let v = |family_p: f64, heldout: Option<(bool, bool)>| GlsVerdict {
             min_p: family_p,
             point: 0,
+            heldout_gls_fall: None,
             family_p,
             levels: (1e-3, 1e-6),
             heldout,
@@ -1454,13 +1479,18 @@ mod tests {
             })
             .collect();
         let fit = crate::noise_model::fit_noise(&basis, &base.per_run, &ys).expect("noise fit");
-        assert_eq!(route_report_point(&fit, &base, &ys, &grid, 0, true), 1);
-        assert_eq!(route_report_point(&fit, &base, &ys, &grid, 2, false), 2);
+        let without = heldout_gls(&fit, &base.per_run, &ys, None).expect("fit").sse;
+        let (point, fall) = route_report_point(&fit, &base, &ys, &grid, 0, true, Some(without));
+        assert_eq!(point, 1);
+        assert_eq!(route_report_point(&fit, &base, &ys, &grid, 2, false, Some(without)), (2, None));
         // The held-out errors behind it (whitened: about 1 per short mean, so one needless
         // coefficient costs about 1): point 1 lowest, more than 10 below the others.
         let sse: Vec<f64> =
             grid.points.iter().map(|c| heldout_with(&fit, &base, &ys, c).expect("fit").sse).collect();
         assert!(sse[1] + 10.0 < sse[0].min(sse[2]), "{sse:?}");
+        // The reported fall is that point's error against the intercept-only model's.
+        assert_eq!(fall, Some(1.0 - sse[1] / without));
+        assert!(fall.is_some_and(|f| f > 0.0));
     }
 
     #[test]
