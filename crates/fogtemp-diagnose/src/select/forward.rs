@@ -1438,6 +1438,13 @@ mod tests {
         (0..n).map(|_| (-2.0 * u().ln()).sqrt() * (std::f64::consts::TAU * u()).cos()).collect()
     }
 
+    /// The noise basis of `runs` runs of `blocks` consecutive 20 s short means.
+    fn short_mean_basis(runs: usize, blocks: usize) -> crate::noise_model::NoiseBasis {
+        let spans: Vec<Vec<(usize, usize)>> =
+            vec![(0..blocks).map(|i| (20 * i, 20 * i + 20)).collect(); runs];
+        crate::noise_model::NoiseBasis::new(&spans).expect("basis")
+    }
+
     #[test]
     fn a_term_the_route_accepts_is_reported_where_its_heldout_gls_error_is_lowest() {
         // 6 runs of 180 short means of 20 s, white noise of SD 0.01 per short mean, an
@@ -1449,9 +1456,7 @@ mod tests {
         // (the wrong ripple of point 2 costs about that); so point 1 is the lowest by far.
         // Not significant: the smallest-p point is kept.
         let (runs, blocks) = (6, 180);
-        let spans: Vec<Vec<(usize, usize)>> =
-            vec![(0..blocks).map(|i| (20 * i, 20 * i + 20)).collect(); runs];
-        let basis = crate::noise_model::NoiseBasis::new(&spans).expect("basis");
+        let basis = short_mean_basis(runs, blocks);
         let trend = |r: usize, i: usize| ((i + 17 * r) as f64 / 9.0).sin();
         let ripple = |r: usize, i: usize| ((i + 5 * r) as f64 / 2.0).sin();
         let wrong = |r: usize, i: usize| ((i + 5 * r) as f64 / 3.0).sin();
@@ -1513,9 +1518,7 @@ mod tests {
         // enough that the model with b alone still passes the innovation check.)
         // b's with a in: c alone, absent from the data: p not small (here > 0.01).
         let (runs, blocks) = (6, 180);
-        let spans: Vec<Vec<(usize, usize)>> =
-            vec![(0..blocks).map(|i| (20 * i, 20 * i + 20)).collect(); runs];
-        let basis = crate::noise_model::NoiseBasis::new(&spans).expect("basis");
+        let basis = short_mean_basis(runs, blocks);
         let col = |f: &dyn Fn(usize, usize) -> f64| -> Vec<DMatrix<f64>> {
             (0..runs).map(|r| DMatrix::from_fn(blocks, 1, |i, _| f(r, i))).collect()
         };
