@@ -321,6 +321,8 @@ pub struct HeldOut {
     pub beta: DVector<f64>,
     /// Held-out whitened sum of squares over all runs.
     pub sse: f64,
+    /// The same per run.
+    pub per_run_sse: Vec<f64>,
 }
 
 /// See [`HeldOut`]. `penalty`: pseudo-observations of 0 on the coefficients (rows x p, in
@@ -352,12 +354,12 @@ pub fn heldout_gls(
     let a_all = parts.iter().fold(pen_gram, |acc, q| acc + &q.2);
     let b_all = parts.iter().fold(DVector::<f64>::zeros(p), |acc, q| acc + &q.3);
     let beta = crate::linalg::least_squares(&a_all, &b_all)?;
-    let mut sse = 0.0;
+    let mut per_run_sse = Vec::with_capacity(parts.len());
     for (xw, yw, a, b) in &parts {
         let beta_out = crate::linalg::least_squares(&(&a_all - a), &(&b_all - b))?;
-        sse += (yw - xw * beta_out).norm_squared();
+        per_run_sse.push((yw - xw * beta_out).norm_squared());
     }
-    Some(HeldOut { beta, sse })
+    Some(HeldOut { beta, sse: per_run_sse.iter().sum(), per_run_sse })
 }
 
 /// Time-ordered innovations of the GLS residual (`L^-1 e`, `L` the Cholesky factor of the

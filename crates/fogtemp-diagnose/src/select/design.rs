@@ -225,15 +225,20 @@ pub(super) fn total_cv(p: &Profiled) -> f64 {
 /// degree or a hysteresis form, keep the smallest error.)
 pub(super) fn one_standard_error_choice(profiled: Vec<Profiled>) -> Option<Profiled> {
     let best = profiled.iter().min_by(|a, b| total_cv(a).total_cmp(&total_cv(b)))?;
-    let g = best.fold_sse.len() as f64;
-    let mean = total_cv(best) / g;
-    let sd = (best.fold_sse.iter().map(|e| (e - mean).powi(2)).sum::<f64>() / (g - 1.0).max(1.0)).sqrt();
-    // Standard error of the total over g folds: g x (sd / sqrt(g)).
-    let limit = total_cv(best) + sd * g.sqrt();
+    let limit = total_cv(best) + standard_error_of_total(&best.fold_sse);
     profiled
         .into_iter()
         .filter(|p| total_cv(p) <= limit)
         .min_by(|a, b| a.coefficients.cmp(&b.coefficients).then(total_cv(a).total_cmp(&total_cv(b))))
+}
+
+/// Standard error of a total over folds, g x (sd / sqrt(g)), the sd from the spread of the
+/// per-fold values (the one-standard-error rules' unit).
+pub(super) fn standard_error_of_total(per_fold: &[f64]) -> f64 {
+    let g = per_fold.len() as f64;
+    let mean = per_fold.iter().sum::<f64>() / g;
+    let sd = (per_fold.iter().map(|e| (e - mean).powi(2)).sum::<f64>() / (g - 1.0).max(1.0)).sqrt();
+    sd * g.sqrt()
 }
 
 /// BIC profile over `members` (grid points differing only in continuous parameters).

@@ -904,9 +904,8 @@ fn heldout_claim(
     Some((with.sse < without_sse, sign))
 }
 
-/// The grid point at which a term the route accepts is reported: where its held-out GLS
-/// error under `fit` is lowest (the route's metric, as the LORO error profiles a term the
-/// run-level rules accept), with that error's fall below the current model's `without_sse`
+/// The grid point at which a term the route accepts is reported, [`route_profile`] under
+/// `fit`, with its held-out GLS error's fall below the current model's `without_sse`
 /// (`1 - with / without`). Only computed when the route is significant and its claim holds
 /// (`route_accepts`); otherwise, or when no point can be fitted, the smallest-p point.
 fn route_report_point(
@@ -921,12 +920,56 @@ fn route_report_point(
     if !route_accepts {
         return (smallest_p_point, None);
     }
-    grid.points
+    let fitted: Vec<(usize, crate::noise_model::HeldOut)> = grid
+        .points
         .par_iter()
         .enumerate()
-        .filter_map(|(i, cols)| heldout_with(fit, base, ys, cols).map(|h| (i, h.sse)))
-        .min_by(|a, b| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0)))
+        .filter_map(|(i, cols)| heldout_with(fit, base, ys, cols).map(|h| (i, h)))
+        .collect();
+    route_profile(grid, &fitted)
         .map_or((smallest_p_point, None), |(i, sse)| (i, without_sse.map(|w| 1.0 - sse / w)))
+}
+
+/// The route's profile of a grid from each point's held-out GLS fit (`fitted`), as
+/// `design::profile_candidate` profiles by the LORO error, in the route's metric: per
+/// discrete complexity (basis size, number of exponentials, degree, form) the continuous
+/// parameters of the lowest held-out GLS error; across complexities the lowest, or for an
+/// effect of nested complexity (`design::one_standard_error_choice`) the fewest coefficients
+/// within one standard error of the lowest, the error of the per-run differences (paired:
+/// the runs' whitened errors differ with their lengths far more than between two fits).
+/// Returns the point and its error.
+fn route_profile(grid: &EffectGrid, fitted: &[(usize, crate::noise_model::HeldOut)]) -> Option<(usize, f64)> {
+    let discrete = |j: usize| -> Vec<u64> {
+        grid.params
+            .iter()
+            .zip(&grid.points[j].theta)
+            .filter(|(p, _)| !p.continuous)
+            .map(|(_, v)| v.to_bits())
+            .collect()
+    };
+    let mut per_complexity: BTreeMap<Vec<u64>, &(usize, crate::noise_model::HeldOut)> = BTreeMap::new();
+    for f in fitted {
+        let slot = per_complexity.entry(discrete(f.0)).or_insert(f);
+        if f.1.sse < slot.1.sse {
+            *slot = f;
+        }
+    }
+    let lowest = per_complexity.values().min_by(|a, b| a.1.sse.total_cmp(&b.1.sse))?;
+    // Within one standard error of the lowest, paired over the runs: the standard error of
+    // the total of the per-run differences.
+    let within = |f: &(usize, crate::noise_model::HeldOut)| {
+        if !grid.effect.nested_complexity() {
+            return f.1.sse <= lowest.1.sse;
+        }
+        let d: Vec<f64> = f.1.per_run_sse.iter().zip(&lowest.1.per_run_sse).map(|(a, b)| a - b).collect();
+        d.iter().sum::<f64>() <= standard_error_of_total(&d)
+    };
+    let k = |f: &(usize, crate::noise_model::HeldOut)| grid.points[f.0].k();
+    per_complexity
+        .values()
+        .filter(|f| within(f))
+        .min_by(|a, b| k(a).cmp(&k(b)).then(a.1.sse.total_cmp(&b.1.sse)))
+        .map(|f| (f.0, f.1.sse))
 }
 
 /// Whether the route's verdict is significant and its held-out claim (when measured) holds.
@@ -1496,6 +1539,45 @@ mod tests {
         // The reported fall is that point's error against the intercept-only model's.
         assert_eq!(fall, Some(1.0 - sse[1] / without));
         assert!(fall.is_some_and(|f| f > 0.0));
+    }
+
+    #[test]
+    fn the_routes_profile_takes_the_fewest_coefficients_within_one_paired_standard_error() {
+        use crate::effects::ProfiledParam;
+        use crate::noise_model::HeldOut;
+        let cols = |k: usize, theta: Vec<f64>| TermColumns {
+            theta,
+            coefficients: vec![("c".into(), "deg/h".into()); k],
+            per_run: Vec::new(),
+            penalty: None,
+        };
+        let grid = |effect: Effect| EffectGrid {
+            effect,
+            params: vec![
+                ProfiledParam { name: "tau_s", units: "s", continuous: true },
+                ProfiledParam { name: "exponentials", units: "1", continuous: false },
+            ],
+            points: vec![cols(1, vec![600.0, 1.0]), cols(1, vec![1200.0, 1.0]), cols(2, vec![900.0, 2.0])],
+            unmet_requirement: None,
+        };
+        let fit = |point: usize, per_run_sse: Vec<f64>| {
+            (point, HeldOut { beta: nalgebra::DVector::zeros(1), sse: per_run_sse.iter().sum(), per_run_sse })
+        };
+        // One exponential: 1200 s beats 600 s (28 < 30). Two: 27.2, the lowest; against it
+        // the 1200 s point differs by [0.5, 0, 0.3] per run, total 0.8, sd 0.2517, so the
+        // standard error of the total 0.2517 x sqrt(3) = 0.436 < 0.8: the lowest stays.
+        let sharp =
+            [fit(0, vec![10.0, 10.0, 10.0]), fit(1, vec![9.0, 9.5, 9.5]), fit(2, vec![8.5, 9.5, 9.2])];
+        let warmup = grid(Effect::WarmupTransient);
+        assert_eq!(route_profile(&warmup, &sharp).map(|c| c.0), Some(2));
+        // Two exponentials at 27.6 with differences [1.0, -0.5, -0.1] per run: total 0.4, sd
+        // 0.7767, standard error 1.345 >= 0.4: within one, so the single exponential.
+        let noisy =
+            [fit(0, vec![10.0, 10.0, 10.0]), fit(1, vec![9.0, 9.5, 9.5]), fit(2, vec![8.0, 10.0, 9.6])];
+        assert_eq!(route_profile(&warmup, &noisy).map(|c| c.0), Some(1));
+        // Not of nested complexity: the lowest error, whatever its size.
+        assert_eq!(route_profile(&grid(Effect::Hysteresis), &noisy).map(|c| c.0), Some(2));
+        assert_eq!(route_profile(&warmup, &[]), None);
     }
 
     #[test]
