@@ -266,8 +266,8 @@ pub(super) fn alternatives(steps: &[SelectionStep], k: usize) -> Vec<(String, f6
 }
 
 /// The chosen terms as the final fit reports them: a term that only the noise-model route
-/// accepted at the grid point of its lowest held-out GLS error, the metric of the test that
-/// accepted it (a term the run-level rules accept is profiled by the LORO error, theirs).
+/// accepted at its profile in the held-out GLS error ([`super::forward`]'s `route_profile`),
+/// the metric of the test that accepted it (a term the run-level rules accept is profiled by the LORO error, theirs).
 /// The LORO error of a term those rules rejected can barely move over the grid and pick a
 /// much smoother shape (a ripple in b(T) that the route found with 32 spline functions,
 /// reported with 4), which describes something the evidence did not show. Selection itself
@@ -355,7 +355,7 @@ pub fn evaluate_final(
                 let profile: Vec<String> =
                     grid.params.iter().zip(&cols.theta).map(|(p, v)| format!("{} {v}", p.name)).collect();
                 statement.push_str(&format!(
-                    ", and reported where its held-out GLS error is lowest ({})",
+                    ", and reported at the profile of its held-out GLS error ({})",
                     profile.join(", ")
                 ));
             }

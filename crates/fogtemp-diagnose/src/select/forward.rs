@@ -40,7 +40,7 @@ pub struct ChosenTerm {
 /// What the noise-model route measured for a term it accepted and the run-level rules did not.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct RouteEvidence {
-    /// Grid point of the lowest held-out GLS error (the route's metric), where it is reported.
+    /// Grid point of the route's profile in its held-out GLS error, where it is reported.
     pub point: usize,
     /// Smallest GLS Wald p over the grid.
     pub min_p: f64,
@@ -682,8 +682,9 @@ pub(super) struct GlsVerdict {
     /// Smallest Wald p over the candidate's grid points.
     pub(super) min_p: f64,
     /// Where the route is significant and its held-out claim holds: the grid point of the
-    /// lowest held-out GLS error ([`route_report_point`]); a term the route alone accepts is
-    /// reported there, not at its LORO-profiled point. Otherwise the smallest-p point.
+    /// route's profile in its held-out GLS error ([`route_report_point`]); a term the route
+    /// alone accepts is reported there, not at its LORO-profiled point. Otherwise the
+    /// smallest-p point.
     pub(super) point: usize,
     /// The held-out GLS error at `point` relative to the current model's, `1 - with /
     /// without`, where `point` is the route's profile (`None`: not computed).
