@@ -184,14 +184,7 @@ pub(super) fn profile_candidate(
         .collect::<Result<_, _>>()?;
     // Complexity (the discrete parameters) by LORO error; continuous parameters by BIC,
     // re-chosen in every fold from its training runs.
-    let discrete = |j: usize| -> Vec<u64> {
-        grid.params
-            .iter()
-            .zip(&grid.points[j].theta)
-            .filter(|(p, _)| !p.continuous)
-            .map(|(_, v)| v.to_bits())
-            .collect()
-    };
+    let discrete = |j: usize| complexity_key(grid, j);
     let mut keys: Vec<Vec<u64>> = (0..evals.len()).map(discrete).collect();
     keys.sort();
     keys.dedup();
@@ -208,6 +201,17 @@ pub(super) fn profile_candidate(
         profiled.into_iter().min_by(|a, b| total_cv(a).total_cmp(&total_cv(b)))
     };
     choice.ok_or(DiagnoseError::Fit("empty profiling grid"))
+}
+
+/// The complexity of grid point `point`: its discrete parameters' values (basis size,
+/// number of exponentials, degree, form), as bits so they can be compared and ordered.
+pub(super) fn complexity_key(grid: &EffectGrid, point: usize) -> Vec<u64> {
+    grid.params
+        .iter()
+        .zip(&grid.points[point].theta)
+        .filter(|(p, _)| !p.continuous)
+        .map(|(_, v)| v.to_bits())
+        .collect()
 }
 
 pub(super) fn total_cv(p: &Profiled) -> f64 {

@@ -940,17 +940,9 @@ fn route_report_point(
 /// the runs' whitened errors differ with their lengths far more than between two fits).
 /// Returns the point and its error.
 fn route_profile(grid: &EffectGrid, fitted: &[(usize, crate::noise_model::HeldOut)]) -> Option<(usize, f64)> {
-    let discrete = |j: usize| -> Vec<u64> {
-        grid.params
-            .iter()
-            .zip(&grid.points[j].theta)
-            .filter(|(p, _)| !p.continuous)
-            .map(|(_, v)| v.to_bits())
-            .collect()
-    };
     let mut per_complexity: BTreeMap<Vec<u64>, &(usize, crate::noise_model::HeldOut)> = BTreeMap::new();
     for f in fitted {
-        let slot = per_complexity.entry(discrete(f.0)).or_insert(f);
+        let slot = per_complexity.entry(complexity_key(grid, f.0)).or_insert(f);
         if f.1.sse < slot.1.sse {
             *slot = f;
         }
