@@ -368,6 +368,11 @@ pub struct CandidateReport {
     /// stopped early because the p could no longer reach its level).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub position_permutation_p: Option<f64>,
+    /// Passed every rule at this step, another effect was selected, and it explains at least
+    /// half of what that effect explains in held-out runs: an alternative explanation when the
+    /// selected effect then absorbs it (its note says so; not in the JSON document).
+    #[serde(skip)]
+    pub runner_up_alternative: bool,
 }
 
 /// One step of forward selection.

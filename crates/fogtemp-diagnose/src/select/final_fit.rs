@@ -253,7 +253,7 @@ pub(super) fn alternatives(steps: &[SelectionStep], k: usize) -> Vec<(String, f6
     let next = steps.get(k + 1).filter(|s| !s.candidates.is_empty());
     step.candidates
         .iter()
-        .filter(|c| c.status == "rejected" && c.note == RUNNER_UP_NOTE)
+        .filter(|c| c.runner_up_alternative)
         .filter(|c| {
             next.is_none_or(|n| {
                 n.candidates

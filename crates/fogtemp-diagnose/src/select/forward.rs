@@ -110,6 +110,7 @@ pub(super) fn not_evaluated(
         experiment,
         note,
         position_permutation_p: None,
+        runner_up_alternative: false,
     }
 }
 
@@ -268,6 +269,7 @@ pub(super) fn judge(
         experiment,
         note,
         position_permutation_p: permutation.map(|t| t.p()),
+        runner_up_alternative: false,
     };
     Ok(Scored { report, point: prof.point, accepted, route })
 }
@@ -387,7 +389,8 @@ pub(super) fn run_step(ctx: &StepContext<'_>) -> Result<(Vec<CandidateReport>, O
                 }
             } else if r.status == "accepted" {
                 r.status = "rejected".into();
-                r.note = runner_up_note(ctx, &held_out_sse, &r.effect, *effect).into();
+                r.runner_up_alternative = explains_half(ctx, &held_out_sse, &r.effect, *effect);
+                r.note = if r.runner_up_alternative { RUNNER_UP_NOTE } else { RUNNER_UP_PARTIAL_NOTE }.into();
             }
         }
     }
@@ -475,26 +478,22 @@ pub(super) fn explained_share(base_sse: f64, mine_sse: f64, chosen_sse: f64) -> 
     }
 }
 
-/// The note of an accepted candidate `runner_up` that was not selected: an alternative
-/// explanation only if it explains at least [`ALTERNATIVE_SHARE`] of what `selected` does
+/// Whether an accepted candidate `runner_up` that was not selected is an alternative
+/// explanation: it explains at least [`ALTERNATIVE_SHARE`] of what `selected` does
 /// (`held_out_sse`: each accepted candidate's total LORO error).
-fn runner_up_note(
+fn explains_half(
     ctx: &StepContext<'_>,
     held_out_sse: &[(Effect, f64)],
     runner_up: &str,
     selected: Effect,
-) -> &'static str {
+) -> bool {
     let sse_of = |name: &str| held_out_sse.iter().find(|(e, _)| e.name() == name).map(|x| x.1);
     let base_sse: f64 = ctx.base_eval.fold_sse.iter().sum();
     let share = match (sse_of(runner_up), sse_of(selected.name())) {
         (Some(mine), Some(chosen)) => explained_share(base_sse, mine, chosen),
         _ => 0.0,
     };
-    if share >= ALTERNATIVE_SHARE {
-        RUNNER_UP_NOTE
-    } else {
-        RUNNER_UP_PARTIAL_NOTE
-    }
+    share >= ALTERNATIVE_SHARE
 }
 
 /// The candidates `parsimonious_pick` chooses among: those with the fewest coefficients
