@@ -319,10 +319,15 @@ fn gls_beta(x: &[DMatrix<f64>], y: &[Vec<f64>], whiten: &[DMatrix<f64>]) -> Opti
 pub struct HeldOut {
     /// Full-data GLS coefficients.
     pub beta: DVector<f64>,
-    /// Held-out whitened sum of squares over all runs.
-    pub sse: f64,
-    /// The same per run.
+    /// Held-out whitened sum of squares of each run.
     pub per_run_sse: Vec<f64>,
+}
+
+impl HeldOut {
+    /// Held-out whitened sum of squares over all runs.
+    pub fn sse(&self) -> f64 {
+        self.per_run_sse.iter().sum()
+    }
 }
 
 /// See [`HeldOut`]. `penalty`: pseudo-observations of 0 on the coefficients (rows x p, in
@@ -359,7 +364,7 @@ pub fn heldout_gls(
         let beta_out = crate::linalg::least_squares(&(&a_all - a), &(&b_all - b))?;
         per_run_sse.push((yw - xw * beta_out).norm_squared());
     }
-    Some(HeldOut { beta, sse: per_run_sse.iter().sum(), per_run_sse })
+    Some(HeldOut { beta, per_run_sse })
 }
 
 /// Time-ordered innovations of the GLS residual (`L^-1 e`, `L` the Cholesky factor of the
@@ -854,7 +859,7 @@ mod tests {
             let e = DVector::from_column_slice(&y[r]) - &x[r] * normal(Some(r));
             sse += (e.transpose() * &inv * &e)[(0, 0)];
         }
-        assert!((got.sse - sse).abs() <= 1e-8 * sse, "{} vs {sse}", got.sse);
+        assert!((got.sse() - sse).abs() <= 1e-8 * sse, "{} vs {sse}", got.sse());
         let full = normal(None);
         assert!((&got.beta - &full).norm() <= 1e-8 * full.norm(), "{} vs {full}", got.beta);
     }

@@ -901,7 +901,7 @@ fn heldout_claim(
     let with = heldout_with(fit, base, ys, &grid.points[point])?;
     let last = with.beta.len().checked_sub(1).map_or(f64::NAN, |i| with.beta[i]);
     let sign = !grid.effect.positive_coefficient() || last > 0.0;
-    Some((with.sse < without_sse, sign))
+    Some((with.sse() < without_sse, sign))
 }
 
 /// The grid point at which a term the route accepts is reported, [`route_profile`] under
@@ -942,16 +942,16 @@ fn route_profile(grid: &EffectGrid, fitted: &[(usize, crate::noise_model::HeldOu
     let mut per_complexity: BTreeMap<Vec<u64>, &(usize, crate::noise_model::HeldOut)> = BTreeMap::new();
     for f in fitted {
         let slot = per_complexity.entry(complexity_key(grid, f.0)).or_insert(f);
-        if f.1.sse < slot.1.sse {
+        if f.1.sse() < slot.1.sse() {
             *slot = f;
         }
     }
-    let lowest = per_complexity.values().min_by(|a, b| a.1.sse.total_cmp(&b.1.sse))?;
+    let lowest = per_complexity.values().min_by(|a, b| a.1.sse().total_cmp(&b.1.sse()))?;
     // Within one standard error of the lowest, paired over the runs: the standard error of
     // the total of the per-run differences.
     let within = |f: &(usize, crate::noise_model::HeldOut)| {
         if !grid.effect.nested_complexity() {
-            return f.1.sse <= lowest.1.sse;
+            return f.1.sse() <= lowest.1.sse();
         }
         let d: Vec<f64> = f.1.per_run_sse.iter().zip(&lowest.1.per_run_sse).map(|(a, b)| a - b).collect();
         d.iter().sum::<f64>() <= standard_error_of_total(&d)
@@ -960,8 +960,8 @@ fn route_profile(grid: &EffectGrid, fitted: &[(usize, crate::noise_model::HeldOu
     per_complexity
         .values()
         .filter(|f| within(f))
-        .min_by(|a, b| k(a).cmp(&k(b)).then(a.1.sse.total_cmp(&b.1.sse)))
-        .map(|f| (f.0, f.1.sse))
+        .min_by(|a, b| k(a).cmp(&k(b)).then(a.1.sse().total_cmp(&b.1.sse())))
+        .map(|f| (f.0, f.1.sse()))
 }
 
 /// Whether the route's verdict is significant and its held-out claim (when measured) holds.
@@ -1070,7 +1070,7 @@ impl RouteStep<'_> {
                 let own_tester = GlsTester::new(&own, &base.per_run, ys)?;
                 let mine = grid_test(&own_tester, g);
                 let without_sse = if self.options.noise_model_heldout {
-                    Some(heldout_gls(&own, &base.per_run, ys, base.penalty.as_ref())?.sse)
+                    Some(heldout_gls(&own, &base.per_run, ys, base.penalty.as_ref())?.sse())
                 } else {
                     None
                 };
@@ -1117,7 +1117,7 @@ impl RouteStep<'_> {
             .map(|(i, (g, t))| {
                 let heldout = without
                     .as_ref()
-                    .and_then(|w| heldout_claim(self.fit, self.base, self.ys, g, t.best, w.sse));
+                    .and_then(|w| heldout_claim(self.fit, self.base, self.ys, g, t.best, w.sse()));
                 // The simulation of the candidate's own grid is needed only when its claim
                 // holds; else NaN: not simulated.
                 let claim = heldout.is_none_or(|(falls, sign)| falls && sign);
@@ -1130,7 +1130,7 @@ impl RouteStep<'_> {
                     family_p(self.tester.n(), &refs, &[t.min_p], GLS_OWN_SIMULATIONS, stream)[0]
                 });
                 let accepts = route_significant(family_p, heldout);
-                let without_sse = without.as_ref().map(|w| w.sse);
+                let without_sse = without.as_ref().map(|w| w.sse());
                 let (point, heldout_gls_fall) =
                     route_report_point(self.fit, self.base, self.ys, g, t.best, accepts, without_sse);
                 let v = GlsVerdict {
@@ -1189,10 +1189,10 @@ impl RouteStep<'_> {
                     (Some(_), Some(ff)) => (ff, family_without.as_ref()),
                     _ => (self.fit, without.as_ref()),
                 };
-                let heldout = w.and_then(|w| heldout_claim(f, self.base, self.ys, g, t.best, w.sse));
+                let heldout = w.and_then(|w| heldout_claim(f, self.base, self.ys, g, t.best, w.sse()));
                 let accepts = route_significant(*family_p, heldout);
                 let (point, heldout_gls_fall) =
-                    route_report_point(f, self.base, self.ys, g, t.best, accepts, w.map(|w| w.sse));
+                    route_report_point(f, self.base, self.ys, g, t.best, accepts, w.map(|w| w.sse()));
                 let v = GlsVerdict {
                     min_p: t.min_p,
                     point,
@@ -1519,14 +1519,14 @@ mod tests {
             })
             .collect();
         let fit = crate::noise_model::fit_noise(&basis, &base.per_run, &ys).expect("noise fit");
-        let without = heldout_gls(&fit, &base.per_run, &ys, None).expect("fit").sse;
+        let without = heldout_gls(&fit, &base.per_run, &ys, None).expect("fit").sse();
         let (point, fall) = route_report_point(&fit, &base, &ys, &grid, 0, true, Some(without));
         assert_eq!(point, 1);
         assert_eq!(route_report_point(&fit, &base, &ys, &grid, 2, false, Some(without)), (2, None));
         // The held-out errors behind it (whitened: about 1 per short mean, so one needless
         // coefficient costs about 1): point 1 lowest, more than 10 below the others.
         let sse: Vec<f64> =
-            grid.points.iter().map(|c| heldout_with(&fit, &base, &ys, c).expect("fit").sse).collect();
+            grid.points.iter().map(|c| heldout_with(&fit, &base, &ys, c).expect("fit").sse()).collect();
         assert!(sse[1] + 10.0 < sse[0].min(sse[2]), "{sse:?}");
         // The reported fall is that point's error against the intercept-only model's.
         assert_eq!(fall, Some(1.0 - sse[1] / without));
@@ -1553,7 +1553,7 @@ mod tests {
             unmet_requirement: None,
         };
         let fit = |point: usize, per_run_sse: Vec<f64>| {
-            (point, HeldOut { beta: nalgebra::DVector::zeros(1), sse: per_run_sse.iter().sum(), per_run_sse })
+            (point, HeldOut { beta: nalgebra::DVector::zeros(1), per_run_sse })
         };
         // One exponential: 1200 s beats 600 s (28 < 30). Two: 27.2, the lowest; against it
         // the 1200 s point differs by [0.5, 0, 0.3] per run, total 0.8, sd 0.2517, so the
