@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use anyhow::{bail, Result};
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use fogtemp_cal::identifiability::IdentifiabilitySettings;
-use fogtemp_cal::ingest::{Delimiter, IngestOptions, LogFormat, RateUnit, TimeUnit};
+use fogtemp_cal::ingest::{DecimalMark, Delimiter, IngestOptions, LogFormat, RateUnit, TimeUnit};
 
 /// fogtemp-cal: calibrate fibre-optic gyro temperature drift from lab logs and check the result.
 ///
@@ -100,6 +100,11 @@ pub struct IngestArgs {
     /// ASCII character.
     #[arg(long, value_name = "DELIMITER", default_value = "auto", value_parser = parse_delimiter, help_heading = "Log shape")]
     pub delimiter: Delimiter,
+    /// Decimal mark of the numbers: point (20.5) or comma (20,5, as written in many European
+    /// locales; then the delimiter is not a comma, and a cell with a point is refused rather
+    /// than read as a thousands separator or a decimal).
+    #[arg(long, value_name = "MARK", default_value = "point", value_parser = parse_decimal_mark, help_heading = "Log shape")]
+    pub decimal_mark: DecimalMark,
     /// Skip malformed rows (non-numeric, NaN, short, duplicate or backward time) and report
     /// them, instead of stopping at the first.
     #[arg(long, help_heading = "Log columns")]
@@ -134,6 +139,7 @@ impl IngestArgs {
             comment: (!self.comment.is_empty()).then(|| self.comment.clone()),
             column_names: self.columns.iter().map(|c| c.trim().to_string()).collect(),
             sample_rate_hz: self.sample_rate_hz,
+            decimal_mark: self.decimal_mark,
         };
         if let Err(e) = format.check(std::path::Path::new("--options")) {
             match e {
@@ -148,6 +154,10 @@ impl IngestArgs {
 /// `--delimiter`: a name or one ASCII character.
 fn parse_delimiter(text: &str) -> Result<Delimiter, String> {
     Delimiter::from_name(text)
+}
+
+fn parse_decimal_mark(text: &str) -> Result<DecimalMark, String> {
+    DecimalMark::from_name(text)
 }
 
 /// Time units.

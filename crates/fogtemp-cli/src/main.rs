@@ -6,6 +6,7 @@ mod commands;
 mod output;
 
 use clap::Parser;
+use fogtemp_cal::ingest::BadRowKind;
 use fogtemp_cal::CalError;
 use fogtemp_diagnose::DiagnoseError;
 use fogtemp_sim::SimError;
@@ -52,9 +53,15 @@ fn cal_error<'e>(e: &'e (dyn std::error::Error + 'static)) -> Option<&'e CalErro
 /// libraries name no flags: their callers have none).
 fn flag_hint(e: &(dyn std::error::Error + 'static)) -> Option<&'static str> {
     match cal_error(e)? {
+        CalError::BadRow { row, .. } if row.looks_like_decimal_comma() => {
+            Some("; the log seems to write numbers with a decimal comma: use --decimal-mark comma")
+        }
+        CalError::BadRow { row, .. } if row.kind == BadRowKind::PointWithDecimalComma => {
+            Some("; leave out --decimal-mark comma if the log writes decimal points")
+        }
         CalError::BadRow { .. } => Some("; use --skip-bad-rows to skip such rows"),
         CalError::LogFormat { .. } => Some(
-            "; see --skip-lines, --columns, --sample-rate-hz, --time-column, --comment and --delimiter \
+            "; see --skip-lines, --columns, --sample-rate-hz, --time-column, --comment, --delimiter and --decimal-mark \
              (docs/calibration-logs.md)",
         ),
         CalError::NoCalibrationPoints { .. } => {

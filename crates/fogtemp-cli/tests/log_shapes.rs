@@ -277,3 +277,59 @@ fn ambiguous_or_malformed_shapes_are_refused() {
         assert!(!model.exists());
     }
 }
+
+/// A log of a European locale's spreadsheet export: semicolons and decimal commas, 1 Hz.
+fn write_locale_log(path: &Path, start_c: f64, decimal_comma: bool) {
+    let mut text = String::from("time_s;temp_c;gyro_dph\n");
+    for k in 0..3600 {
+        let temp = temp_c(start_c, f64::from(k));
+        let row = format!("{k}.0;{temp:.4};{:.6}\n", bias_dph(temp));
+        text.push_str(&if decimal_comma { row.replace('.', ",") } else { row });
+    }
+    std::fs::write(path, text).unwrap();
+}
+
+#[test]
+fn decimal_comma_logs_fit_the_same_model_as_their_point_twins() {
+    let dir = tempfile::tempdir().unwrap();
+    let (commas, points) = (dir.path().join("commas"), dir.path().join("points"));
+    for d in [&commas, &points] {
+        std::fs::create_dir(d).unwrap();
+    }
+    for (i, start) in [0.0, 20.0, 40.0].into_iter().enumerate() {
+        write_locale_log(&commas.join(format!("run{i}.csv")), start, true);
+        write_locale_log(&points.join(format!("run{i}.csv")), start, false);
+    }
+    // Without the flag: the first cell is refused, and the error says what to pass.
+    let model = dir.path().join("m.fogm");
+    let out = run(&["fit", "--method", "poly", "--out", s(&model), s(&commas)]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && !model.exists(), "{stderr}");
+    assert!(stderr.contains("run0.csv:2:1: column 'time_s': not a number (found '0,0')"), "{stderr}");
+    assert!(stderr.contains("use --decimal-mark comma"), "{stderr}");
+    // With it: the model of the same numbers written with points (the oracle), every stored
+    // value equal; only the digest of the input bytes differs.
+    let twin = dir.path().join("twin.fogm");
+    let out = run(&["fit", "--method", "poly", "--decimal-mark", "comma", "--out", s(&model), s(&commas)]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let out = run(&["fit", "--method", "poly", "--out", s(&twin), s(&points)]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let stored = |m: &Path| {
+        let (mut doc, _) = ok_json(&["inspect", "--json", s(m)]);
+        let digest = doc["input_digest"].take();
+        assert!(digest.is_string(), "{doc}");
+        doc["model"].take();
+        doc
+    };
+    let fitted = stored(&model);
+    assert_eq!(fitted["axes"][0]["kind"][0], "poly", "{fitted}");
+    assert_eq!(fitted, stored(&twin));
+    // The flag on a log with points names the cell and the way back.
+    let out = run(&["allan", "--decimal-mark", "comma", s(&points.join("run0.csv"))]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains("run0.csv:2:1: column 'time_s': a point in a log read with a decimal comma"),
+        "{stderr}"
+    );
+    assert!(stderr.contains("leave out --decimal-mark comma"), "{stderr}");
+}

@@ -2,6 +2,7 @@
 //! command line prints after `error:`), plus the hint the command line gives, in keyword
 //! form.
 
+use fogtemp_cal::ingest::BadRowKind;
 use fogtemp_cal::CalError;
 use fogtemp_sim::SimError;
 use pyo3::exceptions::{PyFileNotFoundError, PyOSError, PyRuntimeError, PyValueError};
@@ -27,6 +28,12 @@ pub fn cal(e: CalError) -> PyErr {
 /// flags in the same place: `--skip-bad-rows`, `--temp-column`, ...).
 fn hint(e: &CalError) -> &'static str {
     match e {
+        CalError::BadRow { row, .. } if row.looks_like_decimal_comma() => {
+            "; the log seems to write numbers with a decimal comma: pass decimal_mark='comma'"
+        }
+        CalError::BadRow { row, .. } if row.kind == BadRowKind::PointWithDecimalComma => {
+            "; leave out decimal_mark='comma' if the log writes decimal points"
+        }
         CalError::BadRow { .. } => "; pass skip_bad_rows=True to skip such rows",
         CalError::NoCalibrationPoints { .. } => {
             "; check temp_column, or set max_gap_s and window_s to suit the temperature sampling"

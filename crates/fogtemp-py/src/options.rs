@@ -4,7 +4,7 @@
 use std::collections::BTreeSet;
 
 use fogtemp_cal::calibrate::{CalibrationConfig, Thinning};
-use fogtemp_cal::ingest::{Delimiter, IngestOptions, LogFormat, RateUnit, TimeUnit};
+use fogtemp_cal::ingest::{DecimalMark, Delimiter, IngestOptions, LogFormat, RateUnit, TimeUnit};
 use fogtemp_cal::metrics::BiasStabilityOptions;
 use fogtemp_cal::poly_fit::TermSelection;
 use fogtemp_cal::thin::GreedyThinning;
@@ -136,7 +136,7 @@ impl<'py> Options<'py> {
 }
 
 /// The log-column keywords (the command line's "Log columns" flags).
-pub const COLUMN_KEYS: [&str; 14] = [
+pub const COLUMN_KEYS: [&str; 15] = [
     "time_column",
     "time_unit",
     "temp_column",
@@ -150,6 +150,7 @@ pub const COLUMN_KEYS: [&str; 14] = [
     "columns",
     "sample_rate_hz",
     "comment",
+    "decimal_mark",
     "skip_bad_rows",
 ];
 
@@ -171,6 +172,8 @@ pub fn ingest(o: &mut Options<'_>) -> PyResult<IngestOptions> {
     };
     let delimiter = Delimiter::from_name(&o.string("delimiter", "auto")?)
         .map_err(|e| errors::value(format!("delimiter: {e}")))?;
+    let decimal_mark = DecimalMark::from_name(&o.string("decimal_mark", "point")?)
+        .map_err(|e| errors::value(format!("decimal_mark: {e}")))?;
     let comment = o.string("comment", "#")?;
     let columns = if o.any_given(&["columns"])? { o.strings("columns", "")? } else { Vec::new() };
     Ok(IngestOptions {
@@ -188,6 +191,7 @@ pub fn ingest(o: &mut Options<'_>) -> PyResult<IngestOptions> {
             comment: (!comment.is_empty()).then_some(comment),
             column_names: columns.iter().map(|c| c.trim().to_string()).collect(),
             sample_rate_hz: o.opt_f64("sample_rate_hz")?,
+            decimal_mark,
         },
         skip_bad_rows: o.bool("skip_bad_rows", false)?,
     })

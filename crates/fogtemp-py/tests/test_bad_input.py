@@ -63,6 +63,24 @@ def test_malformed_row_names_file_line_and_column_like_the_command_line(tmp_path
     assert len(data["time_s"]) == 2
 
 
+def test_decimal_comma_logs_read_with_decimal_mark_and_a_hint_without(tmp_path):
+    points = "time_s;temp_c;gyro_dph\n0.0;20.5;-1.25e-3\n0.5;20.625;2.5\n"
+    twin, log = tmp_path / "points.csv", tmp_path / "commas.csv"
+    twin.write_text(points)
+    log.write_text(points.replace(".", ","))
+    with pytest.raises(ValueError, match="found '0,0'.*decimal_mark='comma'"):
+        fogtemp.read_log(log, progress=False)
+    got = fogtemp.read_log(log, decimal_mark="comma", progress=False)
+    expected = fogtemp.read_log(twin, progress=False)
+    for column in ("time_s", "temp_c", "gyro_dph"):
+        np.testing.assert_array_equal(got[column], expected[column])
+    np.testing.assert_array_equal(got["gyro_dph"], [-1.25e-3, 2.5])
+    with pytest.raises(ValueError, match="a point in a log read with a decimal comma"):
+        fogtemp.read_log(twin, decimal_mark="comma", progress=False)
+    with pytest.raises(ValueError, match="decimal_mark: expected point or comma"):
+        fogtemp.read_log(log, decimal_mark="dot", progress=False)
+
+
 def test_missing_column_and_header_only(tmp_path):
     log = tmp_path / "cols.csv"
     log.write_text("time_s,temperature,gyro_dph\n0,20,1\n")

@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 
 use super::batch::Batch;
 use super::parser::Fields;
-use super::{BadRow, BadRowKind, Delimiter, IngestOptions, LogFormat, MAX_REPORTED_BAD_ROWS};
+use super::{BadRow, BadRowKind, DecimalMark, Delimiter, IngestOptions, LogFormat, MAX_REPORTED_BAD_ROWS};
 use crate::error::CalError;
 
 /// `Plan::roles` entry of a field no row value comes from.
@@ -28,11 +28,13 @@ pub(super) struct Plan {
     pub(super) gyro_factor: f64,
     pub(super) temp_scale: f64,
     pub(super) temp_offset_c: f64,
-    /// The delimiter is one byte that cannot occur in a plain decimal.
+    /// The delimiter is one byte that cannot occur in a plain decimal, and the decimal mark
+    /// is a point.
     pub(super) fast: bool,
     /// First byte of the comment prefix (the one-pass path leaves such records, and any
     /// starting with a space or tab, to the general path).
     pub(super) comment_first: Option<u8>,
+    pub(super) decimal_mark: DecimalMark,
 }
 
 /// Row-level state: header, previous time, skipped rows.
@@ -187,8 +189,11 @@ pub(super) fn make_plan(path: &Path, header: Fields<'_>, f: &LogFormat, line: u6
         gyro_factor: f.gyro_unit.dph() * f.gyro_scale,
         temp_scale: f.temp_scale,
         temp_offset_c: f.temp_offset_c,
-        fast: matches!(f.delimiter, Delimiter::Byte(b) if !matches!(b, b'0'..=b'9' | b'.' | b'-' | b'"' | b'\r' | b'\n')),
+        // The fast path reads decimal points only.
+        fast: f.decimal_mark == DecimalMark::Point
+            && matches!(f.delimiter, Delimiter::Byte(b) if !matches!(b, b'0'..=b'9' | b'.' | b'-' | b'"' | b'\r' | b'\n')),
         comment_first: f.comment_prefix().first().copied(),
+        decimal_mark: f.decimal_mark,
     })
 }
 
@@ -228,7 +233,7 @@ fn locate_columns(path: &Path, header: Fields<'_>, f: &LogFormat, line: u64) -> 
         Ok((time, temps, gyros))
     })();
     let (time, temps, gyros) = match located {
-        Err(CalError::MissingColumn { .. }) if line > 0 && looks_like_data(&names) => {
+        Err(CalError::MissingColumn { .. }) if line > 0 && looks_like_data(&names, f.decimal_mark) => {
             return Err(CalError::LogFormat {
                 path: path.to_path_buf(),
                 line,
@@ -253,8 +258,32 @@ fn locate_columns(path: &Path, header: Fields<'_>, f: &LogFormat, line: u64) -> 
 }
 
 /// Every cell a number: a data row, not a header.
-fn looks_like_data(names: &[String]) -> bool {
-    !names.is_empty() && names.iter().all(|n| fast_float2::parse::<f64, _>(n.as_bytes()).is_ok())
+fn looks_like_data(names: &[String], decimal: DecimalMark) -> bool {
+    !names.is_empty() && names.iter().all(|n| parse_number(n.as_bytes(), decimal).is_some())
+}
+
+/// Longest cell a decimal comma is replaced in (longer ones are not numbers this reader
+/// writes or reads: 17 significant digits, a sign, an exponent).
+const MAX_NUMBER_LEN: usize = 64;
+
+/// A cell's number (`trimmed`: no surrounding spaces) with the log's decimal mark: with
+/// [`DecimalMark::Comma`] the comma is read as a point and a cell holding a point is not
+/// a number (it would be a thousands separator there).
+fn parse_number(trimmed: &[u8], decimal: DecimalMark) -> Option<f64> {
+    match decimal {
+        DecimalMark::Point => fast_float2::parse::<f64, _>(trimmed).ok(),
+        DecimalMark::Comma => {
+            if trimmed.contains(&b'.') || trimmed.len() > MAX_NUMBER_LEN {
+                return None;
+            }
+            let mut text = [0u8; MAX_NUMBER_LEN];
+            let text = text.get_mut(..trimmed.len())?;
+            for (to, &from) in text.iter_mut().zip(trimmed) {
+                *to = if from == b',' { b'.' } else { from };
+            }
+            fast_float2::parse::<f64, _>(&*text).ok()
+        }
+    }
 }
 
 fn bad_row(columns: &Columns, line: u64, field: usize, found: &[u8], kind: BadRowKind) -> BadRow {
@@ -269,16 +298,19 @@ fn bad_row(columns: &Columns, line: u64, field: usize, found: &[u8], kind: BadRo
 }
 
 /// Parses one numeric cell; `Ok(None)` for an empty cell.
-fn parse_cell(columns: &Columns, fields: Fields<'_>, field: usize, line: u64) -> Result<Option<f64>, BadRow> {
+fn parse_cell(plan: &Plan, fields: Fields<'_>, field: usize, line: u64) -> Result<Option<f64>, BadRow> {
     let raw = fields.get(field).unwrap_or(b"");
     let trimmed = raw.trim_ascii();
     if trimmed.is_empty() {
         return Ok(None);
     }
-    match fast_float2::parse::<f64, _>(trimmed) {
-        Ok(v) if v.is_finite() => Ok(Some(v)),
-        Ok(_) => Err(bad_row(columns, line, field, raw, BadRowKind::NonFinite)),
-        Err(_) => Err(bad_row(columns, line, field, raw, BadRowKind::NotANumber)),
+    match parse_number(trimmed, plan.decimal_mark) {
+        Some(v) if v.is_finite() => Ok(Some(v)),
+        Some(_) => Err(bad_row(&plan.columns, line, field, raw, BadRowKind::NonFinite)),
+        None if plan.decimal_mark == DecimalMark::Comma && trimmed.contains(&b'.') => {
+            Err(bad_row(&plan.columns, line, field, raw, BadRowKind::PointWithDecimalComma))
+        }
+        None => Err(bad_row(&plan.columns, line, field, raw, BadRowKind::NotANumber)),
     }
 }
 
@@ -305,7 +337,7 @@ pub(super) fn parse_row(
         ));
     }
     let required = |field: usize| -> Result<f64, BadRow> {
-        parse_cell(columns, fields, field, line)?
+        parse_cell(plan, fields, field, line)?
             .ok_or_else(|| bad_row(columns, line, field, b"", BadRowKind::EmptyCell))
     };
     let time = match columns.time {
@@ -316,7 +348,7 @@ pub(super) fn parse_row(
         *slot = required(field)? * plan.gyro_factor;
     }
     for (slot, &field) in temps.iter_mut().zip(&columns.temps) {
-        *slot = parse_cell(columns, fields, field, line)?
+        *slot = parse_cell(plan, fields, field, line)?
             .map_or(f64::NAN, |raw| raw * plan.temp_scale + plan.temp_offset_c);
     }
     Ok(time)

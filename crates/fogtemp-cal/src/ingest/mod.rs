@@ -124,6 +124,36 @@ pub struct LogFormat {
     /// rejected records but not blank or comment lines) is at `k / rate` seconds. A log
     /// that also has a column named `time_column` is refused as ambiguous.
     pub sample_rate_hz: Option<f64>,
+    /// The decimal mark of the numbers ([`DecimalMark::Point`] by default). Logs written
+    /// in a locale with a decimal comma (`20,5`) need [`DecimalMark::Comma`] and another
+    /// delimiter (usually `;`).
+    pub decimal_mark: DecimalMark,
+}
+
+/// The character between a number's integer and fractional digits.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum DecimalMark {
+    /// `20.5`.
+    #[default]
+    Point,
+    /// `20,5`. A cell with a `.` is then refused rather than guessed at: in such locales a
+    /// point is a thousands separator (`1.234,5`), so `1.234` would be 1234, not 1.234.
+    Comma,
+}
+
+impl DecimalMark {
+    /// A decimal mark by name (`point`, `comma`, or the character itself): the command
+    /// line's `--decimal-mark`, Python's `decimal_mark=`.
+    ///
+    /// # Errors
+    /// A message naming what is accepted.
+    pub fn from_name(text: &str) -> Result<DecimalMark, String> {
+        match text {
+            "point" | "." => Ok(DecimalMark::Point),
+            "comma" | "," => Ok(DecimalMark::Comma),
+            _ => Err(format!("expected point or comma, got '{text}'")),
+        }
+    }
 }
 
 /// How the fields of a record are separated.
@@ -166,15 +196,23 @@ impl Delimiter {
 
     /// The delimiter [`Delimiter::Auto`] picks for `line` (other variants return themselves).
     pub fn resolve(self, line: &[u8]) -> Delimiter {
+        self.resolve_with(line, DecimalMark::Point)
+    }
+
+    /// [`Delimiter::resolve`] for numbers written with `decimal`: with a decimal comma a
+    /// comma is never the delimiter (a headerless row `0,1;20,5` has more commas than
+    /// semicolons).
+    pub fn resolve_with(self, line: &[u8], decimal: DecimalMark) -> Delimiter {
         if self != Delimiter::Auto {
             return self;
         }
+        let comma_delimits = decimal == DecimalMark::Point;
         let mut counts = [0usize; 3];
         let mut quoted = false;
         for &b in line {
             match b {
                 b'"' => quoted = !quoted,
-                b',' if !quoted => counts[0] += 1,
+                b',' if !quoted && comma_delimits => counts[0] += 1,
                 b';' if !quoted => counts[1] += 1,
                 b'\t' if !quoted => counts[2] += 1,
                 _ => {}
@@ -207,6 +245,7 @@ impl Default for LogFormat {
             comment: Some("#".into()),
             column_names: Vec::new(),
             sample_rate_hz: None,
+            decimal_mark: DecimalMark::Point,
         }
     }
 }
@@ -239,6 +278,9 @@ impl LogFormat {
         }
         if self.column_names.iter().any(|n| n.trim().is_empty()) {
             return problem("a column name is empty".into());
+        }
+        if self.decimal_mark == DecimalMark::Comma && self.delimiter == Delimiter::Byte(b',') {
+            return problem("a log with a decimal comma needs another delimiter (e.g. semicolon)".into());
         }
         Ok(())
     }
@@ -291,6 +333,8 @@ pub enum BadRowKind {
     BackwardTime,
     /// A required cell (time or gyro) is empty.
     EmptyCell,
+    /// A cell holds a point in a log read with [`DecimalMark::Comma`].
+    PointWithDecimalComma,
 }
 
 impl BadRowKind {
@@ -303,6 +347,7 @@ impl BadRowKind {
             BadRowKind::DuplicateTime => "time equal to the previous row",
             BadRowKind::BackwardTime => "time before the previous row",
             BadRowKind::EmptyCell => "empty required cell",
+            BadRowKind::PointWithDecimalComma => "a point in a log read with a decimal comma",
         }
     }
 }
@@ -320,6 +365,23 @@ pub struct BadRow {
     pub found: String,
     /// Why.
     pub kind: BadRowKind,
+}
+
+impl BadRow {
+    /// The cell is not a number but would be one with a decimal comma (`20,5`, `-1,5e-3`):
+    /// a hint for the caller to suggest [`DecimalMark::Comma`].
+    pub fn looks_like_decimal_comma(&self) -> bool {
+        let text = self.found.trim();
+        let digits = |t: &str| !t.is_empty() && t.bytes().all(|b| b.is_ascii_digit());
+        let (mantissa, exponent) = match text.split_once(['e', 'E']) {
+            Some((m, e)) => (m, Some(e.strip_prefix(['+', '-']).unwrap_or(e))),
+            None => (text, None),
+        };
+        let unsigned = mantissa.strip_prefix(['+', '-']).unwrap_or(mantissa);
+        self.kind == BadRowKind::NotANumber
+            && unsigned.split_once(',').is_some_and(|(int, frac)| digits(int) && digits(frac))
+            && exponent.is_none_or(digits)
+    }
 }
 
 /// How many rows were rejected, and where the first of them are.

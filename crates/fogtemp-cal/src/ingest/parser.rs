@@ -252,7 +252,7 @@ impl<R: Read> Parser<R> {
                 }
             };
             if !(line.trim_ascii().is_empty() || is_comment(line, self.rows.format.comment_prefix())) {
-                return Ok(Delimiter::Auto.resolve(line));
+                return Ok(Delimiter::Auto.resolve_with(line, self.rows.format.decimal_mark));
             }
             match next {
                 Some(next) => at = next,

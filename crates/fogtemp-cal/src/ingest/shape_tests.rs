@@ -269,3 +269,72 @@ fn serial_captures_calibrate_end_to_end() {
     }
     assert!(worst < 0.05, "worst model error {worst} deg/h");
 }
+
+fn comma_mark(format: LogFormat) -> IngestOptions {
+    with(LogFormat { decimal_mark: DecimalMark::Comma, ..format })
+}
+
+#[test]
+fn decimal_commas_read_as_the_same_numbers_with_points() {
+    // Oracle: the same log written with decimal points, read by the default reader.
+    let points = "time_s;temp_c;gyro_dph\n0;20.5;-1.25e-3\n0.5;20.625;+2.5\n1.5;;3\n";
+    let commas = points.replace('.', ",");
+    // Compared as printed (every digit of the f64s; an empty cell is NaN in both).
+    let read = |data: &str, options: &IngestOptions| format!("{:?}", values(&rows(data, options)));
+    let expected = read(points, &default_options());
+    assert_eq!(read(&commas, &comma_mark(LogFormat::default())), expected);
+    let tabs = commas.replace(';', "\t");
+    assert_eq!(read(&tabs, &comma_mark(LogFormat::default())), expected);
+    // Headerless: a data row has more commas than semicolons, yet the delimiter is `;`.
+    let headerless = commas.split_once('\n').unwrap().1;
+    let format = LogFormat {
+        column_names: vec!["time_s".into(), "temp_c".into(), "gyro_dph".into()],
+        ..LogFormat::default()
+    };
+    let got = values(&rows(headerless, &comma_mark(format)));
+    assert_eq!(
+        got.iter().map(|r| (r.1, r.3[0])).collect::<Vec<_>>(),
+        vec![(0.0, -1.25e-3), (0.5, 2.5), (1.5, 3.0)]
+    );
+    assert_eq!(Delimiter::Auto.resolve_with(b"0,5;20,5;1,5", DecimalMark::Comma), Delimiter::Byte(b';'));
+    assert_eq!(Delimiter::Auto.resolve_with(b"0,5 20,5 1,5", DecimalMark::Comma), Delimiter::Whitespace);
+}
+
+#[test]
+fn a_point_in_a_decimal_comma_log_is_refused_not_guessed() {
+    // "1.234" there would be 1234 (a thousands separator), not 1.234.
+    let data = "time_s;temp_c;gyro_dph\n0;20,5;1,5\n1;1.234;2\n";
+    match run(data.as_bytes(), &comma_mark(LogFormat::default())).1 {
+        Err(CalError::BadRow { row, .. }) => {
+            expect(&row, 3, 2, "temp_c", "1.234", BadRowKind::PointWithDecimalComma)
+        }
+        other => panic!("{}", summary(&other)),
+    }
+    // A comma cannot be the delimiter and the decimal mark at once.
+    let format = LogFormat {
+        decimal_mark: DecimalMark::Comma,
+        delimiter: Delimiter::Byte(b','),
+        ..LogFormat::default()
+    };
+    let e = format.check(Path::new("x.csv")).unwrap_err();
+    assert!(e.to_string().contains("decimal comma needs another delimiter"), "{e}");
+    assert_eq!(DecimalMark::from_name("comma"), Ok(DecimalMark::Comma));
+    assert!(DecimalMark::from_name("dot").is_err());
+}
+
+#[test]
+fn a_decimal_comma_in_a_point_log_is_recognised_for_the_hint() {
+    let cell =
+        |found: &str, kind| BadRow { line: 2, column: 1, column_name: "t".into(), found: found.into(), kind };
+    for found in ["20,5", "-0,125", "+1,5e-3", "1,5E+2", " 3,0 "] {
+        assert!(cell(found, BadRowKind::NotANumber).looks_like_decimal_comma(), "{found}");
+    }
+    for found in ["20.5", "1,2,3", ",5", "5,", "a,b", "1,5e", "1.234,5", ""] {
+        assert!(!cell(found, BadRowKind::NotANumber).looks_like_decimal_comma(), "{found}");
+    }
+    assert!(!cell("20,5", BadRowKind::NonFinite).looks_like_decimal_comma());
+    // What the default reader reports for such a log.
+    let b = bad("time_s;temp_c;gyro_dph\n0,0;20,5;1,5\n");
+    expect(&b, 2, 1, "time_s", "0,0", BadRowKind::NotANumber);
+    assert!(b.looks_like_decimal_comma());
+}
