@@ -452,10 +452,16 @@ fn thermal_lag_is_named_and_its_time_constant_recovered() {
     write_diagnosis_report(dir.path(), &d).expect("report written");
     let md = std::fs::read_to_string(dir.path().join("report.md")).expect("report.md");
     assert!(md.contains("### thermal_lag") && md.contains("bias stability = standard deviation"), "{md}");
+    let html = std::fs::read_to_string(dir.path().join("report.html")).expect("report.html");
+    assert!(html.contains("<h3>thermal_lag</h3>") && html.contains("bias stability = standard deviation"));
     for svg in ["residuals.svg", "map.svg", "allan.svg"] {
         let text = std::fs::read_to_string(dir.path().join(svg)).expect(svg);
         assert!(text.starts_with("<svg"), "{svg}");
+        assert!(md.contains(&format!("]({svg})")), "{svg} linked");
     }
+    // The page is self-contained: every figure inlined, no file linked.
+    assert_eq!(html.matches("<svg").count(), 3, "three figures inlined");
+    assert!(!html.contains(".svg\""), "no figure left as a link");
     // The static-shape figure only when static_shape is named.
     assert!(!dir.path().join("static_shape.svg").exists() && !md.contains("static_shape.svg"));
 }
@@ -722,6 +728,8 @@ fn a_ripple_that_fails_the_noise_check_is_named_at_the_candidates_levels() {
             assert!(md.contains("![static shape](static_shape.svg)"), "{md}");
             let svg = std::fs::read_to_string(dir.path().join("static_shape.svg")).expect("static_shape.svg");
             assert!(svg.starts_with("<svg") && svg.contains("fitted shape over the coil temperature"));
+            let html = std::fs::read_to_string(dir.path().join("report.html")).expect("report.html");
+            assert!(html.contains("fitted shape over the coil temperature"), "the shape inlined in report.html");
         }
         let d_off = diagnose(&sim, &rec, &off, |_, _| {}).expect("diagnosis runs");
         named_without += usize::from(names(&d_off).contains(&"static_shape"));

@@ -231,8 +231,17 @@ fn opt(v: Option<f64>) -> String {
     v.map_or_else(|| "-".into(), |x| format!("{x:.4}"))
 }
 
-/// `report.md`; `static_shape_figure`: whether `static_shape.svg` was drawn.
-fn markdown(d: &Diagnosis, static_shape_figure: bool) -> String {
+/// The figures drawn beside `report.md` that not every diagnosis has.
+#[derive(Clone, Copy, Default)]
+struct OptionalFigures {
+    /// `allan.svg` (no run had a stretch long enough for an Allan deviation otherwise).
+    allan: bool,
+    /// `static_shape.svg` (only when `static_shape` is named).
+    static_shape: bool,
+}
+
+/// `report.md`, linking only the figures that were drawn.
+fn markdown(d: &Diagnosis, figures: OptionalFigures) -> String {
     let mut md = String::new();
     let _ = writeln!(md, "# Diagnosis: simulated vs recorded\n\n{}\n", d.summary);
     let _ = writeln!(md, "## Definitions\n");
@@ -262,7 +271,7 @@ fn markdown(d: &Diagnosis, static_shape_figure: bool) -> String {
         for (name, p) in &e.parameters {
             let _ = writeln!(md, "| {name} | {:.6} | {} | {} |", p.value, opt(p.std_error), p.units);
         }
-        if e.effect == "static_shape" && static_shape_figure {
+        if e.effect == "static_shape" && figures.static_shape {
             let _ = writeln!(md, "\n![static shape](static_shape.svg)");
         }
         let _ = writeln!(
@@ -320,11 +329,11 @@ fn markdown(d: &Diagnosis, static_shape_figure: bool) -> String {
         }
         let _ = writeln!(md);
     }
-    md.push_str(&location_markdown(d));
+    md.push_str(&location_markdown(d, figures));
     md
 }
 
-fn location_markdown(d: &Diagnosis) -> String {
+fn location_markdown(d: &Diagnosis, figures: OptionalFigures) -> String {
     let mut md = String::new();
     let loc = &d.location;
     let _ = writeln!(
@@ -363,7 +372,10 @@ fn location_markdown(d: &Diagnosis) -> String {
             if c.significant { "yes" } else { "" }
         );
     }
-    let _ = writeln!(md, "\n![Allan deviation](allan.svg)\n\n| tau, s | before | after | floor | before exceeds | after exceeds |\n|---|---|---|---|---|---|");
+    if figures.allan {
+        let _ = writeln!(md, "\n![Allan deviation](allan.svg)");
+    }
+    let _ = writeln!(md, "\n| tau, s | before | after | floor | before exceeds | after exceeds |\n|---|---|---|---|---|---|");
     for r in &loc.allan {
         let _ = writeln!(
             md,
@@ -414,8 +426,10 @@ fn location_markdown(d: &Diagnosis) -> String {
     md
 }
 
-/// Writes `report.md`, `residuals.svg`, `map.svg`, `allan.svg` and, when `static_shape` is
-/// named, `static_shape.svg` into `dir`.
+/// Writes `report.md`, a self-contained `report.html` beside it (the same text with the
+/// figures inlined, `fogtemp_cal::report::write_html_beside`), `residuals.svg`, `map.svg`,
+/// `allan.svg` (when a run has an Allan deviation) and, when `static_shape` is named,
+/// `static_shape.svg` into `dir`.
 ///
 /// # Errors
 /// [`DiagnoseError::Cal`] with [`fogtemp_cal::CalError::Io`] when a file cannot be written.
@@ -427,22 +441,24 @@ pub fn write_diagnosis_report(dir: &Path, d: &Diagnosis) -> Result<(), DiagnoseE
         &d.location.map,
         "Raw residual by (T, dT/dt): colour = z (HAC), outlined = significant",
     )?;
+    let mut figures = OptionalFigures::default();
     let curves = allan_curves(d);
     if curves.iter().any(|(_, c)| !c.is_empty()) {
+        figures.allan = true;
         fogtemp_cal::report::plot_allan(
             &dir.join("allan.svg"),
             "Residual Allan deviation (RMS over runs)",
             &curves,
         )?;
     }
-    let mut static_shape_figure = false;
     for e in d.left_out.iter().filter(|e| e.effect == "static_shape") {
         if let Some((line, means)) = static_shape_curves(d, e) {
             let lag_s = e.parameters.get("coil_lag_s").map_or(0.0, |p| p.value);
             plot_static_shape(&dir.join("static_shape.svg"), &line, &means, lag_s)?;
-            static_shape_figure = true;
+            figures.static_shape = true;
         }
     }
     let path = dir.join("report.md");
-    Ok(write_file_atomic(&path, |w| w.write_all(markdown(d, static_shape_figure).as_bytes()))?)
+    write_file_atomic(&path, |w| w.write_all(markdown(d, figures).as_bytes()))?;
+    Ok(fogtemp_cal::report::write_html_beside(&path)?)
 }

@@ -14,7 +14,7 @@ use crate::output::write_file_atomic;
 /// Page style: readable width, ruled tables, figures scaled to the page.
 const STYLE: &str = "body{font-family:sans-serif;max-width:1200px;margin:1em auto;padding:0 1em;color:#222;line-height:1.4}\
 table{border-collapse:collapse;margin:0.6em 0;display:block;max-width:100%;overflow-x:auto}td code{white-space:nowrap}th,td{border:1px solid #bbb;padding:0.2em 0.6em;text-align:left}\
-th{background:#eee}td{font-variant-numeric:tabular-nums}code{background:#f3f3f3;padding:0 0.2em}\
+th{background:#eee}td{font-variant-numeric:tabular-nums;vertical-align:top}td.prose{min-width:28em}code{background:#f3f3f3;padding:0 0.2em}\
 figure{margin:1em 0}figure svg{max-width:100%;height:auto;display:block}figcaption{color:#555;font-size:0.9em}";
 
 /// HTML-escapes text (`&`, `<`, `>`, `"`).
@@ -203,6 +203,10 @@ pub fn markdown_to_html(
     Ok(html)
 }
 
+/// Cells longer than this are prose (a note, a statement): they get a readable width
+/// instead of being squeezed into a narrow column many lines tall beside the numbers.
+const PROSE_CELL_CHARS: usize = 60;
+
 /// A pipe table (header, separator, rows) as an HTML table.
 fn table(lines: &[&str]) -> String {
     let mut html = String::from("<table>\n");
@@ -214,7 +218,8 @@ fn table(lines: &[&str]) -> String {
         let tag = if has_header && k == 0 { "th" } else { "td" };
         html.push_str("<tr>");
         for cell in cells(line) {
-            html.push_str(&format!("<{tag}>{}</{tag}>", inline(&cell)));
+            let class = if tag == "td" && cell.chars().count() > PROSE_CELL_CHARS { " class=\"prose\"" } else { "" };
+            html.push_str(&format!("<{tag}{class}>{}</{tag}>", inline(&cell)));
         }
         html.push_str("</tr>\n");
     }
@@ -259,6 +264,15 @@ mod tests {
         assert!(html.contains("<tr><td>a&lt;b</td><td><strong>0.1</strong></td></tr>"));
         assert!(html.contains("<ul>\n<li>one</li>\n<li>two</li>\n</ul>"));
         assert!(!html.contains("|---|"));
+    }
+
+    #[test]
+    fn long_cells_are_marked_as_prose() {
+        let note = "x".repeat(PROSE_CELL_CHARS + 1);
+        let short = "y".repeat(PROSE_CELL_CHARS);
+        let md = format!("| effect | note |\n|---|---|\n| {short} | {note} |\n");
+        let html = markdown_to_html(&md, "t", |_| Ok(String::new())).unwrap();
+        assert!(html.contains(&format!("<tr><td>{short}</td><td class=\"prose\">{note}</td></tr>")), "{html}");
     }
 
     #[test]

@@ -92,7 +92,7 @@ pub fn diagnose(a: DiagnoseArgs, recorded_ingest: IngestOptions) -> Result<()> {
     if let Some(dir) = &a.report {
         write_diagnosis_report(dir, &d)
             .with_context(|| format!("writing the report into {}", dir.display()))?;
-        eprintln!("report: {}", dir.join("report.md").display());
+        eprintln!("report: {} (and report.html)", dir.join("report.md").display());
         if let Some((path, changes)) = write_updated_scenario(&a.simulated, dir, &d)? {
             eprintln!("scenario with the effects found: {}", path.display());
             scenario_changes = changes;
