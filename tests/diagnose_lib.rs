@@ -729,7 +729,10 @@ fn a_ripple_that_fails_the_noise_check_is_named_at_the_candidates_levels() {
             let svg = std::fs::read_to_string(dir.path().join("static_shape.svg")).expect("static_shape.svg");
             assert!(svg.starts_with("<svg") && svg.contains("fitted shape over the coil temperature"));
             let html = std::fs::read_to_string(dir.path().join("report.html")).expect("report.html");
-            assert!(html.contains("fitted shape over the coil temperature"), "the shape inlined in report.html");
+            assert!(
+                html.contains("fitted shape over the coil temperature"),
+                "the shape inlined in report.html"
+            );
         }
         let d_off = diagnose(&sim, &rec, &off, |_, _| {}).expect("diagnosis runs");
         named_without += usize::from(names(&d_off).contains(&"static_shape"));

@@ -375,7 +375,10 @@ fn location_markdown(d: &Diagnosis, figures: OptionalFigures) -> String {
     if figures.allan {
         let _ = writeln!(md, "\n![Allan deviation](allan.svg)");
     }
-    let _ = writeln!(md, "\n| tau, s | before | after | floor | before exceeds | after exceeds |\n|---|---|---|---|---|---|");
+    let _ = writeln!(
+        md,
+        "\n| tau, s | before | after | floor | before exceeds | after exceeds |\n|---|---|---|---|---|---|"
+    );
     for r in &loc.allan {
         let _ = writeln!(
             md,

@@ -218,7 +218,8 @@ fn table(lines: &[&str]) -> String {
         let tag = if has_header && k == 0 { "th" } else { "td" };
         html.push_str("<tr>");
         for cell in cells(line) {
-            let class = if tag == "td" && cell.chars().count() > PROSE_CELL_CHARS { " class=\"prose\"" } else { "" };
+            let class =
+                if tag == "td" && cell.chars().count() > PROSE_CELL_CHARS { " class=\"prose\"" } else { "" };
             html.push_str(&format!("<{tag}{class}>{}</{tag}>", inline(&cell)));
         }
         html.push_str("</tr>\n");
@@ -272,7 +273,10 @@ mod tests {
         let short = "y".repeat(PROSE_CELL_CHARS);
         let md = format!("| effect | note |\n|---|---|\n| {short} | {note} |\n");
         let html = markdown_to_html(&md, "t", |_| Ok(String::new())).unwrap();
-        assert!(html.contains(&format!("<tr><td>{short}</td><td class=\"prose\">{note}</td></tr>")), "{html}");
+        assert!(
+            html.contains(&format!("<tr><td>{short}</td><td class=\"prose\">{note}</td></tr>")),
+            "{html}"
+        );
     }
 
     #[test]

@@ -113,6 +113,7 @@ pub(super) fn parameters_of(
     coef: &[f64],
     se: &[f64],
     theta_se: &[Option<f64>],
+    fold_coef: &[Vec<f64>],
 ) -> BTreeMap<String, Parameter> {
     let mut out = BTreeMap::new();
     for (((name, units), v), s) in cols.coefficients.iter().zip(coef).zip(se) {
@@ -124,16 +125,14 @@ pub(super) fn parameters_of(
     if grid.effect == Effect::StaticShape {
         let (lo, hi) = prep.temp_range_c;
         let k = cols.theta[0] as usize;
-        let shape: Vec<f64> = (0..=100)
-            .map(|i| {
-                crate::effects::static_shape_value(lo + (hi - lo) * f64::from(i) / 100.0, lo, hi, k, coef)
-            })
-            .collect();
-        let (mn, mx) =
-            shape.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(*v), b.max(*v)));
+        let per_fold: Vec<f64> = fold_coef.iter().map(|c| static_shape_peak_to_peak(lo, hi, k, c)).collect();
         out.insert(
             "peak_to_peak_dph".into(),
-            Parameter { value: mx - mn, std_error: None, units: "deg/h".into() },
+            Parameter {
+                value: static_shape_peak_to_peak(lo, hi, k, coef),
+                std_error: jackknife_se(&per_fold),
+                units: "deg/h".into(),
+            },
         );
         out.insert(
             "t_min_c".into(),
@@ -151,6 +150,42 @@ pub(super) fn parameters_of(
         );
     }
     out
+}
+
+/// Peak to peak of the static shape of `k` basis functions on `[lo, hi]` with coefficients
+/// `coef`, over 101 evenly spaced temperatures.
+fn static_shape_peak_to_peak(lo: f64, hi: f64, k: usize, coef: &[f64]) -> f64 {
+    let (mn, mx) = (0..=100)
+        .map(|i| crate::effects::static_shape_value(lo + (hi - lo) * f64::from(i) / 100.0, lo, hi, k, coef))
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(v), b.max(v)));
+    mx - mn
+}
+
+/// Delete-one-run jackknife standard error of a statistic from its leave-one-run-out values
+/// (as the coefficients' errors; `None` with fewer than two folds or a non-finite value).
+/// For a peak to peak it is a smooth function of the coefficients where the extremes are
+/// clear; where noise makes them, the statistic is biased upwards and this error says how
+/// much it moves, not how far it is from the truth.
+fn jackknife_se(values: &[f64]) -> Option<f64> {
+    let g = values.len();
+    if g < 2 || values.iter().any(|v| !v.is_finite()) {
+        return None;
+    }
+    let mean = values.iter().sum::<f64>() / g as f64;
+    let ss: f64 = values.iter().map(|v| (v - mean).powi(2)).sum();
+    Some((ss * (g - 1) as f64 / g as f64).sqrt())
+}
+
+/// Each fold's unscaled coefficients of term `term` (the fold fits of `design`).
+fn term_fold_coefficients(
+    design: &Design,
+    fold_beta: &[DVector<f64>],
+    parts: &[&TermColumns],
+    term: usize,
+) -> Vec<Vec<f64>> {
+    let at = 1 + parts[..term].iter().map(|t| t.k()).sum::<usize>();
+    let k = parts[term].k();
+    fold_beta.iter().map(|b| (at..at + k).map(|j| b[j] / design.scale[j]).collect()).collect()
 }
 
 pub(super) struct Fitted {
@@ -384,7 +419,9 @@ pub fn evaluate_final(
         let grid =
             grids.iter().find(|g| g.effect == c.effect).ok_or(DiagnoseError::Fit("effect grid missing"))?;
         let cols = &c.columns;
-        let parameters = parameters_of(prep, grid, cols, &fitted.coef[i], &fitted.se[i], &fitted.theta_se[i]);
+        let fold_coef = term_fold_coefficients(&design, &eval.fold_beta, &chosen_parts(chosen), i);
+        let parameters =
+            parameters_of(prep, grid, cols, &fitted.coef[i], &fitted.se[i], &fitted.theta_se[i], &fold_coef);
         let improvement = 1.0 - rms_after / before;
         let figures = HeldOutFigures { before_dph: before, after_dph: rms_after, improved, informative };
         let profile = c.route.filter(|r| r.point != c.point).map(|_| {
@@ -475,6 +512,22 @@ mod tests {
             most_confused_with: None,
             route,
         }
+    }
+
+    #[test]
+    fn the_peak_to_peak_and_its_jackknife_error_match_hand_values() {
+        // k = 4 on [0, 10]: the basis without its first function; coefficients (0, 0, c) give
+        // c u^3 with u = t / 10, whose peak to peak is |c|.
+        for c in [1.0, -2.5] {
+            let p2p = static_shape_peak_to_peak(0.0, 10.0, 4, &[0.0, 0.0, c]);
+            // 1e-8: the basis evaluates the top end just inside the interval (1e-9 of it).
+            assert!((p2p - f64::abs(c)).abs() < 1e-8, "{p2p}");
+        }
+        // Fold values 1, 2, 3, 4: mean 2.5, squares 5, (3 / 4) 5 = 3.75.
+        let se = jackknife_se(&[1.0, 2.0, 3.0, 4.0]).unwrap();
+        assert!((se - 3.75f64.sqrt()).abs() < 1e-12, "{se}");
+        assert_eq!(jackknife_se(&[1.0]), None);
+        assert_eq!(jackknife_se(&[1.0, f64::NAN]), None);
     }
 
     #[test]
