@@ -56,7 +56,7 @@ pub struct IngestArgs {
     /// Name of the time column.
     #[arg(long, default_value = "time_s", help_heading = "Log columns")]
     pub time_column: String,
-    /// Unit of the time column.
+    /// Unit of the time column (datetime: ISO 8601 date-times).
     #[arg(long, value_enum, default_value_t = TimeUnitArg::S, help_heading = "Log columns")]
     pub time_unit: TimeUnitArg,
     /// The log has no time column: row k (0-based, counting rows rejected with
@@ -123,6 +123,7 @@ impl IngestArgs {
                 TimeUnitArg::S => TimeUnit::Seconds,
                 TimeUnitArg::Ms => TimeUnit::Milliseconds,
                 TimeUnitArg::Us => TimeUnit::Microseconds,
+                TimeUnitArg::Datetime => TimeUnit::DateTime,
             },
             temp_columns: self.temp_columns.clone(),
             temp_scale: self.temp_scale,
@@ -169,6 +170,9 @@ pub enum TimeUnitArg {
     Ms,
     /// Microseconds.
     Us,
+    /// ISO 8601 date-times (2026-11-24T10:00:00.125, or with a space for the T; optional Z or
+    /// +01:00); without a zone read as UTC.
+    Datetime,
 }
 
 /// Gyro units.

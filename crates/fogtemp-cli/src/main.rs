@@ -53,6 +53,9 @@ fn cal_error<'e>(e: &'e (dyn std::error::Error + 'static)) -> Option<&'e CalErro
 /// libraries name no flags: their callers have none).
 fn flag_hint(e: &(dyn std::error::Error + 'static)) -> Option<&'static str> {
     match cal_error(e)? {
+        CalError::BadRow { row, .. } if row.looks_like_datetime() => {
+            Some("; the time column holds date-times: use --time-unit datetime")
+        }
         CalError::BadRow { row, .. } if row.looks_like_decimal_comma() => {
             Some("; the log seems to write numbers with a decimal comma: use --decimal-mark comma")
         }

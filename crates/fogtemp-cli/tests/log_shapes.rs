@@ -333,3 +333,55 @@ fn decimal_comma_logs_fit_the_same_model_as_their_point_twins() {
     );
     assert!(stderr.contains("leave out --decimal-mark comma"), "{stderr}");
 }
+
+/// A logger's run with ISO 8601 date-times (1 Hz from `start` local time at +01:00), or the
+/// same run with seconds from its first row.
+fn write_datetime_log(path: &Path, start_c: f64, datetime: bool) {
+    let mut text = String::from("time_s,temp_c,gyro_dph\n");
+    for k in 0..3600u32 {
+        let temp = temp_c(start_c, f64::from(k));
+        let time = if datetime {
+            // 2026-11-24 23:30:00 +01:00 onwards: the run crosses midnight.
+            let s = 23 * 3600 + 30 * 60 + k;
+            let (day, s) = (24 + s / 86_400, s % 86_400);
+            format!("2026-11-{day:02} {:02}:{:02}:{:02}.000+01:00", s / 3600, s / 60 % 60, s % 60)
+        } else {
+            format!("{k}.000")
+        };
+        text.push_str(&format!("{time},{temp:.4},{:.6}\n", bias_dph(temp)));
+    }
+    std::fs::write(path, text).unwrap();
+}
+
+#[test]
+fn date_time_logs_fit_the_same_model_as_their_seconds_twins() {
+    let dir = tempfile::tempdir().unwrap();
+    let (dated, seconds) = (dir.path().join("dated"), dir.path().join("seconds"));
+    for d in [&dated, &seconds] {
+        std::fs::create_dir(d).unwrap();
+    }
+    for (i, start) in [0.0, 20.0, 40.0].into_iter().enumerate() {
+        write_datetime_log(&dated.join(format!("run{i}.csv")), start, true);
+        write_datetime_log(&seconds.join(format!("run{i}.csv")), start, false);
+    }
+    let (model, twin) = (dir.path().join("m.fogm"), dir.path().join("twin.fogm"));
+    let out = run(&["fit", "--method", "poly", "--out", s(&model), s(&dated)]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && stderr.contains("not a number (found '2026-11-24 23:30:00.000+01:00')"),
+        "{stderr}"
+    );
+    assert!(stderr.contains("use --time-unit datetime"), "{stderr}");
+    let out = run(&["fit", "--method", "poly", "--time-unit", "datetime", "--out", s(&model), s(&dated)]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let out = run(&["fit", "--method", "poly", "--out", s(&twin), s(&seconds)]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let stored = |m: &Path| {
+        let (mut doc, _) = ok_json(&["inspect", "--json", s(m)]);
+        assert!(doc["input_digest"].take().is_string(), "{doc}");
+        doc["model"].take();
+        doc
+    };
+    // The oracle: every stored value equal to the model of the same run timed in seconds.
+    assert_eq!(stored(&model), stored(&twin));
+}

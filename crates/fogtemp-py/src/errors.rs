@@ -28,6 +28,9 @@ pub fn cal(e: CalError) -> PyErr {
 /// flags in the same place: `--skip-bad-rows`, `--temp-column`, ...).
 fn hint(e: &CalError) -> &'static str {
     match e {
+        CalError::BadRow { row, .. } if row.looks_like_datetime() => {
+            "; the time column holds date-times: pass time_unit='datetime'"
+        }
         CalError::BadRow { row, .. } if row.looks_like_decimal_comma() => {
             "; the log seems to write numbers with a decimal comma: pass decimal_mark='comma'"
         }

@@ -160,7 +160,12 @@ pub fn ingest(o: &mut Options<'_>) -> PyResult<IngestOptions> {
         "s" => TimeUnit::Seconds,
         "ms" => TimeUnit::Milliseconds,
         "us" => TimeUnit::Microseconds,
-        other => return Err(errors::value(format!("time_unit must be 's', 'ms' or 'us', got '{other}'"))),
+        "datetime" => TimeUnit::DateTime,
+        other => {
+            return Err(errors::value(format!(
+                "time_unit must be 's', 'ms', 'us' or 'datetime', got '{other}'"
+            )))
+        }
     };
     let gyro_unit = match o.string("gyro_unit", "dph")?.as_str() {
         "dph" => RateUnit::DegPerHour,

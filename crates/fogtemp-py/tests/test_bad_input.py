@@ -81,6 +81,25 @@ def test_decimal_comma_logs_read_with_decimal_mark_and_a_hint_without(tmp_path):
         fogtemp.read_log(log, decimal_mark="dot", progress=False)
 
 
+def test_date_time_logs_read_with_time_unit_datetime_and_a_hint_without(tmp_path):
+    log = tmp_path / "dated.csv"
+    log.write_text(
+        "time_s,temp_c,gyro_dph\n2026-11-24T23:59:59.5+01:00,20,1\n"
+        "2026-11-25 00:00:00.25+01:00,20,2\n2026-11-24T23:00:01Z,20,3\n"
+    )
+    with pytest.raises(ValueError, match="time_unit='datetime'"):
+        fogtemp.read_log(log, progress=False)
+    data = fogtemp.read_log(log, time_unit="datetime", progress=False)
+    # Oracle: Python's datetime for the same three instants, from the first.
+    from datetime import datetime
+
+    instants = ["2026-11-24T23:59:59.5+01:00", "2026-11-25T00:00:00.25+01:00", "2026-11-24T23:00:01+00:00"]
+    stamps = [datetime.fromisoformat(t).timestamp() for t in instants]
+    np.testing.assert_allclose(data["time_s"], np.array(stamps) - stamps[0], atol=5e-7, rtol=0)
+    with pytest.raises(ValueError, match="time_unit must be"):
+        fogtemp.read_log(log, time_unit="iso", progress=False)
+
+
 def test_missing_column_and_header_only(tmp_path):
     log = tmp_path / "cols.csv"
     log.write_text("time_s,temperature,gyro_dph\n0,20,1\n")

@@ -5,7 +5,9 @@ use std::path::{Path, PathBuf};
 
 use super::batch::Batch;
 use super::parser::Fields;
-use super::{BadRow, BadRowKind, DecimalMark, Delimiter, IngestOptions, LogFormat, MAX_REPORTED_BAD_ROWS};
+use super::{
+    BadRow, BadRowKind, DecimalMark, Delimiter, IngestOptions, LogFormat, TimeUnit, MAX_REPORTED_BAD_ROWS,
+};
 use crate::error::CalError;
 
 /// `Plan::roles` entry of a field no row value comes from.
@@ -23,6 +25,8 @@ pub(super) struct Plan {
     pub(super) temp_slots: Vec<usize>,
     pub(super) gyro_slots: Vec<usize>,
     pub(super) time_factor: f64,
+    /// The time column holds date-times ([`TimeUnit::DateTime`]).
+    pub(super) time_is_datetime: bool,
     /// Time of data record `k` is `k / rate` (no time column).
     pub(super) sample_rate_hz: Option<f64>,
     pub(super) gyro_factor: f64,
@@ -185,12 +189,14 @@ pub(super) fn make_plan(path: &Path, header: Fields<'_>, f: &LogFormat, line: u6
         temp_slots,
         gyro_slots,
         time_factor: f.time_unit.seconds(),
+        time_is_datetime: f.time_unit == TimeUnit::DateTime,
         sample_rate_hz: f.sample_rate_hz,
         gyro_factor: f.gyro_unit.dph() * f.gyro_scale,
         temp_scale: f.temp_scale,
         temp_offset_c: f.temp_offset_c,
         // The fast path reads decimal points only.
         fast: f.decimal_mark == DecimalMark::Point
+            && f.time_unit != TimeUnit::DateTime
             && matches!(f.delimiter, Delimiter::Byte(b) if !matches!(b, b'0'..=b'9' | b'.' | b'-' | b'"' | b'\r' | b'\n')),
         comment_first: f.comment_prefix().first().copied(),
         decimal_mark: f.decimal_mark,
@@ -341,6 +347,7 @@ pub(super) fn parse_row(
             .ok_or_else(|| bad_row(columns, line, field, b"", BadRowKind::EmptyCell))
     };
     let time = match columns.time {
+        Some(field) if plan.time_is_datetime => datetime_cell(plan, fields, field, line)?,
         Some(field) => required(field)? * plan.time_factor,
         None => time_of_record(index, plan.sample_rate_hz),
     };
@@ -352,6 +359,17 @@ pub(super) fn parse_row(
             .map_or(f64::NAN, |raw| raw * plan.temp_scale + plan.temp_offset_c);
     }
     Ok(time)
+}
+
+/// A date-time time cell, seconds since 1970 UTC.
+fn datetime_cell(plan: &Plan, fields: Fields<'_>, field: usize, line: u64) -> Result<f64, BadRow> {
+    let raw = fields.get(field).unwrap_or(b"");
+    let trimmed = raw.trim_ascii();
+    if trimmed.is_empty() {
+        return Err(bad_row(&plan.columns, line, field, b"", BadRowKind::EmptyCell));
+    }
+    super::datetime::parse_datetime(trimmed)
+        .ok_or_else(|| bad_row(&plan.columns, line, field, raw, BadRowKind::NotADateTime))
 }
 
 /// Time of data record `index` from the sample rate, seconds.

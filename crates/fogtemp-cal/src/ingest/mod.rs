@@ -26,6 +26,7 @@
 
 mod batch;
 mod columns;
+mod datetime;
 mod decimal;
 mod parallel;
 mod parser;
@@ -52,13 +53,17 @@ pub enum TimeUnit {
     Milliseconds,
     /// Microseconds.
     Microseconds,
+    /// ISO 8601 date-times as loggers write them (`2026-11-24T10:00:00.125`, a space for
+    /// the `T`, `/` for the `-`, optionally `Z` or an offset such as `+01:00`); a time
+    /// without a zone is read as UTC (only differences between rows are used).
+    DateTime,
 }
 
 impl TimeUnit {
-    /// Seconds per unit.
+    /// Seconds per unit (1 for date-times, read into seconds).
     pub fn seconds(self) -> f64 {
         match self {
-            TimeUnit::Seconds => 1.0,
+            TimeUnit::Seconds | TimeUnit::DateTime => 1.0,
             TimeUnit::Milliseconds => 1.0e-3,
             TimeUnit::Microseconds => 1.0e-6,
         }
@@ -335,6 +340,8 @@ pub enum BadRowKind {
     EmptyCell,
     /// A cell holds a point in a log read with [`DecimalMark::Comma`].
     PointWithDecimalComma,
+    /// The time cell of a log read with [`TimeUnit::DateTime`] is not an ISO 8601 date-time.
+    NotADateTime,
 }
 
 impl BadRowKind {
@@ -348,6 +355,7 @@ impl BadRowKind {
             BadRowKind::BackwardTime => "time before the previous row",
             BadRowKind::EmptyCell => "empty required cell",
             BadRowKind::PointWithDecimalComma => "a point in a log read with a decimal comma",
+            BadRowKind::NotADateTime => "not a date-time (YYYY-MM-DDThh:mm:ss[.fff][Z|+hh:mm])",
         }
     }
 }
@@ -368,6 +376,13 @@ pub struct BadRow {
 }
 
 impl BadRow {
+    /// The cell is not a number but is an ISO 8601 date-time: a hint for the caller to
+    /// suggest [`TimeUnit::DateTime`].
+    pub fn looks_like_datetime(&self) -> bool {
+        self.kind == BadRowKind::NotANumber
+            && datetime::parse_datetime(self.found.trim().as_bytes()).is_some()
+    }
+
     /// The cell is not a number but would be one with a decimal comma (`20,5`, `-1,5e-3`):
     /// a hint for the caller to suggest [`DecimalMark::Comma`].
     pub fn looks_like_decimal_comma(&self) -> bool {

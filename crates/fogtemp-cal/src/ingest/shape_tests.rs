@@ -338,3 +338,49 @@ fn a_decimal_comma_in_a_point_log_is_recognised_for_the_hint() {
     expect(&b, 2, 1, "time_s", "0,0", BadRowKind::NotANumber);
     assert!(b.looks_like_decimal_comma());
 }
+
+#[test]
+fn date_time_logs_read_as_seconds_from_their_first_row() {
+    // 10 Hz from 23:59:59 across midnight and the end of a month; the zone changes from
+    // +01:00 to +02:00 at row 15 (a logger switching to summer time), which the offsets
+    // absorb. Oracle: row k is k / 10 s after the first.
+    let mut data = String::from("time_s,temp_c,gyro_dph\n");
+    for k in 0..30u32 {
+        let (zone, shift_h) = if k < 15 { ("+01:00", 0) } else { ("+02:00", 1) };
+        let tenths = 599 * 10 + k; // 23:59:59.0 + k / 10 s, as tenths of a second past 23:50
+        let (minute, second_tenths) = (50 + tenths / 600, tenths % 600);
+        let (day, hour, minute) = if minute >= 60 { (1, 0, minute - 60) } else { (0, 23, minute) };
+        let date = if day == 0 { "2026-03-31" } else { "2026-04-01" };
+        let clock =
+            format!("{:02}:{minute:02}:{:02}.{}", hour + shift_h, second_tenths / 10, second_tenths % 10);
+        data.push_str(&format!("{date}T{clock}{zone},20,{k}\n"));
+    }
+    let options = with(LogFormat { time_unit: TimeUnit::DateTime, ..LogFormat::default() });
+    let v = values(&rows(&data, &options));
+    assert_eq!(v.len(), 30);
+    for (k, r) in v.iter().enumerate() {
+        // 5e-7 s: the f64 rounding of a date-time near 1.8e9 s, twice.
+        assert!((r.1 - k as f64 / 10.0).abs() < 5e-7, "row {k}: {}", r.1);
+        assert_eq!(r.3[0], k as f64);
+    }
+    // A cell that is not a date-time names its line and column; numbers are not date-times.
+    let malformed = "time_s,temp_c,gyro_dph\n2026-11-24T10:00:00,20,1\n2026-11-24T10:00:0x,20,1\n";
+    match run(malformed.as_bytes(), &options).1 {
+        Err(CalError::BadRow { row, .. }) => {
+            expect(&row, 3, 1, "time_s", "2026-11-24T10:00:0x", BadRowKind::NotADateTime);
+        }
+        other => panic!("{}", summary(&other)),
+    }
+    let seconds = "time_s,temp_c,gyro_dph\n0.5,20,1\n";
+    match run(seconds.as_bytes(), &options).1 {
+        Err(CalError::BadRow { row, .. }) => expect(&row, 2, 1, "time_s", "0.5", BadRowKind::NotADateTime),
+        other => panic!("{}", summary(&other)),
+    }
+    // Read as numbers, the first cell is refused and recognised for the hint.
+    let as_numbers = bad(&data);
+    assert!(as_numbers.looks_like_datetime() && !as_numbers.looks_like_decimal_comma(), "{as_numbers:?}");
+    assert!(!bad("time_s,temp_c,gyro_dph\n0,20,x1\n").looks_like_datetime());
+    // Backward date-times are refused as backward times.
+    let backward = "time_s,temp_c,gyro_dph\n2026-11-24 10:00:01,20,1\n2026-11-24 10:00:00,20,1\n";
+    assert_eq!(bad_with(backward, &options).kind, BadRowKind::BackwardTime);
+}

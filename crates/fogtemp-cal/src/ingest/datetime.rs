@@ -1,0 +1,201 @@
+//! Date-times in the time column ([`super::TimeUnit::DateTime`]): ISO 8601 as loggers write
+//! it, read into seconds since 1970-01-01 00:00 UTC. Only differences between rows are used
+//! (a run's time starts at its first row), so a time without a zone is read as UTC.
+
+/// `YYYY-MM-DD` (or `YYYY/MM/DD`), `T` or a space, `hh:mm[:ss[.fraction]]`, then optionally
+/// `Z`, `+hh:mm`, `+hhmm` or `+hh` (or `-`): seconds since 1970-01-01 00:00 UTC. `None` for
+/// anything else, an impossible date (2025-02-29) or a field out of range.
+///
+/// Resolution: the whole seconds are exact in an f64; with the fraction added, a time near
+/// 2026 is rounded to 2.4e-7 s (one unit in the last place of 1.8e9), below the 1 us grid
+/// the feature tracker uses.
+pub fn parse_datetime(text: &[u8]) -> Option<f64> {
+    let mut at = Cursor { text, pos: 0 };
+    let year = at.digits(4)? as i64;
+    let date_sep = at.one_of(b"-/")?;
+    let month = at.digits(2)?;
+    at.exact(date_sep)?;
+    let day = at.digits(2)?;
+    at.one_of(b"T ")?;
+    let hour = at.digits(2)?;
+    at.exact(b':')?;
+    let minute = at.digits(2)?;
+    let (second, fraction) = if at.peek() == Some(b':') {
+        at.pos += 1;
+        let second = at.digits(2)?;
+        (second, at.fraction()?)
+    } else {
+        (0, 0.0)
+    };
+    let offset_s = at.zone()?;
+    if at.pos != text.len() || !(1..=12).contains(&month) || day < 1 || day > days_in_month(year, month) {
+        return None;
+    }
+    if hour > 23 || minute > 59 || second > 59 {
+        return None;
+    }
+    let whole = days_from_civil(year, month, day) * 86_400
+        + i64::from(hour) * 3600
+        + i64::from(minute) * 60
+        + i64::from(second)
+        - offset_s;
+    Some(whole as f64 + fraction)
+}
+
+/// Days from 1970-01-01 to the proleptic Gregorian date (H. Hinnant's `days_from_civil`).
+fn days_from_civil(year: i64, month: u32, day: u32) -> i64 {
+    let y = if month <= 2 { year - 1 } else { year };
+    let era = y.div_euclid(400);
+    let year_of_era = y - era * 400;
+    let m = i64::from(month);
+    let day_of_year = (153 * (if m > 2 { m - 3 } else { m + 9 }) + 2) / 5 + i64::from(day) - 1;
+    let day_of_era = year_of_era * 365 + year_of_era / 4 - year_of_era / 100 + day_of_year;
+    era * 146_097 + day_of_era - 719_468
+}
+
+fn days_in_month(year: i64, month: u32) -> u32 {
+    let leap = (year % 4 == 0 && year % 100 != 0) || year % 400 == 0;
+    match month {
+        2 if leap => 29,
+        2 => 28,
+        4 | 6 | 9 | 11 => 30,
+        _ => 31,
+    }
+}
+
+struct Cursor<'a> {
+    text: &'a [u8],
+    pos: usize,
+}
+
+impl Cursor<'_> {
+    fn peek(&self) -> Option<u8> {
+        self.text.get(self.pos).copied()
+    }
+
+    /// Exactly `n` ASCII digits.
+    fn digits(&mut self, n: usize) -> Option<u32> {
+        let field = self.text.get(self.pos..self.pos + n)?;
+        if !field.iter().all(u8::is_ascii_digit) {
+            return None;
+        }
+        self.pos += n;
+        Some(field.iter().fold(0, |v, d| v * 10 + u32::from(d - b'0')))
+    }
+
+    fn exact(&mut self, byte: u8) -> Option<()> {
+        (self.peek()? == byte).then(|| self.pos += 1)
+    }
+
+    fn one_of(&mut self, bytes: &[u8]) -> Option<u8> {
+        let b = self.peek().filter(|b| bytes.contains(b))?;
+        self.pos += 1;
+        Some(b)
+    }
+
+    /// `.ddd...` (or `,ddd...`, ISO's other decimal sign) as seconds; 0 when absent.
+    fn fraction(&mut self) -> Option<f64> {
+        if !matches!(self.peek(), Some(b'.' | b',')) {
+            return Some(0.0);
+        }
+        self.pos += 1;
+        let start = self.pos;
+        while self.peek().is_some_and(|b| b.is_ascii_digit()) {
+            self.pos += 1;
+        }
+        let digits = self.text.get(start..self.pos)?;
+        if digits.is_empty() {
+            return None;
+        }
+        let mut text = b"0.".to_vec();
+        text.extend_from_slice(digits);
+        fast_float2::parse::<f64, _>(&text).ok()
+    }
+
+    /// The zone's offset east of UTC, seconds (0 without a zone).
+    fn zone(&mut self) -> Option<i64> {
+        let sign = match self.peek() {
+            None => return Some(0),
+            Some(b'Z') => {
+                self.pos += 1;
+                return Some(0);
+            }
+            Some(b'+') => 1,
+            Some(b'-') => -1,
+            Some(_) => return None,
+        };
+        self.pos += 1;
+        let hours = self.digits(2)?;
+        let minutes = match self.peek() {
+            None => 0,
+            Some(b':') => {
+                self.pos += 1;
+                self.digits(2)?
+            }
+            Some(_) => self.digits(2)?,
+        };
+        if hours > 23 || minutes > 59 {
+            return None;
+        }
+        Some(sign * i64::from(hours * 3600 + minutes * 60))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Oracle: Python's `datetime.fromisoformat(s.replace('Z', '+00:00'))`, naive times as
+    /// UTC, `.timestamp()` (python3 3.11, printed with `repr`).
+    #[test]
+    fn iso_date_times_match_pythons_timestamps() {
+        for (text, expected) in [
+            ("2026-11-24T10:00:00Z", 1_795_514_400.0),
+            ("2026-11-24 10:00:00.125", 1_795_514_400.125),
+            ("2000-02-29T23:59:59.5+01:00", 951_865_199.5),
+            ("1999-12-31T23:00-05:30", 946_701_000.0),
+            ("2024-03-01T00:00:00", 1_709_251_200.0),
+            ("1970-01-01T00:00:00Z", 0.0),
+            ("2100-12-31T12:34:56.000001+0000", 4_133_939_696.000_001),
+        ] {
+            let got = parse_datetime(text.as_bytes()).unwrap_or_else(|| panic!("{text}"));
+            // 5e-7 s: two units in the last place of an f64 near 4e9 s.
+            assert!((got - expected).abs() < 5e-7, "{text}: {got} against {expected}");
+        }
+        // Slashes and a decimal comma in the seconds, and an hour-only zone.
+        assert_eq!(parse_datetime(b"2026/11/24 10:00:01,5+01"), Some(1_795_514_401.5 - 3600.0));
+    }
+
+    #[test]
+    fn malformed_or_impossible_date_times_are_refused() {
+        for text in [
+            "",
+            "2026-11-24",
+            "2026-11-24T10",
+            "2025-02-29T00:00:00",
+            "2026-13-01T00:00:00",
+            "2026-04-31T00:00:00",
+            "2026-11-24T24:00:00",
+            "2026-11-24T10:60:00",
+            "2026-11-24T10:00:60",
+            "2026-11-24T10:00:00.",
+            "2026-11-24T10:00:00 ",
+            "2026-11-24T10:00:00+2400",
+            "2026-11-24x10:00:00",
+            "2026-11/24T10:00:00",
+            "26-11-24T10:00:00",
+            "1795514400",
+        ] {
+            assert_eq!(parse_datetime(text.as_bytes()), None, "{text:?}");
+        }
+    }
+
+    #[test]
+    fn days_from_civil_counts_leap_years_and_centuries() {
+        assert_eq!(days_from_civil(1970, 1, 1), 0);
+        assert_eq!(days_from_civil(2000, 3, 1) - days_from_civil(2000, 2, 28), 2);
+        assert_eq!(days_from_civil(1900, 3, 1) - days_from_civil(1900, 2, 28), 1);
+        assert_eq!(days_from_civil(1969, 12, 31), -1);
+        assert_eq!(days_from_civil(2001, 1, 1) - days_from_civil(2000, 1, 1), 366);
+    }
+}
