@@ -60,7 +60,7 @@ pub enum CalError {
         source: fogtemp_core::Error,
     },
     /// A named column is not in the file's header.
-    #[error("{}: no column named '{column}' (the header has: {available})", path.display())]
+    #[error("{}: no column named '{column}' (the header has: {available}){}", path.display(), similar_note(similar))]
     MissingColumn {
         /// File.
         path: PathBuf,
@@ -68,6 +68,8 @@ pub enum CalError {
         column: String,
         /// Columns the header does have.
         available: String,
+        /// Header names that look like the missing one (case, units or punctuation aside).
+        similar: Vec<String>,
     },
     /// A row was rejected.
     #[error("{}:{}:{}: column '{}': {} (found '{}')", path.display(), row.line, row.column, row.column_name, row.kind.describe(), row.found)]
@@ -129,6 +131,16 @@ pub enum CalError {
 }
 
 /// `:line` for a known line, nothing for 0.
+fn similar_note(similar: &[String]) -> String {
+    match similar {
+        [] => String::new(),
+        names => {
+            let quoted: Vec<String> = names.iter().map(|n| format!("'{n}'")).collect();
+            format!("; perhaps {}", quoted.join(" or "))
+        }
+    }
+}
+
 fn at_line(line: u64) -> String {
     if line == 0 {
         String::new()

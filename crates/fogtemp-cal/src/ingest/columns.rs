@@ -215,6 +215,7 @@ fn locate_columns(path: &Path, header: Fields<'_>, f: &LogFormat, line: u64) -> 
             path: path.to_path_buf(),
             column: wanted.to_string(),
             available: names.join(", "),
+            similar: similar_names(wanted, &names),
         })
     };
     let has_time_column = names.contains(&f.time_column);
@@ -257,10 +258,29 @@ fn locate_columns(path: &Path, header: Fields<'_>, f: &LogFormat, line: u64) -> 
             path: path.to_path_buf(),
             column: "(no gyro column named)".into(),
             available: names.join(", "),
+            similar: Vec::new(),
         });
     }
     let min_fields = temps.iter().chain(&gyros).copied().chain(time).max().unwrap_or(0) + 1;
     Ok(Columns { time, temps, gyros, names, min_fields })
+}
+
+/// Header names that look like `wanted`: equal once case, units and punctuation are set
+/// aside, or starting with its stem (`time_s` -> `time`: "Time [s]", "TIME"; `temp_c` ->
+/// `temp`: "Temperature (C)"), compared on lower-case letters and digits only.
+fn similar_names(wanted: &str, names: &[String]) -> Vec<String> {
+    let plain =
+        |s: &str| s.chars().filter(char::is_ascii_alphanumeric).collect::<String>().to_ascii_lowercase();
+    let whole = plain(wanted);
+    let stem = plain(wanted.split('_').next().unwrap_or(wanted));
+    names
+        .iter()
+        .filter(|n| {
+            let name = plain(n);
+            !name.is_empty() && (name == whole || (stem.len() >= 3 && name.starts_with(&stem)))
+        })
+        .cloned()
+        .collect()
 }
 
 /// Every cell a number: a data row, not a header.
@@ -396,6 +416,7 @@ pub(super) fn check_time(
 
 #[cfg(test)]
 mod tests {
+    use super::similar_names;
     use crate::ingest::test_support::*;
     use crate::ingest::*;
 
@@ -562,6 +583,26 @@ mod tests {
             other => panic!("{}", summary(&other)),
         };
         expect(&b, 2, 3, "temp_c", "", BadRowKind::ShortRow);
+    }
+
+    #[test]
+    fn a_missing_column_names_the_header_names_that_look_like_it() {
+        let names: Vec<String> = ["Time [s]", "Temperature (C)", "GyroX (deg/h)", "GYRO_DPH", "id", "tem"]
+            .map(String::from)
+            .to_vec();
+        assert_eq!(similar_names("time_s", &names), ["Time [s]"]);
+        assert_eq!(similar_names("temp_c", &names), ["Temperature (C)"]);
+        assert_eq!(similar_names("gyro_dph", &names), ["GyroX (deg/h)", "GYRO_DPH"]);
+        assert!(similar_names("id_x", &names).is_empty(), "a stem under 3 characters matches nothing");
+        assert!(similar_names("pressure", &names).is_empty());
+        let (_, result) = run(b"Time_s,Temp_C,Gyro_dph\n0,20,1\n", &default_options());
+        let e = result.unwrap_err();
+        assert!(
+            e.to_string().ends_with(
+                "no column named 'time_s' (the header has: Time_s, Temp_C, Gyro_dph); perhaps 'Time_s'"
+            ),
+            "{e}"
+        );
     }
 
     #[test]
