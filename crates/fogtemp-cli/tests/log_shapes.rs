@@ -289,17 +289,32 @@ fn write_locale_log(path: &Path, start_c: f64, decimal_comma: bool) {
     std::fs::write(path, text).unwrap();
 }
 
+/// Two folders of three warm-ups from 0, 20 and 40 C: `write(path, start_c, true)` for the
+/// shape under test, `write(path, start_c, false)` for its plain twin (the oracle).
+fn twin_folders(dir: &Path, write: fn(&Path, f64, bool)) -> (PathBuf, PathBuf) {
+    let (shaped, plain) = (dir.join("shaped"), dir.join("plain"));
+    for (folder, shaped) in [(&shaped, true), (&plain, false)] {
+        std::fs::create_dir(folder).unwrap();
+        for (i, start) in [0.0, 20.0, 40.0].into_iter().enumerate() {
+            write(&folder.join(format!("run{i}.csv")), start, shaped);
+        }
+    }
+    (shaped, plain)
+}
+
+/// What `inspect --json` says a model stores, without the digest of its input bytes (which
+/// differ between twins) and its path.
+fn stored_model(model: &Path) -> Value {
+    let (mut doc, _) = ok_json(&["inspect", "--json", s(model)]);
+    assert!(doc["input_digest"].take().is_string(), "{doc}");
+    doc["model"].take();
+    doc
+}
+
 #[test]
 fn decimal_comma_logs_fit_the_same_model_as_their_point_twins() {
     let dir = tempfile::tempdir().unwrap();
-    let (commas, points) = (dir.path().join("commas"), dir.path().join("points"));
-    for d in [&commas, &points] {
-        std::fs::create_dir(d).unwrap();
-    }
-    for (i, start) in [0.0, 20.0, 40.0].into_iter().enumerate() {
-        write_locale_log(&commas.join(format!("run{i}.csv")), start, true);
-        write_locale_log(&points.join(format!("run{i}.csv")), start, false);
-    }
+    let (commas, points) = twin_folders(dir.path(), write_locale_log);
     // Without the flag: the first cell is refused, and the error says what to pass.
     let model = dir.path().join("m.fogm");
     let out = run(&["fit", "--method", "poly", "--out", s(&model), s(&commas)]);
@@ -314,16 +329,9 @@ fn decimal_comma_logs_fit_the_same_model_as_their_point_twins() {
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let out = run(&["fit", "--method", "poly", "--out", s(&twin), s(&points)]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let stored = |m: &Path| {
-        let (mut doc, _) = ok_json(&["inspect", "--json", s(m)]);
-        let digest = doc["input_digest"].take();
-        assert!(digest.is_string(), "{doc}");
-        doc["model"].take();
-        doc
-    };
-    let fitted = stored(&model);
+    let fitted = stored_model(&model);
     assert_eq!(fitted["axes"][0]["kind"][0], "poly", "{fitted}");
-    assert_eq!(fitted, stored(&twin));
+    assert_eq!(fitted, stored_model(&twin));
     // The flag on a log with points names the cell and the way back.
     let out = run(&["allan", "--decimal-mark", "comma", s(&points.join("run0.csv"))]);
     let stderr = String::from_utf8_lossy(&out.stderr);
@@ -356,14 +364,7 @@ fn write_datetime_log(path: &Path, start_c: f64, datetime: bool) {
 #[test]
 fn date_time_logs_fit_the_same_model_as_their_seconds_twins() {
     let dir = tempfile::tempdir().unwrap();
-    let (dated, seconds) = (dir.path().join("dated"), dir.path().join("seconds"));
-    for d in [&dated, &seconds] {
-        std::fs::create_dir(d).unwrap();
-    }
-    for (i, start) in [0.0, 20.0, 40.0].into_iter().enumerate() {
-        write_datetime_log(&dated.join(format!("run{i}.csv")), start, true);
-        write_datetime_log(&seconds.join(format!("run{i}.csv")), start, false);
-    }
+    let (dated, seconds) = twin_folders(dir.path(), write_datetime_log);
     let (model, twin) = (dir.path().join("m.fogm"), dir.path().join("twin.fogm"));
     let out = run(&["fit", "--method", "poly", "--out", s(&model), s(&dated)]);
     let stderr = String::from_utf8_lossy(&out.stderr);
@@ -376,12 +377,6 @@ fn date_time_logs_fit_the_same_model_as_their_seconds_twins() {
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let out = run(&["fit", "--method", "poly", "--out", s(&twin), s(&seconds)]);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let stored = |m: &Path| {
-        let (mut doc, _) = ok_json(&["inspect", "--json", s(m)]);
-        assert!(doc["input_digest"].take().is_string(), "{doc}");
-        doc["model"].take();
-        doc
-    };
     // The oracle: every stored value equal to the model of the same run timed in seconds.
-    assert_eq!(stored(&model), stored(&twin));
+    assert_eq!(stored_model(&model), stored_model(&twin));
 }
