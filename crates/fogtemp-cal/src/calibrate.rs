@@ -202,8 +202,46 @@ pub struct RunFeatures {
     pub path: PathBuf,
     /// What ingest saw.
     pub ingest: IngestReport,
+    /// Gaps in the log's time stamps longer than the tracker's `max_gap_s`.
+    pub gaps: TimeGaps,
     /// Per axis: the feature points and their smoothed gyro targets (deg/h).
     pub axes: Vec<(Vec<FeaturePoint>, Vec<f64>)>,
+}
+
+/// Steps between consecutive rows longer than the feature tracker's `max_gap_s`: after each
+/// the tracker starts again (a logger that stalled, a capture that lost time, a clock that
+/// jumped), so the time is not calibration data. Counted so that a technician is told.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct TimeGaps {
+    /// The threshold, seconds (the tracker's `max_gap_s`).
+    pub longer_than_s: f64,
+    /// How many.
+    pub count: u64,
+    /// Total time in them, seconds.
+    pub total_s: f64,
+    /// The longest, seconds, and the line of the row after it (0 when there is none).
+    pub largest_s: f64,
+    /// See `largest_s`.
+    pub largest_before_line: u64,
+}
+
+impl TimeGaps {
+    fn new(longer_than_s: f64) -> Self {
+        Self { longer_than_s, ..Self::default() }
+    }
+
+    /// Counts the step from `previous_s` to the row at `time_s` on `line`.
+    fn observe(&mut self, previous_s: Option<f64>, time_s: f64, line: u64) {
+        let Some(step) = previous_s.map(|p| time_s - p) else { return };
+        if step > self.longer_than_s {
+            self.count += 1;
+            self.total_s += step;
+            if step > self.largest_s {
+                self.largest_s = step;
+                self.largest_before_line = line;
+            }
+        }
+    }
 }
 
 /// Reads one log and computes per-axis features and targets. `progress(bytes, rows)` as in
@@ -241,7 +279,11 @@ pub(crate) fn extract_with(
     let axes = config.ingest.format.gyro_columns.len();
     let mut streams =
         (0..axes).map(|_| AxisFeatureStream::new(&config.features)).collect::<Result<Vec<_>, _>>()?;
+    let mut gaps = TimeGaps::new(f64::from(config.features.max_gap_s));
+    let mut previous_s = None;
     let ingest = read(&mut |row: &Row<'_>| {
+        gaps.observe(previous_s, row.time_s, row.line);
+        previous_s = Some(row.time_s);
         for (axis, stream) in streams.iter_mut().enumerate() {
             let temp = row.temp_c_for_axis(axis);
             stream.push(row.time_s, row.gyros_dph[axis], temp);
@@ -256,7 +298,7 @@ pub(crate) fn extract_with(
             (points, targets)
         })
         .collect();
-    Ok(RunFeatures { path: path.to_path_buf(), ingest, axes })
+    Ok(RunFeatures { path: path.to_path_buf(), ingest, gaps, axes })
 }
 
 /// The calibration points of one axis over all runs.
@@ -1126,6 +1168,24 @@ mod tests {
         assert!(n >= 20.0, "{n} points");
         assert_eq!(c.block_equivalents, 1.0 + 10.0 * (n - 1.0));
         assert_eq!(c.n_eff(block_s, 1200.0), c.block_equivalents * block_s / 1200.0);
+    }
+
+    #[test]
+    fn gaps_longer_than_the_trackers_are_counted_with_the_longest() {
+        // The burst log: 24 bursts 300 s apart, each 250 rows 0.02 s apart, so 23 steps of
+        // 300 - 249 * 0.02 = 295.02 s between bursts (the first row after each is on line
+        // 2 + 250 k). With the default max gap (5 s) all 23 are gaps; with 400 s none.
+        let log = burst_log(100.0);
+        let run =
+            extract_run_from(log.as_bytes(), Path::new("b.csv"), &CalibrationConfig::default()).unwrap();
+        let g = run.gaps;
+        assert_eq!((g.longer_than_s, g.count), (5.0, 23));
+        assert!((g.total_s - 23.0 * 295.02).abs() < 1e-6 && (g.largest_s - 295.02).abs() < 1e-9, "{g:?}");
+        // The steps are equal to the printed digits, so the longest is any burst's first row.
+        let line = g.largest_before_line;
+        assert!(line > 2 && (line - 2) % 250 == 0, "{line}");
+        let sparse = extract_run_from(log.as_bytes(), Path::new("b.csv"), &sparse_config()).unwrap();
+        assert_eq!((sparse.gaps.count, sparse.gaps.largest_before_line), (0, 0));
     }
 
     #[test]

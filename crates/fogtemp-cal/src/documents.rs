@@ -35,6 +35,38 @@ pub struct IngestDocument {
     pub skipped_rows: u64,
     /// The first skipped rows (at most [`crate::ingest::MAX_REPORTED_BAD_ROWS`]).
     pub first_skipped: Vec<SkippedRowDocument>,
+    /// Gaps in the time stamps longer than the feature tracker's `max_gap_s` (`fit` only:
+    /// [`crate::calibrate::TimeGaps`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub time_gaps: Option<TimeGapsDocument>,
+}
+
+/// Gaps in one log's time stamps (`fit --json`: `runs[].time_gaps`).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct TimeGapsDocument {
+    /// The threshold: the tracker's `max_gap_s`.
+    pub longer_than_s: f64,
+    /// How many steps between consecutive rows were longer.
+    pub count: u64,
+    /// Their total, seconds.
+    pub total_s: f64,
+    /// The longest, seconds.
+    pub largest_s: f64,
+    /// The line of the row after the longest (0 when there is no gap).
+    pub largest_before_line: u64,
+}
+
+impl TimeGapsDocument {
+    /// The document of `gaps`.
+    pub fn new(gaps: &crate::calibrate::TimeGaps) -> Self {
+        Self {
+            longer_than_s: gaps.longer_than_s,
+            count: gaps.count,
+            total_s: gaps.total_s,
+            largest_s: gaps.largest_s,
+            largest_before_line: gaps.largest_before_line,
+        }
+    }
 }
 
 impl IngestDocument {
@@ -46,6 +78,7 @@ impl IngestDocument {
             bytes: report.bytes,
             skipped_rows: report.skipped,
             first_skipped: report.first_skipped.iter().map(SkippedRowDocument::new).collect(),
+            time_gaps: None,
         }
     }
 }
@@ -104,7 +137,13 @@ impl FitDocument {
             model: model.display().to_string(),
             bytes: fitted.blob.len(),
             input_digest: hex(input_digest),
-            runs: runs.iter().map(|r| IngestDocument::new(&r.ingest)).collect(),
+            runs: runs
+                .iter()
+                .map(|r| IngestDocument {
+                    time_gaps: Some(TimeGapsDocument::new(&r.gaps)),
+                    ..IngestDocument::new(&r.ingest)
+                })
+                .collect(),
             axes: fitted
                 .axes
                 .iter()

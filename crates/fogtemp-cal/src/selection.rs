@@ -920,7 +920,7 @@ pub fn without_block(run: &RunFeatures, blocks: &RunBlocks, j: usize, guard_s: f
                 .unzip()
         })
         .collect();
-    RunFeatures { path: run.path.clone(), ingest: run.ingest.clone(), axes }
+    RunFeatures { path: run.path.clone(), ingest: run.ingest.clone(), gaps: run.gaps, axes }
 }
 
 /// Blocked K-fold within runs ([`CvScheme::BlockedKFold`]): per fold, every candidate
@@ -1739,6 +1739,7 @@ mod tests {
         RunFeatures {
             path: PathBuf::from("r.csv"),
             ingest: Default::default(),
+            gaps: Default::default(),
             axes: vec![(features, vec![0.0; points.len()])],
         }
     }

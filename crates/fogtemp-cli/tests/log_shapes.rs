@@ -380,3 +380,34 @@ fn date_time_logs_fit_the_same_model_as_their_seconds_twins() {
     // The oracle: every stored value equal to the model of the same run timed in seconds.
     assert_eq!(stored_model(&model), stored_model(&twin));
 }
+
+#[test]
+fn gaps_in_the_time_stamps_are_reported_by_fit() {
+    // Three 1 Hz warm-ups; the first loses 60 s of rows after its 1000th (rows 1000..1059
+    // missing, so the step before line 1002 is 61 s).
+    let dir = tempfile::tempdir().unwrap();
+    let mut logs = Vec::new();
+    for (i, start) in [0.0, 20.0, 40.0].into_iter().enumerate() {
+        let mut text = String::from("time_s,temp_c,gyro_dph\n");
+        for k in (0..3600u32).filter(|k| i != 0 || !(1000..1060).contains(k)) {
+            let temp = temp_c(start, f64::from(k));
+            text.push_str(&format!("{k},{temp:.4},{:.6}\n", bias_dph(temp)));
+        }
+        let path = dir.path().join(format!("run{i}.csv"));
+        std::fs::write(&path, text).unwrap();
+        logs.push(path);
+    }
+    let model = dir.path().join("m.fogm");
+    let mut args = vec!["fit", "--method", "poly", "--json", "--out", s(&model)];
+    args.extend(logs.iter().map(|p| s(p)));
+    let (doc, stderr) = ok_json(&args);
+    let gaps: Vec<&Value> = doc["runs"].as_array().unwrap().iter().map(|r| &r["time_gaps"]).collect();
+    assert_eq!(gaps[0]["count"], 1, "{doc}");
+    assert_eq!(
+        (gaps[0]["largest_s"].as_f64(), gaps[0]["largest_before_line"].as_u64()),
+        (Some(61.0), Some(1002))
+    );
+    assert_eq!((gaps[1]["count"].as_u64(), gaps[2]["count"].as_u64()), (Some(0), Some(0)));
+    assert!(stderr.contains("run0.csv: 1 gap in the time stamps longer than the tracker's 5 s"), "{stderr}");
+    assert!(!stderr.contains("run1.csv: "), "{stderr}");
+}
