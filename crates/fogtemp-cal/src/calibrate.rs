@@ -226,6 +226,24 @@ pub struct TimeGaps {
 }
 
 impl TimeGaps {
+    /// What a technician is told about the gaps of the log `path` (`None` without gaps): the
+    /// command line's `note:` and Python's warning.
+    pub fn note(&self, path: &Path) -> Option<String> {
+        (self.count > 0).then(|| {
+            format!(
+                "{}: {} gap{} in the time stamps longer than the tracker's max gap of {} s, {:.0} s in all, \
+                 the longest {:.0} s before line {}; features restart after each",
+                path.display(),
+                self.count,
+                if self.count == 1 { "" } else { "s" },
+                self.longer_than_s,
+                self.total_s,
+                self.largest_s,
+                self.largest_before_line
+            )
+        })
+    }
+
     fn new(longer_than_s: f64) -> Self {
         Self { longer_than_s, ..Self::default() }
     }

@@ -408,6 +408,9 @@ fn gaps_in_the_time_stamps_are_reported_by_fit() {
         (Some(61.0), Some(1002))
     );
     assert_eq!((gaps[1]["count"].as_u64(), gaps[2]["count"].as_u64()), (Some(0), Some(0)));
-    assert!(stderr.contains("run0.csv: 1 gap in the time stamps longer than the tracker's 5 s"), "{stderr}");
+    assert!(
+        stderr.contains("run0.csv: 1 gap in the time stamps longer than the tracker's max gap of 5 s"),
+        "{stderr}"
+    );
     assert!(!stderr.contains("run1.csv: "), "{stderr}");
 }

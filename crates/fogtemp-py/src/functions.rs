@@ -276,6 +276,9 @@ fn file_runs(
             return Err(errors::value(format!("{}: no data rows (only a header)", log.display())));
         }
         warn_skipped(py, &run.ingest)?;
+        if let Some(note) = run.gaps.note(&run.path) {
+            progress::warn(py, &note)?;
+        }
         runs.push(run);
     }
     let digest = py.detach(|| digest_files(&logs))?;
@@ -326,6 +329,9 @@ fn array_features(
             return Err(errors::value(format!("{}: no samples", run.name.display())));
         }
         warn_skipped(py, &f.ingest)?;
+        if let Some(note) = f.gaps.note(&f.path) {
+            progress::warn(py, &note)?;
+        }
         features.push(f);
     }
     Ok((features, hasher.finalize().into()))

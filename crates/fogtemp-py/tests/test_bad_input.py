@@ -100,6 +100,21 @@ def test_date_time_logs_read_with_time_unit_datetime_and_a_hint_without(tmp_path
         fogtemp.read_log(log, time_unit="iso", progress=False)
 
 
+def test_gaps_in_the_time_stamps_are_warned_about_by_fit(tmp_path):
+    # Three 1 Hz warm-ups; the first loses rows 1000..1059, a step of 61 s before line 1002.
+    logs = []
+    for i, start in enumerate([0.0, 20.0, 40.0]):
+        t = np.array([k for k in range(3600) if i != 0 or not 1000 <= k < 1060], dtype=float)
+        temp = start + 15.0 * (1.0 - np.exp(-t / 600.0))
+        path = tmp_path / f"run{i}.csv"
+        write_csv(path, {"time_s": t, "temp_c": temp, "gyro_dph": 0.5 * (temp - 20.0)})
+        logs.append(path)
+    with pytest.warns(UserWarning, match=r"run0.csv: 1 gap in the time stamps .* the longest 61 s before line 1002"):
+        model = fogtemp.fit(logs, method="poly", progress=False)
+    gaps = [r["time_gaps"]["count"] for r in model.fit_report["runs"]]
+    assert gaps == [1, 0, 0]
+
+
 def test_missing_column_and_header_only(tmp_path):
     log = tmp_path / "cols.csv"
     log.write_text("time_s,temperature,gyro_dph\n0,20,1\n")

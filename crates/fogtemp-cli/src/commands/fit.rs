@@ -73,7 +73,9 @@ pub fn fit(a: FitArgs) -> Result<()> {
             bail!("{}: no data rows (only a header)", log.display());
         }
         report_skipped(&run.ingest);
-        report_time_gaps(&run);
+        if let Some(note) = run.gaps.note(&run.path) {
+            eprintln!("note: {note}");
+        }
         runs.push(run);
     }
     let warnings = fogtemp_cal::identifiability::fit_warnings(&runs, &config, &a.identifiability());
@@ -201,24 +203,4 @@ fn calibration_logs(
         bail!("{}: every run has role 'val': none is left to calibrate on", path.display());
     }
     Ok((kept, Some(positions)))
-}
-
-/// Tells the technician about gaps in a calibration log's time stamps: the tracker restarts
-/// after each, so the time in them calibrates nothing.
-fn report_time_gaps(run: &calibrate::RunFeatures) {
-    let g = &run.gaps;
-    if g.count == 0 {
-        return;
-    }
-    eprintln!(
-        "note: {}: {} gap{} in the time stamps longer than the tracker's {} s (--max-gap-s), {:.0} s in all, \
-         the longest {:.0} s before line {}; features restart after each",
-        run.path.display(),
-        g.count,
-        if g.count == 1 { "" } else { "s" },
-        g.longer_than_s,
-        g.total_s,
-        g.largest_s,
-        g.largest_before_line
-    );
 }
