@@ -56,6 +56,11 @@ pub struct IngestArgs {
     /// Name of the time column.
     #[arg(long, default_value = "time_s", help_heading = "Log columns")]
     pub time_column: String,
+    /// A column with each row's date when the time column holds the time of day (a
+    /// spreadsheet export's Date and Time): read together as one date-time, DATE T TIME.
+    /// Needs --time-unit datetime.
+    #[arg(long, value_name = "NAME", help_heading = "Log columns")]
+    pub date_column: Option<String>,
     /// Unit of the time column (datetime: ISO 8601 date-times).
     #[arg(long, value_enum, default_value_t = TimeUnitArg::S, help_heading = "Log columns")]
     pub time_unit: TimeUnitArg,
@@ -140,6 +145,7 @@ impl IngestArgs {
             comment: (!self.comment.is_empty()).then(|| self.comment.clone()),
             column_names: self.columns.iter().map(|c| c.trim().to_string()).collect(),
             sample_rate_hz: self.sample_rate_hz,
+            date_column: self.date_column.clone(),
             decimal_mark: self.decimal_mark,
         };
         if let Err(e) = format.check(std::path::Path::new("--options")) {

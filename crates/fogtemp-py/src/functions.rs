@@ -175,7 +175,7 @@ fn array_error(e: fogtemp_cal::CalError) -> PyErr {
 /// `max_degree`, `p_enter`, `p_remove`, `poly_outside`, `mesh_outside`, `capacity`, `operating_temp_c`) and, for files, its
 /// log-column options (`time_column`, `time_unit`, `temp_column`, `temp_scale`, `temp_offset`,
 /// `gyro_column`, `gyro_unit`, `gyro_scale`, `delimiter`, `skip_lines`, `columns`,
-/// `sample_rate_hz`, `comment`, `decimal_mark`, `skip_bad_rows`); identifiability warnings as Python warnings. `out` also writes the model
+/// `sample_rate_hz`, `comment`, `decimal_mark`, `date_column`, `skip_bad_rows`); identifiability warnings as Python warnings. `out` also writes the model
 /// file; `progress` shows reading progress on stderr. Runs with the GIL released.
 #[pyfunction]
 #[pyo3(signature = (logs, method = "auto", *, out = None, progress = true, **options))]

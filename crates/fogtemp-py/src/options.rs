@@ -57,7 +57,6 @@ impl<'py> Options<'py> {
         }
     }
 
-    /// A non-negative integer option.
     /// An optional `(min, max)` pair with min < max, both finite.
     pub fn opt_f64_pair(&mut self, key: &str) -> PyResult<Option<(f64, f64)>> {
         match self.get(key)? {
@@ -74,6 +73,7 @@ impl<'py> Options<'py> {
         }
     }
 
+    /// A non-negative integer option.
     pub fn usize(&mut self, key: &str, default: usize) -> PyResult<usize> {
         match self.get(key)? {
             Some(v) => v.extract::<usize>().map_err(|e| self.wrong(key, "a non-negative integer", e)),
@@ -94,6 +94,14 @@ impl<'py> Options<'py> {
         match self.get(key)? {
             Some(v) => v.extract::<String>().map_err(|e| self.wrong(key, "a string", e)),
             None => Ok(default.to_string()),
+        }
+    }
+
+    /// An optional string option.
+    pub fn opt_string(&mut self, key: &str) -> PyResult<Option<String>> {
+        match self.get(key)? {
+            Some(v) => v.extract::<String>().map(Some).map_err(|e| self.wrong(key, "a string", e)),
+            None => Ok(None),
         }
     }
 
@@ -136,7 +144,7 @@ impl<'py> Options<'py> {
 }
 
 /// The log-column keywords (the command line's "Log columns" flags).
-pub const COLUMN_KEYS: [&str; 15] = [
+pub const COLUMN_KEYS: [&str; 16] = [
     "time_column",
     "time_unit",
     "temp_column",
@@ -151,6 +159,7 @@ pub const COLUMN_KEYS: [&str; 15] = [
     "sample_rate_hz",
     "comment",
     "decimal_mark",
+    "date_column",
     "skip_bad_rows",
 ];
 
@@ -196,6 +205,7 @@ pub fn ingest(o: &mut Options<'_>) -> PyResult<IngestOptions> {
             comment: (!comment.is_empty()).then_some(comment),
             column_names: columns.iter().map(|c| c.trim().to_string()).collect(),
             sample_rate_hz: o.opt_f64("sample_rate_hz")?,
+            date_column: o.opt_string("date_column")?,
             decimal_mark,
         },
         skip_bad_rows: o.bool("skip_bad_rows", false)?,

@@ -98,6 +98,11 @@ def test_date_time_logs_read_with_time_unit_datetime_and_a_hint_without(tmp_path
     np.testing.assert_allclose(data["time_s"], np.array(stamps) - stamps[0], atol=5e-7, rtol=0)
     with pytest.raises(ValueError, match="time_unit must be"):
         fogtemp.read_log(log, time_unit="iso", progress=False)
+    # Date and time of day in two columns: the same instants as one date-time.
+    split = tmp_path / "split.csv"
+    split.write_text("Date,Time,temp_c,gyro_dph\n2026-11-24,23:59:59.5,20,1\n2026-11-25,00:00:00.25,20,2\n")
+    both = fogtemp.read_log(split, time_unit="datetime", date_column="Date", time_column="Time", progress=False)
+    np.testing.assert_allclose(both["time_s"], [0.0, 0.75], atol=5e-7, rtol=0)
 
 
 def test_gaps_in_the_time_stamps_are_warned_about_by_fit(tmp_path):

@@ -161,6 +161,8 @@ impl RowState {
 pub(super) struct Columns {
     /// `None`: time from the record index.
     time: Option<usize>,
+    /// The date of each row, read with the time column as one date-time.
+    date: Option<usize>,
     pub(super) temps: Vec<usize>,
     pub(super) gyros: Vec<usize>,
     names: Vec<String>,
@@ -235,11 +237,12 @@ fn locate_columns(path: &Path, header: Fields<'_>, f: &LogFormat, line: u64) -> 
             Some(_) => None,
             None => Some(find(&f.time_column)?),
         };
+        let date = f.date_column.as_deref().map(find).transpose()?;
         let temps = f.temp_columns.iter().map(|c| find(c)).collect::<Result<Vec<_>, _>>()?;
         let gyros = f.gyro_columns.iter().map(|c| find(c)).collect::<Result<Vec<_>, _>>()?;
-        Ok((time, temps, gyros))
+        Ok((time, date, temps, gyros))
     })();
-    let (time, temps, gyros) = match located {
+    let (time, date, temps, gyros) = match located {
         Err(CalError::MissingColumn { .. }) if line > 0 && looks_like_data(&names, f.decimal_mark) => {
             return Err(CalError::LogFormat {
                 path: path.to_path_buf(),
@@ -261,8 +264,8 @@ fn locate_columns(path: &Path, header: Fields<'_>, f: &LogFormat, line: u64) -> 
             similar: Vec::new(),
         });
     }
-    let min_fields = temps.iter().chain(&gyros).copied().chain(time).max().unwrap_or(0) + 1;
-    Ok(Columns { time, temps, gyros, names, min_fields })
+    let min_fields = temps.iter().chain(&gyros).copied().chain(time).chain(date).max().unwrap_or(0) + 1;
+    Ok(Columns { time, date, temps, gyros, names, min_fields })
 }
 
 /// Header names that look like `wanted`: equal once case, units and punctuation are set
@@ -381,15 +384,21 @@ pub(super) fn parse_row(
     Ok(time)
 }
 
-/// A date-time time cell, seconds since 1970 UTC.
+/// A date-time time cell, seconds since 1970 UTC; with a date column, its cell `T` the
+/// time cell (a bad one is reported at the time column, with both cells' text).
 fn datetime_cell(plan: &Plan, fields: Fields<'_>, field: usize, line: u64) -> Result<f64, BadRow> {
-    let raw = fields.get(field).unwrap_or(b"");
-    let trimmed = raw.trim_ascii();
-    if trimmed.is_empty() {
-        return Err(bad_row(&plan.columns, line, field, b"", BadRowKind::EmptyCell));
-    }
-    super::datetime::parse_datetime(trimmed)
-        .ok_or_else(|| bad_row(&plan.columns, line, field, raw, BadRowKind::NotADateTime))
+    let cell = |f: usize| fields.get(f).unwrap_or(b"").trim_ascii();
+    let required = |f: usize| match cell(f) {
+        [] => Err(bad_row(&plan.columns, line, f, b"", BadRowKind::EmptyCell)),
+        text => Ok(text),
+    };
+    let time = required(field)?;
+    let stamp: std::borrow::Cow<'_, [u8]> = match plan.columns.date {
+        Some(date) => [required(date)?, b"T", time].concat().into(),
+        None => time.into(),
+    };
+    super::datetime::parse_datetime(&stamp)
+        .ok_or_else(|| bad_row(&plan.columns, line, field, &stamp, BadRowKind::NotADateTime))
 }
 
 /// Time of data record `index` from the sample rate, seconds.

@@ -129,6 +129,10 @@ pub struct LogFormat {
     /// rejected records but not blank or comment lines) is at `k / rate` seconds. A log
     /// that also has a column named `time_column` is refused as ambiguous.
     pub sample_rate_hz: Option<f64>,
+    /// A column holding the date of each row when the time column holds only the time of
+    /// day (a spreadsheet export's `Date` and `Time`): the two cells are read as one
+    /// date-time, `date` `T` `time`. Needs [`TimeUnit::DateTime`].
+    pub date_column: Option<String>,
     /// The decimal mark of the numbers ([`DecimalMark::Point`] by default). Logs written
     /// in a locale with a decimal comma (`20,5`) need [`DecimalMark::Comma`] and another
     /// delimiter (usually `;`).
@@ -250,6 +254,7 @@ impl Default for LogFormat {
             comment: Some("#".into()),
             column_names: Vec::new(),
             sample_rate_hz: None,
+            date_column: None,
             decimal_mark: DecimalMark::Point,
         }
     }
@@ -283,6 +288,13 @@ impl LogFormat {
         }
         if self.column_names.iter().any(|n| n.trim().is_empty()) {
             return problem("a column name is empty".into());
+        }
+        if self.date_column.is_some()
+            && (self.time_unit != TimeUnit::DateTime || self.sample_rate_hz.is_some())
+        {
+            return problem(
+                "a date column needs the time column read as date-times (time unit datetime)".into(),
+            );
         }
         if self.decimal_mark == DecimalMark::Comma && self.delimiter == Delimiter::Byte(b',') {
             return problem("a log with a decimal comma needs another delimiter (e.g. semicolon)".into());

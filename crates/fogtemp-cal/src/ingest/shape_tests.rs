@@ -384,3 +384,33 @@ fn date_time_logs_read_as_seconds_from_their_first_row() {
     let backward = "time_s,temp_c,gyro_dph\n2026-11-24 10:00:01,20,1\n2026-11-24 10:00:00,20,1\n";
     assert_eq!(bad_with(backward, &options).kind, BadRowKind::BackwardTime);
 }
+
+#[test]
+fn a_date_column_and_a_time_of_day_column_read_as_one_date_time() {
+    // A spreadsheet export: Date and Time apart, across midnight. Oracle: the same instants
+    // written as one ISO date-time, read with the time unit alone.
+    let split = "Date;Time;temp_c;gyro_dph\n2026-11-24;23:59:59.5;20;1\n2026-11-25;00:00:00.25;20;2\n";
+    let joined = "time_s;temp_c;gyro_dph\n2026-11-24T23:59:59.5;20;1\n2026-11-25T00:00:00.25;20;2\n";
+    let dated = |date_column: Option<&str>, time_column: &str| {
+        with(LogFormat {
+            time_unit: TimeUnit::DateTime,
+            time_column: time_column.into(),
+            date_column: date_column.map(String::from),
+            ..LogFormat::default()
+        })
+    };
+    let got = values(&rows(split, &dated(Some("Date"), "Time")));
+    assert_eq!(got, values(&rows(joined, &dated(None, "time_s"))));
+    assert_eq!(got.iter().map(|r| r.1).collect::<Vec<_>>(), vec![0.0, 0.75]);
+    // A bad pair is reported at the time column with both cells' text.
+    let bad_time = "Date;Time;temp_c;gyro_dph\n2026-11-24;23:59:59.5;20;1\n2026-11-25;0:00:00;20;2\n";
+    let b = bad_with(bad_time, &dated(Some("Date"), "Time"));
+    expect(&b, 3, 2, "Time", "2026-11-25T0:00:00", BadRowKind::NotADateTime);
+    let b = bad_with("Date;Time;temp_c;gyro_dph\n;23:59:59;20;1\n", &dated(Some("Date"), "Time"));
+    expect(&b, 2, 1, "Date", "", BadRowKind::EmptyCell);
+    // A date column without date-times, or with a sample rate, is refused before reading.
+    let format = LogFormat { date_column: Some("Date".into()), ..LogFormat::default() };
+    assert!(format.check(Path::new("x.csv")).unwrap_err().to_string().contains("a date column needs"));
+    let missing = error_of(split, &dated(Some("Day"), "Time"));
+    assert!(matches!(&missing, CalError::MissingColumn { column, .. } if column == "Day"), "{missing}");
+}
