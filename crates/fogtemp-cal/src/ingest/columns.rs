@@ -243,13 +243,14 @@ fn locate_columns(path: &Path, header: Fields<'_>, f: &LogFormat, line: u64) -> 
         Ok((time, date, temps, gyros))
     })();
     let (time, date, temps, gyros) = match located {
-        Err(CalError::MissingColumn { .. }) if line > 0 && looks_like_data(&names, f.decimal_mark) => {
+        Err(CalError::MissingColumn { .. }) if line > 0 && looks_like_data(&names, f) => {
             return Err(CalError::LogFormat {
                 path: path.to_path_buf(),
                 line,
                 problem: format!(
-                    "this line was read as the header but every cell is a number ({}): a log without a \
+                    "this line was read as the header but every cell is a number{} ({}): a log without a \
                      header row needs its column names given, and one without a time column its sample rate",
+                    if f.time_unit == TimeUnit::DateTime { " or a date-time" } else { "" },
                     names.join(", ")
                 ),
             })
@@ -286,9 +287,14 @@ fn similar_names(wanted: &str, names: &[String]) -> Vec<String> {
         .collect()
 }
 
-/// Every cell a number: a data row, not a header.
-fn looks_like_data(names: &[String], decimal: DecimalMark) -> bool {
-    !names.is_empty() && names.iter().all(|n| parse_number(n.as_bytes(), decimal).is_some())
+/// Every cell a number (or, in a log read with date-times, a date-time): a data row, not a
+/// header.
+fn looks_like_data(names: &[String], f: &LogFormat) -> bool {
+    let datum = |n: &String| {
+        parse_number(n.as_bytes(), f.decimal_mark).is_some()
+            || (f.time_unit == TimeUnit::DateTime && super::datetime::parse_datetime(n.as_bytes()).is_some())
+    };
+    !names.is_empty() && names.iter().all(datum)
 }
 
 /// Longest cell a decimal comma is replaced in (longer ones are not numbers this reader

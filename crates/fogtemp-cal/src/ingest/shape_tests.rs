@@ -380,6 +380,12 @@ fn date_time_logs_read_as_seconds_from_their_first_row() {
     let as_numbers = bad(&data);
     assert!(as_numbers.looks_like_datetime() && !as_numbers.looks_like_decimal_comma(), "{as_numbers:?}");
     assert!(!bad("time_s,temp_c,gyro_dph\n0,20,x1\n").looks_like_datetime());
+    // A headerless date-time log read as if it had a header is told so.
+    let headerless = error_of("2026-11-24T10:00:00,20,1\n2026-11-24T10:00:01,20,1\n", &options);
+    assert!(
+        headerless.to_string().contains("read as the header but every cell is a number or a date-time"),
+        "{headerless}"
+    );
     // Backward date-times are refused as backward times.
     let backward = "time_s,temp_c,gyro_dph\n2026-11-24 10:00:01,20,1\n2026-11-24 10:00:00,20,1\n";
     assert_eq!(bad_with(backward, &options).kind, BadRowKind::BackwardTime);
