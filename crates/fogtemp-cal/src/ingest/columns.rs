@@ -399,12 +399,26 @@ fn datetime_cell(plan: &Plan, fields: Fields<'_>, field: usize, line: u64) -> Re
         text => Ok(text),
     };
     let time = required(field)?;
-    let stamp: std::borrow::Cow<'_, [u8]> = match plan.columns.date {
-        Some(date) => [required(date)?, b"T", time].concat().into(),
-        None => time.into(),
+    // `date T time` joined on the stack (no allocation per row); a longer pair is no stamp.
+    let mut joined = [0u8; 2 * MAX_NUMBER_LEN];
+    let stamp: &[u8] = match plan.columns.date {
+        Some(date) => {
+            let date = required(date)?;
+            let len = date.len() + 1 + time.len();
+            match joined.get_mut(..len) {
+                Some(out) => {
+                    out[..date.len()].copy_from_slice(date);
+                    out[date.len()] = b'T';
+                    out[date.len() + 1..].copy_from_slice(time);
+                    out
+                }
+                None => return Err(bad_row(&plan.columns, line, field, time, BadRowKind::NotADateTime)),
+            }
+        }
+        None => time,
     };
-    super::datetime::parse_datetime(&stamp)
-        .ok_or_else(|| bad_row(&plan.columns, line, field, &stamp, BadRowKind::NotADateTime))
+    super::datetime::parse_datetime(stamp)
+        .ok_or_else(|| bad_row(&plan.columns, line, field, stamp, BadRowKind::NotADateTime))
 }
 
 /// Time of data record `index` from the sample rate, seconds.

@@ -107,9 +107,11 @@ impl Cursor<'_> {
         if digits.is_empty() {
             return None;
         }
-        let mut text = b"0.".to_vec();
-        text.extend_from_slice(digits);
-        fast_float2::parse::<f64, _>(&text).ok()
+        // The first 15 digits as an integer over a power of ten: both exact in an f64, so the
+        // quotient is correctly rounded (no allocation per row); later digits are below 1e-15 s.
+        let kept = &digits[..digits.len().min(15)];
+        let numerator = kept.iter().fold(0u64, |v, d| v * 10 + u64::from(d - b'0'));
+        Some(numerator as f64 / 10f64.powi(kept.len() as i32))
     }
 
     /// The zone's offset east of UTC, seconds (0 without a zone).

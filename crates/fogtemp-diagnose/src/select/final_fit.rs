@@ -167,13 +167,9 @@ fn static_shape_peak_to_peak(lo: f64, hi: f64, k: usize, coef: &[f64]) -> f64 {
 /// clear; where noise makes them, the statistic is biased upwards and this error says how
 /// much it moves, not how far it is from the truth.
 fn jackknife_se(values: &[f64]) -> Option<f64> {
-    let g = values.len();
-    if g < 2 || values.iter().any(|v| !v.is_finite()) {
-        return None;
-    }
-    let mean = values.iter().sum::<f64>() / g as f64;
-    let ss: f64 = values.iter().map(|v| (v - mean).powi(2)).sum();
-    Some((ss * (g - 1) as f64 / g as f64).sqrt())
+    let folds: Vec<DVector<f64>> = values.iter().map(|v| DVector::from_element(1, *v)).collect();
+    let variance = jackknife_covariance(&folds)[(0, 0)];
+    variance.is_finite().then(|| variance.max(0.0).sqrt())
 }
 
 /// Each fold's unscaled coefficients of term `term` (the fold fits of `design`).
@@ -394,7 +390,8 @@ pub fn evaluate_final(
     let ys = targets(prep);
     let reported = reported_terms(grids, &selection.chosen);
     let chosen = &reported;
-    let design = build_design(prep, &chosen_parts(chosen));
+    let parts = chosen_parts(chosen);
+    let design = build_design(prep, &parts);
     let eval = fold_eval(&design, &ys)?;
     let heldout = heldout_residuals(&design, &eval, &ys);
     let fitted_resid = residuals(&design, &eval.full_beta, &ys);
@@ -412,14 +409,14 @@ pub fn evaluate_final(
         let d0 = build_design(prep, &chosen_parts(&without));
         let e0 = fold_eval(&d0, &ys)?;
         let h0 = heldout_residuals(&d0, &e0, &ys);
-        let v = term_contribution(&design, &eval.full_beta, &chosen_parts(chosen), i);
+        let v = term_contribution(&design, &eval.full_beta, &parts, i);
         let material = material_runs(&v, prep.noise_sigma_dph);
         let (improved, informative) = fold_counts(&e0.fold_sse, &eval.fold_sse, &material);
         let before = pooled_rms(&h0);
         let grid =
             grids.iter().find(|g| g.effect == c.effect).ok_or(DiagnoseError::Fit("effect grid missing"))?;
         let cols = &c.columns;
-        let fold_coef = term_fold_coefficients(&design, &eval.fold_beta, &chosen_parts(chosen), i);
+        let fold_coef = term_fold_coefficients(&design, &eval.fold_beta, &parts, i);
         let parameters =
             parameters_of(prep, grid, cols, &fitted.coef[i], &fitted.se[i], &fitted.theta_se[i], &fold_coef);
         let improvement = 1.0 - rms_after / before;
