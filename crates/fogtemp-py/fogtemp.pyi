@@ -115,7 +115,9 @@ def validate(
     **options: Any,
 ) -> Dict[str, Any]:
     """The ``fogtemp-cal validate --json`` document: raw vs compensated bias stability.
-    Options: tau_s, overlapping, detrend, exclude_first_s, capacity, compare, log-column options."""
+    Options: tau_s, overlapping, detrend, exclude_first_s, capacity, compare, log-column options.
+    Gaps in a log's time stamps longer than the model's max gap raise a UserWarning
+    (``runs[].time_gaps``; the metric's windows they cut: ``runs[].metric_windows``)."""
 
 def allan(log: Union[PathLike, Run], *, progress: bool = True, **options: Any) -> Dict[str, Any]:
     """The ``fogtemp-cal allan --json`` document: overlapping Allan deviation, N, B, K."""

@@ -12,7 +12,7 @@ use crate::error::CalError;
 use crate::features::{smoothed_gyro_dph, AxisFeatureStream, FeaturePoint, CAL_CAPACITY};
 use crate::ingest::{read_from, read_log_with_progress, IngestOptions, IngestReport, Row};
 use crate::mesh::{build_mesh, MeshPoint};
-use crate::metrics::{bias_stability, rms_over_runs, BiasStabilityOptions};
+use crate::metrics::{bias_stability, rms_over_runs, window_means, BiasStabilityOptions};
 use crate::poly_fit::{fit_poly, PolyFit, TermSelection};
 use crate::selection::{Selection, SelectionOptions};
 use crate::thin::{thin_greedy, thin_paper, GreedyThinning};
@@ -229,10 +229,15 @@ impl TimeGaps {
     /// What a technician is told about the gaps of the log `path` (`None` without gaps): the
     /// command line's `note:` and Python's warning.
     pub fn note(&self, path: &Path) -> Option<String> {
+        self.note_then(path, "features restart after each")
+    }
+
+    /// The note of [`Self::note`] ending in `consequence` (what the gaps did).
+    pub fn note_then(&self, path: &Path, consequence: &str) -> Option<String> {
         (self.count > 0).then(|| {
             format!(
                 "{}: {} gap{} in the time stamps longer than the tracker's max gap of {} s, {:.0} s in all, \
-                 the longest {:.0} s before line {}; features restart after each",
+                 the longest {:.0} s before line {}; {consequence}",
                 path.display(),
                 self.count,
                 if self.count == 1 { "" } else { "s" },
@@ -244,12 +249,13 @@ impl TimeGaps {
         })
     }
 
-    fn new(longer_than_s: f64) -> Self {
+    /// No gaps yet; steps longer than `longer_than_s` will count.
+    pub fn new(longer_than_s: f64) -> Self {
         Self { longer_than_s, ..Self::default() }
     }
 
     /// Counts the step from `previous_s` to the row at `time_s` on `line`.
-    fn observe(&mut self, previous_s: Option<f64>, time_s: f64, line: u64) {
+    pub fn observe(&mut self, previous_s: Option<f64>, time_s: f64, line: u64) {
         let Some(step) = previous_s.map(|p| time_s - p) else { return };
         if step > self.longer_than_s {
             self.count += 1;
@@ -868,6 +874,9 @@ pub struct ReplaySeries {
     /// Time of the first sample the compensator corrected (its tracker's start-up is over),
     /// seconds; NaN if it never did.
     pub compensating_from_s: f64,
+    /// Steps between rows longer than the compensator's `max_gap_s`: after each its tracker
+    /// started again and the bias was held until it had features.
+    pub gaps: TimeGaps,
 }
 
 impl ReplaySeries {
@@ -892,17 +901,27 @@ struct Replayer<'m> {
     acc: (u64, f64, f64, f64, i64),
     /// Samples in the fullest block closed so far.
     fullest_block: u64,
+    /// The time of the previous row, seconds.
+    previous_s: Option<f64>,
 }
 
 impl<'m> Replayer<'m> {
     fn new(path: &Path, model: &'m Model<'_>, axis: usize, block_s: f64) -> Result<Self, CalError> {
         let comp = Compensator::new(model, axis)
             .map_err(|source| CalError::Model { path: path.to_path_buf(), source })?;
-        let series = ReplaySeries { compensating_from_s: f64::NAN, ..ReplaySeries::default() };
-        Ok(Self { comp, axis, block_s, series, acc: (0, 0.0, 0.0, 0.0, 0), fullest_block: 0 })
+        let max_gap_s = comp.tracker().max_gap_us() as f64 * 1e-6;
+        let series = ReplaySeries {
+            compensating_from_s: f64::NAN,
+            gaps: TimeGaps::new(max_gap_s),
+            ..ReplaySeries::default()
+        };
+        let acc = (0, 0.0, 0.0, 0.0, 0);
+        Ok(Self { comp, axis, block_s, series, acc, fullest_block: 0, previous_s: None })
     }
 
     fn step(&mut self, row: &crate::ingest::Row<'_>) {
+        self.series.gaps.observe(self.previous_s, row.time_s, row.line);
+        self.previous_s = Some(row.time_s);
         let temp = row.temp_c_for_axis(self.axis);
         let raw = row.gyros_dph[self.axis];
         let out = self.comp.step(row.time_us(), raw as f32, temp.is_finite().then_some(temp as f32));
@@ -1034,6 +1053,50 @@ pub struct RunValidation {
     pub series: ReplaySeries,
     /// What ingest saw (rows, skipped rows and where).
     pub ingest: IngestReport,
+    /// The averaging windows of the metric: how many it used and how many it left out
+    /// because a gap or the run's end cut them short ([`crate::metrics::window_means`]).
+    pub windows: MetricWindows,
+}
+
+impl RunValidation {
+    /// What a technician is told about the gaps in this run's time stamps (`None` without
+    /// gaps): the command line's `note:` and Python's warning.
+    pub fn gap_note(&self) -> Option<String> {
+        let w = self.windows;
+        let consequence = format!(
+            "after each the compensator held its bias until its tracker had features again; \
+             {} of the metric's {} averaging windows were cut short (by a gap or the run's end) and left out",
+            w.left_out,
+            w.used + w.left_out
+        );
+        self.series.gaps.note_then(&self.path, &consequence)
+    }
+}
+
+/// The gap notes of `runs`, one per log and distinct gaps (the axes of one log usually
+/// share them).
+pub fn gap_notes(runs: &[RunValidation]) -> Vec<String> {
+    let mut seen: Vec<(&Path, TimeGaps)> = Vec::new();
+    let mut notes = Vec::new();
+    for r in runs {
+        let key = (r.path.as_path(), r.series.gaps);
+        if seen.contains(&key) {
+            continue;
+        }
+        seen.push(key);
+        notes.extend(r.gap_note());
+    }
+    notes
+}
+
+/// The averaging windows behind one run's bias stability.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct MetricWindows {
+    /// Windows whose means the metric used.
+    pub used: usize,
+    /// Windows left out: cut short by a gap in the time stamps or by the run's end (most
+    /// runs end inside a window, so 1 is usual).
+    pub left_out: usize,
 }
 
 /// One model's validation: per run and axis, and overall (RMS over runs and axes).
@@ -1119,7 +1182,11 @@ pub(crate) fn validations(
                 let times = series.time_s.get(from..).unwrap_or_default();
                 let stability =
                     |values: &[f64]| bias_stability(times, values.get(from..).unwrap_or_default(), options);
+                let (used, left_out) =
+                    window_means(times, series.compensated_dph.get(from..).unwrap_or_default(), options);
+                let windows = MetricWindows { used: used.len(), left_out };
                 model_runs.push(RunValidation {
+                    windows,
                     path: path.clone(),
                     axis,
                     raw_bias_stability_dph: stability(&series.raw_dph),

@@ -225,6 +225,21 @@ pub struct RunValidationDocument {
     pub flag_samples: FlagSamples,
     /// Rows skipped while reading the log.
     pub skipped_rows: u64,
+    /// Gaps in the log's time stamps longer than the compensator's `max_gap_s`.
+    pub time_gaps: TimeGapsDocument,
+    /// The averaging windows of the metric: used, and left out because a gap or the run's
+    /// end cut them short.
+    pub metric_windows: MetricWindowsDocument,
+}
+
+/// The averaging windows behind one run's bias stability (`validate --json`:
+/// `runs[].metric_windows`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+pub struct MetricWindowsDocument {
+    /// Windows whose means the metric used.
+    pub used: usize,
+    /// Windows cut short by a gap in the time stamps or by the run's end.
+    pub left_out: usize,
 }
 
 impl RunValidationDocument {
@@ -238,6 +253,8 @@ impl RunValidationDocument {
             samples: r.series.samples,
             flag_samples: FlagSamples::new(&r.series.flag_counts),
             skipped_rows: r.ingest.skipped,
+            time_gaps: TimeGapsDocument::new(&r.series.gaps),
+            metric_windows: MetricWindowsDocument { used: r.windows.used, left_out: r.windows.left_out },
         }
     }
 }

@@ -382,7 +382,7 @@ fn date_time_logs_fit_the_same_model_as_their_seconds_twins() {
 }
 
 #[test]
-fn gaps_in_the_time_stamps_are_reported_by_fit() {
+fn gaps_in_the_time_stamps_are_reported_by_fit_validate_and_compensate() {
     // Three 1 Hz warm-ups; the first loses 60 s of rows after its 1000th (rows 1000..1059
     // missing, so the step before line 1002 is 61 s).
     let dir = tempfile::tempdir().unwrap();
@@ -413,4 +413,51 @@ fn gaps_in_the_time_stamps_are_reported_by_fit() {
         "{stderr}"
     );
     assert!(!stderr.contains("run1.csv: "), "{stderr}");
+
+    // validate replays the same logs: the gap is counted against the model's max gap, the
+    // compensator restarts after it, and the metric's windows it cuts are counted.
+    let mut args = vec!["validate", "--json", "--model", s(&model)];
+    args.extend(logs.iter().map(|p| s(p)));
+    let (doc, stderr) = ok_json(&args);
+    let runs = doc["runs"].as_array().unwrap();
+    assert_eq!(runs[0]["time_gaps"], gaps[0].clone(), "{doc}");
+    assert_eq!(runs[1]["time_gaps"]["count"], 0, "{doc}");
+    // The closed form: 1 s blocks, features after 10 blocks, so WARMING_UP for 10 samples
+    // after the start and again after the gap. The metric's 100 s windows start at the
+    // first compensated block (centre 10.5 s): 3590 blocks make 35 full windows and a last
+    // one of 90 blocks (90 % of the fullest: used). The gap takes blocks 1000..1059: the
+    // window from 910.5 s keeps 90 blocks (used), the one from 1010.5 s keeps 50 (left out).
+    assert_eq!(
+        (runs[0]["flag_samples"]["warming_up"].as_u64(), runs[1]["flag_samples"]["warming_up"].as_u64()),
+        (Some(20), Some(10))
+    );
+    let windows =
+        |r: &Value| (r["metric_windows"]["used"].as_u64(), r["metric_windows"]["left_out"].as_u64());
+    assert_eq!((windows(&runs[0]), windows(&runs[1])), ((Some(35), Some(1)), (Some(36), Some(0))), "{doc}");
+    assert!(
+        stderr.contains(
+            "run0.csv: 1 gap in the time stamps longer than the tracker's max gap of 5 s, 61 s in all"
+        ) && stderr.contains("1 of the metric's 36 averaging windows were cut short"),
+        "{stderr}"
+    );
+    assert!(!stderr.contains("run1.csv: "), "{stderr}");
+
+    // compensate says it too; its output shows the restart in the flags.
+    let out_csv = dir.path().join("comp.csv");
+    let out = run(&["compensate", "--model", s(&model), "--out", s(&out_csv), s(&logs[0])]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("run0.csv: 1 gap in the time stamps") && stderr.contains("flag WARMING_UP"),
+        "{stderr}"
+    );
+    let written = std::fs::read_to_string(&out_csv).unwrap();
+    let warming: Vec<&str> = written
+        .lines()
+        .skip(1)
+        .filter(|l| l.rsplit(',').next().is_some_and(|f| f.parse::<u8>().unwrap() & 1 == 1))
+        .map(|l| l.split(',').next().unwrap())
+        .collect();
+    assert_eq!(warming.len(), 20);
+    assert_eq!((warming[0], warming[10]), ("0", "1060"));
 }

@@ -506,6 +506,9 @@ pub fn validate<'py>(
         }
         warn_skipped(py, &r.ingest)?;
     }
+    for note in calibrate::gap_notes(&validation.runs) {
+        progress::warn(py, &note)?;
+    }
     let comparison = if compare.is_empty() {
         Vec::new()
     } else {

@@ -105,7 +105,7 @@ def test_date_time_logs_read_with_time_unit_datetime_and_a_hint_without(tmp_path
     np.testing.assert_allclose(both["time_s"], [0.0, 0.75], atol=5e-7, rtol=0)
 
 
-def test_gaps_in_the_time_stamps_are_warned_about_by_fit(tmp_path):
+def test_gaps_in_the_time_stamps_are_warned_about_by_fit_and_validate(tmp_path):
     # Three 1 Hz warm-ups; the first loses rows 1000..1059, a step of 61 s before line 1002.
     logs = []
     for i, start in enumerate([0.0, 20.0, 40.0]):
@@ -118,6 +118,14 @@ def test_gaps_in_the_time_stamps_are_warned_about_by_fit(tmp_path):
         model = fogtemp.fit(logs, method="poly", progress=False)
     gaps = [r["time_gaps"]["count"] for r in model.fit_report["runs"]]
     assert gaps == [1, 0, 0]
+    # validate: the same gap against the model's max gap; the metric's 100 s windows start
+    # at the first compensated 1 s block (10.5 s), and the gap leaves 50 blocks in the
+    # window from 1010.5 s (left out; the closed form is in the command line's test).
+    with pytest.warns(UserWarning, match=r"run0.csv: 1 gap .* 1 of the metric's 36 averaging windows"):
+        doc = fogtemp.validate(model, logs, progress=False)
+    windows = [(r["metric_windows"]["used"], r["metric_windows"]["left_out"]) for r in doc["runs"]]
+    assert windows == [(35, 1), (36, 0), (36, 0)]
+    assert [r["time_gaps"]["largest_s"] for r in doc["runs"]] == [61.0, 0.0, 0.0]
 
 
 def test_missing_column_and_header_only(tmp_path):

@@ -267,6 +267,7 @@ mod tests {
             compensated_bias_stability_dph: comp,
             series: ReplaySeries::default(),
             ingest: crate::ingest::IngestReport::default(),
+            windows: crate::calibrate::MetricWindows::default(),
         }
     }
 

@@ -64,15 +64,17 @@ pub fn plot_drift(
         let top_layout = PanelLayout { margin_right: 20, ..PanelLayout::default() };
         let mut chart = time_panel_with(&top, path, t_max_min, temp_range, "temperature, deg C", top_layout)?;
         for (i, run) in runs.iter().enumerate() {
-            let series = run
-                .time_s
-                .iter()
-                .zip(&run.temp_c)
-                .filter(|(_, v)| v.is_finite())
-                .map(|(t, v)| (t / 60.0, *v));
-            chart
-                .draw_series(LineSeries::new(series, run_colour(i).stroke_width(2)))
-                .map_err(|e| plot_err(path, e))?;
+            // Broken where the tracker had no temperature (its restart after a gap in the
+            // log) or no block for 10 blocks' time (the gap itself; a block left empty by
+            // a sample on its edge is no break).
+            let points: Vec<(f64, f64)> =
+                run.time_s.iter().zip(&run.temp_c).map(|(t, v)| (t / 60.0, *v)).collect();
+            let max_step_min = 10.0 * smallest_step(&points);
+            for segment in unbroken_segments(&points, max_step_min) {
+                chart
+                    .draw_series(LineSeries::new(segment.iter().copied(), run_colour(i).stroke_width(2)))
+                    .map_err(|e| plot_err(path, e))?;
+            }
         }
         draw_run_legend(&legend, path, runs.iter().map(|r| r.name.as_str()))?;
 
@@ -95,9 +97,12 @@ pub fn plot_drift(
                 let points: Vec<(f64, f64)> =
                     m.time_s.iter().zip(&m.deviation_dph).map(|(t, v)| (t / 60.0, *v)).collect();
                 let colour = run_colour(i);
-                chart
-                    .draw_series(LineSeries::new(points.iter().copied(), colour.stroke_width(2)))
-                    .map_err(|e| plot_err(path, e))?;
+                // A window a gap left out is a break in the line, not a straight join.
+                for segment in unbroken_segments(&points, 1.5 * tau_s / 60.0) {
+                    chart
+                        .draw_series(LineSeries::new(segment.iter().copied(), colour.stroke_width(2)))
+                        .map_err(|e| plot_err(path, e))?;
+                }
                 chart
                     .draw_series(points.iter().map(|p| Circle::new(*p, 2, colour.filled())))
                     .map_err(|e| plot_err(path, e))?;
@@ -105,6 +110,33 @@ pub fn plot_drift(
         }
         root.present().map_err(|e| plot_err(path, e))
     })
+}
+
+/// The smallest positive step between consecutive x of `points` (infinite with none).
+fn smallest_step(points: &[(f64, f64)]) -> f64 {
+    points.windows(2).map(|w| w[1].0 - w[0].0).filter(|d| *d > 0.0).fold(f64::INFINITY, f64::min)
+}
+
+/// The runs of `points` with finite y and no step in x longer than `max_step`: the pieces
+/// of a line that a gap or a missing value breaks.
+fn unbroken_segments(points: &[(f64, f64)], max_step: f64) -> Vec<&[(f64, f64)]> {
+    let mut segments = Vec::new();
+    let mut start = 0;
+    for i in 0..=points.len() {
+        let breaks_here = match (points.get(i), i.checked_sub(1).and_then(|j| points.get(j))) {
+            (None, _) => true,
+            (Some(p), _) if !p.1.is_finite() => true,
+            (Some(p), Some(q)) => p.0 - q.0 > max_step,
+            (Some(_), None) => false,
+        };
+        if breaks_here {
+            if i > start {
+                segments.push(&points[start..i]);
+            }
+            start = if points.get(i).is_some_and(|p| !p.1.is_finite()) { i + 1 } else { i };
+        }
+    }
+    segments
 }
 
 /// Per-run before/after bars: raw (grey) beside compensated (blue) bias stability for each
@@ -217,4 +249,34 @@ pub fn plot_grouped_bars(
         draw_legend_at(&mut chart, path, SeriesLabelPosition::UpperLeft)?;
         root.present().map_err(|e| plot_err(path, e))
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn lines_break_at_missing_values_and_long_steps() {
+        let nan = f64::NAN;
+        // Steps of 1, a missing value at x = 3, then a step of 5 between 6 and 11.
+        let p = [
+            (0.0, 1.0),
+            (1.0, 2.0),
+            (2.0, 3.0),
+            (3.0, nan),
+            (4.0, 1.0),
+            (5.0, 1.0),
+            (6.0, 1.0),
+            (11.0, 2.0),
+            (12.0, 2.0),
+        ];
+        assert_eq!(smallest_step(&p), 1.0);
+        let segments = unbroken_segments(&p, 1.5);
+        let xs: Vec<Vec<f64>> = segments.iter().map(|s| s.iter().map(|q| q.0).collect()).collect();
+        assert_eq!(xs, vec![vec![0.0, 1.0, 2.0], vec![4.0, 5.0, 6.0], vec![11.0, 12.0]]);
+        // Nothing to break: one segment; nothing finite: none.
+        assert_eq!(unbroken_segments(&p[..3], 1.5).len(), 1);
+        assert!(unbroken_segments(&[(0.0, nan), (1.0, nan)], 1.5).is_empty());
+        assert!(unbroken_segments(&[], 1.5).is_empty());
+    }
 }

@@ -547,6 +547,21 @@ pub fn write_validation_report_with(
         overall.1,
         overall.0 / overall.1
     ));
+    let gap_notes = crate::calibrate::gap_notes(runs);
+    if !gap_notes.is_empty() {
+        md.push_str(
+            "Gaps in the time stamps (the drift figure shows them as breaks):
+
+",
+        );
+        for note in gap_notes {
+            md.push_str(&format!(
+                "- {note}
+"
+            ));
+        }
+        md.push('\n');
+    }
     for axis in 0..model.axis_count() {
         let axis_runs: Vec<&crate::calibrate::RunValidation> =
             runs.iter().filter(|r| r.axis == axis).collect();

@@ -1,6 +1,7 @@
 //! `compensate`: one log replayed through the model, as CSV.
 
 use anyhow::{bail, Result};
+use fogtemp_cal::calibrate::TimeGaps;
 use fogtemp_core::{Compensator, Model};
 
 use super::{check_capacity, ingest_options, read_model, report_skipped};
@@ -17,6 +18,10 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
         .map(|i| Compensator::new(&model, i))
         .collect::<Result<_, _>>()
         .map_err(|e| anyhow::anyhow!("{}: {e}", a.model.display()))?;
+    // Gaps as the first axis's tracker sees them (the axes of one model share their settings).
+    let max_gap_s = comps.first().map_or(f64::INFINITY, |c| c.tracker().max_gap_us() as f64 * 1e-6);
+    let mut gaps = TimeGaps::new(max_gap_s);
+    let mut previous_s = None;
     let bar = RowProgress::new(&a.log, "compensate");
     let mut report = None;
     write_atomic(&a.out, |w| {
@@ -34,6 +39,8 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
             &a.log,
             &ingest,
             |row| {
+                gaps.observe(previous_s, row.time_s, row.line);
+                previous_s = Some(row.time_s);
                 record.clear();
                 record.push(format!("{}", row.time_s));
                 let time_us = row.time_us();
@@ -63,6 +70,11 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
     bar.finish_and_clear();
     if let Some(r) = &report {
         report_skipped(r);
+        let consequence = "after each the compensator held its bias until its tracker had features again \
+                           (flag WARMING_UP in the output, then PARTIAL_WINDOW until its window is full again)";
+        if let Some(note) = gaps.note_then(&a.log, consequence) {
+            eprintln!("note: {note}");
+        }
         println!("wrote {} ({} rows, {} axes)", a.out.display(), r.rows, axes);
     }
     Ok(())

@@ -60,6 +60,9 @@ pub fn validate(a: ValidateArgs) -> Result<()> {
         }
         report_skipped(&r.ingest);
     }
+    for note in calibrate::gap_notes(runs) {
+        eprintln!("note: {note}");
+    }
     let comparison = compare_models(&a, &models, &validation, &compared);
     if let Some(dir) = &a.report {
         fogtemp_cal::report::write_validation_report_with(
