@@ -290,12 +290,22 @@ pub fn temperature(prep: &Prepared, options: &DiagnoseOptions) -> TemperatureCom
         }
         s
     } else {
-        format!(
-            "recorded and simulated temperature agree within {:.2} C RMS in every run (largest {worst:.3} C)",
-            options.temp_tolerance_c
-        )
+        agreement_statement(worst, options.temp_tolerance_c)
     };
     TemperatureComparison { runs, mismatch, statement }
+}
+
+/// The statement when recorded and simulated temperature agree: the largest RMS difference
+/// over runs in digits that show it (a simulation fed the recorded temperature has none).
+fn agreement_statement(worst_c: f64, tolerance_c: f64) -> String {
+    let within = format!("recorded and simulated temperature agree within {tolerance_c:.2} C RMS in every run");
+    if worst_c == 0.0 {
+        format!("{within} (identical)")
+    } else if worst_c < 1e-3 {
+        format!("{within} (largest {worst_c:.1e} C)")
+    } else {
+        format!("{within} (largest {worst_c:.3} C)")
+    }
 }
 
 fn temperature_run(run: &RunData) -> TemperatureRun {
@@ -666,6 +676,14 @@ pub fn assemble(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn agreement_shows_the_largest_difference_in_digits_that_show_it() {
+        let head = "recorded and simulated temperature agree within 0.05 C RMS in every run";
+        assert_eq!(agreement_statement(0.0, 0.05), format!("{head} (identical)"));
+        assert_eq!(agreement_statement(2.5e-4, 0.05), format!("{head} (largest 2.5e-4 C)"));
+        assert_eq!(agreement_statement(0.0123, 0.05), format!("{head} (largest 0.012 C)"));
+    }
 
     fn span(run: &str, z: f64) -> SpanFinding {
         SpanFinding {
