@@ -298,7 +298,8 @@ pub fn temperature(prep: &Prepared, options: &DiagnoseOptions) -> TemperatureCom
 /// The statement when recorded and simulated temperature agree: the largest RMS difference
 /// over runs in digits that show it (a simulation fed the recorded temperature has none).
 fn agreement_statement(worst_c: f64, tolerance_c: f64) -> String {
-    let within = format!("recorded and simulated temperature agree within {tolerance_c:.2} C RMS in every run");
+    let within =
+        format!("recorded and simulated temperature agree within {tolerance_c:.2} C RMS in every run");
     if worst_c == 0.0 {
         format!("{within} (identical)")
     } else if worst_c < 1e-3 {

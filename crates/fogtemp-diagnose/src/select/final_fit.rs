@@ -341,13 +341,20 @@ struct HeldOutFigures {
 
 impl HeldOutFigures {
     fn text(&self) -> String {
+        let runs = if self.informative == 0 {
+            // "improved in 0 of 0" reads as a failure; it means the term is small in every run.
+            format!(
+                "in no run large enough to judge (its contribution below {} x the noise of one short mean in every run)",
+                super::rules::MATERIAL_FRACTION
+            )
+        } else {
+            format!("improved in {} of {} informative runs", self.improved, self.informative)
+        };
         format!(
-            "held-out residual RMS {:.5} -> {:.5} deg/h ({:+.1} %), improved in {} of {} informative runs",
+            "held-out residual RMS {:.5} -> {:.5} deg/h ({:+.1} %), {runs}",
             self.before_dph,
             self.after_dph,
             100.0 * (self.after_dph / self.before_dph - 1.0),
-            self.improved,
-            self.informative
         )
     }
 }
@@ -542,6 +549,12 @@ mod tests {
             "accepted by the noise-model GLS test (smallest Wald p 1.0e-14, family-wise p 1.2e-3), not by the run-level rules"
         );
         // 0.01099 -> 0.01126 deg/h is +2.46 % by hand.
+        let none = HeldOutFigures { before_dph: 0.01210, after_dph: 0.01208, improved: 0, informative: 0 };
+        assert_eq!(
+            none.text(),
+            "held-out residual RMS 0.01210 -> 0.01208 deg/h (-0.2 %), in no run large enough to judge \
+             (its contribution below 0.25 x the noise of one short mean in every run)"
+        );
         let figures =
             HeldOutFigures { before_dph: 0.01099, after_dph: 0.01126, improved: 7, informative: 10 };
         let unweighted =
