@@ -15,8 +15,8 @@ use fogtemp_cal::metrics::AllanPoint;
 use fogtemp_cal::output::write_file_atomic;
 
 use fogtemp_cal::report::{
-    draw_legend, draw_legend_at, finite_range as range, plot_err as io_err, run_colour as colour, tick,
-    time_panel, write_svg,
+    draw_legend_at, finite_range as range, plot_err as io_err, run_colour as colour, tick, write_svg,
+    RAW_GREY,
 };
 
 /// Blue (negative) to red (positive) through white, for `t` in [-1, 1].
@@ -24,37 +24,114 @@ fn diverging(t: f64) -> RGBColor {
     fogtemp_cal::report::diverging((t.clamp(-1.0, 1.0) + 1.0) / 2.0)
 }
 
-/// Selects one series of a run trace.
-type PickTrace = fn(&super::RunTraceOut) -> &Vec<f64>;
+/// Means of the residual over this many seconds in the residual figure: short means are
+/// dominated by white noise at the sizes the diagnosis works at (an effect of a few percent
+/// of their RMS); 5 min means cut that noise by sqrt(300 / mean window) and keep a warm-up's
+/// shape.
+const FIGURE_MEAN_S: f64 = 300.0;
 
-/// Residual short means against time, one line per run: before (offset only, held-out)
-/// and after (final model, held-out), on one scale.
+/// Means of `values` over consecutive `window_s` windows of `time_s` (from 0), each at its
+/// window's mean time; a window counts if it holds at least 90 % of the finite values of the
+/// fullest (as the bias stability's windows), so the one cut by the run's end is left out.
+fn window_means(time_s: &[f64], values: &[f64], window_s: f64) -> Vec<(f64, f64)> {
+    let mut sums: Vec<(f64, f64, usize)> = Vec::new();
+    for (&t, &v) in time_s.iter().zip(values) {
+        if !t.is_finite() || !v.is_finite() || t < 0.0 {
+            continue;
+        }
+        let k = (t / window_s) as usize;
+        if sums.len() <= k {
+            sums.resize(k + 1, (0.0, 0.0, 0));
+        }
+        sums[k] = (sums[k].0 + t, sums[k].1 + v, sums[k].2 + 1);
+    }
+    let fullest = sums.iter().map(|w| w.2).max().unwrap_or(0);
+    let threshold = ((fullest as f64 * 0.9).ceil() as usize).max(1);
+    sums.into_iter().filter(|w| w.2 >= threshold).map(|(t, v, n)| (t / n as f64, v / n as f64)).collect()
+}
+
+/// What the residual figure draws for one run: the residual (offset only) in
+/// [`FIGURE_MEAN_S`] means, and the final model's held-out prediction (before - after) at
+/// every short mean, both in minutes and deg/h.
+struct ResidualPanel<'a> {
+    run: &'a str,
+    residual_means: Vec<(f64, f64)>,
+    prediction: Vec<(f64, f64)>,
+}
+
+impl<'a> ResidualPanel<'a> {
+    fn new(t: &'a super::RunTraceOut) -> Self {
+        let residual_means = window_means(&t.time_s, &t.before_dph, FIGURE_MEAN_S)
+            .into_iter()
+            .map(|(x, v)| (x / 60.0, v))
+            .collect();
+        let prediction = t
+            .time_s
+            .iter()
+            .zip(t.before_dph.iter().zip(&t.after_dph))
+            .map(|(x, (b, a))| (x / 60.0, b - a))
+            .filter(|(_, v)| v.is_finite())
+            .collect();
+        Self { run: &t.run, residual_means, prediction }
+    }
+}
+
+/// The residual per run, one small panel each on one shared scale: dots are the residual
+/// (recorded - simulated, global offset removed) in 5 min means, the line is what the final
+/// model predicts for the run when it is left out of the fit. Where the dots follow the line
+/// the named terms explain the mismatch; where they stray, structure remains.
 fn plot_residuals(path: &Path, d: &Diagnosis) -> Result<(), CalError> {
-    write_svg(path, (1100, 720), |root| {
+    let panels: Vec<ResidualPanel<'_>> = d.traces.iter().map(ResidualPanel::new).collect();
+    let columns = match panels.len() {
+        0..=8 => 4,
+        9..=25 => 5,
+        _ => 6,
+    };
+    let rows = panels.len().div_ceil(columns).max(1);
+    let t_max = d.traces.iter().flat_map(|t| t.time_s.last().copied()).fold(1.0, f64::max) / 60.0;
+    let half = panels
+        .iter()
+        .flat_map(|p| p.residual_means.iter().chain(&p.prediction).map(|q| q.1.abs()))
+        .filter(|v| v.is_finite())
+        .fold(0.0f64, f64::max);
+    let half = if half > 0.0 { half * 1.1 } else { 1.0 };
+    write_svg(path, (1200, 70 + 190 * rows as u32), |root| {
         root.fill(&WHITE).map_err(|e| io_err(path, e))?;
-        let root = root
-            .titled("Residual (recorded - simulated), held-out short means", ("sans-serif", 22))
-            .map_err(|e| io_err(path, e))?;
-        let areas = root.split_evenly((2, 1));
-        let t_max = d.traces.iter().flat_map(|t| t.time_s.last().copied()).fold(1.0, f64::max) / 60.0;
-        let y = range(d.traces.iter().flat_map(|t| t.before_dph.iter().chain(&t.after_dph).copied()));
-        let panels: [(&str, PickTrace); 2] = [
-            ("before: global offset only, deg/h", |t| &t.before_dph),
-            ("after: final model, deg/h", |t| &t.after_dph),
-        ];
-        for (area, (label, pick)) in areas.iter().zip(panels) {
-            let mut chart = time_panel(area, path, t_max, y, label)?;
-            for (i, t) in d.traces.iter().enumerate() {
-                let series = t.time_s.iter().zip(pick(t)).map(|(x, v)| (x / 60.0, *v));
-                chart
-                    .draw_series(LineSeries::new(series, colour(i)))
-                    .map_err(|e| io_err(path, e))?
-                    .label(t.run.clone())
-                    .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], colour(i)));
-            }
-            if d.traces.len() <= 12 {
-                draw_legend(&mut chart, path)?;
-            }
+        let (head, body) = root.split_vertically(70);
+        let title = "Residual per run: recorded - simulated in 5 min means (dots), the final model's held-out prediction (line)";
+        head.draw(&Text::new(title, (20, 12), ("sans-serif", 20))).map_err(|e| io_err(path, e))?;
+        let note = "global offset removed; one scale for every run, deg/h against minutes since power-on";
+        head.draw(&Text::new(note, (20, 42), ("sans-serif", 14))).map_err(|e| io_err(path, e))?;
+        for (area, panel) in body.split_evenly((rows, columns)).iter().zip(&panels) {
+            let mut chart = ChartBuilder::on(area)
+                .caption(panel.run, ("sans-serif", 13))
+                .margin(6)
+                .x_label_area_size(20)
+                .y_label_area_size(52)
+                .build_cartesian_2d(0.0..t_max, -half..half)
+                .map_err(|e| io_err(path, e))?;
+            chart
+                .configure_mesh()
+                .x_labels(4)
+                .y_labels(5)
+                .x_label_formatter(&tick)
+                .y_label_formatter(&tick)
+                .label_style(("sans-serif", 10))
+                .light_line_style(WHITE)
+                .draw()
+                .map_err(|e| io_err(path, e))?;
+            chart
+                .draw_series(std::iter::once(PathElement::new(
+                    vec![(0.0, 0.0), (t_max, 0.0)],
+                    BLACK.mix(0.4),
+                )))
+                .map_err(|e| io_err(path, e))?;
+            chart
+                .draw_series(panel.residual_means.iter().map(|p| Circle::new(*p, 2, RAW_GREY.filled())))
+                .map_err(|e| io_err(path, e))?;
+            chart
+                .draw_series(LineSeries::new(panel.prediction.iter().copied(), colour(0).stroke_width(2)))
+                .map_err(|e| io_err(path, e))?;
         }
         root.present().map_err(|e| io_err(path, e))
     })
@@ -290,7 +367,10 @@ fn markdown(d: &Diagnosis, figures: OptionalFigures) -> String {
         d.global_offset.value,
         opt(d.global_offset.std_error)
     );
-    let _ = writeln!(md, "![residuals](residuals.svg)\n\n## Forward selection\n");
+    let _ = writeln!(
+        md,
+        "![Residual per run in 5 min means (dots) and the final model's held-out prediction (line)](residuals.svg)\n\n## Forward selection\n"
+    );
     for (i, step) in d.selection.iter().enumerate() {
         let _ = writeln!(
             md,
@@ -464,4 +544,25 @@ pub fn write_diagnosis_report(dir: &Path, d: &Diagnosis) -> Result<(), DiagnoseE
     let path = dir.join("report.md");
     write_file_atomic(&path, |w| w.write_all(markdown(d, figures).as_bytes()))?;
     Ok(fogtemp_cal::report::write_html_beside(&path)?)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn figure_means_are_whole_windows_at_their_mean_time() {
+        // 20 s short means at 10, 30, ..., 690 s with value = index: window 0 (0..300 s)
+        // holds indices 0..14 (mean 7, time 150 s), window 1 indices 15..29 (mean 22, time
+        // 450 s), window 2 five values (600..700 s, under 90 % of 15: left out). A NaN is
+        // skipped and the window still holds 14 of 15 values (93 %).
+        let time_s: Vec<f64> = (0..35).map(|k| 10.0 + 20.0 * f64::from(k)).collect();
+        let mut values: Vec<f64> = (0..35).map(f64::from).collect();
+        assert_eq!(window_means(&time_s, &values, 300.0), vec![(150.0, 7.0), (450.0, 22.0)]);
+        values[0] = f64::NAN;
+        let means = window_means(&time_s, &values, 300.0);
+        assert_eq!(means.len(), 2);
+        assert!((means[0].0 - 160.0).abs() < 1e-12 && (means[0].1 - 7.5).abs() < 1e-12, "{means:?}");
+        assert!(window_means(&[], &[], 300.0).is_empty());
+    }
 }
