@@ -398,9 +398,20 @@ fn gaps_in_the_time_stamps_are_reported_by_fit_validate_and_compensate() {
         logs.push(path);
     }
     let model = dir.path().join("m.fogm");
-    let mut args = vec!["fit", "--method", "poly", "--json", "--out", s(&model)];
+    let fit_report = dir.path().join("fit-report");
+    let mut args = vec!["fit", "--method", "poly", "--json", "--out", s(&model), "--report", s(&fit_report)];
     args.extend(logs.iter().map(|p| s(p)));
     let (doc, stderr) = ok_json(&args);
+    // The report carries what the command line said: the warnings (warm-ups only heat) and the gap.
+    let md = std::fs::read_to_string(fit_report.join("fit-report.md")).unwrap();
+    assert!(
+        md.contains("Warnings (what the data cannot support):\n\n- axis 0: the calibration only heats"),
+        "{md}"
+    );
+    assert!(
+        md.contains("Gaps in the time stamps:\n\n- ") && md.contains("run0.csv: 1 gap in the time stamps"),
+        "{md}"
+    );
     let gaps: Vec<&Value> = doc["runs"].as_array().unwrap().iter().map(|r| &r["time_gaps"]).collect();
     assert_eq!(gaps[0]["count"], 1, "{doc}");
     assert_eq!(
@@ -416,9 +427,12 @@ fn gaps_in_the_time_stamps_are_reported_by_fit_validate_and_compensate() {
 
     // validate replays the same logs: the gap is counted against the model's max gap, the
     // compensator restarts after it, and the metric's windows it cuts are counted.
-    let mut args = vec!["validate", "--json", "--model", s(&model)];
+    let validation_report = dir.path().join("validation-report");
+    let mut args = vec!["validate", "--json", "--model", s(&model), "--report", s(&validation_report)];
     args.extend(logs.iter().map(|p| s(p)));
     let (doc, stderr) = ok_json(&args);
+    let md = std::fs::read_to_string(validation_report.join("report.md")).unwrap();
+    assert!(md.contains("run0.csv: 1 gap in the time stamps") && !md.contains("run1.csv: "), "{md}");
     let runs = doc["runs"].as_array().unwrap();
     assert_eq!(runs[0]["time_gaps"], gaps[0].clone(), "{doc}");
     assert_eq!(runs[1]["time_gaps"]["count"], 0, "{doc}");

@@ -149,8 +149,10 @@ fn rate_label(c: &MapCell) -> String {
 /// The (T, dT/dt) map: one rectangle per cell coloured by z (clamped to +-5), significant
 /// cells outlined in black; rate bins on the vertical axis by index.
 fn plot_map(path: &Path, cells: &[MapCell], title: &str) -> Result<(), CalError> {
-    write_svg(path, (1000, 640), |root| {
+    write_svg(path, (1100, 640), |root| {
         root.fill(&WHITE).map_err(|e| io_err(path, e))?;
+        let (root, key) = root.split_horizontally(1000);
+        draw_z_key(&key, path)?;
         let (t0, t1) = range(cells.iter().flat_map(|c| [c.temp_lo_c, c.temp_hi_c]));
         let bins = cells.iter().map(|c| c.rate_bin).max().unwrap_or(0) + 1;
         let mut labels = vec![String::new(); bins];
@@ -199,6 +201,36 @@ fn plot_map(path: &Path, cells: &[MapCell], title: &str) -> Result<(), CalError>
             .map_err(|e| io_err(path, e))?;
         root.present().map_err(|e| io_err(path, e))
     })
+}
+
+/// The map's colour key: z from -5 to +5 (cells beyond are drawn at the end colours).
+fn draw_z_key(
+    area: &DrawingArea<SVGBackend<'_>, plotters::coord::Shift>,
+    path: &Path,
+) -> Result<(), CalError> {
+    let mut bar = ChartBuilder::on(area)
+        .margin_top(80)
+        .margin_bottom(80)
+        .y_label_area_size(40)
+        .caption("z", ("sans-serif", 16))
+        .build_cartesian_2d(0.0..1.0, -5.0..5.0)
+        .map_err(|e| io_err(path, e))?;
+    bar.configure_mesh()
+        .disable_x_axis()
+        .disable_mesh()
+        .y_labels(11)
+        .y_label_formatter(&|v: &f64| format!("{v:+.0}"))
+        .y_label_style(("sans-serif", 13))
+        .draw()
+        .map_err(|e| io_err(path, e))?;
+    let steps = 100;
+    bar.draw_series((0..steps).map(|k| {
+        let a = -5.0 + 10.0 * f64::from(k) / f64::from(steps);
+        let b = a + 10.0 / f64::from(steps);
+        Rectangle::new([(0.0, a), (1.0, b)], diverging((a + b) / 10.0).filled())
+    }))
+    .map_err(|e| io_err(path, e))?;
+    Ok(())
 }
 
 fn allan_curves(d: &Diagnosis) -> Vec<(String, Vec<AllanPoint>)> {

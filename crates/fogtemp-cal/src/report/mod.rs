@@ -706,6 +706,14 @@ pub fn write_fit_report(
 ) -> Result<(), CalError> {
     std::fs::create_dir_all(dir).map_err(|source| CalError::Io { path: dir.to_path_buf(), source })?;
     let mut md = format!("# Fit of {}\n\n{summary_markdown}\n\n", file_name(model_path));
+    let gap_notes: Vec<String> = runs.iter().filter_map(|r| r.gaps.note(&r.path)).collect();
+    if !gap_notes.is_empty() {
+        md.push_str("Gaps in the time stamps:\n\n");
+        for note in gap_notes {
+            md.push_str(&format!("- {note}\n"));
+        }
+        md.push('\n');
+    }
     for axis in 0..model.axis_count() {
         let traces: Vec<RunTrace> = runs
             .iter()

@@ -138,7 +138,14 @@ pub fn fit(a: FitArgs) -> Result<()> {
                 )
             })
             .collect();
-        fogtemp_cal::report::write_fit_report(dir, &a.out, &model, &runs, &summary.join("\n"))?;
+        let mut summary = summary.join("\n").trim_end().to_string();
+        if !warnings.is_empty() {
+            summary.push_str("\n\nWarnings (what the data cannot support):\n\n");
+            for w in &warnings {
+                summary.push_str(&format!("- {}\n", w.message));
+            }
+        }
+        fogtemp_cal::report::write_fit_report(dir, &a.out, &model, &runs, &summary)?;
         eprintln!("report: {}", dir.join("fit-report.md").display());
     }
     if a.json {
