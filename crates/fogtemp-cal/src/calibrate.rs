@@ -234,16 +234,22 @@ impl TimeGaps {
 
     /// The note of [`Self::note`] ending in `consequence` (what the gaps did).
     pub fn note_then(&self, path: &Path, consequence: &str) -> Option<String> {
+        self.note_against(path, &format!("the tracker's max gap of {} s", self.longer_than_s), consequence)
+    }
+
+    /// The note with the threshold described as `threshold` (e.g. "2 s").
+    pub fn note_against(&self, path: &Path, threshold: &str, consequence: &str) -> Option<String> {
+        // Whole seconds, but a tenth under 10 s (a 3.5 s gap is not "4 s").
+        let seconds = |s: f64| if s < 10.0 { format!("{s:.1}") } else { format!("{s:.0}") };
         (self.count > 0).then(|| {
             format!(
-                "{}: {} gap{} in the time stamps longer than the tracker's max gap of {} s, {:.0} s in all, \
-                 the longest {:.0} s before line {}; {consequence}",
+                "{}: {} gap{} in the time stamps longer than {threshold}, {} s in all, \
+                 the longest {} s before line {}; {consequence}",
                 path.display(),
                 self.count,
                 if self.count == 1 { "" } else { "s" },
-                self.longer_than_s,
-                self.total_s,
-                self.largest_s,
+                seconds(self.total_s),
+                seconds(self.largest_s),
                 self.largest_before_line
             )
         })

@@ -6,6 +6,7 @@
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 
+use fogtemp_cal::calibrate::TimeGaps;
 use fogtemp_cal::ingest::{read_log_with_progress, IngestOptions};
 use fogtemp_cal::runs::RunsFile;
 use fogtemp_cal::CalError;
@@ -29,9 +30,30 @@ fn flush(series: &mut RunSeries, a: &Bin) {
     }
 }
 
+/// A log read into bin means: the series, the bad rows skipped (only with `skip_bad_rows`)
+/// and the gaps in its time stamps longer than two bins (at least one bin without data).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ReadSeries {
+    /// The bin means.
+    pub series: RunSeries,
+    /// Bad rows skipped.
+    pub skipped: u64,
+    /// Steps between rows longer than two bins.
+    pub gaps: TimeGaps,
+}
+
+impl ReadSeries {
+    /// What the user is told about the log's gaps (`None` without any): the short means
+    /// whose seconds they empty are left out (a mean counts when 90 % of its seconds hold data).
+    pub fn gap_note(&self, path: &Path) -> Option<String> {
+        let threshold = format!("{} s", self.gaps.longer_than_s);
+        self.gaps.note_against(path, &threshold, "the short means they empty are left out of the diagnosis")
+    }
+}
+
 /// Reads a log into `bin_s` means of time, temperature and gyro (axis 0). Bins without a
 /// temperature reading keep NaN temperature. `progress(bytes, rows)` is called as the file is
-/// read. Returns the series and the number of bad rows skipped (only with `skip_bad_rows`).
+/// read.
 ///
 /// # Errors
 /// [`DiagnoseError::Cal`] when the log cannot be read or parsed;
@@ -42,13 +64,17 @@ pub fn read_series(
     bin_s: f64,
     meta: RunMeta,
     progress: impl FnMut(u64, u64),
-) -> Result<(RunSeries, u64), DiagnoseError> {
+) -> Result<ReadSeries, DiagnoseError> {
     let mut series = RunSeries { name: file_name(path), meta, ..RunSeries::default() };
     let mut acc: Bin = (i64::MIN, 0.0, 0.0, 0.0, 0.0, 0.0);
+    let mut gaps = TimeGaps::new(2.0 * bin_s);
+    let mut previous_s = None;
     let report = read_log_with_progress(
         path,
         ingest,
         |row| {
+            gaps.observe(previous_s, row.time_s, row.line);
+            previous_s = Some(row.time_s);
             let bin = (row.time_s / bin_s).floor() as i64;
             if bin != acc.0 {
                 flush(&mut series, &acc);
@@ -70,7 +96,7 @@ pub fn read_series(
     if report.rows == 0 {
         return Err(DiagnoseError::NoDataRows { path: path.to_path_buf() });
     }
-    Ok((series, report.skipped))
+    Ok(ReadSeries { series, skipped: report.skipped, gaps })
 }
 
 /// Run metadata from `DIR/manifest.json` (written by `simulate`), keyed by file name; empty
@@ -236,14 +262,33 @@ mod tests {
     fn series_are_bin_means_and_a_header_alone_is_an_error() {
         let text = "time_s,temp_c,gyro_dph\n0.0,20,1\n0.5,22,3\n1.0,,5\n1.5,,7\n";
         let (_dir, path) = write("r.csv", text);
-        let (series, skipped) =
+        let read =
             read_series(&path, &IngestOptions::default(), 1.0, RunMeta::default(), |_, _| {}).expect("valid");
-        assert_eq!(skipped, 0);
+        let series = &read.series;
+        assert_eq!((read.skipped, read.gaps.count), (0, 0));
+        assert!(read.gap_note(&path).is_none());
         assert_eq!(series.name, "r.csv");
         assert_eq!(series.time_s, vec![0.25, 1.25]);
         assert_eq!(series.temp_c[0], 21.0);
         assert!(series.temp_c[1].is_nan());
         assert_eq!(series.gyro_dph, vec![2.0, 6.0]);
+        // Steps of 0.5 s, then 3.5 s (bins 1-3 empty; before line 4), then 1 s, then 2.5 s
+        // (bin 6 empty; before line 6): two gaps longer than 2 bins, 6 s in all.
+        let gappy = "time_s,temp_c,gyro_dph\n0.0,20,1\n0.5,20,1\n4.0,20,1\n5.0,20,1\n7.5,20,1\n";
+        let (_dir, path) = write("g.csv", gappy);
+        let read =
+            read_series(&path, &IngestOptions::default(), 1.0, RunMeta::default(), |_, _| {}).expect("valid");
+        let g = read.gaps;
+        assert_eq!((g.count, g.total_s, g.largest_s, g.largest_before_line), (2, 6.0, 3.5, 4));
+        assert_eq!(read.series.time_s, vec![0.25, 4.0, 5.0, 7.5]);
+        assert_eq!(
+            read.gap_note(&path).expect("a note"),
+            format!(
+                "{}: 2 gaps in the time stamps longer than 2 s, 6.0 s in all, the longest 3.5 s before line 4; \
+                 the short means they empty are left out of the diagnosis",
+                path.display()
+            )
+        );
         let (_dir, path) = write("h.csv", "time_s,temp_c,gyro_dph\n");
         let err = read_series(&path, &IngestOptions::default(), 1.0, RunMeta::default(), |_, _| {})
             .expect_err("header only");

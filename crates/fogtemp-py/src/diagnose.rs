@@ -8,7 +8,7 @@
 use std::path::{Path, PathBuf};
 
 use fogtemp_cal::ingest::IngestOptions;
-use fogtemp_diagnose::{inputs, DiagnoseDocument, DiagnoseError, DiagnoseOptions, RunMeta, RunSeries};
+use fogtemp_diagnose::{inputs, DiagnoseDocument, DiagnoseError, DiagnoseOptions, RunMeta};
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
@@ -35,15 +35,15 @@ fn diagnose_error(e: DiagnoseError) -> PyErr {
     }
 }
 
-/// A log as `bin_s` means (`fogtemp_diagnose::inputs`), with a progress bar; also the number
-/// of bad rows skipped.
+/// A log as `bin_s` means (`fogtemp_diagnose::inputs`), with a progress bar; also the bad
+/// rows skipped and the gaps.
 fn read_series(
     path: &Path,
     ingest: &IngestOptions,
     bin_s: f64,
     meta: RunMeta,
     show: bool,
-) -> PyResult<(RunSeries, u64)> {
+) -> PyResult<inputs::ReadSeries> {
     let mut bar = Progress::new(format!("read {}", inputs::file_name(path)), show);
     let read = inputs::read_series(path, ingest, bin_s, meta, |b, r| bar.rows(b, r));
     bar.finish();
@@ -96,13 +96,19 @@ pub fn diagnose<'py>(
     let (mut sims, mut recs) = (Vec::new(), Vec::new());
     for (s, r) in &pairs {
         let m = meta.get(&inputs::file_name(s)).cloned().unwrap_or_default();
-        let (series, _) = py.detach(|| read_series(s, &sim_ingest, bin_s, m.clone(), progress))?;
-        sims.push(series);
-        let (series, skipped) = py.detach(|| read_series(r, &recorded_ingest, bin_s, m, progress))?;
-        if skipped > 0 {
-            progress::warn(py, &format!("{}: skipped {skipped} bad rows", r.display()))?;
+        let sim = py.detach(|| read_series(s, &sim_ingest, bin_s, m.clone(), progress))?;
+        if let Some(note) = sim.gap_note(s) {
+            progress::warn(py, &note)?;
         }
-        recs.push(series);
+        sims.push(sim.series);
+        let rec = py.detach(|| read_series(r, &recorded_ingest, bin_s, m, progress))?;
+        if rec.skipped > 0 {
+            progress::warn(py, &format!("{}: skipped {} bad rows", r.display(), rec.skipped))?;
+        }
+        if let Some(note) = rec.gap_note(r) {
+            progress::warn(py, &note)?;
+        }
+        recs.push(rec.series);
     }
     let started = std::time::Instant::now();
     let mut bar = Progress::new("diagnose", progress);

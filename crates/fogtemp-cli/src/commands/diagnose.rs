@@ -29,15 +29,18 @@ fn read_series(path: &Path, ingest: &IngestOptions, bin_s: f64, meta: RunMeta) -
     if !matches!(read, Err(DiagnoseError::Cal(_))) {
         bar.finish_and_clear();
     }
-    let (series, skipped) = match read {
+    let read = match read {
         Ok(read) => read,
         Err(DiagnoseError::Cal(e)) => return Err(e).with_context(|| format!("reading {}", path.display())),
         Err(e) => return Err(e.into()),
     };
-    if skipped > 0 {
-        eprintln!("{}: skipped {skipped} bad rows", path.display());
+    if read.skipped > 0 {
+        eprintln!("{}: skipped {} bad rows", path.display(), read.skipped);
     }
-    Ok(series)
+    if let Some(note) = read.gap_note(path) {
+        eprintln!("note: {note}");
+    }
+    Ok(read.series)
 }
 
 /// Run metadata from `DIR/manifest.json`; a manifest that cannot be read is reported as
