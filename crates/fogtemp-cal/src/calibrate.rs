@@ -12,7 +12,7 @@ use crate::error::CalError;
 use crate::features::{smoothed_gyro_dph, AxisFeatureStream, FeaturePoint, CAL_CAPACITY};
 use crate::ingest::{read_from, read_log_with_progress, IngestOptions, IngestReport, Row};
 use crate::mesh::{build_mesh, MeshPoint};
-use crate::metrics::{bias_stability, rms_over_runs, window_means, BiasStabilityOptions};
+use crate::metrics::{bias_stability, rms_over_runs, stability_of_means, window_means, BiasStabilityOptions};
 use crate::poly_fit::{fit_poly, PolyFit, TermSelection};
 use crate::selection::{Selection, SelectionOptions};
 use crate::thin::{thin_greedy, thin_paper, GreedyThinning};
@@ -1100,8 +1100,8 @@ pub fn gap_notes(runs: &[RunValidation]) -> Vec<String> {
 pub struct MetricWindows {
     /// Windows whose means the metric used.
     pub used: usize,
-    /// Windows left out: cut short by a gap in the time stamps or by the run's end (most
-    /// runs end inside a window, so 1 is usual).
+    /// Windows left out: cut short by a gap in the time stamps or by the run's end (a last
+    /// window counts when it holds at least 90 % of the fullest's samples).
     pub left_out: usize,
 }
 
@@ -1186,17 +1186,16 @@ pub(crate) fn validations(
                 // corrected (before that its output is the raw input, flagged WARMING_UP).
                 let from = series.first_compensated_block(1.0);
                 let times = series.time_s.get(from..).unwrap_or_default();
-                let stability =
-                    |values: &[f64]| bias_stability(times, values.get(from..).unwrap_or_default(), options);
-                let (used, left_out) =
+                let raw = bias_stability(times, series.raw_dph.get(from..).unwrap_or_default(), options);
+                let (means, left_out) =
                     window_means(times, series.compensated_dph.get(from..).unwrap_or_default(), options);
-                let windows = MetricWindows { used: used.len(), left_out };
+                let windows = MetricWindows { used: means.len(), left_out };
                 model_runs.push(RunValidation {
                     windows,
                     path: path.clone(),
                     axis,
-                    raw_bias_stability_dph: stability(&series.raw_dph),
-                    compensated_bias_stability_dph: stability(&series.compensated_dph),
+                    raw_bias_stability_dph: raw,
+                    compensated_bias_stability_dph: stability_of_means(means, options),
                     series,
                     ingest: report.clone(),
                 });

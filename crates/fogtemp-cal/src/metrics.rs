@@ -79,7 +79,12 @@ pub fn window_means(times_s: &[f64], values: &[f64], options: &BiasStabilityOpti
 
 /// Bias stability of one run, deg/h (NaN with fewer than 2 windows).
 pub fn bias_stability(times_s: &[f64], values: &[f64], options: &BiasStabilityOptions) -> f64 {
-    let (mut means, _) = window_means(times_s, values, options);
+    stability_of_means(window_means(times_s, values, options).0, options)
+}
+
+/// Bias stability from a run's window means ([`window_means`]): detrended if asked, then
+/// their sample standard deviation (NaN with fewer than 2).
+pub fn stability_of_means(mut means: Vec<f64>, options: &BiasStabilityOptions) -> f64 {
     if options.detrend {
         detrend(&mut means);
     }
