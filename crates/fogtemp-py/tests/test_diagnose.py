@@ -1,6 +1,7 @@
 """fogtemp.diagnose against the command line's `diagnose --json` on the same folders."""
 
 import json
+import shutil
 
 import pytest
 
@@ -31,3 +32,21 @@ def test_diagnose_refuses_unpaired_runs(sim_dir, tmp_path):
         fogtemp.diagnose(sim_dir, tmp_path, progress=False)
     with pytest.raises(FileNotFoundError):
         fogtemp.diagnose(sim_dir, tmp_path / "missing", progress=False)
+
+
+def test_diagnose_warns_of_gaps_in_the_time_stamps(sim_dir, recorded_dir, tmp_path):
+    # One recorded 10 Hz log loses the rows from 600 s to 659.9 s: a step of 60.1 s before
+    # the row at 660 s, row 6600 of the original, now on line 6002 of the file (the header,
+    # then 6000 rows before it).
+    shutil.copytree(recorded_dir, tmp_path / "rec")
+    log = sorted((tmp_path / "rec").glob("*.csv"))[0]
+    lines = log.read_text().splitlines(keepends=True)
+    kept = lines[:1] + [l for l in lines[1:] if not 600.0 <= float(l.split(",")[0]) < 660.0]
+    assert len(kept) == len(lines) - 600
+    log.write_text("".join(kept))
+    note = (
+        rf"{log.name}: 1 gap in the time stamps longer than 2 s, 60 s in all, the longest 60 s before line 6002; "
+        "the short means they empty are left out"
+    )
+    with pytest.warns(UserWarning, match=note):
+        fogtemp.diagnose(sim_dir, tmp_path / "rec", progress=False)
