@@ -155,6 +155,8 @@ fn plot_map(path: &Path, cells: &[MapCell], title: &str) -> Result<(), CalError>
         draw_z_key(&key, path)?;
         let (t0, t1) = range(cells.iter().flat_map(|c| [c.temp_lo_c, c.temp_hi_c]));
         let bins = cells.iter().map(|c| c.rate_bin).max().unwrap_or(0) + 1;
+        // Rate bins below the lowest with a cell have no label (labels come from the cells).
+        let lowest = cells.iter().map(|c| c.rate_bin).min().unwrap_or(0);
         let mut labels = vec![String::new(); bins];
         for c in cells {
             labels[c.rate_bin] = rate_label(c);
@@ -164,7 +166,7 @@ fn plot_map(path: &Path, cells: &[MapCell], title: &str) -> Result<(), CalError>
             .margin(12)
             .x_label_area_size(40)
             .y_label_area_size(110)
-            .build_cartesian_2d(t0..t1, 0.0..bins as f64)
+            .build_cartesian_2d(t0..t1, lowest as f64..bins as f64)
             .map_err(|e| io_err(path, e))?;
         let label_of = move |v: &f64| {
             let i = v.floor() as usize;
@@ -179,7 +181,7 @@ fn plot_map(path: &Path, cells: &[MapCell], title: &str) -> Result<(), CalError>
             .x_desc("temperature, deg C")
             .y_desc("dT/dt, deg C/min")
             .x_label_formatter(&tick)
-            .y_labels(bins * 2 + 1)
+            .y_labels((bins - lowest) * 2 + 1)
             .y_label_formatter(&label_of)
             .disable_mesh()
             .draw()
