@@ -11,7 +11,7 @@
 //! | `orientation_offset` | one constant per position group, relative to the first group |
 //! | `hysteresis` | `s (h0 [+ h1 (T - T_ref)])`, s = +1 after heating faster than r0, -1 after cooling faster than r0, held in between (0 before the first), or s = (T - P_w(T)) / (w/2) with P_w the play operator of width w; r0 or w, degree |
 //! | `static_shape` | cubic B-splines in `LPF_tau(T)` (the coil's temperature) over the recorded range, shared by all runs; basis size, tau 0-10 min |
-//! | `scale_factor_temperature` | `Omega_in (s1 (T - T_ref) [+ s2 (T - T_ref)^2])`, ppm; degree |
+//! | `scale_factor_temperature` | `Omega_in (s1 (T_c - T_ref) [+ s2 (T_c - T_ref)^2])`, ppm, T_c the coil's temperature (the sensor's through a first-order lag); degree, coil lag |
 //!
 //! T is the recorded temperature smoothed by the centred least-squares line, T_ref the mean
 //! recorded temperature over all short means, `Omega_in` the run's input rate from its
@@ -263,7 +263,8 @@ const LAG_GRID_S: [f64; 12] =
 /// Lag of the coil behind the logged sensor for the Shupe term's rate, s (1 s: the sensor's
 /// own rate).
 const SHUPE_LAG_GRID_S: [f64; 9] = [1.0, 60.0, 120.0, 240.0, 420.0, 600.0, 900.0, 1200.0, 1800.0];
-/// Lag of the coil behind the logged sensor for the static shape's temperature, s.
+/// Lag of the coil behind the logged sensor for the static shape's and the scale factor's
+/// temperature, s.
 const SHAPE_LAG_GRID_S: [f64; 3] = [1.0, 300.0, 600.0];
 const WARMUP_GRID_S: [f64; 11] =
     [60.0, 120.0, 180.0, 300.0, 450.0, 600.0, 900.0, 1200.0, 1800.0, 2700.0, 3600.0];
@@ -676,6 +677,8 @@ pub fn orientation_columns(
         }
         Effect::ScaleFactorTemperature => {
             let degree = theta.first().copied().unwrap_or(1.0) as i32;
+            // The scale factor is the coil's, and the coil's temperature lags the sensor.
+            let lag_s = theta.get(1).copied().unwrap_or(1.0);
             let t_ref = prep.temp_ref_c;
             let per_run = prep
                 .runs
@@ -683,8 +686,9 @@ pub fn orientation_columns(
                 .enumerate()
                 .map(|(r, run)| {
                     let omega = labels.get(r).and_then(|l| l.1).unwrap_or(0.0) * 1e-6;
+                    let coil = block_average(run, &low_pass(&run.sec.temp_c, lag_s));
                     let cols: Vec<Vec<f64>> = (1..=degree)
-                        .map(|d| run.blocks.iter().map(|b| omega * (b.temp_c - t_ref).powi(d)).collect())
+                        .map(|d| coil.iter().map(|t| omega * (t - t_ref).powi(d)).collect())
                         .collect();
                     matrix_from_columns(&cols)
                 })
@@ -735,7 +739,10 @@ pub fn grid_of(effect: Effect) -> (Vec<ProfiledParam>, Vec<Vec<f64>>) {
             vec![p("basis_functions", "1", false), p("coil_lag_s", "s", true)],
             SPLINE_SIZE_GRID.iter().flat_map(|k| SHAPE_LAG_GRID_S.iter().map(|l| vec![*k, *l])).collect(),
         ),
-        Effect::ScaleFactorTemperature => (vec![p("degree", "1", false)], vec![vec![1.0], vec![2.0]]),
+        Effect::ScaleFactorTemperature => (
+            vec![p("degree", "1", false), p("coil_lag_s", "s", true)],
+            [1.0, 2.0].iter().flat_map(|d| SHAPE_LAG_GRID_S.iter().map(|l| vec![*d, *l])).collect(),
+        ),
         Effect::ShupeRate | Effect::GradientRate => {
             (vec![p("coil_lag_s", "s", true)], SHUPE_LAG_GRID_S.iter().map(|v| vec![*v]).collect())
         }
