@@ -60,13 +60,12 @@ pub fn window_means(times_s: &[f64], values: &[f64], options: &BiasStabilityOpti
         .step_by(if options.overlapping { 1 } else { step })
         .map(|w| w.iter().fold((0.0, 0), |a, b| (a.0 + b.0, a.1 + b.1)))
         .collect();
-    let fullest = windows.iter().map(|w| w.1).max().unwrap_or(0);
-    let threshold = (fullest as f64 * 0.9).ceil() as usize;
+    let threshold = fullness_threshold(windows.iter().map(|w| w.1));
     let mut dropped = 0;
     let means = windows
         .into_iter()
         .filter_map(|(s, c)| {
-            if c >= threshold.max(1) {
+            if c >= threshold {
                 Some(s / c as f64)
             } else {
                 dropped += 1;
@@ -75,6 +74,14 @@ pub fn window_means(times_s: &[f64], values: &[f64], options: &BiasStabilityOpti
         })
         .collect();
     (means, dropped)
+}
+
+/// The fewest samples an averaging window must hold to count, given every window's count:
+/// 90 % of the fullest (at least 1), so windows cut by a gap or the run's end are left out.
+/// The one rule of the metric's windows, its figures' and the cross-validation's.
+pub fn fullness_threshold(counts: impl Iterator<Item = usize>) -> usize {
+    let fullest = counts.max().unwrap_or(0);
+    ((fullest as f64 * 0.9).ceil() as usize).max(1)
 }
 
 /// Bias stability of one run, deg/h (NaN with fewer than 2 windows).

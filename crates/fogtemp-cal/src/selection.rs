@@ -1196,8 +1196,7 @@ pub fn window_means_inside(
         .step_by(if options.overlapping { 1 } else { step })
         .map(|w| w.iter().fold((0.0, 0, true), |a, b| (a.0 + b.0, a.1 + b.1, a.2 && b.2)))
         .collect();
-    let fullest = windows.iter().map(|w| w.1).max().unwrap_or(0);
-    let threshold = ((fullest as f64 * 0.9).ceil() as usize).max(1);
+    let threshold = crate::metrics::fullness_threshold(windows.iter().map(|w| w.1));
     let full = windows.into_iter().filter(|w| w.1 >= threshold);
     let (kept, outside): (Vec<_>, Vec<_>) = full.partition(|w| w.2);
     (kept.into_iter().map(|(s, c, _)| s / c as f64).collect(), outside.len())

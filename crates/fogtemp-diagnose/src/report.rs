@@ -45,8 +45,7 @@ fn window_means(time_s: &[f64], values: &[f64], window_s: f64) -> Vec<(f64, f64)
         }
         sums[k] = (sums[k].0 + t, sums[k].1 + v, sums[k].2 + 1);
     }
-    let fullest = sums.iter().map(|w| w.2).max().unwrap_or(0);
-    let threshold = ((fullest as f64 * 0.9).ceil() as usize).max(1);
+    let threshold = fogtemp_cal::metrics::fullness_threshold(sums.iter().map(|w| w.2));
     sums.into_iter().filter(|w| w.2 >= threshold).map(|(t, v, n)| (t / n as f64, v / n as f64)).collect()
 }
 

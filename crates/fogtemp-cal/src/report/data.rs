@@ -73,8 +73,7 @@ pub fn relative_window_means(
         sums[k].0 += v;
         sums[k].1 += 1;
     }
-    let fullest = sums.iter().map(|w| w.1).max().unwrap_or(0);
-    let threshold = ((fullest as f64 * 0.9).ceil() as usize).max(1);
+    let threshold = crate::metrics::fullness_threshold(sums.iter().map(|w| w.1));
     let (time_s, means): (Vec<f64>, Vec<f64>) = sums
         .iter()
         .enumerate()

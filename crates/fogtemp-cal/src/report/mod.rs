@@ -547,21 +547,10 @@ pub fn write_validation_report_with(
         overall.1,
         overall.0 / overall.1
     ));
-    let gap_notes = crate::calibrate::gap_notes(runs);
-    if !gap_notes.is_empty() {
-        md.push_str(
-            "Gaps in the time stamps (the drift figure shows them as breaks):
-
-",
-        );
-        for note in gap_notes {
-            md.push_str(&format!(
-                "- {note}
-"
-            ));
-        }
-        md.push('\n');
-    }
+    md.push_str(&bullet_section(
+        "Gaps in the time stamps (the drift figure shows them as breaks):",
+        &crate::calibrate::gap_notes(runs),
+    ));
     for axis in 0..model.axis_count() {
         let axis_runs: Vec<&crate::calibrate::RunValidation> =
             runs.iter().filter(|r| r.axis == axis).collect();
@@ -692,6 +681,20 @@ fn allan_table(raw: &[AllanPoint], comp: &[AllanPoint]) -> String {
     md
 }
 
+/// A Markdown paragraph `heading` followed by one bullet per item, and a blank line; empty
+/// without items (a report says nothing of what did not happen).
+pub fn bullet_section(heading: &str, items: &[String]) -> String {
+    if items.is_empty() {
+        return String::new();
+    }
+    let mut md = format!("{heading}\n\n");
+    for item in items {
+        md.push_str(&format!("- {item}\n"));
+    }
+    md.push('\n');
+    md
+}
+
 /// Writes `fit-report.md` and its figures into `dir` for a fit: calibration runs
 /// (features and raw gyro), and per axis the mesh with the calibration points.
 ///
@@ -707,13 +710,7 @@ pub fn write_fit_report(
     std::fs::create_dir_all(dir).map_err(|source| CalError::Io { path: dir.to_path_buf(), source })?;
     let mut md = format!("# Fit of {}\n\n{summary_markdown}\n\n", file_name(model_path));
     let gap_notes: Vec<String> = runs.iter().filter_map(|r| r.gaps.note(&r.path)).collect();
-    if !gap_notes.is_empty() {
-        md.push_str("Gaps in the time stamps:\n\n");
-        for note in gap_notes {
-            md.push_str(&format!("- {note}\n"));
-        }
-        md.push('\n');
-    }
+    md.push_str(&bullet_section("Gaps in the time stamps:", &gap_notes));
     for axis in 0..model.axis_count() {
         let traces: Vec<RunTrace> = runs
             .iter()

@@ -139,11 +139,12 @@ pub fn fit(a: FitArgs) -> Result<()> {
             })
             .collect();
         let mut summary = summary.join("\n").trim_end().to_string();
-        if !warnings.is_empty() {
-            summary.push_str("\n\nWarnings (what the data cannot support):\n\n");
-            for w in &warnings {
-                summary.push_str(&format!("- {}\n", w.message));
-            }
+        let messages: Vec<String> = warnings.iter().map(|w| w.message.clone()).collect();
+        let warned =
+            fogtemp_cal::report::bullet_section("Warnings (what the data cannot support):", &messages);
+        if !warned.is_empty() {
+            summary.push_str("\n\n");
+            summary.push_str(warned.trim_end());
         }
         fogtemp_cal::report::write_fit_report(dir, &a.out, &model, &runs, &summary)?;
         eprintln!("report: {}", dir.join("fit-report.md").display());
