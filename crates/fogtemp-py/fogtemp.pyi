@@ -95,7 +95,7 @@ def fit(
     fast_rate, settled_every, poly, max_degree, p_enter, p_remove, poly_outside ("linear_from_boundary",
     the default, "extrapolate" or "hold_at_boundary"), mesh_outside ("linear_stored_gradients",
     the default, "hold" or "linear_from_boundary"; a mesh model's mesh beyond its hull), capacity, operating_temp_c as a
-    (min, max) pair) and, for files, the log-column options (time_column, time_unit ("s", "ms", "us" or "datetime"), temp_column,
+    (min, max) pair) and, for files, the log-column options (time_column, time_unit ("s", "ms", "us", "datetime" or "time_of_day"), temp_column,
     temp_scale, temp_offset, gyro_column, gyro_unit, gyro_scale, delimiter, skip_lines, columns,
     sample_rate_hz, comment, decimal_mark ("point" or "comma"), date_column, skip_bad_rows). Identifiability warnings (too few runs, heating only,
     ...) are issued as Python warnings and listed in ``Model.fit_report()["warnings"]``.

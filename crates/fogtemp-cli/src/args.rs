@@ -61,7 +61,8 @@ pub struct IngestArgs {
     /// Needs --time-unit datetime.
     #[arg(long, value_name = "NAME", help_heading = "Log columns")]
     pub date_column: Option<String>,
-    /// Unit of the time column (datetime: ISO 8601 date-times).
+    /// Unit of the time column (datetime: ISO 8601 date-times; time-of-day: hh:mm[:ss] without
+    /// a date).
     #[arg(long, value_enum, default_value_t = TimeUnitArg::S, help_heading = "Log columns")]
     pub time_unit: TimeUnitArg,
     /// The log has no time column: row k (0-based, counting rows rejected with
@@ -129,6 +130,7 @@ impl IngestArgs {
                 TimeUnitArg::Ms => TimeUnit::Milliseconds,
                 TimeUnitArg::Us => TimeUnit::Microseconds,
                 TimeUnitArg::Datetime => TimeUnit::DateTime,
+                TimeUnitArg::TimeOfDay => TimeUnit::TimeOfDay,
             },
             temp_columns: self.temp_columns.clone(),
             temp_scale: self.temp_scale,
@@ -179,6 +181,10 @@ pub enum TimeUnitArg {
     /// ISO 8601 date-times (2026-11-24T10:00:00.125, or with a space for the T; optional Z or
     /// +01:00); without a zone read as UTC.
     Datetime,
+    /// A clock time without a date (15:45, 09:05:07.25), as hand logs and terminal programs
+    /// write it; past midnight the next day (a row more than 12 h before the previous one's
+    /// clock time is on the next day).
+    TimeOfDay,
 }
 
 /// Gyro units.

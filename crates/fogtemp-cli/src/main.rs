@@ -56,6 +56,9 @@ fn flag_hint(e: &(dyn std::error::Error + 'static)) -> Option<&'static str> {
         CalError::BadRow { row, .. } if row.looks_like_datetime() => {
             Some("; the time column holds date-times: use --time-unit datetime")
         }
+        CalError::BadRow { row, .. } if row.looks_like_time_of_day() => {
+            Some("; the time column holds times of day: use --time-unit time-of-day")
+        }
         CalError::BadRow { row, .. } if row.looks_like_decimal_comma() => {
             Some("; the log seems to write numbers with a decimal comma: use --decimal-mark comma")
         }

@@ -381,6 +381,48 @@ fn date_time_logs_fit_the_same_model_as_their_seconds_twins() {
     assert_eq!(stored_model(&model), stored_model(&twin));
 }
 
+fn write_clock_log(path: &Path, start_c: f64, clock: bool) {
+    let mut text = String::from("Time,temp_c,gyro_dph\n");
+    for k in 0..3600u32 {
+        let temp = temp_c(start_c, f64::from(k));
+        // 23:30:00 onwards, no date: the run crosses midnight.
+        let time = if clock {
+            let s = (23 * 3600 + 30 * 60 + k) % 86_400;
+            format!("{:02}:{:02}:{:02}", s / 3600, s / 60 % 60, s % 60)
+        } else {
+            format!("{k}")
+        };
+        text.push_str(&format!("{time},{temp:.4},{:.6}\n", bias_dph(temp)));
+    }
+    std::fs::write(path, text).unwrap();
+}
+
+#[test]
+fn time_of_day_logs_fit_the_same_model_as_their_seconds_twins() {
+    let dir = tempfile::tempdir().unwrap();
+    let (clocked, seconds) = twin_folders(dir.path(), write_clock_log);
+    let (model, twin) = (dir.path().join("m.fogm"), dir.path().join("twin.fogm"));
+    let fit = |extra: &[&str], out: &Path, logs: &Path| {
+        let mut args = vec!["fit", "--method", "poly", "--time-column", "Time"];
+        args.extend_from_slice(extra);
+        args.extend(["--out", s(out), s(logs)]);
+        run(&args)
+    };
+    let out = fit(&[], &model, &clocked);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success()
+            && stderr.contains("run0.csv:2:1: column 'Time': not a number (found '23:30:00')")
+    );
+    assert!(stderr.contains("use --time-unit time-of-day"), "{stderr}");
+    let out = fit(&["--time-unit", "time-of-day"], &model, &clocked);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let out = fit(&[], &twin, &seconds);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    // The oracle: every stored value equal to the model of the same run timed in seconds.
+    assert_eq!(stored_model(&model), stored_model(&twin));
+}
+
 #[test]
 fn gaps_in_the_time_stamps_are_reported_by_fit_validate_and_compensate() {
     // Three 1 Hz warm-ups; the first loses 60 s of rows after its 1000th (rows 1000..1059

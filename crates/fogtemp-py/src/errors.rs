@@ -31,6 +31,9 @@ fn hint(e: &CalError) -> &'static str {
         CalError::BadRow { row, .. } if row.looks_like_datetime() => {
             "; the time column holds date-times: pass time_unit='datetime'"
         }
+        CalError::BadRow { row, .. } if row.looks_like_time_of_day() => {
+            "; the time column holds times of day: pass time_unit='time_of_day'"
+        }
         CalError::BadRow { row, .. } if row.looks_like_decimal_comma() => {
             "; the log seems to write numbers with a decimal comma: pass decimal_mark='comma'"
         }

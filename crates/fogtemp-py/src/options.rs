@@ -170,9 +170,10 @@ pub fn ingest(o: &mut Options<'_>) -> PyResult<IngestOptions> {
         "ms" => TimeUnit::Milliseconds,
         "us" => TimeUnit::Microseconds,
         "datetime" => TimeUnit::DateTime,
+        "time_of_day" => TimeUnit::TimeOfDay,
         other => {
             return Err(errors::value(format!(
-                "time_unit must be 's', 'ms', 'us' or 'datetime', got '{other}'"
+                "time_unit must be 's', 'ms', 'us', 'datetime' or 'time_of_day', got '{other}'"
             )))
         }
     };

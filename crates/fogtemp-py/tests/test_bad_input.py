@@ -105,6 +105,20 @@ def test_date_time_logs_read_with_time_unit_datetime_and_a_hint_without(tmp_path
     np.testing.assert_allclose(both["time_s"], [0.0, 0.75], atol=5e-7, rtol=0)
 
 
+def test_times_of_day_read_with_time_unit_time_of_day_across_midnight(tmp_path):
+    log = tmp_path / "clock.csv"
+    log.write_text("Time,temp_c,gyro_dph\n23:59:59.5,20,1\n0:00:00.25,20,2\n00:10,20,3\n")
+    with pytest.raises(ValueError, match="time_unit='time_of_day'"):
+        fogtemp.read_log(log, time_column="Time", progress=False)
+    data = fogtemp.read_log(log, time_column="Time", time_unit="time_of_day", progress=False)
+    # Oracle: Python's datetime for the same instants, the clock past midnight on the next day.
+    from datetime import datetime
+
+    instants = ["2026-11-24T23:59:59.5", "2026-11-25T00:00:00.25", "2026-11-25T00:10:00"]
+    stamps = [datetime.fromisoformat(t).timestamp() for t in instants]
+    np.testing.assert_allclose(data["time_s"], np.array(stamps) - stamps[0], atol=1e-9, rtol=0)
+
+
 def test_gaps_in_the_time_stamps_are_warned_about_by_fit_and_validate(tmp_path):
     # Three 1 Hz warm-ups; the first loses rows 1000..1059, a step of 61 s before line 1002.
     logs = []

@@ -25,8 +25,8 @@ pub(super) struct Plan {
     pub(super) temp_slots: Vec<usize>,
     pub(super) gyro_slots: Vec<usize>,
     pub(super) time_factor: f64,
-    /// The time column holds date-times ([`TimeUnit::DateTime`]).
-    pub(super) time_is_datetime: bool,
+    /// How the time column is written: numbers in a unit, date-times or times of day.
+    pub(super) time_unit: TimeUnit,
     /// Time of data record `k` is `k / rate` (no time column).
     pub(super) sample_rate_hz: Option<f64>,
     pub(super) gyro_factor: f64,
@@ -134,6 +134,7 @@ impl RowState {
         let index = self.records;
         self.records += 1;
         let parsed = parse_row(fields, plan, line, index, &mut self.temps, &mut self.gyros)
+            .map(|time| continue_time(plan, time, self.previous_time))
             .and_then(|time| check_time(time, self.previous_time, &plan.columns, line, fields));
         match parsed {
             Ok(time) => {
@@ -191,14 +192,14 @@ pub(super) fn make_plan(path: &Path, header: Fields<'_>, f: &LogFormat, line: u6
         temp_slots,
         gyro_slots,
         time_factor: f.time_unit.seconds(),
-        time_is_datetime: f.time_unit == TimeUnit::DateTime,
+        time_unit: f.time_unit,
         sample_rate_hz: f.sample_rate_hz,
         gyro_factor: f.gyro_unit.dph() * f.gyro_scale,
         temp_scale: f.temp_scale,
         temp_offset_c: f.temp_offset_c,
         // The fast path reads decimal points only.
         fast: f.decimal_mark == DecimalMark::Point
-            && f.time_unit != TimeUnit::DateTime
+            && !f.time_unit.is_text()
             && matches!(f.delimiter, Delimiter::Byte(b) if !matches!(b, b'0'..=b'9' | b'.' | b'-' | b'"' | b'\r' | b'\n')),
         comment_first: f.comment_prefix().first().copied(),
         decimal_mark: f.decimal_mark,
@@ -250,7 +251,11 @@ fn locate_columns(path: &Path, header: Fields<'_>, f: &LogFormat, line: u64) -> 
                 problem: format!(
                     "this line was read as the header but every cell is a number{} ({}): a log without a \
                      header row needs its column names given, and one without a time column its sample rate",
-                    if f.time_unit == TimeUnit::DateTime { " or a date-time" } else { "" },
+                    match f.time_unit {
+                        TimeUnit::DateTime => " or a date-time",
+                        TimeUnit::TimeOfDay => " or a time of day",
+                        _ => "",
+                    },
                     names.join(", ")
                 ),
             })
@@ -287,12 +292,14 @@ fn similar_names(wanted: &str, names: &[String]) -> Vec<String> {
         .collect()
 }
 
-/// Every cell a number (or, in a log read with date-times, a date-time): a data row, not a
+/// Every cell a number (or, in a log read with date-times or times of day, one of those): a data row, not a
 /// header.
 fn looks_like_data(names: &[String], f: &LogFormat) -> bool {
     let datum = |n: &String| {
         parse_number(n.as_bytes(), f.decimal_mark).is_some()
             || (f.time_unit == TimeUnit::DateTime && super::datetime::parse_datetime(n.as_bytes()).is_some())
+            || (f.time_unit == TimeUnit::TimeOfDay
+                && super::datetime::parse_time_of_day(n.as_bytes()).is_some())
     };
     !names.is_empty() && names.iter().all(datum)
 }
@@ -376,7 +383,8 @@ pub(super) fn parse_row(
             .ok_or_else(|| bad_row(columns, line, field, b"", BadRowKind::EmptyCell))
     };
     let time = match columns.time {
-        Some(field) if plan.time_is_datetime => datetime_cell(plan, fields, field, line)?,
+        Some(field) if plan.time_unit == TimeUnit::DateTime => datetime_cell(plan, fields, field, line)?,
+        Some(field) if plan.time_unit == TimeUnit::TimeOfDay => time_of_day_cell(plan, fields, field, line)?,
         Some(field) => required(field)? * plan.time_factor,
         None => time_of_record(index, plan.sample_rate_hz),
     };
@@ -419,6 +427,26 @@ fn datetime_cell(plan: &Plan, fields: Fields<'_>, field: usize, line: u64) -> Re
     };
     super::datetime::parse_datetime(stamp)
         .ok_or_else(|| bad_row(&plan.columns, line, field, stamp, BadRowKind::NotADateTime))
+}
+
+/// A time-of-day cell, seconds since midnight (the day is added by [`continue_time`]).
+fn time_of_day_cell(plan: &Plan, fields: Fields<'_>, field: usize, line: u64) -> Result<f64, BadRow> {
+    match fields.get(field).unwrap_or(b"").trim_ascii() {
+        [] => Err(bad_row(&plan.columns, line, field, b"", BadRowKind::EmptyCell)),
+        text => super::datetime::parse_time_of_day(text)
+            .ok_or_else(|| bad_row(&plan.columns, line, field, text, BadRowKind::NotATimeOfDay)),
+    }
+}
+
+/// A row's time after the previous row's: a time of day read from a time column goes on
+/// to the next day when the clock passed midnight ([`super::datetime::continue_clock`]);
+/// every other time is as read.
+pub(super) fn continue_time(plan: &Plan, time: f64, previous: Option<f64>) -> f64 {
+    if plan.time_unit == TimeUnit::TimeOfDay && plan.columns.time.is_some() {
+        super::datetime::continue_clock(time, previous)
+    } else {
+        time
+    }
 }
 
 /// Time of data record `index` from the sample rate, seconds.

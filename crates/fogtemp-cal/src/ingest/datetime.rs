@@ -17,29 +17,41 @@ pub fn parse_datetime(text: &[u8]) -> Option<f64> {
     at.exact(date_sep)?;
     let day = at.digits(2)?;
     at.one_of(b"T ")?;
-    let hour = at.digits(2)?;
-    at.exact(b':')?;
-    let minute = at.digits(2)?;
-    let (second, fraction) = if at.peek() == Some(b':') {
-        at.pos += 1;
-        let second = at.digits(2)?;
-        (second, at.fraction()?)
-    } else {
-        (0, 0.0)
-    };
+    let (clock_s, fraction) = at.clock(2)?;
     let offset_s = at.zone()?;
     if at.pos != text.len() || !(1..=12).contains(&month) || day < 1 || day > days_in_month(year, month) {
         return None;
     }
-    if hour > 23 || minute > 59 || second > 59 {
-        return None;
-    }
-    let whole = days_from_civil(year, month, day) * 86_400
-        + i64::from(hour) * 3600
-        + i64::from(minute) * 60
-        + i64::from(second)
-        - offset_s;
+    let whole = days_from_civil(year, month, day) * 86_400 + clock_s - offset_s;
     Some(whole as f64 + fraction)
+}
+
+/// Seconds in a day.
+pub const DAY_S: f64 = 86_400.0;
+
+/// A time of day without a date, `h:mm` or `hh:mm[:ss[.fraction]]` (as hand logs and
+/// terminal programs write it): seconds since midnight. `None` for anything else or a
+/// field out of range.
+pub fn parse_time_of_day(text: &[u8]) -> Option<f64> {
+    let mut at = Cursor { text, pos: 0 };
+    let hour_digits = if text.get(1) == Some(&b':') { 1 } else { 2 };
+    let (clock_s, fraction) = at.clock(hour_digits)?;
+    (at.pos == text.len()).then_some(clock_s as f64 + fraction)
+}
+
+/// The time of a row whose clock reads `time_of_day_s` (seconds since midnight), after a
+/// row at `previous_s` (seconds since the first row's midnight): the clock reading's
+/// instant within 12 h either side of the previous row, the later one on a tie. So a
+/// clock that passes midnight goes on to the next day, and a row more than 12 h before
+/// or after the previous one cannot be placed (without a date nothing says which day).
+pub fn continue_clock(time_of_day_s: f64, previous_s: Option<f64>) -> f64 {
+    match previous_s {
+        None => time_of_day_s,
+        Some(previous) => {
+            let days = ((previous - 0.5 * DAY_S - time_of_day_s) / DAY_S).floor() + 1.0;
+            time_of_day_s + days * DAY_S
+        }
+    }
 }
 
 /// Days from 1970-01-01 to the proleptic Gregorian date (H. Hinnant's `days_from_civil`).
@@ -91,6 +103,25 @@ impl Cursor<'_> {
         let b = self.peek().filter(|b| bytes.contains(b))?;
         self.pos += 1;
         Some(b)
+    }
+
+    /// `hh:mm[:ss[.fraction]]` with `hour_digits` digits of hour: whole seconds since
+    /// midnight and the fraction; `None` for a field out of range.
+    fn clock(&mut self, hour_digits: usize) -> Option<(i64, f64)> {
+        let hour = self.digits(hour_digits)?;
+        self.exact(b':')?;
+        let minute = self.digits(2)?;
+        let (second, fraction) = if self.peek() == Some(b':') {
+            self.pos += 1;
+            let second = self.digits(2)?;
+            (second, self.fraction()?)
+        } else {
+            (0, 0.0)
+        };
+        if hour > 23 || minute > 59 || second > 59 {
+            return None;
+        }
+        Some((i64::from(hour * 3600 + minute * 60 + second), fraction))
     }
 
     /// `.ddd...` (or `,ddd...`, ISO's other decimal sign) as seconds; 0 when absent.
@@ -190,6 +221,49 @@ mod tests {
         ] {
             assert_eq!(parse_datetime(text.as_bytes()), None, "{text:?}");
         }
+    }
+
+    #[test]
+    fn times_of_day_are_seconds_since_midnight() {
+        for (text, expected) in [
+            ("15:45", 56_700.0),
+            ("9:05", 32_700.0),
+            ("09:05:07", 32_707.0),
+            ("00:00:00.25", 0.25),
+            ("23:59:59,5", 86_399.5),
+        ] {
+            assert_eq!(parse_time_of_day(text.as_bytes()), Some(expected), "{text}");
+        }
+        for text in [
+            "",
+            "15",
+            "15:4",
+            "24:00",
+            "12:60",
+            "12:00:60",
+            "1:2:3",
+            "123:00",
+            "15:45 ",
+            "15:45Z",
+            "2026-11-24T15:45",
+        ] {
+            assert_eq!(parse_time_of_day(text.as_bytes()), None, "{text:?}");
+        }
+    }
+
+    #[test]
+    fn a_clock_continues_across_midnight_and_only_there() {
+        // Closed forms: the instant within 12 h of the previous row.
+        assert_eq!(continue_clock(3600.0, None), 3600.0);
+        assert_eq!(continue_clock(10.0, Some(DAY_S - 5.0)), DAY_S + 10.0);
+        // 15 s before a row just after midnight: the same night, a step back.
+        assert_eq!(continue_clock(DAY_S - 5.0, Some(DAY_S + 10.0)), DAY_S - 5.0);
+        assert_eq!(continue_clock(20.0, Some(2.0 * DAY_S + 10.0)), 2.0 * DAY_S + 20.0);
+        // A step back within the same day stays a step back (the reader refuses it).
+        assert_eq!(continue_clock(3590.0, Some(3600.0)), 3590.0);
+        // Exactly 12 h on: forward.
+        assert_eq!(continue_clock(0.5 * DAY_S, Some(0.0)), 0.5 * DAY_S);
+        assert_eq!(continue_clock(0.0, Some(0.5 * DAY_S)), DAY_S);
     }
 
     #[test]

@@ -57,16 +57,26 @@ pub enum TimeUnit {
     /// the `T`, `/` for the `-`, optionally `Z` or an offset such as `+01:00`); a time
     /// without a zone is read as UTC (only differences between rows are used).
     DateTime,
+    /// A clock time without a date (`15:45`, `09:05:07.25`), as hand logs and terminal
+    /// programs write it: seconds since the first row's midnight. A row whose clock reads
+    /// more than 12 h before the previous row's is on the next day (the clock passed
+    /// midnight); rows more than 12 h apart cannot be placed without a date.
+    TimeOfDay,
 }
 
 impl TimeUnit {
-    /// Seconds per unit (1 for date-times, read into seconds).
+    /// Seconds per unit (1 for date-times and times of day, read into seconds).
     pub fn seconds(self) -> f64 {
         match self {
-            TimeUnit::Seconds | TimeUnit::DateTime => 1.0,
+            TimeUnit::Seconds | TimeUnit::DateTime | TimeUnit::TimeOfDay => 1.0,
             TimeUnit::Milliseconds => 1.0e-3,
             TimeUnit::Microseconds => 1.0e-6,
         }
+    }
+
+    /// The time cells are text (date-times, times of day), not numbers.
+    pub fn is_text(self) -> bool {
+        matches!(self, TimeUnit::DateTime | TimeUnit::TimeOfDay)
     }
 }
 
@@ -354,6 +364,8 @@ pub enum BadRowKind {
     PointWithDecimalComma,
     /// The time cell of a log read with [`TimeUnit::DateTime`] is not an ISO 8601 date-time.
     NotADateTime,
+    /// The time cell of a log read with [`TimeUnit::TimeOfDay`] is not a time of day.
+    NotATimeOfDay,
 }
 
 impl BadRowKind {
@@ -368,6 +380,7 @@ impl BadRowKind {
             BadRowKind::EmptyCell => "empty required cell",
             BadRowKind::PointWithDecimalComma => "a point in a log read with a decimal comma",
             BadRowKind::NotADateTime => "not a date-time (YYYY-MM-DDThh:mm:ss[.fff][Z|+hh:mm])",
+            BadRowKind::NotATimeOfDay => "not a time of day (hh:mm[:ss[.fff]])",
         }
     }
 }
@@ -393,6 +406,13 @@ impl BadRow {
     pub fn looks_like_datetime(&self) -> bool {
         self.kind == BadRowKind::NotANumber
             && datetime::parse_datetime(self.found.trim().as_bytes()).is_some()
+    }
+
+    /// The cell is not a number but is a time of day (`15:45`): a hint for the caller to
+    /// suggest [`TimeUnit::TimeOfDay`].
+    pub fn looks_like_time_of_day(&self) -> bool {
+        self.kind == BadRowKind::NotANumber
+            && datetime::parse_time_of_day(self.found.trim().as_bytes()).is_some()
     }
 
     /// The cell is not a number but would be one with a decimal comma (`20,5`, `-1,5e-3`):

@@ -9,7 +9,7 @@ use std::sync::{mpsc, Mutex};
 use memchr::{memchr, memrchr2};
 
 use super::batch::{Batch, Consumer};
-use super::columns::RowState;
+use super::columns::{continue_time, RowState};
 use super::parser::{Parser, Source};
 use super::{IngestReport, Row, Tuning, MAX_REPORTED_BAD_ROWS, PROGRESS_EVERY_BYTES};
 use crate::error::CalError;
@@ -257,6 +257,19 @@ struct Merger<'a> {
     tuning: Tuning,
 }
 
+/// A log with times of day: a worker counted days from its chunk's first row, so its
+/// rows go on by whole days to follow the previous chunk's last row (as [`continue_time`]
+/// places the first row; the rest keep their distance from it).
+fn continue_chunk_clock(rows: &RowState, batch: &mut Batch, stride: usize) {
+    let (Some(plan), Some(&first)) = (&rows.plan, batch.values.first()) else { return };
+    let days_s = continue_time(plan, first, rows.previous_time) - first;
+    if days_s != 0.0 {
+        for time in batch.values.iter_mut().step_by(stride.max(1)) {
+            *time += days_s;
+        }
+    }
+}
+
 impl Merger<'_> {
     /// Visits a parsed chunk's rows; the report once the log has ended.
     fn merge<R, F, P>(
@@ -279,6 +292,7 @@ impl Merger<'_> {
         }
         let stride = self.consumer.stride;
         let batch = &mut chunk.batch;
+        continue_chunk_clock(&self.rows, batch, stride);
         let first_time = batch.values.first().copied();
         let in_order = match (self.rows.previous_time, first_time) {
             (Some(previous), Some(first)) => first > previous,

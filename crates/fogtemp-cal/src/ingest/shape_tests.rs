@@ -420,3 +420,51 @@ fn a_date_column_and_a_time_of_day_column_read_as_one_date_time() {
     let missing = error_of(split, &dated(Some("Day"), "Time"));
     assert!(matches!(&missing, CalError::MissingColumn { column, .. } if column == "Day"), "{missing}");
 }
+
+#[test]
+fn times_of_day_read_as_seconds_from_their_first_row_across_midnights() {
+    // Oracle: the same instants written as ISO date-times, read with the date-time unit.
+    let clock = |unit: TimeUnit| {
+        with(LogFormat { time_unit: unit, time_column: "Time".into(), ..LogFormat::default() })
+    };
+    let stamp = |seconds: f64, dated: bool| {
+        let day = (seconds / 86_400.0).floor();
+        let of_day = seconds - day * 86_400.0;
+        let (h, m, s) = ((of_day / 3600.0).floor(), ((of_day % 3600.0) / 60.0).floor(), of_day % 60.0);
+        let time = format!("{h:02}:{m:02}:{s:04.1}");
+        if dated {
+            format!("2026-11-{:02}T{time}", 24.0 + day)
+        } else {
+            time
+        }
+    };
+    let log = |instants: &[f64], dated: bool| {
+        let mut text = String::from("Time;temp_c;gyro_dph\n");
+        for (k, &t) in instants.iter().enumerate() {
+            text.push_str(&format!("{};20;{k}\n", stamp(t, dated)));
+        }
+        text
+    };
+    // 2 Hz across one midnight (every reader mode cuts chunks inside it), and a row every
+    // 4 h across two midnights.
+    let dense: Vec<f64> = (0..80).map(|k| 86_380.0 + 0.5 * f64::from(k)).collect();
+    let sparse: Vec<f64> = (0..9).map(|k| 72_000.0 + 14_400.0 * f64::from(k)).collect();
+    for instants in [&dense, &sparse] {
+        let got = values(&rows(&log(instants, false), &clock(TimeUnit::TimeOfDay)));
+        let want = values(&rows(&log(instants, true), &clock(TimeUnit::DateTime)));
+        assert_eq!(got, want);
+        let span = instants[instants.len() - 1] - instants[0];
+        assert!((got[got.len() - 1].1 - span).abs() < 1e-9, "{} against {span}", got[got.len() - 1].1);
+    }
+    // A step back within the night is a backward time; a cell that is no clock time is named.
+    let backward = "Time;temp_c;gyro_dph\n23:59:58;20;1\n23:59:59;20;1\n23:59:57;20;1\n";
+    let b = bad_with(backward, &clock(TimeUnit::TimeOfDay));
+    expect(&b, 4, 1, "Time", "23:59:57", BadRowKind::BackwardTime);
+    let malformed = "Time;temp_c;gyro_dph\n23:59:58;20;1\n23:59:5x;20;1\n";
+    let b = bad_with(malformed, &clock(TimeUnit::TimeOfDay));
+    expect(&b, 3, 1, "Time", "23:59:5x", BadRowKind::NotATimeOfDay);
+    // Read as numbers, a clock time is refused and recognised for the hint.
+    let as_numbers = bad_with("Time;temp_c;gyro_dph\n15:45;20;1\n", &clock(TimeUnit::Seconds));
+    assert!(as_numbers.looks_like_time_of_day() && !as_numbers.looks_like_datetime(), "{as_numbers:?}");
+    assert!(!bad("time_s,temp_c,gyro_dph\n0,20,x1\n").looks_like_time_of_day());
+}
