@@ -136,9 +136,10 @@ pub struct DiagnoseOptions {
     pub noise_model_heldout: bool,
     /// When two accepted candidates of the fewest coefficients are within one standard
     /// error of the lowest LORO error, choose between them by encompassing in the noise
-    /// model's metric (each one's GLS Wald p with the other in the model; the one the other
-    /// adds less to enters) instead of by the lower LORO error (docs/diagnose.md, tenth
-    /// session).
+    /// model's metric (each one's GLS Wald p with the other in the model; the runner-up
+    /// enters when it adds significantly beyond the winner, at 5 %, and the winner adds less
+    /// beyond it) instead of by the lower LORO error (docs/diagnose.md, tenth session and
+    /// "The encompassing tie-break needs a significant p").
     pub encompassing_tie_break: bool,
     /// In the noise-model route, split the family-wise level evenly over the open
     /// candidates (Bonferroni over effects) and judge each candidate by its own smallest p

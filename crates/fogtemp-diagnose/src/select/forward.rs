@@ -443,12 +443,20 @@ pub(super) fn encompassing_p(
     (q.ncols() > 0).then(|| tester.wald(&q).1)
 }
 
+/// Level at which the runner-up must add to the LORO winner before it can replace it: the
+/// conventional 5 %, not tuned.
+pub(super) const ENCOMPASSING_LEVEL: f64 = 0.05;
+
 /// Encompassing between the LORO winner `a` and the runner-up `b`: `a_given_b` is the GLS
 /// Wald p of `a` with `b` in the model, `b_given_a` the reverse. The runner-up enters when
-/// the winner adds less beyond it than it adds beyond the winner (a larger p); ties keep the
-/// winner.
+/// it adds significantly beyond the winner (`b_given_a` below [`ENCOMPASSING_LEVEL`]) and
+/// the winner adds less beyond it than that (a larger p). Otherwise the winner stays: when
+/// neither adds significantly beyond the other the data cannot tell them apart, and the
+/// smaller of two p's that are both not significant is no evidence (Gelman and Stern 2006,
+/// "The difference between 'significant' and 'not significant' is not itself statistically
+/// significant"); ties keep the winner too.
 pub(super) fn encompassing_prefers_second(a_given_b: f64, b_given_a: f64) -> bool {
-    a_given_b > b_given_a
+    b_given_a < ENCOMPASSING_LEVEL && a_given_b > b_given_a
 }
 
 /// Among accepted candidates `(held-out SSE per run, coefficients, pick)`, the one with the
@@ -1461,6 +1469,14 @@ mod tests {
         assert!(encompassing_prefers_second(0.3, 0.01));
         // Equal: the LORO winner stays.
         assert!(!encompassing_prefers_second(0.2, 0.2));
+        // Neither adds significantly beyond the other (testbed seed 16's lag against a rate
+        // term, 0.267 and 0.173): the smaller p is no evidence, the winner stays.
+        assert!(!encompassing_prefers_second(0.267, 0.173));
+        // Both add significantly: the one the other adds less to (our design's seed 5002,
+        // shupe_rate the winner at 0.037, the lag the runner-up at 0.0075).
+        assert!(encompassing_prefers_second(0.037, 0.0075));
+        // Just at the level: not below it, the winner stays.
+        assert!(!encompassing_prefers_second(0.5, ENCOMPASSING_LEVEL));
     }
 
     /// Standard normals from a fixed-seed 64-bit LCG (Box-Muller).

@@ -33,8 +33,9 @@
 //!   `Effect::positive_coefficient`). Of the accepted candidates, the one with the fewest coefficients within one
 //!   standard error of the lowest LORO error enters (`forward::parsimonious_set`); when two
 //!   or more are left, the two of lowest LORO error are compared by encompassing in the
-//!   noise model's metric (each one's GLS Wald p with the other in the model; the one the
-//!   other adds less to enters, `forward::encompassing_p`,
+//!   noise model's metric (each one's GLS Wald p with the other in the model; the runner-up
+//!   enters only when it adds significantly beyond the winner, at 5 %, and more than the
+//!   winner adds beyond it, `forward::encompassing_p`,
 //!   `DiagnoseOptions::encompassing_tie_break`); selection stops when no candidate is
 //!   accepted or `max_effects` are in.
 //! - concealment index: R^2 of the candidate's fitted contribution on the terms already
