@@ -344,21 +344,28 @@ fn decimal_comma_logs_fit_the_same_model_as_their_point_twins() {
 
 /// A logger's run with ISO 8601 date-times (1 Hz from `start` local time at +01:00), or the
 /// same run with seconds from its first row.
-fn write_datetime_log(path: &Path, start_c: f64, datetime: bool) {
-    let mut text = String::from("time_s,temp_c,gyro_dph\n");
+/// A 1 Hz warm-up of an hour from `start_c`, its time column `time_header` written by
+/// `time_of(k)` for the k-th second.
+fn write_timed_log(path: &Path, start_c: f64, time_header: &str, time_of: impl Fn(u32) -> String) {
+    let mut text = format!("{time_header},temp_c,gyro_dph\n");
     for k in 0..3600u32 {
         let temp = temp_c(start_c, f64::from(k));
-        let time = if datetime {
+        text.push_str(&format!("{},{temp:.4},{:.6}\n", time_of(k), bias_dph(temp)));
+    }
+    std::fs::write(path, text).unwrap();
+}
+
+fn write_datetime_log(path: &Path, start_c: f64, datetime: bool) {
+    write_timed_log(path, start_c, "time_s", |k| {
+        if datetime {
             // 2026-11-24 23:30:00 +01:00 onwards: the run crosses midnight.
             let s = 23 * 3600 + 30 * 60 + k;
             let (day, s) = (24 + s / 86_400, s % 86_400);
             format!("2026-11-{day:02} {:02}:{:02}:{:02}.000+01:00", s / 3600, s / 60 % 60, s % 60)
         } else {
             format!("{k}.000")
-        };
-        text.push_str(&format!("{time},{temp:.4},{:.6}\n", bias_dph(temp)));
-    }
-    std::fs::write(path, text).unwrap();
+        }
+    });
 }
 
 #[test]
@@ -382,19 +389,15 @@ fn date_time_logs_fit_the_same_model_as_their_seconds_twins() {
 }
 
 fn write_clock_log(path: &Path, start_c: f64, clock: bool) {
-    let mut text = String::from("Time,temp_c,gyro_dph\n");
-    for k in 0..3600u32 {
-        let temp = temp_c(start_c, f64::from(k));
-        // 23:30:00 onwards, no date: the run crosses midnight.
-        let time = if clock {
+    write_timed_log(path, start_c, "Time", |k| {
+        if clock {
+            // 23:30:00 onwards, no date: the run crosses midnight.
             let s = (23 * 3600 + 30 * 60 + k) % 86_400;
             format!("{:02}:{:02}:{:02}", s / 3600, s / 60 % 60, s % 60)
         } else {
             format!("{k}")
-        };
-        text.push_str(&format!("{time},{temp:.4},{:.6}\n", bias_dph(temp)));
-    }
-    std::fs::write(path, text).unwrap();
+        }
+    });
 }
 
 #[test]
