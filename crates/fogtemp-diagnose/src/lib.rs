@@ -392,6 +392,27 @@ pub struct SelectionStep {
     pub candidates: Vec<CandidateReport>,
     /// Effect added at this step, if any.
     pub added: Option<String>,
+    /// The encompassing tie-break between the two accepted rivals of lowest LORO error, when
+    /// it ran ([`DiagnoseOptions::encompassing_tie_break`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub tie_break: Option<TieBreak>,
+}
+
+/// The encompassing tie-break at one step: two accepted rivals of the fewest coefficients
+/// within one standard error of the lowest LORO error, compared in the noise model's metric.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct TieBreak {
+    /// The rival of lower LORO error.
+    pub loro_winner: String,
+    /// The other rival.
+    pub runner_up: String,
+    /// GLS Wald p of the LORO winner with the runner-up in the model.
+    pub winner_given_runner_up_p: f64,
+    /// GLS Wald p of the runner-up with the LORO winner in the model.
+    pub runner_up_given_winner_p: f64,
+    /// The runner-up entered instead of the LORO winner: it adds significantly beyond the
+    /// winner (at 5 %) and more than the winner adds beyond it.
+    pub runner_up_entered: bool,
 }
 
 /// Estimated noise of the residual.

@@ -296,6 +296,32 @@ pub(super) fn alternatives(steps: &[SelectionStep], k: usize) -> Vec<(String, f6
         .collect()
 }
 
+/// What chose `chosen` (LORO RMS `chosen_cv`, deg/h) over its `alternatives` at `step`, for
+/// the statement: the encompassing tie-break when it replaced the LORO winner, else the lower
+/// LORO RMS when no alternative's is lower, else parsimony (the fewest coefficients within
+/// one standard error of the lowest LORO error).
+pub(super) fn how_chosen(
+    step: &SelectionStep,
+    chosen: &str,
+    chosen_cv: f64,
+    alternatives: &[(String, f64)],
+) -> String {
+    match &step.tie_break {
+        Some(t) if t.runner_up_entered && t.runner_up == chosen => format!(
+            "the LORO RMS, {chosen_cv:.5} deg/h for {chosen}, did not tell them apart; the noise model's \
+             encompassing test chose {chosen}: it adds beyond {} at GLS Wald p {:.2e}, {} beyond it at p {:.2e}",
+            t.loro_winner, t.runner_up_given_winner_p, t.loro_winner, t.winner_given_runner_up_p
+        ),
+        _ if alternatives.iter().all(|(_, cv)| chosen_cv <= *cv) => {
+            format!("only the lower LORO RMS, {chosen_cv:.5} deg/h, chose {chosen}")
+        }
+        _ => format!(
+            "{chosen}'s LORO RMS, {chosen_cv:.5} deg/h, is within one standard error of the lowest, with fewer \
+             coefficients"
+        ),
+    }
+}
+
 /// The chosen terms as the final fit reports them: a term that only the noise-model route
 /// accepted at its profile in the held-out GLS error ([`super::forward`]'s `route_profile`),
 /// the metric of the test that accepted it (a term the run-level rules accept is profiled by the LORO error, theirs).
@@ -453,10 +479,10 @@ pub fn evaluate_final(
             let list: Vec<String> =
                 alternatives.iter().map(|(e, cv)| format!("{e} (LORO RMS {cv:.5} deg/h)")).collect();
             statement.push_str(&format!(
-                "; alternative explanation: {} passed every rule too and no longer does once {} is in (only the lower LORO RMS, {chosen_cv:.5} deg/h, chose {}); to separate them run {}",
+                "; alternative explanation: {} passed every rule too and no longer does once {} is in ({}); to separate them run {}",
                 list.join(", "),
                 c.effect.name(),
-                c.effect.name(),
+                how_chosen(&selection.steps[i], c.effect.name(), chosen_cv, &alternatives),
                 crate::effects::separating_experiment(c.effect, &content)
             ));
         }
@@ -516,6 +542,48 @@ mod tests {
             most_confused_with: None,
             route,
         }
+    }
+
+    fn step_with(tie_break: Option<crate::TieBreak>) -> SelectionStep {
+        SelectionStep {
+            model: Vec::new(),
+            cv_rms_dph: 0.012,
+            n_eff: 100.0,
+            rho: 0.0,
+            candidates: Vec::new(),
+            added: Some("shupe_rate".into()),
+            tie_break,
+        }
+    }
+
+    #[test]
+    fn the_statement_names_what_chose_the_term_over_its_alternatives() {
+        let lag = vec![("thermal_lag".to_string(), 0.01096)];
+        // The runner-up entered by the encompassing test (testbed seed 16 before the 5 % level,
+        // with made-up p's that would pass it).
+        let tie = crate::TieBreak {
+            loro_winner: "thermal_lag".into(),
+            runner_up: "shupe_rate".into(),
+            winner_given_runner_up_p: 0.267,
+            runner_up_given_winner_p: 0.0173,
+            runner_up_entered: true,
+        };
+        assert_eq!(
+            how_chosen(&step_with(Some(tie.clone())), "shupe_rate", 0.01101, &lag),
+            "the LORO RMS, 0.01101 deg/h for shupe_rate, did not tell them apart; the noise model's encompassing \
+             test chose shupe_rate: it adds beyond thermal_lag at GLS Wald p 1.73e-2, thermal_lag beyond it at p 2.67e-1"
+        );
+        // The tie-break kept the LORO winner: the lower LORO RMS chose it.
+        let kept = crate::TieBreak { runner_up_entered: false, ..tie };
+        assert_eq!(
+            how_chosen(&step_with(Some(kept)), "thermal_lag", 0.01096, &[("shupe_rate".into(), 0.01101)]),
+            "only the lower LORO RMS, 0.01096 deg/h, chose thermal_lag"
+        );
+        // No tie-break and an alternative with a lower LORO RMS: parsimony chose.
+        assert_eq!(
+            how_chosen(&step_with(None), "shupe_rate", 0.01101, &lag),
+            "shupe_rate's LORO RMS, 0.01101 deg/h, is within one standard error of the lowest, with fewer coefficients"
+        );
     }
 
     #[test]

@@ -16,7 +16,7 @@ use crate::error::DiagnoseError;
 use crate::linalg::{autocorrelations, effective_n, parabola_vertex};
 use crate::noise_model::heldout_gls;
 use crate::prepare::Prepared;
-use crate::{CandidateReport, DiagnoseOptions, SelectionStep};
+use crate::{CandidateReport, DiagnoseOptions, SelectionStep, TieBreak};
 
 /// A term in the model: an effect at one grid point.
 #[derive(Clone, Debug, PartialEq)]
@@ -317,7 +317,7 @@ pub(super) fn most_confused(
         .max_by(|a, b| a.1.total_cmp(&b.1))
 }
 
-pub(super) fn run_step(ctx: &StepContext<'_>) -> Result<(Vec<CandidateReport>, Option<Pick>), DiagnoseError> {
+pub(super) fn run_step(ctx: &StepContext<'_>) -> Result<StepOutcome, DiagnoseError> {
     let open: Vec<&EffectGrid> = ctx.grids.iter().filter(|g| !ctx.in_model.contains(&g.effect)).collect();
     let scored: Vec<Option<ScoredProfile>> = open
         .par_iter()
@@ -366,35 +366,56 @@ pub(super) fn run_step(ctx: &StepContext<'_>) -> Result<(Vec<CandidateReport>, O
     let (first, second) = (set.next(), set.next());
     // Two rivals of one size within one SE: the LORO error cannot tell them apart, so the
     // one that encompasses the other in the noise model's metric enters.
-    let tie = match (&first, &second, ctx.noise_basis) {
+    let tie_break = match (&first, &second, ctx.noise_basis) {
         (Some(a), Some(b), Some(basis)) if ctx.options.encompassing_tie_break => {
             let a_given_b = wald_p_given(ctx, basis, a, b);
             let b_given_a = wald_p_given(ctx, basis, b, a);
-            a_given_b.zip(b_given_a).map(|(ab, ba)| (ab, ba, encompassing_prefers_second(ab, ba)))
+            a_given_b.zip(b_given_a).map(|(ab, ba)| TieBreak {
+                loro_winner: a.effect.name().into(),
+                runner_up: b.effect.name().into(),
+                winner_given_runner_up_p: ab,
+                runner_up_given_winner_p: ba,
+                runner_up_entered: encompassing_prefers_second(ab, ba),
+            })
         }
         _ => None,
     };
-    let best = match (tie, second) {
-        (Some((_, _, true)), Some(b)) => Some(b),
-        _ => first,
-    };
-    if let Some(Pick { effect, .. }) = &best {
+    let entered = tie_break.as_ref().is_some_and(|t| t.runner_up_entered);
+    let best = if entered { second } else { first };
+    if let Some(effect) = best.as_ref().map(|p| p.effect) {
         for r in &mut reports {
             if r.effect == effect.name() {
                 r.status = "selected".into();
-                if let Some((ab, ba, _)) = tie {
+                if let Some(t) = &tie_break {
                     r.note.push_str(&format!(
-                        "; encompassing tie-break (GLS Wald p of the LORO winner with the runner-up in the model {ab:.2e}, of the runner-up with the winner in {ba:.2e})"
+                        "; encompassing tie-break (GLS Wald p of the LORO winner with the runner-up in the model {:.2e}, of the runner-up with the winner in {:.2e})",
+                        t.winner_given_runner_up_p, t.runner_up_given_winner_p
                     ));
                 }
             } else if r.status == "accepted" {
                 r.status = "rejected".into();
-                r.runner_up_alternative = explains_half(ctx, &held_out_sse, &r.effect, *effect);
-                r.note = if r.runner_up_alternative { RUNNER_UP_NOTE } else { RUNNER_UP_PARTIAL_NOTE }.into();
+                r.runner_up_alternative = explains_half(ctx, &held_out_sse, &r.effect, effect);
+                let replaced = entered && tie_break.as_ref().is_some_and(|t| t.loro_winner == r.effect);
+                r.note = match (replaced, r.runner_up_alternative) {
+                    (true, _) => ENCOMPASSED_NOTE,
+                    (false, true) => RUNNER_UP_NOTE,
+                    (false, false) => RUNNER_UP_PARTIAL_NOTE,
+                }
+                .into();
             }
         }
     }
-    Ok((reports, best))
+    Ok(StepOutcome { reports, pick: best, tie_break })
+}
+
+/// What one step of forward selection found.
+pub(super) struct StepOutcome {
+    /// Every candidate's report.
+    pub(super) reports: Vec<CandidateReport>,
+    /// The effect that enters, if any.
+    pub(super) pick: Option<Pick>,
+    /// The encompassing tie-break, when it ran.
+    pub(super) tie_break: Option<TieBreak>,
 }
 
 /// GLS Wald p of `add` (at its profiled point) with `given` (at its) in the current model;
@@ -637,8 +658,11 @@ pub fn forward_select(
                 .count(),
         };
         let cv_rms = (ctx.base_eval.fold_sse.iter().sum::<f64>() / prep.n_blocks() as f64).sqrt();
-        let (candidates, pick) =
-            if step < options.max_effects { run_step(&ctx)? } else { (Vec::new(), None) };
+        let StepOutcome { reports: candidates, pick, tie_break } = if step < options.max_effects {
+            run_step(&ctx)?
+        } else {
+            StepOutcome { reports: Vec::new(), pick: None, tie_break: None }
+        };
         steps.push(SelectionStep {
             model: model_names(&chosen),
             cv_rms_dph: cv_rms,
@@ -646,6 +670,7 @@ pub fn forward_select(
             rho,
             candidates,
             added: pick.as_ref().map(|p| p.effect.name().to_string()),
+            tie_break,
         });
         match pick {
             Some(Pick { effect, point, concealment_index, most_confused_with, route }) => {
@@ -1270,6 +1295,11 @@ fn gls_note(v: Option<GlsVerdict>) -> String {
 /// least [`ALTERNATIVE_SHARE`] of what the selected effect lowers it by: an alternative
 /// explanation these runs hardly separate.
 pub(super) const RUNNER_UP_NOTE: &str = "passes the rules but another effect lowers the LORO error more";
+
+/// The LORO winner that the encompassing tie-break replaced: the runner-up adds significantly
+/// beyond it in the noise model, and more than it adds beyond the runner-up.
+pub(super) const ENCOMPASSED_NOTE: &str = "passes the rules and has the lowest LORO error, but the selected effect \
+     encompasses it in the noise model (it adds significantly beyond this one, and more than this one adds beyond it)";
 
 /// Passes every rule at a step without being selected, but lowers the LORO error by less
 /// than [`ALTERNATIVE_SHARE`] of what the selected effect lowers it by: it explains part of
