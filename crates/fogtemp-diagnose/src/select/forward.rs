@@ -1059,6 +1059,18 @@ impl GlsStep {
     }
 }
 
+/// One candidate as judged by one of the route's three ways, before its verdict is made.
+struct Judged {
+    /// Smallest Wald p over the grid, at point `best`.
+    min_p: f64,
+    best: usize,
+    family_p: f64,
+    /// The held-out claim at `best` (falls, physical sign); `None`: not computed.
+    heldout: Option<(bool, bool)>,
+    /// The current model's held-out GLS error under the levels `fit` (see `verdict_of`).
+    without_sse: Option<f64>,
+}
+
 /// What the route's three ways of judging the open candidates share at one step.
 struct RouteStep<'a> {
     basis: &'a crate::noise_model::NoiseBasis,
@@ -1082,6 +1094,32 @@ impl RouteStep<'_> {
             .noise_model_heldout
             .then(|| heldout_gls(f, &self.base.per_run, self.ys, self.base.penalty.as_ref()))
             .flatten()
+    }
+
+    /// The verdict the three ways share once a candidate is judged under the levels `fit`:
+    /// accepted when significant with its claim holding, then reported at the route's
+    /// profile ([`route_report_point`]).
+    fn verdict_of(
+        &self,
+        fit: &crate::noise_model::NoiseFit,
+        grid: &EffectGrid,
+        judged: Judged,
+        own_levels: bool,
+        split: LevelSplit,
+    ) -> GlsVerdict {
+        let accepts = route_significant(judged.family_p, judged.heldout);
+        let (point, heldout_gls_fall) =
+            route_report_point(fit, self.base, self.ys, grid, judged.best, accepts, judged.without_sse);
+        GlsVerdict {
+            min_p: judged.min_p,
+            point,
+            heldout_gls_fall,
+            family_p: judged.family_p,
+            levels: (fit.white_var, fit.flicker_var),
+            heldout: judged.heldout,
+            own_levels,
+            split,
+        }
     }
 
     /// [`DiagnoseOptions::noise_model_candidate_levels`]: each candidate at levels refitted
@@ -1119,20 +1157,8 @@ impl RouteStep<'_> {
                     let refs: Vec<&DMatrix<f64>> = all.iter().flat_map(|t| &t.bases).collect();
                     family_p(own_tester.n(), &refs, &[mine.min_p], GLS_SIMULATIONS, self.seed)[0]
                 });
-                let accepts = route_significant(family_p, heldout);
-                let (point, heldout_gls_fall) =
-                    route_report_point(&own, base, ys, g, mine.best, accepts, without_sse);
-                let v = GlsVerdict {
-                    min_p: mine.min_p,
-                    point,
-                    heldout_gls_fall,
-                    family_p,
-                    levels: (own.white_var, own.flicker_var),
-                    heldout,
-                    own_levels: true,
-                    split: LevelSplit::None,
-                };
-                Some((g.effect, v))
+                let judged = Judged { min_p: mine.min_p, best: mine.best, family_p, heldout, without_sse };
+                Some((g.effect, self.verdict_of(&own, g, judged, true, LevelSplit::None)))
             })
             .collect()
     }
@@ -1162,21 +1188,9 @@ impl RouteStep<'_> {
                     let stream = self.seed ^ (i as u64 + 1).wrapping_mul(0x9E37_79B9_7F4A_7C15);
                     family_p(self.tester.n(), &refs, &[t.min_p], GLS_OWN_SIMULATIONS, stream)[0]
                 });
-                let accepts = route_significant(family_p, heldout);
                 let without_sse = without.as_ref().map(|w| w.sse());
-                let (point, heldout_gls_fall) =
-                    route_report_point(self.fit, self.base, self.ys, g, t.best, accepts, without_sse);
-                let v = GlsVerdict {
-                    min_p: t.min_p,
-                    point,
-                    heldout_gls_fall,
-                    family_p,
-                    levels: (self.fit.white_var, self.fit.flicker_var),
-                    heldout,
-                    own_levels: false,
-                    split: LevelSplit::Candidates(candidates),
-                };
-                (g.effect, v)
+                let judged = Judged { min_p: t.min_p, best: t.best, family_p, heldout, without_sse };
+                (g.effect, self.verdict_of(self.fit, g, judged, false, LevelSplit::Candidates(candidates)))
             })
             .collect()
     }
@@ -1223,20 +1237,10 @@ impl RouteStep<'_> {
                     _ => (self.fit, without.as_ref()),
                 };
                 let heldout = w.and_then(|w| heldout_claim(f, self.base, self.ys, g, t.best, w.sse()));
-                let accepts = route_significant(*family_p, heldout);
-                let (point, heldout_gls_fall) =
-                    route_report_point(f, self.base, self.ys, g, t.best, accepts, w.map(|w| w.sse()));
-                let v = GlsVerdict {
-                    min_p: t.min_p,
-                    point,
-                    heldout_gls_fall,
-                    family_p: *family_p,
-                    levels: (f.white_var, f.flicker_var),
-                    heldout,
-                    own_levels: ft.is_some(),
-                    split,
-                };
-                (g.effect, v)
+                let without_sse = w.map(|w| w.sse());
+                let judged =
+                    Judged { min_p: t.min_p, best: t.best, family_p: *family_p, heldout, without_sse };
+                (g.effect, self.verdict_of(f, g, judged, ft.is_some(), split))
             })
             .collect()
     }
