@@ -962,13 +962,14 @@ fn outputs_are_atomic() {
         assert_eq!(entries(dir.path()), before, "{args:?}");
     }
 
-    // --out names an existing folder: the temporary file is written, the rename fails,
-    // and the temporary file is removed.
+    // --out names an existing folder: fit and compensate refuse it before their work; the
+    // others write the temporary file, the rename fails, and the temporary file is removed.
     let taken = dir.path().join("taken");
     fs::create_dir(&taken).expect("mkdir");
-    for args in commands(&taken).into_iter().take(4) {
+    for (i, args) in commands(&taken).into_iter().take(4).enumerate() {
         let stderr = run_err(&args);
-        assert!(stderr.contains("cannot move the output into place"), "{args:?}: {stderr}");
+        let expected = if i < 2 { "is a folder" } else { "cannot move the output into place" };
+        assert!(stderr.contains(expected), "{args:?}: {stderr}");
         assert!(taken.is_dir() && entries(&taken).is_empty());
         let now: BTreeSet<String> = entries(dir.path()).into_iter().filter(|n| n != "taken").collect();
         assert_eq!(now, before, "{args:?}: files left behind");
@@ -1006,6 +1007,46 @@ fn outputs_are_atomic() {
         }
     }
     fs::set_permissions(&ro, writable).expect("chmod");
+}
+
+/// An output that is one of the inputs is refused before anything is written, and a log
+/// named twice is refused (its run would count twice).
+#[test]
+fn outputs_never_replace_inputs_and_logs_count_once() {
+    let dir = TempDir::new().expect("tempdir");
+    let (ok, lines, model) = short_log_and_model(dir.path(), "poly", "m.fogm");
+    let points = dir.path().join("points.csv");
+    fs::write(&points, "temp_c,rate_c_per_min\n21,0.5\n").expect("write points");
+    let model_bytes = fs::read(&model).expect("read model");
+    let same_log = dir.path().join(".").join("ok.csv");
+    let cases: Vec<(Vec<OsString>, &Path)> = vec![
+        (args!["fit", "--method", "poly", "--out", &same_log, &ok], &ok),
+        (args!["compensate", "--model", &model, &ok, "--out", &same_log], &ok),
+        (args!["compensate", "--model", &model, &ok, "--out", &model], &model),
+        (args!["export", "--model", &model, "--format", "c", "--out", &model], &model),
+        (args!["evaluate", "--model", &model, "--points", &points, "--out", &points], &points),
+    ];
+    for (args, input) in &cases {
+        let before = fs::read(input).expect("read input");
+        let stderr =
+            expect_failure(args, dir.path(), None, &["this is also an input", "choose another output path"]);
+        assert_eq!(&fs::read(input).expect("read input"), &before, "{args:?} changed its input:\n{stderr}");
+    }
+    assert_eq!(fs::read(&model).expect("read model"), model_bytes);
+    assert_eq!(fs::read_to_string(&ok).expect("read log").lines().count(), lines.len());
+
+    // The same log twice, directly and through its folder or another path to it.
+    let sub = dir.path().join("runs");
+    fs::create_dir(&sub).expect("mkdir");
+    let (a, _) = short_log(&sub, "a.csv");
+    let out = dir.path().join("twice.fogm");
+    for args in [
+        args!["fit", "--method", "poly", "--out", &out, &sub, &a],
+        args!["fit", "--method", "poly", "--out", &out, &a, sub.join("..").join("runs").join("a.csv")],
+    ] {
+        expect_failure(&args, dir.path(), Some(&out), &["is named twice", "its run would count twice"]);
+    }
+    run_ok(args!["fit", "--method", "poly", "--out", &out, &sub]);
 }
 
 #[test]

@@ -101,7 +101,7 @@ pub enum CalError {
         message: String,
     },
     /// A run-metadata file (`--runs`) is malformed or does not match the logs.
-    #[error("{}:{line}: {problem}", path.display())]
+    #[error("{}{}: {problem}", path.display(), line_suffix(*line))]
     Runs {
         /// The runs file.
         path: PathBuf,
@@ -211,4 +211,13 @@ pub enum EncodeProblem {
     /// The feature tracker settings are outside what the core accepts.
     #[error("feature settings: {0}")]
     FeatureSettings(fogtemp_core::Error),
+}
+
+/// `:line` after a file name, or nothing for line 0 (a problem not on one line).
+fn line_suffix(line: u64) -> String {
+    if line == 0 {
+        String::new()
+    } else {
+        format!(":{line}")
+    }
 }

@@ -8,7 +8,7 @@
 //!   turntable's rate), deg/h;
 //! - `role`: whether the run calibrates (`cal`) or validates (`val`).
 //!
-//! Columns may come in any order; further columns are ignored. Every problem is an error
+//! Columns may come in any order, their names in any case; further columns are ignored. Every problem is an error
 //! naming the file and the line: a missing column, a bad number or role, a run listed twice,
 //! a row for a run no log has, a log no row describes.
 
@@ -81,6 +81,25 @@ pub enum RunsProblem {
         /// Logs given.
         logs: usize,
     },
+    /// A row has more cells than the header names.
+    #[error("{cells} cells where the header names {columns} (a decimal comma in a number? write 9.67, not 9,67; or quote the cell)")]
+    ExtraCells {
+        /// Cells in the row.
+        cells: usize,
+        /// Columns in the header.
+        columns: usize,
+    },
+    /// Two logs have the same run name (file name without `.csv`), so one row would
+    /// describe both.
+    #[error("the logs {} and {} share the run name '{run}': one row cannot describe both; rename one", first.display(), second.display())]
+    SharedName {
+        /// The run name.
+        run: String,
+        /// The first log with it.
+        first: PathBuf,
+        /// The second.
+        second: PathBuf,
+    },
     /// A log has no row.
     #[error("no row for the log {}", log.display())]
     MissingRun {
@@ -131,14 +150,14 @@ impl RunsFile {
             return Err(problem(name, 1, RunsProblem::Empty));
         }
         let column = |wanted: &'static str| {
-            header.iter().position(|h| h == wanted).ok_or_else(|| {
+            header.iter().position(|h| h.eq_ignore_ascii_case(wanted)).ok_or_else(|| {
                 let available = header.iter().collect::<Vec<_>>().join(", ");
                 problem(name, 1, RunsProblem::MissingColumn { column: wanted, available })
             })
         };
         let (run_col, position_col, rate_col) =
             (column("run")?, column("position")?, column("input_rate_dph")?);
-        let role_col = header.iter().position(|h| h == "role");
+        let role_col = header.iter().position(|h| h.eq_ignore_ascii_case("role"));
         let mut runs: Vec<RunMetadata> = Vec::new();
         let mut first_line: BTreeMap<String, u64> = BTreeMap::new();
         for record in csv.records() {
@@ -147,6 +166,13 @@ impl RunsFile {
                 problem(name, line, RunsProblem::Csv(e.to_string()))
             })?;
             let line = record.position().map_or(0, csv::Position::line);
+            if record.len() > header.len() {
+                return Err(problem(
+                    name,
+                    line,
+                    RunsProblem::ExtraCells { cells: record.len(), columns: header.len() },
+                ));
+            }
             let cell = |i: usize| record.get(i).unwrap_or("");
             let bad = |column: &'static str, what: &'static str, found: &str| {
                 problem(name, line, RunsProblem::BadCell { column, what, found: found.to_string() })
@@ -169,6 +195,11 @@ impl RunsFile {
                 None | Some("") => None,
                 Some("cal") => Some(Role::Cal),
                 Some("val") => Some(Role::Val),
+                Some(other) if other.parse::<f64>().is_ok() => {
+                    let what = "must be 'cal' or 'val'; a number here (input_rate_dph written with a decimal comma? \
+                                write 9.67, not 9,67)";
+                    return Err(bad("role", what, other));
+                }
                 Some(other) => return Err(bad("role", "must be 'cal' or 'val'", other)),
             };
             if let Some(&first) = first_line.get(run) {
@@ -194,13 +225,19 @@ impl RunsFile {
     /// the same runs (a log's run is its file name without `.csv`).
     ///
     /// # Errors
-    /// [`CalError::Runs`]: [`RunsProblem::MissingRun`] for a log without a row (line 0),
+    /// [`CalError::Runs`]: [`RunsProblem::SharedName`] for two logs of one run name and
+    /// [`RunsProblem::MissingRun`] for a log without a row (line 0),
     /// [`RunsProblem::UnknownRun`] for a row without a log (its line).
     pub fn for_logs(&self, logs: &[PathBuf]) -> Result<Vec<&RunMetadata>, CalError> {
         let by_name: BTreeMap<&str, &RunMetadata> = self.runs.iter().map(|r| (r.run.as_str(), r)).collect();
+        let mut first_log: BTreeMap<String, &PathBuf> = BTreeMap::new();
         let mut out = Vec::with_capacity(logs.len());
         for log in logs {
             let name = run_name(log);
+            if let Some(first) = first_log.insert(name.clone(), log) {
+                let shared = RunsProblem::SharedName { run: name, first: first.clone(), second: log.clone() };
+                return Err(problem(&self.path, 0, shared));
+            }
             let row = by_name
                 .get(name.as_str())
                 .ok_or_else(|| problem(&self.path, 0, RunsProblem::MissingRun { log: log.clone() }))?;
@@ -275,6 +312,38 @@ mod tests {
         assert!(matches!(p, RunsProblem::BadCell { column: "run", .. }), "{p}");
         let (_, p) = runs_problem(parse(""));
         assert_eq!(p, RunsProblem::Empty);
+        // A decimal comma splits a number into two cells: named, not read as the role.
+        let (line, p) = runs_problem(parse("run,position,input_rate_dph,role\na,up,1.5,cal\nb,up,9,67\n"));
+        assert_eq!(line, 3);
+        assert!(
+            matches!(&p, RunsProblem::BadCell { column: "role", what, found } if what.contains("decimal comma") && found == "67"),
+            "{p}"
+        );
+        let (line, p) = runs_problem(parse("run,position,input_rate_dph\na,up,9,67\n"));
+        assert_eq!((line, p), (2, RunsProblem::ExtraCells { cells: 4, columns: 3 }));
+    }
+
+    #[test]
+    fn header_names_are_read_in_any_case() {
+        let f = parse("Run,POSITION,Input_Rate_dph,Role\na,up,1,val\n").expect("valid");
+        assert_eq!(f.runs[0].role, Some(Role::Val), "a 'Role' column is the role, not an ignored column");
+        assert_eq!(f.runs[0].input_rate_dph, 1.0);
+    }
+
+    #[test]
+    fn two_logs_of_one_run_name_are_refused_and_named() {
+        let f = parse("run,position,input_rate_dph\na,up,1\n").expect("valid");
+        let logs = [PathBuf::from("x/a.csv"), PathBuf::from("y/a.csv")];
+        let err = f.for_logs(&logs).unwrap_err();
+        assert!(
+            matches!(&err, CalError::Runs { line: 0, problem: RunsProblem::SharedName { run, .. }, .. } if run == "a"),
+            "{err}"
+        );
+        let text = err.to_string();
+        assert!(
+            text.starts_with("runs.csv: the logs x/a.csv and y/a.csv"),
+            "no line 0 in the message: {text}"
+        );
     }
 
     #[test]

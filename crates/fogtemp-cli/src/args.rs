@@ -586,7 +586,7 @@ pub struct InspectArgs {
 }
 
 /// Export formats.
-#[derive(Debug, Clone, Copy, ValueEnum)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum ExportFormat {
     /// A Rust `static` byte array.
     Rust,

@@ -21,28 +21,97 @@ pub fn stage(path: &Path, write: impl FnOnce(&mut dyn Write) -> Result<()>) -> R
     Ok(fogtemp_cal::output::stage(path, |w| write(w).map_err(|e| std::io::Error::other(format!("{e:#}"))))?)
 }
 
-/// Every log named: files as given, folders expanded to their `*.csv` files sorted by name.
-pub fn expand_logs(args: &[PathBuf]) -> Result<Vec<PathBuf>> {
-    let mut out = Vec::new();
-    for arg in args {
-        if arg.is_dir() {
-            let mut found: Vec<PathBuf> = std::fs::read_dir(arg)
-                .with_context(|| format!("cannot list {}", arg.display()))?
-                .filter_map(|e| e.ok().map(|e| e.path()))
-                .filter(|p| p.extension().is_some_and(|x| x.eq_ignore_ascii_case("csv")) && p.is_file())
-                .collect();
-            found.sort();
-            if found.is_empty() {
-                bail!("{}: folder holds no *.csv files", arg.display());
-            }
-            out.extend(found);
-        } else if arg.is_file() {
-            out.push(arg.clone());
-        } else {
-            bail!("{}: no such file or folder", arg.display());
+/// Refuses to write `out` when it is one of `inputs` (the same file, however named): the
+/// write would replace the input. An `out` that does not exist yet is no input.
+pub fn refuse_overwriting_inputs(out: &Path, inputs: &[&Path]) -> Result<()> {
+    let Ok(target) = std::fs::canonicalize(out) else { return Ok(()) };
+    for input in inputs {
+        if std::fs::canonicalize(input).is_ok_and(|i| i == target) {
+            let alias = if *input == out { String::new() } else { format!(" (as {})", input.display()) };
+            bail!(
+                "{}: this is also an input{alias}; writing it would replace the input: choose another output path",
+                out.display()
+            );
         }
     }
-    Ok(out)
+    Ok(())
+}
+
+/// Checks before any long work that the file `out` can be written where it is named: its
+/// folder exists and a file can be created in it (the check's file is removed at once), and
+/// `out` is not a folder.
+pub fn check_output_file(out: &Path) -> Result<()> {
+    if out.is_dir() {
+        bail!("{}: is a folder; give the path of the file to write", out.display());
+    }
+    let folder = match out.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    if !folder.is_dir() {
+        bail!("{}: the folder {} does not exist", out.display(), folder.display());
+    }
+    tempfile::NamedTempFile::new_in(folder)
+        .map(drop)
+        .with_context(|| format!("{}: cannot create a temporary file in {}", out.display(), folder.display()))
+}
+
+/// Checks before any long work that `dir` can hold a report: an existing folder, or a path
+/// that does not exist yet (it is created then); not a file.
+pub fn check_report_folder(dir: &Path) -> Result<()> {
+    if dir.exists() && !dir.is_dir() {
+        bail!(
+            "{}: exists and is not a folder; --report names the folder to write the report into",
+            dir.display()
+        );
+    }
+    Ok(())
+}
+
+/// Every log named: files as given, folders expanded to their `*.csv` files sorted by name.
+/// The same file named twice (directly, through a folder, or by another path) is an error:
+/// its run would count twice.
+pub fn expand_logs(args: &[PathBuf]) -> Result<Vec<PathBuf>> {
+    let mut seen: Vec<(PathBuf, String)> = Vec::new();
+    let mut logs = Vec::new();
+    for arg in args {
+        let found = expand_log_paths(arg)?;
+        for log in found {
+            let canonical =
+                std::fs::canonicalize(&log).with_context(|| format!("cannot open {}", log.display()))?;
+            let origin =
+                if log == *arg { format!("as {}", arg.display()) } else { format!("in {}", arg.display()) };
+            if let Some((_, first)) = seen.iter().find(|(c, _)| *c == canonical) {
+                bail!(
+                    "{} is named twice ({first} and {origin}): its run would count twice; name each log once",
+                    log.display()
+                );
+            }
+            seen.push((canonical, origin));
+            logs.push(log);
+        }
+    }
+    Ok(logs)
+}
+
+/// One argument's logs: a file as given, a folder's `*.csv` files sorted by name.
+fn expand_log_paths(arg: &Path) -> Result<Vec<PathBuf>> {
+    if arg.is_dir() {
+        let mut found: Vec<PathBuf> = std::fs::read_dir(arg)
+            .with_context(|| format!("cannot list {}", arg.display()))?
+            .filter_map(|e| e.ok().map(|e| e.path()))
+            .filter(|p| p.extension().is_some_and(|x| x.eq_ignore_ascii_case("csv")) && p.is_file())
+            .collect();
+        found.sort();
+        if found.is_empty() {
+            bail!("{}: folder holds no *.csv files", arg.display());
+        }
+        Ok(found)
+    } else if arg.is_file() {
+        Ok(vec![arg.to_path_buf()])
+    } else {
+        bail!("{}: no such file or folder", arg.display());
+    }
 }
 
 /// A byte progress bar for one file, drawn on stderr only when it is a terminal.

@@ -6,9 +6,11 @@ use fogtemp_core::{Compensator, Model};
 
 use super::{check_capacity, ingest_options, read_model, report_skipped};
 use crate::args::CompensateArgs;
-use crate::output::{write_atomic, RowProgress};
+use crate::output::{check_output_file, refuse_overwriting_inputs, write_atomic, RowProgress};
 
 pub fn compensate(a: CompensateArgs) -> Result<()> {
+    refuse_overwriting_inputs(&a.out, &[&a.log, &a.model])?;
+    check_output_file(&a.out)?;
     let blob = read_model(&a.model)?;
     check_capacity(&a.model, &blob, a.capacity)?;
     let model = Model::from_bytes(&blob).map_err(|e| anyhow::anyhow!("{e}"))?;

@@ -7,9 +7,12 @@ use fogtemp_core::{Flags, Model, WalkHint};
 
 use super::read_model;
 use crate::args::EvaluateArgs;
-use crate::output::write_atomic;
+use crate::output::{refuse_overwriting_inputs, write_atomic};
 
 pub fn evaluate(a: EvaluateArgs) -> Result<()> {
+    if let Some(out) = &a.out {
+        refuse_overwriting_inputs(out, &[&a.model, &a.points])?;
+    }
     let blob = read_model(&a.model)?;
     let model = Model::from_bytes(&blob).map_err(|e| anyhow::anyhow!("{e}"))?;
     let axis = model.axis(a.axis).map_err(|e| anyhow::anyhow!("{}: {e}", a.model.display()))?;

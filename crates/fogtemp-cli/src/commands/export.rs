@@ -4,9 +4,13 @@ use anyhow::{bail, Result};
 
 use super::read_model;
 use crate::args::{ExportArgs, ExportFormat};
-use crate::output::{stage, write_atomic};
+use crate::output::{refuse_overwriting_inputs, stage, write_atomic};
 
 pub fn export(a: ExportArgs) -> Result<()> {
+    refuse_overwriting_inputs(&a.out, &[&a.model])?;
+    if a.format == ExportFormat::C {
+        refuse_overwriting_inputs(&a.out.with_extension("h"), &[&a.model])?;
+    }
     let blob = read_model(&a.model)?;
     let name = &a.name;
     if name.is_empty()

@@ -14,12 +14,23 @@ use super::{capacity_fits, ingest_options, print_json, report_skipped};
 use crate::args::{
     CvCorrectionArg, CvSchemeArg, CvScoringArg, FitArgs, MethodArg, PolyArg, RuleScaleArg, ThinningArg,
 };
-use crate::output::{digest_files, expand_logs, write_atomic, RowProgress};
+use crate::output::{
+    check_output_file, check_report_folder, digest_files, expand_logs, refuse_overwriting_inputs,
+    write_atomic, RowProgress,
+};
 
 /// The `fit` command.
 pub fn fit(a: FitArgs) -> Result<()> {
     capacity_fits(a.blocks as usize, a.capacity).context("--blocks")?;
-    let (logs, positions) = calibration_logs(&expand_logs(&a.logs)?, a.runs.as_deref())?;
+    let named = expand_logs(&a.logs)?;
+    let mut inputs: Vec<&std::path::Path> = named.iter().map(|p| p.as_path()).collect();
+    inputs.extend(a.runs.as_deref());
+    refuse_overwriting_inputs(&a.out, &inputs)?;
+    check_output_file(&a.out)?;
+    if let Some(dir) = &a.report {
+        check_report_folder(dir)?;
+    }
+    let (logs, positions) = calibration_logs(&named, a.runs.as_deref())?;
     let config = CalibrationConfig {
         ingest: ingest_options(&a.ingest)?,
         features: FeatureSettings {
