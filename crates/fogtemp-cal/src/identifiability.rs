@@ -181,9 +181,10 @@ fn too_few_runs(points: &CalibrationPoints, axis: usize) -> Option<Warning> {
         axis,
         WarningKind::TooFewRuns,
         format!(
-            "axis {axis}: only {} run(s) have calibration points (at least {MIN_RUNS}): run-to-run \
+            "axis {axis}: only {} {} calibration points (at least {MIN_RUNS}): run-to-run \
              differences are not averaged out and cannot be cross-validated; record more power-on runs",
-            runs.len()
+            runs.len(),
+            if runs.len() == 1 { "run has" } else { "runs have" }
         ),
         &[("runs", runs.len() as f64), ("min_runs", MIN_RUNS as f64)],
     ))
@@ -226,8 +227,9 @@ fn temperature_range(
             format!(
                 "axis {axis}: the calibration spans only {span:.1} C ({lo:.1} to {hi:.1} C), less than \
                  {MIN_TEMP_SPAN_C} C (one power-on's self-heating alone spans up to 20 C): the temperature's \
-                 effect is not separated from the warm-up's, and outside this range the model holds its \
-                 boundary value; calibrate at several chamber temperatures"
+                 effect is not separated from the warm-up's, and outside this range the model is \
+                 extrapolated (by default a polynomial continues linearly from its boundary and a mesh from its \
+                 hull's nearest point); calibrate at several chamber temperatures"
             ),
             &[
                 ("temp_min_c", lo),

@@ -1273,7 +1273,7 @@ fn axis_selection(
             (
                 "scored",
                 format!(
-                    "too few folds with a score, {} of {} (see skipped_folds)",
+                    "too few folds with a score, {} of {} (see skipped_folds in fit --json)",
                     usable.len(),
                     folds.len()
                 ),

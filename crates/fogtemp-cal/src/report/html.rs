@@ -15,7 +15,7 @@ use crate::output::write_file_atomic;
 const STYLE: &str = "body{font-family:sans-serif;max-width:1200px;margin:1em auto;padding:0 1em;color:#222;line-height:1.4}\
 table{border-collapse:collapse;margin:0.6em 0;display:block;max-width:100%;overflow-x:auto}td code{white-space:nowrap}th,td{border:1px solid #bbb;padding:0.2em 0.6em;text-align:left}\
 th{background:#eee}td{font-variant-numeric:tabular-nums;vertical-align:top}td.prose{min-width:28em}code{background:#f3f3f3;padding:0 0.2em}\
-figure{margin:1em 0}figure svg{max-width:100%;height:auto;display:block}figcaption{color:#555;font-size:0.9em}";
+pre{background:#f3f3f3;padding:0.5em;overflow-x:auto}figure{margin:1em 0}figure svg{max-width:100%;height:auto;display:block}figcaption{color:#555;font-size:0.9em}";
 
 /// HTML-escapes text (`&`, `<`, `>`, `"`).
 pub fn escape(text: &str) -> String {
@@ -166,6 +166,17 @@ pub fn markdown_to_html(
         let level = trimmed.chars().take_while(|&c| c == '#').count();
         if trimmed.is_empty() {
             flush(&mut paragraph, &mut html);
+        } else if trimmed.starts_with("```") {
+            // A fenced block (a text table): kept as written, up to the closing fence.
+            flush(&mut paragraph, &mut html);
+            let start = i + 1;
+            i = start;
+            while lines.get(i).is_some_and(|l| !l.trim().starts_with("```")) {
+                i += 1;
+            }
+            let body: Vec<String> =
+                lines.get(start..i).unwrap_or_default().iter().map(|l| escape(l)).collect();
+            html.push_str(&format!("<pre>{}</pre>\n", body.join("\n")));
         } else if (1..=6).contains(&level) && trimmed[level..].starts_with(' ') {
             flush(&mut paragraph, &mut html);
             html.push_str(&format!("<h{level}>{}</h{level}>\n", inline(trimmed[level..].trim())));
@@ -251,6 +262,14 @@ mod tests {
     use super::*;
 
     const SVG: &str = "<?xml version=\"1.0\"?>\n<svg width=\"300\" height=\"200\" xmlns=\"http://www.w3.org/2000/svg\"><text>a&lt;b</text></svg>";
+
+    #[test]
+    fn fenced_blocks_keep_their_lines_and_spacing() {
+        let md = "Table:\n\n```text\n  method   CV\n  poly     0.1 <- chosen\n```\nafter\n";
+        let html = markdown_to_html(md, "t", |_| Ok(String::new())).unwrap();
+        assert!(html.contains("<pre>  method   CV\n  poly     0.1 &lt;- chosen</pre>"), "{html}");
+        assert!(html.contains("<p>after</p>") && !html.contains("```"), "{html}");
+    }
 
     #[test]
     fn tables_headings_lists_and_inline_markup_convert() {

@@ -26,7 +26,9 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
     let mut previous_s = None;
     let bar = RowProgress::new(&a.log, "compensate");
     let mut report = None;
-    write_atomic(&a.out, |w| {
+    // A problem in the log is reported as the log's (with its hint), not as the output's.
+    let mut input_error: Option<anyhow::Error> = None;
+    let written = write_atomic(&a.out, |w| {
         let mut out = csv::Writer::from_writer(w);
         let mut header = vec!["time_s".to_string()];
         for i in 0..axes {
@@ -61,15 +63,30 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
                 })
             },
             |b, r| bar.update(b, r),
-        )?;
+        );
+        let r = match r {
+            Err(fogtemp_cal::CalError::Io { path, source }) if path == a.out => {
+                return Err(fogtemp_cal::CalError::Io { path, source }.into())
+            }
+            Err(e) => {
+                input_error = Some(e.into());
+                bail!("the log could not be read");
+            }
+            Ok(r) => r,
+        };
         if r.rows == 0 {
-            bail!("{}: no data rows (only a header)", a.log.display());
+            input_error = Some(anyhow::anyhow!("{}: no data rows (only a header)", a.log.display()));
+            bail!("the log has no data rows");
         }
         out.flush()?;
         report = Some(r);
         Ok(())
-    })?;
+    });
     bar.finish_and_clear();
+    if let Some(e) = input_error {
+        return Err(e);
+    }
+    written?;
     if let Some(r) = &report {
         report_skipped(r);
         let consequence = "after each the compensator held its bias until its tracker had features again \

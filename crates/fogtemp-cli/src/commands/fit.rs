@@ -165,7 +165,12 @@ pub fn fit(a: FitArgs) -> Result<()> {
     } else {
         println!("wrote {} ({} bytes) from {} logs", a.out.display(), blob.len(), logs.len());
         for (axis, r) in reports.iter().enumerate() {
-            if let Some(s) = &r.selection {
+            if let Some(s) = r.selection.as_ref().filter(|s| s.best.is_none() && s.candidates.is_empty()) {
+                println!(
+                    "axis {axis}: method {}, the default, without a cross-validated choice (see the warning above)",
+                    s.method.name()
+                );
+            } else if let Some(s) = &r.selection {
                 println!(
                     "axis {axis}: method {} chosen by cross-validation ({} folds leaving one {} out; compensated \
                      bias stability of the held-out runs, deg/h):",
@@ -192,6 +197,12 @@ pub fn fit(a: FitArgs) -> Result<()> {
                     p.condition_number
                 )),
             );
+            if r.method == Method::Hybrid && r.mesh_nodes == 0 {
+                println!(
+                    "  hybrid: no mesh was added (the polynomial's residuals are within their noise, or \
+                     cross-validation found that a mesh of them does not help): the model is the polynomial alone"
+                );
+            }
             if r.dropped_flat > 0 || r.merged_duplicates > 0 {
                 println!(
                     "  mesh: {} duplicate points merged, {} points dropped for flat hull triangles",
