@@ -1049,6 +1049,75 @@ fn outputs_never_replace_inputs_and_logs_count_once() {
     run_ok(args!["fit", "--method", "poly", "--out", &out, &sub]);
 }
 
+/// Samples outside the calibrated region, and a log the compensator never corrects, are
+/// told on stderr by validate and compensate with their counts (nothing only in --json).
+#[test]
+fn uncalibrated_samples_are_noted_with_their_count() {
+    let dir = TempDir::new().expect("tempdir");
+    let (_, lines, model) = short_log_and_model(dir.path(), "poly", "m.fogm");
+    // 40 C above the calibration: every corrected sample is outside the region.
+    let hot = dir.path().join("hot.csv");
+    write_warmup(&hot, 60.0, 3.0, 8);
+    let out = dir.path().join("hot_out.csv");
+    let rows = lines.len() - 1;
+    let mut counts = Vec::new();
+    for args in [
+        args!["validate", "--model", &model, &hot],
+        args!["compensate", "--model", &model, &hot, "--out", &out],
+    ] {
+        let output = cal().args(&args).output().expect("run");
+        assert!(output.status.success(), "{args:?}");
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        let note = stderr
+            .lines()
+            .find(|l| l.contains("outside the model's calibrated"))
+            .unwrap_or_else(|| panic!("{args:?}: no outside note:\n{stderr}"))
+            .to_string();
+        let count: u64 = note
+            .split(" axis 0: ")
+            .nth(1)
+            .and_then(|s| s.split(' ').next())
+            .and_then(|n| n.parse().ok())
+            .expect("count");
+        assert!(count > rows as u64 / 2 && count < rows as u64, "{note}");
+        counts.push(count);
+    }
+    // The oracle: the compensated output's own flags (bit 2, OUTSIDE_HULL), row by row.
+    let text = fs::read_to_string(&out).expect("read");
+    let flagged = text
+        .lines()
+        .skip(1)
+        .filter(|l| l.rsplit(',').next().and_then(|f| f.parse::<u8>().ok()).is_some_and(|f| f & 4 != 0))
+        .count() as u64;
+    assert_eq!(counts, [flagged, flagged], "validate's and compensate's counts against the output's flags");
+    // A log whose temperature cells are all empty: nothing is corrected, and it is said.
+    let blank: Vec<String> = lines
+        .iter()
+        .enumerate()
+        .map(|(k, l)| {
+            if k == 0 {
+                l.clone()
+            } else {
+                let c: Vec<&str> = l.split(',').collect();
+                format!("{},,{}", c[0], c[2])
+            }
+        })
+        .collect();
+    let no_temp = dir.path().join("no_temp.csv");
+    write_lines(&no_temp, &blank);
+    for args in [
+        args!["validate", "--model", &model, &no_temp],
+        args!["compensate", "--model", &model, &no_temp, "--out", dir.path().join("nt_out.csv")],
+    ] {
+        let output = cal().args(&args).output().expect("run");
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert!(
+            output.status.success() && stderr.contains("never corrected a sample"),
+            "{args:?}:\n{stderr}"
+        );
+    }
+}
+
 #[test]
 fn export_c_failure_leaves_no_header_behind() {
     let dir = TempDir::new().expect("tempdir");

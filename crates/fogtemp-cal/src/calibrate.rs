@@ -5,7 +5,9 @@
 use std::io::Read;
 use std::path::{Path, PathBuf};
 
-use fogtemp_core::{AxisProvenance, Compensator, FeatureSettings, Model, Normalisation, OutsidePolicy};
+use fogtemp_core::{
+    AxisProvenance, Compensator, FeatureSettings, Flags, Model, Normalisation, OutsidePolicy,
+};
 
 use crate::blob::{encode, AxisModel, ModelFile};
 use crate::error::CalError;
@@ -1076,6 +1078,38 @@ impl RunValidation {
             w.used + w.left_out
         );
         self.series.gaps.note_then(&self.path, &consequence)
+    }
+
+    /// What a technician is told about samples the model did not compensate as calibrated:
+    /// none compensated at all (with the likely causes), or a share outside the calibrated
+    /// region (extrapolated). Empty when every compensated sample was inside.
+    pub fn coverage_notes(&self) -> Vec<String> {
+        let name = format!("{} axis {}", self.path.display(), self.axis);
+        let s = &self.series;
+        let mut notes = Vec::new();
+        if s.samples > 0 && !s.compensating_from_s.is_finite() {
+            notes.push(format!(
+                "{name}: the compensator never corrected a sample: its feature tracker never had features \
+                 (no usable temperature, e.g. an empty temperature column, or time stamps in another unit \
+                 than the one given); the compensated bias stability is undefined"
+            ));
+        } else if self.compensated_bias_stability_dph.is_nan() && s.samples > 0 {
+            notes.push(format!(
+                "{name}: the compensated bias stability is undefined: too few complete averaging windows \
+                 after the compensator's start-up ({} used)",
+                self.windows.used
+            ));
+        }
+        let outside = s.flag_counts[Flags::OUTSIDE_HULL.0.trailing_zeros() as usize];
+        if outside > 0 {
+            notes.push(format!(
+                "{name}: {outside} of {} samples ({:.1} %) lie outside the model's calibrated (T, dT/dt) \
+                 region (flag OUTSIDE_HULL): the model is extrapolated there",
+                s.samples,
+                100.0 * outside as f64 / s.samples.max(1) as f64
+            ));
+        }
+        notes
     }
 }
 

@@ -509,6 +509,9 @@ pub fn validate<'py>(
     for note in calibrate::gap_notes(&validation.runs) {
         progress::warn(py, &note)?;
     }
+    for note in validation.runs.iter().flat_map(calibrate::RunValidation::coverage_notes) {
+        progress::warn(py, &note)?;
+    }
     let comparison = if compare.is_empty() {
         Vec::new()
     } else {

@@ -2,7 +2,7 @@
 
 use anyhow::{bail, Result};
 use fogtemp_cal::calibrate::TimeGaps;
-use fogtemp_core::{Compensator, Model};
+use fogtemp_core::{Compensator, Flags, Model};
 
 use super::{check_capacity, ingest_options, read_model, report_skipped};
 use crate::args::CompensateArgs;
@@ -24,6 +24,9 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
     let max_gap_s = comps.first().map_or(f64::INFINITY, |c| c.tracker().max_gap_us() as f64 * 1e-6);
     let mut gaps = TimeGaps::new(max_gap_s);
     let mut previous_s = None;
+    // Per axis: samples compensated from features, and of them outside the calibrated region.
+    let mut corrected = vec![0_u64; axes];
+    let mut outside = vec![0_u64; axes];
     let bar = RowProgress::new(&a.log, "compensate");
     let mut report = None;
     // A problem in the log is reported as the log's (with its hint), not as the output's.
@@ -56,6 +59,12 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
                     record.push(format!("{}", o.rate_dph));
                     record.push(format!("{}", o.bias_dph));
                     record.push(format!("{}", o.flags.0));
+                    if !o.flags.contains(Flags::WARMING_UP) {
+                        corrected[i] += 1;
+                    }
+                    if o.flags.contains(Flags::OUTSIDE_HULL) {
+                        outside[i] += 1;
+                    }
                 }
                 out.write_record(&record).map_err(|e| fogtemp_cal::CalError::Io {
                     path: a.out.clone(),
@@ -93,6 +102,25 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
                            (flag WARMING_UP in the output, then PARTIAL_WINDOW until its window is full again)";
         if let Some(note) = gaps.note_then(&a.log, consequence) {
             eprintln!("note: {note}");
+        }
+        for axis in 0..axes {
+            if corrected[axis] == 0 {
+                eprintln!(
+                    "note: {} axis {axis}: the compensator never corrected a sample: its feature tracker never had \
+                     features (no usable temperature, e.g. an empty temperature column, or time stamps in another \
+                     unit than --time-unit says); the output's bias is 0",
+                    a.log.display()
+                );
+            } else if outside[axis] > 0 {
+                eprintln!(
+                    "note: {} axis {axis}: {} of {} samples ({:.1} %) lie outside the model's calibrated (T, dT/dt) \
+                     region (flag OUTSIDE_HULL in the output): the model is extrapolated there",
+                    a.log.display(),
+                    outside[axis],
+                    r.rows,
+                    100.0 * outside[axis] as f64 / r.rows.max(1) as f64
+                );
+            }
         }
         println!("wrote {} ({} rows, {} axes)", a.out.display(), r.rows, axes);
     }

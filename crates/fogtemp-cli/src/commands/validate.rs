@@ -63,6 +63,9 @@ pub fn validate(a: ValidateArgs) -> Result<()> {
     for note in calibrate::gap_notes(runs) {
         eprintln!("note: {note}");
     }
+    for note in runs.iter().flat_map(calibrate::RunValidation::coverage_notes) {
+        eprintln!("note: {note}");
+    }
     let comparison = compare_models(&a, &models, &validation, &compared);
     if let Some(dir) = &a.report {
         fogtemp_cal::report::write_validation_report_with(
