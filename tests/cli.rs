@@ -932,6 +932,33 @@ fn unknown_command_or_option_fails() {
     cal().args(args!["export", "--model", "m", "--format", "pascal", "--out", "x"]).assert().failure();
 }
 
+/// Settings no fit can use are refused before any log is read, naming the option (they
+/// used to surface after the fitting as a blob field out of range, or not at all).
+#[test]
+fn unusable_fit_settings_are_refused_naming_the_option() {
+    let dir = TempDir::new().expect("tempdir");
+    let (ok, _) = short_log(dir.path(), "ok.csv");
+    let out = dir.path().join("m.fogm");
+    let cases: [(&[&str], &str); 11] = [
+        (&["--p-enter", "2"], "--p-enter"),
+        (&["--p-enter", "nan"], "--p-enter"),
+        (&["--p-remove", "0.01"], "--p-remove"),
+        (&["--target-window-s", "0"], "--target-window-s"),
+        (&["--max-nodes", "0"], "--max-nodes"),
+        (&["--window-s", "0"], "--window-s"),
+        (&["--blocks", "1"], "--blocks"),
+        (&["--min-blocks", "1000"], "--min-blocks"),
+        (&["--max-gap-s", "0"], "--max-gap-s"),
+        (&["--gyro-scale", "nan"], "--gyro-scale"),
+        (&["--temp-scale", "0"], "--temp-scale"),
+    ];
+    for (options, named) in cases {
+        let mut args = args!["fit", "--method", "poly", "--out", &out, &ok];
+        args.extend(options.iter().map(OsString::from));
+        expect_failure(&args, dir.path(), Some(&out), &[named]);
+    }
+}
+
 // ---------------------------------------------------------------------------------------
 // 5. Atomic outputs
 // ---------------------------------------------------------------------------------------

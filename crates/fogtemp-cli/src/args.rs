@@ -86,10 +86,10 @@ pub struct IngestArgs {
     #[arg(long = "temp-column", default_value = "temp_c", help_heading = "Log columns")]
     pub temp_columns: Vec<String>,
     /// temp_c = raw * temp-scale + temp-offset (for a sensor logged in raw counts).
-    #[arg(long, default_value_t = 1.0, allow_negative_numbers = true, help_heading = "Log columns")]
+    #[arg(long, default_value_t = 1.0, allow_negative_numbers = true, help_heading = "Log columns", value_parser = nonzero_finite)]
     pub temp_scale: f64,
     /// See --temp-scale, deg C.
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true, help_heading = "Log columns")]
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true, help_heading = "Log columns", value_parser = finite)]
     pub temp_offset: f64,
     /// Gyro column(s), one model axis each.
     #[arg(long = "gyro-column", default_value = "gyro_dph", help_heading = "Log columns")]
@@ -98,7 +98,7 @@ pub struct IngestArgs {
     #[arg(long, value_enum, default_value_t = GyroUnitArg::Dph, help_heading = "Log columns")]
     pub gyro_unit: GyroUnitArg,
     /// Extra factor applied to the gyro after unit conversion.
-    #[arg(long, default_value_t = 1.0, allow_negative_numbers = true, help_heading = "Log columns")]
+    #[arg(long, default_value_t = 1.0, allow_negative_numbers = true, help_heading = "Log columns", value_parser = nonzero_finite)]
     pub gyro_scale: f64,
     /// Field delimiter: auto (from the header, or the first data row: the most frequent of
     /// comma, semicolon and tab, else whitespace if the fields are separated by spaces),
@@ -385,19 +385,19 @@ pub struct FitArgs {
     #[arg(long, default_value_t = fogtemp_cal::selection::DEFAULT_BLOCKS, hide = true)]
     pub cv_blocks: usize,
     /// Feature window (smoothing of T and dT/dt), seconds.
-    #[arg(long, default_value_t = 100.0, help_heading = "Features")]
+    #[arg(long, default_value_t = 100.0, help_heading = "Features", value_parser = positive_finite_f32)]
     pub window_s: f32,
     /// Sub-blocks per window (the rate is a least-squares slope over block means).
-    #[arg(long, default_value_t = 100, help_heading = "Features")]
+    #[arg(long, default_value_t = 100, help_heading = "Features", value_parser = clap::value_parser!(u32).range(2..=i64::from(fogtemp_core::wire::MAX_BLOCKS)))]
     pub blocks: u32,
     /// Blocks with data before features are reported.
-    #[arg(long, default_value_t = 10, help_heading = "Features")]
+    #[arg(long, default_value_t = 10, help_heading = "Features", value_parser = clap::value_parser!(u32).range(2..))]
     pub min_blocks: u32,
     /// A longer silence of the temperature channel restarts the features, seconds.
-    #[arg(long, default_value_t = 5.0, help_heading = "Features")]
+    #[arg(long, default_value_t = 5.0, help_heading = "Features", value_parser = positive_finite_f32)]
     pub max_gap_s: f32,
     /// Centred smoothing window of the gyro target, seconds (default: --window-s).
-    #[arg(long, help_heading = "Features")]
+    #[arg(long, help_heading = "Features", value_parser = positive_finite)]
     pub target_window_s: Option<f64>,
     /// Use only points whose feature window is full.
     #[arg(long, help_heading = "Features")]
@@ -408,10 +408,10 @@ pub struct FitArgs {
     /// Greedy thinning: stop when every point is interpolated within this, deg/h
     /// (default: stop when the RMS interpolation error is 1.5 times the estimated noise of
     /// the smoothed gyro, so the mesh follows the data down to its noise and no further).
-    #[arg(long, help_heading = "Mesh")]
+    #[arg(long, help_heading = "Mesh", value_parser = positive_finite)]
     pub tolerance_dph: Option<f64>,
     /// Greedy thinning: at most this many nodes (refinement may add as many again; --no-mesh-refinement).
-    #[arg(long, default_value_t = 600, help_heading = "Mesh")]
+    #[arg(long, default_value_t = 600, help_heading = "Mesh", value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(3..))]
     pub max_nodes: usize,
     /// Use each node's own smoothed target as its value (the paper) instead of fitting the
     /// node values by least squares to all calibration points (default).
@@ -429,7 +429,7 @@ pub struct FitArgs {
     #[arg(long, value_parser = positive_finite, hide = true, help_heading = "Mesh")]
     pub mesh_relative_weight: Option<f64>,
     /// Paper thinning: keep every point while |rate| >= this, deg C/min.
-    #[arg(long, default_value_t = 0.05, help_heading = "Mesh")]
+    #[arg(long, default_value_t = 0.05, help_heading = "Mesh", value_parser = positive_finite)]
     pub fast_rate: f64,
     /// Paper thinning: then keep one in this many.
     #[arg(long, default_value_t = 3, help_heading = "Mesh")]
@@ -441,10 +441,10 @@ pub struct FitArgs {
     #[arg(long, default_value_t = 4, help_heading = "Polynomial")]
     pub max_degree: u8,
     /// Stepwise: p-value to enter.
-    #[arg(long, default_value_t = 0.05, help_heading = "Polynomial")]
+    #[arg(long, default_value_t = 0.05, help_heading = "Polynomial", value_parser = probability)]
     pub p_enter: f64,
     /// Stepwise: p-value to remove.
-    #[arg(long, default_value_t = 0.10, help_heading = "Polynomial")]
+    #[arg(long, default_value_t = 0.10, help_heading = "Polynomial", value_parser = probability)]
     pub p_remove: f64,
     /// Print one JSON document on stdout.
     #[arg(long)]
@@ -469,11 +469,47 @@ impl FitArgs {
     }
 }
 
-/// `MIN,MAX` with MIN < MAX, both finite.
+/// A positive finite number.
 fn positive_finite(text: &str) -> Result<f64, String> {
     match text.trim().parse::<f64>() {
         Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
         _ => Err(format!("expected a positive finite number, got '{text}'")),
+    }
+}
+
+/// [`positive_finite`] as `f32` (the feature settings the blob stores).
+fn positive_finite_f32(text: &str) -> Result<f32, String> {
+    positive_finite(text).and_then(|v| {
+        let single = v as f32;
+        if single.is_finite() && single > 0.0 {
+            Ok(single)
+        } else {
+            Err(format!("expected a positive number within f32's range, got '{text}'"))
+        }
+    })
+}
+
+/// A finite number (an offset: NaN or infinity would make every value NaN).
+fn finite(text: &str) -> Result<f64, String> {
+    match text.trim().parse::<f64>() {
+        Ok(v) if v.is_finite() => Ok(v),
+        _ => Err(format!("expected a finite number, got '{text}'")),
+    }
+}
+
+/// A finite, non-zero number (a scale factor).
+fn nonzero_finite(text: &str) -> Result<f64, String> {
+    match finite(text)? {
+        0.0 => Err(format!("expected a non-zero scale, got '{text}'")),
+        v => Ok(v),
+    }
+}
+
+/// A probability strictly between 0 and 1 (a significance level).
+fn probability(text: &str) -> Result<f64, String> {
+    match text.trim().parse::<f64>() {
+        Ok(v) if v > 0.0 && v < 1.0 => Ok(v),
+        _ => Err(format!("expected a probability between 0 and 1 (exclusive), got '{text}'")),
     }
 }
 

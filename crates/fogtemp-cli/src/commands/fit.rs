@@ -22,6 +22,7 @@ use crate::output::{
 /// The `fit` command.
 pub fn fit(a: FitArgs) -> Result<()> {
     capacity_fits(a.blocks as usize, a.capacity).context("--blocks")?;
+    check_settings(&a)?;
     let named = expand_logs(&a.logs)?;
     let mut inputs: Vec<&std::path::Path> = named.iter().map(|p| p.as_path()).collect();
     inputs.extend(a.runs.as_deref());
@@ -210,6 +211,33 @@ pub fn fit(a: FitArgs) -> Result<()> {
                 );
             }
         }
+    }
+    Ok(())
+}
+
+/// The settings that depend on each other (each alone is checked as it is parsed).
+fn check_settings(a: &FitArgs) -> Result<()> {
+    if a.min_blocks > a.blocks {
+        bail!(
+            "--min-blocks {} exceeds --blocks {}: the tracker can never hold that many",
+            a.min_blocks,
+            a.blocks
+        );
+    }
+    if a.p_remove < a.p_enter {
+        bail!(
+            "--p-remove {} is below --p-enter {}: a term could enter and leave at every step; use p-remove >= p-enter",
+            a.p_remove,
+            a.p_enter
+        );
+    }
+    let block_s = a.window_s / a.blocks as f32;
+    if block_s < 1.0e-3 {
+        bail!(
+            "--window-s {} over --blocks {} gives blocks of {block_s} s: at least 1 ms each",
+            a.window_s,
+            a.blocks
+        );
     }
     Ok(())
 }
