@@ -602,7 +602,7 @@ fn bad_log_rows_are_located_and_nothing_is_written() {
     let line = 101;
     let previous_time = lines[line - 2].split(',').next().expect("time").to_string();
     let original: Vec<String> = lines[line - 1].split(',').map(String::from).collect();
-    let cases: [(&str, String, usize, &str); 7] = [
+    let cases: [(&str, String, usize, &str); 8] = [
         ("nonnumeric", format!("{},{},abc", original[0], original[1]), 3, "not a number (found 'abc')"),
         (
             "nonnumeric_temp",
@@ -620,6 +620,7 @@ fn bad_log_rows_are_located_and_nothing_is_written() {
             "time equal to the previous row",
         ),
         ("backward", format!("1.00,{},{}", original[1], original[2]), 1, "time before the previous row"),
+        ("sentinel", format!("{},-999,{}", original[0], original[2]), 2, "below absolute zero (-273.15 C"),
     ];
     for (name, bad, column, reason) in cases {
         let mut l = lines.clone();

@@ -170,6 +170,9 @@ fn check_sample(
         if value.is_infinite() {
             return Err(run.bad(index, 1 + k, value, BadRowKind::NonFinite));
         }
+        if value < crate::ingest::ABSOLUTE_ZERO_C {
+            return Err(run.bad(index, 1 + k, value, BadRowKind::BelowAbsoluteZero));
+        }
         *slot = value;
     }
     Ok(())
@@ -297,6 +300,16 @@ mod tests {
         assert_eq!(features.ingest.rows, 12_000 - 2);
         let kinds: Vec<_> = features.ingest.first_skipped.iter().map(|b| (b.line, b.kind)).collect();
         assert_eq!(kinds, vec![(17, BadRowKind::NonFinite), (40, BadRowKind::DuplicateTime)]);
+        // A temperature below absolute zero (a logger's -999) is a bad sample too.
+        let mut cold = temp.clone();
+        cold[5] = -999.0;
+        let run3 = RunArrays { temps_c: &[&cold], ..run };
+        match extract_run_arrays(&run3, &config) {
+            Err(CalError::BadRow { row, .. }) => {
+                assert_eq!((row.line, row.column, row.kind), (5, 2, BadRowKind::BelowAbsoluteZero));
+            }
+            other => panic!("expected a bad row, got {other:?}"),
+        }
     }
 
     #[test]

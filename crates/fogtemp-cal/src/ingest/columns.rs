@@ -394,6 +394,10 @@ pub(super) fn parse_row(
     for (slot, &field) in temps.iter_mut().zip(&columns.temps) {
         *slot = parse_cell(plan, fields, field, line)?
             .map_or(f64::NAN, |raw| raw * plan.temp_scale + plan.temp_offset_c);
+        if *slot < super::ABSOLUTE_ZERO_C {
+            let raw = fields.get(field).unwrap_or(b"");
+            return Err(bad_row(columns, line, field, raw, BadRowKind::BelowAbsoluteZero));
+        }
     }
     Ok(time)
 }

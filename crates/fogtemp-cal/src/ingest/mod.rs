@@ -366,7 +366,13 @@ pub enum BadRowKind {
     NotADateTime,
     /// The time cell of a log read with [`TimeUnit::TimeOfDay`] is not a time of day.
     NotATimeOfDay,
+    /// A temperature (after `temp_scale` and `temp_offset`) below absolute zero: no reading
+    /// of a sensor, often a logger's sentinel for a missing one (-999).
+    BelowAbsoluteZero,
 }
+
+/// Absolute zero, deg C: no temperature reading can be below it.
+pub const ABSOLUTE_ZERO_C: f64 = -273.15;
 
 impl BadRowKind {
     /// Short description for reports.
@@ -381,6 +387,9 @@ impl BadRowKind {
             BadRowKind::PointWithDecimalComma => "a point in a log read with a decimal comma",
             BadRowKind::NotADateTime => "not a date-time (YYYY-MM-DDThh:mm:ss[.fff][Z|+hh:mm])",
             BadRowKind::NotATimeOfDay => "not a time of day (hh:mm[:ss[.fff]])",
+            BadRowKind::BelowAbsoluteZero => {
+                "a temperature below absolute zero (-273.15 C; a logger's mark for a missing reading? leave the cell empty)"
+            }
         }
     }
 }

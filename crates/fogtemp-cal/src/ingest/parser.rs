@@ -365,6 +365,11 @@ impl<R: Read> Parser<R> {
             if time.is_nan() || plan.gyro_slots.iter().any(|&k| values[k].is_nan()) {
                 break; // an empty required cell: the general path reports it
             }
+            let below_zero =
+                |k: &usize| values[*k] * plan.temp_scale + plan.temp_offset_c < super::ABSOLUTE_ZERO_C;
+            if plan.temp_slots.iter().any(below_zero) {
+                break; // an impossible temperature: likewise
+            }
             if previous_time.is_some_and(|p| time <= p) {
                 break; // duplicate or backward time: likewise
             }

@@ -468,3 +468,28 @@ fn times_of_day_read_as_seconds_from_their_first_row_across_midnights() {
     assert!(as_numbers.looks_like_time_of_day() && !as_numbers.looks_like_datetime(), "{as_numbers:?}");
     assert!(!bad("time_s,temp_c,gyro_dph\n0,20,x1\n").looks_like_time_of_day());
 }
+
+#[test]
+fn a_temperature_below_absolute_zero_is_a_bad_row_in_every_reader_mode() {
+    // Row 3 holds a logger's -999 for a missing reading; the rows around it are fine.
+    let mut data = String::from("time_s,temp_c,gyro_dph\n");
+    for k in 0..50 {
+        let temp = if k == 1 { "-999".to_string() } else { format!("{}", 20.0 + 0.01 * f64::from(k)) };
+        data.push_str(&format!("{k},{temp},0.5\n"));
+    }
+    let row = bad(&data);
+    expect(&row, 3, 2, "temp_c", "-999", BadRowKind::BelowAbsoluteZero);
+    // Skipped on request, the other rows all read.
+    let skipping = IngestOptions { skip_bad_rows: true, ..IngestOptions::default() };
+    assert_eq!(values(&rows(&data, &skipping)).len(), 49);
+    // Judged after the scale and offset: raw counts -1200 are -1200 * 0.25 + 10 = -290 C.
+    let counts = "time_s,temp_c,gyro_dph\n0,100,1\n1,-1200,1\n";
+    let scaled = IngestOptions {
+        format: LogFormat { temp_scale: 0.25, temp_offset_c: 10.0, ..LogFormat::default() },
+        ..IngestOptions::default()
+    };
+    expect(&bad_with(counts, &scaled), 3, 2, "temp_c", "-1200", BadRowKind::BelowAbsoluteZero);
+    // Absolute zero itself is no error (a limit, not a reading, but not impossible).
+    let at_zero = "time_s,temp_c,gyro_dph\n0,-273.15,1\n1,-273.15,1\n";
+    assert_eq!(values(&rows(at_zero, &IngestOptions::default())).len(), 2);
+}
