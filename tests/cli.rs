@@ -933,6 +933,56 @@ fn unknown_command_or_option_fails() {
     cal().args(args!["export", "--model", "m", "--format", "pascal", "--out", "x"]).assert().failure();
 }
 
+/// Runs logged in two positions carry the Earth rate's two projections: without a runs file
+/// `fit` warns (`run_offsets`) that the runs differ by constants; with one, it subtracts
+/// each run's `input_rate_dph` and fits the same model as on the logs without the rates
+/// (the oracle: the original logs, to the rounding of the written gyro).
+#[test]
+fn input_rates_from_a_runs_file_are_subtracted_and_their_absence_is_warned() {
+    let logs = logs();
+    let dir = TempDir::new().expect("tempdir");
+    let shifted = dir.path().join("shifted");
+    fs::create_dir(&shifted).expect("mkdir");
+    let mut runs_csv = String::from("run,position,input_rate_dph\n");
+    let originals: Vec<PathBuf> = (0..8).map(|i| logs.cal.join(format!("run{i}.csv"))).collect();
+    for (i, log) in originals.iter().enumerate() {
+        let (position, rate) = if i % 2 == 0 { ("up", 9.66) } else { ("down", -9.66) };
+        runs_csv.push_str(&format!("run{i},{position},{rate}\n"));
+        let text = fs::read_to_string(log).expect("read log");
+        let mut lines = text.lines();
+        let mut out = vec![lines.next().expect("header").to_string()];
+        for line in lines {
+            let cells: Vec<&str> = line.split(',').collect();
+            let gyro: f64 = cells[2].parse().expect("gyro");
+            out.push(format!("{},{},{:.5}", cells[0], cells[1], gyro + rate));
+        }
+        write_lines(&shifted.join(format!("run{i}.csv")), &out);
+    }
+    let runs = dir.path().join("runs.csv");
+    fs::write(&runs, runs_csv).expect("write runs");
+    let fit_json = |logs: &Path, extra: &[&Path]| -> Value {
+        let mut args = args!["fit", "--method", "poly", "--json", "--out", dir.path().join("m.fogm")];
+        args.extend(FAST_FIT.split(' ').map(OsString::from));
+        for e in extra {
+            args.extend(args!["--runs", e]);
+        }
+        args.push(logs.into());
+        json(&run_ok(args))
+    };
+    let kinds = |doc: &Value| -> Vec<String> {
+        arr(&doc["warnings"]).iter().map(|w| w["kind"].as_str().unwrap_or_default().to_string()).collect()
+    };
+    let rms = |doc: &Value| f(&doc["axes"][0]["residual_rms_dph"]);
+    let original = fit_json(&logs.cal, &[]);
+    let without = fit_json(&shifted, &[]);
+    let with = fit_json(&shifted, &[&runs]);
+    assert!(kinds(&without).contains(&"run_offsets".to_string()), "{:?}", kinds(&without));
+    assert!(rms(&without) > 5.0, "the rates stay in the residual: {}", rms(&without));
+    assert!(!kinds(&with).contains(&"run_offsets".to_string()), "{:?}", kinds(&with));
+    assert!(!kinds(&original).contains(&"run_offsets".to_string()), "{:?}", kinds(&original));
+    assert!((rms(&with) - rms(&original)).abs() < 1e-6, "{} vs {}", rms(&with), rms(&original));
+}
+
 /// Settings no fit can use are refused before any log is read, naming the option (they
 /// used to surface after the fitting as a blob field out of range, or not at all).
 #[test]

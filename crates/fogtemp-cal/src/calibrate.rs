@@ -210,6 +210,19 @@ pub struct RunFeatures {
     pub axes: Vec<(Vec<FeaturePoint>, Vec<f64>)>,
 }
 
+impl RunFeatures {
+    /// Removes a known true rate about the gyro's input axis (the Earth rate's projection in
+    /// the run's position, or a turntable's rate), deg/h, from axis `axis`'s gyro means and
+    /// targets, so that a model fitted on them is the bias alone and runs in different
+    /// positions agree (`fit --runs`).
+    pub fn subtract_input_rate(&mut self, axis: usize, rate_dph: f64) {
+        if let Some((features, targets)) = self.axes.get_mut(axis) {
+            features.iter_mut().for_each(|f| f.gyro_mean_dph -= rate_dph);
+            targets.iter_mut().for_each(|t| *t -= rate_dph);
+        }
+    }
+}
+
 /// Steps between consecutive rows longer than the feature tracker's `max_gap_s`: after each
 /// the tracker starts again (a logger that stalled, a capture that lost time, a clock that
 /// jumped), so the time is not calibration data. Counted so that a technician is told.

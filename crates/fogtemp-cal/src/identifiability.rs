@@ -32,6 +32,13 @@
 //!   effect (Shupe) is odd in dT/dt, and heating/cooling hysteresis needs both signs
 //!   (docs/physics.md, table row 8); rates of the missing sign lie outside the calibrated
 //!   region. Power-on runs never cool, so power-on-only calibrations get `heating_only`.
+//! - `run_offsets` (after the fit, [`run_offsets`]): the runs' mean residuals differ by more
+//!   than [`OFFSET_NOISE_MULTIPLE`] = 20 times the targets' noise and these per-run constants
+//!   hold most (over half) of the residual's variance: the model cannot follow a constant
+//!   that changes from run to run, such as logs from different positions (the Earth rate's
+//!   projection differs by up to 2 x 15 deg/h) or a turn-on bias that is not repeatable. A
+//!   run's mean residual otherwise scatters by the slow noise of one run, a few noise units
+//!   (measured in docs/calibration-logs.md, "Runs that differ by a constant").
 
 use std::collections::BTreeMap;
 
@@ -43,6 +50,9 @@ use crate::calibrate::{calibration_points, CalibrationConfig, CalibrationPoints,
 /// Largest variance inflation factor of dT/dt over the cubic-in-T terms before
 /// `temperature_rate_confounded` (see the module documentation).
 pub const MAX_VIF: f64 = 10.0;
+/// Spread of the runs' mean residuals, in units of the targets' noise, from which
+/// `run_offsets` warns (with those means holding over half of the residual's variance).
+pub const OFFSET_NOISE_MULTIPLE: f64 = 20.0;
 /// Fewest runs before `too_few_runs`.
 pub const MIN_RUNS: usize = 3;
 /// Narrowest calibrated temperature span, deg C, when the operating range is unknown.
@@ -71,6 +81,8 @@ pub enum WarningKind {
     HeatingOnly,
     /// No heating in the calibration.
     CoolingOnly,
+    /// The runs differ by constants the model cannot follow (after the fit).
+    RunOffsets,
 }
 
 impl WarningKind {
@@ -82,6 +94,7 @@ impl WarningKind {
             WarningKind::NarrowTemperatureRange => "narrow_temperature_range",
             WarningKind::HeatingOnly => "heating_only",
             WarningKind::CoolingOnly => "cooling_only",
+            WarningKind::RunOffsets => "run_offsets",
         }
     }
 }
@@ -120,6 +133,130 @@ pub fn fit_warnings(
             warnings(&points, axis, settings)
         })
         .collect()
+}
+
+/// `run_offsets` for axis `axis` of a fitted model (`None` when the runs agree, or with
+/// fewer than two runs or no noise estimate): the residual `target - model` at every
+/// feature point with a finite target, its mean per run, and how much of the residual's
+/// variance those means hold (see the module documentation).
+pub fn run_offsets(
+    runs: &[RunFeatures],
+    model: &fogtemp_core::Model<'_>,
+    axis: usize,
+    target_noise_dph: f64,
+) -> Option<Warning> {
+    if !(target_noise_dph.is_finite() && target_noise_dph > 0.0) {
+        return None;
+    }
+    let (per_run, share) = per_run_residual_means(runs, model, axis)?;
+    let lowest = per_run.iter().min_by(|a, b| a.1.total_cmp(&b.1))?;
+    let highest = per_run.iter().max_by(|a, b| a.1.total_cmp(&b.1))?;
+    let spread = highest.1 - lowest.1;
+    if spread <= OFFSET_NOISE_MULTIPLE * target_noise_dph || share <= 0.5 {
+        return None;
+    }
+    Some(run_offsets_warning(axis, (lowest, highest), target_noise_dph, share))
+}
+
+/// The warnings that need the fitted model (`run_offsets`), for every axis of `fitted`.
+pub fn post_fit_warnings(runs: &[RunFeatures], fitted: &crate::calibrate::FittedModel) -> Vec<Warning> {
+    let Ok(model) = fogtemp_core::Model::from_bytes(&fitted.blob) else { return Vec::new() };
+    fitted
+        .axes
+        .iter()
+        .enumerate()
+        .filter_map(|(axis, report)| run_offsets(runs, &model, axis, report.target_noise_dph))
+        .collect()
+}
+
+/// The spread of the runs' mean residuals in units of `target_noise_dph` and the share of
+/// the residual's variance they hold, for axis `axis` (what [`run_offsets`] compares with
+/// its limits); `None` as there.
+pub fn run_offset_statistics(
+    runs: &[RunFeatures],
+    model: &fogtemp_core::Model<'_>,
+    axis: usize,
+    target_noise_dph: f64,
+) -> Option<(f64, f64)> {
+    let (per_run, share) = per_run_residual_means(runs, model, axis)?;
+    let lowest = per_run.iter().map(|r| r.1).fold(f64::INFINITY, f64::min);
+    let highest = per_run.iter().map(|r| r.1).fold(f64::NEG_INFINITY, f64::max);
+    (target_noise_dph.is_finite() && target_noise_dph > 0.0)
+        .then(|| ((highest - lowest) / target_noise_dph, share))
+}
+
+fn run_offsets_warning(
+    axis: usize,
+    (lowest, highest): (&RunMean, &RunMean),
+    target_noise_dph: f64,
+    share: f64,
+) -> Warning {
+    let spread = highest.1 - lowest.1;
+    Warning::new(
+        axis,
+        WarningKind::RunOffsets,
+        format!(
+            "axis {axis}: the runs differ by constants the model cannot follow: their mean residuals range from \
+             {:+.4} deg/h ({}) to {:+.4} deg/h ({}), {:.0} times the targets' noise of {target_noise_dph:.4} deg/h, \
+             and hold {:.0} % of the residual's variance; logs from different positions or input rates (a runs \
+             file gives each run's input_rate_dph, which `fit --runs` subtracts), or a turn-on bias that changes \
+             from run to run",
+            lowest.1,
+            lowest.0,
+            highest.1,
+            highest.0,
+            spread / target_noise_dph,
+            100.0 * share
+        ),
+        &[
+            ("spread_dph", spread),
+            ("target_noise_dph", target_noise_dph),
+            ("share_of_variance", share),
+            ("noise_multiple", OFFSET_NOISE_MULTIPLE),
+        ],
+    )
+}
+
+/// One run's mean residual: (run name, mean `target - model` in deg/h, points).
+type RunMean = (String, f64, usize);
+
+/// Per run, its [`RunMean`] on axis `axis`, and the share of the residual's variance the
+/// run means hold; `None` with fewer than two runs.
+fn per_run_residual_means(
+    runs: &[RunFeatures],
+    model: &fogtemp_core::Model<'_>,
+    axis: usize,
+) -> Option<(Vec<RunMean>, f64)> {
+    let fitted = model.axis(axis).ok()?;
+    let mut hint = fogtemp_core::WalkHint::default();
+    let mut per_run: Vec<RunMean> = Vec::new();
+    let mut all: Vec<f64> = Vec::new();
+    for run in runs {
+        let Some((features, targets)) = run.axes.get(axis) else { continue };
+        let residuals: Vec<f64> = features
+            .iter()
+            .zip(targets)
+            .filter(|(_, t)| t.is_finite())
+            .filter_map(|(f, t)| {
+                let e = fitted.evaluate(f.temp_c as f32, f.rate_c_per_min as f32, &mut hint).ok()?;
+                Some(t - f64::from(e.value_dph))
+            })
+            .collect();
+        if !residuals.is_empty() {
+            let mean = residuals.iter().sum::<f64>() / residuals.len() as f64;
+            per_run.push((crate::runs::run_name(&run.path), mean, residuals.len()));
+            all.extend(residuals);
+        }
+    }
+    if per_run.len() < 2 {
+        return None;
+    }
+    let n = all.len() as f64;
+    let grand = all.iter().sum::<f64>() / n;
+    let total_var = all.iter().map(|r| (r - grand).powi(2)).sum::<f64>() / n;
+    let between_var = per_run.iter().map(|(_, m, k)| *k as f64 * (m - grand).powi(2)).sum::<f64>() / n;
+    let share = if total_var > 0.0 { between_var / total_var } else { 0.0 };
+    Some((per_run, share))
 }
 
 /// The warnings for one axis's calibration points (none for an empty set: `fit` reports

@@ -234,7 +234,8 @@ pub fn fit(
     };
     let (fitted, runs, digest) = fitted;
     // The command line's identifiability warnings: Python warnings, and in `fit_report`.
-    let warnings = fogtemp_cal::identifiability::fit_warnings(&runs, &config, &identifiability);
+    let mut warnings = fogtemp_cal::identifiability::fit_warnings(&runs, &config, &identifiability);
+    warnings.extend(fogtemp_cal::identifiability::post_fit_warnings(&runs, &fitted));
     for w in &warnings {
         progress::warn(py, &w.message)?;
     }

@@ -103,6 +103,7 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
         if let Some(note) = gaps.note_then(&a.log, consequence) {
             eprintln!("note: {note}");
         }
+        super::warn_if_mostly_gaps(&a.log, &gaps, r.rows);
         for axis in 0..axes {
             if corrected[axis] == 0 {
                 eprintln!(

@@ -10,7 +10,7 @@ use fogtemp_cal::selection::{CvScheme, CvScoring, Grouping, RuleScale, Selection
 use fogtemp_cal::thin::GreedyThinning;
 use fogtemp_core::{FeatureSettings, Model};
 
-use super::{capacity_fits, ingest_options, print_json, report_skipped};
+use super::{capacity_fits, ingest_options, print_json, report_skipped, warn_if_mostly_gaps};
 use crate::args::{
     CvCorrectionArg, CvSchemeArg, CvScoringArg, FitArgs, MethodArg, PolyArg, RuleScaleArg, ThinningArg,
 };
@@ -31,7 +31,7 @@ pub fn fit(a: FitArgs) -> Result<()> {
     if let Some(dir) = &a.report {
         check_report_folder(dir)?;
     }
-    let (logs, positions) = calibration_logs(&named, a.runs.as_deref())?;
+    let CalibrationLogs { logs, positions, input_rates_dph } = calibration_logs(&named, a.runs.as_deref())?;
     let config = CalibrationConfig {
         ingest: ingest_options(&a.ingest)?,
         features: FeatureSettings {
@@ -88,9 +88,11 @@ pub fn fit(a: FitArgs) -> Result<()> {
         if let Some(note) = run.gaps.note(&run.path) {
             eprintln!("note: {note}");
         }
+        warn_if_mostly_gaps(&run.path, &run.gaps, run.ingest.rows);
         runs.push(run);
     }
-    let warnings = fogtemp_cal::identifiability::fit_warnings(&runs, &config, &a.identifiability());
+    subtract_input_rates(&mut runs, input_rates_dph.as_deref(), config.ingest.format.gyro_columns.len());
+    let mut warnings = fogtemp_cal::identifiability::fit_warnings(&runs, &config, &a.identifiability());
     warnings.iter().for_each(|w| eprintln!("warning: {}", w.message));
     let digest = digest_files(&logs)?;
     let selection = SelectionOptions {
@@ -129,6 +131,10 @@ pub fn fit(a: FitArgs) -> Result<()> {
         }
     }
     let (blob, reports) = (&fitted.blob, &fitted.axes);
+    for w in fogtemp_cal::identifiability::post_fit_warnings(&runs, &fitted) {
+        eprintln!("warning: {}", w.message);
+        warnings.push(w);
+    }
     write_atomic(&a.out, |w| Ok(w.write_all(blob)?))?;
     if let Some(dir) = &a.report {
         let model = Model::from_bytes(blob).map_err(|e| anyhow::anyhow!("{e}"))?;
@@ -244,21 +250,52 @@ fn check_settings(a: &FitArgs) -> Result<()> {
 
 /// The logs to calibrate on and, with a runs file, each one's position: every log must have
 /// a row (and every row a log); runs with role `val` are left out.
-fn calibration_logs(
-    logs: &[std::path::PathBuf],
-    runs: Option<&std::path::Path>,
-) -> Result<(Vec<std::path::PathBuf>, Option<Vec<String>>)> {
-    let Some(path) = runs else { return Ok((logs.to_vec(), None)) };
+/// With a runs file, each run's true input rate is taken from its gyro before fitting, so
+/// that the model is the bias alone (a model that kept it would remove the Earth rate from a
+/// navigation system's gyro, and runs in different positions would disagree by it). The file
+/// gives one rate per run, about the input axis, so only a one-gyro log is corrected.
+fn subtract_input_rates(
+    runs: &mut [fogtemp_cal::calibrate::RunFeatures],
+    rates_dph: Option<&[f64]>,
+    axes: usize,
+) {
+    let Some(rates) = rates_dph else { return };
+    if axes != 1 {
+        eprintln!(
+            "note: the runs file gives one input rate per run, but the logs have {axes} gyro columns: the rates are \
+             not subtracted, so each axis's model includes its input rate"
+        );
+        return;
+    }
+    for (run, &rate) in runs.iter_mut().zip(rates) {
+        run.subtract_input_rate(0, rate);
+    }
+    eprintln!("note: each run's input_rate_dph from the runs file is subtracted from its gyro: the model is the bias alone");
+}
+
+/// The calibration logs: every log, or with a runs file those not of role `val`, each with
+/// its row.
+struct CalibrationLogs {
+    logs: Vec<std::path::PathBuf>,
+    /// Per log, its position (with a runs file).
+    positions: Option<Vec<String>>,
+    /// Per log, the true rate about the input axis, deg/h (with a runs file).
+    input_rates_dph: Option<Vec<f64>>,
+}
+
+fn calibration_logs(logs: &[std::path::PathBuf], runs: Option<&std::path::Path>) -> Result<CalibrationLogs> {
+    let Some(path) = runs else {
+        return Ok(CalibrationLogs { logs: logs.to_vec(), positions: None, input_rates_dph: None });
+    };
     let file = RunsFile::read(path)?;
     let rows = file.for_logs(logs)?;
-    let (kept, positions): (Vec<_>, Vec<_>) = logs
-        .iter()
-        .zip(rows)
-        .filter(|(_, row)| row.role != Some(Role::Val))
-        .map(|(log, row)| (log.clone(), row.position.clone()))
-        .unzip();
+    let kept: Vec<_> = logs.iter().zip(rows).filter(|(_, row)| row.role != Some(Role::Val)).collect();
     if kept.is_empty() {
         bail!("{}: every run has role 'val': none is left to calibrate on", path.display());
     }
-    Ok((kept, Some(positions)))
+    Ok(CalibrationLogs {
+        logs: kept.iter().map(|(log, _)| (*log).clone()).collect(),
+        positions: Some(kept.iter().map(|(_, row)| row.position.clone()).collect()),
+        input_rates_dph: Some(kept.iter().map(|(_, row)| row.input_rate_dph).collect()),
+    })
 }

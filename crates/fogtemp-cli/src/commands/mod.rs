@@ -76,6 +76,21 @@ fn capacity_fits(needed: usize, capacity: usize) -> Result<()> {
     Ok(())
 }
 
+/// Warns when most steps between a log's rows are gaps: the usual sign of time stamps read
+/// in the wrong unit (milliseconds read as seconds make every 20 ms step a 20 s gap).
+fn warn_if_mostly_gaps(path: &Path, gaps: &fogtemp_cal::calibrate::TimeGaps, rows: u64) {
+    if rows > 2 && gaps.count * 2 > rows {
+        eprintln!(
+            "warning: {}: {} of its {} steps between rows are longer than the tracker's max gap of {} s: are its \
+             times in another unit? (--time-unit s, ms or us)",
+            path.display(),
+            gaps.count,
+            rows - 1,
+            gaps.longer_than_s
+        );
+    }
+}
+
 /// Tells the technician about skipped rows (nothing is dropped silently).
 fn report_skipped(report: &IngestReport) {
     if report.skipped == 0 {

@@ -63,6 +63,9 @@ pub fn validate(a: ValidateArgs) -> Result<()> {
     for note in calibrate::gap_notes(runs) {
         eprintln!("note: {note}");
     }
+    for r in runs.iter().filter(|r| r.axis == 0) {
+        super::warn_if_mostly_gaps(&r.path, &r.series.gaps, r.ingest.rows);
+    }
     for note in runs.iter().flat_map(calibrate::RunValidation::coverage_notes) {
         eprintln!("note: {note}");
     }
