@@ -983,6 +983,40 @@ fn input_rates_from_a_runs_file_are_subtracted_and_their_absence_is_warned() {
     assert!((rms(&with) - rms(&original)).abs() < 1e-6, "{} vs {}", rms(&with), rms(&original));
 }
 
+/// Output into a pipe whose reader has gone (`fogtemp-cal allan log | head -1`) ends the
+/// command quietly with status 0, not with std's "failed printing to stdout" panic; and
+/// `allan` reads a log without a temperature column (it needs none).
+#[test]
+fn a_closed_output_pipe_ends_quietly_and_allan_needs_no_temperature() {
+    let dir = TempDir::new().expect("tempdir");
+    let (ok, lines) = short_log(dir.path(), "ok.csv");
+    let gyro_only: Vec<String> = lines
+        .iter()
+        .map(|l| {
+            let c: Vec<&str> = l.split(',').collect();
+            format!("{},{}", c[0], c[2])
+        })
+        .collect();
+    let no_temp = dir.path().join("gyro_only.csv");
+    write_lines(&no_temp, &gyro_only);
+    let with_temp = run_ok(args!["allan", &ok, "--json"]);
+    let without = run_ok(args!["allan", &no_temp, "--json"]);
+    let curve = |doc: &str| json(doc)["axes"][0]["curve"].clone();
+    assert_eq!(curve(&with_temp), curve(&without), "the same gyro gives the same Allan deviation");
+    for _ in 0..3 {
+        let mut child = std::process::Command::new(common::fogtemp_cal_bin())
+            .args(args!["allan", &ok])
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .expect("spawn");
+        drop(child.stdout.take());
+        let output = child.wait_with_output().expect("wait");
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert!(output.status.success() && !stderr.contains("panicked"), "{:?}: {stderr}", output.status);
+    }
+}
+
 /// Settings no fit can use are refused before any log is read, naming the option (they
 /// used to surface after the fitting as a blob field out of range, or not at all).
 #[test]

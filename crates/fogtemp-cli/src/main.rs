@@ -1,9 +1,39 @@
 //! `fogtemp-cal`: the calibration command for lab technicians (thin glue over the fogtemp
 //! libraries: `fogtemp-cal`, `fogtemp-sim`, `fogtemp-diagnose`).
 
+// `println!` and `print!` for every module below: standard output that a reader closed (a
+// pipe into `head`) ends the process quietly, as a Unix tool ends on SIGPIPE, instead of
+// std's panic "failed printing to stdout".
+macro_rules! println {
+    () => {
+        $crate::write_stdout(format_args!("\n"))
+    };
+    ($($arg:tt)*) => {
+        $crate::write_stdout(format_args!("{}\n", format_args!($($arg)*)))
+    };
+}
+macro_rules! print {
+    ($($arg:tt)*) => {
+        $crate::write_stdout(format_args!($($arg)*))
+    };
+}
+
 mod args;
 mod commands;
 mod output;
+
+/// Writes to standard output; a closed pipe exits with status 0 (the reader has what it
+/// wanted), any other failure with an error on stderr and status 1.
+fn write_stdout(text: std::fmt::Arguments<'_>) {
+    use std::io::Write;
+    if let Err(e) = std::io::stdout().lock().write_fmt(text) {
+        if e.kind() == std::io::ErrorKind::BrokenPipe {
+            std::process::exit(0);
+        }
+        eprintln!("error: writing to standard output: {e}");
+        std::process::exit(1);
+    }
+}
 
 use clap::Parser;
 use fogtemp_cal::ingest::BadRowKind;

@@ -9,7 +9,10 @@ use crate::output::RowProgress;
 
 /// The `allan` command.
 pub fn allan(a: AllanArgs) -> Result<()> {
-    let ingest = ingest_options(&a.ingest)?;
+    let mut ingest = ingest_options(&a.ingest)?;
+    // The Allan deviation reads only time and gyro: a gyro-only log (a rate-table or static
+    // noise capture) needs no temperature column, and a temperature cell is not checked.
+    ingest.format.temp_columns.clear();
     let bar = RowProgress::new(&a.log, "allan");
     let series = fogtemp_cal::ingest::read_gyro_series(&a.log, &ingest, |b, r| bar.update(b, r))?;
     bar.finish_and_clear();
