@@ -125,7 +125,8 @@ impl fmt::Display for Error {
             Error::BadMagic => f.write_str("not a fogtemp model blob (magic is not \"FOGM\")"),
             Error::UnsupportedVersion { expected, found } => write!(
                 f,
-                "model format version {found} is not supported (this build reads version {expected})"
+                "model format version {found} is not supported (this build reads versions {} to {expected})",
+                crate::wire::OLDEST_READABLE_VERSION
             ),
             Error::LengthMismatch { field, expected, found } => {
                 write!(f, "{field} is {found} but the data implies {expected}")

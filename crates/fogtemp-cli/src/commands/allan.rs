@@ -23,7 +23,11 @@ pub fn allan(a: AllanArgs) -> Result<()> {
         return print_json(&doc);
     }
     if doc.gaps > 0 {
-        eprintln!("warning: {} steps longer than 1.5x the median sample period; the Allan deviation assumes uniform sampling", doc.gaps);
+        let steps = if doc.gaps == 1 { "step" } else { "steps" };
+        eprintln!(
+            "warning: {} {steps} longer than 1.5x the median sample period; the Allan deviation assumes uniform sampling",
+            doc.gaps
+        );
     }
     // A number JSON prints as null (NaN, infinite) shows as `or`.
     let finite_or = |x: f64, or: f64| if x.is_finite() { x } else { or };

@@ -61,7 +61,8 @@ pub fn evaluate(a: EvaluateArgs) -> Result<()> {
     for (t, r) in rows {
         let e = axis.evaluate(t as f32, r as f32, &mut hint).map_err(|e| anyhow::anyhow!("{e}"))?;
         let flags = if e.outside_hull { Flags::OUTSIDE_HULL.0 } else { 0 };
-        lines.push(format!("{t},{r},{},{flags}", e.value_dph));
+        // Debug formatting: the shortest text that reads back, with an exponent for 1e30.
+        lines.push(format!("{t:?},{r:?},{:?},{flags}", e.value_dph));
     }
     let write = |w: &mut dyn Write| -> Result<()> {
         writeln!(w, "temp_c,rate_c_per_min,value_dph,flags")?;

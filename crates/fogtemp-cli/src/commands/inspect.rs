@@ -21,9 +21,13 @@ pub fn inspect(a: InspectArgs) -> Result<()> {
         doc.tool_version,
         doc.input_digest
     );
+    // The stored values are f32: printed to the digits they hold (every one is in --json).
+    let number = |v: f64, digits: usize| if v.is_finite() { format!("{v:.digits$}") } else { "null".into() };
     for axis in &doc.axes {
+        let mesh_outside =
+            axis.outside_policy.map_or_else(|| "no mesh".to_string(), |p| format!("mesh outside: {p}"));
         println!(
-            "axis {}: {} | window {} s in {} blocks, restart after {} s | {} polynomial terms, {} nodes, {} triangles, outside: {} | fit residual RMS {} deg/h over {} points",
+            "axis {}: {} | window {} s in {} blocks, restart after {} s | {} polynomial terms, {} nodes, {} triangles, {} | fit residual RMS {} deg/h over {} points",
             axis.axis,
             axis.kind.join("+"),
             json_text(&axis.features.window_s),
@@ -32,16 +36,16 @@ pub fn inspect(a: InspectArgs) -> Result<()> {
             axis.poly.as_ref().map_or(0, Vec::len),
             axis.nodes.len(),
             axis.triangles.len(),
-            json_text(&axis.outside_policy),
-            json_text(&axis.provenance.residual_rms_dph),
+            mesh_outside,
+            number(axis.provenance.residual_rms_dph, 5),
             axis.provenance.fit_point_count,
         );
         println!(
             "  calibrated range: {} .. {} C, {} .. {} C/min; feature tracker capacity needed: {} blocks",
-            json_text(&axis.provenance.temp_min_c),
-            json_text(&axis.provenance.temp_max_c),
-            json_text(&axis.provenance.rate_min_c_per_min),
-            json_text(&axis.provenance.rate_max_c_per_min),
+            number(axis.provenance.temp_min_c, 2),
+            number(axis.provenance.temp_max_c, 2),
+            number(axis.provenance.rate_min_c_per_min, 4),
+            number(axis.provenance.rate_max_c_per_min, 4),
             axis.features.blocks_needed
         );
         if let Some(outside) = axis.poly_outside {
