@@ -1017,6 +1017,57 @@ fn a_closed_output_pipe_ends_quietly_and_allan_needs_no_temperature() {
     }
 }
 
+/// A model whose axes and the log's gyro columns differ in number is used on the first of
+/// them, and validate and compensate say so.
+#[test]
+fn a_model_and_a_log_of_different_axis_counts_are_warned() {
+    let dir = TempDir::new().expect("tempdir");
+    let (ok, lines) = short_log(dir.path(), "ok.csv");
+    let two: Vec<String> = lines
+        .iter()
+        .enumerate()
+        .map(|(k, l)| {
+            if k == 0 {
+                format!("{l},gyro2")
+            } else {
+                format!("{l},{}", l.rsplit(',').next().unwrap_or("0"))
+            }
+        })
+        .collect();
+    let two_log = dir.path().join("two.csv");
+    write_lines(&two_log, &two);
+    let model = dir.path().join("two.fogm");
+    let mut fit_args =
+        args!["fit", "--method", "poly", "--gyro-column", "gyro_dph", "--gyro-column", "gyro2"];
+    fit_args.extend(args!["--out", &model, &two_log]);
+    run_ok(fit_args);
+    for args in [
+        args!["validate", "--model", &model, &ok],
+        args!["compensate", "--model", &model, &ok, "--out", dir.path().join("c.csv")],
+    ] {
+        let output = cal().args(&args).output().expect("run");
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        assert!(
+            output.status.success() && stderr.contains("has 2 axes but the log is read with 1 gyro column ("),
+            "{args:?}:\n{stderr}"
+        );
+    }
+    let quiet = cal()
+        .args(args![
+            "validate",
+            "--model",
+            &model,
+            "--gyro-column",
+            "gyro_dph",
+            "--gyro-column",
+            "gyro2",
+            &two_log
+        ])
+        .output()
+        .expect("run");
+    assert!(!String::from_utf8_lossy(&quiet.stderr).contains("axes but the log"));
+}
+
 /// Settings no fit can use are refused before any log is read, naming the option (they
 /// used to surface after the fitting as a blob field out of range, or not at all).
 #[test]

@@ -328,7 +328,7 @@ pub enum RuleScaleArg {
 pub struct FitArgs {
     /// Blocks the firmware's feature tracker holds: its `Compensator` capacity (fogtemp-core's
     /// default, 128). A model whose window needs more blocks is refused.
-    #[arg(long, default_value_t = fogtemp_core::DEFAULT_CAPACITY)]
+    #[arg(long, default_value_t = fogtemp_core::DEFAULT_CAPACITY, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(2..))]
     pub capacity: usize,
     /// Calibration logs (files or folders of *.csv).
     #[arg(required = true)]
@@ -527,7 +527,7 @@ fn parse_range(text: &str) -> Result<(f64, f64), String> {
 pub struct CompensateArgs {
     /// Blocks the firmware's feature tracker holds: its `Compensator` capacity (fogtemp-core's
     /// default, 128). A model whose window needs more blocks is refused.
-    #[arg(long, default_value_t = fogtemp_core::DEFAULT_CAPACITY)]
+    #[arg(long, default_value_t = fogtemp_core::DEFAULT_CAPACITY, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(2..))]
     pub capacity: usize,
     /// Model file.
     #[arg(long, short)]
@@ -564,7 +564,7 @@ pub struct StabilityArgs {
 pub struct ValidateArgs {
     /// Blocks the firmware's feature tracker holds: its `Compensator` capacity (fogtemp-core's
     /// default, 128). A model whose window needs more blocks is refused.
-    #[arg(long, default_value_t = fogtemp_core::DEFAULT_CAPACITY)]
+    #[arg(long, default_value_t = fogtemp_core::DEFAULT_CAPACITY, value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(2..))]
     pub capacity: usize,
     /// Model file.
     #[arg(long, short)]

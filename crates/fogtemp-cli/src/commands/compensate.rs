@@ -15,6 +15,7 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
     check_capacity(&a.model, &blob, a.capacity)?;
     let model = Model::from_bytes(&blob).map_err(|e| anyhow::anyhow!("{e}"))?;
     let ingest = ingest_options(&a.ingest)?;
+    super::warn_axis_count(&a.model, model.axis_count(), ingest.format.gyro_columns.len());
     let axes = model.axis_count().min(ingest.format.gyro_columns.len());
     let mut comps: Vec<Compensator<'_, { fogtemp_cal::features::CAL_CAPACITY }>> = (0..axes)
         .map(|i| Compensator::new(&model, i))

@@ -91,6 +91,20 @@ fn warn_if_mostly_gaps(path: &Path, gaps: &fogtemp_cal::calibrate::TimeGaps, row
     }
 }
 
+/// Warns when the model's axes and the log's gyro columns differ in number: only the
+/// first `min` of them are paired (axis k with gyro column k).
+fn warn_axis_count(model_path: &Path, model_axes: usize, gyro_columns: usize) {
+    if model_axes != gyro_columns {
+        let used = model_axes.min(gyro_columns);
+        eprintln!(
+            "warning: {} has {model_axes} axes but the log is read with {gyro_columns} gyro column{} (--gyro-column): \
+             only the first {used} are used, axis k with the k-th gyro column",
+            model_path.display(),
+            if gyro_columns == 1 { "" } else { "s" }
+        );
+    }
+}
+
 /// Tells the technician about skipped rows (nothing is dropped silently).
 fn report_skipped(report: &IngestReport) {
     if report.skipped == 0 {

@@ -31,6 +31,7 @@ pub fn validate(a: ValidateArgs) -> Result<()> {
     let model = Model::from_bytes(&blob).map_err(|e| anyhow::anyhow!("{e}"))?;
     let logs = validation_logs(expand_logs(&a.logs)?, a.runs.as_deref())?;
     let ingest = ingest_options(&a.ingest)?;
+    super::warn_axis_count(&a.model, model.axis_count(), ingest.format.gyro_columns.len());
     let options = stability_options(&a.stability)?;
     // The compared models are replayed in the same pass over each log as the primary one.
     let compare_blobs: Vec<Vec<u8>> = a.compare.iter().map(|p| read_model(p)).collect::<Result<_>>()?;
