@@ -170,8 +170,8 @@ fn check_sample(
         if value.is_infinite() {
             return Err(run.bad(index, 1 + k, value, BadRowKind::NonFinite));
         }
-        if value < crate::ingest::ABSOLUTE_ZERO_C {
-            return Err(run.bad(index, 1 + k, value, BadRowKind::BelowAbsoluteZero));
+        if !value.is_nan() && !crate::ingest::is_physical(value) {
+            return Err(run.bad(index, 1 + k, value, BadRowKind::ImpossibleTemperature));
         }
         *slot = value;
     }
@@ -306,7 +306,7 @@ mod tests {
         let run3 = RunArrays { temps_c: &[&cold], ..run };
         match extract_run_arrays(&run3, &config) {
             Err(CalError::BadRow { row, .. }) => {
-                assert_eq!((row.line, row.column, row.kind), (5, 2, BadRowKind::BelowAbsoluteZero));
+                assert_eq!((row.line, row.column, row.kind), (5, 2, BadRowKind::ImpossibleTemperature));
             }
             other => panic!("expected a bad row, got {other:?}"),
         }

@@ -13,6 +13,21 @@ use crate::model::{Axis, Model};
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub struct Flags(pub u8);
 
+/// The lowest temperature a sensor can read, deg C: absolute zero.
+pub const MIN_PHYSICAL_TEMP_C: f32 = -273.15;
+/// The highest temperature taken as a reading, deg C: a gyro does not survive it (its
+/// aluminium housing melts at 660 C), so a larger value is a fault or a sentinel, not a
+/// temperature.
+pub const MAX_PHYSICAL_TEMP_C: f32 = 1000.0;
+
+/// Whether `temp_c` can be a sensor's reading: finite and within
+/// [`MIN_PHYSICAL_TEMP_C`, `MAX_PHYSICAL_TEMP_C`]. The compensator flags any other sample
+/// `BAD_INPUT` and leaves it out of the features; calibration's ingest refuses it as a bad row.
+#[inline]
+pub fn is_physical_temperature(temp_c: f32) -> bool {
+    (MIN_PHYSICAL_TEMP_C..=MAX_PHYSICAL_TEMP_C).contains(&temp_c)
+}
+
 impl Flags {
     /// No features yet (fewer than `min_blocks` blocks since power-on or a gap): the
     /// bias is the last valid one, or zero if there never was one.
@@ -23,8 +38,9 @@ impl Flags {
     pub const OUTSIDE_HULL: Flags = Flags(0x04);
     /// No temperature for longer than the model's `max_gap_s`; the bias is held.
     pub const TEMP_STALE: Flags = Flags(0x08);
-    /// This sample's temperature or time was rejected (NaN, not increasing) or the gyro
-    /// value is not finite.
+    /// This sample's temperature or time was rejected (NaN, not a physical temperature,
+    /// a time not increasing by a step back within `max_gap_s`) or the gyro value is not
+    /// finite.
     pub const BAD_INPUT: Flags = Flags(0x10);
 
     /// Every flag with its name, in bit order (for bindings and reports).
@@ -208,10 +224,16 @@ impl<'a> Axis<'a> {
     ) -> Output {
         let mut flags = Flags::empty();
         if let Some(temp_c) = temp_c {
-            match state.tracker.push(time_us, temp_c) {
-                Ok(outcome) if outcome.updated => self.refresh_bias(state),
-                Ok(_) => {}
-                Err(_) => flags |= Flags::BAD_INPUT,
+            if !is_physical_temperature(temp_c) {
+                // No sensor reads this (a logger's -999 for "missing", a corrupted word):
+                // one such sample would spoil a whole window's features.
+                flags |= Flags::BAD_INPUT;
+            } else {
+                match state.tracker.push(time_us, temp_c) {
+                    Ok(outcome) if outcome.updated => self.refresh_bias(state),
+                    Ok(_) => {}
+                    Err(_) => flags |= Flags::BAD_INPUT,
+                }
             }
         }
         let stale = state

@@ -212,17 +212,22 @@ impl<S: BlockStorage> BlockTracker<S> {
     ///
     /// # Errors
     /// [`Error::NonFiniteSample`] for NaN/infinite temperature, [`Error::TimeNotIncreasing`]
-    /// for a time not after the previous sample. A rejected sample changes nothing.
+    /// for a time not after the previous sample by at most `max_gap_s` (jitter). A rejected
+    /// sample changes nothing. A time more than `max_gap_s` before the previous one restarts
+    /// the tracker, as a gap does (a clock that restarted, or a wrong time far ahead before it).
     pub fn push(&mut self, time_us: u64, temp_c: f32) -> Result<PushOutcome, Error> {
         if !temp_c.is_finite() {
             return Err(Error::NonFiniteSample);
         }
         let mut outcome = PushOutcome::default();
         if let Some(previous_us) = self.last_time_us {
-            if time_us <= previous_us {
+            if time_us <= previous_us && previous_us - time_us <= self.max_gap_us {
                 return Err(Error::TimeNotIncreasing { previous_us, found_us: time_us });
             }
-            if time_us - previous_us > self.max_gap_us {
+            // A step back longer than the gap limit is a clock that restarted (or a time
+            // stamp far in the future before it): handled as a gap, so that one wrong time
+            // cannot reject every later sample. A step back within it is jitter: rejected.
+            if time_us.abs_diff(previous_us) > self.max_gap_us {
                 self.reset();
                 outcome.restarted = true;
                 outcome.updated = true;

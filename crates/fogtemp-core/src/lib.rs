@@ -44,7 +44,10 @@ mod region;
 pub mod wire;
 
 pub use beyond::GRADIENT_RADIUS;
-pub use compensator::{AxisState, Compensator, Flags, Output, WrappingClock, DEFAULT_CAPACITY};
+pub use compensator::{
+    is_physical_temperature, AxisState, Compensator, Flags, Output, WrappingClock, DEFAULT_CAPACITY,
+    MAX_PHYSICAL_TEMP_C, MIN_PHYSICAL_TEMP_C,
+};
 pub use error::Error;
 pub use features::{BlockStorage, BlockTracker, FeatureTracker, Features, PushOutcome};
 pub use mesh::{

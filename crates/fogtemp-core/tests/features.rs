@@ -678,9 +678,35 @@ fn non_increasing_time_is_rejected_and_changes_nothing() {
         not_increasing(1, previous(1)),
         not_increasing(10, previous(10)),
         not_increasing(11, previous(11) - 1),
-        not_increasing(1_500, 0),
+        not_increasing(1_500, previous(1_500) - 5_000_000), // back by max_gap_s exactly: jitter
         not_increasing(1_500, previous(1_500)),
     ]);
+}
+
+/// A time more than `max_gap_s` before the previous one is a clock that restarted: the
+/// tracker restarts there as after a gap (oracle: a fresh tracker fed the samples from the
+/// restart on), so one wrong time far ahead cannot shut out every later sample.
+#[test]
+fn a_step_back_beyond_the_gap_limit_restarts_like_a_gap() {
+    let good: Vec<(u64, f32)> =
+        regular_times(1_000_000, 100_000, 3_000).map(|t| (t, 30.0 + t as f32 * 1e-7)).collect();
+    let mut tracker = Tracker::new(&FEATURES).expect("fits");
+    for &(t, c) in &good[..1_000] {
+        tracker.push(t, c).expect("accepted");
+    }
+    // One time stamp 2^40 us ahead (a corrupted word), accepted as a gap: restart.
+    let wrong = tracker.push(good[999].0 + (1 << 40), 30.0).expect("a forward jump is a gap");
+    assert!(wrong.restarted);
+    // The clock's true times are then 2^40 us back: restart again, and accepted.
+    let back = tracker.push(good[1_000].0, good[1_000].1).expect("a long step back restarts");
+    assert!(back.restarted && back.updated);
+    let mut fresh = Tracker::new(&FEATURES).expect("fits");
+    fresh.push(good[1_000].0, good[1_000].1).expect("accepted");
+    for &(t, c) in &good[1_001..] {
+        assert_eq!(tracker.push(t, c), fresh.push(t, c), "t = {t}");
+        assert_eq!(tracker.features(), fresh.features(), "t = {t}");
+    }
+    assert!(tracker.features().is_some_and(|f| f.window_full), "features again after one window");
 }
 
 // ---------------------------------------------------------------------------------------

@@ -104,7 +104,7 @@ fn step_u32_across_the_wrap_equals_step_u64() {
     let mut reference: Compensator<'_, 32> = Compensator::new(&model, 0).unwrap();
     let mut wrapped: Compensator<'_, 32> = Compensator::new(&model, 0).unwrap();
     let mut naive: Compensator<'_, 32> = Compensator::new(&model, 0).unwrap();
-    let (mut crossed, mut bad_ref, mut bad_naive) = (false, 0, 0);
+    let (mut crossed, mut bad_ref, mut restarted_naive, mut restarted_ref) = (false, 0, 0, 0);
     for &(t, g, c) in &records {
         let t64 = t + offset;
         let t32 = t64 as u32;
@@ -112,12 +112,21 @@ fn step_u32_across_the_wrap_equals_step_u64() {
         let want = reference.step(t, g, c);
         assert_eq!(bits(&wrapped.step_u32(t32, g, c)), bits(&want), "t64 = {t64}");
         bad_ref += usize::from(want.flags.contains(Flags::BAD_INPUT));
-        bad_naive += usize::from(naive.step(u64::from(t32), g, c).flags.contains(Flags::BAD_INPUT));
+        let after_wrap = t64 >= 1 << 32;
+        let warming =
+            |o: fogtemp_core::Output| usize::from(after_wrap && o.flags.contains(Flags::WARMING_UP));
+        restarted_naive += warming(naive.step(u64::from(t32), g, c));
+        restarted_ref += warming(want);
     }
     assert!(crossed);
     assert_eq!(bad_ref, 1, "the fixture's one duplicated record");
-    // What the issue reported: a wrapped time fed as u64 rejects every later temperature.
-    assert!(bad_naive > 1000, "naive u64 use of a wrapping timer: {bad_naive} BAD_INPUT samples");
+    // A wrapped time fed as u64 is a step back of 71.6 min: the tracker restarts there and
+    // loses its window (it used to reject every later temperature); step_u32 does not (its
+    // warm-up samples after the wrap are the fixture's own).
+    assert!(
+        restarted_naive > restarted_ref + 10,
+        "naive u64 use of a wrapping timer: {restarted_naive} samples warming up after the wrap, {restarted_ref} with step_u32"
+    );
 }
 
 #[test]
@@ -216,4 +225,34 @@ fn tracker_errors_name_the_axis() {
     let mut axis = model.axis(1).unwrap();
     axis.features.max_gap_s = 1.0e12;
     assert!(matches!(axis.state::<128>(), Err(Error::BadValue { field: "max_gap_s", axis: 1, .. })));
+}
+
+/// A temperature no sensor reads (a logger's -999, a corrupted 1e30) is flagged
+/// `BAD_INPUT` and left out of the features: every output equals, bit for bit, that of the
+/// same stream with those samples' temperatures absent (the oracle), flags aside.
+#[test]
+fn impossible_temperatures_are_bad_input_and_change_nothing_else() {
+    let model = Model::from_bytes(FW_MODEL).unwrap();
+    let records = trajectory();
+    let mut tested: Compensator<'_, 32> = Compensator::new(&model, 0).unwrap();
+    let mut oracle: Compensator<'_, 32> = Compensator::new(&model, 0).unwrap();
+    let spoiled = [-999.0_f32, 1.0e30, -273.2, 1000.5, f32::MAX];
+    let mut flagged = 0;
+    for (k, &(t, g, c)) in records.iter().enumerate() {
+        let bad = (k % 97 == 50).then(|| spoiled[(k / 97) % spoiled.len()]);
+        let out = tested.step(t, g, bad.or(c));
+        let want = oracle.step(t, g, if bad.is_some() { None } else { c });
+        assert_eq!(
+            (out.rate_dph.to_bits(), out.bias_dph.to_bits()),
+            (want.rate_dph.to_bits(), want.bias_dph.to_bits()),
+            "k = {k}"
+        );
+        if bad.is_some() {
+            assert!(out.flags.contains(Flags::BAD_INPUT), "k = {k}: {:?}", bad);
+            flagged += 1;
+        }
+    }
+    assert!(flagged > 10);
+    assert!(fogtemp_core::is_physical_temperature(-273.15) && fogtemp_core::is_physical_temperature(1000.0));
+    assert!(!fogtemp_core::is_physical_temperature(f32::NAN));
 }

@@ -160,6 +160,10 @@ pub const FOGTEMP_FLAG_OUTSIDE_HULL: u8 = 0x04;
 /// Flag bit: no temperature for longer than the model's `max_gap_s`; the bias is held.
 pub const FOGTEMP_FLAG_TEMP_STALE: u8 = 0x08;
 /// Flag bit: this sample's temperature or time was rejected, or the gyro value is not finite.
+/// A temperature is rejected when NaN or not a reading (below -273.15 C or above 1000 C: a
+/// logger's -999, a corrupted word); a time when it is not after the previous one by a step
+/// back of at most the model's `max_gap_s` (jitter). A longer step back restarts the tracker
+/// as a gap does (a clock that restarted), so one wrong time cannot shut out later samples.
 pub const FOGTEMP_FLAG_BAD_INPUT: u8 = 0x10;
 /// [`fogtemp_error::axis`] when the error names no axis.
 pub const FOGTEMP_NO_AXIS: u32 = 0xFFFF_FFFF;
@@ -679,7 +683,8 @@ unsafe fn step_args<'x>(
 /// Compensates one sample: `gyro_dph` (deg/h) at `time_us` (a 64-bit microsecond count
 /// that never wraps), with the temperature `temp_c` (deg C) when `has_temp` (else
 /// `temp_c` is ignored). Writes the compensated rate, the bias and the flags to `*out`.
-/// Bad samples are flagged (`FOGTEMP_FLAG_BAD_INPUT`), not errors.
+/// Bad samples are flagged (`FOGTEMP_FLAG_BAD_INPUT`, which says which), not errors: a
+/// rejected temperature or time leaves the state as it was.
 ///
 /// # Safety
 /// `axis` points to a filled `fogtemp_axis`; `state` to a filled `fogtemp_state` made for

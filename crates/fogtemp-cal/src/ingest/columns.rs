@@ -394,9 +394,9 @@ pub(super) fn parse_row(
     for (slot, &field) in temps.iter_mut().zip(&columns.temps) {
         *slot = parse_cell(plan, fields, field, line)?
             .map_or(f64::NAN, |raw| raw * plan.temp_scale + plan.temp_offset_c);
-        if *slot < super::ABSOLUTE_ZERO_C {
+        if !slot.is_nan() && !super::is_physical(*slot) {
             let raw = fields.get(field).unwrap_or(b"");
-            return Err(bad_row(columns, line, field, raw, BadRowKind::BelowAbsoluteZero));
+            return Err(bad_row(columns, line, field, raw, BadRowKind::ImpossibleTemperature));
         }
     }
     Ok(time)

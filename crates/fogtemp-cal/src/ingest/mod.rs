@@ -366,13 +366,18 @@ pub enum BadRowKind {
     NotADateTime,
     /// The time cell of a log read with [`TimeUnit::TimeOfDay`] is not a time of day.
     NotATimeOfDay,
-    /// A temperature (after `temp_scale` and `temp_offset`) below absolute zero: no reading
-    /// of a sensor, often a logger's sentinel for a missing one (-999).
-    BelowAbsoluteZero,
+    /// A temperature (after `temp_scale` and `temp_offset`) below absolute zero or above
+    /// 1000 C ([`fogtemp_core::is_physical_temperature`]): no reading of a sensor, often a
+    /// logger's sentinel for a missing one (-999, 9999). The firmware's compensator flags
+    /// such a sample `BAD_INPUT` by the same rule.
+    ImpossibleTemperature,
 }
 
-/// Absolute zero, deg C: no temperature reading can be below it.
-pub const ABSOLUTE_ZERO_C: f64 = -273.15;
+/// Whether a temperature read from a log is one a sensor can report: the compensator's rule
+/// on the f32 it would be given.
+pub(crate) fn is_physical(temp_c: f64) -> bool {
+    fogtemp_core::is_physical_temperature(temp_c as f32)
+}
 
 impl BadRowKind {
     /// Short description for reports.
@@ -387,8 +392,9 @@ impl BadRowKind {
             BadRowKind::PointWithDecimalComma => "a point in a log read with a decimal comma",
             BadRowKind::NotADateTime => "not a date-time (YYYY-MM-DDThh:mm:ss[.fff][Z|+hh:mm])",
             BadRowKind::NotATimeOfDay => "not a time of day (hh:mm[:ss[.fff]])",
-            BadRowKind::BelowAbsoluteZero => {
-                "a temperature below absolute zero (-273.15 C; a logger's mark for a missing reading? leave the cell empty)"
+            BadRowKind::ImpossibleTemperature => {
+                "not a temperature a sensor reads (below -273.15 C or above 1000 C; a logger's mark for a missing \
+                 reading? leave the cell empty)"
             }
         }
     }

@@ -365,9 +365,11 @@ impl<R: Read> Parser<R> {
             if time.is_nan() || plan.gyro_slots.iter().any(|&k| values[k].is_nan()) {
                 break; // an empty required cell: the general path reports it
             }
-            let below_zero =
-                |k: &usize| values[*k] * plan.temp_scale + plan.temp_offset_c < super::ABSOLUTE_ZERO_C;
-            if plan.temp_slots.iter().any(below_zero) {
+            let impossible = |k: &usize| {
+                let temp = values[*k] * plan.temp_scale + plan.temp_offset_c;
+                !temp.is_nan() && !super::is_physical(temp)
+            };
+            if plan.temp_slots.iter().any(impossible) {
                 break; // an impossible temperature: likewise
             }
             if previous_time.is_some_and(|p| time <= p) {

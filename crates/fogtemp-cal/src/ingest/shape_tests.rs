@@ -470,7 +470,7 @@ fn times_of_day_read_as_seconds_from_their_first_row_across_midnights() {
 }
 
 #[test]
-fn a_temperature_below_absolute_zero_is_a_bad_row_in_every_reader_mode() {
+fn a_temperature_no_sensor_reads_is_a_bad_row_in_every_reader_mode() {
     // Row 3 holds a logger's -999 for a missing reading; the rows around it are fine.
     let mut data = String::from("time_s,temp_c,gyro_dph\n");
     for k in 0..50 {
@@ -478,7 +478,7 @@ fn a_temperature_below_absolute_zero_is_a_bad_row_in_every_reader_mode() {
         data.push_str(&format!("{k},{temp},0.5\n"));
     }
     let row = bad(&data);
-    expect(&row, 3, 2, "temp_c", "-999", BadRowKind::BelowAbsoluteZero);
+    expect(&row, 3, 2, "temp_c", "-999", BadRowKind::ImpossibleTemperature);
     // Skipped on request, the other rows all read.
     let skipping = IngestOptions { skip_bad_rows: true, ..IngestOptions::default() };
     assert_eq!(values(&rows(&data, &skipping)).len(), 49);
@@ -488,8 +488,16 @@ fn a_temperature_below_absolute_zero_is_a_bad_row_in_every_reader_mode() {
         format: LogFormat { temp_scale: 0.25, temp_offset_c: 10.0, ..LogFormat::default() },
         ..IngestOptions::default()
     };
-    expect(&bad_with(counts, &scaled), 3, 2, "temp_c", "-1200", BadRowKind::BelowAbsoluteZero);
-    // Absolute zero itself is no error (a limit, not a reading, but not impossible).
-    let at_zero = "time_s,temp_c,gyro_dph\n0,-273.15,1\n1,-273.15,1\n";
-    assert_eq!(values(&rows(at_zero, &IngestOptions::default())).len(), 2);
+    expect(&bad_with(counts, &scaled), 3, 2, "temp_c", "-1200", BadRowKind::ImpossibleTemperature);
+    // Above 1000 C (a 9999 sentinel) likewise; the limits themselves are readings.
+    expect(
+        &bad("time_s,temp_c,gyro_dph\n0,20,1\n1,9999,1\n"),
+        3,
+        2,
+        "temp_c",
+        "9999",
+        BadRowKind::ImpossibleTemperature,
+    );
+    let at_limits = "time_s,temp_c,gyro_dph\n0,-273.15,1\n1,1000,1\n";
+    assert_eq!(values(&rows(at_limits, &IngestOptions::default())).len(), 2);
 }
