@@ -98,7 +98,7 @@ def fit(
     (min, max) pair) and, for files, the log-column options (time_column, time_unit ("s", "ms", "us", "datetime" or "time_of_day"), temp_column,
     temp_scale, temp_offset, gyro_column, gyro_unit, gyro_scale, delimiter, skip_lines, columns,
     sample_rate_hz, comment, decimal_mark ("point" or "comma"), date_column, skip_bad_rows). Identifiability warnings (too few runs, heating only,
-    ...) are issued as Python warnings and listed in ``Model.fit_report()["warnings"]``.
+    ...) are issued as Python warnings and listed in ``Model.fit_report["warnings"]`` (a property).
     """
 
 @overload

@@ -560,6 +560,25 @@ pub fn allan<'py>(
         let names: Vec<String> = (0..series.len())
             .map(|k| if series.len() == 1 { "gyro_dph".into() } else { format!("gyro_dph[{k}]") })
             .collect();
+        // The rules fit() applies to arrays: finite samples, time increasing.
+        if let Some(i) = times.iter().position(|t| !t.is_finite()) {
+            return Err(errors::value(format!("allan(): time_s[{i}] is {}: not a finite time", times[i])));
+        }
+        if let Some(i) = times.windows(2).position(|w| w[1] <= w[0]) {
+            let (a, b) = (times[i], times[i + 1]);
+            return Err(errors::value(format!(
+                "allan(): time_s[{}] = {b} is not after time_s[{i}] = {a}: time must increase",
+                i + 1
+            )));
+        }
+        for (name, s) in names.iter().zip(&series) {
+            if let Some(i) = s.iter().position(|g| !g.is_finite()) {
+                return Err(errors::value(format!(
+                    "allan(): {name}, sample {i}: {} is not a finite rate",
+                    s[i]
+                )));
+            }
+        }
         let doc =
             py.detach(|| AllanDocument::new(Path::new("<arrays>"), &names, times, &series)).ok_or_else(
                 || errors::value("allan(): the log needs at least two samples with increasing time"),

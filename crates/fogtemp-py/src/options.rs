@@ -211,6 +211,55 @@ pub fn ingest(o: &mut Options<'_>) -> PyResult<IngestOptions> {
         },
         skip_bad_rows: o.bool("skip_bad_rows", false)?,
     })
+    .and_then(|options: IngestOptions| {
+        let f = &options.format;
+        require(
+            "temp_scale",
+            f.temp_scale.is_finite() && f.temp_scale != 0.0,
+            "a finite, non-zero number",
+            f.temp_scale,
+        )?;
+        require("temp_offset", f.temp_offset_c.is_finite(), "a finite number", f.temp_offset_c)?;
+        require(
+            "gyro_scale",
+            f.gyro_scale.is_finite() && f.gyro_scale != 0.0,
+            "a finite, non-zero number",
+            f.gyro_scale,
+        )?;
+        Ok(options)
+    })
+}
+
+/// A `ValueError` naming the keyword, what it must be and what it was, unless `ok`.
+fn require(name: &str, ok: bool, what: &str, found: impl std::fmt::Display) -> PyResult<()> {
+    if ok {
+        Ok(())
+    } else {
+        Err(errors::value(format!("{name} must be {what}, got {found}")))
+    }
+}
+
+/// Refuses settings no fit can use, naming the keyword (the command line refuses the same
+/// values as it parses its flags), before any log is read.
+fn check_calibration(c: &CalibrationConfig, max_nodes: usize, tolerance_dph: Option<f64>) -> PyResult<()> {
+    let f = &c.features;
+    let positive = |v: f64| v.is_finite() && v > 0.0;
+    require("window_s", positive(f64::from(f.window_s)), "positive and finite", f.window_s)?;
+    let max_blocks = fogtemp_core::wire::MAX_BLOCKS;
+    require("blocks", (2..=max_blocks).contains(&f.block_count), "2 to 4096", f.block_count)?;
+    require("min_blocks", (2..=f.block_count).contains(&f.min_blocks), "2 to blocks", f.min_blocks)?;
+    require("max_gap_s", positive(f64::from(f.max_gap_s)), "positive and finite", f.max_gap_s)?;
+    require("target_window_s", positive(c.target_window_s), "positive and finite", c.target_window_s)?;
+    require("max_nodes", max_nodes >= 3, "at least 3", max_nodes)?;
+    if let Some(t) = tolerance_dph {
+        require("tolerance_dph", positive(t), "positive and finite", t)?;
+    }
+    if let TermSelection::Stepwise { p_enter, p_remove, .. } = c.poly {
+        let probability = |p: f64| p > 0.0 && p < 1.0;
+        require("p_enter", probability(p_enter), "between 0 and 1 (exclusive)", p_enter)?;
+        require("p_remove", probability(p_remove) && p_remove >= p_enter, "between p_enter and 1", p_remove)?;
+    }
+    Ok(())
 }
 
 /// The fit settings (everything but the method and the ingest options) from the command
@@ -267,7 +316,7 @@ pub fn calibration(o: &mut Options<'_>, base: CalibrationConfig) -> PyResult<Cal
         )))
         }
     };
-    Ok(CalibrationConfig {
+    let config = CalibrationConfig {
         features,
         target_window_s,
         poly_outside,
@@ -278,7 +327,9 @@ pub fn calibration(o: &mut Options<'_>, base: CalibrationConfig) -> PyResult<Cal
         least_squares_nodes: !o.bool("interpolate_nodes", false)?,
         refine_mesh: o.bool("refine_mesh", base.refine_mesh)?,
         ..base
-    })
+    };
+    check_calibration(&config, max_nodes, tolerance_dph)?;
+    Ok(config)
 }
 
 /// Bias-stability keywords (the command line's `validate` flags), with its defaults.
@@ -299,6 +350,7 @@ pub fn stability(o: &mut Options<'_>) -> PyResult<BiasStabilityOptions> {
 /// Refuses settings whose feature tracker needs more blocks than the firmware's `capacity`
 /// (the command line's check and message, in keyword form).
 pub fn capacity_fits(needed: usize, capacity: usize) -> PyResult<()> {
+    require("capacity", capacity >= 2, "at least 2 (blocks)", capacity)?;
     if needed > capacity {
         return Err(errors::value(format!(
             "the model's feature tracker needs {needed} blocks but the firmware's capacity is {capacity} \

@@ -224,3 +224,46 @@ print("survived")
 def test_the_interpreter_survives_garbage_in_a_child_process():
     done = subprocess.run([sys.executable, "-c", CHILD], capture_output=True, text=True, timeout=120)
     assert done.returncode == 0 and done.stdout.strip() == "survived", done.stderr
+
+
+def test_impossible_temperatures_and_unusable_settings(small_model, tmp_path):
+    # A temperature no sensor reads (-999, 1e30) is flagged BAD_INPUT and left out: the
+    # output equals, sample for sample, that of the same stream without that reading.
+    run = synthetic_runs(runs=1)[0]
+    t, g, temp = run["time_s"], run["gyro_dph"], run["temp_c"]
+    bad_input = fogtemp.FLAG_BITS["BAD_INPUT"]
+    k = int(np.flatnonzero(~np.isnan(temp))[400])
+    without = temp.copy()
+    without[k] = np.nan
+    out_without, _ = small_model.compensate(t, g, without)
+    for sentinel in (-999.0, 1e30):
+        spoiled = temp.copy()
+        spoiled[k] = sentinel
+        out, flags = small_model.compensate(t, g, spoiled)
+        assert flags[k] & bad_input
+        np.testing.assert_array_equal(out, out_without)
+    # Calibration refuses the same reading as a bad row, naming the run and sample.
+    spoiled_run = dict(run, temp_c=np.where(np.arange(t.size) == k, -999.0, temp))
+    with pytest.raises(ValueError, match="not a temperature a sensor reads"):
+        fogtemp.fit([spoiled_run, *synthetic_runs(runs=2, seed=5)], method="poly", progress=False)
+    # Settings no fit can use are refused up front, naming the keyword.
+    log = tmp_path / "run.csv"
+    write_csv(log, run)
+    with pytest.raises(ValueError, match="temp_scale must be a finite, non-zero number"):
+        fogtemp.read_log(log, temp_scale=float("nan"), progress=False)
+    with pytest.raises(ValueError, match="gyro_scale"):
+        fogtemp.read_log(log, gyro_scale=float("inf"), progress=False)
+    with pytest.raises(ValueError, match="window_s must be positive"):
+        fogtemp.fit([log], method="poly", window_s=-5.0, progress=False)
+    with pytest.raises(ValueError, match="p_enter"):
+        fogtemp.fit([log], method="poly", p_enter=2.0, progress=False)
+    with pytest.raises(ValueError, match="capacity must be at least 2"):
+        small_model.compensate(t, g, temp, capacity=0)
+    # allan() from arrays applies fit()'s rules: a NaN rate or a backward time is an error.
+    gyro_nan = np.r_[np.ones(999), np.nan]
+    with pytest.raises(ValueError, match=r"gyro_dph, sample 999"):
+        fogtemp.allan({"time_s": np.arange(1000.0), "gyro_dph": gyro_nan}, progress=False)
+    backward = np.arange(1000.0)
+    backward[500] = 10.0
+    with pytest.raises(ValueError, match=r"time_s\[500\]"):
+        fogtemp.allan({"time_s": backward, "gyro_dph": np.ones(1000)}, progress=False)
