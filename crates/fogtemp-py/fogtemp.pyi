@@ -97,7 +97,7 @@ def fit(
     the default, "hold" or "linear_from_boundary"; a mesh model's mesh beyond its hull), capacity, operating_temp_c as a
     (min, max) pair) and, for files, the log-column options (time_column, time_unit ("s", "ms", "us", "datetime" or "time_of_day"), temp_column,
     temp_scale, temp_offset, gyro_column, gyro_unit, gyro_scale, delimiter, skip_lines, columns,
-    sample_rate_hz, comment, decimal_mark ("point" or "comma"), date_column, skip_bad_rows). Identifiability warnings (too few runs, heating only,
+    sample_rate_hz, comment, decimal_mark ("point" or "comma"), date_column, skip_bad_rows) and runs (a runs file, run,position,input_rate_dph[,role]: as fit --runs, val runs are left out and each run's input rate is subtracted from its gyro). Identifiability warnings (too few runs, heating only,
     ...) are issued as Python warnings and listed in ``Model.fit_report["warnings"]`` (a property).
     """
 

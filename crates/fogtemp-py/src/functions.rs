@@ -175,7 +175,10 @@ fn array_error(e: fogtemp_cal::CalError) -> PyErr {
 /// `max_degree`, `p_enter`, `p_remove`, `poly_outside`, `mesh_outside`, `capacity`, `operating_temp_c`) and, for files, its
 /// log-column options (`time_column`, `time_unit`, `temp_column`, `temp_scale`, `temp_offset`,
 /// `gyro_column`, `gyro_unit`, `gyro_scale`, `delimiter`, `skip_lines`, `columns`,
-/// `sample_rate_hz`, `comment`, `decimal_mark`, `date_column`, `skip_bad_rows`); identifiability warnings as Python warnings. `out` also writes the model
+/// `sample_rate_hz`, `comment`, `decimal_mark`, `date_column`, `skip_bad_rows`) and `runs`
+/// (a runs file, `run,position,input_rate_dph[,role]`, as `fit --runs`: `val` runs left out,
+/// one position left out at a time by `auto`, each run's input rate subtracted from its gyro);
+/// identifiability warnings as Python warnings. `out` also writes the model
 /// file; `progress` shows reading progress on stderr. Runs with the GIL released.
 #[pyfunction]
 #[pyo3(signature = (logs, method = "auto", *, out = None, progress = true, **options))]
@@ -203,6 +206,12 @@ pub fn fit(
     let mut config =
         options::calibration(&mut o, CalibrationConfig { ingest, method, ..CalibrationConfig::default() })?;
     let capacity = o.usize("capacity", fogtemp_core::DEFAULT_CAPACITY)?;
+    let runs_file = o.opt_path("runs")?;
+    if arrays && runs_file.is_some() {
+        return Err(PyTypeError::new_err(
+            "fit(): runs= names log files by their run names; it applies to log files",
+        ));
+    }
     let identifiability = fogtemp_cal::identifiability::IdentifiabilitySettings {
         operating_temp_c: o.opt_f64_pair("operating_temp_c")?,
     };
@@ -229,8 +238,20 @@ pub fn fit(
         });
         (fitted.map_err(errors::cal)?, runs, digest)
     } else {
-        let (runs, digest) = file_runs(py, &items, &config, progress)?;
-        (py.detach(|| calibrate::fit_model(&runs, &config, digest)).map_err(errors::cal)?, runs, digest)
+        let (mut runs, digest, rows) = file_runs(py, &items, &config, progress, runs_file.as_deref())?;
+        let mut selection = fogtemp_cal::selection::SelectionOptions::default();
+        if let Some(rows) = rows {
+            // As the command line's `fit --runs`: val runs left out (above), one position
+            // left out at a time, each run's input rate taken from its gyro (one-gyro logs).
+            if config.ingest.format.gyro_columns.len() == 1 {
+                for (run, row) in runs.iter_mut().zip(&rows) {
+                    run.subtract_input_rate(0, row.input_rate_dph);
+                }
+            }
+            selection.positions = Some(rows.into_iter().map(|r| r.position).collect());
+        }
+        let fitted = py.detach(|| calibrate::fit_model_with(&runs, &config, digest, &selection, |_, _| {}));
+        (fitted.map_err(errors::cal)?, runs, digest)
     };
     let (fitted, runs, digest) = fitted;
     // The command line's identifiability warnings: Python warnings, and in `fit_report`.
@@ -251,13 +272,15 @@ pub fn fit(
     Ok(model)
 }
 
-/// Features of every log file (the command line's `fit` reading loop).
+/// Features of every log file (the command line's `fit` reading loop); with a runs file,
+/// of the logs whose role is not `val`, each with its row.
 fn file_runs(
     py: Python<'_>,
     items: &[Bound<'_, PyAny>],
     config: &CalibrationConfig,
     show: bool,
-) -> PyResult<(Vec<RunFeatures>, [u8; 32])> {
+    runs_file: Option<&Path>,
+) -> PyResult<(Vec<RunFeatures>, [u8; 32], Option<Vec<fogtemp_cal::runs::RunMetadata>>)> {
     let paths: Vec<PathBuf> = items
         .iter()
         .map(|i| {
@@ -266,7 +289,25 @@ fn file_runs(
             })
         })
         .collect::<PyResult<_>>()?;
-    let logs = expand_logs(&paths)?;
+    let mut logs = expand_logs(&paths)?;
+    let mut rows = None;
+    if let Some(path) = runs_file {
+        let file = fogtemp_cal::runs::RunsFile::read(path).map_err(errors::cal)?;
+        let kept: Vec<(PathBuf, fogtemp_cal::runs::RunMetadata)> = logs
+            .iter()
+            .zip(file.for_logs(&logs).map_err(errors::cal)?)
+            .filter(|(_, row)| row.role != Some(fogtemp_cal::runs::Role::Val))
+            .map(|(log, row)| (log.clone(), row.clone()))
+            .collect();
+        if kept.is_empty() {
+            return Err(errors::value(format!(
+                "{}: every run has role 'val': none is left to calibrate on",
+                path.display()
+            )));
+        }
+        logs = kept.iter().map(|(log, _)| log.clone()).collect();
+        rows = Some(kept.into_iter().map(|(_, row)| row).collect());
+    }
     let mut runs = Vec::with_capacity(logs.len());
     for log in &logs {
         let mut bar = Progress::new(format!("features {}", file_name(log)), show);
@@ -283,7 +324,7 @@ fn file_runs(
         runs.push(run);
     }
     let digest = py.detach(|| digest_files(&logs))?;
-    Ok((runs, digest))
+    Ok((runs, digest, rows))
 }
 
 /// Features of every run given as arrays, and the digest of their values.

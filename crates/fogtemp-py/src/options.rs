@@ -105,6 +105,14 @@ impl<'py> Options<'py> {
         }
     }
 
+    /// An optional path option (a string or an `os.PathLike`).
+    pub fn opt_path(&mut self, key: &str) -> PyResult<Option<std::path::PathBuf>> {
+        match self.get(key)? {
+            Some(v) => v.extract::<std::path::PathBuf>().map(Some).map_err(|e| self.wrong(key, "a path", e)),
+            None => Ok(None),
+        }
+    }
+
     /// A string or a list of strings.
     pub fn strings(&mut self, key: &str, default: &str) -> PyResult<Vec<String>> {
         match self.get(key)? {

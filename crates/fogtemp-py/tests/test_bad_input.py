@@ -267,3 +267,33 @@ def test_impossible_temperatures_and_unusable_settings(small_model, tmp_path):
     backward[500] = 10.0
     with pytest.raises(ValueError, match=r"time_s\[500\]"):
         fogtemp.allan({"time_s": backward, "gyro_dph": np.ones(1000)}, progress=False)
+
+
+def test_fit_reads_a_runs_file_like_the_command_line(tmp_path):
+    # Four runs, two in each position: the Earth rate's projection (+-9.66 deg/h) added to
+    # each gyro. With runs=, fit subtracts it (the oracle: the same fit on the unshifted
+    # logs) and leaves the val run out; without it the offsets stay in the fit (here mostly
+    # taken up as a false b(T), since each position holds other start temperatures).
+    runs = synthetic_runs(runs=4, seed=11)
+    plain, shifted = tmp_path / "plain", tmp_path / "shifted"
+    plain.mkdir()
+    shifted.mkdir()
+    lines = ["run,position,input_rate_dph,role"]
+    for i, run in enumerate(runs):
+        rate = 9.66 if i % 2 == 0 else -9.66
+        write_csv(plain / f"r{i}.csv", run)
+        write_csv(shifted / f"r{i}.csv", dict(run, gyro_dph=run["gyro_dph"] + rate))
+        lines.append(f"r{i},{'up' if rate > 0 else 'down'},{rate},cal")
+    lines.append("r4,up,9.66,val")
+    write_csv(shifted / "r4.csv", dict(runs[0], gyro_dph=runs[0]["gyro_dph"] + 9.66))
+    runs_csv = tmp_path / "runs.csv"
+    runs_csv.write_text("\n".join(lines) + "\n")
+    with_runs = fogtemp.fit([shifted], method="poly", runs=runs_csv, progress=False)
+    oracle = fogtemp.fit([plain / f"r{i}.csv" for i in range(4)], method="poly", progress=False)
+    rms = lambda m: m.fit_report["axes"][0]["residual_rms_dph"]
+    assert abs(rms(with_runs) - rms(oracle)) < 1e-6
+    assert len(with_runs.fit_report["runs"]) == 4, "the val run is left out"
+    without = fogtemp.fit([shifted / f"r{i}.csv" for i in range(4)], method="poly", progress=False)
+    assert rms(without) > 5 * rms(oracle)
+    with pytest.raises(TypeError, match="runs= names log files"):
+        fogtemp.fit(runs, method="poly", runs=runs_csv, progress=False)
