@@ -272,6 +272,10 @@ pub fn fit(
     Ok(model)
 }
 
+/// What [`file_runs`] reads: each kept log's features, the logs' digest and, with a runs
+/// file, each kept log's row.
+type FileRuns = (Vec<RunFeatures>, [u8; 32], Option<Vec<fogtemp_cal::runs::RunMetadata>>);
+
 /// Features of every log file (the command line's `fit` reading loop); with a runs file,
 /// of the logs whose role is not `val`, each with its row.
 fn file_runs(
@@ -280,7 +284,7 @@ fn file_runs(
     config: &CalibrationConfig,
     show: bool,
     runs_file: Option<&Path>,
-) -> PyResult<(Vec<RunFeatures>, [u8; 32], Option<Vec<fogtemp_cal::runs::RunMetadata>>)> {
+) -> PyResult<FileRuns> {
     let paths: Vec<PathBuf> = items
         .iter()
         .map(|i| {
