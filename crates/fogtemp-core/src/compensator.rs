@@ -165,6 +165,13 @@ impl<S: BlockStorage> AxisState<S> {
         &self.tracker
     }
 
+    /// Whether this state's tracker has `axis`'s block count and readiness (a state made for
+    /// an axis with other settings would compute other features); see [`BlockTracker::is_for`].
+    #[inline]
+    pub fn is_for(&self, axis: &Axis<'_>) -> bool {
+        self.tracker.is_for(&axis.features)
+    }
+
     /// The bias currently subtracted, deg/h.
     pub fn bias_dph(&self) -> f32 {
         self.bias_dph

@@ -197,6 +197,14 @@ impl<S: BlockStorage> BlockTracker<S> {
         self.max_gap_us
     }
 
+    /// Whether this tracker's block count and readiness (`min_blocks`) are those of
+    /// `settings`: two integer comparisons, cheap enough for every sample. (Block length and
+    /// gap limit are not compared: they would need the f32 timing computation per call.)
+    #[inline]
+    pub fn is_for(&self, settings: &FeatureSettings) -> bool {
+        self.block_count == settings.block_count as usize && self.min_blocks == settings.min_blocks as usize
+    }
+
     /// Forgets everything, as at power-on.
     pub fn reset(&mut self) {
         self.ring_c.blocks_mut().iter_mut().for_each(|b| *b = f32::NAN);

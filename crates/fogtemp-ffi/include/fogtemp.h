@@ -87,6 +87,9 @@ enum fogtemp_status
   FOGTEMP_STATUS_TRAILING_BYTES = 17,
   // A core error this version of the C ABI does not name.
   FOGTEMP_STATUS_OTHER = 18,
+  // `fogtemp_step` was given a state initialised for an axis with another block count or
+  // `min_blocks`: each state belongs to the axis it was initialised for.
+  FOGTEMP_STATUS_STATE_AXIS_MISMATCH = 19,
 };
 #ifndef __cplusplus
 #if __STDC_VERSION__ >= 202311L

@@ -76,6 +76,9 @@ pub enum fogtemp_status {
     TrailingBytes = 17,
     /// A core error this version of the C ABI does not name.
     Other = 18,
+    /// `fogtemp_step` was given a state initialised for an axis with another block count or
+    /// `min_blocks`: each state belongs to the axis it was initialised for.
+    StateAxisMismatch = 19,
 }
 
 impl fogtemp_status {
@@ -122,11 +125,14 @@ impl fogtemp_status {
             Self::TimeNotIncreasing => c"sample time not after the previous one",
             Self::TrailingBytes => c"bytes after the blob are not erased-flash padding",
             Self::Other => c"other error",
+            Self::StateAxisMismatch => {
+                c"the state was initialised for an axis with other feature settings (blocks)"
+            }
         }
     }
 
     /// Every status, in code order (for the message lookup).
-    const ALL: [fogtemp_status; 19] = [
+    const ALL: [fogtemp_status; 20] = [
         Self::Ok,
         Self::NullPointer,
         Self::Misaligned,
@@ -146,6 +152,7 @@ impl fogtemp_status {
         Self::TimeNotIncreasing,
         Self::TrailingBytes,
         Self::Other,
+        Self::StateAxisMismatch,
     ];
 }
 
@@ -677,7 +684,11 @@ unsafe fn step_args<'x>(
 ) -> Result<(&'x Axis<'static>, &'x mut AxisState<CallerBlocks>), fogtemp_status> {
     check(out)?;
     // SAFETY: `axis` and `state` per `fogtemp_step`'s contract.
-    Ok((unsafe { axis_ref(axis) }?, unsafe { state_mut(state) }?))
+    let (axis, state) = (unsafe { axis_ref(axis) }?, unsafe { state_mut(state) }?);
+    if !state.is_for(axis) {
+        return Err(fogtemp_status::StateAxisMismatch);
+    }
+    Ok((axis, state))
 }
 
 /// Compensates one sample: `gyro_dph` (deg/h) at `time_us` (a 64-bit microsecond count

@@ -331,3 +331,28 @@ fn layout_matches_the_header() {
     );
     assert_eq!(layout, [32, 8, 192, 8, 224, 8, 80, 8]);
 }
+
+/// A state stepped with an axis of other feature settings than the one it was initialised
+/// for is refused (`STATE_AXIS_MISMATCH`), its output and state untouched; with its own
+/// axis it steps.
+#[test]
+fn a_state_belongs_to_its_axis() {
+    let mut fw_blocks = vec![0.0f32; 20];
+    let (fw_axis, mut fw_state) = open(FW_MODEL, 0, &mut fw_blocks);
+    let mut golden_blocks = vec![0.0f32; 256];
+    let (golden_axis, _) = open(GOLDEN, 0, &mut golden_blocks);
+    let mut out = fogtemp_output { rate_dph: 7.0, bias_dph: 7.0, flags: 7 };
+    // SAFETY: live pointers.
+    let status = unsafe { fogtemp_step(&*golden_axis, &mut *fw_state, 1_000, 1.0, 25.0, true, &mut out) };
+    assert_eq!(status, fogtemp_status::StateAxisMismatch);
+    assert_eq!((out.rate_dph, out.bias_dph, out.flags), (7.0, 7.0, 7), "output untouched");
+    // SAFETY: live pointers.
+    let status = unsafe { fogtemp_step_u32(&*golden_axis, &mut *fw_state, 1_000, 1.0, 25.0, true, &mut out) };
+    assert_eq!(status, fogtemp_status::StateAxisMismatch);
+    // SAFETY: live pointers.
+    let status = unsafe { fogtemp_step(&*fw_axis, &mut *fw_state, 1_000, 1.0, 25.0, true, &mut out) };
+    assert_eq!(status, fogtemp_status::Ok);
+    // SAFETY: a static C string.
+    let text = unsafe { CStr::from_ptr(fogtemp_status_message(fogtemp_status::StateAxisMismatch as u32)) };
+    assert!(text.to_str().unwrap().contains("other feature settings"));
+}
