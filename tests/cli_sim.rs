@@ -221,6 +221,39 @@ fn simulate_is_deterministic_per_seed() {
 /// A bad scenario file fails with a non-zero exit and a message naming the file and the
 /// line (syntax and unknown fields) or the field (invalid values); nothing is written. A
 /// missing file is named too, and an override that makes the scenario invalid is refused.
+/// `simulate` into a folder that holds a log of one of its run names but is no simulation's
+/// (no `manifest.json`, e.g. a lab's recordings) is refused and the log kept; into a previous
+/// simulation's folder it simulates again.
+#[test]
+fn simulate_never_replaces_logs_it_did_not_write() {
+    let dir = TempDir::new().expect("tmp");
+    let file = dir.path().join("small.toml");
+    fs::write(&file, SMALL).expect("write scenario");
+    let first = dir.path().join("first");
+    cal()
+        .args(["simulate", "--scenario", s(&file), "--out", s(&first), "--duration-s", "60"])
+        .assert()
+        .success();
+    let name = fs::read_dir(&first)
+        .expect("list")
+        .filter_map(|e| e.ok().map(|e| e.file_name().to_string_lossy().into_owned()))
+        .find(|n| n.ends_with(".csv"))
+        .expect("a simulated log");
+    // Again into the simulation's own folder: fine.
+    cal()
+        .args(["simulate", "--scenario", s(&file), "--out", s(&first), "--duration-s", "60"])
+        .assert()
+        .success();
+    // A lab folder with a log of that name: refused, the log untouched.
+    let lab = dir.path().join("lab");
+    fs::create_dir(&lab).expect("mkdir");
+    fs::write(lab.join(&name), "recorded data\n").expect("write");
+    let err = run_err(["simulate", "--scenario", s(&file), "--out", s(&lab), "--duration-s", "60"]);
+    assert!(err.contains("is not a simulation's folder") && err.contains(&name), "{err}");
+    assert_eq!(fs::read_to_string(lab.join(&name)).expect("read"), "recorded data\n");
+    assert!(!lab.join("manifest.json").exists());
+}
+
 #[test]
 fn simulate_rejects_a_bad_scenario_file() {
     let dir = TempDir::new().expect("tmp");
