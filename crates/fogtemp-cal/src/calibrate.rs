@@ -210,6 +210,40 @@ pub struct RunFeatures {
     pub axes: Vec<(Vec<FeaturePoint>, Vec<f64>)>,
 }
 
+/// Subtracts each run's true input rate (`rates_dph`, one per run, in order) from its gyro
+/// ([`RunFeatures::subtract_input_rate`]) when the logs have one gyro axis: a runs file gives
+/// one rate per run, about the input axis. Returns whether the rates were subtracted (not
+/// with several axes).
+pub fn subtract_input_rates(runs: &mut [RunFeatures], rates_dph: &[f64], axes: usize) -> bool {
+    if axes != 1 {
+        return false;
+    }
+    for (run, &rate) in runs.iter_mut().zip(rates_dph) {
+        run.subtract_input_rate(0, rate);
+    }
+    true
+}
+
+/// The note for a log's axis whose compensator never corrected a sample (its tracker never
+/// had features), `name` being "LOG axis K" and `consequence` what that left.
+pub fn never_corrected_note(name: &str, consequence: &str) -> String {
+    format!(
+        "{name}: the compensator never corrected a sample: its feature tracker never had features \
+         (no usable temperature, e.g. an empty temperature column, or time stamps in another unit \
+         than the one given); {consequence}"
+    )
+}
+
+/// The note for `outside` of `samples` samples outside the calibrated region (`flagged`
+/// says where the flag can be seen).
+pub fn outside_region_note(name: &str, outside: u64, samples: u64, flagged: &str) -> String {
+    format!(
+        "{name}: {outside} of {samples} samples ({:.1} %) lie outside the model's calibrated (T, dT/dt) \
+         region ({flagged}): the model is extrapolated there",
+        100.0 * outside as f64 / samples.max(1) as f64
+    )
+}
+
 impl RunFeatures {
     /// Removes a known true rate about the gyro's input axis (the Earth rate's projection in
     /// the run's position, or a turntable's rate), deg/h, from axis `axis`'s gyro means and
@@ -1101,11 +1135,7 @@ impl RunValidation {
         let s = &self.series;
         let mut notes = Vec::new();
         if s.samples > 0 && !s.compensating_from_s.is_finite() {
-            notes.push(format!(
-                "{name}: the compensator never corrected a sample: its feature tracker never had features \
-                 (no usable temperature, e.g. an empty temperature column, or time stamps in another unit \
-                 than the one given); the compensated bias stability is undefined"
-            ));
+            notes.push(never_corrected_note(&name, "the compensated bias stability is undefined"));
         } else if self.compensated_bias_stability_dph.is_nan() && s.samples > 0 {
             notes.push(format!(
                 "{name}: the compensated bias stability is undefined: too few complete averaging windows \
@@ -1115,12 +1145,7 @@ impl RunValidation {
         }
         let outside = s.flag_counts[Flags::OUTSIDE_HULL.0.trailing_zeros() as usize];
         if outside > 0 {
-            notes.push(format!(
-                "{name}: {outside} of {} samples ({:.1} %) lie outside the model's calibrated (T, dT/dt) \
-                 region (flag OUTSIDE_HULL): the model is extrapolated there",
-                s.samples,
-                100.0 * outside as f64 / s.samples.max(1) as f64
-            ));
+            notes.push(outside_region_note(&name, outside, s.samples, "flag OUTSIDE_HULL"));
         }
         notes
     }

@@ -243,11 +243,8 @@ pub fn fit(
         if let Some(rows) = rows {
             // As the command line's `fit --runs`: val runs left out (above), one position
             // left out at a time, each run's input rate taken from its gyro (one-gyro logs).
-            if config.ingest.format.gyro_columns.len() == 1 {
-                for (run, row) in runs.iter_mut().zip(&rows) {
-                    run.subtract_input_rate(0, row.input_rate_dph);
-                }
-            }
+            let rates: Vec<f64> = rows.iter().map(|r| r.input_rate_dph).collect();
+            calibrate::subtract_input_rates(&mut runs, &rates, config.ingest.format.gyro_columns.len());
             selection.positions = Some(rows.into_iter().map(|r| r.position).collect());
         }
         let fitted = py.detach(|| calibrate::fit_model_with(&runs, &config, digest, &selection, |_, _| {}));

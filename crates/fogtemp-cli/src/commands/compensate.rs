@@ -1,7 +1,7 @@
 //! `compensate`: one log replayed through the model, as CSV.
 
 use anyhow::{bail, Result};
-use fogtemp_cal::calibrate::TimeGaps;
+use fogtemp_cal::calibrate::{self, TimeGaps};
 use fogtemp_core::{Compensator, Flags, Model};
 
 use super::{check_capacity, ingest_options, read_model, report_skipped};
@@ -106,22 +106,17 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
         }
         super::warn_if_mostly_gaps(&a.log, &gaps, r.rows);
         for axis in 0..axes {
+            let name = format!("{} axis {axis}", a.log.display());
             if corrected[axis] == 0 {
-                eprintln!(
-                    "note: {} axis {axis}: the compensator never corrected a sample: its feature tracker never had \
-                     features (no usable temperature, e.g. an empty temperature column, or time stamps in another \
-                     unit than --time-unit says); the output's bias is 0",
-                    a.log.display()
-                );
+                eprintln!("note: {}", calibrate::never_corrected_note(&name, "the output's bias is 0"));
             } else if outside[axis] > 0 {
-                eprintln!(
-                    "note: {} axis {axis}: {} of {} samples ({:.1} %) lie outside the model's calibrated (T, dT/dt) \
-                     region (flag OUTSIDE_HULL in the output): the model is extrapolated there",
-                    a.log.display(),
+                let note = calibrate::outside_region_note(
+                    &name,
                     outside[axis],
                     r.rows,
-                    100.0 * outside[axis] as f64 / r.rows.max(1) as f64
+                    "flag OUTSIDE_HULL in the output",
                 );
+                eprintln!("note: {note}");
             }
         }
         println!("wrote {} ({} rows, {} axes)", a.out.display(), r.rows, axes);

@@ -260,17 +260,14 @@ fn subtract_input_rates(
     axes: usize,
 ) {
     let Some(rates) = rates_dph else { return };
-    if axes != 1 {
+    if calibrate::subtract_input_rates(runs, rates, axes) {
+        eprintln!("note: each run's input_rate_dph from the runs file is subtracted from its gyro: the model is the bias alone");
+    } else {
         eprintln!(
             "note: the runs file gives one input rate per run, but the logs have {axes} gyro columns: the rates are \
              not subtracted, so each axis's model includes its input rate"
         );
-        return;
     }
-    for (run, &rate) in runs.iter_mut().zip(rates) {
-        run.subtract_input_rate(0, rate);
-    }
-    eprintln!("note: each run's input_rate_dph from the runs file is subtracted from its gyro: the model is the bias alone");
 }
 
 /// The calibration logs: every log, or with a runs file those not of role `val`, each with
