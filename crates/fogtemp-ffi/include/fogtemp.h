@@ -117,11 +117,12 @@ typedef struct {
   uint32_t index;
   // What was needed or expected: blocks (`CAPACITY_TOO_SMALL`), bytes (`TRUNCATED`), the
   // implied length (`LENGTH_MISMATCH`), the computed CRC, the supported version, the
-  // number of axes (`NO_SUCH_AXIS`), the previous time in us (`TIME_NOT_INCREASING`).
+  // number of axes (`NO_SUCH_AXIS`), the previous time in us (`TIME_NOT_INCREASING`), the
+  // largest length a buffer can have, `PTRDIFF_MAX` (`BAD_VALUE` for a blob length above it).
   uint64_t needed;
   // What was found or available: the blocks array's length, the bytes present, the
   // stored length or CRC, the requested axis, the rejected time, the offending offset
-  // (`TRAILING_BYTES`).
+  // (`TRAILING_BYTES`), the length given (`BAD_VALUE` for a blob length).
   uint64_t found;
   // The core error, for `fogtemp_error_message`. Opaque.
   uint64_t opaque[6];

@@ -208,11 +208,12 @@ pub struct fogtemp_error {
     pub index: u32,
     /// What was needed or expected: blocks (`CAPACITY_TOO_SMALL`), bytes (`TRUNCATED`), the
     /// implied length (`LENGTH_MISMATCH`), the computed CRC, the supported version, the
-    /// number of axes (`NO_SUCH_AXIS`), the previous time in us (`TIME_NOT_INCREASING`).
+    /// number of axes (`NO_SUCH_AXIS`), the previous time in us (`TIME_NOT_INCREASING`), the
+    /// largest length a buffer can have, `PTRDIFF_MAX` (`BAD_VALUE` for a blob length above it).
     pub needed: u64,
     /// What was found or available: the blocks array's length, the bytes present, the
     /// stored length or CRC, the requested axis, the rejected time, the offending offset
-    /// (`TRAILING_BYTES`).
+    /// (`TRAILING_BYTES`), the length given (`BAD_VALUE` for a blob length).
     pub found: u64,
     /// The core error, for `fogtemp_error_message`. Opaque.
     pub opaque: [u64; 6],
@@ -412,15 +413,18 @@ unsafe fn fail(err: *mut fogtemp_error, e: Error) -> fogtemp_status {
 /// # Safety
 /// `err` is null or points to writable memory for a `fogtemp_error`.
 unsafe fn fail_status(err: *mut fogtemp_error, status: fogtemp_status) -> fogtemp_status {
+    // SAFETY: `err` per this function's contract.
+    unsafe { fail_status_with(err, status, 0, 0) }
+}
+
+/// [`fail_status`] with what was needed and found (a length argument out of range).
+///
+/// # Safety
+/// `err` is null or points to writable memory for a `fogtemp_error`.
+unsafe fn fail_status_with(err: *mut fogtemp_error, status: fogtemp_status, needed: u64, found: u64) -> fogtemp_status {
     if !err.is_null() {
-        let value = fogtemp_error {
-            status: status as u32,
-            axis: FOGTEMP_NO_AXIS,
-            index: 0,
-            needed: 0,
-            found: 0,
-            opaque: [0; 6],
-        };
+        let value =
+            fogtemp_error { status: status as u32, axis: FOGTEMP_NO_AXIS, index: 0, needed, found, opaque: [0; 6] };
         // SAFETY: `err` is writable per the contract; misaligned is ignored by `write_out`.
         let _ = unsafe { write_out(err, value) };
     }
@@ -454,14 +458,18 @@ fn details(e: &Error) -> (u32, u32, u64, u64) {
 
 /// Builds a byte slice from C arguments.
 ///
+/// # Errors
+/// `NullPointer` for a null `bytes`; `BadValue` with `(needed, found)` = (`PTRDIFF_MAX`,
+/// `len`) for a `len` no buffer can have (e.g. a negative length cast to `size_t`).
+///
 /// # Safety
 /// `bytes` is null or valid for reads of `len` bytes for `'static` (the memory contract).
-unsafe fn blob(bytes: *const u8, len: usize) -> Result<&'static [u8], fogtemp_status> {
+unsafe fn blob(bytes: *const u8, len: usize) -> Result<&'static [u8], (fogtemp_status, u64, u64)> {
     if bytes.is_null() {
-        return Err(fogtemp_status::NullPointer);
+        return Err((fogtemp_status::NullPointer, 0, 0));
     }
     if len > isize::MAX as usize {
-        return Err(fogtemp_status::Truncated);
+        return Err((fogtemp_status::BadValue, isize::MAX as u64, len as u64));
     }
     // SAFETY: non-null, `u8` needs no alignment, `len <= isize::MAX`; valid for reads and
     // unchanged while in use per the memory contract.
@@ -490,7 +498,7 @@ pub unsafe extern "C" fn fogtemp_model_from_bytes(
     let bytes = match unsafe { blob(bytes, len) } {
         Ok(b) => b,
         // SAFETY: `err` per this function's contract.
-        Err(s) => return unsafe { fail_status(err, s) },
+        Err((s, needed, found)) => return unsafe { fail_status_with(err, s, needed, found) },
     };
     match Model::from_bytes(bytes) {
         Ok(model) => {
@@ -526,7 +534,7 @@ pub unsafe extern "C" fn fogtemp_model_from_flash(
     let bytes = match unsafe { blob(bytes, len) } {
         Ok(b) => b,
         // SAFETY: `err` per this function's contract.
-        Err(s) => return unsafe { fail_status(err, s) },
+        Err((s, needed, found)) => return unsafe { fail_status_with(err, s, needed, found) },
     };
     match Model::from_flash(bytes) {
         Ok((model, n)) => {
@@ -866,6 +874,9 @@ pub unsafe extern "C" fn fogtemp_error_message(
         let found = fogtemp_status::ALL.iter().find(|s| **s as u32 == status);
         let Some(s) = found else { return 0 };
         let _ = w.write_str(s.message().to_str().unwrap_or("error"));
+        if err.needed != 0 || err.found != 0 {
+            let _ = write!(w, " (at most {}, got {})", err.needed, err.found);
+        }
     }
     if let Some(nul) = w.buf.get_mut(w.written) {
         *nul = 0;

@@ -251,6 +251,14 @@ fn caller_mistakes_are_statuses() {
         assert_eq!(fogtemp_model_from_bytes(ptr::null(), 10, &mut model, &mut err), NullPointer);
         assert_eq!(err.status, NullPointer as u32);
         assert_eq!(message(&err), "a required pointer is NULL");
+        // A length no buffer can have (a negative length cast to size_t) names itself; the
+        // pointer is not read.
+        assert_eq!(fogtemp_model_from_bytes(GOLDEN.as_ptr(), usize::MAX, &mut model, &mut err), BadValue);
+        assert_eq!((err.status, err.needed, err.found), (BadValue as u32, isize::MAX as u64, u64::MAX));
+        assert!(message(&err).ends_with(&format!("(at most {}, got {})", isize::MAX, u64::MAX)), "{}", message(&err));
+        let mut used = 0usize;
+        assert_eq!(fogtemp_model_from_flash(GOLDEN.as_ptr(), usize::MAX, &mut model, &mut used, &mut err), BadValue);
+        assert_eq!(err.found, u64::MAX);
         assert_eq!(
             fogtemp_model_from_bytes(GOLDEN.as_ptr(), GOLDEN.len(), ptr::null_mut(), ptr::null_mut()),
             NullPointer
