@@ -206,7 +206,33 @@ pub(super) fn make_plan(path: &Path, header: Fields<'_>, f: &LogFormat, line: u6
     })
 }
 
+/// A header row that is not text (a NUL or other control byte: a binary file, or UTF-16) is
+/// refused as such, instead of being listed byte by byte as column names. Invalid UTF-8 alone
+/// is not refused: a Latin-1 "deg C" in a column the log does not need is harmless.
+fn refuse_binary_header(path: &Path, header: &Fields<'_>, line: u64) -> Result<(), CalError> {
+    let binary = |h: &[u8]| {
+        h.iter().position(|&b| b < 0x20 && b != b'\t')
+    };
+    for i in 0..header.len() {
+        let field = header.get(i).unwrap_or(b"");
+        if let Some(at) = binary(field) {
+            return Err(CalError::LogFormat {
+                path: path.to_path_buf(),
+                line,
+                problem: format!(
+                    "the header row is not text (byte 0x{:02x} in field {}): is this a CSV log? \
+                     (a binary file, or text in UTF-16)",
+                    field.get(at).copied().unwrap_or(0),
+                    i + 1
+                ),
+            });
+        }
+    }
+    Ok(())
+}
+
 fn locate_columns(path: &Path, header: Fields<'_>, f: &LogFormat, line: u64) -> Result<Columns, CalError> {
+    refuse_binary_header(path, &header, line)?;
     let names: Vec<String> = (0..header.len())
         .map(|i| {
             let h = header.get(i).unwrap_or(b"");

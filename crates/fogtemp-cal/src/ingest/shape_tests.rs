@@ -501,3 +501,26 @@ fn a_temperature_no_sensor_reads_is_a_bad_row_in_every_reader_mode() {
     let at_limits = "time_s,temp_c,gyro_dph\n0,-273.15,1\n1,1000,1\n";
     assert_eq!(values(&rows(at_limits, &IngestOptions::default())).len(), 2);
 }
+
+#[test]
+fn a_binary_or_utf16_file_is_refused_as_not_text() {
+    // A binary file's first bytes (an ELF header) and a UTF-16 CSV: refused on line 1 as not
+    // text, not listed byte by byte as the header's column names.
+    let mut elf = b"\x7fELF\x02\x01\x01\0\0\0\0\0\0\0\0\0\x03\0>\0".to_vec();
+    elf.extend_from_slice(b"\n0,20,1\n");
+    let utf16: Vec<u8> = HEADER.bytes().flat_map(|b| [b, 0]).collect();
+    for data in [elf, utf16] {
+        match run(&data, &default_options()).1 {
+            Err(CalError::LogFormat { line: 1, problem, .. }) => {
+                assert!(problem.contains("the header row is not text"), "{problem}")
+            }
+            other => panic!("{}", summary(&other)),
+        }
+    }
+    // A Latin-1 degree sign (not UTF-8) in a column the log does not need is still read.
+    let mut latin1 = b"time_s,temp_c,gyro_dph,chamber \xb0C\n".to_vec();
+    latin1.extend_from_slice(b"0,20,1,19\n1,20,2,19\n");
+    let (seen, result) = run(&latin1, &default_options());
+    assert!(result.is_ok(), "{}", summary(&result));
+    assert_eq!(values(&seen).iter().map(|r| r.3[0]).collect::<Vec<_>>(), vec![1.0, 2.0]);
+}
