@@ -169,6 +169,11 @@ pub struct CalibrationConfig {
     /// cross-validated (a diagnostic: `fit --mesh-relative-weight`, hidden); `None` (the
     /// default): chosen by cross-validation within runs (`mesh_fit`).
     pub mesh_relative_weight: Option<f64>,
+    /// Fold assignments the mesh weight's cross-validation averages over
+    /// ([`crate::mesh_fit::CV_REPEATS`]; `fit --mesh-cv-repeats`, hidden, for measuring it).
+    pub mesh_cv_repeats: usize,
+    /// Salt of the first of those assignments (0: unsalted; `fit --mesh-cv-salt`, hidden).
+    pub mesh_cv_salt: u64,
 }
 
 impl Default for CalibrationConfig {
@@ -187,6 +192,8 @@ impl Default for CalibrationConfig {
             mesh_outside: OutsidePolicy::StoredGradients,
             refine_mesh: true,
             mesh_relative_weight: None,
+            mesh_cv_repeats: crate::mesh_fit::CV_REPEATS,
+            mesh_cv_salt: 0,
         }
     }
 }
@@ -708,6 +715,8 @@ pub fn fit_axis(
                 let cv = crate::mesh_fit::MeshCv {
                     guard_points: (config.target_window_s / block_s).round().max(0.0) as usize,
                     given_relative_weight: config.mesh_relative_weight,
+                    repeats: config.mesh_cv_repeats,
+                    first_salt: config.mesh_cv_salt,
                     ..crate::mesh_fit::MeshCv::default()
                 };
                 // A hybrid's residual has the polynomial's terms fitted already.

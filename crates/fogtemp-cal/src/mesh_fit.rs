@@ -34,7 +34,8 @@
 //! [`CalibrationPoints::run_of`](crate::calibrate::CalibrationPoints)) is cut into
 //! [`BLOCK_FOLDS`] contiguous blocks, block `j` of run `r` is in fold `(j + r) mod K` (`r`: the
 //! run's rank by a hash of its content, so that the order in which the logs are given does not
-//! change the folds; since 2026-11-26), so every
+//! change the folds; since 2026-11-26; the held-out errors are averaged over [`CV_REPEATS`]
+//! such assignments, each run's rank taken from a salted hash, since 2026-11-27), so every
 //! fold leaves a gap in every run that the run's own data on both sides, and other runs'
 //! data nearby, can bridge: the score tests interpolation, what a validation run over the
 //! same temperatures needs. Leaving whole runs out instead scored extrapolation across a
@@ -70,12 +71,28 @@ pub const RELATIVE_WEIGHTS: [f64; 13] = [1e-4, 1e-3, 1e-2, 1e-1, 1e0, 1e1, 1e2, 
 /// warming 10 C leaves 2 C gaps to bridge).
 pub const BLOCK_FOLDS: usize = 5;
 
+/// Fold assignments the cross-validation averages over (repeated K-fold). One assignment's
+/// score moved the chosen weight, and mesh / poly by up to 11 %, with nothing but the fold
+/// offsets changed (docs/calibration-testbed.md, "The mesh weight's folds and the order of the
+/// logs"); averaging the held-out errors of `R` assignments divides that part of the score's
+/// variance by up to `R`, at `R` times the cost of the weight scan. Three: the first a
+/// third of the variance, each further one less (1/R), while the scan's cost grows linearly.
+pub const CV_REPEATS: usize = 3;
+
 /// How the smoothness weight is cross-validated (see the module docs).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct MeshCv {
     /// Folds `K`: each run cut into `K` contiguous blocks of points, block `j` of run `r` (the
     /// run's rank by a hash of its content) in fold `(j + r) mod K`.
     pub folds: usize,
+    /// Fold assignments averaged (repeated K-fold, [`CV_REPEATS`]): assignment `s` ranks the
+    /// runs by their content hash salted with `s` (`s = 0`: unsalted), so each run's blocks
+    /// fall in other folds; every block's held-out mean square is averaged over the
+    /// assignments. At least one.
+    pub repeats: usize,
+    /// Salt of the first assignment (0: unsalted; the others follow it): a diagnostic, to
+    /// measure how much the choice moves between disjoint sets of assignments.
+    pub first_salt: u64,
     /// Points of a run left out of training on each side of its held-out block: targets
     /// within one smoothing window of the block share raw samples with the block's targets.
     /// One smoothing window in points (`target_window_s / block_s`) for logs whose
@@ -89,7 +106,13 @@ pub struct MeshCv {
 
 impl Default for MeshCv {
     fn default() -> Self {
-        Self { folds: BLOCK_FOLDS, guard_points: 0, given_relative_weight: None }
+        Self {
+            folds: BLOCK_FOLDS,
+            repeats: CV_REPEATS,
+            first_salt: 0,
+            guard_points: 0,
+            given_relative_weight: None,
+        }
     }
 }
 
@@ -138,6 +161,8 @@ pub struct MeshSmoothing {
     pub folds: &'static str,
     /// Number of folds `K`.
     pub fold_count: usize,
+    /// Fold assignments the held-out errors were averaged over ([`MeshCv::repeats`]).
+    pub fold_assignments: usize,
     /// Points of a run left out of training on each side of a held-out block.
     pub guard_points: usize,
     /// Every candidate, simplest first ("no mesh", then the largest weight down).
@@ -170,14 +195,15 @@ struct Row {
     len: usize,
     /// The target, less the row's constant part (a tied mesh's curvature correction).
     value: f64,
-    /// Run rank (0..runs).
+    /// Run rank (0..runs), unsalted ([`runs_by_content`]): the run's identity in the block
+    /// scores, and its fold offset in the first assignment.
     run: usize,
     /// Index of the point among its run's points (in or out of the mesh), and their count.
     position: usize,
     run_count: usize,
-    /// Block of the run (0..K), and the fold (block + run) mod K.
+    /// Block of the run (0..K); its fold is `(block + offset) mod K` for the run's offset in
+    /// an assignment ([`fold_offsets`]).
     block: usize,
-    fold: usize,
 }
 
 impl Row {
@@ -229,25 +255,40 @@ pub fn fit_node_values_cv_with_free_terms(
     let rms_before_dph = rms_misfit(&rows, &v0);
 
     let mut curve = Vec::new();
+    let assignments = fold_offsets(points, run_of, cv.repeats.max(1), cv.first_salt);
     if allow_no_mesh {
         let zero = vec![0.0; n];
-        curve.push(candidate(None, &block_scores(&rows, folds, |_| zero.as_slice())));
+        curve.push(candidate(None, &block_scores(&rows, folds, &assignments[0], |_| zero.as_slice())));
     }
-    // The training normal equations of every fold, once for all weights.
-    let training: Vec<(DMatrix<f64>, DVector<f64>)> = (0..folds)
-        .map(|f| {
-            let train = |r: &Row| trains_fold(r, f, folds, cv.guard_points);
-            (normal_matrix(&rows, n, train), normal_rhs(&rows, n, train))
+    // The training normal equations of every fold of every assignment, once for all weights.
+    let training: Vec<Vec<(DMatrix<f64>, DVector<f64>)>> = assignments
+        .iter()
+        .map(|offsets| {
+            (0..folds)
+                .map(|f| {
+                    let train = |r: &Row| trains_fold(r, offsets[r.run], f, folds, cv.guard_points);
+                    (normal_matrix(&rows, n, train), normal_rhs(&rows, n, train))
+                })
+                .collect()
         })
         .collect();
     let nan = vec![f64::NAN; n];
     for &relative in RELATIVE_WEIGHTS.iter().rev() {
         let lambda = relative * balance;
-        let per_fold: Vec<Vec<f64>> = training
+        let scores: Vec<Vec<f64>> = assignments
             .iter()
-            .map(|(m, b)| solve(m + &penalty * lambda, b.clone(), ridge).unwrap_or_else(|| nan.clone()))
+            .zip(&training)
+            .map(|(offsets, training)| {
+                let per_fold: Vec<Vec<f64>> = training
+                    .iter()
+                    .map(|(m, b)| {
+                        solve(m + &penalty * lambda, b.clone(), ridge).unwrap_or_else(|| nan.clone())
+                    })
+                    .collect();
+                block_scores(&rows, folds, offsets, |f| per_fold[f].as_slice())
+            })
             .collect();
-        curve.push(candidate(Some(relative), &block_scores(&rows, folds, |f| per_fold[f].as_slice())));
+        curve.push(candidate(Some(relative), &mean_over_assignments(&scores)));
     }
     let chosen = one_standard_error(&curve);
     let relative_weight =
@@ -269,6 +310,7 @@ pub fn fit_node_values_cv_with_free_terms(
         no_mesh_allowed: allow_no_mesh,
         folds: "run blocks",
         fold_count: folds,
+        fold_assignments: assignments.len(),
         guard_points: cv.guard_points,
         curve,
         free_terms: free_terms.to_vec(),
@@ -354,23 +396,38 @@ fn block_start(block: usize, count: usize, folds: usize) -> usize {
     (block * count).div_ceil(folds)
 }
 
-/// Whether row `r` trains fold `f`: it is not in the fold, and not within `guard` points of
-/// its run's held-out block.
-fn trains_fold(r: &Row, f: usize, folds: usize, guard: usize) -> bool {
-    if r.fold == f {
+/// Whether row `r` trains fold `f` of an assignment that gives its run the fold offset
+/// `offset` (block `j` in fold `(j + offset) mod K`): it is not in the fold, and not within
+/// `guard` points of its run's held-out block.
+fn trains_fold(r: &Row, offset: usize, f: usize, folds: usize, guard: usize) -> bool {
+    if (r.block + offset) % folds == f {
         return false;
     }
-    // The block of this run held out in fold f: (block + run) mod K = f.
-    let held = (f + folds - r.run % folds) % folds;
+    // The block of this run held out in fold f: (block + offset) mod K = f.
+    let held = (f + folds - offset % folds) % folds;
     let (start, end) = (block_start(held, r.run_count, folds), block_start(held + 1, r.run_count, folds));
     r.position + guard < start || r.position >= end + guard
 }
 
+/// Element-wise mean of the per-block scores of several fold assignments (the blocks are
+/// the same in every assignment; only which fold holds each of them out differs).
+fn mean_over_assignments(scores: &[Vec<f64>]) -> Vec<f64> {
+    let blocks = scores.first().map_or(0, Vec::len);
+    (0..blocks).map(|b| scores.iter().map(|s| s[b]).sum::<f64>() / scores.len() as f64).collect()
+}
+
 /// Per run block: the mean square of the out-of-fold errors (each point predicted by the node
-/// values `values_of(fold)` fitted without its fold) about their run's mean error. Blocks
-/// without points are NaN (skipped by [`candidate`]).
-fn block_scores<'a>(rows: &[Row], folds: usize, values_of: impl Fn(usize) -> &'a [f64]) -> Vec<f64> {
-    let errors: Vec<f64> = rows.iter().map(|r| predict(r, values_of(r.fold)) - r.value).collect();
+/// values `values_of(fold)` fitted without its fold, under the assignment of fold offsets
+/// `offsets`, indexed by run rank) about their run's mean error. Blocks without points are
+/// NaN (skipped by [`candidate`]).
+fn block_scores<'a>(
+    rows: &[Row],
+    folds: usize,
+    offsets: &[usize],
+    values_of: impl Fn(usize) -> &'a [f64],
+) -> Vec<f64> {
+    let fold_of = |r: &Row| (r.block + offsets[r.run]) % folds;
+    let errors: Vec<f64> = rows.iter().map(|r| predict(r, values_of(fold_of(r))) - r.value).collect();
     let runs = rows.iter().map(|r| r.run + 1).max().unwrap_or(0);
     let mut run_sum = vec![(0.0, 0usize); runs];
     for (r, e) in rows.iter().zip(&errors) {
@@ -415,7 +472,7 @@ fn design_rows(
         seen[run] += 1;
         match locate(mesh, &transforms, x, y, &mut hint) {
             Some((vertex, weight)) => {
-                let (block, fold) = block_and_fold(position, counts[run], run, folds);
+                let (block, _) = block_and_fold(position, counts[run], run, folds);
                 let mut row = Row {
                     vertex: [0; MAX_ENTRIES],
                     weight: [0.0; MAX_ENTRIES],
@@ -425,7 +482,6 @@ fn design_rows(
                     position,
                     run_count: counts[run],
                     block,
-                    fold,
                 };
                 row.vertex[..3].copy_from_slice(&vertex);
                 row.weight[..3].copy_from_slice(&weight);
@@ -458,6 +514,12 @@ struct RankedRun {
 /// K-fold cross-validation's random assignment is not (docs/calibration-testbed.md, "The mesh
 /// weight's folds and the order of the logs").
 fn runs_by_content(points: &[(f32, f32, f64)], run_of: &[usize]) -> Vec<RankedRun> {
+    runs_by_salted_content(points, run_of, None)
+}
+
+/// [`runs_by_content`] with the hash salted by `salt` (another fold assignment, as
+/// independent of the runs' places as the first; `None`: the unsalted hash).
+fn runs_by_salted_content(points: &[(f32, f32, f64)], run_of: &[usize], salt: Option<u64>) -> Vec<RankedRun> {
     let run_at = |i: usize| run_of.get(i).copied().unwrap_or(0);
     // (run index, first point, count), in run-index order.
     let mut runs: Vec<(usize, (f32, f32, f64), usize)> = Vec::new();
@@ -469,7 +531,11 @@ fn runs_by_content(points: &[(f32, f32, f64)], run_of: &[usize]) -> Vec<RankedRu
         }
     }
     let hash = |&(_, p, count): &(usize, (f32, f32, f64), usize)| {
-        content_hash(&[u64::from(p.0.to_bits()), u64::from(p.1.to_bits()), p.2.to_bits(), count as u64])
+        let words = [u64::from(p.0.to_bits()), u64::from(p.1.to_bits()), p.2.to_bits(), count as u64];
+        match salt {
+            None => content_hash(&words),
+            Some(salt) => content_hash(&[words[0], words[1], words[2], words[3], salt]),
+        }
     };
     let mut order: Vec<usize> = (0..runs.len()).collect();
     order.sort_by_key(|&k| (hash(&runs[k]), k));
@@ -479,6 +545,31 @@ fn runs_by_content(points: &[(f32, f32, f64)], run_of: &[usize]) -> Vec<RankedRu
         ranked[k].rank = rank;
     }
     ranked
+}
+
+/// The fold offset of every run in each of `repeats` assignments, indexed by the run's
+/// unsalted rank (`Row::run`): assignment `s` ranks the runs by their content hash salted with
+/// `first_salt + s`, salt 0 being the unsalted rank itself.
+fn fold_offsets(
+    points: &[(f32, f32, f64)],
+    run_of: &[usize],
+    repeats: usize,
+    first_salt: u64,
+) -> Vec<Vec<usize>> {
+    let base = runs_by_content(points, run_of);
+    (0..repeats.max(1) as u64)
+        .map(|s| match first_salt.saturating_add(s) {
+            0 => (0..base.len()).collect(),
+            salt => {
+                let salted = runs_by_salted_content(points, run_of, Some(salt));
+                let mut offsets = vec![0; base.len()];
+                for (b, r) in base.iter().zip(&salted) {
+                    offsets[b.rank] = r.rank;
+                }
+                offsets
+            }
+        })
+        .collect()
 }
 
 /// A 64-bit hash of `words` (SplitMix64's finaliser over a running sum; deterministic on
@@ -957,7 +1048,7 @@ mod tests {
             for guard in [0usize, 1, 3, 10] {
                 for f in 0..folds {
                     for p in 0..count {
-                        let (block, fold) = block_and_fold(p, count, run, folds);
+                        let (block, _) = block_and_fold(p, count, run, folds);
                         let mut row = Row {
                             vertex: [0; MAX_ENTRIES],
                             weight: [0.0; MAX_ENTRIES],
@@ -967,12 +1058,11 @@ mod tests {
                             position: p,
                             run_count: count,
                             block,
-                            fold,
                         };
                         row.weight[0] = 1.0;
                         let near_held_out = (0..count).any(|q| fold_of[q] == f && p.abs_diff(q) <= guard);
                         assert_eq!(
-                            trains_fold(&row, f, folds, guard),
+                            trains_fold(&row, run, f, folds, guard),
                             !near_held_out,
                             "run {run} guard {guard} f {f} p {p}"
                         );
@@ -1010,8 +1100,8 @@ mod tests {
     }
 
     /// Brute-force blocked cross-validation: dense design matrix from an f64 point location
-    /// over all triangles, LU solves, out-of-fold errors, per-block scores and the
-    /// one-standard-error rule written out directly. Returns (relative weight, cv rms) pairs
+    /// over all triangles, LU solves, out-of-fold errors, per-block scores averaged over the
+    /// [`CV_REPEATS`] fold assignments and the one-standard-error rule written out directly. Returns (relative weight, cv rms) pairs
     /// in the module's order and the chosen relative weight.
     fn brute_force_cv(
         mesh: &MeshModel,
@@ -1029,56 +1119,65 @@ mod tests {
         let first = |r: usize| run_of.iter().position(|&q| q == r).unwrap();
         let pos: Vec<usize> = (0..m).map(|i| i - first(run_of[i])).collect();
         let block: Vec<usize> = (0..m).map(|i| pos[i] * k / count(run_of[i])).collect();
-        // Runs ranked by the hash of their first point and count (distinct here).
+        // Runs ranked by the hash of their first point and count (distinct here), salted with
+        // `s` for the further fold assignments.
         let runs = run_of.iter().max().unwrap() + 1;
-        let hash = |r: usize| {
+        let hash = |r: usize, s: usize| {
             let p = points[first(r)];
-            content_hash(&[
-                u64::from(p.0.to_bits()),
-                u64::from(p.1.to_bits()),
-                p.2.to_bits(),
-                count(r) as u64,
-            ])
+            let mut words =
+                vec![u64::from(p.0.to_bits()), u64::from(p.1.to_bits()), p.2.to_bits(), count(r) as u64];
+            if s > 0 {
+                words.push(s as u64);
+            }
+            content_hash(&words)
         };
-        let mut by_hash: Vec<usize> = (0..runs).collect();
-        by_hash.sort_by_key(|&r| hash(r));
-        let mut rank = vec![0; runs];
-        for (k, &r) in by_hash.iter().enumerate() {
-            rank[r] = k;
-        }
-        let fold: Vec<usize> = (0..m).map(|i| (block[i] + rank[run_of[i]]) % k).collect();
+        let folds_of = |s: usize| -> Vec<usize> {
+            let mut by_hash: Vec<usize> = (0..runs).collect();
+            by_hash.sort_by_key(|&r| hash(r, s));
+            let mut rank = vec![0; runs];
+            for (k, &r) in by_hash.iter().enumerate() {
+                rank[r] = k;
+            }
+            (0..m).map(|i| (block[i] + rank[run_of[i]]) % k).collect()
+        };
         let penalty = gradient_jump_penalty(mesh).unwrap();
         let ata = a.transpose() * &a;
         let balance = ata.trace() / penalty.trace();
         let ridge = 1e-10 * ata.trace() / n as f64;
         let mut curve = Vec::new();
         for &relative in RELATIVE_WEIGHTS.iter().rev() {
-            let mut error = vec![0.0; m];
-            for f in 0..k {
-                let train: Vec<usize> = (0..m)
-                    .filter(|&i| {
-                        !(0..m).any(|q| {
-                            run_of[q] == run_of[i] && fold[q] == f && pos[i].abs_diff(pos[q]) <= guard
+            // Per (run, block): the mean over the assignments of its held-out mean square.
+            let mut scores = vec![0.0; runs * k];
+            for s in 0..CV_REPEATS {
+                let fold = folds_of(s);
+                let mut error = vec![0.0; m];
+                for f in 0..k {
+                    let train: Vec<usize> = (0..m)
+                        .filter(|&i| {
+                            !(0..m).any(|q| {
+                                run_of[q] == run_of[i] && fold[q] == f && pos[i].abs_diff(pos[q]) <= guard
+                            })
                         })
-                    })
-                    .collect();
-                let at = DMatrix::from_fn(train.len(), n, |r, c| a[(train[r], c)]);
-                let yt = DVector::from_iterator(train.len(), train.iter().map(|&i| y[i]));
-                let lhs =
-                    at.transpose() * &at + &penalty * (relative * balance) + DMatrix::identity(n, n) * ridge;
-                let v = lhs.lu().solve(&(at.transpose() * yt)).unwrap();
-                for i in (0..m).filter(|&i| fold[i] == f) {
-                    error[i] = (a.row(i) * &v)[(0, 0)] - y[i];
+                        .collect();
+                    let at = DMatrix::from_fn(train.len(), n, |r, c| a[(train[r], c)]);
+                    let yt = DVector::from_iterator(train.len(), train.iter().map(|&i| y[i]));
+                    let lhs = at.transpose() * &at
+                        + &penalty * (relative * balance)
+                        + DMatrix::identity(n, n) * ridge;
+                    let v = lhs.lu().solve(&(at.transpose() * yt)).unwrap();
+                    for i in (0..m).filter(|&i| fold[i] == f) {
+                        error[i] = (a.row(i) * &v)[(0, 0)] - y[i];
+                    }
                 }
-            }
-            let mut scores = Vec::new();
-            for r in 0..runs {
-                let idx: Vec<usize> = (0..m).filter(|&i| run_of[i] == r).collect();
-                let mean = idx.iter().map(|&i| error[i]).sum::<f64>() / idx.len() as f64;
-                for b in 0..k {
-                    let e: Vec<f64> =
-                        idx.iter().filter(|&&i| block[i] == b).map(|&i| error[i] - mean).collect();
-                    scores.push(e.iter().map(|d| d * d).sum::<f64>() / e.len() as f64);
+                for r in 0..runs {
+                    let idx: Vec<usize> = (0..m).filter(|&i| run_of[i] == r).collect();
+                    let mean = idx.iter().map(|&i| error[i]).sum::<f64>() / idx.len() as f64;
+                    for b in 0..k {
+                        let e: Vec<f64> =
+                            idx.iter().filter(|&&i| block[i] == b).map(|&i| error[i] - mean).collect();
+                        scores[r * k + b] +=
+                            e.iter().map(|d| d * d).sum::<f64>() / e.len() as f64 / CV_REPEATS as f64;
+                    }
                 }
             }
             let mean = scores.iter().sum::<f64>() / scores.len() as f64;
@@ -1110,7 +1209,7 @@ mod tests {
         let (points, run_of) = banded_runs(6, 150, 0.003, 7, ripple);
         let guard = 4;
         let (reference, chosen) = brute_force_cv(&mesh, &points, &run_of, guard);
-        let cv = MeshCv { folds: BLOCK_FOLDS, guard_points: guard, given_relative_weight: None };
+        let cv = MeshCv { guard_points: guard, ..MeshCv::default() };
         let (_, smoothing) = fit_node_values_cv(&mut mesh, &points, &run_of, false, cv).unwrap();
         assert_eq!(smoothing.curve.len(), reference.len());
         for (c, (relative, rms)) in smoothing.curve.iter().zip(&reference) {
@@ -1144,7 +1243,7 @@ mod tests {
         let (points, run_of) = banded_runs(6, 150, 0.003, 7, ripple);
         let given = 1e6;
         let mut chosen_mesh = grid_mesh(11, 4);
-        let cv = MeshCv { folds: BLOCK_FOLDS, guard_points: 4, given_relative_weight: None };
+        let cv = MeshCv { guard_points: 4, ..MeshCv::default() };
         let (_, chosen) = fit_node_values_cv(&mut chosen_mesh, &points, &run_of, false, cv).unwrap();
         assert_ne!(chosen.relative_weight, Some(given), "pick a weight the CV does not choose");
         let mut mesh = grid_mesh(11, 4);
@@ -1187,7 +1286,7 @@ mod tests {
                 reversed_run_of.push(runs - 1 - r);
             }
         }
-        let cv = MeshCv { folds: BLOCK_FOLDS, guard_points: 4, given_relative_weight: None };
+        let cv = MeshCv { guard_points: 4, ..MeshCv::default() };
         let (mut given, mut reversed) = (grid_mesh(11, 4), grid_mesh(11, 4));
         let (_, a) = fit_node_values_cv(&mut given, &points, &run_of, false, cv).unwrap();
         let (_, b) =
@@ -1209,5 +1308,26 @@ mod tests {
         let mut sorted: Vec<usize> = ranks.iter().map(|r| r.rank).collect();
         sorted.sort_unstable();
         assert_eq!(sorted, (0..runs).collect::<Vec<_>>());
+    }
+
+    #[test]
+    fn repeated_assignments_are_permutations_that_move_the_folds() {
+        let (points, run_of) = banded_runs(6, 150, 0.003, 7, |_, _| 0.0);
+        let assignments = fold_offsets(&points, &run_of, CV_REPEATS, 0);
+        assert_eq!(assignments.len(), CV_REPEATS);
+        // The first is the unsalted rank itself (one assignment gives the previous folds).
+        assert_eq!(assignments[0], (0..6).collect::<Vec<_>>());
+        for offsets in &assignments {
+            let mut sorted = offsets.clone();
+            sorted.sort_unstable();
+            assert_eq!(sorted, (0..6).collect::<Vec<_>>());
+        }
+        // Each further assignment puts some run's blocks in other folds than the first.
+        for offsets in &assignments[1..] {
+            assert!(offsets.iter().zip(&assignments[0]).any(|(a, b)| a % BLOCK_FOLDS != b % BLOCK_FOLDS));
+        }
+        // A later first salt continues the sequence: assignment 1 of salt 0 is assignment 0 of
+        // salt 1.
+        assert_eq!(fold_offsets(&points, &run_of, 1, 1)[0], assignments[1]);
     }
 }

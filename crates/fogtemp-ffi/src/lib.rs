@@ -421,10 +421,21 @@ unsafe fn fail_status(err: *mut fogtemp_error, status: fogtemp_status) -> fogtem
 ///
 /// # Safety
 /// `err` is null or points to writable memory for a `fogtemp_error`.
-unsafe fn fail_status_with(err: *mut fogtemp_error, status: fogtemp_status, needed: u64, found: u64) -> fogtemp_status {
+unsafe fn fail_status_with(
+    err: *mut fogtemp_error,
+    status: fogtemp_status,
+    needed: u64,
+    found: u64,
+) -> fogtemp_status {
     if !err.is_null() {
-        let value =
-            fogtemp_error { status: status as u32, axis: FOGTEMP_NO_AXIS, index: 0, needed, found, opaque: [0; 6] };
+        let value = fogtemp_error {
+            status: status as u32,
+            axis: FOGTEMP_NO_AXIS,
+            index: 0,
+            needed,
+            found,
+            opaque: [0; 6],
+        };
         // SAFETY: `err` is writable per the contract; misaligned is ignored by `write_out`.
         let _ = unsafe { write_out(err, value) };
     }

@@ -255,9 +255,16 @@ fn caller_mistakes_are_statuses() {
         // pointer is not read.
         assert_eq!(fogtemp_model_from_bytes(GOLDEN.as_ptr(), usize::MAX, &mut model, &mut err), BadValue);
         assert_eq!((err.status, err.needed, err.found), (BadValue as u32, isize::MAX as u64, u64::MAX));
-        assert!(message(&err).ends_with(&format!("(at most {}, got {})", isize::MAX, u64::MAX)), "{}", message(&err));
+        assert!(
+            message(&err).ends_with(&format!("(at most {}, got {})", isize::MAX, u64::MAX)),
+            "{}",
+            message(&err)
+        );
         let mut used = 0usize;
-        assert_eq!(fogtemp_model_from_flash(GOLDEN.as_ptr(), usize::MAX, &mut model, &mut used, &mut err), BadValue);
+        assert_eq!(
+            fogtemp_model_from_flash(GOLDEN.as_ptr(), usize::MAX, &mut model, &mut used, &mut err),
+            BadValue
+        );
         assert_eq!(err.found, u64::MAX);
         assert_eq!(
             fogtemp_model_from_bytes(GOLDEN.as_ptr(), GOLDEN.len(), ptr::null_mut(), ptr::null_mut()),

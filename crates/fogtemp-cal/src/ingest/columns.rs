@@ -210,9 +210,7 @@ pub(super) fn make_plan(path: &Path, header: Fields<'_>, f: &LogFormat, line: u6
 /// refused as such, instead of being listed byte by byte as column names. Invalid UTF-8 alone
 /// is not refused: a Latin-1 "deg C" in a column the log does not need is harmless.
 fn refuse_binary_header(path: &Path, header: &Fields<'_>, line: u64) -> Result<(), CalError> {
-    let binary = |h: &[u8]| {
-        h.iter().position(|&b| b < 0x20 && b != b'\t')
-    };
+    let binary = |h: &[u8]| h.iter().position(|&b| b < 0x20 && b != b'\t');
     for i in 0..header.len() {
         let field = header.get(i).unwrap_or(b"");
         if let Some(at) = binary(field) {

@@ -74,6 +74,8 @@ pub fn fit(a: FitArgs) -> Result<()> {
         mesh_outside: a.mesh_outside.into(),
         refine_mesh: !a.no_mesh_refinement,
         mesh_relative_weight: a.mesh_relative_weight,
+        mesh_cv_repeats: a.mesh_cv_repeats as usize,
+        mesh_cv_salt: a.mesh_cv_salt,
     };
     let mut runs = Vec::with_capacity(logs.len());
     for log in &logs {
