@@ -4,6 +4,11 @@ validate, simulate) from numpy arrays, pandas DataFrames and CSV logs.
 A thin layer over the Rust libraries fogtemp-cal (calibration), fogtemp-core (the firmware
 runtime) and fogtemp-sim (the simulator): the same code the ``fogtemp-cal`` command runs, with
 the same JSON documents (as dicts) and the same error messages.
+
+Integer keywords (``blocks``, ``capacity``, ``axis``, ``seed``, ...) outside their range, negative
+ones included, raise ValueError naming the keyword and the range; a non-integer raises TypeError.
+Ctrl-C (KeyboardInterrupt) during ``fit``, ``validate``, ``diagnose`` and the readers is raised at
+the next boundary between logs or stages: the libraries' work on one log is not cut short.
 """
 
 import os
@@ -27,7 +32,11 @@ Run = Mapping[str, Any]
 no reading) and ``gyro_dph`` (deg/h; 2-D with one column per axis for several axes)."""
 
 class Model:
-    """A validated fogtemp model blob (what firmware embeds), with the library's documents."""
+    """A validated fogtemp model blob (what firmware embeds), with the library's documents.
+
+    Models compare equal when their blobs are equal byte for byte (``to_bytes()``); where they
+    came from and ``fit_report`` are not compared. A Model is immutable, so it is hashable
+    (consistently with ``==``) and can key a dict or sit in a set."""
 
     @staticmethod
     def from_file(path: PathLike) -> "Model":
@@ -47,6 +56,15 @@ class Model:
     @property
     def fit_report(self) -> Optional[Dict[str, Any]]:
         """The ``fit --json`` document when fitted by ``fogtemp.fit`` in this process, else None."""
+    @overload
+    def evaluate(
+        self,
+        temp_c: float,
+        rate_c_per_min: float,
+        axis: int = 0,
+        threads: Optional[int] = None,
+    ) -> float: ...
+    @overload
     def evaluate(
         self,
         temp_c: ArrayLike,
@@ -55,6 +73,8 @@ class Model:
         threads: Optional[int] = None,
     ) -> npt.NDArray[np.float64]:
         """Bias in deg/h at (temp_c, rate_c_per_min), broadcast, any shape; NaN for NaN input.
+        A float when both inputs are scalars (a 0-d array counts as one, so this overload's type is
+        exact for arrays of at least one dimension), else an array of the broadcast shape.
         Through the core's f32 evaluation; GIL released; ``threads`` defaults to every core."""
     @overload
     def compensate(
@@ -76,6 +96,10 @@ class Model:
         return_bias: Literal[True] = ...,
         capacity: int = 128,
     ) -> Tuple[npt.NDArray[np.float64], npt.NDArray[np.uint8], npt.NDArray[np.float64]]: ...
+    def __eq__(self, other: object) -> bool:
+        """True when ``other`` is a Model with the same blob bytes."""
+    def __hash__(self) -> int:
+        """Of the blob bytes (equal models hash equal)."""
     def __reduce__(self) -> Tuple[Any, Tuple[bytes]]: ...
 
 def fit(
@@ -99,6 +123,7 @@ def fit(
     temp_scale, temp_offset, gyro_column, gyro_unit, gyro_scale, delimiter, skip_lines, columns,
     sample_rate_hz, comment, decimal_mark ("point" or "comma"), date_column, skip_bad_rows) and runs (a runs file, run,position,input_rate_dph[,role]: as fit --runs, val runs are left out and each run's input rate is subtracted from its gyro). Identifiability warnings (too few runs, heating only,
     ...) are issued as Python warnings and listed in ``Model.fit_report["warnings"]`` (a property).
+    ``progress`` shows reading and cross-validation progress on stderr.
     """
 
 @overload
@@ -115,7 +140,11 @@ def validate(
     **options: Any,
 ) -> Dict[str, Any]:
     """The ``fogtemp-cal validate --json`` document: raw vs compensated bias stability.
-    Options: tau_s, overlapping, detrend, exclude_first_s, capacity, compare, log-column options.
+    Options: tau_s, overlapping, detrend, exclude_first_s, capacity, compare, log-column options,
+    runs (a runs file, run,position,input_rate_dph[,role], describing every log: as validate --runs,
+    when it gives roles only the runs with role "val" are validated; input rates and positions are
+    not used) and report (a folder: as validate --report, report.md, report.html and the SVG
+    figures, with the table of the ``compare`` models).
     Gaps in a log's time stamps longer than the model's max gap raise a UserWarning
     (``runs[].time_gaps``; the metric's windows they cut: ``runs[].metric_windows``)."""
 
@@ -143,4 +172,6 @@ def diagnose(
 ) -> Dict[str, Any]:
     """The ``fogtemp-cal diagnose --json`` document: simulated vs recorded logs paired by file name.
     Options: mean_window_s, bin_s, rate_window_s, window_coverage, block_coverage, log-column options
-    (for the recorded logs)."""
+    (for the recorded logs) and report (a folder: as diagnose --report, report.md, report.html and
+    the SVG figures, and when ``simulated`` holds its scenario.toml, scenario-updated.toml with the
+    effects found; the document's ``updated_scenario`` names it, ``scenario_changes`` lists them)."""

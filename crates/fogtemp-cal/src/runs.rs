@@ -109,6 +109,9 @@ pub enum RunsProblem {
     /// The file has no header.
     #[error("no header row")]
     Empty,
+    /// Roles are given, but no run has role `val`: nothing to validate.
+    #[error("no run has role 'val': nothing to validate")]
+    NoValidationRun,
     /// The CSV itself is malformed (unequal quoting, invalid UTF-8).
     #[error("{0}")]
     Csv(String),
@@ -249,6 +252,27 @@ impl RunsFile {
         }
         Ok(out)
     }
+}
+
+/// The logs `validate --runs FILE` validates (and Python's `validate(runs=)`): when the runs
+/// file (which must describe every log, and only them) gives roles, the logs of role `val`;
+/// else every log.
+///
+/// # Errors
+/// The runs file cannot be read or does not describe the logs ([`RunsFile::for_logs`]), or it
+/// gives roles and none is `val` ([`RunsProblem::NoValidationRun`]).
+pub fn validation_logs(logs: Vec<PathBuf>, runs: &Path) -> Result<Vec<PathBuf>, CalError> {
+    let file = RunsFile::read(runs)?;
+    let rows = file.for_logs(&logs)?;
+    if rows.iter().all(|r| r.role.is_none()) {
+        return Ok(logs);
+    }
+    let kept: Vec<PathBuf> =
+        logs.iter().zip(rows).filter(|(_, r)| r.role == Some(Role::Val)).map(|(l, _)| l.clone()).collect();
+    if kept.is_empty() {
+        return Err(problem(runs, 0, RunsProblem::NoValidationRun));
+    }
+    Ok(kept)
 }
 
 /// A log's run name: its file name without a trailing `.csv`.

@@ -146,6 +146,9 @@ pub enum DiagnoseError {
     /// Reading, writing or a calibration-library step failed.
     #[error(transparent)]
     Cal(#[from] CalError),
+    /// The simulation's `scenario.toml` could not be read or the updated one written.
+    #[error(transparent)]
+    Scenario(#[from] fogtemp_sim::SimError),
 }
 
 fn quoted(names: &[String]) -> String {

@@ -51,7 +51,7 @@ pub use documents::DiagnoseDocument;
 pub use error::{DiagnoseError, SeriesProblem, Side};
 #[cfg(feature = "report")]
 pub use report::write_diagnosis_report;
-pub use update::updated_scenario;
+pub use update::{updated_scenario, write_updated_scenario};
 
 /// One run (one power-on) as a time series: the simulated or the recorded member of a pair.
 #[derive(Clone, Debug, Default, PartialEq, Serialize)]

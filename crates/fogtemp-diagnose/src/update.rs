@@ -2,9 +2,47 @@
 //! mapped onto the simulator's own parameters (docs/simulator.md), so the engineer can
 //! simulate again and compare. Where a term has no exact counterpart the mapping is stated.
 
+use std::path::{Path, PathBuf};
+
+use fogtemp_cal::CalError;
 use fogtemp_sim::scenario::{InputAxis, Node, Scenario};
 
 use super::{Diagnosis, LeftOutEffect};
+use crate::DiagnoseError;
+
+/// When the simulation folder `simulated` holds the `scenario.toml` it was made from, writes
+/// `dir/scenario-updated.toml` (atomically): that scenario with every effect found
+/// ([`updated_scenario`]), the changes listed at its top. Returns the path and the changes,
+/// or `None` without a scenario. `diagnose --report` and Python's `diagnose(report=)`.
+///
+/// # Errors
+/// Reading the scenario, parsing it, or writing the file.
+pub fn write_updated_scenario(
+    simulated: &Path,
+    dir: &Path,
+    diagnosis: &Diagnosis,
+) -> Result<Option<(PathBuf, Vec<String>)>, DiagnoseError> {
+    let source = simulated.join("scenario.toml");
+    if !source.is_file() {
+        return Ok(None);
+    }
+    let text =
+        std::fs::read_to_string(&source).map_err(|e| CalError::Io { path: source.clone(), source: e })?;
+    let scenario = Scenario::from_toml(&text, &source.display().to_string())?;
+    let (updated, changes) = updated_scenario(&scenario, diagnosis);
+    let mut out =
+        format!("# {} updated by `fogtemp-cal diagnose` with the effects it found:\n", source.display());
+    if changes.is_empty() {
+        out.push_str("# (none: nothing is left out)\n");
+    }
+    for c in &changes {
+        out.push_str(&format!("# - {c}\n"));
+    }
+    out.push_str(&updated.to_toml()?);
+    let path = dir.join("scenario-updated.toml");
+    fogtemp_cal::output::write_file_atomic(&path, |w| w.write_all(out.as_bytes()))?;
+    Ok(Some((path, changes)))
+}
 
 /// `scenario` with every effect of `diagnosis.left_out` added, and one line per effect
 /// saying what was changed (or why nothing could be).

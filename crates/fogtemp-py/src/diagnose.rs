@@ -36,8 +36,9 @@ fn diagnose_error(e: DiagnoseError) -> PyErr {
 }
 
 /// A log as `bin_s` means (`fogtemp_diagnose::inputs`), with a progress bar; also the bad
-/// rows skipped and the gaps.
+/// rows skipped and the gaps. Ctrl-C is raised after the log.
 fn read_series(
+    py: Python<'_>,
     path: &Path,
     ingest: &IngestOptions,
     bin_s: f64,
@@ -45,8 +46,9 @@ fn read_series(
     show: bool,
 ) -> PyResult<inputs::ReadSeries> {
     let mut bar = Progress::new(format!("read {}", inputs::file_name(path)), show);
-    let read = inputs::read_series(path, ingest, bin_s, meta, |b, r| bar.rows(b, r));
+    let read = py.detach(|| inputs::read_series(path, ingest, bin_s, meta, |b, r| bar.rows(b, r)));
     bar.finish();
+    bar.boundary(py)?;
     read.map_err(diagnose_error)
 }
 
@@ -57,8 +59,11 @@ fn read_series(
 /// `simulated` and `recorded` are folders (or files) of logs paired by file name; `runs` a
 /// runs file (`run,position,input_rate_dph`), else the simulation's `manifest.json` gives each
 /// run's position and Earth rate. Keywords: `mean_window_s`, `bin_s`, `rate_window_s`,
-/// `window_coverage`, `block_coverage` (the command's options, same defaults) and the
-/// log-column options, which apply to the recorded logs.
+/// `window_coverage`, `block_coverage` (the command's options, same defaults), `report` (a
+/// folder: `report.md`, `report.html`, the figures and, when the simulation folder holds its
+/// `scenario.toml`, `scenario-updated.toml`, as `diagnose --report`; the document then names
+/// it in `updated_scenario`, its changes in `scenario_changes`) and the log-column options,
+/// which apply to the recorded logs. Ctrl-C is raised between two logs and between stages.
 #[pyfunction]
 #[pyo3(signature = (simulated, recorded, runs = None, *, progress = true, **options))]
 pub fn diagnose<'py>(
@@ -80,6 +85,7 @@ pub fn diagnose<'py>(
         block_coverage: o.f64("block_coverage", 0.9)?,
         ..defaults
     };
+    let report = o.opt_path("report")?;
     o.finish()?;
     if !(bin_s.is_finite() && bin_s > 0.0) {
         return Err(errors::value("bin_s must be positive"));
@@ -96,12 +102,12 @@ pub fn diagnose<'py>(
     let (mut sims, mut recs) = (Vec::new(), Vec::new());
     for (s, r) in &pairs {
         let m = meta.get(&inputs::file_name(s)).cloned().unwrap_or_default();
-        let sim = py.detach(|| read_series(s, &sim_ingest, bin_s, m.clone(), progress))?;
+        let sim = read_series(py, s, &sim_ingest, bin_s, m.clone(), progress)?;
         if let Some(note) = sim.gap_note(s) {
             progress::warn(py, &note)?;
         }
         sims.push(sim.series);
-        let rec = py.detach(|| read_series(r, &recorded_ingest, bin_s, m, progress))?;
+        let rec = read_series(py, r, &recorded_ingest, bin_s, m, progress)?;
         if rec.skipped > 0 {
             progress::warn(py, &format!("{}: skipped {} bad rows", r.display(), rec.skipped))?;
         }
@@ -110,6 +116,8 @@ pub fn diagnose<'py>(
         }
         recs.push(rec.series);
     }
+    // Between the stages: after reading, before the diagnosis.
+    py.check_signals()?;
     let started = std::time::Instant::now();
     let mut bar = Progress::new("diagnose", progress);
     let diagnosis = py.detach(|| {
@@ -118,12 +126,20 @@ pub fn diagnose<'py>(
         })
     });
     bar.finish();
+    bar.boundary(py)?;
     let diagnosis = diagnosis.map_err(diagnose_error)?;
-    let doc = DiagnoseDocument {
-        diagnosis: &diagnosis,
-        seconds: started.elapsed().as_secs_f64(),
-        updated_scenario: None,
-        scenario_changes: Vec::new(),
-    };
+    let seconds = started.elapsed().as_secs_f64();
+    let (mut updated_scenario, mut scenario_changes) = (None, Vec::new());
+    if let Some(dir) = &report {
+        py.detach(|| fogtemp_diagnose::write_diagnosis_report(dir, &diagnosis)).map_err(diagnose_error)?;
+        if let Some((path, changes)) = py
+            .detach(|| fogtemp_diagnose::write_updated_scenario(&simulated, dir, &diagnosis))
+            .map_err(diagnose_error)?
+        {
+            updated_scenario = Some(path.display().to_string());
+            scenario_changes = changes;
+        }
+    }
+    let doc = DiagnoseDocument { diagnosis: &diagnosis, seconds, updated_scenario, scenario_changes };
     convert::document(py, &doc)
 }

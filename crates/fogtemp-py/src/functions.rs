@@ -3,9 +3,10 @@
 use std::path::{Path, PathBuf};
 
 use fogtemp_cal::arrays::{extract_run_arrays, RunArrays};
-use fogtemp_cal::calibrate::{self, CalibrationConfig, Method, RunFeatures};
+use fogtemp_cal::calibrate::{self, CalibrationConfig, Method, RunFeatures, Validation};
 use fogtemp_cal::documents::{AllanDocument, ComparedModel, FitDocument, ValidationDocument};
 use fogtemp_cal::ingest::{read_log_with_progress, IngestOptions, IngestReport};
+use fogtemp_cal::metrics::{rms_over_runs, BiasStabilityOptions};
 use fogtemp_core::Model as CoreModel;
 use numpy::{PyArray1, PyUntypedArrayMethods};
 use pyo3::exceptions::{PyFileNotFoundError, PyTypeError};
@@ -179,7 +180,8 @@ fn array_error(e: fogtemp_cal::CalError) -> PyErr {
 /// (a runs file, `run,position,input_rate_dph[,role]`, as `fit --runs`: `val` runs left out,
 /// one position left out at a time by `auto`, each run's input rate subtracted from its gyro);
 /// identifiability warnings as Python warnings. `out` also writes the model
-/// file; `progress` shows reading progress on stderr. Runs with the GIL released.
+/// file; `progress` shows reading and cross-validation progress on stderr. Runs with the GIL
+/// released; Ctrl-C is raised between two logs and between reading and fitting.
 #[pyfunction]
 #[pyo3(signature = (logs, method = "auto", *, out = None, progress = true, **options))]
 pub fn fit(
@@ -205,7 +207,7 @@ pub fn fit(
     let ingest = options::ingest(&mut o)?;
     let mut config =
         options::calibration(&mut o, CalibrationConfig { ingest, method, ..CalibrationConfig::default() })?;
-    let capacity = o.usize("capacity", fogtemp_core::DEFAULT_CAPACITY)?;
+    let capacity = o.int("capacity", fogtemp_core::DEFAULT_CAPACITY, options::MIN_CAPACITY, u64::MAX)?;
     let runs_file = o.opt_path("runs")?;
     if arrays && runs_file.is_some() {
         return Err(PyTypeError::new_err(
@@ -233,9 +235,21 @@ pub fn fit(
             }),
         };
         let selection = fogtemp_cal::selection::SelectionOptions::default();
+        // Between the stages: after reading, before the fit.
+        py.check_signals()?;
+        let mut bar = Progress::new("cross-validation", progress);
         let fitted = py.detach(|| {
-            calibrate::fit_model_replaying(&runs, &config, digest, &selection, |_, _| {}, &replay)
+            calibrate::fit_model_replaying(
+                &runs,
+                &config,
+                digest,
+                &selection,
+                |k, n| bar.count(k as u64, n as u64, "folds"),
+                &replay,
+            )
         });
+        bar.finish();
+        bar.boundary(py)?;
         (fitted.map_err(errors::cal)?, runs, digest)
     } else {
         let (mut runs, digest, rows) = file_runs(py, &items, &config, progress, runs_file.as_deref())?;
@@ -247,7 +261,15 @@ pub fn fit(
             calibrate::subtract_input_rates(&mut runs, &rates, config.ingest.format.gyro_columns.len());
             selection.positions = Some(rows.into_iter().map(|r| r.position).collect());
         }
-        let fitted = py.detach(|| calibrate::fit_model_with(&runs, &config, digest, &selection, |_, _| {}));
+        py.check_signals()?;
+        let mut bar = Progress::new("cross-validation", progress);
+        let fitted = py.detach(|| {
+            calibrate::fit_model_with(&runs, &config, digest, &selection, |k, n| {
+                bar.count(k as u64, n as u64, "folds")
+            })
+        });
+        bar.finish();
+        bar.boundary(py)?;
         (fitted.map_err(errors::cal)?, runs, digest)
     };
     let (fitted, runs, digest) = fitted;
@@ -314,6 +336,8 @@ fn file_runs(
         let mut bar = Progress::new(format!("features {}", file_name(log)), show);
         let run = py.detach(|| calibrate::extract_run(log, config, |b, r| bar.rows(b, r)));
         bar.finish();
+        // Ctrl-C is raised here, between two logs.
+        bar.boundary(py)?;
         let run = run.map_err(errors::cal)?;
         if run.ingest.rows == 0 {
             return Err(errors::value(format!("{}: no data rows (only a header)", log.display())));
@@ -367,7 +391,9 @@ fn array_features(
         run.digest_into(&mut hasher)?;
         let columns = ArrayColumns::new(run)?;
         let view = columns.view();
-        let f = py.detach(|| extract_run_arrays(&view, config)).map_err(array_error)?;
+        let f = py.detach(|| extract_run_arrays(&view, config));
+        py.check_signals()?;
+        let f = f.map_err(array_error)?;
         if f.ingest.rows == 0 {
             return Err(errors::value(format!("{}: no samples", run.name.display())));
         }
@@ -448,6 +474,7 @@ pub fn read_log<'py>(
         )
     });
     bar.finish();
+    bar.boundary(py)?;
     let report = report.map_err(errors::cal)?;
     warn_skipped(py, &report)?;
     let dict = PyDict::new(py);
@@ -492,7 +519,10 @@ fn model_arg(value: &Bound<'_, PyAny>) -> PyResult<(Vec<u8>, String)> {
 ///
 /// `model` is a `Model` or a path; `logs` paths or folders. Keywords: `tau_s`,
 /// `overlapping`, `detrend`, `exclude_first_s`, `capacity`, `compare` (a list of further
-/// models replayed on the same logs), and the log-column options.
+/// models replayed on the same logs), `runs` (a runs file describing every log, as
+/// `validate --runs`: when it gives roles, only the `val` runs are validated), `report` (a
+/// folder: `report.md`, `report.html` and the figures, as `validate --report`), and the
+/// log-column options. Ctrl-C is raised between two logs.
 #[pyfunction]
 #[pyo3(signature = (model, logs, *, progress = true, **options))]
 pub fn validate<'py>(
@@ -505,11 +535,13 @@ pub fn validate<'py>(
     let mut o = Options::new("validate", options);
     let ingest = options::ingest(&mut o)?;
     let stability = options::stability(&mut o)?;
-    let capacity = o.usize("capacity", fogtemp_core::DEFAULT_CAPACITY)?;
+    let capacity = o.int("capacity", fogtemp_core::DEFAULT_CAPACITY, options::MIN_CAPACITY, u64::MAX)?;
     let compare = match o.get("compare")? {
         Some(c) => as_list(&c)?,
         None => Vec::new(),
     };
+    let runs_file = o.opt_path("runs")?;
+    let report = o.opt_path("report")?;
     o.finish()?;
     let mut blobs = vec![model_arg(model)?];
     for c in &compare {
@@ -528,19 +560,26 @@ pub fn validate<'py>(
     }
     let paths: Vec<PathBuf> =
         as_list(logs)?.iter().map(|l| l.extract::<PathBuf>()).collect::<PyResult<_>>()?;
-    let logs = expand_logs(&paths)?;
+    let mut logs = expand_logs(&paths)?;
+    if let Some(path) = &runs_file {
+        logs = fogtemp_cal::runs::validation_logs(logs, path).map_err(errors::cal)?;
+    }
     let refs: Vec<&CoreModel<'_>> = models.iter().collect();
-    let mut bars: Vec<Progress> =
-        logs.iter().map(|l| Progress::new(format!("validate {}", file_name(l)), progress)).collect();
-    let outcome = py.detach(|| {
-        calibrate::validate_models(&logs, &refs, &ingest, &stability, |i, b, r| {
-            if let Some(bar) = bars.get_mut(i) {
+    // One log at a time (the library's validation of each, in log order), so that Ctrl-C is
+    // raised between two logs.
+    let mut per_log = Vec::with_capacity(logs.len());
+    for log in &logs {
+        let mut bar = Progress::new(format!("validate {}", file_name(log)), progress);
+        let outcome = py.detach(|| {
+            calibrate::validate_models(std::slice::from_ref(log), &refs, &ingest, &stability, |_, b, r| {
                 bar.rows(b, r);
-            }
-        })
-    });
-    bars.iter().for_each(Progress::finish);
-    let mut outcomes = outcome.map_err(errors::cal)?;
+            })
+        });
+        bar.finish();
+        bar.boundary(py)?;
+        per_log.push(outcome.map_err(errors::cal)?);
+    }
+    let mut outcomes = combine_validations(refs.len(), per_log);
     let compared = outcomes.split_off(1.min(outcomes.len()));
     let validation = outcomes.pop().unwrap_or_default();
     for r in validation.runs.iter().filter(|r| r.axis == 0) {
@@ -555,7 +594,7 @@ pub fn validate<'py>(
     for note in validation.runs.iter().flat_map(calibrate::RunValidation::coverage_notes) {
         progress::warn(py, &note)?;
     }
-    let comparison = if compare.is_empty() {
+    let comparison: Vec<ComparedModel> = if compare.is_empty() {
         Vec::new()
     } else {
         std::iter::once(&validation)
@@ -564,7 +603,62 @@ pub fn validate<'py>(
             .map(|(v, ((_, source), m))| ComparedModel::new(Path::new(source), m, v))
             .collect()
     };
+    if let Some(dir) = &report {
+        let source = Path::new(&blobs[0].1);
+        py.detach(|| write_validation_report(dir, source, &models[0], &validation, &stability, &comparison))?;
+    }
     convert::document(py, &ValidationDocument::new(&stability, &validation, comparison))
+}
+
+/// Each model's validation over every log, from the validations of one log at a time: the
+/// runs in log order, overall the RMS over runs (`fogtemp_cal::metrics::rms_over_runs`), as
+/// `calibrate::validate_models` makes it over all the logs at once.
+fn combine_validations(models: usize, per_log: Vec<Vec<Validation>>) -> Vec<Validation> {
+    let mut runs: Vec<Vec<calibrate::RunValidation>> = vec![Vec::new(); models];
+    for log in per_log {
+        for (all, v) in runs.iter_mut().zip(log) {
+            all.extend(v.runs);
+        }
+    }
+    runs.into_iter()
+        .map(|runs| {
+            let overall = |f: fn(&calibrate::RunValidation) -> f64| {
+                rms_over_runs(&runs.iter().map(f).collect::<Vec<_>>())
+            };
+            Validation {
+                raw_bias_stability_dph: overall(|r| r.raw_bias_stability_dph),
+                compensated_bias_stability_dph: overall(|r| r.compensated_bias_stability_dph),
+                runs,
+            }
+        })
+        .collect()
+}
+
+/// `validate --report DIR`: the library's validation report, and with compared models their
+/// table before the first section, as the command line writes it.
+fn write_validation_report(
+    dir: &Path,
+    model_path: &Path,
+    model: &CoreModel<'_>,
+    validation: &Validation,
+    stability: &BiasStabilityOptions,
+    comparison: &[ComparedModel],
+) -> PyResult<()> {
+    let overall = (validation.raw_bias_stability_dph, validation.compensated_bias_stability_dph);
+    fogtemp_cal::report::write_validation_report_with(
+        dir,
+        model_path,
+        model,
+        &validation.runs,
+        overall,
+        stability,
+        &stability.describe(),
+    )
+    .map_err(errors::cal)?;
+    if comparison.is_empty() {
+        return Ok(());
+    }
+    fogtemp_cal::report::add_comparison_to_validation_report(dir, comparison).map_err(errors::cal)
 }
 
 /// Overlapping Allan deviation of a log's gyro with the fitted noise terms N, B, K (the
@@ -633,6 +727,7 @@ pub fn allan<'py>(
     let mut bar = Progress::new(format!("allan {}", file_name(&path)), progress);
     let series = py.detach(|| fogtemp_cal::ingest::read_gyro_series(&path, &ingest, |b, r| bar.rows(b, r)));
     bar.finish();
+    bar.boundary(py)?;
     let series = series.map_err(errors::cal)?;
     warn_skipped(py, &series.report)?;
     let doc = py
@@ -652,11 +747,12 @@ pub fn simulate<'py>(
     scenario: &str,
     out: PathBuf,
     rate: Option<f64>,
-    seed: Option<u64>,
+    seed: Option<&Bound<'py, PyAny>>,
     duration_s: Option<f64>,
     progress: bool,
 ) -> PyResult<Bound<'py, PyAny>> {
     use fogtemp_sim::Scenario;
+    let seed: Option<u64> = seed.map(|s| options::int_arg("simulate", "seed", s, 0, u64::MAX)).transpose()?;
     let (mut sc, mut text) = if scenario == "paper" {
         (Scenario::paper().map_err(errors::sim)?, fogtemp_sim::PAPER_TOML.to_string())
     } else {
@@ -690,8 +786,9 @@ pub fn simulate<'py>(
             }
         })
     });
-    if let Ok(b) = bar.lock() {
+    if let Ok(mut b) = bar.lock() {
         b.0.finish();
+        b.0.boundary(py)?;
     }
     let runs = runs.map_err(errors::sim)?;
     let doc =

@@ -8,10 +8,11 @@ use fogtemp_core::{Axis, Compensator, Flags, Model as CoreModel, StartGrid, Walk
 use numpy::{PyArray1, PyArrayMethods, PyUntypedArrayMethods};
 use pyo3::exceptions::PyFileNotFoundError;
 use pyo3::prelude::*;
-use pyo3::types::{PyBytes, PyDict, PyTuple};
+use pyo3::types::{PyBytes, PyDict, PyFloat, PyTuple};
 
 use crate::convert::{self, f64_array, f64_vector, slice};
 use crate::errors;
+use crate::options::{int_arg, MIN_CAPACITY};
 
 /// Below this many points an evaluation walks from the last triangle only; above it a start
 /// grid over the mesh makes random-order queries a step or two each.
@@ -36,6 +37,8 @@ pub struct Model {
     /// Per axis, the start grid of its mesh (side, cells), built with the model as scipy's
     /// interpolator builds its search structure at construction; `None` without a mesh.
     grids: Vec<Option<(u32, Vec<u32>)>>,
+    /// `__hash__`: of the blob's bytes, computed once (the blob never changes).
+    hash: u64,
 }
 
 impl Model {
@@ -45,7 +48,13 @@ impl Model {
         let grids = (0..core.axis_count())
             .map(|i| core.axis(i).ok().and_then(|a| a.mesh).and_then(|mesh| start_grid(&mesh, usize::MAX)))
             .collect();
-        Ok(Self { blob, source, fit_json, grids })
+        let hash = {
+            use std::hash::{Hash, Hasher};
+            let mut hasher = std::collections::hash_map::DefaultHasher::new();
+            blob.hash(&mut hasher);
+            hasher.finish()
+        };
+        Ok(Self { blob, source, fit_json, grids, hash })
     }
 
     /// The blob.
@@ -138,18 +147,23 @@ impl Model {
     /// evaluation (f32, normalisation, polynomial, mesh walk, outside-hull policy).
     ///
     /// The inputs are array-like (numpy arrays of any shape, lists, scalars, pandas Series)
-    /// and broadcast against each other; the result has their broadcast shape. A NaN or
+    /// and broadcast against each other; the result has their broadcast shape, or is a
+    /// Python float when both are scalars (or 0-d arrays), as numpy's ufuncs do. A NaN or
     /// infinite input gives NaN at that point. Runs with the GIL released, on `threads`
     /// threads (default: every core) for large inputs.
-    #[pyo3(signature = (temp_c, rate_c_per_min, axis = 0, threads = None))]
+    #[pyo3(signature = (temp_c, rate_c_per_min, axis = None, threads = None))]
+    #[pyo3(text_signature = "(self, temp_c, rate_c_per_min, axis=0, threads=None)")]
     fn evaluate<'py>(
         &self,
         py: Python<'py>,
         temp_c: &Bound<'py, PyAny>,
         rate_c_per_min: &Bound<'py, PyAny>,
-        axis: usize,
-        threads: Option<usize>,
+        axis: Option<&Bound<'py, PyAny>>,
+        threads: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyAny>> {
+        let axis = axis_arg("Model.evaluate", axis)?;
+        let threads: Option<usize> =
+            threads.map(|t| int_arg("Model.evaluate", "threads", t, 0, u64::MAX)).transpose()?;
         let core_axis = self.axis(axis)?;
         let (mut t, mut r) = (f64_array(temp_c, "temp_c")?, f64_array(rate_c_per_min, "rate_c_per_min")?);
         if t.shape() != r.shape() {
@@ -163,6 +177,10 @@ impl Model {
             threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get())).max(1);
         let cached = self.grids.get(axis).and_then(Option::as_ref);
         let values = py.detach(|| evaluate_points(&core_axis, cached, ts, rs, threads));
+        if shape.is_empty() {
+            // Scalars in, a float out (a 0-d input holds one point).
+            return Ok(PyFloat::new(py, values.first().copied().unwrap_or(f64::NAN)).into_any());
+        }
         PyArray1::from_vec(py, values).reshape(shape).map(Bound::into_any)
     }
 
@@ -176,7 +194,8 @@ impl Model {
     /// holding the core's f32 results exactly, and uint8 flags (`fogtemp.FLAG_BITS`).
     /// `capacity` is the firmware's tracker capacity (the core's default, 128): a model whose
     /// window needs more blocks is refused, as the command line refuses it.
-    #[pyo3(signature = (time_s, gyro_dph, temp_c, axis = 0, return_bias = false, capacity = fogtemp_core::DEFAULT_CAPACITY))]
+    #[pyo3(signature = (time_s, gyro_dph, temp_c, axis = None, return_bias = false, capacity = None))]
+    #[pyo3(text_signature = "(self, time_s, gyro_dph, temp_c, axis=0, return_bias=False, capacity=128)")]
     #[allow(clippy::too_many_arguments)] // Python's keywords, each with its default
     fn compensate<'py>(
         &self,
@@ -184,10 +203,15 @@ impl Model {
         time_s: &Bound<'py, PyAny>,
         gyro_dph: &Bound<'py, PyAny>,
         temp_c: &Bound<'py, PyAny>,
-        axis: usize,
+        axis: Option<&Bound<'py, PyAny>>,
         return_bias: bool,
-        capacity: usize,
+        capacity: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyTuple>> {
+        let axis = axis_arg("Model.compensate", axis)?;
+        let capacity = match capacity {
+            Some(c) => int_arg("Model.compensate", "capacity", c, MIN_CAPACITY, u64::MAX)?,
+            None => fogtemp_core::DEFAULT_CAPACITY,
+        };
         // The firmware's tracker capacity: a model needing more blocks fails at its boot.
         crate::options::capacity_fits(self.axis(axis)?.blocks_needed(), capacity)?;
         let (t, g, c) =
@@ -248,6 +272,18 @@ impl Model {
         Ok(format!("<fogtemp.Model {} bytes, axes: [{}]>", self.blob.len(), axes.join(", ")))
     }
 
+    /// Equal when the blobs are equal byte for byte (where each came from and its fit
+    /// report are not compared); a `Model` is never equal to anything else.
+    fn __eq__(&self, other: &Self) -> bool {
+        self.blob == other.blob
+    }
+
+    /// Of the blob's bytes, consistent with `==`: a `Model` never changes (its blob is what
+    /// firmware embeds), so it can key a dict or sit in a set as `bytes` can.
+    fn __hash__(&self) -> u64 {
+        self.hash
+    }
+
     /// Pickles as its bytes.
     fn __reduce__<'py>(slf: &Bound<'py, Self>) -> PyResult<Bound<'py, PyTuple>> {
         let py = slf.py();
@@ -255,6 +291,11 @@ impl Model {
         let bytes = PyBytes::new(py, &slf.get().blob);
         PyTuple::new(py, [from_bytes, PyTuple::new(py, [bytes])?.into_any()])
     }
+}
+
+/// The `axis` argument of `method` (0 when not given): `ValueError` for a negative one.
+fn axis_arg(method: &str, axis: Option<&Bound<'_, PyAny>>) -> PyResult<usize> {
+    axis.map_or(Ok(0), |a| int_arg(method, "axis", a, 0, u64::MAX))
 }
 
 /// A start grid of about [`GRID_CELLS_PER_TRIANGLE`] cells per triangle, but at most

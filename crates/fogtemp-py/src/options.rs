@@ -73,10 +73,11 @@ impl<'py> Options<'py> {
         }
     }
 
-    /// A non-negative integer option.
-    pub fn usize(&mut self, key: &str, default: usize) -> PyResult<usize> {
+    /// An integer option in `min..=max` (the command line's range for the flag); see
+    /// [`int_arg`].
+    pub fn int<T: TryFrom<u64>>(&mut self, key: &str, default: T, min: u64, max: u64) -> PyResult<T> {
         match self.get(key)? {
-            Some(v) => v.extract::<usize>().map_err(|e| self.wrong(key, "a non-negative integer", e)),
+            Some(v) => int_arg(self.function, key, &v, min, max),
             None => Ok(default),
         }
     }
@@ -151,6 +152,45 @@ impl<'py> Options<'py> {
     }
 }
 
+/// The smallest tracker capacity a firmware `Compensator` can have, blocks (the command
+/// line's `--capacity` range).
+pub const MIN_CAPACITY: u64 = 2;
+
+/// An integer keyword or argument `key` of `function` in `min..=max` (`u64::MAX`: no upper
+/// bound but `T`'s), as a `T`: any Python integer (numpy's included) outside the range,
+/// negative or too large for `T`, raises `ValueError` naming the keyword and the range, as
+/// the other keyword checks do; a value that is not an integer raises `TypeError`.
+pub fn int_arg<T: TryFrom<u64>>(
+    function: &str,
+    key: &str,
+    value: &Bound<'_, PyAny>,
+    min: u64,
+    max: u64,
+) -> PyResult<T> {
+    let index = value
+        .py()
+        .import("operator")?
+        .call_method1("index", (value,))
+        .map_err(|e| PyTypeError::new_err(format!("{function}(): {key} must be an integer ({e})")))?;
+    index
+        .extract::<u64>()
+        .ok()
+        .filter(|n| (min..=max).contains(n))
+        .and_then(|n| T::try_from(n).ok())
+        .ok_or_else(|| errors::value(format!("{key} must be {}, got {index}", range_words(min, max))))
+}
+
+/// An integer range in the words of the keyword messages: "2 to 4096", "at least 3".
+fn range_words(min: u64, max: u64) -> String {
+    if max == u64::MAX && min == 0 {
+        "a non-negative integer".to_string()
+    } else if max == u64::MAX {
+        format!("at least {min}")
+    } else {
+        format!("{min} to {max}")
+    }
+}
+
 /// The log-column keywords (the command line's "Log columns" flags).
 pub const COLUMN_KEYS: [&str; 16] = [
     "time_column",
@@ -210,7 +250,7 @@ pub fn ingest(o: &mut Options<'_>) -> PyResult<IngestOptions> {
             gyro_unit,
             gyro_scale: o.f64("gyro_scale", 1.0)?,
             delimiter,
-            skip_lines: o.usize("skip_lines", 0)? as u64,
+            skip_lines: o.int("skip_lines", 0, 0, u64::MAX)?,
             comment: (!comment.is_empty()).then_some(comment),
             column_names: columns.iter().map(|c| c.trim().to_string()).collect(),
             sample_rate_hz: o.opt_f64("sample_rate_hz")?,
@@ -249,16 +289,15 @@ fn require(name: &str, ok: bool, what: &str, found: impl std::fmt::Display) -> P
 
 /// Refuses settings no fit can use, naming the keyword (the command line refuses the same
 /// values as it parses its flags), before any log is read.
-fn check_calibration(c: &CalibrationConfig, max_nodes: usize, tolerance_dph: Option<f64>) -> PyResult<()> {
+/// (The integer keywords are checked as they are read, by [`Options::int`].)
+fn check_calibration(c: &CalibrationConfig, tolerance_dph: Option<f64>) -> PyResult<()> {
     let f = &c.features;
     let positive = |v: f64| v.is_finite() && v > 0.0;
     require("window_s", positive(f64::from(f.window_s)), "positive and finite", f.window_s)?;
-    let max_blocks = fogtemp_core::wire::MAX_BLOCKS;
-    require("blocks", (2..=max_blocks).contains(&f.block_count), "2 to 4096", f.block_count)?;
+    // The default min_blocks (10) with a smaller blocks.
     require("min_blocks", (2..=f.block_count).contains(&f.min_blocks), "2 to blocks", f.min_blocks)?;
     require("max_gap_s", positive(f64::from(f.max_gap_s)), "positive and finite", f.max_gap_s)?;
     require("target_window_s", positive(c.target_window_s), "positive and finite", c.target_window_s)?;
-    require("max_nodes", max_nodes >= 3, "at least 3", max_nodes)?;
     if let Some(t) = tolerance_dph {
         require("tolerance_dph", positive(t), "positive and finite", t)?;
     }
@@ -274,18 +313,17 @@ fn check_calibration(c: &CalibrationConfig, max_nodes: usize, tolerance_dph: Opt
 /// line's `fit` keywords, with its defaults.
 pub fn calibration(o: &mut Options<'_>, base: CalibrationConfig) -> PyResult<CalibrationConfig> {
     let defaults = fogtemp_cal::calibrate::default_features();
-    let features = FeatureSettings {
-        window_s: o.f64("window_s", f64::from(defaults.window_s))? as f32,
-        block_count: u32::try_from(o.usize("blocks", defaults.block_count as usize)?)
-            .map_err(|_| errors::value("blocks is too large"))?,
-        min_blocks: u32::try_from(o.usize("min_blocks", defaults.min_blocks as usize)?)
-            .map_err(|_| errors::value("min_blocks is too large"))?,
-        max_gap_s: o.f64("max_gap_s", f64::from(defaults.max_gap_s))? as f32,
-    };
+    let window_s = o.f64("window_s", f64::from(defaults.window_s))? as f32;
+    // The command line's ranges: blocks 2 to the format's maximum, min_blocks 2 to blocks.
+    let block_count = o.int("blocks", defaults.block_count, 2, u64::from(fogtemp_core::wire::MAX_BLOCKS))?;
+    let min_blocks = o.int("min_blocks", defaults.min_blocks, 2, u64::from(block_count))?;
+    let max_gap_s = o.f64("max_gap_s", f64::from(defaults.max_gap_s))? as f32;
+    let features = FeatureSettings { window_s, block_count, min_blocks, max_gap_s };
     let target_window_s = o.opt_f64("target_window_s")?.unwrap_or(f64::from(features.window_s));
-    let max_nodes = o.usize("max_nodes", 600)?;
+    let max_nodes = o.int("max_nodes", 600, 3, u64::MAX)?;
     let tolerance_dph = o.opt_f64("tolerance_dph")?;
-    let (fast_rate_c_per_min, settled_every) = (o.f64("fast_rate", 0.05)?, o.usize("settled_every", 3)?);
+    let (fast_rate_c_per_min, settled_every) =
+        (o.f64("fast_rate", 0.05)?, o.int("settled_every", 3, 0, u64::MAX)?);
     let thinning = match o.string("thinning", "greedy")?.as_str() {
         "greedy" => match tolerance_dph {
             Some(tolerance_dph) => {
@@ -296,8 +334,7 @@ pub fn calibration(o: &mut Options<'_>, base: CalibrationConfig) -> PyResult<Cal
         "paper" => Thinning::Paper { fast_rate_c_per_min, settled_every },
         other => return Err(errors::value(format!("thinning must be 'greedy' or 'paper', got '{other}'"))),
     };
-    let max_degree =
-        u8::try_from(o.usize("max_degree", 4)?).map_err(|_| errors::value("max_degree is too large"))?;
+    let max_degree = o.int("max_degree", 4, 0, u64::from(u8::MAX))?;
     let (p_enter, p_remove) = (o.f64("p_enter", 0.05)?, o.f64("p_remove", 0.10)?);
     let poly = match o.string("poly", "stepwise")?.as_str() {
         "stepwise" => TermSelection::Stepwise { max_degree, p_enter, p_remove },
@@ -336,7 +373,7 @@ pub fn calibration(o: &mut Options<'_>, base: CalibrationConfig) -> PyResult<Cal
         refine_mesh: o.bool("refine_mesh", base.refine_mesh)?,
         ..base
     };
-    check_calibration(&config, max_nodes, tolerance_dph)?;
+    check_calibration(&config, tolerance_dph)?;
     Ok(config)
 }
 
@@ -357,8 +394,11 @@ pub fn stability(o: &mut Options<'_>) -> PyResult<BiasStabilityOptions> {
 
 /// Refuses settings whose feature tracker needs more blocks than the firmware's `capacity`
 /// (the command line's check and message, in keyword form).
+///
+/// # Errors
+/// `ValueError` naming `capacity`.
 pub fn capacity_fits(needed: usize, capacity: usize) -> PyResult<()> {
-    require("capacity", capacity >= 2, "at least 2 (blocks)", capacity)?;
+    require("capacity", capacity as u64 >= MIN_CAPACITY, "at least 2 (blocks)", capacity)?;
     if needed > capacity {
         return Err(errors::value(format!(
             "the model's feature tracker needs {needed} blocks but the firmware's capacity is {capacity} \

@@ -1,8 +1,15 @@
 //! Progress on `sys.stderr` (where a notebook shows it), as the command line shows its bars:
 //! only for work that lasts more than a second, at most twice a second, cleared at the end.
+//!
+//! Ctrl-C: the libraries' loops cannot be stopped from their progress callbacks, so an
+//! interrupt is raised at the next boundary between pieces of work (a log read, a stage):
+//! [`Progress::boundary`] there. A bar that draws takes the GIL and runs Python code (in a
+//! notebook `sys.stderr.write` is Python), where Python runs the `SIGINT` handler; the
+//! `KeyboardInterrupt` it raises there is kept for the boundary, never dropped.
 
 use std::time::{Duration, Instant};
 
+use pyo3::exceptions::PyKeyboardInterrupt;
 use pyo3::prelude::*;
 
 /// One line of progress for one stage, rewritten in place.
@@ -11,12 +18,14 @@ pub struct Progress {
     enabled: bool,
     started: Instant,
     last_drawn: Option<Instant>,
+    /// An interrupt that arrived while drawing, raised at the next [`Progress::boundary`].
+    interrupt: Option<PyErr>,
 }
 
 impl Progress {
     /// A progress line for `label` (drawn only if `enabled`).
     pub fn new(label: impl Into<String>, enabled: bool) -> Self {
-        Self { label: label.into(), enabled, started: Instant::now(), last_drawn: None }
+        Self { label: label.into(), enabled, started: Instant::now(), last_drawn: None, interrupt: None }
     }
 
     /// Bytes and rows read so far (the ingest callback). Takes the GIL only when it draws.
@@ -53,27 +62,49 @@ impl Progress {
         due
     }
 
-    fn draw(&self, line: &str) {
-        write_stderr(&format!("\r{line:<79}"));
+    fn draw(&mut self, line: &str) {
+        let text = format!("\r{line:<79}");
+        Python::attach(|py| {
+            let pending = write_stderr(py, &text).and_then(|()| py.check_signals()).err();
+            self.interrupt = self.interrupt.take().or(pending);
+        });
     }
 
     /// Clears the line if anything was drawn.
-    pub fn finish(&self) {
+    pub fn finish(&mut self) {
         if self.last_drawn.is_some() {
-            write_stderr(&format!("\r{:<79}\r", ""));
+            let text = format!("\r{:<79}\r", "");
+            Python::attach(|py| {
+                let pending = write_stderr(py, &text).err();
+                self.interrupt = self.interrupt.take().or(pending);
+            });
+        }
+    }
+
+    /// A boundary between pieces of work (after a log, before a stage): raises the interrupt
+    /// that arrived while this bar drew, else any signal pending now (`KeyboardInterrupt`
+    /// after Ctrl-C).
+    ///
+    /// # Errors
+    /// The exception of the signal handler.
+    pub fn boundary(&mut self, py: Python<'_>) -> PyResult<()> {
+        match self.interrupt.take() {
+            Some(e) => Err(e),
+            None => py.check_signals(),
         }
     }
 }
 
-/// Writes to Python's `sys.stderr` (errors writing progress are ignored: progress is never
-/// worth failing the work for).
-pub fn write_stderr(text: &str) {
-    Python::attach(|py| {
-        if let Ok(stderr) = py.import("sys").and_then(|sys| sys.getattr("stderr")) {
-            let _ = stderr.call_method1("write", (text,));
-            let _ = stderr.call_method0("flush");
-        }
-    });
+/// Writes to Python's `sys.stderr`. Errors writing progress are ignored (progress is never
+/// worth failing the work for), except an interrupt raised while Python ran the write,
+/// which is returned to be raised at the next boundary.
+fn write_stderr(py: Python<'_>, text: &str) -> PyResult<()> {
+    let interrupt = |e: PyErr| if e.is_instance_of::<PyKeyboardInterrupt>(py) { Err(e) } else { Ok(()) };
+    if let Ok(stderr) = py.import("sys").and_then(|sys| sys.getattr("stderr")) {
+        stderr.call_method1("write", (text,)).map(drop).or_else(interrupt)?;
+        stderr.call_method0("flush").map(drop).or_else(interrupt)?;
+    }
+    Ok(())
 }
 
 /// A `warnings.warn` (e.g. skipped rows), printed like the command line's warning.

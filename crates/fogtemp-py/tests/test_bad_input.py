@@ -297,3 +297,40 @@ def test_fit_reads_a_runs_file_like_the_command_line(tmp_path):
     assert rms(without) > 5 * rms(oracle)
     with pytest.raises(TypeError, match="runs= names log files"):
         fogtemp.fit(runs, method="poly", runs=runs_csv, progress=False)
+
+
+def test_integer_keywords_out_of_range_raise_value_error_naming_the_keyword(small_model, tmp_path):
+    # Negative (and too large) integers are refused like every other keyword value, naming the
+    # keyword and its range (the command line's ranges for its flags); not an OverflowError.
+    run = synthetic_runs(runs=1)[0]
+    log = tmp_path / "run.csv"
+    write_csv(log, run)
+    t, g, c = run["time_s"][:10], run["gyro_dph"][:10], run["temp_c"][:10]
+    cases = [
+        (lambda: fogtemp.fit([run], blocks=-1, progress=False), "blocks must be 2 to 4096, got -1"),
+        (lambda: fogtemp.fit([run], blocks=2**70, progress=False), f"blocks must be 2 to 4096, got {2**70}"),
+        (lambda: fogtemp.fit([run], blocks=50, min_blocks=-1, progress=False), "min_blocks must be 2 to 50, got -1"),
+        (lambda: fogtemp.fit([run], capacity=-5, progress=False), "capacity must be at least 2, got -5"),
+        (lambda: fogtemp.fit([run], max_nodes=-3, progress=False), "max_nodes must be at least 3, got -3"),
+        (lambda: fogtemp.fit([run], max_degree=-1, progress=False), "max_degree must be 0 to 255, got -1"),
+        (lambda: fogtemp.fit([run], settled_every=-2, progress=False), "settled_every must be a non-negative integer, got -2"),
+        (lambda: fogtemp.read_log(log, skip_lines=-1, progress=False), "skip_lines must be a non-negative integer, got -1"),
+        (lambda: fogtemp.validate(small_model, [log], capacity=-1, progress=False), "capacity must be at least 2, got -1"),
+        (lambda: small_model.compensate(t, g, c, capacity=-1), "capacity must be at least 2, got -1"),
+        (lambda: small_model.compensate(t, g, c, axis=-1), "axis must be a non-negative integer, got -1"),
+        (lambda: small_model.evaluate(20.0, 0.1, axis=-1), "axis must be a non-negative integer, got -1"),
+        (lambda: small_model.evaluate(20.0, 0.1, threads=-1), "threads must be a non-negative integer, got -1"),
+        (lambda: fogtemp.simulate(out=tmp_path / "sim", seed=-1, progress=False), "seed must be a non-negative integer, got -1"),
+    ]
+    for call, message in cases:
+        with pytest.raises(ValueError) as caught:
+            call()
+        assert not isinstance(caught.value, OverflowError)
+        assert str(caught.value) == message
+    # numpy integers are integers; a float is not one (TypeError, naming the keyword).
+    with pytest.raises(ValueError, match="blocks must be 2 to 4096, got -1"):
+        fogtemp.fit([run], blocks=np.int64(-1), progress=False)
+    with pytest.raises(TypeError, match=r"fit\(\): blocks must be an integer"):
+        fogtemp.fit([run], blocks=2.5, progress=False)
+    assert small_model.evaluate([20.0], [0.1], axis=np.int32(0), threads=np.uint8(1)).shape == (1,)
+    assert not (tmp_path / "sim").exists()

@@ -104,6 +104,65 @@ def test_validate_compare_and_model_objects(mesh_model, poly_model, val_logs):
     assert [c["polynomial_terms"] > 0 for c in doc["comparison"]] == [False, True]
 
 
+def test_validate_runs_file_keeps_the_val_runs_like_the_command_line(mesh_model, cal_logs, val_logs, tmp_path, cli):
+    # Two calibration and two validation logs in one folder, the runs file giving roles: as
+    # `validate --runs`, only the val runs are validated (input rates and positions unused).
+    folder = tmp_path / "logs"
+    folder.mkdir()
+    for log in (*cal_logs[:2], *val_logs[:2]):
+        (folder / log.name).symlink_to(log)
+    model_path = tmp_path / "m.fogm"
+    mesh_model.save(model_path)
+    rows = [f"{p.stem},pos1,9.66,cal" for p in cal_logs[:2]] + [f"{p.stem},pos2,-9.66,val" for p in val_logs[:2]]
+    runs_csv = tmp_path / "runs.csv"
+    runs_csv.write_text("run,position,input_rate_dph,role\n" + "\n".join(rows) + "\n")
+    ours = fogtemp.validate(model_path, folder, runs=runs_csv, progress=False)
+    done = cli("validate", "--model", model_path, "--runs", runs_csv, "--json", folder)
+    assert done.returncode == 0, done.stderr
+    assert ours == json.loads(done.stdout)
+    assert [r["path"] for r in ours["runs"]] == [str(folder / p.name) for p in val_logs[:2]]
+    assert ours == fogtemp.validate(model_path, [folder / p.name for p in val_logs[:2]], progress=False)
+    # Without roles every log is validated; roles without a val run, or a log the file does
+    # not describe, are errors (the command line's messages).
+    no_roles = tmp_path / "no_roles.csv"
+    no_roles.write_text("run,position,input_rate_dph\n" + "\n".join(r.rsplit(",", 1)[0] for r in rows) + "\n")
+    assert len(fogtemp.validate(model_path, folder, runs=no_roles, progress=False)["runs"]) == 4
+    all_cal = tmp_path / "all_cal.csv"
+    all_cal.write_text(runs_csv.read_text().replace(",val", ",cal"))
+    with pytest.raises(ValueError, match="no run has role 'val': nothing to validate"):
+        fogtemp.validate(model_path, folder, runs=all_cal, progress=False)
+    missing = tmp_path / "missing.csv"
+    missing.write_text("\n".join(runs_csv.read_text().splitlines()[:-1]) + "\n")
+    with pytest.raises(ValueError, match=val_logs[1].stem):
+        fogtemp.validate(model_path, folder, runs=missing, progress=False)
+
+
+def files_of(folder):
+    return {p.relative_to(folder).as_posix(): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+def test_validate_report_is_the_command_lines(mesh_model, poly_model, val_logs, tmp_path, cli):
+    # The same files, byte for byte, with the table of the compared models in report.md.
+    mesh_model.save(tmp_path / "mesh.fogm")
+    poly_model.save(tmp_path / "poly.fogm")
+    logs = val_logs[:2]
+    done = cli(
+        "validate", "--model", tmp_path / "mesh.fogm", "--compare", tmp_path / "poly.fogm",
+        "--report", tmp_path / "cli", "--json", *logs,
+    )
+    assert done.returncode == 0, done.stderr
+    ours = fogtemp.validate(
+        tmp_path / "mesh.fogm", logs, compare=[tmp_path / "poly.fogm"], report=tmp_path / "py", progress=False
+    )
+    assert ours == json.loads(done.stdout)
+    theirs, mine = files_of(tmp_path / "cli"), files_of(tmp_path / "py")
+    assert "report.md" in mine and "report.html" in mine and any(n.endswith(".svg") for n in mine)
+    assert b"## Models compared on the same logs" in mine["report.md"]
+    assert sorted(mine) == sorted(theirs)
+    for name in theirs:
+        assert mine[name] == theirs[name], name
+
+
 def test_read_log_dataframe_and_columns(val_logs):
     frame = fogtemp.read_log(val_logs[0], as_dataframe=True, progress=False)
     assert list(frame.columns) == ["time_s", "temp_c", "gyro_dph"]
@@ -119,6 +178,24 @@ def test_models_round_trip_through_bytes_files_and_pickle(mesh_model, tmp_path):
     assert fogtemp.Model.from_file(tmp_path / "x.fogm").to_bytes() == blob
     assert pickle.loads(pickle.dumps(mesh_model)).to_bytes() == blob
     assert "mesh(" in repr(mesh_model) and mesh_model.axis_count == 1
+
+
+def test_models_compare_and_hash_by_their_blob_bytes(mesh_model, poly_model, tmp_path):
+    # Equal blobs, whatever their source (fitted here, a file, bytes, a pickle) and whether
+    # they carry a fit report; hashable consistently with ==, so models key dicts and sets.
+    mesh_model.save(tmp_path / "m.fogm")
+    same = [
+        fogtemp.Model.from_file(tmp_path / "m.fogm"),
+        fogtemp.Model.from_bytes(mesh_model.to_bytes()),
+        pickle.loads(pickle.dumps(mesh_model)),
+    ]
+    for other in same:
+        assert other == mesh_model and not other != mesh_model
+        assert hash(other) == hash(mesh_model)
+    assert mesh_model != poly_model and not mesh_model == poly_model
+    assert mesh_model != mesh_model.to_bytes() and mesh_model != None  # noqa: E711
+    assert len({mesh_model, poly_model, *same}) == 2
+    assert {mesh_model: "mesh"}[same[0]] == "mesh"
 
 
 def test_simulate_document(tmp_path):

@@ -2,6 +2,7 @@
 
 import json
 import shutil
+from pathlib import Path
 
 import pytest
 
@@ -50,3 +51,23 @@ def test_diagnose_warns_of_gaps_in_the_time_stamps(sim_dir, recorded_dir, tmp_pa
     )
     with pytest.warns(UserWarning, match=note):
         fogtemp.diagnose(sim_dir, tmp_path / "rec", progress=False)
+
+
+def test_diagnose_report_is_the_command_lines(sim_dir, recorded_dir, tmp_path, cli):
+    # report.md, report.html, the figures and scenario-updated.toml (the simulation folder
+    # holds its scenario.toml), byte for byte; the document names the updated scenario.
+    done = cli("diagnose", "--simulated", sim_dir, "--recorded", recorded_dir, "--report", tmp_path / "cli", "--json")
+    assert done.returncode == 0, done.stderr
+    ours = fogtemp.diagnose(sim_dir, recorded_dir, report=tmp_path / "py", progress=False)
+    theirs = json.loads(done.stdout)
+    assert ours.pop("updated_scenario") == str(tmp_path / "py" / "scenario-updated.toml")
+    assert theirs.pop("updated_scenario") == str(tmp_path / "cli" / "scenario-updated.toml")
+    ours.pop("seconds"), theirs.pop("seconds")
+    assert ours == theirs
+    files = lambda d: {p.name: p.read_bytes() for p in sorted(Path(d).iterdir())}
+    mine, cli_files = files(tmp_path / "py"), files(tmp_path / "cli")
+    assert {"report.md", "report.html", "scenario-updated.toml"} <= set(mine)
+    assert mine["scenario-updated.toml"].startswith(f"# {sim_dir / 'scenario.toml'} updated by".encode())
+    assert sorted(mine) == sorted(cli_files)
+    for name in cli_files:
+        assert mine[name] == cli_files[name], name

@@ -78,7 +78,7 @@ def test_any_shape_broadcasting_and_nan(mesh_model):
     assert out.shape == (2, 3, 4) and out.dtype == np.float64
     flat = mesh_model.evaluate(temp.ravel(), np.full(24, 0.1))
     np.testing.assert_array_equal(out.ravel(), flat)
-    assert mesh_model.evaluate(20.0, 0.0).shape == ()
+    assert type(mesh_model.evaluate(20.0, 0.0)) is float  # scalars in, a float out
     assert mesh_model.evaluate([20.0, 21.0], [0.0, 0.0]).shape == (2,)
     with_nan = mesh_model.evaluate([20.0, np.nan, 21.0], [0.0, 0.0, np.inf])
     assert np.isfinite(with_nan[0]) and np.isnan(with_nan[1]) and np.isnan(with_nan[2])
@@ -161,3 +161,17 @@ def test_mesh_outside_is_an_option_and_acts_only_outside_the_hull(cal_logs, mesh
     assert np.any(kept[~inside] != theirs[~inside])
     with pytest.raises(ValueError, match="mesh_outside"):
         fogtemp.fit(cal_logs, method="mesh", mesh_outside="sideways", progress=False)
+
+
+def test_scalar_inputs_give_a_python_float(mesh_model):
+    # Scalars (Python, numpy or 0-d arrays) in, a float out, as numpy's ufuncs do; anything
+    # with a dimension keeps its broadcast shape.
+    expected = mesh_model.evaluate(np.array([20.0]), np.array([0.1]))[0]
+    for t, r in [(20.0, 0.1), (np.float64(20.0), np.float32(0.1)), (np.array(20.0), 0.1), (20, np.array(0.1))]:
+        value = mesh_model.evaluate(t, r)
+        assert type(value) is float
+        assert value == expected
+    nan = mesh_model.evaluate(float("nan"), 0.1)
+    assert type(nan) is float and np.isnan(nan)
+    assert mesh_model.evaluate([20.0], 0.1).shape == (1,)
+    assert mesh_model.evaluate(20.0, np.array([[0.1, 0.2]])).shape == (1, 2)

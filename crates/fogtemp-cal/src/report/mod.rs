@@ -507,6 +507,39 @@ pub fn write_validation_report(
     )
 }
 
+/// Adds the table of models compared on the same logs (`validate --compare`; `rows` the
+/// primary model first) to the validation report in `dir`, before its first section, and
+/// writes `report.html` again. The command line's `validate --report` and Python's
+/// `validate(report=, compare=)`.
+///
+/// # Errors
+/// [`CalError::Io`] when the report cannot be read or written.
+pub fn add_comparison_to_validation_report(
+    dir: &Path,
+    rows: &[crate::documents::ComparedModel],
+) -> Result<(), CalError> {
+    let mut table = String::from(
+        "## Models compared on the same logs\n\n| model | mesh nodes | polynomial terms | raw, deg/h | compensated, deg/h | ratio |\n|---|---|---|---|---|---|\n",
+    );
+    for c in rows {
+        table.push_str(&format!(
+            "| {} | {} | {} | {:.5} | {:.5} | {:.2} |\n",
+            c.model,
+            c.mesh_nodes,
+            c.polynomial_terms,
+            c.raw_bias_stability_dph,
+            c.compensated_bias_stability_dph,
+            c.raw_bias_stability_dph / c.compensated_bias_stability_dph
+        ));
+    }
+    let path = dir.join("report.md");
+    let text = std::fs::read_to_string(&path)
+        .map_err(|source| CalError::Io { path: path.clone(), source })?
+        .replacen("\n## ", &format!("\n{table}\n## "), 1);
+    write_file_atomic(&path, |w| w.write_all(text.as_bytes()))?;
+    write_html_beside(&path)
+}
+
 /// [`write_validation_report`] with the bias-stability settings the runs were measured with
 /// (the drift figure uses their window length and exclusion).
 ///

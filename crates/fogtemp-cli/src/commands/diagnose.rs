@@ -5,14 +5,14 @@
 //! `fogtemp_diagnose::inputs`, which the Python package shares).
 
 use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use anyhow::{Context, Result};
 use fogtemp_cal::ingest::IngestOptions;
 use fogtemp_cal::CalError;
 use fogtemp_diagnose::{
     diagnose as run_diagnosis, inputs, write_diagnosis_report, DiagnoseDocument, DiagnoseError,
-    DiagnoseOptions, Diagnosis, RunMeta, RunSeries,
+    DiagnoseOptions, RunMeta, RunSeries,
 };
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
@@ -96,7 +96,7 @@ pub fn diagnose(a: DiagnoseArgs, recorded_ingest: IngestOptions) -> Result<()> {
         write_diagnosis_report(dir, &d)
             .with_context(|| format!("writing the report into {}", dir.display()))?;
         eprintln!("report: {} (and report.html)", dir.join("report.md").display());
-        if let Some((path, changes)) = write_updated_scenario(&a.simulated, dir, &d)? {
+        if let Some((path, changes)) = fogtemp_diagnose::write_updated_scenario(&a.simulated, dir, &d)? {
             eprintln!("scenario with the effects found: {}", path.display());
             scenario_changes = changes;
             updated_path = Some(path);
@@ -114,33 +114,4 @@ pub fn diagnose(a: DiagnoseArgs, recorded_ingest: IngestOptions) -> Result<()> {
         eprintln!("diagnosed {} run pairs in {seconds:.1} s", pairs.len());
     }
     Ok(())
-}
-
-/// When the simulation folder holds the `scenario.toml` it was made from, writes
-/// `DIR/scenario-updated.toml`: that scenario with every effect found (the changes listed
-/// at its top). Returns the path and the changes, or `None` without a scenario.
-fn write_updated_scenario(
-    simulated: &Path,
-    dir: &Path,
-    d: &Diagnosis,
-) -> Result<Option<(PathBuf, Vec<String>)>> {
-    let source = simulated.join("scenario.toml");
-    if !source.is_file() {
-        return Ok(None);
-    }
-    let text = std::fs::read_to_string(&source).with_context(|| format!("reading {}", source.display()))?;
-    let scenario = fogtemp_sim::Scenario::from_toml(&text, &source.display().to_string())?;
-    let (updated, changes) = fogtemp_diagnose::updated_scenario(&scenario, d);
-    let mut out =
-        format!("# {} updated by `fogtemp-cal diagnose` with the effects it found:\n", source.display());
-    if changes.is_empty() {
-        out.push_str("# (none: nothing is left out)\n");
-    }
-    for c in &changes {
-        out.push_str(&format!("# - {c}\n"));
-    }
-    out.push_str(&updated.to_toml()?);
-    let path = dir.join("scenario-updated.toml");
-    crate::output::write_atomic(&path, |w| Ok(w.write_all(out.as_bytes())?))?;
-    Ok(Some((path, changes)))
 }

@@ -1,16 +1,15 @@
 //! `validate`: raw vs compensated bias stability per run and overall, and models compared
 //! on the same logs.
 
-use anyhow::{bail, Context, Result};
+use anyhow::{bail, Result};
 use fogtemp_cal::calibrate::{self, Validation};
 use fogtemp_cal::documents::{ComparedModel, ValidationDocument};
 use fogtemp_cal::metrics::BiasStabilityOptions;
-use fogtemp_cal::runs::{Role, RunsFile};
 use fogtemp_core::Model;
 
 use super::{check_capacity, ingest_options, print_json, read_model, report_skipped};
 use crate::args::{StabilityArgs, ValidateArgs};
-use crate::output::{expand_logs, write_atomic, RowProgress};
+use crate::output::{expand_logs, RowProgress};
 
 fn stability_options(a: &StabilityArgs) -> Result<BiasStabilityOptions> {
     if !a.tau_s.is_finite() || a.tau_s <= 0.0 {
@@ -29,7 +28,10 @@ pub fn validate(a: ValidateArgs) -> Result<()> {
     let blob = read_model(&a.model)?;
     check_capacity(&a.model, &blob, a.capacity)?;
     let model = Model::from_bytes(&blob).map_err(|e| anyhow::anyhow!("{e}"))?;
-    let logs = validation_logs(expand_logs(&a.logs)?, a.runs.as_deref())?;
+    let logs = match a.runs.as_deref() {
+        Some(runs) => fogtemp_cal::runs::validation_logs(expand_logs(&a.logs)?, runs)?,
+        None => expand_logs(&a.logs)?,
+    };
     let ingest = ingest_options(&a.ingest)?;
     super::warn_axis_count(&a.model, model.axis_count(), ingest.format.gyro_columns.len());
     let options = stability_options(&a.stability)?;
@@ -82,13 +84,7 @@ pub fn validate(a: ValidateArgs) -> Result<()> {
             &options.describe(),
         )?;
         if !comparison.is_empty() {
-            let table = comparison_markdown(&comparison);
-            let path = dir.join("report.md");
-            let mut text =
-                std::fs::read_to_string(&path).with_context(|| format!("reading {}", path.display()))?;
-            text = text.replacen("\n## ", &format!("\n{table}\n## "), 1);
-            write_atomic(&path, |w| Ok(w.write_all(text.as_bytes())?))?;
-            fogtemp_cal::report::write_html_beside(&path)?;
+            fogtemp_cal::report::add_comparison_to_validation_report(dir, &comparison)?;
         }
         eprintln!("report: {}", dir.join("report.md").display());
     }
@@ -141,43 +137,4 @@ fn compare_models(
         out.push(ComparedModel::new(path, model, v));
     }
     out
-}
-
-/// The comparison as a Markdown table for the validation report.
-fn comparison_markdown(rows: &[ComparedModel]) -> String {
-    let mut md = String::from(
-        "## Models compared on the same logs\n\n| model | mesh nodes | polynomial terms | raw, deg/h | compensated, deg/h | ratio |\n|---|---|---|---|---|---|\n",
-    );
-    for c in rows {
-        md.push_str(&format!(
-            "| {} | {} | {} | {:.5} | {:.5} | {:.2} |\n",
-            c.model,
-            c.mesh_nodes,
-            c.polynomial_terms,
-            c.raw_bias_stability_dph,
-            c.compensated_bias_stability_dph,
-            c.raw_bias_stability_dph / c.compensated_bias_stability_dph
-        ));
-    }
-    md
-}
-
-/// The logs to validate: with a runs file (which must describe every log, and only them)
-/// that gives roles, the runs with role `val`; else every log.
-fn validation_logs(
-    logs: Vec<std::path::PathBuf>,
-    runs: Option<&std::path::Path>,
-) -> Result<Vec<std::path::PathBuf>> {
-    let Some(path) = runs else { return Ok(logs) };
-    let file = RunsFile::read(path)?;
-    let rows = file.for_logs(&logs)?;
-    if rows.iter().all(|r| r.role.is_none()) {
-        return Ok(logs);
-    }
-    let kept: Vec<_> =
-        logs.iter().zip(rows).filter(|(_, r)| r.role == Some(Role::Val)).map(|(l, _)| l.clone()).collect();
-    if kept.is_empty() {
-        bail!("{}: no run has role 'val': nothing to validate", path.display());
-    }
-    Ok(kept)
 }
