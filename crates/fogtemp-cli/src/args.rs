@@ -429,7 +429,7 @@ pub struct FitArgs {
     #[arg(long, value_parser = positive_finite, hide = true, help_heading = "Mesh")]
     pub mesh_relative_weight: Option<f64>,
     /// Fold assignments the mesh weight's cross-validation averages over (repeated K-fold;
-    /// default 3). A diagnostic, for measuring what the repetition changes.
+    /// default 1). A diagnostic, for measuring what the repetition changes.
     #[arg(long, default_value_t = fogtemp_cal::mesh_fit::CV_REPEATS as u32, value_parser = clap::value_parser!(u32).range(1..=16), hide = true, help_heading = "Mesh")]
     pub mesh_cv_repeats: u32,
     /// Salt of the first of those fold assignments (0: the unsalted one). A diagnostic.
