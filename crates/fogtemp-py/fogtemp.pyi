@@ -123,6 +123,7 @@ def fit(
     temp_scale, temp_offset, gyro_column, gyro_unit, gyro_scale, delimiter, skip_lines, columns,
     sample_rate_hz, comment, decimal_mark ("point" or "comma"), date_column, skip_bad_rows) and runs (a runs file, run,position,input_rate_dph[,role]: as fit --runs, val runs are left out and each run's input rate is subtracted from its gyro). Identifiability warnings (too few runs, heating only,
     ...) are issued as Python warnings and listed in ``Model.fit_report["warnings"]`` (a property).
+    ``report`` (a folder) writes fit-report.md, fit-report.html and the figures, as fit --report.
     ``progress`` shows reading and cross-validation progress on stderr.
     """
 

@@ -179,7 +179,8 @@ fn array_error(e: fogtemp_cal::CalError) -> PyErr {
 /// `sample_rate_hz`, `comment`, `decimal_mark`, `date_column`, `skip_bad_rows`) and `runs`
 /// (a runs file, `run,position,input_rate_dph[,role]`, as `fit --runs`: `val` runs left out,
 /// one position left out at a time by `auto`, each run's input rate subtracted from its gyro);
-/// identifiability warnings as Python warnings. `out` also writes the model
+/// identifiability warnings as Python warnings. `report` (a folder) writes `fit-report.md`,
+/// `fit-report.html` and the figures, as `fit --report`. `out` also writes the model
 /// file; `progress` shows reading and cross-validation progress on stderr. Runs with the GIL
 /// released; Ctrl-C is raised between two logs and between reading and fitting.
 #[pyfunction]
@@ -209,6 +210,14 @@ pub fn fit(
         options::calibration(&mut o, CalibrationConfig { ingest, method, ..CalibrationConfig::default() })?;
     let capacity = o.int("capacity", fogtemp_core::DEFAULT_CAPACITY, options::MIN_CAPACITY, u64::MAX)?;
     let runs_file = o.opt_path("runs")?;
+    let report = o.opt_path("report")?;
+    if let Some(dir) = report.as_ref().filter(|d| d.exists() && !d.is_dir()) {
+        // Checked before the fit, as the command line does.
+        return Err(errors::value(format!(
+            "{}: exists and is not a folder; report= names the folder to write the report into",
+            dir.display()
+        )));
+    }
     if arrays && runs_file.is_some() {
         return Err(PyTypeError::new_err(
             "fit(): runs= names log files by their run names; it applies to log files",
@@ -280,6 +289,12 @@ pub fn fit(
         progress::warn(py, &w.message)?;
     }
     let source = out.as_ref().map_or_else(|| "<fit>".to_string(), |p| p.display().to_string());
+    if let Some(dir) = &report {
+        py.detach(|| {
+            fogtemp_cal::report::write_fit_report_for(dir, Path::new(&source), &fitted, &runs, &warnings)
+        })
+        .map_err(errors::cal)?;
+    }
     let doc = FitDocument::new(Path::new(&source), &fitted, &runs, &digest).with_warnings(warnings);
     let json = serde_json::to_value(&doc).and_then(|v| serde_json::to_string(&v)).ok();
     let model = Model::new(fitted.blob, source, json)?;

@@ -163,6 +163,23 @@ def test_validate_report_is_the_command_lines(mesh_model, poly_model, val_logs, 
         assert mine[name] == theirs[name], name
 
 
+def test_fit_report_is_the_command_lines(cal_logs, tmp_path, cli):
+    # The same files, byte for byte (the model named the same in both); a file where the
+    # report folder should be is refused before the fit.
+    out = tmp_path / "m.fogm"
+    done = cli("fit", "--method", "poly", "--out", out, "--report", tmp_path / "cli", *cal_logs)
+    assert done.returncode == 0, done.stderr
+    fogtemp.fit(cal_logs, method="poly", out=out, report=tmp_path / "py", progress=False)
+    theirs, mine = files_of(tmp_path / "cli"), files_of(tmp_path / "py")
+    assert "fit-report.md" in mine and "fit-report.html" in mine and any(n.endswith(".svg") for n in mine)
+    assert sorted(mine) == sorted(theirs)
+    for name in theirs:
+        assert mine[name] == theirs[name], name
+    (tmp_path / "taken").write_text("x")
+    with pytest.raises(ValueError, match="exists and is not a folder"):
+        fogtemp.fit(cal_logs, method="poly", report=tmp_path / "taken", progress=False)
+
+
 def test_read_log_dataframe_and_columns(val_logs):
     frame = fogtemp.read_log(val_logs[0], as_dataframe=True, progress=False)
     assert list(frame.columns) == ["time_s", "temp_c", "gyro_dph"]

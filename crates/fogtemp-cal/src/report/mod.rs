@@ -728,6 +728,48 @@ pub fn bullet_section(heading: &str, items: &[String]) -> String {
     md
 }
 
+/// `fit --report DIR` (and Python's `fit(report=)`): [`write_fit_report`] with the summary
+/// the command line gives: per axis its method, points, residual, mesh nodes, polynomial terms
+/// and cross-validation table, then the warnings. The model is `fitted`'s blob, named
+/// `model_path` in the report.
+///
+/// # Errors
+/// [`CalError::Io`] when a file cannot be written; the blob's own error if it does not read.
+pub fn write_fit_report_for(
+    dir: &Path,
+    model_path: &Path,
+    fitted: &crate::calibrate::FittedModel,
+    runs: &[crate::calibrate::RunFeatures],
+    warnings: &[crate::identifiability::Warning],
+) -> Result<(), CalError> {
+    let model = fogtemp_core::Model::from_bytes(&fitted.blob).map_err(CalError::SelfCheck)?;
+    let summary: Vec<String> = fitted
+        .axes
+        .iter()
+        .enumerate()
+        .map(|(axis, r)| {
+            let table =
+                r.selection.as_ref().map_or(String::new(), |s| format!("\n\n{}", selection_markdown(axis, s)));
+            format!(
+                "- axis {axis}: {}, {} calibration points, residual RMS {:.5} deg/h, {} mesh nodes, {} polynomial terms{table}",
+                r.method.name(),
+                r.points,
+                r.residual_rms_dph,
+                r.mesh_nodes,
+                r.poly.as_ref().map_or(0, |p| p.terms.len())
+            )
+        })
+        .collect();
+    let mut summary = summary.join("\n").trim_end().to_string();
+    let messages: Vec<String> = warnings.iter().map(|w| w.message.clone()).collect();
+    let warned = bullet_section("Warnings (what the data cannot support):", &messages);
+    if !warned.is_empty() {
+        summary.push_str("\n\n");
+        summary.push_str(warned.trim_end());
+    }
+    write_fit_report(dir, model_path, &model, runs, &summary)
+}
+
 /// Writes `fit-report.md` and its figures into `dir` for a fit: calibration runs
 /// (features and raw gyro), and per axis the mesh with the calibration points.
 ///

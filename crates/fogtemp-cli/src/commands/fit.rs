@@ -8,7 +8,7 @@ use fogtemp_cal::poly_fit::TermSelection;
 use fogtemp_cal::runs::{Role, RunsFile};
 use fogtemp_cal::selection::{CvScheme, CvScoring, Grouping, RuleScale, SelectionOptions};
 use fogtemp_cal::thin::GreedyThinning;
-use fogtemp_core::{FeatureSettings, Model};
+use fogtemp_core::FeatureSettings;
 
 use super::{capacity_fits, ingest_options, print_json, report_skipped, warn_if_mostly_gaps};
 use crate::args::{
@@ -139,34 +139,7 @@ pub fn fit(a: FitArgs) -> Result<()> {
     }
     write_atomic(&a.out, |w| Ok(w.write_all(blob)?))?;
     if let Some(dir) = &a.report {
-        let model = Model::from_bytes(blob).map_err(|e| anyhow::anyhow!("{e}"))?;
-        let summary: Vec<String> = reports
-            .iter()
-            .enumerate()
-            .map(|(axis, r)| {
-                let table = r
-                    .selection
-                    .as_ref()
-                    .map_or(String::new(), |s| format!("\n\n{}", fogtemp_cal::report::selection_markdown(axis, s)));
-                format!(
-                    "- axis {axis}: {}, {} calibration points, residual RMS {:.5} deg/h, {} mesh nodes, {} polynomial terms{table}",
-                    r.method.name(),
-                    r.points,
-                    r.residual_rms_dph,
-                    r.mesh_nodes,
-                    r.poly.as_ref().map_or(0, |p| p.terms.len())
-                )
-            })
-            .collect();
-        let mut summary = summary.join("\n").trim_end().to_string();
-        let messages: Vec<String> = warnings.iter().map(|w| w.message.clone()).collect();
-        let warned =
-            fogtemp_cal::report::bullet_section("Warnings (what the data cannot support):", &messages);
-        if !warned.is_empty() {
-            summary.push_str("\n\n");
-            summary.push_str(warned.trim_end());
-        }
-        fogtemp_cal::report::write_fit_report(dir, &a.out, &model, &runs, &summary)?;
+        fogtemp_cal::report::write_fit_report_for(dir, &a.out, &fitted, &runs, &warnings)?;
         eprintln!("report: {}", dir.join("fit-report.md").display());
     }
     if a.json {
