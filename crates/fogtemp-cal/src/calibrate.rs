@@ -231,6 +231,41 @@ pub fn subtract_input_rates(runs: &mut [RunFeatures], rates_dph: &[f64], axes: u
     true
 }
 
+/// The warning for a log most of whose steps between rows are gaps longer than the tracker's
+/// max gap (a time column read in the wrong unit: ms read as s), or `None`. `unit_hint`
+/// names the setting to check (the command line's `--time-unit`, Python's `time_unit=`).
+pub fn mostly_gaps_note(path: &Path, gaps: &TimeGaps, rows: u64, unit_hint: &str) -> Option<String> {
+    (rows > 2 && gaps.count * 2 > rows).then(|| {
+        format!(
+            "{}: {} of its {} steps between rows are longer than the tracker's max gap of {} s: are its \
+             times in another unit? ({unit_hint} s, ms or us)",
+            path.display(),
+            gaps.count,
+            rows - 1,
+            gaps.longer_than_s
+        )
+    })
+}
+
+/// The warning for a model whose axis count differs from the log's gyro columns (only the
+/// first of them are paired, axis k with the k-th column), or `None`. `column_hint` names the
+/// setting (`--gyro-column`, `gyro_column=`).
+pub fn axis_count_note(
+    model: &str,
+    model_axes: usize,
+    gyro_columns: usize,
+    column_hint: &str,
+) -> Option<String> {
+    (model_axes != gyro_columns).then(|| {
+        format!(
+            "{model} has {model_axes} axes but the log is read with {gyro_columns} gyro column{} ({column_hint}): \
+             only the first {} are used, axis k with the k-th gyro column",
+            if gyro_columns == 1 { "" } else { "s" },
+            model_axes.min(gyro_columns)
+        )
+    })
+}
+
 /// The note for a log's axis whose compensator never corrected a sample (its tracker never
 /// had features), `name` being "LOG axis K" and `consequence` what that left.
 pub fn never_corrected_note(name: &str, consequence: &str) -> String {

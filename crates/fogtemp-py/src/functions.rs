@@ -361,6 +361,9 @@ fn file_runs(
         if let Some(note) = run.gaps.note(&run.path) {
             progress::warn(py, &note)?;
         }
+        if let Some(note) = calibrate::mostly_gaps_note(&run.path, &run.gaps, run.ingest.rows, "time_unit=") {
+            progress::warn(py, &note)?;
+        }
         runs.push(run);
     }
     let digest = py.detach(|| digest_files(&logs))?;
@@ -580,6 +583,12 @@ pub fn validate<'py>(
         logs = fogtemp_cal::runs::validation_logs(logs, path).map_err(errors::cal)?;
     }
     let refs: Vec<&CoreModel<'_>> = models.iter().collect();
+    let gyro_columns = ingest.format.gyro_columns.len();
+    if let Some(note) =
+        calibrate::axis_count_note(&blobs[0].1, models[0].axis_count(), gyro_columns, "gyro_column=")
+    {
+        progress::warn(py, &note)?;
+    }
     // One log at a time (the library's validation of each, in log order), so that Ctrl-C is
     // raised between two logs.
     let mut per_log = Vec::with_capacity(logs.len());
@@ -605,6 +614,12 @@ pub fn validate<'py>(
     }
     for note in calibrate::gap_notes(&validation.runs) {
         progress::warn(py, &note)?;
+    }
+    for r in validation.runs.iter().filter(|r| r.axis == 0) {
+        if let Some(note) = calibrate::mostly_gaps_note(&r.path, &r.series.gaps, r.ingest.rows, "time_unit=")
+        {
+            progress::warn(py, &note)?;
+        }
     }
     for note in validation.runs.iter().flat_map(calibrate::RunValidation::coverage_notes) {
         progress::warn(py, &note)?;

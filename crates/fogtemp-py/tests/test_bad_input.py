@@ -334,3 +334,20 @@ def test_integer_keywords_out_of_range_raise_value_error_naming_the_keyword(smal
         fogtemp.fit([run], blocks=2.5, progress=False)
     assert small_model.evaluate([20.0], [0.1], axis=np.int32(0), threads=np.uint8(1)).shape == (1,)
     assert not (tmp_path / "sim").exists()
+
+
+def test_validate_warns_of_a_wrong_time_unit_and_of_unpaired_axes(poly_model, tmp_path):
+    # As the command line warns: a log whose time stamps are milliseconds read as seconds (every
+    # step a gap) and a model whose one axis meets two gyro columns.
+    run = synthetic_runs(runs=1)[0]
+    in_ms = dict(run, time_s=run["time_s"] * 1000.0)
+    write_csv(tmp_path / "ms.csv", in_ms)
+    with pytest.warns(UserWarning, match=r"are its times in another unit\? \(time_unit= s, ms or us\)"):
+        fogtemp.validate(poly_model, [tmp_path / "ms.csv"], progress=False)
+    two = tmp_path / "two.csv"
+    with open(two, "w") as f:
+        f.write("time_s,temp_c,gyro_dph,gyro2_dph\n")
+        for t, c, g in zip(run["time_s"], run["temp_c"], run["gyro_dph"]):
+            f.write(f"{float(t)!r},{'' if np.isnan(c) else repr(float(c))},{float(g)!r},{float(g)!r}\n")
+    with pytest.warns(UserWarning, match=r"has 1 axes but the log is read with 2 gyro columns \(gyro_column=\)"):
+        fogtemp.validate(poly_model, [two], gyro_column=["gyro_dph", "gyro2_dph"], progress=False)

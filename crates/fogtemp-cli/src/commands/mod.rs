@@ -79,29 +79,19 @@ fn capacity_fits(needed: usize, capacity: usize) -> Result<()> {
 /// Warns when most steps between a log's rows are gaps: the usual sign of time stamps read
 /// in the wrong unit (milliseconds read as seconds make every 20 ms step a 20 s gap).
 fn warn_if_mostly_gaps(path: &Path, gaps: &fogtemp_cal::calibrate::TimeGaps, rows: u64) {
-    if rows > 2 && gaps.count * 2 > rows {
-        eprintln!(
-            "warning: {}: {} of its {} steps between rows are longer than the tracker's max gap of {} s: are its \
-             times in another unit? (--time-unit s, ms or us)",
-            path.display(),
-            gaps.count,
-            rows - 1,
-            gaps.longer_than_s
-        );
+    if let Some(note) = fogtemp_cal::calibrate::mostly_gaps_note(path, gaps, rows, "--time-unit") {
+        eprintln!("warning: {note}");
     }
 }
 
 /// Warns when the model's axes and the log's gyro columns differ in number: only the
 /// first `min` of them are paired (axis k with gyro column k).
 fn warn_axis_count(model_path: &Path, model_axes: usize, gyro_columns: usize) {
-    if model_axes != gyro_columns {
-        let used = model_axes.min(gyro_columns);
-        eprintln!(
-            "warning: {} has {model_axes} axes but the log is read with {gyro_columns} gyro column{} (--gyro-column): \
-             only the first {used} are used, axis k with the k-th gyro column",
-            model_path.display(),
-            if gyro_columns == 1 { "" } else { "s" }
-        );
+    let model = model_path.display().to_string();
+    if let Some(note) =
+        fogtemp_cal::calibrate::axis_count_note(&model, model_axes, gyro_columns, "--gyro-column")
+    {
+        eprintln!("warning: {note}");
     }
 }
 
