@@ -1232,6 +1232,27 @@ pub struct Validation {
     pub compensated_bias_stability_dph: f64,
 }
 
+impl Validation {
+    /// The validation of `runs` (in log order): overall, the RMS over them.
+    pub fn from_runs(runs: Vec<RunValidation>) -> Self {
+        let raw = rms_over_runs(&runs.iter().map(|r| r.raw_bias_stability_dph).collect::<Vec<_>>());
+        let comp = rms_over_runs(&runs.iter().map(|r| r.compensated_bias_stability_dph).collect::<Vec<_>>());
+        Self { runs, raw_bias_stability_dph: raw, compensated_bias_stability_dph: comp }
+    }
+
+    /// Each model's validation over several logs from its validations of one log at a time
+    /// (`per_log[log][model]`, as [`validate_models`] returns them for one log).
+    pub fn combine_logs(models: usize, per_log: Vec<Vec<Validation>>) -> Vec<Validation> {
+        let mut runs: Vec<Vec<RunValidation>> = vec![Vec::new(); models];
+        for log in per_log {
+            for (all, v) in runs.iter_mut().zip(log) {
+                all.extend(v.runs);
+            }
+        }
+        runs.into_iter().map(Self::from_runs).collect()
+    }
+}
+
 /// Replays every run and axis and computes bias stability raw vs compensated.
 ///
 /// # Errors
@@ -1318,15 +1339,7 @@ pub(crate) fn validations(
             }
         }
     }
-    Ok(runs
-        .into_iter()
-        .map(|runs| {
-            let raw = rms_over_runs(&runs.iter().map(|r| r.raw_bias_stability_dph).collect::<Vec<_>>());
-            let comp =
-                rms_over_runs(&runs.iter().map(|r| r.compensated_bias_stability_dph).collect::<Vec<_>>());
-            Validation { runs, raw_bias_stability_dph: raw, compensated_bias_stability_dph: comp }
-        })
-        .collect())
+    Ok(runs.into_iter().map(Validation::from_runs).collect())
 }
 
 #[cfg(test)]

@@ -6,7 +6,7 @@ use fogtemp_cal::arrays::{extract_run_arrays, RunArrays};
 use fogtemp_cal::calibrate::{self, CalibrationConfig, Method, RunFeatures, Validation};
 use fogtemp_cal::documents::{AllanDocument, ComparedModel, FitDocument, ValidationDocument};
 use fogtemp_cal::ingest::{read_log_with_progress, IngestOptions, IngestReport};
-use fogtemp_cal::metrics::{rms_over_runs, BiasStabilityOptions};
+use fogtemp_cal::metrics::BiasStabilityOptions;
 use fogtemp_core::Model as CoreModel;
 use numpy::{PyArray1, PyUntypedArrayMethods};
 use pyo3::exceptions::{PyFileNotFoundError, PyTypeError};
@@ -603,7 +603,7 @@ pub fn validate<'py>(
         bar.boundary(py)?;
         per_log.push(outcome.map_err(errors::cal)?);
     }
-    let mut outcomes = combine_validations(refs.len(), per_log);
+    let mut outcomes = Validation::combine_logs(refs.len(), per_log);
     let compared = outcomes.split_off(1.min(outcomes.len()));
     let validation = outcomes.pop().unwrap_or_default();
     for r in validation.runs.iter().filter(|r| r.axis == 0) {
@@ -638,30 +638,6 @@ pub fn validate<'py>(
         py.detach(|| write_validation_report(dir, source, &models[0], &validation, &stability, &comparison))?;
     }
     convert::document(py, &ValidationDocument::new(&stability, &validation, comparison))
-}
-
-/// Each model's validation over every log, from the validations of one log at a time: the
-/// runs in log order, overall the RMS over runs (`fogtemp_cal::metrics::rms_over_runs`), as
-/// `calibrate::validate_models` makes it over all the logs at once.
-fn combine_validations(models: usize, per_log: Vec<Vec<Validation>>) -> Vec<Validation> {
-    let mut runs: Vec<Vec<calibrate::RunValidation>> = vec![Vec::new(); models];
-    for log in per_log {
-        for (all, v) in runs.iter_mut().zip(log) {
-            all.extend(v.runs);
-        }
-    }
-    runs.into_iter()
-        .map(|runs| {
-            let overall = |f: fn(&calibrate::RunValidation) -> f64| {
-                rms_over_runs(&runs.iter().map(f).collect::<Vec<_>>())
-            };
-            Validation {
-                raw_bias_stability_dph: overall(|r| r.raw_bias_stability_dph),
-                compensated_bias_stability_dph: overall(|r| r.compensated_bias_stability_dph),
-                runs,
-            }
-        })
-        .collect()
 }
 
 /// `validate --report DIR`: the library's validation report, and with compared models their

@@ -20,7 +20,7 @@ import fogtemp
 pytestmark = pytest.mark.skipif(not hasattr(signal, "SIGINT") or os.name != "posix", reason="POSIX signals")
 
 # Many links to one large log: minutes of reading in all, a fraction of a second each.
-LINKS = 150
+LINKS = 400
 ROWS = 1_000_000
 # From SIGINT to the child's exit: one log and the interpreter's exit, with room for a loaded machine.
 BOUND_S = 4.0
