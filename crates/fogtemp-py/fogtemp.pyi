@@ -6,9 +6,11 @@ runtime) and fogtemp-sim (the simulator): the same code the ``fogtemp-cal`` comm
 the same JSON documents (as dicts) and the same error messages.
 
 Integer keywords (``blocks``, ``capacity``, ``axis``, ``seed``, ...) outside their range, negative
-ones included, raise ValueError naming the keyword and the range; a non-integer raises TypeError.
-Ctrl-C (KeyboardInterrupt) during ``fit``, ``validate``, ``diagnose`` and the readers is raised at
-the next boundary between logs or stages: the libraries' work on one log is not cut short.
+ones included, raise ValueError naming the keyword and the range; a non-integer (or a bool) raises
+TypeError. Ctrl-C (KeyboardInterrupt) during ``fit``, ``validate``, ``diagnose`` and the readers is
+raised at the next boundary between logs or stages: the libraries' work on one log is not cut
+short, and neither is a fit's cross-validation once it has started (``method="auto"`` on many
+runs: tens of seconds).
 """
 
 import os

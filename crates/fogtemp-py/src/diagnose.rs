@@ -85,7 +85,7 @@ pub fn diagnose<'py>(
         block_coverage: o.f64("block_coverage", 0.9)?,
         ..defaults
     };
-    let report = o.opt_path("report")?;
+    let report = o.report_folder()?;
     o.finish()?;
     if !(bin_s.is_finite() && bin_s > 0.0) {
         return Err(errors::value("bin_s must be positive"));

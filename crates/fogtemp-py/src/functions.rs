@@ -182,7 +182,8 @@ fn array_error(e: fogtemp_cal::CalError) -> PyErr {
 /// identifiability warnings as Python warnings. `report` (a folder) writes `fit-report.md`,
 /// `fit-report.html` and the figures, as `fit --report`. `out` also writes the model
 /// file; `progress` shows reading and cross-validation progress on stderr. Runs with the GIL
-/// released; Ctrl-C is raised between two logs and between reading and fitting.
+/// released; Ctrl-C is raised between two logs and between reading and fitting (the fit's
+/// cross-validation, once started, runs to its end: the library cannot stop it part way).
 #[pyfunction]
 #[pyo3(signature = (logs, method = "auto", *, out = None, progress = true, **options))]
 pub fn fit(
@@ -210,14 +211,7 @@ pub fn fit(
         options::calibration(&mut o, CalibrationConfig { ingest, method, ..CalibrationConfig::default() })?;
     let capacity = o.int("capacity", fogtemp_core::DEFAULT_CAPACITY, options::MIN_CAPACITY, u64::MAX)?;
     let runs_file = o.opt_path("runs")?;
-    let report = o.opt_path("report")?;
-    if let Some(dir) = report.as_ref().filter(|d| d.exists() && !d.is_dir()) {
-        // Checked before the fit, as the command line does.
-        return Err(errors::value(format!(
-            "{}: exists and is not a folder; report= names the folder to write the report into",
-            dir.display()
-        )));
-    }
+    let report = o.report_folder()?;
     if arrays && runs_file.is_some() {
         return Err(PyTypeError::new_err(
             "fit(): runs= names log files by their run names; it applies to log files",
@@ -559,7 +553,7 @@ pub fn validate<'py>(
         None => Vec::new(),
     };
     let runs_file = o.opt_path("runs")?;
-    let report = o.opt_path("report")?;
+    let report = o.report_folder()?;
     o.finish()?;
     let mut blobs = vec![model_arg(model)?];
     for c in &compare {

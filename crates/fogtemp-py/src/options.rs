@@ -114,6 +114,26 @@ impl<'py> Options<'py> {
         }
     }
 
+    /// `report=`: the folder a report is written into, checked before any work as the command
+    /// line checks `--report`: an empty path (which would write into the current folder,
+    /// over what is there) and an existing file are refused.
+    pub fn report_folder(&mut self) -> PyResult<Option<std::path::PathBuf>> {
+        let Some(dir) = self.opt_path("report")? else { return Ok(None) };
+        if dir.as_os_str().is_empty() {
+            return Err(errors::value(format!(
+                "{}(): report= is an empty path: give the folder to write the report into, or None for no report",
+                self.function
+            )));
+        }
+        if dir.exists() && !dir.is_dir() {
+            return Err(errors::value(format!(
+                "{}: exists and is not a folder; report= names the folder to write the report into",
+                dir.display()
+            )));
+        }
+        Ok(Some(dir))
+    }
+
     /// A string or a list of strings.
     pub fn strings(&mut self, key: &str, default: &str) -> PyResult<Vec<String>> {
         match self.get(key)? {
@@ -167,6 +187,10 @@ pub fn int_arg<T: TryFrom<u64>>(
     min: u64,
     max: u64,
 ) -> PyResult<T> {
+    if value.is_instance_of::<pyo3::types::PyBool>() {
+        // `True` is an int to Python, but never what a count, an axis or a seed means.
+        return Err(PyTypeError::new_err(format!("{function}(): {key} must be an integer, got a bool")));
+    }
     let index = value
         .py()
         .import("operator")?
@@ -183,9 +207,9 @@ pub fn int_arg<T: TryFrom<u64>>(
 /// An integer range in the words of the keyword messages: "2 to 4096", "at least 3".
 fn range_words(min: u64, max: u64) -> String {
     if max == u64::MAX && min == 0 {
-        "a non-negative integer".to_string()
+        "a non-negative integer below 2**64".to_string()
     } else if max == u64::MAX {
-        format!("at least {min}")
+        format!("at least {min} and below 2**64")
     } else {
         format!("{min} to {max}")
     }
@@ -294,8 +318,13 @@ fn check_calibration(c: &CalibrationConfig, tolerance_dph: Option<f64>) -> PyRes
     let f = &c.features;
     let positive = |v: f64| v.is_finite() && v > 0.0;
     require("window_s", positive(f64::from(f.window_s)), "positive and finite", f.window_s)?;
-    // The default min_blocks (10) with a smaller blocks.
-    require("min_blocks", (2..=f.block_count).contains(&f.min_blocks), "2 to blocks", f.min_blocks)?;
+    // The default min_blocks (10) with a smaller blocks: named as the command line names it.
+    if !(2..=f.block_count).contains(&f.min_blocks) {
+        return Err(errors::value(format!(
+            "min_blocks {} (the default, 10, unless given) exceeds blocks {}: give min_blocks=2..{} too",
+            f.min_blocks, f.block_count, f.block_count
+        )));
+    }
     require("max_gap_s", positive(f64::from(f.max_gap_s)), "positive and finite", f.max_gap_s)?;
     require("target_window_s", positive(c.target_window_s), "positive and finite", c.target_window_s)?;
     if let Some(t) = tolerance_dph {

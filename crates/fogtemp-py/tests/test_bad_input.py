@@ -310,17 +310,17 @@ def test_integer_keywords_out_of_range_raise_value_error_naming_the_keyword(smal
         (lambda: fogtemp.fit([run], blocks=-1, progress=False), "blocks must be 2 to 4096, got -1"),
         (lambda: fogtemp.fit([run], blocks=2**70, progress=False), f"blocks must be 2 to 4096, got {2**70}"),
         (lambda: fogtemp.fit([run], blocks=50, min_blocks=-1, progress=False), "min_blocks must be 2 to 50, got -1"),
-        (lambda: fogtemp.fit([run], capacity=-5, progress=False), "capacity must be at least 2, got -5"),
-        (lambda: fogtemp.fit([run], max_nodes=-3, progress=False), "max_nodes must be at least 3, got -3"),
+        (lambda: fogtemp.fit([run], capacity=-5, progress=False), "capacity must be at least 2 and below 2**64, got -5"),
+        (lambda: fogtemp.fit([run], max_nodes=-3, progress=False), "max_nodes must be at least 3 and below 2**64, got -3"),
         (lambda: fogtemp.fit([run], max_degree=-1, progress=False), "max_degree must be 0 to 255, got -1"),
-        (lambda: fogtemp.fit([run], settled_every=-2, progress=False), "settled_every must be a non-negative integer, got -2"),
-        (lambda: fogtemp.read_log(log, skip_lines=-1, progress=False), "skip_lines must be a non-negative integer, got -1"),
-        (lambda: fogtemp.validate(small_model, [log], capacity=-1, progress=False), "capacity must be at least 2, got -1"),
-        (lambda: small_model.compensate(t, g, c, capacity=-1), "capacity must be at least 2, got -1"),
-        (lambda: small_model.compensate(t, g, c, axis=-1), "axis must be a non-negative integer, got -1"),
-        (lambda: small_model.evaluate(20.0, 0.1, axis=-1), "axis must be a non-negative integer, got -1"),
-        (lambda: small_model.evaluate(20.0, 0.1, threads=-1), "threads must be a non-negative integer, got -1"),
-        (lambda: fogtemp.simulate(out=tmp_path / "sim", seed=-1, progress=False), "seed must be a non-negative integer, got -1"),
+        (lambda: fogtemp.fit([run], settled_every=-2, progress=False), "settled_every must be a non-negative integer below 2**64, got -2"),
+        (lambda: fogtemp.read_log(log, skip_lines=-1, progress=False), "skip_lines must be a non-negative integer below 2**64, got -1"),
+        (lambda: fogtemp.validate(small_model, [log], capacity=-1, progress=False), "capacity must be at least 2 and below 2**64, got -1"),
+        (lambda: small_model.compensate(t, g, c, capacity=-1), "capacity must be at least 2 and below 2**64, got -1"),
+        (lambda: small_model.compensate(t, g, c, axis=-1), "axis must be a non-negative integer below 2**64, got -1"),
+        (lambda: small_model.evaluate(20.0, 0.1, axis=-1), "axis must be a non-negative integer below 2**64, got -1"),
+        (lambda: small_model.evaluate(20.0, 0.1, threads=-1), "threads must be a non-negative integer below 2**64, got -1"),
+        (lambda: fogtemp.simulate(out=tmp_path / "sim", seed=-1, progress=False), "seed must be a non-negative integer below 2**64, got -1"),
     ]
     for call, message in cases:
         with pytest.raises(ValueError) as caught:
@@ -351,3 +351,43 @@ def test_validate_warns_of_a_wrong_time_unit_and_of_unpaired_axes(poly_model, tm
             f.write(f"{float(t)!r},{'' if np.isnan(c) else repr(float(c))},{float(g)!r},{float(g)!r}\n")
     with pytest.warns(UserWarning, match=r"has 1 axes but the log is read with 2 gyro columns \(gyro_column=\)"):
         fogtemp.validate(poly_model, [two], gyro_column=["gyro_dph", "gyro2_dph"], progress=False)
+
+
+def test_bools_too_large_integers_and_a_default_min_blocks_are_named(small_model, tmp_path):
+    run = synthetic_runs(runs=1)[0]
+    # True is an int to Python but not a count, an axis or a seed.
+    for call in (
+        lambda: fogtemp.fit([run], blocks=True, progress=False),
+        lambda: small_model.evaluate(20.0, 0.1, axis=True),
+        lambda: fogtemp.simulate(out=tmp_path / "s", seed=False, progress=False),
+    ):
+        with pytest.raises(TypeError, match="must be an integer, got a bool"):
+            call()
+    # Too large: the message states the upper limit too.
+    with pytest.raises(ValueError, match=r"capacity must be at least 2 and below 2\*\*64, got 1180591620717411303424"):
+        fogtemp.fit([run], capacity=2**70, progress=False)
+    # blocks below the default min_blocks names both, as the command line does.
+    with pytest.raises(ValueError, match=r"min_blocks 10 \(the default, 10, unless given\) exceeds blocks 5"):
+        fogtemp.fit([run], blocks=5, progress=False)
+
+
+def test_an_empty_or_taken_report_folder_is_refused_before_any_work(small_model, tmp_path, monkeypatch):
+    # report="" would write into the current folder, over what is there; a file is not a folder.
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "report.md").write_text("mine")
+    (tmp_path / "taken").write_text("x")
+    run = synthetic_runs(runs=1)[0]
+    log = tmp_path / "run.csv"
+    write_csv(log, run)
+    calls = {
+        "fit": lambda r: fogtemp.fit([run], method="poly", report=r, progress=False),
+        "validate": lambda r: fogtemp.validate(small_model, [log], report=r, progress=False),
+        "diagnose": lambda r: fogtemp.diagnose(tmp_path / "none", tmp_path / "none", report=r, progress=False),
+    }
+    for name, call in calls.items():
+        with pytest.raises(ValueError, match=r"report= is an empty path"):
+            call("")
+        with pytest.raises(ValueError, match=r"taken: exists and is not a folder"):
+            call(tmp_path / "taken")
+    assert (tmp_path / "report.md").read_text() == "mine"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["report.md", "run.csv", "taken"]
