@@ -8,9 +8,8 @@ the same JSON documents (as dicts) and the same error messages.
 Integer keywords (``blocks``, ``capacity``, ``axis``, ``seed``, ...) outside their range, negative
 ones included, raise ValueError naming the keyword and the range; a non-integer (or a bool) raises
 TypeError. Ctrl-C (KeyboardInterrupt) during ``fit``, ``validate``, ``diagnose`` and the readers is
-raised at the next boundary between logs or stages: the libraries' work on one log is not cut
-short, and neither is a fit's cross-validation once it has started (``method="auto"`` on many
-runs: tens of seconds).
+raised at the next boundary between logs or stages, or in a fit's cross-validation at its next
+held-out run: the libraries' work on one log, and the fits of one fold, are not cut short.
 """
 
 import os

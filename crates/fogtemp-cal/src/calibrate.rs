@@ -896,11 +896,19 @@ pub fn fit_model_with(
     selection: &SelectionOptions,
     progress: impl FnMut(usize, usize),
 ) -> Result<FittedModel, CalError> {
-    let replay_file = |run: usize, models: &[&Model<'_>]| match runs.get(run) {
+    fit_model_replaying(runs, config, input_digest, selection, progress, &replay_files(runs, config))
+}
+
+/// The held-out replay of runs read from files ([`fit_model_with`]'s): run `run` of `runs`
+/// read again from its path and replayed through `models`.
+pub fn replay_files<'a>(
+    runs: &'a [RunFeatures],
+    config: &'a CalibrationConfig,
+) -> impl Fn(usize, &[&Model<'_>]) -> Result<Replay, CalError> + Sync + 'a {
+    move |run, models| match runs.get(run) {
         Some(r) => replay_models(&r.path, models, &config.ingest, 1.0, |_, _| {}),
         None => Err(CalError::Csv { path: PathBuf::new(), line: 0, message: format!("no run {run}") }),
-    };
-    fit_model_replaying(runs, config, input_digest, selection, progress, &replay_file)
+    }
 }
 
 /// [`fit_model_with`] for runs whose logs are not files (arrays in memory): `replay(run,

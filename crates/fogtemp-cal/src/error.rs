@@ -128,6 +128,10 @@ pub enum CalError {
         /// The OS error.
         source: std::io::Error,
     },
+    /// The caller stopped the work (a replay callback returned it, e.g. Python's Ctrl-C during
+    /// a fit's cross-validation).
+    #[error("interrupted")]
+    Interrupted,
 }
 
 /// `:line` for a known line, nothing for 0.

@@ -182,8 +182,8 @@ fn array_error(e: fogtemp_cal::CalError) -> PyErr {
 /// identifiability warnings as Python warnings. `report` (a folder) writes `fit-report.md`,
 /// `fit-report.html` and the figures, as `fit --report`. `out` also writes the model
 /// file; `progress` shows reading and cross-validation progress on stderr. Runs with the GIL
-/// released; Ctrl-C is raised between two logs and between reading and fitting (the fit's
-/// cross-validation, once started, runs to its end: the library cannot stop it part way).
+/// released; Ctrl-C is raised between two logs, between reading and fitting, and in `auto`'s
+/// cross-validation at its next held-out replay (a fold's fits are not cut short).
 #[pyfunction]
 #[pyo3(signature = (logs, method = "auto", *, out = None, progress = true, **options))]
 pub fn fit(
@@ -238,22 +238,8 @@ pub fn fit(
             }),
         };
         let selection = fogtemp_cal::selection::SelectionOptions::default();
-        // Between the stages: after reading, before the fit.
-        py.check_signals()?;
-        let mut bar = Progress::new("cross-validation", progress);
-        let fitted = py.detach(|| {
-            calibrate::fit_model_replaying(
-                &runs,
-                &config,
-                digest,
-                &selection,
-                |k, n| bar.count(k as u64, n as u64, "folds"),
-                &replay,
-            )
-        });
-        bar.finish();
-        bar.boundary(py)?;
-        (fitted.map_err(errors::cal)?, runs, digest)
+        let fitted = interruptible_fit(py, &runs, &config, digest, &selection, progress, &replay)?;
+        (fitted, runs, digest)
     } else {
         let (mut runs, digest, rows) = file_runs(py, &items, &config, progress, runs_file.as_deref())?;
         let mut selection = fogtemp_cal::selection::SelectionOptions::default();
@@ -264,16 +250,11 @@ pub fn fit(
             calibrate::subtract_input_rates(&mut runs, &rates, config.ingest.format.gyro_columns.len());
             selection.positions = Some(rows.into_iter().map(|r| r.position).collect());
         }
-        py.check_signals()?;
-        let mut bar = Progress::new("cross-validation", progress);
-        let fitted = py.detach(|| {
-            calibrate::fit_model_with(&runs, &config, digest, &selection, |k, n| {
-                bar.count(k as u64, n as u64, "folds")
-            })
-        });
-        bar.finish();
-        bar.boundary(py)?;
-        (fitted.map_err(errors::cal)?, runs, digest)
+        let fitted = {
+            let replay = calibrate::replay_files(&runs, &config);
+            interruptible_fit(py, &runs, &config, digest, &selection, progress, &replay)?
+        };
+        (fitted, runs, digest)
     };
     let (fitted, runs, digest) = fitted;
     // The command line's identifiability warnings: Python warnings, and in `fit_report`.
@@ -298,6 +279,61 @@ pub fn fit(
             .map_err(errors::cal)?;
     }
     Ok(model)
+}
+
+/// The fit, with `auto`'s cross-validation stoppable by Ctrl-C: as each fold starts (on this
+/// thread, where Python runs its signal handlers) an interrupt is looked for, and once one
+/// has come the next held-out replay stops the fit (`CalError::Interrupted`); the
+/// `KeyboardInterrupt` is then raised. Checked before the fit too (after reading).
+fn interruptible_fit(
+    py: Python<'_>,
+    runs: &[RunFeatures],
+    config: &CalibrationConfig,
+    digest: [u8; 32],
+    selection: &fogtemp_cal::selection::SelectionOptions,
+    show: bool,
+    replay: &fogtemp_cal::selection::ReplayRun<'_>,
+) -> PyResult<fogtemp_cal::calibrate::FittedModel> {
+    use std::sync::Mutex;
+    py.check_signals()?;
+    // An interrupt seen on this thread (where Python runs its signal handlers), as a fold
+    // starts or before a held-out run is replayed; it stops the fit at the next replay.
+    let interrupt: Mutex<Option<PyErr>> = Mutex::new(None);
+    let on_this_thread = std::thread::current().id();
+    let look = || {
+        if std::thread::current().id() == on_this_thread {
+            if let Err(e) = Python::attach(|py| py.check_signals()) {
+                let mut pending = interrupt.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+                pending.get_or_insert(e);
+            }
+        }
+        interrupt.lock().map_or(true, |p| p.is_some())
+    };
+    let mut bar = Progress::new("cross-validation", show);
+    // Also set when the progress line caught the interrupt while drawing (kept in the bar).
+    let drawn_interrupt = std::sync::atomic::AtomicBool::new(false);
+    let stoppable = |run: usize, models: &[&CoreModel<'_>]| {
+        if look() || drawn_interrupt.load(std::sync::atomic::Ordering::Relaxed) {
+            return Err(fogtemp_cal::CalError::Interrupted);
+        }
+        replay(run, models)
+    };
+    let fitted = py.detach(|| {
+        let progress = |k: usize, n: usize| {
+            bar.count(k as u64, n as u64, "folds");
+            look();
+            if bar.interrupted() {
+                drawn_interrupt.store(true, std::sync::atomic::Ordering::Relaxed);
+            }
+        };
+        calibrate::fit_model_replaying(runs, config, digest, selection, progress, &stoppable)
+    });
+    bar.finish();
+    if let Some(e) = interrupt.into_inner().unwrap_or_else(std::sync::PoisonError::into_inner) {
+        return Err(e);
+    }
+    bar.boundary(py)?;
+    fitted.map_err(errors::cal)
 }
 
 /// What [`file_runs`] reads: each kept log's features, the logs' digest and, with a runs

@@ -70,6 +70,11 @@ impl Progress {
         });
     }
 
+    /// Whether an interrupt arrived while this line was drawn (kept for [`Progress::boundary`]).
+    pub fn interrupted(&self) -> bool {
+        self.interrupt.is_some()
+    }
+
     /// Clears the line if anything was drawn.
     pub fn finish(&mut self) {
         if self.last_drawn.is_some() {

@@ -185,3 +185,45 @@ def test_ctrl_c_while_progress_draws_to_a_python_stderr_is_not_lost(tmp_path):
         child.kill()
         child.wait()
     assert lines == ["drawn", "interrupted"]
+
+
+CV_CHILD = r"""
+import sys, time, warnings
+import numpy as np
+import fogtemp
+warnings.simplefilter("ignore")
+runs = []
+rng = np.random.default_rng(5)
+for k in range(12):  # 12 warm-ups of 1 h at 1 Hz: auto's 12 folds take tens of seconds
+    t = np.arange(3600.0)
+    temp = -40.0 + 8.0 * k + 30.0 * (1.0 - np.exp(-t / 1000.0))
+    rate = np.gradient(temp, t) * 60.0
+    gyro = 0.3 * (temp - 20.0) + 0.002 * (temp - 20.0) ** 2 + 4.0 * rate + rng.normal(0.0, 0.05, t.size)
+    runs.append({"time_s": t, "temp_c": temp, "gyro_dph": gyro})
+print("go", flush=True)
+started = time.monotonic()
+try:
+    fogtemp.fit(runs, method="auto", progress=False)
+    print("finished %.1f" % (time.monotonic() - started), flush=True)
+except KeyboardInterrupt:
+    print("interrupted", flush=True)
+"""
+
+
+def test_ctrl_c_stops_a_fit_during_its_cross_validation():
+    # Reading arrays takes no time: 2 s in, the fit is cross-validating, and Ctrl-C must stop
+    # it at the fold's first held-out replay, not after every fold (it used to run to the end
+    # first). A fold's fits are not cut short: the bound allows one.
+    child = subprocess.Popen([sys.executable, "-c", CV_CHILD], stdout=subprocess.PIPE, text=True)
+    try:
+        assert child.stdout.readline().strip() == "go"
+        time.sleep(2.0)
+        child.send_signal(signal.SIGINT)
+        sent = time.monotonic()
+        out, _ = child.communicate(timeout=600)
+        took_s = time.monotonic() - sent
+    finally:
+        child.kill()
+        child.wait()
+    assert out.strip() == "interrupted", out
+    assert took_s < 2 * BOUND_S, f"KeyboardInterrupt {took_s:.1f} s after Ctrl-C"
