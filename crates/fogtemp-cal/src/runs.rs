@@ -109,6 +109,11 @@ pub enum RunsProblem {
     /// The file has no header.
     #[error("no header row")]
     Empty,
+    /// The path is a folder, not a runs file.
+    #[error(
+        "is a folder: give the runs file (CSV: run,position,input_rate_dph[,role]), e.g. FOLDER/runs.csv"
+    )]
+    Folder,
     /// Roles are given, but no run has role `val`: nothing to validate.
     #[error("no run has role 'val': nothing to validate")]
     NoValidationRun,
@@ -137,6 +142,9 @@ impl RunsFile {
     /// [`CalError::Io`] if it cannot be opened; [`CalError::Runs`] with the line and the
     /// problem otherwise.
     pub fn read(path: &Path) -> Result<Self, CalError> {
+        if path.is_dir() {
+            return Err(problem(path, 0, RunsProblem::Folder));
+        }
         let file =
             std::fs::File::open(path).map_err(|source| CalError::Io { path: path.to_path_buf(), source })?;
         Self::from_reader(file, path)
@@ -312,6 +320,15 @@ mod tests {
         assert_eq!([f.runs[0].line, f.runs[1].line, f.runs[2].line], [2, 3, 4]);
         let plain = parse("run,position,input_rate_dph\nup_poweron_-35C,up,8.958929\n").expect("valid");
         assert_eq!(plain.runs[0].role, None);
+    }
+
+    #[test]
+    fn a_folder_is_named_as_a_folder_not_as_a_line_of_a_file() {
+        let dir = std::env::temp_dir();
+        let e = RunsFile::read(&dir).expect_err("a folder");
+        assert!(matches!(&e, CalError::Runs { line: 0, problem: RunsProblem::Folder, .. }), "{e:?}");
+        let text = e.to_string();
+        assert!(text.contains("is a folder: give the runs file") && !text.contains(":1:"), "{text}");
     }
 
     #[test]

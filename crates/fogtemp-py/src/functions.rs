@@ -609,6 +609,9 @@ pub fn validate<'py>(
     let paths: Vec<PathBuf> =
         as_list(logs)?.iter().map(|l| l.extract::<PathBuf>()).collect::<PyResult<_>>()?;
     let mut logs = expand_logs(&paths)?;
+    if logs.is_empty() {
+        return Err(errors::value("validate() needs at least one log"));
+    }
     if let Some(path) = &runs_file {
         logs = fogtemp_cal::runs::validation_logs(logs, path).map_err(errors::cal)?;
     }

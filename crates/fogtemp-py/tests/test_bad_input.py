@@ -391,3 +391,13 @@ def test_an_empty_or_taken_report_folder_is_refused_before_any_work(small_model,
             call(tmp_path / "taken")
     assert (tmp_path / "report.md").read_text() == "mine"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["report.md", "run.csv", "taken"]
+
+
+def test_validate_without_logs_and_a_runs_folder_are_named(small_model, tmp_path):
+    with pytest.raises(ValueError, match=r"validate\(\) needs at least one log"):
+        fogtemp.validate(small_model, [], progress=False)
+    run = synthetic_runs(runs=1)[0]
+    write_csv(tmp_path / "run.csv", run)
+    with pytest.raises(ValueError, match=r"is a folder: give the runs file") as caught:
+        fogtemp.validate(small_model, [tmp_path / "run.csv"], runs=tmp_path, progress=False)
+    assert ":1:" not in str(caught.value)
