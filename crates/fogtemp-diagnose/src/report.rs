@@ -212,6 +212,7 @@ fn draw_z_key(
     let mut bar = ChartBuilder::on(area)
         .margin_top(80)
         .margin_bottom(80)
+        .margin_right(20)
         .y_label_area_size(40)
         .caption("z", ("sans-serif", 16))
         .build_cartesian_2d(0.0..1.0, -5.0..5.0)

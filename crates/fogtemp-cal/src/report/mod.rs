@@ -358,6 +358,7 @@ pub fn plot_mesh(path: &Path, title: &str, mesh: &MeshFigure) -> Result<(), CalE
         let mut bar = ChartBuilder::on(&legend)
             .margin_top(60)
             .margin_bottom(60)
+            .margin_right(25)
             .y_label_area_size(75)
             .caption("deg/h", ("sans-serif", 16))
             .build_cartesian_2d(0.0..1.0, v0..v1)
