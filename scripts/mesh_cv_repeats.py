@@ -19,28 +19,24 @@ Usage:
 Stdlib only.
 """
 import argparse
-import glob
 import json
 import os
 import statistics
 import tempfile
 
-from testbed_calibration import run_json, runs_with_roles
+from mesh_weight_sweep import case_validator
 
 SINGLE_SALTS = range(6)
 TRIPLE_SALTS = (0, 3)
 
 
 def measure_case(binary, case, tmp):
-    runs = runs_with_roles(case, tmp)
-    logs = sorted(glob.glob(os.path.join(case, "recorded", "*.csv")))
-    model = os.path.join(tmp, "m.fogm")
+    fit_and_validate = case_validator(binary, case, tmp)
 
     def validated(method, extra=()):
-        fit = run_json([binary, "fit", "--method", method, *extra, "--out", model, "--json", *logs, "--runs", runs])
-        doc = run_json([binary, "validate", "--model", model, "--json", *logs, "--runs", runs])
+        fit, stability = fit_and_validate(method, extra)
         smoothing = fit["axes"][0].get("mesh_smoothing") or {}
-        return smoothing.get("relative_weight"), doc["compensated_bias_stability_dph"]
+        return smoothing.get("relative_weight"), stability
 
     out = {"case": case, "poly": validated("poly")[1]}
     for salt in SINGLE_SALTS:

@@ -26,7 +26,10 @@ from testbed_calibration import run_json, runs_with_roles  # runs_with_roles: th
 WEIGHTS = (1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8)
 
 
-def sweep_case(binary, case, tmp):
+def case_validator(binary, case, tmp):
+    """`validated(method, extra)`: `fit --method METHOD EXTRA` on the case's recorded logs (the
+    `up_*` runs by the runs file's roles) and `validate` on its `down_*` runs; returns the fit's
+    JSON and the validation bias stability."""
     runs = runs_with_roles(case, tmp)
     logs = sorted(glob.glob(os.path.join(case, "recorded", "*.csv")))
     model = os.path.join(tmp, "m.fogm")
@@ -35,6 +38,12 @@ def sweep_case(binary, case, tmp):
         fit = run_json([binary, "fit", "--method", method, *extra, "--out", model, "--json", *logs, "--runs", runs])
         doc = run_json([binary, "validate", "--model", model, "--json", *logs, "--runs", runs])
         return fit, doc["compensated_bias_stability_dph"]
+
+    return validated
+
+
+def sweep_case(binary, case, tmp):
+    validated = case_validator(binary, case, tmp)
 
     fit, row = validated("mesh")
     out = {"case": case, "cv_weight": fit["axes"][0]["mesh_smoothing"]["relative_weight"], "cv": row}
