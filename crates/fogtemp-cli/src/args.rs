@@ -410,7 +410,7 @@ pub struct FitArgs {
     /// the smoothed gyro, so the mesh follows the data down to its noise and no further).
     #[arg(long, help_heading = "Mesh", value_parser = positive_finite)]
     pub tolerance_dph: Option<f64>,
-    /// Greedy thinning: at most this many nodes (refinement may add as many again; --no-mesh-refinement).
+    /// Greedy thinning: at most this many nodes, or every point on the convex hull if those are more (refinement may add as many again; --no-mesh-refinement).
     #[arg(long, default_value_t = 600, help_heading = "Mesh", value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(3..))]
     pub max_nodes: usize,
     /// Use each node's own smoothed target as its value (the paper) instead of fitting the
