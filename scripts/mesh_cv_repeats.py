@@ -18,13 +18,9 @@ Usage:
   python3 scripts/mesh_cv_repeats.py --rows R.json
 Stdlib only.
 """
-import argparse
-import json
-import os
 import statistics
-import tempfile
 
-from mesh_weight_sweep import case_validator
+from mesh_weight_sweep import case_validator, run_cases
 
 SINGLE_SALTS = range(6)
 TRIPLE_SALTS = (0, 3)
@@ -78,26 +74,7 @@ def summary(rows):
 
 
 def main():
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--bin", default="target/release/fogtemp-cal")
-    ap.add_argument("--out")
-    ap.add_argument("--rows")
-    ap.add_argument("cases", nargs="*")
-    a = ap.parse_args()
-    if a.rows:
-        with open(a.rows) as f:
-            rows = json.load(f)
-    else:
-        rows = []
-        for case in a.cases:
-            with tempfile.TemporaryDirectory() as tmp:
-                row = measure_case(a.bin, case, tmp)
-            print(json.dumps(row), flush=True)
-            rows.append(row)
-        if a.out:
-            with open(a.out, "w") as f:
-                json.dump(rows, f, indent=1)
-    summary(rows)
+    run_cases(__doc__, measure_case, summary)
 
 
 if __name__ == "__main__":

@@ -65,8 +65,11 @@ def summary(rows):
                   f"worse than poly in {sum(x > 1 for x in q)}")
 
 
-def main():
-    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+def run_cases(doc, measure, summarise):
+    """The command line both sweep scripts share: `measure(binary, case, tmp)` per case folder
+    (one JSON line each), all rows to --out (atomically), then `summarise(rows)`; with --rows,
+    the summary of saved rows (and of any further cases given)."""
+    ap = argparse.ArgumentParser(description=doc, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--bin", default="target/release/fogtemp-cal")
     ap.add_argument("--out")
     ap.add_argument("--rows")
@@ -75,12 +78,16 @@ def main():
     rows = json.load(open(a.rows)) if a.rows else []
     with tempfile.TemporaryDirectory() as tmp:
         for case in a.cases:
-            rows.append(sweep_case(a.bin, case, tmp))
+            rows.append(measure(a.bin, case, tmp))
             print(json.dumps(rows[-1]), flush=True)
     if a.out:
         json.dump(rows, open(a.out + ".tmp", "w"), indent=1)
         os.replace(a.out + ".tmp", a.out)
-    summary(rows)
+    summarise(rows)
+
+
+def main():
+    run_cases(__doc__, sweep_case, summary)
 
 
 if __name__ == "__main__":
