@@ -7,7 +7,9 @@ the same JSON documents (as dicts) and the same error messages.
 
 Integer keywords (``blocks``, ``capacity``, ``axis``, ``seed``, ...) outside their range, negative
 ones included, raise ValueError naming the keyword and the range; a non-integer (or a bool) raises
-TypeError. Ctrl-C (KeyboardInterrupt) during ``fit``, ``validate``, ``diagnose`` and the readers is
+TypeError. Array arguments take numbers (lists, numpy arrays, pandas Series; ``None`` inside a
+list is a missing value, NaN): ``None`` itself, text (``"20"``) and booleans raise TypeError
+rather than being read as NaN, 20.0 and 1.0. Ctrl-C (KeyboardInterrupt) during ``fit``, ``validate``, ``diagnose`` and the readers is
 raised at the next boundary between logs or stages, or in a fit's cross-validation at its next
 held-out run: the libraries' work on one log, and the fits of one fold, are not cut short.
 """

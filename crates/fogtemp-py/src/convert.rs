@@ -8,20 +8,43 @@ use serde::Serialize;
 use crate::errors;
 
 /// `value` as a C-contiguous float64 numpy array (a copy only when it is not one already):
-/// lists, scalars, pandas Series, arrays of any numeric dtype.
+/// lists, scalars, pandas Series, arrays of any numeric dtype. `None` inside a list is a
+/// missing value (NaN), as pandas reads an empty cell.
 ///
 /// # Errors
+/// `TypeError` naming `what` for `None` itself, text (`"20"`, an array of strings) and
+/// booleans, which numpy would turn into NaN, 20.0 and 1.0 without a word;
 /// `ValueError` naming `what` when numpy cannot convert it.
 pub fn f64_array<'py>(value: &Bound<'py, PyAny>, what: &str) -> PyResult<PyReadonlyArrayDyn<'py, f64>> {
     let py = value.py();
+    if value.is_none() {
+        return Err(errors::type_(format!("{what} must be numbers, got None")));
+    }
     let numpy = py.import("numpy")?;
+    let as_is = numpy
+        .call_method1("asarray", (value,))
+        .map_err(|e| errors::value(format!("{what} must be numbers convertible to float64 ({e})")))?;
+    let kind: String = as_is.getattr("dtype")?.getattr("kind")?.extract()?;
+    if let Some(found) = refused_kind(&kind) {
+        return Err(errors::type_(format!("{what} must be numbers, got {found}")));
+    }
     let kwargs = PyDict::new(py);
     kwargs.set_item("dtype", numpy.getattr("float64")?)?;
     kwargs.set_item("order", "C")?;
     let array = numpy
-        .call_method("asarray", (value,), Some(&kwargs))
+        .call_method("asarray", (as_is,), Some(&kwargs))
         .map_err(|e| errors::value(format!("{what} must be numbers convertible to float64 ({e})")))?;
     Ok(array.cast_into::<PyArrayDyn<f64>>()?.readonly())
+}
+
+/// What a numpy dtype kind holds when it is not numbers: text and booleans convert to float64
+/// silently (`"20"` to 20.0, `True` to 1.0), so they are refused rather than read.
+fn refused_kind(kind: &str) -> Option<&'static str> {
+    match kind {
+        "U" | "S" => Some("text (convert it with float() or pandas.to_numeric first)"),
+        "b" => Some("booleans"),
+        _ => None,
+    }
 }
 
 /// The contiguous data of an array from [`f64_array`].

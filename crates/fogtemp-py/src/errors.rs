@@ -65,3 +65,8 @@ pub fn model(source: &str, e: fogtemp_core::Error) -> PyErr {
 pub fn value(message: impl Into<String>) -> PyErr {
     PyValueError::new_err(message.into())
 }
+
+/// `TypeError` with `message`.
+pub fn type_(message: impl Into<String>) -> PyErr {
+    pyo3::exceptions::PyTypeError::new_err(message.into())
+}

@@ -265,8 +265,12 @@ pub fn fit(
     }
     let source = out.as_ref().map_or_else(|| "<fit>".to_string(), |p| p.display().to_string());
     if let Some(dir) = &report {
+        // The report's title names the model's file; "<fit>" would read as an HTML tag there.
+        let title = out
+            .as_ref()
+            .map_or_else(|| "fogtemp.fit() (not saved to a file)".to_string(), |_| source.clone());
         py.detach(|| {
-            fogtemp_cal::report::write_fit_report_for(dir, Path::new(&source), &fitted, &runs, &warnings)
+            fogtemp_cal::report::write_fit_report_for(dir, Path::new(&title), &fitted, &runs, &warnings)
         })
         .map_err(errors::cal)?;
     }

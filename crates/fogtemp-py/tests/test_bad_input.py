@@ -169,7 +169,7 @@ def test_array_runs_with_nan_wrong_shapes_and_lengths(small_model):
         fogtemp.fit([dict(run, time_s=run["time_s"].reshape(-1, 1))], progress=False)
     with pytest.raises(ValueError, match="no 'gyro_dph'"):
         fogtemp.fit([{"time_s": run["time_s"], "temp_c": run["temp_c"]}], progress=False)
-    with pytest.raises(ValueError, match="float64"):
+    with pytest.raises(TypeError, match=r"runs\[0\]\['gyro_dph'\] must be numbers, got text"):
         fogtemp.fit([dict(run, gyro_dph=["x"] * len(run["time_s"]))], progress=False)
     with pytest.raises(TypeError, match="column and unit options apply to log files"):
         fogtemp.fit([run], gyro_unit="rps", progress=False)
@@ -187,7 +187,7 @@ def test_evaluate_and_compensate_refuse_bad_arrays(small_model):
     with pytest.raises(ValueError):
         small_model.evaluate(np.zeros(3), np.zeros(4))
     with pytest.raises(ValueError, match="float64"):
-        small_model.evaluate("abc", 0.0)
+        small_model.evaluate([1.0, [2.0, 3.0]], 0.0)
     t = np.arange(10.0)
     with pytest.raises(ValueError, match="same length"):
         small_model.compensate(t, np.zeros(9), np.zeros(10))
@@ -401,3 +401,16 @@ def test_validate_without_logs_and_a_runs_folder_are_named(small_model, tmp_path
     with pytest.raises(ValueError, match=r"is a folder: give the runs file") as caught:
         fogtemp.validate(small_model, [tmp_path / "run.csv"], runs=tmp_path, progress=False)
     assert ":1:" not in str(caught.value)
+
+
+def test_none_text_and_booleans_are_not_read_as_numbers(small_model):
+    # numpy alone turns None into NaN, "20" into 20.0 and True into 1.0 without a word.
+    for bad, found in ((None, "got None"), ("20", "got text"), (["20", "21"], "got text"), (True, "got booleans")):
+        with pytest.raises(TypeError, match=f"temp_c must be numbers, {found}"):
+            small_model.evaluate(bad, 0.1)
+    with pytest.raises(TypeError, match="gyro_dph must be numbers, got text"):
+        small_model.compensate(np.arange(3.0), np.array(["1", "2", "3"]), np.zeros(3))
+    # None inside a list is a missing value, as pandas reads an empty cell: NaN out.
+    values = small_model.evaluate([20.0, None], [0.1, 0.1])
+    assert np.isfinite(values[0]) and np.isnan(values[1])
+    assert values[0] == small_model.evaluate(20.0, 0.1)

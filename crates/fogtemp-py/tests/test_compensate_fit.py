@@ -175,6 +175,11 @@ def test_fit_report_is_the_command_lines(cal_logs, tmp_path, cli):
     assert sorted(mine) == sorted(theirs)
     for name in theirs:
         assert mine[name] == theirs[name], name
+    # Without out=, the title says the model was not saved (it said "Fit of <fit>", which
+    # HTML shows as "Fit of ").
+    fogtemp.fit(cal_logs, method="poly", report=tmp_path / "unsaved", progress=False)
+    title = (tmp_path / "unsaved" / "fit-report.md").read_text().splitlines()[0]
+    assert title == "# Fit of fogtemp.fit() (not saved to a file)"
     (tmp_path / "taken").write_text("x")
     with pytest.raises(ValueError, match="exists and is not a folder"):
         fogtemp.fit(cal_logs, method="poly", report=tmp_path / "taken", progress=False)
