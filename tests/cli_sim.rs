@@ -176,6 +176,14 @@ fn simulate_writes_logs_truth_scenario_and_manifest() {
     let up_rate = manifest["runs"][0]["input_rate_dph"].as_f64().expect("rate");
     assert!((up_rate - 9.6682).abs() < 1e-3, "up at 40 N: {up_rate}");
     assert_eq!(manifest["runs"][2]["input_rate_dph"].as_f64(), Some(-up_rate));
+    // The manifest's files are named from its own folder (the command ran elsewhere, with
+    // --out a longer path), so it stays true when the folder is read from anywhere.
+    for (run, name) in manifest["runs"].as_array().expect("runs").iter().zip(NAMES) {
+        assert_eq!(run["file"], format!("{name}.csv"));
+        assert_eq!(run["truth_file"], format!("truth/{name}.csv"));
+        assert!(out.join(run["file"].as_str().expect("file")).is_file(), "{name}");
+        assert!(out.join(run["truth_file"].as_str().expect("truth_file")).is_file(), "{name}");
+    }
 }
 
 /// Byte-identical logs and truth for the same seed (twice from the file, and with the same

@@ -222,12 +222,23 @@ pub fn simulate_to_dir(
         sample_rate_hz: scenario.sample_rate_hz,
         seed: scenario.seed,
         columns: ["time_s", "temp_c", "gyro_dph"],
-        runs: summaries.clone(),
+        runs: summaries.iter().map(relative_to_folder).collect(),
     };
     let json = serde_json::to_vec_pretty(&manifest)
         .map_err(|e| SimError::Serialise { what: "manifest", message: e.to_string() })?;
     write_file_atomic(&dir.join("manifest.json"), |w| w.write_all(&json))?;
     Ok(summaries)
+}
+
+/// A run's summary for `manifest.json`: its files named relative to the simulation's folder
+/// (`NAME.csv`, `truth/NAME.csv`), so that the manifest stays true wherever the folder is read
+/// from or moved to (the summary itself keeps the paths as written, for its caller).
+fn relative_to_folder(run: &RunSummary) -> RunSummary {
+    RunSummary {
+        file: PathBuf::from(format!("{}.csv", run.name)),
+        truth_file: Path::new("truth").join(format!("{}.csv", run.name)),
+        ..run.clone()
+    }
 }
 
 /// `manifest.json` of a simulation folder: what each log is.
