@@ -138,16 +138,19 @@ def read_log(
 def read_log(path: PathLike, *, as_dataframe: Literal[True], progress: bool = True, **options: Any) -> Any: ...
 def validate(
     model: Union[Model, PathLike],
-    logs: Union[PathLike, Sequence[PathLike]],
+    logs: Union[PathLike, Run, Sequence[Union[PathLike, Run]]],
     *,
     progress: bool = True,
     **options: Any,
 ) -> Dict[str, Any]:
     """The ``fogtemp-cal validate --json`` document: raw vs compensated bias stability.
-    Options: tau_s, overlapping, detrend, exclude_first_s, capacity, compare, log-column options,
+    ``logs``: paths or folders, or runs given as arrays (dicts or DataFrames with time_s, temp_c,
+    gyro_dph, as ``fit`` takes them; named ``runs[i]`` in the document): each is replayed
+    through the firmware's Compensator with the row rules a log file holding the same samples
+    gets. Options: tau_s, overlapping, detrend, exclude_first_s, capacity, compare, log-column options,
     runs (a runs file, run,position,input_rate_dph[,role], describing every log: as validate --runs,
     when it gives roles only the runs with role "val" are validated; input rates and positions are
-    not used) and report (a folder: as validate --report, report.md, report.html and the SVG
+    not used; log files only) and report (a folder: as validate --report, report.md, report.html and the SVG
     figures, with the table of the ``compare`` models).
     Gaps in a log's time stamps longer than the model's max gap raise a UserWarning
     (``runs[].time_gaps``; the metric's windows they cut: ``runs[].metric_windows``)."""

@@ -1316,8 +1316,13 @@ where
     Ok(validations(1, replays, options)?.pop().unwrap_or_default())
 }
 
-/// Bias stability raw vs compensated per model from the replays of every log.
-pub(crate) fn validations(
+/// Bias stability raw vs compensated per model from the replays of every log: what
+/// [`validate_models`] computes from the logs it replays, for replays made elsewhere (runs
+/// given as arrays: [`crate::arrays::replay_models_arrays`]). One [`Validation`] per model.
+///
+/// # Errors
+/// The first replay that is an error.
+pub fn validations(
     model_count: usize,
     replays: impl Iterator<Item = Result<(PathBuf, Replay), CalError>>,
     options: &BiasStabilityOptions,

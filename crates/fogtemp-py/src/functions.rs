@@ -569,12 +569,14 @@ fn model_arg(value: &Bound<'_, PyAny>) -> PyResult<(Vec<u8>, String)> {
 /// Replays validation logs through the model exactly as firmware would (the command line's
 /// `validate --json`): raw vs compensated bias stability per run and overall.
 ///
-/// `model` is a `Model` or a path; `logs` paths or folders. Keywords: `tau_s`,
+/// `model` is a `Model` or a path; `logs` paths or folders, or runs given as arrays (dicts or
+/// DataFrames with `time_s`, `temp_c` and `gyro_dph`, as `fit` takes them: the same row rules
+/// and the same replay as a log file holding those samples). Keywords: `tau_s`,
 /// `overlapping`, `detrend`, `exclude_first_s`, `capacity`, `compare` (a list of further
 /// models replayed on the same logs), `runs` (a runs file describing every log, as
 /// `validate --runs`: when it gives roles, only the `val` runs are validated), `report` (a
 /// folder: `report.md`, `report.html` and the figures, as `validate --report`), and the
-/// log-column options. Ctrl-C is raised between two logs.
+/// log-column options (files only; `runs` too). Ctrl-C is raised between two logs.
 #[pyfunction]
 #[pyo3(signature = (model, logs, *, progress = true, **options))]
 pub fn validate<'py>(
@@ -584,7 +586,17 @@ pub fn validate<'py>(
     progress: bool,
     options: Option<&Bound<'py, PyDict>>,
 ) -> PyResult<Bound<'py, PyAny>> {
+    let items = as_list(logs)?;
+    if items.is_empty() {
+        return Err(errors::value("validate() needs at least one log or run"));
+    }
+    let arrays = convert::is_arrays(&items[0])?;
     let mut o = Options::new("validate", options);
+    if arrays && o.any_given(&COLUMN_KEYS[..COLUMN_KEYS.len() - 1])? {
+        return Err(PyTypeError::new_err(
+            "validate(): column and unit options apply to log files; runs given as arrays are in time_s, temp_c, gyro_dph",
+        ));
+    }
     let ingest = options::ingest(&mut o)?;
     let stability = options::stability(&mut o)?;
     let capacity = o.int("capacity", fogtemp_core::DEFAULT_CAPACITY, options::MIN_CAPACITY, u64::MAX)?;
@@ -595,6 +607,11 @@ pub fn validate<'py>(
     let runs_file = o.opt_path("runs")?;
     let report = o.report_folder()?;
     o.finish()?;
+    if arrays && runs_file.is_some() {
+        return Err(PyTypeError::new_err(
+            "validate(): runs= names log files by their run names; it applies to log files",
+        ));
+    }
     let mut blobs = vec![model_arg(model)?];
     for c in &compare {
         blobs.push(model_arg(c)?);
@@ -610,49 +627,51 @@ pub fn validate<'py>(
                 .map_err(|e| errors::value(format!("{source} axis {index}: {}", e.value(py))))?;
         }
     }
-    let paths: Vec<PathBuf> =
-        as_list(logs)?.iter().map(|l| l.extract::<PathBuf>()).collect::<PyResult<_>>()?;
-    let mut logs = expand_logs(&paths)?;
-    if logs.is_empty() {
-        return Err(errors::value("validate() needs at least one log"));
-    }
-    if let Some(path) = &runs_file {
-        logs = fogtemp_cal::runs::validation_logs(logs, path).map_err(errors::cal)?;
-    }
     let refs: Vec<&CoreModel<'_>> = models.iter().collect();
-    let gyro_columns = ingest.format.gyro_columns.len();
-    if let Some(note) =
-        calibrate::axis_count_note(&blobs[0].1, models[0].axis_count(), gyro_columns, "gyro_column=")
-    {
-        progress::warn(py, &note)?;
-    }
-    // One log at a time (the library's validation of each, in log order), so that Ctrl-C is
-    // raised between two logs.
-    let mut per_log = Vec::with_capacity(logs.len());
-    for log in &logs {
-        let mut bar = Progress::new(format!("validate {}", file_name(log)), progress);
-        let outcome = py.detach(|| {
-            calibrate::validate_models(std::slice::from_ref(log), &refs, &ingest, &stability, |_, b, r| {
-                bar.rows(b, r);
-            })
-        });
-        bar.finish();
-        bar.boundary(py)?;
-        per_log.push(outcome.map_err(errors::cal)?);
-    }
+    let per_log = if arrays {
+        let runs =
+            items.iter().enumerate().map(|(i, r)| ArrayRun::new(i, r)).collect::<PyResult<Vec<_>>>()?;
+        if let Some(note) = calibrate::axis_count_note(
+            &blobs[0].1,
+            models[0].axis_count(),
+            runs[0].gyros_dph.len(),
+            "gyro_dph",
+        ) {
+            progress::warn(py, &note)?;
+        }
+        validate_array_runs(py, &runs, &refs, ingest, &stability)?
+    } else {
+        let paths: Vec<PathBuf> = items.iter().map(|l| l.extract::<PathBuf>()).collect::<PyResult<_>>()?;
+        let mut logs = expand_logs(&paths)?;
+        if logs.is_empty() {
+            return Err(errors::value("validate() needs at least one log"));
+        }
+        if let Some(path) = &runs_file {
+            logs = fogtemp_cal::runs::validation_logs(logs, path).map_err(errors::cal)?;
+        }
+        let gyro_columns = ingest.format.gyro_columns.len();
+        if let Some(note) =
+            calibrate::axis_count_note(&blobs[0].1, models[0].axis_count(), gyro_columns, "gyro_column=")
+        {
+            progress::warn(py, &note)?;
+        }
+        validate_log_files(py, &logs, &refs, &ingest, &stability, progress)?
+    };
     let mut outcomes = Validation::combine_logs(refs.len(), per_log);
     let compared = outcomes.split_off(1.min(outcomes.len()));
     let validation = outcomes.pop().unwrap_or_default();
     for r in validation.runs.iter().filter(|r| r.axis == 0) {
         if r.ingest.rows == 0 {
-            return Err(errors::value(format!("{}: no data rows (only a header)", r.path.display())));
+            let what = if arrays { "no samples" } else { "no data rows (only a header)" };
+            return Err(errors::value(format!("{}: {what}", r.path.display())));
         }
         warn_skipped(py, &r.ingest)?;
     }
     for note in calibrate::gap_notes(&validation.runs) {
         progress::warn(py, &note)?;
     }
-    for r in validation.runs.iter().filter(|r| r.axis == 0) {
+    // A log's time unit is a setting; arrays are in seconds (as fit() reads them).
+    for r in validation.runs.iter().filter(|r| r.axis == 0 && !arrays) {
         if let Some(note) = calibrate::mostly_gaps_note(&r.path, &r.series.gaps, r.ingest.rows, "time_unit=")
         {
             progress::warn(py, &note)?;
@@ -675,6 +694,69 @@ pub fn validate<'py>(
         py.detach(|| write_validation_report(dir, source, &models[0], &validation, &stability, &comparison))?;
     }
     convert::document(py, &ValidationDocument::new(&stability, &validation, comparison))
+}
+
+/// Every log file replayed through every model, one log at a time (the library's validation
+/// of each, in log order), so that Ctrl-C is raised between two logs.
+fn validate_log_files(
+    py: Python<'_>,
+    logs: &[PathBuf],
+    models: &[&CoreModel<'_>],
+    ingest: &IngestOptions,
+    stability: &BiasStabilityOptions,
+    progress: bool,
+) -> PyResult<Vec<Vec<Validation>>> {
+    let mut per_log = Vec::with_capacity(logs.len());
+    for log in logs {
+        let mut bar = Progress::new(format!("validate {}", file_name(log)), progress);
+        let outcome = py.detach(|| {
+            calibrate::validate_models(std::slice::from_ref(log), models, ingest, stability, |_, b, r| {
+                bar.rows(b, r);
+            })
+        });
+        bar.finish();
+        bar.boundary(py)?;
+        per_log.push(outcome.map_err(errors::cal)?);
+    }
+    Ok(per_log)
+}
+
+/// Every run given as arrays replayed through every model with the row rules and the
+/// `Compensator` a log file gets (`fogtemp_cal::arrays::replay_models_arrays`), one run at a
+/// time (Ctrl-C between two). Every run needs as many gyro columns as the first.
+fn validate_array_runs(
+    py: Python<'_>,
+    runs: &[ArrayRun<'_>],
+    models: &[&CoreModel<'_>],
+    ingest: IngestOptions,
+    stability: &BiasStabilityOptions,
+) -> PyResult<Vec<Vec<Validation>>> {
+    let axes = runs[0].gyros_dph.len();
+    if let Some(run) = runs.iter().find(|r| r.gyros_dph.len() != axes) {
+        return Err(errors::value(format!(
+            "{}['gyro_dph'] has {} columns but runs[0]['gyro_dph'] has {axes}: every run needs the same axes",
+            run.name.display(),
+            run.gyros_dph.len()
+        )));
+    }
+    let mut config = CalibrationConfig { ingest, ..CalibrationConfig::default() };
+    config.ingest.format.gyro_columns = (0..axes).map(|k| format!("gyro_dph[{k}]")).collect();
+    let mut per_run = Vec::with_capacity(runs.len());
+    for run in runs {
+        let columns = ArrayColumns::new(run)?;
+        let view = columns.view();
+        let outcome = py.detach(|| {
+            let replay = fogtemp_cal::arrays::replay_models_arrays(&view, models, &config, 1.0)?;
+            calibrate::validations(
+                models.len(),
+                std::iter::once(Ok((view.name.to_path_buf(), replay))),
+                stability,
+            )
+        });
+        py.check_signals()?;
+        per_run.push(outcome.map_err(array_error)?);
+    }
+    Ok(per_run)
 }
 
 /// `validate --report DIR`: the library's validation report, and with compared models their

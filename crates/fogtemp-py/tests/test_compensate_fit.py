@@ -237,3 +237,46 @@ def test_several_axes_from_two_dimensional_gyro_arrays():
     # Twice the gyro: the same terms selected (the stepwise tests are scale-free), twice the
     # coefficients, up to the f32 storage of the blob.
     np.testing.assert_allclose(both.evaluate(t, r, axis=1), 2.0 * single.evaluate(t, r), rtol=1e-5, atol=1e-4)
+
+
+def test_validate_runs_given_as_arrays_is_validate_of_the_same_samples_as_files(tmp_path):
+    # Oracle: the same samples written as CSV logs (repr() reads back the same float64) and
+    # validated from the files; every figure must be equal, run by run.
+    runs = synthetic_runs(seed=11, runs=4)
+    model = fogtemp.fit(runs[:3], method="poly", progress=False)
+    paths = []
+    for k, run in enumerate(runs):
+        paths.append(tmp_path / f"r{k}.csv")
+        write_csv(paths[-1], run)
+    from_files = fogtemp.validate(model, paths, progress=False)
+    from_arrays = fogtemp.validate(model, runs, progress=False)
+    assert [r["path"] for r in from_arrays["runs"]] == [f"runs[{k}]" for k in range(4)]
+    keys = ("raw_bias_stability_dph", "compensated_bias_stability_dph", "samples", "flag_samples", "metric_windows")
+    for a, f in zip(from_arrays["runs"], from_files["runs"]):
+        assert {k: a[k] for k in keys} == {k: f[k] for k in keys}
+    for k in ("raw_bias_stability_dph", "compensated_bias_stability_dph"):
+        assert from_arrays[k] == from_files[k]
+    assert from_arrays["compensated_bias_stability_dph"] < from_arrays["raw_bias_stability_dph"]
+    # A DataFrame is a run too; compare= replays further models on the same arrays.
+    frame = fogtemp.read_log(paths[3], as_dataframe=True, progress=False)
+    both = fogtemp.validate(model, [frame], compare=[model], progress=False)
+    assert both["runs"][0]["compensated_bias_stability_dph"] == from_files["runs"][3]["compensated_bias_stability_dph"]
+    assert [c["compensated_bias_stability_dph"] for c in both["comparison"]] == [both["compensated_bias_stability_dph"]] * 2
+
+
+def test_validate_runs_given_as_arrays_refuses_file_options_and_mixed_axes(tmp_path):
+    runs = synthetic_runs(seed=11, runs=3)
+    model = fogtemp.fit(runs, method="poly", progress=False)
+    with pytest.raises(TypeError, match="column and unit options apply to log files"):
+        fogtemp.validate(model, runs, temp_column="T", progress=False)
+    (tmp_path / "runs.csv").write_text("run,position,input_rate_dph\nr0,a,0\n")
+    with pytest.raises(TypeError, match="runs= names log files"):
+        fogtemp.validate(model, runs, runs=tmp_path / "runs.csv", progress=False)
+    two_axes = dict(runs[1], gyro_dph=np.stack([runs[1]["gyro_dph"]] * 2, axis=1))
+    with pytest.raises(ValueError, match=r"runs\[1\]\['gyro_dph'\] has 2 columns but runs\[0\]\['gyro_dph'\] has 1"):
+        fogtemp.validate(model, [runs[0], two_axes], progress=False)
+    bad = dict(runs[0], gyro_dph=runs[0]["gyro_dph"].copy())
+    bad["gyro_dph"][5] = np.nan
+    with pytest.raises(ValueError, match=r"runs\[0\]: sample 5: gyro_dph"):
+        fogtemp.validate(model, [bad], progress=False)
+    assert np.isfinite(fogtemp.validate(model, [bad], skip_bad_rows=True, progress=False)["compensated_bias_stability_dph"])
