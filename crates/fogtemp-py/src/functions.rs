@@ -391,7 +391,7 @@ fn file_runs(
         if run.ingest.rows == 0 {
             return Err(errors::value(format!("{}: no data rows (only a header)", log.display())));
         }
-        warn_skipped(py, &run.ingest)?;
+        warn_skipped(py, &run.ingest, false)?;
         if let Some(note) = run.gaps.note(&run.path) {
             progress::warn(py, &note)?;
         }
@@ -449,7 +449,7 @@ fn array_features(
         if f.ingest.rows == 0 {
             return Err(errors::value(format!("{}: no samples", run.name.display())));
         }
-        warn_skipped(py, &f.ingest)?;
+        warn_skipped(py, &f.ingest, true)?;
         if let Some(note) = f.gaps.note(&f.path) {
             progress::warn(py, &note)?;
         }
@@ -462,25 +462,25 @@ fn file_name(p: &Path) -> String {
     p.file_name().map_or_else(|| p.display().to_string(), |n| n.to_string_lossy().into_owned())
 }
 
-/// Warns about skipped rows, in the command line's words (nothing is dropped silently).
-fn warn_skipped(py: Python<'_>, report: &IngestReport) -> PyResult<()> {
+/// Warns about skipped rows, in the command line's words (nothing is dropped silently); for
+/// runs given as arrays (`samples`), in the words of `fit`'s errors: sample indices, not lines.
+fn warn_skipped(py: Python<'_>, report: &IngestReport, samples: bool) -> PyResult<()> {
     if report.skipped == 0 {
         return Ok(());
     }
+    let unit = if samples { "samples" } else { "rows" };
     let mut text = format!(
-        "{}: skipped {} bad rows (skip_bad_rows); first ones:",
+        "{}: skipped {} bad {unit} (skip_bad_rows); first ones:",
         report.path.display(),
         report.skipped
     );
     for b in &report.first_skipped {
-        text.push_str(&format!(
-            "\n  line {} column {} '{}': {} (found '{}')",
-            b.line,
-            b.column,
-            b.column_name,
-            b.kind.describe(),
-            b.found
-        ));
+        let place = if samples {
+            format!("sample {} '{}'", b.line, b.column_name)
+        } else {
+            format!("line {} column {} '{}'", b.line, b.column, b.column_name)
+        };
+        text.push_str(&format!("\n  {place}: {} (found '{}')", b.kind.describe(), b.found));
     }
     progress::warn(py, &text)
 }
@@ -528,7 +528,7 @@ pub fn read_log<'py>(
     bar.finish();
     bar.boundary(py)?;
     let report = report.map_err(errors::cal)?;
-    warn_skipped(py, &report)?;
+    warn_skipped(py, &report, false)?;
     let dict = PyDict::new(py);
     dict.set_item("time_s", PyArray1::from_vec(py, time))?;
     let named = |base: &str, k: usize, count: usize| {
@@ -665,7 +665,7 @@ pub fn validate<'py>(
             let what = if arrays { "no samples" } else { "no data rows (only a header)" };
             return Err(errors::value(format!("{}: {what}", r.path.display())));
         }
-        warn_skipped(py, &r.ingest)?;
+        warn_skipped(py, &r.ingest, arrays)?;
     }
     for note in calibrate::gap_notes(&validation.runs) {
         progress::warn(py, &note)?;
@@ -854,7 +854,7 @@ pub fn allan<'py>(
     bar.finish();
     bar.boundary(py)?;
     let series = series.map_err(errors::cal)?;
-    warn_skipped(py, &series.report)?;
+    warn_skipped(py, &series.report, false)?;
     let doc = py
         .detach(|| AllanDocument::new(&path, &ingest.format.gyro_columns, &series.time_s, &series.gyros_dph))
         .ok_or_else(|| errors::value(format!("{}: the log needs at least two rows", path.display())))?;
