@@ -170,15 +170,20 @@ def simulate(
     """The ``fogtemp-cal simulate --json`` document, after writing the logs into ``out``."""
 
 def diagnose(
-    simulated: PathLike,
-    recorded: PathLike,
+    simulated: Union[PathLike, Mapping[str, Run]],
+    recorded: Union[PathLike, Mapping[str, Run]],
     runs: Optional[PathLike] = None,
     *,
     progress: bool = True,
     **options: Any,
 ) -> Dict[str, Any]:
     """The ``fogtemp-cal diagnose --json`` document: simulated vs recorded logs paired by file name.
+    Either side may instead be a dict of runs given as arrays keyed by run name (each a dict or
+    DataFrame with time_s, temp_c, gyro_dph, as ``fit`` takes them): a run keyed ``a`` pairs with a
+    log ``a.csv``, a runs file's row ``a`` describes it, and the document names it ``a.csv``; the
+    samples get the row rules a log holding them gets. Without ``runs`` and a simulation folder's
+    manifest.json, the runs' positions and input rates are unknown.
     Options: mean_window_s, bin_s, rate_window_s, window_coverage, block_coverage, log-column options
-    (for the recorded logs) and report (a folder: as diagnose --report, report.md, report.html and
+    (for recorded log files; skip_bad_rows for recorded arrays too) and report (a folder: as diagnose --report, report.md, report.html and
     the SVG figures, and when ``simulated`` holds its scenario.toml, scenario-updated.toml with the
     effects found; the document's ``updated_scenario`` names it, ``scenario_changes`` lists them)."""

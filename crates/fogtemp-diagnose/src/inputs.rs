@@ -6,8 +6,9 @@
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::{Path, PathBuf};
 
+use fogtemp_cal::arrays::{visit_rows, RunArrays};
 use fogtemp_cal::calibrate::TimeGaps;
-use fogtemp_cal::ingest::{read_log_with_progress, IngestOptions};
+use fogtemp_cal::ingest::{read_log_with_progress, IngestOptions, Row};
 use fogtemp_cal::runs::RunsFile;
 use fogtemp_cal::CalError;
 
@@ -51,6 +52,51 @@ impl ReadSeries {
     }
 }
 
+/// Rows into `bin_s` means, with the gaps between rows longer than two bins: the one binning
+/// of [`read_series`] and [`series_from_arrays`].
+struct Binning {
+    series: RunSeries,
+    acc: Bin,
+    gaps: TimeGaps,
+    previous_s: Option<f64>,
+    bin_s: f64,
+}
+
+impl Binning {
+    fn new(name: String, meta: RunMeta, bin_s: f64) -> Self {
+        Self {
+            series: RunSeries { name, meta, ..RunSeries::default() },
+            acc: (i64::MIN, 0.0, 0.0, 0.0, 0.0, 0.0),
+            gaps: TimeGaps::new(2.0 * bin_s),
+            previous_s: None,
+            bin_s,
+        }
+    }
+
+    fn add(&mut self, row: &Row<'_>) {
+        self.gaps.observe(self.previous_s, row.time_s, row.line);
+        self.previous_s = Some(row.time_s);
+        let bin = (row.time_s / self.bin_s).floor() as i64;
+        if bin != self.acc.0 {
+            flush(&mut self.series, &self.acc);
+            self.acc = (bin, 0.0, 0.0, 0.0, 0.0, 0.0);
+        }
+        self.acc.1 += 1.0;
+        self.acc.2 += row.time_s;
+        let temp = row.temp_c_for_axis(0);
+        if temp.is_finite() {
+            self.acc.3 += 1.0;
+            self.acc.4 += temp;
+        }
+        self.acc.5 += row.gyros_dph.first().copied().unwrap_or(f64::NAN);
+    }
+
+    fn finish(mut self, skipped: u64) -> ReadSeries {
+        flush(&mut self.series, &self.acc);
+        ReadSeries { series: self.series, skipped, gaps: self.gaps }
+    }
+}
+
 /// Reads a log into `bin_s` means of time, temperature and gyro (axis 0). Bins without a
 /// temperature reading keep NaN temperature. `progress(bytes, rows)` is called as the file is
 /// read.
@@ -65,38 +111,40 @@ pub fn read_series(
     meta: RunMeta,
     progress: impl FnMut(u64, u64),
 ) -> Result<ReadSeries, DiagnoseError> {
-    let mut series = RunSeries { name: file_name(path), meta, ..RunSeries::default() };
-    let mut acc: Bin = (i64::MIN, 0.0, 0.0, 0.0, 0.0, 0.0);
-    let mut gaps = TimeGaps::new(2.0 * bin_s);
-    let mut previous_s = None;
+    let mut binning = Binning::new(file_name(path), meta, bin_s);
     let report = read_log_with_progress(
         path,
         ingest,
         |row| {
-            gaps.observe(previous_s, row.time_s, row.line);
-            previous_s = Some(row.time_s);
-            let bin = (row.time_s / bin_s).floor() as i64;
-            if bin != acc.0 {
-                flush(&mut series, &acc);
-                acc = (bin, 0.0, 0.0, 0.0, 0.0, 0.0);
-            }
-            acc.1 += 1.0;
-            acc.2 += row.time_s;
-            let temp = row.temp_c_for_axis(0);
-            if temp.is_finite() {
-                acc.3 += 1.0;
-                acc.4 += temp;
-            }
-            acc.5 += row.gyros_dph.first().copied().unwrap_or(f64::NAN);
+            binning.add(row);
             Ok(())
         },
         progress,
     )?;
-    flush(&mut series, &acc);
     if report.rows == 0 {
         return Err(DiagnoseError::NoDataRows { path: path.to_path_buf() });
     }
-    Ok(ReadSeries { series, skipped: report.skipped, gaps })
+    Ok(binning.finish(report.skipped))
+}
+
+/// [`read_series`] for a run given as arrays (`fogtemp_cal::arrays`: the row rules a log
+/// holding the same samples gets), named by `run.name`'s file name as a log is.
+///
+/// # Errors
+/// [`DiagnoseError::Cal`] for arrays of the wrong shape or a bad sample (unless
+/// `skip_bad_rows`); [`DiagnoseError::NoDataRows`] when no sample is accepted.
+pub fn series_from_arrays(
+    run: &RunArrays<'_>,
+    skip_bad_rows: bool,
+    bin_s: f64,
+    meta: RunMeta,
+) -> Result<ReadSeries, DiagnoseError> {
+    let mut binning = Binning::new(file_name(run.name), meta, bin_s);
+    let report = visit_rows(run, run.gyros_dph.len(), skip_bad_rows, |row| binning.add(row))?;
+    if report.rows == 0 {
+        return Err(DiagnoseError::NoDataRows { path: run.name.to_path_buf() });
+    }
+    Ok(binning.finish(report.skipped))
 }
 
 /// Run metadata from `DIR/manifest.json` (written by `simulate`), keyed by file name; empty
@@ -293,5 +341,41 @@ mod tests {
         let err = read_series(&path, &IngestOptions::default(), 1.0, RunMeta::default(), |_, _| {})
             .expect_err("header only");
         assert_eq!(err.to_string(), format!("{}: no data rows (only a header)", path.display()));
+    }
+
+    #[test]
+    fn arrays_give_the_series_a_log_of_the_same_samples_gives() {
+        // 10 Hz for 40 s from t = 100 s, a temperature reading on every 7th sample, a 5 s gap;
+        // the log writes each value with Rust's shortest round-trip text.
+        let time: Vec<f64> =
+            (0..400).map(|k| 100.0 + f64::from(k) * 0.1 + if k >= 250 { 5.0 } else { 0.0 }).collect();
+        let temp: Vec<f64> =
+            (0..400).map(|k| if k % 7 == 0 { 20.0 + 0.013 * f64::from(k) } else { f64::NAN }).collect();
+        let gyro: Vec<f64> = (0..400).map(|k| (f64::from(k) * 0.37).sin() * 0.01 + 0.5).collect();
+        let mut text = String::from("time_s,temp_c,gyro_dph\n");
+        for k in 0..400 {
+            let t = if temp[k].is_nan() { String::new() } else { format!("{:?}", temp[k]) };
+            text.push_str(&format!("{:?},{t},{:?}\n", time[k], gyro[k]));
+        }
+        let (_dir, path) = write("run.csv", &text);
+        let meta = RunMeta { group: Some("up".into()), input_rate_dph: Some(9.5), power_on_at_s: None };
+        let from_log =
+            read_series(&path, &IngestOptions::default(), 1.0, meta.clone(), |_, _| {}).expect("valid");
+        let name = PathBuf::from("run.csv");
+        let run = RunArrays { name: &name, time_s: &time, temps_c: &[&temp], gyros_dph: &[&gyro] };
+        let from_arrays = series_from_arrays(&run, false, 1.0, meta).expect("valid");
+        assert_eq!(from_arrays.series, from_log.series);
+        assert_eq!(
+            (from_arrays.gaps.count, from_arrays.gaps.total_s),
+            (from_log.gaps.count, from_log.gaps.total_s)
+        );
+        assert_eq!(from_arrays.gaps.count, 1);
+        // A bad sample is an error naming the run and the sample, or skipped and counted.
+        let mut bad = gyro.clone();
+        bad[12] = f64::NAN;
+        let run = RunArrays { gyros_dph: &[&bad], ..run };
+        let err = series_from_arrays(&run, false, 1.0, RunMeta::default()).expect_err("NaN gyro");
+        assert!(err.to_string().contains("run.csv") && err.to_string().contains("NaN or infinite"), "{err}");
+        assert_eq!(series_from_arrays(&run, true, 1.0, RunMeta::default()).expect("skipped").skipped, 1);
     }
 }

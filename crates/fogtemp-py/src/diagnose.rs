@@ -3,19 +3,20 @@
 //!
 //! The reading of logs into 1 s means, the pairing by file name and the run metadata from
 //! `runs` or the simulation's `manifest.json` are `fogtemp_diagnose::inputs`, which the
-//! command line calls too.
+//! command line calls too; runs given as arrays are binned by `inputs::series_from_arrays`.
 
 use std::path::{Path, PathBuf};
 
 use fogtemp_cal::ingest::IngestOptions;
 use fogtemp_diagnose::{inputs, DiagnoseDocument, DiagnoseError, DiagnoseOptions, RunMeta};
+use pyo3::exceptions::PyTypeError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
 
 use crate::convert;
 use crate::errors;
-use crate::functions::expand_logs;
-use crate::options::{self, Options};
+use crate::functions::{array_error, expand_logs, ArrayColumns, ArrayRun};
+use crate::options::{self, Options, COLUMN_KEYS};
 use crate::progress::{self, Progress};
 
 /// A diagnosis error as a Python exception: the calibration library's errors as
@@ -52,29 +53,113 @@ fn read_series(
     read.map_err(diagnose_error)
 }
 
+/// One side of a diagnosis: log files (a folder, or a file), or runs given as arrays keyed by
+/// run name. A run keyed `a` stands as `a.csv`: it pairs with the log `a.csv` of the other
+/// side, a runs file's row `a` describes it, and the document names it so.
+enum Side<'py> {
+    Files { given: PathBuf, logs: Vec<PathBuf> },
+    Arrays(Vec<ArrayRun<'py>>),
+}
+
+impl<'py> Side<'py> {
+    fn new(value: &Bound<'py, PyAny>, what: &str) -> PyResult<Self> {
+        if convert::is_arrays(value)? {
+            return Err(PyTypeError::new_err(format!(
+                "diagnose(): {what} is one run; give a dict of runs keyed by run name (or a folder of logs)"
+            )));
+        }
+        if value.is_instance_of::<PyDict>() {
+            let dict = value.cast::<PyDict>()?;
+            if dict.is_empty() {
+                return Err(errors::value(format!("diagnose(): {what} holds no runs")));
+            }
+            let mut runs = Vec::with_capacity(dict.len());
+            for (key, run) in dict.iter() {
+                let key: String = key.extract().map_err(|_| {
+                    PyTypeError::new_err(format!("diagnose(): {what}'s keys must be run names (str)"))
+                })?;
+                let name = if key.ends_with(".csv") { key } else { format!("{key}.csv") };
+                runs.push(ArrayRun::named(PathBuf::from(name), &run)?);
+            }
+            return Ok(Side::Arrays(runs));
+        }
+        let given: PathBuf = value.extract().map_err(|_| {
+            PyTypeError::new_err(format!(
+                "diagnose(): {what} must be a folder or file of logs, or a dict of runs keyed by run name"
+            ))
+        })?;
+        let logs = expand_logs(std::slice::from_ref(&given))?;
+        Ok(Side::Files { given, logs })
+    }
+
+    /// The runs' paths (for arrays, their names as log files), for pairing and the runs file.
+    fn paths(&self) -> Vec<PathBuf> {
+        match self {
+            Side::Files { logs, .. } => logs.clone(),
+            Side::Arrays(runs) => runs.iter().map(|r| r.name.clone()).collect(),
+        }
+    }
+
+    /// The run at `path` (one of [`Side::paths`]) as `bin_s` means.
+    fn series(
+        &self,
+        py: Python<'_>,
+        path: &Path,
+        ingest: &IngestOptions,
+        bin_s: f64,
+        meta: RunMeta,
+        show: bool,
+    ) -> PyResult<inputs::ReadSeries> {
+        let Side::Arrays(runs) = self else {
+            return read_series(py, path, ingest, bin_s, meta, show);
+        };
+        let Some(run) = runs.iter().find(|r| r.name == path) else {
+            return Err(errors::value(format!("no run named {}", path.display())));
+        };
+        let columns = ArrayColumns::new(run)?;
+        let view = columns.view();
+        let read = py.detach(|| inputs::series_from_arrays(&view, ingest.skip_bad_rows, bin_s, meta));
+        py.check_signals()?;
+        read.map_err(|e| match e {
+            DiagnoseError::Cal(c) => array_error(c),
+            other => diagnose_error(other),
+        })
+    }
+}
+
 /// Compares simulated and recorded runs (the command line's `diagnose --json`): where they
 /// differ, which physics the simulation left out, a fitted model of it, and whether it helps
 /// on runs it did not see.
 ///
-/// `simulated` and `recorded` are folders (or files) of logs paired by file name; `runs` a
-/// runs file (`run,position,input_rate_dph`), else the simulation's `manifest.json` gives each
-/// run's position and Earth rate. Keywords: `mean_window_s`, `bin_s`, `rate_window_s`,
-/// `window_coverage`, `block_coverage` (the command's options, same defaults), `report` (a
-/// folder: `report.md`, `report.html`, the figures and, when the simulation folder holds its
-/// `scenario.toml`, `scenario-updated.toml`, as `diagnose --report`; the document then names
-/// it in `updated_scenario`, its changes in `scenario_changes`) and the log-column options,
-/// which apply to the recorded logs. Ctrl-C is raised between two logs and between stages.
+/// `simulated` and `recorded` are folders (or files) of logs paired by file name, or dicts of
+/// runs given as arrays keyed by run name (each a dict or DataFrame with `time_s`, `temp_c`,
+/// `gyro_dph`, as `fit` takes them; a run keyed `a` pairs with a log `a.csv`), in any
+/// combination; `runs` a runs file (`run,position,input_rate_dph`), else the simulation's
+/// `manifest.json` gives each run's position and Earth rate. Keywords: `mean_window_s`,
+/// `bin_s`, `rate_window_s`, `window_coverage`, `block_coverage` (the command's options, same
+/// defaults), `report` (a folder: `report.md`, `report.html`, the figures and, when the
+/// simulation folder holds its `scenario.toml`, `scenario-updated.toml`, as `diagnose
+/// --report`; the document then names it in `updated_scenario`, its changes in
+/// `scenario_changes`) and the log-column options, which apply to recorded log files
+/// (`skip_bad_rows` to recorded arrays too). Ctrl-C is raised between two logs and between stages.
 #[pyfunction]
 #[pyo3(signature = (simulated, recorded, runs = None, *, progress = true, **options))]
 pub fn diagnose<'py>(
     py: Python<'py>,
-    simulated: PathBuf,
-    recorded: PathBuf,
+    simulated: &Bound<'py, PyAny>,
+    recorded: &Bound<'py, PyAny>,
     runs: Option<PathBuf>,
     progress: bool,
     options: Option<&Bound<'py, PyDict>>,
 ) -> PyResult<Bound<'py, PyAny>> {
+    let simulated = Side::new(simulated, "simulated")?;
+    let recorded = Side::new(recorded, "recorded")?;
     let mut o = Options::new("diagnose", options);
+    if matches!(recorded, Side::Arrays(_)) && o.any_given(&COLUMN_KEYS[..COLUMN_KEYS.len() - 1])? {
+        return Err(PyTypeError::new_err(
+            "diagnose(): column and unit options apply to recorded log files; runs given as arrays are in time_s, temp_c, gyro_dph",
+        ));
+    }
     let recorded_ingest = options::ingest(&mut o)?;
     let defaults = DiagnoseOptions::default();
     let bin_s = o.f64("bin_s", 1.0)?;
@@ -90,26 +175,27 @@ pub fn diagnose<'py>(
     if !(bin_s.is_finite() && bin_s > 0.0) {
         return Err(errors::value("bin_s must be positive"));
     }
-    let simulated_logs = expand_logs(std::slice::from_ref(&simulated))?;
-    let recorded_logs = expand_logs(std::slice::from_ref(&recorded))?;
+    let (simulated_logs, recorded_logs) = (simulated.paths(), recorded.paths());
     let pairs = inputs::pair(&simulated_logs, &recorded_logs).map_err(diagnose_error)?;
-    let meta = match &runs {
-        Some(path) => inputs::runs_file_meta(path, &simulated_logs),
-        None => inputs::manifest_meta(&simulated),
+    let meta = match (&runs, &simulated) {
+        (Some(path), _) => inputs::runs_file_meta(path, &simulated_logs),
+        (None, Side::Files { given, .. }) => inputs::manifest_meta(given),
+        (None, Side::Arrays(_)) => Ok(Default::default()),
     }
     .map_err(diagnose_error)?;
     let sim_ingest = IngestOptions::default();
     let (mut sims, mut recs) = (Vec::new(), Vec::new());
     for (s, r) in &pairs {
         let m = meta.get(&inputs::file_name(s)).cloned().unwrap_or_default();
-        let sim = read_series(py, s, &sim_ingest, bin_s, m.clone(), progress)?;
+        let sim = simulated.series(py, s, &sim_ingest, bin_s, m.clone(), progress)?;
         if let Some(note) = sim.gap_note(s) {
             progress::warn(py, &note)?;
         }
         sims.push(sim.series);
-        let rec = read_series(py, r, &recorded_ingest, bin_s, m, progress)?;
+        let rec = recorded.series(py, r, &recorded_ingest, bin_s, m, progress)?;
         if rec.skipped > 0 {
-            progress::warn(py, &format!("{}: skipped {} bad rows", r.display(), rec.skipped))?;
+            let unit = if matches!(recorded, Side::Arrays(_)) { "samples" } else { "rows" };
+            progress::warn(py, &format!("{}: skipped {} bad {unit}", r.display(), rec.skipped))?;
         }
         if let Some(note) = rec.gap_note(r) {
             progress::warn(py, &note)?;
@@ -132,12 +218,15 @@ pub fn diagnose<'py>(
     let (mut updated_scenario, mut scenario_changes) = (None, Vec::new());
     if let Some(dir) = &report {
         py.detach(|| fogtemp_diagnose::write_diagnosis_report(dir, &diagnosis)).map_err(diagnose_error)?;
-        if let Some((path, changes)) = py
-            .detach(|| fogtemp_diagnose::write_updated_scenario(&simulated, dir, &diagnosis))
-            .map_err(diagnose_error)?
-        {
-            updated_scenario = Some(path.display().to_string());
-            scenario_changes = changes;
+        // Only a simulation folder holds the scenario.toml that the update starts from.
+        if let Side::Files { given, .. } = &simulated {
+            if let Some((path, changes)) = py
+                .detach(|| fogtemp_diagnose::write_updated_scenario(given, dir, &diagnosis))
+                .map_err(diagnose_error)?
+            {
+                updated_scenario = Some(path.display().to_string());
+                scenario_changes = changes;
+            }
         }
     }
     let doc = DiagnoseDocument { diagnosis: &diagnosis, seconds, updated_scenario, scenario_changes };

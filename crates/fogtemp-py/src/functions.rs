@@ -97,11 +97,11 @@ fn digest_files(paths: &[PathBuf]) -> PyResult<[u8; 32]> {
 }
 
 /// One run given as arrays, held as contiguous float64 numpy arrays.
-struct ArrayRun<'py> {
-    name: PathBuf,
+pub(crate) struct ArrayRun<'py> {
+    pub(crate) name: PathBuf,
     time_s: numpy::PyReadonlyArrayDyn<'py, f64>,
     temps_c: Vec<numpy::PyReadonlyArrayDyn<'py, f64>>,
-    gyros_dph: Vec<numpy::PyReadonlyArrayDyn<'py, f64>>,
+    pub(crate) gyros_dph: Vec<numpy::PyReadonlyArrayDyn<'py, f64>>,
 }
 
 /// A column that is one array (1-D) or several (2-D, one per column of the second axis).
@@ -121,18 +121,24 @@ fn columns<'py>(value: &Bound<'py, PyAny>, what: &str) -> PyResult<Vec<numpy::Py
 }
 
 impl<'py> ArrayRun<'py> {
-    /// Run `index` from a dict or DataFrame with `time_s`, `temp_c`, `gyro_dph`.
+    /// Run `index` of a list from a dict or DataFrame with `time_s`, `temp_c`, `gyro_dph`.
     fn new(index: usize, run: &Bound<'py, PyAny>) -> PyResult<Self> {
-        let name = PathBuf::from(format!("runs[{index}]"));
+        Self::named(PathBuf::from(format!("runs[{index}]")), run)
+    }
+
+    /// A run named `name` (in errors and documents) from a dict or DataFrame with `time_s`,
+    /// `temp_c`, `gyro_dph`.
+    pub(crate) fn named(name: PathBuf, run: &Bound<'py, PyAny>) -> PyResult<Self> {
+        let label = name.display().to_string();
         let get = |key: &str| -> PyResult<Bound<'py, PyAny>> {
             convert::item(run, key)?.ok_or_else(|| {
-                errors::value(format!("runs[{index}]: no '{key}' (a run needs time_s, temp_c and gyro_dph)"))
+                errors::value(format!("{label}: no '{key}' (a run needs time_s, temp_c and gyro_dph)"))
             })
         };
         Ok(Self {
-            time_s: f64_vector(&get("time_s")?, &format!("runs[{index}]['time_s']"))?,
-            temps_c: columns(&get("temp_c")?, &format!("runs[{index}]['temp_c']"))?,
-            gyros_dph: columns(&get("gyro_dph")?, &format!("runs[{index}]['gyro_dph']"))?,
+            time_s: f64_vector(&get("time_s")?, &format!("{label}['time_s']"))?,
+            temps_c: columns(&get("temp_c")?, &format!("{label}['temp_c']"))?,
+            gyros_dph: columns(&get("gyro_dph")?, &format!("{label}['gyro_dph']"))?,
             name,
         })
     }
@@ -151,7 +157,7 @@ impl<'py> ArrayRun<'py> {
 
 /// A bad sample of an array run in its own words (the library reports the sample index as
 /// the line and the array as the column).
-fn array_error(e: fogtemp_cal::CalError) -> PyErr {
+pub(crate) fn array_error(e: fogtemp_cal::CalError) -> PyErr {
     match &e {
         fogtemp_cal::CalError::BadRow { path, row } => errors::value(format!(
             "{}: sample {}: {}: {} (found {}); pass skip_bad_rows=True to skip such samples",
@@ -406,7 +412,7 @@ fn file_runs(
 
 /// Features of every run given as arrays, and the digest of their values.
 /// Borrowed slices of one run's arrays (valid while the run's read-only arrays live).
-struct ArrayColumns<'a> {
+pub(crate) struct ArrayColumns<'a> {
     name: &'a Path,
     time_s: &'a [f64],
     temps_c: Vec<&'a [f64]>,
@@ -414,7 +420,7 @@ struct ArrayColumns<'a> {
 }
 
 impl<'a> ArrayColumns<'a> {
-    fn new(run: &'a ArrayRun<'_>) -> PyResult<Self> {
+    pub(crate) fn new(run: &'a ArrayRun<'_>) -> PyResult<Self> {
         Ok(Self {
             name: &run.name,
             time_s: slice(&run.time_s, "time_s")?,
@@ -423,7 +429,7 @@ impl<'a> ArrayColumns<'a> {
         })
     }
 
-    fn view(&self) -> RunArrays<'_> {
+    pub(crate) fn view(&self) -> RunArrays<'_> {
         RunArrays { name: self.name, time_s: self.time_s, temps_c: &self.temps_c, gyros_dph: &self.gyros_dph }
     }
 }

@@ -71,3 +71,44 @@ def test_diagnose_report_is_the_command_lines(sim_dir, recorded_dir, tmp_path, c
     assert sorted(mine) == sorted(cli_files)
     for name in cli_files:
         assert mine[name] == cli_files[name], name
+
+
+def runs_file_from_manifest(folder, path):
+    """A runs file with each run's position and Earth rate from a simulation's manifest."""
+    manifest = json.loads((folder / "manifest.json").read_text())
+    rows = [f"{r['name']},{r['group']},{r['input_rate_dph']!r}" for r in manifest["runs"]]
+    path.write_text("run,position,input_rate_dph\n" + "\n".join(rows) + "\n")
+    return path
+
+
+def test_diagnose_of_runs_given_as_arrays_is_that_of_the_same_samples_as_logs(sim_dir, recorded_dir, tmp_path):
+    # Oracle: the same samples read from the logs (read_log gives the values the logs hold,
+    # time from the first row, as every reader does): every figure of the document is equal.
+    runs_csv = runs_file_from_manifest(sim_dir, tmp_path / "runs.csv")
+
+    def arrays(folder):
+        return {p.stem: fogtemp.read_log(p, progress=False) for p in sorted(folder.glob("*.csv"))}
+
+    sim_arrays, rec_arrays = arrays(sim_dir), arrays(recorded_dir)
+    from_logs = fogtemp.diagnose(sim_dir, recorded_dir, runs_csv, progress=False)
+    from_arrays = fogtemp.diagnose(sim_arrays, rec_arrays, runs_csv, progress=False)
+    mixed = fogtemp.diagnose(sim_arrays, recorded_dir, runs_csv, progress=False)
+    for doc in (from_logs, from_arrays, mixed):
+        doc.pop("seconds")
+    assert from_arrays == from_logs
+    assert mixed == from_logs
+    assert sorted(from_arrays["runs"]) == [f"{k}.csv" for k in sorted(sim_arrays)]
+
+
+def test_diagnose_of_arrays_refuses_what_does_not_apply(sim_dir, recorded_dir):
+    one = fogtemp.read_log(sorted(sim_dir.glob("*.csv"))[0], progress=False)
+    with pytest.raises(TypeError, match="simulated is one run; give a dict of runs keyed by run name"):
+        fogtemp.diagnose(one, recorded_dir, progress=False)
+    with pytest.raises(ValueError, match="recorded holds no runs"):
+        fogtemp.diagnose(sim_dir, {}, progress=False)
+    with pytest.raises(TypeError, match="keys must be run names"):
+        fogtemp.diagnose(sim_dir, {1: one}, progress=False)
+    with pytest.raises(TypeError, match="column and unit options apply to recorded log files"):
+        fogtemp.diagnose(sim_dir, {"pos1_-40C": one}, temp_column="T", progress=False)
+    with pytest.raises(ValueError, match="paired by file name"):
+        fogtemp.diagnose(sim_dir, {"pos1_-40C": one}, progress=False)
