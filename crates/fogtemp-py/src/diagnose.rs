@@ -152,10 +152,8 @@ pub fn diagnose<'py>(
     progress: bool,
     options: Option<&Bound<'py, PyDict>>,
 ) -> PyResult<Bound<'py, PyAny>> {
-    let simulated = Side::new(simulated, "simulated")?;
-    let recorded = Side::new(recorded, "recorded")?;
     let mut o = Options::new("diagnose", options);
-    if matches!(recorded, Side::Arrays(_)) && o.any_given(&COLUMN_KEYS[..COLUMN_KEYS.len() - 1])? {
+    if recorded.is_instance_of::<PyDict>() && o.any_given(&COLUMN_KEYS[..COLUMN_KEYS.len() - 1])? {
         return Err(PyTypeError::new_err(
             "diagnose(): column and unit options apply to recorded log files; runs given as arrays are in time_s, temp_c, gyro_dph",
         ));
@@ -175,6 +173,9 @@ pub fn diagnose<'py>(
     if !(bin_s.is_finite() && bin_s > 0.0) {
         return Err(errors::value("bin_s must be positive"));
     }
+    // After the options: a bad report folder is refused before any log is looked for.
+    let simulated = Side::new(simulated, "simulated")?;
+    let recorded = Side::new(recorded, "recorded")?;
     let (simulated_logs, recorded_logs) = (simulated.paths(), recorded.paths());
     let pairs = inputs::pair(&simulated_logs, &recorded_logs).map_err(diagnose_error)?;
     let meta = match (&runs, &simulated) {
