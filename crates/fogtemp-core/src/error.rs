@@ -97,7 +97,7 @@ pub enum Error {
         /// Blocks the tracker can hold (its const generic `N`).
         capacity: usize,
     },
-    /// A temperature sample was NaN or infinite.
+    /// A temperature sample, or a query's temperature or rate, was NaN or infinite.
     NonFiniteSample,
     /// A flash partition holds bytes after the blob that are not erased-flash padding
     /// (all `0xFF` or all `0x00`): [`crate::Model::from_flash`].
@@ -147,12 +147,16 @@ impl fmt::Display for Error {
                 write!(f, "axis {axis}: mesh check '{check}' failed at element {index}")
             }
             Error::NoSuchAxis { requested, available } => {
-                write!(f, "axis {requested} requested but the model has {available} axes")
+                write!(
+                    f,
+                    "axis {requested} requested but the model has {available} {}",
+                    if available == 1 { "axis" } else { "axes" }
+                )
             }
             Error::CapacityTooSmall { needed, capacity } => {
                 write!(f, "feature tracker holds {capacity} blocks but the model needs {needed}")
             }
-            Error::NonFiniteSample => f.write_str("temperature sample is not a finite number"),
+            Error::NonFiniteSample => f.write_str("a temperature or rate is not a finite number"),
             Error::TrailingBytes { offset, fill } => write!(
                 f,
                 "byte {offset} after the model blob breaks the erased-flash padding ({fill:#04x} expected; only all 0xff or all 0x00 is accepted)"

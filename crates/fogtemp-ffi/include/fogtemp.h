@@ -30,11 +30,14 @@
 // Flag bit: no temperature for longer than the model's `max_gap_s`; the bias is held.
 #define FOGTEMP_FLAG_TEMP_STALE 8
 
-// Flag bit: this sample's temperature or time was rejected, or the gyro value is not finite.
-// A temperature is rejected when NaN or not a reading (below -273.15 C or above 1000 C: a
-// logger's -999, a corrupted word); a time when it is not after the previous one by a step
-// back of at most the model's `max_gap_s` (jitter). A longer step back restarts the tracker
-// as a gap does (a clock that restarted), so one wrong time cannot shut out later samples.
+// Flag bit: this sample's temperature or time was rejected, or the gyro value is not finite
+// (one bit for all three: it does not say which). A temperature is rejected when NaN or not
+// a reading (below -273.15 C or above 1000 C: a logger's -999, a corrupted word); a time
+// when it is not after the previous one by a step back of at most the model's `max_gap_s`
+// (jitter). A longer step back restarts the tracker as a gap does (a clock that restarted),
+// so one wrong time cannot shut out later samples. The time goes to the tracker only with a
+// temperature: on a sample without one (`has_temp` false) it is neither checked nor flagged.
+// A non-finite gyro value passes through to `rate_dph` unchanged (NaN or infinite).
 #define FOGTEMP_FLAG_BAD_INPUT 16
 
 // [`fogtemp_error::axis`] when the error names no axis.
@@ -67,7 +70,8 @@ enum fogtemp_status
   FOGTEMP_STATUS_LENGTH_MISMATCH = 7,
   // The CRC-32 does not match.
   FOGTEMP_STATUS_CRC_MISMATCH = 8,
-  // A field holds a value outside its range.
+  // A field holds a value outside its range; or a length argument (`len` of a blob,
+  // `capacity` of a blocks array) no buffer can have, above `PTRDIFF_MAX` bytes.
   FOGTEMP_STATUS_BAD_VALUE = 9,
   // A float field is NaN or infinite.
   FOGTEMP_STATUS_NON_FINITE = 10,
@@ -79,9 +83,11 @@ enum fogtemp_status
   FOGTEMP_STATUS_NO_SUCH_AXIS = 13,
   // The `blocks` array is shorter than the axis needs (`fogtemp_axis_blocks_needed`).
   FOGTEMP_STATUS_CAPACITY_TOO_SMALL = 14,
-  // A temperature sample was NaN or infinite.
+  // A query of `fogtemp_evaluate` (temperature or rate) was NaN or infinite. (Samples
+  // given to `fogtemp_step` are never errors: they are flagged `FOGTEMP_FLAG_BAD_INPUT`.)
   FOGTEMP_STATUS_NON_FINITE_SAMPLE = 15,
-  // A sample time was not after the previous one.
+  // A sample time was not after the previous one. Not returned by any C function (the
+  // step functions flag such a sample `FOGTEMP_FLAG_BAD_INPUT`); kept for the numbering.
   FOGTEMP_STATUS_TIME_NOT_INCREASING = 16,
   // Bytes after the blob in a flash partition are not erased-flash padding.
   FOGTEMP_STATUS_TRAILING_BYTES = 17,
@@ -117,12 +123,13 @@ typedef struct {
   uint32_t index;
   // What was needed or expected: blocks (`CAPACITY_TOO_SMALL`), bytes (`TRUNCATED`), the
   // implied length (`LENGTH_MISMATCH`), the computed CRC, the supported version, the
-  // number of axes (`NO_SUCH_AXIS`), the previous time in us (`TIME_NOT_INCREASING`), the
-  // largest length a buffer can have, `PTRDIFF_MAX` (`BAD_VALUE` for a blob length above it).
+  // number of axes (`NO_SUCH_AXIS`), the fill byte expected (`TRAILING_BYTES`: 0xFF or
+  // 0x00), the largest length a buffer can have (`BAD_VALUE` for a length argument above
+  // it: `PTRDIFF_MAX` bytes of a blob, `PTRDIFF_MAX / 4` floats of a blocks array).
   uint64_t needed;
   // What was found or available: the blocks array's length, the bytes present, the
-  // stored length or CRC, the requested axis, the rejected time, the offending offset
-  // (`TRAILING_BYTES`), the length given (`BAD_VALUE` for a blob length).
+  // stored length or CRC, the requested axis, the offending offset (`TRAILING_BYTES`), the
+  // length given (`BAD_VALUE` for a length argument).
   uint64_t found;
   // The core error, for `fogtemp_error_message`. Opaque.
   uint64_t opaque[6];
@@ -208,7 +215,10 @@ fogtemp_status fogtemp_axis_blocks_needed(const fogtemp_axis *axis, size_t *bloc
 
 // Fills `*state` with a fresh state for `*axis` (as at power-on), keeping the tracker's
 // block means in `blocks[0..capacity]`. `capacity` below `fogtemp_axis_blocks_needed` is
-// `FOGTEMP_STATUS_CAPACITY_TOO_SMALL` (`err->needed`, `err->found` = capacity).
+// `FOGTEMP_STATUS_CAPACITY_TOO_SMALL` (`err->needed`, `err->found` = capacity); a
+// `capacity` of more than `PTRDIFF_MAX` bytes (e.g. a negative count cast to `size_t`) is
+// `FOGTEMP_STATUS_BAD_VALUE` (`err->needed` = `PTRDIFF_MAX / sizeof(float)`, `err->found` =
+// capacity).
 //
 // # Safety
 // `axis` points to a filled `fogtemp_axis`; `state` is writable for a `fogtemp_state`;
@@ -231,8 +241,10 @@ fogtemp_status fogtemp_state_reset(fogtemp_state *state);
 // Compensates one sample: `gyro_dph` (deg/h) at `time_us` (a 64-bit microsecond count
 // that never wraps), with the temperature `temp_c` (deg C) when `has_temp` (else
 // `temp_c` is ignored). Writes the compensated rate, the bias and the flags to `*out`.
-// Bad samples are flagged (`FOGTEMP_FLAG_BAD_INPUT`, which says which), not errors: a
-// rejected temperature or time leaves the state as it was.
+// Bad samples are flagged (`FOGTEMP_FLAG_BAD_INPUT`; one bit for a rejected temperature, a
+// rejected time and a non-finite gyro value), not errors: a rejected temperature or time
+// leaves the state as it was. A status other than `FOGTEMP_STATUS_OK` (a NULL, misaligned
+// or uninitialised argument, `FOGTEMP_STATUS_STATE_AXIS_MISMATCH`) leaves `*out` unwritten.
 //
 // # Safety
 // `axis` points to a filled `fogtemp_axis`; `state` to a filled `fogtemp_state` made for

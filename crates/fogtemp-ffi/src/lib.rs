@@ -56,7 +56,8 @@ pub enum fogtemp_status {
     LengthMismatch = 7,
     /// The CRC-32 does not match.
     CrcMismatch = 8,
-    /// A field holds a value outside its range.
+    /// A field holds a value outside its range; or a length argument (`len` of a blob,
+    /// `capacity` of a blocks array) no buffer can have, above `PTRDIFF_MAX` bytes.
     BadValue = 9,
     /// A float field is NaN or infinite.
     NonFinite = 10,
@@ -68,9 +69,11 @@ pub enum fogtemp_status {
     NoSuchAxis = 13,
     /// The `blocks` array is shorter than the axis needs (`fogtemp_axis_blocks_needed`).
     CapacityTooSmall = 14,
-    /// A temperature sample was NaN or infinite.
+    /// A query of `fogtemp_evaluate` (temperature or rate) was NaN or infinite. (Samples
+    /// given to `fogtemp_step` are never errors: they are flagged `FOGTEMP_FLAG_BAD_INPUT`.)
     NonFiniteSample = 15,
-    /// A sample time was not after the previous one.
+    /// A sample time was not after the previous one. Not returned by any C function (the
+    /// step functions flag such a sample `FOGTEMP_FLAG_BAD_INPUT`); kept for the numbering.
     TimeNotIncreasing = 16,
     /// Bytes after the blob in a flash partition are not erased-flash padding.
     TrailingBytes = 17,
@@ -166,11 +169,14 @@ pub const FOGTEMP_FLAG_PARTIAL_WINDOW: u8 = 0x02;
 pub const FOGTEMP_FLAG_OUTSIDE_HULL: u8 = 0x04;
 /// Flag bit: no temperature for longer than the model's `max_gap_s`; the bias is held.
 pub const FOGTEMP_FLAG_TEMP_STALE: u8 = 0x08;
-/// Flag bit: this sample's temperature or time was rejected, or the gyro value is not finite.
-/// A temperature is rejected when NaN or not a reading (below -273.15 C or above 1000 C: a
-/// logger's -999, a corrupted word); a time when it is not after the previous one by a step
-/// back of at most the model's `max_gap_s` (jitter). A longer step back restarts the tracker
-/// as a gap does (a clock that restarted), so one wrong time cannot shut out later samples.
+/// Flag bit: this sample's temperature or time was rejected, or the gyro value is not finite
+/// (one bit for all three: it does not say which). A temperature is rejected when NaN or not
+/// a reading (below -273.15 C or above 1000 C: a logger's -999, a corrupted word); a time
+/// when it is not after the previous one by a step back of at most the model's `max_gap_s`
+/// (jitter). A longer step back restarts the tracker as a gap does (a clock that restarted),
+/// so one wrong time cannot shut out later samples. The time goes to the tracker only with a
+/// temperature: on a sample without one (`has_temp` false) it is neither checked nor flagged.
+/// A non-finite gyro value passes through to `rate_dph` unchanged (NaN or infinite).
 pub const FOGTEMP_FLAG_BAD_INPUT: u8 = 0x10;
 /// [`fogtemp_error::axis`] when the error names no axis.
 pub const FOGTEMP_NO_AXIS: u32 = 0xFFFF_FFFF;
@@ -208,12 +214,13 @@ pub struct fogtemp_error {
     pub index: u32,
     /// What was needed or expected: blocks (`CAPACITY_TOO_SMALL`), bytes (`TRUNCATED`), the
     /// implied length (`LENGTH_MISMATCH`), the computed CRC, the supported version, the
-    /// number of axes (`NO_SUCH_AXIS`), the previous time in us (`TIME_NOT_INCREASING`), the
-    /// largest length a buffer can have, `PTRDIFF_MAX` (`BAD_VALUE` for a blob length above it).
+    /// number of axes (`NO_SUCH_AXIS`), the fill byte expected (`TRAILING_BYTES`: 0xFF or
+    /// 0x00), the largest length a buffer can have (`BAD_VALUE` for a length argument above
+    /// it: `PTRDIFF_MAX` bytes of a blob, `PTRDIFF_MAX / 4` floats of a blocks array).
     pub needed: u64,
     /// What was found or available: the blocks array's length, the bytes present, the
-    /// stored length or CRC, the requested axis, the rejected time, the offending offset
-    /// (`TRAILING_BYTES`), the length given (`BAD_VALUE` for a blob length).
+    /// stored length or CRC, the requested axis, the offending offset (`TRAILING_BYTES`), the
+    /// length given (`BAD_VALUE` for a length argument).
     pub found: u64,
     /// The core error, for `fogtemp_error_message`. Opaque.
     pub opaque: [u64; 6],
@@ -638,7 +645,10 @@ pub unsafe extern "C" fn fogtemp_axis_blocks_needed(
 
 /// Fills `*state` with a fresh state for `*axis` (as at power-on), keeping the tracker's
 /// block means in `blocks[0..capacity]`. `capacity` below `fogtemp_axis_blocks_needed` is
-/// `FOGTEMP_STATUS_CAPACITY_TOO_SMALL` (`err->needed`, `err->found` = capacity).
+/// `FOGTEMP_STATUS_CAPACITY_TOO_SMALL` (`err->needed`, `err->found` = capacity); a
+/// `capacity` of more than `PTRDIFF_MAX` bytes (e.g. a negative count cast to `size_t`) is
+/// `FOGTEMP_STATUS_BAD_VALUE` (`err->needed` = `PTRDIFF_MAX / sizeof(float)`, `err->found` =
+/// capacity).
 ///
 /// # Safety
 /// `axis` points to a filled `fogtemp_axis`; `state` is writable for a `fogtemp_state`;
@@ -660,9 +670,11 @@ pub unsafe extern "C" fn fogtemp_state_init(
         // SAFETY: `err` per this function's contract.
         Err(s) => return unsafe { fail_status(err, s) },
     };
-    if capacity.checked_mul(size_of::<f32>()).is_none_or(|bytes| bytes > isize::MAX as usize) {
+    // The most floats a buffer can hold: PTRDIFF_MAX bytes (`size_of::<f32>()` is 4, not 0).
+    let most = (isize::MAX as usize).checked_div(size_of::<f32>()).unwrap_or(0);
+    if capacity > most {
         // SAFETY: `err` per this function's contract.
-        return unsafe { fail_status(err, fogtemp_status::CapacityTooSmall) };
+        return unsafe { fail_status_with(err, fogtemp_status::BadValue, most as u64, capacity as u64) };
     }
     match axis.state_in(CallerBlocks { ptr: blocks, len: capacity }) {
         Ok(s) => {
@@ -713,8 +725,10 @@ unsafe fn step_args<'x>(
 /// Compensates one sample: `gyro_dph` (deg/h) at `time_us` (a 64-bit microsecond count
 /// that never wraps), with the temperature `temp_c` (deg C) when `has_temp` (else
 /// `temp_c` is ignored). Writes the compensated rate, the bias and the flags to `*out`.
-/// Bad samples are flagged (`FOGTEMP_FLAG_BAD_INPUT`, which says which), not errors: a
-/// rejected temperature or time leaves the state as it was.
+/// Bad samples are flagged (`FOGTEMP_FLAG_BAD_INPUT`; one bit for a rejected temperature, a
+/// rejected time and a non-finite gyro value), not errors: a rejected temperature or time
+/// leaves the state as it was. A status other than `FOGTEMP_STATUS_OK` (a NULL, misaligned
+/// or uninitialised argument, `FOGTEMP_STATUS_STATE_AXIS_MISMATCH`) leaves `*out` unwritten.
 ///
 /// # Safety
 /// `axis` points to a filled `fogtemp_axis`; `state` to a filled `fogtemp_state` made for
@@ -880,11 +894,16 @@ pub unsafe extern "C" fn fogtemp_error_message(
         let e = unsafe { (*cell).error };
         let _ = write!(w, "{e}");
     } else {
-        // A caller mistake (null, misaligned, uninitialised) carries no core error.
+        // A caller mistake (null, misaligned, uninitialised, a length no buffer can have)
+        // carries no core error. A zeroed struct (status OK) was not filled by a failed call.
         let status = err.status;
-        let found = fogtemp_status::ALL.iter().find(|s| **s as u32 == status);
+        let found = fogtemp_status::ALL.iter().find(|s| **s as u32 == status && **s != fogtemp_status::Ok);
         let Some(s) = found else { return 0 };
-        let _ = w.write_str(s.message().to_str().unwrap_or("error"));
+        if *s == fogtemp_status::BadValue {
+            let _ = w.write_str("a length argument is larger than any buffer can be (PTRDIFF_MAX bytes)");
+        } else {
+            let _ = w.write_str(s.message().to_str().unwrap_or("error"));
+        }
         if err.needed != 0 || err.found != 0 {
             let _ = write!(w, " (at most {}, got {})", err.needed, err.found);
         }

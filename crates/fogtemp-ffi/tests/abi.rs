@@ -128,6 +128,52 @@ fn capacity_too_small_names_needed_and_available() {
     assert_eq!((err.needed, err.found), (20, 19));
     assert_eq!(message(&err), "feature tracker holds 19 blocks but the model needs 20");
     assert_eq!(state.opaque, [0xEE; 28], "a failed init leaves the state untouched");
+    // A capacity no array can have (a negative count cast to size_t) is not "too small":
+    // BAD_VALUE naming the largest count of floats a buffer can hold; the blocks are not touched.
+    let most = isize::MAX as u64 / 4;
+    for capacity in [usize::MAX, usize::MAX / 4, (isize::MAX as usize) / 4 + 1] {
+        let mut err = no_error();
+        // SAFETY: live pointers; the capacity is refused before `blocks` is used.
+        let s = unsafe { fogtemp_state_init(&axis, &mut state, blocks.as_mut_ptr(), capacity, &mut err) };
+        assert_eq!(s, fogtemp_status::BadValue);
+        assert_eq!(
+            (err.status, err.needed, err.found),
+            (fogtemp_status::BadValue as u32, most, capacity as u64)
+        );
+        assert!(
+            message(&err).starts_with("a length argument is larger than any buffer can be"),
+            "{}",
+            message(&err)
+        );
+    }
+    assert_eq!(state.opaque, [0xEE; 28]);
+}
+
+#[test]
+fn a_zeroed_error_struct_has_no_message() {
+    // Zeroing `err` before a call tells whether a failure filled it: a zeroed one (status
+    // OK) has no message, as the header says.
+    let err = no_error();
+    let mut buf = [b'x'; 8];
+    // SAFETY: live pointers.
+    let n = unsafe { fogtemp_error_message(&err, buf.as_mut_ptr().cast(), buf.len()) };
+    assert_eq!(n, 0);
+}
+
+#[test]
+fn an_axis_past_the_end_is_named_in_good_grammar() {
+    let mut model = fogtemp_model { opaque: [0; 4] };
+    let mut axis = fogtemp_axis { opaque: [0; 24] };
+    let mut err = no_error();
+    // SAFETY: live pointers.
+    unsafe {
+        assert_eq!(
+            fogtemp_model_from_bytes(FW_MODEL.as_ptr(), FW_MODEL.len(), &mut model, &mut err),
+            fogtemp_status::Ok
+        );
+        assert_eq!(fogtemp_model_axis(&model, 1, &mut axis, &mut err), fogtemp_status::NoSuchAxis);
+    }
+    assert_eq!(message(&err), "axis 1 requested but the model has 1 axis");
 }
 
 #[test]
@@ -255,10 +301,13 @@ fn caller_mistakes_are_statuses() {
         // pointer is not read.
         assert_eq!(fogtemp_model_from_bytes(GOLDEN.as_ptr(), usize::MAX, &mut model, &mut err), BadValue);
         assert_eq!((err.status, err.needed, err.found), (BadValue as u32, isize::MAX as u64, u64::MAX));
-        assert!(
-            message(&err).ends_with(&format!("(at most {}, got {})", isize::MAX, u64::MAX)),
-            "{}",
-            message(&err)
+        assert_eq!(
+            message(&err),
+            format!(
+                "a length argument is larger than any buffer can be (PTRDIFF_MAX bytes) (at most {}, got {})",
+                isize::MAX,
+                u64::MAX
+            )
         );
         let mut used = 0usize;
         assert_eq!(
