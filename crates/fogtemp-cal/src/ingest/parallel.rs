@@ -37,6 +37,7 @@ where
     let Parser { path, src, rows, .. } = head;
     let chunker = Mutex::new(Chunker {
         carry: src.buf[src.pos..src.end].to_vec(),
+        carry_after_cr: src.after_cr,
         offset: src.offset(),
         eof: src.eof,
         reader: Some(src.reader),
@@ -116,6 +117,8 @@ struct Chunker<R> {
     reader: Option<R>,
     /// Bytes read after the last chunk's final newline.
     carry: Vec<u8>,
+    /// The byte before `carry[0]` was a `\r` counted as a line break (a `\r\n` cut in two).
+    carry_after_cr: bool,
     /// File offset of `carry[0]`.
     offset: u64,
     eof: bool,
@@ -143,6 +146,7 @@ impl<R: Read> Chunker<R> {
         chunk.batch.end = None;
         chunk.data.clear();
         chunk.data.append(&mut self.carry);
+        chunk.after_cr = self.carry_after_cr;
         let mut target = self.chunk_bytes;
         let cut = loop {
             if !self.eof && chunk.data.len() < target {
@@ -173,14 +177,20 @@ impl<R: Read> Chunker<R> {
             }
         };
         self.carry.extend_from_slice(&chunk.data[cut..]);
+        self.carry_after_cr = cut.checked_sub(1).and_then(|i| chunk.data.get(i)) == Some(&b'\r');
         chunk.data.truncate(cut);
         self.offset = chunk.start + cut as u64;
         if let Some(quote) = memchr(b'"', &chunk.data) {
             let record = memrchr2(b'\n', b'\r', &chunk.data[..quote]).map_or(0, |i| i + 1);
+            let after_cr = match record.checked_sub(1) {
+                Some(i) => chunk.data.get(i) == Some(&b'\r'),
+                None => chunk.after_cr,
+            };
             let mut rest = chunk.data.split_off(record);
             rest.append(&mut self.carry);
             if let Some(reader) = self.reader.take() {
-                chunk.rest = Some(Rest { bytes: rest, offset: chunk.start + record as u64, reader });
+                chunk.rest =
+                    Some(Rest { bytes: rest, offset: chunk.start + record as u64, after_cr, reader });
             }
             chunk.last = true;
             self.done = true;
@@ -197,6 +207,8 @@ struct Rest<R> {
     bytes: Vec<u8>,
     /// File offset of `bytes[0]`.
     offset: u64,
+    /// The byte before `bytes[0]` was a `\r` (see [`Source::after_cr`]).
+    after_cr: bool,
     reader: R,
 }
 
@@ -212,8 +224,10 @@ struct Chunk<R> {
     error: Option<std::io::Error>,
     /// Rows: times absolute, lines counted from 0 at the chunk's start.
     batch: Batch,
-    /// Newlines in `data`.
+    /// Line breaks in `data`.
     newlines: u64,
+    /// The byte before `data[0]` was a `\r` (see [`Source::after_cr`]).
+    after_cr: bool,
 }
 
 impl<R> Chunk<R> {
@@ -227,6 +241,7 @@ impl<R> Chunk<R> {
             error: None,
             batch: Batch::default(),
             newlines: 0,
+            after_cr: false,
         }
     }
 
@@ -237,8 +252,16 @@ impl<R> Chunk<R> {
         }
         let data = std::mem::take(&mut self.data);
         let end = data.len();
-        let src =
-            Source { reader: std::io::empty(), buf: data, pos: 0, end, eof: true, base: self.start, line: 0 };
+        let src = Source {
+            reader: std::io::empty(),
+            buf: data,
+            pos: 0,
+            end,
+            eof: true,
+            base: self.start,
+            line: 0,
+            after_cr: self.after_cr,
+        };
         let mut parser = Parser::resume(path, src, template.for_chunk());
         parser.fill(&mut self.batch, usize::MAX);
         self.newlines = parser.src.line;
@@ -363,6 +386,7 @@ impl Merger<'_> {
             eof: true,
             base: chunk.start,
             line: self.line,
+            after_cr: chunk.after_cr,
         };
         let mut parser = Parser::resume(self.path, src, rows);
         let mut batch = Batch::default();
@@ -401,8 +425,16 @@ impl Merger<'_> {
         let mut buf = rest.bytes;
         let end = buf.len();
         buf.resize(end.max(self.tuning.buffer_bytes).max(4), 0);
-        let src =
-            Source { reader: rest.reader, buf, pos: 0, end, eof: false, base: rest.offset, line: self.line };
+        let src = Source {
+            reader: rest.reader,
+            buf,
+            pos: 0,
+            end,
+            eof: false,
+            base: rest.offset,
+            line: self.line,
+            after_cr: rest.after_cr,
+        };
         let mut parser = Parser::resume(self.path, src, rows);
         let mut batch = Batch::default();
         loop {
@@ -452,12 +484,14 @@ mod tests {
         }
         let seen = rows(&data, &default_options());
         assert_eq!(seen.len(), 3000);
-        assert!(seen.iter().all(|s| s.line == 1));
+        // Each record on its own line (a lone '\r' ends a line), in every mode.
+        assert!(seen.iter().enumerate().all(|(i, s)| s.line == i as u64 + 2));
         // Chunks of at most a few records (not the whole log): 3000 rows, 64-byte chunks.
         let tuning = Tuning { mode: Mode::Parallel { workers: 2 }, chunk_bytes: 64, ..Tuning::default() };
         let mut chunker = Chunker {
             reader: Some(data.as_bytes()),
             carry: Vec::new(),
+            carry_after_cr: false,
             offset: 0,
             eof: false,
             next_seq: 0,

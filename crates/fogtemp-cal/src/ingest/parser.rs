@@ -27,8 +27,32 @@ pub(super) struct Source<R> {
     pub(super) eof: bool,
     /// File offset of `buf[0]`.
     pub(super) base: u64,
-    /// 1-based line of `buf[pos]`.
+    /// 1-based line of `buf[pos]`. A line ends at `\n`, `\r\n` or a lone `\r` (old Mac
+    /// and some serial devices), as a record does.
     pub(super) line: u64,
+    /// The last byte counted as a line break was a `\r`: a `\n` right after it is the same
+    /// break (`\r\n`), even across a refill.
+    pub(super) after_cr: bool,
+}
+
+/// Line breaks in `bytes` (`\n`, `\r\n` and a lone `\r` each one), with `after_cr` carried
+/// in and out as in [`Source`].
+pub(super) fn count_line_breaks(bytes: &[u8], after_cr: &mut bool) -> u64 {
+    let mut breaks = 0;
+    for &b in bytes {
+        match b {
+            b'\r' => {
+                breaks += 1;
+                *after_cr = true;
+            }
+            b'\n' => {
+                breaks += u64::from(!*after_cr);
+                *after_cr = false;
+            }
+            _ => *after_cr = false,
+        }
+    }
+    breaks
 }
 
 impl<R: Read> Source<R> {
@@ -68,11 +92,11 @@ impl<R: Read> Source<R> {
     /// Skips record terminators (blank lines), counting lines.
     fn skip_terminators(&mut self) {
         while let Some(&b) = self.buf[..self.end].get(self.pos) {
-            match b {
-                b'\n' => self.line += 1,
-                b'\r' => {}
-                _ => break,
+            if !matches!(b, b'\n' | b'\r') {
+                self.after_cr = false;
+                break;
             }
+            self.line += count_line_breaks(&[b], &mut self.after_cr);
             self.pos += 1;
         }
     }
@@ -140,6 +164,7 @@ impl<R: Read> Parser<R> {
             eof: false,
             base: 0,
             line: 1,
+            after_cr: false,
         };
         Self::with_state(path, src, RowState::new(path, options), false)
     }
@@ -202,8 +227,21 @@ impl<R: Read> Parser<R> {
         let to_skip = self.rows.format.skip_lines;
         let mut left = to_skip;
         while left > 0 {
-            match memchr(b'\n', &self.src.buf[self.src.pos..self.src.end]) {
+            if self.src.after_cr {
+                // The `\n` of a `\r\n` ending the last line skipped is not a line of its own.
+                if self.src.pos == self.src.end && !self.src.eof {
+                    self.refill()?;
+                    continue;
+                }
+                self.src.after_cr = false;
+                if self.src.buf[..self.src.end].get(self.src.pos) == Some(&b'\n') {
+                    self.src.pos += 1;
+                    continue;
+                }
+            }
+            match memchr2(b'\n', b'\r', &self.src.buf[self.src.pos..self.src.end]) {
                 Some(i) => {
+                    self.src.after_cr = self.src.buf[self.src.pos + i] == b'\r';
                     self.src.pos += i + 1;
                     self.src.line += 1;
                     left -= 1;
@@ -336,15 +374,15 @@ impl<R: Read> Parser<R> {
             return;
         };
         let buf = &self.src.buf[..self.src.end];
-        let (mut pos, mut line) = (self.src.pos, self.src.line);
+        let (mut pos, mut line, mut after_cr) = (self.src.pos, self.src.line, self.src.after_cr);
         let mut count = batch.lines.len();
         loop {
             while let Some(&b) = buf.get(pos) {
-                match b {
-                    b'\n' => line += 1,
-                    b'\r' => {}
-                    _ => break,
+                if !matches!(b, b'\n' | b'\r') {
+                    after_cr = false;
+                    break;
                 }
+                line += count_line_breaks(&[b], &mut after_cr);
                 pos += 1;
             }
             if count >= max_rows {
@@ -396,6 +434,7 @@ impl<R: Read> Parser<R> {
         }
         self.src.pos = pos;
         self.src.line = line;
+        self.src.after_cr = after_cr;
     }
 
     /// One record (at `pos`, not a terminator) by the general path.
@@ -450,7 +489,7 @@ impl<R: Read> Parser<R> {
             let input = &self.src.buf[self.src.pos..self.src.end];
             let (result, read, written, ended) =
                 self.core.read_record(input, &mut self.out[q.out_len..], &mut self.ends[q.ends_len..]);
-            self.src.line += memchr_iter(b'\n', &input[..read]).count() as u64;
+            self.src.line += count_line_breaks(&input[..read], &mut self.src.after_cr);
             self.src.pos += read;
             q.out_len += written;
             q.ends_len += ended;
@@ -538,7 +577,7 @@ fn split_whitespace(record: &[u8], offset: usize, bounds: &mut Vec<(usize, usize
 mod tests {
     use crate::error::CalError;
     use crate::ingest::test_support::*;
-    use crate::ingest::BadRowKind;
+    use crate::ingest::{BadRowKind, IngestOptions, LogFormat};
 
     #[test]
     fn crlf_lines_are_exact() {
@@ -558,10 +597,28 @@ mod tests {
     }
 
     #[test]
-    fn lone_carriage_returns_end_records() {
-        // As in the csv crate: '\r' alone ends a record (lines count '\n' only).
+    fn lone_carriage_returns_end_records_and_lines() {
+        // '\r' alone ends a record (as in the csv crate) and a line (as editors show it; lines
+        // counted '\n' only before, so a log written with '\r' named every row line 1).
         let seen = rows("time_s,temp_c,gyro_dph\r0,20,1\r1,20,2\n2,20,3\n", &default_options());
-        assert_eq!(seen.iter().map(|s| s.line).collect::<Vec<_>>(), vec![1, 1, 2]);
+        assert_eq!(seen.iter().map(|s| s.line).collect::<Vec<_>>(), vec![2, 3, 4]);
+        for end in ["\n", "\r\n", "\r"] {
+            let data = ["time_s,temp_c,gyro_dph", "0,20,1", "", "1,20,1", "2,20,x", ""].join(end);
+            expect(&bad(&data), 5, 3, "gyro_dph", "x", BadRowKind::NotANumber);
+            // Quoted records (the csv-core path) count the same lines.
+            let quoted = ["time_s,temp_c,gyro_dph", "0,20,1", "", "\"1\",20,1", "\"2\",20,x", ""].join(end);
+            expect(&bad(&quoted), 5, 3, "gyro_dph", "x", BadRowKind::NotANumber);
+            // Banner lines to skip end the same way.
+            let banner = ["banner", "more", "time_s,temp_c,gyro_dph", "0,20,1", "1,20,x", ""].join(end);
+            let options = IngestOptions {
+                format: LogFormat { skip_lines: 2, ..LogFormat::default() },
+                ..IngestOptions::default()
+            };
+            match run(banner.as_bytes(), &options).1 {
+                Err(CalError::BadRow { row, .. }) => expect(&row, 5, 3, "gyro_dph", "x", BadRowKind::NotANumber),
+                other => panic!("expected a bad row, got {}", summary(&other)),
+            }
+        }
     }
 
     #[test]
