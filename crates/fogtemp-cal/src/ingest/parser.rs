@@ -615,7 +615,9 @@ mod tests {
                 ..IngestOptions::default()
             };
             match run(banner.as_bytes(), &options).1 {
-                Err(CalError::BadRow { row, .. }) => expect(&row, 5, 3, "gyro_dph", "x", BadRowKind::NotANumber),
+                Err(CalError::BadRow { row, .. }) => {
+                    expect(&row, 5, 3, "gyro_dph", "x", BadRowKind::NotANumber)
+                }
                 other => panic!("expected a bad row, got {}", summary(&other)),
             }
         }
