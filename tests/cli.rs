@@ -1358,6 +1358,29 @@ fn allan_recovers_white_noise_arw() {
     assert!((f(&at_1s["adev_dph"]) / expected - 1.0).abs() < 0.10, "{at_1s} vs {expected}");
 }
 
+/// A log too short for any averaging time has no Allan deviation: its noise terms are
+/// unknown (JSON null, text NaN) with a warning, not zero noise.
+#[test]
+fn allan_of_a_log_too_short_says_so() {
+    let dir = TempDir::new().expect("tempdir");
+    let log = dir.path().join("short.csv");
+    fs::write(&log, "time_s,temp_c,gyro_dph\n0,20,1\n1,20,2\n2,20,3\n").expect("write");
+    let doc = json(&run_ok(args!["allan", &log, "--json"]));
+    let axis = &arr(&doc["axes"])[0];
+    assert!(arr(&axis["curve"]).is_empty());
+    for term in ["arw_deg_per_sqrt_h", "bias_instability_dph", "rrw_dph_per_sqrt_h"] {
+        assert!(axis[term].is_null(), "{term}: {}", axis[term]);
+    }
+    let assert = cal().args(args!["allan", &log]).assert().success();
+    let out = assert.get_output();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains("axis 0 (column 'gyro_dph'): 3 samples are too few for an Allan deviation (at least 4)"),
+        "{stderr}"
+    );
+    assert!(String::from_utf8_lossy(&out.stdout).contains("N = NaN"));
+}
+
 // ---------------------------------------------------------------------------------------
 // Capacity: the firmware's tracker capacity is a checked contract
 // ---------------------------------------------------------------------------------------

@@ -616,6 +616,22 @@ pub struct AllanAxisDocument {
     pub curve: Vec<AllanPoint>,
 }
 
+impl AllanAxisDocument {
+    /// The warning for a column too short for any averaging time (its curve empty and its
+    /// noise terms unknown, NaN), or `None`.
+    pub fn too_short_note(&self) -> Option<String> {
+        self.curve.is_empty().then(|| {
+            format!(
+                "axis {} (column '{}'): {} samples are too few for an Allan deviation (at least {}): no noise terms",
+                self.axis,
+                self.column,
+                self.samples,
+                crate::metrics::ALLAN_MIN_SAMPLES
+            )
+        })
+    }
+}
+
 /// Median of the positive steps between consecutive times.
 fn median_step(times: &[f64]) -> Option<f64> {
     let mut steps: Vec<f64> = times.windows(2).map(|w| w[1] - w[0]).filter(|d| *d > 0.0).collect();

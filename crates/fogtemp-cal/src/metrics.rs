@@ -146,12 +146,15 @@ pub struct AllanPoint {
     pub relative_error: f64,
 }
 
+/// The fewest samples [`allan_deviation`] gives a curve for (fewer: an empty curve).
+pub const ALLAN_MIN_SAMPLES: usize = 4;
+
 /// Overlapping Allan deviation (IEEE 952) of a rate series sampled every `dt_s`, at
 /// octave-spaced cluster sizes, computed on the f64 angle `theta = cumsum(rate * dt)`
 /// with the mean rate removed.
 pub fn allan_deviation(rate_dph: &[f64], dt_s: f64) -> Vec<AllanPoint> {
     let n = rate_dph.len();
-    if n < 4 {
+    if n < ALLAN_MIN_SAMPLES {
         return Vec::new();
     }
     let mean = rate_dph.iter().sum::<f64>() / n as f64;
@@ -193,7 +196,16 @@ pub struct NoiseTerms {
 
 /// Fits `sigma^2(tau) = (60 N)^2 / tau + (2 ln2 / pi) B^2 + (K^2 / 3600) tau / 3` (tau in s,
 /// sigma in deg/h) by non-negative least squares, each point weighted by its relative error.
+/// An empty curve (a series too short for any averaging time) gives NaN terms: unknown, not
+/// zero noise.
 pub fn fit_noise_terms(curve: &[AllanPoint]) -> NoiseTerms {
+    if curve.is_empty() {
+        return NoiseTerms {
+            arw_deg_per_sqrt_h: f64::NAN,
+            bias_instability_dph: f64::NAN,
+            rrw_dph_per_sqrt_h: f64::NAN,
+        };
+    }
     let floor = 2.0 * std::f64::consts::LN_2 / std::f64::consts::PI;
     let rows: Vec<([f64; 3], f64, f64)> = curve
         .iter()

@@ -4,7 +4,9 @@ use std::path::{Path, PathBuf};
 
 use fogtemp_cal::arrays::{extract_run_arrays, RunArrays};
 use fogtemp_cal::calibrate::{self, CalibrationConfig, Method, RunFeatures, Validation};
-use fogtemp_cal::documents::{AllanDocument, ComparedModel, FitDocument, ValidationDocument};
+use fogtemp_cal::documents::{
+    AllanAxisDocument, AllanDocument, ComparedModel, FitDocument, ValidationDocument,
+};
 use fogtemp_cal::ingest::{read_log_with_progress, IngestOptions, IngestReport};
 use fogtemp_cal::metrics::BiasStabilityOptions;
 use fogtemp_core::Model as CoreModel;
@@ -850,6 +852,9 @@ pub fn allan<'py>(
             py.detach(|| AllanDocument::new(Path::new("<arrays>"), &names, times, &series)).ok_or_else(
                 || errors::value("allan(): the log needs at least two samples with increasing time"),
             )?;
+        for note in doc.axes.iter().filter_map(AllanAxisDocument::too_short_note) {
+            progress::warn(py, &note)?;
+        }
         return convert::document(py, &doc);
     }
     let ingest: IngestOptions = options::ingest(&mut o)?;
@@ -864,6 +869,9 @@ pub fn allan<'py>(
     let doc = py
         .detach(|| AllanDocument::new(&path, &ingest.format.gyro_columns, &series.time_s, &series.gyros_dph))
         .ok_or_else(|| errors::value(format!("{}: the log needs at least two rows", path.display())))?;
+    for note in doc.axes.iter().filter_map(AllanAxisDocument::too_short_note) {
+        progress::warn(py, &note)?;
+    }
     convert::document(py, &doc)
 }
 

@@ -32,6 +32,9 @@ pub fn allan(a: AllanArgs) -> Result<()> {
     // A number JSON prints as null (NaN, infinite) shows as `or`.
     let finite_or = |x: f64, or: f64| if x.is_finite() { x } else { or };
     for d in &doc.axes {
+        if let Some(note) = d.too_short_note() {
+            eprintln!("warning: {note}");
+        }
         println!(
             "axis {} ({}): N = {:.6} deg/sqrt(h), B = {:.6} deg/h, K = {:.6} deg/h/sqrt(h)",
             d.axis,
