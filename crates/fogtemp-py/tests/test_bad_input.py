@@ -414,3 +414,11 @@ def test_none_text_and_booleans_are_not_read_as_numbers(small_model):
     values = small_model.evaluate([20.0, None], [0.1, 0.1])
     assert np.isfinite(values[0]) and np.isnan(values[1])
     assert values[0] == small_model.evaluate(20.0, 0.1)
+
+
+def test_allan_of_a_series_too_short_warns_and_gives_no_noise_terms():
+    # Three samples hold no averaging time: the noise terms are unknown (None), not zero.
+    with pytest.warns(UserWarning, match=r"3 samples are too few for an Allan deviation \(at least 4\)"):
+        doc = fogtemp.allan({"time_s": [0.0, 1.0, 2.0], "gyro_dph": [1.0, 2.0, 3.0]})
+    axis = doc["axes"][0]
+    assert axis["curve"] == [] and axis["arw_deg_per_sqrt_h"] is None and axis["bias_instability_dph"] is None
