@@ -1375,7 +1375,9 @@ fn allan_of_a_log_too_short_says_so() {
     let out = assert.get_output();
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(
-        stderr.contains("axis 0 (column 'gyro_dph'): 3 samples are too few for an Allan deviation (at least 4)"),
+        stderr.contains(
+            "axis 0 (column 'gyro_dph'): 3 samples are too few for an Allan deviation (at least 4)"
+        ),
         "{stderr}"
     );
     assert!(String::from_utf8_lossy(&out.stdout).contains("N = NaN"));

@@ -190,9 +190,13 @@ pub fn replay_models_arrays(
     config: &CalibrationConfig,
     block_s: f64,
 ) -> Result<crate::calibrate::Replay, CalError> {
-    crate::calibrate::replay_with(run.name, models, &config.ingest, block_s, |visit| {
+    let mut replay = crate::calibrate::replay_with(run.name, models, &config.ingest, block_s, |visit| {
         visit_rows_until_error(run, config, visit)
-    })
+    })?;
+    for series in replay.models.iter_mut().flatten() {
+        series.gaps.in_samples = true;
+    }
+    Ok(replay)
 }
 
 /// Features and smoothed targets of one run given as arrays: what
@@ -201,7 +205,10 @@ pub fn replay_models_arrays(
 /// # Errors
 /// As [`visit_rows`] (with `config.ingest.skip_bad_rows`), or bad feature settings.
 pub fn extract_run_arrays(run: &RunArrays<'_>, config: &CalibrationConfig) -> Result<RunFeatures, CalError> {
-    crate::calibrate::extract_with(run.name, config, |visit| visit_rows_until_error(run, config, visit))
+    let mut features =
+        crate::calibrate::extract_with(run.name, config, |visit| visit_rows_until_error(run, config, visit))?;
+    features.gaps.in_samples = true;
+    Ok(features)
 }
 
 /// [`visit_rows`] for a visitor that can fail: the first error it returns is the result

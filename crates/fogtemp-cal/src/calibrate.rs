@@ -312,8 +312,11 @@ pub struct TimeGaps {
     pub total_s: f64,
     /// The longest, seconds, and the line of the row after it (0 when there is none).
     pub largest_s: f64,
-    /// See `largest_s`.
+    /// See `largest_s`; for a run given as arrays, the sample's 0-based index.
     pub largest_before_line: u64,
+    /// The run was given as arrays: `largest_before_line` is a sample index, and the note
+    /// says so.
+    pub in_samples: bool,
 }
 
 impl TimeGaps {
@@ -332,10 +335,11 @@ impl TimeGaps {
     pub fn note_against(&self, path: &Path, threshold: &str, consequence: &str) -> Option<String> {
         // Whole seconds, but a tenth under 10 s (a 3.5 s gap is not "4 s").
         let seconds = |s: f64| if s < 10.0 { format!("{s:.1}") } else { format!("{s:.0}") };
+        let place = if self.in_samples { "sample" } else { "line" };
         (self.count > 0).then(|| {
             format!(
                 "{}: {} gap{} in the time stamps longer than {threshold}, {} s in all, \
-                 the longest {} s before line {}; {consequence}",
+                 the longest {} s before {place} {}; {consequence}",
                 path.display(),
                 self.count,
                 if self.count == 1 { "" } else { "s" },

@@ -144,7 +144,9 @@ pub fn series_from_arrays(
     if report.rows == 0 {
         return Err(DiagnoseError::NoDataRows { path: run.name.to_path_buf() });
     }
-    Ok(binning.finish(report.skipped))
+    let mut read = binning.finish(report.skipped);
+    read.gaps.in_samples = true;
+    Ok(read)
 }
 
 /// Run metadata from `DIR/manifest.json` (written by `simulate`), keyed by file name; empty
@@ -370,6 +372,9 @@ mod tests {
             (from_log.gaps.count, from_log.gaps.total_s)
         );
         assert_eq!(from_arrays.gaps.count, 1);
+        // The gap is named where each keeps it: a file's line, an array's sample index.
+        assert!(from_log.gap_note(&path).expect("a gap").contains("before line 252;"));
+        assert!(from_arrays.gap_note(&name).expect("a gap").contains("before sample 250;"));
         // A bad sample is an error naming the run and the sample, or skipped and counted.
         let mut bad = gyro.clone();
         bad[12] = f64::NAN;

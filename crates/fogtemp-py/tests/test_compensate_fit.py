@@ -282,3 +282,13 @@ def test_validate_runs_given_as_arrays_refuses_file_options_and_mixed_axes(tmp_p
     with pytest.warns(UserWarning, match=r"runs\[0\]: skipped 1 bad samples \(skip_bad_rows\); first ones:\n  sample 5 'gyro_dph'"):
         skipped = fogtemp.validate(model, [bad], skip_bad_rows=True, progress=False)
     assert np.isfinite(skipped["compensated_bias_stability_dph"]) and skipped["runs"][0]["skipped_rows"] == 1
+
+
+def test_gaps_in_runs_given_as_arrays_are_named_by_sample():
+    # A run given as arrays has samples, not lines: its gap warnings name the sample index.
+    runs = synthetic_runs(seed=11, runs=3)
+    gappy = dict(runs[0], time_s=runs[0]["time_s"] + np.where(np.arange(len(runs[0]["time_s"])) >= 700, 60.0, 0.0))
+    with pytest.warns(UserWarning, match=r"runs\[0\]: 1 gap in the time stamps longer than .* before sample 700;"):
+        model = fogtemp.fit([gappy, runs[1], runs[2]], method="poly", progress=False)
+    with pytest.warns(UserWarning, match=r"runs\[0\]: 1 gap in the time stamps longer than .* before sample 700;"):
+        fogtemp.validate(model, [gappy], progress=False)
