@@ -441,6 +441,22 @@ fn structure_outside_the_catalogue_is_located_and_reported_unexplained() {
 }
 
 #[test]
+fn a_recording_equal_to_its_simulation_gets_a_report_without_an_allan_figure() {
+    // The residual is exactly zero: nothing a log scale can draw. Writing the report failed
+    // on the Allan figure before ("no Allan deviation points to plot"), leaving half a report.
+    let (sim, _) = make_set(&paper_runs(), Injected::None, 2.0, 5);
+    let d = diagnose(&sim, &sim, &DiagnoseOptions::default(), |_, _| {}).expect("diagnosis runs");
+    assert!(d.left_out.is_empty(), "{}", d.summary);
+    let dir = tempfile::tempdir().expect("temp dir");
+    write_diagnosis_report(dir.path(), &d).expect("report written");
+    let md = std::fs::read_to_string(dir.path().join("report.md")).expect("report.md");
+    assert!(!dir.path().join("allan.svg").exists() && !md.contains("allan.svg"), "{md}");
+    for file in ["residuals.svg", "map.svg", "report.html"] {
+        assert!(dir.path().join(file).is_file(), "{file}");
+    }
+}
+
+#[test]
 fn thermal_lag_is_named_and_its_time_constant_recovered() {
     let d = run_diagnosis(&paper_runs(), Injected::ThermalLag, 2.0, 11);
     assert_eq!(names(&d), ["thermal_lag"]);

@@ -345,7 +345,8 @@ fn opt(v: Option<f64>) -> String {
 /// The figures drawn beside `report.md` that not every diagnosis has.
 #[derive(Clone, Copy, Default)]
 struct OptionalFigures {
-    /// `allan.svg` (no run had a stretch long enough for an Allan deviation otherwise).
+    /// `allan.svg` (no run had a stretch long enough for an Allan deviation, or the residual
+    /// is exactly zero, otherwise).
     allan: bool,
     /// `static_shape.svg` (only when `static_shape` is named).
     static_shape: bool,
@@ -560,7 +561,9 @@ pub fn write_diagnosis_report(dir: &Path, d: &Diagnosis) -> Result<(), DiagnoseE
     )?;
     let mut figures = OptionalFigures::default();
     let curves = allan_curves(d);
-    if curves.iter().any(|(_, c)| !c.is_empty()) {
+    // A residual that is exactly zero (a recording equal to its simulation) has nothing a
+    // log scale can draw: the table still shows it.
+    if fogtemp_cal::report::allan_plottable(&curves) {
         figures.allan = true;
         fogtemp_cal::report::plot_allan(
             &dir.join("allan.svg"),

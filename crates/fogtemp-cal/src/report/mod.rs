@@ -410,13 +410,23 @@ pub fn log_ticks(lo: f64, hi: f64) -> Vec<f64> {
     }
 }
 
+/// Whether [`plot_allan`] has a point to draw: a positive, finite deviation (a log scale
+/// cannot show 0, as from a residual that is exactly zero).
+pub fn allan_plottable(curves: &[(String, Vec<AllanPoint>)]) -> bool {
+    curves.iter().flat_map(|(_, c)| c.iter()).any(plottable)
+}
+
+fn plottable(p: &AllanPoint) -> bool {
+    p.adev_dph > 0.0 && p.adev_dph.is_finite()
+}
+
 /// Allan deviation curves, log-log.
 ///
 /// # Errors
-/// [`CalError::Io`] if the file cannot be written.
+/// [`CalError::Io`] if the file cannot be written, or there is no point to draw
+/// ([`allan_plottable`]).
 pub fn plot_allan(path: &Path, title: &str, curves: &[(String, Vec<AllanPoint>)]) -> Result<(), CalError> {
-    let points =
-        || curves.iter().flat_map(|(_, c)| c.iter()).filter(|p| p.adev_dph > 0.0 && p.adev_dph.is_finite());
+    let points = || curves.iter().flat_map(|(_, c)| c.iter()).filter(|p| plottable(p));
     let (t0, t1) = points().fold((f64::INFINITY, 0.0f64), |(a, b), p| (a.min(p.tau_s), b.max(p.tau_s)));
     let (a0, a1) = points().fold((f64::INFINITY, 0.0f64), |(a, b), p| (a.min(p.adev_dph), b.max(p.adev_dph)));
     if !t0.is_finite() {
@@ -667,14 +677,15 @@ fn validation_axis_figures(
     md.push_str(&format!("![Bias stability per run, raw beside compensated]({bars_svg})\n\n"));
     let series: Vec<&crate::calibrate::ReplaySeries> = runs.iter().map(|r| &r.series).collect();
     let (raw, comp) = data::span_allan(&series, 1.0);
-    if !raw.is_empty() && !comp.is_empty() {
+    let curves = [("raw".to_string(), raw.clone()), ("compensated".to_string(), comp.clone())];
+    if !raw.is_empty() && !comp.is_empty() && allan_plottable(&curves) {
         let allan_svg = format!("allan-axis{axis}.svg");
         plot_allan(
             &dir.join(&allan_svg),
             &format!(
                 "Allan deviation of 1 s means from the first compensated sample, RMS over runs, axis {axis}"
             ),
-            &[("raw".into(), raw.clone()), ("compensated".into(), comp.clone())],
+            &curves,
         )?;
         md.push_str(&format!(
             "![Allan deviation, raw and compensated, each run from its first compensated sample]({allan_svg})\n\n"
