@@ -28,22 +28,12 @@ import subprocess
 import sys
 import tempfile
 
+from testbed_calibration import runs_with_roles  # the runs file with roles (up_* cal, down_* val)
+
 METHODS = ("cubic-t", "poly", "mesh")
 PAIRS = (("poly", "mesh"), ("cubic-t", "mesh"), ("cubic-t", "poly"))
 WEIGHTS = (0.25, 0.5, 0.75)
 WARMING_UP = 1
-
-
-def runs_with_roles(case, tmp):
-    with open(os.path.join(case, "runs.csv"), newline="") as f:
-        rows = list(csv.DictReader(f))
-    dst = os.path.join(tmp, "runs.csv")
-    with open(dst, "w", newline="") as f:
-        w = csv.writer(f)
-        w.writerow(["run", "position", "input_rate_dph", "role"])
-        for r in rows:
-            w.writerow([r["run"], r["position"], r["input_rate_dph"], "cal" if r["run"].startswith("up_") else "val"])
-    return dst
 
 
 def read_compensated(path):
