@@ -134,6 +134,7 @@ impl RowState {
         let index = self.records;
         self.records += 1;
         let parsed = parse_row(fields, plan, line, index, &mut self.temps, &mut self.gyros)
+            .map_err(|bad| named_text_row(bad, fields, plan))
             .map(|time| continue_time(plan, time, self.previous_time))
             .and_then(|time| check_time(time, self.previous_time, &plan.columns, line, fields));
         match parsed {
@@ -363,6 +364,29 @@ fn bad_row(columns: &Columns, line: u64, field: usize, found: &[u8], kind: BadRo
     }
 }
 
+/// A cell that is not a number, in a row where no column read holds a number and some hold
+/// words, is named [`BadRowKind::TextRow`] (a units row, a repeated header); else `bad` as is.
+fn named_text_row(bad: BadRow, fields: Fields<'_>, plan: &Plan) -> BadRow {
+    if bad.kind != BadRowKind::NotANumber {
+        return bad;
+    }
+    let c = &plan.columns;
+    let cells: Vec<&[u8]> = c
+        .time
+        .iter()
+        .chain(&c.gyros)
+        .chain(&c.temps)
+        .map(|&k| fields.get(k).unwrap_or(b"").trim_ascii())
+        .collect();
+    let no_number = cells.iter().all(|t| t.is_empty() || parse_number(t, plan.decimal_mark).is_none());
+    let words = cells.iter().filter(|t| t.iter().any(u8::is_ascii_alphabetic)).count();
+    if no_number && words >= 2.min(cells.len()) {
+        BadRow { kind: BadRowKind::TextRow, ..bad }
+    } else {
+        bad
+    }
+}
+
 /// Parses one numeric cell; `Ok(None)` for an empty cell.
 fn parse_cell(plan: &Plan, fields: Fields<'_>, field: usize, line: u64) -> Result<Option<f64>, BadRow> {
     let raw = fields.get(field).unwrap_or(b"");
@@ -516,6 +540,28 @@ mod tests {
     }
 
     #[test]
+    fn rows_of_text_are_named_as_units_rows_or_repeated_headers() {
+        // A units row under the header, and a header repeated where two logs were joined.
+        let b = bad(&format!("{HEADER}s,degC,deg/h\n0.0,20,1\n"));
+        expect(&b, 2, 1, "time_s", "s", BadRowKind::TextRow);
+        assert!(b.kind.describe().contains("a units row under the header"));
+        let b = bad(&format!("{HEADER}0.0,20,1\n1.0,20,1\n{HEADER}2.0,20,1\n"));
+        expect(&b, 4, 1, "time_s", "time_s", BadRowKind::TextRow);
+        // A units row with an empty temperature unit is text too; one word among numbers,
+        // or garbage without letters, is not.
+        expect(&bad(&format!("{HEADER}s,,deg/h\n")), 2, 1, "time_s", "s", BadRowKind::TextRow);
+        expect(&bad(&format!("{HEADER}0.0,20,abc\n")), 2, 3, "gyro_dph", "abc", BadRowKind::NotANumber);
+        expect(&bad(&format!("{HEADER}x,20,1\n")), 2, 1, "time_s", "x", BadRowKind::NotANumber);
+        expect(&bad(&format!("{HEADER}-,-,-\n")), 2, 1, "time_s", "-", BadRowKind::NotANumber);
+        // Skipped like any bad row, and listed with its reason.
+        let (seen, result) =
+            run(format!("{HEADER}s,degC,deg/h\n0.0,20,1\n1.0,20,2\n").as_bytes(), &skipping());
+        assert_eq!(seen.len(), 2);
+        let report = result.expect("read");
+        assert_eq!((report.skipped, report.first_skipped[0].kind), (1, BadRowKind::TextRow));
+    }
+
+    #[test]
     fn non_finite_cells_are_rejected() {
         for text in ["nan", "NaN", "inf", "-inf", "infinity", "1e400"] {
             let b = bad(&format!("{HEADER}0.0,20,1\n0.1,20,{text}\n"));
@@ -556,8 +602,9 @@ mod tests {
 
     #[test]
     fn first_bad_cell_in_order_time_gyro_temperature() {
+        // (A row of words only is named a text row; the cell reported is still the first.)
         let b = bad(&format!("{HEADER}x,y,z\n"));
-        expect(&b, 2, 1, "time_s", "x", BadRowKind::NotANumber);
+        expect(&b, 2, 1, "time_s", "x", BadRowKind::TextRow);
         let b = bad(&format!("{HEADER}0,y,z\n"));
         expect(&b, 2, 3, "gyro_dph", "z", BadRowKind::NotANumber);
     }

@@ -350,6 +350,10 @@ impl Row<'_> {
 pub enum BadRowKind {
     /// A cell is not a number.
     NotANumber,
+    /// Not a number, and no cell the log is read from holds one: text where every number
+    /// belongs, as a units row under the header (`s,degC,deg/h`) or a header repeated where
+    /// two logs were joined.
+    TextRow,
     /// A cell is NaN or infinite.
     NonFinite,
     /// Fewer fields than the header.
@@ -384,6 +388,10 @@ impl BadRowKind {
     pub fn describe(self) -> &'static str {
         match self {
             BadRowKind::NotANumber => "not a number",
+            BadRowKind::TextRow => {
+                "not a number: the row holds text in every column read (a units row under the header, or a \
+                 header repeated where two logs were joined?)"
+            }
             BadRowKind::NonFinite => "NaN or infinite",
             BadRowKind::ShortRow => "fewer fields than the header",
             BadRowKind::DuplicateTime => "time equal to the previous row",
