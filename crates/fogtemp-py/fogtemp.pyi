@@ -32,7 +32,14 @@ PathLike = Union[str, "os.PathLike[str]"]
 ArrayLike = npt.ArrayLike
 Run = Mapping[str, Any]
 """A run given as arrays: a dict or pandas DataFrame with ``time_s`` (s), ``temp_c`` (deg C, NaN =
-no reading) and ``gyro_dph`` (deg/h; 2-D with one column per axis for several axes)."""
+no reading) and ``gyro_dph`` (deg/h; for several axes a dict holding a 2-D array with one column
+per axis). Columns hold numbers (int, float32 or float64; None or pandas NA = missing); text,
+booleans and date-times are refused (TypeError): give time in seconds, e.g.
+``(t - t.iloc[0]).dt.total_seconds()``. A DataFrame's index is not read (``reset_index()``).
+The gyro is the bias plus the true input rate: subtract each run's input rate (Earth rate in its
+position, or a turntable's) from ``gyro_dph`` yourself, as ``runs=`` does for log files; else the
+model takes a shared input rate as bias. Several runs: a list, or a dict keyed by run name (the
+names then stand for the runs in documents and messages)."""
 
 class Model:
     """A validated fogtemp model blob (what firmware embeds), with the library's documents.
@@ -124,7 +131,7 @@ def fit(
     the default, "hold" or "linear_from_boundary"; a mesh model's mesh beyond its hull), capacity, operating_temp_c as a
     (min, max) pair) and, for files, the log-column options (time_column, time_unit ("s", "ms", "us", "datetime" or "time_of_day"), temp_column,
     temp_scale, temp_offset, gyro_column, gyro_unit, gyro_scale, delimiter, skip_lines, columns,
-    sample_rate_hz, comment, decimal_mark ("point" or "comma"), date_column, skip_bad_rows) and runs (a runs file, run,position,input_rate_dph[,role]: as fit --runs, val runs are left out and each run's input rate is subtracted from its gyro). Identifiability warnings (too few runs, heating only,
+    sample_rate_hz, comment, decimal_mark ("point" or "comma"), date_column, skip_bad_rows) and runs (log files only: a runs file, run,position,input_rate_dph[,role], describing exactly the logs given; as fit --runs, val runs are left out and each run's input rate is subtracted from its gyro). Identifiability warnings (too few runs, heating only,
     ...) are issued as Python warnings and listed in ``Model.fit_report["warnings"]`` (a property).
     ``report`` (a folder) writes fit-report.md, fit-report.html and the figures, as fit --report.
     ``progress`` shows reading and cross-validation progress on stderr.

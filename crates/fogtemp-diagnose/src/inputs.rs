@@ -208,6 +208,18 @@ pub fn runs_file_meta(
         .collect())
 }
 
+/// What the user is told when nothing says what each run was (no runs file, no
+/// `manifest.json` beside the simulated logs): `None` when `meta` describes some run.
+#[must_use]
+pub fn unknown_setup_note(meta: &BTreeMap<String, RunMeta>) -> Option<String> {
+    meta.is_empty().then(|| {
+        "no runs file and no manifest.json beside the simulated logs: each run's position and input rate \
+         are unknown, so orientation_offset and scale_factor_temperature cannot be tested and runs from \
+         several positions are treated as one; give a runs file (run,position,input_rate_dph)"
+            .to_string()
+    })
+}
+
 /// Pairs simulated and recorded logs by file name, in the order of `simulated`; every log
 /// must have a partner.
 ///

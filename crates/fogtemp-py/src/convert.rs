@@ -28,6 +28,9 @@ pub fn f64_array<'py>(value: &Bound<'py, PyAny>, what: &str) -> PyResult<PyReado
     if let Some(found) = refused_kind(&kind) {
         return Err(errors::type_(format!("{what} must be numbers, got {found}")));
     }
+    if kind == "O" {
+        refuse_objects_that_are_not_numbers(&as_is, what)?;
+    }
     let kwargs = PyDict::new(py);
     kwargs.set_item("dtype", numpy.getattr("float64")?)?;
     kwargs.set_item("order", "C")?;
@@ -38,13 +41,51 @@ pub fn f64_array<'py>(value: &Bound<'py, PyAny>, what: &str) -> PyResult<PyReado
 }
 
 /// What a numpy dtype kind holds when it is not numbers: text and booleans convert to float64
-/// silently (`"20"` to 20.0, `True` to 1.0), so they are refused rather than read.
+/// silently (`"20"` to 20.0, `True` to 1.0), and date-times to ticks of their unit (taken as
+/// seconds), so they are refused rather than read.
 fn refused_kind(kind: &str) -> Option<&'static str> {
     match kind {
-        "U" | "S" => Some("text (convert it with float() or pandas.to_numeric first)"),
+        "U" | "S" | "T" => Some("text (convert it with float() or pandas.to_numeric first)"),
         "b" => Some("booleans"),
+        "M" | "m" => Some(
+            "date-times (datetime64/timedelta64); give seconds, e.g. (t - t.iloc[0]).dt.total_seconds() for a pandas column",
+        ),
         _ => None,
     }
+}
+
+/// An object array (a pandas column of mixed or text values) holds numbers only: each
+/// element is a real number, `None` or pandas' `NA` (missing). Text, booleans and
+/// timestamps would be converted silently or with numpy's own words.
+fn refuse_objects_that_are_not_numbers(array: &Bound<'_, PyAny>, what: &str) -> PyResult<()> {
+    let py = array.py();
+    let real = py.import("numbers")?.getattr("Real")?;
+    for (index, element) in array.call_method0("ravel")?.try_iter()?.enumerate() {
+        let element = element?;
+        let type_name = element.get_type().name()?.to_string();
+        let missing = element.is_none() || type_name == "NAType";
+        let number = element.is_instance(&real)? && !type_name.starts_with("bool");
+        if !(missing || number) {
+            let found = match type_name.as_str() {
+                "str" | "bytes" | "str_" | "bytes_" => {
+                    "text (convert it with float() or pandas.to_numeric first)"
+                }
+                name if name.starts_with("bool") => "booleans",
+                name if name.contains("Timestamp")
+                    || name.contains("datetime")
+                    || name.contains("Timedelta") =>
+                {
+                    "date-times; give seconds, e.g. (t - t.iloc[0]).dt.total_seconds() for a pandas column"
+                }
+                _ => "something that is not a number",
+            };
+            return Err(errors::type_(format!(
+                "{what} must be numbers, got {found} (element {index}: {})",
+                element.repr()?
+            )));
+        }
+    }
+    Ok(())
 }
 
 /// The contiguous data of an array from [`f64_array`].
@@ -82,10 +123,12 @@ pub fn item<'py>(obj: &Bound<'py, PyAny>, key: &str) -> PyResult<Option<Bound<'p
 }
 
 /// True for a run given as arrays: a dict, a pandas DataFrame, or any mapping with a
-/// `time_s` key (paths are strings or `os.PathLike`).
+/// `time_s` key (paths are strings or `os.PathLike`). A dict or DataFrame without `time_s`
+/// counts too, so that its missing column is named rather than it being taken for a path.
 pub fn is_arrays(obj: &Bound<'_, PyAny>) -> PyResult<bool> {
     if obj.is_instance_of::<pyo3::types::PyString>() || obj.hasattr("__fspath__")? {
         return Ok(false);
     }
-    Ok(item(obj, "time_s")?.is_some())
+    let table = obj.is_instance_of::<PyDict>() || obj.hasattr("columns")?;
+    Ok(table || item(obj, "time_s")?.is_some())
 }

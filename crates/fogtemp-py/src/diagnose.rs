@@ -57,13 +57,22 @@ fn read_series(
 /// run name. A run keyed `a` stands as `a.csv`: it pairs with the log `a.csv` of the other
 /// side, a runs file's row `a` describes it, and the document names it so.
 enum Side<'py> {
-    Files { given: PathBuf, logs: Vec<PathBuf> },
-    Arrays(Vec<ArrayRun<'py>>),
+    Files {
+        given: PathBuf,
+        logs: Vec<PathBuf>,
+    },
+    /// The runs, and which side they are ("simulated", "recorded").
+    Arrays(Vec<ArrayRun<'py>>, &'static str),
 }
 
 impl<'py> Side<'py> {
-    fn new(value: &Bound<'py, PyAny>, what: &str) -> PyResult<Self> {
-        if convert::is_arrays(value)? {
+    fn new(value: &Bound<'py, PyAny>, what: &'static str) -> PyResult<Self> {
+        if value.is_instance_of::<pyo3::types::PyList>() || value.is_instance_of::<pyo3::types::PyTuple>() {
+            return Err(PyTypeError::new_err(format!(
+                "diagnose(): {what} must be a folder or file of logs, or a dict of runs keyed by run name (not a list: runs are paired by name)"
+            )));
+        }
+        if convert::is_arrays(value)? && !value.is_instance_of::<PyDict>() {
             return Err(PyTypeError::new_err(format!(
                 "diagnose(): {what} is one run; give a dict of runs keyed by run name (or a folder of logs)"
             )));
@@ -73,15 +82,21 @@ impl<'py> Side<'py> {
             if dict.is_empty() {
                 return Err(errors::value(format!("diagnose(): {what} holds no runs")));
             }
+            if dict.contains("time_s")? {
+                return Err(PyTypeError::new_err(format!(
+                    "diagnose(): {what} is one run; give a dict of runs keyed by run name (or a folder of logs)"
+                )));
+            }
             let mut runs = Vec::with_capacity(dict.len());
             for (key, run) in dict.iter() {
                 let key: String = key.extract().map_err(|_| {
                     PyTypeError::new_err(format!("diagnose(): {what}'s keys must be run names (str)"))
                 })?;
-                let name = if key.ends_with(".csv") { key } else { format!("{key}.csv") };
+                let name =
+                    if key.to_ascii_lowercase().ends_with(".csv") { key } else { format!("{key}.csv") };
                 runs.push(ArrayRun::named(PathBuf::from(name), &run)?);
             }
-            return Ok(Side::Arrays(runs));
+            return Ok(Side::Arrays(runs, what));
         }
         let given: PathBuf = value.extract().map_err(|_| {
             PyTypeError::new_err(format!(
@@ -96,7 +111,7 @@ impl<'py> Side<'py> {
     fn paths(&self) -> Vec<PathBuf> {
         match self {
             Side::Files { logs, .. } => logs.clone(),
-            Side::Arrays(runs) => runs.iter().map(|r| r.name.clone()).collect(),
+            Side::Arrays(runs, _) => runs.iter().map(|r| r.name.clone()).collect(),
         }
     }
 
@@ -110,7 +125,7 @@ impl<'py> Side<'py> {
         meta: RunMeta,
         show: bool,
     ) -> PyResult<inputs::ReadSeries> {
-        let Side::Arrays(runs) = self else {
+        let Side::Arrays(runs, what) = self else {
             return read_series(py, path, ingest, bin_s, meta, show);
         };
         let Some(run) = runs.iter().find(|r| r.name == path) else {
@@ -122,6 +137,9 @@ impl<'py> Side<'py> {
         py.check_signals()?;
         read.map_err(|e| match e {
             DiagnoseError::Cal(c) => array_error(c),
+            DiagnoseError::NoDataRows { path } => {
+                errors::value(format!("{what} run {}: no samples", path.display()))
+            }
             other => diagnose_error(other),
         })
     }
@@ -181,9 +199,12 @@ pub fn diagnose<'py>(
     let meta = match (&runs, &simulated) {
         (Some(path), _) => inputs::runs_file_meta(path, &simulated_logs),
         (None, Side::Files { given, .. }) => inputs::manifest_meta(given),
-        (None, Side::Arrays(_)) => Ok(Default::default()),
+        (None, Side::Arrays(..)) => Ok(Default::default()),
     }
     .map_err(diagnose_error)?;
+    if let Some(note) = inputs::unknown_setup_note(&meta) {
+        progress::warn(py, &format!("{note} (runs=)"))?;
+    }
     let sim_ingest = IngestOptions::default();
     let (mut sims, mut recs) = (Vec::new(), Vec::new());
     for (s, r) in &pairs {
@@ -195,7 +216,7 @@ pub fn diagnose<'py>(
         sims.push(sim.series);
         let rec = recorded.series(py, r, &recorded_ingest, bin_s, m, progress)?;
         if rec.skipped > 0 {
-            let unit = if matches!(recorded, Side::Arrays(_)) { "samples" } else { "rows" };
+            let unit = if matches!(recorded, Side::Arrays(..)) { "samples" } else { "rows" };
             progress::warn(py, &format!("{}: skipped {} bad {unit}", r.display(), rec.skipped))?;
         }
         if let Some(note) = rec.gap_note(r) {

@@ -98,6 +98,48 @@ fn digest_files(paths: &[PathBuf]) -> PyResult<[u8; 32]> {
     Ok(hasher.finalize().into())
 }
 
+/// The items of a `logs` argument and, for a dict of runs, their names.
+type LogsAndNames<'py> = (Vec<Bound<'py, PyAny>>, Option<Vec<String>>);
+
+/// The logs or runs of a `logs` argument, and for a dict of runs keyed by run name (the form
+/// `diagnose` takes) their names. All paths, or all runs given as arrays, not both.
+fn runs_and_names<'py>(logs: &Bound<'py, PyAny>) -> PyResult<LogsAndNames<'py>> {
+    let (items, names) =
+        match logs.cast::<PyDict>() {
+            Ok(dict) if !dict.contains("time_s")? && !dict.is_empty() => {
+                let mut names = Vec::with_capacity(dict.len());
+                let mut items = Vec::with_capacity(dict.len());
+                for (key, run) in dict.iter() {
+                    names.push(key.extract::<String>().map_err(|_| {
+                        PyTypeError::new_err("a dict of runs must be keyed by run name (str)")
+                    })?);
+                    items.push(run);
+                }
+                (items, Some(names))
+            }
+            _ => (as_list(logs)?, None),
+        };
+    let arrays = items.iter().map(convert::is_arrays).collect::<PyResult<Vec<bool>>>()?;
+    if arrays.iter().any(|&a| a) && !arrays.iter().all(|&a| a) {
+        return Err(PyTypeError::new_err(
+            "give all logs as paths, or all runs as arrays (dicts or DataFrames), not both",
+        ));
+    }
+    Ok((items, names))
+}
+
+/// Runs given as arrays: named by `names` (a dict's keys), else `runs[i]`.
+fn array_runs_of<'py>(items: &[Bound<'py, PyAny>], names: Option<&[String]>) -> PyResult<Vec<ArrayRun<'py>>> {
+    items
+        .iter()
+        .enumerate()
+        .map(|(i, r)| match names.and_then(|n| n.get(i)) {
+            Some(name) => ArrayRun::named(PathBuf::from(name), r),
+            None => ArrayRun::new(i, r),
+        })
+        .collect()
+}
+
 /// One run given as arrays, held as contiguous float64 numpy arrays.
 pub(crate) struct ArrayRun<'py> {
     pub(crate) name: PathBuf,
@@ -134,7 +176,10 @@ impl<'py> ArrayRun<'py> {
         let label = name.display().to_string();
         let get = |key: &str| -> PyResult<Bound<'py, PyAny>> {
             convert::item(run, key)?.ok_or_else(|| {
-                errors::value(format!("{label}: no '{key}' (a run needs time_s, temp_c and gyro_dph)"))
+                errors::value(format!(
+                    "{label}: no '{key}' (a run needs time_s, temp_c and gyro_dph; a DataFrame's index is not read: \
+                     reset_index() makes it a column)"
+                ))
             })
         };
         Ok(Self {
@@ -169,6 +214,10 @@ pub(crate) fn array_error(e: fogtemp_cal::CalError) -> PyErr {
             row.kind.describe(),
             row.found
         )),
+        // Arrays have no lines: a shape problem is the run's, not a line 0's.
+        fogtemp_cal::CalError::Csv { path, line: 0, message } => {
+            errors::value(format!("{}: {message}", path.display()))
+        }
         _ => errors::cal(e),
     }
 }
@@ -203,7 +252,7 @@ pub fn fit(
     options: Option<&Bound<'_, PyDict>>,
 ) -> PyResult<Model> {
     let method = parse_method(method)?;
-    let items = as_list(logs)?;
+    let (items, names) = runs_and_names(logs)?;
     if items.is_empty() {
         return Err(errors::value("fit() needs at least one log or run"));
     }
@@ -231,8 +280,7 @@ pub fn fit(
     o.finish()?;
     options::capacity_fits(config.features.block_count as usize, capacity)?;
     let fitted = if arrays {
-        let array_runs =
-            items.iter().enumerate().map(|(i, r)| ArrayRun::new(i, r)).collect::<PyResult<Vec<_>>>()?;
+        let array_runs = array_runs_of(&items, names.as_deref())?;
         let (runs, digest) = array_features(py, &array_runs, &mut config)?;
         let columns: Vec<ArrayColumns<'_>> =
             array_runs.iter().map(ArrayColumns::new).collect::<PyResult<_>>()?;
@@ -594,7 +642,7 @@ pub fn validate<'py>(
     progress: bool,
     options: Option<&Bound<'py, PyDict>>,
 ) -> PyResult<Bound<'py, PyAny>> {
-    let items = as_list(logs)?;
+    let (items, names) = runs_and_names(logs)?;
     if items.is_empty() {
         return Err(errors::value("validate() needs at least one log or run"));
     }
@@ -637,8 +685,7 @@ pub fn validate<'py>(
     }
     let refs: Vec<&CoreModel<'_>> = models.iter().collect();
     let per_log = if arrays {
-        let runs =
-            items.iter().enumerate().map(|(i, r)| ArrayRun::new(i, r)).collect::<PyResult<Vec<_>>>()?;
+        let runs = array_runs_of(&items, names.as_deref())?;
         if let Some(note) = calibrate::axis_count_note(
             &blobs[0].1,
             models[0].axis_count(),

@@ -63,6 +63,9 @@ pub fn diagnose(a: DiagnoseArgs, recorded_ingest: IngestOptions) -> Result<()> {
         Some(path) => inputs::runs_file_meta(path, &simulated)?,
         None => manifest_meta(&a.simulated)?,
     };
+    if let Some(note) = inputs::unknown_setup_note(&meta) {
+        eprintln!("note: {note} (--runs FILE)");
+    }
     let sim_ingest = IngestOptions::default();
     let mut sims = Vec::new();
     let mut recs = Vec::new();

@@ -1,0 +1,80 @@
+"""Runs given as arrays the way a notebook holds them (pandas columns of every dtype, a dict
+of runs keyed by name): read when they are numbers, refused by name when they are not (a
+review of the array API, 2026-11-27, found text, booleans and date-times read silently)."""
+
+import numpy as np
+import pandas as pd
+import pytest
+
+import fogtemp
+from conftest import synthetic_runs
+
+
+@pytest.fixture(scope="module")
+def runs():
+    return synthetic_runs(seed=11, runs=3)
+
+
+@pytest.fixture(scope="module")
+def model(runs):
+    return fogtemp.fit(runs, method="poly", progress=False)
+
+
+def frame(run):
+    return pd.DataFrame({k: run[k] for k in ("time_s", "temp_c", "gyro_dph")})
+
+
+def test_pandas_text_booleans_and_date_times_are_refused_by_name(model, runs):
+    df = frame(runs[0])
+    text = df.assign(temp_c=df.temp_c.astype(str))
+    with pytest.raises(TypeError, match=r"runs\[0\]\['temp_c'\] must be numbers, got text"):
+        fogtemp.validate(model, [text], progress=False)
+    with pytest.raises(TypeError, match=r"runs\[0\]\['gyro_dph'\] must be numbers, got text"):
+        fogtemp.validate(model, [df.assign(gyro_dph=df.gyro_dph.astype(object).where(df.index != 3, "1.5"))], progress=False)
+    boolean = df.assign(gyro_dph=df.gyro_dph.astype(object).where(df.index != 5, True))
+    with pytest.raises(TypeError, match=r"must be numbers, got booleans \(element 5: True\)"):
+        fogtemp.validate(model, [boolean], progress=False)
+    stamps = pd.Timestamp("2024-05-01") + pd.to_timedelta(df.time_s, unit="s")
+    for t in (stamps, stamps.dt.tz_localize("UTC"), pd.to_timedelta(df.time_s, unit="s")):
+        with pytest.raises(TypeError, match=r"time_s'\] must be numbers, got date-times.*total_seconds"):
+            fogtemp.validate(model, [df.assign(time_s=t)], progress=False)
+    with pytest.raises(TypeError, match="got date-times"):
+        fogtemp.allan(df.assign(time_s=stamps))
+    # Numbers of every kind are read: ints, float32, nullable floats (NA is missing).
+    for numbers in (df.gyro_dph.astype("float32"), (df.gyro_dph * 100).round().astype("int64")):
+        assert fogtemp.validate(model, [df.assign(gyro_dph=numbers)], progress=False)["compensated_bias_stability_dph"] > 0
+    nullable = df.assign(temp_c=df.temp_c.astype("Float64"))
+    assert fogtemp.validate(model, [nullable], progress=False) == fogtemp.validate(model, [df], progress=False)
+
+
+def test_a_dataframe_without_time_s_is_named_not_taken_for_a_path(model, runs):
+    df = frame(runs[0])
+    for bad in (df.set_index("time_s"), df.rename(columns={"time_s": "time"})):
+        with pytest.raises(ValueError, match=r"runs\[0\]: no 'time_s' .*reset_index\(\) makes it a column"):
+            fogtemp.validate(model, [bad], progress=False)
+    with pytest.raises(ValueError, match=r"runs\[0\]: temp_c has 10 samples but time_s has"):
+        fogtemp.validate(model, [dict(runs[0], temp_c=runs[0]["temp_c"][:10])], progress=False)
+
+
+def test_a_dict_of_runs_keyed_by_name_names_them_and_paths_do_not_mix(model, runs, tmp_path):
+    named = {f"run{k}": frame(r) for k, r in enumerate(runs)}
+    doc = fogtemp.validate(model, named, progress=False)
+    assert [r["path"] for r in doc["runs"]] == ["run0", "run1", "run2"]
+    assert doc["compensated_bias_stability_dph"] == fogtemp.validate(model, runs, progress=False)["compensated_bias_stability_dph"]
+    assert fogtemp.fit(named, method="poly", progress=False).inspect()["axes"] == model.inspect()["axes"]
+    (tmp_path / "a.csv").write_text("time_s,temp_c,gyro_dph\n0,20,1\n1,20,1\n")
+    with pytest.raises(TypeError, match="all logs as paths, or all runs as arrays"):
+        fogtemp.fit([tmp_path / "a.csv", runs[1]], progress=False)
+
+
+def test_diagnose_names_what_it_cannot_pair_or_read(runs):
+    named = {f"run{k}": r for k, r in enumerate(runs)}
+    with pytest.raises(TypeError, match="not a list: runs are paired by name"):
+        fogtemp.diagnose(list(named.values()), named, progress=False)
+    with pytest.raises(TypeError, match="simulated is one run"):
+        fogtemp.diagnose(runs[0], named, progress=False)
+    empty = dict(named, run0={k: v[:0] for k, v in runs[0].items()})
+    with pytest.raises(ValueError, match="recorded run run0.csv: no samples"):
+        fogtemp.diagnose(named, empty, progress=False)
+    with pytest.warns(UserWarning, match="no runs file and no manifest.json .* position and input rate are unknown"):
+        fogtemp.diagnose(named, named, progress=False)
