@@ -140,6 +140,28 @@ fn array_runs_of<'py>(items: &[Bound<'py, PyAny>], names: Option<&[String]>) -> 
         .collect()
 }
 
+/// Times given in a float type narrower than float64 whose steps it could not hold (float32
+/// keeps 24 bits: 1 s steps vanish above 2^24 s, a Unix time's 0.1 s steps long before) are
+/// refused naming the cause; the row rules would report a repeated time and suggest skipping.
+fn refuse_times_lost_to_precision(
+    given: &Bound<'_, PyAny>,
+    time_s: &numpy::PyReadonlyArrayDyn<'_, f64>,
+    label: &str,
+) -> PyResult<()> {
+    let dtype = given.py().import("numpy")?.call_method1("asarray", (given,))?.getattr("dtype")?;
+    let (kind, bytes): (String, usize) =
+        (dtype.getattr("kind")?.extract()?, dtype.getattr("itemsize")?.extract()?);
+    let times = slice(time_s, "time_s")?;
+    if kind == "f" && bytes < 8 && times.windows(2).any(|w| w[1] <= w[0]) {
+        return Err(errors::value(format!(
+            "{label}['time_s'] is float{}: too coarse for these times (steps vanish); give float64 times, \
+             or subtract the start time before narrowing",
+            8 * bytes
+        )));
+    }
+    Ok(())
+}
+
 /// One run given as arrays, held as contiguous float64 numpy arrays.
 pub(crate) struct ArrayRun<'py> {
     pub(crate) name: PathBuf,
@@ -182,8 +204,11 @@ impl<'py> ArrayRun<'py> {
                 ))
             })
         };
+        let time = get("time_s")?;
+        let time_s = f64_vector(&time, &format!("{label}['time_s']"))?;
+        refuse_times_lost_to_precision(&time, &time_s, &label)?;
         Ok(Self {
-            time_s: f64_vector(&get("time_s")?, &format!("{label}['time_s']"))?,
+            time_s,
             temps_c: columns(&get("temp_c")?, &format!("{label}['temp_c']"))?,
             gyros_dph: columns(&get("gyro_dph")?, &format!("{label}['gyro_dph']"))?,
             name,

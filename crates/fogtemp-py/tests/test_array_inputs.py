@@ -47,6 +47,18 @@ def test_pandas_text_booleans_and_date_times_are_refused_by_name(model, runs):
     assert fogtemp.validate(model, [nullable], progress=False) == fogtemp.validate(model, [df], progress=False)
 
 
+def test_float32_times_too_coarse_for_their_steps_are_named(model, runs):
+    # At a Unix time (1.7e9 s) float32 keeps 128 s steps: the 0.2 s steps vanish. The row rules
+    # would call it a repeated time and suggest skipping; the cause is named instead.
+    df = frame(runs[0])
+    epoch = df.assign(time_s=(df.time_s + 1.7e9).astype("float32"))
+    with pytest.raises(ValueError, match=r"runs\[0\]\['time_s'\] is float32: too coarse for these times"):
+        fogtemp.validate(model, [epoch], progress=False)
+    # Small float32 times keep their steps and are read.
+    small = df.assign(time_s=df.time_s.astype("float32"))
+    assert fogtemp.validate(model, [small], progress=False)["compensated_bias_stability_dph"] > 0
+
+
 def test_a_dataframe_without_time_s_is_named_not_taken_for_a_path(model, runs):
     df = frame(runs[0])
     for bad in (df.set_index("time_s"), df.rename(columns={"time_s": "time"})):
