@@ -72,20 +72,20 @@ impl<'py> Side<'py> {
                 "diagnose(): {what} must be a folder or file of logs, or a dict of runs keyed by run name (not a list: runs are paired by name)"
             )));
         }
-        if convert::is_arrays(value)? && !value.is_instance_of::<PyDict>() {
+        let dict = value.cast::<PyDict>().ok();
+        // One run: a DataFrame (or other table), or a dict holding its columns.
+        let one_run = match dict {
+            Some(d) => d.contains("time_s")?,
+            None => convert::is_arrays(value)?,
+        };
+        if one_run {
             return Err(PyTypeError::new_err(format!(
                 "diagnose(): {what} is one run; give a dict of runs keyed by run name (or a folder of logs)"
             )));
         }
-        if value.is_instance_of::<PyDict>() {
-            let dict = value.cast::<PyDict>()?;
+        if let Some(dict) = dict {
             if dict.is_empty() {
                 return Err(errors::value(format!("diagnose(): {what} holds no runs")));
-            }
-            if dict.contains("time_s")? {
-                return Err(PyTypeError::new_err(format!(
-                    "diagnose(): {what} is one run; give a dict of runs keyed by run name (or a folder of logs)"
-                )));
             }
             let mut runs = Vec::with_capacity(dict.len());
             for (key, run) in dict.iter() {
