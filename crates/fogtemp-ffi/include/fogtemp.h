@@ -93,9 +93,14 @@ enum fogtemp_status
   FOGTEMP_STATUS_TRAILING_BYTES = 17,
   // A core error this version of the C ABI does not name.
   FOGTEMP_STATUS_OTHER = 18,
-  // `fogtemp_step` was given a state initialised for an axis with another block count or
-  // `min_blocks`: each state belongs to the axis it was initialised for.
+  // `fogtemp_step`, `fogtemp_step_u32` or `fogtemp_evaluate` was given a state
+  // initialised for another axis (another axis number or other feature settings): each
+  // state belongs to the axis it was initialised for.
   FOGTEMP_STATUS_STATE_AXIS_MISMATCH = 19,
+  // `fogtemp_step` and `fogtemp_step_u32` were both used on one state since it was
+  // initialised or reset: their clocks differ (a 64-bit time would read as a jump of the
+  // wrapping timer), so each state takes one of them.
+  FOGTEMP_STATUS_MIXED_CLOCKS = 20,
 };
 #ifndef __cplusplus
 #if __STDC_VERSION__ >= 202311L
@@ -232,7 +237,8 @@ fogtemp_status fogtemp_state_init(const fogtemp_axis *axis,
                                   fogtemp_error *err);
 
 // Forgets everything in `*state`, as at power-on (tracker, walk hint, bias 0,
-// `WARMING_UP`, wrapping clock). The axis and blocks array stay.
+// `WARMING_UP`, wrapping clock, and which step function it was used with). The axis and
+// blocks array stay.
 //
 // # Safety
 // `state` points to a filled `fogtemp_state` (and its blocks array is still valid).
@@ -244,7 +250,9 @@ fogtemp_status fogtemp_state_reset(fogtemp_state *state);
 // Bad samples are flagged (`FOGTEMP_FLAG_BAD_INPUT`; one bit for a rejected temperature, a
 // rejected time and a non-finite gyro value), not errors: a rejected temperature or time
 // leaves the state as it was. A status other than `FOGTEMP_STATUS_OK` (a NULL, misaligned
-// or uninitialised argument, `FOGTEMP_STATUS_STATE_AXIS_MISMATCH`) leaves `*out` unwritten.
+// or uninitialised argument, `FOGTEMP_STATUS_STATE_AXIS_MISMATCH`,
+// `FOGTEMP_STATUS_MIXED_CLOCKS` after `fogtemp_step_u32` on this state) leaves `*out` and
+// `*state` unwritten.
 //
 // # Safety
 // `axis` points to a filled `fogtemp_axis`; `state` to a filled `fogtemp_state` made for
@@ -260,7 +268,8 @@ fogtemp_status fogtemp_step(const fogtemp_axis *axis,
 // [`fogtemp_step`] with the time from a wrapping 32-bit microsecond timer (wraps every
 // 71.6 min): extended to 64 bits inside the state, so the wrap is seamless. Consecutive
 // calls must be less than 2^31 us (35.8 min) apart. Use either `fogtemp_step` or
-// `fogtemp_step_u32` on one state.
+// `fogtemp_step_u32` on one state: the other one, until `fogtemp_state_reset` or
+// `fogtemp_state_init`, is `FOGTEMP_STATUS_MIXED_CLOCKS`.
 //
 // # Safety
 // As [`fogtemp_step`].
@@ -274,8 +283,9 @@ fogtemp_status fogtemp_step_u32(const fogtemp_axis *axis,
 
 // The modelled bias (deg/h) of `*axis` at `temp_c` (deg C) and `rate_c_per_min`
 // (deg C/min) into `*bias_dph`, and whether the point is outside the mesh hull (or the
-// calibrated region of a held polynomial) into `*outside_hull` (may be NULL). Walks from, and moves, the state's walk hint; the tracker
-// is not touched.
+// calibrated region of a held polynomial) into `*outside_hull` (may be NULL). Walks from,
+// and moves, the state's walk hint; the tracker is not touched. A state initialised for
+// another axis is `FOGTEMP_STATUS_STATE_AXIS_MISMATCH`.
 //
 // # Safety
 // `axis` and `state` as for [`fogtemp_step`]; `bias_dph` writable; `outside_hull` NULL or

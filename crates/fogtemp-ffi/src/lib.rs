@@ -79,9 +79,14 @@ pub enum fogtemp_status {
     TrailingBytes = 17,
     /// A core error this version of the C ABI does not name.
     Other = 18,
-    /// `fogtemp_step` was given a state initialised for an axis with another block count or
-    /// `min_blocks`: each state belongs to the axis it was initialised for.
+    /// `fogtemp_step`, `fogtemp_step_u32` or `fogtemp_evaluate` was given a state
+    /// initialised for another axis (another axis number or other feature settings): each
+    /// state belongs to the axis it was initialised for.
     StateAxisMismatch = 19,
+    /// `fogtemp_step` and `fogtemp_step_u32` were both used on one state since it was
+    /// initialised or reset: their clocks differ (a 64-bit time would read as a jump of the
+    /// wrapping timer), so each state takes one of them.
+    MixedClocks = 20,
 }
 
 impl fogtemp_status {
@@ -128,14 +133,15 @@ impl fogtemp_status {
             Self::TimeNotIncreasing => c"sample time not after the previous one",
             Self::TrailingBytes => c"bytes after the blob are not erased-flash padding",
             Self::Other => c"other error",
-            Self::StateAxisMismatch => {
-                c"the state was initialised for an axis with other feature settings (blocks)"
+            Self::StateAxisMismatch => c"the state was initialised for another axis",
+            Self::MixedClocks => {
+                c"fogtemp_step and fogtemp_step_u32 used on one state (use one; reset to switch)"
             }
         }
     }
 
     /// Every status, in code order (for the message lookup).
-    const ALL: [fogtemp_status; 20] = [
+    const ALL: [fogtemp_status; 21] = [
         Self::Ok,
         Self::NullPointer,
         Self::Misaligned,
@@ -156,6 +162,7 @@ impl fogtemp_status {
         Self::TrailingBytes,
         Self::Other,
         Self::StateAxisMismatch,
+        Self::MixedClocks,
     ];
 }
 
@@ -270,6 +277,8 @@ struct ModelCell {
 #[repr(C)]
 struct AxisCell {
     tag: u64,
+    /// [`axis_key`] of `axis`, computed once: a state compares it on every step.
+    key: u64,
     axis: Axis<'static>,
 }
 
@@ -277,7 +286,65 @@ struct AxisCell {
 #[repr(C)]
 struct StateCell {
     tag: u64,
+    /// [`axis_key`] of the axis the state was initialised for.
+    made_for: u64,
+    /// The step function used since the state was initialised or reset.
+    clock: ClockUse,
     state: AxisState<CallerBlocks>,
+}
+
+/// What identifies an axis to its state: a 64-bit FNV-1a digest of its number and its
+/// feature settings, bit for bit, made once by `fogtemp_model_axis` so that a step compares
+/// one integer. Two models with an axis of the same number and settings are not told apart:
+/// the tracker would be right for both, only the walk hint (bounded) and the held bias
+/// (until the next update) would come from the other model.
+fn axis_key(axis: &Axis<'_>) -> u64 {
+    let f = &axis.features;
+    let words =
+        [u32::from(axis.id), f.block_count, f.min_blocks, f.window_s.to_bits(), f.max_gap_s.to_bits()];
+    words
+        .iter()
+        .flat_map(|w| w.to_le_bytes())
+        .fold(0xcbf2_9ce4_8422_2325_u64, |h, b| (h ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01b3))
+}
+
+/// Which step function a state has been used with.
+#[repr(u8)]
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum ClockUse {
+    /// Neither yet (initialised or reset).
+    Unused,
+    /// `fogtemp_step`: 64-bit times.
+    Time64,
+    /// `fogtemp_step_u32`: a wrapping 32-bit timer.
+    Timer32,
+}
+
+impl StateCell {
+    /// The state, when it belongs to `axis`.
+    fn for_axis(&mut self, axis: &AxisCell) -> Result<&mut AxisState<CallerBlocks>, fogtemp_status> {
+        if self.made_for == axis.key {
+            Ok(&mut self.state)
+        } else {
+            Err(fogtemp_status::StateAxisMismatch)
+        }
+    }
+
+    /// The state, when it has not been used with the other step function.
+    fn clocked(
+        &mut self,
+        axis: &AxisCell,
+        clock: ClockUse,
+    ) -> Result<&mut AxisState<CallerBlocks>, fogtemp_status> {
+        if self.clock != clock {
+            if self.clock != ClockUse::Unused {
+                return Err(fogtemp_status::MixedClocks);
+            }
+            self.for_axis(axis)?;
+            self.clock = clock;
+        }
+        self.for_axis(axis)
+    }
 }
 
 /// What `fogtemp_error::opaque` holds.
@@ -354,6 +421,15 @@ unsafe fn model_ref<'m>(p: *const fogtemp_model) -> Result<&'m Model<'static>, f
 /// # Safety
 /// `p` is null or points to a readable `fogtemp_axis`.
 unsafe fn axis_ref<'x>(p: *const fogtemp_axis) -> Result<&'x Axis<'static>, fogtemp_status> {
+    // SAFETY: per this function's contract.
+    unsafe { axis_cell(p) }.map(|cell| &cell.axis)
+}
+
+/// The cell in a `fogtemp_axis` its initialiser filled.
+///
+/// # Safety
+/// `p` is null or points to a readable `fogtemp_axis`.
+unsafe fn axis_cell<'x>(p: *const fogtemp_axis) -> Result<&'x AxisCell, fogtemp_status> {
     check(p)?;
     let cell = p.cast::<AxisCell>();
     // SAFETY: non-null, aligned, readable; `AxisCell` fits (compile-time assertion).
@@ -362,14 +438,14 @@ unsafe fn axis_ref<'x>(p: *const fogtemp_axis) -> Result<&'x Axis<'static>, fogt
         return Err(fogtemp_status::NotInitialised);
     }
     // SAFETY: the tag says `fogtemp_model_axis` wrote an `AxisCell` here.
-    Ok(unsafe { &(*cell).axis })
+    Ok(unsafe { &*cell })
 }
 
-/// The state in a `fogtemp_state` its initialiser filled.
+/// The cell in a `fogtemp_state` its initialiser filled.
 ///
 /// # Safety
 /// `p` is null or points to a readable and writable `fogtemp_state` not otherwise borrowed.
-unsafe fn state_mut<'s>(p: *mut fogtemp_state) -> Result<&'s mut AxisState<CallerBlocks>, fogtemp_status> {
+unsafe fn state_mut<'s>(p: *mut fogtemp_state) -> Result<&'s mut StateCell, fogtemp_status> {
     check(p)?;
     let cell = p.cast::<StateCell>();
     // SAFETY: non-null, aligned, readable; `StateCell` fits (compile-time assertion).
@@ -379,7 +455,7 @@ unsafe fn state_mut<'s>(p: *mut fogtemp_state) -> Result<&'s mut AxisState<Calle
     }
     // SAFETY: the tag says `fogtemp_state_init` wrote a `StateCell` here; the caller gives
     // exclusive access for the duration of the call.
-    Ok(unsafe { &mut (*cell).state })
+    Ok(unsafe { &mut *cell })
 }
 
 /// Writes `value` to `out` after the null and alignment check.
@@ -612,7 +688,7 @@ pub unsafe extern "C" fn fogtemp_model_axis(
     match model.axis(index) {
         Ok(axis) => {
             // SAFETY: `out` checked above; `AxisCell` fits in `fogtemp_axis`.
-            unsafe { out.cast::<AxisCell>().write(AxisCell { tag: AXIS_TAG, axis }) };
+            unsafe { out.cast::<AxisCell>().write(AxisCell { tag: AXIS_TAG, key: axis_key(&axis), axis }) };
             fogtemp_status::Ok
         }
         // SAFETY: `err` per this function's contract.
@@ -664,7 +740,7 @@ pub unsafe extern "C" fn fogtemp_state_init(
     err: *mut fogtemp_error,
 ) -> fogtemp_status {
     // SAFETY: `axis` per this function's contract.
-    let checked = unsafe { axis_ref(axis) }.and_then(|a| check(state).and(check(blocks)).map(|()| a));
+    let checked = unsafe { axis_cell(axis) }.and_then(|a| check(state).and(check(blocks)).map(|()| a));
     let axis = match checked {
         Ok(a) => a,
         // SAFETY: `err` per this function's contract.
@@ -676,10 +752,11 @@ pub unsafe extern "C" fn fogtemp_state_init(
         // SAFETY: `err` per this function's contract.
         return unsafe { fail_status_with(err, fogtemp_status::BadValue, most as u64, capacity as u64) };
     }
-    match axis.state_in(CallerBlocks { ptr: blocks, len: capacity }) {
+    match axis.axis.state_in(CallerBlocks { ptr: blocks, len: capacity }) {
         Ok(s) => {
+            let cell = StateCell { tag: STATE_TAG, made_for: axis.key, clock: ClockUse::Unused, state: s };
             // SAFETY: `state` checked above; `StateCell` fits in `fogtemp_state`.
-            unsafe { state.cast::<StateCell>().write(StateCell { tag: STATE_TAG, state: s }) };
+            unsafe { state.cast::<StateCell>().write(cell) };
             fogtemp_status::Ok
         }
         // SAFETY: `err` per this function's contract.
@@ -688,7 +765,8 @@ pub unsafe extern "C" fn fogtemp_state_init(
 }
 
 /// Forgets everything in `*state`, as at power-on (tracker, walk hint, bias 0,
-/// `WARMING_UP`, wrapping clock). The axis and blocks array stay.
+/// `WARMING_UP`, wrapping clock, and which step function it was used with). The axis and
+/// blocks array stay.
 ///
 /// # Safety
 /// `state` points to a filled `fogtemp_state` (and its blocks array is still valid).
@@ -696,15 +774,16 @@ pub unsafe extern "C" fn fogtemp_state_init(
 pub unsafe extern "C" fn fogtemp_state_reset(state: *mut fogtemp_state) -> fogtemp_status {
     // SAFETY: `state` per this function's contract.
     match unsafe { state_mut(state) } {
-        Ok(s) => {
-            s.reset();
+        Ok(cell) => {
+            cell.state.reset();
+            cell.clock = ClockUse::Unused;
             fogtemp_status::Ok
         }
         Err(s) => s,
     }
 }
 
-/// The axis, state and output of a step, checked.
+/// The axis, state and output of a step with `clock`, checked.
 ///
 /// # Safety
 /// As [`fogtemp_step`].
@@ -712,14 +791,12 @@ unsafe fn step_args<'x>(
     axis: *const fogtemp_axis,
     state: *mut fogtemp_state,
     out: *mut fogtemp_output,
+    clock: ClockUse,
 ) -> Result<(&'x Axis<'static>, &'x mut AxisState<CallerBlocks>), fogtemp_status> {
     check(out)?;
     // SAFETY: `axis` and `state` per `fogtemp_step`'s contract.
-    let (axis, state) = (unsafe { axis_ref(axis) }?, unsafe { state_mut(state) }?);
-    if !state.is_for(axis) {
-        return Err(fogtemp_status::StateAxisMismatch);
-    }
-    Ok((axis, state))
+    let (axis, cell) = (unsafe { axis_cell(axis) }?, unsafe { state_mut(state) }?);
+    Ok((&axis.axis, cell.clocked(axis, clock)?))
 }
 
 /// Compensates one sample: `gyro_dph` (deg/h) at `time_us` (a 64-bit microsecond count
@@ -728,7 +805,9 @@ unsafe fn step_args<'x>(
 /// Bad samples are flagged (`FOGTEMP_FLAG_BAD_INPUT`; one bit for a rejected temperature, a
 /// rejected time and a non-finite gyro value), not errors: a rejected temperature or time
 /// leaves the state as it was. A status other than `FOGTEMP_STATUS_OK` (a NULL, misaligned
-/// or uninitialised argument, `FOGTEMP_STATUS_STATE_AXIS_MISMATCH`) leaves `*out` unwritten.
+/// or uninitialised argument, `FOGTEMP_STATUS_STATE_AXIS_MISMATCH`,
+/// `FOGTEMP_STATUS_MIXED_CLOCKS` after `fogtemp_step_u32` on this state) leaves `*out` and
+/// `*state` unwritten.
 ///
 /// # Safety
 /// `axis` points to a filled `fogtemp_axis`; `state` to a filled `fogtemp_state` made for
@@ -744,7 +823,7 @@ pub unsafe extern "C" fn fogtemp_step(
     out: *mut fogtemp_output,
 ) -> fogtemp_status {
     // SAFETY: per this function's contract.
-    match unsafe { step_args(axis, state, out) } {
+    match unsafe { step_args(axis, state, out, ClockUse::Time64) } {
         Ok((axis, state)) => {
             let o = axis.step(state, time_us, gyro_dph, has_temp.then_some(temp_c));
             // SAFETY: `out` checked in `step_args`, writable per contract.
@@ -758,7 +837,8 @@ pub unsafe extern "C" fn fogtemp_step(
 /// [`fogtemp_step`] with the time from a wrapping 32-bit microsecond timer (wraps every
 /// 71.6 min): extended to 64 bits inside the state, so the wrap is seamless. Consecutive
 /// calls must be less than 2^31 us (35.8 min) apart. Use either `fogtemp_step` or
-/// `fogtemp_step_u32` on one state.
+/// `fogtemp_step_u32` on one state: the other one, until `fogtemp_state_reset` or
+/// `fogtemp_state_init`, is `FOGTEMP_STATUS_MIXED_CLOCKS`.
 ///
 /// # Safety
 /// As [`fogtemp_step`].
@@ -773,7 +853,7 @@ pub unsafe extern "C" fn fogtemp_step_u32(
     out: *mut fogtemp_output,
 ) -> fogtemp_status {
     // SAFETY: per this function's contract.
-    match unsafe { step_args(axis, state, out) } {
+    match unsafe { step_args(axis, state, out, ClockUse::Timer32) } {
         Ok((axis, state)) => {
             let o = axis.step_u32(state, time_us, gyro_dph, has_temp.then_some(temp_c));
             // SAFETY: `out` checked in `step_args`, writable per contract.
@@ -786,8 +866,9 @@ pub unsafe extern "C" fn fogtemp_step_u32(
 
 /// The modelled bias (deg/h) of `*axis` at `temp_c` (deg C) and `rate_c_per_min`
 /// (deg C/min) into `*bias_dph`, and whether the point is outside the mesh hull (or the
-/// calibrated region of a held polynomial) into `*outside_hull` (may be NULL). Walks from, and moves, the state's walk hint; the tracker
-/// is not touched.
+/// calibrated region of a held polynomial) into `*outside_hull` (may be NULL). Walks from,
+/// and moves, the state's walk hint; the tracker is not touched. A state initialised for
+/// another axis is `FOGTEMP_STATUS_STATE_AXIS_MISMATCH`.
 ///
 /// # Safety
 /// `axis` and `state` as for [`fogtemp_step`]; `bias_dph` writable; `outside_hull` NULL or
@@ -807,11 +888,12 @@ pub unsafe extern "C" fn fogtemp_evaluate(
         return s;
     }
     // SAFETY: `axis` and `state` per this function's contract.
-    let (axis, state) =
-        match unsafe { axis_ref(axis) }.and_then(|a| unsafe { state_mut(state) }.map(|s| (a, s))) {
-            Ok(pair) => pair,
-            Err(s) => return s,
-        };
+    let checked = unsafe { axis_cell(axis) }
+        .and_then(|a| unsafe { state_mut(state) }?.for_axis(a).map(|s| (&a.axis, s)));
+    let (axis, state) = match checked {
+        Ok(pair) => pair,
+        Err(s) => return s,
+    };
     let mut hint = state.hint();
     match axis.evaluate(temp_c, rate_c_per_min, &mut hint) {
         Ok(e) => {

@@ -416,7 +416,144 @@ fn a_state_belongs_to_its_axis() {
     // SAFETY: live pointers.
     let status = unsafe { fogtemp_step(&*fw_axis, &mut *fw_state, 1_000, 1.0, 25.0, true, &mut out) };
     assert_eq!(status, fogtemp_status::Ok);
+    let (mut bias, mut outside) = (7.0f32, true);
+    // SAFETY: live pointers.
+    let status =
+        unsafe { fogtemp_evaluate(&*golden_axis, &mut *fw_state, 25.0, 0.1, &mut bias, &mut outside) };
+    assert_eq!(status, fogtemp_status::StateAxisMismatch);
+    assert_eq!((bias, outside), (7.0, true), "outputs untouched");
     // SAFETY: a static C string.
     let text = unsafe { CStr::from_ptr(fogtemp_status_message(fogtemp_status::StateAxisMismatch as u32)) };
-    assert!(text.to_str().unwrap().contains("other feature settings"));
+    assert!(text.to_str().unwrap().contains("another axis"));
+}
+
+/// Two axes of one model with equal feature settings: a state belongs to the axis number
+/// it was initialised for (`STATE_AXIS_MISMATCH` with the other), in `fogtemp_step` and
+/// `fogtemp_evaluate`.
+#[test]
+fn a_state_belongs_to_its_axis_number_when_the_settings_agree() {
+    let blob = twin_axes_blob();
+    let blob: &'static [u8] = Box::leak(blob.into_boxed_slice());
+    let (mut blocks0, mut blocks1) = (vec![0.0f32; 8], vec![0.0f32; 8]);
+    let (axis0, mut state0) = open(blob, 0, &mut blocks0);
+    let (axis1, _state1) = open(blob, 1, &mut blocks1);
+    let mut out = fogtemp_output { rate_dph: 7.0, bias_dph: 7.0, flags: 7 };
+    // SAFETY: live pointers.
+    let status = unsafe { fogtemp_step(&*axis1, &mut *state0, 1_000, 1.0, 25.0, true, &mut out) };
+    assert_eq!(status, fogtemp_status::StateAxisMismatch);
+    assert_eq!((out.rate_dph, out.bias_dph, out.flags), (7.0, 7.0, 7), "output untouched");
+    let mut bias = 7.0f32;
+    // SAFETY: live pointers; `outside_hull` may be NULL.
+    let status = unsafe { fogtemp_evaluate(&*axis1, &mut *state0, 25.0, 0.1, &mut bias, ptr::null_mut()) };
+    assert_eq!(status, fogtemp_status::StateAxisMismatch);
+    // SAFETY: live pointers.
+    let status = unsafe { fogtemp_step(&*axis0, &mut *state0, 1_000, 1.0, 25.0, true, &mut out) };
+    assert_eq!(status, fogtemp_status::Ok);
+}
+
+/// A model of two polynomial axes with equal feature settings, through the real writer:
+/// bias 0.1 + 0.01 x deg/h on both.
+fn twin_axes_blob() -> Vec<u8> {
+    use fogtemp_cal::{encode, AxisModel, ModelFile};
+    use fogtemp_core::{
+        AxisProvenance, FeatureSettings, Normalisation, OutsidePolicy, PolyOutside, PolyTerm,
+    };
+    let axis = AxisModel {
+        features: FeatureSettings { window_s: 8.0, block_count: 8, min_blocks: 2, max_gap_s: 5.0 },
+        normalisation: Normalisation {
+            temp_offset_c: 20.0,
+            temp_scale_per_c: 1.0 / 40.0,
+            rate_offset_c_per_min: 0.0,
+            rate_scale_per_c_per_min: 1.0,
+        },
+        outside_policy: OutsidePolicy::NearestHull,
+        poly: vec![
+            PolyTerm { temp_power: 0, rate_power: 0, coefficient_dph: 0.1 },
+            PolyTerm { temp_power: 1, rate_power: 0, coefficient_dph: 0.01 },
+        ],
+        mesh: None,
+        provenance: AxisProvenance {
+            fit_point_count: 0,
+            residual_rms_dph: 0.0,
+            residual_max_abs_dph: 0.0,
+            temp_min_c: 0.0,
+            temp_max_c: 40.0,
+            rate_min_c_per_min: -1.0,
+            rate_max_c_per_min: 1.0,
+        },
+        region: Vec::new(),
+        poly_outside: PolyOutside::Extrapolate,
+    };
+    let file =
+        ModelFile { tool_version: "abi test".into(), input_digest: [0; 32], axes: vec![axis.clone(), axis] };
+    encode(&file).unwrap()
+}
+
+/// `fogtemp_step` and `fogtemp_step_u32` on one state: the second kind is
+/// `MIXED_CLOCKS`, the output and state untouched, until a reset; after it the other kind
+/// steps as on a fresh state.
+#[test]
+fn one_state_takes_one_clock_until_a_reset() {
+    let mut blocks = vec![0.0f32; 20];
+    let (axis, mut state) = open(FW_MODEL, 0, &mut blocks);
+    let mut twin_blocks = vec![0.0f32; 20];
+    let (_, mut twin) = open(FW_MODEL, 0, &mut twin_blocks);
+    let mut fresh_blocks = vec![0.0f32; 20];
+    let (_, mut fresh) = open(FW_MODEL, 0, &mut fresh_blocks);
+    let records = trajectory();
+    /// One sample through `state` and `twin`, with equal outputs.
+    fn step_both(
+        axis: &fogtemp_axis,
+        state: &mut fogtemp_state,
+        twin: &mut fogtemp_state,
+        (t, g, c): (u64, f32, f32),
+    ) {
+        let (mut out, mut twin_out) = (fogtemp_output::default(), fogtemp_output::default());
+        // SAFETY: live pointers.
+        unsafe {
+            assert_eq!(fogtemp_step(axis, state, t, g, c, !c.is_nan(), &mut out), fogtemp_status::Ok);
+            assert_eq!(fogtemp_step(axis, twin, t, g, c, !c.is_nan(), &mut twin_out), fogtemp_status::Ok);
+        }
+        assert_eq!(
+            (out.rate_dph.to_bits(), out.bias_dph.to_bits(), out.flags),
+            (twin_out.rate_dph.to_bits(), twin_out.bias_dph.to_bits(), twin_out.flags)
+        );
+    }
+    for &record in records.iter().take(3_000) {
+        step_both(&axis, &mut state, &mut twin, record);
+    }
+    let (t, g, c) = records[3_000];
+    let mut mixed = fogtemp_output { rate_dph: 7.0, bias_dph: 7.0, flags: 7 };
+    // SAFETY: live pointers.
+    let status = unsafe { fogtemp_step_u32(&*axis, &mut *state, t as u32, g, c, true, &mut mixed) };
+    assert_eq!(status, fogtemp_status::MixedClocks);
+    assert_eq!((mixed.rate_dph, mixed.bias_dph, mixed.flags), (7.0, 7.0, 7), "output untouched");
+    // The state is untouched: it goes on as its twin, which was never given the 32-bit call.
+    for &record in &records[3_000..6_000] {
+        step_both(&axis, &mut state, &mut twin, record);
+    }
+    let mut next = fogtemp_output::default();
+    let mut next_fresh = fogtemp_output::default();
+    // SAFETY: live pointer.
+    assert_eq!(unsafe { fogtemp_state_reset(&mut *state) }, fogtemp_status::Ok);
+    for &(t, g, c) in records.iter().take(3_000) {
+        // SAFETY: live pointers.
+        unsafe {
+            assert_eq!(
+                fogtemp_step_u32(&*axis, &mut *state, t as u32, g, c, !c.is_nan(), &mut next),
+                fogtemp_status::Ok
+            );
+            assert_eq!(
+                fogtemp_step_u32(&*axis, &mut *fresh, t as u32, g, c, !c.is_nan(), &mut next_fresh),
+                fogtemp_status::Ok
+            );
+        }
+        assert_eq!(
+            (next.rate_dph.to_bits(), next.bias_dph.to_bits(), next.flags),
+            (next_fresh.rate_dph.to_bits(), next_fresh.bias_dph.to_bits(), next_fresh.flags)
+        );
+    }
+    // SAFETY: a static C string.
+    let text = unsafe { CStr::from_ptr(fogtemp_status_message(fogtemp_status::MixedClocks as u32)) };
+    assert!(text.to_str().unwrap().contains("fogtemp_step_u32"));
 }
