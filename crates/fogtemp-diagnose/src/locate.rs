@@ -5,7 +5,7 @@
 use statrs::distribution::{ContinuousCDF, Normal};
 
 use super::effects::EffectGrid;
-use super::linalg::hac_se_of_mean;
+use super::linalg::{location_se_of_mean, pooled_autocovariances};
 use super::prepare::{longest_finite, short_mean_noise, Prepared, RunData};
 use super::select::{fold_counts, folds_pass, material_runs, FinalOutcome, Selection, MIN_INFORMATIVE_FOLDS};
 use super::{
@@ -41,8 +41,19 @@ fn slope(t: &[f64], v: &[f64]) -> f64 {
     }
 }
 
-/// Mean, HAC SE and more for the blocks of `run` selected by `keep`, residual `e`.
-fn span(run: &RunData, e: &[f64], label: &str, range: (f64, f64), lag: usize) -> Option<SpanFinding> {
+/// Autocovariances (lags `0..=hac_lag_blocks`) of residual `e` pooled over every run, for
+/// [`location_se_of_mean`]. The location takes them from the final model's residual: the
+/// noise left after the named effects, so that the structure being located (in the raw
+/// residual) does not count as noise.
+pub fn pooled_gamma(prep: &Prepared, e: &[Vec<f64>]) -> Vec<f64> {
+    let indices: Vec<Vec<usize>> =
+        prep.runs.iter().map(|r| r.blocks.iter().map(|b| b.index).collect()).collect();
+    pooled_autocovariances(e, &indices, prep.hac_lag_blocks)
+}
+
+/// Mean, standard error and more for the blocks of `run` in the time `range`, residual `e`,
+/// pooled autocovariances `gamma`.
+fn span(run: &RunData, e: &[f64], label: &str, range: (f64, f64), gamma: &[f64]) -> Option<SpanFinding> {
     let sel: Vec<usize> = (0..run.blocks.len())
         .filter(|&i| run.blocks[i].since_on_s >= range.0 && run.blocks[i].since_on_s < range.1)
         .collect();
@@ -53,7 +64,7 @@ fn span(run: &RunData, e: &[f64], label: &str, range: (f64, f64), lag: usize) ->
     let idx: Vec<usize> = sel.iter().map(|&i| run.blocks[i].index).collect();
     let t_h: Vec<f64> = sel.iter().map(|&i| run.blocks[i].since_on_s / 3600.0).collect();
     let m = mean(&v);
-    let se = hac_se_of_mean(std::slice::from_ref(&v), &[idx], lag);
+    let se = location_se_of_mean(std::slice::from_ref(&v), &[idx], gamma);
     Some(SpanFinding {
         run: run.name.clone(),
         span: label.to_string(),
@@ -69,8 +80,9 @@ fn span(run: &RunData, e: &[f64], label: &str, range: (f64, f64), lag: usize) ->
     })
 }
 
-/// Whole-run, warm-up and settled spans of every run, with Bonferroni significance.
-pub fn spans(prep: &Prepared, e: &[Vec<f64>], options: &DiagnoseOptions) -> Vec<SpanFinding> {
+/// Whole-run, warm-up and settled spans of every run, with Bonferroni significance; `gamma`
+/// from [`pooled_gamma`].
+pub fn spans(prep: &Prepared, e: &[Vec<f64>], gamma: &[f64], options: &DiagnoseOptions) -> Vec<SpanFinding> {
     let w = options.warmup_span_s;
     let mut out: Vec<SpanFinding> = prep
         .runs
@@ -78,9 +90,9 @@ pub fn spans(prep: &Prepared, e: &[Vec<f64>], options: &DiagnoseOptions) -> Vec<
         .zip(e)
         .flat_map(|(run, er)| {
             [
-                span(run, er, "whole run", (f64::NEG_INFINITY, f64::INFINITY), prep.hac_lag_blocks),
-                span(run, er, "warm-up", (f64::NEG_INFINITY, w), prep.hac_lag_blocks),
-                span(run, er, "settled", (w, f64::INFINITY), prep.hac_lag_blocks),
+                span(run, er, "whole run", (f64::NEG_INFINITY, f64::INFINITY), gamma),
+                span(run, er, "warm-up", (f64::NEG_INFINITY, w), gamma),
+                span(run, er, "settled", (w, f64::INFINITY), gamma),
             ]
         })
         .flatten()
@@ -123,8 +135,9 @@ pub fn cells_of(prep: &Prepared, options: &DiagnoseOptions) -> Vec<Vec<(usize, u
         .collect()
 }
 
-/// The (T, dT/dt) map of residual `e` with Newey-West errors (cells with >= 5 means).
-pub fn map(prep: &Prepared, e: &[Vec<f64>], options: &DiagnoseOptions) -> Vec<MapCell> {
+/// The (T, dT/dt) map of residual `e` with [`location_se_of_mean`] errors (cells with >= 5
+/// means; `gamma` from [`pooled_gamma`]).
+pub fn map(prep: &Prepared, e: &[Vec<f64>], gamma: &[f64], options: &DiagnoseOptions) -> Vec<MapCell> {
     let te = temp_edges(prep, options.temp_bins);
     let re = &options.rate_edges_c_per_min;
     let cells = cells_of(prep, options);
@@ -145,7 +158,7 @@ pub fn map(prep: &Prepared, e: &[Vec<f64>], options: &DiagnoseOptions) -> Vec<Ma
                 continue;
             }
             let m = values.iter().flatten().sum::<f64>() / n as f64;
-            let se = hac_se_of_mean(&values, &indices, prep.hac_lag_blocks);
+            let se = location_se_of_mean(&values, &indices, gamma);
             out.push(MapCell {
                 temp_lo_c: te[tb],
                 temp_hi_c: te[tb + 1],
@@ -433,10 +446,11 @@ fn unexplained(
         table_test("T-rate cells", &cell_keys, e, options.min_fold_fraction, prep.noise_sigma_dph),
         table_test("time since power-on", &time_keys, e, options.min_fold_fraction, prep.noise_sigma_dph),
     ];
+    let gamma = pooled_gamma(prep, e);
     let significant_cells: Vec<MapCell> =
-        map(prep, e, options).into_iter().filter(|c| c.significant).collect();
+        map(prep, e, &gamma, options).into_iter().filter(|c| c.significant).collect();
     let significant_spans: Vec<SpanFinding> =
-        spans(prep, e, options).into_iter().filter(|s| s.significant).collect();
+        spans(prep, e, &gamma, options).into_iter().filter(|s| s.significant).collect();
     let offsets: Vec<f64> = e.iter().map(|v| mean(v)).collect();
     let structured = tables.iter().any(|t| t.structured);
     let statement = unexplained_statement(&tables, &significant_cells, &significant_spans, left_out_empty);
@@ -540,7 +554,7 @@ fn definitions(options: &DiagnoseOptions, prep: &Prepared) -> Vec<String> {
     vec![
         format!("residual = recorded gyro - simulated gyro, averaged into short means of {} s on a common 1 s grid (a mean counts if >= 90 % of its seconds hold data)", prep.block_s),
         format!("T and dT/dt = level and slope of a centred least-squares line over {} s of 1 s temperature means; d2T/dt2 = least-squares slope of dT/dt over {} s", options.rate_window_s, options.accel_window_s),
-        format!("HAC standard error = Newey-West with Bartlett weights, bandwidth {} short means ({} s), lags within a run only", prep.hac_lag_blocks, options.hac_lag_s),
+        format!("HAC standard error of a span's or map cell's mean = the larger of its own Newey-West estimate (Bartlett weights, bandwidth {} short means = {} s, lags within a run only) and the same sum with the autocovariances of the final model's residual pooled over all runs (about zero); the first alone collapses in cells of fewer means than the bandwidth", prep.hac_lag_blocks, options.hac_lag_s),
         "significance of spans and map cells: |z| above the two-sided 5 % normal limit, Bonferroni-corrected over all spans (cells)".into(),
         "model = one global offset + chosen effect terms (no per-run offsets), least squares on the short means of all runs".into(),
         "LORO = leave-one-run-out: every run is predicted by the model fitted to the other runs, profiled parameters re-chosen on the training runs".into(),
@@ -643,11 +657,12 @@ pub fn assemble(
     let all: Vec<f64> = raw.iter().flatten().copied().collect();
     let (allan, noise) = allan_and_noise(prep, &outcome, options);
     let first_excess_tau_s = allan.iter().find(|r| r.before_excess).map(|r| r.tau_s);
+    let gamma = pooled_gamma(prep, &outcome.fitted_resid);
     let location = Location {
         raw_residual_rms_dph: rms(&all),
         overall_offset_dph: mean(&all),
-        spans: spans(prep, &raw, options),
-        map: map(prep, &raw, options),
+        spans: spans(prep, &raw, &gamma, options),
+        map: map(prep, &raw, &gamma, options),
         allan,
         first_excess_tau_s,
         temperature: temperature(prep, options),

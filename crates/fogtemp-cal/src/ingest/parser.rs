@@ -403,12 +403,11 @@ impl<R: Read> Parser<R> {
             if time.is_nan() || plan.gyro_slots.iter().any(|&k| values[k].is_nan()) {
                 break; // an empty required cell: the general path reports it
             }
-            let impossible = |k: &usize| {
-                let temp = values[*k] * plan.temp_scale + plan.temp_offset_c;
-                !temp.is_nan() && !super::is_physical(temp)
-            };
-            if plan.temp_slots.iter().any(impossible) {
-                break; // an impossible temperature: likewise
+            for &k in &plan.temp_slots {
+                values[k] = values[k] * plan.temp_scale + plan.temp_offset_c; // NaN (empty) stays NaN
+            }
+            if plan.temp_slots.iter().any(|&k| !values[k].is_nan() && !super::is_physical(values[k])) {
+                break; // an impossible temperature: likewise (the general path reads the record again)
             }
             if previous_time.is_some_and(|p| time <= p) {
                 break; // duplicate or backward time: likewise
@@ -419,12 +418,7 @@ impl<R: Read> Parser<R> {
             batch.lines.push(line);
             batch.values.push(time - time_origin);
             for &k in &plan.temp_slots {
-                let raw = values[k];
-                batch.values.push(if raw.is_nan() {
-                    f64::NAN
-                } else {
-                    raw * plan.temp_scale + plan.temp_offset_c
-                });
+                batch.values.push(values[k]);
             }
             for &k in &plan.gyro_slots {
                 batch.values.push(values[k] * plan.gyro_factor);
