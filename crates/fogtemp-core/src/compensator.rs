@@ -97,10 +97,12 @@ pub const DEFAULT_CAPACITY: usize = 128;
 
 /// Extends a wrapping 32-bit microsecond timer (71.6 min period) to 64 bits.
 ///
-/// Each call adds the wrapping difference to the previous sample as a signed 32-bit
-/// number, so a wrap between two samples is seamless and a time that goes backwards
-/// stays backwards (the sample is then rejected like any non-increasing time). Samples
-/// must therefore be less than 2^31 us (35.8 min) apart.
+/// Each call adds the wrapping difference from the previous sample, as a signed 32-bit
+/// number, to the previous sample's 64-bit time, so a wrap between two samples is seamless
+/// and a time that goes backwards stays backwards (the sample is then rejected like any
+/// non-increasing time, or restarts the tracker when the step back is longer than the gap
+/// limit, as with [`Axis::step`]). Samples must therefore be less than 2^31 us (35.8 min)
+/// apart.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct WrappingClock {
     /// Last raw 32-bit time and its 64-bit extension; `None` before the first sample.
@@ -113,21 +115,25 @@ impl WrappingClock {
         Self { last: None }
     }
 
-    /// The 64-bit time of `time_us` (the first sample maps to itself). Advances the clock
-    /// only when the time moves forward.
+    /// The 64-bit time of `time_us` (the first sample maps to itself): the previous
+    /// sample's plus the signed difference, at least 0. The clock follows every sample,
+    /// backward ones too, so the samples after a step back count from it. (Until
+    /// 2026-11-27 it followed forward steps only: after a step back early in a run, every
+    /// later time was pinned at 0 and rejected until the timer caught up with the old
+    /// time, up to half an hour, where `step` restarts at once.)
     pub fn extend(&mut self, time_us: u32) -> u64 {
         let Some((last32, last64)) = self.last else {
             self.last = Some((time_us, u64::from(time_us)));
             return u64::from(time_us);
         };
         let delta = time_us.wrapping_sub(last32) as i32;
-        if delta > 0 {
-            let t = last64.saturating_add(delta as u64);
-            self.last = Some((time_us, t));
-            t
+        let t = if delta >= 0 {
+            last64.saturating_add(u64::from(delta.unsigned_abs()))
         } else {
             last64.saturating_sub(u64::from(delta.unsigned_abs()))
-        }
+        };
+        self.last = Some((time_us, t));
+        t
     }
 }
 
@@ -263,7 +269,8 @@ impl<'a> Axis<'a> {
     /// [`Axis::step`] with the time from a wrapping 32-bit microsecond timer (it wraps
     /// every 71.6 min): extended to 64 bits by the state's [`WrappingClock`], so the wrap is
     /// seamless. Consecutive calls must be less than 2^31 us (35.8 min) apart; a time that
-    /// goes backwards is rejected as with `step`. Use either `step` or `step_u32` on one state.
+    /// goes backwards is rejected as with `step`, and a step back longer than the gap limit
+    /// restarts the tracker as with `step`. Use either `step` or `step_u32` on one state.
     #[inline]
     pub fn step_u32<S: BlockStorage>(
         &self,

@@ -137,8 +137,13 @@ fn wrapping_clock_extends_forward_and_keeps_backward_backward() {
     // Equal and backward times map at or before the last time (then rejected by the tracker).
     assert_eq!(clock.extend(5), (1u64 << 32) + 5);
     assert_eq!(clock.extend(u32::MAX - 1), (1u64 << 32) + 5 - 7);
-    // The clock did not move back: the next forward time continues from the last accepted.
+    // The next time counts from the backward one: the chain of differences is exact.
     assert_eq!(clock.extend(1_005), (1u64 << 32) + 1_005);
+    // A step back below 0 stops at 0; the samples after it count from there.
+    let mut early = WrappingClock::new();
+    assert_eq!(early.extend(200), 200);
+    assert_eq!(early.extend(100u32.wrapping_sub(1_000)), 0);
+    assert_eq!(early.extend(100u32.wrapping_sub(990)), 10);
     // Just under 2^31 us ahead is forward.
     let t = clock.extend(1_005u32.wrapping_add(i32::MAX as u32));
     assert_eq!(t, (1u64 << 32) + 1_005 + i32::MAX as u64);
@@ -160,6 +165,36 @@ fn backward_u32_time_is_bad_input_not_a_jump() {
     assert!(!out.flags.contains(Flags::TEMP_STALE), "a backward time is not a gap");
     let out = axis.step_u32(&mut state, t.wrapping_add(100_000), 1.0, Some(25.2));
     assert!(!out.flags.contains(Flags::BAD_INPUT));
+}
+
+/// A 32-bit time base set back by 1,000 s (within the 2^31 us limit, longer than the gap
+/// limit) restarts the tracker as `step` does when its 64-bit clock restarts: from the step
+/// back on, every output equals that of `step` fed the restarted clock, bit for bit, with
+/// no `BAD_INPUT`; early in a run (the extended time would fall below 0) and later alike.
+#[test]
+fn u32_time_base_set_back_restarts_like_step() {
+    let axis = fw_axis();
+    for base_s in [0u32, 3_000] {
+        let mut wrapped: AxisState<[f32; 20]> = axis.state().unwrap();
+        let mut restarted: AxisState<[f32; 20]> = axis.state().unwrap();
+        let temp = |k: u32| 25.0 + k as f32 * 0.002;
+        for k in 0..200u32 {
+            let t_us = (base_s + k) * 1_000_000;
+            axis.step_u32(&mut wrapped, t_us, 1.0, Some(temp(k)));
+            axis.step(&mut restarted, u64::from(k) * 1_000_000, 1.0, Some(temp(k)));
+        }
+        let back_us = ((base_s + 200) * 1_000_000).wrapping_sub(1_000_000_000);
+        for j in 0..300u32 {
+            let a = axis.step_u32(&mut wrapped, back_us.wrapping_add(j * 1_000_000), 1.0, Some(temp(j)));
+            let b = axis.step(&mut restarted, u64::from(j) * 1_000_000, 1.0, Some(temp(j)));
+            assert!(!a.flags.contains(Flags::BAD_INPUT), "base {base_s} s, sample {j} after the step back");
+            assert_eq!(
+                (a.rate_dph.to_bits(), a.bias_dph.to_bits(), a.flags),
+                (b.rate_dph.to_bits(), b.bias_dph.to_bits(), b.flags),
+                "base {base_s} s, sample {j} after the step back"
+            );
+        }
+    }
 }
 
 /// After `reset` a state (and a Compensator) behaves exactly as a fresh one, whatever it
