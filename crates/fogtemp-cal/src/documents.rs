@@ -15,7 +15,10 @@ use serde::Serialize;
 
 use crate::calibrate::{AxisFitReport, FittedModel, RunFeatures, RunValidation, Validation};
 use crate::ingest::{BadRow, IngestReport};
-use crate::metrics::{allan_deviation, fit_noise_terms, AllanPoint, BiasStabilityOptions, NoiseTerms};
+use crate::metrics::{
+    allan_deviation_in_segments, fit_noise_terms, gap_free_ranges, AllanPoint, BiasStabilityOptions,
+    NoiseTerms,
+};
 
 /// Lower-case hex of a byte string (the model's input digest).
 pub fn hex(bytes: &[u8]) -> String {
@@ -557,7 +560,7 @@ pub struct MeshNodeDocument {
 }
 
 /// What `allan --json` says the curve is.
-pub const ALLAN_DEFINITION: &str = "overlapping Allan deviation (IEEE Std 952) of the gyro, from the f64 angle cumsum with the mean removed; N, B, K by non-negative least squares on sigma^2";
+pub const ALLAN_DEFINITION: &str = "overlapping Allan deviation (IEEE Std 952) of the gyro, from the f64 angle cumsum with the mean removed, within the stretches between gaps (time steps longer than 1.5 times the median sample period; no cluster spans a gap); N, B, K by non-negative least squares on sigma^2";
 
 /// `allan --json`: the Allan deviation of every gyro column of a log and its noise terms.
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -583,7 +586,8 @@ impl AllanDocument {
             .zip(columns)
             .enumerate()
             .map(|(axis, (s, column))| {
-                let curve = allan_deviation(s, dt_s);
+                let segments: Vec<&[f64]> = gap_free_ranges(times_s, dt_s).filter_map(|r| s.get(r)).collect();
+                let curve = allan_deviation_in_segments(&segments, dt_s);
                 AllanAxisDocument {
                     axis,
                     column: column.clone(),

@@ -153,34 +153,67 @@ pub const ALLAN_MIN_SAMPLES: usize = 4;
 /// octave-spaced cluster sizes, computed on the f64 angle `theta = cumsum(rate * dt)`
 /// with the mean rate removed.
 pub fn allan_deviation(rate_dph: &[f64], dt_s: f64) -> Vec<AllanPoint> {
-    let n = rate_dph.len();
-    if n < ALLAN_MIN_SAMPLES {
+    allan_deviation_in_segments(&[rate_dph], dt_s)
+}
+
+/// [`allan_deviation`] of a series with gaps, given as its gap-free `segments`: every
+/// cluster lies within one segment, and each cluster size pools the squared differences of
+/// every segment long enough for it (a gap is never bridged, so no averaging time exceeds
+/// what one segment holds). One segment gives [`allan_deviation`]'s curve. Fewer than
+/// [`ALLAN_MIN_SAMPLES`] samples in the longest segment: an empty curve.
+pub fn allan_deviation_in_segments(segments: &[&[f64]], dt_s: f64) -> Vec<AllanPoint> {
+    let longest = segments.iter().map(|s| s.len()).max().unwrap_or(0);
+    if longest < ALLAN_MIN_SAMPLES {
         return Vec::new();
     }
-    let mean = rate_dph.iter().sum::<f64>() / n as f64;
-    let mut theta = Vec::with_capacity(n + 1);
+    let thetas: Vec<Vec<f64>> = segments.iter().map(|s| angle(s, dt_s)).collect();
+    let mut out = Vec::new();
+    let mut m = 1usize;
+    while 2 * m < longest {
+        let tau = m as f64 * dt_s;
+        let (mut sum, mut terms, mut clusters) = (0.0f64, 0usize, 0.0f64);
+        for theta in thetas.iter().filter(|t| t.len() > 2 * m + 1) {
+            let n = theta.len() - 2 * m;
+            sum += (0..n).map(|k| (theta[k + 2 * m] - 2.0 * theta[k + m] + theta[k]).powi(2)).sum::<f64>();
+            terms += n;
+            clusters += (theta.len() - 1) as f64 / m as f64 - 1.0;
+        }
+        out.push(AllanPoint {
+            tau_s: tau,
+            adev_dph: (sum / (2.0 * tau * tau * terms as f64)).sqrt(),
+            relative_error: 1.0 / (2.0 * clusters).sqrt(),
+        });
+        let next = ((m as f64) * 2f64.sqrt()).ceil() as usize;
+        m = next.max(m + 1);
+    }
+    out
+}
+
+/// Index ranges of `time_s` (samples `period_s` apart) between gaps: a step of more than
+/// 1.5 periods starts a new range.
+pub fn gap_free_ranges(time_s: &[f64], period_s: f64) -> impl Iterator<Item = std::ops::Range<usize>> + '_ {
+    let mut start = 0;
+    (1..=time_s.len()).filter_map(move |i| {
+        let cut = i == time_s.len() || time_s[i] - time_s[i - 1] > 1.5 * period_s;
+        cut.then(|| {
+            let range = start..i;
+            start = i;
+            range
+        })
+    })
+}
+
+/// The angle `theta = cumsum((rate - mean) * dt)` from 0, one longer than `rate_dph`.
+fn angle(rate_dph: &[f64], dt_s: f64) -> Vec<f64> {
+    let mean = rate_dph.iter().sum::<f64>() / rate_dph.len().max(1) as f64;
+    let mut theta = Vec::with_capacity(rate_dph.len() + 1);
     theta.push(0.0f64);
     let mut acc = 0.0;
     for r in rate_dph {
         acc += (r - mean) * dt_s;
         theta.push(acc);
     }
-    let mut out = Vec::new();
-    let mut m = 1usize;
-    while 2 * m < n {
-        let tau = m as f64 * dt_s;
-        let terms = theta.len() - 2 * m;
-        let sum: f64 = (0..terms).map(|k| (theta[k + 2 * m] - 2.0 * theta[k + m] + theta[k]).powi(2)).sum();
-        let avar = sum / (2.0 * tau * tau * terms as f64);
-        out.push(AllanPoint {
-            tau_s: tau,
-            adev_dph: avar.sqrt(),
-            relative_error: 1.0 / (2.0 * (n as f64 / m as f64 - 1.0)).sqrt(),
-        });
-        let next = ((m as f64) * 2f64.sqrt()).ceil() as usize;
-        m = next.max(m + 1);
-    }
-    out
+    theta
 }
 
 /// Noise terms fitted to an Allan deviation curve (IEEE 952).

@@ -8,7 +8,9 @@
 //! noisier than raw, which it is not (docs/reports.md).
 
 use crate::calibrate::{ReplaySeries, RunValidation};
-use crate::metrics::{allan_deviation, rms_allan, rms_over_runs, AllanPoint, BiasStabilityOptions};
+use crate::metrics::{
+    allan_deviation_in_segments, gap_free_ranges, rms_allan, rms_over_runs, AllanPoint, BiasStabilityOptions,
+};
 
 /// Block means of one run over the span the metric covers.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -117,12 +119,20 @@ pub fn run_bars(runs: &[&RunValidation], name: impl Fn(&RunValidation) -> String
 }
 
 /// Raw and compensated Allan deviation of `block_s` block means, RMS over runs, each run
-/// from its first compensated block (the span of the metric).
+/// from its first compensated block (the span of the metric) and within its gap-free
+/// stretches ([`gap_free_ranges`]): a log of bursts gets no averaging time longer than a
+/// burst (bridging its gaps made a 5 s burst every 300 s read as 1 s means at 12-50 s).
 pub fn span_allan(series: &[&ReplaySeries], block_s: f64) -> (Vec<AllanPoint>, Vec<AllanPoint>) {
     let curves = |pick: for<'a> fn(&Span<'a>) -> &'a [f64]| -> Vec<AllanPoint> {
         let per_run: Vec<Vec<AllanPoint>> = series
             .iter()
-            .map(|s| allan_deviation(pick(&compensated_span(s, block_s)), block_s))
+            .map(|s| {
+                let span = compensated_span(s, block_s);
+                let values = pick(&span);
+                let segments: Vec<&[f64]> =
+                    gap_free_ranges(span.time_s, block_s).filter_map(|r| values.get(r)).collect();
+                allan_deviation_in_segments(&segments, block_s)
+            })
             .filter(|c| !c.is_empty())
             .collect();
         rms_allan(&per_run)
@@ -301,7 +311,43 @@ mod tests {
         }
         // At tau = 1 s the alternating series has adev sqrt(<(y_{k+1}-y_k)^2>/2) = sqrt(2).
         assert!((raw[0].adev_dph - 2f64.sqrt()).abs() < 1e-9, "{:?}", raw[0]);
-        let full = allan_deviation(&s.compensated_dph, 1.0);
+        let full = crate::metrics::allan_deviation(&s.compensated_dph, 1.0);
         assert!(full.last().unwrap().adev_dph > 10.0 * comp.last().unwrap().adev_dph);
+    }
+
+    /// A log of 5 s bursts every 300 s, each burst at its own level (a slow drift sampled in
+    /// bursts): within a burst the series is the alternating +-1 of the test above, so the
+    /// curve stops below one burst (tau 1 and 2 s), equals one burst's own curve (closed
+    /// form: the bursts are identical apart from their level, which the second difference
+    /// removes), and shows nothing of the levels (bridging the gaps made them noise at
+    /// 3-50 s).
+    #[test]
+    fn allan_does_not_bridge_gaps() {
+        let burst = |b: usize| {
+            (0..5).map(move |k| {
+                (b as f64 * 300.0 + k as f64 + 0.5, b as f64 * 7.0 + if k % 2 == 0 { 1.0 } else { -1.0 })
+            })
+        };
+        let samples: Vec<(f64, f64)> = (0..25).flat_map(burst).collect();
+        let s = ReplaySeries {
+            time_s: samples.iter().map(|p| p.0).collect(),
+            raw_dph: samples.iter().map(|p| p.1).collect(),
+            compensated_dph: samples.iter().map(|p| p.1).collect(),
+            temp_c: vec![20.0; samples.len()],
+            compensating_from_s: 0.0,
+            ..ReplaySeries::default()
+        };
+        let ranges: Vec<_> = gap_free_ranges(&s.time_s, 1.0).collect();
+        assert_eq!(ranges.len(), 25);
+        assert!(ranges.iter().all(|r| r.len() == 5));
+        let (raw, _) = span_allan(&[&s], 1.0);
+        let one_burst = crate::metrics::allan_deviation(&s.raw_dph[..5], 1.0);
+        assert_eq!(raw.iter().map(|p| p.tau_s).collect::<Vec<_>>(), vec![1.0, 2.0]);
+        for (a, b) in raw.iter().zip(&one_burst) {
+            assert!((a.adev_dph - b.adev_dph).abs() <= 1e-12 * b.adev_dph, "{a:?} {b:?}");
+            // 25 bursts: the relative error is that of 25 x the clusters of one.
+            let one = 1.0 / (2.0 * (5.0 / a.tau_s - 1.0)).sqrt();
+            assert!((a.relative_error - one / 5.0).abs() < 1e-12, "{a:?}");
+        }
     }
 }

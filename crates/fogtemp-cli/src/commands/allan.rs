@@ -25,8 +25,10 @@ pub fn allan(a: AllanArgs) -> Result<()> {
     if doc.gaps > 0 {
         let steps = if doc.gaps == 1 { "step" } else { "steps" };
         eprintln!(
-            "warning: {} {steps} longer than 1.5x the median sample period; the Allan deviation assumes uniform sampling",
-            doc.gaps
+            "note: {}: {} {steps} longer than 1.5x the median sample period: the Allan deviation is computed within the {} stretches between them (no averaging cluster spans a gap), so averaging times stop below the longest stretch",
+            a.log.display(),
+            doc.gaps,
+            doc.gaps + 1
         );
     }
     // A number JSON prints as null (NaN, infinite) shows as `or`.
