@@ -1292,6 +1292,35 @@ fn export_c_failure_leaves_no_header_behind() {
     assert!(!dir.path().join("model.h").exists());
 }
 
+/// `--out model.h` for C would be both the source and its header (the header used to
+/// replace the array: "wrote model.h" with no byte of the model in it); a keyword as
+/// `--name` would not compile. Both are refused before anything is written.
+#[test]
+fn export_refuses_a_header_as_the_source_and_keyword_names() {
+    let dir = TempDir::new().expect("tempdir");
+    let (_, _, model) = short_log_and_model(dir.path(), "poly", "m.fogm");
+    let header = dir.path().join("model.h");
+    let args = args!["export", "--model", &model, "--format", "c", "--out", &header];
+    expect_failure(&args, dir.path(), None, &["names the C source", "model.c"]);
+    assert!(!header.exists());
+    let rust = dir.path().join("m.rs");
+    let args = args!["export", "--model", &model, "--format", "rust", "--name", "fn", "--out", &rust];
+    expect_failure(&args, dir.path(), None, &["'fn' is a keyword"]);
+    let args = args![
+        "export",
+        "--model",
+        &model,
+        "--format",
+        "c",
+        "--name",
+        "int",
+        "--out",
+        &dir.path().join("x.c")
+    ];
+    expect_failure(&args, dir.path(), None, &["'int' is a keyword"]);
+    assert!(!rust.exists());
+}
+
 #[cfg(unix)]
 #[test]
 fn outputs_get_the_usual_file_mode() {
