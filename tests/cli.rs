@@ -1292,6 +1292,34 @@ fn export_c_failure_leaves_no_header_behind() {
     assert!(!dir.path().join("model.h").exists());
 }
 
+/// A log shorter than the feature window (1 min against the default 100 s) gets the
+/// `short_runs` warning naming it (its fit residual of about 0 says nothing); a log of
+/// several windows does not.
+#[test]
+fn a_log_shorter_than_the_window_is_named() {
+    let dir = TempDir::new().expect("tempdir");
+    let short = dir.path().join("one_minute.csv");
+    write_warmup(&short, 20.0, 1.0, 5);
+    let doc = json(&run_ok(args![
+        "fit",
+        "--method",
+        "poly",
+        "--json",
+        "--out",
+        &dir.path().join("s.fogm"),
+        &short
+    ]));
+    let kinds: Vec<&str> = arr(&doc["warnings"]).iter().filter_map(|w| w["kind"].as_str()).collect();
+    assert!(kinds.contains(&"short_runs"), "{kinds:?}");
+    let message =
+        arr(&doc["warnings"]).iter().find(|w| w["kind"] == "short_runs").unwrap()["message"].to_string();
+    assert!(message.contains("one_minute") && message.contains("100 s feature window"), "{message}");
+    let (long, _) = short_log(dir.path(), "three_minutes.csv");
+    let doc =
+        json(&run_ok(args!["fit", "--method", "poly", "--json", "--out", &dir.path().join("l.fogm"), &long]));
+    assert!(arr(&doc["warnings"]).iter().all(|w| w["kind"] != "short_runs"), "{}", doc["warnings"]);
+}
+
 /// `--out model.h` for C would be both the source and its header (the header used to
 /// replace the array: "wrote model.h" with no byte of the model in it); a keyword as
 /// `--name` would not compile. Both are refused before anything is written.

@@ -123,6 +123,7 @@ pub fn visit_rows(
                 visit(&Row {
                     line: index as u64,
                     time_s: time - report.time_origin_s,
+                    origin_s: report.time_origin_s,
                     temps_c: &temps,
                     gyros_dph: &gyros,
                 });

@@ -258,8 +258,9 @@ pub fn axis_count_note(
 ) -> Option<String> {
     (model_axes != gyro_columns).then(|| {
         format!(
-            "{model} has {model_axes} axes but the log is read with {gyro_columns} gyro column{} ({column_hint}): \
+            "{model} has {model_axes} {} but the log is read with {gyro_columns} gyro column{} ({column_hint}): \
              only the first {} are used, axis k with the k-th gyro column",
+            if model_axes == 1 { "axis" } else { "axes" },
             if gyro_columns == 1 { "" } else { "s" },
             model_axes.min(gyro_columns)
         )

@@ -83,6 +83,9 @@ pub enum WarningKind {
     CoolingOnly,
     /// The runs differ by constants the model cannot follow (after the fit).
     RunOffsets,
+    /// Runs that never fill the feature window (shorter than it): their features come
+    /// from partial windows only.
+    ShortRuns,
 }
 
 impl WarningKind {
@@ -95,6 +98,7 @@ impl WarningKind {
             WarningKind::HeatingOnly => "heating_only",
             WarningKind::CoolingOnly => "cooling_only",
             WarningKind::RunOffsets => "run_offsets",
+            WarningKind::ShortRuns => "short_runs",
         }
     }
 }
@@ -130,9 +134,43 @@ pub fn fit_warnings(
         .flat_map(|axis| {
             let points =
                 calibration_points(runs, axis, config.full_windows_only, block_s, config.target_window_s);
-            warnings(&points, axis, settings)
+            let mut found = warnings(&points, axis, settings);
+            found.extend(short_runs(runs, axis, f64::from(config.features.window_s)));
+            found
         })
         .collect()
+}
+
+/// `short_runs` for axis `axis`: the runs with feature points none of which has a full
+/// window (a log shorter than the `window_s` feature window). Their T and dT/dt come from
+/// partial windows only, and a target smoothed over the whole short log fits any model,
+/// so a fit of such runs alone shows a residual near 0 that says nothing.
+fn short_runs(runs: &[RunFeatures], axis: usize, window_s: f64) -> Option<Warning> {
+    let short: Vec<(String, f64)> = runs
+        .iter()
+        .filter_map(|run| {
+            let (points, _) = run.axes.get(axis)?;
+            let last = points.last()?;
+            (!points.iter().any(|p| p.window_full)).then(|| (crate::runs::run_name(&run.path), last.time_s))
+        })
+        .collect();
+    let (first, span_s) = short.first()?;
+    let others = match short.len() {
+        1 => String::new(),
+        n => format!(" and {} more", n - 1),
+    };
+    Some(Warning::new(
+        axis,
+        WarningKind::ShortRuns,
+        format!(
+            "axis {axis}: {} of {} never fill the {window_s:.0} s feature window ({first}, features up to {span_s:.0} s{others}): \
+             their T and dT/dt come from partial windows and a short log's smoothed target fits any model; \
+             record runs of several windows, or set --window-s below the runs' length",
+            short.len(),
+            if runs.len() == 1 { "1 run".to_string() } else { format!("{} runs", runs.len()) }
+        ),
+        &[("short_runs", short.len() as f64), ("window_s", window_s)],
+    ))
 }
 
 /// `run_offsets` for axis `axis` of a fitted model (`None` when the runs agree, or with

@@ -283,6 +283,27 @@ pub fn validation_logs(logs: Vec<PathBuf>, runs: &Path) -> Result<Vec<PathBuf>, 
     Ok(kept)
 }
 
+/// The run names of `logs` ([`run_name`]), except that logs sharing a file name (the same
+/// `run.csv` in folders `day1/` and `day2/`) are named by their paths without `.csv`: each
+/// log is its own run (they used to count as one run, and cross-validation was skipped
+/// for "too few runs"). A runs file still refuses such logs (its rows name runs by file
+/// name).
+pub fn run_names(logs: &[&Path]) -> Vec<String> {
+    let names: Vec<String> = logs.iter().map(|l| run_name(l)).collect();
+    names
+        .iter()
+        .zip(logs)
+        .map(|(name, log)| {
+            if names.iter().filter(|n| *n == name).count() > 1 {
+                let path = log.display().to_string();
+                path.strip_suffix(".csv").map(str::to_string).unwrap_or(path)
+            } else {
+                name.clone()
+            }
+        })
+        .collect()
+}
+
 /// A log's run name: its file name without a trailing `.csv`.
 pub fn run_name(log: &Path) -> String {
     let name =
@@ -293,6 +314,14 @@ pub fn run_name(log: &Path) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Logs sharing a file name in different folders are distinct runs, named by path;
+    /// the others keep their file names.
+    #[test]
+    fn logs_sharing_a_file_name_get_their_paths_as_run_names() {
+        let logs = [Path::new("day1/run.csv"), Path::new("day2/run.csv"), Path::new("day2/ramp.csv")];
+        assert_eq!(run_names(&logs), vec!["day1/run", "day2/run", "ramp"]);
+    }
 
     fn parse(text: &str) -> Result<RunsFile, CalError> {
         RunsFile::from_reader(text.as_bytes(), Path::new("runs.csv"))

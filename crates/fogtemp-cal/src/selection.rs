@@ -54,7 +54,7 @@ use crate::error::CalError;
 use crate::features::FeaturePoint;
 use crate::mesh::MeshPoint;
 use crate::metrics::{rms_over_runs, BiasStabilityOptions};
-use crate::runs::run_name;
+use crate::runs::{run_name, run_names};
 
 /// The candidates, simplest first (the order the one-standard-error rule prefers).
 pub const CANDIDATES: [Method; 4] = [Method::CubicT, Method::Poly, Method::Mesh, Method::Hybrid];
@@ -493,9 +493,11 @@ impl Selection {
     /// The fallback when there are too few folds: `folds` of them, `counted` ("given" or
     /// "scored").
     fn fallback(grouping: Grouping, folds: usize, counted: &str, why: &str) -> Self {
-        let unit = match grouping {
-            Grouping::Runs => "runs",
-            Grouping::Positions => "positions",
+        let unit = match (grouping, folds) {
+            (Grouping::Runs, 1) => "run",
+            (Grouping::Runs, _) => "runs",
+            (Grouping::Positions, 1) => "position",
+            (Grouping::Positions, _) => "positions",
         };
         Self {
             method: FALLBACK_METHOD,
@@ -626,7 +628,7 @@ pub fn select(
     replay: &ReplayRun<'_>,
 ) -> Result<Vec<Selection>, CalError> {
     let axes = config.ingest.format.gyro_columns.len();
-    let names: Vec<String> = runs.iter().map(|r| run_name(&r.path)).collect();
+    let names = run_names(&runs.iter().map(|r| r.path.as_path()).collect::<Vec<_>>());
     let k = options.blocks;
     if options.scheme != CvScheme::LeaveOneGroupOut && k < 2 {
         let why = "blocked k-fold needs at least 2 blocks per run";
@@ -747,6 +749,11 @@ fn held_out_by_groups(
     let axes = config.ingest.format.gyro_columns.len();
     let candidates = &options.candidates;
     let mut out = HeldOut::new(candidates.len(), axes);
+    let paths: Vec<&std::path::Path> = runs.iter().map(|r| r.path.as_path()).collect();
+    let names = run_names(&paths);
+    let name_of = |path: &std::path::Path| {
+        paths.iter().position(|p| *p == path).map_or_else(|| run_name(path), |i| names[i].clone())
+    };
     for (f, fold) in folds.iter().enumerate() {
         progress(f, folds.len());
         let training: Vec<RunFeatures> = runs
@@ -791,7 +798,7 @@ fn held_out_by_groups(
                 let region = regions.get(r.axis).and_then(Option::as_ref);
                 let scored = score_held_out(&r.series, region, &options.stability);
                 axis_runs.push(HeldOutRun {
-                    run: run_name(&r.path),
+                    run: name_of(&r.path),
                     group: fold.label.clone(),
                     bias_stability_dph: scored.bias_stability_dph,
                     whole_run_bias_stability_dph: r.compensated_bias_stability_dph,
@@ -935,7 +942,7 @@ fn held_out_by_blocks(
     replay: &ReplayRun<'_>,
 ) -> Result<HeldOut, CalError> {
     let axes = config.ingest.format.gyro_columns.len();
-    let names: Vec<String> = runs.iter().map(|r| run_name(&r.path)).collect();
+    let names = run_names(&runs.iter().map(|r| r.path.as_path()).collect::<Vec<_>>());
     let k = options.blocks;
     let blocks: Vec<RunBlocks> = runs.iter().map(|r| RunBlocks::of(r, k)).collect();
     let guard_s = config.target_window_s / 2.0;
@@ -1273,7 +1280,8 @@ fn axis_selection(
             (
                 "scored",
                 format!(
-                    "too few folds with a score, {} of {} (see skipped_folds in fit --json)",
+                    "too few folds with a score, {} of {} (skipped_folds says why: a held-out run outside the \
+                     others' (T, dT/dt) region, e.g. the coldest or hottest of three, cannot be scored)",
                     usable.len(),
                     folds.len()
                 ),

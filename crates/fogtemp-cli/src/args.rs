@@ -541,7 +541,7 @@ pub struct CompensateArgs {
     pub model: PathBuf,
     /// Log to compensate.
     pub log: PathBuf,
-    /// Output CSV (written atomically): time_s, then per axis raw, compensated, bias, flags.
+    /// Output CSV (written atomically): time_s (the log's own time stamps, s; from the row index with --sample-rate-hz), then per axis raw, compensated, bias, flags.
     #[arg(long, short)]
     pub out: PathBuf,
     /// Log columns and units.

@@ -77,9 +77,10 @@ impl Model {
         let model = self.core()?;
         if index >= model.axis_count() {
             return Err(errors::value(format!(
-                "{}: axis {index} does not exist (the model has {} axes)",
+                "{}: axis {index} does not exist (the model has {} {})",
                 self.source,
-                model.axis_count()
+                model.axis_count(),
+                if model.axis_count() == 1 { "axis" } else { "axes" }
             )));
         }
         model.axis(index).map_err(|e| errors::model(&self.source, e))

@@ -349,7 +349,7 @@ def test_validate_warns_of_a_wrong_time_unit_and_of_unpaired_axes(poly_model, tm
         f.write("time_s,temp_c,gyro_dph,gyro2_dph\n")
         for t, c, g in zip(run["time_s"], run["temp_c"], run["gyro_dph"]):
             f.write(f"{float(t)!r},{'' if np.isnan(c) else repr(float(c))},{float(g)!r},{float(g)!r}\n")
-    with pytest.warns(UserWarning, match=r"has 1 axes but the log is read with 2 gyro columns \(gyro_column=\)"):
+    with pytest.warns(UserWarning, match=r"has 1 axis but the log is read with 2 gyro columns \(gyro_column=\)"):
         fogtemp.validate(poly_model, [two], gyro_column=["gyro_dph", "gyro2_dph"], progress=False)
 
 

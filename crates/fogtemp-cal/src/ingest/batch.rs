@@ -13,6 +13,9 @@ pub(super) struct Batch {
     pub(super) lines: Vec<u64>,
     /// File offset after the last record parsed.
     pub(super) bytes: u64,
+    /// The parser's time origin (its first accepted time, s; 0 for a chunk's parser, whose
+    /// times are absolute).
+    pub(super) origin_s: f64,
     /// `Some` once the log has ended (summary) or failed.
     pub(super) end: Option<Result<Tail, CalError>>,
 }
@@ -46,7 +49,7 @@ impl Consumer {
         F: FnMut(&Row<'_>) -> Result<(), CalError>,
         P: FnMut(u64, u64),
     {
-        self.visit_rows(batch, 0, 0.0, visit)?;
+        self.visit_rows(batch, 0, 0.0, batch.origin_s, visit)?;
         match batch.end.take() {
             None => {
                 if batch.bytes - self.last_progress >= PROGRESS_EVERY_BYTES {
@@ -70,12 +73,14 @@ impl Consumer {
 
 impl Consumer {
     /// Visits the batch's rows, adding `line_base` to their lines and taking `origin`
-    /// from their times (both zero for a sequential parser's rows).
+    /// from their times (both zero for a sequential parser's rows); `file_origin_s` is the
+    /// file's first accepted time ([`Row::origin_s`]).
     pub(super) fn visit_rows<F>(
         &mut self,
         batch: &Batch,
         line_base: u64,
         origin: f64,
+        file_origin_s: f64,
         visit: &mut F,
     ) -> Result<(), CalError>
     where
@@ -86,6 +91,7 @@ impl Consumer {
             visit(&Row {
                 line: line_base + line,
                 time_s: values[0] - origin,
+                origin_s: file_origin_s,
                 temps_c: &values[1..split],
                 gyros_dph: &values[split..],
             })?;

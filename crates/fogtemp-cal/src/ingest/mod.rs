@@ -323,8 +323,11 @@ impl LogFormat {
 pub struct Row<'a> {
     /// 1-based line number in the file.
     pub line: u64,
-    /// Time since the first row of the file, seconds.
+    /// Time since the file's first accepted row, seconds.
     pub time_s: f64,
+    /// Time of the file's first accepted row in the file's own clock, seconds (0 when the
+    /// time comes from `sample_rate_hz`): `origin_s + time_s` is the row's own time stamp.
+    pub origin_s: f64,
     /// Temperatures, deg C, one per temperature column; NaN where the cell is empty
     /// (sensors slower than the gyro leave cells empty).
     pub temps_c: &'a [f64],
@@ -712,6 +715,21 @@ mod tests {
         assert_eq!(report.time_origin_s, 10.0);
     }
 
+    /// Every row carries the file's first accepted time (in every reading mode: `run`
+    /// checks they agree), so `origin_s + time_s` is the row's own stamp; with a bad first
+    /// row skipped, the first kept row's.
+    #[test]
+    fn rows_carry_the_files_time_origin() {
+        let data = format!("{HEADER}12345.500,25.0,0.5\n12346.500,25.0,0.5\n12347.750,25.0,0.5\n");
+        let seen = rows(&data, &default_options());
+        let stamps: Vec<f64> =
+            seen.iter().map(|s| f64::from_bits(s.origin) + f64::from_bits(s.time)).collect();
+        assert_eq!(stamps, vec![12345.5, 12346.5, 12347.75]);
+        let bad_first = format!("{HEADER}x,25.0,0.5\n12346.500,25.0,0.5\n12347.750,25.0,0.5\n");
+        let seen = rows(&bad_first, &skipping());
+        assert!(seen.iter().all(|s| f64::from_bits(s.origin) == 12346.5));
+    }
+
     #[test]
     fn read_log_reads_a_file() {
         let path = std::env::temp_dir().join(format!("fogtemp-ingest-test-{}.csv", std::process::id()));
@@ -797,6 +815,7 @@ mod tests {
                         seen.push(Seen::of(&Row {
                             line,
                             time_s: time - report.time_origin_s,
+                            origin_s: report.time_origin_s,
                             temps_c: &temps,
                             gyros_dph: &gyros,
                         }));

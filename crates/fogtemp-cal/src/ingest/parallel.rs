@@ -325,7 +325,7 @@ impl Merger<'_> {
             let base = self.line;
             if let Some(first) = first_time {
                 let origin = *self.rows.origin.get_or_insert(first);
-                self.consumer.visit_rows(batch, base, origin, visit)?;
+                self.consumer.visit_rows(batch, base, origin, origin, visit)?;
                 self.rows.previous_time = batch.values.len().checked_sub(stride).map(|i| batch.values[i]);
             }
             match batch.end.take() {
@@ -393,7 +393,7 @@ impl Merger<'_> {
         let result = loop {
             parser.fill(&mut batch, self.tuning.batch_rows.max(1));
             // Times are relative already, lines absolute.
-            if let Err(e) = self.consumer.visit_rows(&batch, 0, 0.0, visit) {
+            if let Err(e) = self.consumer.visit_rows(&batch, 0, 0.0, batch.origin_s, visit) {
                 break Err(e);
             }
             match batch.end.take() {

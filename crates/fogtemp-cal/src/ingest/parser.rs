@@ -318,6 +318,7 @@ impl<R: Read> Parser<R> {
             Err(e) => batch.end = Some(Err(e)),
         }
         batch.bytes = self.src.offset();
+        batch.origin_s = self.rows.origin.unwrap_or(0.0);
     }
 
     /// `Ok(true)` at the end of the log.

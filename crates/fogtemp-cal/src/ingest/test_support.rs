@@ -29,6 +29,7 @@ impl Read for Chunky<'_> {
 pub(super) struct Seen {
     pub(super) line: u64,
     pub(super) time: u64,
+    pub(super) origin: u64,
     pub(super) temps: Vec<u64>,
     pub(super) gyros: Vec<u64>,
 }
@@ -38,6 +39,7 @@ impl Seen {
         Self {
             line: row.line,
             time: row.time_s.to_bits(),
+            origin: row.origin_s.to_bits(),
             temps: row.temps_c.iter().map(|v| v.to_bits()).collect(),
             gyros: row.gyros_dph.iter().map(|v| v.to_bits()).collect(),
         }

@@ -50,7 +50,8 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
                 gaps.observe(previous_s, row.time_s, row.line);
                 previous_s = Some(row.time_s);
                 record.clear();
-                record.push(format!("{}", row.time_s));
+                // The log's own time stamp, so the output joins other channels by time.
+                record.push(format!("{}", row.origin_s + row.time_s));
                 let time_us = row.time_us();
                 for (i, comp) in comps.iter_mut().enumerate() {
                     let temp = row.temp_c_for_axis(i);
@@ -119,7 +120,12 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
                 eprintln!("note: {note}");
             }
         }
-        println!("wrote {} ({} rows, {} axes)", a.out.display(), r.rows, axes);
+        println!(
+            "wrote {} ({} rows, {})",
+            a.out.display(),
+            r.rows,
+            super::counted(axes as u64, "axis", "axes")
+        );
     }
     Ok(())
 }

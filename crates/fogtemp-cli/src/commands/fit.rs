@@ -145,13 +145,23 @@ pub fn fit(a: FitArgs) -> Result<()> {
     if a.json {
         print_json(&FitDocument::new(&a.out, &fitted, &runs, &digest).with_warnings(warnings))?;
     } else {
-        println!("wrote {} ({} bytes) from {} logs", a.out.display(), blob.len(), logs.len());
+        println!(
+            "wrote {} ({} bytes) from {}",
+            a.out.display(),
+            blob.len(),
+            super::counted(logs.len() as u64, "log", "logs")
+        );
         for (axis, r) in reports.iter().enumerate() {
-            if let Some(s) = r.selection.as_ref().filter(|s| s.best.is_none() && s.candidates.is_empty()) {
+            // No choice (too few runs, or too few folds with a score): the default method,
+            // with the folds that could not be scored and why.
+            if let Some(s) = r.selection.as_ref().filter(|s| s.best.is_none()) {
                 println!(
                     "axis {axis}: method {}, the default, without a cross-validated choice (see the warning above)",
                     s.method.name()
                 );
+                for f in &s.skipped_folds {
+                    println!("  fold '{}' skipped: {}", f.group, f.reason);
+                }
             } else if let Some(s) = &r.selection {
                 println!(
                     "axis {axis}: method {} chosen by cross-validation ({} folds leaving one {} out; compensated \

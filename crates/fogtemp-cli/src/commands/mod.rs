@@ -119,6 +119,12 @@ fn report_skipped(report: &IngestReport) {
 
 /// Prints a library document as the one JSON document on stdout: through a
 /// `serde_json::Value`, so the keys come out sorted and NaN or infinite numbers as `null`.
+/// `n` and the noun in its number: "1 axis", "2 axes".
+fn counted(n: impl Into<u64>, one: &str, many: &str) -> String {
+    let n = n.into();
+    format!("{n} {}", if n == 1 { one } else { many })
+}
+
 fn print_json(doc: &impl Serialize) -> Result<()> {
     println!("{}", serde_json::to_string_pretty(&serde_json::to_value(doc)?)?);
     Ok(())
