@@ -1253,7 +1253,9 @@ fn uncalibrated_samples_are_noted_with_their_count() {
         .filter(|l| l.rsplit(',').next().and_then(|f| f.parse::<u8>().ok()).is_some_and(|f| f & 4 != 0))
         .count() as u64;
     assert_eq!(counts, [flagged, flagged], "validate's and compensate's counts against the output's flags");
-    // A log whose temperature cells are all empty: nothing is corrected, and it is said.
+    // A log whose temperature cells are all empty: nothing is corrected, and it is said
+    // with the cause (the temperature silent beyond the model's max gap); validate then
+    // fails (exit 1: no run validated), compensate succeeds (its output is the raw gyro).
     let blank: Vec<String> = lines
         .iter()
         .enumerate()
@@ -1268,16 +1270,21 @@ fn uncalibrated_samples_are_noted_with_their_count() {
         .collect();
     let no_temp = dir.path().join("no_temp.csv");
     write_lines(&no_temp, &blank);
-    for args in [
-        args!["validate", "--model", &model, &no_temp],
-        args!["compensate", "--model", &model, &no_temp, "--out", dir.path().join("nt_out.csv")],
+    for (args, succeeds) in [
+        (args!["validate", "--model", &model, &no_temp], false),
+        (args!["compensate", "--model", &model, &no_temp, "--out", dir.path().join("nt_out.csv")], true),
     ] {
         let output = cal().args(&args).output().expect("run");
         let stderr = String::from_utf8_lossy(&output.stderr);
         assert!(
-            output.status.success() && stderr.contains("never corrected a sample"),
+            output.status.success() == succeeds
+                && stderr.contains("never corrected a sample")
+                && stderr.contains("silent for longer than the model's max gap"),
             "{args:?}:\n{stderr}"
         );
+        if !succeeds {
+            assert!(stderr.contains("no run could be validated"), "{stderr}");
+        }
     }
 }
 

@@ -268,13 +268,35 @@ pub fn axis_count_note(
 }
 
 /// The note for a log's axis whose compensator never corrected a sample (its tracker never
-/// had features), `name` being "LOG axis K" and `consequence` what that left.
-pub fn never_corrected_note(name: &str, consequence: &str) -> String {
-    format!(
-        "{name}: the compensator never corrected a sample: its feature tracker never had features \
-         (no usable temperature, e.g. an empty temperature column, or time stamps in another unit \
-         than the one given); {consequence}"
-    )
+/// had features), `name` being "LOG axis K" and `consequence` what that left; `flags` the
+/// samples' counts per flag bit ([`ReplaySeries::flag_counts`]), which name the likely
+/// cause, and `max_gap_s` the model's gap limit.
+pub fn never_corrected_note(
+    name: &str,
+    consequence: &str,
+    flags: &[u64; 8],
+    samples: u64,
+    max_gap_s: f64,
+) -> String {
+    let count = |flag: Flags| flags.get(flag.0.trailing_zeros() as usize).copied().unwrap_or(0);
+    let (stale, bad) = (count(Flags::TEMP_STALE), count(Flags::BAD_INPUT));
+    let cause = if 4 * stale > samples {
+        format!(
+            "the temperature was silent for longer than the model's max gap of {max_gap_s} s at {stale} of \
+             {samples} samples (TEMP_STALE): readings further apart than that, or an empty temperature \
+             column; the gap limit is the model's, set by fit --max-gap-s"
+        )
+    } else if 2 * bad > samples {
+        format!(
+            "{bad} of {samples} samples had their temperature or time rejected (BAD_INPUT): temperatures \
+             that are no reading (NaN, -999), or times out of order"
+        )
+    } else {
+        "no usable temperature, e.g. an empty temperature column, or time stamps in another unit than \
+         the one given"
+            .to_string()
+    };
+    format!("{name}: the compensator never corrected a sample: its feature tracker never had features ({cause}); {consequence}")
 }
 
 /// The note for `outside` of `samples` samples outside the calibrated region (`flagged`
@@ -1192,7 +1214,14 @@ impl RunValidation {
         let s = &self.series;
         let mut notes = Vec::new();
         if s.samples > 0 && !s.compensating_from_s.is_finite() {
-            notes.push(never_corrected_note(&name, "the compensated bias stability is undefined"));
+            let consequence = "the compensated bias stability is undefined";
+            notes.push(never_corrected_note(
+                &name,
+                consequence,
+                &s.flag_counts,
+                s.samples,
+                s.gaps.longer_than_s,
+            ));
         } else if self.compensated_bias_stability_dph.is_nan() && s.samples > 0 {
             notes.push(format!(
                 "{name}: the compensated bias stability is undefined: too few complete averaging windows \

@@ -28,6 +28,8 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
     // Per axis: samples compensated from features, and of them outside the calibrated region.
     let mut corrected = vec![0_u64; axes];
     let mut outside = vec![0_u64; axes];
+    // Per axis: samples per flag bit (for the cause when nothing was corrected).
+    let mut flag_counts = vec![[0_u64; 8]; axes];
     let bar = RowProgress::new(&a.log, "compensate");
     let mut report = None;
     // A problem in the log is reported as the log's (with its hint), not as the output's.
@@ -66,6 +68,9 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
                     }
                     if o.flags.contains(Flags::OUTSIDE_HULL) {
                         outside[i] += 1;
+                    }
+                    for (bit, count) in flag_counts[i].iter_mut().enumerate() {
+                        *count += u64::from((o.flags.0 >> bit) & 1);
                     }
                 }
                 out.write_record(&record).map_err(|e| fogtemp_cal::CalError::Io {
@@ -109,7 +114,15 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
         for axis in 0..axes {
             let name = format!("{} axis {axis}", a.log.display());
             if corrected[axis] == 0 {
-                eprintln!("note: {}", calibrate::never_corrected_note(&name, "the output's bias is 0"));
+                let consequence = "the output's bias is 0";
+                let note = calibrate::never_corrected_note(
+                    &name,
+                    consequence,
+                    &flag_counts[axis],
+                    r.rows,
+                    max_gap_s,
+                );
+                eprintln!("note: {note}");
             } else if outside[axis] > 0 {
                 let note = calibrate::outside_region_note(
                     &name,

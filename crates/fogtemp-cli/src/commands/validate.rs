@@ -89,7 +89,8 @@ pub fn validate(a: ValidateArgs) -> Result<()> {
         eprintln!("report: {}", dir.join("report.md").display());
     }
     if a.json {
-        return print_json(&ValidationDocument::new(&options, &validation, comparison));
+        print_json(&ValidationDocument::new(&options, &validation, comparison))?;
+        return nothing_validated(runs);
     }
     println!("{}", options.describe());
     println!("{:<40} {:>4} {:>14} {:>14} {:>8}", "run", "axis", "raw deg/h", "comp deg/h", "ratio");
@@ -117,6 +118,17 @@ pub fn validate(a: ValidateArgs) -> Result<()> {
                 c.raw_bias_stability_dph / c.compensated_bias_stability_dph
             );
         }
+    }
+    nothing_validated(runs)
+}
+
+/// An error (exit status 1) when the compensator corrected no sample of any run: the model
+/// could not be applied to these logs at all (the figures above are all undefined), and a
+/// script checking the status must not read success. (Runs too short for two averaging
+/// windows also give undefined figures, but the model was applied: a note, not an error.)
+fn nothing_validated(runs: &[calibrate::RunValidation]) -> Result<()> {
+    if !runs.is_empty() && runs.iter().all(|r| !r.series.compensating_from_s.is_finite()) {
+        bail!("no run could be validated: the compensator corrected no sample of any run (the notes above say why)");
     }
     Ok(())
 }
