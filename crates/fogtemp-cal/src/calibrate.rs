@@ -215,6 +215,9 @@ pub struct RunFeatures {
     pub gaps: TimeGaps,
     /// Per axis: the feature points and their smoothed gyro targets (deg/h).
     pub axes: Vec<(Vec<FeaturePoint>, Vec<f64>)>,
+    /// Per axis: the true input rate subtracted from its gyro means and targets
+    /// ([`RunFeatures::subtract_input_rate`]), deg/h; empty or 0 where none was.
+    pub input_rate_subtracted_dph: Vec<f64>,
 }
 
 /// Subtracts each run's true input rate (`rates_dph`, one per run, in order) from its gyro
@@ -318,6 +321,10 @@ impl RunFeatures {
         if let Some((features, targets)) = self.axes.get_mut(axis) {
             features.iter_mut().for_each(|f| f.gyro_mean_dph -= rate_dph);
             targets.iter_mut().for_each(|t| *t -= rate_dph);
+            self.input_rate_subtracted_dph.resize(self.axes.len(), 0.0);
+            if let Some(total) = self.input_rate_subtracted_dph.get_mut(axis) {
+                *total += rate_dph;
+            }
         }
     }
 }
@@ -446,7 +453,7 @@ pub(crate) fn extract_with(
             (points, targets)
         })
         .collect();
-    Ok(RunFeatures { path: path.to_path_buf(), ingest, gaps, axes })
+    Ok(RunFeatures { path: path.to_path_buf(), ingest, gaps, axes, input_rate_subtracted_dph: Vec::new() })
 }
 
 /// The calibration points of one axis over all runs.

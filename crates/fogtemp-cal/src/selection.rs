@@ -927,7 +927,13 @@ pub fn without_block(run: &RunFeatures, blocks: &RunBlocks, j: usize, guard_s: f
                 .unzip()
         })
         .collect();
-    RunFeatures { path: run.path.clone(), ingest: run.ingest.clone(), gaps: run.gaps, axes }
+    RunFeatures {
+        path: run.path.clone(),
+        ingest: run.ingest.clone(),
+        gaps: run.gaps,
+        axes,
+        input_rate_subtracted_dph: run.input_rate_subtracted_dph.clone(),
+    }
 }
 
 /// Blocked K-fold within runs ([`CvScheme::BlockedKFold`]): per fold, every candidate
@@ -1748,6 +1754,7 @@ mod tests {
             ingest: Default::default(),
             gaps: Default::default(),
             axes: vec![(features, vec![0.0; points.len()])],
+            input_rate_subtracted_dph: Vec::new(),
         }
     }
 

@@ -539,6 +539,12 @@ pub fn demo_markdown(r: &DemoResult) -> String {
             m.model_bytes
         ));
     }
+    if r.models.iter().any(|m| m.key == "hybrid" && m.mesh_nodes == 0) {
+        md.push_str(
+            "\n`hybrid` kept no mesh nodes: cross-validation found nothing in the polynomial's residuals \
+             for a mesh to add, so here it is the polynomial alone, and its figures are `poly`'s.\n",
+        );
+    }
     md.push_str("\n## Per validation run, deg/h\n\n| run | raw |");
     for m in &r.models {
         md.push_str(&format!(" `{}` |", m.key));

@@ -194,9 +194,10 @@ pub fn finite_range(values: impl Iterator<Item = f64>) -> (f64, f64) {
     (lo - pad, hi + pad)
 }
 
-/// Distinct colours for runs.
+/// Distinct colours for runs (the ten of matplotlib's `tab10`: a testbed case's nine
+/// calibration runs no longer share one).
 pub fn run_colour(i: usize) -> RGBColor {
-    const C: [RGBColor; 8] = [
+    const C: [RGBColor; 10] = [
         RGBColor(31, 119, 180),
         RGBColor(255, 127, 14),
         RGBColor(44, 160, 44),
@@ -205,6 +206,8 @@ pub fn run_colour(i: usize) -> RGBColor {
         RGBColor(140, 86, 75),
         RGBColor(227, 119, 194),
         RGBColor(127, 127, 127),
+        RGBColor(188, 189, 34),
+        RGBColor(23, 190, 207),
     ];
     C[i % C.len()]
 }
@@ -213,7 +216,7 @@ pub fn run_colour(i: usize) -> RGBColor {
 ///
 /// # Errors
 /// [`CalError::Io`] if the file cannot be written.
-pub fn plot_runs(path: &Path, title: &str, runs: &[RunTrace]) -> Result<(), CalError> {
+pub fn plot_runs(path: &Path, title: &str, gyro_label: &str, runs: &[RunTrace]) -> Result<(), CalError> {
     let with_comp = runs.iter().any(|r| !r.compensated_dph.is_empty());
     let panels = if with_comp { 4 } else { 3 };
     write_svg(path, (1200, 260 * panels as u32), |root| {
@@ -224,10 +227,11 @@ pub fn plot_runs(path: &Path, title: &str, runs: &[RunTrace]) -> Result<(), CalE
         let areas = root.split_evenly((panels, 1));
         let t_max = runs.iter().flat_map(|r| r.time_s.last().copied()).fold(1.0, f64::max) / 60.0;
         type Pick = fn(&RunTrace) -> &Vec<f64>;
+        // The gyro panel's label is the caller's: it says what was taken from the gyro.
         let mut specs: Vec<(&str, Pick)> = vec![
             ("temperature, deg C", |r| &r.temp_c),
             ("rate, deg C/min", |r| &r.rate_c_per_min),
-            ("gyro, uncompensated, deg/h", |r| &r.raw_dph),
+            (gyro_label, |r| &r.raw_dph),
         ];
         if with_comp {
             specs.push(("compensated gyro, deg/h", |r| &r.compensated_dph));
@@ -574,22 +578,32 @@ pub fn write_validation_report_with(
          compensator corrected (the start-up before it, where the output is the raw input, is \
          left out of figures and metric alike).\n\n"
     ));
-    md.push_str("| run | axis | raw, deg/h | compensated, deg/h | ratio |\n|---|---|---|---|---|\n");
+    md.push_str(
+        "| run | axis | raw, deg/h | compensated, deg/h | ratio | outside the calibrated region |\n|---|---|---|---|---|---|\n",
+    );
+    let outside_bit = fogtemp_core::Flags::OUTSIDE_HULL.0.trailing_zeros() as usize;
     for r in runs {
+        let outside = r.series.flag_counts.get(outside_bit).copied().unwrap_or(0);
         md.push_str(&format!(
-            "| {} | {} | {:.5} | {:.5} | {:.2} |\n",
+            "| {} | {} | {:.5} | {:.5} | {:.2} | {:.1} % |\n",
             file_name(&r.path),
             r.axis,
             r.raw_bias_stability_dph,
             r.compensated_bias_stability_dph,
-            r.raw_bias_stability_dph / r.compensated_bias_stability_dph
+            r.raw_bias_stability_dph / r.compensated_bias_stability_dph,
+            100.0 * outside as f64 / r.series.samples.max(1) as f64
         ));
     }
     md.push_str(&format!(
-        "| **overall (RMS over runs)** | | **{:.5}** | **{:.5}** | **{:.2}** |\n\n",
+        "| **overall (RMS over runs)** | | **{:.5}** | **{:.5}** | **{:.2}** | |\n\n",
         overall.0,
         overall.1,
         overall.0 / overall.1
+    ));
+    md.push_str(&bullet_section(
+        "Samples the model did not compensate as calibrated (\"outside\": the share of a run's samples flagged \
+         OUTSIDE_HULL, where the model is extrapolated):",
+        &runs.iter().flat_map(crate::calibrate::RunValidation::coverage_notes).collect::<Vec<_>>(),
     ));
     md.push_str(&bullet_section(
         "Gaps in the time stamps (the drift figure shows them as breaks):",
@@ -814,14 +828,39 @@ pub fn write_fit_report(
             })
             .collect();
         let runs_svg = format!("fit-runs-axis{axis}.svg");
+        let input_rates: Vec<f64> = runs
+            .iter()
+            .filter_map(|r| r.input_rate_subtracted_dph.get(axis).copied())
+            .filter(|rate| *rate != 0.0)
+            .collect();
+        let gyro_label = if input_rates.is_empty() {
+            "gyro, uncompensated, deg/h"
+        } else {
+            "gyro less the runs file's input rate, deg/h"
+        };
         plot_runs(
             &dir.join(&runs_svg),
             &format!("Calibration runs, axis {axis} (gyro: the smoothed target the model is fitted to)"),
+            gyro_label,
             &traces,
         )?;
         md.push_str(&format!(
             "## Axis {axis}\n\n![Calibration runs: temperature, rate and the smoothed gyro target against time]({runs_svg})\n\n"
         ));
+        if let (Some(lo), Some(hi)) =
+            (input_rates.iter().copied().reduce(f64::min), input_rates.iter().copied().reduce(f64::max))
+        {
+            let range = if (hi - lo).abs() < 5e-4 {
+                format!("{lo:.3} deg/h")
+            } else {
+                format!("{lo:.3} to {hi:.3} deg/h")
+            };
+            md.push_str(&format!(
+                "Each run's `input_rate_dph` from the runs file ({range}: the Earth rate's \
+                 projection or a turntable's rate) was subtracted from its gyro before the fit, so the model \
+                 is the bias alone; the gyro panel shows the gyro less that rate.\n\n"
+            ));
+        }
         let points: Vec<(f64, f64)> = runs
             .iter()
             .filter_map(|r| r.axes.get(axis))
