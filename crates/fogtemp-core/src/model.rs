@@ -560,9 +560,10 @@ fn validate_axis(axis: &Axis<'_>) -> Result<(), Error> {
     if f.min_blocks < 2 || f.min_blocks > f.block_count {
         return Err(bad("min_blocks", 0));
     }
-    // A block shorter than a microsecond cannot be timed by the tracker.
+    // A block shorter than a microsecond cannot be timed by the tracker: the window is too
+    // short for its (valid) block count.
     if f.window_s / (f.block_count as f32) < 1.0e-6 {
-        return Err(bad("block_count", 0));
+        return Err(bad("window_s", 0));
     }
     if !positive(finite("max_gap_s", f.max_gap_s, 0)?) {
         return Err(bad("max_gap_s", 0));

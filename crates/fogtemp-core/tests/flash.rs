@@ -97,3 +97,21 @@ fn a_gap_the_tracker_cannot_time_is_refused_by_the_validator() {
         Err(Error::BadValue { field: "max_gap_s", axis: 0, index: 0 })
     );
 }
+
+/// A window too short for its (valid) block count, a block under 1 us (a review's blob
+/// with `window_s` = 1.8e-38): the validator names `window_s`, the field changed, not
+/// `block_count` (docs/model-format.md, Validation 3).
+#[test]
+fn a_window_too_short_for_its_blocks_names_the_window() {
+    const AXIS0: usize = FILE_HEADER_LEN;
+    const WINDOW_S: usize = 8;
+    let mut blob = GOLDEN.to_vec();
+    blob[AXIS0 + WINDOW_S..AXIS0 + WINDOW_S + 4].copy_from_slice(&1.8e-38f32.to_le_bytes());
+    let n = blob.len();
+    let crc = fogtemp_core::crc::crc32(&blob[..n - CRC_LEN]);
+    blob[n - CRC_LEN..].copy_from_slice(&crc.to_le_bytes());
+    assert_eq!(
+        Model::from_bytes(&blob).map(|_| ()),
+        Err(Error::BadValue { field: "window_s", axis: 0, index: 0 })
+    );
+}
