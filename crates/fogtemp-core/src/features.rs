@@ -264,7 +264,10 @@ impl<S: BlockStorage> BlockTracker<S> {
 
     /// Closes the current block and any empty ones up to the block holding `time_us`.
     fn close_blocks_until(&mut self, time_us: u64) {
-        let behind = (time_us - self.block_end_us) / self.block_us;
+        // `checked_*`, here and below: the validator guarantees a block of >= 1 us and >= 2
+        // blocks, but the compiler cannot see it, and a division by zero would link a panic
+        // path (a link-time no-panic check on Cortex-M4 found three; docs/architecture.md).
+        let behind = time_us.saturating_sub(self.block_end_us).checked_div(self.block_us).unwrap_or(0);
         let to_close = behind.saturating_add(1);
         let mean = if self.block_samples > 0 {
             self.block_ref_c + self.block_sum_dev_c / self.block_samples as f32
@@ -286,7 +289,7 @@ impl<S: BlockStorage> BlockTracker<S> {
         if let Some(slot) = self.ring_c.blocks_mut().get_mut(self.head) {
             *slot = mean_c;
         }
-        self.head = (self.head + 1) % self.block_count;
+        self.head = (self.head + 1).checked_rem(self.block_count).unwrap_or(0);
         self.closed = (self.closed + 1).min(self.block_count);
     }
 
@@ -296,7 +299,7 @@ impl<S: BlockStorage> BlockTracker<S> {
         let n = self.block_count;
         let first = n - self.closed;
         (first..n).filter_map(move |pos| {
-            let idx = (self.head + pos) % n;
+            let idx = (self.head + pos).checked_rem(n).unwrap_or(0);
             let mean = self.ring_c.blocks().get(idx).copied().unwrap_or(f32::NAN);
             (!mean.is_nan()).then_some((pos as f32, mean))
         })

@@ -482,7 +482,8 @@ impl<'a> Mesh<'a> {
         let (needed, lo, per_unit) = self.grid_frame(side, cells.len())?;
         let mut hint = WalkHint::default();
         for (k, cell) in cells.iter_mut().take(needed).enumerate() {
-            let (i, j) = ((k % side as usize) as f32, (k / side as usize) as f32);
+            let side = side as usize;
+            let (i, j) = (k.checked_rem(side).unwrap_or(0) as f32, k.checked_div(side).unwrap_or(0) as f32);
             let (x, y) = (lo[0] + (i + 0.5) / per_unit[0], lo[1] + (j + 0.5) / per_unit[1]);
             *cell = match self.locate(x, y, &mut hint)? {
                 Location::Inside { triangle, .. } | Location::Outside { triangle } => triangle,

@@ -622,7 +622,10 @@ fn validate_region(region: &Region<'_>, id: u16) -> Result<(), Error> {
     let upper = |dx: f32, dy: f32| dy > 0.0 || (dy == 0.0 && dx > 0.0);
     let mut windings = 0u32;
     for i in 0..n {
-        let vertex = |k: u32| region.vertex(k % n).ok_or(err("region vertex", k % n));
+        let vertex = |k: u32| {
+            let k = k.checked_rem(n).unwrap_or(0);
+            region.vertex(k).ok_or(err("region vertex", k))
+        };
         let (a, b, c) = (vertex(i)?, vertex(i + 1)?, vertex(i + 2)?);
         let (e1x, e1y, e2x, e2y) = (b.0 - a.0, b.1 - a.1, c.0 - b.0, c.1 - b.1);
         if e1x == 0.0 && e1y == 0.0 {
@@ -828,7 +831,7 @@ fn validate_hull(mesh: &Mesh<'_>, id: u16) -> Result<(), Error> {
     let mut windings = 0u32;
     for h in 0..hcount {
         let (a, b) = edge(h)?;
-        let (b2, c) = edge((h + 1) % hcount)?;
+        let (b2, c) = edge((h + 1).checked_rem(hcount).unwrap_or(0))?;
         if b != b2 {
             return Err(mesh_err("hull chained", h));
         }

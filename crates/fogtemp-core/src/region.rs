@@ -74,7 +74,7 @@ impl<'a> Region<'a> {
     /// The edges `(a, b)`, counter-clockwise, the last closing the polygon.
     fn edges(&self) -> impl Iterator<Item = ((f32, f32), (f32, f32))> + '_ {
         let n = self.vertex_count();
-        (0..n).filter_map(move |i| Some((self.vertex(i)?, self.vertex((i + 1) % n)?)))
+        (0..n).filter_map(move |i| Some((self.vertex(i)?, self.vertex((i + 1).checked_rem(n)?)?)))
     }
 
     /// `(x, y)` lies inside or on the boundary (left of or on every edge).
@@ -92,7 +92,7 @@ impl<'a> Region<'a> {
     pub fn nearest_boundary_point(&self, x: f32, y: f32) -> (f32, f32) {
         let n = self.vertex_count();
         let projection = |i: u32| -> Option<(f32, f32, f32, f32)> {
-            let (a, b) = (self.vertex(i % n)?, self.vertex((i + 1) % n)?);
+            let (a, b) = (self.vertex(i.checked_rem(n)?)?, self.vertex((i + 1).checked_rem(n)?)?);
             let (ex, ey) = (b.0 - a.0, b.1 - a.1);
             let len2 = ex * ex + ey * ey;
             let t = if len2 > 0.0 { ((x - a.0) * ex + (y - a.1) * ey) / len2 } else { 0.0 };
