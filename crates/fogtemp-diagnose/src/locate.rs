@@ -5,7 +5,10 @@
 use statrs::distribution::{ContinuousCDF, Normal};
 
 use super::effects::EffectGrid;
+use nalgebra::DMatrix;
+
 use super::linalg::{location_se_of_mean, pooled_autocovariances};
+use super::noise_model::{fit_noise, variance_of_mean, NoiseBasis, Span};
 use super::prepare::{longest_finite, short_mean_noise, Prepared, RunData};
 use super::select::{fold_counts, folds_pass, material_runs, FinalOutcome, Selection, MIN_INFORMATIVE_FOLDS};
 use super::{
@@ -41,19 +44,59 @@ fn slope(t: &[f64], v: &[f64]) -> f64 {
     }
 }
 
-/// Autocovariances (lags `0..=hac_lag_blocks`) of residual `e` pooled over every run, for
-/// [`location_se_of_mean`]. The location takes them from the final model's residual: the
-/// noise left after the named effects, so that the structure being located (in the raw
-/// residual) does not count as noise.
-pub fn pooled_gamma(prep: &Prepared, e: &[Vec<f64>]) -> Vec<f64> {
-    let indices: Vec<Vec<usize>> =
-        prep.runs.iter().map(|r| r.blocks.iter().map(|b| b.index).collect()).collect();
-    pooled_autocovariances(e, &indices, prep.hac_lag_blocks)
+/// The noise the location's standard errors borrow from all runs, fitted to the final
+/// model's residual (the noise left after the named effects, so that the structure being
+/// located in the raw residual does not count as noise): the noise model of the acceptance
+/// (white + bias-instability decades by REML, [`crate::noise_model`]) when it passes its
+/// innovation check, which follows correlations over the whole run; else the residual's
+/// autocovariances pooled over runs up to the Newey-West bandwidth.
+pub struct LocationNoise {
+    /// Autocovariances at lags `0..=hac_lag_blocks` (the fallback, and the bandwidth).
+    gamma: Vec<f64>,
+    /// `(white, flicker)` levels of the fitted noise model, when it passed its check.
+    levels: Option<(f64, f64)>,
 }
 
-/// Mean, standard error and more for the blocks of `run` in the time `range`, residual `e`,
-/// pooled autocovariances `gamma`.
-fn span(run: &RunData, e: &[f64], label: &str, range: (f64, f64), gamma: &[f64]) -> Option<SpanFinding> {
+impl LocationNoise {
+    /// The noise of residual `e` (per run, one value per short mean).
+    pub fn of(prep: &Prepared, e: &[Vec<f64>]) -> Self {
+        let indices: Vec<Vec<usize>> =
+            prep.runs.iter().map(|r| r.blocks.iter().map(|b| b.index).collect()).collect();
+        let gamma = pooled_autocovariances(e, &indices, prep.hac_lag_blocks);
+        let spans: Vec<Vec<Span>> =
+            prep.runs.iter().map(|r| r.blocks.iter().map(|b| (b.first_sec, b.end_sec)).collect()).collect();
+        let intercept: Vec<DMatrix<f64>> = e.iter().map(|v| DMatrix::from_element(v.len(), 1, 1.0)).collect();
+        let levels = NoiseBasis::new(&spans)
+            .and_then(|basis| fit_noise(&basis, &intercept, e))
+            .filter(|fit| fit.check.passed)
+            .map(|fit| (fit.white_var, fit.flicker_var));
+        Self { gamma, levels }
+    }
+
+    /// Standard error of the mean of `values` at block numbers `indices` and seconds
+    /// `spans` (per run): the larger of the values' own Newey-West estimate and the one the
+    /// borrowed noise implies. Newey-West alone collapses in a cell of fewer short means than
+    /// its bandwidth (37 % of |z| above 3.2 on white noise with 10 means and bandwidth 30,
+    /// found by a review on a null case) and misses flicker beyond its bandwidth; the
+    /// borrowed noise misses a cell's own, larger noise (a noisier warm-up).
+    fn se(&self, values: &[Vec<f64>], indices: &[Vec<usize>], spans: &[Vec<Span>]) -> f64 {
+        let own = location_se_of_mean(values, indices, &self.gamma);
+        match self.levels {
+            Some((white, flicker)) => own.max(variance_of_mean(spans, white, flicker).sqrt()),
+            None => own,
+        }
+    }
+}
+
+/// Mean, standard error ([`LocationNoise`]) and more for the blocks of `run` in the time
+/// `range`, residual `e`.
+fn span(
+    run: &RunData,
+    e: &[f64],
+    label: &str,
+    range: (f64, f64),
+    noise: &LocationNoise,
+) -> Option<SpanFinding> {
     let sel: Vec<usize> = (0..run.blocks.len())
         .filter(|&i| run.blocks[i].since_on_s >= range.0 && run.blocks[i].since_on_s < range.1)
         .collect();
@@ -64,7 +107,8 @@ fn span(run: &RunData, e: &[f64], label: &str, range: (f64, f64), gamma: &[f64])
     let idx: Vec<usize> = sel.iter().map(|&i| run.blocks[i].index).collect();
     let t_h: Vec<f64> = sel.iter().map(|&i| run.blocks[i].since_on_s / 3600.0).collect();
     let m = mean(&v);
-    let se = location_se_of_mean(std::slice::from_ref(&v), &[idx], gamma);
+    let secs: Vec<Span> = sel.iter().map(|&i| (run.blocks[i].first_sec, run.blocks[i].end_sec)).collect();
+    let se = noise.se(std::slice::from_ref(&v), &[idx], &[secs]);
     Some(SpanFinding {
         run: run.name.clone(),
         span: label.to_string(),
@@ -80,9 +124,13 @@ fn span(run: &RunData, e: &[f64], label: &str, range: (f64, f64), gamma: &[f64])
     })
 }
 
-/// Whole-run, warm-up and settled spans of every run, with Bonferroni significance; `gamma`
-/// from [`pooled_gamma`].
-pub fn spans(prep: &Prepared, e: &[Vec<f64>], gamma: &[f64], options: &DiagnoseOptions) -> Vec<SpanFinding> {
+/// Whole-run, warm-up and settled spans of every run, with Bonferroni significance.
+pub fn spans(
+    prep: &Prepared,
+    e: &[Vec<f64>],
+    noise: &LocationNoise,
+    options: &DiagnoseOptions,
+) -> Vec<SpanFinding> {
     let w = options.warmup_span_s;
     let mut out: Vec<SpanFinding> = prep
         .runs
@@ -90,9 +138,9 @@ pub fn spans(prep: &Prepared, e: &[Vec<f64>], gamma: &[f64], options: &DiagnoseO
         .zip(e)
         .flat_map(|(run, er)| {
             [
-                span(run, er, "whole run", (f64::NEG_INFINITY, f64::INFINITY), gamma),
-                span(run, er, "warm-up", (f64::NEG_INFINITY, w), gamma),
-                span(run, er, "settled", (w, f64::INFINITY), gamma),
+                span(run, er, "whole run", (f64::NEG_INFINITY, f64::INFINITY), noise),
+                span(run, er, "warm-up", (f64::NEG_INFINITY, w), noise),
+                span(run, er, "settled", (w, f64::INFINITY), noise),
             ]
         })
         .flatten()
@@ -136,8 +184,13 @@ pub fn cells_of(prep: &Prepared, options: &DiagnoseOptions) -> Vec<Vec<(usize, u
 }
 
 /// The (T, dT/dt) map of residual `e` with [`location_se_of_mean`] errors (cells with >= 5
-/// means; `gamma` from [`pooled_gamma`]).
-pub fn map(prep: &Prepared, e: &[Vec<f64>], gamma: &[f64], options: &DiagnoseOptions) -> Vec<MapCell> {
+/// means).
+pub fn map(
+    prep: &Prepared,
+    e: &[Vec<f64>],
+    noise: &LocationNoise,
+    options: &DiagnoseOptions,
+) -> Vec<MapCell> {
     let te = temp_edges(prep, options.temp_bins);
     let re = &options.rate_edges_c_per_min;
     let cells = cells_of(prep, options);
@@ -146,11 +199,17 @@ pub fn map(prep: &Prepared, e: &[Vec<f64>], gamma: &[f64], options: &DiagnoseOpt
         for rb in 0..=re.len() {
             let mut values = Vec::new();
             let mut indices = Vec::new();
+            let mut secs = Vec::new();
             for ((run, er), cr) in prep.runs.iter().zip(e).zip(&cells) {
                 let sel: Vec<usize> = (0..er.len()).filter(|&i| cr[i] == (tb, rb)).collect();
                 if !sel.is_empty() {
                     values.push(sel.iter().map(|&i| er[i]).collect::<Vec<f64>>());
                     indices.push(sel.iter().map(|&i| run.blocks[i].index).collect::<Vec<usize>>());
+                    secs.push(
+                        sel.iter()
+                            .map(|&i| (run.blocks[i].first_sec, run.blocks[i].end_sec))
+                            .collect::<Vec<Span>>(),
+                    );
                 }
             }
             let n: usize = values.iter().map(Vec::len).sum();
@@ -158,7 +217,7 @@ pub fn map(prep: &Prepared, e: &[Vec<f64>], gamma: &[f64], options: &DiagnoseOpt
                 continue;
             }
             let m = values.iter().flatten().sum::<f64>() / n as f64;
-            let se = location_se_of_mean(&values, &indices, gamma);
+            let se = noise.se(&values, &indices, &secs);
             out.push(MapCell {
                 temp_lo_c: te[tb],
                 temp_hi_c: te[tb + 1],
@@ -428,6 +487,7 @@ const TIME_EDGES_S: [f64; 10] =
 fn unexplained(
     prep: &Prepared,
     outcome: &FinalOutcome,
+    noise: &LocationNoise,
     options: &DiagnoseOptions,
     left_out_empty: bool,
 ) -> Unexplained {
@@ -446,11 +506,10 @@ fn unexplained(
         table_test("T-rate cells", &cell_keys, e, options.min_fold_fraction, prep.noise_sigma_dph),
         table_test("time since power-on", &time_keys, e, options.min_fold_fraction, prep.noise_sigma_dph),
     ];
-    let gamma = pooled_gamma(prep, e);
     let significant_cells: Vec<MapCell> =
-        map(prep, e, &gamma, options).into_iter().filter(|c| c.significant).collect();
+        map(prep, e, noise, options).into_iter().filter(|c| c.significant).collect();
     let significant_spans: Vec<SpanFinding> =
-        spans(prep, e, &gamma, options).into_iter().filter(|s| s.significant).collect();
+        spans(prep, e, noise, options).into_iter().filter(|s| s.significant).collect();
     let offsets: Vec<f64> = e.iter().map(|v| mean(v)).collect();
     let structured = tables.iter().any(|t| t.structured);
     let statement = unexplained_statement(&tables, &significant_cells, &significant_spans, left_out_empty);
@@ -554,7 +613,7 @@ fn definitions(options: &DiagnoseOptions, prep: &Prepared) -> Vec<String> {
     vec![
         format!("residual = recorded gyro - simulated gyro, averaged into short means of {} s on a common 1 s grid (a mean counts if >= 90 % of its seconds hold data)", prep.block_s),
         format!("T and dT/dt = level and slope of a centred least-squares line over {} s of 1 s temperature means; d2T/dt2 = least-squares slope of dT/dt over {} s", options.rate_window_s, options.accel_window_s),
-        format!("HAC standard error of a span's or map cell's mean = the larger of its own Newey-West estimate (Bartlett weights, bandwidth {} short means = {} s, lags within a run only) and the same sum with the autocovariances of the final model's residual pooled over all runs (about zero); the first alone collapses in cells of fewer means than the bandwidth", prep.hac_lag_blocks, options.hac_lag_s),
+        format!("HAC standard error of a span's or map cell's mean = the larger of its own Newey-West estimate (Bartlett weights, bandwidth {} short means = {} s, lags within a run only) and the error the final model's residual implies for those short means: its noise model (white + bias-instability decades, levels by REML, as in the acceptance) when that passes its innovation check, else its autocovariances pooled over all runs up to the bandwidth; Newey-West alone collapses in cells of fewer means than its bandwidth and misses flicker beyond it", prep.hac_lag_blocks, options.hac_lag_s),
         "significance of spans and map cells: |z| above the two-sided 5 % normal limit, Bonferroni-corrected over all spans (cells)".into(),
         "model = one global offset + chosen effect terms (no per-run offsets), least squares on the short means of all runs".into(),
         "LORO = leave-one-run-out: every run is predicted by the model fitted to the other runs, profiled parameters re-chosen on the training runs".into(),
@@ -657,17 +716,17 @@ pub fn assemble(
     let all: Vec<f64> = raw.iter().flatten().copied().collect();
     let (allan, noise) = allan_and_noise(prep, &outcome, options);
     let first_excess_tau_s = allan.iter().find(|r| r.before_excess).map(|r| r.tau_s);
-    let gamma = pooled_gamma(prep, &outcome.fitted_resid);
+    let borrowed = LocationNoise::of(prep, &outcome.fitted_resid);
     let location = Location {
         raw_residual_rms_dph: rms(&all),
         overall_offset_dph: mean(&all),
-        spans: spans(prep, &raw, &gamma, options),
-        map: map(prep, &raw, &gamma, options),
+        spans: spans(prep, &raw, &borrowed, options),
+        map: map(prep, &raw, &borrowed, options),
         allan,
         first_excess_tau_s,
         temperature: temperature(prep, options),
     };
-    let unexplained = unexplained(prep, &outcome, options, outcome.left_out.is_empty());
+    let unexplained = unexplained(prep, &outcome, &borrowed, options, outcome.left_out.is_empty());
     let mut d = Diagnosis {
         summary: String::new(),
         left_out: outcome.left_out.clone(),

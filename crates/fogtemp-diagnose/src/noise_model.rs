@@ -71,6 +71,24 @@ pub fn unit_block_cov(a: Span, b: Span) -> (f64, f64) {
     (overlap / norm, flicker / norm)
 }
 
+/// Variance of the mean of the short means `selected` (per run, their spans; runs are
+/// independent) at levels `(alpha, beta)`: `(1/n^2) sum_runs sum_{i,j} Sigma_ij`.
+pub fn variance_of_mean(selected: &[Vec<Span>], alpha: f64, beta: f64) -> f64 {
+    let n: usize = selected.iter().map(Vec::len).sum();
+    let mut sum = 0.0;
+    for spans in selected {
+        for (i, &a) in spans.iter().enumerate() {
+            let (w, f) = unit_block_cov(a, a);
+            sum += alpha * w + beta * f;
+            for &b in &spans[i + 1..] {
+                let (w, f) = unit_block_cov(a, b);
+                sum += 2.0 * (alpha * w + beta * f);
+            }
+        }
+    }
+    sum / (n.max(1) as f64).powi(2)
+}
+
 /// Covariance matrix of one run's short means at levels `(alpha, beta)`.
 pub fn run_covariance(spans: &[Span], alpha: f64, beta: f64) -> DMatrix<f64> {
     let n = spans.len();
@@ -659,6 +677,24 @@ mod tests {
 
     fn spans(n: usize, len: usize) -> Vec<Span> {
         (0..n).map(|i| (i * len, (i + 1) * len)).collect()
+    }
+
+    /// White only: n means of L seconds have variance alpha / (L n) (closed form); with
+    /// flicker, the sum of the run covariance matrix's entries over n^2 (the matrix the
+    /// acceptance uses), over two independent runs and a subset with a hole.
+    #[test]
+    fn variance_of_a_mean_matches_closed_form_and_the_covariance_matrix() {
+        let white = variance_of_mean(&[spans(12, 20), spans(8, 20)], 3.0, 0.0);
+        assert!((white - 3.0 / (20.0 * 20.0)).abs() < 1e-15, "{white}");
+        let run_a: Vec<Span> =
+            spans(30, 20).into_iter().enumerate().filter(|(i, _)| i % 7 != 3).map(|(_, s)| s).collect();
+        let run_b = spans(10, 20);
+        let (alpha, beta) = (2.0, 0.3);
+        let total = |s: &[Span]| run_covariance(s, alpha, beta).sum();
+        let n = (run_a.len() + run_b.len()) as f64;
+        let want = (total(&run_a) + total(&run_b)) / (n * n);
+        let got = variance_of_mean(&[run_a, run_b], alpha, beta);
+        assert!((got - want).abs() <= 1e-12 * want, "{got} vs {want}");
     }
 
     #[test]
