@@ -1299,6 +1299,29 @@ fn export_c_failure_leaves_no_header_behind() {
     assert!(!dir.path().join("model.h").exists());
 }
 
+/// A folder given as logs: its `*.csv` files are read, and what else it holds (another
+/// file, a sub-folder, which is not searched, a `*.csv` that is not a file) is named in a
+/// note: nothing is left out silently.
+#[test]
+fn a_folders_other_entries_are_named() {
+    let dir = TempDir::new().expect("tempdir");
+    let logs = dir.path().join("logs");
+    fs::create_dir_all(logs.join("sub")).expect("mkdir");
+    let (_, lines) = short_log(&logs, "a.csv");
+    write_lines(&logs.join("b.txt"), &lines);
+    fs::create_dir(logs.join("c.csv")).expect("mkdir");
+    let output = cal()
+        .args(args!["fit", "--method", "poly", "--out", &dir.path().join("m.fogm"), &logs])
+        .output()
+        .expect("run");
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(output.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("read 1 *.csv file; left out: b.txt, c.csv/ (a folder: not searched), sub/ (a folder: not searched)"),
+        "{stderr}"
+    );
+}
+
 /// A log shorter than the feature window (1 min against the default 100 s) gets the
 /// `short_runs` warning naming it (its fit residual of about 0 says nothing); a log of
 /// several windows does not.

@@ -94,17 +94,54 @@ pub fn expand_logs(args: &[PathBuf]) -> Result<Vec<PathBuf>> {
     Ok(logs)
 }
 
-/// One argument's logs: a file as given, a folder's `*.csv` files sorted by name.
+/// The note for a folder argument's entries that are not read as logs (`None` when there
+/// are none): other files, sub-folders (not searched), and `*.csv` names that are not
+/// files (a broken link).
+fn left_out_note(folder: &Path, read: usize, left: &[PathBuf]) -> Option<String> {
+    const LISTED: usize = 8;
+    if left.is_empty() {
+        return None;
+    }
+    let name = |p: &PathBuf| {
+        let n = p.file_name().map_or_else(|| p.display().to_string(), |n| n.to_string_lossy().into_owned());
+        if p.is_dir() {
+            format!("{n}/ (a folder: not searched)")
+        } else if !p.exists() {
+            format!("{n} (a broken link)")
+        } else {
+            n
+        }
+    };
+    let mut listed: Vec<String> = left.iter().take(LISTED).map(name).collect();
+    if left.len() > LISTED {
+        listed.push(format!("and {} more", left.len() - LISTED));
+    }
+    Some(format!(
+        "{}: read {read} *.csv file{}; left out: {}",
+        folder.display(),
+        if read == 1 { "" } else { "s" },
+        listed.join(", ")
+    ))
+}
+
+/// One argument's logs: a file as given, a folder's `*.csv` files sorted by name. What a
+/// folder holds besides is named in a note (nothing is left out silently).
 fn expand_log_paths(arg: &Path) -> Result<Vec<PathBuf>> {
     if arg.is_dir() {
-        let mut found: Vec<PathBuf> = std::fs::read_dir(arg)
+        let entries: Vec<PathBuf> = std::fs::read_dir(arg)
             .with_context(|| format!("cannot list {}", arg.display()))?
             .filter_map(|e| e.ok().map(|e| e.path()))
-            .filter(|p| p.extension().is_some_and(|x| x.eq_ignore_ascii_case("csv")) && p.is_file())
             .collect();
+        let is_csv = |p: &Path| p.extension().is_some_and(|x| x.eq_ignore_ascii_case("csv"));
+        let (mut found, mut left): (Vec<PathBuf>, Vec<PathBuf>) =
+            entries.into_iter().partition(|p| is_csv(p) && p.is_file());
         found.sort();
+        left.sort();
         if found.is_empty() {
             bail!("{}: folder holds no *.csv files", arg.display());
+        }
+        if let Some(note) = left_out_note(arg, found.len(), &left) {
+            eprintln!("note: {note}");
         }
         Ok(found)
     } else if arg.is_file() {
