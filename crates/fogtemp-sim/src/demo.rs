@@ -473,6 +473,18 @@ fn write_demo_report(
     Ok(())
 }
 
+/// The cross-validation table as the fit report has it (Markdown, with the paired standard
+/// error the rule uses); the plain-text table without the report feature.
+#[cfg(feature = "report")]
+fn selection_table(s: &fogtemp_cal::selection::Selection) -> String {
+    fogtemp_cal::report::selection_markdown(0, s).lines().skip(2).collect::<Vec<_>>().join("\n") + "\n"
+}
+
+#[cfg(not(feature = "report"))]
+fn selection_table(s: &fogtemp_cal::selection::Selection) -> String {
+    format!("```text\n{}```\n", s.table())
+}
+
 /// The Markdown report: Table 1 beside the paper's, per-run figures, settings.
 pub fn demo_markdown(r: &DemoResult) -> String {
     let mut md = format!(
@@ -519,11 +531,11 @@ pub fn demo_markdown(r: &DemoResult) -> String {
         if let Some(s) = &m.selection {
             md.push_str(&format!(
                 "\n`{}` chose `{}` by cross-validation on the calibration runs ({} folds; compensated bias \
-                 stability of the held-out runs, deg/h):\n\n```text\n{}```\n",
+                 stability of the held-out runs, deg/h):\n\n{}",
                 m.key,
                 s.method.name(),
                 s.folds,
-                s.table()
+                selection_table(s)
             ));
         }
     }

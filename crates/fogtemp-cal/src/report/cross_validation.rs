@@ -13,6 +13,10 @@ pub struct CrossValidationRow {
     pub cv_dph: f64,
     /// Its standard error, deg/h.
     pub se_dph: f64,
+    /// Its excess on the best candidate and that excess's paired standard error, on the
+    /// scale the one-standard-error rule uses (deg/h, or the log ratio with
+    /// `fit --cv-rule-scale log`): within one standard error when the excess is at most it.
+    pub excess: (f64, f64),
     /// The method the selection chose.
     pub chosen: bool,
     /// Whether the selection found it within one standard error of the best (the paired
@@ -43,9 +47,11 @@ pub fn cross_validation_markdown(axis: usize, held_out: &[String], rows: &[Cross
         "### Model choice by cross-validation, axis {axis}\n\n\
          Each candidate fitted without one run (or group) and replayed on it through the `Compensator`; \
          the cross-validated bias stability is the mean of the folds' held-out bias stability. The \
-         simplest candidate within one standard error of the best (of the paired per-fold \
-         difference) is chosen.\n\n\
-         | method | CV bias stability, deg/h | standard error, deg/h | within 1 SE of the best | chosen |"
+         simplest candidate within one standard error of the best is chosen: its excess on the best \
+         (the mean of the paired per-fold differences) at most that excess's own standard error \
+         (of the paired differences, smaller than the columns' standard errors when the folds \
+         move together).\n\n\
+         | method | CV bias stability, deg/h | standard error, deg/h | excess on the best | paired standard error of the excess | within 1 SE of the best | chosen |"
     );
     let corrected = rows.iter().any(|r| r.correction_dph.is_some());
     if corrected {
@@ -54,16 +60,18 @@ pub fn cross_validation_markdown(axis: usize, held_out: &[String], rows: &[Cross
     for name in held_out {
         md.push_str(&format!(" held out {name}, deg/h |"));
     }
-    md.push_str("\n|---|---|---|---|---|");
+    md.push_str("\n|---|---|---|---|---|---|---|");
     md.push_str(&"---|".repeat(held_out.len() + usize::from(corrected)));
     md.push('\n');
     for r in rows {
         let method = if r.chosen { format!("**`{}`**", r.method) } else { format!("`{}`", r.method) };
         let within = if r.within_one_se { "yes" } else { "no" };
         md.push_str(&format!(
-            "| {method} | {} | {} | {within} | {} |",
+            "| {method} | {} | {} | {} | {} | {within} | {} |",
             number_or_dash(r.cv_dph, false),
             number_or_dash(r.se_dph, false),
+            number_or_dash(r.excess.0, false),
+            number_or_dash(r.excess.1, false),
             if r.chosen { "**chosen**" } else { "" }
         ));
         if corrected {
@@ -101,6 +109,12 @@ pub fn selection_markdown(axis: usize, selection: &crate::selection::Selection) 
             method: c.method.name().to_string(),
             cv_dph: c.cv_bias_stability_dph,
             se_dph: c.standard_error_dph,
+            excess: match selection.scale {
+                crate::selection::RuleScale::DegPerHour => {
+                    (c.difference_from_best_dph, c.difference_standard_error_dph)
+                }
+                crate::selection::RuleScale::Log => (c.log_ratio_to_best, c.log_ratio_standard_error),
+            },
             chosen: c.method == selection.method,
             within_one_se: c.within_one_standard_error,
             held_out_dph: held_out
@@ -129,6 +143,7 @@ mod tests {
             method: method.into(),
             cv_dph: cv,
             se_dph: se,
+            excess: (cv - 0.0047, 0.0002),
             chosen,
             within_one_se,
             held_out_dph: vec![cv, 2.0 * cv],
@@ -145,15 +160,21 @@ mod tests {
             row("hybrid", f64::NAN, f64::NAN, false, false),
         ];
         let md = cross_validation_markdown(0, &["a".into(), "b".into()], &rows);
-        assert!(md.contains("| `cubic-t` | 0.00900 | 0.00100 | no |  | 0.00900 | 0.01800 |"), "{md}");
         assert!(
-            md.contains("| **`poly`** | 0.00500 | 0.00040 | yes | **chosen** | 0.00500 | 0.01000 |"),
+            md.contains("| `cubic-t` | 0.00900 | 0.00100 | 0.00430 | 0.00020 | no |  | 0.00900 | 0.01800 |"),
             "{md}"
         );
-        assert!(md.contains("| `mesh` | 0.00470 | 0.00050 | yes |  | 0.00470 | 0.00940 |"), "{md}");
-        assert!(md.contains("| `hybrid` | - | - | no |  | - | - |"), "{md}");
+        assert!(
+            md.contains("| **`poly`** | 0.00500 | 0.00040 | 0.00030 | 0.00020 | yes | **chosen** | 0.00500 | 0.01000 |"),
+            "{md}"
+        );
+        assert!(
+            md.contains("| `mesh` | 0.00470 | 0.00050 | 0.00000 | 0.00020 | yes |  | 0.00470 | 0.00940 |"),
+            "{md}"
+        );
+        assert!(md.contains("| `hybrid` | - | - | - | 0.00020 | no |  | - | - |"), "{md}");
         assert!(md.contains("| held out a, deg/h | held out b, deg/h |"));
-        assert!(md.contains("|---|---|---|---|---|---|---|\n"));
+        assert!(md.contains("|---|---|---|---|---|---|---|---|---|\n"));
     }
 
     /// A selection of one scored candidate (`poly`, CV 0.004 deg/h) over held-out runs a-d
@@ -208,7 +229,10 @@ mod tests {
     fn the_selection_table_says_how_runs_were_scored_and_which_folds_were_skipped() {
         let selection = one_candidate_selection(crate::cv_correction::CvCorrection::None, f64::NAN);
         let md = selection_markdown(0, &selection);
-        assert!(md.contains("| **chosen** | 0.00300 | 0.00400 | 0.00500 | - |"), "{md}");
+        assert!(
+            md.contains("| 0.00000 | 0.00000 | yes | **chosen** | 0.00300 | 0.00400 | 0.00500 | - |"),
+            "{md}"
+        );
         assert!(!md.contains("training-size correction"), "{md}");
         assert!(
             md.contains("- scored on the averaging windows inside each fold's training region (3 folds)\n"),
@@ -226,7 +250,7 @@ mod tests {
             "{md}"
         );
         assert!(md.contains("| **chosen** | -0.00012 | 0.00300 | 0.00400 | 0.00500 | - |"), "{md}");
-        assert!(md.contains("|---|---|---|---|---|---|---|---|---|---|\n"), "{md}");
+        assert!(md.contains("|---|---|---|---|---|---|---|---|---|---|---|---|\n"), "{md}");
         assert!(md.contains("- fold scores corrected for the fold models' smaller training set"), "{md}");
     }
 }

@@ -1000,6 +1000,7 @@ mod tests {
                 method: "poly".into(),
                 cv_dph: 0.01,
                 se_dph: 0.001,
+                excess: (0.0, 0.0),
                 chosen: true,
                 within_one_se: true,
                 held_out_dph: vec![0.01, 0.01],
