@@ -1240,8 +1240,30 @@ impl RunValidation {
         if outside > 0 {
             notes.push(outside_region_note(&name, outside, s.samples, "flag OUTSIDE_HULL"));
         }
+        let stale = s.flag_counts[Flags::TEMP_STALE.0.trailing_zeros() as usize];
+        if stale > 0 && s.compensating_from_s.is_finite() {
+            notes.push(stale_temperature_note(
+                &name,
+                stale,
+                s.samples,
+                s.gaps.longer_than_s,
+                "flag TEMP_STALE",
+            ));
+        }
         notes
     }
+}
+
+/// The note for `stale` of `samples` samples compensated without a temperature for longer
+/// than the model's gap limit `max_gap_s` (a temperature channel that dropped out while the
+/// gyro went on; `flagged` says where the flag can be seen).
+pub fn stale_temperature_note(name: &str, stale: u64, samples: u64, max_gap_s: f64, flagged: &str) -> String {
+    format!(
+        "{name}: {stale} of {samples} samples ({:.1} %) came more than the model's max gap of {max_gap_s} s \
+         after the last temperature reading ({flagged}): the compensator held its bias there, and \
+         its features restart when readings return",
+        100.0 * stale as f64 / samples.max(1) as f64
+    )
 }
 
 /// The gap notes of `runs`, one per log and distinct gaps (the axes of one log usually

@@ -123,7 +123,17 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
                     max_gap_s,
                 );
                 eprintln!("note: {note}");
-            } else if outside[axis] > 0 {
+                continue;
+            }
+            let stale = flag_counts[axis][Flags::TEMP_STALE.0.trailing_zeros() as usize];
+            if stale > 0 {
+                let flagged = "flag TEMP_STALE in the output";
+                eprintln!(
+                    "note: {}",
+                    calibrate::stale_temperature_note(&name, stale, r.rows, max_gap_s, flagged)
+                );
+            }
+            if outside[axis] > 0 {
                 let note = calibrate::outside_region_note(
                     &name,
                     outside[axis],
