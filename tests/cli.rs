@@ -1299,6 +1299,52 @@ fn export_c_failure_leaves_no_header_behind() {
     assert!(!dir.path().join("model.h").exists());
 }
 
+/// Ctrl-C while `compensate` writes its output: the process ends with status 130 and
+/// leaves neither the output nor its hidden temporary file (a review found 181-386 MB left
+/// under `.fogtemp-*`).
+#[cfg(unix)]
+#[test]
+fn an_interrupted_compensate_leaves_no_file() {
+    use std::time::{Duration, Instant};
+    let dir = TempDir::new().expect("tempdir");
+    let (_, _, model) = short_log_and_model(dir.path(), "poly", "m.fogm");
+    let long = dir.path().join("long.csv");
+    {
+        let mut w = BufWriter::new(fs::File::create(&long).expect("create"));
+        writeln!(w, "time_s,temp_c,gyro_dph").expect("write");
+        for k in 0..2_000_000u64 {
+            writeln!(w, "{:.2},{:.4},{:.5}", k as f64 * 0.01, 20.0 + k as f64 * 1e-6, (k % 7) as f64 * 0.1)
+                .expect("write");
+        }
+    }
+    let out_dir = dir.path().join("out");
+    fs::create_dir(&out_dir).expect("mkdir");
+    let mut child = std::process::Command::new(common::fogtemp_cal_bin())
+        .args(args!["compensate", "--model", &model, "--out", out_dir.join("comp.csv"), &long])
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .expect("spawn");
+    let started = Instant::now();
+    let staged = loop {
+        if fs::read_dir(&out_dir).expect("list").next().is_some() {
+            break true;
+        }
+        if started.elapsed() > Duration::from_secs(20) || child.try_wait().expect("wait").is_some() {
+            break false;
+        }
+        std::thread::sleep(Duration::from_millis(5));
+    };
+    assert!(staged, "the temporary output never appeared");
+    let kill =
+        std::process::Command::new("kill").args(["-INT", &child.id().to_string()]).status().expect("kill");
+    assert!(kill.success());
+    let status = child.wait().expect("wait");
+    assert_eq!(status.code(), Some(130), "{status:?}");
+    let left: Vec<_> = fs::read_dir(&out_dir).expect("list").map(|e| e.expect("entry").file_name()).collect();
+    assert!(left.is_empty(), "left behind: {left:?}");
+}
+
 /// A folder given as logs: its `*.csv` files are read, and what else it holds (another
 /// file, a sub-folder, which is not searched, a `*.csv` that is not a file) is named in a
 /// note: nothing is left out silently.

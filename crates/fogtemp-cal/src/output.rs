@@ -6,11 +6,50 @@
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
+use std::sync::Mutex;
 
 use crate::error::CalError;
 
 /// Buffer of the writer handed to the closures (large: simulated logs are gigabytes).
 const WRITE_BUFFER_BYTES: usize = 1 << 20;
+
+/// The temporary files of outputs being written or staged, for [`remove_pending_outputs`].
+static PENDING: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+
+/// Registers a temporary file in [`PENDING`] while it lives.
+#[derive(Debug)]
+struct Pending(PathBuf);
+
+impl Pending {
+    fn new(tmp: &Path) -> Self {
+        if let Ok(mut pending) = PENDING.lock() {
+            pending.push(tmp.to_path_buf());
+        }
+        Self(tmp.to_path_buf())
+    }
+}
+
+impl Drop for Pending {
+    fn drop(&mut self) {
+        if let Ok(mut pending) = PENDING.lock() {
+            pending.retain(|p| *p != self.0);
+        }
+    }
+}
+
+/// Removes the temporary file of every output still being written or staged: for a signal
+/// handler (the CLI's on Ctrl-C), since a process killed by a signal runs no destructor,
+/// and an interrupted `compensate` left hundreds of megabytes in a hidden `.fogtemp-*`
+/// file. Does not block: when the list is locked (a file is being registered), nothing is
+/// removed.
+pub fn remove_pending_outputs() {
+    if let Ok(pending) = PENDING.try_lock() {
+        for tmp in pending.iter() {
+            // Best effort: the process is ending.
+            let _ = std::fs::remove_file(tmp);
+        }
+    }
+}
 
 /// An output written and synced to a temporary file beside its destination; dropping it
 /// removes the temporary file, [`Staged::commit`] renames it into place.
@@ -18,6 +57,7 @@ const WRITE_BUFFER_BYTES: usize = 1 << 20;
 pub struct Staged {
     tmp: tempfile::NamedTempFile,
     path: PathBuf,
+    _pending: Pending,
 }
 
 impl Staged {
@@ -65,6 +105,7 @@ pub fn stage(
         path: dir.clone(),
         source,
     })?;
+    let pending = Pending::new(tmp.path());
     let failed = |action: &'static str| {
         let path = path.to_path_buf();
         move |source| CalError::Output { action, path, source }
@@ -75,7 +116,7 @@ pub fn stage(
         buffered.flush().map_err(failed("writing"))?;
     }
     tmp.as_file().sync_all().map_err(failed("syncing"))?;
-    Ok(Staged { tmp, path: path.to_path_buf() })
+    Ok(Staged { tmp, path: path.to_path_buf(), _pending: pending })
 }
 
 /// Writes `path` atomically: [`stage`] then [`Staged::commit`].

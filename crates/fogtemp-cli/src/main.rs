@@ -42,6 +42,14 @@ use fogtemp_diagnose::DiagnoseError;
 use fogtemp_sim::SimError;
 
 fn main() -> std::process::ExitCode {
+    // Ctrl-C (and SIGTERM): remove the temporary files of outputs being written, then end
+    // as an interrupted process does (status 130). Without it a killed `compensate` left its
+    // half-written output behind under a hidden name. If the handler cannot be installed,
+    // the default action stays (outputs are still atomic: no half file under its name).
+    let _ = ctrlc::set_handler(|| {
+        fogtemp_cal::output::remove_pending_outputs();
+        std::process::exit(130);
+    });
     let cli = args::Cli::parse();
     match commands::run(cli.command) {
         Ok(()) => std::process::ExitCode::SUCCESS,
