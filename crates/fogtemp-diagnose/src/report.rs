@@ -338,6 +338,29 @@ fn plot_static_shape(
     })
 }
 
+/// A parameter and its standard error as text, to the precision the error supports (two
+/// significant digits of the error); a parameter without one is a grid choice (a profiled
+/// time constant, width or basis size picked from its grid) and says so, with four
+/// significant digits.
+fn value_and_error(value: f64, std_error: Option<f64>) -> (String, String) {
+    match std_error.filter(|se| se.is_finite() && *se > 0.0) {
+        Some(se) => {
+            let decimals = (1 - se.log10().floor() as i32).max(0) as usize;
+            (format!("{value:.decimals$}"), format!("{se:.decimals$}"))
+        }
+        None => (significant(value, 4), "- (grid choice)".into()),
+    }
+}
+
+/// `v` to `digits` significant digits, without an exponent for ordinary magnitudes.
+fn significant(v: f64, digits: i32) -> String {
+    if v == 0.0 || !v.is_finite() {
+        return format!("{v}");
+    }
+    let decimals = (digits - 1 - v.abs().log10().floor() as i32).max(0) as usize;
+    format!("{v:.decimals$}")
+}
+
 fn opt(v: Option<f64>) -> String {
     v.map_or_else(|| "-".into(), |x| format!("{x:.4}"))
 }
@@ -381,7 +404,8 @@ fn markdown(d: &Diagnosis, figures: OptionalFigures) -> String {
             e.effect, e.statement
         );
         for (name, p) in &e.parameters {
-            let _ = writeln!(md, "| {name} | {:.6} | {} | {} |", p.value, opt(p.std_error), p.units);
+            let (value, se) = value_and_error(p.value, p.std_error);
+            let _ = writeln!(md, "| {name} | {value} | {se} | {} |", p.units);
         }
         if e.effect == "static_shape" && figures.static_shape {
             let _ = writeln!(md, "\n![static shape](static_shape.svg)");
@@ -586,6 +610,16 @@ pub fn write_diagnosis_report(dir: &Path, d: &Diagnosis) -> Result<(), DiagnoseE
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Hand-computed: 1602.412891 +- 436.7114 to two significant digits of the error; a
+    /// value without an error is a grid choice at four significant digits.
+    #[test]
+    fn parameters_are_given_to_the_precision_of_their_error() {
+        assert_eq!(value_and_error(1602.412891, Some(436.7114)), ("1602".into(), "437".into()));
+        assert_eq!(value_and_error(0.043225, Some(0.0036)), ("0.0432".into(), "0.0036".into()));
+        assert_eq!(value_and_error(4.0, None), ("4.000".into(), "- (grid choice)".into()));
+        assert_eq!(value_and_error(1800.0, Some(f64::NAN)), ("1800".into(), "- (grid choice)".into()));
+    }
 
     #[test]
     fn figure_means_are_whole_windows_at_their_mean_time() {
