@@ -6,6 +6,7 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 use plotters::prelude::*;
+use plotters::style::text_anchor::{HPos, Pos, VPos};
 
 use super::{Diagnosis, MapCell};
 use fogtemp_cal::CalError;
@@ -150,7 +151,7 @@ fn rate_label(c: &MapCell) -> String {
 fn plot_map(path: &Path, cells: &[MapCell], title: &str) -> Result<(), CalError> {
     write_svg(path, (1100, 640), |root| {
         root.fill(&WHITE).map_err(|e| io_err(path, e))?;
-        let (root, key) = root.split_horizontally(1000);
+        let (root, key) = root.split_horizontally(980);
         draw_z_key(&key, path)?;
         let (t0, t1) = range(cells.iter().flat_map(|c| [c.temp_lo_c, c.temp_hi_c]));
         let bins = cells.iter().map(|c| c.rate_bin).max().unwrap_or(0) + 1;
@@ -200,21 +201,40 @@ fn plot_map(path: &Path, cells: &[MapCell], title: &str) -> Result<(), CalError>
                 Rectangle::new([(c.temp_lo_c, y + 0.05), (c.temp_hi_c, y + 0.95)], BLACK.stroke_width(2))
             }))
             .map_err(|e| io_err(path, e))?;
+        // The key ends at +-5; a cell beyond it shows its z, so 12 is not read as 5.
+        chart
+            .draw_series(cells.iter().filter(|c| c.z.abs() > 5.0).map(|c| {
+                let at = (0.5 * (c.temp_lo_c + c.temp_hi_c), c.rate_bin as f64 + 0.5);
+                Text::new(
+                    format!("z {:+.1}", c.z),
+                    at,
+                    ("sans-serif", 14).into_font().color(&WHITE).pos(Pos::new(HPos::Center, VPos::Center)),
+                )
+            }))
+            .map_err(|e| io_err(path, e))?;
         root.present().map_err(|e| io_err(path, e))
     })
 }
 
-/// The map's colour key: z from -5 to +5 (cells beyond are drawn at the end colours).
+/// The map's colour key: z from -5 to +5 (cells beyond are drawn at the end colours and
+/// labelled with their z).
 fn draw_z_key(
     area: &DrawingArea<SVGBackend<'_>, plotters::coord::Shift>,
     path: &Path,
 ) -> Result<(), CalError> {
-    let mut bar = ChartBuilder::on(area)
-        .margin_top(80)
+    // The key's title in its own band above the bar, where no tick label reaches it.
+    let (title, area) = area.split_vertically(70);
+    let style = ("sans-serif", 14).into_font().color(&BLACK).pos(Pos::new(HPos::Center, VPos::Center));
+    let (width, _) = title.dim_in_pixel();
+    for (k, line) in ["z", "(end colours", "beyond +-5)"].iter().enumerate() {
+        let y = 18 + 16 * k as i32;
+        title.draw(&Text::new(*line, (width as i32 / 2, y), style.clone())).map_err(|e| io_err(path, e))?;
+    }
+    let mut bar = ChartBuilder::on(&area)
+        .margin_top(20)
         .margin_bottom(80)
-        .margin_right(20)
+        .margin_right(30)
         .y_label_area_size(40)
-        .caption("z", ("sans-serif", 16))
         .build_cartesian_2d(0.0..1.0, -5.0..5.0)
         .map_err(|e| io_err(path, e))?;
     bar.configure_mesh()
