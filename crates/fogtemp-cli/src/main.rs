@@ -103,7 +103,16 @@ fn flag_hint(e: &(dyn std::error::Error + 'static)) -> Option<&'static str> {
         CalError::BadRow { row, .. } if row.kind == BadRowKind::PointWithDecimalComma => {
             Some("; leave out --decimal-mark comma if the log writes decimal points")
         }
+        CalError::BadRow { row, .. } if row.kind == BadRowKind::TextRow && row.line <= 3 => Some(
+            "; a banner above the data (a terminal program's log line)? skip it with --skip-lines N; \
+             a units row or repeated header: --skip-bad-rows",
+        ),
         CalError::BadRow { .. } => Some("; use --skip-bad-rows to skip such rows"),
+        CalError::MissingColumn { .. } => Some(
+            "; name the columns with --time-column, --temp-column and --gyro-column; if line 1 is not the \
+             header (a terminal program's banner), skip it with --skip-lines N; a file without a header: \
+             --columns",
+        ),
         CalError::LogFormat { .. } => Some(
             "; see --skip-lines, --columns, --sample-rate-hz, --time-column, --comment, --delimiter and --decimal-mark \
              (docs/calibration-logs.md)",

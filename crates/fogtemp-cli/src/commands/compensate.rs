@@ -91,7 +91,7 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
             Ok(r) => r,
         };
         if r.rows == 0 {
-            input_error = Some(anyhow::anyhow!("{}: no data rows (only a header)", a.log.display()));
+            input_error = Some(super::no_rows_error(&r));
             bail!("the log has no data rows");
         }
         out.flush()?;

@@ -84,7 +84,7 @@ pub fn fit(a: FitArgs) -> Result<()> {
             .with_context(|| format!("reading calibration log {}", log.display()))?;
         bar.finish_and_clear();
         if run.ingest.rows == 0 {
-            bail!("{}: no data rows (only a header)", log.display());
+            return Err(super::no_rows_error(&run.ingest));
         }
         report_skipped(&run.ingest);
         if let Some(note) = run.gaps.note(&run.path) {

@@ -96,6 +96,22 @@ fn warn_axis_count(model_path: &Path, model_axes: usize, gyro_columns: usize) {
 }
 
 /// Tells the technician about skipped rows (nothing is dropped silently).
+/// The error for a log with no data row left: only a header, or every row skipped as bad
+/// (`--skip-bad-rows`; then the skipped rows are listed first, and the likely cause named).
+fn no_rows_error(report: &IngestReport) -> anyhow::Error {
+    if report.skipped == 0 {
+        return anyhow::anyhow!("{}: no data rows (only a header)", report.path.display());
+    }
+    report_skipped(report);
+    anyhow::anyhow!(
+        "{}: no data rows left: all {} were skipped as bad (listed above); when every row fails alike, \
+         the log's shape is not the one given: check --delimiter, --skip-lines (a banner line), \
+         --columns and the column options",
+        report.path.display(),
+        report.skipped
+    )
+}
+
 fn report_skipped(report: &IngestReport) {
     if report.skipped == 0 {
         return;

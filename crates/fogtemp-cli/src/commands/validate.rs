@@ -59,7 +59,7 @@ pub fn validate(a: ValidateArgs) -> Result<()> {
     let model = &models[0];
     for r in runs.iter().filter(|r| r.axis == 0) {
         if r.ingest.rows == 0 {
-            bail!("{}: no data rows (only a header)", r.path.display());
+            return Err(super::no_rows_error(&r.ingest));
         }
         report_skipped(&r.ingest);
     }
