@@ -688,7 +688,12 @@ fn summary(d: &Diagnosis, grids: &[EffectGrid]) -> String {
     }
     s.push_str(&d.unexplained.statement);
     s.push_str(". ");
-    s.push_str(&d.location.temperature.statement);
+    let temperature = &d.location.temperature.statement;
+    let mut first = temperature.chars();
+    if let Some(c) = first.next() {
+        s.extend(c.to_uppercase());
+        s.push_str(first.as_str());
+    }
     s.push('.');
     let blind: Vec<String> = grids
         .iter()

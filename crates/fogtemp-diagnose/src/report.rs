@@ -358,6 +358,52 @@ fn plot_static_shape(
     })
 }
 
+/// The verdict in two or three lines before the full summary: what the simulation leaves
+/// out and how much it is worth on held-out runs, what the runs cannot tell it from, and
+/// what remains.
+fn verdict(d: &Diagnosis) -> String {
+    let mut lines = Vec::new();
+    if d.left_out.is_empty() {
+        lines.push(
+            "**Verdict: no catalogue effect is left out** (none improves runs it was not fitted to)."
+                .to_string(),
+        );
+    } else {
+        let named: Vec<String> = d
+            .left_out
+            .iter()
+            .map(|e| {
+                format!(
+                    "**{}** ({:+.1} % held-out residual, better in {} of {} informative runs)",
+                    e.effect,
+                    -100.0 * e.heldout_improvement,
+                    e.folds_improved,
+                    e.folds_informative
+                )
+            })
+            .collect();
+        lines.push(format!("**Verdict:** the simulation leaves out {}.", named.join(", then ")));
+        let alternatives: Vec<String> = d
+            .left_out
+            .iter()
+            .filter(|e| !e.alternatives.is_empty())
+            .map(|e| format!("{} from {}", e.effect, e.alternatives.join(" or ")))
+            .collect();
+        if !alternatives.is_empty() {
+            lines.push(format!(
+                "These runs hardly tell {} (the statements below name the experiment that would).",
+                alternatives.join("; ")
+            ));
+        }
+    }
+    let mut rest = d.unexplained.statement.clone();
+    if let Some(first) = rest.get(..1).map(str::to_uppercase) {
+        rest.replace_range(..1, &first);
+    }
+    lines.push(format!("{rest}."));
+    lines.join("  \n")
+}
+
 /// A parameter and its standard error as text, to the precision the error supports (two
 /// significant digits of the error); a parameter without one is a grid choice (a profiled
 /// time constant, width or basis size picked from its grid) and says so, with four
@@ -398,7 +444,8 @@ struct OptionalFigures {
 /// `report.md`, linking only the figures that were drawn.
 fn markdown(d: &Diagnosis, figures: OptionalFigures) -> String {
     let mut md = String::new();
-    let _ = writeln!(md, "# Diagnosis: simulated vs recorded\n\n{}\n", d.summary);
+    let _ =
+        writeln!(md, "# Diagnosis: simulated vs recorded\n\n{}\n\n## In full\n\n{}\n", verdict(d), d.summary);
     let _ = writeln!(md, "## Definitions\n");
     for def in &d.definitions {
         let _ = writeln!(md, "- {def}");
