@@ -406,13 +406,29 @@ fn write_demo_report(
             &result.definition,
         )?;
         if model.mesh_nodes > 0 {
-            if let Some((_, features)) = feature_sets.first() {
+            if let Some((config, features)) = feature_sets.first() {
+                // The summary and warnings `fit --report` gives for the same logs.
+                let warnings = fogtemp_cal::identifiability::fit_warnings(
+                    features,
+                    config,
+                    &fogtemp_cal::identifiability::IdentifiabilitySettings::default(),
+                );
+                let messages: Vec<String> = warnings.iter().map(|w| w.message.clone()).collect();
+                let summary = format!(
+                    "{}.\n\n- axis 0: {}, fit residual RMS {:.5} deg/h, {} mesh nodes, {} polynomial terms\n\n{}",
+                    model.description,
+                    model.key,
+                    model.fit_residual_rms_dph,
+                    model.mesh_nodes,
+                    model.poly_terms,
+                    fogtemp_cal::report::bullet_section("Warnings (what the data cannot support):", &messages)
+                );
                 fogtemp_cal::report::write_fit_report(
                     &dir.join(&model.key),
                     path,
                     &parsed,
                     features,
-                    &model.description,
+                    summary.trim_end(),
                 )?;
             }
         }
