@@ -90,7 +90,8 @@ pub struct Evaluation {
     /// Modelled bias, deg/h (polynomial plus mesh, whichever the axis has).
     pub value_dph: f32,
     /// The query was outside the mesh hull (the outside policy produced the mesh part) or
-    /// outside the calibrated region with the polynomial held at its boundary.
+    /// outside the calibrated region with the polynomial held at, or continued linearly
+    /// from, its boundary (`PolyOutside::HoldAtBoundary`, `LinearFromBoundary`).
     pub outside_hull: bool,
 }
 
