@@ -19,6 +19,10 @@ use crate::output::{
     write_atomic, RowProgress,
 };
 
+/// Calibration points from which a fit without a terminal says that it started (one
+/// million: minutes of stepwise selection; a review's 65-day log had 5.65 million).
+const LONG_FIT_POINTS: usize = 1_000_000;
+
 /// The `fit` command.
 pub fn fit(a: FitArgs) -> Result<()> {
     capacity_fits(a.blocks as usize, a.capacity).context("--blocks")?;
@@ -120,8 +124,23 @@ pub fn fit(a: FitArgs) -> Result<()> {
         },
         ..SelectionOptions::default()
     };
-    let bar = indicatif::ProgressBar::new(0).with_message("cross-validation (folds)");
+    // A spinner while fitting (the folds' bar takes over when cross-validating): the final
+    // fit of a long log can take minutes with nothing else moving. Without a terminal the
+    // bar is hidden, so a long fit says once that it started.
+    let points: usize = runs.iter().filter_map(|r| r.axes.first()).map(|(p, _)| p.len()).sum();
+    let bar = indicatif::ProgressBar::new_spinner()
+        .with_message(format!("fitting the model on {points} calibration points"));
+    bar.enable_steady_tick(std::time::Duration::from_millis(200));
+    if bar.is_hidden() && points >= LONG_FIT_POINTS {
+        eprintln!(
+            "note: fitting the model on {points} calibration points (a fit this large can take minutes)"
+        );
+    }
     let fitted = calibrate::fit_model_with(&runs, &config, digest, &selection, |fold, folds| {
+        if bar.length().is_none() {
+            bar.set_style(indicatif::ProgressStyle::default_bar());
+            bar.set_message("cross-validation (folds)");
+        }
         bar.set_length(folds as u64);
         bar.set_position(fold as u64);
     })
