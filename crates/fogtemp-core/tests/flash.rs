@@ -85,13 +85,8 @@ fn a_partition_shorter_than_the_blob_or_not_a_blob_is_refused() {
 /// tracker's own timing check.
 #[test]
 fn a_gap_the_tracker_cannot_time_is_refused_by_the_validator() {
-    const AXIS0: usize = FILE_HEADER_LEN;
     const MAX_GAP_S: usize = 20;
-    let mut blob = GOLDEN.to_vec();
-    blob[AXIS0 + MAX_GAP_S..AXIS0 + MAX_GAP_S + 4].copy_from_slice(&1.0e10f32.to_le_bytes());
-    let n = blob.len();
-    let crc = fogtemp_core::crc::crc32(&blob[..n - CRC_LEN]);
-    blob[n - CRC_LEN..].copy_from_slice(&crc.to_le_bytes());
+    let blob = golden_with_axis0_f32(MAX_GAP_S, 1.0e10);
     assert_eq!(
         Model::from_bytes(&blob).map(|_| ()),
         Err(Error::BadValue { field: "max_gap_s", axis: 0, index: 0 })
@@ -103,15 +98,22 @@ fn a_gap_the_tracker_cannot_time_is_refused_by_the_validator() {
 /// `block_count` (docs/model-format.md, Validation 3).
 #[test]
 fn a_window_too_short_for_its_blocks_names_the_window() {
-    const AXIS0: usize = FILE_HEADER_LEN;
     const WINDOW_S: usize = 8;
-    let mut blob = GOLDEN.to_vec();
-    blob[AXIS0 + WINDOW_S..AXIS0 + WINDOW_S + 4].copy_from_slice(&1.8e-38f32.to_le_bytes());
-    let n = blob.len();
-    let crc = fogtemp_core::crc::crc32(&blob[..n - CRC_LEN]);
-    blob[n - CRC_LEN..].copy_from_slice(&crc.to_le_bytes());
+    let blob = golden_with_axis0_f32(WINDOW_S, 1.8e-38);
     assert_eq!(
         Model::from_bytes(&blob).map(|_| ()),
         Err(Error::BadValue { field: "window_s", axis: 0, index: 0 })
     );
+}
+
+/// The golden blob with the f32 at `offset` of axis 0's header set to `value`, its CRC
+/// fixed (a blob whose only fault is that value).
+fn golden_with_axis0_f32(offset: usize, value: f32) -> Vec<u8> {
+    let at = FILE_HEADER_LEN + offset;
+    let mut blob = GOLDEN.to_vec();
+    blob[at..at + 4].copy_from_slice(&value.to_le_bytes());
+    let n = blob.len();
+    let crc = fogtemp_core::crc::crc32(&blob[..n - CRC_LEN]);
+    blob[n - CRC_LEN..].copy_from_slice(&crc.to_le_bytes());
+    blob
 }

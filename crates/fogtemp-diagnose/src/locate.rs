@@ -183,7 +183,7 @@ pub fn cells_of(prep: &Prepared, options: &DiagnoseOptions) -> Vec<Vec<(usize, u
         .collect()
 }
 
-/// The (T, dT/dt) map of residual `e` with [`location_se_of_mean`] errors (cells with >= 5
+/// The (T, dT/dt) map of residual `e` with [`LocationNoise`] errors (cells with >= 5
 /// means).
 pub fn map(
     prep: &Prepared,
