@@ -674,11 +674,14 @@ pub fn diagnose(
     progress("building effect terms", 0.15);
     let grids = effects::build_grids(&prep)?;
     progress("forward selection", 0.3);
-    let selection = select::forward_select(&prep, &grids, options, &mut progress)?;
+    // The runs' noise-model structure, once: the selection's noise-model route and the
+    // location's standard errors use it.
+    let noise_basis = noise_model::NoiseBasis::of(&prep);
+    let selection = select::forward_select(&prep, &grids, noise_basis.as_ref(), options, &mut progress)?;
     progress("held-out evaluation", 0.8);
     let outcome = select::evaluate_final(&prep, &grids, &selection, options)?;
     progress("locating", 0.9);
-    let diagnosis = locate::assemble(&prep, &grids, selection, outcome, options)?;
+    let diagnosis = locate::assemble(&prep, &grids, noise_basis.as_ref(), selection, outcome, options)?;
     progress("done", 1.0);
     Ok(diagnosis)
 }
@@ -706,7 +709,8 @@ fn single_run(prep: &prepare::Prepared, options: &DiagnoseOptions) -> Result<Dia
         baseline_heldout: nan_runs,
     };
     let selection = select::Selection { steps: Vec::new(), chosen: Vec::new() };
-    let mut d = locate::assemble(prep, &[], selection, outcome, options)?;
+    let basis = noise_model::NoiseBasis::of(prep);
+    let mut d = locate::assemble(prep, &[], basis.as_ref(), selection, outcome, options)?;
     let claimed = format!(" No catalogue effect is left out: {}", d.unexplained.statement);
     d.unexplained.structured = false;
     d.unexplained.tables.clear();

@@ -8,7 +8,7 @@ use super::effects::EffectGrid;
 use nalgebra::DMatrix;
 
 use super::linalg::{location_se_of_mean, pooled_autocovariances};
-use super::noise_model::{fit_noise, variance_of_mean, NoiseBasis, Span};
+use super::noise_model::{fit_noise, NoiseBasis};
 use super::prepare::{longest_finite, short_mean_noise, Prepared, RunData};
 use super::select::{fold_counts, folds_pass, material_runs, FinalOutcome, Selection, MIN_INFORMATIVE_FOLDS};
 use super::{
@@ -50,52 +50,64 @@ fn slope(t: &[f64], v: &[f64]) -> f64 {
 /// (white + bias-instability decades by REML, [`crate::noise_model`]) when it passes its
 /// innovation check, which follows correlations over the whole run; else the residual's
 /// autocovariances pooled over runs up to the Newey-West bandwidth.
-pub struct LocationNoise {
+pub struct LocationNoise<'b> {
     /// Autocovariances at lags `0..=hac_lag_blocks` (the fallback, and the bandwidth).
     gamma: Vec<f64>,
-    /// `(white, flicker)` levels of the fitted noise model, when it passed its check.
-    levels: Option<(f64, f64)>,
+    /// The runs' noise-model structure and the `(white, flicker)` levels fitted to the
+    /// residual, when the model passed its check.
+    model: Option<(&'b NoiseBasis, f64, f64)>,
 }
 
-impl LocationNoise {
-    /// The noise of residual `e` (per run, one value per short mean).
-    pub fn of(prep: &Prepared, e: &[Vec<f64>]) -> Self {
+impl<'b> LocationNoise<'b> {
+    /// The noise of residual `e` (per run, one value per short mean), with the runs'
+    /// noise-model structure `basis` ([`NoiseBasis::of`]; `None`: the pooled
+    /// autocovariances alone).
+    pub fn of(prep: &Prepared, e: &[Vec<f64>], basis: Option<&'b NoiseBasis>) -> Self {
         let indices: Vec<Vec<usize>> =
             prep.runs.iter().map(|r| r.blocks.iter().map(|b| b.index).collect()).collect();
         let gamma = pooled_autocovariances(e, &indices, prep.hac_lag_blocks);
-        let spans: Vec<Vec<Span>> =
-            prep.runs.iter().map(|r| r.blocks.iter().map(|b| (b.first_sec, b.end_sec)).collect()).collect();
         let intercept: Vec<DMatrix<f64>> = e.iter().map(|v| DMatrix::from_element(v.len(), 1, 1.0)).collect();
-        let levels = NoiseBasis::new(&spans)
-            .and_then(|basis| fit_noise(&basis, &intercept, e))
-            .filter(|fit| fit.check.passed)
-            .map(|fit| (fit.white_var, fit.flicker_var));
-        Self { gamma, levels }
+        let model = basis.and_then(|basis| {
+            let fit = fit_noise(basis, &intercept, e).filter(|fit| fit.check.passed)?;
+            Some((basis, fit.white_var, fit.flicker_var))
+        });
+        Self { gamma, model }
     }
 
-    /// Standard error of the mean of `values` at block numbers `indices` and seconds
-    /// `spans` (per run): the larger of the values' own Newey-West estimate and the one the
-    /// borrowed noise implies. Newey-West alone collapses in a cell of fewer short means than
-    /// its bandwidth (37 % of |z| above 3.2 on white noise with 10 means and bandwidth 30,
-    /// found by a review on a null case) and misses flicker beyond its bandwidth; the
-    /// borrowed noise misses a cell's own, larger noise (a noisier warm-up).
-    fn se(&self, values: &[Vec<f64>], indices: &[Vec<usize>], spans: &[Vec<Span>]) -> f64 {
+    /// Standard error of the mean of `values` at block numbers `indices`, the short means
+    /// at `positions` of runs `runs` (one entry per run): the larger of the values' own
+    /// Newey-West estimate and the one the borrowed noise implies. Newey-West alone
+    /// collapses in a cell of fewer short means than its bandwidth (37 % of |z| above 3.2
+    /// on white noise with 10 means and bandwidth 30, found by a review on a null case) and
+    /// misses flicker beyond its bandwidth; the borrowed noise misses a cell's own, larger
+    /// noise (a noisier warm-up).
+    fn se(
+        &self,
+        values: &[Vec<f64>],
+        indices: &[Vec<usize>],
+        runs: &[usize],
+        positions: &[Vec<usize>],
+    ) -> f64 {
         let own = location_se_of_mean(values, indices, &self.gamma);
-        match self.levels {
-            Some((white, flicker)) => own.max(variance_of_mean(spans, white, flicker).sqrt()),
-            None => own,
-        }
+        let Some((basis, white, flicker)) = self.model else { return own };
+        let n: usize = positions.iter().map(Vec::len).sum();
+        let sum: Option<f64> = runs
+            .iter()
+            .zip(positions)
+            .map(|(&run, at)| basis.subset_covariance_sum(run, at, white, flicker))
+            .sum();
+        sum.map_or(own, |sum| own.max(sum.max(0.0).sqrt() / n.max(1) as f64))
     }
 }
 
 /// Mean, standard error ([`LocationNoise`]) and more for the blocks of `run` in the time
 /// `range`, residual `e`.
 fn span(
-    run: &RunData,
+    (index, run): (usize, &RunData),
     e: &[f64],
     label: &str,
     range: (f64, f64),
-    noise: &LocationNoise,
+    noise: &LocationNoise<'_>,
 ) -> Option<SpanFinding> {
     let sel: Vec<usize> = (0..run.blocks.len())
         .filter(|&i| run.blocks[i].since_on_s >= range.0 && run.blocks[i].since_on_s < range.1)
@@ -107,8 +119,7 @@ fn span(
     let idx: Vec<usize> = sel.iter().map(|&i| run.blocks[i].index).collect();
     let t_h: Vec<f64> = sel.iter().map(|&i| run.blocks[i].since_on_s / 3600.0).collect();
     let m = mean(&v);
-    let secs: Vec<Span> = sel.iter().map(|&i| (run.blocks[i].first_sec, run.blocks[i].end_sec)).collect();
-    let se = noise.se(std::slice::from_ref(&v), &[idx], &[secs]);
+    let se = noise.se(std::slice::from_ref(&v), &[idx], &[index], std::slice::from_ref(&sel));
     Some(SpanFinding {
         run: run.name.clone(),
         span: label.to_string(),
@@ -128,13 +139,14 @@ fn span(
 pub fn spans(
     prep: &Prepared,
     e: &[Vec<f64>],
-    noise: &LocationNoise,
+    noise: &LocationNoise<'_>,
     options: &DiagnoseOptions,
 ) -> Vec<SpanFinding> {
     let w = options.warmup_span_s;
     let mut out: Vec<SpanFinding> = prep
         .runs
         .iter()
+        .enumerate()
         .zip(e)
         .flat_map(|(run, er)| {
             [
@@ -188,7 +200,7 @@ pub fn cells_of(prep: &Prepared, options: &DiagnoseOptions) -> Vec<Vec<(usize, u
 pub fn map(
     prep: &Prepared,
     e: &[Vec<f64>],
-    noise: &LocationNoise,
+    noise: &LocationNoise<'_>,
     options: &DiagnoseOptions,
 ) -> Vec<MapCell> {
     let te = temp_edges(prep, options.temp_bins);
@@ -199,17 +211,14 @@ pub fn map(
         for rb in 0..=re.len() {
             let mut values = Vec::new();
             let mut indices = Vec::new();
-            let mut secs = Vec::new();
-            for ((run, er), cr) in prep.runs.iter().zip(e).zip(&cells) {
+            let (mut runs, mut positions) = (Vec::new(), Vec::new());
+            for (k, ((run, er), cr)) in prep.runs.iter().zip(e).zip(&cells).enumerate() {
                 let sel: Vec<usize> = (0..er.len()).filter(|&i| cr[i] == (tb, rb)).collect();
                 if !sel.is_empty() {
                     values.push(sel.iter().map(|&i| er[i]).collect::<Vec<f64>>());
                     indices.push(sel.iter().map(|&i| run.blocks[i].index).collect::<Vec<usize>>());
-                    secs.push(
-                        sel.iter()
-                            .map(|&i| (run.blocks[i].first_sec, run.blocks[i].end_sec))
-                            .collect::<Vec<Span>>(),
-                    );
+                    runs.push(k);
+                    positions.push(sel);
                 }
             }
             let n: usize = values.iter().map(Vec::len).sum();
@@ -217,7 +226,7 @@ pub fn map(
                 continue;
             }
             let m = values.iter().flatten().sum::<f64>() / n as f64;
-            let se = noise.se(&values, &indices, &secs);
+            let se = noise.se(&values, &indices, &runs, &positions);
             out.push(MapCell {
                 temp_lo_c: te[tb],
                 temp_hi_c: te[tb + 1],
@@ -487,7 +496,7 @@ const TIME_EDGES_S: [f64; 10] =
 fn unexplained(
     prep: &Prepared,
     outcome: &FinalOutcome,
-    noise: &LocationNoise,
+    noise: &LocationNoise<'_>,
     options: &DiagnoseOptions,
     left_out_empty: bool,
 ) -> Unexplained {
@@ -705,13 +714,15 @@ fn summary(d: &Diagnosis, grids: &[EffectGrid]) -> String {
     s
 }
 
-/// Assembles the diagnosis from the selection and the held-out outcome.
+/// Assembles the diagnosis from the selection and the held-out outcome; `noise_basis`
+/// ([`NoiseBasis::of`] these runs) for the location's standard errors ([`LocationNoise`]).
 ///
 /// # Errors
 /// None at present (the signature leaves room for location steps to fail).
 pub fn assemble(
     prep: &Prepared,
     grids: &[EffectGrid],
+    noise_basis: Option<&NoiseBasis>,
     selection: Selection,
     outcome: FinalOutcome,
     options: &DiagnoseOptions,
@@ -721,7 +732,7 @@ pub fn assemble(
     let all: Vec<f64> = raw.iter().flatten().copied().collect();
     let (allan, noise) = allan_and_noise(prep, &outcome, options);
     let first_excess_tau_s = allan.iter().find(|r| r.before_excess).map(|r| r.tau_s);
-    let borrowed = LocationNoise::of(prep, &outcome.fitted_resid);
+    let borrowed = LocationNoise::of(prep, &outcome.fitted_resid, noise_basis);
     let location = Location {
         raw_residual_rms_dph: rms(&all),
         overall_offset_dph: mean(&all),

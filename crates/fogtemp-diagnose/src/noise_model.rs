@@ -204,12 +204,41 @@ fn profile_reml(rotated: &[Rotated], p: usize, r: f64) -> Option<(f64, f64)> {
 
 /// The runs' short-mean spans with each distinct run structure's rotation (built once per
 /// diagnosis; the noise model is refitted at every step of the selection).
+#[derive(Clone, Debug)]
 pub struct NoiseBasis {
     spans: Vec<Vec<Span>>,
     cache: HashMap<Vec<Span>, Rotation>,
 }
 
 impl NoiseBasis {
+    /// The runs' short-mean spans, one list per run, as [`NoiseBasis::new`] was given them.
+    pub fn of(prep: &crate::prepare::Prepared) -> Option<Self> {
+        let spans: Vec<Vec<Span>> =
+            prep.runs.iter().map(|r| r.blocks.iter().map(|b| (b.first_sec, b.end_sec)).collect()).collect();
+        Self::new(&spans)
+    }
+
+    /// `sum_{i,j} Sigma_ij` over the short means at `positions` of run `run` at levels
+    /// `(alpha, beta)` (its unit covariances are cached: no AR(1) sums), or `None` for a
+    /// run or position it does not have. [`variance_of_mean`] from the cache.
+    pub fn subset_covariance_sum(
+        &self,
+        run: usize,
+        positions: &[usize],
+        alpha: f64,
+        beta: f64,
+    ) -> Option<f64> {
+        let rot = self.cache.get(self.spans.get(run)?)?;
+        let mut sum = 0.0;
+        for (k, &i) in positions.iter().enumerate() {
+            sum += alpha * rot.white.get(i)? + beta * rot.flicker.get((i, i))?;
+            for &j in &positions[k + 1..] {
+                sum += 2.0 * beta * rot.flicker.get((i, j))?;
+            }
+        }
+        Some(sum)
+    }
+
     /// `None` when a run has an empty short mean.
     pub fn new(spans: &[Vec<Span>]) -> Option<Self> {
         let distinct: Vec<&Vec<Span>> = {
@@ -693,8 +722,17 @@ mod tests {
         let total = |s: &[Span]| run_covariance(s, alpha, beta).sum();
         let n = (run_a.len() + run_b.len()) as f64;
         let want = (total(&run_a) + total(&run_b)) / (n * n);
-        let got = variance_of_mean(&[run_a, run_b], alpha, beta);
+        let got = variance_of_mean(&[run_a.clone(), run_b.clone()], alpha, beta);
         assert!((got - want).abs() <= 1e-12 * want, "{got} vs {want}");
+        // From the basis's cached matrices: the same sums, run by run, for a subset.
+        let full_a = spans(30, 20);
+        let basis = NoiseBasis::new(&[full_a, run_b.clone()]).expect("basis");
+        let at_a: Vec<usize> = (0..30).filter(|i| i % 7 != 3).collect();
+        let at_b: Vec<usize> = (0..10).collect();
+        let cached = basis.subset_covariance_sum(0, &at_a, alpha, beta).expect("run 0")
+            + basis.subset_covariance_sum(1, &at_b, alpha, beta).expect("run 1");
+        assert!((cached / (n * n) - want).abs() <= 1e-12 * want, "{} vs {want}", cached / (n * n));
+        assert_eq!(basis.subset_covariance_sum(2, &at_b, alpha, beta), None);
     }
 
     #[test]

@@ -598,13 +598,16 @@ pub(super) fn refine(
     }
 }
 
-/// Forward selection over the catalogue (see the module documentation for the rule).
+/// Forward selection over the catalogue (see the module documentation for the rule);
+/// `noise_basis` ([`crate::noise_model::NoiseBasis::of`] the same runs, built once per
+/// diagnosis) for the noise-model route when `options.noise_model_acceptance`.
 ///
 /// # Errors
 /// [`DiagnoseError::Fit`] if a least-squares problem fails.
 pub fn forward_select(
     prep: &Prepared,
     grids: &[EffectGrid],
+    noise_basis: Option<&crate::noise_model::NoiseBasis>,
     options: &DiagnoseOptions,
     progress: &mut dyn FnMut(&str, f64),
 ) -> Result<Selection, DiagnoseError> {
@@ -612,13 +615,7 @@ pub fn forward_select(
     let indices = block_indices(prep);
     let mut chosen: Vec<ChosenTerm> = Vec::new();
     let mut steps = Vec::new();
-    let noise_basis = if options.noise_model_acceptance {
-        let spans: Vec<Vec<(usize, usize)>> =
-            prep.runs.iter().map(|r| r.blocks.iter().map(|b| (b.first_sec, b.end_sec)).collect()).collect();
-        crate::noise_model::NoiseBasis::new(&spans)
-    } else {
-        None
-    };
+    let noise_basis = noise_basis.filter(|_| options.noise_model_acceptance);
     for step in 0..=options.max_effects {
         progress(
             &format!("forward selection, step {}", step + 1),
@@ -633,7 +630,7 @@ pub fn forward_select(
         let n_eff = effective_n(prep.n_blocks(), &acf);
         let base_heldout = heldout_residuals(&base, &base_eval, &ys);
         let in_model: Vec<Effect> = chosen.iter().map(|c| c.effect).collect();
-        let gls = match &noise_basis {
+        let gls = match noise_basis {
             Some(basis) if step < options.max_effects => {
                 GlsStep::of(basis, &base, &ys, grids, &in_model, step, options)
             }
@@ -651,7 +648,7 @@ pub fn forward_select(
             n_eff,
             in_model,
             gls,
-            noise_basis: noise_basis.as_ref(),
+            noise_basis,
             tests: grids
                 .iter()
                 .filter(|g| g.unmet_requirement.is_none() && !chosen.iter().any(|c| c.effect == g.effect))
