@@ -330,20 +330,21 @@ impl StateCell {
         }
     }
 
-    /// The state, when it has not been used with the other step function.
+    /// The state for a step with `clock`, when it belongs to `axis` and has not been used
+    /// with the other step function (then it records `clock`).
     fn clocked(
         &mut self,
         axis: &AxisCell,
         clock: ClockUse,
     ) -> Result<&mut AxisState<CallerBlocks>, fogtemp_status> {
-        if self.clock != clock {
-            if self.clock != ClockUse::Unused {
-                return Err(fogtemp_status::MixedClocks);
-            }
-            self.for_axis(axis)?;
-            self.clock = clock;
+        if self.clock != ClockUse::Unused && self.clock != clock {
+            return Err(fogtemp_status::MixedClocks);
         }
-        self.for_axis(axis)
+        if self.made_for != axis.key {
+            return Err(fogtemp_status::StateAxisMismatch);
+        }
+        self.clock = clock;
+        Ok(&mut self.state)
     }
 }
 

@@ -25,10 +25,8 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
     let max_gap_s = comps.first().map_or(f64::INFINITY, |c| c.tracker().max_gap_us() as f64 * 1e-6);
     let mut gaps = TimeGaps::new(max_gap_s);
     let mut previous_s = None;
-    // Per axis: samples compensated from features, and of them outside the calibrated region.
-    let mut corrected = vec![0_u64; axes];
-    let mut outside = vec![0_u64; axes];
-    // Per axis: samples per flag bit (for the cause when nothing was corrected).
+    // Per axis: samples per flag bit (corrected = not WARMING_UP; OUTSIDE_HULL; the cause
+    // when nothing was corrected).
     let mut flag_counts = vec![[0_u64; 8]; axes];
     let bar = RowProgress::new(&a.log, "compensate");
     let mut report = None;
@@ -63,12 +61,6 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
                     record.push(format!("{}", o.rate_dph));
                     record.push(format!("{}", o.bias_dph));
                     record.push(format!("{}", o.flags.0));
-                    if !o.flags.contains(Flags::WARMING_UP) {
-                        corrected[i] += 1;
-                    }
-                    if o.flags.contains(Flags::OUTSIDE_HULL) {
-                        outside[i] += 1;
-                    }
                     for (bit, count) in flag_counts[i].iter_mut().enumerate() {
                         *count += u64::from((o.flags.0 >> bit) & 1);
                     }
@@ -111,21 +103,16 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
             eprintln!("note: {note}");
         }
         super::warn_if_mostly_gaps(&a.log, &gaps, r.rows);
-        for axis in 0..axes {
+        for (axis, counts) in flag_counts.iter().enumerate() {
             let name = format!("{} axis {axis}", a.log.display());
-            if corrected[axis] == 0 {
+            let count = |flag: Flags| counts[flag.0.trailing_zeros() as usize];
+            if count(Flags::WARMING_UP) == r.rows {
                 let consequence = "the output's bias is 0";
-                let note = calibrate::never_corrected_note(
-                    &name,
-                    consequence,
-                    &flag_counts[axis],
-                    r.rows,
-                    max_gap_s,
-                );
+                let note = calibrate::never_corrected_note(&name, consequence, counts, r.rows, max_gap_s);
                 eprintln!("note: {note}");
                 continue;
             }
-            let stale = flag_counts[axis][Flags::TEMP_STALE.0.trailing_zeros() as usize];
+            let (stale, outside) = (count(Flags::TEMP_STALE), count(Flags::OUTSIDE_HULL));
             if stale > 0 {
                 let flagged = "flag TEMP_STALE in the output";
                 eprintln!(
@@ -133,13 +120,9 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
                     calibrate::stale_temperature_note(&name, stale, r.rows, max_gap_s, flagged)
                 );
             }
-            if outside[axis] > 0 {
-                let note = calibrate::outside_region_note(
-                    &name,
-                    outside[axis],
-                    r.rows,
-                    "flag OUTSIDE_HULL in the output",
-                );
+            if outside > 0 {
+                let note =
+                    calibrate::outside_region_note(&name, outside, r.rows, "flag OUTSIDE_HULL in the output");
                 eprintln!("note: {note}");
             }
         }
