@@ -71,24 +71,6 @@ pub fn unit_block_cov(a: Span, b: Span) -> (f64, f64) {
     (overlap / norm, flicker / norm)
 }
 
-/// Variance of the mean of the short means `selected` (per run, their spans; runs are
-/// independent) at levels `(alpha, beta)`: `(1/n^2) sum_runs sum_{i,j} Sigma_ij`.
-pub fn variance_of_mean(selected: &[Vec<Span>], alpha: f64, beta: f64) -> f64 {
-    let n: usize = selected.iter().map(Vec::len).sum();
-    let mut sum = 0.0;
-    for spans in selected {
-        for (i, &a) in spans.iter().enumerate() {
-            let (w, f) = unit_block_cov(a, a);
-            sum += alpha * w + beta * f;
-            for &b in &spans[i + 1..] {
-                let (w, f) = unit_block_cov(a, b);
-                sum += 2.0 * (alpha * w + beta * f);
-            }
-        }
-    }
-    sum / (n.max(1) as f64).powi(2)
-}
-
 /// Covariance matrix of one run's short means at levels `(alpha, beta)`.
 pub fn run_covariance(spans: &[Span], alpha: f64, beta: f64) -> DMatrix<f64> {
     let n = spans.len();
@@ -220,7 +202,7 @@ impl NoiseBasis {
 
     /// `sum_{i,j} Sigma_ij` over the short means at `positions` of run `run` at levels
     /// `(alpha, beta)` (its unit covariances are cached: no AR(1) sums), or `None` for a
-    /// run or position it does not have. [`variance_of_mean`] from the cache.
+    /// run or position it does not have.
     pub fn subset_covariance_sum(
         &self,
         run: usize,
@@ -706,6 +688,25 @@ mod tests {
 
     fn spans(n: usize, len: usize) -> Vec<Span> {
         (0..n).map(|i| (i * len, (i + 1) * len)).collect()
+    }
+
+    /// The oracle of [`NoiseBasis::subset_covariance_sum`], from the AR(1) sums: the variance
+    /// of the mean of the short means `selected` (per run, their spans; runs independent) at
+    /// levels `(alpha, beta)`, `(1/n^2) sum_runs sum_{i,j} Sigma_ij`.
+    fn variance_of_mean(selected: &[Vec<Span>], alpha: f64, beta: f64) -> f64 {
+        let n: usize = selected.iter().map(Vec::len).sum();
+        let mut sum = 0.0;
+        for spans in selected {
+            for (i, &a) in spans.iter().enumerate() {
+                let (w, f) = unit_block_cov(a, a);
+                sum += alpha * w + beta * f;
+                for &b in &spans[i + 1..] {
+                    let (w, f) = unit_block_cov(a, b);
+                    sum += 2.0 * (alpha * w + beta * f);
+                }
+            }
+        }
+        sum / (n.max(1) as f64).powi(2)
     }
 
     /// White only: n means of L seconds have variance alpha / (L n) (closed form); with
