@@ -165,7 +165,7 @@ fn short_runs(runs: &[RunFeatures], axis: usize, window_s: f64) -> Option<Warnin
         format!(
             "axis {axis}: {} of {} never fill the {window_s:.0} s feature window ({first}, features up to {span_s:.0} s{others}): \
              their T and dT/dt come from partial windows and a short log's smoothed target fits any model; \
-             record runs of several windows, or set --window-s below the runs' length",
+             record runs of several windows, or choose a feature window (window_s) below the runs' length",
             short.len(),
             if runs.len() == 1 { "1 run".to_string() } else { format!("{} runs", runs.len()) }
         ),
