@@ -337,13 +337,15 @@ impl StateCell {
         axis: &AxisCell,
         clock: ClockUse,
     ) -> Result<&mut AxisState<CallerBlocks>, fogtemp_status> {
-        if self.clock != ClockUse::Unused && self.clock != clock {
-            return Err(fogtemp_status::MixedClocks);
-        }
         if self.made_for != axis.key {
             return Err(fogtemp_status::StateAxisMismatch);
         }
-        self.clock = clock;
+        if self.clock != clock {
+            if self.clock != ClockUse::Unused {
+                return Err(fogtemp_status::MixedClocks);
+            }
+            self.clock = clock; // the first step since init or reset
+        }
         Ok(&mut self.state)
     }
 }
