@@ -17,6 +17,7 @@ use crate::mesh::{build_mesh, MeshPoint};
 use crate::metrics::{bias_stability, rms_over_runs, stability_of_means, window_means, BiasStabilityOptions};
 use crate::poly_fit::{fit_poly, PolyFit, TermSelection};
 use crate::selection::{Selection, SelectionOptions};
+use crate::spikes::{AxisSpikes, Sample, SpikeGuard};
 use crate::thin::{thin_greedy, thin_paper, GreedyThinning};
 
 /// Which model to fit.
@@ -218,6 +219,9 @@ pub struct RunFeatures {
     /// Per axis: the true input rate subtracted from its gyro means and targets
     /// ([`RunFeatures::subtract_input_rate`]), deg/h; empty or 0 where none was.
     pub input_rate_subtracted_dph: Vec<f64>,
+    /// Per axis: temperature readings read as missing because they were single-reading
+    /// spikes ([`crate::spikes`]); empty where none was looked for.
+    pub temperature_spikes: Vec<AxisSpikes>,
 }
 
 /// Subtracts each run's true input rate (`rates_dph`, one per run, in order) from its gyro
@@ -434,26 +438,42 @@ pub(crate) fn extract_with(
     let axes = config.ingest.format.gyro_columns.len();
     let mut streams =
         (0..axes).map(|_| AxisFeatureStream::new(&config.features)).collect::<Result<Vec<_>, _>>()?;
-    let mut gaps = TimeGaps::new(f64::from(config.features.max_gap_s));
+    let max_gap_s = f64::from(config.features.max_gap_s);
+    let mut guards: Vec<SpikeGuard> = (0..axes).map(|_| SpikeGuard::new(max_gap_s)).collect();
+    let mut gaps = TimeGaps::new(max_gap_s);
     let mut previous_s = None;
     let ingest = read(&mut |row: &Row<'_>| {
         gaps.observe(previous_s, row.time_s, row.line);
         previous_s = Some(row.time_s);
-        for (axis, stream) in streams.iter_mut().enumerate() {
-            let temp = row.temp_c_for_axis(axis);
-            stream.push(row.time_s, row.gyros_dph[axis], temp);
+        for (axis, (stream, guard)) in streams.iter_mut().zip(&mut guards).enumerate() {
+            let sample = Sample {
+                time_s: row.time_s,
+                gyro_dph: row.gyros_dph[axis],
+                temp_c: row.temp_c_for_axis(axis),
+                line: row.line,
+            };
+            guard.push(sample, &mut |s| stream.push(s.time_s, s.gyro_dph, s.temp_c));
         }
         Ok(())
     })?;
-    let axes = streams
+    let (axes, temperature_spikes) = streams
         .into_iter()
-        .map(|s| {
-            let points = s.finish();
+        .zip(guards)
+        .map(|(mut stream, guard)| {
+            let spikes = guard.finish(&mut |s| stream.push(s.time_s, s.gyro_dph, s.temp_c));
+            let points = stream.finish();
             let targets = smoothed_gyro_dph(&points, config.target_window_s);
-            (points, targets)
+            ((points, targets), spikes)
         })
-        .collect();
-    Ok(RunFeatures { path: path.to_path_buf(), ingest, gaps, axes, input_rate_subtracted_dph: Vec::new() })
+        .unzip();
+    Ok(RunFeatures {
+        path: path.to_path_buf(),
+        ingest,
+        gaps,
+        axes,
+        input_rate_subtracted_dph: Vec::new(),
+        temperature_spikes,
+    })
 }
 
 /// The calibration points of one axis over all runs.
@@ -469,9 +489,32 @@ pub struct CalibrationPoints {
     /// every block; larger for sparse logs (bursts minutes apart), where each point stands for
     /// all the time since the last one.
     pub block_equivalents: f64,
+    /// Whether each point's features come from a full tracker window.
+    pub window_full: Vec<bool>,
 }
 
 impl CalibrationPoints {
+    /// The points that define the calibrated region: those from full tracker windows, or all
+    /// of them when those do not span an area (runs shorter than the window). A partial
+    /// window's dT/dt is a line fitted to fewer blocks, its noise larger by (blocks in the
+    /// window / blocks so far)^1.5: the demo's one 0.06 C quantum at 12 s, 13 blocks into a
+    /// 100-block window, read -0.12 C/min in a run that only heats, and its convex hull
+    /// claimed cooling as calibrated at every temperature. Those points are still fitted.
+    pub fn region_points(&self) -> Vec<MeshPoint> {
+        let full: Vec<MeshPoint> =
+            self.points.iter().zip(&self.window_full).filter(|(_, &f)| f).map(|(p, _)| *p).collect();
+        let spans_area = |points: &[MeshPoint]| {
+            let plane: Vec<(f32, f32)> =
+                points.iter().map(|p| (p.temp_c as f32, p.rate_c_per_min as f32)).collect();
+            crate::blob::calibrated_region(&plane).len() >= 3
+        };
+        if full.len() == self.points.len() || spans_area(&full) {
+            full
+        } else {
+            self.points.clone()
+        }
+    }
+
     /// Effective number of independent targets for the stepwise tests: one per smoothing
     /// window of `target_window_s` covered (points are one per block, and consecutive targets
     /// share most of their window).
@@ -512,6 +555,7 @@ pub fn calibration_points(
                     value_dph: target,
                 });
                 out.run_of.push(r);
+                out.window_full.push(f.window_full);
                 out.block_equivalents += blocks;
             }
         }
@@ -826,16 +870,19 @@ pub fn fit_axis(
         (_, OutsidePolicy::StoredGradients) if mesh.is_none() => OutsidePolicy::NearestHull,
         (_, policy) => policy,
     };
+    // The calibrated region, from the points of full tracker windows
+    // ([`CalibrationPoints::region_points`]), and its range; outside it the policy holds or
+    // continues the polynomial from its boundary (no runaway; flagged OUTSIDE_HULL). Points
+    // without an area (collinear: one warm-up run) have no region, and a polynomial without
+    // one can only extrapolate. A mesh's own hull follows its nodes.
+    let region_points = calibration.region_points();
     let range = |f: &dyn Fn(&MeshPoint) -> f64| {
-        points.iter().map(f).fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(v), b.max(v)))
+        region_points.iter().map(f).fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(v), b.max(v)))
     };
     let (temp_min, temp_max) = range(&|p| p.temp_c);
     let (rate_min, rate_max) = range(&|p| p.rate_c_per_min);
-    // The calibrated region; outside it the policy holds or continues the polynomial from its
-    // boundary (no runaway; flagged OUTSIDE_HULL). Points without an area (collinear: one
-    // warm-up run) have no region, and a polynomial without one can only extrapolate.
     let region = crate::blob::calibrated_region(
-        &points.iter().map(|p| crate::mesh::normalised(p, &normalisation)).collect::<Vec<_>>(),
+        &region_points.iter().map(|p| crate::mesh::normalised(p, &normalisation)).collect::<Vec<_>>(),
     );
     let poly_outside =
         if region.len() >= 3 { config.poly_outside } else { fogtemp_core::PolyOutside::Extrapolate };
@@ -1018,6 +1065,9 @@ pub struct ReplaySeries {
     /// Steps between rows longer than the compensator's `max_gap_s`: after each its tracker
     /// started again and the bias was held until it had features.
     pub gaps: TimeGaps,
+    /// Single-reading temperature spikes ([`crate::spikes`]), found but compensated as read
+    /// (as the firmware would).
+    pub temperature_spikes: AxisSpikes,
 }
 
 impl ReplaySeries {
@@ -1044,6 +1094,8 @@ struct Replayer<'m> {
     fullest_block: u64,
     /// The time of the previous row, seconds.
     previous_s: Option<f64>,
+    /// Finds temperature spikes (only reports them: the compensator takes every reading).
+    spikes: SpikeGuard,
 }
 
 impl<'m> Replayer<'m> {
@@ -1057,7 +1109,8 @@ impl<'m> Replayer<'m> {
             ..ReplaySeries::default()
         };
         let acc = (0, 0.0, 0.0, 0.0, 0);
-        Ok(Self { comp, axis, block_s, series, acc, fullest_block: 0, previous_s: None })
+        let spikes = SpikeGuard::new(max_gap_s);
+        Ok(Self { comp, axis, block_s, series, acc, fullest_block: 0, previous_s: None, spikes })
     }
 
     fn step(&mut self, row: &crate::ingest::Row<'_>) {
@@ -1065,6 +1118,8 @@ impl<'m> Replayer<'m> {
         self.previous_s = Some(row.time_s);
         let temp = row.temp_c_for_axis(self.axis);
         let raw = row.gyros_dph[self.axis];
+        let sample = Sample { time_s: row.time_s, gyro_dph: raw, temp_c: temp, line: row.line };
+        self.spikes.push(sample, &mut |_| {});
         let out = self.comp.step(row.time_us(), raw as f32, temp.is_finite().then_some(temp as f32));
         if self.series.compensating_from_s.is_nan() && out.flags.0 & fogtemp_core::Flags::WARMING_UP.0 == 0 {
             self.series.compensating_from_s = row.time_s;
@@ -1111,6 +1166,7 @@ impl<'m> Replayer<'m> {
         if self.acc.0 * 10 >= self.fullest_block * 9 {
             self.flush();
         }
+        self.series.temperature_spikes = self.spikes.finish(&mut |_| {});
         self.series
     }
 }
@@ -1240,6 +1296,7 @@ impl RunValidation {
         if outside > 0 {
             notes.push(outside_region_note(&name, outside, s.samples, "flag OUTSIDE_HULL"));
         }
+        notes.extend(temperature_spike_note(&name, &self.path, &s.temperature_spikes));
         let stale = s.flag_counts[Flags::TEMP_STALE.0.trailing_zeros() as usize];
         if stale > 0 && s.compensating_from_s.is_finite() {
             notes.push(stale_temperature_note(
@@ -1252,6 +1309,45 @@ impl RunValidation {
         }
         notes
     }
+}
+
+/// The note for temperature spikes in a log being compensated (`None` without any): the
+/// compensator took them as read, as the firmware would, so its features and output are
+/// disturbed for up to a feature window after each. The first few by line of `log`.
+pub fn temperature_spike_note(name: &str, log: &Path, spikes: &AxisSpikes) -> Option<String> {
+    const NAMED: usize = 3;
+    if spikes.count == 0 {
+        return None;
+    }
+    let named: Vec<String> = spikes
+        .first
+        .iter()
+        .take(NAMED)
+        .map(|s| {
+            format!(
+                "{}:{} {:.2} C between {:.2} and {:.2} C",
+                log.display(),
+                s.line,
+                s.temp_c,
+                s.before_c,
+                s.after_c
+            )
+        })
+        .collect();
+    let more = spikes.count.saturating_sub(named.len() as u64);
+    let more = if more > 0 { format!(" and {more} more") } else { String::new() };
+    let readings = if spikes.count == 1 {
+        "1 temperature reading jumps".to_string()
+    } else {
+        format!("{} temperature readings jump", spikes.count)
+    };
+    Some(format!(
+        "{name}: {readings} by more than {:.0} C from both neighbouring readings and back ({}{more}): \
+         compensated as read, as the firmware would, so the output after each is disturbed for up to a feature window; \
+         a FOG's temperature does not move like that, so check the sensor or the logger",
+        crate::spikes::SPIKE_JUMP_C,
+        named.join(", ")
+    ))
 }
 
 /// The note for `stale` of `samples` samples compensated without a temperature for longer
@@ -1550,5 +1646,148 @@ mod tests {
         assert_eq!(a.axes[0].mesh_nodes, b.axes[0].mesh_nodes);
         assert!(a.axes[0].mesh_nodes > 3, "{}", a.axes[0].mesh_nodes);
         assert!(a.blob == b.blob, "the blobs differ");
+    }
+
+    /// `ramp_log` with the temperature cell of data row `row` (0-based) replaced by `cell`.
+    fn with_temperature_cell(log: &str, row: usize, cell: &str) -> String {
+        log.lines()
+            .enumerate()
+            .map(|(i, line)| {
+                if i == row + 1 {
+                    let f: Vec<&str> = line.split(',').collect();
+                    format!("{},{cell},{}\n", f[0], f[2])
+                } else {
+                    format!("{line}\n")
+                }
+            })
+            .collect()
+    }
+
+    /// A 50 C glitch in one cell of each log is read as that cell left empty (oracle: the
+    /// same logs with the cell empty): the same feature points, the same calibrated region
+    /// and byte for byte the same model; the warning names each glitch's file and line.
+    #[test]
+    fn a_temperature_spike_calibrates_as_a_missing_reading_and_is_named() {
+        let config = CalibrationConfig { method: Method::Poly, ..CalibrationConfig::default() };
+        let logs = [("a.csv", -10.0, 0.5), ("b.csv", 0.0, 0.3), ("c.csv", 5.0, 0.2)];
+        let read = |cell: Option<&str>| -> Vec<RunFeatures> {
+            logs.iter()
+                .map(|&(name, start_c, rate)| {
+                    let clean = ramp_log(start_c, rate);
+                    let text = cell.map_or(clean.clone(), |c| with_temperature_cell(&clean, 1500, c));
+                    extract_run_from(text.as_bytes(), Path::new(name), &config).expect("reads")
+                })
+                .collect()
+        };
+        let (glitched, emptied, clean) = (read(Some("75.0")), read(Some("")), read(None));
+        for (g, e) in glitched.iter().zip(&emptied) {
+            assert!(g.axes == e.axes, "{}: features differ from the emptied cell's", g.path.display());
+            assert_eq!(g.temperature_spikes[0].count, 1);
+            assert_eq!(g.temperature_spikes[0].first[0].line, 1502, "header + 1-based row 1501");
+            assert_eq!(e.temperature_spikes[0].count, 0);
+        }
+        let fit = |runs: &[RunFeatures]| fit_model(runs, &config, [0; 32]).expect("fits");
+        let (g, e, c) = (fit(&glitched), fit(&emptied), fit(&clean));
+        assert!(g.blob == e.blob, "the models differ");
+        let rates = |runs: &[RunFeatures]| {
+            let p = calibration_points(runs, 0, false, 1.0, 100.0).points;
+            p.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), q| {
+                (lo.min(q.rate_c_per_min), hi.max(q.rate_c_per_min))
+            })
+        };
+        // The clean logs' rates differ from the glitched ones' by one block's features at
+        // most: within 0.001 C/min on ramps at 0.2-0.5 C/min (the glitch alone spans
+        // tens of C/min).
+        let (rg, rc) = (rates(&glitched), rates(&clean));
+        assert!((rg.0 - rc.0).abs() < 1e-3 && (rg.1 - rc.1).abs() < 1e-3, "{rg:?} against {rc:?}");
+        assert!(c.axes[0].points > 0);
+        let warnings = crate::identifiability::fit_warnings(&glitched, &config, &Default::default());
+        let spikes: Vec<_> = warnings
+            .iter()
+            .filter(|w| w.kind == crate::identifiability::WarningKind::TemperatureSpikes)
+            .collect();
+        assert_eq!(spikes.len(), 1, "{warnings:?}");
+        assert_eq!(spikes[0].values["temperature_spikes"], 3.0);
+        for name in ["a.csv:1502", "b.csv:1502", "c.csv:1502"] {
+            assert!(spikes[0].message.contains(name), "{}", spikes[0].message);
+        }
+    }
+
+    /// A minute at `start_c`, then a heating ramp at `rate_c_per_min`, the temperature
+    /// quantised to 0.0625 C (a 12-bit sensor) and one reading a quantum low at 12 s: 13
+    /// blocks into the default 100-block window the tracker reads that as cooling at about
+    /// -0.12 C/min (the demo's pos1_35C).
+    fn quantised_ramp_with_dip(start_c: f64, rate_c_per_min: f64) -> String {
+        let mut csv = String::from("time_s,temp_c,gyro_dph\n");
+        for k in 0..3000 {
+            let t = f64::from(k);
+            let exact = start_c + rate_c_per_min * (t - 60.0).max(0.0) / 60.0;
+            let mut temp_c = (exact / 0.0625).round() * 0.0625;
+            if k == 12 {
+                temp_c -= 0.0625;
+            }
+            csv.push_str(&format!("{t:.1},{temp_c:.4},{:.6}\n", 0.01 * exact));
+        }
+        csv
+    }
+
+    /// The calibrated region comes from full-window features: the model's stored rate range is
+    /// the full-window points' range (oracle: those points' own extremes), the partial
+    /// window's cooling reading lies outside it, and the polynomial is held and flagged there.
+    #[test]
+    fn the_calibrated_region_is_set_by_full_windows_not_a_start_up_reading() {
+        let config = CalibrationConfig { method: Method::Poly, ..CalibrationConfig::default() };
+        let runs: Vec<RunFeatures> = [(-10.0, 0.4), (10.0, 0.3), (30.0, 0.2)]
+            .iter()
+            .enumerate()
+            .map(|(i, &(start_c, rate))| {
+                let log = quantised_ramp_with_dip(start_c, rate);
+                extract_run_from(log.as_bytes(), Path::new(&format!("r{i}.csv")), &config).expect("reads")
+            })
+            .collect();
+        let calibration = calibration_points(&runs, 0, false, 1.0, 100.0);
+        let extremes = |full: bool| {
+            calibration
+                .points
+                .iter()
+                .zip(&calibration.window_full)
+                .filter(|(_, &f)| f || !full)
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), (p, _)| {
+                    (lo.min(p.rate_c_per_min), hi.max(p.rate_c_per_min))
+                })
+        };
+        let (all, full) = (extremes(false), extremes(true));
+        assert!(all.0 < -0.05, "the dip reads as cooling in a partial window: {all:?}");
+        assert!(full.0 > 0.0, "full windows only heat: {full:?}");
+        let fitted = fit_model(&runs, &config, [0; 32]).expect("fits");
+        let model = Model::from_bytes(&fitted.blob).expect("parses");
+        let axis = model.axis(0).expect("axis 0");
+        let p = axis.provenance;
+        assert_eq!((p.rate_min_c_per_min, p.rate_max_c_per_min), (full.0 as f32, full.1 as f32));
+        let mut hint = fogtemp_core::WalkHint::default();
+        let at = |temp: f32, rate: f32, hint: &mut fogtemp_core::WalkHint| {
+            axis.evaluate(temp, rate, hint).expect("finite")
+        };
+        // The cooling the partial window read, at a temperature every run passed through.
+        assert!(at(12.0, all.0 as f32, &mut hint).outside_hull);
+        assert!(!at(12.0, ((full.0 + full.1) / 2.0) as f32, &mut hint).outside_hull);
+    }
+
+    /// Full-window points without an area (on one line) do not make a region: then every
+    /// point does; with an area, only they do.
+    #[test]
+    fn region_points_fall_back_to_every_point_when_full_windows_span_no_area() {
+        let point = |temp_c: f64, rate_c_per_min: f64| MeshPoint { temp_c, rate_c_per_min, value_dph: 0.0 };
+        let line = vec![point(0.0, 0.125), point(10.0, 0.25), point(20.0, 0.375), point(5.0, -0.5)];
+        let calibration = CalibrationPoints {
+            points: line.clone(),
+            run_of: vec![0; 4],
+            block_equivalents: 4.0,
+            window_full: vec![true, true, true, false],
+        };
+        assert_eq!(calibration.region_points(), line);
+        let mut square = calibration.clone();
+        square.points[1] = point(10.0, 0.0);
+        assert_eq!(square.region_points(), square.points[..3].to_vec());
     }
 }

@@ -39,6 +39,9 @@
 //!   projection differs by up to 2 x 15 deg/h) or a turn-on bias that is not repeatable. A
 //!   run's mean residual otherwise scatters by the slow noise of one run, a few noise units
 //!   (measured in docs/calibration-logs.md, "Runs that differ by a constant").
+//! - `temperature_spikes`: single readings more than [`crate::spikes::SPIKE_JUMP_C`] = 1 C
+//!   from both neighbouring readings (a sensor glitch; the reasoning is in [`crate::spikes`]).
+//!   Calibration read them as missing; the warning names each by file and line.
 
 use std::collections::BTreeMap;
 
@@ -86,6 +89,9 @@ pub enum WarningKind {
     /// Runs that never fill the feature window (shorter than it): their features come
     /// from partial windows only.
     ShortRuns,
+    /// Single temperature readings far from both neighbours (sensor glitches), read as
+    /// missing ([`crate::spikes`]).
+    TemperatureSpikes,
 }
 
 impl WarningKind {
@@ -99,6 +105,7 @@ impl WarningKind {
             WarningKind::CoolingOnly => "cooling_only",
             WarningKind::RunOffsets => "run_offsets",
             WarningKind::ShortRuns => "short_runs",
+            WarningKind::TemperatureSpikes => "temperature_spikes",
         }
     }
 }
@@ -136,6 +143,9 @@ pub fn fit_warnings(
                 calibration_points(runs, axis, config.full_windows_only, block_s, config.target_window_s);
             let mut found = warnings(&points, axis, settings);
             found.extend(short_runs(runs, axis, f64::from(config.features.window_s)));
+            let temp_columns = &config.ingest.format.temp_columns;
+            let column = temp_columns.get(axis.min(temp_columns.len().saturating_sub(1)));
+            found.extend(temperature_spikes(runs, axis, column.map_or("temperature", String::as_str)));
             found
         })
         .collect()
@@ -170,6 +180,59 @@ fn short_runs(runs: &[RunFeatures], axis: usize, window_s: f64) -> Option<Warnin
             if runs.len() == 1 { "1 run".to_string() } else { format!("{} runs", runs.len()) }
         ),
         &[("short_runs", short.len() as f64), ("window_s", window_s)],
+    ))
+}
+
+/// How many spikes `temperature_spikes` names by line.
+const NAMED_SPIKES: usize = 5;
+
+/// `temperature_spikes` for axis `axis`: the single-reading spikes calibration read as
+/// missing, the first [`NAMED_SPIKES`] by file and line (`column` names the temperature
+/// column).
+fn temperature_spikes(runs: &[RunFeatures], axis: usize, column: &str) -> Option<Warning> {
+    let per_run: Vec<(&RunFeatures, &crate::spikes::AxisSpikes)> = runs
+        .iter()
+        .filter_map(|run| Some((run, run.temperature_spikes.get(axis)?)))
+        .filter(|(_, spikes)| spikes.count > 0)
+        .collect();
+    let total: u64 = per_run.iter().map(|(_, s)| s.count).sum();
+    if total == 0 {
+        return None;
+    }
+    let named: Vec<String> = per_run
+        .iter()
+        .flat_map(|(run, spikes)| spikes.first.iter().map(move |s| (run, s)))
+        .take(NAMED_SPIKES)
+        .map(|(run, s)| {
+            format!(
+                "{}:{} {column} {:.2} C between {:.2} and {:.2} C",
+                run.path.display(),
+                s.line,
+                s.temp_c,
+                s.before_c,
+                s.after_c
+            )
+        })
+        .collect();
+    let more = total.saturating_sub(named.len() as u64);
+    let more = if more > 0 { format!("; and {more} more") } else { String::new() };
+    let readings = if total == 1 {
+        "1 temperature reading jumps".to_string()
+    } else {
+        format!("{total} temperature readings jump")
+    };
+    let runs_text = if per_run.len() == 1 { "1 run".to_string() } else { format!("{} runs", per_run.len()) };
+    Some(Warning::new(
+        axis,
+        WarningKind::TemperatureSpikes,
+        format!(
+            "axis {axis}: {readings} by more than {:.0} C from both neighbouring readings and back, in {runs_text} ({}{more}): \
+             read as missing, so they neither set features nor widen the calibrated region; \
+             a FOG's temperature does not move like that, so check the sensor or the logger",
+            crate::spikes::SPIKE_JUMP_C,
+            named.join(", ")
+        ),
+        &[("temperature_spikes", total as f64), ("spike_jump_c", crate::spikes::SPIKE_JUMP_C)],
     ))
 }
 
@@ -512,6 +575,7 @@ mod tests {
                 .collect(),
             run_of: triples.iter().map(|t| t.0).collect(),
             block_equivalents: triples.len() as f64,
+            window_full: vec![true; triples.len()],
         }
     }
 

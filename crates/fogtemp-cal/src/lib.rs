@@ -68,6 +68,7 @@ pub mod refine;
 pub mod report;
 pub mod runs;
 pub mod selection;
+pub mod spikes;
 pub mod thin;
 
 pub use blob::{encode, AxisModel, ModelFile};

@@ -933,6 +933,7 @@ pub fn without_block(run: &RunFeatures, blocks: &RunBlocks, j: usize, guard_s: f
         gaps: run.gaps,
         axes,
         input_rate_subtracted_dph: run.input_rate_subtracted_dph.clone(),
+        temperature_spikes: run.temperature_spikes.clone(),
     }
 }
 
@@ -1065,7 +1066,8 @@ fn keep_block(into: &mut Vec<ReplaySeries>, from: Vec<ReplaySeries>, blocks: &Ru
 }
 
 /// The calibrated region of the training runs of a fold on one axis, as `fit` stores it in
-/// the blob: the convex hull of their calibration points in the normalised plane.
+/// the blob: the convex hull of their region points
+/// ([`crate::calibrate::CalibrationPoints::region_points`]) in the normalised plane.
 #[derive(Clone, Debug, PartialEq)]
 pub struct TrainingRegion {
     normalisation: Normalisation,
@@ -1091,7 +1093,7 @@ impl TrainingRegion {
         if config.rate_axis_weight.is_finite() && config.rate_axis_weight > 0.0 {
             normalisation.rate_scale_per_c_per_min *= config.rate_axis_weight as f32;
         }
-        Self::from_points(&calibration.points, normalisation)
+        Self::from_points(&calibration.region_points(), normalisation)
     }
 
     /// The hull of `points` in the plane of `normalisation`.
@@ -1755,6 +1757,7 @@ mod tests {
             gaps: Default::default(),
             axes: vec![(features, vec![0.0; points.len()])],
             input_rate_subtracted_dph: Vec::new(),
+            temperature_spikes: Vec::new(),
         }
     }
 

@@ -2,6 +2,7 @@
 
 use anyhow::{bail, Result};
 use fogtemp_cal::calibrate::{self, TimeGaps};
+use fogtemp_cal::spikes::{Sample, SpikeGuard};
 use fogtemp_core::{Compensator, Flags, Model};
 
 use super::{check_capacity, ingest_options, read_model, report_skipped};
@@ -28,6 +29,8 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
     // Per axis: samples per flag bit (corrected = not WARMING_UP; OUTSIDE_HULL; the cause
     // when nothing was corrected).
     let mut flag_counts = vec![[0_u64; 8]; axes];
+    // Per axis: temperature spikes, reported (the compensator takes every reading).
+    let mut spike_guards: Vec<SpikeGuard> = (0..axes).map(|_| SpikeGuard::new(max_gap_s)).collect();
     let bar = RowProgress::new(&a.log, "compensate");
     let mut report = None;
     // A problem in the log is reported as the log's (with its hint), not as the output's.
@@ -55,6 +58,13 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
                 let time_us = row.time_us();
                 for (i, comp) in comps.iter_mut().enumerate() {
                     let temp = row.temp_c_for_axis(i);
+                    let sample = Sample {
+                        time_s: row.time_s,
+                        gyro_dph: row.gyros_dph[i],
+                        temp_c: temp,
+                        line: row.line,
+                    };
+                    spike_guards[i].push(sample, &mut |_| {});
                     let o =
                         comp.step(time_us, row.gyros_dph[i] as f32, temp.is_finite().then_some(temp as f32));
                     record.push(format!("{}", row.gyros_dph[i]));
@@ -103,8 +113,12 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
             eprintln!("note: {note}");
         }
         super::warn_if_mostly_gaps(&a.log, &gaps, r.rows);
-        for (axis, counts) in flag_counts.iter().enumerate() {
+        for (axis, (counts, guard)) in flag_counts.iter().zip(spike_guards).enumerate() {
             let name = format!("{} axis {axis}", a.log.display());
+            let spikes = guard.finish(&mut |_| {});
+            if let Some(note) = calibrate::temperature_spike_note(&name, &a.log, &spikes) {
+                eprintln!("note: {note}");
+            }
             let count = |flag: Flags| counts[flag.0.trailing_zeros() as usize];
             if count(Flags::WARMING_UP) == r.rows {
                 let consequence = "the output's bias is 0";
