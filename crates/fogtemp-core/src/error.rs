@@ -99,6 +99,13 @@ pub enum Error {
     },
     /// A temperature sample, or a query's temperature or rate, was NaN or infinite.
     NonFiniteSample,
+    /// The model evaluated to a value that is not finite at finite features: a blob whose
+    /// stored floats are finite but too large (validation checks each float, not what they
+    /// give together). The compensator holds its last bias and flags `WARMING_UP`.
+    NonFiniteValue {
+        /// Axis section.
+        axis: u16,
+    },
     /// A flash partition holds bytes after the blob that are not erased-flash padding
     /// (all `0xFF` or all `0x00`): [`crate::Model::from_flash`].
     TrailingBytes {
@@ -157,6 +164,10 @@ impl fmt::Display for Error {
                 write!(f, "feature tracker holds {capacity} blocks but the model needs {needed}")
             }
             Error::NonFiniteSample => f.write_str("a temperature or rate is not a finite number"),
+            Error::NonFiniteValue { axis } => write!(
+                f,
+                "axis {axis}: the model's value is not a finite number (stored coefficients or gradients too large for f32)"
+            ),
             Error::TrailingBytes { offset, fill } => write!(
                 f,
                 "byte {offset} after the model blob breaks the erased-flash padding ({fill:#04x} expected; only all 0xff or all 0x00 is accepted)"

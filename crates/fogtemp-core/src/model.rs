@@ -133,6 +133,8 @@ impl<'a> Axis<'a> {
     ///
     /// # Errors
     /// [`Error::NonFiniteSample`] if either input is NaN or infinite; `hint` unchanged.
+    /// [`Error::NonFiniteValue`] if the value is not finite (a blob whose finite floats are
+    /// too large together).
     #[inline]
     pub fn evaluate(
         &self,
@@ -206,12 +208,17 @@ impl<'a> Axis<'a> {
             Some(p) => self.poly_value(p, x, y),
             None => (0.0, false),
         };
-        match &self.mesh {
+        let evaluation = match &self.mesh {
             Some(mesh) => {
                 let m = interpolate(mesh, x, y).map_err(|e| e.at_axis(self.id))?;
-                Ok(Evaluation { value_dph: poly + m.value_dph, outside_hull: m.outside_hull || poly_held })
+                Evaluation { value_dph: poly + m.value_dph, outside_hull: m.outside_hull || poly_held }
             }
-            None => Ok(Evaluation { value_dph: poly, outside_hull: poly_held }),
+            None => Evaluation { value_dph: poly, outside_hull: poly_held },
+        };
+        if evaluation.value_dph.is_finite() {
+            Ok(evaluation)
+        } else {
+            Err(Error::NonFiniteValue { axis: self.id })
         }
     }
 

@@ -24,14 +24,19 @@ const REGION: [[f32; 2]; 6] =
 /// A one-axis polynomial blob (identity normalisation: x = T, y = dT/dt) of format
 /// `version` with `region` and the `poly_outside` code.
 fn poly_blob(version: u16, region: &[[f32; 2]], poly_outside: u32) -> Vec<u8> {
+    poly_blob_with(&TERMS, version, region, poly_outside)
+}
+
+/// As [`poly_blob`] with the polynomial `terms`.
+fn poly_blob_with(terms: &[(u8, u8, f32)], version: u16, region: &[[f32; 2]], poly_outside: u32) -> Vec<u8> {
     let mut b = one_axis_file_header(version);
-    let section = axis_section_len(TERMS.len() as u32, 0, 0, 0, region.len() as u32, 0).unwrap();
+    let section = axis_section_len(terms.len() as u32, 0, 0, 0, region.len() as u32, 0).unwrap();
     let mut h = axis_header(section, KIND_POLY);
-    put_u32(&mut h, AXIS_POLY_TERM_COUNT.start, TERMS.len() as u32);
+    put_u32(&mut h, AXIS_POLY_TERM_COUNT.start, terms.len() as u32);
     put_u32(&mut h, AXIS_REGION_VERTEX_COUNT.start, region.len() as u32);
     put_u32(&mut h, AXIS_POLY_OUTSIDE.start, poly_outside);
     b.extend_from_slice(&h);
-    for (tp, rp, c) in TERMS {
+    for &(tp, rp, c) in terms {
         b.extend_from_slice(&[tp, rp, 0, 0]);
         b.extend_from_slice(&c.to_le_bytes());
     }
@@ -221,4 +226,29 @@ fn malformed_regions_and_policies_are_refused() {
     assert_eq!(m.format_version(), 1);
     let e = m.axis(0).unwrap().evaluate(3.0, 3.0, &mut WalkHint::default()).unwrap();
     assert!(!e.outside_hull && (f64::from(e.value_dph) - poly_f64(3.0, 3.0)).abs() < 1e-5);
+}
+
+/// A blob whose floats are each finite but give a value beyond f32 (a cubic term of 3e38
+/// deg/h at |x| = 10) passes validation; its evaluation there is `NonFiniteValue`, not
+/// `Ok(inf)`, and the compensator holds its last bias (0 before any) and flags `WARMING_UP`
+/// rather than subtracting infinity. Where the value is finite (x = 0.5: 3.75e37) it is
+/// returned as before.
+#[test]
+fn a_value_beyond_f32_is_an_error_and_the_compensator_holds_its_bias() {
+    let terms = [(0, 0, 1.0), (3, 0, 3.0e38)];
+    let blob = poly_blob_with(&terms, 2, &REGION, PolyOutside::Extrapolate.code());
+    let model = Model::from_bytes(&blob).unwrap();
+    let axis = model.axis(0).unwrap();
+    let mut hint = WalkHint::default();
+    assert_eq!(axis.evaluate(10.0, 0.0, &mut hint), Err(Error::NonFiniteValue { axis: 0 }));
+    let near = axis.evaluate(0.5, 0.0, &mut hint).unwrap().value_dph;
+    assert_eq!(near, 1.0 + 3.0e38 * 0.125);
+    let mut comp: Compensator<'_, 256> = Compensator::new(&model, 0).unwrap();
+    let mut last = None;
+    for k in 0..600_u64 {
+        last = Some(comp.step(k * 1_000_000, 5.0, Some(10.0)));
+    }
+    let out = last.unwrap();
+    assert_eq!((out.bias_dph, out.rate_dph), (0.0, 5.0));
+    assert!(out.flags.0 & Flags::WARMING_UP.0 != 0, "flags {:#x}", out.flags.0);
 }

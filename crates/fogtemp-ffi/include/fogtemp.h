@@ -101,6 +101,10 @@ enum fogtemp_status
   // initialised or reset: their clocks differ (a 64-bit time would read as a jump of the
   // wrapping timer), so each state takes one of them.
   FOGTEMP_STATUS_MIXED_CLOCKS = 20,
+  // `fogtemp_evaluate`: the model's value at the query is not finite (a blob whose stored
+  // floats are finite but too large together); `*bias_dph` unwritten. The step functions
+  // hold the last bias and flag `FOGTEMP_FLAG_WARMING_UP` instead.
+  FOGTEMP_STATUS_NON_FINITE_VALUE = 21,
 };
 #ifndef __cplusplus
 #if __STDC_VERSION__ >= 202311L

@@ -87,6 +87,10 @@ pub enum fogtemp_status {
     /// initialised or reset: their clocks differ (a 64-bit time would read as a jump of the
     /// wrapping timer), so each state takes one of them.
     MixedClocks = 20,
+    /// `fogtemp_evaluate`: the model's value at the query is not finite (a blob whose stored
+    /// floats are finite but too large together); `*bias_dph` unwritten. The step functions
+    /// hold the last bias and flag `FOGTEMP_FLAG_WARMING_UP` instead.
+    NonFiniteValue = 21,
 }
 
 impl fogtemp_status {
@@ -107,6 +111,7 @@ impl fogtemp_status {
             Error::NonFiniteSample => Self::NonFiniteSample,
             Error::TimeNotIncreasing { .. } => Self::TimeNotIncreasing,
             Error::TrailingBytes { .. } => Self::TrailingBytes,
+            Error::NonFiniteValue { .. } => Self::NonFiniteValue,
             _ => Self::Other,
         }
     }
@@ -137,11 +142,12 @@ impl fogtemp_status {
             Self::MixedClocks => {
                 c"fogtemp_step and fogtemp_step_u32 used on one state (use one; reset to switch)"
             }
+            Self::NonFiniteValue => c"the model's value is not finite (coefficients too large)",
         }
     }
 
     /// Every status, in code order (for the message lookup).
-    const ALL: [fogtemp_status; 21] = [
+    const ALL: [fogtemp_status; 22] = [
         Self::Ok,
         Self::NullPointer,
         Self::Misaligned,
@@ -163,6 +169,7 @@ impl fogtemp_status {
         Self::Other,
         Self::StateAxisMismatch,
         Self::MixedClocks,
+        Self::NonFiniteValue,
     ];
 }
 

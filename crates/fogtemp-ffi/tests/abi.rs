@@ -451,14 +451,47 @@ fn a_state_belongs_to_its_axis_number_when_the_settings_agree() {
     assert_eq!(status, fogtemp_status::Ok);
 }
 
+/// `fogtemp_evaluate` where the model's value overflows f32 (a cubic term of 3e38 deg/h at
+/// x = 10, through the real writer): `NON_FINITE_VALUE`, the bias unwritten; where it is
+/// finite (x = 0.5), `OK` with the value.
+#[test]
+fn a_value_beyond_f32_is_a_status_not_infinity() {
+    use fogtemp_core::PolyTerm;
+    let mut axis = poly_axis();
+    axis.poly = vec![
+        PolyTerm { temp_power: 0, rate_power: 0, coefficient_dph: 1.0 },
+        PolyTerm { temp_power: 3, rate_power: 0, coefficient_dph: 3.0e38 },
+    ];
+    let file =
+        fogtemp_cal::ModelFile { tool_version: "abi test".into(), input_digest: [0; 32], axes: vec![axis] };
+    let blob: &'static [u8] = Box::leak(fogtemp_cal::encode(&file).unwrap().into_boxed_slice());
+    let mut blocks = vec![0.0f32; 8];
+    let (axis, mut state) = open(blob, 0, &mut blocks);
+    let mut bias = 7.0f32;
+    // SAFETY: live pointers; `outside_hull` may be NULL. x = (420 - 20) / 40 = 10.
+    let status = unsafe { fogtemp_evaluate(&*axis, &mut *state, 420.0, 0.0, &mut bias, ptr::null_mut()) };
+    assert_eq!((status, bias), (fogtemp_status::NonFiniteValue, 7.0));
+    // SAFETY: as above; x = 0.5.
+    let status = unsafe { fogtemp_evaluate(&*axis, &mut *state, 40.0, 0.0, &mut bias, ptr::null_mut()) };
+    assert_eq!((status, bias), (fogtemp_status::Ok, 1.0 + 3.0e38 * 0.125));
+}
+
 /// A model of two polynomial axes with equal feature settings, through the real writer:
 /// bias 0.1 + 0.01 x deg/h on both.
 fn twin_axes_blob() -> Vec<u8> {
-    use fogtemp_cal::{encode, AxisModel, ModelFile};
+    use fogtemp_cal::{encode, ModelFile};
+    let axis = poly_axis();
+    let file =
+        ModelFile { tool_version: "abi test".into(), input_digest: [0; 32], axes: vec![axis.clone(), axis] };
+    encode(&file).unwrap()
+}
+
+/// One polynomial axis, bias 0.1 + 0.01 x deg/h, x = (T - 20) / 40.
+fn poly_axis() -> fogtemp_cal::AxisModel {
     use fogtemp_core::{
         AxisProvenance, FeatureSettings, Normalisation, OutsidePolicy, PolyOutside, PolyTerm,
     };
-    let axis = AxisModel {
+    fogtemp_cal::AxisModel {
         features: FeatureSettings { window_s: 8.0, block_count: 8, min_blocks: 2, max_gap_s: 5.0 },
         normalisation: Normalisation {
             temp_offset_c: 20.0,
@@ -483,10 +516,7 @@ fn twin_axes_blob() -> Vec<u8> {
         },
         region: Vec::new(),
         poly_outside: PolyOutside::Extrapolate,
-    };
-    let file =
-        ModelFile { tool_version: "abi test".into(), input_digest: [0; 32], axes: vec![axis.clone(), axis] };
-    encode(&file).unwrap()
+    }
 }
 
 /// `fogtemp_step` and `fogtemp_step_u32` on one state: the second kind is
