@@ -209,6 +209,7 @@ pub fn extract_run_arrays(run: &RunArrays<'_>, config: &CalibrationConfig) -> Re
     let mut features =
         crate::calibrate::extract_with(run.name, config, |visit| visit_rows_until_error(run, config, visit))?;
     features.gaps.in_samples = true;
+    features.temperature_silences.iter_mut().for_each(|g| g.in_samples = true);
     Ok(features)
 }
 

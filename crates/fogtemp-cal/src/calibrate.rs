@@ -222,6 +222,41 @@ pub struct RunFeatures {
     /// Per axis: temperature readings read as missing because they were single-reading
     /// spikes ([`crate::spikes`]); empty where none was looked for.
     pub temperature_spikes: Vec<AxisSpikes>,
+    /// Per axis: stretches longer than the tracker's `max_gap_s` without a temperature
+    /// reading while rows went on (a dropped-out temperature channel); the tracker restarted
+    /// after each. Empty where none was looked for.
+    pub temperature_silences: Vec<TimeGaps>,
+}
+
+impl RunFeatures {
+    /// The note for axis `axis`'s temperature silences (`None` without any).
+    pub fn temperature_silence_note(&self, axis: usize) -> Option<String> {
+        let gaps = self.temperature_silences.get(axis)?;
+        let seconds = |s: f64| if s < 10.0 { format!("{s:.1}") } else { format!("{s:.0}") };
+        let place = if gaps.in_samples { "sample" } else { "line" };
+        match gaps.count {
+            0 => None,
+            1 => Some(format!(
+                "{} axis {axis}: the temperature was silent for {} s before {place} {} while rows went on \
+                 (longer than the tracker's max gap of {} s): no features or calibration points come from it, \
+                 and the tracker restarted after it",
+                self.path.display(),
+                seconds(gaps.largest_s),
+                gaps.largest_before_line,
+                gaps.longer_than_s,
+            )),
+            n => Some(format!(
+                "{} axis {axis}: the temperature was silent {n} times for longer than the tracker's max gap of {} s \
+                 while rows went on, {} s in all, the longest {} s before {place} {}: no features or calibration \
+                 points come from them, and the tracker restarted after each",
+                self.path.display(),
+                gaps.longer_than_s,
+                seconds(gaps.total_s),
+                seconds(gaps.largest_s),
+                gaps.largest_before_line,
+            )),
+        }
+    }
 }
 
 /// Subtracts each run's true input rate (`rates_dph`, one per run, in order) from its gyro
@@ -440,32 +475,46 @@ pub(crate) fn extract_with(
         (0..axes).map(|_| AxisFeatureStream::new(&config.features)).collect::<Result<Vec<_>, _>>()?;
     let max_gap_s = f64::from(config.features.max_gap_s);
     let mut guards: Vec<SpikeGuard> = (0..axes).map(|_| SpikeGuard::new(max_gap_s)).collect();
+    let mut silences: Vec<TemperatureSilences> =
+        (0..axes).map(|_| TemperatureSilences::new(max_gap_s)).collect();
     let mut gaps = TimeGaps::new(max_gap_s);
     let mut previous_s = None;
     let ingest = read(&mut |row: &Row<'_>| {
         gaps.observe(previous_s, row.time_s, row.line);
         previous_s = Some(row.time_s);
-        for (axis, (stream, guard)) in streams.iter_mut().zip(&mut guards).enumerate() {
+        for (axis, ((stream, guard), silence)) in
+            streams.iter_mut().zip(&mut guards).zip(&mut silences).enumerate()
+        {
             let sample = Sample {
                 time_s: row.time_s,
                 gyro_dph: row.gyros_dph[axis],
                 temp_c: row.temp_c_for_axis(axis),
                 line: row.line,
             };
-            guard.push(sample, &mut |s| stream.push(s.time_s, s.gyro_dph, s.temp_c));
+            guard.push(sample, &mut |s| {
+                silence.observe(&s);
+                stream.push(s.time_s, s.gyro_dph, s.temp_c);
+            });
         }
         Ok(())
     })?;
-    let (axes, temperature_spikes) = streams
+    let mut temperature_spikes = Vec::with_capacity(axes);
+    let mut temperature_silences = Vec::with_capacity(axes);
+    let axes = streams
         .into_iter()
         .zip(guards)
-        .map(|(mut stream, guard)| {
-            let spikes = guard.finish(&mut |s| stream.push(s.time_s, s.gyro_dph, s.temp_c));
+        .zip(silences)
+        .map(|((mut stream, guard), mut silence)| {
+            temperature_spikes.push(guard.finish(&mut |s| {
+                silence.observe(&s);
+                stream.push(s.time_s, s.gyro_dph, s.temp_c);
+            }));
+            temperature_silences.push(silence.finish());
             let points = stream.finish();
             let targets = smoothed_gyro_dph(&points, config.target_window_s);
-            ((points, targets), spikes)
+            (points, targets)
         })
-        .unzip();
+        .collect();
     Ok(RunFeatures {
         path: path.to_path_buf(),
         ingest,
@@ -473,7 +522,45 @@ pub(crate) fn extract_with(
         axes,
         input_rate_subtracted_dph: Vec::new(),
         temperature_spikes,
+        temperature_silences,
     })
+}
+
+/// Stretches longer than the tracker's `max_gap_s` without a temperature reading while rows
+/// went on (a temperature channel that dropped out; gaps in the rows themselves are
+/// [`TimeGaps`] of the log): the tracker restarts after each, and no calibration point comes
+/// from them. A stretch that lasts to the end of the log counts up to its last row.
+#[derive(Clone, Copy, Debug)]
+struct TemperatureSilences {
+    gaps: TimeGaps,
+    /// The last reading's time, and the last row's time and line since it (if any).
+    last_reading_s: Option<f64>,
+    last_row: Option<(f64, u64)>,
+}
+
+impl TemperatureSilences {
+    fn new(max_gap_s: f64) -> Self {
+        Self { gaps: TimeGaps::new(max_gap_s), last_reading_s: None, last_row: None }
+    }
+
+    fn observe(&mut self, sample: &Sample) {
+        if sample.temp_c.is_finite() {
+            if self.last_row.is_some() {
+                self.gaps.observe(self.last_reading_s, sample.time_s, sample.line);
+            }
+            self.last_reading_s = Some(sample.time_s);
+            self.last_row = None;
+        } else if self.last_reading_s.is_some() {
+            self.last_row = Some((sample.time_s, sample.line));
+        }
+    }
+
+    fn finish(mut self) -> TimeGaps {
+        if let Some((time_s, line)) = self.last_row {
+            self.gaps.observe(self.last_reading_s, time_s, line);
+        }
+        self.gaps
+    }
 }
 
 /// The calibration points of one axis over all runs.
@@ -501,18 +588,27 @@ impl CalibrationPoints {
     /// 100-block window, read -0.12 C/min in a run that only heats, and its convex hull
     /// claimed cooling as calibrated at every temperature. Those points are still fitted.
     pub fn region_points(&self) -> Vec<MeshPoint> {
-        let full: Vec<MeshPoint> =
-            self.points.iter().zip(&self.window_full).filter(|(_, &f)| f).map(|(p, _)| *p).collect();
-        let spans_area = |points: &[MeshPoint]| {
-            let plane: Vec<(f32, f32)> =
-                points.iter().map(|p| (p.temp_c as f32, p.rate_c_per_min as f32)).collect();
-            crate::blob::calibrated_region(&plane).len() >= 3
-        };
-        if full.len() == self.points.len() || spans_area(&full) {
-            full
+        if self.region_leaves_out_partial_windows() {
+            self.points.iter().zip(&self.window_full).filter(|(_, &f)| f).map(|(p, _)| *p).collect()
         } else {
             self.points.clone()
         }
+    }
+
+    /// Whether [`Self::region_points`] leaves points out: some come from partial windows and
+    /// the full-window points span an area.
+    pub fn region_leaves_out_partial_windows(&self) -> bool {
+        if self.window_full.iter().all(|&f| f) {
+            return false;
+        }
+        let plane: Vec<(f32, f32)> = self
+            .points
+            .iter()
+            .zip(&self.window_full)
+            .filter(|(_, &f)| f)
+            .map(|(p, _)| (p.temp_c as f32, p.rate_c_per_min as f32))
+            .collect();
+        crate::blob::calibrated_region(&plane).len() >= 3
     }
 
     /// Effective number of independent targets for the stepwise tests: one per smoothing
@@ -697,6 +793,22 @@ fn free_surface_terms(
         .then(|| terms.iter().zip(coefficients.iter()).map(|(&(i, j), &c)| (i, j, c)).collect())
 }
 
+/// `values` (one per calibration point) and the points' runs, restricted to the points that
+/// define the calibrated region ([`CalibrationPoints::region_points`]): full-window points,
+/// or all when those span no area.
+fn region_subset(calibration: &CalibrationPoints, values: &[MeshPoint]) -> (Vec<MeshPoint>, Vec<usize>) {
+    if !calibration.region_leaves_out_partial_windows() {
+        return (values.to_vec(), calibration.run_of.clone());
+    }
+    values
+        .iter()
+        .zip(&calibration.run_of)
+        .zip(&calibration.window_full)
+        .filter(|(_, &full)| full)
+        .map(|((p, &run), _)| (*p, run))
+        .unzip()
+}
+
 /// The polynomial `terms` (`free_surface_terms`) as a function of the normalised `(x, y)`.
 fn surface_of(terms: &[(u8, u8, f64)]) -> impl Fn(f64, f64) -> f64 + '_ {
     move |x, y| terms.iter().map(|&(i, j, c)| c * x.powi(i32::from(i)) * y.powi(i32::from(j))).sum()
@@ -762,12 +874,15 @@ pub fn fit_axis(
         // Otherwise (least-squares nodes) cross-validation decides whether it keeps its mesh.
         Method::Hybrid if poly_is_enough => None,
         Method::Mesh | Method::Hybrid => {
+            // Nodes come from the points that define the calibrated region, so the mesh's
+            // hull is that region (every point is still fitted where the mesh covers it).
+            let (candidates, candidate_runs) = region_subset(calibration, &residual_points);
             let keep = match config.thinning {
                 Thinning::Paper { fast_rate_c_per_min, settled_every } => {
                     let stride = (config.target_window_s / block_s).round().max(1.0) as usize;
-                    thin_paper(&residual_points, runs, stride, fast_rate_c_per_min, settled_every)
+                    thin_paper(&candidates, &candidate_runs, stride, fast_rate_c_per_min, settled_every)
                 }
-                Thinning::Greedy(g) => thin_greedy(&residual_points, &normalisation, &g)?.keep,
+                Thinning::Greedy(g) => thin_greedy(&candidates, &normalisation, &g)?.keep,
                 Thinning::GreedyAuto { noise_multiple, max_nodes } => {
                     let g = GreedyThinning {
                         tolerance_dph: auto_tolerance_dph(noise_multiple),
@@ -775,10 +890,10 @@ pub fn fit_axis(
                         stop_on_rms: true,
                         ..GreedyThinning::default()
                     };
-                    thin_greedy(&residual_points, &normalisation, &g)?.keep
+                    thin_greedy(&candidates, &normalisation, &g)?.keep
                 }
             };
-            let mut nodes: Vec<MeshPoint> = keep.iter().map(|&i| residual_points[i]).collect();
+            let mut nodes: Vec<MeshPoint> = keep.iter().map(|&i| candidates[i]).collect();
             let hybrid = config.method == Method::Hybrid;
             // A plain mesh's node fit leaves the polynomial's terms free: that polynomial, once.
             let free_poly = if hybrid || !config.least_squares_nodes {
@@ -874,7 +989,8 @@ pub fn fit_axis(
     // ([`CalibrationPoints::region_points`]), and its range; outside it the policy holds or
     // continues the polynomial from its boundary (no runaway; flagged OUTSIDE_HULL). Points
     // without an area (collinear: one warm-up run) have no region, and a polynomial without
-    // one can only extrapolate. A mesh's own hull follows its nodes.
+    // one can only extrapolate. A mesh's nodes come from the same points (its hull is the
+    // region).
     let region_points = calibration.region_points();
     let range = |f: &dyn Fn(&MeshPoint) -> f64| {
         region_points.iter().map(f).fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(v), b.max(v)))
@@ -1789,5 +1905,26 @@ mod tests {
         let mut square = calibration.clone();
         square.points[1] = point(10.0, 0.0);
         assert_eq!(square.region_points(), square.points[..3].to_vec());
+    }
+
+    /// A temperature channel silent for rows 1000-1599 and from row 2800 to the end, the gyro
+    /// going on: two silences, 601 s (reading at 999 s to reading at 1600 s, line 1602) and
+    /// 200 s (to the last row at 2999 s), and the note says so; a 3 s silence is not one.
+    #[test]
+    fn temperature_silences_longer_than_the_gap_are_counted_with_the_longest() {
+        let config = CalibrationConfig { method: Method::Poly, ..CalibrationConfig::default() };
+        let mut log = ramp_log(0.0, 0.3);
+        for row in (1000..1600).chain(2800..3000).chain(500..503) {
+            log = with_temperature_cell(&log, row, "");
+        }
+        let run = extract_run_from(log.as_bytes(), Path::new("quiet.csv"), &config).expect("reads");
+        let gaps = run.temperature_silences[0];
+        assert_eq!((gaps.count, gaps.largest_s, gaps.largest_before_line), (2, 601.0, 1602));
+        assert_eq!(gaps.total_s, 801.0);
+        assert_eq!(run.gaps.count, 0, "the rows themselves have no gap");
+        let note = run.temperature_silence_note(0).expect("a note");
+        assert!(note.contains("silent 2 times") && note.contains("601 s before line 1602"), "{note}");
+        let silent_points = run.axes[0].0.iter().filter(|p| p.time_s > 1000.0 && p.time_s < 1600.0).count();
+        assert_eq!(silent_points, 0);
     }
 }

@@ -934,6 +934,7 @@ pub fn without_block(run: &RunFeatures, blocks: &RunBlocks, j: usize, guard_s: f
         axes,
         input_rate_subtracted_dph: run.input_rate_subtracted_dph.clone(),
         temperature_spikes: run.temperature_spikes.clone(),
+        temperature_silences: run.temperature_silences.clone(),
     }
 }
 
@@ -1758,6 +1759,7 @@ mod tests {
             axes: vec![(features, vec![0.0; points.len()])],
             input_rate_subtracted_dph: Vec::new(),
             temperature_spikes: Vec::new(),
+            temperature_silences: Vec::new(),
         }
     }
 

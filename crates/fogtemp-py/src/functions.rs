@@ -483,6 +483,10 @@ fn file_runs(
         if let Some(note) = calibrate::mostly_gaps_note(&run.path, &run.gaps, run.ingest.rows, "time_unit=") {
             progress::warn(py, &note)?;
         }
+        for note in (0..run.temperature_silences.len()).filter_map(|axis| run.temperature_silence_note(axis))
+        {
+            progress::warn(py, &note)?;
+        }
         runs.push(run);
     }
     let digest = py.detach(|| digest_files(&logs))?;
@@ -536,6 +540,9 @@ fn array_features(
         }
         warn_skipped(py, &f.ingest, true)?;
         if let Some(note) = f.gaps.note(&f.path) {
+            progress::warn(py, &note)?;
+        }
+        for note in (0..f.temperature_silences.len()).filter_map(|axis| f.temperature_silence_note(axis)) {
             progress::warn(py, &note)?;
         }
         features.push(f);

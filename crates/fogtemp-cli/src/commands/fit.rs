@@ -94,6 +94,11 @@ pub fn fit(a: FitArgs) -> Result<()> {
         if let Some(note) = run.gaps.note(&run.path) {
             eprintln!("note: {note}");
         }
+        for axis in 0..run.temperature_silences.len() {
+            if let Some(note) = run.temperature_silence_note(axis) {
+                eprintln!("note: {note}");
+            }
+        }
         warn_if_mostly_gaps(&run.path, &run.gaps, run.ingest.rows);
         runs.push(run);
     }
