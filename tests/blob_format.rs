@@ -757,20 +757,37 @@ fn targeted_header_corruptions_give_their_specific_errors() {
     assert!(mutated(|b, _| put_u16(b, FILE_VERSION.start, 3)).is_ok());
     for count in [0u16, 17, u16::MAX] {
         let r = mutated(|b, _| put_u16(b, FILE_AXIS_COUNT.start, count));
-        assert!(matches!(r, Err(Error::BadValue { field: "axis_count", .. })), "axis_count {count}: {r:?}");
+        let expected = Error::BadHeaderValue { field: "axis_count", found: u64::from(count) };
+        assert_eq!(r.err(), Some(expected), "axis_count {count}");
     }
+    let message = mutated(|b, _| put_u16(b, FILE_AXIS_COUNT.start, 0)).err().map(|e| e.to_string());
+    assert_eq!(message.as_deref(), Some("file header: axis_count is 0, outside 1..=16"));
     let r = mutated(|b, _| put_u16(b, FILE_AXIS_COUNT.start, 2));
     assert!(matches!(r, Err(Error::Truncated { .. })), "a second axis that is not there: {r:?}");
     let r = mutated(|b, _| put_u16(b, FILE_HEADER_LEN_FIELD.start, 65));
     assert!(matches!(r, Err(Error::LengthMismatch { field: "header_len", .. })), "{r:?}");
     let r = mutated(|b, _| put_u16(b, FILE_RESERVED.start, 1));
-    assert!(matches!(r, Err(Error::BadValue { field: "reserved", .. })), "{r:?}");
+    assert_eq!(r.err(), Some(Error::BadHeaderValue { field: "reserved", found: 1 }));
     // total_len is checked against the slice before the CRC.
     let r = mutated(|b, _| {
         let n = b.len() as u32;
         put_u32(b, FILE_TOTAL_LEN.start, n + 1);
     });
     assert!(matches!(r, Err(Error::Truncated { field: "total_len", .. })), "{r:?}");
+    // A slice longer than the blob (a flash partition's padding) names what to use instead.
+    let mut padded = two_kb_blob();
+    let blob_len = padded.len();
+    padded.extend_from_slice(&[0xFF; 16]);
+    let message = Model::from_bytes(&padded).err().map(|e| e.to_string()).unwrap_or_default();
+    assert_eq!(
+        message,
+        format!(
+            "total_len says the blob is {blob_len} bytes but {} were given: bytes after the blob \
+             (a flash partition's padding is read with Model::from_flash)",
+            blob_len + 16
+        )
+    );
+    assert!(Model::from_flash(&padded).is_ok());
     // CRC not recomputed.
     let mut b = two_kb_blob();
     b[100] ^= 1;

@@ -46,16 +46,24 @@ pub enum Error {
     BadValue {
         /// Which field.
         field: &'static str,
-        /// Axis section (or 0 for the file header).
+        /// Axis section (file-header fields are [`Error::BadHeaderValue`]).
         axis: u16,
         /// Element index within the field's array (0 for scalars).
         index: u32,
+    },
+    /// A field of the file header (before any axis section) holds a value outside its
+    /// allowed range.
+    BadHeaderValue {
+        /// Which field.
+        field: &'static str,
+        /// The value found.
+        found: u64,
     },
     /// A float field is NaN or infinite.
     NonFinite {
         /// Which field.
         field: &'static str,
-        /// Axis section (or 0 for the file header).
+        /// Axis section.
         axis: u16,
         /// Element index within the field's array (0 for scalars).
         index: u32,
@@ -135,8 +143,21 @@ impl fmt::Display for Error {
                 "model format version {found} is not supported (this build reads versions {} to {expected})",
                 crate::wire::OLDEST_READABLE_VERSION
             ),
+            Error::LengthMismatch { field: "total_len", expected, found } => write!(
+                f,
+                "total_len says the blob is {found} bytes but {expected} were given: bytes after the blob \
+                 (a flash partition's padding is read with Model::from_flash)"
+            ),
             Error::LengthMismatch { field, expected, found } => {
                 write!(f, "{field} is {found} but the data implies {expected}")
+            }
+            Error::BadHeaderValue { field: "axis_count", found } => write!(
+                f,
+                "file header: axis_count is {found}, outside 1..={}",
+                crate::wire::MAX_AXES
+            ),
+            Error::BadHeaderValue { field, found } => {
+                write!(f, "file header: {field} is {found}, outside its allowed range")
             }
             Error::CrcMismatch { expected, found } => {
                 write!(f, "model blob corrupt: CRC-32 is {expected:#010x}, trailer says {found:#010x}")

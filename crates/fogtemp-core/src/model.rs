@@ -298,10 +298,11 @@ impl<'a> Model<'a> {
         }
         let axis_count = u16_at(&header, FILE_AXIS_COUNT.start).unwrap_or(0);
         if axis_count == 0 || axis_count > MAX_AXES {
-            return Err(Error::BadValue { field: "axis_count", axis: 0, index: 0 });
+            return Err(Error::BadHeaderValue { field: "axis_count", found: u64::from(axis_count) });
         }
-        if u16_at(&header, FILE_RESERVED.start) != Some(0) {
-            return Err(Error::BadValue { field: "reserved", axis: 0, index: 0 });
+        let reserved = u16_at(&header, FILE_RESERVED.start).unwrap_or(0);
+        if reserved != 0 {
+            return Err(Error::BadHeaderValue { field: "reserved", found: u64::from(reserved) });
         }
         let model = Model { bytes: body, axis_count, version };
         let mut offset = FILE_HEADER_LEN;

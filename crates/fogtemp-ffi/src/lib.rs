@@ -102,7 +102,7 @@ impl fogtemp_status {
             Error::UnsupportedVersion { .. } => Self::UnsupportedVersion,
             Error::LengthMismatch { .. } => Self::LengthMismatch,
             Error::CrcMismatch { .. } => Self::CrcMismatch,
-            Error::BadValue { .. } => Self::BadValue,
+            Error::BadValue { .. } | Error::BadHeaderValue { .. } => Self::BadValue,
             Error::NonFinite { .. } => Self::NonFinite,
             Error::IndexOutOfRange { .. } => Self::IndexOutOfRange,
             Error::BadMesh { .. } => Self::BadMesh,
@@ -548,6 +548,7 @@ fn details(e: &Error) -> (u32, u32, u64, u64) {
         Error::BadValue { axis, index, .. } | Error::NonFinite { axis, index, .. } => {
             (u32::from(axis), index, 0, 0)
         }
+        Error::BadHeaderValue { found, .. } => (FOGTEMP_NO_AXIS, 0, 0, found),
         Error::IndexOutOfRange { axis, index, value, limit, .. } => {
             (u32::from(axis), index, u64::from(limit), u64::from(value))
         }

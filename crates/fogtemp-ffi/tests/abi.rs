@@ -265,6 +265,16 @@ fn errors_carry_the_axis_and_the_element() {
         assert_eq!(fogtemp_model_axis(&model, 5, &mut axis, &mut err), fogtemp_status::NoSuchAxis);
     }
     assert_eq!((err.needed, err.found, err.axis), (2, 5, FOGTEMP_NO_AXIS));
+    // A file-header field names no axis and carries the value found.
+    let mut blob = GOLDEN.to_vec();
+    let at = fogtemp_core::wire::FILE_AXIS_COUNT.start;
+    blob[at..at + 2].copy_from_slice(&17u16.to_le_bytes());
+    let crc = fogtemp_core::crc::crc32(&blob[..n - 4]);
+    blob[n - 4..].copy_from_slice(&crc.to_le_bytes());
+    // SAFETY: live pointers; `blob` outlives the (failed) model.
+    let status = unsafe { fogtemp_model_from_bytes(blob.as_ptr(), n, &mut model, &mut err) };
+    assert_eq!((status, err.axis, err.found), (fogtemp_status::BadValue, FOGTEMP_NO_AXIS, 17));
+    assert_eq!(message(&err), "file header: axis_count is 17, outside 1..=16");
 }
 
 #[test]
