@@ -34,7 +34,10 @@ impl Flags {
     pub const WARMING_UP: Flags = Flags(0x01);
     /// Features exist but the window is not yet full (noisier than in steady state).
     pub const PARTIAL_WINDOW: Flags = Flags(0x02);
-    /// The features lie outside the calibrated mesh; the outside policy gave the value.
+    /// The features lie outside the calibrated region (blob format 2) or the mesh's hull: a
+    /// polynomial is held at (or continued from) the region's boundary, a mesh outside its
+    /// hull gives its outside policy's value, and inside its hull but outside the region its
+    /// interpolation between nodes that only partial tracker windows reached.
     pub const OUTSIDE_HULL: Flags = Flags(0x04);
     /// No temperature for longer than the model's `max_gap_s`; the bias is held.
     pub const TEMP_STALE: Flags = Flags(0x08);

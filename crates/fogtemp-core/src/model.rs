@@ -211,7 +211,11 @@ impl<'a> Axis<'a> {
         let evaluation = match &self.mesh {
             Some(mesh) => {
                 let m = interpolate(mesh, x, y).map_err(|e| e.at_axis(self.id))?;
-                Evaluation { value_dph: poly + m.value_dph, outside_hull: m.outside_hull || poly_held }
+                // Outside the calibrated region a mesh's value is flagged even where its hull
+                // reaches (nodes from a tracker's partial window, whose rate is noisier).
+                let outside_region = || self.region.is_some_and(|r| !r.contains(x, y));
+                let outside_hull = m.outside_hull || poly_held || outside_region();
+                Evaluation { value_dph: poly + m.value_dph, outside_hull }
             }
             None => Evaluation { value_dph: poly, outside_hull: poly_held },
         };

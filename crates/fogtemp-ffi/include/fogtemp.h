@@ -24,7 +24,8 @@
 #define FOGTEMP_FLAG_PARTIAL_WINDOW 2
 
 // Flag bit: the features lie outside the calibrated mesh (the mesh's outside policy gave its
-// value) or outside the calibrated region of a polynomial held at its boundary (blob format 2).
+// value) or outside the calibrated region (blob format 2: a polynomial is held at its
+// boundary; a mesh still interpolates there, between nodes only partial windows reached).
 #define FOGTEMP_FLAG_OUTSIDE_HULL 4
 
 // Flag bit: no temperature for longer than the model's `max_gap_s`; the bias is held.

@@ -179,7 +179,8 @@ pub const FOGTEMP_FLAG_WARMING_UP: u8 = 0x01;
 /// Flag bit: features exist but the window is not yet full.
 pub const FOGTEMP_FLAG_PARTIAL_WINDOW: u8 = 0x02;
 /// Flag bit: the features lie outside the calibrated mesh (the mesh's outside policy gave its
-/// value) or outside the calibrated region of a polynomial held at its boundary (blob format 2).
+/// value) or outside the calibrated region (blob format 2: a polynomial is held at its
+/// boundary; a mesh still interpolates there, between nodes only partial windows reached).
 pub const FOGTEMP_FLAG_OUTSIDE_HULL: u8 = 0x04;
 /// Flag bit: no temperature for longer than the model's `max_gap_s`; the bias is held.
 pub const FOGTEMP_FLAG_TEMP_STALE: u8 = 0x08;
