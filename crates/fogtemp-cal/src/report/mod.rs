@@ -812,6 +812,11 @@ pub fn write_fit_report(
     let mut md = format!("# Fit of {}\n\n{summary_markdown}\n\n", file_name(model_path));
     let gap_notes: Vec<String> = runs.iter().filter_map(|r| r.gaps.note(&r.path)).collect();
     md.push_str(&bullet_section("Gaps in the time stamps:", &gap_notes));
+    let silences: Vec<String> = runs
+        .iter()
+        .flat_map(|r| (0..r.temperature_silences.len()).filter_map(|axis| r.temperature_silence_note(axis)))
+        .collect();
+    md.push_str(&bullet_section("Temperature silent while the gyro went on:", &silences));
     for axis in 0..model.axis_count() {
         let traces: Vec<RunTrace> = runs
             .iter()
