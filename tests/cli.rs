@@ -1568,3 +1568,26 @@ fn capacity_is_checked_at_fit_validate_compensate_and_exported() {
         .expect("h")
         .contains("#define GYRO_MODEL_CAPACITY 200u"));
 }
+
+/// `validate` on the logs a model was fitted on says the figures are in-sample (the
+/// model's input digest is that of those logs, in order); on other logs it does not.
+#[test]
+fn validate_on_the_fitted_logs_says_in_sample() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let model = dir.path().join("m.fogm");
+    let cal_logs: Vec<PathBuf> =
+        (0..CAL_STARTS.len()).map(|i| logs().cal.join(format!("run{i}.csv"))).collect();
+    let refs: Vec<&Path> = cal_logs.iter().map(PathBuf::as_path).collect();
+    fit("poly", &model, &refs);
+    let stderr = |logs: &[PathBuf]| {
+        let mut args = args!["validate", "--model", &model];
+        args.extend(logs.iter().map(OsString::from));
+        let out = cal().args(args).assert().success();
+        String::from_utf8_lossy(&out.get_output().stderr).into_owned()
+    };
+    let same = stderr(&cal_logs);
+    assert!(same.contains("these 8 logs are the ones") && same.contains("in-sample"), "{same}");
+    let other: Vec<PathBuf> = (0..VAL_STARTS.len()).map(|i| logs().val.join(format!("run{i}.csv"))).collect();
+    let other = stderr(&other);
+    assert!(!other.contains("in-sample"), "{other}");
+}
