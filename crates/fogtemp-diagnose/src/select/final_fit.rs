@@ -296,6 +296,17 @@ pub(super) fn alternatives(steps: &[SelectionStep], k: usize) -> Vec<(String, f6
         .collect()
 }
 
+/// Decimals (5 to 9) that show `a` and `b` apart, with two significant digits of their difference: a review read "LORO RMS 0.00775" for both
+/// the chosen effect and its alternative (0.0077467 against 0.0077478).
+pub(super) fn distinguishing_decimals(a: f64, b: f64) -> usize {
+    let difference = (a - b).abs();
+    if !(difference.is_finite() && difference > 0.0) {
+        return 5;
+    }
+    // Two significant digits of the difference.
+    ((-difference.log10()).floor() as i64 + 2).clamp(5, 9) as usize
+}
+
 /// What chose `chosen` (LORO RMS `chosen_cv`, deg/h) over its `alternatives` at `step`, for
 /// the statement: the encompassing tie-break when it replaced the LORO winner, else the lower
 /// LORO RMS when no alternative's is lower, else parsimony (the fewest coefficients within
@@ -313,7 +324,18 @@ pub(super) fn how_chosen(
             t.loro_winner, t.runner_up_given_winner_p, t.loro_winner, t.winner_given_runner_up_p
         ),
         _ if alternatives.iter().all(|(_, cv)| chosen_cv <= *cv) => {
-            format!("only the lower LORO RMS, {chosen_cv:.5} deg/h, chose {chosen}")
+            let closest = alternatives.iter().min_by(|a, b| a.1.total_cmp(&b.1));
+            match closest {
+                Some((other, other_cv)) => {
+                    let decimals = distinguishing_decimals(chosen_cv, *other_cv);
+                    format!(
+                        "only the lower LORO RMS chose {chosen}: {chosen_cv:.decimals$} against {other_cv:.decimals$} deg/h \
+                         for {other}, {:.3} % lower",
+                        100.0 * (1.0 - chosen_cv / other_cv)
+                    )
+                }
+                None => format!("only the lower LORO RMS, {chosen_cv:.5} deg/h, chose {chosen}"),
+            }
         }
         _ => format!(
             "{chosen}'s LORO RMS, {chosen_cv:.5} deg/h, is within one standard error of the lowest, with fewer \
@@ -476,8 +498,13 @@ pub fn evaluate_final(
                 .iter()
                 .find(|r| r.effect == c.effect.name())
                 .map_or(f64::NAN, |r| r.cv_rms_dph);
-            let list: Vec<String> =
-                alternatives.iter().map(|(e, cv)| format!("{e} (LORO RMS {cv:.5} deg/h)")).collect();
+            let list: Vec<String> = alternatives
+                .iter()
+                .map(|(e, cv)| {
+                    let decimals = distinguishing_decimals(chosen_cv, *cv);
+                    format!("{e} (LORO RMS {cv:.decimals$} deg/h)")
+                })
+                .collect();
             statement.push_str(&format!(
                 "; alternative explanation: {} passed every rule too and no longer does once {} is in ({}); to separate them run {}",
                 list.join(", "),
@@ -576,9 +603,16 @@ mod tests {
         // The tie-break kept the LORO winner: the lower LORO RMS chose it.
         let kept = crate::TieBreak { runner_up_entered: false, ..tie };
         assert_eq!(
-            how_chosen(&step_with(Some(kept)), "thermal_lag", 0.01096, &[("shupe_rate".into(), 0.01101)]),
-            "only the lower LORO RMS, 0.01096 deg/h, chose thermal_lag"
+            how_chosen(&step_with(Some(kept.clone())), "thermal_lag", 0.01096, &[("shupe_rate".into(), 0.01101)]),
+            "only the lower LORO RMS chose thermal_lag: 0.010960 against 0.011010 deg/h for shupe_rate, 0.454 % lower"
         );
+        // A margin below the fifth decimal is shown with the decimals that resolve it (testbed
+        // seed 3's coil lag: 0.0077467 against 0.0077478, both printed 0.00775 before).
+        assert_eq!(
+            how_chosen(&step_with(Some(kept)), "shupe_rate", 0.0077467, &[("thermal_lag".into(), 0.0077478)]),
+            "only the lower LORO RMS chose shupe_rate: 0.0077467 against 0.0077478 deg/h for thermal_lag, 0.014 % lower"
+        );
+        assert_eq!((distinguishing_decimals(1.0, 1.0), distinguishing_decimals(0.1, 0.1 + 1e-12)), (5, 9));
         // No tie-break and an alternative with a lower LORO RMS: parsimony chose.
         assert_eq!(
             how_chosen(&step_with(None), "shupe_rate", 0.01101, &lag),
