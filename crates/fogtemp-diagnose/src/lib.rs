@@ -281,7 +281,7 @@ pub struct Parameter {
 }
 
 /// One catalogue effect the simulation leaves out, as chosen by forward selection.
-#[derive(Clone, Debug, PartialEq, Serialize)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
 pub struct LeftOutEffect {
     /// Catalogue name (`thermal_lag`, `shupe_rate`, ...).
     pub effect: String,

@@ -361,6 +361,26 @@ fn plot_static_shape(
 /// The verdict in two or three lines before the full summary: what the simulation leaves
 /// out and how much it is worth on held-out runs, what the runs cannot tell it from, and
 /// what remains.
+/// One named effect in the verdict: its held-out change and the runs that judge it, or
+/// "possible, small" for a term with no held-out improvement or no run where it is large
+/// enough to judge (the noise model's test accepted it; the held-out runs do not show it, and
+/// a review found an engineer would otherwise add it to the simulation as firmly as the main
+/// effect).
+fn verdict_item(e: &crate::LeftOutEffect) -> String {
+    let runs = if e.folds_informative == 0 {
+        "in no run large enough to judge".to_string()
+    } else {
+        format!("better in {} of {} informative runs", e.folds_improved, e.folds_informative)
+    };
+    let small = e.heldout_improvement <= 0.0 || e.folds_informative == 0;
+    format!(
+        "**{}** ({}{:+.1} % held-out residual, {runs})",
+        e.effect,
+        if small { "possible, small: " } else { "" },
+        -100.0 * e.heldout_improvement,
+    )
+}
+
 fn verdict(d: &Diagnosis) -> String {
     let mut lines = Vec::new();
     if d.left_out.is_empty() {
@@ -369,19 +389,7 @@ fn verdict(d: &Diagnosis) -> String {
                 .to_string(),
         );
     } else {
-        let named: Vec<String> = d
-            .left_out
-            .iter()
-            .map(|e| {
-                format!(
-                    "**{}** ({:+.1} % held-out residual, better in {} of {} informative runs)",
-                    e.effect,
-                    -100.0 * e.heldout_improvement,
-                    e.folds_improved,
-                    e.folds_informative
-                )
-            })
-            .collect();
+        let named: Vec<String> = d.left_out.iter().map(verdict_item).collect();
         lines.push(format!("**Verdict:** the simulation leaves out {}.", named.join(", then ")));
         let alternatives: Vec<String> = d
             .left_out
@@ -686,6 +694,33 @@ mod tests {
         assert_eq!(value_and_error(0.043225, Some(0.0036)), ("0.0432".into(), "0.0036".into()));
         assert_eq!(value_and_error(4.0, None), ("4.000".into(), "- (grid choice)".into()));
         assert_eq!(value_and_error(1800.0, Some(f64::NAN)), ("1800".into(), "- (grid choice)".into()));
+    }
+
+    /// A term judged in no run, or with no held-out improvement, is "possible, small".
+    #[test]
+    fn the_verdict_calls_terms_the_held_out_runs_do_not_show_possible() {
+        let lag = crate::LeftOutEffect {
+            effect: "thermal_lag".into(),
+            heldout_improvement: 0.024,
+            folds_improved: 5,
+            folds_informative: 5,
+            ..Default::default()
+        };
+        assert_eq!(
+            verdict_item(&lag),
+            "**thermal_lag** (-2.4 % held-out residual, better in 5 of 5 informative runs)"
+        );
+        let rate = crate::LeftOutEffect {
+            effect: "gradient_rate".into(),
+            heldout_improvement: 0.005,
+            ..Default::default()
+        };
+        assert_eq!(
+            verdict_item(&rate),
+            "**gradient_rate** (possible, small: -0.5 % held-out residual, in no run large enough to judge)"
+        );
+        let worse = crate::LeftOutEffect { heldout_improvement: -0.01, folds_informative: 3, ..lag };
+        assert!(verdict_item(&worse).contains("(possible, small: +1.0 %"), "{}", verdict_item(&worse));
     }
 
     #[test]
