@@ -622,7 +622,11 @@ pub struct EvaluateArgs {
 #[derive(Debug, Args)]
 pub struct InspectArgs {
     /// Model file.
-    pub model: PathBuf,
+    #[arg(required_unless_present = "model_flag", conflicts_with = "model_flag", value_name = "MODEL")]
+    pub model: Option<PathBuf>,
+    /// Model file, as the other commands take it (`--model m.fogm` or `-m m.fogm`).
+    #[arg(long = "model", short = 'm', id = "model_flag", value_name = "MODEL")]
+    pub model_flag: Option<PathBuf>,
     /// Print one JSON document on stdout.
     #[arg(long)]
     pub json: bool,

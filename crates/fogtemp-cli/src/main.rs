@@ -63,12 +63,20 @@ fn main() -> std::process::ExitCode {
 /// One paragraph: the error and its causes, each with the command-line hint that fits it.
 fn error_paragraph(e: &anyhow::Error) -> String {
     let mut message = String::from("error: ");
+    let mut previous = String::new();
     for (k, cause) in e.chain().enumerate() {
+        let text = cause.to_string();
+        // A context that already quotes its cause ("x.csv: File exists (os error 17)") is
+        // not followed by that cause again.
+        if k > 0 && previous.contains(&text) {
+            continue;
+        }
         if k > 0 {
             message.push_str("\n  caused by: ");
         }
-        message.push_str(&cause.to_string());
+        message.push_str(&text);
         message.push_str(flag_hint(cause).unwrap_or_default());
+        previous = text;
     }
     message
 }
@@ -121,5 +129,24 @@ fn flag_hint(e: &(dyn std::error::Error + 'static)) -> Option<&'static str> {
             Some("; check --temp-column, or set --max-gap-s and --window-s to suit the temperature sampling")
         }
         _ => None,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A cause already quoted by the context above it is not printed again; other causes are.
+    #[test]
+    fn a_cause_quoted_by_its_context_is_not_repeated() {
+        let io = std::io::Error::new(std::io::ErrorKind::AlreadyExists, "File exists (os error 17)");
+        let quoted = anyhow::Error::new(io).context("rep: File exists (os error 17)");
+        assert_eq!(error_paragraph(&quoted), "error: rep: File exists (os error 17)");
+        let io = std::io::Error::new(std::io::ErrorKind::NotFound, "No such file or directory (os error 2)");
+        let other = anyhow::Error::new(io).context("reading run.csv");
+        assert_eq!(
+            error_paragraph(&other),
+            "error: reading run.csv\n  caused by: No such file or directory (os error 2)"
+        );
     }
 }

@@ -56,6 +56,9 @@ fn manifest_meta(dir: &Path) -> Result<BTreeMap<String, RunMeta>> {
 
 /// The `diagnose` command.
 pub fn diagnose(a: DiagnoseArgs, recorded_ingest: IngestOptions) -> Result<()> {
+    if let Some(dir) = &a.report {
+        crate::output::check_report_folder(dir)?;
+    }
     let simulated = expand_logs(std::slice::from_ref(&a.simulated))?;
     let recorded = expand_logs(std::slice::from_ref(&a.recorded))?;
     let pairs = inputs::pair(&simulated, &recorded)?;

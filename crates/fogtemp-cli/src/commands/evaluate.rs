@@ -7,10 +7,11 @@ use fogtemp_core::{Flags, Model, WalkHint};
 
 use super::read_model;
 use crate::args::EvaluateArgs;
-use crate::output::{refuse_overwriting_inputs, write_atomic};
+use crate::output::{check_output_file, refuse_overwriting_inputs, write_atomic};
 
 pub fn evaluate(a: EvaluateArgs) -> Result<()> {
     if let Some(out) = &a.out {
+        check_output_file(out)?;
         refuse_overwriting_inputs(out, &[&a.model, &a.points])?;
     }
     let blob = read_model(&a.model)?;

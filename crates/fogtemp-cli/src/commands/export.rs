@@ -4,9 +4,10 @@ use anyhow::{bail, Result};
 
 use super::read_model;
 use crate::args::{ExportArgs, ExportFormat};
-use crate::output::{refuse_overwriting_inputs, stage, write_atomic};
+use crate::output::{check_output_file, refuse_overwriting_inputs, stage, write_atomic};
 
 pub fn export(a: ExportArgs) -> Result<()> {
+    check_output_file(&a.out)?;
     refuse_overwriting_inputs(&a.out, &[&a.model])?;
     if a.format == ExportFormat::C {
         if a.out.with_extension("h") == a.out {

@@ -8,14 +8,17 @@ use crate::args::InspectArgs;
 
 /// The `inspect` command.
 pub fn inspect(a: InspectArgs) -> Result<()> {
-    let blob = read_model(&a.model)?;
-    let doc = ModelDocument::new(&a.model, &blob).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let Some(model) = a.model.or(a.model_flag) else {
+        anyhow::bail!("give the model file: fogtemp-cal inspect MODEL (or --model MODEL)");
+    };
+    let blob = read_model(&model)?;
+    let doc = ModelDocument::new(&model, &blob).map_err(|e| anyhow::anyhow!("{e}"))?;
     if a.json {
         return print_json(&doc);
     }
     println!(
         "{}: fogtemp model, format {}, {} bytes, written by '{}', input digest {}",
-        a.model.display(),
+        model.display(),
         doc.format_version,
         doc.bytes,
         doc.tool_version,

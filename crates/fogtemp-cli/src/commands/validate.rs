@@ -27,6 +27,9 @@ fn stability_options(a: &StabilityArgs) -> Result<BiasStabilityOptions> {
 
 /// The `validate` command.
 pub fn validate(a: ValidateArgs) -> Result<()> {
+    if let Some(dir) = &a.report {
+        crate::output::check_report_folder(dir)?;
+    }
     let blob = read_model(&a.model)?;
     check_capacity(&a.model, &blob, a.capacity)?;
     let model = Model::from_bytes(&blob).map_err(|e| anyhow::anyhow!("{e}"))?;
