@@ -378,6 +378,8 @@ pub struct ModelAxisDocument {
     /// Vertices of the calibrated region stored in the blob (its convex hull in the
     /// normalised plane; 0 for none, as in format 1).
     pub region_vertex_count: u32,
+    /// Those vertices, counter-clockwise, normalised and in deg C and deg C/min.
+    pub region: Vec<RegionVertexDocument>,
     /// What the fit saw.
     pub provenance: ProvenanceDocument,
     /// Polynomial terms, when the axis has a polynomial.
@@ -454,6 +456,18 @@ impl ModelAxisDocument {
                 fogtemp_core::PolyOutside::LinearFromBoundary => "linear_from_boundary",
             }),
             region_vertex_count: axis.region.as_ref().map_or(0, |r| r.vertex_count()),
+            region: axis.region.as_ref().map_or_else(Vec::new, |r| {
+                (0..r.vertex_count())
+                    .filter_map(|i| r.vertex(i))
+                    .map(|(x, y)| RegionVertexDocument {
+                        x: f64::from(x),
+                        y: f64::from(y),
+                        temp_c: f64::from(x) / f64::from(n.temp_scale_per_c) + f64::from(n.temp_offset_c),
+                        rate_c_per_min: f64::from(y) / f64::from(n.rate_scale_per_c_per_min)
+                            + f64::from(n.rate_offset_c_per_min),
+                    })
+                    .collect()
+            }),
             provenance: ProvenanceDocument {
                 fit_point_count: p.fit_point_count,
                 residual_rms_dph: f64::from(p.residual_rms_dph),
@@ -540,6 +554,19 @@ pub struct PolyTermDocument {
     pub rate_power: u8,
     /// Coefficient, deg/h.
     pub coefficient_dph: f64,
+}
+
+/// One vertex of the calibrated region (`inspect --json`: `axes[].region[]`).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct RegionVertexDocument {
+    /// Normalised temperature.
+    pub x: f64,
+    /// Normalised rate.
+    pub y: f64,
+    /// Temperature, deg C.
+    pub temp_c: f64,
+    /// Temperature rate, deg C/min.
+    pub rate_c_per_min: f64,
 }
 
 /// One mesh node in physical units.

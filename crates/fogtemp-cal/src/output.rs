@@ -156,6 +156,24 @@ mod tests {
         assert_eq!(std::fs::read_to_string(&path).expect("read"), "new");
     }
 
+    /// A destination that is a folder fails at the rename; the temporary file is removed and
+    /// the folder untouched (the commands check for this before their work; this is the
+    /// guard behind that check).
+    #[test]
+    fn a_failed_rename_leaves_no_temporary_file() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let taken = dir.path().join("taken");
+        std::fs::create_dir(&taken).expect("mkdir");
+        let err = write_file_atomic(&taken, |w| w.write_all(b"x")).expect_err("a folder is in the way");
+        assert!(err.to_string().contains("cannot move the output into place"), "{err}");
+        let names: Vec<String> = std::fs::read_dir(dir.path())
+            .expect("list")
+            .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
+            .collect();
+        assert_eq!(names, ["taken"], "no temporary file left");
+        assert!(taken.is_dir() && std::fs::read_dir(&taken).expect("list").next().is_none());
+    }
+
     #[test]
     fn a_missing_folder_is_named() {
         let dir = tempfile::tempdir().expect("temp dir");

@@ -17,6 +17,7 @@ pub fn export(a: ExportArgs) -> Result<()> {
                 a.out.with_extension("c").display()
             );
         }
+        check_output_file(&a.out.with_extension("h"))?;
         refuse_overwriting_inputs(&a.out.with_extension("h"), &[&a.model])?;
     }
     let blob = read_model(&a.model)?;
