@@ -4,6 +4,7 @@ use anyhow::{bail, Context, Result};
 use fogtemp_cal::calibrate::{self, CalibrationConfig, Method, Thinning};
 use fogtemp_cal::cv_correction::CvCorrection;
 use fogtemp_cal::documents::FitDocument;
+use fogtemp_cal::identifiability::WarningKind;
 use fogtemp_cal::poly_fit::TermSelection;
 use fogtemp_cal::runs::{Role, RunsFile};
 use fogtemp_cal::selection::{CvScheme, CvScoring, Grouping, RuleScale, SelectionOptions};
@@ -152,7 +153,13 @@ pub fn fit(a: FitArgs) -> Result<()> {
     .context("fitting the model")?;
     bar.finish_and_clear();
     for (axis, r) in fitted.axes.iter().enumerate() {
-        if let Some(warning) = r.selection.as_ref().and_then(|s| s.warning.as_ref()) {
+        let Some(selection) = r.selection.as_ref() else { continue };
+        // Too few runs to cross-validate was said already (`too_few_runs`); the summary below
+        // says the method was the default.
+        let said = selection.grouping == Grouping::Runs
+            && selection.folds < fogtemp_cal::selection::MIN_FOLDS
+            && warnings.iter().any(|w| w.axis == axis && w.kind == WarningKind::TooFewRuns);
+        if let Some(warning) = selection.warning.as_ref().filter(|_| !said) {
             eprintln!("warning: axis {axis}: {warning}");
         }
     }
