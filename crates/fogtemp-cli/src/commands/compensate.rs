@@ -54,7 +54,7 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
                 previous_s = Some(row.time_s);
                 record.clear();
                 // The log's own time stamp, so the output joins other channels by time.
-                record.push(format!("{}", row.origin_s + row.time_s));
+                record.push(time_text(row.origin_s + row.time_s));
                 let time_us = row.time_us();
                 for (i, comp) in comps.iter_mut().enumerate() {
                     let temp = row.temp_c_for_axis(i);
@@ -148,4 +148,31 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// A time stamp to the nanosecond, without trailing zeros: the log's own time, without the
+/// float noise of re-adding its origin (`0.019000000000000128` was written for 0.019).
+fn time_text(time_s: f64) -> String {
+    let text = format!("{time_s:.9}");
+    let trimmed = text.trim_end_matches('0').trim_end_matches('.');
+    if trimmed.is_empty() || trimmed == "-" {
+        "0".to_string()
+    } else {
+        trimmed.to_string()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::time_text;
+
+    #[test]
+    fn time_stamps_are_written_without_float_noise() {
+        assert_eq!(time_text(0.019000000000000128), "0.019");
+        assert_eq!(time_text(1_700_000_000.25), "1700000000.25");
+        assert_eq!(time_text(12.0), "12");
+        assert_eq!(time_text(0.0), "0");
+        assert_eq!(time_text(-0.5), "-0.5");
+        assert_eq!(time_text(3.000_000_001), "3.000000001");
+    }
 }
