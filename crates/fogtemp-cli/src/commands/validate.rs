@@ -115,13 +115,18 @@ pub fn validate(a: ValidateArgs) -> Result<()> {
     }
     println!("{:<40} {:>4} {:>14.5} {:>14.5} {:>8.2}", "overall (RMS over runs)", "", raw, comp, raw / comp);
     if !comparison.is_empty() {
-        println!("\nmodels compared on the same logs:");
+        println!("\nmodels compared on the same logs (overall, RMS over runs):");
+        println!(
+            "{:<40} {:>11} {:>8} {:>14} {:>14} {:>8}",
+            "model", "mesh nodes", "terms", "raw deg/h", "comp deg/h", "ratio"
+        );
         for c in &comparison {
             println!(
-                "{:<40} {:>6} nodes {:>3} terms {:>14.5} {:>8.2}",
+                "{:<40} {:>11} {:>8} {:>14.5} {:>14.5} {:>8.2}",
                 c.model,
                 c.mesh_nodes,
                 c.polynomial_terms,
+                c.raw_bias_stability_dph,
                 c.compensated_bias_stability_dph,
                 c.raw_bias_stability_dph / c.compensated_bias_stability_dph
             );
