@@ -101,11 +101,13 @@ pub fn validate(a: ValidateArgs) -> Result<()> {
         return nothing_validated(runs);
     }
     println!("{}", options.describe());
-    println!("{:<40} {:>4} {:>14} {:>14} {:>8}", "run", "axis", "raw deg/h", "comp deg/h", "ratio");
-    for r in runs {
-        let name = r.path.file_name().map_or_else(String::new, |n| n.to_string_lossy().into_owned());
+    let names = run_labels(runs);
+    // As wide as the longest name, so that long names do not push the columns out of line.
+    let width = names.iter().map(|n| n.chars().count() + 1).max().unwrap_or(0).max(40);
+    println!("{:<width$} {:>4} {:>14} {:>14} {:>8}", "run", "axis", "raw deg/h", "comp deg/h", "ratio");
+    for (r, name) in runs.iter().zip(&names) {
         println!(
-            "{:<40} {:>4} {:>14.5} {:>14.5} {:>8.2}",
+            "{:<width$} {:>4} {:>14.5} {:>14.5} {:>8.2}",
             name,
             r.axis,
             r.raw_bias_stability_dph,
@@ -113,7 +115,14 @@ pub fn validate(a: ValidateArgs) -> Result<()> {
             r.raw_bias_stability_dph / r.compensated_bias_stability_dph
         );
     }
-    println!("{:<40} {:>4} {:>14.5} {:>14.5} {:>8.2}", "overall (RMS over runs)", "", raw, comp, raw / comp);
+    println!(
+        "{:<width$} {:>4} {:>14.5} {:>14.5} {:>8.2}",
+        "overall (RMS over runs)",
+        "",
+        raw,
+        comp,
+        raw / comp
+    );
     if !comparison.is_empty() {
         println!("\nmodels compared on the same logs (overall, RMS over runs):");
         println!(
@@ -191,4 +200,22 @@ fn in_sample_note(model_path: &Path, digest: [u8; 32], logs: &[PathBuf]) -> Resu
             log.display()
         )
     }))
+}
+
+/// Each run's label in the table: its file name, or its path as given where two logs share
+/// a file name (`day1/run.csv`, `day2/run.csv` both read `run.csv` before).
+fn run_labels(runs: &[calibrate::RunValidation]) -> Vec<String> {
+    let file_name = |p: &Path| p.file_name().map_or_else(String::new, |n| n.to_string_lossy().into_owned());
+    let names: Vec<String> = runs.iter().map(|r| file_name(&r.path)).collect();
+    runs.iter()
+        .zip(&names)
+        .map(|(r, name)| {
+            let shared = runs.iter().zip(&names).any(|(other, n)| n == name && other.path != r.path);
+            if shared {
+                r.path.display().to_string()
+            } else {
+                name.clone()
+            }
+        })
+        .collect()
 }
