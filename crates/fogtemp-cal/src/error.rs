@@ -140,7 +140,14 @@ fn similar_note(similar: &[String]) -> String {
         [] => String::new(),
         names => {
             let quoted: Vec<String> = names.iter().map(|n| format!("'{n}'")).collect();
-            format!("; perhaps {}", quoted.join(" or "))
+            // A Latin-1 header ('°C') reads with replacement characters nobody can type.
+            let not_utf8 = if names.iter().any(|n| n.contains('\u{FFFD}')) {
+                " (the header is not UTF-8, so a character reads as '\u{FFFD}': skip the header line \
+                 and name the columns yourself)"
+            } else {
+                ""
+            };
+            format!("; perhaps {}{not_utf8}", quoted.join(" or "))
         }
     }
 }
@@ -223,5 +230,20 @@ fn line_suffix(line: u64) -> String {
         String::new()
     } else {
         format!(":{line}")
+    }
+}
+
+#[cfg(test)]
+mod similar_name_tests {
+    use super::similar_note;
+
+    /// A suggested name with a replacement character (a Latin-1 header) says why and what to do.
+    #[test]
+    fn a_header_that_is_not_utf8_is_named_as_such() {
+        assert_eq!(similar_note(&[]), "");
+        assert_eq!(similar_note(&["Temp_C".into()]), "; perhaps 'Temp_C'");
+        let note = similar_note(&["temp_\u{FFFD}C".into()]);
+        assert!(note.starts_with("; perhaps 'temp_\u{FFFD}C' (the header is not UTF-8"), "{note}");
+        assert!(note.contains("name the columns yourself"), "{note}");
     }
 }
