@@ -134,7 +134,7 @@ pub enum CalError {
     Interrupted,
 }
 
-/// `:line` for a known line, nothing for 0.
+/// `; perhaps 'a' or 'b'` for header names close to a missing column's, nothing without any.
 fn similar_note(similar: &[String]) -> String {
     match similar {
         [] => String::new(),
@@ -152,6 +152,7 @@ fn similar_note(similar: &[String]) -> String {
     }
 }
 
+/// `:line` for a known line, nothing for 0.
 fn at_line(line: u64) -> String {
     if line == 0 {
         String::new()
