@@ -232,7 +232,6 @@ impl RunFeatures {
     /// The note for axis `axis`'s temperature silences (`None` without any).
     pub fn temperature_silence_note(&self, axis: usize) -> Option<String> {
         let gaps = self.temperature_silences.get(axis)?;
-        let seconds = |s: f64| if s < 10.0 { format!("{s:.1}") } else { format!("{s:.0}") };
         let place = if gaps.in_samples { "sample" } else { "line" };
         match gaps.count {
             0 => None,
@@ -402,8 +401,6 @@ impl TimeGaps {
 
     /// The note with the threshold described as `threshold` (e.g. "2 s").
     pub fn note_against(&self, path: &Path, threshold: &str, consequence: &str) -> Option<String> {
-        // Whole seconds, but a tenth under 10 s (a 3.5 s gap is not "4 s").
-        let seconds = |s: f64| if s < 10.0 { format!("{s:.1}") } else { format!("{s:.0}") };
         let place = if self.in_samples { "sample" } else { "line" };
         (self.count > 0).then(|| {
             format!(
@@ -524,6 +521,15 @@ pub(crate) fn extract_with(
         temperature_spikes,
         temperature_silences,
     })
+}
+
+/// A duration in a note: whole seconds, but a tenth under 10 s (a 3.5 s gap is not "4 s").
+fn seconds(s: f64) -> String {
+    if s < 10.0 {
+        format!("{s:.1}")
+    } else {
+        format!("{s:.0}")
+    }
 }
 
 /// Stretches longer than the tracker's `max_gap_s` without a temperature reading while rows
