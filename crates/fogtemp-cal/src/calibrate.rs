@@ -1423,21 +1423,7 @@ pub fn temperature_spike_note(name: &str, log: &Path, spikes: &AxisSpikes) -> Op
     if spikes.count == 0 {
         return None;
     }
-    let named: Vec<String> = spikes
-        .first
-        .iter()
-        .take(NAMED)
-        .map(|s| {
-            format!(
-                "{}:{} {:.2} C between {:.2} and {:.2} C",
-                log.display(),
-                s.line,
-                s.temp_c,
-                s.before_c,
-                s.after_c
-            )
-        })
-        .collect();
+    let named: Vec<String> = spikes.first.iter().take(NAMED).map(|s| s.describe(log, None)).collect();
     let more = spikes.count.saturating_sub(named.len() as u64);
     let more = if more > 0 { format!(" and {more} more") } else { String::new() };
     let readings = if spikes.count == 1 {

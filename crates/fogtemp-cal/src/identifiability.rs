@@ -203,16 +203,7 @@ fn temperature_spikes(runs: &[RunFeatures], axis: usize, column: &str) -> Option
         .iter()
         .flat_map(|(run, spikes)| spikes.first.iter().map(move |s| (run, s)))
         .take(NAMED_SPIKES)
-        .map(|(run, s)| {
-            format!(
-                "{}:{} {column} {:.2} C between {:.2} and {:.2} C",
-                run.path.display(),
-                s.line,
-                s.temp_c,
-                s.before_c,
-                s.after_c
-            )
-        })
+        .map(|(run, s)| s.describe(&run.path, Some(column)))
         .collect();
     let more = total.saturating_sub(named.len() as u64);
     let more = if more > 0 { format!("; and {more} more") } else { String::new() };

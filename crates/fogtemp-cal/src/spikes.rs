@@ -41,6 +41,21 @@ pub struct TemperatureSpike {
     pub after_c: f64,
 }
 
+impl TemperatureSpike {
+    /// `log:line [column ]T C between B and A C`, as the warnings and notes list it.
+    pub fn describe(&self, log: &std::path::Path, column: Option<&str>) -> String {
+        let column = column.map_or_else(String::new, |c| format!("{c} "));
+        format!(
+            "{}:{} {column}{:.2} C between {:.2} and {:.2} C",
+            log.display(),
+            self.line,
+            self.temp_c,
+            self.before_c,
+            self.after_c
+        )
+    }
+}
+
 /// The spikes of one axis of one run.
 #[derive(Clone, Debug, Default, PartialEq, Serialize)]
 pub struct AxisSpikes {
