@@ -20,8 +20,9 @@
 //!   cross-validation needs at least 3 runs so that every fit still sees 2 runs and the
 //!   spread over folds has a degree of freedom beyond one difference.
 //! - `narrow_temperature_range`: when the temperature range the model will be used over is
-//!   known, any part of it outside the calibrated range (there a polynomial, by default,
-//!   continues linearly from its boundary and a mesh from its hull). Otherwise a
+//!   known, any part of it outside the calibrated range (that of the region's points,
+//!   [`crate::calibrate::CalibrationPoints::region_points`], as the model stores it; there a
+//!   polynomial, by default, continues linearly from its boundary and a mesh from its hull). Otherwise a
 //!   calibrated span below [`MIN_TEMP_SPAN_C`] = 20 C: one power-on's self-heating alone spans 5-20 C
 //!   (docs/physics.md, ranges), so a narrower calibration has not varied the ambient
 //!   temperature and cannot tell the temperature's effect from the warm-up's.
@@ -425,7 +426,8 @@ fn temperature_range(
     axis: usize,
     settings: &IdentifiabilitySettings,
 ) -> Option<Warning> {
-    let (lo, hi) = min_max(points.points.iter().map(|p| p.temp_c));
+    // The calibrated range, as the model stores it: that of the region's points.
+    let (lo, hi) = min_max(points.region_points().iter().map(|p| p.temp_c));
     let span = hi - lo;
     match settings.operating_temp_c {
         Some((op_lo, op_hi)) => {
