@@ -1222,8 +1222,12 @@ impl<'m> Replayer<'m> {
         self.previous_s = Some(row.time_s);
         let temp = row.temp_c_for_axis(self.axis);
         let raw = row.gyros_dph[self.axis];
-        let sample = Sample { time_s: row.time_s, gyro_dph: raw, temp_c: temp, line: row.line };
-        self.spikes.push(sample, &mut |_| {});
+        // Only readings: rows without one change no verdict, and the guard would hold them
+        // for nothing.
+        if temp.is_finite() {
+            let sample = Sample { time_s: row.time_s, gyro_dph: raw, temp_c: temp, line: row.line };
+            self.spikes.push(sample, &mut |_| {});
+        }
         let out = self.comp.step(row.time_us(), raw as f32, temp.is_finite().then_some(temp as f32));
         if self.series.compensating_from_s.is_nan() && out.flags.0 & fogtemp_core::Flags::WARMING_UP.0 == 0 {
             self.series.compensating_from_s = row.time_s;

@@ -291,4 +291,24 @@ mod tests {
         assert_eq!(spikes.first.len(), MAX_LISTED_SPIKES);
         assert_eq!(out.iter().filter(|s| s.temp_c.is_nan()).count(), 50);
     }
+
+    /// Detection only (`validate`, `compensate` give the guard readings alone): the same
+    /// spikes as with every row, also where readings are further apart than the gap.
+    #[test]
+    fn readings_alone_find_the_same_spikes_as_every_row() {
+        let temps: Vec<f64> = (0..60)
+            .map(|k| match k {
+                k if k % 3 != 0 => f64::NAN,
+                12 | 45 => 80.0,
+                k if (24..36).contains(&k) => f64::NAN, // a 12 s silence: not judged across it
+                _ => 20.0,
+            })
+            .collect();
+        let rows = samples(&temps);
+        let readings: Vec<Sample> = rows.iter().copied().filter(|s| s.temp_c.is_finite()).collect();
+        let (_, every) = guarded(&rows, 5.0);
+        let (_, alone) = guarded(&readings, 5.0);
+        assert_eq!(every, alone);
+        assert_eq!(every.count, 2);
+    }
 }

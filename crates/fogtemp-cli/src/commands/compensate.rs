@@ -58,13 +58,16 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
                 let time_us = row.time_us();
                 for (i, comp) in comps.iter_mut().enumerate() {
                     let temp = row.temp_c_for_axis(i);
-                    let sample = Sample {
-                        time_s: row.time_s,
-                        gyro_dph: row.gyros_dph[i],
-                        temp_c: temp,
-                        line: row.line,
-                    };
-                    spike_guards[i].push(sample, &mut |_| {});
+                    // Only readings: rows without one change no verdict.
+                    if temp.is_finite() {
+                        let sample = Sample {
+                            time_s: row.time_s,
+                            gyro_dph: row.gyros_dph[i],
+                            temp_c: temp,
+                            line: row.line,
+                        };
+                        spike_guards[i].push(sample, &mut |_| {});
+                    }
                     let o =
                         comp.step(time_us, row.gyros_dph[i] as f32, temp.is_finite().then_some(temp as f32));
                     record.push(format!("{}", row.gyros_dph[i]));
