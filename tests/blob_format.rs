@@ -32,7 +32,7 @@ use std::sync::Once;
 
 use common::{bias_surface, paper_points, random_points, rng, FEATURES, NORMALISATION};
 use fogtemp_cal::blob::triangle_transform;
-use fogtemp_cal::{build_mesh, encode, AxisModel, CalError, MeshModel, MeshPoint, ModelFile};
+use fogtemp_cal::{build_mesh, encode, AxisModel, CalError, ColumnNames, MeshModel, MeshPoint, ModelFile};
 use fogtemp_core::wire::*;
 use fogtemp_core::{
     AxisProvenance, Error, FeatureSettings, Model, Normalisation, OutsidePolicy, PolyTerm, Vertex, WalkHint,
@@ -40,7 +40,8 @@ use fogtemp_core::{
 use rand::Rng;
 use shared::{
     core_digest, exercise, fix_crc, fix_len_and_crc, golden_queries, put_f32, put_u16, put_u32, u16_at,
-    u32_at, GOLDEN_HEADER, GOLDEN_V2_BLOB, GOLDEN_V2_CSV, GOLDEN_V3_BLOB, GOLDEN_V3_CSV,
+    u32_at, GOLDEN_HEADER, GOLDEN_V2_BLOB, GOLDEN_V2_CSV, GOLDEN_V3_BLOB, GOLDEN_V3_CSV, GOLDEN_V4_BLOB,
+    GOLDEN_V4_COLUMNS, GOLDEN_V4_CSV,
 };
 
 // ---------------------------------------------------------------------------------------------
@@ -152,6 +153,7 @@ fn three_axis_model() -> ModelFile {
         tool_version: "fogtemp rt 0.1".into(),
         input_digest: core_digest(),
         axes: vec![axis0, axis1, axis2],
+        columns: Vec::new(),
     }
 }
 
@@ -172,8 +174,13 @@ fn two_kb_axis(policy: OutsidePolicy) -> AxisModel {
 /// A valid one-axis hybrid blob of about 2 KB ([`two_kb_axis`], nearest-hull policy).
 fn two_kb_blob() -> Vec<u8> {
     let axis = two_kb_axis(OutsidePolicy::NearestHull);
-    encode(&ModelFile { tool_version: "fogtemp 2k".into(), input_digest: [3; 32], axes: vec![axis] })
-        .expect("encodes")
+    encode(&ModelFile {
+        tool_version: "fogtemp 2k".into(),
+        input_digest: [3; 32],
+        axes: vec![axis],
+        columns: Vec::new(),
+    })
+    .expect("encodes")
 }
 
 fn bits(v: f32) -> u32 {
@@ -411,7 +418,12 @@ fn golden_model() -> ModelFile {
         mesh: None,
         provenance: provenance(6.0),
     };
-    ModelFile { tool_version: "fogtemp golden".into(), input_digest: core_digest(), axes: vec![axis0, axis1] }
+    ModelFile {
+        tool_version: "fogtemp golden".into(),
+        input_digest: core_digest(),
+        axes: vec![axis0, axis1],
+        columns: Vec::new(),
+    }
 }
 
 /// The version-3 golden model: the version-2 one with axis 0's mesh continued by stored hull
@@ -419,6 +431,16 @@ fn golden_model() -> ModelFile {
 fn golden_model_v3() -> ModelFile {
     let mut model = golden_model();
     model.axes[0].outside_policy = OutsidePolicy::StoredGradients;
+    model
+}
+
+/// The version-4 golden model: the version-3 one with each axis's log columns recorded.
+fn golden_model_v4() -> ModelFile {
+    let mut model = golden_model_v3();
+    model.columns = GOLDEN_V4_COLUMNS
+        .iter()
+        .map(|(gyro, temp)| ColumnNames { gyro: (*gyro).into(), temp: (*temp).into() })
+        .collect();
     model
 }
 
@@ -440,6 +462,7 @@ fn bless_if_requested() {
         for (model, blob_name, csv_name) in [
             (golden_model(), GOLDEN_V2_BLOB, GOLDEN_V2_CSV),
             (golden_model_v3(), GOLDEN_V3_BLOB, GOLDEN_V3_CSV),
+            (golden_model_v4(), GOLDEN_V4_BLOB, GOLDEN_V4_CSV),
         ] {
             let blob = encode(&model).expect("golden model encodes");
             let parsed = Model::from_bytes(&blob).expect("parses");
@@ -504,6 +527,54 @@ fn golden_v3_blob_is_reproduced_byte_for_byte_by_todays_writer() {
         differ += usize::from(bits(e2.value_dph) != bits(e3.value_dph));
     }
     assert!(differ > 0, "the golden queries reach beyond the hull");
+}
+
+#[test]
+fn golden_v4_blob_is_reproduced_byte_for_byte_by_todays_writer() {
+    let golden = read_golden(GOLDEN_V4_BLOB);
+    let today = encode(&golden_model_v4()).expect("encodes");
+    assert_eq!(u16_at(&golden, FILE_VERSION.start), 4);
+    assert!(today == golden, "the writer's output for the version-4 golden model changed");
+    // Version 4 is version 3 with the names section before the CRC: the same axis sections,
+    // and the section laid out as docs/model-format.md says, counted here by hand.
+    let v3 = read_golden(GOLDEN_V3_BLOB);
+    let axes_end = v3.len() - CRC_LEN;
+    assert_eq!(golden[FILE_HEADER_LEN..axes_end], v3[FILE_HEADER_LEN..axes_end]);
+    let mut expected = Vec::new();
+    for (gyro, temp) in GOLDEN_V4_COLUMNS {
+        for name in [gyro, temp] {
+            expected.push(name.len() as u8);
+            expected.extend_from_slice(name.as_bytes());
+        }
+    }
+    // "gyro_x" 6 + "temp_c" 6 + "Drehrate Y (°/h)" 17 (the degree sign is two bytes) + "T_y" 3,
+    // plus four length bytes and the four of names_len.
+    assert_eq!(expected.len(), 6 + 6 + 17 + 3 + 4);
+    let names = &golden[axes_end..golden.len() - CRC_LEN];
+    assert_eq!(u32_at(names, 0) as usize, 4 + expected.len());
+    assert_eq!(names[4..], expected[..]);
+}
+
+#[test]
+fn column_names_are_one_per_axis_and_a_name_the_section_cannot_hold_is_not_recorded() {
+    let mut model = golden_model_v4();
+    model.columns.pop();
+    match encode(&model) {
+        Err(CalError::Encode(fogtemp_cal::error::EncodeProblem::ColumnNameCount { names: 1, axes: 2 })) => {}
+        other => panic!("one pair for two axes: {other:?}"),
+    }
+    let mut model = golden_model_v4();
+    model.columns[0].gyro = "g".repeat(256);
+    model.columns[1].temp = "tab\there".into();
+    let blob = encode(&model).expect("encodes");
+    let parsed = Model::from_bytes(&blob).expect("parses");
+    let (a0, a1) = (parsed.axis_columns(0).expect("axis 0"), parsed.axis_columns(1).expect("axis 1"));
+    assert_eq!((a0.gyro, a0.temp), ("", "temp_c"));
+    assert_eq!((a1.gyro, a1.temp), ("Drehrate Y (°/h)", ""));
+    // 255 bytes is the longest name kept.
+    model.columns[0].gyro = "g".repeat(255);
+    let blob = encode(&model).expect("encodes");
+    assert_eq!(Model::from_bytes(&blob).expect("parses").axis_columns(0).expect("axis 0").gyro.len(), 255);
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -749,10 +820,13 @@ fn find_slot(b: &[u8], s: Section, want: impl Fn(u32) -> bool) -> (usize, usize)
 fn targeted_header_corruptions_give_their_specific_errors() {
     let r = mutated(|b, _| b[0] = b'X');
     assert!(matches!(r, Err(Error::BadMagic)), "{r:?}");
-    let r = mutated(|b, _| put_u16(b, FILE_VERSION.start, 4));
-    assert!(matches!(r, Err(Error::UnsupportedVersion { expected: 3, found: 4 })), "{r:?}");
+    let r = mutated(|b, _| put_u16(b, FILE_VERSION.start, 5));
+    assert!(matches!(r, Err(Error::UnsupportedVersion { expected: 4, found: 5 })), "{r:?}");
     let r = mutated(|b, _| put_u16(b, FILE_VERSION.start, 0));
-    assert!(matches!(r, Err(Error::UnsupportedVersion { expected: 3, found: 0 })), "{r:?}");
+    assert!(matches!(r, Err(Error::UnsupportedVersion { expected: 4, found: 0 })), "{r:?}");
+    // Version 4 has a names section after the axes: a blob without one ends early.
+    let r = mutated(|b, _| put_u16(b, FILE_VERSION.start, 4));
+    assert!(matches!(r, Err(Error::Truncated { field: "names_len", .. })), "{r:?}");
     // Version 3 differs from 2 only with outside_policy 3: this blob reads the same as either.
     assert!(mutated(|b, _| put_u16(b, FILE_VERSION.start, 3)).is_ok());
     for count in [0u16, 17, u16::MAX] {
@@ -957,7 +1031,12 @@ fn encode_mesh(mesh: MeshModel) -> Result<Vec<u8>, Error> {
         mesh: Some(mesh),
         provenance: provenance(1.0),
     };
-    match encode(&ModelFile { tool_version: "crafted".into(), input_digest: [0; 32], axes: vec![axis] }) {
+    match encode(&ModelFile {
+        tool_version: "crafted".into(),
+        input_digest: [0; 32],
+        axes: vec![axis],
+        columns: Vec::new(),
+    }) {
         Ok(b) => Ok(b),
         Err(CalError::SelfCheck(e)) => Err(e),
         Err(e) => panic!("crafted mesh does not encode: {e}"),
@@ -1062,9 +1141,13 @@ fn hull_that_does_not_go_round_exactly_once_is_rejected() {
 fn gradient_blob() -> (MeshModel, Vec<u8>) {
     let axis = two_kb_axis(OutsidePolicy::StoredGradients);
     let mesh = axis.mesh.clone().expect("the axis has a mesh");
-    let blob =
-        encode(&ModelFile { tool_version: "fogtemp grad".into(), input_digest: [3; 32], axes: vec![axis] })
-            .expect("encodes");
+    let blob = encode(&ModelFile {
+        tool_version: "fogtemp grad".into(),
+        input_digest: [3; 32],
+        axes: vec![axis],
+        columns: Vec::new(),
+    })
+    .expect("encodes");
     (mesh, blob)
 }
 

@@ -622,6 +622,7 @@ fn new_with_an_axis_index_that_does_not_exist_is_no_such_axis() {
         tool_version: "fogtemp test".into(),
         input_digest: [0; 32],
         axes: vec![axis_model(0.1), axis_model(0.2)],
+        columns: Vec::new(),
     })
     .expect("encodes");
     let two = Model::from_bytes(&two).expect("valid blob");

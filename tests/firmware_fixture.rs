@@ -207,6 +207,7 @@ fn model_blob(policy: OutsidePolicy) -> (Vec<u8>, String) {
         tool_version: "fogtemp fw-fixt".into(),
         input_digest: [0x5a; 32],
         axes: vec![axis],
+        columns: Vec::new(),
     })
     .expect("encodes");
     (blob, about)

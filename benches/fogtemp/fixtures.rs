@@ -135,7 +135,12 @@ pub fn model_blob(poly: Vec<PolyTerm>, points: Option<&[MeshPoint]>) -> Vec<u8> 
         region: Vec::new(),
         poly_outside: fogtemp_core::PolyOutside::Extrapolate,
     };
-    let file = ModelFile { tool_version: "fogtemp bench".into(), input_digest: [0; 32], axes: vec![axis] };
+    let file = ModelFile {
+        tool_version: "fogtemp bench".into(),
+        input_digest: [0; 32],
+        axes: vec![axis],
+        columns: Vec::new(),
+    };
     encode(&file).expect("encodes")
 }
 

@@ -98,8 +98,13 @@ pub fn model_blob(poly: Vec<PolyTerm>, points: Option<&[MeshPoint]>, policy: Out
         mesh,
         provenance: provenance(),
     };
-    encode(&ModelFile { tool_version: "fogtemp test".into(), input_digest: [7; 32], axes: vec![axis] })
-        .expect("encodes")
+    encode(&ModelFile {
+        tool_version: "fogtemp test".into(),
+        input_digest: [7; 32],
+        axes: vec![axis],
+        columns: Vec::new(),
+    })
+    .expect("encodes")
 }
 
 /// Parses a leaked copy of a one-axis mesh `blob` (tests keep meshes for their whole run).

@@ -1,4 +1,4 @@
-//! Model blob writer (format version 2, or 3 with a mesh continued by stored gradients; spec in `docs/model-format.md`, offsets in
+//! Model blob writer (format version 4 with column names; without them 2, or 3 with a mesh continued by stored gradients; spec in `docs/model-format.md`, offsets in
 //! [`fogtemp_core::wire`]). Every blob is read back through `Model::from_bytes`
 //! before it is returned, so a writer bug is reported here instead of in firmware.
 
@@ -41,6 +41,25 @@ pub struct ModelFile {
     pub input_digest: [u8; 32],
     /// Axes, in order.
     pub axes: Vec<AxisModel>,
+    /// The log columns each axis was fitted on, one per axis (written as format version 4),
+    /// or empty for none (version 2, or 3 with stored gradients, as before).
+    pub columns: Vec<ColumnNames>,
+}
+
+/// The log columns one axis was fitted on.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct ColumnNames {
+    /// The gyro column.
+    pub gyro: String,
+    /// The temperature column that fed the axis's features.
+    pub temp: String,
+}
+
+impl ColumnNames {
+    /// The names an axis of `model` records (`None` before format version 4).
+    pub fn of(model: &Model<'_>, axis: usize) -> Option<Self> {
+        model.axis_columns(axis).map(|c| Self { gyro: c.gyro.to_string(), temp: c.temp.to_string() })
+    }
 }
 
 /// The version string this crate writes into blobs.
@@ -48,7 +67,8 @@ pub fn tool_version() -> String {
     format!("fogtemp {}", env!("CARGO_PKG_VERSION"))
 }
 
-/// Encodes `model` as a version-2 blob and validates it with the core reader.
+/// Encodes `model` (format version 4 with column names, else 2 or 3) and validates it with
+/// the core reader.
 ///
 /// # Errors
 /// [`CalError::Encode`] if a count exceeds the format's limits; [`CalError::SelfCheck`]
@@ -75,8 +95,19 @@ pub fn encode_with_selection(model: &ModelFile, selection: &[u16]) -> Result<Vec
     out[FILE_MAGIC].copy_from_slice(&MAGIC);
     // The lowest version that holds the model: 3 only where the hull gradients need it, so
     // every other blob is byte for byte what it was, and readers of version 2 still take it.
+    // Column names need version 4, which readers of 2 and 3 refuse.
     let needs_gradients = model.axes.iter().any(|a| a.outside_policy == OutsidePolicy::StoredGradients);
-    let version = if needs_gradients { FORMAT_VERSION } else { FORMAT_VERSION_WITHOUT_GRADIENTS };
+    if !model.columns.is_empty() && model.columns.len() != model.axes.len() {
+        return Err(CalError::Encode(EncodeProblem::ColumnNameCount {
+            names: model.columns.len(),
+            axes: model.axes.len(),
+        }));
+    }
+    let version = match (model.columns.is_empty(), needs_gradients) {
+        (false, _) => FORMAT_VERSION,
+        (true, true) => FORMAT_VERSION_WITH_GRADIENTS,
+        (true, false) => FORMAT_VERSION_WITHOUT_GRADIENTS,
+    };
     put_u16(&mut out, FILE_VERSION.start, version);
     put_u16(&mut out, FILE_HEADER_LEN_FIELD.start, FILE_HEADER_LEN as u16);
     put_u16(&mut out, FILE_AXIS_COUNT.start, model.axes.len() as u16);
@@ -87,6 +118,9 @@ pub fn encode_with_selection(model: &ModelFile, selection: &[u16]) -> Result<Vec
     for (id, axis) in model.axes.iter().enumerate() {
         encode_axis(&mut out, id as u16, axis, selection.get(id).copied().unwrap_or(0))?;
     }
+    if !model.columns.is_empty() {
+        encode_column_names(&mut out, &model.columns);
+    }
     let total = out.len() + CRC_LEN;
     let total_u32 = u32::try_from(total)
         .map_err(|_| CalError::Encode(EncodeProblem::TooLarge { what: "blob bytes", count: total }))?;
@@ -95,6 +129,21 @@ pub fn encode_with_selection(model: &ModelFile, selection: &[u16]) -> Result<Vec
     out.extend_from_slice(&crc.to_le_bytes());
     Model::from_bytes(&out).map_err(CalError::SelfCheck)?;
     Ok(out)
+}
+
+/// The column-names section (`docs/model-format.md`, "Column names"). A name the section
+/// cannot hold (over 255 bytes, or with a control character) is written as not recorded.
+fn encode_column_names(out: &mut Vec<u8>, columns: &[ColumnNames]) {
+    let start = out.len();
+    out.extend_from_slice(&[0; NAMES_LEN_LEN]);
+    for name in columns.iter().flat_map(|c| [&c.gyro, &c.temp]) {
+        let storable = name.len() <= MAX_COLUMN_NAME_LEN && !name.chars().any(char::is_control);
+        let bytes = if storable { name.as_bytes() } else { &[] };
+        out.push(bytes.len() as u8);
+        out.extend_from_slice(bytes);
+    }
+    let len = out.len() - start;
+    put_u32(out, start, len as u32);
 }
 
 fn encode_axis(out: &mut Vec<u8>, id: u16, axis: &AxisModel, selection: u16) -> Result<(), CalError> {

@@ -1009,8 +1009,12 @@ pub fn fit_axis(
         poly_outside,
     };
     // Residuals of the model as the firmware evaluates it (f32, through the core).
-    let probe =
-        encode(&ModelFile { tool_version: String::new(), input_digest: [0; 32], axes: vec![axis.clone()] })?;
+    let probe = encode(&ModelFile {
+        tool_version: String::new(),
+        input_digest: [0; 32],
+        axes: vec![axis.clone()],
+        columns: Vec::new(),
+    })?;
     let model = Model::from_bytes(&probe).map_err(CalError::SelfCheck)?;
     let core_axis = model.axis(0).map_err(CalError::SelfCheck)?;
     let mut hint = fogtemp_core::WalkHint::default();
@@ -1139,7 +1143,8 @@ pub fn fit_model_replaying(
     }
     let codes: Vec<u16> =
         reports.iter().map(|r| r.selection.as_ref().map_or(0, Selection::blob_code)).collect();
-    let model = ModelFile { tool_version: crate::blob::tool_version(), input_digest, axes };
+    let columns = config.ingest.format.axis_columns();
+    let model = ModelFile { tool_version: crate::blob::tool_version(), input_digest, axes, columns };
     let blob = crate::blob::encode_with_selection(&model, &codes)?;
     Ok(FittedModel { blob, axes: reports })
 }

@@ -153,8 +153,13 @@ mod tests {
             region: Vec::new(),
             poly_outside: PolyOutside::Extrapolate,
         };
-        encode(&ModelFile { tool_version: String::new(), input_digest: [0; 32], axes: vec![axis] })
-            .expect("encodes")
+        encode(&ModelFile {
+            tool_version: String::new(),
+            input_digest: [0; 32],
+            axes: vec![axis],
+            columns: Vec::new(),
+        })
+        .expect("encodes")
     }
 
     fn points(n: usize, f: impl Fn(f64) -> (f64, f64)) -> Vec<FeaturePoint> {

@@ -220,6 +220,14 @@ pub enum EncodeProblem {
         /// Hull edge index.
         hull_edge: usize,
     },
+    /// Column names were given, but not one per axis.
+    #[error("{names} column-name pairs for {axes} axes (one per axis, or none)")]
+    ColumnNameCount {
+        /// Pairs given.
+        names: usize,
+        /// Axes in the model.
+        axes: usize,
+    },
     /// The feature tracker settings are outside what the core accepts.
     #[error("feature settings: {0}")]
     FeatureSettings(fogtemp_core::Error),

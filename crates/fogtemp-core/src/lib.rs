@@ -39,6 +39,7 @@ mod features;
 mod hull;
 mod mesh;
 mod model;
+mod names;
 mod poly;
 mod region;
 pub mod wire;
@@ -56,5 +57,6 @@ pub use mesh::{
 pub use model::{
     Axis, AxisProvenance, Evaluation, FeatureSettings, Model, Normalisation, MAX_NORMALISED_COORD,
 };
+pub use names::AxisColumns;
 pub use poly::{Poly, PolyTerm};
 pub use region::{PolyOutside, Region};

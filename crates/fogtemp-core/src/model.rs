@@ -6,6 +6,7 @@ use crate::mesh::{
     barycentric, edge_vertices, plane_value, Mesh, MeshValue, OutsidePolicy, StartGrid, TriangleRecord,
     WalkHint,
 };
+use crate::names::AxisColumns;
 use crate::poly::{parse_term, Poly};
 use crate::region::{PolyOutside, Region};
 use crate::wire::*;
@@ -315,7 +316,9 @@ impl<'a> Model<'a> {
             validate_axis(&axis)?;
             offset = offset.saturating_add(len);
         }
-        if offset != body_len {
+        if version >= FIRST_VERSION_WITH_COLUMN_NAMES {
+            crate::names::validate(body, offset, axis_count)?;
+        } else if offset != body_len {
             return Err(Error::LengthMismatch {
                 field: "sum of section_len",
                 expected: body_len - FILE_HEADER_LEN,
@@ -401,6 +404,22 @@ impl<'a> Model<'a> {
     /// The blob's format version ([`OLDEST_READABLE_VERSION`] to [`FORMAT_VERSION`]).
     pub fn format_version(&self) -> u16 {
         self.version
+    }
+
+    /// The log columns axis `index` was fitted on (format version 4; `None` for an older
+    /// blob or an axis that does not exist; a name the writer did not record is `""`).
+    /// Not used by evaluation: it lets a host match a log's columns to the axes by name.
+    pub fn axis_columns(&self, index: usize) -> Option<AxisColumns<'a>> {
+        if self.version < FIRST_VERSION_WITH_COLUMN_NAMES || index >= self.axis_count() {
+            return None;
+        }
+        // The section follows the axis sections, whose lengths were validated.
+        let mut offset = FILE_HEADER_LEN;
+        for _ in 0..self.axis_count {
+            let len = u32_at(self.bytes, offset.saturating_add(AXIS_SECTION_LEN.start))? as usize;
+            offset = offset.saturating_add(len);
+        }
+        crate::names::axis_columns(self.bytes, offset, index)
     }
 }
 

@@ -32,12 +32,23 @@ use core::ops::Range;
 
 /// The four bytes every blob starts with.
 pub const MAGIC: [u8; 4] = *b"FOGM";
-/// The newest format version this build reads, and the one it writes for a blob with a mesh
-/// continued by stored gradients (`outside_policy = 3`, which needs it).
-pub const FORMAT_VERSION: u16 = 3;
-/// The version this build writes for every other blob: version 2, whose layout it has, so
-/// those blobs stay byte for byte what they were and readers of version 2 keep reading them.
+/// The newest format version this build reads, and the one it writes for a blob that records
+/// the log columns each axis was fitted on (the column-names section after the axis sections).
+pub const FORMAT_VERSION: u16 = 4;
+/// The version this build writes for a blob without column names whose mesh is continued by
+/// stored gradients (`outside_policy = 3`, which needs it).
+pub const FORMAT_VERSION_WITH_GRADIENTS: u16 = 3;
+/// The version this build writes for every other blob without column names: version 2, whose
+/// layout it has, so those blobs stay byte for byte what they were and readers of version 2
+/// keep reading them.
 pub const FORMAT_VERSION_WITHOUT_GRADIENTS: u16 = 2;
+/// The oldest format version with the column-names section after the last axis section.
+pub const FIRST_VERSION_WITH_COLUMN_NAMES: u16 = 4;
+/// The longest column name the names section holds, in bytes (its length is one byte).
+pub const MAX_COLUMN_NAME_LEN: usize = 255;
+/// `names_len`: u32 at the start of the column-names section, the section's bytes with this
+/// field.
+pub const NAMES_LEN_LEN: usize = 4;
 /// The oldest format version whose `outside_policy` may be 3 (hull gradients present).
 pub const FIRST_VERSION_WITH_GRADIENTS: u16 = 3;
 /// The oldest format version this build reads: version 1 has no calibrated region (its

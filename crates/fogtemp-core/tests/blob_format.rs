@@ -20,12 +20,13 @@ use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::path::PathBuf;
 
 use common::blob::{
-    core_digest, exercise, fix_len_and_crc, golden_queries, put_u16, GOLDEN_BLOB, GOLDEN_CSV, GOLDEN_HEADER,
-    GOLDEN_V2_BLOB, GOLDEN_V2_CSV, GOLDEN_V3_BLOB, GOLDEN_V3_CSV,
+    core_digest, exercise, fix_len_and_crc, golden_queries, put_u16, put_u32, u32_at, GOLDEN_BLOB,
+    GOLDEN_CSV, GOLDEN_HEADER, GOLDEN_V2_BLOB, GOLDEN_V2_CSV, GOLDEN_V3_BLOB, GOLDEN_V3_CSV, GOLDEN_V4_BLOB,
+    GOLDEN_V4_COLUMNS, GOLDEN_V4_CSV,
 };
 use common::rng;
 use fogtemp_core::wire::*;
-use fogtemp_core::{Model, OutsidePolicy, PolyOutside, WalkHint};
+use fogtemp_core::{Error, Model, OutsidePolicy, PolyOutside, WalkHint};
 use proptest::prelude::*;
 use proptest::test_runner::{Config, RngAlgorithm, RngSeed};
 use rand::Rng;
@@ -97,6 +98,89 @@ fn golden_v3_blob_parses_and_evaluates_every_expected_row_bit_exactly() {
     let mesh = model.axis(0).expect("axis 0").mesh.expect("mesh");
     assert_eq!(mesh.outside_policy(), OutsidePolicy::StoredGradients);
     assert!((0..mesh.hull_edge_count()).all(|h| mesh.hull_gradient(h).is_some()));
+}
+
+#[test]
+fn golden_v4_blob_evaluates_as_version_3_and_names_the_columns_of_each_axis() {
+    let model = check_golden(GOLDEN_V4_BLOB, GOLDEN_V4_CSV, 4);
+    assert_eq!(
+        std::fs::read(golden_dir().join(GOLDEN_V4_CSV)).ok(),
+        std::fs::read(golden_dir().join(GOLDEN_V3_CSV)).ok()
+    );
+    for (axis, (gyro, temp)) in GOLDEN_V4_COLUMNS.iter().enumerate() {
+        let names = model.axis_columns(axis).expect("recorded");
+        assert_eq!((names.gyro, names.temp), (*gyro, *temp));
+    }
+    assert_eq!(model.axis_columns(2), None);
+    // Older versions record none.
+    for older in [GOLDEN_BLOB, GOLDEN_V2_BLOB, GOLDEN_V3_BLOB] {
+        let blob = read_golden(older);
+        assert_eq!(Model::from_bytes(&blob).expect("parses").axis_columns(0), None, "{older}");
+    }
+}
+
+/// Where the names section of a version-4 blob starts.
+fn names_offset(blob: &[u8]) -> usize {
+    let axes =
+        usize::from(u16::from_le_bytes([blob[FILE_AXIS_COUNT.start], blob[FILE_AXIS_COUNT.start + 1]]));
+    (0..axes).fold(FILE_HEADER_LEN, |at, _| at + u32_at(blob, at + AXIS_SECTION_LEN.start) as usize)
+}
+
+#[test]
+fn a_damaged_names_section_is_refused_by_field_and_axis() {
+    let golden = read_golden(GOLDEN_V4_BLOB);
+    let at = names_offset(&golden);
+    let first_name = at + NAMES_LEN_LEN + 1; // "gyro_x" of axis 0
+    let second_axis_gyro = at + NAMES_LEN_LEN + (1 + 6) * 2 + 1; // axis 1's gyro name
+    let reread = |mutate: &dyn Fn(&mut Vec<u8>)| {
+        let mut b = golden.clone();
+        mutate(&mut b);
+        fix_len_and_crc(&mut b);
+        Model::from_bytes(&b).map(|_| ())
+    };
+    let names_len = u32_at(&golden, at) as usize;
+    assert_eq!(
+        reread(&|b| put_u32(b, at, names_len as u32 + 1)),
+        Err(Error::LengthMismatch { field: "names_len", expected: names_len, found: names_len + 1 })
+    );
+    // Invalid UTF-8 (a lone continuation byte) and a control character, each named by axis.
+    assert_eq!(
+        reread(&|b| b[second_axis_gyro] = 0x80),
+        Err(Error::BadValue { field: "gyro_column", axis: 1, index: 0 })
+    );
+    assert_eq!(
+        reread(&|b| b[first_name] = b'\n'),
+        Err(Error::BadValue { field: "gyro_column", axis: 0, index: 0 })
+    );
+    // A name length that runs past the section, and a section cut after names_len.
+    assert!(matches!(
+        reread(&|b| b[at + NAMES_LEN_LEN] = 200),
+        Err(Error::Truncated { field: "gyro_column", .. } | Error::LengthMismatch { field: "names_len", .. })
+    ));
+    assert_eq!(
+        reread(&|b| {
+            b.truncate(at + NAMES_LEN_LEN);
+            put_u32(b, at, NAMES_LEN_LEN as u32);
+            b.extend_from_slice(&[0; CRC_LEN]);
+        }),
+        Err(Error::Truncated {
+            field: "gyro_column",
+            needed: at + NAMES_LEN_LEN + 1,
+            found: at + NAMES_LEN_LEN
+        })
+    );
+    // No section at all in a version-4 blob; and a version-3 blob with one.
+    assert!(matches!(
+        reread(&|b| {
+            b.truncate(at);
+            b.extend_from_slice(&[0; CRC_LEN]);
+        }),
+        Err(Error::Truncated { field: "names_len", .. })
+    ));
+    assert!(matches!(
+        reread(&|b| put_u16(b, FILE_VERSION.start, 3)),
+        Err(Error::LengthMismatch { field: "sum of section_len", .. })
+    ));
 }
 
 /// Reads a golden blob of format `version` and checks every expected row bit for bit.

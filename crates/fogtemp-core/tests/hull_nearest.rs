@@ -113,7 +113,7 @@ fn mesh_blob(points: &[[f32; 2]]) -> Vec<u8> {
     }
     assert_eq!(hull.len(), hull_by_start.len(), "one closed hull");
 
-    let mut b = one_axis_file_header(FORMAT_VERSION);
+    let mut b = one_axis_file_header(FORMAT_VERSION_WITH_GRADIENTS);
     let (nv, nt, nh) = (vertices.len() as u32, triangles.len() as u32, hull.len() as u32);
     let section = axis_section_len(0, nv, nt, nh, 0, 0).unwrap();
     let mut h = axis_header(section, KIND_MESH);

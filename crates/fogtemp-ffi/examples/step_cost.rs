@@ -81,7 +81,12 @@ fn large_mesh_blob() -> Vec<u8> {
         region: Vec::new(),
         poly_outside: fogtemp_core::PolyOutside::Extrapolate,
     };
-    let file = ModelFile { tool_version: "step_cost".into(), input_digest: [0; 32], axes: vec![axis] };
+    let file = ModelFile {
+        tool_version: "step_cost".into(),
+        input_digest: [0; 32],
+        axes: vec![axis],
+        columns: Vec::new(),
+    };
     encode(&file).expect("encodes")
 }
 

@@ -472,8 +472,12 @@ fn a_value_beyond_f32_is_a_status_not_infinity() {
         PolyTerm { temp_power: 0, rate_power: 0, coefficient_dph: 1.0 },
         PolyTerm { temp_power: 3, rate_power: 0, coefficient_dph: 3.0e38 },
     ];
-    let file =
-        fogtemp_cal::ModelFile { tool_version: "abi test".into(), input_digest: [0; 32], axes: vec![axis] };
+    let file = fogtemp_cal::ModelFile {
+        tool_version: "abi test".into(),
+        input_digest: [0; 32],
+        axes: vec![axis],
+        columns: Vec::new(),
+    };
     let blob: &'static [u8] = Box::leak(fogtemp_cal::encode(&file).unwrap().into_boxed_slice());
     let mut blocks = vec![0.0f32; 8];
     let (axis, mut state) = open(blob, 0, &mut blocks);
@@ -491,8 +495,12 @@ fn a_value_beyond_f32_is_a_status_not_infinity() {
 fn twin_axes_blob() -> Vec<u8> {
     use fogtemp_cal::{encode, ModelFile};
     let axis = poly_axis();
-    let file =
-        ModelFile { tool_version: "abi test".into(), input_digest: [0; 32], axes: vec![axis.clone(), axis] };
+    let file = ModelFile {
+        tool_version: "abi test".into(),
+        input_digest: [0; 32],
+        axes: vec![axis.clone(), axis],
+        columns: Vec::new(),
+    };
     encode(&file).unwrap()
 }
 

@@ -271,6 +271,20 @@ impl Default for LogFormat {
 }
 
 impl LogFormat {
+    /// The columns each axis reads: its gyro column and its temperature column (the shared
+    /// one, or the axis's own), as a model records them.
+    pub fn axis_columns(&self) -> Vec<crate::blob::ColumnNames> {
+        let temp = |axis: usize| {
+            let last = self.temp_columns.len().saturating_sub(1);
+            self.temp_columns.get(axis.min(last)).cloned().unwrap_or_default()
+        };
+        self.gyro_columns
+            .iter()
+            .enumerate()
+            .map(|(axis, gyro)| crate::blob::ColumnNames { gyro: gyro.clone(), temp: temp(axis) })
+            .collect()
+    }
+
     /// Checks the settings that do not depend on the log's contents; `path` names the log
     /// in the error.
     ///

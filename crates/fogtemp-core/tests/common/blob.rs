@@ -129,6 +129,12 @@ pub const GOLDEN_V2_CSV: &str = "model-v2.expected.csv";
 /// continued by stored hull gradients (`outside_policy = 3`).
 pub const GOLDEN_V3_BLOB: &str = "model-v3.fogm";
 pub const GOLDEN_V3_CSV: &str = "model-v3.expected.csv";
+/// The golden files of format version 4: the version-3 golden model with the log columns of
+/// each axis recorded (the column-names section).
+pub const GOLDEN_V4_BLOB: &str = "model-v4.fogm";
+pub const GOLDEN_V4_CSV: &str = "model-v4.expected.csv";
+/// The column names the version-4 golden model records, per axis (gyro, temperature).
+pub const GOLDEN_V4_COLUMNS: [(&str, &str); 2] = [("gyro_x", "temp_c"), ("Drehrate Y (°/h)", "T_y")];
 pub const GOLDEN_HEADER: &str = "axis,temp_c,rate_c_per_min,value_dph_bits,outside";
 
 /// The input digest the golden model (and the root's three-axis model) carries.
