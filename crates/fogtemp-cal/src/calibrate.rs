@@ -162,6 +162,10 @@ pub struct CalibrationConfig {
     /// residual on the polynomial, is always zero outside (the polynomial's own continuation
     /// carries the trend there). A polynomial-only axis stores hold (no mesh to continue).
     pub mesh_outside: OutsidePolicy,
+    /// Record the log columns each axis was fitted on in the blob (format version 4), so
+    /// `validate` and `compensate` match a log's columns by name. Off for runs given as arrays,
+    /// whose column names are made up (`gyro_dph[0]`).
+    pub record_columns: bool,
     /// Insert Steiner nodes where a plain mesh's triangles are too large to carry the
     /// polynomial part its node fit leaves free (`refine`; least-squares nodes only). On by
     /// default (docs/calibration-testbed.md, "Steiner nodes between the calibration paths").
@@ -191,6 +195,7 @@ impl Default for CalibrationConfig {
             rate_axis_weight: 1.0,
             poly_outside: fogtemp_core::PolyOutside::LinearFromBoundary,
             mesh_outside: OutsidePolicy::StoredGradients,
+            record_columns: true,
             refine_mesh: true,
             mesh_relative_weight: None,
             mesh_cv_repeats: crate::mesh_fit::CV_REPEATS,
@@ -1143,7 +1148,7 @@ pub fn fit_model_replaying(
     }
     let codes: Vec<u16> =
         reports.iter().map(|r| r.selection.as_ref().map_or(0, Selection::blob_code)).collect();
-    let columns = config.ingest.format.axis_columns();
+    let columns = if config.record_columns { config.ingest.format.axis_columns() } else { Vec::new() };
     let model = ModelFile { tool_version: crate::blob::tool_version(), input_digest, axes, columns };
     let blob = crate::blob::encode_with_selection(&model, &codes)?;
     Ok(FittedModel { blob, axes: reports })
@@ -1382,9 +1387,34 @@ impl RunValidation {
         self.series.gaps.note_then(&self.path, &consequence)
     }
 
-    /// What a technician is told about samples the model did not compensate as calibrated:
-    /// none compensated at all (with the likely causes), or a share outside the calibrated
-    /// region (extrapolated). Empty when every compensated sample was inside.
+    /// The note for a run that compensation made clearly worse: its compensated bias
+    /// stability above the raw one by more than twice the metric's relative standard error
+    /// (`1 / sqrt(2 (n - 1))` for a standard deviation of `n` window means), with the likely
+    /// causes; `None` otherwise, or when either figure is undefined.
+    pub fn worse_than_raw_note(&self, name: &str) -> Option<String> {
+        let (raw, comp) = (self.raw_bias_stability_dph, self.compensated_bias_stability_dph);
+        let windows = self.windows.used;
+        if !(raw.is_finite() && comp.is_finite()) || windows < 2 {
+            return None;
+        }
+        let relative_se = 1.0 / (2.0 * (windows as f64 - 1.0)).sqrt();
+        (comp > raw * (1.0 + 2.0 * relative_se)).then(|| {
+            format!(
+                "{name}: compensation made the bias stability worse: {comp:.5} deg/h against {raw:.5} raw \
+                 (ratio {:.2}), beyond the metric's own scatter (about {:.0} % from {windows} averaging windows). \
+                 Check that the log's gyro and temperature columns and units are the ones the model was fitted \
+                 on (fogtemp-cal inspect shows the columns), and that the run's temperatures and rates lie within \
+                 the calibration's",
+                raw / comp,
+                100.0 * relative_se
+            )
+        })
+    }
+
+    /// What a technician is told about samples the model did not compensate as calibrated
+    /// (none compensated at all, with the likely causes; a share outside the calibrated
+    /// region, extrapolated; temperature spikes or silences) and about a run compensation
+    /// made clearly worse ([`RunValidation::worse_than_raw_note`]). Empty when nothing of that.
     pub fn coverage_notes(&self) -> Vec<String> {
         let name = format!("{} axis {}", self.path.display(), self.axis);
         let s = &self.series;
@@ -1409,6 +1439,7 @@ impl RunValidation {
         if outside > 0 {
             notes.push(outside_region_note(&name, outside, s.samples, "flag OUTSIDE_HULL"));
         }
+        notes.extend(self.worse_than_raw_note(&name));
         notes.extend(temperature_spike_note(&name, &self.path, &s.temperature_spikes));
         let stale = s.flag_counts[Flags::TEMP_STALE.0.trailing_zeros() as usize];
         if stale > 0 && s.compensating_from_s.is_finite() {
@@ -1615,6 +1646,40 @@ pub fn validations(
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn a_run_made_worse_beyond_the_metrics_scatter_is_noted() {
+        // 51 windows: relative standard error 1 / sqrt(100) = 10 %, so the bound is 1.2 x raw.
+        let run = |raw: f64, comp: f64, used: usize| RunValidation {
+            path: PathBuf::from("run.csv"),
+            axis: 1,
+            raw_bias_stability_dph: raw,
+            compensated_bias_stability_dph: comp,
+            series: ReplaySeries::default(),
+            ingest: IngestReport::default(),
+            windows: MetricWindows { used, left_out: 0 },
+        };
+        let note = run(0.005, 0.0232, 51).worse_than_raw_note("run.csv axis 1").expect("4.6 x worse");
+        assert!(
+            note.starts_with("run.csv axis 1: compensation made the bias stability worse: 0.02320 deg/h"),
+            "{note}"
+        );
+        assert!(
+            note.contains("(ratio 0.22)") && note.contains("about 10 % from 51 averaging windows"),
+            "{note}"
+        );
+        assert!(run(0.005, 0.0061, 51).worse_than_raw_note("r").is_some(), "1.22 x: beyond 1.2");
+        assert!(run(0.005, 0.0059, 51).worse_than_raw_note("r").is_none(), "1.18 x: within the scatter");
+        assert!(
+            run(0.005, 0.0232, 1).worse_than_raw_note("r").is_none(),
+            "one window: no scatter to compare"
+        );
+        assert!(run(f64::NAN, 0.0232, 51).worse_than_raw_note("r").is_none());
+        assert!(run(0.005, 0.0232, 51)
+            .coverage_notes()
+            .iter()
+            .any(|n| n.contains("made the bias stability worse")));
+    }
+
     use super::*;
 
     /// A log in 5 s bursts at 50 Hz every 300 s for 2 h (the shape of a thermal-vacuum

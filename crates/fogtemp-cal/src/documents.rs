@@ -353,7 +353,14 @@ impl ModelDocument {
             tool_version: String::from_utf8_lossy(model.tool_version()).into_owned(),
             input_digest: hex(&model.input_digest()),
             axes: (0..model.axis_count())
-                .map(|i| Ok(ModelAxisDocument::new(i, &model.axis(i)?)))
+                .map(|i| {
+                    let mut axis = ModelAxisDocument::new(i, &model.axis(i)?);
+                    let names = model.axis_columns(i);
+                    let recorded = |n: &str| (!n.is_empty()).then(|| n.to_string());
+                    axis.gyro_column = names.and_then(|c| recorded(c.gyro));
+                    axis.temp_column = names.and_then(|c| recorded(c.temp));
+                    Ok(axis)
+                })
                 .collect::<Result<_, fogtemp_core::Error>>()?,
         })
     }
@@ -380,6 +387,10 @@ pub struct ModelAxisDocument {
     pub region_vertex_count: u32,
     /// Those vertices, counter-clockwise, normalised and in deg C and deg C/min.
     pub region: Vec<RegionVertexDocument>,
+    /// The log's gyro column the axis was fitted on (blob format 4; null when not recorded).
+    pub gyro_column: Option<String>,
+    /// The log's temperature column that fed its features (format 4; null when not recorded).
+    pub temp_column: Option<String>,
     /// What the fit saw.
     pub provenance: ProvenanceDocument,
     /// Polynomial terms, when the axis has a polynomial.
@@ -468,6 +479,8 @@ impl ModelAxisDocument {
                     })
                     .collect()
             }),
+            gyro_column: None,
+            temp_column: None,
             provenance: ProvenanceDocument {
                 fit_point_count: p.fit_point_count,
                 residual_rms_dph: f64::from(p.residual_rms_dph),

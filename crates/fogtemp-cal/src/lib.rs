@@ -50,6 +50,7 @@
 //! ```
 
 pub mod arrays;
+pub mod axis_columns;
 pub mod blob;
 pub mod calibrate;
 pub mod cv_correction;

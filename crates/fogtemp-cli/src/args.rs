@@ -82,8 +82,9 @@ pub struct IngestArgs {
     /// '' for none.
     #[arg(long, value_name = "PREFIX", default_value = "#", help_heading = "Log shape")]
     pub comment: String,
-    /// Temperature column(s): one shared by all axes, or one per gyro column.
-    #[arg(long = "temp-column", default_value = "temp_c", help_heading = "Log columns")]
+    /// Temperature column(s): one shared by all axes, or one per gyro column [default: temp_c;
+    /// replaying a model: the columns it was fitted with].
+    #[arg(long = "temp-column", help_heading = "Log columns")]
     pub temp_columns: Vec<String>,
     /// temp_c = raw * temp-scale + temp-offset (for a sensor logged in raw counts).
     #[arg(long, default_value_t = 1.0, allow_negative_numbers = true, help_heading = "Log columns", value_parser = nonzero_finite)]
@@ -91,8 +92,9 @@ pub struct IngestArgs {
     /// See --temp-scale, deg C.
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true, help_heading = "Log columns", value_parser = finite)]
     pub temp_offset: f64,
-    /// Gyro column(s), one model axis each.
-    #[arg(long = "gyro-column", default_value = "gyro_dph", help_heading = "Log columns")]
+    /// Gyro column(s), one model axis each [default: gyro_dph; replaying a model: the columns
+    /// it was fitted on, and named ones are checked against them].
+    #[arg(long = "gyro-column", help_heading = "Log columns")]
     pub gyro_columns: Vec<String>,
     /// Unit of the gyro columns.
     #[arg(long, value_enum, default_value_t = GyroUnitArg::Dph, help_heading = "Log columns")]
@@ -123,6 +125,9 @@ impl IngestArgs {
     /// # Errors
     /// Settings the library refuses before reading (see `LogFormat::check`).
     pub fn options(&self) -> Result<IngestOptions> {
+        let defaults = LogFormat::default();
+        let or_default =
+            |named: &[String], default: Vec<String>| if named.is_empty() { default } else { named.to_vec() };
         let format = LogFormat {
             time_column: self.time_column.clone(),
             time_unit: match self.time_unit {
@@ -132,10 +137,10 @@ impl IngestArgs {
                 TimeUnitArg::Datetime => TimeUnit::DateTime,
                 TimeUnitArg::TimeOfDay => TimeUnit::TimeOfDay,
             },
-            temp_columns: self.temp_columns.clone(),
+            temp_columns: or_default(&self.temp_columns, defaults.temp_columns),
             temp_scale: self.temp_scale,
             temp_offset_c: self.temp_offset,
-            gyro_columns: self.gyro_columns.clone(),
+            gyro_columns: or_default(&self.gyro_columns, defaults.gyro_columns),
             gyro_unit: match self.gyro_unit {
                 GyroUnitArg::Dph => RateUnit::DegPerHour,
                 GyroUnitArg::Dps => RateUnit::DegPerSecond,

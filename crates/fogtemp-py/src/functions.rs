@@ -526,6 +526,7 @@ fn array_features(
     use sha2::Digest;
     let axes = runs[0].gyros_dph.len();
     config.ingest.format.gyro_columns = (0..axes).map(|k| format!("gyro_dph[{k}]")).collect();
+    config.record_columns = false;
     let mut hasher = sha2::Sha256::new();
     let mut features = Vec::with_capacity(runs.len());
     for run in runs {
@@ -689,7 +690,8 @@ pub fn validate<'py>(
             "validate(): column and unit options apply to log files; runs given as arrays are in time_s, temp_c, gyro_dph",
         ));
     }
-    let ingest = options::ingest(&mut o)?;
+    let columns_named = (o.any_given(&["gyro_column"])?, o.any_given(&["temp_column"])?);
+    let mut ingest = options::ingest(&mut o)?;
     let stability = options::stability(&mut o)?;
     let capacity = o.int("capacity", fogtemp_core::DEFAULT_CAPACITY, options::MIN_CAPACITY, u64::MAX)?;
     let compare = match o.get("compare")? {
@@ -740,6 +742,7 @@ pub fn validate<'py>(
         if let Some(path) = &runs_file {
             logs = fogtemp_cal::runs::validation_logs(logs, path).map_err(errors::cal)?;
         }
+        choose_columns(py, &mut ingest, columns_named, &blobs, &models)?;
         let gyro_columns = ingest.format.gyro_columns.len();
         if let Some(note) =
             calibrate::axis_count_note(&blobs[0].1, models[0].axis_count(), gyro_columns, "gyro_column=")
@@ -789,6 +792,39 @@ pub fn validate<'py>(
 
 /// Every log file replayed through every model, one log at a time (the library's validation
 /// of each, in log order), so that Ctrl-C is raised between two logs.
+/// The log columns for replaying `models` (the first is validated, the rest compared): the
+/// ones each model records unless `gyro_column=` or `temp_column=` were given (`named`), named
+/// ones checked against them (as the command line's `validate`); notes become warnings.
+fn choose_columns(
+    py: Python<'_>,
+    ingest: &mut IngestOptions,
+    (gyro_named, temp_named): (bool, bool),
+    blobs: &[(Vec<u8>, String)],
+    models: &[CoreModel<'_>],
+) -> PyResult<()> {
+    let settings = ("gyro_column=", "temp_column=");
+    for (index, ((_, source), model)) in blobs.iter().zip(models).enumerate() {
+        // The compared models are checked against the columns chosen for the first.
+        let (gyro, temp) = match index {
+            0 => (
+                if gyro_named { ingest.format.gyro_columns.clone() } else { Vec::new() },
+                if temp_named { ingest.format.temp_columns.clone() } else { Vec::new() },
+            ),
+            _ => (ingest.format.gyro_columns.clone(), ingest.format.temp_columns.clone()),
+        };
+        let chosen = fogtemp_cal::axis_columns::choose(model, source, (&gyro, &temp), settings)
+            .map_err(|e| errors::value(e.to_string()))?;
+        for note in &chosen.notes {
+            progress::warn(py, note)?;
+        }
+        if index == 0 {
+            ingest.format.gyro_columns = chosen.gyro;
+            ingest.format.temp_columns = chosen.temp;
+        }
+    }
+    Ok(())
+}
+
 fn validate_log_files(
     py: Python<'_>,
     logs: &[PathBuf],

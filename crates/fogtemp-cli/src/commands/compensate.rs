@@ -5,7 +5,7 @@ use fogtemp_cal::calibrate::{self, TimeGaps};
 use fogtemp_cal::spikes::{Sample, SpikeGuard};
 use fogtemp_core::{Compensator, Flags, Model};
 
-use super::{check_capacity, ingest_options, read_model, report_skipped};
+use super::{check_capacity, read_model, report_skipped};
 use crate::args::CompensateArgs;
 use crate::output::{check_output_file, refuse_overwriting_inputs, write_atomic, RowProgress};
 
@@ -15,7 +15,7 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
     let blob = read_model(&a.model)?;
     check_capacity(&a.model, &blob, a.capacity)?;
     let model = Model::from_bytes(&blob).map_err(|e| anyhow::anyhow!("{e}"))?;
-    let ingest = ingest_options(&a.ingest)?;
+    let ingest = super::ingest_options_for(&a.ingest, &model, &a.model)?;
     super::warn_axis_count(&a.model, model.axis_count(), ingest.format.gyro_columns.len());
     let axes = model.axis_count().min(ingest.format.gyro_columns.len());
     let mut comps: Vec<Compensator<'_, { fogtemp_cal::features::CAL_CAPACITY }>> = (0..axes)

@@ -77,6 +77,7 @@ pub fn fit(a: FitArgs) -> Result<()> {
         rate_axis_weight: 1.0,
         poly_outside: a.poly_outside.into(),
         mesh_outside: a.mesh_outside.into(),
+        record_columns: true,
         refine_mesh: !a.no_mesh_refinement,
         mesh_relative_weight: a.mesh_relative_weight,
         mesh_cv_repeats: a.mesh_cv_repeats as usize,

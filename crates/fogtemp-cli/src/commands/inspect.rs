@@ -57,6 +57,17 @@ pub fn inspect(a: InspectArgs) -> Result<()> {
                 axis.region_vertex_count
             );
         }
+        match (&axis.gyro_column, &axis.temp_column) {
+            (None, None) if doc.format_version < 4 => {
+                println!("  log columns: not recorded (format {}): matched by position", doc.format_version)
+            }
+            (gyro, temp) => {
+                let name = |n: &Option<String>| {
+                    n.as_ref().map_or_else(|| "not recorded".into(), |n| format!("'{n}'"))
+                };
+                println!("  fitted on the log columns: gyro {}, temperature {}", name(gyro), name(temp));
+            }
+        }
         if let Some(selection) = &axis.provenance.selection {
             println!("  method: {selection}");
         }

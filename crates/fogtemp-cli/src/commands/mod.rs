@@ -45,6 +45,25 @@ fn ingest_options(a: &IngestArgs) -> Result<IngestOptions> {
     a.options()
 }
 
+/// The ingest settings for replaying `model` (read from `path`): the log columns it records
+/// unless others are named, named ones checked against them (a swapped pair is an error);
+/// the notes about named columns that differ are printed.
+fn ingest_options_for(a: &IngestArgs, model: &Model<'_>, path: &Path) -> Result<IngestOptions> {
+    let mut ingest = a.options()?;
+    let chosen = fogtemp_cal::axis_columns::choose(
+        model,
+        &path.display().to_string(),
+        (&a.gyro_columns, &a.temp_columns),
+        ("--gyro-column", "--temp-column"),
+    )?;
+    for note in &chosen.notes {
+        eprintln!("note: {note}");
+    }
+    ingest.format.gyro_columns = chosen.gyro;
+    ingest.format.temp_columns = chosen.temp;
+    Ok(ingest)
+}
+
 fn read_model(path: &Path) -> Result<Vec<u8>> {
     let bytes = std::fs::read(path).with_context(|| format!("cannot read model {}", path.display()))?;
     Model::from_bytes(&bytes).map_err(|e| anyhow::anyhow!("{}: not a valid model: {e}", path.display()))?;

@@ -3,13 +3,14 @@
 
 use std::path::{Path, PathBuf};
 
-use anyhow::{bail, Result};
+use anyhow::{bail, Context, Result};
 use fogtemp_cal::calibrate::{self, Validation};
 use fogtemp_cal::documents::{ComparedModel, ValidationDocument};
+use fogtemp_cal::ingest::LogFormat;
 use fogtemp_cal::metrics::BiasStabilityOptions;
 use fogtemp_core::Model;
 
-use super::{check_capacity, ingest_options, print_json, read_model, report_skipped};
+use super::{check_capacity, print_json, read_model, report_skipped};
 use crate::args::{StabilityArgs, ValidateArgs};
 use crate::output::{expand_logs, RowProgress};
 
@@ -25,6 +26,24 @@ fn stability_options(a: &StabilityArgs) -> Result<BiasStabilityOptions> {
     })
 }
 
+/// A compared model is replayed on the columns chosen for the primary one: refused when it
+/// fitted one of them on another axis, noted when it records other names.
+fn check_compared_columns(model: &Model<'_>, path: &Path, format: &LogFormat, primary: &Path) -> Result<()> {
+    let chosen = fogtemp_cal::axis_columns::choose(
+        model,
+        &path.display().to_string(),
+        (&format.gyro_columns, &format.temp_columns),
+        ("--gyro-column", "--temp-column"),
+    )
+    .with_context(|| {
+        format!("--compare {} is replayed on the columns read for {}", path.display(), primary.display())
+    })?;
+    for note in &chosen.notes {
+        eprintln!("note: {note}");
+    }
+    Ok(())
+}
+
 /// The `validate` command.
 pub fn validate(a: ValidateArgs) -> Result<()> {
     if let Some(dir) = &a.report {
@@ -37,7 +56,7 @@ pub fn validate(a: ValidateArgs) -> Result<()> {
         Some(runs) => fogtemp_cal::runs::validation_logs(expand_logs(&a.logs)?, runs)?,
         None => expand_logs(&a.logs)?,
     };
-    let ingest = ingest_options(&a.ingest)?;
+    let ingest = super::ingest_options_for(&a.ingest, &model, &a.model)?;
     super::warn_axis_count(&a.model, model.axis_count(), ingest.format.gyro_columns.len());
     let options = stability_options(&a.stability)?;
     // The compared models are replayed in the same pass over each log as the primary one.
@@ -45,7 +64,9 @@ pub fn validate(a: ValidateArgs) -> Result<()> {
     let mut models = vec![model];
     for (path, blob) in a.compare.iter().zip(&compare_blobs) {
         check_capacity(path, blob, a.capacity)?;
-        models.push(Model::from_bytes(blob).map_err(|e| anyhow::anyhow!("{e}"))?);
+        let compared = Model::from_bytes(blob).map_err(|e| anyhow::anyhow!("{e}"))?;
+        check_compared_columns(&compared, path, &ingest.format, &a.model)?;
+        models.push(compared);
     }
     let refs: Vec<&Model<'_>> = models.iter().collect();
     let bars: Vec<_> = logs.iter().map(|l| RowProgress::new(l, "validate")).collect();

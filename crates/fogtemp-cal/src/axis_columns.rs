@@ -1,0 +1,257 @@
+//! Which log columns feed which model axis when a model is replayed (`validate`,
+//! `compensate`): the columns the model records (format version 4) unless others are named,
+//! and named ones checked against them, so a swapped pair of gyro columns is refused instead
+//! of compensated with the other axis's model.
+
+use fogtemp_core::Model;
+
+use crate::blob::ColumnNames;
+use crate::ingest::LogFormat;
+
+/// The columns chosen for a model, and what the user is told about them.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct ChosenColumns {
+    /// Gyro columns, axis k reading the k-th.
+    pub gyro: Vec<String>,
+    /// Temperature columns: one shared, or one per gyro column.
+    pub temp: Vec<String>,
+    /// Columns named that differ from the ones the model was fitted on (used as given).
+    pub notes: Vec<String>,
+    /// The gyro columns were taken from the model (none were named).
+    pub gyro_from_model: bool,
+}
+
+/// A named column that the model records for another axis: the log is read with the axes
+/// swapped. `setting` names the option (`--gyro-column`, `gyro_column=`).
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error(
+    "{model}: {setting} gives '{given}' for axis {axis}, but the model's axis {axis} was fitted on '{fitted}' \
+     and its axis {other_axis} on '{given}': the columns would be compensated with another axis's model. \
+     Name them in the model's order ({order}), or leave {setting} out to use the columns the model records"
+)]
+pub struct SwappedColumn {
+    /// The model file.
+    pub model: String,
+    /// The option that named the column.
+    pub setting: String,
+    /// The axis the column was given for.
+    pub axis: usize,
+    /// The column given for it.
+    pub given: String,
+    /// The column the model fitted that axis on.
+    pub fitted: String,
+    /// The axis the model fitted the given column on.
+    pub other_axis: usize,
+    /// The model's columns in order, as the option takes them.
+    pub order: String,
+}
+
+/// The columns to read `model` with: `gyro` and `temp` as named (empty: not named) checked
+/// against the ones the model records, or the recorded ones where none are named, or the
+/// defaults of [`LogFormat`] for a model that records none. `model_name` and the option
+/// names (`gyro_setting`, `temp_setting`) are for the messages.
+///
+/// # Errors
+/// [`SwappedColumn`] when a named column is one the model fitted another axis on.
+pub fn choose(
+    model: &Model<'_>,
+    model_name: &str,
+    (gyro, temp): (&[String], &[String]),
+    (gyro_setting, temp_setting): (&str, &str),
+) -> Result<ChosenColumns, Box<SwappedColumn>> {
+    let recorded: Option<Vec<ColumnNames>> =
+        (0..model.axis_count()).map(|a| ColumnNames::of(model, a)).collect();
+    let defaults = LogFormat::default();
+    let Some(recorded) = recorded else {
+        return Ok(ChosenColumns {
+            gyro: if gyro.is_empty() { defaults.gyro_columns } else { gyro.to_vec() },
+            temp: if temp.is_empty() { defaults.temp_columns } else { temp.to_vec() },
+            ..ChosenColumns::default()
+        });
+    };
+    let recorded_gyro: Vec<&str> = recorded.iter().map(|c| c.gyro.as_str()).collect();
+    let recorded_temp: Vec<&str> = recorded.iter().map(|c| c.temp.as_str()).collect();
+    let gyro_from_model = gyro.is_empty() && recorded_gyro.iter().all(|n| !n.is_empty());
+    let chosen_gyro = if gyro_from_model {
+        recorded_gyro.iter().map(|n| (*n).to_string()).collect()
+    } else if gyro.is_empty() {
+        defaults.gyro_columns
+    } else {
+        gyro.to_vec()
+    };
+    let axes = chosen_gyro.len().min(recorded.len());
+    let chosen_temp = if !temp.is_empty() {
+        temp.to_vec()
+    } else if recorded_temp[..axes].iter().any(|n| n.is_empty()) {
+        defaults.temp_columns
+    } else if recorded_temp[..axes].iter().all(|n| *n == recorded_temp[0]) {
+        vec![recorded_temp[0].to_string()]
+    } else {
+        recorded_temp[..axes].iter().map(|n| (*n).to_string()).collect()
+    };
+    let mut notes = Vec::new();
+    let per_axis_gyro: Vec<&str> = chosen_gyro.iter().map(String::as_str).collect();
+    check(model_name, gyro_setting, &per_axis_gyro, &recorded_gyro, Kind::Gyro, &mut notes)?;
+    let per_axis_temp: Vec<&str> = (0..axes)
+        .map(|a| chosen_temp.get(a.min(chosen_temp.len().saturating_sub(1))).map_or("", String::as_str))
+        .collect();
+    check(model_name, temp_setting, &per_axis_temp, &recorded_temp, Kind::Temperature, &mut notes)?;
+    Ok(ChosenColumns { gyro: chosen_gyro, temp: chosen_temp, notes, gyro_from_model })
+}
+
+/// The two kinds of column an axis reads.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Kind {
+    Gyro,
+    Temperature,
+}
+
+/// Compares the column each axis is read with (`used`) against the one it was fitted on
+/// (`recorded`). Another axis's gyro column is [`SwappedColumn`]; another axis's temperature
+/// column (one sensor for all axes, say) and a name the model does not know (a log from
+/// another logger may name the same sensor differently) are notes.
+fn check(
+    model_name: &str,
+    setting: &str,
+    used: &[&str],
+    recorded: &[&str],
+    kind: Kind,
+    notes: &mut Vec<String>,
+) -> Result<(), Box<SwappedColumn>> {
+    for (axis, (&given, &fitted)) in used.iter().zip(recorded).enumerate() {
+        if given == fitted || fitted.is_empty() {
+            continue;
+        }
+        let other_axis = recorded.iter().position(|n| *n == given);
+        let note = match (kind, other_axis) {
+            (Kind::Gyro, Some(other_axis)) => {
+                return Err(Box::new(SwappedColumn {
+                    model: model_name.to_string(),
+                    setting: setting.to_string(),
+                    axis,
+                    given: given.to_string(),
+                    fitted: fitted.to_string(),
+                    other_axis,
+                    order: recorded.iter().map(|n| format!("{setting} {n}")).collect::<Vec<_>>().join(" "),
+                }))
+            }
+            (Kind::Gyro, None) => format!(
+                "{model_name}: axis {axis} was fitted on the gyro column '{fitted}'; the log's column '{given}' \
+                 ({setting}) is compensated with it"
+            ),
+            (Kind::Temperature, Some(other_axis)) => format!(
+                "{model_name}: axis {axis} was fitted with the temperature column '{fitted}'; it is read with \
+                 '{given}' ({setting}), the column axis {other_axis} was fitted with"
+            ),
+            (Kind::Temperature, None) => format!(
+                "{model_name}: axis {axis} was fitted with the temperature column '{fitted}'; the log's column \
+                 '{given}' ({setting}) is used in its place"
+            ),
+        };
+        notes.push(note);
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::blob::{encode, AxisModel, ModelFile};
+    use fogtemp_core::{AxisProvenance, Normalisation, OutsidePolicy, PolyOutside, PolyTerm};
+
+    /// A blob of constant-bias axes recording `names` (gyro, temperature) per axis, or none.
+    fn model_with(axes: usize, names: &[(&str, &str)]) -> Vec<u8> {
+        let axis = AxisModel {
+            features: crate::calibrate::default_features(),
+            normalisation: Normalisation {
+                temp_offset_c: 0.0,
+                temp_scale_per_c: 1.0,
+                rate_offset_c_per_min: 0.0,
+                rate_scale_per_c_per_min: 1.0,
+            },
+            outside_policy: OutsidePolicy::NearestHull,
+            poly: vec![PolyTerm { temp_power: 0, rate_power: 0, coefficient_dph: 1.0 }],
+            mesh: None,
+            provenance: AxisProvenance {
+                fit_point_count: 1,
+                residual_rms_dph: 0.0,
+                residual_max_abs_dph: 0.0,
+                temp_min_c: 0.0,
+                temp_max_c: 1.0,
+                rate_min_c_per_min: 0.0,
+                rate_max_c_per_min: 0.0,
+            },
+            region: Vec::new(),
+            poly_outside: PolyOutside::Extrapolate,
+        };
+        let columns =
+            names.iter().map(|(g, t)| ColumnNames { gyro: (*g).into(), temp: (*t).into() }).collect();
+        let file =
+            ModelFile { tool_version: String::new(), input_digest: [0; 32], axes: vec![axis; axes], columns };
+        encode(&file).expect("encodes")
+    }
+
+    fn strings(names: &[&str]) -> Vec<String> {
+        names.iter().map(|n| (*n).to_string()).collect()
+    }
+
+    fn chosen(blob: &[u8], gyro: &[&str], temp: &[&str]) -> Result<ChosenColumns, Box<SwappedColumn>> {
+        let model = Model::from_bytes(blob).expect("valid");
+        choose(&model, "m.fogm", (&strings(gyro), &strings(temp)), ("--gyro-column", "--temp-column"))
+    }
+
+    #[test]
+    fn nothing_named_reads_the_recorded_columns_and_a_shared_temperature_once() {
+        let blob = model_with(2, &[("gyro_x", "temp_c"), ("gyro_y", "temp_c")]);
+        let c = chosen(&blob, &[], &[]).expect("chosen");
+        assert_eq!(
+            (c.gyro, c.temp, c.gyro_from_model),
+            (strings(&["gyro_x", "gyro_y"]), strings(&["temp_c"]), true)
+        );
+        assert!(c.notes.is_empty());
+        let blob = model_with(2, &[("gx", "tx"), ("gy", "ty")]);
+        assert_eq!(chosen(&blob, &[], &[]).expect("chosen").temp, strings(&["tx", "ty"]));
+    }
+
+    #[test]
+    fn a_model_without_names_reads_what_is_named_or_the_defaults_by_position() {
+        let blob = model_with(2, &[]);
+        let c = chosen(&blob, &[], &[]).expect("chosen");
+        assert_eq!(
+            (c.gyro, c.temp, c.gyro_from_model),
+            (strings(&["gyro_dph"]), strings(&["temp_c"]), false)
+        );
+        let c = chosen(&blob, &["b", "a"], &[]).expect("chosen");
+        assert_eq!(c.gyro, strings(&["b", "a"]));
+        assert!(c.notes.is_empty());
+    }
+
+    #[test]
+    fn swapped_gyro_columns_are_refused_naming_both_axes_and_the_order() {
+        let blob = model_with(2, &[("gyro_x", "temp_c"), ("gyro_y", "temp_c")]);
+        let e = chosen(&blob, &["gyro_y", "gyro_x"], &[]).expect_err("swapped");
+        assert_eq!((e.axis, e.given.as_str(), e.fitted.as_str(), e.other_axis), (0, "gyro_y", "gyro_x", 1));
+        assert_eq!(e.order, "--gyro-column gyro_x --gyro-column gyro_y");
+        // One column that the model fitted axis 1 on, read as axis 0: the review's case.
+        let e = chosen(&blob, &["gyro_y"], &[]).expect_err("axis 1's column as axis 0");
+        assert_eq!((e.axis, e.other_axis), (0, 1));
+        // The model's order, or a prefix of it, is what was fitted: no note.
+        for named in [&["gyro_x", "gyro_y"][..], &["gyro_x"]] {
+            let c = chosen(&blob, named, &[]).expect("in order");
+            assert!(c.notes.is_empty() && !c.gyro_from_model);
+        }
+    }
+
+    #[test]
+    fn unknown_names_and_borrowed_temperatures_are_used_with_a_note() {
+        let blob = model_with(2, &[("gyro_x", "tx"), ("gyro_y", "ty")]);
+        let c = chosen(&blob, &["gx", "gyro_y"], &["tx"]).expect("renamed");
+        assert_eq!(c.gyro, strings(&["gx", "gyro_y"]));
+        assert_eq!(c.notes.len(), 2, "{:?}", c.notes);
+        assert!(c.notes[0].contains("axis 0 was fitted on the gyro column 'gyro_x'; the log's column 'gx'"));
+        assert!(
+            c.notes[1].contains("axis 1 was fitted with the temperature column 'ty'; it is read with 'tx'")
+        );
+        assert!(c.notes[1].contains("the column axis 0 was fitted with"));
+    }
+}
