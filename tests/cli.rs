@@ -1060,9 +1060,26 @@ fn a_model_and_a_log_of_different_axis_counts_are_warned() {
         args!["fit", "--method", "poly", "--gyro-column", "gyro_dph", "--gyro-column", "gyro2"];
     fit_args.extend(args!["--out", &model, &two_log]);
     run_ok(fit_args);
+    // Nothing named: the model's two columns are read, and the one-gyro log lacks the second.
+    let c = dir.path().join("c.csv");
+    for args in
+        [args!["validate", "--model", &model, &ok], args!["compensate", "--model", &model, &ok, "--out", &c]]
+    {
+        expect_failure(
+            &args,
+            dir.path(),
+            Some(&c),
+            &[
+                "the log was read with the columns",
+                "records (gyro gyro_dph, gyro2; temperature temp_c)",
+                "no column named 'gyro2'",
+            ],
+        );
+    }
+    // Named: the first axis alone, with the warning.
     for args in [
-        args!["validate", "--model", &model, &ok],
-        args!["compensate", "--model", &model, &ok, "--out", dir.path().join("c.csv")],
+        args!["validate", "--model", &model, "--gyro-column", "gyro_dph", &ok],
+        args!["compensate", "--model", &model, "--gyro-column", "gyro_dph", &ok, "--out", &c],
     ] {
         let output = cal().args(&args).output().expect("run");
         let stderr = String::from_utf8_lossy(&output.stderr);
@@ -1085,6 +1102,106 @@ fn a_model_and_a_log_of_different_axis_counts_are_warned() {
         .output()
         .expect("run");
     assert!(!String::from_utf8_lossy(&quiet.stderr).contains("axes but the log"));
+}
+
+/// Review6 F2: a model records the log column each axis was fitted on; `validate` and
+/// `compensate` read those when none are named, refuse a gyro column the model fitted on
+/// another axis (a swapped pair used to make axis 1 4.6 times worse without a word), and note
+/// a name the model does not know.
+#[test]
+fn log_columns_are_matched_to_axes_by_the_names_the_model_records() {
+    let dir = TempDir::new().expect("tempdir");
+    let (_, lines) = short_log(dir.path(), "ok.csv");
+    // A second axis with another drift: the negated gyro plus 0.01 deg/h per C.
+    let with_second = |gyro_name: &str| -> Vec<String> {
+        let mut out = vec![format!("time_s,temp_c,{gyro_name},gyro2")];
+        for l in &lines[1..] {
+            let cells: Vec<f64> = l.split(',').map(|c| c.parse().expect("number")).collect();
+            out.push(format!("{l},{:.5}", -cells[2] + 0.01 * (cells[1] - 20.0)));
+        }
+        out
+    };
+    let (two, renamed) = (dir.path().join("two.csv"), dir.path().join("renamed.csv"));
+    write_lines(&two, &with_second("gyro_dph"));
+    write_lines(&renamed, &with_second("gx"));
+    let model = dir.path().join("two.fogm");
+    run_ok(args![
+        "fit",
+        "--method",
+        "poly",
+        "--gyro-column",
+        "gyro_dph",
+        "--gyro-column",
+        "gyro2",
+        "--out",
+        &model,
+        &two
+    ]);
+    let inspected = json(&run_ok(args!["inspect", "--json", &model]));
+    let names: Vec<(&str, &str)> = arr(&inspected["axes"])
+        .iter()
+        .map(|a| (a["gyro_column"].as_str().expect("gyro"), a["temp_column"].as_str().expect("temp")))
+        .collect();
+    assert_eq!(names, [("gyro_dph", "temp_c"), ("gyro2", "temp_c")]);
+    assert_eq!(inspected["format_version"], 4);
+
+    // Nothing named reads what naming the columns in the model's order reads.
+    let compensated = |args: Vec<OsString>| -> Vec<f64> {
+        arr(&json(&run_ok(args))["runs"]).iter().map(|r| f(&r["compensated_bias_stability_dph"])).collect()
+    };
+    // (10 s windows: the log is 3 minutes long.)
+    let by_default = compensated(args!["validate", "--json", "--tau-s", "10", "--model", &model, &two]);
+    let in_order = compensated(args![
+        "validate",
+        "--json",
+        "--tau-s",
+        "10",
+        "--model",
+        &model,
+        "--gyro-column",
+        "gyro_dph",
+        "--gyro-column",
+        "gyro2",
+        &two
+    ]);
+    assert!(by_default.len() == 2 && by_default.iter().all(|v| v.is_finite()), "{by_default:?}");
+    assert_eq!(by_default, in_order);
+
+    // A swapped pair, or axis 1's column alone: refused, nothing written.
+    let c = dir.path().join("c.csv");
+    let swapped = ["--gyro-column", "gyro2", "--gyro-column", "gyro_dph"];
+    let refusal = [
+        "--gyro-column gives 'gyro2' for axis 0, but the model's axis 0 was fitted on 'gyro_dph' and its axis 1 on 'gyro2'",
+        "Name them in the model's order (--gyro-column gyro_dph --gyro-column gyro2)",
+    ];
+    let mut validate_swapped = args!["validate", "--model", &model];
+    validate_swapped.extend(swapped.iter().map(OsString::from));
+    validate_swapped.push(two.clone().into());
+    expect_failure(&validate_swapped, dir.path(), None, &refusal);
+    let mut compensate_swapped = args!["compensate", "--model", &model, "--out", &c];
+    compensate_swapped.extend(swapped.iter().map(OsString::from));
+    compensate_swapped.push(two.clone().into());
+    expect_failure(&compensate_swapped, dir.path(), Some(&c), &refusal);
+    expect_failure(
+        &args!["validate", "--model", &model, "--gyro-column", "gyro2", &two],
+        dir.path(),
+        None,
+        &[refusal[0]],
+    );
+
+    // Another logger's name for axis 0's gyro: read as given, with a note.
+    let output = cal()
+        .args(args!["validate", "--model", &model, "--gyro-column", "gx", "--gyro-column", "gyro2", &renamed])
+        .output()
+        .expect("run");
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(output.status.success(), "{stderr}");
+    assert!(
+        stderr.contains(
+            "axis 0 was fitted on the gyro column 'gyro_dph'; the log's column 'gx' (--gyro-column)"
+        ),
+        "{stderr}"
+    );
 }
 
 /// Settings no fit can use are refused before any log is read, naming the option (they

@@ -15,7 +15,7 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
     let blob = read_model(&a.model)?;
     check_capacity(&a.model, &blob, a.capacity)?;
     let model = Model::from_bytes(&blob).map_err(|e| anyhow::anyhow!("{e}"))?;
-    let ingest = super::ingest_options_for(&a.ingest, &model, &a.model)?;
+    let (ingest, columns) = super::ingest_options_for(&a.ingest, &model, &a.model)?;
     super::warn_axis_count(&a.model, model.axis_count(), ingest.format.gyro_columns.len());
     let axes = model.axis_count().min(ingest.format.gyro_columns.len());
     let mut comps: Vec<Compensator<'_, { fogtemp_cal::features::CAL_CAPACITY }>> = (0..axes)
@@ -90,7 +90,7 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
                 return Err(fogtemp_cal::CalError::Io { path, source }.into())
             }
             Err(e) => {
-                input_error = Some(e.into());
+                input_error = Some(columns.explain(e));
                 bail!("the log could not be read");
             }
             Ok(r) => r,

@@ -48,7 +48,11 @@ fn ingest_options(a: &IngestArgs) -> Result<IngestOptions> {
 /// The ingest settings for replaying `model` (read from `path`): the log columns it records
 /// unless others are named, named ones checked against them (a swapped pair is an error);
 /// the notes about named columns that differ are printed.
-fn ingest_options_for(a: &IngestArgs, model: &Model<'_>, path: &Path) -> Result<IngestOptions> {
+fn ingest_options_for(
+    a: &IngestArgs,
+    model: &Model<'_>,
+    path: &Path,
+) -> Result<(IngestOptions, ModelColumns)> {
     let mut ingest = a.options()?;
     let chosen = fogtemp_cal::axis_columns::choose(
         model,
@@ -59,9 +63,33 @@ fn ingest_options_for(a: &IngestArgs, model: &Model<'_>, path: &Path) -> Result<
     for note in &chosen.notes {
         eprintln!("note: {note}");
     }
+    let from_model = chosen.gyro_from_model.then(|| {
+        format!(
+            "the log was read with the columns {} records (gyro {}; temperature {})",
+            path.display(),
+            chosen.gyro.join(", "),
+            chosen.temp.join(", ")
+        )
+    });
     ingest.format.gyro_columns = chosen.gyro;
     ingest.format.temp_columns = chosen.temp;
-    Ok(ingest)
+    Ok((ingest, ModelColumns(from_model)))
+}
+
+/// Whether the gyro columns were taken from the model, said as the context of a missing
+/// column (the log may name them differently).
+struct ModelColumns(Option<String>);
+
+impl ModelColumns {
+    /// `e`, with the columns' origin when a column the model records is missing.
+    fn explain(&self, e: fogtemp_cal::CalError) -> anyhow::Error {
+        match (&self.0, &e) {
+            (Some(origin), fogtemp_cal::CalError::MissingColumn { .. }) => {
+                anyhow::Error::new(e).context(origin.clone())
+            }
+            _ => e.into(),
+        }
+    }
 }
 
 fn read_model(path: &Path) -> Result<Vec<u8>> {

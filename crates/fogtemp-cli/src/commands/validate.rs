@@ -56,7 +56,7 @@ pub fn validate(a: ValidateArgs) -> Result<()> {
         Some(runs) => fogtemp_cal::runs::validation_logs(expand_logs(&a.logs)?, runs)?,
         None => expand_logs(&a.logs)?,
     };
-    let ingest = super::ingest_options_for(&a.ingest, &model, &a.model)?;
+    let (ingest, columns) = super::ingest_options_for(&a.ingest, &model, &a.model)?;
     super::warn_axis_count(&a.model, model.axis_count(), ingest.format.gyro_columns.len());
     let options = stability_options(&a.stability)?;
     // The compared models are replayed in the same pass over each log as the primary one.
@@ -74,7 +74,8 @@ pub fn validate(a: ValidateArgs) -> Result<()> {
         if let Some(bar) = bars.get(i) {
             bar.update(b, r);
         }
-    })?;
+    })
+    .map_err(|e| columns.explain(e))?;
     for bar in &bars {
         bar.finish_and_clear();
     }
