@@ -59,7 +59,8 @@ class Model:
     def save(self, path: PathLike) -> None:
         """Writes the blob atomically."""
     def inspect(self) -> Dict[str, Any]:
-        """The ``fogtemp-cal inspect --json`` document (axes, nodes, triangles, polynomial, ...)."""
+        """The ``fogtemp-cal inspect --json`` document (axes, nodes, triangles, polynomial, the log
+        columns each axis was fitted on: ``gyro_column``, ``temp_column``, None when not recorded, ...)."""
     @property
     def axis_count(self) -> int:
         """Number of gyro axes."""
@@ -160,7 +161,10 @@ def validate(
     not used; log files only) and report (a folder: as validate --report, report.md, report.html and the SVG
     figures, with the table of the ``compare`` models).
     Gaps in a log's time stamps longer than the model's max gap raise a UserWarning
-    (``runs[].time_gaps``; the metric's windows they cut: ``runs[].metric_windows``)."""
+    (``runs[].time_gaps``; the metric's windows they cut: ``runs[].metric_windows``).
+    Log files are read with the gyro and temperature columns the model records (models fitted
+    on files since blob format 4) unless gyro_column= / temp_column= name others; a gyro column
+    the model fitted on another axis raises ValueError, a name it does not record a UserWarning."""
 
 def allan(log: Union[PathLike, Run], *, progress: bool = True, **options: Any) -> Dict[str, Any]:
     """The ``fogtemp-cal allan --json`` document: overlapping Allan deviation, N, B, K."""

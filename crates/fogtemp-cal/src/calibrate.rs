@@ -163,8 +163,8 @@ pub struct CalibrationConfig {
     /// carries the trend there). A polynomial-only axis stores hold (no mesh to continue).
     pub mesh_outside: OutsidePolicy,
     /// Record the log columns each axis was fitted on in the blob (format version 4), so
-    /// `validate` and `compensate` match a log's columns by name. Off for runs given as arrays,
-    /// whose column names are made up (`gyro_dph[0]`).
+    /// `validate` and `compensate` match a log's columns by name. Off for runs given as several
+    /// gyro or temperature arrays, whose column names are made up (`gyro_dph[0]`).
     pub record_columns: bool,
     /// Insert Steiner nodes where a plain mesh's triangles are too large to carry the
     /// polynomial part its node fit leaves free (`refine`; least-squares nodes only). On by

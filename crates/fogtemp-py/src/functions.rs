@@ -525,8 +525,13 @@ fn array_features(
 ) -> PyResult<(Vec<RunFeatures>, [u8; 32])> {
     use sha2::Digest;
     let axes = runs[0].gyros_dph.len();
-    config.ingest.format.gyro_columns = (0..axes).map(|k| format!("gyro_dph[{k}]")).collect();
-    config.record_columns = false;
+    // One gyro array and one temperature array are the columns `gyro_dph` and `temp_c` of a
+    // log with the same samples, and the model records them as such; several arrays have no
+    // column names of their own, so none are recorded (axes matched by position).
+    let single = axes == 1 && runs[0].temps_c.len() == 1;
+    config.ingest.format.gyro_columns =
+        if single { vec!["gyro_dph".into()] } else { (0..axes).map(|k| format!("gyro_dph[{k}]")).collect() };
+    config.record_columns = single;
     let mut hasher = sha2::Sha256::new();
     let mut features = Vec::with_capacity(runs.len());
     for run in runs {

@@ -120,7 +120,8 @@ impl Model {
 
     /// The `fogtemp-cal inspect --json` document: header, per axis the feature settings,
     /// normalisation, provenance, polynomial terms, mesh `nodes` (`temp_c`,
-    /// `rate_c_per_min`, `value_dph`, normalised `x`, `y`) and `triangles`.
+    /// `rate_c_per_min`, `value_dph`, normalised `x`, `y`), `triangles`, and the log columns
+    /// the axis was fitted on (`gyro_column`, `temp_column`; `None` when not recorded).
     fn inspect<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         let doc = ModelDocument::new(Path::new(&self.source), &self.blob)
             .map_err(|e| errors::model(&self.source, e))?;

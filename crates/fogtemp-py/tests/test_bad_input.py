@@ -422,3 +422,33 @@ def test_allan_of_a_series_too_short_warns_and_gives_no_noise_terms():
         doc = fogtemp.allan({"time_s": [0.0, 1.0, 2.0], "gyro_dph": [1.0, 2.0, 3.0]})
     axis = doc["axes"][0]
     assert axis["curve"] == [] and axis["arw_deg_per_sqrt_h"] is None and axis["bias_instability_dph"] is None
+
+
+def test_validate_reads_the_columns_the_model_records_and_refuses_swapped_ones(tmp_path):
+    # Review6 F2: a model fitted on log files records each axis's gyro and temperature column;
+    # validate() reads them when none are named and refuses a gyro column fitted on another axis.
+    logs = []
+    for k, run in enumerate(synthetic_runs(runs=3)):
+        path = tmp_path / f"run{k}.csv"
+        with open(path, "w") as f:
+            f.write("time_s,temp_c,gyro_x,gyro_y\n")
+            for t, c, g in zip(run["time_s"], run["temp_c"], run["gyro_dph"]):
+                cell = "" if np.isnan(c) else repr(float(c))
+                f.write(f"{float(t)!r},{cell},{float(g)!r},{-float(g)!r}\n")
+        logs.append(path)
+    model = fogtemp.fit(logs, method="poly", gyro_column=["gyro_x", "gyro_y"], progress=False)
+    axes = model.inspect()["axes"]
+    assert [(a["gyro_column"], a["temp_column"]) for a in axes] == [("gyro_x", "temp_c"), ("gyro_y", "temp_c")]
+    by_default = fogtemp.validate(model, logs[:1], progress=False)
+    in_order = fogtemp.validate(model, logs[:1], gyro_column=["gyro_x", "gyro_y"], progress=False)
+    assert [r["axis"] for r in by_default["runs"]] == [0, 1]
+    assert by_default["runs"] == in_order["runs"]
+    with pytest.raises(ValueError, match=r"gyro_column= gives 'gyro_y' for axis 0, but the model's axis 0 was fitted on 'gyro_x'"):
+        fogtemp.validate(model, logs[:1], gyro_column=["gyro_y", "gyro_x"], progress=False)
+    # Runs given as one gyro and one temperature array each are the columns gyro_dph and temp_c
+    # (as fit() takes them); two gyro arrays have made-up names: none are recorded.
+    single = fogtemp.fit(synthetic_runs(runs=3), method="poly", progress=False)
+    assert [(a["gyro_column"], a["temp_column"]) for a in single.inspect()["axes"]] == [("gyro_dph", "temp_c")]
+    two = [dict(r, gyro_dph=np.column_stack([r["gyro_dph"], -r["gyro_dph"]])) for r in synthetic_runs(runs=3)]
+    from_arrays = fogtemp.fit(two, method="poly", progress=False)
+    assert [a["gyro_column"] for a in from_arrays.inspect()["axes"]] == [None, None]
