@@ -54,6 +54,7 @@ pub mod axis_columns;
 pub mod blob;
 pub mod calibrate;
 pub mod cv_correction;
+pub mod digest;
 pub mod documents;
 pub mod error;
 pub mod features;

@@ -209,28 +209,5 @@ impl RowProgress {
 
 /// SHA-256 over the contents of every file, in order (the model's input digest).
 pub fn digest_files(paths: &[PathBuf]) -> Result<[u8; 32]> {
-    Ok(digests_of_files(paths)?.0)
-}
-
-/// [`digest_files`] of `paths` together, and of each file alone, in one read.
-pub fn digests_of_files(paths: &[PathBuf]) -> Result<([u8; 32], Vec<[u8; 32]>)> {
-    use sha2::{Digest, Sha256};
-    let mut all = Sha256::new();
-    let mut each = Vec::with_capacity(paths.len());
-    for p in paths {
-        let mut one = Sha256::new();
-        let mut f = std::fs::File::open(p).with_context(|| format!("cannot open {}", p.display()))?;
-        let mut buf = vec![0u8; 1 << 20];
-        loop {
-            let n =
-                std::io::Read::read(&mut f, &mut buf).with_context(|| format!("reading {}", p.display()))?;
-            if n == 0 {
-                break;
-            }
-            all.update(&buf[..n]);
-            one.update(&buf[..n]);
-        }
-        each.push(one.finalize().into());
-    }
-    Ok((all.finalize().into(), each))
+    Ok(fogtemp_cal::digest::digests_of_files(paths)?.0)
 }

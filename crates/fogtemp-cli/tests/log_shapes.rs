@@ -97,7 +97,7 @@ fn serial_captures_fit_and_validate_end_to_end() {
         assert_eq!(run["first_skipped"][0]["line"].as_u64(), Some(*line), "{run}");
         assert_eq!(run["first_skipped"][0]["column_name"], "temp_c");
     }
-    assert!(stderr.contains("skipped 1 bad rows"), "{stderr}");
+    assert!(stderr.contains("skipped 1 bad row "), "{stderr}");
     // Warm-ups only heat (dT/dt >= 0 by construction, up to 1.5 C/min): heating_only, and
     // nothing about runs (3) or range (0 to 54 C).
     let kinds: Vec<&str> =

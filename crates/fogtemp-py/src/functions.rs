@@ -78,26 +78,6 @@ fn as_list<'py>(value: &Bound<'py, PyAny>) -> PyResult<Vec<Bound<'py, PyAny>>> {
     }
 }
 
-/// SHA-256 over the contents of every file, in order: the model's input digest, as the
-/// command line computes it.
-fn digest_files(paths: &[PathBuf]) -> PyResult<[u8; 32]> {
-    use sha2::{Digest, Sha256};
-    let mut hasher = Sha256::new();
-    for p in paths {
-        let io = |e| errors::cal(fogtemp_cal::CalError::Io { path: p.clone(), source: e });
-        let mut f = std::fs::File::open(p).map_err(io)?;
-        let mut buf = vec![0u8; 1 << 20];
-        loop {
-            let n = std::io::Read::read(&mut f, &mut buf).map_err(io)?;
-            if n == 0 {
-                break;
-            }
-            hasher.update(&buf[..n]);
-        }
-    }
-    Ok(hasher.finalize().into())
-}
-
 /// The items of a `logs` argument and, for a dict of runs, their names.
 type LogsAndNames<'py> = (Vec<Bound<'py, PyAny>>, Option<Vec<String>>);
 
@@ -489,7 +469,7 @@ fn file_runs(
         }
         runs.push(run);
     }
-    let digest = py.detach(|| digest_files(&logs))?;
+    let digest = py.detach(|| fogtemp_cal::digest::digests_of_files(&logs)).map_err(errors::cal)?.0;
     Ok((runs, digest, rows))
 }
 
@@ -566,7 +546,12 @@ fn warn_skipped(py: Python<'_>, report: &IngestReport, samples: bool) -> PyResul
     if report.skipped == 0 {
         return Ok(());
     }
-    let unit = if samples { "samples" } else { "rows" };
+    let unit = match (samples, report.skipped) {
+        (true, 1) => "sample",
+        (true, _) => "samples",
+        (false, 1) => "row",
+        (false, _) => "rows",
+    };
     let mut text = format!(
         "{}: skipped {} bad {unit} (skip_bad_rows); first ones:",
         report.path.display(),
@@ -748,6 +733,11 @@ pub fn validate<'py>(
             logs = fogtemp_cal::runs::validation_logs(logs, path).map_err(errors::cal)?;
         }
         choose_columns(py, &mut ingest, columns_named, &blobs, &models)?;
+        let in_sample =
+            py.detach(|| fogtemp_cal::digest::in_sample_note(&blobs[0].1, models[0].input_digest(), &logs));
+        if let Some(note) = in_sample.map_err(errors::cal)? {
+            progress::warn(py, &note)?;
+        }
         let gyro_columns = ingest.format.gyro_columns.len();
         if let Some(note) =
             calibrate::axis_count_note(&blobs[0].1, models[0].axis_count(), gyro_columns, "gyro_column=")

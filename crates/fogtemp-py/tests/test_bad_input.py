@@ -4,6 +4,7 @@ interpreter that must exit normally)."""
 
 import subprocess
 import sys
+import warnings
 
 import numpy as np
 import pytest
@@ -58,7 +59,7 @@ def test_malformed_row_names_file_line_and_column_like_the_command_line(tmp_path
     done = cli("fit", "--out", tmp_path / "m.fogm", log)
     assert done.returncode == 1 and expected in done.stderr
     # Skipping is reported, not silent.
-    with pytest.warns(UserWarning, match="skipped 1 bad rows"):
+    with pytest.warns(UserWarning, match="skipped 1 bad row "):
         data = fogtemp.read_log(log, skip_bad_rows=True, progress=False)
     assert len(data["time_s"]) == 2
 
@@ -452,3 +453,13 @@ def test_validate_reads_the_columns_the_model_records_and_refuses_swapped_ones(t
     two = [dict(r, gyro_dph=np.column_stack([r["gyro_dph"], -r["gyro_dph"]])) for r in synthetic_runs(runs=3)]
     from_arrays = fogtemp.fit(two, method="poly", progress=False)
     assert [a["gyro_column"] for a in from_arrays.inspect()["axes"]] == [None, None]
+
+
+def test_validate_on_the_calibration_logs_warns_that_the_figures_are_in_sample(poly_model, cal_logs, val_logs):
+    # As the command line: the logs' digest equals the model's input digest.
+    with pytest.warns(UserWarning, match=r"these 8 logs are the ones .* was fitted on \(its input digest matches\)"):
+        fogtemp.validate(poly_model, cal_logs, progress=False)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        fogtemp.validate(poly_model, val_logs[:2], progress=False)
+    assert not [w for w in caught if "in-sample" in str(w.message)]

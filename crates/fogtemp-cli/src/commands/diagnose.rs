@@ -35,7 +35,7 @@ fn read_series(path: &Path, ingest: &IngestOptions, bin_s: f64, meta: RunMeta) -
         Err(e) => return Err(e.into()),
     };
     if read.skipped > 0 {
-        eprintln!("{}: skipped {} bad rows", path.display(), read.skipped);
+        eprintln!("{}: skipped {}", path.display(), super::bad_rows(read.skipped as u64));
     }
     if let Some(note) = read.gap_note(path) {
         eprintln!("note: {note}");

@@ -159,14 +159,19 @@ fn no_rows_error(report: &IngestReport) -> anyhow::Error {
     )
 }
 
+/// "1 bad row", "3 bad rows".
+fn bad_rows(count: u64) -> String {
+    format!("{count} bad row{}", if count == 1 { "" } else { "s" })
+}
+
 fn report_skipped(report: &IngestReport) {
     if report.skipped == 0 {
         return;
     }
     eprintln!(
-        "warning: {}: skipped {} bad rows (--skip-bad-rows); first ones:",
+        "warning: {}: skipped {} (--skip-bad-rows); first ones:",
         report.path.display(),
-        report.skipped
+        bad_rows(report.skipped)
     );
     for b in &report.first_skipped {
         eprintln!(

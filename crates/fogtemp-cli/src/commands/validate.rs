@@ -1,7 +1,7 @@
 //! `validate`: raw vs compensated bias stability per run and overall, and models compared
 //! on the same logs.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use anyhow::{bail, Context, Result};
 use fogtemp_cal::calibrate::{self, Validation};
@@ -99,7 +99,9 @@ pub fn validate(a: ValidateArgs) -> Result<()> {
     for note in runs.iter().flat_map(calibrate::RunValidation::coverage_notes) {
         eprintln!("note: {note}");
     }
-    if let Some(note) = in_sample_note(&a.model, model.input_digest(), &logs)? {
+    if let Some(note) =
+        fogtemp_cal::digest::in_sample_note(&a.model.display().to_string(), model.input_digest(), &logs)?
+    {
         eprintln!("note: {note}");
     }
     let comparison = compare_models(&a, &models, &validation, &compared);
@@ -193,35 +195,6 @@ fn compare_models(
         out.push(ComparedModel::new(path, model, v));
     }
     out
-}
-
-/// The note for validation logs the model was fitted on (`None` otherwise): all of them
-/// together, or one alone, have the model's input digest (SHA-256 of the fitted logs' bytes in
-/// order). Logs fitted together with others are not recognised one by one (the model keeps
-/// one digest).
-fn in_sample_note(model_path: &Path, digest: [u8; 32], logs: &[PathBuf]) -> Result<Option<String>> {
-    if digest == [0; 32] {
-        return Ok(None);
-    }
-    let (all, each) = crate::output::digests_of_files(logs)?;
-    let model = model_path.display();
-    if all == digest {
-        let these = if logs.len() == 1 {
-            "this log is the one".to_string()
-        } else {
-            format!("these {} logs are the ones", logs.len())
-        };
-        return Ok(Some(format!(
-            "{these} {model} was fitted on (its input digest matches): the figures are in-sample, \
-             not a validation on runs the model did not see"
-        )));
-    }
-    Ok(logs.iter().zip(&each).find(|(_, d)| **d == digest).map(|(log, _)| {
-        format!(
-            "{} is the log {model} was fitted on (its input digest matches): its figures are in-sample",
-            log.display()
-        )
-    }))
 }
 
 /// Each run's label in the table: its file name, or its path as given where two logs share
