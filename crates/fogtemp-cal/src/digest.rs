@@ -9,30 +9,58 @@ use sha2::{Digest, Sha256};
 
 use crate::error::CalError;
 
+/// The input digest built one file at a time (a caller can stop between two files), with
+/// each file's own digest beside it.
+#[derive(Clone, Debug, Default)]
+pub struct InputDigest {
+    all: Sha256,
+    each: Vec<[u8; 32]>,
+}
+
+impl InputDigest {
+    /// An empty digest.
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// Adds the bytes of the file at `path`.
+    ///
+    /// # Errors
+    /// [`CalError::Io`] naming the file that cannot be opened or read.
+    pub fn add_file(&mut self, path: &Path) -> Result<(), CalError> {
+        let io = |source| CalError::Io { path: path.to_path_buf(), source };
+        let mut file = std::fs::File::open(path).map_err(io)?;
+        let mut one = Sha256::new();
+        let mut buf = vec![0u8; 1 << 20];
+        loop {
+            let n = file.read(&mut buf).map_err(io)?;
+            if n == 0 {
+                break;
+            }
+            self.all.update(&buf[..n]);
+            one.update(&buf[..n]);
+        }
+        self.each.push(one.finalize().into());
+        Ok(())
+    }
+
+    /// The digest of the files together and of each alone, in the order they were added.
+    pub fn finish(self) -> ([u8; 32], Vec<[u8; 32]>) {
+        (self.all.finalize().into(), self.each)
+    }
+}
+
 /// The digest of `paths` together (the model's input digest) and of each file alone, in one
 /// read of each file.
 ///
 /// # Errors
 /// [`CalError::Io`] naming the file that cannot be opened or read.
 pub fn digests_of_files(paths: &[PathBuf]) -> Result<([u8; 32], Vec<[u8; 32]>), CalError> {
-    let mut all = Sha256::new();
-    let mut each = Vec::with_capacity(paths.len());
-    let mut buf = vec![0u8; 1 << 20];
+    let mut digest = InputDigest::new();
     for path in paths {
-        let io = |source| CalError::Io { path: path.clone(), source };
-        let mut file = std::fs::File::open(path).map_err(io)?;
-        let mut one = Sha256::new();
-        loop {
-            let n = file.read(&mut buf).map_err(io)?;
-            if n == 0 {
-                break;
-            }
-            all.update(&buf[..n]);
-            one.update(&buf[..n]);
-        }
-        each.push(one.finalize().into());
+        digest.add_file(path)?;
     }
-    Ok((all.finalize().into(), each))
+    Ok(digest.finish())
 }
 
 /// The note for validation logs the model `model` (as displayed) was fitted on, `None`
@@ -46,19 +74,32 @@ pub fn in_sample_note(model: &str, digest: [u8; 32], logs: &[PathBuf]) -> Result
     if digest == [0; 32] {
         return Ok(None);
     }
-    let (all, each) = digests_of_files(logs)?;
-    if all == digest {
+    Ok(in_sample_note_from(model, digest, logs, &digests_of_files(logs)?))
+}
+
+/// [`in_sample_note`] from the digests of `logs` already taken (`(together, each)`, as
+/// [`InputDigest::finish`] gives them).
+pub fn in_sample_note_from(
+    model: &str,
+    digest: [u8; 32],
+    logs: &[PathBuf],
+    (all, each): &([u8; 32], Vec<[u8; 32]>),
+) -> Option<String> {
+    if digest == [0; 32] {
+        return None;
+    }
+    if *all == digest {
         let these = if logs.len() == 1 {
             "this log is the one".to_string()
         } else {
             format!("these {} logs are the ones", logs.len())
         };
-        return Ok(Some(format!(
+        return Some(format!(
             "{these} {model} was fitted on (its input digest matches): the figures are in-sample, \
              not a validation on runs the model did not see"
-        )));
+        ));
     }
-    Ok(logs.iter().zip(&each).find(|(_, d)| **d == digest).map(|(log, _)| in_sample_log(model, log)))
+    logs.iter().zip(each).find(|(_, d)| **d == digest).map(|(log, _)| in_sample_log(model, log))
 }
 
 fn in_sample_log(model: &str, log: &Path) -> String {

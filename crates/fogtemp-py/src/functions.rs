@@ -733,9 +733,7 @@ pub fn validate<'py>(
             logs = fogtemp_cal::runs::validation_logs(logs, path).map_err(errors::cal)?;
         }
         choose_columns(py, &mut ingest, columns_named, &blobs, &models)?;
-        let in_sample =
-            py.detach(|| fogtemp_cal::digest::in_sample_note(&blobs[0].1, models[0].input_digest(), &logs));
-        if let Some(note) = in_sample.map_err(errors::cal)? {
+        if let Some(note) = in_sample_note(py, &blobs[0].1, models[0].input_digest(), &logs)? {
             progress::warn(py, &note)?;
         }
         let gyro_columns = ingest.format.gyro_columns.len();
@@ -787,6 +785,25 @@ pub fn validate<'py>(
 
 /// Every log file replayed through every model, one log at a time (the library's validation
 /// of each, in log order), so that Ctrl-C is raised between two logs.
+/// `validate`'s note for logs the model was fitted on (`fogtemp_cal::digest`), their digests
+/// taken one file at a time so that Ctrl-C is raised between two (the logs are read twice).
+fn in_sample_note(
+    py: Python<'_>,
+    model: &str,
+    digest: [u8; 32],
+    logs: &[PathBuf],
+) -> PyResult<Option<String>> {
+    if digest == [0; 32] {
+        return Ok(None);
+    }
+    let mut digests = fogtemp_cal::digest::InputDigest::new();
+    for log in logs {
+        py.detach(|| digests.add_file(log)).map_err(errors::cal)?;
+        py.check_signals()?;
+    }
+    Ok(fogtemp_cal::digest::in_sample_note_from(model, digest, logs, &digests.finish()))
+}
+
 /// The log columns for replaying `models` (the first is validated, the rest compared): the
 /// ones each model records unless `gyro_column=` or `temp_column=` were given (`named`), named
 /// ones checked against them (as the command line's `validate`); notes become warnings.

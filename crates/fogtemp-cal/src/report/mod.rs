@@ -2,7 +2,7 @@
 //! its SVG figures and a self-contained `report.html` beside it (module [`html`]). The
 //! validation figures cover the span of the metric (module [`data`], docs/reports.md).
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use plotters::prelude::*;
 
@@ -627,9 +627,38 @@ pub fn write_validation_report_with(
             md.push_str(&format!("![The model's mesh over (T, dT/dt), value at the nodes]({mesh_svg})\n\n"));
         }
     }
+    remove_stale_figures(dir, &VALIDATION_FIGURES, &md)?;
     let path = dir.join("report.md");
     write_file_atomic(&path, |w| w.write_all(md.as_bytes()))?;
     write_html_beside(&path)
+}
+
+/// The figures a validation report draws, `{prefix}{axis}.svg`.
+const VALIDATION_FIGURES: [&str; 4] = ["mesh-axis", "drift-axis", "bars-axis", "allan-axis"];
+/// The figures a fit report draws, `{prefix}{axis}.svg`.
+const FIT_FIGURES: [&str; 2] = ["fit-runs-axis", "fit-mesh-axis"];
+
+/// Removes from `dir` the figures of an earlier report of the same kind (`{prefix}{axis}.svg`
+/// for one of `prefixes`) that `markdown`, the report being written, does not show, so a
+/// re-used folder holds no figure of another model. Other files are left alone.
+///
+/// # Errors
+/// [`CalError::Io`] when the folder cannot be listed or a stale figure removed.
+fn remove_stale_figures(dir: &Path, prefixes: &[&str], markdown: &str) -> Result<(), CalError> {
+    let io = |path: PathBuf| move |source| CalError::Io { path, source };
+    for entry in std::fs::read_dir(dir).map_err(io(dir.to_path_buf()))? {
+        let name = entry.map_err(io(dir.to_path_buf()))?.file_name().to_string_lossy().into_owned();
+        let ours = name.strip_suffix(".svg").is_some_and(|stem| {
+            prefixes.iter().any(|p| {
+                stem.strip_prefix(p).is_some_and(|n| !n.is_empty() && n.bytes().all(|b| b.is_ascii_digit()))
+            })
+        });
+        if ours && !markdown.contains(&format!("]({name})")) {
+            let path = dir.join(&name);
+            std::fs::remove_file(&path).map_err(io(path.clone()))?;
+        }
+    }
+    Ok(())
 }
 
 /// The drift, bars and Allan figures of one axis's validation runs, and their Markdown.
@@ -879,6 +908,7 @@ pub fn write_fit_report(
             ));
         }
     }
+    remove_stale_figures(dir, &FIT_FIGURES, &md)?;
     let path = dir.join("fit-report.md");
     write_file_atomic(&path, |w| w.write_all(md.as_bytes()))?;
     write_html_beside(&path)
@@ -981,6 +1011,14 @@ mod tests {
         )
         .expect("validation");
         let dir = scratch("validate");
+        // A re-used folder: the figures of an earlier report that this one does not draw go
+        // (a second axis, a mesh this polynomial model does not have); other files stay.
+        let stale = ["drift-axis1.svg", "mesh-axis0.svg"];
+        let kept = ["mine.svg", "drift-axis1-old.svg", "fit-runs-axis0.svg", "drift-axisX.svg"];
+        std::fs::create_dir_all(&dir).expect("scratch folder");
+        for name in stale.iter().chain(&kept) {
+            std::fs::write(dir.join(name), "<svg/>").expect("plant a file");
+        }
         write_validation_report_with(
             &dir,
             Path::new("m.fogm"),
@@ -996,6 +1034,8 @@ mod tests {
         for figure in ["drift-axis0.svg", "bars-axis0.svg", "allan-axis0.svg"] {
             assert!(md.contains(figure), "{figure} not in the report");
         }
+        assert!(stale.iter().all(|n| !dir.join(n).exists()), "stale figures removed");
+        assert!(kept.iter().all(|n| dir.join(n).is_file()), "other files kept");
 
         let fit_dir = scratch("fit");
         let table = cross_validation_markdown(
