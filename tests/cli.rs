@@ -772,6 +772,7 @@ fn evaluate_points_with_bad_cells_are_located() {
         ("temp_c,rate_c_per_min\n21,0.5\nhot,0.1\n", ":3:1: column 'temp_c': not a number (found 'hot')"),
         ("temp_c,rate_c_per_min\n21,0.5\n22,0.4\nNaN,0.1\n", ":4:1: column 'temp_c': NaN or infinite"),
         ("temp,rate_c_per_min\n21,0.5\n", ": no column named 'temp_c'"),
+        ("temp_c rate_c_per_min\n21 0.5\n", ":1: the columns are separated by spaces"),
     ];
     for (i, (text, needle)) in cases.iter().enumerate() {
         let points = dir.path().join(format!("points{i}.csv"));
@@ -779,6 +780,18 @@ fn evaluate_points_with_bad_cells_are_located() {
         let msg = format!("{}{needle}", points.display());
         let args = args!["evaluate", "--model", &model, "--points", &points, "--out", &out];
         expect_failure(&args, dir.path(), Some(&out), &[&msg]);
+    }
+    // Semicolons or tabs (a spreadsheet's export) read as commas do (review6 F17).
+    let comma = dir.path().join("comma.csv");
+    fs::write(&comma, "temp_c,rate_c_per_min\n21,0.5\n-60,0\n").expect("write points");
+    let by_comma = run_ok(args!["evaluate", "--model", &model, "--points", &comma]);
+    for (name, text) in [
+        ("semi.csv", "temp_c;rate_c_per_min\n21;0.5\n-60;0\n"),
+        ("tab.csv", "temp_c\trate_c_per_min\n21\t0.5\n-60\t0\n"),
+    ] {
+        let points = dir.path().join(name);
+        fs::write(&points, text).expect("write points");
+        assert_eq!(run_ok(args!["evaluate", "--model", &model, "--points", &points]), by_comma, "{name}");
     }
 }
 

@@ -612,7 +612,8 @@ pub struct EvaluateArgs {
     /// Model file.
     #[arg(long, short)]
     pub model: PathBuf,
-    /// CSV with columns temp_c, rate_c_per_min.
+    /// CSV with columns temp_c, rate_c_per_min (separated by commas, semicolons or tabs: found
+    /// from the header).
     #[arg(long)]
     pub points: PathBuf,
     /// Model axis.

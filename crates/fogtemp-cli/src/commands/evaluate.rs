@@ -3,6 +3,7 @@
 use std::io::Write;
 
 use anyhow::{bail, Context, Result};
+use fogtemp_cal::ingest::{DecimalMark, Delimiter};
 use fogtemp_core::{Flags, Model, WalkHint};
 
 use super::read_model;
@@ -17,8 +18,10 @@ pub fn evaluate(a: EvaluateArgs) -> Result<()> {
     let blob = read_model(&a.model)?;
     let model = Model::from_bytes(&blob).map_err(|e| anyhow::anyhow!("{e}"))?;
     let axis = model.axis(a.axis).map_err(|e| anyhow::anyhow!("{}: {e}", a.model.display()))?;
+    let delimiter = points_delimiter(&a.points)?;
     let mut reader = csv::ReaderBuilder::new()
         .trim(csv::Trim::All)
+        .delimiter(delimiter)
         .from_path(&a.points)
         .with_context(|| format!("cannot open {}", a.points.display()))?;
     let header =
@@ -75,5 +78,24 @@ pub fn evaluate(a: EvaluateArgs) -> Result<()> {
     match &a.out {
         Some(path) => write_atomic(path, write),
         None => write(&mut std::io::stdout().lock()),
+    }
+}
+
+/// The points file's delimiter, from its header as a log's is found (`--delimiter auto`):
+/// the most frequent of comma, semicolon and tab (a spreadsheet in a European locale writes
+/// `temp_c;rate_c_per_min`).
+fn points_delimiter(path: &std::path::Path) -> Result<u8> {
+    use std::io::BufRead;
+    let file = std::fs::File::open(path).with_context(|| format!("cannot open {}", path.display()))?;
+    let mut header = Vec::new();
+    std::io::BufReader::new(file)
+        .read_until(b'\n', &mut header)
+        .with_context(|| format!("{}: cannot read the header", path.display()))?;
+    match Delimiter::Auto.resolve_with(&header, DecimalMark::Point) {
+        Delimiter::Byte(b) => Ok(b),
+        _ => bail!(
+            "{}:1: the columns are separated by spaces: separate them with commas, semicolons or tabs",
+            path.display()
+        ),
     }
 }
