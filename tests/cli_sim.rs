@@ -486,6 +486,11 @@ fn diagnose_names_a_left_out_lag_and_nothing_in_the_null_case() {
     let null = simulate_dir(dir.path(), "rec-null", &paper_at_1hz("sensor"), 13);
     let doc = run_json(&["diagnose", "--simulated", s(&simulated), "--recorded", s(&null), "--json"]);
     assert_eq!(doc["left_out"].as_array().map(Vec::len), Some(0), "{}", doc["summary"]);
+    // The text output: the verdict's lines first, then the full summary.
+    let text = run_ok(["diagnose", "--simulated", s(&simulated), "--recorded", s(&null)]);
+    let summary = doc["summary"].as_str().expect("summary");
+    assert!(text.starts_with("Verdict: no catalogue effect is left out"), "{text}");
+    assert!(text.contains(&format!("\n\nIn full: {summary}")), "{text}");
 }
 
 /// Runs are paired by file name: a recorded folder missing one run is refused, naming it.

@@ -358,9 +358,6 @@ fn plot_static_shape(
     })
 }
 
-/// The verdict in two or three lines before the full summary: what the simulation leaves
-/// out and how much it is worth on held-out runs, what the runs cannot tell it from, and
-/// what remains.
 /// One named effect in the verdict: its held-out change and the runs that judge it, or
 /// "possible, small" for a term with no held-out improvement or no run where it is large
 /// enough to judge (the noise model's test accepted it; the held-out runs do not show it, and
@@ -381,6 +378,9 @@ fn verdict_item(e: &crate::LeftOutEffect) -> String {
     )
 }
 
+/// The verdict in two or three lines before the full summary (Markdown): what the simulation
+/// leaves out and how much it is worth on held-out runs, what the runs cannot tell it from,
+/// and what remains.
 fn verdict(d: &Diagnosis) -> String {
     let mut lines = Vec::new();
     if d.left_out.is_empty() {
@@ -410,6 +410,12 @@ fn verdict(d: &Diagnosis) -> String {
     }
     lines.push(format!("{rest}."));
     lines.join("  \n")
+}
+
+/// The verdict as plain text, one line each (what the command line prints before the full
+/// summary).
+pub fn verdict_text(d: &Diagnosis) -> String {
+    verdict(d).replace("**", "").replace("  \n", "\n")
 }
 
 /// A parameter and its standard error as text, to the precision the error supports (two

@@ -116,7 +116,8 @@ pub fn diagnose(a: DiagnoseArgs, recorded_ingest: IngestOptions) -> Result<()> {
             scenario_changes,
         })?;
     } else {
-        println!("{}", d.summary);
+        // The verdict first: the full summary (the report's "In full") is long.
+        println!("{}\n\nIn full: {}", fogtemp_diagnose::verdict_text(&d), d.summary);
         eprintln!("diagnosed {} run pairs in {seconds:.1} s", pairs.len());
     }
     Ok(())
