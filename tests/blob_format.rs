@@ -817,6 +817,21 @@ fn find_slot(b: &[u8], s: Section, want: impl Fn(u32) -> bool) -> (usize, usize)
 }
 
 #[test]
+fn a_wrong_section_len_names_its_axis() {
+    let mut b = encode(&three_axis_model()).expect("encodes");
+    let s = section(&b, 2);
+    let stored = u32_at(&b, s.start + AXIS_SECTION_LEN.start) as usize;
+    put_u32(&mut b, s.start + AXIS_SECTION_LEN.start, stored as u32 + 8);
+    fix_crc(&mut b);
+    let e = Model::from_bytes(&b).expect_err("refused");
+    assert_eq!(e, Error::SectionLength { axis: 2, expected: stored, found: stored + 8 });
+    assert_eq!(
+        e.to_string(),
+        format!("axis 2: section_len is {} but the counts in its header imply {stored}", stored + 8)
+    );
+}
+
+#[test]
 fn targeted_header_corruptions_give_their_specific_errors() {
     let r = mutated(|b, _| b[0] = b'X');
     assert!(matches!(r, Err(Error::BadMagic)), "{r:?}");
@@ -892,7 +907,7 @@ fn targeted_axis_corruptions_give_their_specific_errors() {
     let r = mutated(|b, s| put_u32(b, s.start + AXIS_POLY_OUTSIDE.start, 2));
     assert!(matches!(r, Err(Error::BadValue { field: "poly_outside", .. })), "{r:?}");
     let r = mutated(|b, s| put_u32(b, s.start + AXIS_SECTION_LEN.start, 96));
-    assert!(matches!(r, Err(Error::LengthMismatch { field: "section_len", .. })), "{r:?}");
+    assert!(matches!(r, Err(Error::SectionLength { axis: 0, .. })), "{r:?}");
     let r = mutated(|b, s| put_f32(b, s.start + AXIS_WINDOW_S.start, f32::NAN));
     assert!(matches!(r, Err(Error::NonFinite { field: "window_s", .. })), "{r:?}");
     let r = mutated(|b, s| put_f32(b, s.start + AXIS_TEMP_SCALE_PER_C.start, -1.0));
@@ -1258,7 +1273,7 @@ fn corrupt_or_missing_stored_gradients_give_their_specific_errors() {
     // Another policy does not expect the gradients that are there.
     for code in [0, 1, 2] {
         let r = gradient_mutated(|b, s| put_u32(b, s.start + AXIS_OUTSIDE_POLICY.start, code));
-        assert!(matches!(r, Err(Error::LengthMismatch { field: "section_len", .. })), "code {code}: {r:?}");
+        assert!(matches!(r, Err(Error::SectionLength { axis: 0, .. })), "code {code}: {r:?}");
     }
     let r = gradient_mutated(|b, s| put_u32(b, s.start + AXIS_OUTSIDE_POLICY.start, 4));
     assert!(matches!(r, Err(Error::BadValue { field: "outside_policy", .. })), "{r:?}");
@@ -1281,7 +1296,7 @@ fn corrupt_or_missing_stored_gradients_give_their_specific_errors() {
         let total = b.len() as u32;
         put_u32(b, FILE_TOTAL_LEN.start, total);
     });
-    assert!(matches!(r, Err(Error::LengthMismatch { field: "section_len", .. })), "{r:?}");
+    assert!(matches!(r, Err(Error::SectionLength { axis: 0, .. })), "{r:?}");
 }
 
 #[test]

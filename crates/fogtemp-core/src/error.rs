@@ -35,6 +35,15 @@ pub enum Error {
         /// Value found.
         found: usize,
     },
+    /// An axis section's `section_len` differs from the length its header's counts imply.
+    SectionLength {
+        /// Axis section.
+        axis: u16,
+        /// Length the counts imply.
+        expected: usize,
+        /// `section_len` found.
+        found: usize,
+    },
     /// The CRC-32 trailer does not match the bytes.
     CrcMismatch {
         /// CRC computed over the blob.
@@ -151,6 +160,10 @@ impl fmt::Display for Error {
             Error::LengthMismatch { field, expected, found } => {
                 write!(f, "{field} is {found} but the data implies {expected}")
             }
+            Error::SectionLength { axis, expected, found } => write!(
+                f,
+                "axis {axis}: section_len is {found} but the counts in its header imply {expected}"
+            ),
             Error::BadHeaderValue { field: "axis_count", found } => write!(
                 f,
                 "file header: axis_count is {found}, outside 1..={}",

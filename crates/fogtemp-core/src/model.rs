@@ -509,7 +509,7 @@ fn parse_axis(body: &[u8], offset: usize, id: u16, version: u16) -> Result<(Axis
     let expected =
         axis_section_len(terms, vertices, triangles, hull, region_count, gradients).unwrap_or(usize::MAX);
     if section_len != expected {
-        return Err(Error::LengthMismatch { field: "section_len", expected, found: section_len });
+        return Err(Error::SectionLength { axis: id, expected, found: section_len });
     }
     let end = offset.checked_add(section_len).ok_or(truncated("axis section", usize::MAX, found))?;
     let section = body.get(offset..end).ok_or(truncated("axis section", end, found))?;

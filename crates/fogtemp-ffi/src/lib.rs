@@ -100,7 +100,7 @@ impl fogtemp_status {
             Error::Truncated { .. } => Self::Truncated,
             Error::BadMagic => Self::BadMagic,
             Error::UnsupportedVersion { .. } => Self::UnsupportedVersion,
-            Error::LengthMismatch { .. } => Self::LengthMismatch,
+            Error::LengthMismatch { .. } | Error::SectionLength { .. } => Self::LengthMismatch,
             Error::CrcMismatch { .. } => Self::CrcMismatch,
             Error::BadValue { .. } | Error::BadHeaderValue { .. } => Self::BadValue,
             Error::NonFinite { .. } => Self::NonFinite,
@@ -545,6 +545,7 @@ fn details(e: &Error) -> (u32, u32, u64, u64) {
             (FOGTEMP_NO_AXIS, 0, u64::from(expected), u64::from(found))
         }
         Error::LengthMismatch { expected, found, .. } => (FOGTEMP_NO_AXIS, 0, n(expected), n(found)),
+        Error::SectionLength { axis, expected, found } => (u32::from(axis), 0, n(expected), n(found)),
         Error::CrcMismatch { expected, found } => (FOGTEMP_NO_AXIS, 0, u64::from(expected), u64::from(found)),
         Error::BadValue { axis, index, .. } | Error::NonFinite { axis, index, .. } => {
             (u32::from(axis), index, 0, 0)

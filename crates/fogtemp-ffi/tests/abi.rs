@@ -275,6 +275,19 @@ fn errors_carry_the_axis_and_the_element() {
     let status = unsafe { fogtemp_model_from_bytes(blob.as_ptr(), n, &mut model, &mut err) };
     assert_eq!((status, err.axis, err.found), (fogtemp_status::BadValue, FOGTEMP_NO_AXIS, 17));
     assert_eq!(message(&err), "file header: axis_count is 17, outside 1..=16");
+    // A section_len that disagrees with its counts names its axis (needed: the implied length).
+    let mut blob = GOLDEN.to_vec();
+    let axis1 = 64 + u32::from_le_bytes(blob[64..68].try_into().unwrap()) as usize;
+    let stored = u32::from_le_bytes(blob[axis1..axis1 + 4].try_into().unwrap());
+    blob[axis1..axis1 + 4].copy_from_slice(&(stored + 8).to_le_bytes());
+    let crc = fogtemp_core::crc::crc32(&blob[..n - 4]);
+    blob[n - 4..].copy_from_slice(&crc.to_le_bytes());
+    // SAFETY: live pointers; `blob` outlives the (failed) model.
+    let status = unsafe { fogtemp_model_from_bytes(blob.as_ptr(), n, &mut model, &mut err) };
+    assert_eq!(
+        (status, err.axis, err.needed, err.found),
+        (fogtemp_status::LengthMismatch, 1, u64::from(stored), u64::from(stored) + 8)
+    );
 }
 
 #[test]
