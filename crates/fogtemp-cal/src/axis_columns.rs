@@ -156,34 +156,16 @@ fn check(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::blob::{encode, AxisModel, ModelFile};
-    use fogtemp_core::{AxisProvenance, Normalisation, OutsidePolicy, PolyOutside, PolyTerm};
+    use crate::blob::{encode, ModelFile};
+    use fogtemp_core::PolyTerm;
 
     /// A blob of constant-bias axes recording `names` (gyro, temperature) per axis, or none.
     fn model_with(axes: usize, names: &[(&str, &str)]) -> Vec<u8> {
-        let axis = AxisModel {
-            features: crate::calibrate::default_features(),
-            normalisation: Normalisation {
-                temp_offset_c: 0.0,
-                temp_scale_per_c: 1.0,
-                rate_offset_c_per_min: 0.0,
-                rate_scale_per_c_per_min: 1.0,
-            },
-            outside_policy: OutsidePolicy::NearestHull,
-            poly: vec![PolyTerm { temp_power: 0, rate_power: 0, coefficient_dph: 1.0 }],
-            mesh: None,
-            provenance: AxisProvenance {
-                fit_point_count: 1,
-                residual_rms_dph: 0.0,
-                residual_max_abs_dph: 0.0,
-                temp_min_c: 0.0,
-                temp_max_c: 1.0,
-                rate_min_c_per_min: 0.0,
-                rate_max_c_per_min: 0.0,
-            },
-            region: Vec::new(),
-            poly_outside: PolyOutside::Extrapolate,
-        };
+        let axis = crate::blob::test_poly_axis(vec![PolyTerm {
+            temp_power: 0,
+            rate_power: 0,
+            coefficient_dph: 1.0,
+        }]);
         let columns =
             names.iter().map(|(g, t)| ColumnNames { gyro: (*g).into(), temp: (*t).into() }).collect();
         let file =

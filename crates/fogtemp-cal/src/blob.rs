@@ -464,3 +464,32 @@ fn put_u32(buf: &mut [u8], at: usize, v: u32) {
 fn put_f32(buf: &mut [u8], at: usize, v: f32) {
     buf[at..at + 4].copy_from_slice(&v.to_le_bytes());
 }
+
+/// A polynomial axis over the identity normalisation (T in C, dT/dt in C/min), with the
+/// default feature settings and no region: the unit tests' small models.
+#[cfg(test)]
+pub(crate) fn test_poly_axis(poly: Vec<PolyTerm>) -> AxisModel {
+    AxisModel {
+        features: crate::calibrate::default_features(),
+        normalisation: Normalisation {
+            temp_offset_c: 0.0,
+            temp_scale_per_c: 1.0,
+            rate_offset_c_per_min: 0.0,
+            rate_scale_per_c_per_min: 1.0,
+        },
+        outside_policy: OutsidePolicy::NearestHull,
+        poly,
+        mesh: None,
+        provenance: AxisProvenance {
+            fit_point_count: 2,
+            residual_rms_dph: 0.0,
+            residual_max_abs_dph: 0.0,
+            temp_min_c: -50.0,
+            temp_max_c: 50.0,
+            rate_min_c_per_min: -1.0,
+            rate_max_c_per_min: 1.0,
+        },
+        region: Vec::new(),
+        poly_outside: PolyOutside::Extrapolate,
+    }
+}

@@ -124,35 +124,13 @@ pub fn corrected(fold_scores: &[f64], full: f64, folds: &[f64]) -> Vec<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::blob::{encode, AxisModel, ModelFile};
-    use fogtemp_core::{AxisProvenance, Normalisation, OutsidePolicy, PolyOutside, PolyTerm};
+    use crate::blob::{encode, ModelFile};
+    use fogtemp_core::PolyTerm;
 
     /// A blob with one polynomial axis `c0 + c1 * T` (identity normalisation).
     fn linear_in_t(c0: f32, c1: f32) -> Vec<u8> {
         let term = |temp_power, coefficient_dph| PolyTerm { temp_power, rate_power: 0, coefficient_dph };
-        let axis = AxisModel {
-            features: crate::calibrate::default_features(),
-            normalisation: Normalisation {
-                temp_offset_c: 0.0,
-                temp_scale_per_c: 1.0,
-                rate_offset_c_per_min: 0.0,
-                rate_scale_per_c_per_min: 1.0,
-            },
-            outside_policy: OutsidePolicy::NearestHull,
-            poly: vec![term(0, c0), term(1, c1)],
-            mesh: None,
-            provenance: AxisProvenance {
-                fit_point_count: 2,
-                residual_rms_dph: 0.0,
-                residual_max_abs_dph: 0.0,
-                temp_min_c: -50.0,
-                temp_max_c: 50.0,
-                rate_min_c_per_min: -1.0,
-                rate_max_c_per_min: 1.0,
-            },
-            region: Vec::new(),
-            poly_outside: PolyOutside::Extrapolate,
-        };
+        let axis = crate::blob::test_poly_axis(vec![term(0, c0), term(1, c1)]);
         encode(&ModelFile {
             tool_version: String::new(),
             input_digest: [0; 32],
