@@ -439,7 +439,13 @@ fn golden_model_v4() -> ModelFile {
     let mut model = golden_model_v3();
     model.columns = GOLDEN_V4_COLUMNS
         .iter()
-        .map(|(gyro, temp)| ColumnNames { gyro: (*gyro).into(), temp: (*temp).into() })
+        .map(|&(gyro, temp, gyro_dph_per_unit, temp_c_per_unit, temp_offset_c)| ColumnNames {
+            gyro: gyro.into(),
+            temp: temp.into(),
+            gyro_dph_per_unit,
+            temp_c_per_unit,
+            temp_offset_c,
+        })
         .collect();
     model
 }
@@ -541,15 +547,18 @@ fn golden_v4_blob_is_reproduced_byte_for_byte_by_todays_writer() {
     let axes_end = v3.len() - CRC_LEN;
     assert_eq!(golden[FILE_HEADER_LEN..axes_end], v3[FILE_HEADER_LEN..axes_end]);
     let mut expected = Vec::new();
-    for (gyro, temp) in GOLDEN_V4_COLUMNS {
+    for (gyro, temp, gyro_dph_per_unit, temp_c_per_unit, temp_offset_c) in GOLDEN_V4_COLUMNS {
         for name in [gyro, temp] {
             expected.push(name.len() as u8);
             expected.extend_from_slice(name.as_bytes());
         }
+        for v in [gyro_dph_per_unit, temp_c_per_unit, temp_offset_c] {
+            expected.extend_from_slice(&v.to_le_bytes());
+        }
     }
     // "gyro_x" 6 + "temp_c" 6 + "Drehrate Y (°/h)" 17 (the degree sign is two bytes) + "T_y" 3,
-    // plus four length bytes and the four of names_len.
-    assert_eq!(expected.len(), 6 + 6 + 17 + 3 + 4);
+    // four length bytes, and three f64 per axis (names_len's four bytes come before).
+    assert_eq!(expected.len(), 6 + 6 + 17 + 3 + 4 + 2 * 24);
     let names = &golden[axes_end..golden.len() - CRC_LEN];
     assert_eq!(u32_at(names, 0) as usize, 4 + expected.len());
     assert_eq!(names[4..], expected[..]);

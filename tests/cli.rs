@@ -1217,6 +1217,56 @@ fn log_columns_are_matched_to_axes_by_the_names_the_model_records() {
     );
 }
 
+/// A model records how its fit read the numbers (unit, scales, offset): `validate` reads the
+/// logs the same way when no unit option is named (the README's psim-tvc command needed every
+/// flag repeated), and says so; named units that differ are used, with a note.
+#[test]
+fn units_the_model_records_are_read_when_none_are_named() {
+    let dir = TempDir::new().expect("tempdir");
+    let (_, lines) = short_log(dir.path(), "ok.csv");
+    // The same samples logged as a gyro in deg/s at half scale and a temperature in 1/16 C
+    // counts from -40 C.
+    let mut raw = vec!["time_s,counts,gyro_dps".to_string()];
+    for l in &lines[1..] {
+        let c: Vec<f64> = l.split(',').map(|v| v.parse().expect("number")).collect();
+        raw.push(format!("{},{},{:e}", c[0], (c[1] + 40.0) * 16.0, c[2] / 3600.0 / 0.5));
+    }
+    let log = dir.path().join("raw.csv");
+    write_lines(&log, &raw);
+    let units =
+        ["--gyro-unit", "dps", "--gyro-scale", "0.5", "--temp-scale", "0.0625", "--temp-offset", "-40"];
+    let model = dir.path().join("m.fogm");
+    let mut fit_args =
+        args!["fit", "--method", "poly", "--gyro-column", "gyro_dps", "--temp-column", "counts"];
+    fit_args.extend(units.iter().map(OsString::from));
+    fit_args.extend(args!["--out", &model, &log]);
+    run_ok(fit_args);
+    let validate = |extra: &[&str]| {
+        let mut args = args!["validate", "--json", "--tau-s", "10", "--model", &model, &log];
+        args.extend(extra.iter().map(OsString::from));
+        let output = cal().args(&args).output().expect("run");
+        assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+        (json(&String::from_utf8_lossy(&output.stdout)), String::from_utf8_lossy(&output.stderr).into_owned())
+    };
+    let (named, quiet) = validate(&units);
+    let (recorded, said) = validate(&[]);
+    let comp = |d: &Value| f(&d["compensated_bias_stability_dph"]);
+    assert!(comp(&named).is_finite());
+    assert_eq!(comp(&recorded).to_bits(), comp(&named).to_bits(), "read the same way, bit for bit");
+    assert!(!quiet.contains("as the model was fitted"), "{quiet}");
+    assert!(said.contains("the gyro is read as the model was fitted: 1800 deg/h per unit"), "{said}");
+    assert!(
+        said.contains("the temperature is read as the model was fitted: 0.0625 C per unit - 40 C"),
+        "{said}"
+    );
+    // Another unit named: used as given, with a note naming both.
+    let (_, other) = validate(&["--gyro-unit", "dps"]);
+    assert!(
+        other.contains("was fitted on the gyro read as 1800 deg/h per unit; this log is read as 3600"),
+        "{other}"
+    );
+}
+
 /// Settings no fit can use are refused before any log is read, naming the option (they
 /// used to surface after the fitting as a blob field out of range, or not at all).
 #[test]

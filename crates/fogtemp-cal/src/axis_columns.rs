@@ -1,12 +1,12 @@
 //! Which log columns feed which model axis when a model is replayed (`validate`,
-//! `compensate`): the columns the model records (format version 4) unless others are named,
-//! and named ones checked against them, so a swapped pair of gyro columns is refused instead
-//! of compensated with the other axis's model.
+//! `compensate`), and in which units: the columns and units the model records (format
+//! version 4) unless others are named, and named columns checked against them, so a swapped
+//! pair of gyro columns is refused instead of compensated with the other axis's model.
 
 use fogtemp_core::Model;
 
 use crate::blob::ColumnNames;
-use crate::ingest::LogFormat;
+use crate::ingest::{LogFormat, RateUnit};
 
 /// The columns chosen for a model, and what the user is told about them.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
@@ -99,6 +99,59 @@ pub fn choose(
     Ok(ChosenColumns { gyro: chosen_gyro, temp: chosen_temp, notes, gyro_from_model })
 }
 
+/// The units to read the logs of `model` in: where no unit option was named (`named`: the
+/// gyro's, the temperature's), the ones the model records, which its fit read the logs in;
+/// `format`'s where they were named. Returns the notes: the units taken from the model when
+/// they are not the defaults (deg/h, deg C), and named units that differ from the model's.
+/// A model that records none (before format 4) leaves `format` as it is. `settings` names the
+/// options for the messages (`--gyro-unit/--gyro-scale`, `--temp-scale/--temp-offset`).
+pub fn choose_units(
+    model: &Model<'_>,
+    model_name: &str,
+    format: &mut LogFormat,
+    (gyro_named, temp_named): (bool, bool),
+    (gyro_setting, temp_setting): (&str, &str),
+) -> Vec<String> {
+    let Some(fitted) = ColumnNames::of(model, 0) else { return Vec::new() };
+    let mut notes = Vec::new();
+    let same = |a: f64, b: f64| (a - b).abs() <= 1e-6 * (a.abs() + b.abs() + 1e-30);
+    let gyro_given = format.gyro_unit.dph() * format.gyro_scale;
+    // Printed to 7 significant digits (f32's shortest text).
+    let fitted_gyro = format!("{} deg/h per unit", fitted.gyro_dph_per_unit as f32);
+    if !gyro_named {
+        format.gyro_unit = RateUnit::DegPerHour;
+        format.gyro_scale = fitted.gyro_dph_per_unit;
+        if fitted.gyro_dph_per_unit != 1.0 {
+            notes.push(format!("{model_name}: the gyro is read as the model was fitted: {fitted_gyro} ({gyro_setting} to read it otherwise)"));
+        }
+    } else if !same(gyro_given, fitted.gyro_dph_per_unit) {
+        notes.push(format!(
+            "{model_name} was fitted on the gyro read as {fitted_gyro}; this log is read as {} deg/h per unit ({gyro_setting})",
+            gyro_given as f32
+        ));
+    }
+    let temp = |scale: f64, offset: f64| {
+        let sign = if offset < 0.0 { "-" } else { "+" };
+        format!("{} C per unit {sign} {} C", scale as f32, offset.abs() as f32)
+    };
+    let fitted_temp = temp(fitted.temp_c_per_unit, fitted.temp_offset_c);
+    if !temp_named {
+        format.temp_scale = fitted.temp_c_per_unit;
+        format.temp_offset_c = fitted.temp_offset_c;
+        if fitted.temp_c_per_unit != 1.0 || fitted.temp_offset_c != 0.0 {
+            notes.push(format!("{model_name}: the temperature is read as the model was fitted: {fitted_temp} ({temp_setting} to read it otherwise)"));
+        }
+    } else if !(same(format.temp_scale, fitted.temp_c_per_unit)
+        && (format.temp_offset_c - fitted.temp_offset_c).abs() <= 1e-4)
+    {
+        notes.push(format!(
+            "{model_name} was fitted on the temperature read as {fitted_temp}; this log is read as {} ({temp_setting})",
+            temp(format.temp_scale, format.temp_offset_c)
+        ));
+    }
+    notes
+}
+
 /// The two kinds of column an axis reads.
 #[derive(Clone, Copy, PartialEq, Eq)]
 enum Kind {
@@ -166,11 +219,84 @@ mod tests {
             rate_power: 0,
             coefficient_dph: 1.0,
         }]);
-        let columns =
-            names.iter().map(|(g, t)| ColumnNames { gyro: (*g).into(), temp: (*t).into() }).collect();
+        let columns = names
+            .iter()
+            .map(|(g, t)| ColumnNames { gyro: (*g).into(), temp: (*t).into(), ..ColumnNames::default() })
+            .collect();
         let file =
             ModelFile { tool_version: String::new(), input_digest: [0; 32], axes: vec![axis; axes], columns };
         encode(&file).expect("encodes")
+    }
+
+    /// A one-axis model fitted on `gyrox` in rad/s at half scale and `temp` in 1/256 C counts
+    /// from -231 C (the README's psim-tvc command).
+    fn psim_like() -> Vec<u8> {
+        let axis = crate::blob::test_poly_axis(vec![PolyTerm {
+            temp_power: 0,
+            rate_power: 0,
+            coefficient_dph: 1.0,
+        }]);
+        let columns = vec![ColumnNames {
+            gyro: "gyrox".into(),
+            temp: "temp".into(),
+            gyro_dph_per_unit: RateUnit::RadPerSecond.dph() * 0.5,
+            temp_c_per_unit: 0.00390625,
+            temp_offset_c: -231.0,
+        }];
+        encode(&ModelFile { tool_version: String::new(), input_digest: [0; 32], axes: vec![axis], columns })
+            .expect("encodes")
+    }
+
+    fn units(blob: &[u8], format: &mut LogFormat, named: (bool, bool)) -> Vec<String> {
+        let model = Model::from_bytes(blob).expect("valid");
+        choose_units(
+            &model,
+            "m.fogm",
+            format,
+            named,
+            ("--gyro-unit/--gyro-scale", "--temp-scale/--temp-offset"),
+        )
+    }
+
+    #[test]
+    fn units_not_named_are_the_models_and_named_ones_that_differ_are_noted() {
+        let blob = psim_like();
+        // Not named: the model's, said once each (they are not deg/h and deg C).
+        let mut format = LogFormat::default();
+        let notes = units(&blob, &mut format, (false, false));
+        // 0.5 rad/s in deg/h: 0.5 * 3600 * 180 / pi.
+        let dph = 0.5 * 3600.0 * 180.0 / std::f64::consts::PI;
+        assert_eq!(format.gyro_unit, RateUnit::DegPerHour);
+        assert!((format.gyro_scale - dph).abs() <= 1e-7 * dph, "{}", format.gyro_scale);
+        assert_eq!((format.temp_scale, format.temp_offset_c), (0.00390625, -231.0));
+        assert_eq!(notes.len(), 2, "{notes:?}");
+        assert!(
+            notes[0].starts_with("m.fogm: the gyro is read as the model was fitted: 103132.4"),
+            "{notes:?}"
+        );
+        assert!(notes[1].contains("0.00390625 C per unit - 231 C (--temp-scale/--temp-offset"), "{notes:?}");
+        // Named as fitted: nothing to say; named otherwise: used, with a note.
+        let mut format = LogFormat {
+            gyro_unit: RateUnit::RadPerSecond,
+            gyro_scale: 0.5,
+            temp_scale: 0.00390625,
+            temp_offset_c: -231.0,
+            ..LogFormat::default()
+        };
+        assert!(units(&blob, &mut format, (true, true)).is_empty());
+        let mut format = LogFormat::default();
+        let notes = units(&blob, &mut format, (true, true));
+        assert_eq!((format.gyro_scale, format.temp_scale), (1.0, 1.0));
+        assert_eq!(notes.len(), 2, "{notes:?}");
+        assert!(
+            notes[0].contains("this log is read as 1 deg/h per unit (--gyro-unit/--gyro-scale)"),
+            "{notes:?}"
+        );
+        // A model with default units, or one that records none, leaves the format alone.
+        for blob in [model_with(1, &[("g", "t")]), model_with(1, &[])] {
+            let mut format = LogFormat { gyro_scale: 2.0, ..LogFormat::default() };
+            assert!(units(&blob, &mut format, (false, false)).is_empty());
+        }
     }
 
     fn strings(names: &[&str]) -> Vec<String> {

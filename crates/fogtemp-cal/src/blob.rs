@@ -46,19 +46,44 @@ pub struct ModelFile {
     pub columns: Vec<ColumnNames>,
 }
 
-/// The log columns one axis was fitted on.
-#[derive(Clone, Debug, Default, PartialEq, Eq)]
+/// The log columns one axis was fitted on, and how their numbers were read.
+#[derive(Clone, Debug, PartialEq)]
 pub struct ColumnNames {
     /// The gyro column.
     pub gyro: String,
     /// The temperature column that fed the axis's features.
     pub temp: String,
+    /// Deg/h per unit of the gyro column (the unit's factor times any extra scale).
+    pub gyro_dph_per_unit: f64,
+    /// Deg C per unit of the temperature column.
+    pub temp_c_per_unit: f64,
+    /// Added after the scale, deg C.
+    pub temp_offset_c: f64,
+}
+
+impl Default for ColumnNames {
+    /// No names; numbers read as deg/h and deg C.
+    fn default() -> Self {
+        Self {
+            gyro: String::new(),
+            temp: String::new(),
+            gyro_dph_per_unit: 1.0,
+            temp_c_per_unit: 1.0,
+            temp_offset_c: 0.0,
+        }
+    }
 }
 
 impl ColumnNames {
-    /// The names an axis of `model` records (`None` before format version 4).
+    /// What an axis of `model` records (`None` before format version 4).
     pub fn of(model: &Model<'_>, axis: usize) -> Option<Self> {
-        model.axis_columns(axis).map(|c| Self { gyro: c.gyro.to_string(), temp: c.temp.to_string() })
+        model.axis_columns(axis).map(|c| Self {
+            gyro: c.gyro.to_string(),
+            temp: c.temp.to_string(),
+            gyro_dph_per_unit: c.gyro_dph_per_unit,
+            temp_c_per_unit: c.temp_c_per_unit,
+            temp_offset_c: c.temp_offset_c,
+        })
     }
 }
 
@@ -131,16 +156,21 @@ pub fn encode_with_selection(model: &ModelFile, selection: &[u16]) -> Result<Vec
     Ok(out)
 }
 
-/// The column-names section (`docs/model-format.md`, "Column names"). A name the section
+/// The log-columns section (`docs/model-format.md`, "Log columns"). A name the section
 /// cannot hold (over 255 bytes, or with a control character) is written as not recorded.
 fn encode_column_names(out: &mut Vec<u8>, columns: &[ColumnNames]) {
     let start = out.len();
     out.extend_from_slice(&[0; NAMES_LEN_LEN]);
-    for name in columns.iter().flat_map(|c| [&c.gyro, &c.temp]) {
-        let storable = name.len() <= MAX_COLUMN_NAME_LEN && !name.chars().any(char::is_control);
-        let bytes = if storable { name.as_bytes() } else { &[] };
-        out.push(bytes.len() as u8);
-        out.extend_from_slice(bytes);
+    for c in columns {
+        for name in [&c.gyro, &c.temp] {
+            let storable = name.len() <= MAX_COLUMN_NAME_LEN && !name.chars().any(char::is_control);
+            let bytes = if storable { name.as_bytes() } else { &[] };
+            out.push(bytes.len() as u8);
+            out.extend_from_slice(bytes);
+        }
+        for v in [c.gyro_dph_per_unit, c.temp_c_per_unit, c.temp_offset_c] {
+            out.extend_from_slice(&v.to_le_bytes());
+        }
     }
     let len = out.len() - start;
     put_u32(out, start, len as u32);

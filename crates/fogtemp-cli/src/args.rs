@@ -86,22 +86,24 @@ pub struct IngestArgs {
     /// replaying a model: the columns it was fitted with].
     #[arg(long = "temp-column", help_heading = "Log columns")]
     pub temp_columns: Vec<String>,
-    /// temp_c = raw * temp-scale + temp-offset (for a sensor logged in raw counts).
-    #[arg(long, default_value_t = 1.0, allow_negative_numbers = true, help_heading = "Log columns", value_parser = nonzero_finite)]
-    pub temp_scale: f64,
-    /// See --temp-scale, deg C.
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true, help_heading = "Log columns", value_parser = finite)]
-    pub temp_offset: f64,
+    /// temp_c = raw * temp-scale + temp-offset (for a sensor logged in raw counts) [default: 1;
+    /// replaying a model: as it was fitted].
+    #[arg(long, allow_negative_numbers = true, help_heading = "Log columns", value_parser = nonzero_finite)]
+    pub temp_scale: Option<f64>,
+    /// See --temp-scale, deg C [default: 0; replaying a model: as it was fitted].
+    #[arg(long, allow_negative_numbers = true, help_heading = "Log columns", value_parser = finite)]
+    pub temp_offset: Option<f64>,
     /// Gyro column(s), one model axis each [default: gyro_dph; replaying a model: the columns
     /// it was fitted on, and named ones are checked against them].
     #[arg(long = "gyro-column", help_heading = "Log columns")]
     pub gyro_columns: Vec<String>,
-    /// Unit of the gyro columns.
-    #[arg(long, value_enum, default_value_t = GyroUnitArg::Dph, help_heading = "Log columns")]
-    pub gyro_unit: GyroUnitArg,
-    /// Extra factor applied to the gyro after unit conversion.
-    #[arg(long, default_value_t = 1.0, allow_negative_numbers = true, help_heading = "Log columns", value_parser = nonzero_finite)]
-    pub gyro_scale: f64,
+    /// Unit of the gyro columns [default: dph; replaying a model: as it was fitted].
+    #[arg(long, value_enum, help_heading = "Log columns")]
+    pub gyro_unit: Option<GyroUnitArg>,
+    /// Extra factor applied to the gyro after unit conversion [default: 1; replaying a model:
+    /// as it was fitted].
+    #[arg(long, allow_negative_numbers = true, help_heading = "Log columns", value_parser = nonzero_finite)]
+    pub gyro_scale: Option<f64>,
     /// Field delimiter: auto (from the header, or the first data row: the most frequent of
     /// comma, semicolon and tab, else whitespace if the fields are separated by spaces),
     /// comma, semicolon, tab, whitespace (runs of spaces and tabs, no quoting) or any one
@@ -138,15 +140,16 @@ impl IngestArgs {
                 TimeUnitArg::TimeOfDay => TimeUnit::TimeOfDay,
             },
             temp_columns: or_default(&self.temp_columns, defaults.temp_columns),
-            temp_scale: self.temp_scale,
-            temp_offset_c: self.temp_offset,
+            temp_scale: self.temp_scale.unwrap_or(defaults.temp_scale),
+            temp_offset_c: self.temp_offset.unwrap_or(defaults.temp_offset_c),
             gyro_columns: or_default(&self.gyro_columns, defaults.gyro_columns),
             gyro_unit: match self.gyro_unit {
-                GyroUnitArg::Dph => RateUnit::DegPerHour,
-                GyroUnitArg::Dps => RateUnit::DegPerSecond,
-                GyroUnitArg::Rps => RateUnit::RadPerSecond,
+                None => defaults.gyro_unit,
+                Some(GyroUnitArg::Dph) => RateUnit::DegPerHour,
+                Some(GyroUnitArg::Dps) => RateUnit::DegPerSecond,
+                Some(GyroUnitArg::Rps) => RateUnit::RadPerSecond,
             },
-            gyro_scale: self.gyro_scale,
+            gyro_scale: self.gyro_scale.unwrap_or(defaults.gyro_scale),
             delimiter: self.delimiter,
             skip_lines: self.skip_lines,
             comment: (!self.comment.is_empty()).then(|| self.comment.clone()),

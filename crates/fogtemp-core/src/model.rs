@@ -406,9 +406,10 @@ impl<'a> Model<'a> {
         self.version
     }
 
-    /// The log columns axis `index` was fitted on (format version 4; `None` for an older
-    /// blob or an axis that does not exist; a name the writer did not record is `""`).
-    /// Not used by evaluation: it lets a host match a log's columns to the axes by name.
+    /// The log columns axis `index` was fitted on and how their numbers were read (format
+    /// version 4; `None` for an older blob or an axis that does not exist; a name the writer
+    /// did not record is `""`). Not used by evaluation: it lets a host match a log's columns
+    /// to the axes by name and read them in the units of the fit.
     pub fn axis_columns(&self, index: usize) -> Option<AxisColumns<'a>> {
         if self.version < FIRST_VERSION_WITH_COLUMN_NAMES || index >= self.axis_count() {
             return None;

@@ -1,32 +1,41 @@
-//! The column-names section (format version 4): the log columns each axis was fitted on, so a
-//! reader can match a log's columns to the model's axes by name instead of by position.
+//! The log-columns section (format version 4): per axis, the log columns it was fitted on and
+//! how their numbers were read, so a host can match a log's columns to the model's axes by
+//! name and read them in the same units, instead of by position and by flags repeated.
 //!
-//! Layout, after the last axis section and before the CRC trailer:
-//! `names_len` (u32, the section's bytes with this field), then per axis in order the gyro
-//! column and the temperature column, each a one-byte length and that many bytes of UTF-8
-//! (no control characters; length 0 = not recorded).
+//! Layout, after the last axis section and before the CRC trailer: `names_len` (u32, the
+//! section's bytes with this field), then per axis in order: the gyro column and the
+//! temperature column, each a one-byte length and that many bytes of UTF-8 (no control
+//! characters; length 0 = not recorded), then `gyro_dph_per_unit`, `temp_c_per_unit` and
+//! `temp_offset_c` (f64 each, the one place a blob holds f64: hosts read logs in f64 and these
+//! reproduce the fit's reading exactly; `gyro_dph = value * gyro_dph_per_unit`,
+//! `temp_c = value * temp_c_per_unit + temp_offset_c`).
 
 use crate::error::Error;
-use crate::wire::{u32_at, NAMES_LEN_LEN};
+use crate::wire::{f64_at, u32_at, COLUMN_UNITS_LEN, NAMES_LEN_LEN};
 
-/// The column names of one axis, as recorded by the writer (`""` = not recorded).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+/// What one axis records of its log columns (names `""` = not recorded).
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct AxisColumns<'a> {
     /// The gyro column the axis was fitted on.
     pub gyro: &'a str,
     /// The temperature column that fed its features.
     pub temp: &'a str,
+    /// Degrees per hour per unit of the gyro column (unit conversion and any extra scale):
+    /// finite, not 0.
+    pub gyro_dph_per_unit: f64,
+    /// Degrees C per unit of the temperature column: finite, not 0.
+    pub temp_c_per_unit: f64,
+    /// Added after the scale, deg C: finite.
+    pub temp_offset_c: f64,
 }
 
-/// Checks the names section that starts at `offset` and runs to the end of `body` (the blob
-/// without its CRC) for `axis_count` axes.
+/// Checks the section that starts at `offset` and runs to the end of `body` (the blob without
+/// its CRC) for `axis_count` axes.
 pub(crate) fn validate(body: &[u8], offset: usize, axis_count: u16) -> Result<(), Error> {
     let mut at = section_start(body, offset)?;
     for axis in 0..axis_count {
-        for field in ["gyro_column", "temp_column"] {
-            let (_, next) = name_at(body, at, field, axis)?;
-            at = next;
-        }
+        let (_, next) = record_at(body, at, axis)?;
+        at = next;
     }
     if at != body.len() {
         return Err(Error::LengthMismatch {
@@ -38,22 +47,16 @@ pub(crate) fn validate(body: &[u8], offset: usize, axis_count: u16) -> Result<()
     Ok(())
 }
 
-/// The names of axis `index` in a validated section at `offset` (`None` past the last axis).
+/// The record of axis `index` in a validated section at `offset` (`None` past the last axis).
 pub(crate) fn axis_columns(body: &[u8], offset: usize, index: usize) -> Option<AxisColumns<'_>> {
     let mut at = section_start(body, offset).ok()?;
-    let mut axis = 0usize;
-    loop {
-        let (gyro, next) = name_at(body, at, "gyro_column", 0).ok()?;
-        let (temp, next) = name_at(body, next, "temp_column", 0).ok()?;
-        if axis == index {
-            return Some(AxisColumns { gyro, temp });
-        }
-        axis = axis.checked_add(1)?;
-        at = next;
+    for _ in 0..index {
+        at = record_at(body, at, 0).ok()?.1;
     }
+    record_at(body, at, 0).ok().map(|(record, _)| record)
 }
 
-/// Where the first name starts, once `names_len` is found to cover the rest of `body`.
+/// Where the first record starts, once `names_len` is found to cover the rest of `body`.
 fn section_start(body: &[u8], offset: usize) -> Result<usize, Error> {
     let start = offset.saturating_add(NAMES_LEN_LEN);
     let names_len = u32_at(body, offset).ok_or(Error::Truncated {
@@ -68,7 +71,35 @@ fn section_start(body: &[u8], offset: usize) -> Result<usize, Error> {
     Ok(start)
 }
 
-/// The name at `at` (length byte, then the bytes) and where the next one starts.
+/// Axis `axis`'s record at `at` and where the next one starts.
+fn record_at(body: &[u8], at: usize, axis: u16) -> Result<(AxisColumns<'_>, usize), Error> {
+    let (gyro, at) = name_at(body, at, "gyro_column", axis)?;
+    let (temp, at) = name_at(body, at, "temp_column", axis)?;
+    let end = at.saturating_add(COLUMN_UNITS_LEN);
+    if body.len() < end {
+        return Err(Error::Truncated { field: "column units", needed: end, found: body.len() });
+    }
+    let number = |k: usize, field: &'static str, nonzero: bool| {
+        let v = f64_at(body, at.saturating_add(8 * k)).unwrap_or(f64::NAN);
+        if !v.is_finite() {
+            return Err(Error::NonFinite { field, axis, index: 0 });
+        }
+        if nonzero && v == 0.0 {
+            return Err(Error::BadValue { field, axis, index: 0 });
+        }
+        Ok(v)
+    };
+    let record = AxisColumns {
+        gyro,
+        temp,
+        gyro_dph_per_unit: number(0, "gyro_dph_per_unit", true)?,
+        temp_c_per_unit: number(1, "temp_c_per_unit", true)?,
+        temp_offset_c: number(2, "temp_offset_c", false)?,
+    };
+    Ok((record, end))
+}
+
+/// The name at `at` (length byte, then the bytes) and where the next field starts.
 fn name_at<'a>(body: &'a [u8], at: usize, field: &'static str, axis: u16) -> Result<(&'a str, usize), Error> {
     let len = usize::from(*body.get(at).ok_or(Error::Truncated {
         field,

@@ -49,6 +49,9 @@ pub const MAX_COLUMN_NAME_LEN: usize = 255;
 /// `names_len`: u32 at the start of the column-names section, the section's bytes with this
 /// field.
 pub const NAMES_LEN_LEN: usize = 4;
+/// After each axis's two names: `gyro_dph_per_unit`, `temp_c_per_unit`, `temp_offset_c` (f64:
+/// hosts read logs in f64, and these reproduce the fit's reading exactly).
+pub const COLUMN_UNITS_LEN: usize = 24;
 /// The oldest format version whose `outside_policy` may be 3 (hull gradients present).
 pub const FIRST_VERSION_WITH_GRADIENTS: u16 = 3;
 /// The oldest format version this build reads: version 1 has no calibrated region (its
@@ -247,4 +250,10 @@ pub(crate) fn u32_at(bytes: &[u8], start: usize) -> Option<u32> {
 #[inline]
 pub(crate) fn f32_at(bytes: &[u8], start: usize) -> Option<f32> {
     array::<4>(bytes, start).map(f32::from_le_bytes)
+}
+
+/// Little-endian f64 at `start` (the log-columns section's numbers only).
+#[inline]
+pub(crate) fn f64_at(bytes: &[u8], start: usize) -> Option<f64> {
+    array::<8>(bytes, start).map(f64::from_le_bytes)
 }

@@ -107,9 +107,15 @@ fn golden_v4_blob_evaluates_as_version_3_and_names_the_columns_of_each_axis() {
         std::fs::read(golden_dir().join(GOLDEN_V4_CSV)).ok(),
         std::fs::read(golden_dir().join(GOLDEN_V3_CSV)).ok()
     );
-    for (axis, (gyro, temp)) in GOLDEN_V4_COLUMNS.iter().enumerate() {
-        let names = model.axis_columns(axis).expect("recorded");
-        assert_eq!((names.gyro, names.temp), (*gyro, *temp));
+    for (axis, &(gyro, temp, gyro_dph_per_unit, temp_c_per_unit, temp_offset_c)) in
+        GOLDEN_V4_COLUMNS.iter().enumerate()
+    {
+        let c = model.axis_columns(axis).expect("recorded");
+        assert_eq!((c.gyro, c.temp), (gyro, temp));
+        assert_eq!(
+            (c.gyro_dph_per_unit, c.temp_c_per_unit, c.temp_offset_c),
+            (gyro_dph_per_unit, temp_c_per_unit, temp_offset_c)
+        );
     }
     assert_eq!(model.axis_columns(2), None);
     // Older versions record none.
@@ -131,7 +137,8 @@ fn a_damaged_names_section_is_refused_by_field_and_axis() {
     let golden = read_golden(GOLDEN_V4_BLOB);
     let at = names_offset(&golden);
     let first_name = at + NAMES_LEN_LEN + 1; // "gyro_x" of axis 0
-    let second_axis_gyro = at + NAMES_LEN_LEN + (1 + 6) * 2 + 1; // axis 1's gyro name
+    let units0 = at + NAMES_LEN_LEN + (1 + 6) * 2; // axis 0's three numbers
+    let second_axis_gyro = units0 + COLUMN_UNITS_LEN + 1; // axis 1's gyro name
     let reread = |mutate: &dyn Fn(&mut Vec<u8>)| {
         let mut b = golden.clone();
         mutate(&mut b);
@@ -151,6 +158,19 @@ fn a_damaged_names_section_is_refused_by_field_and_axis() {
     assert_eq!(
         reread(&|b| b[first_name] = b'\n'),
         Err(Error::BadValue { field: "gyro_column", axis: 0, index: 0 })
+    );
+    // The numbers: a zero scale, a non-finite offset.
+    assert_eq!(
+        reread(&|b| b[units0..units0 + 8].copy_from_slice(&0f64.to_le_bytes())),
+        Err(Error::BadValue { field: "gyro_dph_per_unit", axis: 0, index: 0 })
+    );
+    assert_eq!(
+        reread(&|b| b[units0 + 8..units0 + 16].copy_from_slice(&0f64.to_le_bytes())),
+        Err(Error::BadValue { field: "temp_c_per_unit", axis: 0, index: 0 })
+    );
+    assert_eq!(
+        reread(&|b| b[units0 + 16..units0 + 24].copy_from_slice(&f64::NAN.to_le_bytes())),
+        Err(Error::NonFinite { field: "temp_offset_c", axis: 0, index: 0 })
     );
     // A name length that runs past the section, and a section cut after names_len.
     assert!(matches!(

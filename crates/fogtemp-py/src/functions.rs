@@ -681,6 +681,8 @@ pub fn validate<'py>(
         ));
     }
     let columns_named = (o.any_given(&["gyro_column"])?, o.any_given(&["temp_column"])?);
+    let units_named =
+        (o.any_given(&["gyro_unit", "gyro_scale"])?, o.any_given(&["temp_scale", "temp_offset"])?);
     let mut ingest = options::ingest(&mut o)?;
     let stability = options::stability(&mut o)?;
     let capacity = o.int("capacity", fogtemp_core::DEFAULT_CAPACITY, options::MIN_CAPACITY, u64::MAX)?;
@@ -732,7 +734,7 @@ pub fn validate<'py>(
         if let Some(path) = &runs_file {
             logs = fogtemp_cal::runs::validation_logs(logs, path).map_err(errors::cal)?;
         }
-        choose_columns(py, &mut ingest, columns_named, &blobs, &models)?;
+        choose_columns(py, &mut ingest, (columns_named, units_named), &blobs, &models)?;
         if let Some(note) = in_sample_note(py, &blobs[0].1, models[0].input_digest(), &logs)? {
             progress::warn(py, &note)?;
         }
@@ -804,17 +806,19 @@ fn in_sample_note(
     Ok(fogtemp_cal::digest::in_sample_note_from(model, digest, logs, &digests.finish()))
 }
 
-/// The log columns for replaying `models` (the first is validated, the rest compared): the
-/// ones each model records unless `gyro_column=` or `temp_column=` were given (`named`), named
-/// ones checked against them (as the command line's `validate`); notes become warnings.
+/// The log columns and units for replaying `models` (the first is validated, the rest
+/// compared): the ones each model records unless `gyro_column=`, `temp_column=` or the unit
+/// keywords were given (`named`), named columns checked against them (as the command line's
+/// `validate`); notes become warnings.
 fn choose_columns(
     py: Python<'_>,
     ingest: &mut IngestOptions,
-    (gyro_named, temp_named): (bool, bool),
+    ((gyro_named, temp_named), units_named): ((bool, bool), (bool, bool)),
     blobs: &[(Vec<u8>, String)],
     models: &[CoreModel<'_>],
 ) -> PyResult<()> {
     let settings = ("gyro_column=", "temp_column=");
+    let unit_settings = ("gyro_unit=/gyro_scale=", "temp_scale=/temp_offset=");
     for (index, ((_, source), model)) in blobs.iter().zip(models).enumerate() {
         // The compared models are checked against the columns chosen for the first.
         let (gyro, temp) = match index {
@@ -826,10 +830,14 @@ fn choose_columns(
         };
         let chosen = fogtemp_cal::axis_columns::choose(model, source, (&gyro, &temp), settings)
             .map_err(|e| errors::value(e.to_string()))?;
-        for note in &chosen.notes {
+        let mut format = ingest.format.clone();
+        let named = if index == 0 { units_named } else { (true, true) };
+        let units = fogtemp_cal::axis_columns::choose_units(model, source, &mut format, named, unit_settings);
+        for note in chosen.notes.iter().chain(&units) {
             progress::warn(py, note)?;
         }
         if index == 0 {
+            ingest.format = format;
             ingest.format.gyro_columns = chosen.gyro;
             ingest.format.temp_columns = chosen.temp;
         }

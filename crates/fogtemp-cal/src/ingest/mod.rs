@@ -271,8 +271,8 @@ impl Default for LogFormat {
 }
 
 impl LogFormat {
-    /// The columns each axis reads: its gyro column and its temperature column (the shared
-    /// one, or the axis's own), as a model records them.
+    /// The columns each axis reads, its gyro column and its temperature column (the shared
+    /// one, or the axis's own), and how their numbers are read, as a model records them.
     pub fn axis_columns(&self) -> Vec<crate::blob::ColumnNames> {
         let temp = |axis: usize| {
             let last = self.temp_columns.len().saturating_sub(1);
@@ -281,7 +281,13 @@ impl LogFormat {
         self.gyro_columns
             .iter()
             .enumerate()
-            .map(|(axis, gyro)| crate::blob::ColumnNames { gyro: gyro.clone(), temp: temp(axis) })
+            .map(|(axis, gyro)| crate::blob::ColumnNames {
+                gyro: gyro.clone(),
+                temp: temp(axis),
+                gyro_dph_per_unit: self.gyro_unit.dph() * self.gyro_scale,
+                temp_c_per_unit: self.temp_scale,
+                temp_offset_c: self.temp_offset_c,
+            })
             .collect()
     }
 

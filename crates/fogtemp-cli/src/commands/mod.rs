@@ -45,9 +45,9 @@ fn ingest_options(a: &IngestArgs) -> Result<IngestOptions> {
     a.options()
 }
 
-/// The ingest settings for replaying `model` (read from `path`): the log columns it records
-/// unless others are named, named ones checked against them (a swapped pair is an error);
-/// the notes about named columns that differ are printed.
+/// The ingest settings for replaying `model` (read from `path`): the log columns and units it
+/// records unless others are named, named columns checked against them (a swapped pair is an
+/// error); the notes about named columns or units that differ are printed.
 fn ingest_options_for(
     a: &IngestArgs,
     model: &Model<'_>,
@@ -73,6 +73,18 @@ fn ingest_options_for(
     });
     ingest.format.gyro_columns = chosen.gyro;
     ingest.format.temp_columns = chosen.temp;
+    let units_named =
+        (a.gyro_unit.is_some() || a.gyro_scale.is_some(), a.temp_scale.is_some() || a.temp_offset.is_some());
+    let unit_notes = fogtemp_cal::axis_columns::choose_units(
+        model,
+        &path.display().to_string(),
+        &mut ingest.format,
+        units_named,
+        ("--gyro-unit/--gyro-scale", "--temp-scale/--temp-offset"),
+    );
+    for note in &unit_notes {
+        eprintln!("note: {note}");
+    }
     Ok((ingest, ModelColumns(from_model)))
 }
 

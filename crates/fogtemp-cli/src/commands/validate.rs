@@ -38,7 +38,15 @@ fn check_compared_columns(model: &Model<'_>, path: &Path, format: &LogFormat, pr
     .with_context(|| {
         format!("--compare {} is replayed on the columns read for {}", path.display(), primary.display())
     })?;
-    for note in &chosen.notes {
+    let name = path.display().to_string();
+    let units = fogtemp_cal::axis_columns::choose_units(
+        model,
+        &name,
+        &mut format.clone(),
+        (true, true),
+        ("--gyro-unit/--gyro-scale", "--temp-scale/--temp-offset"),
+    );
+    for note in chosen.notes.iter().chain(&units) {
         eprintln!("note: {note}");
     }
     Ok(())

@@ -133,8 +133,11 @@ pub const GOLDEN_V3_CSV: &str = "model-v3.expected.csv";
 /// each axis recorded (the column-names section).
 pub const GOLDEN_V4_BLOB: &str = "model-v4.fogm";
 pub const GOLDEN_V4_CSV: &str = "model-v4.expected.csv";
-/// The column names the version-4 golden model records, per axis (gyro, temperature).
-pub const GOLDEN_V4_COLUMNS: [(&str, &str); 2] = [("gyro_x", "temp_c"), ("Drehrate Y (°/h)", "T_y")];
+/// What the version-4 golden model records per axis: gyro and temperature column, deg/h per
+/// gyro unit, deg C per temperature unit, temperature offset (axis 1: a gyro in deg/s read
+/// at half scale, a temperature in raw counts of 1/256 C from -231 C).
+pub const GOLDEN_V4_COLUMNS: [(&str, &str, f64, f64, f64); 2] =
+    [("gyro_x", "temp_c", 1.0, 1.0, 0.0), ("Drehrate Y (°/h)", "T_y", 1800.0, 0.00390625, -231.0)];
 pub const GOLDEN_HEADER: &str = "axis,temp_c,rate_c_per_min,value_dph_bits,outside";
 
 /// The input digest the golden model (and the root's three-axis model) carries.
