@@ -359,6 +359,9 @@ impl ModelDocument {
                     let recorded = |n: &str| (!n.is_empty()).then(|| n.to_string());
                     axis.gyro_column = names.and_then(|c| recorded(c.gyro));
                     axis.temp_column = names.and_then(|c| recorded(c.temp));
+                    axis.gyro_dph_per_unit = names.map(|c| c.gyro_dph_per_unit);
+                    axis.temp_c_per_unit = names.map(|c| c.temp_c_per_unit);
+                    axis.temp_offset_c = names.map(|c| c.temp_offset_c);
                     Ok(axis)
                 })
                 .collect::<Result<_, fogtemp_core::Error>>()?,
@@ -391,6 +394,12 @@ pub struct ModelAxisDocument {
     pub gyro_column: Option<String>,
     /// The log's temperature column that fed its features (format 4; null when not recorded).
     pub temp_column: Option<String>,
+    /// Deg/h per unit of the gyro column as the fit read it (format 4; null before).
+    pub gyro_dph_per_unit: Option<f64>,
+    /// Deg C per unit of the temperature column as the fit read it (format 4; null before).
+    pub temp_c_per_unit: Option<f64>,
+    /// Added to the temperature after its scale, deg C (format 4; null before).
+    pub temp_offset_c: Option<f64>,
     /// What the fit saw.
     pub provenance: ProvenanceDocument,
     /// Polynomial terms, when the axis has a polynomial.
@@ -481,6 +490,9 @@ impl ModelAxisDocument {
             }),
             gyro_column: None,
             temp_column: None,
+            gyro_dph_per_unit: None,
+            temp_c_per_unit: None,
+            temp_offset_c: None,
             provenance: ProvenanceDocument {
                 fit_point_count: p.fit_point_count,
                 residual_rms_dph: f64::from(p.residual_rms_dph),

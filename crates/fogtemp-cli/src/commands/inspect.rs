@@ -66,6 +66,12 @@ pub fn inspect(a: InspectArgs) -> Result<()> {
                     n.as_ref().map_or_else(|| "not recorded".into(), |n| format!("'{n}'"))
                 };
                 println!("  fitted on the log columns: gyro {}, temperature {}", name(gyro), name(temp));
+                if let (Some(g), Some(t), Some(o)) =
+                    (axis.gyro_dph_per_unit, axis.temp_c_per_unit, axis.temp_offset_c)
+                {
+                    let sign = if o < 0.0 { '-' } else { '+' };
+                    println!("  read as: deg/h = gyro x {g}; deg C = temperature x {t} {sign} {}", o.abs());
+                }
             }
         }
         if let Some(selection) = &axis.provenance.selection {
