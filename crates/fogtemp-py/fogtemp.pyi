@@ -163,8 +163,10 @@ def validate(
     Gaps in a log's time stamps longer than the model's max gap raise a UserWarning
     (``runs[].time_gaps``; the metric's windows they cut: ``runs[].metric_windows``).
     Log files are read with the gyro and temperature columns the model records (models fitted
-    on files since blob format 4) unless gyro_column= / temp_column= name others; a gyro column
-    the model fitted on another axis raises ValueError, a name it does not record a UserWarning."""
+    on files since blob format 4) unless gyro_column= / temp_column= name others, and in the
+    units its fit read them in unless gyro_unit=, gyro_scale=, temp_scale= or temp_offset= are
+    given; a gyro column the model fitted on another axis raises ValueError, a name or unit it
+    does not record a UserWarning."""
 
 def allan(log: Union[PathLike, Run], *, progress: bool = True, **options: Any) -> Dict[str, Any]:
     """The ``fogtemp-cal allan --json`` document: overlapping Allan deviation, N, B, K."""

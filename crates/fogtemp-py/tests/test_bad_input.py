@@ -463,3 +463,24 @@ def test_validate_on_the_calibration_logs_warns_that_the_figures_are_in_sample(p
         warnings.simplefilter("always")
         fogtemp.validate(poly_model, val_logs[:2], progress=False)
     assert not [w for w in caught if "in-sample" in str(w.message)]
+
+
+def test_validate_reads_logs_in_the_units_the_model_was_fitted_in(tmp_path):
+    # The model records how fit() read the numbers: validate() reads the logs the same way when
+    # no unit keyword is given, and says so.
+    logs = []
+    for k, run in enumerate(synthetic_runs(runs=3)):
+        path = tmp_path / f"run{k}.csv"
+        with open(path, "w") as f:
+            f.write("time_s,temp_c,gyro_dps\n")
+            for t, c, g in zip(run["time_s"], run["temp_c"], run["gyro_dph"]):
+                cell = "" if np.isnan(c) else repr(float(c))
+                f.write(f"{float(t)!r},{cell},{float(g) / 3600.0!r}\n")
+        logs.append(path)
+    model = fogtemp.fit(logs, method="poly", gyro_column="gyro_dps", gyro_unit="dps", progress=False)
+    axis = model.inspect()["axes"][0]
+    assert (axis["gyro_dph_per_unit"], axis["temp_c_per_unit"], axis["temp_offset_c"]) == (3600.0, 1.0, 0.0)
+    named = fogtemp.validate(model, logs[:1], gyro_unit="dps", progress=False)
+    with pytest.warns(UserWarning, match=r"the gyro is read as the model was fitted: 3600 deg/h per unit \(gyro_unit=/gyro_scale="):
+        recorded = fogtemp.validate(model, logs[:1], progress=False)
+    assert recorded["runs"] == named["runs"]
