@@ -425,18 +425,25 @@ def test_allan_of_a_series_too_short_warns_and_gives_no_noise_terms():
     assert axis["curve"] == [] and axis["arw_deg_per_sqrt_h"] is None and axis["bias_instability_dph"] is None
 
 
+def write_gyro_logs(folder, gyro_header, gyro_cells):
+    """Three synthetic runs as logs with columns time_s, temp_c and `gyro_header`, the gyro
+    cells written by `gyro_cells(gyro_dph)`; returns their paths."""
+    logs = []
+    for k, run in enumerate(synthetic_runs(runs=3)):
+        path = folder / f"run{k}.csv"
+        with open(path, "w") as f:
+            f.write(f"time_s,temp_c,{gyro_header}\n")
+            for t, c, g in zip(run["time_s"], run["temp_c"], run["gyro_dph"]):
+                cell = "" if np.isnan(c) else repr(float(c))
+                f.write(f"{float(t)!r},{cell},{gyro_cells(float(g))}\n")
+        logs.append(path)
+    return logs
+
+
 def test_validate_reads_the_columns_the_model_records_and_refuses_swapped_ones(tmp_path):
     # Review6 F2: a model fitted on log files records each axis's gyro and temperature column;
     # validate() reads them when none are named and refuses a gyro column fitted on another axis.
-    logs = []
-    for k, run in enumerate(synthetic_runs(runs=3)):
-        path = tmp_path / f"run{k}.csv"
-        with open(path, "w") as f:
-            f.write("time_s,temp_c,gyro_x,gyro_y\n")
-            for t, c, g in zip(run["time_s"], run["temp_c"], run["gyro_dph"]):
-                cell = "" if np.isnan(c) else repr(float(c))
-                f.write(f"{float(t)!r},{cell},{float(g)!r},{-float(g)!r}\n")
-        logs.append(path)
+    logs = write_gyro_logs(tmp_path, "gyro_x,gyro_y", lambda g: f"{g!r},{-g!r}")
     model = fogtemp.fit(logs, method="poly", gyro_column=["gyro_x", "gyro_y"], progress=False)
     axes = model.inspect()["axes"]
     assert [(a["gyro_column"], a["temp_column"]) for a in axes] == [("gyro_x", "temp_c"), ("gyro_y", "temp_c")]
@@ -468,15 +475,7 @@ def test_validate_on_the_calibration_logs_warns_that_the_figures_are_in_sample(p
 def test_validate_reads_logs_in_the_units_the_model_was_fitted_in(tmp_path):
     # The model records how fit() read the numbers: validate() reads the logs the same way when
     # no unit keyword is given, and says so.
-    logs = []
-    for k, run in enumerate(synthetic_runs(runs=3)):
-        path = tmp_path / f"run{k}.csv"
-        with open(path, "w") as f:
-            f.write("time_s,temp_c,gyro_dps\n")
-            for t, c, g in zip(run["time_s"], run["temp_c"], run["gyro_dph"]):
-                cell = "" if np.isnan(c) else repr(float(c))
-                f.write(f"{float(t)!r},{cell},{float(g) / 3600.0!r}\n")
-        logs.append(path)
+    logs = write_gyro_logs(tmp_path, "gyro_dps", lambda g: f"{g / 3600.0!r}")
     model = fogtemp.fit(logs, method="poly", gyro_column="gyro_dps", gyro_unit="dps", progress=False)
     axis = model.inspect()["axes"][0]
     assert (axis["gyro_dph_per_unit"], axis["temp_c_per_unit"], axis["temp_offset_c"]) == (3600.0, 1.0, 0.0)
