@@ -46,6 +46,65 @@ pub struct SwappedColumn {
     pub order: String,
 }
 
+/// What the user named for a replay (empty, `false`: not named).
+#[derive(Clone, Copy, Debug)]
+pub struct Named<'a> {
+    /// `--gyro-column` values.
+    pub gyro_columns: &'a [String],
+    /// `--temp-column` values.
+    pub temp_columns: &'a [String],
+    /// `--gyro-unit` or `--gyro-scale` given.
+    pub gyro_units: bool,
+    /// `--temp-scale` or `--temp-offset` given.
+    pub temp_units: bool,
+}
+
+impl<'a> Named<'a> {
+    /// Everything `format` says, as if named (a compared model is checked against the
+    /// columns and units chosen for the first).
+    pub fn all_of(format: &'a LogFormat) -> Self {
+        Self {
+            gyro_columns: &format.gyro_columns,
+            temp_columns: &format.temp_columns,
+            gyro_units: true,
+            temp_units: true,
+        }
+    }
+}
+
+/// The names of the options in the messages: gyro columns, temperature columns, gyro units,
+/// temperature units.
+pub type OptionNames<'a> = [&'a str; 4];
+/// The command line's options.
+pub const CLI_OPTIONS: OptionNames<'static> =
+    ["--gyro-column", "--temp-column", "--gyro-unit/--gyro-scale", "--temp-scale/--temp-offset"];
+/// Python's keywords.
+pub const PYTHON_OPTIONS: OptionNames<'static> =
+    ["gyro_column=", "temp_column=", "gyro_unit=/gyro_scale=", "temp_scale=/temp_offset="];
+
+/// [`choose`] and [`choose_units`] together: `format` (what was named, defaults elsewhere)
+/// becomes what replaying `model` reads, columns and units. The notes of both are returned in
+/// [`ChosenColumns::notes`].
+///
+/// # Errors
+/// As [`choose`].
+pub fn choose_for_replay(
+    model: &Model<'_>,
+    model_name: &str,
+    format: &mut LogFormat,
+    named: Named<'_>,
+    [gyro_column, temp_column, gyro_units, temp_units]: OptionNames<'_>,
+) -> Result<ChosenColumns, Box<SwappedColumn>> {
+    let mut chosen =
+        choose(model, model_name, (named.gyro_columns, named.temp_columns), (gyro_column, temp_column))?;
+    let units_named = (named.gyro_units, named.temp_units);
+    let unit_notes = choose_units(model, model_name, format, units_named, (gyro_units, temp_units));
+    chosen.notes.extend(unit_notes);
+    format.gyro_columns.clone_from(&chosen.gyro);
+    format.temp_columns.clone_from(&chosen.temp);
+    Ok(chosen)
+}
+
 /// The columns to read `model` with: `gyro` and `temp` as named (empty: not named) checked
 /// against the ones the model records, or the recorded ones where none are named, or the
 /// defaults of [`LogFormat`] for a model that records none. `model_name` and the option

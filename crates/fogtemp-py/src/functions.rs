@@ -813,33 +813,34 @@ fn in_sample_note(
 fn choose_columns(
     py: Python<'_>,
     ingest: &mut IngestOptions,
-    ((gyro_named, temp_named), units_named): ((bool, bool), (bool, bool)),
+    ((gyro_named, temp_named), (gyro_units, temp_units)): ((bool, bool), (bool, bool)),
     blobs: &[(Vec<u8>, String)],
     models: &[CoreModel<'_>],
 ) -> PyResult<()> {
-    let settings = ("gyro_column=", "temp_column=");
-    let unit_settings = ("gyro_unit=/gyro_scale=", "temp_scale=/temp_offset=");
+    use fogtemp_cal::axis_columns::{choose_for_replay, Named, PYTHON_OPTIONS};
+    let none = Vec::new();
+    let (gyro, temp) = (ingest.format.gyro_columns.clone(), ingest.format.temp_columns.clone());
+    let named = Named {
+        gyro_columns: if gyro_named { &gyro } else { &none },
+        temp_columns: if temp_named { &temp } else { &none },
+        gyro_units,
+        temp_units,
+    };
+    let mut format = ingest.format.clone();
     for (index, ((_, source), model)) in blobs.iter().zip(models).enumerate() {
-        // The compared models are checked against the columns chosen for the first.
-        let (gyro, temp) = match index {
-            0 => (
-                if gyro_named { ingest.format.gyro_columns.clone() } else { Vec::new() },
-                if temp_named { ingest.format.temp_columns.clone() } else { Vec::new() },
-            ),
-            _ => (ingest.format.gyro_columns.clone(), ingest.format.temp_columns.clone()),
-        };
-        let chosen = fogtemp_cal::axis_columns::choose(model, source, (&gyro, &temp), settings)
-            .map_err(|e| errors::value(e.to_string()))?;
-        let mut format = ingest.format.clone();
-        let named = if index == 0 { units_named } else { (true, true) };
-        let units = fogtemp_cal::axis_columns::choose_units(model, source, &mut format, named, unit_settings);
-        for note in chosen.notes.iter().chain(&units) {
+        // The compared models are checked against the columns and units chosen for the first.
+        let chosen = match index {
+            0 => choose_for_replay(model, source, &mut ingest.format, named, PYTHON_OPTIONS),
+            _ => {
+                choose_for_replay(model, source, &mut format.clone(), Named::all_of(&format), PYTHON_OPTIONS)
+            }
+        }
+        .map_err(|e| errors::value(e.to_string()))?;
+        for note in &chosen.notes {
             progress::warn(py, note)?;
         }
         if index == 0 {
-            ingest.format = format;
-            ingest.format.gyro_columns = chosen.gyro;
-            ingest.format.temp_columns = chosen.temp;
+            format = ingest.format.clone();
         }
     }
     Ok(())

@@ -54,11 +54,18 @@ fn ingest_options_for(
     path: &Path,
 ) -> Result<(IngestOptions, ModelColumns)> {
     let mut ingest = a.options()?;
-    let chosen = fogtemp_cal::axis_columns::choose(
+    let named = fogtemp_cal::axis_columns::Named {
+        gyro_columns: &a.gyro_columns,
+        temp_columns: &a.temp_columns,
+        gyro_units: a.gyro_unit.is_some() || a.gyro_scale.is_some(),
+        temp_units: a.temp_scale.is_some() || a.temp_offset.is_some(),
+    };
+    let chosen = fogtemp_cal::axis_columns::choose_for_replay(
         model,
         &path.display().to_string(),
-        (&a.gyro_columns, &a.temp_columns),
-        ("--gyro-column", "--temp-column"),
+        &mut ingest.format,
+        named,
+        fogtemp_cal::axis_columns::CLI_OPTIONS,
     )?;
     for note in &chosen.notes {
         eprintln!("note: {note}");
@@ -71,20 +78,6 @@ fn ingest_options_for(
             chosen.temp.join(", ")
         )
     });
-    ingest.format.gyro_columns = chosen.gyro;
-    ingest.format.temp_columns = chosen.temp;
-    let units_named =
-        (a.gyro_unit.is_some() || a.gyro_scale.is_some(), a.temp_scale.is_some() || a.temp_offset.is_some());
-    let unit_notes = fogtemp_cal::axis_columns::choose_units(
-        model,
-        &path.display().to_string(),
-        &mut ingest.format,
-        units_named,
-        ("--gyro-unit/--gyro-scale", "--temp-scale/--temp-offset"),
-    );
-    for note in &unit_notes {
-        eprintln!("note: {note}");
-    }
     Ok((ingest, ModelColumns(from_model)))
 }
 

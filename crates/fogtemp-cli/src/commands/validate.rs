@@ -29,24 +29,18 @@ fn stability_options(a: &StabilityArgs) -> Result<BiasStabilityOptions> {
 /// A compared model is replayed on the columns chosen for the primary one: refused when it
 /// fitted one of them on another axis, noted when it records other names.
 fn check_compared_columns(model: &Model<'_>, path: &Path, format: &LogFormat, primary: &Path) -> Result<()> {
-    let chosen = fogtemp_cal::axis_columns::choose(
+    use fogtemp_cal::axis_columns::{choose_for_replay, Named, CLI_OPTIONS};
+    let chosen = choose_for_replay(
         model,
         &path.display().to_string(),
-        (&format.gyro_columns, &format.temp_columns),
-        ("--gyro-column", "--temp-column"),
+        &mut format.clone(),
+        Named::all_of(format),
+        CLI_OPTIONS,
     )
     .with_context(|| {
         format!("--compare {} is replayed on the columns read for {}", path.display(), primary.display())
     })?;
-    let name = path.display().to_string();
-    let units = fogtemp_cal::axis_columns::choose_units(
-        model,
-        &name,
-        &mut format.clone(),
-        (true, true),
-        ("--gyro-unit/--gyro-scale", "--temp-scale/--temp-offset"),
-    );
-    for note in chosen.notes.iter().chain(&units) {
+    for note in &chosen.notes {
         eprintln!("note: {note}");
     }
     Ok(())
