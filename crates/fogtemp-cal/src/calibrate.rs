@@ -1466,17 +1466,18 @@ pub fn temperature_spike_note(name: &str, log: &Path, spikes: &AxisSpikes) -> Op
     let named: Vec<String> = spikes.first.iter().take(NAMED).map(|s| s.describe(log, None)).collect();
     let more = spikes.count.saturating_sub(named.len() as u64);
     let more = if more > 0 { format!(" and {more} more") } else { String::new() };
-    let readings = if spikes.count == 1 {
-        "1 temperature reading jumps".to_string()
+    let glitches = if spikes.count == 1 {
+        "1 temperature glitch".to_string()
     } else {
-        format!("{} temperature readings jump", spikes.count)
+        format!("{} temperature glitches", spikes.count)
     };
     Some(format!(
-        "{name}: {readings} by more than {:.0} C from both neighbouring readings and back ({}{more}): \
+        "{name}: {glitches} ({}{more}): readings that jump by more than {:.0} C (more where readings are far apart) \
+         from the readings around them and back: \
          compensated as read, as the firmware would, so the output after each is disturbed for up to a feature window; \
          a FOG's temperature does not move like that, so check the sensor or the logger",
+        named.join(", "),
         crate::spikes::SPIKE_JUMP_C,
-        named.join(", ")
     ))
 }
 

@@ -40,8 +40,10 @@
 //!   projection differs by up to 2 x 15 deg/h) or a turn-on bias that is not repeatable. A
 //!   run's mean residual otherwise scatters by the slow noise of one run, a few noise units
 //!   (measured in docs/calibration-logs.md, "Runs that differ by a constant").
-//! - `temperature_spikes`: single readings more than [`crate::spikes::SPIKE_JUMP_C`] = 1 C
-//!   from both neighbouring readings (a sensor glitch; the reasoning is in [`crate::spikes`]).
+//! - `temperature_spikes`: glitched temperature readings, one or several that jump by more
+//!   than [`crate::spikes::SPIKE_JUMP_C`] = 1 C from the readings around them and back, or a
+//!   run's first readings (a sensor glitch; the rule and its reasoning are in
+//!   [`crate::spikes`]).
 //!   Calibration read them as missing; the warning names each by file and line.
 
 use std::collections::BTreeMap;
@@ -187,7 +189,7 @@ fn short_runs(runs: &[RunFeatures], axis: usize, window_s: f64) -> Option<Warnin
 /// How many spikes `temperature_spikes` names by line.
 const NAMED_SPIKES: usize = 5;
 
-/// `temperature_spikes` for axis `axis`: the single-reading spikes calibration read as
+/// `temperature_spikes` for axis `axis`: the temperature glitches calibration read as
 /// missing, the first [`NAMED_SPIKES`] by file and line (`column` names the temperature
 /// column).
 fn temperature_spikes(runs: &[RunFeatures], axis: usize, column: &str) -> Option<Warning> {
@@ -208,21 +210,19 @@ fn temperature_spikes(runs: &[RunFeatures], axis: usize, column: &str) -> Option
         .collect();
     let more = total.saturating_sub(named.len() as u64);
     let more = if more > 0 { format!("; and {more} more") } else { String::new() };
-    let readings = if total == 1 {
-        "1 temperature reading jumps".to_string()
-    } else {
-        format!("{total} temperature readings jump")
-    };
+    let glitches =
+        if total == 1 { "1 temperature glitch".to_string() } else { format!("{total} temperature glitches") };
     let runs_text = if per_run.len() == 1 { "1 run".to_string() } else { format!("{} runs", per_run.len()) };
     Some(Warning::new(
         axis,
         WarningKind::TemperatureSpikes,
         format!(
-            "axis {axis}: {readings} by more than {:.0} C from both neighbouring readings and back, in {runs_text} ({}{more}): \
+            "axis {axis}: {glitches} in {runs_text} ({}{more}): readings that jump by more than {:.0} C \
+             (more where readings are far apart) from the readings around them and back: \
              read as missing, so they neither set features nor widen the calibrated region; \
              a FOG's temperature does not move like that, so check the sensor or the logger",
+            named.join(", "),
             crate::spikes::SPIKE_JUMP_C,
-            named.join(", ")
         ),
         &[("temperature_spikes", total as f64), ("spike_jump_c", crate::spikes::SPIKE_JUMP_C)],
     ))
