@@ -279,6 +279,7 @@ fn round_trip(method: &str) {
     let out = dir.path().join("compensated.csv");
     run_ok(args!["compensate", "--model", &model, &log, "--out", &out]);
     check_compensated(&log, &out);
+    allan_of_compensated_starts_after_the_warm_up(&out);
 
     // inspect
     let inspect = json(&run_ok(args!["inspect", &model, "--json"]));
@@ -1693,6 +1694,49 @@ fn allan_recovers_white_noise_arw() {
         .expect("curve");
     let expected = 60.0 * N / f(&at_1s["tau_s"]).sqrt();
     assert!((f(&at_1s["adev_dph"]) / expected - 1.0).abs() < 0.10, "{at_1s} vs {expected}");
+    // The bound on B: the curve's minimum over averaging times with at most 25 % relative
+    // error, over 0.664. White noise falls as 1 / sqrt(tau), so the minimum is at the longest
+    // such time, and within 3 of its relative errors of 60 N / sqrt(tau).
+    let longest = arr(&axis["curve"])
+        .iter()
+        .filter(|p| f(&p["relative_error"]) <= 0.25)
+        .max_by(|a, b| f(&a["tau_s"]).total_cmp(&f(&b["tau_s"])))
+        .expect("a point");
+    assert_eq!(f(&axis["adev_min_tau_s"]), f(&longest["tau_s"]));
+    let minimum = f(&axis["adev_min_dph"]);
+    let closed_form = 60.0 * N / f(&longest["tau_s"]).sqrt();
+    assert!(
+        (minimum / closed_form - 1.0).abs() < 3.0 * f(&longest["relative_error"]),
+        "{minimum} vs {closed_form}"
+    );
+    assert_eq!(f(&axis["bias_instability_at_most_dph"]), minimum / 0.664);
+}
+
+/// `allan` of `compensate`'s output leaves out the compensator's start-up rows (flag
+/// WARMING_UP: raw output, then a step by the bias), with a note: oracle, `allan` of a copy
+/// holding only the rows from the first without the flag, whose curve must be the same bit
+/// for bit.
+fn allan_of_compensated_starts_after_the_warm_up(compensated: &Path) {
+    let text = fs::read_to_string(compensated).expect("read compensated");
+    let mut lines = text.lines();
+    let header = lines.next().expect("header");
+    let flags_at = header.split(',').position(|c| c == "flags").expect("flags column");
+    let rows: Vec<&str> = lines.collect();
+    let warming = |row: &&str| {
+        row.split(',').nth(flags_at).and_then(|f| f.parse::<u32>().ok()).is_some_and(|f| f & 1 != 0)
+    };
+    let first = rows.iter().position(|r| !warming(r)).expect("a compensated row");
+    assert!(first > 0, "the output starts with start-up rows");
+    let trimmed = compensated.with_file_name("compensated-from-first.csv");
+    fs::write(&trimmed, format!("{header}\n{}\n", rows[first..].join("\n"))).expect("write trimmed");
+    let args_for = |log: &Path| args!["allan", log, "--json", "--gyro-column", "compensated_dph"];
+    let whole = cal().args(args_for(compensated)).assert().success();
+    let stderr = String::from_utf8_lossy(&whole.get_output().stderr).to_string();
+    let whole = json(&String::from_utf8_lossy(&whole.get_output().stdout));
+    let after = json(&run_ok(args_for(&trimmed)));
+    assert_eq!(whole["axes"][0]["curve"], after["axes"][0]["curve"]);
+    assert_eq!(whole["axes"][0]["samples"].as_u64(), Some((rows.len() - first) as u64));
+    assert!(stderr.contains(&format!("the first {first} rows")) && stderr.contains("WARMING_UP"), "{stderr}");
 }
 
 /// A log too short for any averaging time has no Allan deviation: its noise terms are

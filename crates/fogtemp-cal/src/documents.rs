@@ -612,7 +612,7 @@ pub struct MeshNodeDocument {
 }
 
 /// What `allan --json` says the curve is.
-pub const ALLAN_DEFINITION: &str = "overlapping Allan deviation (IEEE Std 952) of the gyro, from the f64 angle cumsum with the mean removed, within the stretches between gaps (time steps longer than 1.5 times the median sample period; no cluster spans a gap); N, B, K by non-negative least squares on sigma^2";
+pub const ALLAN_DEFINITION: &str = "overlapping Allan deviation (IEEE Std 952) of the gyro, from the f64 angle cumsum with the mean removed, within the stretches between gaps (time steps longer than 1.5 times the median sample period; no cluster spans a gap); N, B, K by non-negative least squares on sigma^2; bias_instability_at_most_dph = the curve's minimum / 0.664 (the flicker floor lies under the curve)";
 
 /// `allan --json`: the Allan deviation of every gyro column of a log and its noise terms.
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -640,12 +640,19 @@ impl AllanDocument {
             .map(|(axis, (s, column))| {
                 let segments: Vec<&[f64]> = gap_free_ranges(times_s, dt_s).filter_map(|r| s.get(r)).collect();
                 let curve = allan_deviation_in_segments(&segments, dt_s);
+                let minimum = curve
+                    .iter()
+                    .filter(|p| p.adev_dph.is_finite() && p.relative_error <= MINIMUM_RELATIVE_ERROR)
+                    .min_by(|a, b| a.adev_dph.total_cmp(&b.adev_dph));
                 AllanAxisDocument {
                     axis,
                     column: column.clone(),
                     sample_period_s: dt_s,
                     samples: s.len(),
                     noise: fit_noise_terms(&curve),
+                    adev_min_dph: minimum.map_or(f64::NAN, |p| p.adev_dph),
+                    adev_min_tau_s: minimum.map_or(f64::NAN, |p| p.tau_s),
+                    bias_instability_at_most_dph: minimum.map_or(f64::NAN, |p| p.adev_dph / FLICKER_FLOOR),
                     curve,
                 }
             })
@@ -668,11 +675,62 @@ pub struct AllanAxisDocument {
     /// N (deg/sqrt(h)), B (deg/h), K (deg/h/sqrt(h)), as keys of this object.
     #[serde(flatten)]
     pub noise: NoiseTerms,
+    /// The curve's lowest point among averaging times with at most 25 % relative error:
+    /// deviation (deg/h) and averaging time (s); NaN without one.
+    pub adev_min_dph: f64,
+    /// See `adev_min_dph`.
+    pub adev_min_tau_s: f64,
+    /// The most B can be, deg/h: the flicker floor 0.664 B lies under the curve everywhere,
+    /// as the other noise terms and any drift only add to it, so B <= `adev_min_dph` / 0.664.
+    pub bias_instability_at_most_dph: f64,
     /// The curve, octave-spaced.
     pub curve: Vec<AllanPoint>,
 }
 
+/// The flicker floor of the Allan deviation in units of B (IEEE 952: sqrt(2 ln 2 / pi)).
+const FLICKER_FLOOR: f64 = 0.664;
+/// The largest relative error of an averaging time whose deviation can be the curve's
+/// minimum: about 8 independent clusters or more, so that the minimum is not a dip of the
+/// estimate's own noise at the longest averaging times (a compensated 2 h testbed run fell to
+/// 0.25 x the flicker floor of its generator's B at 3378 s, relative error 0.67).
+const MINIMUM_RELATIVE_ERROR: f64 = 0.25;
+
 impl AllanAxisDocument {
+    /// The note for noise terms the fit put at zero (`None` when all three are positive or
+    /// unknown): a term at its bound is not resolved by the curve, usually because another
+    /// term or a drift covers it; for B the curve's minimum still bounds it.
+    pub fn unresolved_terms_note(&self) -> Option<String> {
+        let n = &self.noise;
+        let at_zero: Vec<&str> =
+            [("N", n.arw_deg_per_sqrt_h), ("B", n.bias_instability_dph), ("K", n.rrw_dph_per_sqrt_h)]
+                .iter()
+                .filter(|(_, v)| *v == 0.0)
+                .map(|(name, _)| *name)
+                .collect();
+        if at_zero.is_empty() {
+            return None;
+        }
+        let terms = at_zero.join(" and ");
+        let bound = format!(
+            "B is at most {:.6} deg/h (the curve's minimum {:.6} deg/h at {:.0} s over 0.664)",
+            self.bias_instability_at_most_dph, self.adev_min_dph, self.adev_min_tau_s
+        );
+        let last = self.curve.last().map_or(f64::NAN, |p| p.adev_dph);
+        let why = if last > 1.5 * self.adev_min_dph {
+            format!(
+                "the curve rises {:.1}x from its minimum at {:.0} s to its longest averaging time, as drift (temperature) does, and the fit gives that rise to the other terms; {bound}; for the sensor's noise terms use a static run at constant temperature, or the output of `compensate`",
+                last / self.adev_min_dph,
+                self.adev_min_tau_s
+            )
+        } else {
+            format!("the other terms cover it on this curve; {bound}")
+        };
+        Some(format!(
+            "axis {} (column '{}'): {terms} fitted at zero, not resolved: {why}",
+            self.axis, self.column
+        ))
+    }
+
     /// The warning for a column too short for any averaging time (its curve empty and its
     /// noise terms unknown, NaN), or `None`.
     pub fn too_short_note(&self) -> Option<String> {

@@ -171,6 +171,14 @@ pub(super) struct Columns {
     min_fields: usize,
 }
 
+impl Columns {
+    /// How many fields the header (or `--columns`) names: a record may hold more only when
+    /// they are empty.
+    pub(super) fn named_fields(&self) -> usize {
+        self.names.len()
+    }
+}
+
 /// The plan from the header (`line`: its line, 0 for names given in [`LogFormat::column_names`]).
 pub(super) fn make_plan(path: &Path, header: Fields<'_>, f: &LogFormat, line: u64) -> Result<Plan, CalError> {
     let columns = locate_columns(path, header, f, line)?;
@@ -358,7 +366,11 @@ fn bad_row(columns: &Columns, line: u64, field: usize, found: &[u8], kind: BadRo
     BadRow {
         line,
         column: field + 1,
-        column_name: columns.names.get(field).cloned().unwrap_or_default(),
+        column_name: columns
+            .names
+            .get(field)
+            .cloned()
+            .unwrap_or_else(|| format!("(unnamed: the header names {})", columns.names.len())),
         found: text.chars().take(40).collect(),
         kind,
     }
@@ -425,6 +437,11 @@ pub(super) fn parse_row(
             b"",
             BadRowKind::ShortRow,
         ));
+    }
+    if let Some(extra) = (columns.named_fields()..fields.len())
+        .find(|&k| !fields.get(k).unwrap_or(b"").trim_ascii().is_empty())
+    {
+        return Err(bad_row(columns, line, extra, fields.get(extra).unwrap_or(b""), BadRowKind::LongRow));
     }
     let required = |field: usize| -> Result<f64, BadRow> {
         parse_cell(plan, fields, field, line)?
@@ -704,7 +721,8 @@ mod tests {
             },
             ..IngestOptions::default()
         };
-        let data = "g1,id,time_s,temp_c,g0,comment\n2,a,0,20,1,\"x,y\"\n4,b,1,21,3,ok,more\n";
+        // (A field beyond the header's is a long row: `records_run_together_are_a_long_row...`.)
+        let data = "g1,id,time_s,temp_c,g0,comment\n2,a,0,20,1,\"x,y\"\n4,b,1,21,3,ok\n";
         let v = values(&rows(data, &options));
         assert_eq!(v[0].2, vec![20.0, 20.0]);
         assert_eq!(v[0].3, vec![1.0, 2.0]);

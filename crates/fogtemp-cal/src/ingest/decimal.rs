@@ -1,7 +1,7 @@
 //! The decimal fast path: one pass over a plain record's needed cells, converting plain
 //! decimals to exactly the value `fast-float2` would give.
 
-use memchr::{memchr, memchr2};
+use memchr::{memchr, memchr2, memchr_iter};
 
 use super::columns::SKIP;
 
@@ -15,6 +15,7 @@ pub(super) fn fast_fields(
     mut pos: usize,
     delimiter: u8,
     roles: &[usize],
+    named_fields: usize,
     values: &mut [f64],
 ) -> Option<usize> {
     let last = roles.len().checked_sub(1)?;
@@ -40,10 +41,12 @@ pub(super) fn fast_fields(
             if b != delimiter {
                 return Some(pos);
             }
-            // Fields the log has beyond the ones used: find the end, refuse quotes.
+            // Fields the log has beyond the ones used: find the end, refuse quotes and more
+            // fields than the header names (the general path judges them).
             let rest = buf.get(pos..)?;
             let len = memchr2(b'\n', b'\r', rest)?;
-            return memchr(b'"', &rest[..len]).is_none().then_some(pos + len);
+            let fields = roles.len() + memchr_iter(delimiter, &rest[..len]).count();
+            return (memchr(b'"', &rest[..len]).is_none() && fields <= named_fields).then_some(pos + len);
         }
         if b != delimiter {
             return None;

@@ -381,6 +381,10 @@ pub enum BadRowKind {
     NonFinite,
     /// Fewer fields than the header.
     ShortRow,
+    /// More fields than the header (or the names of `--columns`) with text in the extra
+    /// ones: two records run together (a lost line break). Empty extra fields (a trailing
+    /// delimiter) are not.
+    LongRow,
     /// Time equal to the previous row's.
     DuplicateTime,
     /// Time before the previous row's.
@@ -417,6 +421,10 @@ impl BadRowKind {
             }
             BadRowKind::NonFinite => "NaN or infinite",
             BadRowKind::ShortRow => "fewer fields than the header",
+            BadRowKind::LongRow => {
+                "more fields than the header (or the names --columns gives): two records run together (a lost line \
+                 break)? name every field of a log without a header"
+            }
             BadRowKind::DuplicateTime => "time equal to the previous row",
             BadRowKind::BackwardTime => "time before the previous row",
             BadRowKind::EmptyCell => "empty required cell",

@@ -394,7 +394,9 @@ impl<R: Read> Parser<R> {
                     break; // maybe a comment line: the general path decides
                 }
             }
-            let Some(terminator) = fast_fields(buf, pos, self.delimiter, &plan.roles, values) else {
+            let Some(terminator) =
+                fast_fields(buf, pos, self.delimiter, &plan.roles, plan.columns.named_fields(), values)
+            else {
                 break;
             };
             let time = match plan.time_slot {

@@ -524,3 +524,31 @@ fn a_binary_or_utf16_file_is_refused_as_not_text() {
     assert!(result.is_ok(), "{}", summary(&result));
     assert_eq!(values(&seen).iter().map(|r| r.3[0]).collect::<Vec<_>>(), vec![1.0, 2.0]);
 }
+
+/// Two records run together (a lost line break) have more fields than the header or the
+/// names of `--columns`: a bad row at the first extra field, in every reader mode (the one-pass
+/// path hands such a record to the general path). Empty extra fields (a trailing delimiter on
+/// every row) are read as before.
+#[test]
+fn records_run_together_are_a_long_row_and_trailing_delimiters_are_not() {
+    let b =
+        bad_with(&format!("{HEADER}0,20,1.0\n1,20,1.1\n2,20,1.2,3,20,1.3\n4,20,1.4\n"), &default_options());
+    expect(&b, 4, 4, "(unnamed: the header names 3)", "3", BadRowKind::LongRow);
+    let trailing = values(&rows(&format!("{HEADER}0,20,1.0,\n1,20,1.1, \n2,20,1.2,,\n"), &default_options()));
+    let plain = values(&rows(&format!("{HEADER}0,20,1.0\n1,20,1.1\n2,20,1.2\n"), &default_options()));
+    assert_eq!(trailing, plain);
+    // A headerless serial capture: whitespace, names given, time from the sample rate.
+    let format = LogFormat {
+        column_names: vec!["gyro_dph".into(), "temp_c".into()],
+        sample_rate_hz: Some(50.0),
+        ..LogFormat::default()
+    };
+    let b = bad_with(" 1.0 20.0\n 1.1 20.0\n 1.2 20.0 1.3 20.0\n 1.4 20.0\n", &with(format.clone()));
+    expect(&b, 3, 3, "(unnamed: the header names 2)", "1.3", BadRowKind::LongRow);
+    // Skipped, it keeps its sample period: the rows after it keep their times.
+    let skipping = IngestOptions { skip_bad_rows: true, ..with(format) };
+    let (seen, report) = run(b" 1.0 20.0\n 1.1 20.0\n 1.2 20.0 1.3 20.0\n 1.4 20.0\n", &skipping);
+    assert_eq!(report.expect("read").skipped, 1);
+    let times: Vec<(u64, f64)> = values(&seen).iter().map(|r| (r.0, r.1)).collect();
+    assert_eq!(times, vec![(1, 0.0), (2, 1.0 / 50.0), (4, 3.0 / 50.0)]);
+}

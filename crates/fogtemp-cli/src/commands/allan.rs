@@ -1,7 +1,12 @@
 //! `allan`: overlapping Allan deviation and fitted noise terms of a log.
 
+use std::io::{BufRead, BufReader, Read};
+use std::path::Path;
+
 use anyhow::{Context, Result};
 use fogtemp_cal::documents::AllanDocument;
+use fogtemp_cal::ingest::LogFormat;
+use fogtemp_core::Flags;
 
 use super::{ingest_options, json_text, print_json, report_skipped};
 use crate::args::AllanArgs;
@@ -13,11 +18,28 @@ pub fn allan(a: AllanArgs) -> Result<()> {
     // The Allan deviation reads only time and gyro: a gyro-only log (a rate-table or static
     // noise capture) needs no temperature column, and a temperature cell is not checked.
     ingest.format.temp_columns.clear();
+    let gyro_columns = ingest.format.gyro_columns.clone();
+    let flag_columns = compensate_flag_columns(&a.log, &ingest.format);
+    ingest.format.gyro_columns.extend(flag_columns.iter().cloned());
     let bar = RowProgress::new(&a.log, "allan");
-    let series = fogtemp_cal::ingest::read_gyro_series(&a.log, &ingest, |b, r| bar.update(b, r))?;
+    let mut series = fogtemp_cal::ingest::read_gyro_series(&a.log, &ingest, |b, r| bar.update(b, r))?;
     bar.finish_and_clear();
     report_skipped(&series.report);
-    let doc = AllanDocument::new(&a.log, &ingest.format.gyro_columns, &series.time_s, &series.gyros_dph)
+    let factor = ingest.format.gyro_unit.dph() * ingest.format.gyro_scale;
+    let flags: Vec<Vec<f64>> = series.gyros_dph.split_off(gyro_columns.len());
+    let start = first_compensated_row(&flags, factor);
+    if start > 0 {
+        eprintln!(
+            "note: {}: the first {start} rows ({:.1} s) are the compensator's start-up (flag WARMING_UP in {}: its output is the raw gyro, then it steps by the bias): the Allan deviation starts at the first compensated row, as validate's does",
+            a.log.display(),
+            series.time_s.get(start).copied().unwrap_or(f64::NAN) - series.time_s.first().copied().unwrap_or(0.0),
+            flag_columns.join(", ")
+        );
+    }
+    let time_s = series.time_s.get(start..).unwrap_or_default();
+    let gyros_dph: Vec<Vec<f64>> =
+        series.gyros_dph.iter().map(|g| g.get(start..).unwrap_or_default().to_vec()).collect();
+    let doc = AllanDocument::new(&a.log, &gyro_columns, time_s, &gyros_dph)
         .with_context(|| format!("{}: the log needs at least two rows", a.log.display()))?;
     if a.json {
         return print_json(&doc);
@@ -37,12 +59,16 @@ pub fn allan(a: AllanArgs) -> Result<()> {
         if let Some(note) = d.too_short_note() {
             eprintln!("warning: {note}");
         }
+        if let Some(note) = d.unresolved_terms_note() {
+            eprintln!("note: {note}");
+        }
         println!(
-            "axis {} ({}): N = {:.6} deg/sqrt(h), B = {:.6} deg/h, K = {:.6} deg/h/sqrt(h)",
+            "axis {} ({}): N = {:.6} deg/sqrt(h), B = {:.6} deg/h (at most {:.6}), K = {:.6} deg/h/sqrt(h)",
             d.axis,
             json_text(&d.column),
             finite_or(d.noise.arw_deg_per_sqrt_h, f64::NAN),
             finite_or(d.noise.bias_instability_dph, f64::NAN),
+            finite_or(d.bias_instability_at_most_dph, f64::NAN),
             finite_or(d.noise.rrw_dph_per_sqrt_h, f64::NAN)
         );
         for p in &d.curve {
@@ -54,4 +80,51 @@ pub fn allan(a: AllanArgs) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// The `flags` columns of `compensate`'s output that belong to the gyro columns read
+/// (`raw_dph`, `compensated_dph` or `bias_dph` with an axis suffix: `flags` with the same
+/// suffix), when `log` is such an output with its header; empty otherwise.
+fn compensate_flag_columns(log: &Path, format: &LogFormat) -> Vec<String> {
+    if format.skip_lines > 0 || !format.column_names.is_empty() {
+        return Vec::new();
+    }
+    let Some(header) = first_line(log) else { return Vec::new() };
+    let names: Vec<&str> = header.trim_start_matches('\u{feff}').trim_end().split(',').collect();
+    if names.first() != Some(&"time_s") {
+        return Vec::new();
+    }
+    let mut flags: Vec<String> = format
+        .gyro_columns
+        .iter()
+        .filter_map(|column| {
+            let suffix =
+                ["raw_dph", "compensated_dph", "bias_dph"].iter().find_map(|p| column.strip_prefix(p))?;
+            let flags = format!("flags{suffix}");
+            names.contains(&flags.as_str()).then_some(flags)
+        })
+        .collect();
+    flags.dedup();
+    flags
+}
+
+/// The log's first line, if it can be read as text (at most 64 KiB).
+fn first_line(log: &Path) -> Option<String> {
+    let file = std::fs::File::open(log).ok()?;
+    let mut line = String::new();
+    BufReader::new(file.take(1 << 16)).read_line(&mut line).ok()?;
+    Some(line)
+}
+
+/// The first row where no flag column has `WARMING_UP` set (the row count when every row
+/// has; 0 without flag columns). `factor` is the unit factor the flags were read with.
+fn first_compensated_row(flags: &[Vec<f64>], factor: f64) -> usize {
+    let rows = flags.first().map_or(0, Vec::len);
+    let warming = |row: usize| {
+        flags.iter().any(|f| {
+            let bits = (f[row] / factor).round();
+            bits.is_finite() && (bits as u64) & u64::from(Flags::WARMING_UP.0) != 0
+        })
+    };
+    (0..rows).find(|&row| !warming(row)).unwrap_or(rows)
 }
