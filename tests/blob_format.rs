@@ -31,17 +31,18 @@ use std::path::{Path, PathBuf};
 use std::sync::Once;
 
 use common::{bias_surface, paper_points, random_points, rng, FEATURES, NORMALISATION};
-use fogtemp_cal::blob::triangle_transform;
+use fogtemp_cal::blob::{triangle_transform, LogTimeRecord};
 use fogtemp_cal::{build_mesh, encode, AxisModel, CalError, ColumnNames, MeshModel, MeshPoint, ModelFile};
 use fogtemp_core::wire::*;
 use fogtemp_core::{
-    AxisProvenance, Error, FeatureSettings, Model, Normalisation, OutsidePolicy, PolyTerm, Vertex, WalkHint,
+    AxisProvenance, Error, FeatureSettings, LogTimeUnit, Model, Normalisation, OutsidePolicy, PolyTerm,
+    Vertex, WalkHint,
 };
 use rand::Rng;
 use shared::{
     core_digest, exercise, fix_crc, fix_len_and_crc, golden_queries, put_f32, put_u16, put_u32, u16_at,
     u32_at, GOLDEN_HEADER, GOLDEN_V2_BLOB, GOLDEN_V2_CSV, GOLDEN_V3_BLOB, GOLDEN_V3_CSV, GOLDEN_V4_BLOB,
-    GOLDEN_V4_COLUMNS, GOLDEN_V4_CSV,
+    GOLDEN_V4_COLUMNS, GOLDEN_V4_CSV, GOLDEN_V5_BLOB, GOLDEN_V5_CSV, GOLDEN_V5_TIME,
 };
 
 // ---------------------------------------------------------------------------------------------
@@ -154,6 +155,7 @@ fn three_axis_model() -> ModelFile {
         input_digest: core_digest(),
         axes: vec![axis0, axis1, axis2],
         columns: Vec::new(),
+        log_time: Default::default(),
     }
 }
 
@@ -179,6 +181,7 @@ fn two_kb_blob() -> Vec<u8> {
         input_digest: [3; 32],
         axes: vec![axis],
         columns: Vec::new(),
+        log_time: Default::default(),
     })
     .expect("encodes")
 }
@@ -423,6 +426,7 @@ fn golden_model() -> ModelFile {
         input_digest: core_digest(),
         axes: vec![axis0, axis1],
         columns: Vec::new(),
+        log_time: Default::default(),
     }
 }
 
@@ -450,6 +454,19 @@ fn golden_model_v4() -> ModelFile {
     model
 }
 
+/// The version-5 golden model: the version-4 one with its logs' time recorded.
+fn golden_model_v5() -> ModelFile {
+    let mut model = golden_model_v4();
+    let (column, date_column, unit, sample_rate_hz) = GOLDEN_V5_TIME;
+    model.log_time = LogTimeRecord {
+        column: column.into(),
+        date_column: date_column.into(),
+        unit: LogTimeUnit::from_code(unit).expect("a unit"),
+        sample_rate_hz,
+    };
+    model
+}
+
 /// One expected row: evaluated with a fresh default hint, so the row does not depend on the
 /// order of the queries.
 fn golden_row(model: &Model<'_>, (axis, temp_c, rate): (usize, f32, f32)) -> String {
@@ -469,6 +486,7 @@ fn bless_if_requested() {
             (golden_model(), GOLDEN_V2_BLOB, GOLDEN_V2_CSV),
             (golden_model_v3(), GOLDEN_V3_BLOB, GOLDEN_V3_CSV),
             (golden_model_v4(), GOLDEN_V4_BLOB, GOLDEN_V4_CSV),
+            (golden_model_v5(), GOLDEN_V5_BLOB, GOLDEN_V5_CSV),
         ] {
             let blob = encode(&model).expect("golden model encodes");
             let parsed = Model::from_bytes(&blob).expect("parses");
@@ -562,6 +580,72 @@ fn golden_v4_blob_is_reproduced_byte_for_byte_by_todays_writer() {
     let names = &golden[axes_end..golden.len() - CRC_LEN];
     assert_eq!(u32_at(names, 0) as usize, 4 + expected.len());
     assert_eq!(names[4..], expected[..]);
+}
+
+#[test]
+fn golden_v5_blob_is_reproduced_byte_for_byte_by_todays_writer() {
+    let golden = read_golden(GOLDEN_V5_BLOB);
+    let today = encode(&golden_model_v5()).expect("encodes");
+    assert_eq!(u16_at(&golden, FILE_VERSION.start), 5);
+    assert!(today == golden, "the writer's output for the version-5 golden model changed");
+    // Version 5 is version 4 with the log-time record at the end of the names section,
+    // counted here by hand: "Zeit [ms]" (9 bytes) with its length byte, an empty date column
+    // (one length byte), the unit code 1 and the rate 0 as f64.
+    let v4 = read_golden(GOLDEN_V4_BLOB);
+    let v4_end = v4.len() - CRC_LEN;
+    let axes_end = names_offset(&v4);
+    assert_eq!(golden[FILE_HEADER_LEN..axes_end], v4[FILE_HEADER_LEN..axes_end]);
+    let mut expected = v4[axes_end + 4..v4_end].to_vec();
+    expected.extend_from_slice(&[9]);
+    expected.extend_from_slice(b"Zeit [ms]");
+    expected.extend_from_slice(&[0, 1]);
+    expected.extend_from_slice(&0f64.to_le_bytes());
+    assert_eq!(expected.len(), (v4_end - axes_end - 4) + 1 + 9 + 1 + 1 + 8);
+    let names = &golden[axes_end..golden.len() - CRC_LEN];
+    assert_eq!(u32_at(names, 0) as usize, 4 + expected.len());
+    assert_eq!(names[4..], expected[..]);
+    // A model with columns but no time stays version 4, byte for byte.
+    assert!(encode(&golden_model_v4()).expect("encodes") == v4);
+}
+
+/// Where the names section starts: after the axis sections.
+fn names_offset(blob: &[u8]) -> usize {
+    let axes = usize::from(u16_at(blob, FILE_AXIS_COUNT.start));
+    (0..axes).fold(FILE_HEADER_LEN, |at, _| at + u32_at(blob, at + AXIS_SECTION_LEN.start) as usize)
+}
+
+#[test]
+fn a_log_time_the_record_cannot_hold_is_not_recorded() {
+    let written = |time: LogTimeRecord| {
+        let mut model = golden_model_v5();
+        model.log_time = time;
+        let blob = encode(&model).expect("encodes");
+        let version = u16_at(&blob, FILE_VERSION.start);
+        (
+            version,
+            Model::from_bytes(&blob)
+                .expect("parses")
+                .log_time()
+                .map(|t| (t.column.to_string(), t.sample_rate_hz)),
+        )
+    };
+    let ms = LogTimeUnit::Milliseconds;
+    // A rate with a time column, a date column without date-times, a control character: written as not recorded (version 5, nothing read back).
+    for bad in [
+        LogTimeRecord { column: "t".into(), sample_rate_hz: 50.0, ..Default::default() },
+        LogTimeRecord { column: "t".into(), date_column: "d".into(), unit: ms, sample_rate_hz: 0.0 },
+        LogTimeRecord { column: "t\n".into(), ..Default::default() },
+    ] {
+        assert_eq!(written(bad.clone()), (5, None), "{bad:?}");
+    }
+    // Nothing recorded (a negative rate records nothing either): version 4.
+    assert_eq!(written(LogTimeRecord { sample_rate_hz: -1.0, ..Default::default() }), (4, None));
+    // Nothing recorded: version 4. A rate alone: the record of a log without a time column.
+    assert_eq!(written(LogTimeRecord::default()), (4, None));
+    assert_eq!(
+        written(LogTimeRecord { sample_rate_hz: 50.0, ..Default::default() }),
+        (5, Some((String::new(), 50.0)))
+    );
 }
 
 #[test]
@@ -844,10 +928,10 @@ fn a_wrong_section_len_names_its_axis() {
 fn targeted_header_corruptions_give_their_specific_errors() {
     let r = mutated(|b, _| b[0] = b'X');
     assert!(matches!(r, Err(Error::BadMagic)), "{r:?}");
-    let r = mutated(|b, _| put_u16(b, FILE_VERSION.start, 5));
-    assert!(matches!(r, Err(Error::UnsupportedVersion { expected: 4, found: 5 })), "{r:?}");
+    let r = mutated(|b, _| put_u16(b, FILE_VERSION.start, 6));
+    assert!(matches!(r, Err(Error::UnsupportedVersion { expected: 5, found: 6 })), "{r:?}");
     let r = mutated(|b, _| put_u16(b, FILE_VERSION.start, 0));
-    assert!(matches!(r, Err(Error::UnsupportedVersion { expected: 4, found: 0 })), "{r:?}");
+    assert!(matches!(r, Err(Error::UnsupportedVersion { expected: 5, found: 0 })), "{r:?}");
     // Version 4 has a names section after the axes: a blob without one ends early.
     let r = mutated(|b, _| put_u16(b, FILE_VERSION.start, 4));
     assert!(matches!(r, Err(Error::Truncated { field: "names_len", .. })), "{r:?}");
@@ -1060,6 +1144,7 @@ fn encode_mesh(mesh: MeshModel) -> Result<Vec<u8>, Error> {
         input_digest: [0; 32],
         axes: vec![axis],
         columns: Vec::new(),
+        log_time: Default::default(),
     }) {
         Ok(b) => Ok(b),
         Err(CalError::SelfCheck(e)) => Err(e),
@@ -1170,6 +1255,7 @@ fn gradient_blob() -> (MeshModel, Vec<u8>) {
         input_digest: [3; 32],
         axes: vec![axis],
         columns: Vec::new(),
+        log_time: Default::default(),
     })
     .expect("encodes");
     (mesh, blob)

@@ -1157,7 +1157,7 @@ fn log_columns_are_matched_to_axes_by_the_names_the_model_records() {
         .map(|a| (a["gyro_column"].as_str().expect("gyro"), a["temp_column"].as_str().expect("temp")))
         .collect();
     assert_eq!(names, [("gyro_dph", "temp_c"), ("gyro2", "temp_c")]);
-    assert_eq!(inspected["format_version"], 4);
+    assert_eq!(inspected["format_version"], 5);
 
     // Nothing named reads what naming the columns in the model's order reads.
     let compensated = |args: Vec<OsString>| -> Vec<f64> {
@@ -1264,6 +1264,58 @@ fn units_the_model_records_are_read_when_none_are_named() {
     let (_, other) = validate(&["--gyro-unit", "dps"]);
     assert!(
         other.contains("was fitted on the gyro read as 1800 deg/h per unit; this log is read as 3600"),
+        "{other}"
+    );
+}
+
+/// A model records how its fit read the logs' time (format 5): a log whose time is in
+/// milliseconds under another name validates without the time options, bit for bit as with
+/// them (oracle: the same validation with every option named); a wrong unit named is used as
+/// given with a note naming the model's.
+#[test]
+fn the_time_the_model_records_is_read_when_none_is_named() {
+    let dir = TempDir::new().expect("tempdir");
+    let (_, lines) = short_log(dir.path(), "ok.csv");
+    let mut ms = vec!["t_ms,temp_c,gyro_dph".to_string()];
+    for l in &lines[1..] {
+        let (time, rest) = l.split_once(',').expect("row");
+        ms.push(format!("{},{rest}", time.parse::<f64>().expect("time") * 1000.0));
+    }
+    let log = dir.path().join("ms.csv");
+    write_lines(&log, &ms);
+    let model = dir.path().join("m.fogm");
+    let time = ["--time-column", "t_ms", "--time-unit", "ms"];
+    let mut fit_args = args!["fit", "--method", "poly", "--out", &model, &log];
+    fit_args.extend(time.iter().map(OsString::from));
+    run_ok(fit_args);
+    let inspect = json(&run_ok(args!["inspect", "--json", &model]));
+    assert_eq!(inspect["format_version"], 5);
+    assert_eq!(inspect["log_time"]["time_column"], "t_ms");
+    assert_eq!(inspect["log_time"]["time_unit"], "ms");
+    let validate = |extra: &[&str]| {
+        let mut args = args!["validate", "--json", "--tau-s", "10", "--model", &model, &log];
+        args.extend(extra.iter().map(OsString::from));
+        let output = cal().args(&args).output().expect("run");
+        assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+        (json(&String::from_utf8_lossy(&output.stdout)), String::from_utf8_lossy(&output.stderr).into_owned())
+    };
+    let (named, quiet) = validate(&time);
+    let (recorded, said) = validate(&[]);
+    let comp = |d: &Value| f(&d["compensated_bias_stability_dph"]);
+    assert!(comp(&named).is_finite());
+    assert_eq!(comp(&recorded).to_bits(), comp(&named).to_bits(), "read the same way, bit for bit");
+    assert!(!quiet.contains("time"), "{quiet}");
+    assert!(said.contains("the logs' time is read as") && said.contains("column 't_ms' in ms"), "{said}");
+    // The unit forgotten: read as given (seconds), with a note naming the model's (here every
+    // step is then longer than the gap, so nothing is compensated and validate fails).
+    let output = cal()
+        .args(args!["validate", "--tau-s", "10", "--model", &model, &log, "--time-column", "t_ms"])
+        .output()
+        .expect("run");
+    let other = String::from_utf8_lossy(&output.stderr);
+    assert!(
+        other.contains("was fitted on logs whose time is column 't_ms' in ms")
+            && other.contains("give column 't_ms' in s"),
         "{other}"
     );
 }

@@ -208,6 +208,7 @@ fn model_blob(policy: OutsidePolicy) -> (Vec<u8>, String) {
         input_digest: [0x5a; 32],
         axes: vec![axis],
         columns: Vec::new(),
+        log_time: Default::default(),
     })
     .expect("encodes");
     (blob, about)

@@ -140,6 +140,7 @@ pub fn model_blob(poly: Vec<PolyTerm>, points: Option<&[MeshPoint]>) -> Vec<u8> 
         input_digest: [0; 32],
         axes: vec![axis],
         columns: Vec::new(),
+        log_time: Default::default(),
     };
     encode(&file).expect("encodes")
 }

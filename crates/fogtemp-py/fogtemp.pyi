@@ -60,7 +60,8 @@ class Model:
         """Writes the blob atomically."""
     def inspect(self) -> Dict[str, Any]:
         """The ``fogtemp-cal inspect --json`` document (axes, nodes, triangles, polynomial, the log
-        columns each axis was fitted on: ``gyro_column``, ``temp_column``, None when not recorded, ...)."""
+        columns each axis was fitted on: ``gyro_column``, ``temp_column``, None when not recorded;
+        ``log_time``: how the fit read the logs' time, None when not recorded, ...)."""
     @property
     def axis_count(self) -> int:
         """Number of gyro axes."""
@@ -165,11 +166,14 @@ def validate(
     Log files are read with the gyro and temperature columns the model records (models fitted
     on files since blob format 4) unless gyro_column= / temp_column= name others, and in the
     units its fit read them in unless gyro_unit=, gyro_scale=, temp_scale= or temp_offset= are
-    given; a gyro column the model fitted on another axis raises ValueError, a name or unit it
-    does not record a UserWarning."""
+    given, and with the time the model records (since blob format 5: time column and unit, or
+    sample rate) unless time_column=, time_unit=, sample_rate_hz= or date_column= are given; a
+    gyro column the model fitted on another axis raises ValueError, a name, unit or time it does
+    not record a UserWarning."""
 
 def allan(log: Union[PathLike, Run], *, progress: bool = True, **options: Any) -> Dict[str, Any]:
-    """The ``fogtemp-cal allan --json`` document: overlapping Allan deviation, N, B, K."""
+    """The ``fogtemp-cal allan --json`` document: overlapping Allan deviation, N, B, K, and the
+    bound on B (``bias_instability_at_most_dph``: the curve's minimum over 0.664)."""
 
 def simulate(
     scenario: str = "paper",

@@ -103,6 +103,7 @@ pub fn model_blob(poly: Vec<PolyTerm>, points: Option<&[MeshPoint]>, policy: Out
         input_digest: [7; 32],
         axes: vec![axis],
         columns: Vec::new(),
+        log_time: Default::default(),
     })
     .expect("encodes")
 }

@@ -5,7 +5,7 @@
 
 use fogtemp_core::Model;
 
-use crate::blob::ColumnNames;
+use crate::blob::{ColumnNames, LogTimeRecord};
 use crate::ingest::{LogFormat, RateUnit};
 
 /// The columns chosen for a model, and what the user is told about them.
@@ -57,6 +57,8 @@ pub struct Named<'a> {
     pub gyro_units: bool,
     /// `--temp-scale` or `--temp-offset` given.
     pub temp_units: bool,
+    /// `--time-column`, `--time-unit`, `--sample-rate-hz` or `--date-column` given.
+    pub time: bool,
 }
 
 impl<'a> Named<'a> {
@@ -68,19 +70,30 @@ impl<'a> Named<'a> {
             temp_columns: &format.temp_columns,
             gyro_units: true,
             temp_units: true,
+            time: true,
         }
     }
 }
 
 /// The names of the options in the messages: gyro columns, temperature columns, gyro units,
-/// temperature units.
-pub type OptionNames<'a> = [&'a str; 4];
+/// temperature units, time.
+pub type OptionNames<'a> = [&'a str; 5];
 /// The command line's options.
-pub const CLI_OPTIONS: OptionNames<'static> =
-    ["--gyro-column", "--temp-column", "--gyro-unit/--gyro-scale", "--temp-scale/--temp-offset"];
+pub const CLI_OPTIONS: OptionNames<'static> = [
+    "--gyro-column",
+    "--temp-column",
+    "--gyro-unit/--gyro-scale",
+    "--temp-scale/--temp-offset",
+    "--time-column/--time-unit/--sample-rate-hz/--date-column",
+];
 /// Python's keywords.
-pub const PYTHON_OPTIONS: OptionNames<'static> =
-    ["gyro_column=", "temp_column=", "gyro_unit=/gyro_scale=", "temp_scale=/temp_offset="];
+pub const PYTHON_OPTIONS: OptionNames<'static> = [
+    "gyro_column=",
+    "temp_column=",
+    "gyro_unit=/gyro_scale=",
+    "temp_scale=/temp_offset=",
+    "time_column=/time_unit=/sample_rate_hz=/date_column=",
+];
 
 /// [`choose`] and [`choose_units`] together: `format` (what was named, defaults elsewhere)
 /// becomes what replaying `model` reads, columns and units. The notes of both are returned in
@@ -93,16 +106,66 @@ pub fn choose_for_replay(
     model_name: &str,
     format: &mut LogFormat,
     named: Named<'_>,
-    [gyro_column, temp_column, gyro_units, temp_units]: OptionNames<'_>,
+    [gyro_column, temp_column, gyro_units, temp_units, time]: OptionNames<'_>,
 ) -> Result<ChosenColumns, Box<SwappedColumn>> {
     let mut chosen =
         choose(model, model_name, (named.gyro_columns, named.temp_columns), (gyro_column, temp_column))?;
     let units_named = (named.gyro_units, named.temp_units);
     let unit_notes = choose_units(model, model_name, format, units_named, (gyro_units, temp_units));
     chosen.notes.extend(unit_notes);
+    chosen.notes.extend(choose_time(model, model_name, format, named.time, time));
     format.gyro_columns.clone_from(&chosen.gyro);
     format.temp_columns.clone_from(&chosen.temp);
     Ok(chosen)
+}
+
+/// How to read the logs' time for `model`: as the model records it (format version 5) when
+/// `named` is false, with a note when that is not the default `time_s` in seconds; as named
+/// otherwise, with a note when that differs from the record (`option` names the settings).
+/// `format` is set to what is read; the notes are returned.
+pub fn choose_time(
+    model: &Model<'_>,
+    model_name: &str,
+    format: &mut LogFormat,
+    named: bool,
+    option: &str,
+) -> Vec<String> {
+    let recorded = LogTimeRecord::of(model);
+    if !recorded.is_recorded() {
+        return Vec::new();
+    }
+    if !named {
+        format.set_log_time(&recorded);
+        if recorded == LogFormat::default().log_time() {
+            return Vec::new();
+        }
+        return vec![format!(
+            "the logs' time is read as {model_name} records it: {}",
+            describe_time(&recorded)
+        )];
+    }
+    let given = format.log_time();
+    if given == recorded {
+        return Vec::new();
+    }
+    vec![format!(
+        "{model_name} was fitted on logs whose time is {}; {option} give {}: used as given (for logs from the same logger, leave {option} out)",
+        describe_time(&recorded),
+        describe_time(&given)
+    )]
+}
+
+/// A log-time record in words: `column 'time (ms)' in ms`, `the row index at 50 Hz`.
+pub fn describe_time(record: &LogTimeRecord) -> String {
+    if record.sample_rate_hz > 0.0 {
+        return format!("the row index at {} Hz (no time column)", record.sample_rate_hz);
+    }
+    let unit = crate::ingest::TimeUnit::from_log_unit(record.unit).option_name();
+    if record.date_column.is_empty() {
+        format!("column '{}' in {unit}", record.column)
+    } else {
+        format!("column '{}' with the date column '{}', in {unit}", record.column, record.date_column)
+    }
 }
 
 /// The columns to read `model` with: `gyro` and `temp` as named (empty: not named) checked
@@ -282,8 +345,13 @@ mod tests {
             .iter()
             .map(|(g, t)| ColumnNames { gyro: (*g).into(), temp: (*t).into(), ..ColumnNames::default() })
             .collect();
-        let file =
-            ModelFile { tool_version: String::new(), input_digest: [0; 32], axes: vec![axis; axes], columns };
+        let file = ModelFile {
+            tool_version: String::new(),
+            input_digest: [0; 32],
+            axes: vec![axis; axes],
+            columns,
+            log_time: Default::default(),
+        };
         encode(&file).expect("encodes")
     }
 
@@ -302,8 +370,14 @@ mod tests {
             temp_c_per_unit: 0.00390625,
             temp_offset_c: -231.0,
         }];
-        encode(&ModelFile { tool_version: String::new(), input_digest: [0; 32], axes: vec![axis], columns })
-            .expect("encodes")
+        encode(&ModelFile {
+            tool_version: String::new(),
+            input_digest: [0; 32],
+            axes: vec![axis],
+            columns,
+            log_time: Default::default(),
+        })
+        .expect("encodes")
     }
 
     fn units(blob: &[u8], format: &mut LogFormat, named: (bool, bool)) -> Vec<String> {

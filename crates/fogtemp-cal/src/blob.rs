@@ -4,7 +4,7 @@
 
 use fogtemp_core::wire::*;
 use fogtemp_core::{
-    AxisProvenance, FeatureSettings, Model, Normalisation, OutsidePolicy, PolyOutside, PolyTerm,
+    AxisProvenance, FeatureSettings, LogTimeUnit, Model, Normalisation, OutsidePolicy, PolyOutside, PolyTerm,
 };
 
 use crate::error::{CalError, EncodeProblem};
@@ -44,6 +44,40 @@ pub struct ModelFile {
     /// The log columns each axis was fitted on, one per axis (written as format version 4),
     /// or empty for none (version 2, or 3 with stored gradients, as before).
     pub columns: Vec<ColumnNames>,
+    /// How the fit read its logs' time (written, with `columns`, as format version 5 when it
+    /// records one; the default records none).
+    pub log_time: LogTimeRecord,
+}
+
+/// How the fit read its logs' time: the log-time record of format version 5.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct LogTimeRecord {
+    /// The time column; empty for a log without one (time from `sample_rate_hz`) or when not
+    /// recorded.
+    pub column: String,
+    /// The column with each row's date, read together with the time column; empty for none.
+    pub date_column: String,
+    /// The time column's unit.
+    pub unit: LogTimeUnit,
+    /// The sample rate of a log without a time column, Hz; 0 otherwise.
+    pub sample_rate_hz: f64,
+}
+
+impl LogTimeRecord {
+    /// Whether it records anything (a time column, or a sample rate).
+    pub fn is_recorded(&self) -> bool {
+        !self.column.is_empty() || self.sample_rate_hz > 0.0
+    }
+
+    /// What `model` records (the default before format version 5, or when it records none).
+    pub fn of(model: &Model<'_>) -> Self {
+        model.log_time().map_or_else(Self::default, |t| Self {
+            column: t.column.to_string(),
+            date_column: t.date_column.to_string(),
+            unit: t.unit,
+            sample_rate_hz: t.sample_rate_hz,
+        })
+    }
 }
 
 /// The log columns one axis was fitted on, and how their numbers were read.
@@ -128,10 +162,13 @@ pub fn encode_with_selection(model: &ModelFile, selection: &[u16]) -> Result<Vec
             axes: model.axes.len(),
         }));
     }
-    let version = match (model.columns.is_empty(), needs_gradients) {
-        (false, _) => FORMAT_VERSION,
-        (true, true) => FORMAT_VERSION_WITH_GRADIENTS,
-        (true, false) => FORMAT_VERSION_WITHOUT_GRADIENTS,
+    // The log-time record needs version 5; a model with columns but no time stays version 4.
+    let with_time = !model.columns.is_empty() && model.log_time.is_recorded();
+    let version = match (model.columns.is_empty(), with_time, needs_gradients) {
+        (false, true, _) => FORMAT_VERSION,
+        (false, false, _) => FIRST_VERSION_WITH_COLUMN_NAMES,
+        (true, _, true) => FORMAT_VERSION_WITH_GRADIENTS,
+        (true, _, false) => FORMAT_VERSION_WITHOUT_GRADIENTS,
     };
     put_u16(&mut out, FILE_VERSION.start, version);
     put_u16(&mut out, FILE_HEADER_LEN_FIELD.start, FILE_HEADER_LEN as u16);
@@ -144,7 +181,7 @@ pub fn encode_with_selection(model: &ModelFile, selection: &[u16]) -> Result<Vec
         encode_axis(&mut out, id as u16, axis, selection.get(id).copied().unwrap_or(0))?;
     }
     if !model.columns.is_empty() {
-        encode_column_names(&mut out, &model.columns);
+        encode_column_names(&mut out, &model.columns, with_time.then_some(&model.log_time));
     }
     let total = out.len() + CRC_LEN;
     let total_u32 = u32::try_from(total)
@@ -158,22 +195,46 @@ pub fn encode_with_selection(model: &ModelFile, selection: &[u16]) -> Result<Vec
 
 /// The log-columns section (`docs/model-format.md`, "Log columns"). A name the section
 /// cannot hold (over 255 bytes, or with a control character) is written as not recorded.
-fn encode_column_names(out: &mut Vec<u8>, columns: &[ColumnNames]) {
+/// With `log_time`, the section ends with the log-time record (version 5); a time or date
+/// column it cannot hold is written as not recorded, and so is the record then.
+fn encode_column_names(out: &mut Vec<u8>, columns: &[ColumnNames], log_time: Option<&LogTimeRecord>) {
     let start = out.len();
     out.extend_from_slice(&[0; NAMES_LEN_LEN]);
     for c in columns {
         for name in [&c.gyro, &c.temp] {
-            let storable = name.len() <= MAX_COLUMN_NAME_LEN && !name.chars().any(char::is_control);
-            let bytes = if storable { name.as_bytes() } else { &[] };
-            out.push(bytes.len() as u8);
-            out.extend_from_slice(bytes);
+            push_name(out, name);
         }
         for v in [c.gyro_dph_per_unit, c.temp_c_per_unit, c.temp_offset_c] {
             out.extend_from_slice(&v.to_le_bytes());
         }
     }
+    if let Some(time) = log_time {
+        let storable = storable_name(&time.column) && storable_name(&time.date_column);
+        let valid_rate = time.sample_rate_hz.is_finite()
+            && time.sample_rate_hz >= 0.0
+            && (time.sample_rate_hz == 0.0 || time.column.is_empty());
+        let with_date = time.date_column.is_empty() || time.unit == LogTimeUnit::DateTime;
+        let record =
+            if storable && valid_rate && with_date { time.clone() } else { LogTimeRecord::default() };
+        push_name(out, &record.column);
+        push_name(out, &record.date_column);
+        out.push(record.unit.code());
+        out.extend_from_slice(&record.sample_rate_hz.to_le_bytes());
+    }
     let len = out.len() - start;
     put_u32(out, start, len as u32);
+}
+
+/// Whether the section can hold `name` (at most 255 bytes, no control character).
+fn storable_name(name: &str) -> bool {
+    name.len() <= MAX_COLUMN_NAME_LEN && !name.chars().any(char::is_control)
+}
+
+/// A one-byte length and the name's bytes; a name the section cannot hold as not recorded.
+fn push_name(out: &mut Vec<u8>, name: &str) {
+    let bytes = if storable_name(name) { name.as_bytes() } else { &[] };
+    out.push(bytes.len() as u8);
+    out.extend_from_slice(bytes);
 }
 
 fn encode_axis(out: &mut Vec<u8>, id: u16, axis: &AxisModel, selection: u16) -> Result<(), CalError> {

@@ -166,6 +166,10 @@ pub struct CalibrationConfig {
     /// `validate` and `compensate` match a log's columns by name. Off for runs given as several
     /// gyro or temperature arrays, whose column names are made up (`gyro_dph[0]`).
     pub record_columns: bool,
+    /// With `record_columns`, also record how the logs' time was read (format version 5), so
+    /// `validate` and `compensate` read a log's time the same way. Off for runs given as
+    /// arrays (their times are seconds already, not a log's column).
+    pub record_log_time: bool,
     /// Insert Steiner nodes where a plain mesh's triangles are too large to carry the
     /// polynomial part its node fit leaves free (`refine`; least-squares nodes only). On by
     /// default (docs/calibration-testbed.md, "Steiner nodes between the calibration paths").
@@ -196,6 +200,7 @@ impl Default for CalibrationConfig {
             poly_outside: fogtemp_core::PolyOutside::LinearFromBoundary,
             mesh_outside: OutsidePolicy::StoredGradients,
             record_columns: true,
+            record_log_time: true,
             refine_mesh: true,
             mesh_relative_weight: None,
             mesh_cv_repeats: crate::mesh_fit::CV_REPEATS,
@@ -1019,6 +1024,7 @@ pub fn fit_axis(
         input_digest: [0; 32],
         axes: vec![axis.clone()],
         columns: Vec::new(),
+        log_time: Default::default(),
     })?;
     let model = Model::from_bytes(&probe).map_err(CalError::SelfCheck)?;
     let core_axis = model.axis(0).map_err(CalError::SelfCheck)?;
@@ -1149,7 +1155,13 @@ pub fn fit_model_replaying(
     let codes: Vec<u16> =
         reports.iter().map(|r| r.selection.as_ref().map_or(0, Selection::blob_code)).collect();
     let columns = if config.record_columns { config.ingest.format.axis_columns() } else { Vec::new() };
-    let model = ModelFile { tool_version: crate::blob::tool_version(), input_digest, axes, columns };
+    let log_time = if config.record_columns && config.record_log_time {
+        config.ingest.format.log_time()
+    } else {
+        Default::default()
+    };
+    let model =
+        ModelFile { tool_version: crate::blob::tool_version(), input_digest, axes, columns, log_time };
     let blob = crate::blob::encode_with_selection(&model, &codes)?;
     Ok(FittedModel { blob, axes: reports })
 }

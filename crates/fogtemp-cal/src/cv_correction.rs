@@ -136,6 +136,7 @@ mod tests {
             input_digest: [0; 32],
             axes: vec![axis],
             columns: Vec::new(),
+            log_time: Default::default(),
         })
         .expect("encodes")
     }

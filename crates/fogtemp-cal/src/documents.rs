@@ -335,8 +335,41 @@ pub struct ModelDocument {
     pub tool_version: String,
     /// SHA-256 of the calibration logs, hex.
     pub input_digest: String,
+    /// How the fit read its logs' time (format 5; `null` when not recorded): `time_column`
+    /// (`null` for a log without one), `date_column`, `time_unit` (`s`, `ms`, `us`,
+    /// `datetime`, `time-of-day`), `sample_rate_hz` (`null` with a time column).
+    pub log_time: Option<LogTimeDocument>,
     /// Every axis.
     pub axes: Vec<ModelAxisDocument>,
+}
+
+/// A model's log-time record in `inspect --json`.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct LogTimeDocument {
+    /// The time column; `None` for a log without one.
+    pub time_column: Option<String>,
+    /// The date column; `None` for none.
+    pub date_column: Option<String>,
+    /// The time column's unit, as `--time-unit` names it.
+    pub time_unit: &'static str,
+    /// The sample rate of a log without a time column, Hz.
+    pub sample_rate_hz: Option<f64>,
+    /// In words, as the notes of `validate` say it.
+    pub description: String,
+}
+
+impl LogTimeDocument {
+    fn of(model: &Model<'_>) -> Option<Self> {
+        let record = crate::blob::LogTimeRecord::of(model);
+        let named = |n: &str| (!n.is_empty()).then(|| n.to_string());
+        record.is_recorded().then(|| Self {
+            time_column: named(&record.column),
+            date_column: named(&record.date_column),
+            time_unit: crate::ingest::TimeUnit::from_log_unit(record.unit).option_name(),
+            sample_rate_hz: (record.sample_rate_hz > 0.0).then_some(record.sample_rate_hz),
+            description: crate::axis_columns::describe_time(&record),
+        })
+    }
 }
 
 impl ModelDocument {
@@ -352,6 +385,7 @@ impl ModelDocument {
             format_version: model.format_version(),
             tool_version: String::from_utf8_lossy(model.tool_version()).into_owned(),
             input_digest: hex(&model.input_digest()),
+            log_time: LogTimeDocument::of(&model),
             axes: (0..model.axis_count())
                 .map(|i| {
                     let mut axis = ModelAxisDocument::new(i, &model.axis(i)?);

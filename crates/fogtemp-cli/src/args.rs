@@ -53,18 +53,19 @@ pub enum Command {
 /// How to read the logs.
 #[derive(Debug, Clone, Args)]
 pub struct IngestArgs {
-    /// Name of the time column.
-    #[arg(long, default_value = "time_s", help_heading = "Log columns")]
-    pub time_column: String,
+    /// Name of the time column [default: time_s; validate and compensate: the one the model
+    /// records].
+    #[arg(long, help_heading = "Log columns")]
+    pub time_column: Option<String>,
     /// A column with each row's date when the time column holds the time of day (a
     /// spreadsheet export's Date and Time): read together as one date-time, DATE T TIME.
     /// Needs --time-unit datetime.
     #[arg(long, value_name = "NAME", help_heading = "Log columns")]
     pub date_column: Option<String>,
     /// Unit of the time column (datetime: ISO 8601 date-times; time-of-day: hh:mm[:ss] without
-    /// a date).
-    #[arg(long, value_enum, default_value_t = TimeUnitArg::S, help_heading = "Log columns")]
-    pub time_unit: TimeUnitArg,
+    /// a date) [default: s; validate and compensate: the one the model records].
+    #[arg(long, value_enum, help_heading = "Log columns")]
+    pub time_unit: Option<TimeUnitArg>,
     /// The log has no time column: row k (0-based, counting rows rejected with
     /// --skip-bad-rows, not blank or comment lines) is at k / HZ seconds. A log that has a
     /// column named as --time-column as well is refused as ambiguous.
@@ -131,13 +132,14 @@ impl IngestArgs {
         let or_default =
             |named: &[String], default: Vec<String>| if named.is_empty() { default } else { named.to_vec() };
         let format = LogFormat {
-            time_column: self.time_column.clone(),
+            time_column: self.time_column.clone().unwrap_or(defaults.time_column.clone()),
             time_unit: match self.time_unit {
-                TimeUnitArg::S => TimeUnit::Seconds,
-                TimeUnitArg::Ms => TimeUnit::Milliseconds,
-                TimeUnitArg::Us => TimeUnit::Microseconds,
-                TimeUnitArg::Datetime => TimeUnit::DateTime,
-                TimeUnitArg::TimeOfDay => TimeUnit::TimeOfDay,
+                None => defaults.time_unit,
+                Some(TimeUnitArg::S) => TimeUnit::Seconds,
+                Some(TimeUnitArg::Ms) => TimeUnit::Milliseconds,
+                Some(TimeUnitArg::Us) => TimeUnit::Microseconds,
+                Some(TimeUnitArg::Datetime) => TimeUnit::DateTime,
+                Some(TimeUnitArg::TimeOfDay) => TimeUnit::TimeOfDay,
             },
             temp_columns: or_default(&self.temp_columns, defaults.temp_columns),
             temp_scale: self.temp_scale.unwrap_or(defaults.temp_scale),

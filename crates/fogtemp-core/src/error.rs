@@ -60,6 +60,12 @@ pub enum Error {
         /// Element index within the field's array (0 for scalars).
         index: u32,
     },
+    /// A field of the log-time record (format version 5, at the end of the log-columns
+    /// section) holds a value outside its allowed range.
+    BadLogTime {
+        /// Which field: `time_column`, `date_column`, `time_unit` or `sample_rate_hz`.
+        field: &'static str,
+    },
     /// A field of the file header (before any axis section) holds a value outside its
     /// allowed range.
     BadHeaderValue {
@@ -169,6 +175,9 @@ impl fmt::Display for Error {
                 "file header: axis_count is {found}, outside 1..={}",
                 crate::wire::MAX_AXES
             ),
+            Error::BadLogTime { field } => {
+                write!(f, "log time: {field} holds a value outside its allowed range")
+            }
             Error::BadHeaderValue { field, found } => {
                 write!(f, "file header: {field} is {found}, outside its allowed range")
             }

@@ -6,7 +6,7 @@ use crate::mesh::{
     barycentric, edge_vertices, plane_value, Mesh, MeshValue, OutsidePolicy, StartGrid, TriangleRecord,
     WalkHint,
 };
-use crate::names::AxisColumns;
+use crate::names::{AxisColumns, LogTime};
 use crate::poly::{parse_term, Poly};
 use crate::region::{PolyOutside, Region};
 use crate::wire::*;
@@ -317,7 +317,7 @@ impl<'a> Model<'a> {
             offset = offset.saturating_add(len);
         }
         if version >= FIRST_VERSION_WITH_COLUMN_NAMES {
-            crate::names::validate(body, offset, axis_count)?;
+            crate::names::validate(body, offset, axis_count, version >= FIRST_VERSION_WITH_LOG_TIME)?;
         } else if offset != body_len {
             return Err(Error::LengthMismatch {
                 field: "sum of section_len",
@@ -414,13 +414,29 @@ impl<'a> Model<'a> {
         if self.version < FIRST_VERSION_WITH_COLUMN_NAMES || index >= self.axis_count() {
             return None;
         }
-        // The section follows the axis sections, whose lengths were validated.
+        crate::names::axis_columns(self.bytes, self.names_offset()?, index)
+    }
+
+    /// How the fit read its logs' time: the time column (or the sample rate of a log without
+    /// one), the date column and the unit (format version 5; `None` for an older blob or one
+    /// that records none). Not used by evaluation: it lets a host read a log's time as the
+    /// fit did.
+    pub fn log_time(&self) -> Option<LogTime<'a>> {
+        if self.version < FIRST_VERSION_WITH_LOG_TIME {
+            return None;
+        }
+        crate::names::log_time(self.bytes, self.names_offset()?, self.axis_count)
+    }
+
+    /// Where the log-columns section starts: after the axis sections, whose lengths were
+    /// validated.
+    fn names_offset(&self) -> Option<usize> {
         let mut offset = FILE_HEADER_LEN;
         for _ in 0..self.axis_count {
             let len = u32_at(self.bytes, offset.saturating_add(AXIS_SECTION_LEN.start))? as usize;
             offset = offset.saturating_add(len);
         }
-        crate::names::axis_columns(self.bytes, offset, index)
+        Some(offset)
     }
 }
 

@@ -9,9 +9,16 @@
 //! `temp_offset_c` (f64 each, the one place a blob holds f64: hosts read logs in f64 and these
 //! reproduce the fit's reading exactly; `gyro_dph = value * gyro_dph_per_unit`,
 //! `temp_c = value * temp_c_per_unit + temp_offset_c`).
+//!
+//! From format version 5 the section ends, after the last axis, with the **log-time record**:
+//! how the fit read each row's time. The time column and the date column (each a one-byte
+//! length and UTF-8; length 0 = none), `time_unit` (u8: 0 seconds, 1 milliseconds,
+//! 2 microseconds, 3 date-time, 4 time of day) and `sample_rate_hz` (f64: 0, or the rate of a
+//! log without a time column, whose time column is then empty). An empty time column with rate
+//! 0 means not recorded (a fit from arrays). A date column needs the date-time unit.
 
 use crate::error::Error;
-use crate::wire::{f64_at, u32_at, COLUMN_UNITS_LEN, NAMES_LEN_LEN};
+use crate::wire::{f64_at, u32_at, COLUMN_UNITS_LEN, LOG_TIME_FIXED_LEN, NAMES_LEN_LEN};
 
 /// What one axis records of its log columns (names `""` = not recorded).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -29,13 +36,70 @@ pub struct AxisColumns<'a> {
     pub temp_offset_c: f64,
 }
 
+/// The unit of a log's time column, as the log-time record stores it.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum LogTimeUnit {
+    /// Seconds (code 0).
+    #[default]
+    Seconds,
+    /// Milliseconds (code 1).
+    Milliseconds,
+    /// Microseconds (code 2).
+    Microseconds,
+    /// ISO 8601 date-times (code 3).
+    DateTime,
+    /// Clock times without a date (code 4).
+    TimeOfDay,
+}
+
+impl LogTimeUnit {
+    /// The unit of a stored code; `None` for an unknown one.
+    pub fn from_code(code: u8) -> Option<Self> {
+        Some(match code {
+            0 => Self::Seconds,
+            1 => Self::Milliseconds,
+            2 => Self::Microseconds,
+            3 => Self::DateTime,
+            4 => Self::TimeOfDay,
+            _ => return None,
+        })
+    }
+
+    /// The stored code.
+    pub fn code(self) -> u8 {
+        match self {
+            Self::Seconds => 0,
+            Self::Milliseconds => 1,
+            Self::Microseconds => 2,
+            Self::DateTime => 3,
+            Self::TimeOfDay => 4,
+        }
+    }
+}
+
+/// How the fit read its logs' time (format version 5).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LogTime<'a> {
+    /// The time column; `""` for a log without one (time from `sample_rate_hz`).
+    pub column: &'a str,
+    /// The column with each row's date read together with the time column; `""` for none.
+    pub date_column: &'a str,
+    /// The time column's unit.
+    pub unit: LogTimeUnit,
+    /// The sample rate of a log without a time column, Hz; 0 otherwise.
+    pub sample_rate_hz: f64,
+}
+
 /// Checks the section that starts at `offset` and runs to the end of `body` (the blob without
-/// its CRC) for `axis_count` axes.
-pub(crate) fn validate(body: &[u8], offset: usize, axis_count: u16) -> Result<(), Error> {
+/// its CRC) for `axis_count` axes, with the log-time record at its end when `with_time`.
+pub(crate) fn validate(body: &[u8], offset: usize, axis_count: u16, with_time: bool) -> Result<(), Error> {
     let mut at = section_start(body, offset)?;
     for axis in 0..axis_count {
         let (_, next) = record_at(body, at, axis)?;
         at = next;
+    }
+    if with_time {
+        at = log_time_at(body, at)?.1;
     }
     if at != body.len() {
         return Err(Error::LengthMismatch {
@@ -54,6 +118,46 @@ pub(crate) fn axis_columns(body: &[u8], offset: usize, index: usize) -> Option<A
         at = record_at(body, at, 0).ok()?.1;
     }
     record_at(body, at, 0).ok().map(|(record, _)| record)
+}
+
+/// The log-time record of a validated section at `offset` with `axis_count` axes (`None`
+/// when it records nothing: no time column and no rate).
+pub(crate) fn log_time(body: &[u8], offset: usize, axis_count: u16) -> Option<LogTime<'_>> {
+    let mut at = section_start(body, offset).ok()?;
+    for _ in 0..axis_count {
+        at = record_at(body, at, 0).ok()?.1;
+    }
+    let (time, _) = log_time_at(body, at).ok()?;
+    (!time.column.is_empty() || time.sample_rate_hz > 0.0).then_some(time)
+}
+
+/// The log-time record at `at` and where it ends.
+fn log_time_at(body: &[u8], at: usize) -> Result<(LogTime<'_>, usize), Error> {
+    let bad = |field| Error::BadLogTime { field };
+    let (column, at) = name_at(body, at, "time_column", 0).map_err(|e| named_bad(e, "time_column"))?;
+    let (date_column, at) = name_at(body, at, "date_column", 0).map_err(|e| named_bad(e, "date_column"))?;
+    let end = at.saturating_add(LOG_TIME_FIXED_LEN);
+    if body.len() < end {
+        return Err(Error::Truncated { field: "log time", needed: end, found: body.len() });
+    }
+    let unit = body.get(at).copied().and_then(LogTimeUnit::from_code).ok_or(bad("time_unit"))?;
+    let sample_rate_hz = f64_at(body, at.saturating_add(1)).unwrap_or(f64::NAN);
+    if !(sample_rate_hz.is_finite() && sample_rate_hz >= 0.0) || (sample_rate_hz > 0.0 && !column.is_empty())
+    {
+        return Err(bad("sample_rate_hz"));
+    }
+    if !date_column.is_empty() && unit != LogTimeUnit::DateTime {
+        return Err(bad("date_column"));
+    }
+    Ok((LogTime { column, date_column, unit, sample_rate_hz }, end))
+}
+
+/// A name's invalid text as [`Error::BadLogTime`]; truncation stays as it is.
+fn named_bad(e: Error, field: &'static str) -> Error {
+    match e {
+        Error::BadValue { .. } => Error::BadLogTime { field },
+        other => other,
+    }
 }
 
 /// Where the first record starts, once `names_len` is found to cover the rest of `body`.

@@ -33,8 +33,9 @@ use core::ops::Range;
 /// The four bytes every blob starts with.
 pub const MAGIC: [u8; 4] = *b"FOGM";
 /// The newest format version this build reads, and the one it writes for a blob that records
-/// the log columns each axis was fitted on (the column-names section after the axis sections).
-pub const FORMAT_VERSION: u16 = 4;
+/// the log columns each axis was fitted on and the log's time (the log-columns section after
+/// the axis sections, ending with the log-time record).
+pub const FORMAT_VERSION: u16 = 5;
 /// The version this build writes for a blob without column names whose mesh is continued by
 /// stored gradients (`outside_policy = 3`, which needs it).
 pub const FORMAT_VERSION_WITH_GRADIENTS: u16 = 3;
@@ -44,6 +45,9 @@ pub const FORMAT_VERSION_WITH_GRADIENTS: u16 = 3;
 pub const FORMAT_VERSION_WITHOUT_GRADIENTS: u16 = 2;
 /// The oldest format version with the column-names section after the last axis section.
 pub const FIRST_VERSION_WITH_COLUMN_NAMES: u16 = 4;
+/// The oldest format version whose log-columns section ends with the log-time record (the
+/// time column, date column, time unit and sample rate the fit read its logs with).
+pub const FIRST_VERSION_WITH_LOG_TIME: u16 = 5;
 /// The longest column name the names section holds, in bytes (its length is one byte).
 pub const MAX_COLUMN_NAME_LEN: usize = 255;
 /// `names_len`: u32 at the start of the column-names section, the section's bytes with this
@@ -52,6 +56,8 @@ pub const NAMES_LEN_LEN: usize = 4;
 /// After each axis's two names: `gyro_dph_per_unit`, `temp_c_per_unit`, `temp_offset_c` (f64:
 /// hosts read logs in f64, and these reproduce the fit's reading exactly).
 pub const COLUMN_UNITS_LEN: usize = 24;
+/// After the log-time record's two names: `time_unit` (u8) and `sample_rate_hz` (f64).
+pub const LOG_TIME_FIXED_LEN: usize = 9;
 /// The oldest format version whose `outside_policy` may be 3 (hull gradients present).
 pub const FIRST_VERSION_WITH_GRADIENTS: u16 = 3;
 /// The oldest format version this build reads: version 1 has no calibrated region (its

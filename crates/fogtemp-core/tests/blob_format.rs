@@ -22,11 +22,11 @@ use std::path::PathBuf;
 use common::blob::{
     core_digest, exercise, fix_len_and_crc, golden_queries, put_u16, put_u32, u32_at, GOLDEN_BLOB,
     GOLDEN_CSV, GOLDEN_HEADER, GOLDEN_V2_BLOB, GOLDEN_V2_CSV, GOLDEN_V3_BLOB, GOLDEN_V3_CSV, GOLDEN_V4_BLOB,
-    GOLDEN_V4_COLUMNS, GOLDEN_V4_CSV,
+    GOLDEN_V4_COLUMNS, GOLDEN_V4_CSV, GOLDEN_V5_BLOB, GOLDEN_V5_CSV, GOLDEN_V5_TIME,
 };
 use common::rng;
 use fogtemp_core::wire::*;
-use fogtemp_core::{Error, Model, OutsidePolicy, PolyOutside, WalkHint};
+use fogtemp_core::{Error, LogTimeUnit, Model, OutsidePolicy, PolyOutside, WalkHint};
 use proptest::prelude::*;
 use proptest::test_runner::{Config, RngAlgorithm, RngSeed};
 use rand::Rng;
@@ -123,6 +123,83 @@ fn golden_v4_blob_evaluates_as_version_3_and_names_the_columns_of_each_axis() {
         let blob = read_golden(older);
         assert_eq!(Model::from_bytes(&blob).expect("parses").axis_columns(0), None, "{older}");
     }
+}
+
+#[test]
+fn golden_v5_blob_evaluates_as_version_4_and_reads_the_log_time() {
+    let model = check_golden(GOLDEN_V5_BLOB, GOLDEN_V5_CSV, 5);
+    assert_eq!(
+        std::fs::read(golden_dir().join(GOLDEN_V5_CSV)).ok(),
+        std::fs::read(golden_dir().join(GOLDEN_V4_CSV)).ok()
+    );
+    let (column, date_column, unit, sample_rate_hz) = GOLDEN_V5_TIME;
+    let time = model.log_time().expect("recorded");
+    assert_eq!(
+        (time.column, time.date_column, time.unit.code(), time.sample_rate_hz),
+        (column, date_column, unit, sample_rate_hz)
+    );
+    assert_eq!(time.unit, LogTimeUnit::Milliseconds);
+    assert_eq!(model.axis_columns(1).expect("axis 1").gyro, GOLDEN_V4_COLUMNS[1].0);
+    // Older versions record none.
+    for older in [GOLDEN_BLOB, GOLDEN_V2_BLOB, GOLDEN_V3_BLOB, GOLDEN_V4_BLOB] {
+        let blob = read_golden(older);
+        assert_eq!(Model::from_bytes(&blob).expect("parses").log_time(), None, "{older}");
+    }
+    // Every code the record can hold, and no other.
+    for code in 0..=255u8 {
+        assert_eq!(LogTimeUnit::from_code(code).map(LogTimeUnit::code), (code <= 4).then_some(code));
+    }
+}
+
+#[test]
+fn a_damaged_log_time_record_is_refused_by_field() {
+    let golden = read_golden(GOLDEN_V5_BLOB);
+    let body_end = golden.len() - CRC_LEN;
+    // The record is the section's last 1 + 9 + 1 + 1 + 8 bytes: "Zeit [ms]", no date column,
+    // unit 1, rate 0.
+    let record = body_end - 20;
+    let (date_len, unit, rate) = (record + 10, record + 11, record + 12);
+    let reread = |mutate: &dyn Fn(&mut Vec<u8>)| {
+        let mut b = golden.clone();
+        mutate(&mut b);
+        fix_len_and_crc(&mut b);
+        Model::from_bytes(&b).map(|_| ())
+    };
+    assert_eq!(reread(&|_| {}), Ok(()));
+    assert_eq!(reread(&|b| b[unit] = 5), Err(Error::BadLogTime { field: "time_unit" }));
+    for bad_rate in [f64::NAN, -1.0, 50.0] {
+        // NaN, negative, and a rate beside a time column.
+        assert_eq!(
+            reread(&|b| b[rate..rate + 8].copy_from_slice(&bad_rate.to_le_bytes())),
+            Err(Error::BadLogTime { field: "sample_rate_hz" }),
+            "{bad_rate}"
+        );
+    }
+    assert_eq!(reread(&|b| b[record + 1] = 0xff), Err(Error::BadLogTime { field: "time_column" }));
+    // A date column ("d") with a unit other than date-time; with date-time it is read.
+    let with_date = |unit_code: u8| {
+        move |b: &mut Vec<u8>| {
+            b[date_len] = 1;
+            b.insert(date_len + 1, b'd');
+            b[unit + 1] = unit_code;
+            let names_at = names_offset(b);
+            let names_len = u32_at(b, names_at);
+            put_u32(b, names_at, names_len + 1);
+        }
+    };
+    assert_eq!(reread(&with_date(1)), Err(Error::BadLogTime { field: "date_column" }));
+    assert_eq!(reread(&with_date(3)), Ok(()));
+    // Cut inside the record: the section's length no longer matches, or the record is short.
+    assert!(matches!(
+        reread(&|b| {
+            b.truncate(body_end - 4);
+            let names_at = names_offset(b);
+            let names_len = u32_at(b, names_at);
+            put_u32(b, names_at, names_len - 4);
+            b.extend_from_slice(&[0; CRC_LEN]);
+        }),
+        Err(Error::Truncated { field: "log time", .. })
+    ));
 }
 
 /// Where the names section of a version-4 blob starts.

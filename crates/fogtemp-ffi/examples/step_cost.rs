@@ -86,6 +86,7 @@ fn large_mesh_blob() -> Vec<u8> {
         input_digest: [0; 32],
         axes: vec![axis],
         columns: Vec::new(),
+        log_time: Default::default(),
     };
     encode(&file).expect("encodes")
 }

@@ -490,6 +490,7 @@ fn a_value_beyond_f32_is_a_status_not_infinity() {
         input_digest: [0; 32],
         axes: vec![axis],
         columns: Vec::new(),
+        log_time: Default::default(),
     };
     let blob: &'static [u8] = Box::leak(fogtemp_cal::encode(&file).unwrap().into_boxed_slice());
     let mut blocks = vec![0.0f32; 8];
@@ -513,6 +514,7 @@ fn twin_axes_blob() -> Vec<u8> {
         input_digest: [0; 32],
         axes: vec![axis.clone(), axis],
         columns: Vec::new(),
+        log_time: Default::default(),
     };
     encode(&file).unwrap()
 }

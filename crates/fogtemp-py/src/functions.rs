@@ -512,6 +512,7 @@ fn array_features(
     config.ingest.format.gyro_columns =
         if single { vec!["gyro_dph".into()] } else { (0..axes).map(|k| format!("gyro_dph[{k}]")).collect() };
     config.record_columns = single;
+    config.record_log_time = false;
     let mut hasher = sha2::Sha256::new();
     let mut features = Vec::with_capacity(runs.len());
     for run in runs {
@@ -683,6 +684,7 @@ pub fn validate<'py>(
     let columns_named = (o.any_given(&["gyro_column"])?, o.any_given(&["temp_column"])?);
     let units_named =
         (o.any_given(&["gyro_unit", "gyro_scale"])?, o.any_given(&["temp_scale", "temp_offset"])?);
+    let time_named = o.any_given(&["time_column", "time_unit", "sample_rate_hz", "date_column"])?;
     let mut ingest = options::ingest(&mut o)?;
     let stability = options::stability(&mut o)?;
     let capacity = o.int("capacity", fogtemp_core::DEFAULT_CAPACITY, options::MIN_CAPACITY, u64::MAX)?;
@@ -734,7 +736,7 @@ pub fn validate<'py>(
         if let Some(path) = &runs_file {
             logs = fogtemp_cal::runs::validation_logs(logs, path).map_err(errors::cal)?;
         }
-        choose_columns(py, &mut ingest, (columns_named, units_named), &blobs, &models)?;
+        choose_columns(py, &mut ingest, (columns_named, units_named, time_named), &blobs, &models)?;
         if let Some(note) = in_sample_note(py, &blobs[0].1, models[0].input_digest(), &logs)? {
             progress::warn(py, &note)?;
         }
@@ -806,14 +808,14 @@ fn in_sample_note(
     Ok(fogtemp_cal::digest::in_sample_note_from(model, digest, logs, &digests.finish()))
 }
 
-/// The log columns and units for replaying `models` (the first is validated, the rest
-/// compared): the ones each model records unless `gyro_column=`, `temp_column=` or the unit
-/// keywords were given (`named`), named columns checked against them (as the command line's
-/// `validate`); notes become warnings.
+/// The log columns, units and time for replaying `models` (the first is validated, the rest
+/// compared): the ones each model records unless `gyro_column=`, `temp_column=`, the unit
+/// keywords or the time keywords were given (`named`), named columns checked against them (as
+/// the command line's `validate`); notes become warnings.
 fn choose_columns(
     py: Python<'_>,
     ingest: &mut IngestOptions,
-    ((gyro_named, temp_named), (gyro_units, temp_units)): ((bool, bool), (bool, bool)),
+    ((gyro_named, temp_named), (gyro_units, temp_units), time): ((bool, bool), (bool, bool), bool),
     blobs: &[(Vec<u8>, String)],
     models: &[CoreModel<'_>],
 ) -> PyResult<()> {
@@ -825,6 +827,7 @@ fn choose_columns(
         temp_columns: if temp_named { &temp } else { &none },
         gyro_units,
         temp_units,
+        time,
     };
     let mut format = ingest.format.clone();
     for (index, ((_, source), model)) in blobs.iter().zip(models).enumerate() {

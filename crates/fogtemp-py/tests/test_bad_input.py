@@ -483,3 +483,30 @@ def test_validate_reads_logs_in_the_units_the_model_was_fitted_in(tmp_path):
     with pytest.warns(UserWarning, match=r"the gyro is read as the model was fitted: 3600 deg/h per unit \(gyro_unit=/gyro_scale="):
         recorded = fogtemp.validate(model, logs[:1], progress=False)
     assert recorded["runs"] == named["runs"]
+
+
+def test_validate_reads_the_time_the_model_records(tmp_path):
+    # A model fitted on logs whose time is in milliseconds under another name records it
+    # (format 5): validate() reads it so without the time keywords, with a warning that says so,
+    # and the same as with them; arrays record no time (format 4).
+    logs = write_gyro_logs(tmp_path, "gyro_dph", lambda g: f"{g!r}")
+    ms_logs = []
+    for log in logs:
+        lines = log.read_text().splitlines()
+        rows = [lines[0].replace("time_s", "t_ms")]
+        for line in lines[1:]:
+            time, rest = line.split(",", 1)
+            rows.append(f"{float(time) * 1000.0!r},{rest}")
+        ms = tmp_path / f"ms_{log.name}"
+        ms.write_text("\n".join(rows) + "\n")
+        ms_logs.append(ms)
+    model = fogtemp.fit(ms_logs, method="poly", time_column="t_ms", time_unit="ms", progress=False)
+    info = model.inspect()
+    assert info["format_version"] == 5
+    assert (info["log_time"]["time_column"], info["log_time"]["time_unit"]) == ("t_ms", "ms")
+    named = fogtemp.validate(model, ms_logs[:1], time_column="t_ms", time_unit="ms", progress=False)
+    with pytest.warns(UserWarning, match=r"the logs' time is read as .* records it: column 't_ms' in ms"):
+        recorded = fogtemp.validate(model, ms_logs[:1], progress=False)
+    assert recorded["runs"] == named["runs"]
+    single = fogtemp.fit(synthetic_runs(runs=3), method="poly", progress=False)
+    assert single.inspect()["format_version"] == 4 and single.inspect()["log_time"] is None

@@ -65,6 +65,41 @@ pub enum TimeUnit {
 }
 
 impl TimeUnit {
+    /// The unit as a model's log-time record stores it.
+    pub fn log_unit(self) -> fogtemp_core::LogTimeUnit {
+        use fogtemp_core::LogTimeUnit as L;
+        match self {
+            TimeUnit::Seconds => L::Seconds,
+            TimeUnit::Milliseconds => L::Milliseconds,
+            TimeUnit::Microseconds => L::Microseconds,
+            TimeUnit::DateTime => L::DateTime,
+            TimeUnit::TimeOfDay => L::TimeOfDay,
+        }
+    }
+
+    /// The unit a model's log-time record stores.
+    pub fn from_log_unit(unit: fogtemp_core::LogTimeUnit) -> Self {
+        use fogtemp_core::LogTimeUnit as L;
+        match unit {
+            L::Seconds => TimeUnit::Seconds,
+            L::Milliseconds => TimeUnit::Milliseconds,
+            L::Microseconds => TimeUnit::Microseconds,
+            L::DateTime => TimeUnit::DateTime,
+            L::TimeOfDay => TimeUnit::TimeOfDay,
+        }
+    }
+
+    /// The unit as the command line's `--time-unit` names it.
+    pub fn option_name(self) -> &'static str {
+        match self {
+            TimeUnit::Seconds => "s",
+            TimeUnit::Milliseconds => "ms",
+            TimeUnit::Microseconds => "us",
+            TimeUnit::DateTime => "datetime",
+            TimeUnit::TimeOfDay => "time-of-day",
+        }
+    }
+
     /// Seconds per unit (1 for date-times and times of day, read into seconds).
     pub fn seconds(self) -> f64 {
         match self {
@@ -289,6 +324,31 @@ impl LogFormat {
                 temp_offset_c: self.temp_offset_c,
             })
             .collect()
+    }
+
+    /// How this format reads each row's time, as a model records it.
+    pub fn log_time(&self) -> crate::blob::LogTimeRecord {
+        match self.sample_rate_hz {
+            Some(rate) => crate::blob::LogTimeRecord { sample_rate_hz: rate, ..Default::default() },
+            None => crate::blob::LogTimeRecord {
+                column: self.time_column.clone(),
+                date_column: self.date_column.clone().unwrap_or_default(),
+                unit: self.time_unit.log_unit(),
+                sample_rate_hz: 0.0,
+            },
+        }
+    }
+
+    /// Reads each row's time as `record` says (a model's log-time record).
+    pub fn set_log_time(&mut self, record: &crate::blob::LogTimeRecord) {
+        if record.sample_rate_hz > 0.0 {
+            self.sample_rate_hz = Some(record.sample_rate_hz);
+        } else {
+            self.sample_rate_hz = None;
+            self.time_column.clone_from(&record.column);
+            self.time_unit = TimeUnit::from_log_unit(record.unit);
+            self.date_column = (!record.date_column.is_empty()).then(|| record.date_column.clone());
+        }
     }
 
     /// Checks the settings that do not depend on the log's contents; `path` names the log

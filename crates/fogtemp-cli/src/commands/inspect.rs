@@ -24,6 +24,11 @@ pub fn inspect(a: InspectArgs) -> Result<()> {
         doc.tool_version,
         doc.input_digest
     );
+    match &doc.log_time {
+        Some(time) => println!("log time: {}", time.description),
+        None if doc.format_version < 5 => println!("log time: not recorded (format {})", doc.format_version),
+        None => println!("log time: not recorded"),
+    }
     // The stored values are f32: printed to the digits they hold (every one is in --json).
     let number = |v: f64, digits: usize| if v.is_finite() { format!("{v:.digits$}") } else { "null".into() };
     for axis in &doc.axes {

@@ -59,6 +59,10 @@ fn ingest_options_for(
         temp_columns: &a.temp_columns,
         gyro_units: a.gyro_unit.is_some() || a.gyro_scale.is_some(),
         temp_units: a.temp_scale.is_some() || a.temp_offset.is_some(),
+        time: a.time_column.is_some()
+            || a.time_unit.is_some()
+            || a.sample_rate_hz.is_some()
+            || a.date_column.is_some(),
     };
     let chosen = fogtemp_cal::axis_columns::choose_for_replay(
         model,

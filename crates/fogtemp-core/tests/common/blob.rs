@@ -138,6 +138,13 @@ pub const GOLDEN_V4_CSV: &str = "model-v4.expected.csv";
 /// at half scale, a temperature in raw counts of 1/256 C from -231 C).
 pub const GOLDEN_V4_COLUMNS: [(&str, &str, f64, f64, f64); 2] =
     [("gyro_x", "temp_c", 1.0, 1.0, 0.0), ("Drehrate Y (°/h)", "T_y", 1800.0, 0.00390625, -231.0)];
+/// The golden files of format version 5: the version-4 golden model with its logs' time
+/// recorded (the log-time record at the end of the column-names section).
+pub const GOLDEN_V5_BLOB: &str = "model-v5.fogm";
+pub const GOLDEN_V5_CSV: &str = "model-v5.expected.csv";
+/// What the version-5 golden model records of its logs' time: time column, date column, unit
+/// code (1: milliseconds), sample rate (0: the log has a time column).
+pub const GOLDEN_V5_TIME: (&str, &str, u8, f64) = ("Zeit [ms]", "", 1, 0.0);
 pub const GOLDEN_HEADER: &str = "axis,temp_c,rate_c_per_min,value_dph_bits,outside";
 
 /// The input digest the golden model (and the root's three-axis model) carries.
