@@ -42,7 +42,7 @@
 #define FOGTEMP_FLAG_BAD_INPUT 16
 
 // [`fogtemp_error::axis`] when the error names no axis.
-#define FOGTEMP_NO_AXIS 4294967295
+#define FOGTEMP_NO_AXIS UINT32_MAX
 
 // Result of every `fogtemp_*` call. `FOGTEMP_STATUS_OK` is 0; the others name the core
 // error ([`fogtemp_error`] has the details) or a caller mistake (null, misaligned or

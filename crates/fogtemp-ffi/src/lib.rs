@@ -196,7 +196,7 @@ pub const FOGTEMP_FLAG_TEMP_STALE: u8 = 0x08;
 /// A non-finite gyro value passes through to `rate_dph` unchanged (NaN or infinite).
 pub const FOGTEMP_FLAG_BAD_INPUT: u8 = 0x10;
 /// [`fogtemp_error::axis`] when the error names no axis.
-pub const FOGTEMP_NO_AXIS: u32 = 0xFFFF_FFFF;
+pub const FOGTEMP_NO_AXIS: u32 = u32::MAX;
 
 /// One compensated sample.
 #[repr(C)]
