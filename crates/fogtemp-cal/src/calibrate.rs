@@ -162,14 +162,11 @@ pub struct CalibrationConfig {
     /// residual on the polynomial, is always zero outside (the polynomial's own continuation
     /// carries the trend there). A polynomial-only axis stores hold (no mesh to continue).
     pub mesh_outside: OutsidePolicy,
-    /// Record the log columns each axis was fitted on in the blob (format version 4), so
-    /// `validate` and `compensate` match a log's columns by name. Off for runs given as several
+    /// Record the log columns each axis was fitted on in the blob (format version 4), and how
+    /// the logs' time was read (version 5), so `validate` and `compensate` match a log's
+    /// columns by name and read its time the same way. Off for runs given as several
     /// gyro or temperature arrays, whose column names are made up (`gyro_dph[0]`).
     pub record_columns: bool,
-    /// With `record_columns`, also record how the logs' time was read (format version 5), so
-    /// `validate` and `compensate` read a log's time the same way. Off for runs given as
-    /// arrays (their times are seconds already, not a log's column).
-    pub record_log_time: bool,
     /// Insert Steiner nodes where a plain mesh's triangles are too large to carry the
     /// polynomial part its node fit leaves free (`refine`; least-squares nodes only). On by
     /// default (docs/calibration-testbed.md, "Steiner nodes between the calibration paths").
@@ -200,7 +197,6 @@ impl Default for CalibrationConfig {
             poly_outside: fogtemp_core::PolyOutside::LinearFromBoundary,
             mesh_outside: OutsidePolicy::StoredGradients,
             record_columns: true,
-            record_log_time: true,
             refine_mesh: true,
             mesh_relative_weight: None,
             mesh_cv_repeats: crate::mesh_fit::CV_REPEATS,
@@ -1155,11 +1151,7 @@ pub fn fit_model_replaying(
     let codes: Vec<u16> =
         reports.iter().map(|r| r.selection.as_ref().map_or(0, Selection::blob_code)).collect();
     let columns = if config.record_columns { config.ingest.format.axis_columns() } else { Vec::new() };
-    let log_time = if config.record_columns && config.record_log_time {
-        config.ingest.format.log_time()
-    } else {
-        Default::default()
-    };
+    let log_time = if config.record_columns { config.ingest.format.log_time() } else { Default::default() };
     let model =
         ModelFile { tool_version: crate::blob::tool_version(), input_digest, axes, columns, log_time };
     let blob = crate::blob::encode_with_selection(&model, &codes)?;

@@ -66,6 +66,8 @@ pub enum CalError {
         path: PathBuf,
         /// The missing column.
         column: String,
+        /// What it was to hold: `time`, `date`, `temperature` or `gyro`.
+        role: &'static str,
         /// Columns the header does have.
         available: String,
         /// Header names that look like the missing one (case, units or punctuation aside).

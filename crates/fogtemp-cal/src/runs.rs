@@ -101,10 +101,12 @@ pub enum RunsProblem {
         second: PathBuf,
     },
     /// A log has no row.
-    #[error("no row for the log {}", log.display())]
+    #[error("no row for the log {}{}", log.display(), hint.as_deref().unwrap_or_default())]
     MissingRun {
         /// The log.
         log: PathBuf,
+        /// What the file has that looks like it (a row naming the file with its extension).
+        hint: Option<String>,
     },
     /// The file has no header.
     #[error("no header row")]
@@ -232,6 +234,17 @@ impl RunsFile {
         Ok(Self { path: name.to_path_buf(), runs })
     }
 
+    /// A row that names `log`'s run as its file name with the extension, or in another case:
+    /// what to change, for the error.
+    fn near_miss(&self, log: &std::path::Path, name: &str) -> Option<String> {
+        let file = log.file_name()?.to_string_lossy().into_owned();
+        let row = self.runs.iter().find(|r| r.run == file || r.run.eq_ignore_ascii_case(name))?;
+        Some(format!(
+            " (line {} names it '{}': the run column holds the log's file name without '.csv', as '{name}', case included)",
+            row.line, row.run
+        ))
+    }
+
     /// The row of every log, in the logs' order, checking that the file and the logs name
     /// the same runs (a log's run is its file name without `.csv`).
     ///
@@ -249,9 +262,10 @@ impl RunsFile {
                 let shared = RunsProblem::SharedName { run: name, first: first.clone(), second: log.clone() };
                 return Err(problem(&self.path, 0, shared));
             }
-            let row = by_name
-                .get(name.as_str())
-                .ok_or_else(|| problem(&self.path, 0, RunsProblem::MissingRun { log: log.clone() }))?;
+            let row = by_name.get(name.as_str()).ok_or_else(|| {
+                let hint = self.near_miss(log, &name);
+                problem(&self.path, 0, RunsProblem::MissingRun { log: log.clone(), hint })
+            })?;
             out.push(*row);
         }
         if let Some(extra) = self.runs.iter().find(|r| !logs.iter().any(|l| run_name(l) == r.run)) {
@@ -424,7 +438,16 @@ mod tests {
         assert_eq!(rows.iter().map(|r| r.run.as_str()).collect::<Vec<_>>(), ["b", "a"]);
         let err = f.for_logs(&[PathBuf::from("a.csv"), PathBuf::from("c.csv")]).unwrap_err();
         assert!(
-            matches!(&err, CalError::Runs { problem: RunsProblem::MissingRun { log }, .. } if log.ends_with("c.csv"))
+            matches!(&err, CalError::Runs { problem: RunsProblem::MissingRun { log, hint: None }, .. } if log.ends_with("c.csv"))
+        );
+        // A row naming the file with its extension is pointed at (review9 finding 6).
+        let ext = parse("run,position,input_rate_dph\na.csv,up,1\n").expect("valid");
+        let err = ext.for_logs(&[PathBuf::from("dir/a.csv")]).unwrap_err();
+        assert!(
+            err.to_string().ends_with(
+                "no row for the log dir/a.csv (line 2 names it 'a.csv': the run column holds the log's file name without '.csv', as 'a', case included)"
+            ),
+            "{err}"
         );
         let err = f.for_logs(&[PathBuf::from("a.csv")]).unwrap_err();
         assert!(

@@ -116,6 +116,11 @@ fn flag_hint(e: &(dyn std::error::Error + 'static)) -> Option<&'static str> {
              a units row or repeated header: --skip-bad-rows",
         ),
         CalError::BadRow { .. } => Some("; use --skip-bad-rows to skip such rows"),
+        CalError::MissingColumn { role: "time", .. } => Some(
+            "; name the time column with --time-column (its unit with --time-unit), or give --sample-rate-hz \
+             for a log without one; if line 1 is not the header (a terminal program's banner), skip it with \
+             --skip-lines N; a file without a header: --columns",
+        ),
         CalError::MissingColumn { .. } => Some(
             "; name the columns with --time-column, --temp-column and --gyro-column; if line 1 is not the \
              header (a terminal program's banner), skip it with --skip-lines N; a file without a header: \

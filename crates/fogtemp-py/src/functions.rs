@@ -512,7 +512,6 @@ fn array_features(
     config.ingest.format.gyro_columns =
         if single { vec!["gyro_dph".into()] } else { (0..axes).map(|k| format!("gyro_dph[{k}]")).collect() };
     config.record_columns = single;
-    config.record_log_time = false;
     let mut hasher = sha2::Sha256::new();
     let mut features = Vec::with_capacity(runs.len());
     for run in runs {

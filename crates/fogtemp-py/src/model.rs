@@ -8,7 +8,7 @@ use fogtemp_core::{Axis, Compensator, Flags, Model as CoreModel, StartGrid, Walk
 use numpy::{PyArray1, PyArrayMethods, PyUntypedArrayMethods};
 use pyo3::exceptions::PyFileNotFoundError;
 use pyo3::prelude::*;
-use pyo3::types::{PyBytes, PyDict, PyFloat, PyTuple};
+use pyo3::types::{PyBool, PyBytes, PyDict, PyFloat, PyTuple};
 
 use crate::convert::{self, f64_array, f64_vector, slice};
 use crate::errors;
@@ -153,8 +153,14 @@ impl Model {
     /// Python float when both are scalars (or 0-d arrays), as numpy's ufuncs do. A NaN or
     /// infinite input gives NaN at that point. Runs with the GIL released, on `threads`
     /// threads (default: every core) for large inputs.
-    #[pyo3(signature = (temp_c, rate_c_per_min, axis = None, threads = None))]
-    #[pyo3(text_signature = "(self, temp_c, rate_c_per_min, axis=0, threads=None)")]
+    ///
+    /// With `return_outside=True`, returns `(values, outside)`: `outside` (bool, same shape)
+    /// is True where the point lies outside the calibrated region, where the value is the
+    /// model's continuation (the core's `outside_hull`, C's `fogtemp_evaluate`, the
+    /// compensator's `OUTSIDE_HULL` flag); False at a NaN point.
+    #[pyo3(signature = (temp_c, rate_c_per_min, axis = None, threads = None, return_outside = None))]
+    #[pyo3(text_signature = "(self, temp_c, rate_c_per_min, axis=0, threads=None, return_outside=False)")]
+    #[allow(clippy::too_many_arguments)] // Python's keywords, each with its default
     fn evaluate<'py>(
         &self,
         py: Python<'py>,
@@ -162,7 +168,9 @@ impl Model {
         rate_c_per_min: &Bound<'py, PyAny>,
         axis: Option<&Bound<'py, PyAny>>,
         threads: Option<&Bound<'py, PyAny>>,
+        return_outside: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyAny>> {
+        let return_outside = bool_arg("Model.evaluate", "return_outside", return_outside)?;
         let axis = axis_arg("Model.evaluate", axis)?;
         let threads: Option<usize> =
             threads.map(|t| int_arg("Model.evaluate", "threads", t, 0, u64::MAX)).transpose()?;
@@ -179,11 +187,23 @@ impl Model {
             threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get())).max(1);
         let cached = self.grids.get(axis).and_then(Option::as_ref);
         let values = py.detach(|| evaluate_points(&core_axis, cached, ts, rs, threads));
-        if shape.is_empty() {
+        let outside = return_outside.then(|| py.detach(|| outside_points(&core_axis, ts, rs, threads)));
+        let (values, outside) = if shape.is_empty() {
             // Scalars in, a float out (a 0-d input holds one point).
-            return Ok(PyFloat::new(py, values.first().copied().unwrap_or(f64::NAN)).into_any());
+            let value = PyFloat::new(py, values.first().copied().unwrap_or(f64::NAN)).into_any();
+            let outside =
+                outside.map(|o| PyBool::new(py, o.first().copied().unwrap_or(false)).to_owned().into_any());
+            (value, outside)
+        } else {
+            let value = PyArray1::from_vec(py, values).reshape(shape.clone())?.into_any();
+            let outside =
+                outside.map(|o| PyArray1::from_vec(py, o).reshape(shape)).transpose()?.map(Bound::into_any);
+            (value, outside)
+        };
+        match outside {
+            Some(outside) => Ok(PyTuple::new(py, [values, outside])?.into_any()),
+            None => Ok(values),
         }
-        PyArray1::from_vec(py, values).reshape(shape).map(Bound::into_any)
     }
 
     /// Replays a recording through the core `Compensator` of `axis`, sample by sample,
@@ -196,7 +216,7 @@ impl Model {
     /// holding the core's f32 results exactly, and uint8 flags (`fogtemp.FLAG_BITS`).
     /// `capacity` is the firmware's tracker capacity (the core's default, 128): a model whose
     /// window needs more blocks is refused, as the command line refuses it.
-    #[pyo3(signature = (time_s, gyro_dph, temp_c, axis = None, return_bias = false, capacity = None))]
+    #[pyo3(signature = (time_s, gyro_dph, temp_c, axis = None, return_bias = None, capacity = None))]
     #[pyo3(text_signature = "(self, time_s, gyro_dph, temp_c, axis=0, return_bias=False, capacity=128)")]
     #[allow(clippy::too_many_arguments)] // Python's keywords, each with its default
     fn compensate<'py>(
@@ -206,10 +226,11 @@ impl Model {
         gyro_dph: &Bound<'py, PyAny>,
         temp_c: &Bound<'py, PyAny>,
         axis: Option<&Bound<'py, PyAny>>,
-        return_bias: bool,
+        return_bias: Option<&Bound<'py, PyAny>>,
         capacity: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyTuple>> {
         let axis = axis_arg("Model.compensate", axis)?;
+        let return_bias = bool_arg("Model.compensate", "return_bias", return_bias)?;
         let capacity = match capacity {
             Some(c) => int_arg("Model.compensate", "capacity", c, MIN_CAPACITY, u64::MAX)?,
             None => fogtemp_core::DEFAULT_CAPACITY,
@@ -296,6 +317,18 @@ impl Model {
 }
 
 /// The `axis` argument of `method` (0 when not given): `ValueError` for a negative one.
+/// A True/False keyword (None: False), with a TypeError naming the method and keyword for
+/// anything else (`"yes"`, `1`).
+fn bool_arg(method: &str, name: &str, value: Option<&Bound<'_, PyAny>>) -> PyResult<bool> {
+    let Some(value) = value.filter(|v| !v.is_none()) else { return Ok(false) };
+    value.cast::<PyBool>().map(|b| b.is_true()).map_err(|_| {
+        let kind = value.get_type().name().map_or_else(|_| "?".to_string(), |n| n.to_string());
+        pyo3::exceptions::PyTypeError::new_err(format!(
+            "{method}(): {name} must be True or False, got a {kind}"
+        ))
+    })
+}
+
 fn axis_arg(method: &str, axis: Option<&Bound<'_, PyAny>>) -> PyResult<usize> {
     axis.map_or(Ok(0), |a| int_arg(method, "axis", a, 0, u64::MAX))
 }
@@ -342,6 +375,25 @@ fn evaluate_points(
         for ((out, ts), rs) in out.chunks_mut(chunk).zip(ts.chunks(chunk)).zip(rs.chunks(chunk)) {
             let grid = grid.as_ref();
             scope.spawn(move || evaluate_chunk(axis, grid, ts, rs, out));
+        }
+    });
+    out
+}
+
+/// Whether each point is outside the calibrated region (the core's `outside_hull`; false
+/// where the evaluation fails, a NaN point), on up to `threads` threads.
+fn outside_points(axis: &Axis<'_>, ts: &[f64], rs: &[f64], threads: usize) -> Vec<bool> {
+    let mut out = vec![false; ts.len()];
+    let threads = if ts.len() >= PARALLEL_MIN_POINTS { threads } else { 1 };
+    let chunk = ts.len().div_ceil(threads).max(1);
+    std::thread::scope(|scope| {
+        for ((out, ts), rs) in out.chunks_mut(chunk).zip(ts.chunks(chunk)).zip(rs.chunks(chunk)) {
+            scope.spawn(move || {
+                let mut hint = WalkHint::default();
+                for ((o, &t), &r) in out.iter_mut().zip(ts).zip(rs) {
+                    *o = axis.evaluate(t as f32, r as f32, &mut hint).is_ok_and(|e| e.outside_hull);
+                }
+            });
         }
     });
     out

@@ -488,7 +488,7 @@ def test_validate_reads_logs_in_the_units_the_model_was_fitted_in(tmp_path):
 def test_validate_reads_the_time_the_model_records(tmp_path):
     # A model fitted on logs whose time is in milliseconds under another name records it
     # (format 5): validate() reads it so without the time keywords, with a warning that says so,
-    # and the same as with them; arrays record no time (format 4).
+    # and the same as with them; one gyro and one temperature array are a log's time_s in s.
     logs = write_gyro_logs(tmp_path, "gyro_dph", lambda g: f"{g!r}")
     ms_logs = []
     for log in logs:
@@ -509,4 +509,5 @@ def test_validate_reads_the_time_the_model_records(tmp_path):
         recorded = fogtemp.validate(model, ms_logs[:1], progress=False)
     assert recorded["runs"] == named["runs"]
     single = fogtemp.fit(synthetic_runs(runs=3), method="poly", progress=False)
-    assert single.inspect()["format_version"] == 4 and single.inspect()["log_time"] is None
+    assert single.inspect()["format_version"] == 5
+    assert (single.inspect()["log_time"]["time_column"], single.inspect()["log_time"]["time_unit"]) == ("time_s", "s")

@@ -1,6 +1,7 @@
 """compensate and fit against the command line on the same files, fit from arrays against fit
 from the same data as CSV, and the JSON documents against the command's --json output."""
 
+import io
 import json
 import pickle
 
@@ -36,6 +37,32 @@ def test_compensate_equals_the_command_line(mesh_model, val_logs, tmp_path, cli)
     np.testing.assert_array_equal(bias.astype(np.float32), expected["bias_dph"].to_numpy(np.float32))
     np.testing.assert_array_equal(flags, expected["flags"].to_numpy(np.uint8))
     assert (flags & fogtemp.FLAG_BITS["WARMING_UP"]).any() and not (flags & fogtemp.FLAG_BITS["WARMING_UP"]).all()
+
+
+def test_evaluate_return_outside_is_the_command_lines_outside_flag(mesh_model, poly_model, tmp_path, cli):
+    # Review10 F1: which evaluated points lie outside the calibrated region. Oracle: the
+    # command line's evaluate, whose flags column has OUTSIDE_HULL for them.
+    rng = np.random.default_rng(5)
+    temp_c, rate_c_per_min = rng.uniform(-40.0, 90.0, 3000), rng.uniform(-2.0, 2.0, 3000)
+    points = tmp_path / "points.csv"
+    pd.DataFrame({"temp_c": temp_c, "rate_c_per_min": rate_c_per_min}).to_csv(points, index=False)
+    for name, model in (("mesh", mesh_model), ("poly", poly_model)):
+        values, outside = model.evaluate(temp_c, rate_c_per_min, return_outside=True)
+        np.testing.assert_array_equal(values, model.evaluate(temp_c, rate_c_per_min))
+        assert outside.dtype == np.bool_ and outside.shape == temp_c.shape
+        path = tmp_path / f"{name}.fogm"
+        model.save(path)
+        done = cli("evaluate", "--model", path, "--points", points)
+        assert done.returncode == 0, done.stderr
+        flags = pd.read_csv(io.StringIO(done.stdout))["flags"].to_numpy(np.uint8)
+        np.testing.assert_array_equal(outside, (flags & fogtemp.FLAG_BITS["OUTSIDE_HULL"]) != 0)
+        assert outside.any() and not outside.all(), name
+    value, outside = poly_model.evaluate(-100.0, 5.0, return_outside=True)
+    assert isinstance(value, float) and outside is True
+    with pytest.raises(TypeError, match=r"Model.evaluate\(\): return_outside must be True or False"):
+        poly_model.evaluate(20.0, 0.0, return_outside="yes")
+    with pytest.raises(TypeError, match=r"Model.compensate\(\): return_bias must be True or False"):
+        poly_model.compensate([0.0, 1.0], [0.0, 0.0], [20.0, 20.0], return_bias=1)
 
 
 def test_compensate_accepts_any_time_origin_and_lists(mesh_model):

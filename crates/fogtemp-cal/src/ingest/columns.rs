@@ -246,10 +246,11 @@ fn locate_columns(path: &Path, header: Fields<'_>, f: &LogFormat, line: u64) -> 
             String::from_utf8_lossy(h).trim().trim_start_matches('\u{feff}').to_string()
         })
         .collect();
-    let find = |wanted: &str| {
+    let find_as = |wanted: &str, role: &'static str| {
         names.iter().position(|n| n == wanted).ok_or_else(|| CalError::MissingColumn {
             path: path.to_path_buf(),
             column: wanted.to_string(),
+            role,
             available: names.join(", "),
             similar: similar_names(wanted, &names),
         })
@@ -269,11 +270,12 @@ fn locate_columns(path: &Path, header: Fields<'_>, f: &LogFormat, line: u64) -> 
     let located = (|| {
         let time = match f.sample_rate_hz {
             Some(_) => None,
-            None => Some(find(&f.time_column)?),
+            None => Some(find_as(&f.time_column, "time")?),
         };
-        let date = f.date_column.as_deref().map(find).transpose()?;
-        let temps = f.temp_columns.iter().map(|c| find(c)).collect::<Result<Vec<_>, _>>()?;
-        let gyros = f.gyro_columns.iter().map(|c| find(c)).collect::<Result<Vec<_>, _>>()?;
+        let date = f.date_column.as_deref().map(|c| find_as(c, "date")).transpose()?;
+        let temps =
+            f.temp_columns.iter().map(|c| find_as(c, "temperature")).collect::<Result<Vec<_>, _>>()?;
+        let gyros = f.gyro_columns.iter().map(|c| find_as(c, "gyro")).collect::<Result<Vec<_>, _>>()?;
         Ok((time, date, temps, gyros))
     })();
     let (time, date, temps, gyros) = match located {
@@ -299,6 +301,7 @@ fn locate_columns(path: &Path, header: Fields<'_>, f: &LogFormat, line: u64) -> 
         return Err(CalError::MissingColumn {
             path: path.to_path_buf(),
             column: "(no gyro column named)".into(),
+            role: "gyro",
             available: names.join(", "),
             similar: Vec::new(),
         });

@@ -78,7 +78,6 @@ pub fn fit(a: FitArgs) -> Result<()> {
         poly_outside: a.poly_outside.into(),
         mesh_outside: a.mesh_outside.into(),
         record_columns: true,
-        record_log_time: true,
         refine_mesh: !a.no_mesh_refinement,
         mesh_relative_weight: a.mesh_relative_weight,
         mesh_cv_repeats: a.mesh_cv_repeats as usize,
