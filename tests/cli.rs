@@ -1180,6 +1180,18 @@ fn log_columns_are_matched_to_axes_by_the_names_the_model_records() {
     ]);
     assert!(by_default.len() == 2 && by_default.iter().all(|v| v.is_finite()), "{by_default:?}");
     assert_eq!(by_default, in_order);
+    // Per axis, the RMS over that axis's runs (one run each here: its own figure), beside the
+    // overall that pools both gyros (review9 finding 5).
+    let doc = json(&run_ok(args!["validate", "--json", "--tau-s", "10", "--model", &model, &two]));
+    let axes = arr(&doc["axes"]);
+    assert_eq!(axes.len(), 2);
+    for (axis, run) in axes.iter().zip(arr(&doc["runs"])) {
+        assert_eq!(axis["axis"], run["axis"]);
+        assert_eq!(f(&axis["compensated_bias_stability_dph"]), f(&run["compensated_bias_stability_dph"]));
+        assert_eq!(f(&axis["raw_bias_stability_dph"]), f(&run["raw_bias_stability_dph"]));
+    }
+    let pooled = ((by_default[0].powi(2) + by_default[1].powi(2)) / 2.0).sqrt();
+    assert!((f(&doc["compensated_bias_stability_dph"]) - pooled).abs() <= 1e-12 * pooled);
 
     // A swapped pair, or axis 1's column alone: refused, nothing written.
     let c = dir.path().join("c.csv");

@@ -1523,6 +1523,20 @@ pub struct MetricWindows {
     pub left_out: usize,
 }
 
+/// [`Validation::per_axis`] of `runs`.
+pub fn per_axis_overall(runs: &[RunValidation]) -> Vec<(usize, f64, f64)> {
+    let axes = runs.iter().map(|r| r.axis + 1).max().unwrap_or(0);
+    (0..axes)
+        .map(|axis| {
+            let of = |value: fn(&RunValidation) -> f64| {
+                let values: Vec<f64> = runs.iter().filter(|r| r.axis == axis).map(value).collect();
+                rms_over_runs(&values)
+            };
+            (axis, of(|r| r.raw_bias_stability_dph), of(|r| r.compensated_bias_stability_dph))
+        })
+        .collect()
+}
+
 /// One model's validation: per run and axis, and overall (RMS over runs and axes).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Validation {
@@ -1540,6 +1554,13 @@ impl Validation {
         let raw = rms_over_runs(&runs.iter().map(|r| r.raw_bias_stability_dph).collect::<Vec<_>>());
         let comp = rms_over_runs(&runs.iter().map(|r| r.compensated_bias_stability_dph).collect::<Vec<_>>());
         Self { runs, raw_bias_stability_dph: raw, compensated_bias_stability_dph: comp }
+    }
+
+    /// Per axis, in axis order: the RMS over that axis's runs, raw and compensated, deg/h
+    /// (`(axis, raw, comp)`; a model of several axes pools them in the overall figure, which
+    /// mixes gyros).
+    pub fn per_axis(&self) -> Vec<(usize, f64, f64)> {
+        per_axis_overall(&self.runs)
     }
 
     /// Each model's validation over several logs from its validations of one log at a time

@@ -186,6 +186,8 @@ pub struct ValidationDocument {
     pub compensated_bias_stability_dph: f64,
     /// raw / compensated.
     pub improvement_ratio: f64,
+    /// Per axis: the RMS over that axis's runs (the overall figures above pool every axis).
+    pub axes: Vec<AxisValidationDocument>,
     /// Every run and axis.
     pub runs: Vec<RunValidationDocument>,
     /// The primary model then every compared one (empty without a comparison).
@@ -205,10 +207,33 @@ impl ValidationDocument {
             raw_bias_stability_dph: validation.raw_bias_stability_dph,
             compensated_bias_stability_dph: validation.compensated_bias_stability_dph,
             improvement_ratio: validation.raw_bias_stability_dph / validation.compensated_bias_stability_dph,
+            axes: validation
+                .per_axis()
+                .into_iter()
+                .map(|(axis, raw, comp)| AxisValidationDocument {
+                    axis,
+                    raw_bias_stability_dph: raw,
+                    compensated_bias_stability_dph: comp,
+                    improvement_ratio: raw / comp,
+                })
+                .collect(),
             runs: validation.runs.iter().map(RunValidationDocument::new).collect(),
             comparison,
         }
     }
+}
+
+/// One axis of a validation: the RMS over its runs.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct AxisValidationDocument {
+    /// Axis index.
+    pub axis: usize,
+    /// Raw bias stability, RMS over the axis's runs, deg/h.
+    pub raw_bias_stability_dph: f64,
+    /// Compensated bias stability, RMS over the axis's runs, deg/h.
+    pub compensated_bias_stability_dph: f64,
+    /// raw / compensated.
+    pub improvement_ratio: f64,
 }
 
 /// One run and axis of a validation.

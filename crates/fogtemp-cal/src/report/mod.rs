@@ -594,8 +594,19 @@ pub fn write_validation_report_with(
             100.0 * outside as f64 / r.series.samples.max(1) as f64
         ));
     }
+    let per_axis = crate::calibrate::per_axis_overall(runs);
+    if per_axis.len() > 1 {
+        for (axis, raw, comp) in &per_axis {
+            md.push_str(&format!(
+                "| overall of axis {axis} (RMS over its runs) | {axis} | {raw:.5} | {comp:.5} | {:.2} | |\n",
+                raw / comp
+            ));
+        }
+    }
+    let label =
+        if per_axis.len() > 1 { "overall (RMS over runs and axes)" } else { "overall (RMS over runs)" };
     md.push_str(&format!(
-        "| **overall (RMS over runs)** | | **{:.5}** | **{:.5}** | **{:.2}** | |\n\n",
+        "| **{label}** | | **{:.5}** | **{:.5}** | **{:.2}** | |\n\n",
         overall.0,
         overall.1,
         overall.0 / overall.1

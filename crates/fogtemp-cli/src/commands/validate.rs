@@ -141,14 +141,22 @@ pub fn validate(a: ValidateArgs) -> Result<()> {
             r.raw_bias_stability_dph / r.compensated_bias_stability_dph
         );
     }
-    println!(
-        "{:<width$} {:>4} {:>14.5} {:>14.5} {:>8.2}",
-        "overall (RMS over runs)",
-        "",
-        raw,
-        comp,
-        raw / comp
-    );
+    let per_axis = validation.per_axis();
+    if per_axis.len() > 1 {
+        for (axis, axis_raw, axis_comp) in &per_axis {
+            println!(
+                "{:<width$} {:>4} {:>14.5} {:>14.5} {:>8.2}",
+                "overall of the axis (RMS over runs)",
+                axis,
+                axis_raw,
+                axis_comp,
+                axis_raw / axis_comp
+            );
+        }
+    }
+    let overall =
+        if per_axis.len() > 1 { "overall (RMS over runs and axes)" } else { "overall (RMS over runs)" };
+    println!("{:<width$} {:>4} {:>14.5} {:>14.5} {:>8.2}", overall, "", raw, comp, raw / comp);
     if !comparison.is_empty() {
         println!("\nmodels compared on the same logs (overall, RMS over runs):");
         println!(
