@@ -69,7 +69,7 @@ pub struct IngestArgs {
     /// The log has no time column: row k (0-based, counting rows rejected with
     /// --skip-bad-rows, not blank or comment lines) is at k / HZ seconds. A log that has a
     /// column named as --time-column as well is refused as ambiguous.
-    #[arg(long, value_name = "HZ", conflicts_with_all = ["time_column", "time_unit"], help_heading = "Log shape")]
+    #[arg(long, value_name = "HZ", allow_negative_numbers = true, conflicts_with_all = ["time_column", "time_unit"], help_heading = "Log shape")]
     pub sample_rate_hz: Option<f64>,
     /// Lines at the start of every log to drop unread (e.g. a terminal program's banner),
     /// before the header or, with --columns, the data. Error line numbers still count them.
@@ -395,7 +395,7 @@ pub struct FitArgs {
     #[arg(long, default_value_t = fogtemp_cal::selection::DEFAULT_BLOCKS, hide = true)]
     pub cv_blocks: usize,
     /// Feature window (smoothing of T and dT/dt), seconds.
-    #[arg(long, default_value_t = 100.0, help_heading = "Features", value_parser = positive_finite_f32)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 100.0, help_heading = "Features", value_parser = positive_finite_f32)]
     pub window_s: f32,
     /// Sub-blocks per window (the rate is a least-squares slope over block means).
     #[arg(long, default_value_t = 100, help_heading = "Features", value_parser = clap::value_parser!(u32).range(2..=i64::from(fogtemp_core::wire::MAX_BLOCKS)))]
@@ -404,10 +404,10 @@ pub struct FitArgs {
     #[arg(long, default_value_t = 10, help_heading = "Features", value_parser = clap::value_parser!(u32).range(2..))]
     pub min_blocks: u32,
     /// A longer silence of the temperature channel restarts the features, seconds.
-    #[arg(long, default_value_t = 5.0, help_heading = "Features", value_parser = positive_finite_f32)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 5.0, help_heading = "Features", value_parser = positive_finite_f32)]
     pub max_gap_s: f32,
     /// Centred smoothing window of the gyro target, seconds (default: --window-s).
-    #[arg(long, help_heading = "Features", value_parser = positive_finite)]
+    #[arg(long, allow_negative_numbers = true, help_heading = "Features", value_parser = positive_finite)]
     pub target_window_s: Option<f64>,
     /// Use only points whose feature window is full.
     #[arg(long, help_heading = "Features")]
@@ -418,7 +418,7 @@ pub struct FitArgs {
     /// Greedy thinning: stop when every point is interpolated within this, deg/h
     /// (default: stop when the RMS interpolation error is 1.5 times the estimated noise of
     /// the smoothed gyro, so the mesh follows the data down to its noise and no further).
-    #[arg(long, help_heading = "Mesh", value_parser = positive_finite)]
+    #[arg(long, allow_negative_numbers = true, help_heading = "Mesh", value_parser = positive_finite)]
     pub tolerance_dph: Option<f64>,
     /// Greedy thinning: at most this many nodes, or every point on the convex hull if those are more (refinement may add as many again; --no-mesh-refinement).
     #[arg(long, default_value_t = 600, help_heading = "Mesh", value_parser = clap::builder::RangedU64ValueParser::<usize>::new().range(3..))]
@@ -436,7 +436,7 @@ pub struct FitArgs {
     /// Use this smoothness weight for the mesh's node fit (relative to the data/penalty
     /// balance; the cross-validated grid is 1e-4 to 1e8) instead of the cross-validated one.
     /// A diagnostic: the cross-validation still runs and is reported in the JSON.
-    #[arg(long, value_parser = positive_finite, hide = true, help_heading = "Mesh")]
+    #[arg(long, allow_negative_numbers = true, value_parser = positive_finite, hide = true, help_heading = "Mesh")]
     pub mesh_relative_weight: Option<f64>,
     /// Fold assignments the mesh weight's cross-validation averages over (repeated K-fold;
     /// default 1). A diagnostic, for measuring what the repetition changes.
@@ -446,7 +446,7 @@ pub struct FitArgs {
     #[arg(long, default_value_t = 0, hide = true, help_heading = "Mesh")]
     pub mesh_cv_salt: u64,
     /// Paper thinning: keep every point while |rate| >= this, deg C/min.
-    #[arg(long, default_value_t = 0.05, help_heading = "Mesh", value_parser = positive_finite)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 0.05, help_heading = "Mesh", value_parser = positive_finite)]
     pub fast_rate: f64,
     /// Paper thinning: then keep one in this many.
     #[arg(long, default_value_t = 3, help_heading = "Mesh")]
