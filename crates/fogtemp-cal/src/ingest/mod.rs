@@ -389,7 +389,39 @@ impl LogFormat {
         if self.decimal_mark == DecimalMark::Comma && self.delimiter == Delimiter::Byte(b',') {
             return problem("a log with a decimal comma needs another delimiter (e.g. semicolon)".into());
         }
+        if let Some(clash) = self.column_clash() {
+            return problem(clash);
+        }
         Ok(())
+    }
+
+    /// A column asked to be two things at once (`None` when there is none): a name given
+    /// twice to a headerless log, a gyro column read for two axes (one gyro would make a
+    /// two-axis model), or one column read as two of time, temperature and gyro. A
+    /// temperature column shared by several axes is fine.
+    fn column_clash(&self) -> Option<String> {
+        let twice = |names: &[String]| {
+            names.iter().enumerate().find(|(k, n)| names[..*k].contains(n)).map(|(_, n)| n.clone())
+        };
+        if let Some(name) = twice(&self.column_names) {
+            return Some(format!("the column names given to a log without a header name '{name}' twice"));
+        }
+        if let Some(name) = twice(&self.gyro_columns) {
+            return Some(format!("the gyro column '{name}' is given for two axes"));
+        }
+        let time = self.sample_rate_hz.is_none().then_some(&self.time_column);
+        let roles = self
+            .gyro_columns
+            .iter()
+            .map(|c| (c, "gyro"))
+            .chain(self.temp_columns.iter().map(|c| (c, "temperature")))
+            .chain(time.map(|c| (c, "time")))
+            .chain(self.date_column.iter().map(|c| (c, "date")));
+        let roles: Vec<(&String, &str)> = roles.collect();
+        roles.iter().enumerate().find_map(|(k, (name, role))| {
+            let other = roles[..k].iter().find(|(n, r)| n == name && r != role)?;
+            Some(format!("the column '{name}' is read as both the {} and the {role}", other.1))
+        })
     }
 
     /// The comment prefix as bytes (empty: no comments).

@@ -552,3 +552,38 @@ fn records_run_together_are_a_long_row_and_trailing_delimiters_are_not() {
     let times: Vec<(u64, f64)> = values(&seen).iter().map(|r| (r.0, r.1)).collect();
     assert_eq!(times, vec![(1, 0.0), (2, 1.0 / 50.0), (4, 3.0 / 50.0)]);
 }
+
+/// A column asked to be two things is refused before any read (review9 finding 8: a
+/// "temperature" read from the time column rose at 60 C/min; one gyro given twice made a
+/// two-axis model); a temperature column shared by two axes is not.
+#[test]
+fn a_column_asked_to_be_two_things_is_refused() {
+    let clash = |format: LogFormat| match format.check(Path::new("log.csv")) {
+        Err(CalError::LogFormat { problem, .. }) => problem,
+        other => panic!("expected a refusal, got {other:?}"),
+    };
+    let names = |n: &[&str]| n.iter().map(|s| s.to_string()).collect::<Vec<_>>();
+    let base = LogFormat::default();
+    assert_eq!(
+        clash(LogFormat { column_names: names(&["a", "a", "b"]), ..base.clone() }),
+        "the column names given to a log without a header name 'a' twice"
+    );
+    assert_eq!(
+        clash(LogFormat { gyro_columns: names(&["g", "g"]), ..base.clone() }),
+        "the gyro column 'g' is given for two axes"
+    );
+    assert_eq!(
+        clash(LogFormat { temp_columns: names(&["time_s"]), ..base.clone() }),
+        "the column 'time_s' is read as both the temperature and the time"
+    );
+    assert_eq!(
+        clash(LogFormat { temp_columns: names(&["gyro_dph"]), ..base.clone() }),
+        "the column 'gyro_dph' is read as both the gyro and the temperature"
+    );
+    let shared =
+        LogFormat { gyro_columns: names(&["g0", "g1"]), temp_columns: names(&["t", "t"]), ..base.clone() };
+    assert!(shared.check(Path::new("log.csv")).is_ok());
+    // Without a time column the time column's name is free.
+    let rate = LogFormat { temp_columns: names(&["time_s"]), sample_rate_hz: Some(50.0), ..base };
+    assert!(rate.check(Path::new("log.csv")).is_ok());
+}
