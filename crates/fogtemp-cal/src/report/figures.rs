@@ -188,19 +188,25 @@ pub fn plot_grouped_bars(
     let n = groups.len();
     let k = series.len().max(1);
     let slot = 0.8 / k as f64;
-    write_svg(path, (1200, 540), |root| {
+    // Names wider than their group (about 7 px a character at 12 px) are written upright,
+    // in a label area as tall as the longest.
+    let longest = groups.iter().map(|g| g.chars().count()).max().unwrap_or(0);
+    let upright = longest as f64 * 7.0 > 1100.0 / n.max(1) as f64;
+    let label_area = if upright { (longest as u32 * 7 + 16).min(260) } else { 40 };
+    write_svg(path, (1200, 500 + label_area), |root| {
         root.fill(&WHITE).map_err(|e| plot_err(path, e))?;
         let mut chart = ChartBuilder::on(&root)
             .caption(title, ("sans-serif", 20))
             .margin(12)
-            .x_label_area_size(40)
+            .x_label_area_size(label_area)
             .y_label_area_size(80)
             .build_cartesian_2d(-0.5..(n as f64 - 0.5), 0.0..top)
             .map_err(|e| plot_err(path, e))?;
         // Unit steps of the x axis are the groups (n + 1 labels asked: plotters then steps by 1).
+        // Upright names are drawn below (plotters centres a rotated axis label on its tick).
         let label = |v: &f64| {
             let g = v.round();
-            if (v - g).abs() < 1e-6 && g >= 0.0 {
+            if (v - g).abs() < 1e-6 && g >= 0.0 && !upright {
                 groups.get(g as usize).cloned().unwrap_or_default()
             } else {
                 String::new()
@@ -243,6 +249,20 @@ pub fn plot_grouped_bars(
                 Text::new(format!("{v:.4}"), (i as f64 + offset, v), font.pos(pos))
             });
             chart.draw_series(values).map_err(|e| plot_err(path, e))?;
+        }
+        if upright {
+            use plotters::style::text_anchor::{HPos, Pos, VPos};
+            // Rotated, anchored at its start: each name runs down from under its group.
+            let style = ("sans-serif", 12)
+                .into_font()
+                .transform(FontTransform::Rotate90)
+                .color(&BLACK)
+                .pos(Pos::new(HPos::Left, VPos::Center));
+            for (i, name) in groups.iter().enumerate() {
+                let (x, y) = chart.backend_coord(&(i as f64, 0.0));
+                root.draw(&Text::new(name.clone(), (x, y + 6), style.clone()))
+                    .map_err(|e| plot_err(path, e))?;
+            }
         }
         // Upper left: the headroom above the tallest bar keeps the legend clear of most bars;
         // every value is also written on its bar.

@@ -194,10 +194,11 @@ pub fn finite_range(values: impl Iterator<Item = f64>) -> (f64, f64) {
     (lo - pad, hi + pad)
 }
 
-/// Distinct colours for runs (the ten of matplotlib's `tab10`: a testbed case's nine
-/// calibration runs no longer share one).
+/// Distinct colours for runs: the ten of matplotlib's `tab10` (a testbed case's nine
+/// calibration runs no longer share one), then the ten darker shades of `tab20b` (a testbed
+/// case's 17 runs no longer share one either).
 pub fn run_colour(i: usize) -> RGBColor {
-    const C: [RGBColor; 10] = [
+    const C: [RGBColor; 20] = [
         RGBColor(31, 119, 180),
         RGBColor(255, 127, 14),
         RGBColor(44, 160, 44),
@@ -208,6 +209,16 @@ pub fn run_colour(i: usize) -> RGBColor {
         RGBColor(127, 127, 127),
         RGBColor(188, 189, 34),
         RGBColor(23, 190, 207),
+        RGBColor(57, 59, 121),
+        RGBColor(99, 121, 57),
+        RGBColor(140, 109, 49),
+        RGBColor(132, 60, 57),
+        RGBColor(123, 65, 115),
+        RGBColor(82, 84, 163),
+        RGBColor(140, 162, 82),
+        RGBColor(189, 158, 57),
+        RGBColor(173, 73, 74),
+        RGBColor(165, 81, 148),
     ];
     C[i % C.len()]
 }
@@ -313,6 +324,8 @@ pub fn plot_mesh(path: &Path, title: &str, mesh: &MeshFigure) -> Result<(), CalE
         let (t0, t1) = finite_range(mesh.nodes.iter().map(|n| n.0).chain(mesh.points.iter().map(|p| p.0)));
         let (r0, r1) = finite_range(mesh.nodes.iter().map(|n| n.1).chain(mesh.points.iter().map(|p| p.1)));
         let (v0, v1) = finite_range(mesh.nodes.iter().map(|n| n.2));
+        // Values on both sides of zero: limits symmetric about it, so white is no bias.
+        let (v0, v1) = if v0 < 0.0 && v1 > 0.0 { (-v0.abs().max(v1), v0.abs().max(v1)) } else { (v0, v1) };
         let scale = |v: f64| (v - v0) / (v1 - v0);
         let mut chart = ChartBuilder::on(&main)
             .margin(10)
@@ -459,7 +472,12 @@ pub fn plot_allan(path: &Path, title: &str, curves: &[(String, Vec<AllanPoint>)]
             .draw()
             .map_err(|e| plot_err(path, e))?;
         for (i, (name, curve)) in curves.iter().enumerate() {
-            let colour = run_colour(i);
+            // Raw grey and compensated blue, as in the bars figure beside it.
+            let colour = match name.as_str() {
+                "raw" => figures::RAW_GREY,
+                "compensated" => run_colour(0),
+                _ => run_colour(i),
+            };
             chart
                 .draw_series(LineSeries::new(
                     curve.iter().map(|p| (p.tau_s, p.adev_dph)),
