@@ -151,10 +151,11 @@ fn expand_log_paths(arg: &Path) -> Result<Vec<PathBuf>> {
     }
 }
 
-/// A byte progress bar for one file, drawn on stderr only when it is a terminal.
-pub fn file_progress(path: &Path, label: &str) -> ProgressBar {
+/// A bar for reading the file at `path` (bytes, rate, eta), labelled `label` and the file
+/// name, drawn on `target` (a hidden bar draws nothing while it is styled).
+fn file_progress(path: &Path, label: &str, target: ProgressDrawTarget) -> ProgressBar {
     let len = std::fs::metadata(path).map(|m| m.len()).unwrap_or(0);
-    let bar = ProgressBar::with_draw_target(Some(len), ProgressDrawTarget::stderr());
+    let bar = ProgressBar::with_draw_target(Some(len), target);
     if let Ok(style) = ProgressStyle::with_template(
         "{prefix} [{bar:30}] {bytes}/{total_bytes} {binary_bytes_per_sec} eta {eta} {msg}",
     ) {
@@ -178,8 +179,9 @@ pub struct RowProgress {
 impl RowProgress {
     /// A hidden bar for the log at `path`, labelled like [`file_progress`].
     pub fn new(path: &Path, label: &str) -> Self {
-        let bar = file_progress(path, label);
-        bar.set_draw_target(ProgressDrawTarget::hidden());
+        // Hidden from the start: a bar made on stderr and hidden after its styling left its
+        // first frame ("0 B") on the terminal for good, warnings printed after it on its line.
+        let bar = file_progress(path, label, ProgressDrawTarget::hidden());
         Self { bar, shown: std::cell::Cell::new(false) }
     }
 
