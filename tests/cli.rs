@@ -676,7 +676,12 @@ fn bad_log_files_are_named_and_nothing_is_written() {
     let missing_msg =
         format!("{}: no column named 'gyro_dph' (the header has: time_s, temp_c, gyro)", missing.display());
     let nothing_msg = nothing.display().to_string();
-    let no_csv_msg = format!("{}: folder holds no *.csv files", no_csv.display());
+    let no_csv_msg = format!(
+        "{}: folder holds no *.csv files (1 other file, e.g. {}: give them as paths, e.g. {}/*.txt)",
+        no_csv.display(),
+        no_csv.join("notes.txt").display(),
+        no_csv.display()
+    );
     for (log, msg) in [(&missing, &missing_msg), (&nothing, &nothing_msg), (&no_csv, &no_csv_msg)] {
         let fit_args = args!["fit", "--out", &out_model, log];
         expect_failure(&fit_args, dir.path(), Some(&out_model), &[msg.as_str()]);

@@ -154,10 +154,27 @@ def fit(
 
 @overload
 def read_log(
-    path: PathLike, *, as_dataframe: Literal[False] = False, progress: bool = True, **options: Any
-) -> Dict[str, npt.NDArray[np.float64]]: ...
+    path: PathLike,
+    *,
+    model: Optional[Union[Model, PathLike]] = None,
+    as_dataframe: Literal[False] = False,
+    progress: bool = True,
+    **options: Any,
+) -> Dict[str, npt.NDArray[np.float64]]:
+    """A CSV log as numpy arrays: time_s (s since the first row), temp_c (deg C, NaN without a
+    reading), gyro_dph (deg/h); ``temp_c_0``, ``gyro_dph_0``, ... for several columns.
+    Keywords: the log-column options of ``fit``. ``model=``: read the log as the model's fit read
+    its logs (columns, units, time), as ``validate`` does, ready for ``Model.compensate``."""
 @overload
-def read_log(path: PathLike, *, as_dataframe: Literal[True], progress: bool = True, **options: Any) -> Any: ...
+def read_log(
+    path: PathLike,
+    *,
+    model: Optional[Union[Model, PathLike]] = None,
+    as_dataframe: Literal[True],
+    progress: bool = True,
+    **options: Any,
+) -> Any:
+    """``read_log`` as a pandas DataFrame."""
 def validate(
     model: Union[Model, PathLike],
     logs: Union[PathLike, Run, Sequence[Union[PathLike, Run]]],

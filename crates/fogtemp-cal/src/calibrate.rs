@@ -350,10 +350,22 @@ pub fn never_corrected_note(
 /// says where the flag can be seen).
 pub fn outside_region_note(name: &str, outside: u64, samples: u64, flagged: &str) -> String {
     format!(
-        "{name}: {outside} of {samples} samples ({:.1} %) lie outside the model's calibrated (T, dT/dt) \
+        "{name}: {outside} of {samples} samples ({} %) lie outside the model's calibrated (T, dT/dt) \
          region ({flagged}): the model is extrapolated there",
-        100.0 * outside as f64 / samples.max(1) as f64
+        share_percent(outside, samples)
     )
+}
+
+/// `part` of `whole` as a percentage to one decimal, or to the first significant digit
+/// under 0.1 % ("0.04", not "0.0" for a share that is not zero).
+pub fn share_percent(part: u64, whole: u64) -> String {
+    let percent = 100.0 * part as f64 / whole.max(1) as f64;
+    if percent > 0.0 && percent < 0.1 {
+        let digits = (-percent.log10().floor()) as usize;
+        format!("{percent:.digits$}")
+    } else {
+        format!("{percent:.1}")
+    }
 }
 
 impl RunFeatures {
@@ -1490,10 +1502,10 @@ pub fn temperature_spike_note(name: &str, log: &Path, spikes: &AxisSpikes) -> Op
 /// gyro went on; `flagged` says where the flag can be seen).
 pub fn stale_temperature_note(name: &str, stale: u64, samples: u64, max_gap_s: f64, flagged: &str) -> String {
     format!(
-        "{name}: {stale} of {samples} samples ({:.1} %) came more than the model's max gap of {max_gap_s} s \
+        "{name}: {stale} of {samples} samples ({} %) came more than the model's max gap of {max_gap_s} s \
          after the last temperature reading ({flagged}): the compensator held its bias there, and \
          its features restart when readings return",
-        100.0 * stale as f64 / samples.max(1) as f64
+        share_percent(stale, samples)
     )
 }
 
@@ -1672,6 +1684,15 @@ pub fn validations(
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn shares_under_a_tenth_of_a_percent_keep_a_significant_digit() {
+        assert_eq!(share_percent(3, 7200), "0.04");
+        assert_eq!(share_percent(1, 1_000_000), "0.0001");
+        assert_eq!(share_percent(0, 7200), "0.0");
+        assert_eq!(share_percent(250, 6250), "4.0");
+        assert_eq!(share_percent(7200, 7200), "100.0");
+    }
+
     #[test]
     fn a_run_made_worse_beyond_the_metrics_scatter_is_noted() {
         // 51 windows: relative standard error 1 / sqrt(100) = 10 %, so the bound is 1.2 x raw.

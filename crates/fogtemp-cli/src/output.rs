@@ -138,7 +138,19 @@ fn expand_log_paths(arg: &Path) -> Result<Vec<PathBuf>> {
         found.sort();
         left.sort();
         if found.is_empty() {
-            bail!("{}: folder holds no *.csv files", arg.display());
+            let files: Vec<&PathBuf> = left.iter().filter(|p| p.is_file()).collect();
+            let hint = match files.first().and_then(|p| p.extension()) {
+                Some(ext) => format!(
+                    " ({} other file{}, e.g. {}: give them as paths, e.g. {}/*.{})",
+                    files.len(),
+                    if files.len() == 1 { "" } else { "s" },
+                    files[0].display(),
+                    arg.display(),
+                    ext.to_string_lossy()
+                ),
+                None => String::new(),
+            };
+            bail!("{}: folder holds no *.csv files{hint}", arg.display());
         }
         if let Some(note) = left_out_note(arg, found.len(), &left) {
             eprintln!("note: {note}");

@@ -574,18 +574,32 @@ fn warn_skipped(py: Python<'_>, report: &IngestReport, samples: bool) -> PyResul
 /// (NaN where a row has no temperature reading), deg/h; with several temperature or gyro
 /// columns the keys are `temp_c_0`, `temp_c_1`, ... and `gyro_dph_0`, .... Keywords: the
 /// log-column options of `fit`. `as_dataframe=True` returns a pandas DataFrame instead.
+/// `model=` (a `Model`, or a model file): read the log as the model's fit read its logs,
+/// columns, units and time (as `validate` does; keywords given still win, with a warning
+/// where they differ), so the arrays go straight into `Model.compensate`.
 #[pyfunction]
-#[pyo3(signature = (path, *, as_dataframe = false, progress = true, **options))]
+#[pyo3(signature = (path, *, model = None, as_dataframe = false, progress = true, **options))]
 pub fn read_log<'py>(
     py: Python<'py>,
     path: PathBuf,
+    model: Option<&Bound<'py, PyAny>>,
     as_dataframe: bool,
     progress: bool,
     options: Option<&Bound<'py, PyDict>>,
 ) -> PyResult<Bound<'py, PyAny>> {
     let mut o = Options::new("read_log", options);
-    let ingest = options::ingest(&mut o)?;
+    let named = (
+        (o.any_given(&["gyro_column"])?, o.any_given(&["temp_column"])?),
+        (o.any_given(&["gyro_unit", "gyro_scale"])?, o.any_given(&["temp_scale", "temp_offset"])?),
+        o.any_given(&["time_column", "time_unit", "sample_rate_hz", "date_column"])?,
+    );
+    let mut ingest = options::ingest(&mut o)?;
     o.finish()?;
+    if let Some(model) = model {
+        let blob = model_arg(model)?;
+        let core = CoreModel::from_bytes(&blob.0).map_err(|e| errors::model(&blob.1, e))?;
+        choose_columns(py, &mut ingest, named, std::slice::from_ref(&blob), std::slice::from_ref(&core))?;
+    }
     let (temps, gyros) = (ingest.format.temp_columns.len(), ingest.format.gyro_columns.len());
     let mut time = Vec::new();
     let mut temp_cols: Vec<Vec<f64>> = vec![Vec::new(); temps];

@@ -483,6 +483,11 @@ def test_validate_reads_logs_in_the_units_the_model_was_fitted_in(tmp_path):
     with pytest.warns(UserWarning, match=r"the gyro is read as the model was fitted: 3600 deg/h per unit \(gyro_unit=/gyro_scale="):
         recorded = fogtemp.validate(model, logs[:1], progress=False)
     assert recorded["runs"] == named["runs"]
+    # Review10 F2: read_log(model=) gives the arrays Model.compensate takes, in deg/h.
+    with pytest.warns(UserWarning, match=r"the gyro is read as the model was fitted"):
+        by_model = fogtemp.read_log(logs[0], model=model, progress=False)
+    by_hand = fogtemp.read_log(logs[0], gyro_column="gyro_dps", gyro_unit="dps", progress=False)
+    np.testing.assert_array_equal(by_model["gyro_dph"], by_hand["gyro_dph"])
 
 
 def test_validate_reads_the_time_the_model_records(tmp_path):
@@ -508,6 +513,13 @@ def test_validate_reads_the_time_the_model_records(tmp_path):
     with pytest.warns(UserWarning, match=r"the logs' time is read as .* records it: column 't_ms' in ms"):
         recorded = fogtemp.validate(model, ms_logs[:1], progress=False)
     assert recorded["runs"] == named["runs"]
+    # read_log(model=) reads the log as the fit did: the same arrays as naming every option.
+    with pytest.warns(UserWarning, match=r"column 't_ms' in ms"):
+        by_model = fogtemp.read_log(ms_logs[0], model=model, progress=False)
+    by_hand = fogtemp.read_log(ms_logs[0], time_column="t_ms", time_unit="ms", progress=False)
+    assert by_model.keys() == by_hand.keys()
+    for key in by_hand:
+        np.testing.assert_array_equal(by_model[key], by_hand[key])
     single = fogtemp.fit(synthetic_runs(runs=3), method="poly", progress=False)
     assert single.inspect()["format_version"] == 5
     assert (single.inspect()["log_time"]["time_column"], single.inspect()["log_time"]["time_unit"]) == ("time_s", "s")
