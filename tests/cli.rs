@@ -1259,13 +1259,7 @@ fn units_the_model_records_are_read_when_none_are_named() {
     fit_args.extend(units.iter().map(OsString::from));
     fit_args.extend(args!["--out", &model, &log]);
     run_ok(fit_args);
-    let validate = |extra: &[&str]| {
-        let mut args = args!["validate", "--json", "--tau-s", "10", "--model", &model, &log];
-        args.extend(extra.iter().map(OsString::from));
-        let output = cal().args(&args).output().expect("run");
-        assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
-        (json(&String::from_utf8_lossy(&output.stdout)), String::from_utf8_lossy(&output.stderr).into_owned())
-    };
+    let validate = |extra: &[&str]| validated_quietly(&model, &log, extra);
     let (named, quiet) = validate(&units);
     let (recorded, said) = validate(&[]);
     let comp = |d: &Value| f(&d["compensated_bias_stability_dph"]);
@@ -1283,6 +1277,16 @@ fn units_the_model_records_are_read_when_none_are_named() {
         other.contains("was fitted on the gyro read as 1800 deg/h per unit; this log is read as 3600"),
         "{other}"
     );
+}
+
+/// `validate --json --tau-s 10` of `log` with `model` and the `extra` options: the document
+/// and what was said on stderr (10 s windows: the short logs of these tests are 3 minutes).
+fn validated_quietly(model: &Path, log: &Path, extra: &[&str]) -> (Value, String) {
+    let mut args = args!["validate", "--json", "--tau-s", "10", "--model", model, log];
+    args.extend(extra.iter().map(OsString::from));
+    let output = cal().args(&args).output().expect("run");
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    (json(&String::from_utf8_lossy(&output.stdout)), String::from_utf8_lossy(&output.stderr).into_owned())
 }
 
 /// A model records how its fit read the logs' time (format 5): a log whose time is in
@@ -1309,13 +1313,7 @@ fn the_time_the_model_records_is_read_when_none_is_named() {
     assert_eq!(inspect["format_version"], 5);
     assert_eq!(inspect["log_time"]["time_column"], "t_ms");
     assert_eq!(inspect["log_time"]["time_unit"], "ms");
-    let validate = |extra: &[&str]| {
-        let mut args = args!["validate", "--json", "--tau-s", "10", "--model", &model, &log];
-        args.extend(extra.iter().map(OsString::from));
-        let output = cal().args(&args).output().expect("run");
-        assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
-        (json(&String::from_utf8_lossy(&output.stdout)), String::from_utf8_lossy(&output.stderr).into_owned())
-    };
+    let validate = |extra: &[&str]| validated_quietly(&model, &log, extra);
     let (named, quiet) = validate(&time);
     let (recorded, said) = validate(&[]);
     let comp = |d: &Value| f(&d["compensated_bias_stability_dph"]);
