@@ -603,13 +603,13 @@ pub fn write_validation_report_with(
     for r in runs {
         let outside = r.series.flag_counts.get(outside_bit).copied().unwrap_or(0);
         md.push_str(&format!(
-            "| {} | {} | {:.5} | {:.5} | {:.2} | {:.1} % |\n",
+            "| {} | {} | {:.5} | {:.5} | {:.2} | {} % |\n",
             file_name(&r.path),
             r.axis,
             r.raw_bias_stability_dph,
             r.compensated_bias_stability_dph,
             r.raw_bias_stability_dph / r.compensated_bias_stability_dph,
-            100.0 * outside as f64 / r.series.samples.max(1) as f64
+            crate::calibrate::share_percent(outside, r.series.samples)
         ));
     }
     let per_axis = crate::calibrate::per_axis_overall(runs);
