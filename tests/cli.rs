@@ -1279,6 +1279,51 @@ fn units_the_model_records_are_read_when_none_are_named() {
     );
 }
 
+/// A logger's -999 for a missing temperature: `compensate` keeps the row and the compensator
+/// flags it BAD_INPUT, as the firmware does (review10 F5: the log was refused, or with
+/// --skip-bad-rows the row dropped, so the output no longer lined up with the firmware's).
+/// Oracle: the same log with that cell empty (no reading), whose output must be the same bit
+/// for bit except that row's BAD_INPUT flag.
+#[test]
+fn compensate_keeps_a_sentinel_temperature_row_flagged_as_the_firmware_does() {
+    let dir = TempDir::new().expect("tempdir");
+    let (_, lines, model) = short_log_and_model(dir.path(), "poly", "m.fogm");
+    let with_cell = |cell: &str| {
+        let mut l = lines.clone();
+        let mut fields: Vec<&str> = l[100].split(',').collect();
+        fields[1] = cell; // temp_c
+        l[100] = fields.join(",");
+        l
+    };
+    let (sentinel, empty) = (dir.path().join("sentinel.csv"), dir.path().join("empty.csv"));
+    write_lines(&sentinel, &with_cell("-999"));
+    write_lines(&empty, &with_cell(""));
+    let (out_sentinel, out_empty) = (dir.path().join("c1.csv"), dir.path().join("c2.csv"));
+    let done = cal()
+        .args(args!["compensate", "--model", &model, &sentinel, "--out", &out_sentinel])
+        .assert()
+        .success();
+    let said = String::from_utf8_lossy(&done.get_output().stderr).to_string();
+    run_ok(args!["compensate", "--model", &model, &empty, "--out", &out_empty]);
+    let (a, b) =
+        (fs::read_to_string(&out_sentinel).expect("read"), fs::read_to_string(&out_empty).expect("read"));
+    let (a, b): (Vec<&str>, Vec<&str>) = (a.lines().collect(), b.lines().collect());
+    assert_eq!(a.len(), lines.len(), "one output row per log row");
+    assert_eq!(a.len(), b.len());
+    for (k, (x, y)) in a.iter().zip(&b).enumerate() {
+        if k == 100 {
+            let (xs, ys): (Vec<&str>, Vec<&str>) = (x.split(',').collect(), y.split(',').collect());
+            assert_eq!(xs[..4], ys[..4], "the values of the flagged row");
+            let (fx, fy): (u8, u8) = (xs[4].parse().expect("flags"), ys[4].parse().expect("flags"));
+            assert_eq!(fx, fy | 0x10, "BAD_INPUT added");
+        } else {
+            assert_eq!(x, y, "row {k}");
+        }
+    }
+    assert!(said.contains("1 of") && said.contains("flag BAD_INPUT in the output"), "{said}");
+    assert!(!said.contains("glitch"), "a sentinel is not a glitch: {said}");
+}
+
 /// `validate --json --tau-s 10` of `log` with `model` and the `extra` options: the document
 /// and what was said on stderr (10 s windows: the short logs of these tests are 3 minutes).
 fn validated_quietly(model: &Path, log: &Path, extra: &[&str]) -> (Value, String) {

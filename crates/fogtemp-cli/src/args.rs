@@ -166,7 +166,7 @@ impl IngestArgs {
                 other => bail!("{other}"),
             }
         }
-        Ok(IngestOptions { format, skip_bad_rows: self.skip_bad_rows })
+        Ok(IngestOptions { format, skip_bad_rows: self.skip_bad_rows, keep_impossible_temperatures: false })
     }
 }
 

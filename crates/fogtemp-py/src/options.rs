@@ -282,6 +282,7 @@ pub fn ingest(o: &mut Options<'_>) -> PyResult<IngestOptions> {
             decimal_mark,
         },
         skip_bad_rows: o.bool("skip_bad_rows", false)?,
+        keep_impossible_temperatures: false,
     })
     .and_then(|options: IngestOptions| {
         let f = &options.format;

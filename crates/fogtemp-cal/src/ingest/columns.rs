@@ -39,6 +39,8 @@ pub(super) struct Plan {
     /// starting with a space or tab, to the general path).
     pub(super) comment_first: Option<u8>,
     pub(super) decimal_mark: DecimalMark,
+    /// [`super::IngestOptions::keep_impossible_temperatures`].
+    pub(super) keep_impossible_temperatures: bool,
 }
 
 /// Row-level state: header, previous time, skipped rows.
@@ -46,6 +48,7 @@ pub(super) struct RowState {
     pub(super) path: PathBuf,
     pub(super) format: LogFormat,
     skip_bad_rows: bool,
+    keep_impossible_temperatures: bool,
     pub(super) plan: Option<Plan>,
     /// One-pass path: one value per distinct used field.
     pub(super) values: Vec<f64>,
@@ -65,6 +68,7 @@ impl RowState {
             path: path.to_path_buf(),
             format: options.format.clone(),
             skip_bad_rows: options.skip_bad_rows,
+            keep_impossible_temperatures: options.keep_impossible_temperatures,
             plan: None,
             values: Vec::new(),
             temps: vec![f64::NAN; options.format.temp_columns.len()],
@@ -94,7 +98,8 @@ impl RowState {
     }
 
     fn set_plan(&mut self, header: Fields<'_>, line: u64) -> Result<(), CalError> {
-        let plan = make_plan(&self.path, header, &self.format, line)?;
+        let mut plan = make_plan(&self.path, header, &self.format, line)?;
+        plan.keep_impossible_temperatures = self.keep_impossible_temperatures;
         self.values = vec![f64::NAN; plan.roles.iter().filter(|&&r| r != SKIP).count()];
         self.plan = Some(plan);
         Ok(())
@@ -108,6 +113,7 @@ impl RowState {
             path: self.path.clone(),
             format: self.format.clone(),
             skip_bad_rows: self.skip_bad_rows,
+            keep_impossible_temperatures: self.keep_impossible_temperatures,
             plan: self.plan.clone(),
             values: self.values.clone(),
             temps: self.temps.clone(),
@@ -212,6 +218,7 @@ pub(super) fn make_plan(path: &Path, header: Fields<'_>, f: &LogFormat, line: u6
             && matches!(f.delimiter, Delimiter::Byte(b) if !matches!(b, b'0'..=b'9' | b'.' | b'-' | b'"' | b'\r' | b'\n')),
         comment_first: f.comment_prefix().first().copied(),
         decimal_mark: f.decimal_mark,
+        keep_impossible_temperatures: false,
     })
 }
 
@@ -462,7 +469,7 @@ pub(super) fn parse_row(
     for (slot, &field) in temps.iter_mut().zip(&columns.temps) {
         *slot = parse_cell(plan, fields, field, line)?
             .map_or(f64::NAN, |raw| raw * plan.temp_scale + plan.temp_offset_c);
-        if !slot.is_nan() && !super::is_physical(*slot) {
+        if !slot.is_nan() && !super::is_physical(*slot) && !plan.keep_impossible_temperatures {
             let raw = fields.get(field).unwrap_or(b"");
             return Err(bad_row(columns, line, field, raw, BadRowKind::ImpossibleTemperature));
         }

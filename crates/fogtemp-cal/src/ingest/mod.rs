@@ -605,6 +605,10 @@ pub struct IngestOptions {
     pub format: LogFormat,
     /// Skip bad rows (and report them) instead of stopping at the first.
     pub skip_bad_rows: bool,
+    /// Pass a temperature no sensor reads (a logger's -999) through as read instead of
+    /// refusing its row: for `compensate`, whose `Compensator` flags such a sample
+    /// `BAD_INPUT` and keeps it, as the firmware does, so its output stays row for row.
+    pub keep_impossible_temperatures: bool,
 }
 
 /// Bytes between two progress calls.

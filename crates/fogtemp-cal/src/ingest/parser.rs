@@ -409,7 +409,9 @@ impl<R: Read> Parser<R> {
             for &k in &plan.temp_slots {
                 values[k] = values[k] * plan.temp_scale + plan.temp_offset_c; // NaN (empty) stays NaN
             }
-            if plan.temp_slots.iter().any(|&k| !values[k].is_nan() && !super::is_physical(values[k])) {
+            let refused =
+                |v: f64| !v.is_nan() && !super::is_physical(v) && !plan.keep_impossible_temperatures;
+            if plan.temp_slots.iter().any(|&k| refused(values[k])) {
                 break; // an impossible temperature: likewise (the general path reads the record again)
             }
             if previous_time.is_some_and(|p| time <= p) {

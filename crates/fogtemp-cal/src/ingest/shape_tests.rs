@@ -212,7 +212,7 @@ fn capture_format() -> LogFormat {
 #[test]
 fn serial_capture_rows_exactly() {
     let (text, truth) = capture(0.0, 3000, 1234);
-    let options = IngestOptions { format: capture_format(), skip_bad_rows: true };
+    let options = IngestOptions { format: capture_format(), skip_bad_rows: true, ..IngestOptions::default() };
     let (seen, report) = run(text.as_bytes(), &options);
     let report = report.unwrap();
     assert_eq!((report.rows, report.skipped), (2999, 1));
@@ -225,7 +225,10 @@ fn serial_capture_rows_exactly() {
         assert_eq!(row.1, k as f64 / 50.0, "time of record {k}");
         assert_eq!((row.3[0], row.2[0]), truth[i], "values of record {k}");
     }
-    let e = error_of(&text, &IngestOptions { format: capture_format(), skip_bad_rows: false });
+    let e = error_of(
+        &text,
+        &IngestOptions { format: capture_format(), skip_bad_rows: false, ..IngestOptions::default() },
+    );
     assert_eq!(e.to_string(), "log.csv:1236:2: column 'temp_c': fewer fields than the header (found '')");
 }
 
@@ -235,7 +238,7 @@ fn serial_captures_calibrate_end_to_end() {
     // Three 30-minute warm-ups from 0, 20 and 40 C at 50 Hz, each with one row cut short.
     let config = CalibrationConfig {
         method: Method::Poly,
-        ingest: IngestOptions { format: capture_format(), skip_bad_rows: true },
+        ingest: IngestOptions { format: capture_format(), skip_bad_rows: true, ..IngestOptions::default() },
         ..CalibrationConfig::default()
     };
     let runs: Vec<_> = [0.0, 20.0, 40.0]

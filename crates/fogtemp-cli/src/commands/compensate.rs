@@ -15,7 +15,10 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
     let blob = read_model(&a.model)?;
     check_capacity(&a.model, &blob, a.capacity)?;
     let model = Model::from_bytes(&blob).map_err(|e| anyhow::anyhow!("{e}"))?;
-    let (ingest, columns) = super::ingest_options_for(&a.ingest, &model, &a.model)?;
+    let (mut ingest, columns) = super::ingest_options_for(&a.ingest, &model, &a.model)?;
+    // A temperature no sensor reads (-999) goes to the compensator, which flags it BAD_INPUT
+    // and keeps the row, as the firmware does: the output stays row for row with the log.
+    ingest.keep_impossible_temperatures = true;
     super::warn_axis_count(&a.model, model.axis_count(), ingest.format.gyro_columns.len());
     let axes = model.axis_count().min(ingest.format.gyro_columns.len());
     let mut comps: Vec<Compensator<'_, { fogtemp_cal::features::CAL_CAPACITY }>> = (0..axes)
@@ -58,8 +61,9 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
                 let time_us = row.time_us();
                 for (i, comp) in comps.iter_mut().enumerate() {
                     let temp = row.temp_c_for_axis(i);
-                    // Only readings: rows without one change no verdict.
-                    if temp.is_finite() {
+                    // Only readings: rows without one change no verdict, and neither do
+                    // temperatures no sensor reads (the compensator flags those BAD_INPUT).
+                    if temp.is_finite() && fogtemp_core::is_physical_temperature(temp as f32) {
                         let sample = Sample {
                             time_s: row.time_s,
                             gyro_dph: row.gyros_dph[i],
@@ -128,6 +132,16 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
                 let note = calibrate::never_corrected_note(&name, consequence, counts, r.rows, max_gap_s);
                 eprintln!("note: {note}");
                 continue;
+            }
+            let bad = count(Flags::BAD_INPUT);
+            if bad > 0 {
+                eprintln!(
+                    "note: {name}: {bad} of {} samples ({} %) had a temperature no sensor reads (below -273.15 C or above \
+                     1000 C, a logger's mark for a missing reading?) or a time not after the one before (flag BAD_INPUT \
+                     in the output): compensated as the firmware does, without them in the features",
+                    r.rows,
+                    calibrate::share_percent(bad, r.rows)
+                );
             }
             let (stale, outside) = (count(Flags::TEMP_STALE), count(Flags::OUTSIDE_HULL));
             if stale > 0 {
