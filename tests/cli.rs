@@ -650,8 +650,12 @@ fn bad_log_rows_are_located_and_nothing_is_written() {
         let place = format!("{}:{line}:{column}:", log.display());
         let fit_args = args!["fit", "--out", &out_model, &log];
         expect_failure(&fit_args, dir.path(), Some(&out_model), &[&place, reason, "--skip-bad-rows"]);
-        let comp_args = args!["compensate", "--model", &model, &log, "--out", &out_csv];
-        expect_failure(&comp_args, dir.path(), Some(&out_csv), &[&place, reason]);
+        // compensate replays a sentinel temperature flagged BAD_INPUT, as the firmware does
+        // (`compensate_keeps_a_sentinel_temperature_row_flagged_as_the_firmware_does`).
+        if name != "sentinel" {
+            let comp_args = args!["compensate", "--model", &model, &log, "--out", &out_csv];
+            expect_failure(&comp_args, dir.path(), Some(&out_csv), &[&place, reason]);
+        }
         let val_args = args!["validate", "--model", &model, &log];
         expect_failure(&val_args, dir.path(), None, &[&place, reason]);
     }
