@@ -425,17 +425,18 @@ def test_allan_of_a_series_too_short_warns_and_gives_no_noise_terms():
     assert axis["curve"] == [] and axis["arw_deg_per_sqrt_h"] is None and axis["bias_instability_dph"] is None
 
 
-def write_gyro_logs(folder, gyro_header, gyro_cells):
-    """Three synthetic runs as logs with columns time_s, temp_c and `gyro_header`, the gyro
-    cells written by `gyro_cells(gyro_dph)`; returns their paths."""
+def write_gyro_logs(folder, gyro_header, gyro_cells, time_header="time_s", time_per_s=1.0):
+    """Three synthetic runs as logs with columns `time_header` (seconds times `time_per_s`),
+    temp_c and `gyro_header`, the gyro cells written by `gyro_cells(gyro_dph)`; returns their
+    paths."""
     logs = []
     for k, run in enumerate(synthetic_runs(runs=3)):
         path = folder / f"run{k}.csv"
         with open(path, "w") as f:
-            f.write(f"time_s,temp_c,{gyro_header}\n")
+            f.write(f"{time_header},temp_c,{gyro_header}\n")
             for t, c, g in zip(run["time_s"], run["temp_c"], run["gyro_dph"]):
                 cell = "" if np.isnan(c) else repr(float(c))
-                f.write(f"{float(t)!r},{cell},{gyro_cells(float(g))}\n")
+                f.write(f"{float(t) * time_per_s!r},{cell},{gyro_cells(float(g))}\n")
         logs.append(path)
     return logs
 
@@ -494,17 +495,7 @@ def test_validate_reads_the_time_the_model_records(tmp_path):
     # A model fitted on logs whose time is in milliseconds under another name records it
     # (format 5): validate() reads it so without the time keywords, with a warning that says so,
     # and the same as with them; one gyro and one temperature array are a log's time_s in s.
-    logs = write_gyro_logs(tmp_path, "gyro_dph", lambda g: f"{g!r}")
-    ms_logs = []
-    for log in logs:
-        lines = log.read_text().splitlines()
-        rows = [lines[0].replace("time_s", "t_ms")]
-        for line in lines[1:]:
-            time, rest = line.split(",", 1)
-            rows.append(f"{float(time) * 1000.0!r},{rest}")
-        ms = tmp_path / f"ms_{log.name}"
-        ms.write_text("\n".join(rows) + "\n")
-        ms_logs.append(ms)
+    ms_logs = write_gyro_logs(tmp_path, "gyro_dph", lambda g: f"{g!r}", time_header="t_ms", time_per_s=1000.0)
     model = fogtemp.fit(ms_logs, method="poly", time_column="t_ms", time_unit="ms", progress=False)
     info = model.inspect()
     assert info["format_version"] == 5
