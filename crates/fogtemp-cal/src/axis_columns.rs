@@ -57,8 +57,32 @@ pub struct Named<'a> {
     pub gyro_units: bool,
     /// `--temp-scale` or `--temp-offset` given.
     pub temp_units: bool,
-    /// `--time-column`, `--time-unit`, `--sample-rate-hz` or `--date-column` given.
-    pub time: bool,
+    /// Which of `--time-column`, `--time-unit`, `--sample-rate-hz`, `--date-column` were given.
+    pub time: TimeNamed,
+}
+
+/// Which time settings the user named for a replay; the others come from the model's
+/// log-time record ([`choose_time`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct TimeNamed {
+    /// `--time-column` given.
+    pub column: bool,
+    /// `--time-unit` given.
+    pub unit: bool,
+    /// `--sample-rate-hz` given.
+    pub sample_rate: bool,
+    /// `--date-column` given.
+    pub date: bool,
+}
+
+impl TimeNamed {
+    /// Every time setting named.
+    pub const ALL: Self = Self { column: true, unit: true, sample_rate: true, date: true };
+
+    /// Whether any time setting was named.
+    pub fn any(self) -> bool {
+        self.column || self.unit || self.sample_rate || self.date
+    }
 }
 
 impl<'a> Named<'a> {
@@ -70,7 +94,7 @@ impl<'a> Named<'a> {
             temp_columns: &format.temp_columns,
             gyro_units: true,
             temp_units: true,
-            time: true,
+            time: TimeNamed::ALL,
         }
     }
 }
@@ -119,22 +143,25 @@ pub fn choose_for_replay(
     Ok(chosen)
 }
 
-/// How to read the logs' time for `model`: as the model records it (format version 5) when
-/// `named` is false, with a note when that is not the default `time_s` in seconds; as named
-/// otherwise, with a note when that differs from the record (`option` names the settings).
-/// `format` is set to what is read; the notes are returned.
+/// How to read the logs' time for `model`: as the model records it (format version 5) for
+/// every setting not `named`, with a note when what is read that way is not the default
+/// `time_s` in seconds; as named otherwise, with a note when the result differs from the
+/// record (`option` names the settings). A named sample rate replaces the record's time
+/// column; a named time column is read in the recorded unit (and with the recorded date
+/// column) unless those are named too. `format` is set to what is read; the notes are
+/// returned.
 pub fn choose_time(
     model: &Model<'_>,
     model_name: &str,
     format: &mut LogFormat,
-    named: bool,
+    named: TimeNamed,
     option: &str,
 ) -> Vec<String> {
     let recorded = LogTimeRecord::of(model);
     if !recorded.is_recorded() {
         return Vec::new();
     }
-    if !named {
+    if !named.any() {
         format.set_log_time(&recorded);
         if recorded == LogFormat::default().log_time() {
             return Vec::new();
@@ -144,15 +171,49 @@ pub fn choose_time(
             describe_time(&recorded)
         )];
     }
-    let given = format.log_time();
-    if given == recorded {
-        return Vec::new();
+    let mut notes = Vec::new();
+    if let Some(inherited) = inherit_time(&recorded, format, named) {
+        notes.push(format!("{inherited}, as {model_name} records"));
     }
-    vec![format!(
-        "{model_name} was fitted on logs whose time is {}; {option} give {}: used as given (for logs from the same logger, leave {option} out)",
-        describe_time(&recorded),
-        describe_time(&given)
-    )]
+    let given = format.log_time();
+    if given != recorded {
+        notes.push(format!(
+            "{model_name} was fitted on logs whose time is {}; {option} give {}: used as given (for logs from the same logger, leave {option} out)",
+            describe_time(&recorded),
+            describe_time(&given)
+        ));
+    }
+    notes
+}
+
+/// Fills the time settings not `named` from `recorded` when the named ones still read a time
+/// column (not a named sample rate, and not a recorded sample rate, which has no column to
+/// inherit a unit for); returns what was taken, in words, or `None`.
+fn inherit_time(recorded: &LogTimeRecord, format: &mut LogFormat, named: TimeNamed) -> Option<String> {
+    if named.sample_rate || recorded.sample_rate_hz > 0.0 {
+        return None;
+    }
+    // Only what differs from the defaults is worth a note.
+    let defaults = LogFormat::default();
+    let mut taken = Vec::new();
+    if !named.column {
+        format.time_column.clone_from(&recorded.column);
+        if recorded.column != defaults.time_column {
+            taken.push(format!("the time column '{}'", recorded.column));
+        }
+    }
+    if !named.unit {
+        let unit = crate::ingest::TimeUnit::from_log_unit(recorded.unit);
+        format.time_unit = unit;
+        if unit != defaults.time_unit {
+            taken.push(format!("the time unit {}", unit.option_name()));
+        }
+    }
+    if !named.date && !recorded.date_column.is_empty() {
+        format.date_column = Some(recorded.date_column.clone());
+        taken.push(format!("the date column '{}'", recorded.date_column));
+    }
+    (!taken.is_empty()).then(|| format!("the logs' time is read with {}", taken.join(" and ")))
 }
 
 /// A log-time record in words: `column 'time (ms)' in ms`, `the row index at 50 Hz`.
@@ -494,5 +555,89 @@ mod tests {
             c.notes[1].contains("axis 1 was fitted with the temperature column 'ty'; it is read with 'tx'")
         );
         assert!(c.notes[1].contains("the column axis 0 was fitted with"));
+    }
+
+    /// A model recording `record` as its logs' time.
+    fn model_timed(record: LogTimeRecord) -> Vec<u8> {
+        let axis = crate::blob::test_poly_axis(vec![PolyTerm {
+            temp_power: 0,
+            rate_power: 0,
+            coefficient_dph: 1.0,
+        }]);
+        let file = ModelFile {
+            tool_version: String::new(),
+            input_digest: [0; 32],
+            axes: vec![axis],
+            columns: vec![ColumnNames {
+                gyro: "gyro_dph".into(),
+                temp: "temp_c".into(),
+                ..ColumnNames::default()
+            }],
+            log_time: record,
+        };
+        encode(&file).expect("encodes")
+    }
+
+    fn time(blob: &[u8], format: &mut LogFormat, named: TimeNamed) -> Vec<String> {
+        let model = Model::from_bytes(blob).expect("valid");
+        choose_time(&model, "m.fogm", format, named, "--time-*")
+    }
+
+    #[test]
+    fn a_named_time_column_is_read_in_the_recorded_unit_and_date_column() {
+        use crate::ingest::TimeUnit;
+        let blob = model_timed(LogTimeRecord {
+            column: "time (ms)".into(),
+            date_column: String::new(),
+            unit: fogtemp_core::LogTimeUnit::Milliseconds,
+            sample_rate_hz: 0.0,
+        });
+        // Nothing named: the record, said once.
+        let mut format = LogFormat::default();
+        let notes = time(&blob, &mut format, TimeNamed::default());
+        assert_eq!((format.time_column.as_str(), format.time_unit), ("time (ms)", TimeUnit::Milliseconds));
+        assert_eq!(notes.len(), 1, "{notes:?}");
+        // Only the column named (another logger's name): still milliseconds, with both notes.
+        let mut format = LogFormat { time_column: "t".into(), ..LogFormat::default() };
+        let notes = time(&blob, &mut format, TimeNamed { column: true, ..TimeNamed::default() });
+        assert_eq!((format.time_column.as_str(), format.time_unit), ("t", TimeUnit::Milliseconds));
+        assert_eq!(notes.len(), 2, "{notes:?}");
+        assert!(notes[0].contains("read with the time unit ms, as m.fogm records"), "{}", notes[0]);
+        assert!(notes[1].contains("column 't' in ms: used as given"), "{}", notes[1]);
+        // Only the unit named: the recorded column in that unit.
+        let mut format = LogFormat { time_unit: TimeUnit::Microseconds, ..LogFormat::default() };
+        let notes = time(&blob, &mut format, TimeNamed { unit: true, ..TimeNamed::default() });
+        assert_eq!((format.time_column.as_str(), format.time_unit), ("time (ms)", TimeUnit::Microseconds));
+        assert!(notes[0].contains("the time column 'time (ms)'"), "{notes:?}");
+        // A named sample rate replaces the time column and inherits nothing.
+        let mut format = LogFormat { sample_rate_hz: Some(50.0), ..LogFormat::default() };
+        let notes = time(&blob, &mut format, TimeNamed { sample_rate: true, ..TimeNamed::default() });
+        assert_eq!(format.sample_rate_hz, Some(50.0));
+        assert_eq!(notes.len(), 1, "{notes:?}");
+        assert!(notes[0].contains("the row index at 50 Hz"), "{}", notes[0]);
+        // Everything named as recorded: no note.
+        let mut format = LogFormat {
+            time_column: "time (ms)".into(),
+            time_unit: TimeUnit::Milliseconds,
+            ..LogFormat::default()
+        };
+        let both = TimeNamed { column: true, unit: true, ..TimeNamed::default() };
+        assert!(time(&blob, &mut format, both).is_empty());
+    }
+
+    #[test]
+    fn a_recorded_date_column_is_kept_when_only_the_time_column_is_renamed() {
+        use crate::ingest::TimeUnit;
+        let blob = model_timed(LogTimeRecord {
+            column: "clock".into(),
+            date_column: "day".into(),
+            unit: fogtemp_core::LogTimeUnit::DateTime,
+            sample_rate_hz: 0.0,
+        });
+        let mut format = LogFormat { time_column: "hhmmss".into(), ..LogFormat::default() };
+        let notes = time(&blob, &mut format, TimeNamed { column: true, ..TimeNamed::default() });
+        assert_eq!(format.date_column.as_deref(), Some("day"));
+        assert_eq!(format.time_unit, TimeUnit::DateTime);
+        assert!(notes[0].contains("the time unit datetime and the date column 'day'"), "{notes:?}");
     }
 }

@@ -3,6 +3,7 @@
 use std::path::{Path, PathBuf};
 
 use fogtemp_cal::arrays::{extract_run_arrays, RunArrays};
+use fogtemp_cal::axis_columns::TimeNamed;
 use fogtemp_cal::calibrate::{self, CalibrationConfig, Method, RunFeatures, Validation};
 use fogtemp_cal::documents::{
     AllanAxisDocument, AllanDocument, ComparedModel, FitDocument, ValidationDocument,
@@ -591,7 +592,7 @@ pub fn read_log<'py>(
     let named = (
         (o.any_given(&["gyro_column"])?, o.any_given(&["temp_column"])?),
         (o.any_given(&["gyro_unit", "gyro_scale"])?, o.any_given(&["temp_scale", "temp_offset"])?),
-        o.any_given(&["time_column", "time_unit", "sample_rate_hz", "date_column"])?,
+        time_named(&o)?,
     );
     let mut ingest = options::ingest(&mut o)?;
     o.finish()?;
@@ -697,7 +698,7 @@ pub fn validate<'py>(
     let columns_named = (o.any_given(&["gyro_column"])?, o.any_given(&["temp_column"])?);
     let units_named =
         (o.any_given(&["gyro_unit", "gyro_scale"])?, o.any_given(&["temp_scale", "temp_offset"])?);
-    let time_named = o.any_given(&["time_column", "time_unit", "sample_rate_hz", "date_column"])?;
+    let time_named = time_named(&o)?;
     let mut ingest = options::ingest(&mut o)?;
     let stability = options::stability(&mut o)?;
     let capacity = o.int("capacity", fogtemp_core::DEFAULT_CAPACITY, options::MIN_CAPACITY, u64::MAX)?;
@@ -821,6 +822,16 @@ fn in_sample_note(
     Ok(fogtemp_cal::digest::in_sample_note_from(model, digest, logs, &digests.finish()))
 }
 
+/// Which time keywords were given (the others are read as a model records them).
+fn time_named(o: &Options<'_>) -> PyResult<TimeNamed> {
+    Ok(TimeNamed {
+        column: o.any_given(&["time_column"])?,
+        unit: o.any_given(&["time_unit"])?,
+        sample_rate: o.any_given(&["sample_rate_hz"])?,
+        date: o.any_given(&["date_column"])?,
+    })
+}
+
 /// The log columns, units and time for replaying `models` (the first is validated, the rest
 /// compared): the ones each model records unless `gyro_column=`, `temp_column=`, the unit
 /// keywords or the time keywords were given (`named`), named columns checked against them (as
@@ -828,7 +839,7 @@ fn in_sample_note(
 fn choose_columns(
     py: Python<'_>,
     ingest: &mut IngestOptions,
-    ((gyro_named, temp_named), (gyro_units, temp_units), time): ((bool, bool), (bool, bool), bool),
+    ((gyro_named, temp_named), (gyro_units, temp_units), time): ((bool, bool), (bool, bool), TimeNamed),
     blobs: &[(Vec<u8>, String)],
     models: &[CoreModel<'_>],
 ) -> PyResult<()> {

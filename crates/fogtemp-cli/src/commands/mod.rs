@@ -59,10 +59,12 @@ fn ingest_options_for(
         temp_columns: &a.temp_columns,
         gyro_units: a.gyro_unit.is_some() || a.gyro_scale.is_some(),
         temp_units: a.temp_scale.is_some() || a.temp_offset.is_some(),
-        time: a.time_column.is_some()
-            || a.time_unit.is_some()
-            || a.sample_rate_hz.is_some()
-            || a.date_column.is_some(),
+        time: fogtemp_cal::axis_columns::TimeNamed {
+            column: a.time_column.is_some(),
+            unit: a.time_unit.is_some(),
+            sample_rate: a.sample_rate_hz.is_some(),
+            date: a.date_column.is_some(),
+        },
     };
     let chosen = fogtemp_cal::axis_columns::choose_for_replay(
         model,
