@@ -1289,8 +1289,8 @@ fn axis_selection(
             (
                 "scored",
                 format!(
-                    "too few folds with a score, {} of {} (skipped_folds says why: a held-out run outside the \
-                     others' (T, dT/dt) region, e.g. the coldest or hottest of three, cannot be scored)",
+                    "too few folds with a score, {} of {} (each skipped fold is listed with why; a held-out run \
+                     outside the others' (T, dT/dt) region, e.g. the coldest or hottest of three, cannot be scored)",
                     usable.len(),
                     folds.len()
                 ),

@@ -97,7 +97,9 @@ pub enum Error {
         limit: u32,
     },
     /// The mesh is not a consistent triangulation (neighbours not symmetric, hull not
-    /// closed, triangle not counter-clockwise, stored transform not matching vertices).
+    /// closed, triangle not counter-clockwise, stored transform not matching vertices), or
+    /// the calibrated region is not a convex counter-clockwise polygon (`check` starts with
+    /// `region`; any model kind has one).
     BadMesh {
         /// What check failed.
         check: &'static str,
@@ -192,6 +194,10 @@ impl fmt::Display for Error {
             }
             Error::IndexOutOfRange { field, axis, index, value, limit } => {
                 write!(f, "axis {axis}: {field}[{index}] = {value} is out of range (limit {limit})")
+            }
+            // The calibrated region shares the status (a poly-only model has one too).
+            Error::BadMesh { check, axis, index } if check.starts_with("region") => {
+                write!(f, "axis {axis}: calibrated-region check '{check}' failed at vertex {index}")
             }
             Error::BadMesh { check, axis, index } => {
                 write!(f, "axis {axis}: mesh check '{check}' failed at element {index}")

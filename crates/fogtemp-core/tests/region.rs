@@ -202,6 +202,9 @@ fn malformed_regions_and_policies_are_refused() {
     let mut dent = REGION;
     dent[2] = [0.0, 0.0];
     assert!(matches!(bad(poly_blob(2, &dent, hold)), Error::BadMesh { check: "region convex", .. }));
+    // Said as the region's, not the mesh's: the model has no mesh.
+    let said = bad(poly_blob(2, &dent, hold)).to_string();
+    assert!(said.starts_with("axis 0: calibrated-region check 'region convex' failed at vertex "), "{said}");
     // Two vertices; hold without a region; an unknown policy.
     assert!(matches!(
         bad(poly_blob(2, &REGION[..2], hold)),

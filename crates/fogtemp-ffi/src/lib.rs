@@ -130,10 +130,10 @@ impl fogtemp_status {
             Self::UnsupportedVersion => c"model format version not supported",
             Self::LengthMismatch => c"a length field disagrees with the data",
             Self::CrcMismatch => c"model blob corrupt (CRC-32 mismatch)",
-            Self::BadValue => c"a model field is out of range",
+            Self::BadValue => c"a model field, or a length argument, is out of range",
             Self::NonFinite => c"a model float is NaN or infinite",
             Self::IndexOutOfRange => c"a model index is out of range",
-            Self::BadMesh => c"the model mesh is inconsistent",
+            Self::BadMesh => c"the model's mesh or calibrated region is inconsistent",
             Self::NoSuchAxis => c"no such axis in the model",
             Self::CapacityTooSmall => c"blocks array shorter than the axis needs",
             Self::NonFiniteSample => c"sample is NaN or infinite",
@@ -998,12 +998,19 @@ pub unsafe extern "C" fn fogtemp_error_message(
         let found = fogtemp_status::ALL.iter().find(|s| **s as u32 == status && **s != fogtemp_status::Ok);
         let Some(s) = found else { return 0 };
         if *s == fogtemp_status::BadValue {
-            let _ = w.write_str("a length argument is larger than any buffer can be (PTRDIFF_MAX bytes)");
+            // Counted in the argument's own elements: bytes of a blob, floats of a blocks
+            // array (PTRDIFF_MAX bytes of them).
+            let _ = write!(
+                w,
+                "a length argument is larger than any buffer can be (PTRDIFF_MAX bytes): at most {} of its \
+                 elements, got {}",
+                err.needed, err.found
+            );
         } else {
             let _ = w.write_str(s.message().to_str().unwrap_or("error"));
-        }
-        if err.needed != 0 || err.found != 0 {
-            let _ = write!(w, " (at most {}, got {})", err.needed, err.found);
+            if err.needed != 0 || err.found != 0 {
+                let _ = write!(w, " (at most {}, got {})", err.needed, err.found);
+            }
         }
     }
     if let Some(nul) = w.buf.get_mut(w.written) {

@@ -140,10 +140,11 @@ fn capacity_too_small_names_needed_and_available() {
             (err.status, err.needed, err.found),
             (fogtemp_status::BadValue as u32, most, capacity as u64)
         );
-        assert!(
-            message(&err).starts_with("a length argument is larger than any buffer can be"),
-            "{}",
-            message(&err)
+        assert_eq!(
+            message(&err),
+            format!(
+                "a length argument is larger than any buffer can be (PTRDIFF_MAX bytes): at most {most} of its elements, got {capacity}"
+            )
         );
     }
     assert_eq!(state.opaque, [0xEE; 28]);
@@ -327,7 +328,7 @@ fn caller_mistakes_are_statuses() {
         assert_eq!(
             message(&err),
             format!(
-                "a length argument is larger than any buffer can be (PTRDIFF_MAX bytes) (at most {}, got {})",
+                "a length argument is larger than any buffer can be (PTRDIFF_MAX bytes): at most {} of its elements, got {}",
                 isize::MAX,
                 u64::MAX
             )

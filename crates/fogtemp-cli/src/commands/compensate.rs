@@ -74,7 +74,7 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
                     }
                     let o =
                         comp.step(time_us, row.gyros_dph[i] as f32, temp.is_finite().then_some(temp as f32));
-                    record.push(format!("{}", row.gyros_dph[i]));
+                    record.push(raw_text(row.gyros_dph[i]));
                     record.push(format!("{}", o.rate_dph));
                     record.push(format!("{}", o.bias_dph));
                     record.push(format!("{}", o.flags.0));
@@ -179,9 +179,31 @@ fn time_text(time_s: f64) -> String {
     }
 }
 
+/// A raw reading in deg/h to 12 significant digits, the shortest text that reads back as
+/// that: the logged value without the float noise of its unit conversion (0.1 deg/s was
+/// written `360.00000000000006`); 12 digits keep more than any gyro resolves.
+fn raw_text(raw_dph: f64) -> String {
+    if !raw_dph.is_finite() {
+        return format!("{raw_dph}");
+    }
+    let rounded: f64 = format!("{raw_dph:.11e}").parse().unwrap_or(raw_dph);
+    format!("{rounded}")
+}
+
 #[cfg(test)]
 mod tests {
-    use super::time_text;
+    use super::{raw_text, time_text};
+
+    #[test]
+    fn raw_readings_are_written_without_conversion_noise() {
+        assert_eq!(raw_text(0.1 * 3600.0), "360");
+        assert_eq!(raw_text(0.000_123_456_789_012_345_6), "0.000123456789012");
+        assert_eq!(raw_text(-216.0326), "-216.0326");
+        assert_eq!(raw_text(0.0), "0");
+        assert_eq!(raw_text(f64::NAN), "NaN");
+        // 12 significant digits: a reading with more is rounded there.
+        assert_eq!(raw_text(1.234_567_890_123_4), "1.23456789012");
+    }
 
     #[test]
     fn time_stamps_are_written_without_float_noise() {
