@@ -1340,8 +1340,9 @@ fn validated_quietly(model: &Path, log: &Path, extra: &[&str]) -> (Value, String
 
 /// A model records how its fit read the logs' time (format 5): a log whose time is in
 /// milliseconds under another name validates without the time options, bit for bit as with
-/// them (oracle: the same validation with every option named); a wrong unit named is used as
-/// given with a note naming the model's.
+/// them (oracle: the same validation with every option named), and with the time column
+/// alone named in the recorded unit; a wrong unit named is used as given with a note naming
+/// the model's.
 #[test]
 fn the_time_the_model_records_is_read_when_none_is_named() {
     let dir = TempDir::new().expect("tempdir");
@@ -1370,10 +1371,16 @@ fn the_time_the_model_records_is_read_when_none_is_named() {
     assert_eq!(comp(&recorded).to_bits(), comp(&named).to_bits(), "read the same way, bit for bit");
     assert!(!quiet.contains("time"), "{quiet}");
     assert!(said.contains("the logs' time is read as") && said.contains("column 't_ms' in ms"), "{said}");
-    // The unit forgotten: read as given (seconds), with a note naming the model's (here every
-    // step is then longer than the gap, so nothing is compensated and validate fails).
+    // The column named without its unit: still the recorded milliseconds (each time option
+    // not named is the model's), bit for bit, with a note saying so.
+    let (column_only, noted) = validate(&["--time-column", "t_ms"]);
+    assert_eq!(comp(&column_only).to_bits(), comp(&named).to_bits(), "{noted}");
+    assert!(noted.contains("the logs' time is read with the time unit ms, as"), "{noted}");
+    // Another unit named: read as given (seconds, the column still the model's), with a note
+    // naming the model's (here every step is then longer than the gap, so nothing is
+    // compensated and validate fails).
     let output = cal()
-        .args(args!["validate", "--tau-s", "10", "--model", &model, &log, "--time-column", "t_ms"])
+        .args(args!["validate", "--tau-s", "10", "--model", &model, &log, "--time-unit", "s"])
         .output()
         .expect("run");
     let other = String::from_utf8_lossy(&output.stderr);

@@ -28,9 +28,16 @@ METHODS: List[str]
 FLAG_BITS: Dict[str, int]
 """Compensator flag bits: WARMING_UP 1, PARTIAL_WINDOW 2, OUTSIDE_HULL 4, TEMP_STALE 8, BAD_INPUT 16."""
 
-PathLike = Union[str, "os.PathLike[str]"]
-ArrayLike = npt.ArrayLike
-Run = Mapping[str, Any]
+class FogtempWarning(UserWarning):
+    """A note or warning of fogtemp's (the command line's ``note:`` and ``warning:`` lines): skipped
+    rows, gaps, units read as the model was fitted, data that cannot support what was asked.
+    ``warnings.filterwarnings("ignore", category=fogtemp.FogtempWarning)`` silences fogtemp's
+    alone; ``"error"`` turns them into exceptions."""
+
+# Names for the annotations below only (private: not in the module at run time).
+_PathLike = Union[str, "os.PathLike[str]"]
+_ArrayLike = npt.ArrayLike
+_Run = Mapping[str, Any]
 """A run given as arrays: a dict or pandas DataFrame with ``time_s`` (s), ``temp_c`` (deg C, NaN =
 no reading) and ``gyro_dph`` (deg/h; for several axes a dict holding a 2-D array with one column
 per axis). Columns hold numbers (int, float32 or float64; None or pandas NA = missing); text,
@@ -49,14 +56,14 @@ class Model:
     (consistently with ``==``) and can key a dict or sit in a set."""
 
     @staticmethod
-    def from_file(path: PathLike) -> "Model":
+    def from_file(path: _PathLike) -> "Model":
         """Reads and validates a model file. FileNotFoundError, or ValueError naming the field."""
     @staticmethod
     def from_bytes(data: bytes) -> "Model":
         """Validates a blob's bytes; a truncated or corrupted blob raises ValueError."""
     def to_bytes(self) -> bytes:
         """The blob, exactly what firmware embeds."""
-    def save(self, path: PathLike) -> None:
+    def save(self, path: _PathLike) -> None:
         """Writes the blob atomically."""
     def inspect(self) -> Dict[str, Any]:
         """The ``fogtemp-cal inspect --json`` document (axes, nodes, triangles, polynomial, the log
@@ -79,8 +86,8 @@ class Model:
     @overload
     def evaluate(
         self,
-        temp_c: ArrayLike,
-        rate_c_per_min: ArrayLike,
+        temp_c: _ArrayLike,
+        rate_c_per_min: _ArrayLike,
         axis: int = 0,
         threads: Optional[int] = None,
     ) -> npt.NDArray[np.float64]:
@@ -94,8 +101,8 @@ class Model:
     @overload
     def evaluate(
         self,
-        temp_c: ArrayLike,
-        rate_c_per_min: ArrayLike,
+        temp_c: _ArrayLike,
+        rate_c_per_min: _ArrayLike,
         axis: int = 0,
         threads: Optional[int] = None,
         *,
@@ -104,9 +111,9 @@ class Model:
     @overload
     def compensate(
         self,
-        time_s: ArrayLike,
-        gyro_dph: ArrayLike,
-        temp_c: ArrayLike,
+        time_s: _ArrayLike,
+        gyro_dph: _ArrayLike,
+        temp_c: _ArrayLike,
         axis: int = 0,
         return_bias: Literal[False] = False,
         capacity: int = 128,
@@ -114,9 +121,9 @@ class Model:
     @overload
     def compensate(
         self,
-        time_s: ArrayLike,
-        gyro_dph: ArrayLike,
-        temp_c: ArrayLike,
+        time_s: _ArrayLike,
+        gyro_dph: _ArrayLike,
+        temp_c: _ArrayLike,
         axis: int = 0,
         return_bias: Literal[True] = ...,
         capacity: int = 128,
@@ -128,10 +135,10 @@ class Model:
     def __reduce__(self) -> Tuple[Any, Tuple[bytes]]: ...
 
 def fit(
-    logs: Union[PathLike, Run, Sequence[Union[PathLike, Run]]],
+    logs: Union[_PathLike, _Run, Sequence[Union[_PathLike, _Run]]],
     method: str = "auto",
     *,
-    out: Optional[PathLike] = None,
+    out: Optional[_PathLike] = None,
     progress: bool = True,
     **options: Any,
 ) -> Model:
@@ -154,9 +161,9 @@ def fit(
 
 @overload
 def read_log(
-    path: PathLike,
+    path: _PathLike,
     *,
-    model: Optional[Union[Model, PathLike]] = None,
+    model: Optional[Union[Model, _PathLike]] = None,
     as_dataframe: Literal[False] = False,
     progress: bool = True,
     **options: Any,
@@ -167,17 +174,17 @@ def read_log(
     its logs (columns, units, time), as ``validate`` does, ready for ``Model.compensate``."""
 @overload
 def read_log(
-    path: PathLike,
+    path: _PathLike,
     *,
-    model: Optional[Union[Model, PathLike]] = None,
+    model: Optional[Union[Model, _PathLike]] = None,
     as_dataframe: Literal[True],
     progress: bool = True,
     **options: Any,
 ) -> Any:
     """``read_log`` as a pandas DataFrame."""
 def validate(
-    model: Union[Model, PathLike],
-    logs: Union[PathLike, Run, Sequence[Union[PathLike, Run]]],
+    model: Union[Model, _PathLike],
+    logs: Union[_PathLike, _Run, Sequence[Union[_PathLike, _Run]]],
     *,
     progress: bool = True,
     **options: Any,
@@ -191,24 +198,24 @@ def validate(
     when it gives roles only the runs with role "val" are validated; input rates and positions are
     not used; log files only) and report (a folder: as validate --report, report.md, report.html and the SVG
     figures, with the table of the ``compare`` models).
-    Gaps in a log's time stamps longer than the model's max gap raise a UserWarning
+    Gaps in a log's time stamps longer than the model's max gap raise a FogtempWarning (a UserWarning)
     (``runs[].time_gaps``; the metric's windows they cut: ``runs[].metric_windows``).
     Log files are read with the gyro and temperature columns the model records (models fitted
     on files since blob format 4) unless gyro_column= / temp_column= name others, and in the
     units its fit read them in unless gyro_unit=, gyro_scale=, temp_scale= or temp_offset= are
     given, and with the time the model records (since blob format 5: time column and unit, or
-    sample rate) unless time_column=, time_unit=, sample_rate_hz= or date_column= are given; a
+    sample rate) for each of time_column=, time_unit=, sample_rate_hz=, date_column= not given; a
     gyro column the model fitted on another axis raises ValueError, a name, unit or time it does
-    not record a UserWarning."""
+    not record a FogtempWarning."""
 
-def allan(log: Union[PathLike, Run], *, progress: bool = True, **options: Any) -> Dict[str, Any]:
+def allan(log: Union[_PathLike, _Run], *, progress: bool = True, **options: Any) -> Dict[str, Any]:
     """The ``fogtemp-cal allan --json`` document: overlapping Allan deviation, N, B, K, and the
     bound on B (``bias_instability_at_most_dph``: the curve's minimum over 0.664)."""
 
 def simulate(
     scenario: str = "paper",
     *,
-    out: PathLike,
+    out: _PathLike,
     rate: Optional[float] = None,
     seed: Optional[int] = None,
     duration_s: Optional[float] = None,
@@ -217,9 +224,9 @@ def simulate(
     """The ``fogtemp-cal simulate --json`` document, after writing the logs into ``out``."""
 
 def diagnose(
-    simulated: Union[PathLike, Mapping[str, Run]],
-    recorded: Union[PathLike, Mapping[str, Run]],
-    runs: Optional[PathLike] = None,
+    simulated: Union[_PathLike, Mapping[str, _Run]],
+    recorded: Union[_PathLike, Mapping[str, _Run]],
+    runs: Optional[_PathLike] = None,
     *,
     progress: bool = True,
     **options: Any,

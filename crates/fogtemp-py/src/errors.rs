@@ -58,6 +58,15 @@ pub fn sim(e: SimError) -> PyErr {
 
 /// `ValueError` for a model blob the core refuses, as the command line says it.
 pub fn model(source: &str, e: fogtemp_core::Error) -> PyErr {
+    if let fogtemp_core::Error::LengthMismatch { field: "total_len", expected, found } = e {
+        // The core's text points to Rust's `Model::from_flash`; here the fix is a slice.
+        if found < expected {
+            return PyValueError::new_err(format!(
+                "{source}: not a valid model: total_len says the blob is {found} bytes but {expected} were \
+                 given: bytes after the blob (a flash dump's padding?); pass data[:{found}]"
+            ));
+        }
+    }
     PyValueError::new_err(format!("{source}: not a valid model: {e}"))
 }
 

@@ -32,5 +32,6 @@ fn fogtemp_module(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(diagnose::diagnose, m)?)?;
     m.add("METHODS", functions::METHOD_NAMES.to_vec())?;
     m.add("FLAG_BITS", model::flag_bits(m.py())?)?;
+    m.add("FogtempWarning", m.py().get_type::<progress::FogtempWarning>())?;
     Ok(())
 }

@@ -101,8 +101,8 @@ impl Model {
     /// A model from the bytes of a blob (validated by the core: a truncated or corrupted blob
     /// raises ValueError, never crashes).
     #[staticmethod]
-    fn from_bytes(data: Vec<u8>) -> PyResult<Self> {
-        Self::new(data, "<bytes>".to_string(), None)
+    fn from_bytes(data: &Bound<'_, PyAny>) -> PyResult<Self> {
+        Self::new(blob_bytes(data)?, "<bytes>".to_string(), None)
     }
 
     /// The blob, exactly what firmware embeds (`include_bytes!`, or the C array of `export`).
@@ -461,5 +461,26 @@ pub(crate) fn read_model_file(path: &std::path::Path) -> PyResult<Vec<u8>> {
         } else {
             pyo3::exceptions::PyOSError::new_err(message)
         }
+    })
+}
+
+/// The bytes of a blob given to `from_bytes`: bytes, bytearray, memoryview or a sequence of
+/// byte values; text is refused naming what to pass instead (PyO3's own message named a Rust
+/// type).
+fn blob_bytes(data: &Bound<'_, PyAny>) -> PyResult<Vec<u8>> {
+    if data.is_instance_of::<pyo3::types::PyString>() {
+        return Err(errors::type_(
+            "Model.from_bytes(): data must be bytes (a model blob), got str; to read a model file use \
+             Model.from_file(path)",
+        ));
+    }
+    if let Ok(view) = data.cast::<pyo3::types::PyMemoryView>() {
+        return view.call_method0("tobytes")?.extract();
+    }
+    data.extract::<Vec<u8>>().map_err(|_| {
+        let type_name = data.get_type().name().map_or_else(|_| "?".to_string(), |n| n.to_string());
+        errors::type_(format!(
+            "Model.from_bytes(): data must be bytes, bytearray or memoryview (a model blob), got {type_name}"
+        ))
     })
 }

@@ -112,8 +112,20 @@ fn write_stderr(py: Python<'_>, text: &str) -> PyResult<()> {
     Ok(())
 }
 
-/// A `warnings.warn` (e.g. skipped rows), printed like the command line's warning.
+pyo3::create_exception!(
+    fogtemp,
+    FogtempWarning,
+    pyo3::exceptions::PyUserWarning,
+    "A note or warning of fogtemp's (the command line's `note:` and `warning:` lines): skipped rows, \
+     gaps, units read as the model was fitted, data that cannot support what was asked. A subclass of \
+     UserWarning, so `warnings.filterwarnings(\"ignore\", category=fogtemp.FogtempWarning)` silences \
+     fogtemp's alone, and `\"error\"` turns them into exceptions."
+);
+
+/// A `warnings.warn` of category [`FogtempWarning`] (e.g. skipped rows), printed like the
+/// command line's warning.
 pub fn warn(py: Python<'_>, message: &str) -> PyResult<()> {
-    py.import("warnings")?.call_method1("warn", (message,))?;
+    let category = py.get_type::<FogtempWarning>();
+    py.import("warnings")?.call_method1("warn", (message, category))?;
     Ok(())
 }

@@ -31,8 +31,15 @@ def test_corrupt_and_truncated_blobs_raise_value_error(small_model):
             fogtemp.Model.from_bytes(bytes(corrupt))
     with pytest.raises(ValueError, match="not a valid model"):
         fogtemp.Model.from_bytes(b"")
-    with pytest.raises(TypeError):
+    with pytest.raises(TypeError, match=r"data must be bytes, bytearray or memoryview .* got int"):
         fogtemp.Model.from_bytes(12)
+    with pytest.raises(TypeError, match=r"got str; to read a model file use Model.from_file\(path\)"):
+        fogtemp.Model.from_bytes("FOGM")
+    # bytearray and memoryview are blobs too; padding after the blob says how to slice it off.
+    assert fogtemp.Model.from_bytes(bytearray(blob)).to_bytes() == blob
+    assert fogtemp.Model.from_bytes(memoryview(blob)).to_bytes() == blob
+    with pytest.raises(ValueError, match=rf"bytes after the blob .*; pass data\[:{len(blob)}\]$"):
+        fogtemp.Model.from_bytes(blob + b"\xff" * 16)
 
 
 def test_missing_files_raise_file_not_found(tmp_path):
@@ -504,6 +511,12 @@ def test_validate_reads_the_time_the_model_records(tmp_path):
     with pytest.warns(UserWarning, match=r"the logs' time is read as .* records it: column 't_ms' in ms"):
         recorded = fogtemp.validate(model, ms_logs[:1], progress=False)
     assert recorded["runs"] == named["runs"]
+    # The time column alone (another logger's name for it) is still read in the recorded ms.
+    renamed = tmp_path / "renamed.csv"
+    renamed.write_text(ms_logs[0].read_text().replace("t_ms,", "clock,", 1))
+    with pytest.warns(fogtemp.FogtempWarning, match=r"read with the time unit ms, as .* records"):
+        column_only = fogtemp.validate(model, [renamed], time_column="clock", progress=False)
+    assert column_only["runs"][0]["compensated_bias_stability_dph"] == named["runs"][0]["compensated_bias_stability_dph"]
     # read_log(model=) reads the log as the fit did: the same arrays as naming every option.
     with pytest.warns(UserWarning, match=r"column 't_ms' in ms"):
         by_model = fogtemp.read_log(ms_logs[0], model=model, progress=False)
