@@ -524,4 +524,17 @@ fn diagnose_of_one_run_locates_but_names_nothing_and_says_why() {
         "{summary}"
     );
     assert!(doc["location"]["spans"].as_array().is_some_and(|s| !s.is_empty()), "no spans located");
+    // The verdict says nothing was tested (it used to head the output "no catalogue effect is
+    // left out"), and the report's residual figure has the run's points (the in-sample offset
+    // removed) and no NaN figures (review11 finding 7).
+    let report = dir.path().join("report");
+    let text =
+        run_ok(["diagnose", "--simulated", s(&sim_log), "--recorded", s(&rec_log), "--report", s(&report)]);
+    assert!(text.starts_with("Verdict: not tested: one paired run gives no held-out run"), "{text}");
+    let before = &doc["traces"][0]["before_dph"];
+    assert!(before.as_array().is_some_and(|b| !b.is_empty() && b.iter().all(Value::is_f64)), "{before}");
+    let md = fs::read_to_string(report.join("report.md")).expect("report.md");
+    assert!(!md.contains("NaN -> NaN") && md.contains("Whole model on held-out runs: not measured"), "{md}");
+    let svg = fs::read_to_string(report.join("residuals.svg")).expect("residuals.svg");
+    assert!(svg.contains("<circle"), "no residual points drawn");
 }

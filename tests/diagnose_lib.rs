@@ -505,6 +505,59 @@ fn shupe_rate_is_named_and_its_coefficient_recovered() {
     assert_helps(&d, "shupe_rate");
 }
 
+/// A spike in one recorded sample (a corrupted row: +1000 deg/h) is read as missing with its
+/// second and reported (review11 finding 1: one such sample turned a named effect into
+/// "consistent with noise"). Oracle: the same data with that second's rows deleted, a gap the
+/// diagnosis already reads as missing, gives the same diagnosis, number for number.
+#[test]
+fn a_spike_in_a_log_is_read_as_missing_and_named_with_its_run_and_time() {
+    let (sim, clean) = make_set(&paper_runs(), Injected::ShupeRate(0.03), 2.0, 12);
+    let (run, at) = (3, 2001);
+    let second_s = clean[run].time_s[0] + (clean[run].time_s[at] - clean[run].time_s[0]).floor();
+    let mut spiked = clean.clone();
+    spiked[run].gyro_dph[at] += 1000.0;
+    let mut gap = clean.clone();
+    let keep: Vec<bool> = gap[run].time_s.iter().map(|&t| !(second_s..second_s + 1.0).contains(&t)).collect();
+    let series = &mut gap[run];
+    for column in [&mut series.time_s, &mut series.temp_c, &mut series.gyro_dph] {
+        let mut k = keep.iter();
+        column.retain(|_| *k.next().unwrap_or(&true));
+    }
+    assert_eq!(gap[run].time_s.len(), clean[run].time_s.len() - 2, "2 Hz: the second held two rows");
+    let options = DiagnoseOptions::default();
+    let with_spike = diagnose(&sim, &spiked, &options, |_, _| {}).expect("diagnosis runs");
+    let with_gap = diagnose(&sim, &gap, &options, |_, _| {}).expect("diagnosis runs");
+    assert_eq!(names(&with_spike), ["shupe_rate"], "{}", with_spike.summary);
+    // The gap also takes that second's temperature rows, so the smoothed temperature differs
+    // in the last digits: the same statements, parameters within 1e-6 relative.
+    let statements = |d: &Diagnosis| d.left_out.iter().map(|e| e.statement.clone()).collect::<Vec<_>>();
+    assert_eq!(statements(&with_spike), statements(&with_gap));
+    for (a, b) in with_spike.left_out.iter().zip(&with_gap.left_out) {
+        for (name, p) in &a.parameters {
+            let q = b.parameters[name].value;
+            assert!((p.value - q).abs() <= 1e-6 * q.abs().max(1e-9), "{name}: {} vs {q}", p.value);
+        }
+    }
+    let (sigma_spike, sigma_gap) =
+        (with_spike.noise.short_mean_sigma_dph, with_gap.noise.short_mean_sigma_dph);
+    assert!((sigma_spike / sigma_gap - 1.0).abs() < 1e-6, "{sigma_spike} vs {sigma_gap}");
+    assert!(with_gap.outliers.is_empty(), "{:?}", with_gap.outliers);
+    assert_eq!(with_spike.outliers.len(), 1, "{:?}", with_spike.outliers);
+    let o = &with_spike.outliers[0];
+    assert_eq!((o.run.as_str(), o.seconds.len()), (clean[run].name.as_str(), 1));
+    assert_eq!(o.seconds[0].log_time_s, second_s);
+    // The second's mean holds half the spike (two rows at 2 Hz), less the minute's median.
+    assert!((o.seconds[0].deviation_dph - 500.0).abs() < 1.0, "{:?}", o.seconds[0]);
+    assert!(
+        with_spike.summary.contains("1 second of the residual read as missing as outliers"),
+        "{}",
+        with_spike.summary
+    );
+    // The clean runs have no outlier at all.
+    let clean_d = diagnose(&sim, &clean, &options, |_, _| {}).expect("diagnosis runs");
+    assert!(clean_d.outliers.is_empty(), "{:?}", clean_d.outliers);
+}
+
 #[test]
 fn warmup_transient_is_named_and_recovered() {
     let d = run_diagnosis(&paper_runs(), Injected::Warmup(0.012, 480.0), 2.0, 13);

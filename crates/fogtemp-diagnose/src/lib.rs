@@ -631,6 +631,18 @@ pub struct Diagnosis {
     pub definitions: Vec<String>,
     /// Per-run traces for the figures (short means).
     pub traces: Vec<RunTraceOut>,
+    /// Seconds read as missing because their residual was an outlier (a spike in a log),
+    /// per run; runs without any are left out.
+    pub outliers: Vec<RunOutliers>,
+}
+
+/// The seconds of one run read as missing as outliers ([`prepare::screen_outliers`]).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct RunOutliers {
+    /// Run name.
+    pub run: String,
+    /// The seconds, in time order.
+    pub seconds: Vec<prepare::OutlierSecond>,
 }
 
 /// Short-mean traces of one run for figures: residual before and after the final model.

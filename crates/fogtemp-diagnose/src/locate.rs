@@ -647,10 +647,63 @@ fn traces(prep: &Prepared, outcome: &FinalOutcome) -> Vec<RunTraceOut> {
             time_s: run.blocks.iter().map(|b| b.since_on_s).collect(),
             temp_c: run.blocks.iter().map(|b| b.temp_c).collect(),
             rate_c_per_min: run.blocks.iter().map(|b| b.rate_c_per_min).collect(),
-            before_dph: outcome.baseline_heldout[r].clone(),
+            // One run has no held-out offset: the in-sample one (the documented meaning).
+            before_dph: run
+                .blocks
+                .iter()
+                .zip(&outcome.baseline_heldout[r])
+                .map(
+                    |(b, &held_out)| {
+                        if held_out.is_finite() {
+                            held_out
+                        } else {
+                            b.resid_dph - outcome.global_offset.value
+                        }
+                    },
+                )
+                .collect(),
             after_dph: outcome.heldout_resid[r].clone(),
         })
         .collect()
+}
+
+/// The seconds read as missing as outliers, said with the largest of each run (at most
+/// three runs named), or `None` without any.
+fn outliers_sentence(outliers: &[super::RunOutliers]) -> Option<String> {
+    let count: usize = outliers.iter().map(|r| r.seconds.len()).sum();
+    if count == 0 {
+        return None;
+    }
+    let largest = |r: &super::RunOutliers| {
+        r.seconds.iter().max_by(|a, b| a.deviation_dph.abs().total_cmp(&b.deviation_dph.abs())).cloned()
+    };
+    let named: Vec<String> = outliers
+        .iter()
+        .take(3)
+        .filter_map(|r| {
+            let o = largest(r)?;
+            Some(format!(
+                "{} at {} s on its log's clock ({:+.5} deg/h from the minute around it, {:.0} robust SD{})",
+                r.run,
+                o.log_time_s,
+                o.deviation_dph,
+                o.deviation_dph.abs() / o.robust_sd_dph,
+                match r.seconds.len() {
+                    1 => String::new(),
+                    more => format!("; {more} seconds in this run"),
+                }
+            ))
+        })
+        .collect();
+    let more =
+        if outliers.len() > 3 { format!(", and {} more runs", outliers.len() - 3) } else { String::new() };
+    Some(format!(
+        "{count} {} of the residual read as missing as outliers (beyond {} robust standard deviations of the median of the minute around {}: a spike in a log?): {}{more}; check those rows of the recorded (or simulated) logs.",
+        if count == 1 { "second" } else { "seconds" },
+        super::prepare::OUTLIER_ROBUST_SDS,
+        if count == 1 { "it" } else { "them" },
+        named.join("; ")
+    ))
 }
 
 fn summary(d: &Diagnosis, grids: &[EffectGrid]) -> String {
@@ -672,6 +725,10 @@ fn summary(d: &Diagnosis, grids: &[EffectGrid]) -> String {
         d.options.mean_window_s,
         d.location.overall_offset_dph,
     );
+    if let Some(said) = outliers_sentence(&d.outliers) {
+        s.push(' ');
+        s.push_str(&said);
+    }
     let sig_cells = d.location.map.iter().filter(|c| c.significant).count();
     let sig_spans: Vec<&super::SpanFinding> = d.location.spans.iter().filter(|c| c.significant).collect();
     s.push_str(&format!(
@@ -759,6 +816,12 @@ pub fn assemble(
         options: options.clone(),
         definitions: definitions(options, prep),
         traces: traces(prep, &outcome),
+        outliers: prep
+            .runs
+            .iter()
+            .filter(|r| !r.outliers.is_empty())
+            .map(|r| super::RunOutliers { run: r.name.clone(), seconds: r.outliers.clone() })
+            .collect(),
     };
     d.summary = summary(&d, grids);
     Ok(d)

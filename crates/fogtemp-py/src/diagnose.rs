@@ -236,6 +236,9 @@ pub fn diagnose<'py>(
     bar.finish();
     bar.boundary(py)?;
     let diagnosis = diagnosis.map_err(diagnose_error)?;
+    for run in &diagnosis.outliers {
+        progress::warn(py, &fogtemp_diagnose::prepare::outliers_note(&run.run, &run.seconds))?;
+    }
     let seconds = started.elapsed().as_secs_f64();
     let (mut updated_scenario, mut scenario_changes) = (None, Vec::new());
     if let Some(dir) = &report {

@@ -95,6 +95,14 @@ pub fn diagnose(a: DiagnoseArgs, recorded_ingest: IngestOptions) -> Result<()> {
     })
     .context("diagnosing")?;
     bar.finish_and_clear();
+    for run in &d.outliers {
+        // The recorded log of the pair, so the note names a file the user can open.
+        let log = pairs
+            .iter()
+            .find(|(_, r)| inputs::file_name(r) == run.run)
+            .map_or_else(|| run.run.clone(), |(_, r)| r.display().to_string());
+        eprintln!("note: {}", fogtemp_diagnose::prepare::outliers_note(&log, &run.seconds));
+    }
     let seconds = started.elapsed().as_secs_f64();
     let mut scenario_changes = Vec::new();
     let mut updated_path = None;
