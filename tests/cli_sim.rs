@@ -505,6 +505,20 @@ fn diagnose_refuses_unpaired_runs() {
     }
     let err = run_err(["diagnose", "--simulated", s(&simulated), "--recorded", s(&recorded)]);
     assert!(err.contains("paired by file name") && err.contains("pos2_60C.csv"), "{err}");
+    // The same folder for both sides, or a case folder holding both (review11 finding 9: its
+    // runs.csv was read as a log), is refused before any log is read, saying what to give.
+    let err = run_err(["diagnose", "--simulated", s(&simulated), "--recorded", s(&simulated)]);
+    assert!(err.contains("--simulated and --recorded are the same path"), "{err}");
+    let case = dir.path().join("case");
+    fs::create_dir_all(case.join("simulated")).expect("mkdir");
+    fs::create_dir_all(case.join("recorded")).expect("mkdir");
+    let err = run_err(["diagnose", "--simulated", s(&case), "--recorded", s(&recorded)]);
+    let want = format!(
+        "give --simulated {} --recorded {}",
+        case.join("simulated").display(),
+        case.join("recorded").display()
+    );
+    assert!(err.contains("holds the folders simulated/ and recorded/") && err.contains(&want), "{err}");
 }
 
 /// One paired run: the mismatch is located, but nothing can be named (naming needs a run

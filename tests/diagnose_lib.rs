@@ -558,6 +558,25 @@ fn a_spike_in_a_log_is_read_as_missing_and_named_with_its_run_and_time() {
     assert!(clean_d.outliers.is_empty(), "{:?}", clean_d.outliers);
 }
 
+/// Simulated and recorded given the other way round (the noise-free simulation as the
+/// recording): the summary says the recorded gyro is far quieter than the residual and asks
+/// to check the order (review11 finding 8: the same verdict with flipped signs, and no
+/// hint); in the right order it says nothing of the kind.
+#[test]
+fn swapped_sides_are_said_when_the_recording_is_the_quiet_one() {
+    let (sim, rec) = make_set(&paper_runs(), Injected::None, 2.0, 77);
+    let options = DiagnoseOptions::default();
+    let swapped = diagnose(&rec, &sim, &options, |_, _| {}).expect("diagnosis runs");
+    assert!(
+        swapped.summary.contains("The recorded gyro is far quieter than the residual"),
+        "{}",
+        swapped.summary
+    );
+    assert!(swapped.summary.contains("check the order: --simulated first"), "{}", swapped.summary);
+    let right = diagnose(&sim, &rec, &options, |_, _| {}).expect("diagnosis runs");
+    assert!(!right.summary.contains("far quieter"), "{}", right.summary);
+}
+
 #[test]
 fn warmup_transient_is_named_and_recovered() {
     let d = run_diagnosis(&paper_runs(), Injected::Warmup(0.012, 480.0), 2.0, 13);

@@ -170,7 +170,7 @@ fn describe_series(side: Side, run: &str, problem: &SeriesProblem) -> String {
         ),
         SeriesProblem::NonFiniteMeta { what, value } => format!("{side} run '{run}': {what} {value} is not finite"),
         SeriesProblem::TooShort { means, mean_window_s } => format!(
-            "run '{run}': only {means} short means of {mean_window_s} s where both recorded and simulated data and the smoothing windows are complete (need >= 3; do the runs overlap in time?)"
+            "run '{run}': only {means} short means of {mean_window_s} s where both recorded and simulated data and the smoothing windows are complete (need >= 3): do the runs overlap in time? For a log with gaps or bursts, shorter means and lower coverage fit the data: --mean-window-s (a burst's length), --block-coverage, --rate-window-s (several bursts) and --window-coverage (Python: mean_window_s=, block_coverage=, rate_window_s=, window_coverage=)"
         ),
     }
 }

@@ -220,6 +220,39 @@ pub fn unknown_setup_note(meta: &BTreeMap<String, RunMeta>) -> Option<String> {
     })
 }
 
+/// What is wrong with the two sides as given, before any log is listed (`None` when
+/// nothing is): the same path for both (the residual would be exactly zero), or a folder that
+/// holds `simulated/` and `recorded/` folders of its own (a testbed case folder: its
+/// `runs.csv` was read as a log, review11 finding 9). `names` are the options or keywords
+/// naming the sides, for the message.
+pub fn sides_problem(simulated: &Path, recorded: &Path, names: (&str, &str)) -> Option<String> {
+    let same = match (simulated.canonicalize(), recorded.canonicalize()) {
+        (Ok(a), Ok(b)) => a == b,
+        _ => simulated == recorded,
+    };
+    if same {
+        return Some(format!(
+            "{} and {} are the same path, {}: the simulation and the recordings must be different logs",
+            names.0,
+            names.1,
+            simulated.display()
+        ));
+    }
+    [simulated, recorded]
+        .into_iter()
+        .find(|p| p.join("simulated").is_dir() && p.join("recorded").is_dir())
+        .map(|p| {
+            format!(
+                "{} holds the folders simulated/ and recorded/ (a case folder): give {} {} {} {}",
+                p.display(),
+                names.0,
+                p.join("simulated").display(),
+                names.1,
+                p.join("recorded").display()
+            )
+        })
+}
+
 /// Pairs simulated and recorded logs by file name, in the order of `simulated`; every log
 /// must have a partner.
 ///

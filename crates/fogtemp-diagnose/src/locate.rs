@@ -667,6 +667,24 @@ fn traces(prep: &Prepared, outcome: &FinalOutcome) -> Vec<RunTraceOut> {
         .collect()
 }
 
+/// Below this share of the residual's short-mean noise, the recorded gyro's own is said to be
+/// too quiet: residual noise is sqrt(recorded^2 + simulated^2) for independent noises, so a
+/// noise-free simulation gives a share of 1, an equally noisy one 0.71, and 0.3 means the
+/// simulated logs carry over 3x the recorded noise.
+const QUIET_RECORDING_SHARE: f64 = 0.3;
+
+/// The sentence for recorded logs much quieter than the residual (the simulated ones carry
+/// the noise: the two sides swapped? review11 finding 8), or `None`.
+fn swapped_sentence(noise: &super::NoiseLevel) -> Option<String> {
+    let (recorded, residual) = (noise.recorded_short_mean_adev_dph, noise.short_mean_sigma_dph);
+    let quiet = recorded.is_finite() && residual.is_finite() && residual > 0.0;
+    (quiet && recorded < QUIET_RECORDING_SHARE * residual).then(|| {
+        format!(
+            "The recorded gyro is far quieter than the residual (short-mean noise {recorded:.5} against {residual:.5} deg/h): the simulated logs carry most of the noise, as if the simulated and recorded logs were given the other way round (check the order: --simulated first), or the simulation's noise is set too high."
+        )
+    })
+}
+
 /// The seconds read as missing as outliers, said with the largest of each run (at most
 /// three runs named), or `None` without any.
 fn outliers_sentence(outliers: &[super::RunOutliers]) -> Option<String> {
@@ -725,6 +743,10 @@ fn summary(d: &Diagnosis, grids: &[EffectGrid]) -> String {
         d.options.mean_window_s,
         d.location.overall_offset_dph,
     );
+    if let Some(said) = swapped_sentence(&d.noise) {
+        s.push(' ');
+        s.push_str(&said);
+    }
     if let Some(said) = outliers_sentence(&d.outliers) {
         s.push(' ');
         s.push_str(&said);

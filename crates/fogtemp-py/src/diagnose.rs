@@ -194,6 +194,11 @@ pub fn diagnose<'py>(
     // After the options: a bad report folder is refused before any log is looked for.
     let simulated = Side::new(simulated, "simulated")?;
     let recorded = Side::new(recorded, "recorded")?;
+    if let (Side::Files { given: s, .. }, Side::Files { given: r, .. }) = (&simulated, &recorded) {
+        if let Some(problem) = inputs::sides_problem(s, r, ("simulated=", "recorded=")) {
+            return Err(errors::value(format!("diagnose(): {problem}")));
+        }
+    }
     let (simulated_logs, recorded_logs) = (simulated.paths(), recorded.paths());
     let pairs = inputs::pair(&simulated_logs, &recorded_logs).map_err(diagnose_error)?;
     let meta = match (&runs, &simulated) {

@@ -59,6 +59,9 @@ pub fn diagnose(a: DiagnoseArgs, recorded_ingest: IngestOptions) -> Result<()> {
     if let Some(dir) = &a.report {
         crate::output::check_report_folder(dir)?;
     }
+    if let Some(problem) = inputs::sides_problem(&a.simulated, &a.recorded, ("--simulated", "--recorded")) {
+        anyhow::bail!(problem);
+    }
     let simulated = expand_logs(std::slice::from_ref(&a.simulated))?;
     let recorded = expand_logs(std::slice::from_ref(&a.recorded))?;
     let pairs = inputs::pair(&simulated, &recorded)?;
