@@ -452,6 +452,28 @@ impl HeldOutFigures {
     }
 }
 
+/// The lag's gain outside this factor of 1 (the simulation's own temperature dependence
+/// at the lagged temperature) says the lag's shape fits but its size does not follow.
+const LAG_GAIN_FACTOR: f64 = 2.0;
+
+/// The caveat for a thermal lag whose gain is far from 1: its time constant is then an
+/// effective one that makes the shape fit (a 919-1254 s second-order coil lag of the testbed
+/// came out as 300-470 s with gains 2.6-3.2, review11 finding 2), or `None`.
+fn lag_gain_caveat(effect: &str, parameters: &BTreeMap<String, Parameter>) -> Option<String> {
+    if effect != "thermal_lag" {
+        return None;
+    }
+    let gain = parameters.get("gain")?.value;
+    let far = gain.is_finite() && (gain > LAG_GAIN_FACTOR || gain < 1.0 / LAG_GAIN_FACTOR);
+    far.then(|| {
+        format!(
+            "; its gain {gain:.2} is far from 1 (1 = the simulation's own temperature dependence at the lagged temperature): \
+             the lag's shape fits but not its size, so tau_s is an effective time constant, not the coil's lag (a longer, \
+             higher-order lag, or a temperature dependence the simulation lacks, gives such gains)"
+        )
+    })
+}
+
 /// The start of a named term's statement: the evidence that named it first. A term the
 /// run-level rules accepted leads with their unweighted held-out figures. A term only the
 /// noise-model route accepted leads with that test, then the unweighted figures as what they
@@ -535,6 +557,9 @@ pub fn evaluate_final(
                 "; cannot be told apart from {other} on these runs (R^2 {r2:.4}): run {}",
                 crate::effects::separating_experiment(c.effect, &content)
             ));
+        }
+        if let Some(caveat) = lag_gain_caveat(c.effect.name(), &parameters) {
+            statement.push_str(&caveat);
         }
         let alternatives = alternatives(&selection.steps, i);
         if !alternatives.is_empty() {
@@ -691,6 +716,28 @@ mod tests {
         assert!((se - 3.75f64.sqrt()).abs() < 1e-12, "{se}");
         assert_eq!(jackknife_se(&[1.0]), None);
         assert_eq!(jackknife_se(&[1.0, f64::NAN]), None);
+    }
+
+    /// A lag's gain beyond a factor 2 of 1 gets the caveat (hand-picked values either side
+    /// of both limits); other effects and a lag without a gain never do.
+    #[test]
+    fn a_lag_gain_far_from_one_is_said_to_make_tau_an_effective_time_constant() {
+        let with_gain = |gain: f64| {
+            BTreeMap::from([(
+                "gain".to_string(),
+                Parameter { value: gain, std_error: Some(0.5), units: String::new() },
+            )])
+        };
+        for gain in [3.19, 2.01, 0.49, -0.2] {
+            let said = lag_gain_caveat("thermal_lag", &with_gain(gain)).unwrap_or_default();
+            assert!(said.contains(&format!("its gain {gain:.2} is far from 1")), "{gain}: {said}");
+            assert!(said.contains("tau_s is an effective time constant"), "{said}");
+        }
+        for gain in [1.0, 1.99, 0.51, f64::NAN] {
+            assert_eq!(lag_gain_caveat("thermal_lag", &with_gain(gain)), None, "{gain}");
+        }
+        assert_eq!(lag_gain_caveat("shupe_rate", &with_gain(3.0)), None);
+        assert_eq!(lag_gain_caveat("thermal_lag", &BTreeMap::new()), None);
     }
 
     #[test]
