@@ -464,7 +464,7 @@ fn lag_gain_caveat(effect: &str, parameters: &BTreeMap<String, Parameter>) -> Op
         return None;
     }
     let gain = parameters.get("gain")?.value;
-    let far = gain.is_finite() && (gain > LAG_GAIN_FACTOR || gain < 1.0 / LAG_GAIN_FACTOR);
+    let far = gain.is_finite() && !(1.0 / LAG_GAIN_FACTOR..=LAG_GAIN_FACTOR).contains(&gain);
     far.then(|| {
         format!(
             "; its gain {gain:.2} is far from 1 (1 = the simulation's own temperature dependence at the lagged temperature): \
