@@ -130,7 +130,7 @@ pub enum DiagnoseError {
         path: PathBuf,
     },
     /// Simulated and recorded logs whose file names have no partner.
-    #[error("runs are paired by file name, and {} are not:\n  {}", unmatched.len(), unmatched.join("\n  "))]
+    #[error("runs are paired by file name, and {} {} not:\n  {}", unmatched.len(), if unmatched.len() == 1 { "is" } else { "are" }, unmatched.join("\n  "))]
     UnpairedLogs {
         /// One line per log without a partner (`simulated a.csv has no recorded log of that name`).
         unmatched: Vec<String>,

@@ -382,7 +382,7 @@ fn agreement_statement(worst_c: f64, tolerance_c: f64) -> String {
     let within =
         format!("recorded and simulated temperature agree within {tolerance_c:.2} C RMS in every run");
     if worst_c == 0.0 {
-        format!("{within} (identical)")
+        format!("{within} (identical: the simulation was given the recorded temperature)")
     } else if worst_c < 1e-3 {
         format!("{within} (largest {worst_c:.1e} C)")
     } else {
@@ -550,9 +550,9 @@ fn where_significant(cells: &[MapCell], spans: &[SpanFinding]) -> String {
             .map(|s| format!("{} {} ({:+.5} deg/h, z {:+.1})", s.run, s.span, s.mean_dph, s.z))
             .collect();
         parts.push(format!(
-            "{} significant run spans in {} runs, largest {}",
-            spans.len(),
-            runs.len(),
+            "{} in {}, largest {}",
+            counted(spans.len(), "significant run span", "significant run spans"),
+            counted(runs.len(), "run", "runs"),
             listed.join(", ")
         ));
     }
@@ -573,9 +573,15 @@ fn where_significant(cells: &[MapCell], spans: &[SpanFinding]) -> String {
                 )
             })
             .collect();
-        parts.push(format!("{} significant (T, dT/dt) cells, largest {}", cells.len(), listed.join("; ")));
+        let count = counted(cells.len(), "significant (T, dT/dt) cell", "significant (T, dT/dt) cells");
+        parts.push(format!("{count}, largest {}", listed.join("; ")));
     }
     parts.join("; ")
+}
+
+/// `n` and the noun in its number: "1 paired run", "2 paired runs".
+fn counted(n: usize, one: &str, many: &str) -> String {
+    format!("{n} {}", if n == 1 { one } else { many })
 }
 
 /// Spans and cells listed by name in the statement.
@@ -739,8 +745,8 @@ fn summary(d: &Diagnosis, grids: &[EffectGrid]) -> String {
         "unknown (no stretch without gaps is long enough for its Allan deviation)".into()
     };
     let mut s = format!(
-        "{} paired runs. Raw residual (recorded - simulated) RMS {:.5} deg/h in {} s means, overall offset {:+.5} deg/h; noise of one short mean {noise}.",
-        d.runs.len(),
+        "{}. Raw residual (recorded - simulated) RMS {:.5} deg/h in {} s means, overall offset {:+.5} deg/h; noise of one short mean {noise}.",
+        counted(d.runs.len(), "paired run", "paired runs"),
         d.location.raw_residual_rms_dph,
         d.options.mean_window_s,
         d.location.overall_offset_dph,
@@ -858,7 +864,10 @@ mod tests {
     #[test]
     fn agreement_shows_the_largest_difference_in_digits_that_show_it() {
         let head = "recorded and simulated temperature agree within 0.05 C RMS in every run";
-        assert_eq!(agreement_statement(0.0, 0.05), format!("{head} (identical)"));
+        assert_eq!(
+            agreement_statement(0.0, 0.05),
+            format!("{head} (identical: the simulation was given the recorded temperature)")
+        );
         assert_eq!(agreement_statement(2.5e-4, 0.05), format!("{head} (largest 2.5e-4 C)"));
         assert_eq!(agreement_statement(0.0123, 0.05), format!("{head} (largest 0.012 C)"));
     }
@@ -916,7 +925,10 @@ mod tests {
             assert!(s.contains("does not repeat across runs"), "{s}");
             let s = unexplained_statement(&[table(false)], &[cell(-5.0)], &[], left_out_empty);
             assert!(!s.contains("consistent with noise"), "{s}");
-            assert!(s.contains("1 significant (T, dT/dt) cells") && s.contains("T 10.0..20.0 C"), "{s}");
+            assert!(
+                s.contains("1 significant (T, dT/dt) cell, largest") && s.contains("T 10.0..20.0 C"),
+                "{s}"
+            );
             assert!(s.contains("dT/dt +0.01..+inf C/min") && s.contains("z -5.0"), "{s}");
         }
     }
@@ -935,7 +947,7 @@ mod tests {
     fn repeating_structure_and_plain_noise_keep_their_statements() {
         let s = unexplained_statement(&[table(true)], &[cell(4.0)], &[], false);
         assert!(s.contains("a T-rate cells table lowers the held-out residual by 10.0 %"), "{s}");
-        assert!(s.contains("1 significant (T, dT/dt) cells"), "{s}");
+        assert!(s.contains("1 significant (T, dT/dt) cell, largest"), "{s}");
         let s = unexplained_statement(&[table(false)], &[], &[], true);
         assert!(s.starts_with("the residual is consistent with noise"), "{s}");
         let s = unexplained_statement(&[table(false)], &[], &[], false);
