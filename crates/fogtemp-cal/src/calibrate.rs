@@ -232,6 +232,49 @@ pub struct RunFeatures {
     /// reading while rows went on (a dropped-out temperature channel); the tracker restarted
     /// after each. Empty where none was looked for.
     pub temperature_silences: Vec<TimeGaps>,
+    /// Per axis: feature points whose gyro mean was an outlier (a spike in the log), read as
+    /// missing ([`screen_gyro_means`]); empty where none was looked for.
+    pub gyro_outliers: Vec<Vec<GyroOutlier>>,
+}
+
+/// A feature point's gyro mean read as missing because it lay beyond
+/// [`crate::outliers::ROBUST_SDS`] robust standard deviations of the median of the points
+/// around it (a spike in the log: a corrupted sample, an overload code).
+#[derive(Clone, Debug, PartialEq)]
+pub struct GyroOutlier {
+    /// The point's time, seconds since the run's first row.
+    pub time_s: f64,
+    /// Its gyro mean, deg/h.
+    pub gyro_mean_dph: f64,
+    /// Its deviation from the median of the points around it, deg/h.
+    pub deviation_dph: f64,
+    /// The run's robust standard deviation of the points' gyro means, deg/h.
+    pub robust_sd_dph: f64,
+}
+
+/// Reads as missing the gyro means of `points` that are outliers ([`crate::outliers`]: a
+/// Hampel filter over 30 points either side, at 1 s blocks a minute), so that no target is
+/// smoothed over them, and returns them. One +1000 deg/h sample in a 1 Hz log made `fit`'s
+/// default model 9 times worse than none on clean runs (review12 finding 1).
+pub fn screen_gyro_means(points: &mut [FeaturePoint]) -> Vec<GyroOutlier> {
+    let means: Vec<f64> =
+        points.iter().map(|p| if p.gyro_samples > 0 { p.gyro_mean_dph } else { f64::NAN }).collect();
+    let (found, robust_sd_dph) = crate::outliers::screen(&means);
+    found
+        .into_iter()
+        .map(|(k, deviation_dph)| {
+            let p = &mut points[k];
+            let outlier = GyroOutlier {
+                time_s: p.time_s,
+                gyro_mean_dph: p.gyro_mean_dph,
+                deviation_dph,
+                robust_sd_dph,
+            };
+            p.gyro_mean_dph = f64::NAN;
+            p.gyro_samples = 0;
+            outlier
+        })
+        .collect()
 }
 
 impl RunFeatures {
@@ -515,6 +558,7 @@ pub(crate) fn extract_with(
     })?;
     let mut temperature_spikes = Vec::with_capacity(axes);
     let mut temperature_silences = Vec::with_capacity(axes);
+    let mut gyro_outliers = Vec::with_capacity(axes);
     let axes = streams
         .into_iter()
         .zip(guards)
@@ -525,7 +569,8 @@ pub(crate) fn extract_with(
                 stream.push(s.time_s, s.gyro_dph, s.temp_c);
             }));
             temperature_silences.push(silence.finish());
-            let points = stream.finish();
+            let mut points = stream.finish();
+            gyro_outliers.push(screen_gyro_means(&mut points));
             let targets = smoothed_gyro_dph(&points, config.target_window_s);
             (points, targets)
         })
@@ -538,6 +583,7 @@ pub(crate) fn extract_with(
         input_rate_subtracted_dph: Vec::new(),
         temperature_spikes,
         temperature_silences,
+        gyro_outliers,
     })
 }
 
@@ -1921,6 +1967,79 @@ mod tests {
         assert_eq!(spikes[0].values["temperature_spikes"], 3.0);
         for name in ["a.csv:1502", "b.csv:1502", "c.csv:1502"] {
             assert!(spikes[0].message.contains(name), "{}", spikes[0].message);
+        }
+    }
+
+    /// A heating ramp's log with white gyro noise of 0.03 deg/h per sample (seeded), and a
+    /// gyro cell of `spike_dph` at row 1500 when given.
+    fn noisy_ramp_log(start_c: f64, rate_c_per_min: f64, seed: u64, spike_dph: Option<f64>) -> String {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(seed);
+        let mut csv = String::from("time_s,temp_c,gyro_dph\n");
+        for k in 0..3000 {
+            let t = f64::from(k);
+            let temp_c = start_c + rate_c_per_min * t / 60.0;
+            // Uniform noise of SD 0.03 (sqrt(12) x 0.03 wide): the robust SD needs no normal law.
+            let noise = 0.03 * 12f64.sqrt() * (rng.gen::<f64>() - 0.5);
+            let gyro = match spike_dph {
+                Some(spike) if k == 1500 => spike,
+                _ => 0.01 * temp_c + 0.002 * temp_c.sin() + noise,
+            };
+            csv.push_str(&format!("{t:.1},{temp_c:.4},{gyro:.6}\n"));
+        }
+        csv
+    }
+
+    /// A spike in the gyro (+1000 deg/h, and an overload code 9.91e37) at one row of every log
+    /// is read as missing: the model is within 0.001 deg/h of the clean logs' over the
+    /// calibrated range (one sample of ~100 in the targets of ~100 points of 9000 changes,
+    /// at most 3 SD / 99 = 0.001 each; unscreened, the +1000 spike moves those targets by
+    /// 10 deg/h), and the warning names each file (review12 finding 1).
+    #[test]
+    fn a_gyro_spike_calibrates_as_a_missing_mean_and_is_named() {
+        let config = CalibrationConfig { method: Method::Poly, ..CalibrationConfig::default() };
+        let logs = [("a.csv", -10.0, 0.5, 1), ("b.csv", 0.0, 0.3, 2), ("c.csv", 5.0, 0.2, 3)];
+        let read = |spike: Option<f64>| -> Vec<RunFeatures> {
+            logs.iter()
+                .map(|&(name, start_c, rate, seed)| {
+                    let text = noisy_ramp_log(start_c, rate, seed, spike);
+                    extract_run_from(text.as_bytes(), Path::new(name), &config).expect("reads")
+                })
+                .collect()
+        };
+        let clean = read(None);
+        assert!(clean.iter().all(|r| r.gyro_outliers[0].is_empty()), "clean logs have no outlier");
+        let fit = |runs: &[RunFeatures]| fit_model(runs, &config, [0; 32]).expect("fits");
+        let reference = fit(&clean);
+        let reference = fogtemp_core::Model::from_bytes(&reference.blob).expect("valid");
+        let value = |model: &fogtemp_core::Model<'_>, temp_c: f32, rate: f32| {
+            let axis = model.axis(0).expect("axis 0");
+            let mut hint = fogtemp_core::WalkHint::default();
+            f64::from(axis.evaluate(temp_c, rate, &mut hint).expect("evaluates").value_dph)
+        };
+        for spike in [1000.0, 9.91e37] {
+            let spiked = read(Some(spike));
+            for run in &spiked {
+                assert_eq!(run.gyro_outliers[0].len(), 1, "{}: {:?}", run.path.display(), run.gyro_outliers);
+            }
+            let fitted = fit(&spiked);
+            let model = fogtemp_core::Model::from_bytes(&fitted.blob).expect("valid");
+            for temp_c in [-5.0f32, 0.0, 5.0, 10.0, 15.0] {
+                for rate in [0.2f32, 0.3, 0.5] {
+                    let (got, want) = (value(&model, temp_c, rate), value(&reference, temp_c, rate));
+                    assert!((got - want).abs() < 1e-3, "{spike}: at {temp_c} C, {rate}: {got} vs {want}");
+                }
+            }
+            let warnings = crate::identifiability::fit_warnings(&spiked, &config, &Default::default());
+            let named: Vec<_> = warnings
+                .iter()
+                .filter(|w| w.kind == crate::identifiability::WarningKind::GyroOutliers)
+                .collect();
+            assert_eq!(named.len(), 1, "{warnings:?}");
+            assert_eq!(named[0].values["gyro_outliers"], 3.0);
+            for name in ["a.csv at ", "b.csv at ", "c.csv at "] {
+                assert!(named[0].message.contains(name), "{}", named[0].message);
+            }
         }
     }
 

@@ -45,6 +45,10 @@
 //!   run's first readings (a sensor glitch; the rule and its reasoning are in
 //!   [`crate::spikes`]).
 //!   Calibration read them as missing; the warning names each by file and line.
+//! - `gyro_outliers`: feature points whose gyro mean lay beyond 10 robust standard
+//!   deviations of the median of the points around them ([`crate::outliers`]: a corrupted
+//!   sample, an overload code). Calibration read them as missing; the warning names each by
+//!   file and time.
 
 use std::collections::BTreeMap;
 
@@ -95,6 +99,9 @@ pub enum WarningKind {
     /// Single temperature readings far from both neighbours (sensor glitches), read as
     /// missing ([`crate::spikes`]).
     TemperatureSpikes,
+    /// Feature points whose gyro mean lay beyond 10 robust standard deviations of the points
+    /// around it (a spike in the log), read as missing ([`crate::calibrate::screen_gyro_means`]).
+    GyroOutliers,
 }
 
 impl WarningKind {
@@ -109,6 +116,7 @@ impl WarningKind {
             WarningKind::RunOffsets => "run_offsets",
             WarningKind::ShortRuns => "short_runs",
             WarningKind::TemperatureSpikes => "temperature_spikes",
+            WarningKind::GyroOutliers => "gyro_outliers",
         }
     }
 }
@@ -149,6 +157,7 @@ pub fn fit_warnings(
             let temp_columns = &config.ingest.format.temp_columns;
             let column = temp_columns.get(axis.min(temp_columns.len().saturating_sub(1)));
             found.extend(temperature_spikes(runs, axis, column.map_or("temperature", String::as_str)));
+            found.extend(gyro_outliers(runs, axis));
             found
         })
         .collect()
@@ -225,6 +234,50 @@ fn temperature_spikes(runs: &[RunFeatures], axis: usize, column: &str) -> Option
             crate::spikes::SPIKE_JUMP_C,
         ),
         &[("temperature_spikes", total as f64), ("spike_jump_c", crate::spikes::SPIKE_JUMP_C)],
+    ))
+}
+
+/// `gyro_outliers` for axis `axis`: the feature points whose gyro mean calibration read as
+/// missing as an outlier, the first [`NAMED_SPIKES`] by file and time.
+fn gyro_outliers(runs: &[RunFeatures], axis: usize) -> Option<Warning> {
+    let per_run: Vec<(&RunFeatures, &Vec<crate::calibrate::GyroOutlier>)> = runs
+        .iter()
+        .filter_map(|run| Some((run, run.gyro_outliers.get(axis)?)))
+        .filter(|(_, found)| !found.is_empty())
+        .collect();
+    let total: usize = per_run.iter().map(|(_, found)| found.len()).sum();
+    if total == 0 {
+        return None;
+    }
+    let named: Vec<String> = per_run
+        .iter()
+        .flat_map(|(run, found)| found.iter().map(move |o| (run, o)))
+        .take(NAMED_SPIKES)
+        .map(|(run, o)| {
+            let (deviation, sds) = crate::outliers::deviation_text(o.deviation_dph, o.robust_sd_dph);
+            format!(
+                "{} at {} s after its first row ({deviation} deg/h from the points around it, {sds} robust SD)",
+                run.path.display(),
+                o.time_s,
+            )
+        })
+        .collect();
+    let more = total - named.len();
+    let more = if more > 0 { format!("; and {more} more") } else { String::new() };
+    let means = if total == 1 { "1 gyro mean".to_string() } else { format!("{total} gyro means") };
+    let runs_text = if per_run.len() == 1 { "1 run".to_string() } else { format!("{} runs", per_run.len()) };
+    Some(Warning::new(
+        axis,
+        WarningKind::GyroOutliers,
+        format!(
+            "axis {axis}: {means} of the feature points in {runs_text} lay beyond {:.0} robust standard deviations of \
+             the median of the points around them ({}{more}): read as missing, so no target is smoothed over them; \
+             a FOG's bias does not jump like that, so check those rows of the logs (a corrupted sample, an overload \
+             code, a shock)",
+            crate::outliers::ROBUST_SDS,
+            named.join(", "),
+        ),
+        &[("gyro_outliers", total as f64), ("robust_sds", crate::outliers::ROBUST_SDS)],
     ))
 }
 

@@ -63,6 +63,7 @@ pub mod ingest;
 pub mod mesh;
 pub mod mesh_fit;
 pub mod metrics;
+pub mod outliers;
 pub mod output;
 pub mod poly_fit;
 pub mod refine;

@@ -935,6 +935,7 @@ pub fn without_block(run: &RunFeatures, blocks: &RunBlocks, j: usize, guard_s: f
         input_rate_subtracted_dph: run.input_rate_subtracted_dph.clone(),
         temperature_spikes: run.temperature_spikes.clone(),
         temperature_silences: run.temperature_silences.clone(),
+        gyro_outliers: run.gyro_outliers.clone(),
     }
 }
 
@@ -1154,9 +1155,19 @@ pub fn score_masked(
 ) -> HeldOutScore {
     let from = series.first_compensated_block(1.0).min(series.time_s.len());
     let times = &series.time_s[from..];
-    let values = series.compensated_dph.get(from..).unwrap_or_default();
+    let mut values = series.compensated_dph.get(from..).unwrap_or_default().to_vec();
+    // A spike in the held-out log (an outlier among its raw block means, the same for every
+    // candidate) is left out of every candidate's score, as fit leaves it out of the targets:
+    // one +1000 deg/h sample per log put every candidate near 1.25 deg/h and the choice on
+    // the one-standard-error rule alone (review12 finding 1).
+    let raw = series.raw_dph.get(from..).unwrap_or_default();
+    for (k, _) in crate::outliers::screen(raw).0 {
+        if let Some(v) = values.get_mut(k) {
+            *v = f64::NAN;
+        }
+    }
     let mask = inside.map(|m| m.get(from..).unwrap_or_default());
-    score_series(times, values, mask, options)
+    score_series(times, &values, mask, options)
 }
 
 /// Bias stability of a compensated series (`values` at `times_s`) as `validate` scores a
@@ -1760,6 +1771,7 @@ mod tests {
             input_rate_subtracted_dph: Vec::new(),
             temperature_spikes: Vec::new(),
             temperature_silences: Vec::new(),
+            gyro_outliers: Vec::new(),
         }
     }
 

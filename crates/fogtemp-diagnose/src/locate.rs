@@ -708,12 +708,11 @@ fn outliers_sentence(outliers: &[super::RunOutliers]) -> Option<String> {
         .take(3)
         .filter_map(|r| {
             let o = largest(r)?;
+            let (deviation, sds) = fogtemp_cal::outliers::deviation_text(o.deviation_dph, o.robust_sd_dph);
             Some(format!(
-                "{} at {} s on its log's clock ({:+.5} deg/h from the minute around it, {:.0} robust SD{})",
+                "{} at {} s on its log's clock ({deviation} deg/h from the minute around it, {sds} robust SD{})",
                 r.run,
                 o.log_time_s,
-                o.deviation_dph,
-                o.deviation_dph.abs() / o.robust_sd_dph,
                 match r.seconds.len() {
                     1 => String::new(),
                     more => format!("; {more} seconds in this run"),
@@ -921,7 +920,10 @@ mod tests {
             let s = unexplained_statement(&[table(false)], &[], &[span("a.csv", 4.0)], left_out_empty);
             assert!(!s.contains("consistent with noise"), "{s}");
             assert!(s.starts_with("structure remains that no catalogue effect explains"), "{s}");
-            assert!(s.contains("1 significant run spans in 1 runs") && s.contains("a.csv settled"), "{s}");
+            assert!(
+                s.contains("1 significant run span in 1 run, largest") && s.contains("a.csv settled"),
+                "{s}"
+            );
             assert!(s.contains("does not repeat across runs"), "{s}");
             let s = unexplained_statement(&[table(false)], &[cell(-5.0)], &[], left_out_empty);
             assert!(!s.contains("consistent with noise"), "{s}");

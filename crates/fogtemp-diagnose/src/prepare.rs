@@ -72,16 +72,9 @@ pub struct RunData {
     pub outliers: Vec<OutlierSecond>,
 }
 
-/// Half width of the neighbourhood whose median an outlier is judged against, s: a minute
-/// either side, far shorter than any thermal effect (minutes to hours), so the median follows
-/// the effects and the noise alone is left in the deviations.
-pub const OUTLIER_HALF_WINDOW_S: usize = 30;
-/// Robust standard deviations beyond which a second's residual is an outlier: Gaussian noise
-/// passes 10 SDs with probability 1.5e-23, so only a spike in a log (a corrupted sample, a
-/// shock) is caught, never the noise of any number of runs.
-pub const OUTLIER_ROBUST_SDS: f64 = 10.0;
-/// Finite seconds a neighbourhood needs for its median to judge a second.
-const OUTLIER_MIN_NEIGHBOURS: usize = 5;
+/// Robust standard deviations beyond which a second's residual is an outlier
+/// ([`fogtemp_cal::outliers`]: a Hampel filter over a minute either side).
+pub const OUTLIER_ROBUST_SDS: f64 = fogtemp_cal::outliers::ROBUST_SDS;
 
 /// One second of a run read as missing because its residual (recorded - simulated 1 s means)
 /// lay beyond [`OUTLIER_ROBUST_SDS`] robust standard deviations of its neighbourhood's median.
@@ -100,38 +93,10 @@ pub struct OutlierSecond {
 
 /// Finds the seconds of `resid_dph` (a run's 1 s residuals, NaN = none) more than
 /// [`OUTLIER_ROBUST_SDS`] robust standard deviations from the median of the finite seconds
-/// within [`OUTLIER_HALF_WINDOW_S`] either side (a Hampel filter): their indices, deviations
-/// and the robust standard deviation. Nothing is found in a run without spread (a robust SD
-/// of 0: quantised or noise-free data, where any change would count).
+/// within a minute either side ([`fogtemp_cal::outliers::screen`]): their indices and
+/// deviations, and the robust standard deviation.
 pub fn screen_outliers(resid_dph: &[f64]) -> (Vec<(usize, f64)>, f64) {
-    let n = resid_dph.len();
-    let h = OUTLIER_HALF_WINDOW_S;
-    let mut deviation = vec![f64::NAN; n];
-    let mut window = Vec::with_capacity(2 * h + 1);
-    for k in 0..n {
-        if !resid_dph[k].is_finite() {
-            continue;
-        }
-        window.clear();
-        window.extend(
-            resid_dph[k.saturating_sub(h)..(k + h + 1).min(n)].iter().copied().filter(|v| v.is_finite()),
-        );
-        if window.len() < OUTLIER_MIN_NEIGHBOURS {
-            continue;
-        }
-        deviation[k] = resid_dph[k] - median(&mut window);
-    }
-    let mut absolute: Vec<f64> = deviation.iter().filter(|d| d.is_finite()).map(|d| d.abs()).collect();
-    if absolute.is_empty() {
-        return (Vec::new(), f64::NAN);
-    }
-    let robust_sd = 1.4826 * median(&mut absolute);
-    if robust_sd.is_nan() || robust_sd <= 0.0 {
-        return (Vec::new(), robust_sd);
-    }
-    let limit = OUTLIER_ROBUST_SDS * robust_sd;
-    let found = deviation.iter().enumerate().filter(|(_, d)| d.abs() > limit).map(|(k, &d)| (k, d)).collect();
-    (found, robust_sd)
+    fogtemp_cal::outliers::screen(resid_dph)
 }
 
 /// The note for the seconds of one run pair read as missing as outliers (at most five listed).
@@ -140,12 +105,8 @@ pub fn outliers_note(log: &str, seconds: &[OutlierSecond]) -> String {
         .iter()
         .take(5)
         .map(|o| {
-            format!(
-                "at {} s ({:+.5} deg/h, {:.0} robust SD)",
-                o.log_time_s,
-                o.deviation_dph,
-                o.deviation_dph.abs() / o.robust_sd_dph
-            )
+            let (deviation, sds) = fogtemp_cal::outliers::deviation_text(o.deviation_dph, o.robust_sd_dph);
+            format!("at {} s ({deviation} deg/h, {sds} robust SD)", o.log_time_s)
         })
         .collect();
     let more = seconds.len().saturating_sub(5);
@@ -158,17 +119,6 @@ pub fn outliers_note(log: &str, seconds: &[OutlierSecond]) -> String {
         listed.join(", "),
         if more > 0 { format!(" and {more} more") } else { String::new() }
     )
-}
-
-/// The median of `values` (reordered; not empty).
-fn median(values: &mut [f64]) -> f64 {
-    values.sort_unstable_by(f64::total_cmp);
-    let m = values.len() / 2;
-    if values.len() % 2 == 1 {
-        values[m]
-    } else {
-        0.5 * (values[m - 1] + values[m])
-    }
 }
 
 /// The simulation's own prediction as a function of its temperature signals:
@@ -680,41 +630,5 @@ mod tests {
         let (s, from) = short_mean_noise(&[&[1.0, f64::NAN, 2.0][..]], 5);
         assert!(s.is_nan());
         assert_eq!(from, None);
-    }
-
-    /// The outlier screen against hand-made series: white noise of 7200 s with one spike of
-    /// 20 SD finds the spike alone, at its second, its deviation within 0.5 SD of its value
-    /// (the median of a minute of noise has SD 1.25 / sqrt(61) = 0.16 SD); a robust
-    /// SD within 5 % of the noise's (1.4826 MAD, standard error ~1.2 % at this length);
-    /// a step of 50 SD, a ramp of 0.1 SD per second and a constant series find nothing.
-    #[test]
-    fn the_outlier_screen_finds_a_spike_and_not_steps_ramps_or_noise() {
-        let sigma = 0.03;
-        let mut noise = white(7200, sigma, 41);
-        let (found, robust_sd) = screen_outliers(&noise);
-        assert!(found.is_empty(), "{found:?}");
-        assert!((robust_sd / sigma - 1.0).abs() < 0.05, "{robust_sd}");
-        noise[999] += 20.0 * sigma;
-        let (found, _) = screen_outliers(&noise);
-        assert_eq!(found.len(), 1, "{found:?}");
-        assert_eq!(found[0].0, 999);
-        // Its deviation is the spike's value less the minute's median (~0: SD 0.16 sigma).
-        assert!((found[0].1 - noise[999]).abs() < 0.5 * sigma, "{found:?}");
-        let step: Vec<f64> = white(7200, sigma, 42)
-            .iter()
-            .enumerate()
-            .map(|(k, v)| v + if k >= 3600 { 50.0 * sigma } else { 0.0 })
-            .collect();
-        assert!(screen_outliers(&step).0.is_empty());
-        let ramp: Vec<f64> =
-            white(7200, sigma, 43).iter().enumerate().map(|(k, v)| v + 0.1 * sigma * k as f64).collect();
-        assert!(screen_outliers(&ramp).0.is_empty());
-        let (found, robust_sd) = screen_outliers(&[0.5; 100]);
-        assert!(found.is_empty() && robust_sd == 0.0);
-        // Gaps (NaN) are skipped, and a second with fewer than 5 finite neighbours is not judged.
-        let mut sparse = vec![f64::NAN; 200];
-        sparse[100] = 1.0;
-        sparse[101] = 1.0;
-        assert!(screen_outliers(&sparse).0.is_empty());
     }
 }
