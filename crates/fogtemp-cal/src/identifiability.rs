@@ -45,6 +45,8 @@
 //!   run's first readings (a sensor glitch; the rule and its reasoning are in
 //!   [`crate::spikes`]).
 //!   Calibration read them as missing; the warning names each by file and line.
+//! - `implausible_temperatures`: every calibration temperature above 150 C, beyond any
+//!   gyro's operating range: kelvin read as deg C, or raw counts.
 //! - `gyro_outliers`: feature points whose gyro mean lay beyond 10 robust standard
 //!   deviations of the median of the points around them ([`crate::outliers`]: a corrupted
 //!   sample, an overload code). Calibration read them as missing; the warning names each by
@@ -102,6 +104,8 @@ pub enum WarningKind {
     /// Feature points whose gyro mean lay beyond 10 robust standard deviations of the points
     /// around it (a spike in the log), read as missing ([`crate::calibrate::screen_gyro_means`]).
     GyroOutliers,
+    /// Every calibration temperature above [`IMPLAUSIBLE_TEMP_C`] (kelvin read as deg C?).
+    ImplausibleTemperatures,
 }
 
 impl WarningKind {
@@ -117,6 +121,7 @@ impl WarningKind {
             WarningKind::ShortRuns => "short_runs",
             WarningKind::TemperatureSpikes => "temperature_spikes",
             WarningKind::GyroOutliers => "gyro_outliers",
+            WarningKind::ImplausibleTemperatures => "implausible_temperatures",
         }
     }
 }
@@ -416,10 +421,39 @@ pub fn warnings(points: &CalibrationPoints, axis: usize, settings: &Identifiabil
         too_few_runs(points, axis),
         temperature_range(points, axis, settings),
         rate_signs(points, axis),
+        implausible_temperatures(points, axis),
     ]
     .into_iter()
     .flatten()
     .collect()
+}
+
+/// Above this every calibration point's temperature lies beyond any gyro's operating range
+/// (FOGs are specified to about +85 C; military parts to +125 C), deg C: kelvin read as
+/// deg C (a room at 298 K), or raw counts.
+pub const IMPLAUSIBLE_TEMP_C: f64 = 150.0;
+
+/// `implausible_temperatures`: every calibration point above [`IMPLAUSIBLE_TEMP_C`] (review12
+/// finding 5: kelvin logs without `--temp-offset` calibrated as 238..334 C, silently, and
+/// firmware feeding deg C would be compensated wrongly everywhere).
+fn implausible_temperatures(points: &CalibrationPoints, axis: usize) -> Option<Warning> {
+    let (lo, hi) = points
+        .points
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), p| (lo.min(p.temp_c), hi.max(p.temp_c)));
+    (lo > IMPLAUSIBLE_TEMP_C).then(|| {
+        Warning::new(
+            axis,
+            WarningKind::ImplausibleTemperatures,
+            format!(
+                "axis {axis}: every calibration temperature lies between {lo:.2} and {hi:.2} C, above any gyro's \
+                 operating range (> {IMPLAUSIBLE_TEMP_C:.0} C): kelvin read as deg C? give --temp-offset -273.15 \
+                 (Python temp_offset=); raw counts? --temp-scale; the model expects the temperatures the firmware \
+                 will feed it"
+            ),
+            &[("temp_min_c", lo), ("temp_max_c", hi), ("implausible_temp_c", IMPLAUSIBLE_TEMP_C)],
+        )
+    })
 }
 
 /// `temperature_rate_confounded`, from the R^2 of dT/dt on {1, T, T^2, T^3}.
@@ -702,6 +736,23 @@ mod tests {
             0
         )
         .is_none());
+    }
+
+    /// Kelvin read as deg C (238-334, review12's logs) warns with the range and the fix; a
+    /// chamber run to 140 C, or one point below the limit, does not.
+    #[test]
+    fn temperatures_above_any_operating_range_are_said_to_be_kelvin_or_counts() {
+        let kelvin = points(&[(0, 238.15, 0.1), (1, 300.0, 0.2), (2, 334.22, -0.1)]);
+        let w = implausible_temperatures(&kelvin, 0).expect("warned");
+        assert_eq!(w.kind.name(), "implausible_temperatures");
+        assert!(
+            w.message.contains("between 238.15 and 334.22 C") && w.message.contains("--temp-offset -273.15"),
+            "{}",
+            w.message
+        );
+        assert_eq!(w.values["temp_min_c"], 238.15);
+        assert!(implausible_temperatures(&points(&[(0, 20.0, 0.1), (1, 140.0, 0.2)]), 0).is_none());
+        assert!(implausible_temperatures(&points(&[(0, 149.0, 0.1), (1, 300.0, 0.2)]), 0).is_none());
     }
 
     #[test]

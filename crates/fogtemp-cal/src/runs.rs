@@ -74,7 +74,7 @@ pub enum RunsProblem {
         first_line: u64,
     },
     /// A row names a run that none of the logs is.
-    #[error("run '{run}' has no log among the {logs} given")]
+    #[error("run '{run}' has no log among the {logs} given: give every log the file lists (fit and validate then take the runs its `role` column marks cal and val, or all of them without one), or leave the row out")]
     UnknownRun {
         /// The run.
         run: String,

@@ -115,6 +115,18 @@ fn flag_hint(e: &(dyn std::error::Error + 'static)) -> Option<&'static str> {
             "; a banner above the data (a terminal program's log line)? skip it with --skip-lines N; \
              a units row or repeated header: --skip-bad-rows",
         ),
+        CalError::BadRow { row, .. } if row.kind == BadRowKind::DuplicateTime => Some(
+            "; repeated time stamps: a clock coarser than the sample rate? give --sample-rate-hz HZ to time the rows \
+             by their index (--skip-bad-rows would keep one row per stamp and drop the rest)",
+        ),
+        CalError::BadRow { row, .. } if row.kind == BadRowKind::BackwardTime => Some(
+            "; the time goes back: a logger restart (a new run starts here: split the file there) or two logs \
+             joined? --skip-bad-rows would drop every row until the time passes the old one",
+        ),
+        CalError::BadRow { row, .. } if row.kind == BadRowKind::ImpossibleTemperature => Some(
+            "; raw counts or kelvin? give --temp-scale/--temp-offset; a logger's mark for a missing reading: \
+             empty the cell, or --skip-bad-rows",
+        ),
         CalError::BadRow { .. } => Some("; use --skip-bad-rows to skip such rows"),
         CalError::MissingColumn { role: "time", .. } => Some(
             "; name the time column with --time-column (its unit with --time-unit), or give --sample-rate-hz \

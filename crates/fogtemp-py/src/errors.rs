@@ -40,6 +40,18 @@ fn hint(e: &CalError) -> &'static str {
         CalError::BadRow { row, .. } if row.kind == BadRowKind::PointWithDecimalComma => {
             "; leave out decimal_mark='comma' if the log writes decimal points"
         }
+        CalError::BadRow { row, .. } if row.kind == BadRowKind::DuplicateTime => {
+            "; repeated time stamps: a clock coarser than the sample rate? pass sample_rate_hz= to time the rows by \
+             their index (skip_bad_rows=True would keep one row per stamp and drop the rest)"
+        }
+        CalError::BadRow { row, .. } if row.kind == BadRowKind::BackwardTime => {
+            "; the time goes back: a logger restart (a new run starts here: split the file there) or two logs \
+             joined? skip_bad_rows=True would drop every row until the time passes the old one"
+        }
+        CalError::BadRow { row, .. } if row.kind == BadRowKind::ImpossibleTemperature => {
+            "; raw counts or kelvin? pass temp_scale=/temp_offset=; a logger's mark for a missing reading: empty \
+             the cell, or skip_bad_rows=True"
+        }
         CalError::BadRow { .. } => "; pass skip_bad_rows=True to skip such rows",
         CalError::NoCalibrationPoints { .. } => {
             "; check temp_column, or set max_gap_s and window_s to suit the temperature sampling"
