@@ -1962,3 +1962,18 @@ fn validate_on_the_fitted_logs_says_in_sample() {
     let other = stderr(&other);
     assert!(!other.contains("in-sample"), "{other}");
 }
+
+/// A gzip-compressed log is named as such (review12 finding 7: "the header row is not text"
+/// and a folder hint with a doubled slash sent users in circles).
+#[test]
+fn a_gzip_log_is_named_gzip_compressed() {
+    let dir = TempDir::new().expect("tempdir");
+    let log = dir.path().join("run.csv");
+    // gzip's header: magic 1f 8b, method 08, then flags and a time stamp.
+    fs::write(&log, [0x1f, 0x8b, 0x08, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x03, b'x', b'\n'])
+        .expect("write");
+    let output = cal().args(args!["fit", "--out", dir.path().join("m.fogm"), &log]).output().expect("run");
+    let err = String::from_utf8_lossy(&output.stderr);
+    assert!(!output.status.success());
+    assert!(err.contains("run.csv:1: the file is gzip-compressed: decompress it first"), "{err}");
+}

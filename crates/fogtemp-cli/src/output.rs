@@ -141,11 +141,11 @@ fn expand_log_paths(arg: &Path) -> Result<Vec<PathBuf>> {
             let files: Vec<&PathBuf> = left.iter().filter(|p| p.is_file()).collect();
             let hint = match files.first().and_then(|p| p.extension()) {
                 Some(ext) => format!(
-                    " ({} other file{}, e.g. {}: give them as paths, e.g. {}/*.{})",
+                    " ({} other file{}, e.g. {}: give them as paths, e.g. {}.{})",
                     files.len(),
                     if files.len() == 1 { "" } else { "s" },
                     files[0].display(),
-                    arg.display(),
+                    arg.join("*").display(),
                     ext.to_string_lossy()
                 ),
                 None => String::new(),

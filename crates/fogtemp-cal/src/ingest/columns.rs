@@ -227,6 +227,14 @@ pub(super) fn make_plan(path: &Path, header: Fields<'_>, f: &LogFormat, line: u6
 /// is not refused: a Latin-1 "deg C" in a column the log does not need is harmless.
 fn refuse_binary_header(path: &Path, header: &Fields<'_>, line: u64) -> Result<(), CalError> {
     let binary = |h: &[u8]| h.iter().position(|&b| b < 0x20 && b != b'\t');
+    // gzip's magic bytes 1f 8b: say so (review12 finding 7: "not text" sent users in circles).
+    if header.get(0).is_some_and(|f| f.starts_with(&[0x1f, 0x8b])) {
+        return Err(CalError::LogFormat {
+            path: path.to_path_buf(),
+            line,
+            problem: "the file is gzip-compressed: decompress it first (gunzip, or zcat into a .csv)".into(),
+        });
+    }
     for i in 0..header.len() {
         let field = header.get(i).unwrap_or(b"");
         if let Some(at) = binary(field) {
