@@ -1860,6 +1860,13 @@ fn allan_of_compensated_starts_after_the_warm_up(compensated: &Path) {
     assert_eq!(whole["axes"][0]["curve"], after["axes"][0]["curve"]);
     assert_eq!(whole["axes"][0]["samples"].as_u64(), Some((rows.len() - first) as u64));
     assert!(stderr.contains(&format!("the first {first} rows")) && stderr.contains("WARMING_UP"), "{stderr}");
+    // Without --gyro-column, compensate's output is read by its compensated column, the same
+    // curve (the README's `allan run-comp.csv`; it failed on the default gyro_dph: review12 F9).
+    let default = cal().args(args!["allan", compensated, "--json"]).assert().success();
+    let said = String::from_utf8_lossy(&default.get_output().stderr).to_string();
+    let default = json(&String::from_utf8_lossy(&default.get_output().stdout));
+    assert_eq!(default["axes"][0]["curve"], whole["axes"][0]["curve"]);
+    assert!(said.contains("compensate's output: reading compensated_dph"), "{said}");
 }
 
 /// A log too short for any averaging time has no Allan deviation: its noise terms are

@@ -18,6 +18,16 @@ pub fn allan(a: AllanArgs) -> Result<()> {
     // The Allan deviation reads only time and gyro: a gyro-only log (a rate-table or static
     // noise capture) needs no temperature column, and a temperature cell is not checked.
     ingest.format.temp_columns.clear();
+    if a.ingest.gyro_columns.is_empty() {
+        if let Some(columns) = compensated_columns(&a.log, &ingest.format) {
+            eprintln!(
+                "note: {}: compensate's output: reading {} (name --gyro-column raw_dph for the raw gyro)",
+                a.log.display(),
+                columns.join(", ")
+            );
+            ingest.format.gyro_columns = columns;
+        }
+    }
     let gyro_columns = ingest.format.gyro_columns.clone();
     let flag_columns = compensate_flag_columns(&a.log, &ingest.format);
     ingest.format.gyro_columns.extend(flag_columns.iter().cloned());
@@ -106,6 +116,23 @@ fn compensate_flag_columns(log: &Path, format: &LogFormat) -> Vec<String> {
         .collect();
     flags.dedup();
     flags
+}
+
+/// The `compensated_dph` columns of `compensate`'s output (a header starting `time_s` with
+/// no `gyro_dph`), for an `allan` given no gyro column (review12 finding 9: the README's
+/// `allan` of compensate's output failed on the default `gyro_dph`); `None` otherwise.
+fn compensated_columns(log: &Path, format: &LogFormat) -> Option<Vec<String>> {
+    if format.skip_lines > 0 || !format.column_names.is_empty() {
+        return None;
+    }
+    let header = first_line(log)?;
+    let names: Vec<&str> = header.trim_start_matches('\u{feff}').trim_end().split(',').collect();
+    if names.first() != Some(&"time_s") || names.contains(&"gyro_dph") {
+        return None;
+    }
+    let columns: Vec<String> =
+        names.iter().filter(|n| n.starts_with("compensated_dph")).map(|n| (*n).to_string()).collect();
+    (!columns.is_empty()).then_some(columns)
 }
 
 /// The log's first line, if it can be read as text (at most 64 KiB).
