@@ -1984,3 +1984,21 @@ fn a_gzip_log_is_named_gzip_compressed() {
     assert!(!output.status.success());
     assert!(err.contains("run.csv:1: the file is gzip-compressed: decompress it first"), "{err}");
 }
+
+/// `compensate` given a folder says it takes one log and how to run it per file (it said
+/// "Is a directory (os error 21)" at line 1: review12 finding 11).
+#[test]
+fn compensate_of_a_folder_says_to_run_it_per_file() {
+    let dir = TempDir::new().expect("tempdir");
+    let (log, _) = short_log(dir.path(), "ok.csv");
+    let model = dir.path().join("m.fogm");
+    run_ok(args!["fit", "--method", "poly", "--out", &model, &log]);
+    let output = cal()
+        .args(args!["compensate", "--model", &model, dir.path(), "--out", dir.path().join("c.csv")])
+        .output()
+        .expect("run");
+    let err = String::from_utf8_lossy(&output.stderr);
+    assert!(!output.status.success());
+    assert!(err.contains("a folder; compensate takes one log and writes one CSV: run it per file"), "{err}");
+    assert!(!dir.path().join("c.csv").exists());
+}

@@ -10,6 +10,17 @@ use crate::args::CompensateArgs;
 use crate::output::{check_output_file, refuse_overwriting_inputs, write_atomic, RowProgress};
 
 pub fn compensate(a: CompensateArgs) -> Result<()> {
+    // One log in, one CSV out: a folder was read as a log ("Is a directory (os error 21)"
+    // at line 1, review12 finding 11).
+    if a.log.is_dir() {
+        bail!(
+            "{}: a folder; compensate takes one log and writes one CSV: run it per file, e.g. \
+             for f in {}; do fogtemp-cal compensate --model {} \"$f\" --out \"${{f%.csv}}-comp.csv\"; done",
+            a.log.display(),
+            a.log.join("*.csv").display(),
+            a.model.display()
+        );
+    }
     refuse_overwriting_inputs(&a.out, &[&a.log, &a.model])?;
     check_output_file(&a.out)?;
     let blob = read_model(&a.model)?;
