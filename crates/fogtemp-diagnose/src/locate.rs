@@ -628,7 +628,7 @@ fn unexplained_statement(
 
 fn definitions(options: &DiagnoseOptions, prep: &Prepared) -> Vec<String> {
     vec![
-        format!("residual = recorded gyro - simulated gyro, averaged into short means of {} s on a common 1 s grid (a mean counts if >= 90 % of its seconds hold data)", prep.block_s),
+        format!("residual = recorded gyro - simulated gyro, averaged into short means of {} s on a common 1 s grid (a mean counts if >= {} % of its seconds hold data: --block-coverage)", prep.block_s, 100.0 * options.block_coverage),
         format!("T and dT/dt = level and slope of a centred least-squares line over {} s of 1 s temperature means; d2T/dt2 = least-squares slope of dT/dt over {} s", options.rate_window_s, options.accel_window_s),
         format!("HAC standard error of a span's or map cell's mean = the larger of its own Newey-West estimate (Bartlett weights, bandwidth {} short means = {} s, lags within a run only) and the error the final model's residual implies for those short means: its noise model (white + bias-instability decades, levels by REML, as in the acceptance) when that passes its innovation check, else its autocovariances pooled over all runs up to the bandwidth; Newey-West alone collapses in cells of fewer means than its bandwidth and misses flicker beyond it", prep.hac_lag_blocks, options.hac_lag_s),
         "significance of spans and map cells: |z| above the two-sided 5 % normal limit, Bonferroni-corrected over all spans (cells)".into(),
