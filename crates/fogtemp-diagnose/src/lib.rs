@@ -636,7 +636,7 @@ pub struct Diagnosis {
     pub outliers: Vec<RunOutliers>,
 }
 
-/// The seconds of one run read as missing as outliers ([`prepare::screen_outliers`]).
+/// The seconds of one run read as missing as outliers ([`fogtemp_cal::outliers::screen`]).
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct RunOutliers {
     /// Run name.

@@ -68,7 +68,7 @@ pub struct RunData {
     pub sec: SecondGrid,
     /// Valid short means in time order.
     pub blocks: Vec<Block>,
-    /// Seconds whose residual was an outlier, read as missing ([`screen_outliers`]).
+    /// Seconds whose residual was an outlier, read as missing ([`fogtemp_cal::outliers::screen`]).
     pub outliers: Vec<OutlierSecond>,
 }
 
@@ -89,14 +89,6 @@ pub struct OutlierSecond {
     /// The run's robust standard deviation of 1 s residuals (1.4826 x the median absolute
     /// deviation from the neighbourhood medians), deg/h.
     pub robust_sd_dph: f64,
-}
-
-/// Finds the seconds of `resid_dph` (a run's 1 s residuals, NaN = none) more than
-/// [`OUTLIER_ROBUST_SDS`] robust standard deviations from the median of the finite seconds
-/// within a minute either side ([`fogtemp_cal::outliers::screen`]): their indices and
-/// deviations, and the robust standard deviation.
-pub fn screen_outliers(resid_dph: &[f64]) -> (Vec<(usize, f64)>, f64) {
-    fogtemp_cal::outliers::screen(resid_dph)
 }
 
 /// The note for the seconds of one run pair read as missing as outliers (at most five listed).
@@ -360,7 +352,7 @@ fn prepare_run(
     let mut rec_gyro = rec_gyro;
     // A spike in a log (one corrupted sample of 1000 deg/h among 122,400) would otherwise set
     // the noise level and the fits: read as missing and reported (review11 finding 1).
-    let (found, robust_sd_dph) = screen_outliers(&resid_dph);
+    let (found, robust_sd_dph) = fogtemp_cal::outliers::screen(&resid_dph);
     let outliers = found
         .into_iter()
         .map(|(k, deviation_dph)| {
