@@ -164,6 +164,9 @@ fn check_sample(
         if !value.is_finite() {
             return Err(run.bad(index, first_gyro + k, value, BadRowKind::NonFinite));
         }
+        if !crate::ingest::is_representable_rate(value) {
+            return Err(run.bad(index, first_gyro + k, value, BadRowKind::RateBeyondRange));
+        }
         *slot = value;
     }
     for (k, (slot, column)) in temps.iter_mut().zip(run.temps_c).enumerate() {
@@ -316,6 +319,16 @@ mod tests {
         match extract_run_arrays(&run3, &config) {
             Err(CalError::BadRow { row, .. }) => {
                 assert_eq!((row.line, row.column, row.kind), (5, 2, BadRowKind::ImpossibleTemperature));
+            }
+            other => panic!("expected a bad row, got {other:?}"),
+        }
+        // A rate the compensator's f32 cannot hold (1e300 deg/h) too.
+        let mut huge = gyro.clone();
+        huge[9] = 1e300;
+        let run4 = RunArrays { gyros_dph: &[&huge], ..run };
+        match extract_run_arrays(&run4, &config) {
+            Err(CalError::BadRow { row, .. }) => {
+                assert_eq!((row.line, row.column, row.kind), (9, 3, BadRowKind::RateBeyondRange));
             }
             other => panic!("expected a bad row, got {other:?}"),
         }

@@ -473,6 +473,10 @@ pub(super) fn parse_row(
     };
     for (slot, &field) in gyros.iter_mut().zip(&columns.gyros) {
         *slot = required(field)? * plan.gyro_factor;
+        if !super::is_representable_rate(*slot) {
+            let raw = fields.get(field).unwrap_or(b"");
+            return Err(bad_row(columns, line, field, raw, BadRowKind::RateBeyondRange));
+        }
     }
     for (slot, &field) in temps.iter_mut().zip(&columns.temps) {
         *slot = parse_cell(plan, fields, field, line)?

@@ -494,12 +494,22 @@ pub enum BadRowKind {
     /// logger's sentinel for a missing one (-999, 9999). The firmware's compensator flags
     /// such a sample `BAD_INPUT` by the same rule.
     ImpossibleTemperature,
+    /// A gyro rate (after the unit and `gyro_scale`) beyond the f32 the compensator takes
+    /// (magnitude above 3.4e38, infinite there): no rate a gyro reads, and its square
+    /// overflows every statistic.
+    RateBeyondRange,
 }
 
 /// Whether a temperature read from a log is one a sensor can report: the compensator's rule
 /// on the f32 it would be given.
 pub(crate) fn is_physical(temp_c: f64) -> bool {
     fogtemp_core::is_physical_temperature(temp_c as f32)
+}
+
+/// Whether a gyro rate read from a log (deg/h, finite) stays finite as the f32 the
+/// compensator is given.
+pub(crate) fn is_representable_rate(rate_dph: f64) -> bool {
+    (rate_dph as f32).is_finite()
 }
 
 impl BadRowKind {
@@ -526,6 +536,10 @@ impl BadRowKind {
             BadRowKind::ImpossibleTemperature => {
                 "not a temperature a sensor reads (below -273.15 C or above 1000 C; a logger's mark for a missing \
                  reading? leave the cell empty)"
+            }
+            BadRowKind::RateBeyondRange => {
+                "a rate beyond the f32 range the compensator takes (magnitude above 3.4e38 deg/h; an instrument's \
+                 overload code, or a unit or --gyro-scale that is far off?)"
             }
         }
     }

@@ -414,6 +414,9 @@ impl<R: Read> Parser<R> {
             if plan.temp_slots.iter().any(|&k| refused(values[k])) {
                 break; // an impossible temperature: likewise (the general path reads the record again)
             }
+            if plan.gyro_slots.iter().any(|&k| !super::is_representable_rate(values[k] * plan.gyro_factor)) {
+                break; // a rate beyond the compensator's f32: likewise
+            }
             if previous_time.is_some_and(|p| time <= p) {
                 break; // duplicate or backward time: likewise
             }

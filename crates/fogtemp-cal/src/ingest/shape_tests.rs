@@ -506,6 +506,30 @@ fn a_temperature_no_sensor_reads_is_a_bad_row_in_every_reader_mode() {
 }
 
 #[test]
+fn a_rate_beyond_the_compensators_f32_is_a_bad_row_in_every_reader_mode() {
+    // Row 4 holds 1e300 deg/h (infinite as the f32 the compensator takes; its square is
+    // infinite in f64): refused at its line and column, not carried into a fit (review12 F14).
+    let mut data = String::from("time_s,temp_c,gyro_dph\n");
+    for k in 0..50 {
+        let gyro = if k == 2 { "1e300".to_string() } else { "0.5".to_string() };
+        data.push_str(&format!("{k},20,{gyro}\n"));
+    }
+    expect(&bad(&data), 4, 3, "gyro_dph", "1e300", BadRowKind::RateBeyondRange);
+    let skipping = IngestOptions { skip_bad_rows: true, ..IngestOptions::default() };
+    assert_eq!(values(&rows(&data, &skipping)).len(), 49);
+    // Judged after the scale: 1e36 counts are a rate, 1e36 x 1000 is not. f32::MAX itself is.
+    let scaled = IngestOptions {
+        format: LogFormat { gyro_scale: 1000.0, ..LogFormat::default() },
+        ..IngestOptions::default()
+    };
+    let counts = "time_s,temp_c,gyro_dph\n0,20,1e36\n1,20,1\n";
+    assert_eq!(values(&rows(counts, &IngestOptions::default())).len(), 2);
+    expect(&bad_with(counts, &scaled), 2, 3, "gyro_dph", "1e36", BadRowKind::RateBeyondRange);
+    let at_limit = format!("time_s,temp_c,gyro_dph\n0,20,{}\n1,20,{}\n", f32::MAX, -f32::MAX);
+    assert_eq!(values(&rows(&at_limit, &IngestOptions::default())).len(), 2);
+}
+
+#[test]
 fn a_binary_or_utf16_file_is_refused_as_not_text() {
     // A binary file's first bytes (an ELF header) and a UTF-16 CSV: refused on line 1 as not
     // text, not listed byte by byte as the header's column names.
