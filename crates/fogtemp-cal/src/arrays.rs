@@ -120,6 +120,7 @@ pub fn visit_rows(
                 }
                 previous = Some(time);
                 report.rows += 1;
+                report.last_time_s = time - report.time_origin_s;
                 visit(&Row {
                     line: index as u64,
                     time_s: time - report.time_origin_s,

@@ -1571,6 +1571,16 @@ pub fn gap_notes(runs: &[RunValidation]) -> Vec<String> {
     notes
 }
 
+/// One note per chain of validated logs that continue one another ([`crate::continued`]),
+/// judged by the model's max gap: each was replayed and scored as a run of its own.
+pub fn continued_notes(runs: &[RunValidation]) -> Vec<String> {
+    let max_gap_s = runs.first().map_or(0.0, |r| r.series.gaps.longer_than_s);
+    crate::continued::continued_logs(runs.iter().map(|r| &r.ingest), max_gap_s)
+        .iter()
+        .map(crate::continued::Continued::message)
+        .collect()
+}
+
 /// The averaging windows behind one run's bias stability.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct MetricWindows {

@@ -106,6 +106,9 @@ pub enum WarningKind {
     GyroOutliers,
     /// Every calibration temperature above [`IMPLAUSIBLE_TEMP_C`] (kelvin read as deg C?).
     ImplausibleTemperatures,
+    /// Logs that continue one another in time ([`crate::continued`]): one run split over
+    /// files, read as several runs. Reported on axis 0.
+    ContinuedLogs,
 }
 
 impl WarningKind {
@@ -122,6 +125,7 @@ impl WarningKind {
             WarningKind::TemperatureSpikes => "temperature_spikes",
             WarningKind::GyroOutliers => "gyro_outliers",
             WarningKind::ImplausibleTemperatures => "implausible_temperatures",
+            WarningKind::ContinuedLogs => "continued_logs",
         }
     }
 }
@@ -164,6 +168,29 @@ pub fn fit_warnings(
             found.extend(temperature_spikes(runs, axis, column.map_or("temperature", String::as_str)));
             found.extend(gyro_outliers(runs, axis));
             found
+        })
+        .chain(continued_logs(runs, f64::from(config.features.max_gap_s)))
+        .collect()
+}
+
+/// `continued_logs`: one warning per chain of logs that continue one another, and one for
+/// those that cannot be paired (review12
+/// finding 2: a run in three files calibrated and validated as three runs, without a word).
+fn continued_logs(runs: &[RunFeatures], max_gap_s: f64) -> Vec<Warning> {
+    crate::continued::continued_logs(runs.iter().map(|r| &r.ingest), max_gap_s)
+        .into_iter()
+        .map(|found| {
+            let (logs, largest_step_s) = match &found {
+                crate::continued::Continued::Chain { parts, largest_step_s } => {
+                    (parts.len(), *largest_step_s)
+                }
+                crate::continued::Continued::Unpaired { later, earlier, largest_step_s } => {
+                    (later.len() + earlier.len(), *largest_step_s)
+                }
+            };
+            let values =
+                [("logs", logs as f64), ("largest_step_s", largest_step_s), ("max_gap_s", max_gap_s)];
+            Warning::new(0, WarningKind::ContinuedLogs, found.message(), &values)
         })
         .collect()
 }

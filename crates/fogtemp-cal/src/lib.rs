@@ -53,6 +53,7 @@ pub mod arrays;
 pub mod axis_columns;
 pub mod blob;
 pub mod calibrate;
+pub mod continued;
 pub mod cv_correction;
 pub mod digest;
 pub mod documents;

@@ -526,3 +526,58 @@ fn gaps_in_the_time_stamps_are_reported_by_fit_validate_and_compensate() {
     assert_eq!(warming.len(), 20);
     assert_eq!((warming[0], warming[10]), ("0", "1060"));
 }
+
+#[test]
+fn a_run_split_over_files_is_named_by_fit_and_validate() {
+    // Three 1 h warm-ups in date-times; the third in two files, the second starting one
+    // sample after the first ends (a logger that starts a new file every 30 minutes).
+    let dir = tempfile::tempdir().unwrap();
+    let write = |name: &str, day: u32, start_c: f64, seconds: std::ops::Range<u32>| {
+        let mut text = String::from("time,temp_c,gyro_dph\n");
+        for k in seconds {
+            let temp = temp_c(start_c, f64::from(k));
+            text.push_str(&format!(
+                "2026-11-{day:02}T{:02}:{:02}:{:02},{temp:.4},{:.6}\n",
+                10 + k / 3600,
+                (k / 60) % 60,
+                k % 60,
+                bias_dph(temp)
+            ));
+        }
+        let path = dir.path().join(name);
+        std::fs::write(&path, text).unwrap();
+        path
+    };
+    let logs = [
+        write("a.csv", 20, 0.0, 0..3600),
+        write("b.csv", 21, 20.0, 0..3600),
+        write("c_part1.csv", 22, 40.0, 0..1800),
+        write("c_part2.csv", 22, 40.0, 1800..3600),
+    ];
+    let model = dir.path().join("m.fogm");
+    let mut args =
+        vec!["fit", "--method", "poly", "--json", "--time-column", "time", "--time-unit", "datetime"];
+    args.extend(["--out", s(&model)]);
+    args.extend(logs.iter().map(|p| s(p)));
+    let (doc, stderr) = ok_json(&args);
+    let warned: Vec<&Value> =
+        doc["warnings"].as_array().unwrap().iter().filter(|w| w["kind"] == "continued_logs").collect();
+    assert_eq!(warned.len(), 1, "{doc}");
+    assert_eq!(
+        (warned[0]["values"]["logs"].as_f64(), warned[0]["values"]["largest_step_s"].as_f64()),
+        (Some(2.0), Some(1.0))
+    );
+    let expected = format!("{} continues {} (each starts at most 1 s after", s(&logs[3]), s(&logs[2]));
+    assert!(stderr.contains(&format!("warning: {expected}")), "{stderr}");
+    assert!(stderr.contains(&format!("tail -n +2 {}; }} > joined.csv", s(&logs[3]))), "{stderr}");
+
+    // validate names them from the model's max gap; runs in their own files alone are quiet.
+    let mut args = vec!["validate", "--model", s(&model)];
+    args.extend(logs.iter().map(|p| s(p)));
+    let out = run(&args);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success() && stderr.contains(&format!("note: {expected}")), "{stderr}");
+    let out = run(&["validate", "--model", s(&model), s(&logs[0]), s(&logs[1]), s(&logs[2])]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success() && !stderr.contains("continue"), "{stderr}");
+}

@@ -772,7 +772,9 @@ pub fn validate<'py>(
         }
         warn_skipped(py, &r.ingest, arrays)?;
     }
-    for note in calibrate::gap_notes(&validation.runs) {
+    for note in
+        calibrate::gap_notes(&validation.runs).into_iter().chain(calibrate::continued_notes(&validation.runs))
+    {
         progress::warn(py, &note)?;
     }
     // A log's time unit is a setting; arrays are in seconds (as fit() reads them).

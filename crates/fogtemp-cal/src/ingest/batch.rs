@@ -96,6 +96,9 @@ impl Consumer {
                 gyros_dph: &values[split..],
             })?;
         }
+        if let Some(last) = batch.values.chunks_exact(self.stride).next_back() {
+            self.report.last_time_s = last[0] - origin;
+        }
         self.report.rows += batch.lines.len() as u64;
         Ok(())
     }

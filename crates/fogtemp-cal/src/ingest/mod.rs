@@ -607,6 +607,8 @@ pub struct IngestReport {
     /// Time of the first accepted row in the file's own units converted to seconds
     /// (`Row::time_s` is relative to it).
     pub time_origin_s: f64,
+    /// Time of the last accepted row, s since [`IngestReport::time_origin_s`] (0 without rows).
+    pub last_time_s: f64,
 }
 
 /// How many skipped rows are listed individually.
@@ -950,6 +952,7 @@ mod tests {
                         }
                         previous = Some(time);
                         report.rows += 1;
+                        report.last_time_s = time - report.time_origin_s;
                         seen.push(Seen::of(&Row {
                             line,
                             time_s: time - report.time_origin_s,

@@ -638,6 +638,10 @@ pub fn write_validation_report_with(
         "Gaps in the time stamps (the drift figure shows them as breaks):",
         &crate::calibrate::gap_notes(runs),
     ));
+    md.push_str(&bullet_section(
+        "Logs that continue one another (each scored as a run of its own):",
+        &crate::calibrate::continued_notes(runs),
+    ));
     for axis in 0..model.axis_count() {
         let axis_runs: Vec<&crate::calibrate::RunValidation> =
             runs.iter().filter(|r| r.axis == axis).collect();

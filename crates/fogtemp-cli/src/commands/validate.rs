@@ -92,7 +92,7 @@ pub fn validate(a: ValidateArgs) -> Result<()> {
         }
         report_skipped(&r.ingest);
     }
-    for note in calibrate::gap_notes(runs) {
+    for note in calibrate::gap_notes(runs).into_iter().chain(calibrate::continued_notes(runs)) {
         eprintln!("note: {note}");
     }
     for r in runs.iter().filter(|r| r.axis == 0) {

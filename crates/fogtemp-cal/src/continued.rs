@@ -1,0 +1,246 @@
+//! Logs that continue one another: one run split over several files (a logger that starts a
+//! new file every hour or every N MB).
+//!
+//! Every log is read as a power-on run of its own: the feature tracker and the compensator
+//! start again in each, and the bias stability is computed per file. For the parts of one
+//! run that is silently optimistic (review12 finding 2: a 2 h run split in three read 0.01027,
+//! 0.00337 and 0.00505 deg/h against 0.01159 whole). A log whose first time stamp follows
+//! another's last by more than 0 and at most the tracker's `max_gap_s` (a gap the tracker
+//! would have bridged had the two been one file) is named with the one it continues, so the
+//! reader can join them. Logs whose time restarts at 0 in every file never match.
+
+use std::path::{Path, PathBuf};
+
+use crate::ingest::IngestReport;
+
+/// Logs that continue one another in time.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Continued {
+    /// Logs read one after another: each starts at most `max_gap_s` after the one before it
+    /// ends, and no other log ends or starts so.
+    Chain {
+        /// The logs, earliest first.
+        parts: Vec<PathBuf>,
+        /// The longest step from one part's last time stamp to the next's first, s.
+        largest_step_s: f64,
+    },
+    /// Logs that each start at most `max_gap_s` after one of several others ends (runs in
+    /// relative time of the same length, each split alike): which part continues which
+    /// cannot be told from the time stamps.
+    Unpaired {
+        /// The logs that start after another ends.
+        later: Vec<PathBuf>,
+        /// The logs they may continue.
+        earlier: Vec<PathBuf>,
+        /// The longest such step, s.
+        largest_step_s: f64,
+    },
+}
+
+/// A log's path and its first and last time stamps (s, in the log's clock).
+struct Span<'a> {
+    path: &'a Path,
+    first_s: f64,
+    last_s: f64,
+}
+
+/// The logs among `reports` that continue one another: the chains (earliest first, each at
+/// least two logs, in the order of their first log's time), then, when some log could
+/// continue more than one or be continued by more than one, those logs together. A log read
+/// twice (the same path) counts once; logs without rows never match.
+pub fn continued_logs<'a>(
+    reports: impl IntoIterator<Item = &'a IngestReport>,
+    max_gap_s: f64,
+) -> Vec<Continued> {
+    let mut spans: Vec<Span<'_>> = Vec::new();
+    for r in reports {
+        let (first_s, last_s) = (r.time_origin_s, r.time_origin_s + r.last_time_s);
+        if r.rows > 0 && first_s.is_finite() && last_s.is_finite() && !spans.iter().any(|s| s.path == r.path)
+        {
+            spans.push(Span { path: r.path.as_path(), first_s, last_s });
+        }
+    }
+    spans.sort_by(|a, b| a.first_s.total_cmp(&b.first_s));
+    let step = |earlier: &Span<'_>, later: &Span<'_>| later.first_s - earlier.last_s;
+    let follows = |j: usize, i: usize| {
+        let s = step(&spans[j], &spans[i]);
+        s > 0.0 && s <= max_gap_s
+    };
+    let n = spans.len();
+    let before: Vec<Vec<usize>> = (0..n).map(|i| (0..n).filter(|&j| follows(j, i)).collect()).collect();
+    let after: Vec<Vec<usize>> = (0..n).map(|j| (0..n).filter(|&i| follows(j, i)).collect()).collect();
+    // A link where each is the other's only candidate.
+    let next: Vec<Option<usize>> = (0..n)
+        .map(|j| after[j].first().copied().filter(|&i| after[j].len() == 1 && before[i] == [j]))
+        .collect();
+    let linked_to: Vec<bool> = (0..n).map(|i| next.contains(&Some(i))).collect();
+    let mut found = Vec::new();
+    for start in (0..n).filter(|&i| !linked_to[i] && next[i].is_some()) {
+        let (mut parts, mut largest_step_s, mut at) = (vec![spans[start].path.to_path_buf()], 0.0_f64, start);
+        while let Some(i) = next[at] {
+            largest_step_s = largest_step_s.max(step(&spans[at], &spans[i]));
+            parts.push(spans[i].path.to_path_buf());
+            at = i;
+        }
+        found.push(Continued::Chain { parts, largest_step_s });
+    }
+    let later: Vec<usize> = (0..n).filter(|&i| !before[i].is_empty() && !linked_to[i]).collect();
+    if !later.is_empty() {
+        let mut earlier: Vec<usize> = later.iter().flat_map(|&i| before[i].iter().copied()).collect();
+        earlier.sort_unstable();
+        earlier.dedup();
+        let largest_step_s = later
+            .iter()
+            .flat_map(|&i| before[i].iter().map(move |&j| (j, i)))
+            .map(|(j, i)| step(&spans[j], &spans[i]));
+        found.push(Continued::Unpaired {
+            later: later.iter().map(|&i| spans[i].path.to_path_buf()).collect(),
+            earlier: earlier.iter().map(|&j| spans[j].path.to_path_buf()).collect(),
+            largest_step_s: largest_step_s.fold(0.0, f64::max),
+        });
+    }
+    found
+}
+
+/// What reading split parts as runs of their own does.
+const READ_APART: &str =
+    "Each log is read as a run of its own (the features and the compensator start again in \
+                          each, and each gets its own bias stability, lower than the whole run's)";
+
+impl Continued {
+    /// What the reader is told: which logs, why they look like one run, what reading them
+    /// apart does, and how to join them.
+    pub fn message(&self) -> String {
+        match self {
+            Continued::Chain { parts, largest_step_s } => {
+                let names: Vec<String> = parts.iter().map(|p| p.display().to_string()).collect();
+                let (first, rest) = names.split_first().map_or(("", &[][..]), |(f, r)| (f.as_str(), r));
+                let join: Vec<String> = std::iter::once(format!("cat {first}"))
+                    .chain(rest.iter().map(|r| format!("tail -n +2 {r}")))
+                    .collect();
+                format!(
+                    "{} continue{} {first} (each starts at most {} s after the one before it ends): one run split over \
+                     files? {READ_APART}; to read them as one run, join them first, e.g. {{ {}; }} > joined.csv (for \
+                     logs with one header line)",
+                    rest.join(", "),
+                    if rest.len() == 1 { "s" } else { "" },
+                    seconds(*largest_step_s),
+                    join.join("; "),
+                )
+            }
+            Continued::Unpaired { later, earlier, largest_step_s } => format!(
+                "{} each start at most {} s after one of {} ends, and the time stamps cannot tell which: runs split \
+                 over files, with a clock that counts on from the previous part? {READ_APART}; to read a run as one, \
+                 join its parts in order first (cat the first, then tail -n +2 each later part, for logs with one \
+                 header line)",
+                names(later),
+                seconds(*largest_step_s),
+                names(earlier),
+            ),
+        }
+    }
+}
+
+/// Up to four names, then how many more.
+fn names(paths: &[PathBuf]) -> String {
+    let shown: Vec<String> = paths.iter().take(4).map(|p| p.display().to_string()).collect();
+    match paths.len() {
+        n if n > 4 => format!("{} and {} more", shown.join(", "), n - 4),
+        _ => shown.join(", "),
+    }
+}
+
+/// A step in seconds, without trailing zeros (`1`, `0.02`).
+fn seconds(step_s: f64) -> String {
+    let text = format!("{step_s:.3}");
+    text.trim_end_matches('0').trim_end_matches('.').to_string()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn report(name: &str, first_s: f64, last_s: f64) -> IngestReport {
+        IngestReport {
+            path: PathBuf::from(name),
+            rows: 10,
+            time_origin_s: first_s,
+            last_time_s: last_s - first_s,
+            ..IngestReport::default()
+        }
+    }
+
+    #[test]
+    fn parts_that_follow_within_the_gap_form_one_chain_in_time_order() {
+        // A 2 h run in three files, given out of order, beside a run of its own.
+        let reports = [
+            report("b2.csv", 2400.0, 4799.0),
+            report("b1.csv", 0.0, 2399.0),
+            report("other.csv", 0.0, 7199.0),
+            report("b3.csv", 4800.0, 7199.0),
+        ];
+        let chains = continued_logs(&reports, 5.0);
+        assert_eq!(chains.len(), 1, "{chains:?}");
+        let Continued::Chain { parts, largest_step_s } = &chains[0] else { panic!("{chains:?}") };
+        let names: Vec<_> = parts.iter().map(|p| p.display().to_string()).collect();
+        assert_eq!(names, ["b1.csv", "b2.csv", "b3.csv"]);
+        assert_eq!(*largest_step_s, 1.0);
+        let text = chains[0].message();
+        assert!(text.starts_with("b2.csv, b3.csv continue b1.csv (each starts at most 1 s after"), "{text}");
+        assert!(
+            text.contains("{ cat b1.csv; tail -n +2 b2.csv; tail -n +2 b3.csv; } > joined.csv"),
+            "{text}"
+        );
+    }
+
+    #[test]
+    fn logs_that_restart_their_clock_overlap_or_leave_a_long_gap_are_apart() {
+        // Every log from 0 (the usual relative time), an overlap, and a step beyond the gap.
+        let restart = [report("a.csv", 0.0, 3600.0), report("b.csv", 0.0, 3600.0)];
+        assert!(continued_logs(&restart, 5.0).is_empty());
+        let overlap = [report("a.csv", 0.0, 3600.0), report("b.csv", 3599.0, 7200.0)];
+        assert!(continued_logs(&overlap, 5.0).is_empty());
+        let apart = [report("a.csv", 0.0, 3600.0), report("b.csv", 3605.5, 7200.0)];
+        assert!(continued_logs(&apart, 5.0).is_empty());
+        assert_eq!(continued_logs(&apart, 6.0).len(), 1);
+        // The same log twice (validate with two models) counts once.
+        let twice = [report("a.csv", 0.0, 3600.0), report("a.csv", 0.0, 3600.0)];
+        assert!(continued_logs(&twice, 5.0).is_empty());
+        // A log without rows never matches.
+        let empty =
+            [report("a.csv", 0.0, 3600.0), IngestReport { rows: 0, ..report("b.csv", 3601.0, 3601.0) }];
+        assert!(continued_logs(&empty, 5.0).is_empty());
+    }
+
+    #[test]
+    fn parts_of_runs_that_share_one_relative_clock_are_named_together_unpaired() {
+        // Two 2 h runs, each split at 2400 s, both clocks from 0: which second part goes
+        // with which first cannot be told. A third run, in absolute time, pairs on its own.
+        let reports = [
+            report("a1.csv", 0.0, 2399.0),
+            report("a2.csv", 2400.0, 4799.0),
+            report("b1.csv", 0.0, 2399.0),
+            report("b2.csv", 2400.0, 4799.0),
+            report("c1.csv", 1e6, 1e6 + 2399.0),
+            report("c2.csv", 1e6 + 2400.0, 1e6 + 4799.0),
+        ];
+        let found = continued_logs(&reports, 5.0);
+        assert_eq!(found.len(), 2, "{found:?}");
+        assert!(
+            matches!(&found[0], Continued::Chain { parts, .. } if parts.len() == 2 && parts[0].ends_with("c1.csv"))
+        );
+        let Continued::Unpaired { later, earlier, largest_step_s } = &found[1] else { panic!("{found:?}") };
+        let text = |p: &[PathBuf]| p.iter().map(|p| p.display().to_string()).collect::<Vec<_>>();
+        assert_eq!(
+            (text(later), text(earlier), *largest_step_s),
+            (vec!["a2.csv".to_string(), "b2.csv".into()], vec!["a1.csv".to_string(), "b1.csv".into()], 1.0)
+        );
+        assert!(
+            found[1]
+                .message()
+                .starts_with("a2.csv, b2.csv each start at most 1 s after one of a1.csv, b1.csv ends"),
+            "{}",
+            found[1].message()
+        );
+    }
+}
