@@ -31,7 +31,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Once;
 
 use common::{bias_surface, paper_points, random_points, rng, FEATURES, NORMALISATION};
-use fogtemp_cal::blob::{triangle_transform, LogTimeRecord};
+use fogtemp_cal::blob::{triangle_transform, LogReadingRecord, LogTimeRecord};
 use fogtemp_cal::{build_mesh, encode, AxisModel, CalError, ColumnNames, MeshModel, MeshPoint, ModelFile};
 use fogtemp_core::wire::*;
 use fogtemp_core::{
@@ -42,7 +42,8 @@ use rand::Rng;
 use shared::{
     core_digest, exercise, fix_crc, fix_len_and_crc, golden_queries, put_f32, put_u16, put_u32, u16_at,
     u32_at, GOLDEN_HEADER, GOLDEN_V2_BLOB, GOLDEN_V2_CSV, GOLDEN_V3_BLOB, GOLDEN_V3_CSV, GOLDEN_V4_BLOB,
-    GOLDEN_V4_COLUMNS, GOLDEN_V4_CSV, GOLDEN_V5_BLOB, GOLDEN_V5_CSV, GOLDEN_V5_TIME,
+    GOLDEN_V4_COLUMNS, GOLDEN_V4_CSV, GOLDEN_V5_BLOB, GOLDEN_V5_CSV, GOLDEN_V5_TIME, GOLDEN_V6_BLOB,
+    GOLDEN_V6_CSV, GOLDEN_V6_READING,
 };
 
 // ---------------------------------------------------------------------------------------------
@@ -156,6 +157,7 @@ fn three_axis_model() -> ModelFile {
         axes: vec![axis0, axis1, axis2],
         columns: Vec::new(),
         log_time: Default::default(),
+        log_reading: Default::default(),
     }
 }
 
@@ -182,6 +184,7 @@ fn two_kb_blob() -> Vec<u8> {
         axes: vec![axis],
         columns: Vec::new(),
         log_time: Default::default(),
+        log_reading: Default::default(),
     })
     .expect("encodes")
 }
@@ -427,6 +430,7 @@ fn golden_model() -> ModelFile {
         axes: vec![axis0, axis1],
         columns: Vec::new(),
         log_time: Default::default(),
+        log_reading: Default::default(),
     }
 }
 
@@ -467,6 +471,14 @@ fn golden_model_v5() -> ModelFile {
     model
 }
 
+/// The version-6 golden model: the version-5 one with its logs' reading recorded.
+fn golden_model_v6() -> ModelFile {
+    let mut model = golden_model_v5();
+    let (decimal_comma, digests) = GOLDEN_V6_READING;
+    model.log_reading = LogReadingRecord { decimal_comma, log_digests: digests.to_vec() };
+    model
+}
+
 /// One expected row: evaluated with a fresh default hint, so the row does not depend on the
 /// order of the queries.
 fn golden_row(model: &Model<'_>, (axis, temp_c, rate): (usize, f32, f32)) -> String {
@@ -487,6 +499,7 @@ fn bless_if_requested() {
             (golden_model_v3(), GOLDEN_V3_BLOB, GOLDEN_V3_CSV),
             (golden_model_v4(), GOLDEN_V4_BLOB, GOLDEN_V4_CSV),
             (golden_model_v5(), GOLDEN_V5_BLOB, GOLDEN_V5_CSV),
+            (golden_model_v6(), GOLDEN_V6_BLOB, GOLDEN_V6_CSV),
         ] {
             let blob = encode(&model).expect("golden model encodes");
             let parsed = Model::from_bytes(&blob).expect("parses");
@@ -606,6 +619,42 @@ fn golden_v5_blob_is_reproduced_byte_for_byte_by_todays_writer() {
     assert_eq!(names[4..], expected[..]);
     // A model with columns but no time stays version 4, byte for byte.
     assert!(encode(&golden_model_v4()).expect("encodes") == v4);
+}
+
+#[test]
+fn golden_v6_blob_is_reproduced_byte_for_byte_by_todays_writer() {
+    let golden = read_golden(GOLDEN_V6_BLOB);
+    let today = encode(&golden_model_v6()).expect("encodes");
+    assert_eq!(u16_at(&golden, FILE_VERSION.start), 6);
+    assert!(today == golden, "the writer's output for the version-6 golden model changed");
+    // Version 6 is version 5 with the log-reading record after the log-time record, counted
+    // here by hand: the mark 1 (comma), the count 2 as u16, then the two 8-byte digests.
+    let v5 = read_golden(GOLDEN_V5_BLOB);
+    let v5_end = v5.len() - CRC_LEN;
+    let axes_end = names_offset(&v5);
+    assert_eq!(golden[FILE_HEADER_LEN..axes_end], v5[FILE_HEADER_LEN..axes_end]);
+    let mut expected = v5[axes_end + 4..v5_end].to_vec();
+    expected.extend_from_slice(&[1, 2, 0]);
+    expected.extend_from_slice(&[0xba, 0x78, 0x16, 0xbf, 0x8f, 0x01, 0xcf, 0xea]);
+    expected.extend_from_slice(&[0xe3, 0xb0, 0xc4, 0x42, 0x98, 0xfc, 0x1c, 0x14]);
+    let names = &golden[axes_end..golden.len() - CRC_LEN];
+    assert_eq!(u32_at(names, 0) as usize, 4 + expected.len());
+    assert_eq!(names[4..], expected[..]);
+    // Without a log reading it stays version 5, byte for byte; a reading without a time is
+    // written after an empty log-time record.
+    assert!(encode(&golden_model_v5()).expect("encodes") == v5);
+    let mut no_time = golden_model_v6();
+    no_time.log_time = LogTimeRecord::default();
+    let blob = encode(&no_time).expect("encodes");
+    let model = Model::from_bytes(&blob).expect("parses");
+    assert_eq!((model.format_version(), model.log_time()), (6, None));
+    assert_eq!(model.log_reading().map(|r| (r.decimal_comma, r.log_count())), Some((true, 2)));
+    // A digest of the SHA-256 the record keeps: its first 8 bytes.
+    let sha_abc: [u8; 32] = std::array::from_fn(|i| {
+        let hex = "ba7816bf8f01cfea414140de5dae2223b00361a396177a9cb410ff61f20015ad";
+        u8::from_str_radix(&hex[2 * i..2 * i + 2], 16).expect("hex")
+    });
+    assert_eq!(LogReadingRecord::of_logs(true, &[sha_abc]).log_digests, vec![GOLDEN_V6_READING.1[0]]);
 }
 
 /// Where the names section starts: after the axis sections.
@@ -928,13 +977,15 @@ fn a_wrong_section_len_names_its_axis() {
 fn targeted_header_corruptions_give_their_specific_errors() {
     let r = mutated(|b, _| b[0] = b'X');
     assert!(matches!(r, Err(Error::BadMagic)), "{r:?}");
-    let r = mutated(|b, _| put_u16(b, FILE_VERSION.start, 6));
-    assert!(matches!(r, Err(Error::UnsupportedVersion { expected: 5, found: 6 })), "{r:?}");
+    let r = mutated(|b, _| put_u16(b, FILE_VERSION.start, 7));
+    assert!(matches!(r, Err(Error::UnsupportedVersion { expected: 6, found: 7 })), "{r:?}");
     let r = mutated(|b, _| put_u16(b, FILE_VERSION.start, 0));
-    assert!(matches!(r, Err(Error::UnsupportedVersion { expected: 5, found: 0 })), "{r:?}");
-    // Version 4 has a names section after the axes: a blob without one ends early.
-    let r = mutated(|b, _| put_u16(b, FILE_VERSION.start, 4));
-    assert!(matches!(r, Err(Error::Truncated { field: "names_len", .. })), "{r:?}");
+    assert!(matches!(r, Err(Error::UnsupportedVersion { expected: 6, found: 0 })), "{r:?}");
+    // Versions 4 to 6 have a names section after the axes: a blob without one ends early.
+    for version in 4..=6 {
+        let r = mutated(|b, _| put_u16(b, FILE_VERSION.start, version));
+        assert!(matches!(r, Err(Error::Truncated { field: "names_len", .. })), "{version}: {r:?}");
+    }
     // Version 3 differs from 2 only with outside_policy 3: this blob reads the same as either.
     assert!(mutated(|b, _| put_u16(b, FILE_VERSION.start, 3)).is_ok());
     for count in [0u16, 17, u16::MAX] {
@@ -1145,6 +1196,7 @@ fn encode_mesh(mesh: MeshModel) -> Result<Vec<u8>, Error> {
         axes: vec![axis],
         columns: Vec::new(),
         log_time: Default::default(),
+        log_reading: Default::default(),
     }) {
         Ok(b) => Ok(b),
         Err(CalError::SelfCheck(e)) => Err(e),
@@ -1256,6 +1308,7 @@ fn gradient_blob() -> (MeshModel, Vec<u8>) {
         axes: vec![axis],
         columns: Vec::new(),
         log_time: Default::default(),
+        log_reading: Default::default(),
     })
     .expect("encodes");
     (mesh, blob)

@@ -803,6 +803,38 @@ fn evaluate_points_with_bad_cells_are_located() {
         fs::write(&points, text).expect("write points");
         assert_eq!(run_ok(args!["evaluate", "--model", &model, "--points", &points]), by_comma, "{name}");
     }
+    // A European grid (decimal commas, semicolons) reads with --decimal-mark comma, and
+    // without it the error says so (review12 F12); an axis the model lacks names the ones it has.
+    let european = dir.path().join("european.csv");
+    fs::write(
+        &european,
+        "temp_c;rate_c_per_min
+21;0,5
+-60;0
+",
+    )
+    .expect("write points");
+    assert_eq!(
+        run_ok(args!["evaluate", "--model", &model, "--points", &european, "--decimal-mark", "comma"]),
+        by_comma
+    );
+    let msg = format!(
+        "{}:2:2: column 'rate_c_per_min': not a number (found '0,5'); the points seem to write numbers with a \
+         decimal comma: use --decimal-mark comma",
+        european.display()
+    );
+    expect_failure(
+        &args!["evaluate", "--model", &model, "--points", &european, "--out", &out],
+        dir.path(),
+        Some(&out),
+        &[&msg],
+    );
+    expect_failure(
+        &args!["evaluate", "--model", &model, "--points", &comma, "--axis", "1", "--out", &out],
+        dir.path(),
+        Some(&out),
+        &["axis 1 requested but the model has 1 axis, numbered 0"],
+    );
 }
 
 #[test]
@@ -1166,7 +1198,7 @@ fn log_columns_are_matched_to_axes_by_the_names_the_model_records() {
         .map(|a| (a["gyro_column"].as_str().expect("gyro"), a["temp_column"].as_str().expect("temp")))
         .collect();
     assert_eq!(names, [("gyro_dph", "temp_c"), ("gyro2", "temp_c")]);
-    assert_eq!(inspected["format_version"], 5);
+    assert_eq!(inspected["format_version"], 6);
 
     // Nothing named reads what naming the columns in the model's order reads.
     let compensated = |args: Vec<OsString>| -> Vec<f64> {
@@ -1360,7 +1392,7 @@ fn the_time_the_model_records_is_read_when_none_is_named() {
     fit_args.extend(time.iter().map(OsString::from));
     run_ok(fit_args);
     let inspect = json(&run_ok(args!["inspect", "--json", &model]));
-    assert_eq!(inspect["format_version"], 5);
+    assert_eq!(inspect["format_version"], 6);
     assert_eq!(inspect["log_time"]["time_column"], "t_ms");
     assert_eq!(inspect["log_time"]["time_unit"], "ms");
     let validate = |extra: &[&str]| validated_quietly(&model, &log, extra);

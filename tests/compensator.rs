@@ -624,6 +624,7 @@ fn new_with_an_axis_index_that_does_not_exist_is_no_such_axis() {
         axes: vec![axis_model(0.1), axis_model(0.2)],
         columns: Vec::new(),
         log_time: Default::default(),
+        log_reading: Default::default(),
     })
     .expect("encodes");
     let two = Model::from_bytes(&two).expect("valid blob");

@@ -209,6 +209,7 @@ fn model_blob(policy: OutsidePolicy) -> (Vec<u8>, String) {
         axes: vec![axis],
         columns: Vec::new(),
         log_time: Default::default(),
+        log_reading: Default::default(),
     })
     .expect("encodes");
     (blob, about)

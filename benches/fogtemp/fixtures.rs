@@ -141,6 +141,7 @@ pub fn model_blob(poly: Vec<PolyTerm>, points: Option<&[MeshPoint]>) -> Vec<u8> 
         axes: vec![axis],
         columns: Vec::new(),
         log_time: Default::default(),
+        log_reading: Default::default(),
     };
     encode(&file).expect("encodes")
 }

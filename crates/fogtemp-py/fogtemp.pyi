@@ -68,7 +68,8 @@ class Model:
     def inspect(self) -> Dict[str, Any]:
         """The ``fogtemp-cal inspect --json`` document (axes, nodes, triangles, polynomial, the log
         columns each axis was fitted on: ``gyro_column``, ``temp_column``, None when not recorded;
-        ``log_time``: how the fit read the logs' time, None when not recorded, ...)."""
+        ``log_time``: how the fit read the logs' time, None when not recorded; ``log_reading``:
+        the decimal mark and each calibration log's digest, None before format 6, ...)."""
     @property
     def axis_count(self) -> int:
         """Number of gyro axes."""

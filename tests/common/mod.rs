@@ -104,6 +104,7 @@ pub fn model_blob(poly: Vec<PolyTerm>, points: Option<&[MeshPoint]>, policy: Out
         axes: vec![axis],
         columns: Vec::new(),
         log_time: Default::default(),
+        log_reading: Default::default(),
     })
     .expect("encodes")
 }

@@ -6,7 +6,7 @@
 use fogtemp_core::Model;
 
 use crate::blob::{ColumnNames, LogTimeRecord};
-use crate::ingest::{LogFormat, RateUnit};
+use crate::ingest::{DecimalMark, LogFormat, RateUnit};
 
 /// The columns chosen for a model, and what the user is told about them.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
@@ -59,6 +59,8 @@ pub struct Named<'a> {
     pub temp_units: bool,
     /// Which of `--time-column`, `--time-unit`, `--sample-rate-hz`, `--date-column` were given.
     pub time: TimeNamed,
+    /// `--decimal-mark` given.
+    pub decimal_mark: bool,
 }
 
 /// Which time settings the user named for a replay; the others come from the model's
@@ -95,13 +97,14 @@ impl<'a> Named<'a> {
             gyro_units: true,
             temp_units: true,
             time: TimeNamed::ALL,
+            decimal_mark: true,
         }
     }
 }
 
 /// The names of the options in the messages: gyro columns, temperature columns, gyro units,
-/// temperature units, time.
-pub type OptionNames<'a> = [&'a str; 5];
+/// temperature units, time, decimal mark.
+pub type OptionNames<'a> = [&'a str; 6];
 /// The command line's options.
 pub const CLI_OPTIONS: OptionNames<'static> = [
     "--gyro-column",
@@ -109,6 +112,7 @@ pub const CLI_OPTIONS: OptionNames<'static> = [
     "--gyro-unit/--gyro-scale",
     "--temp-scale/--temp-offset",
     "--time-column/--time-unit/--sample-rate-hz/--date-column",
+    "--decimal-mark",
 ];
 /// Python's keywords.
 pub const PYTHON_OPTIONS: OptionNames<'static> = [
@@ -117,6 +121,7 @@ pub const PYTHON_OPTIONS: OptionNames<'static> = [
     "gyro_unit=/gyro_scale=",
     "temp_scale=/temp_offset=",
     "time_column=/time_unit=/sample_rate_hz=/date_column=",
+    "decimal_mark=",
 ];
 
 /// [`choose`] and [`choose_units`] together: `format` (what was named, defaults elsewhere)
@@ -130,7 +135,7 @@ pub fn choose_for_replay(
     model_name: &str,
     format: &mut LogFormat,
     named: Named<'_>,
-    [gyro_column, temp_column, gyro_units, temp_units, time]: OptionNames<'_>,
+    [gyro_column, temp_column, gyro_units, temp_units, time, decimal_mark]: OptionNames<'_>,
 ) -> Result<ChosenColumns, Box<SwappedColumn>> {
     let mut chosen =
         choose(model, model_name, (named.gyro_columns, named.temp_columns), (gyro_column, temp_column))?;
@@ -138,9 +143,37 @@ pub fn choose_for_replay(
     let unit_notes = choose_units(model, model_name, format, units_named, (gyro_units, temp_units));
     chosen.notes.extend(unit_notes);
     chosen.notes.extend(choose_time(model, model_name, format, named.time, time));
+    chosen.notes.extend(choose_decimal_mark(model, model_name, format, named.decimal_mark, decimal_mark));
     format.gyro_columns.clone_from(&chosen.gyro);
     format.temp_columns.clone_from(&chosen.temp);
     Ok(chosen)
+}
+
+/// How to read the logs' numbers for `model`: with the decimal mark it records (format
+/// version 6) unless one is `named`, with a note when that is a comma, or when the named one
+/// differs (`option` names the setting). `format` is set to what is read.
+pub fn choose_decimal_mark(
+    model: &Model<'_>,
+    model_name: &str,
+    format: &mut LogFormat,
+    named: bool,
+    option: &str,
+) -> Option<String> {
+    let recorded = if model.log_reading()?.decimal_comma { DecimalMark::Comma } else { DecimalMark::Point };
+    let word = |mark: DecimalMark| if mark == DecimalMark::Comma { "comma" } else { "point" };
+    if !named {
+        format.decimal_mark = recorded;
+        return (recorded == DecimalMark::Comma).then(|| {
+            format!("the logs' numbers are read with a decimal comma, as {model_name} records of its fit")
+        });
+    }
+    (format.decimal_mark != recorded).then(|| {
+        format!(
+            "{model_name} was fitted on logs with a decimal {}; these are read with a decimal {}, as {option} says",
+            word(recorded),
+            word(format.decimal_mark)
+        )
+    })
 }
 
 /// How to read the logs' time for `model`: as the model records it (format version 5) for
@@ -412,6 +445,7 @@ mod tests {
             axes: vec![axis; axes],
             columns,
             log_time: Default::default(),
+            log_reading: Default::default(),
         };
         encode(&file).expect("encodes")
     }
@@ -437,6 +471,7 @@ mod tests {
             axes: vec![axis],
             columns,
             log_time: Default::default(),
+            log_reading: Default::default(),
         })
         .expect("encodes")
     }
@@ -574,6 +609,7 @@ mod tests {
                 ..ColumnNames::default()
             }],
             log_time: record,
+            log_reading: Default::default(),
         };
         encode(&file).expect("encodes")
     }

@@ -1,4 +1,5 @@
-//! Model blob writer (format version 4 with column names; without them 2, or 3 with a mesh continued by stored gradients; spec in `docs/model-format.md`, offsets in
+//! Model blob writer (format version 4 with column names, 5 with the log time, 6 with the
+//! log reading; without column names 2, or 3 with a mesh continued by stored gradients; spec in `docs/model-format.md`, offsets in
 //! [`fogtemp_core::wire`]). Every blob is read back through `Model::from_bytes`
 //! before it is returned, so a writer bug is reported here instead of in firmware.
 
@@ -47,6 +48,48 @@ pub struct ModelFile {
     /// How the fit read its logs' time (written, with `columns`, as format version 5 when it
     /// records one; the default records none).
     pub log_time: LogTimeRecord,
+    /// How the fit read its logs' numbers and which logs they were (written, with `columns`,
+    /// as format version 6 when it records either; the default records neither).
+    pub log_reading: LogReadingRecord,
+}
+
+/// How the fit read its logs' numbers, and a digest of each: the log-reading record of
+/// format version 6.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct LogReadingRecord {
+    /// The logs wrote numbers with a decimal comma.
+    pub decimal_comma: bool,
+    /// Per calibration log, in the order the fit read them: the first 8 bytes of the SHA-256
+    /// of its bytes (of its samples for a run given as arrays); more than 65535 do not encode.
+    pub log_digests: Vec<[u8; LOG_DIGEST_LEN]>,
+}
+
+impl LogReadingRecord {
+    /// Whether it records anything (a decimal comma, or a log's digest).
+    pub fn is_recorded(&self) -> bool {
+        self.decimal_comma || !self.log_digests.is_empty()
+    }
+
+    /// The record of logs read with `decimal_comma` whose full SHA-256 digests are `digests`.
+    pub fn of_logs(decimal_comma: bool, digests: &[[u8; 32]]) -> Self {
+        let log_digests = digests.iter().map(short_digest).collect();
+        Self { decimal_comma, log_digests }
+    }
+
+    /// What `model` records (the default before format version 6).
+    pub fn of(model: &Model<'_>) -> Self {
+        model.log_reading().map_or_else(Self::default, |r| Self {
+            decimal_comma: r.decimal_comma,
+            log_digests: (0..r.log_count()).filter_map(|i| r.log_digest(i)).collect(),
+        })
+    }
+}
+
+/// The part of a log's SHA-256 the log-reading record keeps.
+pub fn short_digest(digest: &[u8; 32]) -> [u8; LOG_DIGEST_LEN] {
+    let mut short = [0; LOG_DIGEST_LEN];
+    short.copy_from_slice(&digest[..LOG_DIGEST_LEN]);
+    short
 }
 
 /// How the fit read its logs' time: the log-time record of format version 5.
@@ -162,13 +205,17 @@ pub fn encode_with_selection(model: &ModelFile, selection: &[u16]) -> Result<Vec
             axes: model.axes.len(),
         }));
     }
-    // The log-time record needs version 5; a model with columns but no time stays version 4.
-    let with_time = !model.columns.is_empty() && model.log_time.is_recorded();
-    let version = match (model.columns.is_empty(), with_time, needs_gradients) {
-        (false, true, _) => FORMAT_VERSION,
-        (false, false, _) => FIRST_VERSION_WITH_COLUMN_NAMES,
-        (true, _, true) => FORMAT_VERSION_WITH_GRADIENTS,
-        (true, _, false) => FORMAT_VERSION_WITHOUT_GRADIENTS,
+    // The log-time record needs version 5, the log-reading record 6 (with the log-time record
+    // before it, recording nothing if need be); a model with columns and neither stays
+    // version 4.
+    let with_reading = !model.columns.is_empty() && model.log_reading.is_recorded();
+    let with_time = with_reading || (!model.columns.is_empty() && model.log_time.is_recorded());
+    let version = match (model.columns.is_empty(), with_time, with_reading, needs_gradients) {
+        (false, _, true, _) => FIRST_VERSION_WITH_LOG_READING,
+        (false, true, false, _) => FIRST_VERSION_WITH_LOG_TIME,
+        (false, false, _, _) => FIRST_VERSION_WITH_COLUMN_NAMES,
+        (true, _, _, true) => FORMAT_VERSION_WITH_GRADIENTS,
+        (true, _, _, false) => FORMAT_VERSION_WITHOUT_GRADIENTS,
     };
     put_u16(&mut out, FILE_VERSION.start, version);
     put_u16(&mut out, FILE_HEADER_LEN_FIELD.start, FILE_HEADER_LEN as u16);
@@ -180,8 +227,14 @@ pub fn encode_with_selection(model: &ModelFile, selection: &[u16]) -> Result<Vec
     for (id, axis) in model.axes.iter().enumerate() {
         encode_axis(&mut out, id as u16, axis, selection.get(id).copied().unwrap_or(0))?;
     }
+    let names_start = out.len();
     if !model.columns.is_empty() {
         encode_column_names(&mut out, &model.columns, with_time.then_some(&model.log_time));
+        if with_reading {
+            encode_log_reading(&mut out, &model.log_reading)?;
+            let len = out.len() - names_start;
+            put_u32(&mut out, names_start, len as u32);
+        }
     }
     let total = out.len() + CRC_LEN;
     let total_u32 = u32::try_from(total)
@@ -223,6 +276,23 @@ fn encode_column_names(out: &mut Vec<u8>, columns: &[ColumnNames], log_time: Opt
     }
     let len = out.len() - start;
     put_u32(out, start, len as u32);
+}
+
+/// The log-reading record (version 6) at the end of the log-columns section (whose length
+/// the caller writes again).
+fn encode_log_reading(out: &mut Vec<u8>, reading: &LogReadingRecord) -> Result<(), CalError> {
+    let count = u16::try_from(reading.log_digests.len()).map_err(|_| {
+        CalError::Encode(EncodeProblem::TooLarge {
+            what: "calibration logs",
+            count: reading.log_digests.len(),
+        })
+    })?;
+    out.push(u8::from(reading.decimal_comma));
+    out.extend_from_slice(&count.to_le_bytes());
+    for digest in &reading.log_digests {
+        out.extend_from_slice(digest);
+    }
+    Ok(())
 }
 
 /// Whether the section can hold `name` (at most 255 bytes, no control character).

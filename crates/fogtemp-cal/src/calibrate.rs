@@ -235,6 +235,11 @@ pub struct RunFeatures {
     /// Per axis: feature points whose gyro mean was an outlier (a spike in the log), read as
     /// missing ([`screen_gyro_means`]); empty where none was looked for.
     pub gyro_outliers: Vec<Vec<GyroOutlier>>,
+    /// SHA-256 of the log's bytes (of its samples for a run given as arrays), when the caller
+    /// took it (`fit` and Python's `fit` do, with the input digest): a model fitted on runs
+    /// that all have one records each ([`crate::blob::LogReadingRecord`]), so `validate` can
+    /// say which of its logs were calibration logs.
+    pub digest: Option<[u8; 32]>,
 }
 
 /// A feature point's gyro mean read as missing because it lay beyond
@@ -584,6 +589,7 @@ pub(crate) fn extract_with(
         temperature_spikes,
         temperature_silences,
         gyro_outliers,
+        digest: None,
     })
 }
 
@@ -1079,6 +1085,7 @@ pub fn fit_axis(
         axes: vec![axis.clone()],
         columns: Vec::new(),
         log_time: Default::default(),
+        log_reading: Default::default(),
     })?;
     let model = Model::from_bytes(&probe).map_err(CalError::SelfCheck)?;
     let core_axis = model.axis(0).map_err(CalError::SelfCheck)?;
@@ -1210,10 +1217,26 @@ pub fn fit_model_replaying(
         reports.iter().map(|r| r.selection.as_ref().map_or(0, Selection::blob_code)).collect();
     let columns = if config.record_columns { config.ingest.format.axis_columns() } else { Vec::new() };
     let log_time = if config.record_columns { config.ingest.format.log_time() } else { Default::default() };
-    let model =
-        ModelFile { tool_version: crate::blob::tool_version(), input_digest, axes, columns, log_time };
+    let log_reading =
+        if config.record_columns { log_reading(runs, &config.ingest.format) } else { Default::default() };
+    let model = ModelFile {
+        tool_version: crate::blob::tool_version(),
+        input_digest,
+        axes,
+        columns,
+        log_time,
+        log_reading,
+    };
     let blob = crate::blob::encode_with_selection(&model, &codes)?;
     Ok(FittedModel { blob, axes: reports })
+}
+
+/// The log-reading record of a fit on `runs` read with `format`: the decimal mark, and each
+/// run's digest when every run has one.
+fn log_reading(runs: &[RunFeatures], format: &crate::ingest::LogFormat) -> crate::blob::LogReadingRecord {
+    let digests: Option<Vec<[u8; 32]>> = runs.iter().map(|r| r.digest).collect();
+    let decimal_comma = format.decimal_mark == crate::ingest::DecimalMark::Comma;
+    crate::blob::LogReadingRecord::of_logs(decimal_comma, &digests.unwrap_or_default())
 }
 
 /// Raw and compensated series of one run and axis, as block means (1 s by default).

@@ -137,6 +137,7 @@ mod tests {
             axes: vec![axis],
             columns: Vec::new(),
             log_time: Default::default(),
+            log_reading: Default::default(),
         })
         .expect("encodes")
     }

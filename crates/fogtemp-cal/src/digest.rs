@@ -7,6 +7,9 @@ use std::path::{Path, PathBuf};
 
 use sha2::{Digest, Sha256};
 
+use fogtemp_core::Model;
+
+use crate::blob::{short_digest, LogReadingRecord};
 use crate::error::CalError;
 
 /// The input digest built one file at a time (a caller can stop between two files), with
@@ -63,55 +66,111 @@ pub fn digests_of_files(paths: &[PathBuf]) -> Result<([u8; 32], Vec<[u8; 32]>), 
     Ok(digest.finish())
 }
 
-/// The note for validation logs the model `model` (as displayed) was fitted on, `None`
-/// otherwise: all of them together, or one alone, have the model's input `digest`. Logs
-/// fitted together with others are not recognised one by one (the model keeps one digest);
-/// a digest of zeros (unknown) matches nothing.
+/// The note for validation logs the model `model` (`name` as displayed) was fitted on,
+/// `None` otherwise: all of them together have the model's input digest, or (format 6) some
+/// have the digest it records of a calibration log, or (older models) one alone has the
+/// input digest. A digest of zeros (unknown) matches nothing.
 ///
 /// # Errors
 /// As [`digests_of_files`].
-pub fn in_sample_note(model: &str, digest: [u8; 32], logs: &[PathBuf]) -> Result<Option<String>, CalError> {
-    if digest == [0; 32] {
+pub fn in_sample_note(name: &str, model: &Model<'_>, logs: &[PathBuf]) -> Result<Option<String>, CalError> {
+    if model.input_digest() == [0; 32] && model.log_reading().is_none_or(|r| r.log_count() == 0) {
         return Ok(None);
     }
-    Ok(in_sample_note_from(model, digest, logs, &digests_of_files(logs)?))
+    Ok(in_sample_note_from(name, model, logs, &digests_of_files(logs)?))
 }
 
 /// [`in_sample_note`] from the digests of `logs` already taken (`(together, each)`, as
 /// [`InputDigest::finish`] gives them).
 pub fn in_sample_note_from(
-    model: &str,
-    digest: [u8; 32],
+    name: &str,
+    model: &Model<'_>,
     logs: &[PathBuf],
     (all, each): &([u8; 32], Vec<[u8; 32]>),
 ) -> Option<String> {
-    if digest == [0; 32] {
-        return None;
-    }
-    if *all == digest {
+    let digest = model.input_digest();
+    if digest != [0; 32] && *all == digest {
         let these = if logs.len() == 1 {
             "this log is the one".to_string()
         } else {
             format!("these {} logs are the ones", logs.len())
         };
         return Some(format!(
-            "{these} {model} was fitted on (its input digest matches): the figures are in-sample, \
+            "{these} {name} was fitted on (its input digest matches): the figures are in-sample, \
              not a validation on runs the model did not see"
         ));
     }
-    logs.iter().zip(each).find(|(_, d)| **d == digest).map(|(log, _)| in_sample_log(model, log))
+    let recorded = LogReadingRecord::of(model).log_digests;
+    if recorded.is_empty() {
+        // Before format 6 the model keeps one digest: only a log fitted alone is recognised.
+        return (digest != [0; 32])
+            .then(|| {
+                logs.iter().zip(each).find(|(_, d)| **d == digest).map(|(log, _)| in_sample_log(name, log))
+            })
+            .flatten();
+    }
+    let fitted: Vec<&PathBuf> = logs
+        .iter()
+        .zip(each)
+        .filter(|(_, d)| recorded.contains(&short_digest(d)))
+        .map(|(log, _)| log)
+        .collect();
+    in_sample_logs(name, &fitted, logs.len(), recorded.len())
 }
 
-fn in_sample_log(model: &str, log: &Path) -> String {
+fn in_sample_log(name: &str, log: &Path) -> String {
     format!(
-        "{} is the log {model} was fitted on (its input digest matches): its figures are in-sample",
+        "{} is the log {name} was fitted on (its input digest matches): its figures are in-sample",
         log.display()
     )
+}
+
+/// The note for `fitted`, those of `given` validation logs that are among the `recorded`
+/// calibration logs of the model `name`.
+fn in_sample_logs(name: &str, fitted: &[&PathBuf], given: usize, recorded: usize) -> Option<String> {
+    let shown: Vec<String> = fitted.iter().take(6).map(|p| p.display().to_string()).collect();
+    let more = fitted.len().saturating_sub(shown.len());
+    let listed = if more > 0 { format!("{} and {more} more", shown.join(", ")) } else { shown.join(", ") };
+    let among = format!("among the {recorded} logs {name} was fitted on (their digests match)");
+    match fitted.len() {
+        0 => None,
+        n if n == given => Some(format!(
+            "{} {among}: the figures are in-sample, not a validation on runs the model did not see",
+            if n == 1 { format!("{listed} is") } else { format!("all {n} logs given are") }
+        )),
+        n => Some(format!(
+            "{listed} ({n} of the {given} logs given) {} {among}: {} in-sample, and the overall figures mix \
+             them with the others'; leave {} out for a validation on runs the model did not see",
+            if n == 1 { "is" } else { "are" },
+            if n == 1 { "its figures are" } else { "their figures are" },
+            if n == 1 { "it" } else { "them" },
+        )),
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::blob::{encode, ColumnNames, ModelFile};
+
+    /// A one-axis constant model with `input_digest` and the log digests of `logs` (format 6),
+    /// or none (format 4: a model written before them).
+    fn model(input_digest: [u8; 32], logs: &[[u8; 32]]) -> Vec<u8> {
+        let axis = crate::blob::test_poly_axis(vec![fogtemp_core::PolyTerm {
+            temp_power: 0,
+            rate_power: 0,
+            coefficient_dph: 1.0,
+        }]);
+        encode(&ModelFile {
+            tool_version: String::new(),
+            input_digest,
+            axes: vec![axis],
+            columns: vec![ColumnNames::default()],
+            log_time: Default::default(),
+            log_reading: LogReadingRecord::of_logs(false, logs),
+        })
+        .expect("encodes")
+    }
 
     #[test]
     fn the_digest_is_sha256_of_the_files_one_after_another_and_names_in_sample_logs() {
@@ -125,14 +184,56 @@ mod tests {
         let hex = |d: &[u8; 32]| d.iter().map(|b| format!("{b:02x}")).collect::<String>();
         assert_eq!((hex(&all), hex(&each[0])), (abc.to_string(), abc.to_string()));
         assert_eq!(hex(&each[1]), "e3b0c44298fc1c149afbf4c8996fb92427ae41e4649b934ca495991b7852b855");
-
-        let both = in_sample_note("m.fogm", all, &[a.clone(), b.clone()]).expect("read").expect("note");
+        let note = |blob: &[u8], logs: &[PathBuf]| {
+            let m = Model::from_bytes(blob).expect("reads");
+            in_sample_note("m.fogm", &m, logs).expect("read")
+        };
+        // A model written before log digests (format 4): the logs together, or one fitted alone.
+        let old_both = model(all, &[]);
+        assert_eq!(Model::from_bytes(&old_both).expect("reads").format_version(), 4);
+        let both = note(&old_both, &[a.clone(), b.clone()]).expect("note");
         assert!(both.starts_with("these 2 logs are the ones m.fogm was fitted on"), "{both}");
-        let one = in_sample_note("m.fogm", each[1], &[a.clone(), b.clone()]).expect("read").expect("note");
-        assert_eq!(one, in_sample_log("m.fogm", &b));
-        assert_eq!(in_sample_note("m.fogm", [0; 32], std::slice::from_ref(&a)).expect("read"), None);
-        assert_eq!(in_sample_note("m.fogm", [1; 32], std::slice::from_ref(&a)).expect("read"), None);
+        assert_eq!(note(&model(each[1], &[]), &[a.clone(), b.clone()]), Some(in_sample_log("m.fogm", &b)));
+        assert_eq!(note(&model([0; 32], &[]), std::slice::from_ref(&a)), None);
+        assert_eq!(note(&model([1; 32], &[]), std::slice::from_ref(&a)), None);
         let missing = dir.path().join("missing.csv");
-        assert!(matches!(in_sample_note("m.fogm", [1; 32], &[missing]), Err(CalError::Io { .. })));
+        let m = model([1; 32], &[]);
+        let m = Model::from_bytes(&m).expect("reads");
+        assert!(matches!(in_sample_note("m.fogm", &m, &[missing]), Err(CalError::Io { .. })));
+    }
+
+    #[test]
+    fn a_model_with_log_digests_names_each_calibration_log_among_the_validation_logs() {
+        // Fitted on a and b together; validated on b, c and d: b is named, as 1 of 3.
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = |n: &str| dir.path().join(n);
+        for (n, text) in [("a.csv", "a"), ("b.csv", "b"), ("c.csv", "c"), ("d.csv", "d")] {
+            std::fs::write(path(n), text).expect("write");
+        }
+        let (together, each) = digests_of_files(&[path("a.csv"), path("b.csv")]).expect("digests");
+        let blob = model(together, &each);
+        let m = Model::from_bytes(&blob).expect("reads");
+        assert_eq!(m.format_version(), 6);
+        assert_eq!(m.log_reading().map(|r| r.log_count()), Some(2));
+        let note = |logs: &[&str]| {
+            let logs: Vec<PathBuf> = logs.iter().map(|n| path(n)).collect();
+            in_sample_note("m.fogm", &m, &logs).expect("read")
+        };
+        let b = path("b.csv").display().to_string();
+        assert_eq!(
+            note(&["b.csv", "c.csv", "d.csv"]),
+            Some(format!(
+                "{b} (1 of the 3 logs given) is among the 2 logs m.fogm was fitted on (their digests match): its \
+                 figures are in-sample, and the overall figures mix them with the others'; leave it out for a \
+                 validation on runs the model did not see"
+            ))
+        );
+        let all_in = note(&["b.csv", "a.csv"]).expect("note");
+        assert!(all_in.starts_with("all 2 logs given are among the 2 logs m.fogm was fitted on"), "{all_in}");
+        assert_eq!(note(&["b.csv"]).map(|n| n.starts_with(&format!("{b} is among the 2 logs"))), Some(true));
+        // The logs in the fit's order have the input digest: said as before.
+        let same = note(&["a.csv", "b.csv"]).expect("note");
+        assert!(same.starts_with("these 2 logs are the ones m.fogm was fitted on"), "{same}");
+        assert_eq!(note(&["c.csv", "d.csv"]), None);
     }
 }

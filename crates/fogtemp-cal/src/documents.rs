@@ -364,8 +364,33 @@ pub struct ModelDocument {
     /// (`null` for a log without one), `date_column`, `time_unit` (`s`, `ms`, `us`,
     /// `datetime`, `time-of-day`), `sample_rate_hz` (`null` with a time column).
     pub log_time: Option<LogTimeDocument>,
+    /// How the fit read its logs' numbers and which logs it read (format 6; `null` before):
+    /// `decimal_mark` (`point` or `comma`), `log_digests` (per calibration log, the first 8
+    /// bytes of its SHA-256, hex, in the order the fit read them).
+    pub log_reading: Option<LogReadingDocument>,
     /// Every axis.
     pub axes: Vec<ModelAxisDocument>,
+}
+
+/// A model's log-reading record in `inspect --json`.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct LogReadingDocument {
+    /// `point` or `comma`, as `--decimal-mark` names it.
+    pub decimal_mark: &'static str,
+    /// Per calibration log, in the order the fit read them: the first 8 bytes of its SHA-256,
+    /// hex (`sha256sum LOG | cut -c1-16`).
+    pub log_digests: Vec<String>,
+}
+
+impl LogReadingDocument {
+    fn of(model: &Model<'_>) -> Option<Self> {
+        model.log_reading()?;
+        let record = crate::blob::LogReadingRecord::of(model);
+        Some(Self {
+            decimal_mark: if record.decimal_comma { "comma" } else { "point" },
+            log_digests: record.log_digests.iter().map(|d| hex(d)).collect(),
+        })
+    }
 }
 
 /// A model's log-time record in `inspect --json`.
@@ -411,6 +436,7 @@ impl ModelDocument {
             tool_version: String::from_utf8_lossy(model.tool_version()).into_owned(),
             input_digest: hex(&model.input_digest()),
             log_time: LogTimeDocument::of(&model),
+            log_reading: LogReadingDocument::of(&model),
             axes: (0..model.axis_count())
                 .map(|i| {
                     let mut axis = ModelAxisDocument::new(i, &model.axis(i)?);

@@ -75,6 +75,6 @@ pub mod selection;
 pub mod spikes;
 pub mod thin;
 
-pub use blob::{encode, AxisModel, ColumnNames, ModelFile};
+pub use blob::{encode, AxisModel, ColumnNames, LogReadingRecord, ModelFile};
 pub use error::CalError;
 pub use mesh::{build_mesh, MeshModel, MeshPoint};

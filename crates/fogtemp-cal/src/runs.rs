@@ -245,6 +245,73 @@ impl RunsFile {
         ))
     }
 
+    /// What looks wrong in the positions (review11 F11; each was accepted without a word): a
+    /// position whose runs give different input rates (runs in one position share one
+    /// Earth-rate projection: a sign slip, or two positions under one label), and, beside
+    /// positions of several runs, a position of one run (a typo in its label makes a position
+    /// of its own, `dwn` beside `down`).
+    pub fn position_notes(&self) -> Vec<String> {
+        let mut positions: BTreeMap<&str, Vec<&RunMetadata>> = BTreeMap::new();
+        for r in &self.runs {
+            positions.entry(r.position.as_str()).or_default().push(r);
+        }
+        let file = self.path.display();
+        let mut notes = Vec::new();
+        for (position, rows) in &positions {
+            let mut rates: Vec<(f64, Vec<u64>)> = Vec::new();
+            for r in rows {
+                match rates.iter_mut().find(|(rate, _)| *rate == r.input_rate_dph) {
+                    Some((_, lines)) => lines.push(r.line),
+                    None => rates.push((r.input_rate_dph, vec![r.line])),
+                }
+            }
+            if rates.len() > 1 {
+                let listed: Vec<String> = rates
+                    .iter()
+                    .map(|(rate, lines)| format!("{rate} deg/h on {}", lines_text(lines)))
+                    .collect();
+                notes.push(format!(
+                    "{file}: position '{position}' gives its runs different input rates ({}): runs in one position \
+                     share one Earth-rate projection (a sign slip, or two positions under one label?)",
+                    listed.join("; ")
+                ));
+            }
+        }
+        let largest = positions.values().map(Vec::len).max().unwrap_or(0);
+        if positions.len() > 1 && largest > 1 {
+            for (position, rows) in positions.iter().filter(|(_, rows)| rows.len() == 1) {
+                let others: Vec<String> = positions
+                    .iter()
+                    .filter(|(p, _)| p != &position)
+                    .map(|(p, r)| format!("'{p}' {}", r.len()))
+                    .collect();
+                notes.push(format!(
+                    "{file}: position '{position}' holds one run (line {}) while the others hold several ({}): a typo \
+                     in its label? a position of one run cannot tell its offset from that run's turn-on bias",
+                    rows[0].line,
+                    others.join(", ")
+                ));
+            }
+        }
+        notes
+    }
+
+    /// The rows that name no log, for the error of a log without a row (a typo in one of them,
+    /// `up_poweron_-2OC` for `up_poweron_-20C`, is the usual cause: review11 F11).
+    fn rows_without_log(&self, logs: &[PathBuf]) -> Option<String> {
+        let orphans: Vec<String> = self
+            .runs
+            .iter()
+            .filter(|r| !logs.iter().any(|l| run_name(l) == r.run))
+            .map(|r| format!("line {} '{}'", r.line, r.run))
+            .collect();
+        let shown = orphans.iter().take(3).cloned().collect::<Vec<_>>().join(", ");
+        let more = orphans.len().saturating_sub(3);
+        let more = if more > 0 { format!(" and {more} more") } else { String::new() };
+        (!orphans.is_empty())
+            .then(|| format!(" (rows that name no log: {shown}{more}; a typo in the run name?)"))
+    }
+
     /// The row of every log, in the logs' order, checking that the file and the logs name
     /// the same runs (a log's run is its file name without `.csv`).
     ///
@@ -263,7 +330,7 @@ impl RunsFile {
                 return Err(problem(&self.path, 0, shared));
             }
             let row = by_name.get(name.as_str()).ok_or_else(|| {
-                let hint = self.near_miss(log, &name);
+                let hint = self.near_miss(log, &name).or_else(|| self.rows_without_log(logs));
                 problem(&self.path, 0, RunsProblem::MissingRun { log: log.clone(), hint })
             })?;
             out.push(*row);
@@ -273,6 +340,15 @@ impl RunsFile {
             return Err(problem(&self.path, extra.line, unknown));
         }
         Ok(out)
+    }
+}
+
+/// `line 3`, `lines 3, 4`.
+fn lines_text(lines: &[u64]) -> String {
+    let listed: Vec<String> = lines.iter().map(u64::to_string).collect();
+    match lines.len() {
+        1 => format!("line {}", listed[0]),
+        _ => format!("lines {}", listed.join(", ")),
     }
 }
 
@@ -431,14 +507,53 @@ mod tests {
     }
 
     #[test]
+    fn positions_with_two_rates_or_one_run_beside_larger_ones_are_noted() {
+        let clean =
+            parse("run,position,input_rate_dph\na,up,7.2\nb,up,7.2\nc,down,-7.2\nd,down,-7.2\n").unwrap();
+        assert!(clean.position_notes().is_empty());
+        // One run per position (a turntable's rates) is the design, not a typo.
+        let single = parse("run,position,input_rate_dph\na,p1,10\nb,p2,20\n").unwrap();
+        assert!(single.position_notes().is_empty());
+        let text = "run,position,input_rate_dph\na,up,7.2\nb,up,7.2\nc,down,-7.2\nd,down,7.2\ne,dwn,-7.2\n";
+        let notes = parse(text).unwrap().position_notes();
+        assert_eq!(notes.len(), 2, "{notes:?}");
+        assert!(
+            notes[0].starts_with(
+                "runs.csv: position 'down' gives its runs different input rates (-7.2 deg/h on line 4; 7.2 deg/h on line 5)"
+            ),
+            "{notes:?}"
+        );
+        assert!(
+            notes[1].starts_with(
+                "runs.csv: position 'dwn' holds one run (line 6) while the others hold several ('down' 2, 'up' 2)"
+            ),
+            "{notes:?}"
+        );
+    }
+
+    #[test]
     fn logs_and_rows_must_name_the_same_runs() {
         let f = parse("run,position,input_rate_dph\na,up,1\nb,down,-1\n").expect("valid");
         let logs = [PathBuf::from("dir/b.csv"), PathBuf::from("dir/a.csv")];
         let rows = f.for_logs(&logs).expect("every log has a row");
         assert_eq!(rows.iter().map(|r| r.run.as_str()).collect::<Vec<_>>(), ["b", "a"]);
+        // A log without a row beside a row without a log: the row is named (a typo in it?).
         let err = f.for_logs(&[PathBuf::from("a.csv"), PathBuf::from("c.csv")]).unwrap_err();
         assert!(
-            matches!(&err, CalError::Runs { problem: RunsProblem::MissingRun { log, hint: None }, .. } if log.ends_with("c.csv"))
+            matches!(&err, CalError::Runs { problem: RunsProblem::MissingRun { log, .. }, .. } if log.ends_with("c.csv"))
+        );
+        assert!(
+            err.to_string().ends_with(
+                "no row for the log c.csv (rows that name no log: line 3 'b'; a typo in the run name?)"
+            ),
+            "{err}"
+        );
+        let all = f
+            .for_logs(&[PathBuf::from("a.csv"), PathBuf::from("b.csv"), PathBuf::from("c.csv")])
+            .unwrap_err();
+        assert!(
+            matches!(&all, CalError::Runs { problem: RunsProblem::MissingRun { hint: None, .. }, .. }),
+            "every row has its log: {all}"
         );
         // A row naming the file with its extension is pointed at (review9 finding 6).
         let ext = parse("run,position,input_rate_dph\na.csv,up,1\n").expect("valid");

@@ -936,6 +936,7 @@ pub fn without_block(run: &RunFeatures, blocks: &RunBlocks, j: usize, guard_s: f
         temperature_spikes: run.temperature_spikes.clone(),
         temperature_silences: run.temperature_silences.clone(),
         gyro_outliers: run.gyro_outliers.clone(),
+        digest: run.digest,
     }
 }
 
@@ -1772,6 +1773,7 @@ mod tests {
             temperature_spikes: Vec::new(),
             temperature_silences: Vec::new(),
             gyro_outliers: Vec::new(),
+            digest: None,
         }
     }
 

@@ -113,9 +113,10 @@ pub struct IngestArgs {
     pub delimiter: Delimiter,
     /// Decimal mark of the numbers: point (20.5) or comma (20,5, as written in many European
     /// locales; then the delimiter is not a comma, and a cell with a point is refused rather
-    /// than read as a thousands separator or a decimal).
-    #[arg(long, value_name = "MARK", default_value = "point", value_parser = parse_decimal_mark, help_heading = "Log shape")]
-    pub decimal_mark: DecimalMark,
+    /// than read as a thousands separator or a decimal) [default: point; replaying a model: as
+    /// it was fitted].
+    #[arg(long, value_name = "MARK", value_parser = parse_decimal_mark, help_heading = "Log shape")]
+    pub decimal_mark: Option<DecimalMark>,
     /// Skip malformed rows (non-numeric, NaN, short, duplicate or backward time) and report
     /// them, instead of stopping at the first.
     #[arg(long, help_heading = "Log columns")]
@@ -158,7 +159,7 @@ impl IngestArgs {
             column_names: self.columns.iter().map(|c| c.trim().to_string()).collect(),
             sample_rate_hz: self.sample_rate_hz,
             date_column: self.date_column.clone(),
-            decimal_mark: self.decimal_mark,
+            decimal_mark: self.decimal_mark.unwrap_or_default(),
         };
         if let Err(e) = format.check(std::path::Path::new("--options")) {
             match e {
@@ -551,7 +552,7 @@ pub struct CompensateArgs {
     pub model: PathBuf,
     /// Log to compensate.
     pub log: PathBuf,
-    /// Output CSV (written atomically): time_s (the log's own time stamps, s; from the row index with --sample-rate-hz), then per axis raw, compensated, bias, flags.
+    /// Output CSV (written atomically; `-` for stdout): time_s (the log's own time stamps, s; from the row index with --sample-rate-hz), then per axis raw, compensated, bias, flags.
     #[arg(long, short)]
     pub out: PathBuf,
     /// Log columns and units.
@@ -624,7 +625,13 @@ pub struct EvaluateArgs {
     /// Model axis.
     #[arg(long, default_value_t = 0)]
     pub axis: usize,
-    /// Output CSV (temp_c,rate_c_per_min,value_dph,flags); stdout if absent.
+    /// Decimal mark of the points' numbers: point (20.5) or comma (20,5; then the columns
+    /// are separated by semicolons or tabs).
+    #[arg(long, value_name = "MARK", default_value = "point", value_parser = parse_decimal_mark)]
+    pub decimal_mark: DecimalMark,
+    /// Output CSV (temp_c,rate_c_per_min,value_dph,flags); stdout if absent. flags is 0 for
+    /// a point inside the calibrated region and 4 (the compensator's OUTSIDE_HULL) outside
+    /// it, where the model holds or continues its boundary value.
     #[arg(long, short)]
     pub out: Option<PathBuf>,
 }

@@ -120,8 +120,22 @@ fn flag_hint(e: &(dyn std::error::Error + 'static)) -> Option<&'static str> {
              by their index (--skip-bad-rows would keep one row per stamp and drop the rest)",
         ),
         CalError::BadRow { row, .. } if row.kind == BadRowKind::BackwardTime => Some(
-            "; the time goes back: a logger restart (a new run starts here: split the file there) or two logs \
-             joined? --skip-bad-rows would drop every row until the time passes the old one",
+            "; the time goes back: a logger restart (a new run starts here: split the file there), two logs \
+             joined, or a corrupted stamp in the row before that jumps ahead? --skip-bad-rows would drop every row \
+             until the time passes the old one",
+        ),
+        CalError::BadRow { row, .. } if row.kind == BadRowKind::NotADateTime => Some(
+            "; date-times are read in ISO 8601 (2026-11-24T23:30:00, or with a space, optional .fff and Z or \
+             +hh:mm); convert other formats first (DD.MM.YYYY and MM/DD/YYYY cannot be told apart by the \
+             tool), or give --sample-rate-hz HZ to time the rows by their index",
+        ),
+        CalError::BadRow { row, .. } if row.kind == BadRowKind::NotATimeOfDay => Some(
+            "; times of day are read as hh:mm[:ss[.fff]] on a 24-hour clock; convert others first (11:30:00 PM), \
+             or give --sample-rate-hz HZ to time the rows by their index",
+        ),
+        CalError::BadRow { row, .. } if row.kind == BadRowKind::RateBeyondRange => Some(
+            "; a logger's overload code: --skip-bad-rows skips such rows (listed); a unit or scale far off: \
+             check --gyro-unit/--gyro-scale",
         ),
         CalError::BadRow { row, .. } if row.kind == BadRowKind::ImpossibleTemperature => Some(
             "; raw counts or kelvin? give --temp-scale/--temp-offset; a logger's mark for a missing reading: \

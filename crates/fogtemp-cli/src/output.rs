@@ -220,8 +220,3 @@ impl RowProgress {
         self.bar.finish_and_clear();
     }
 }
-
-/// SHA-256 over the contents of every file, in order (the model's input digest).
-pub fn digest_files(paths: &[PathBuf]) -> Result<[u8; 32]> {
-    Ok(fogtemp_cal::digest::digests_of_files(paths)?.0)
-}

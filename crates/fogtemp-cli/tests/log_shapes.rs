@@ -312,9 +312,17 @@ fn stored_model(model: &Path) -> Value {
     let (mut doc, _) = ok_json(&["inspect", "--json", s(model)]);
     assert!(doc["input_digest"].take().is_string(), "{doc}");
     doc["model"].take();
-    // How the time was read differs between twins by design (recorded since format 5).
+    // How the time was read differs between twins by design (recorded since format 5), and
+    // how the numbers were read and the logs' digests (format 6).
     assert!(doc["log_time"].take().is_object(), "{doc}");
+    assert!(doc["log_reading"].take().is_object(), "{doc}");
     doc
+}
+
+/// The decimal mark a model records (`inspect --json`).
+fn recorded_decimal_mark(model: &Path) -> Value {
+    let (doc, _) = ok_json(&["inspect", "--json", s(model)]);
+    doc["log_reading"]["decimal_mark"].clone()
 }
 
 #[test]
@@ -338,6 +346,34 @@ fn decimal_comma_logs_fit_the_same_model_as_their_point_twins() {
     let fitted = stored_model(&model);
     assert_eq!(fitted["axes"][0]["kind"][0], "poly", "{fitted}");
     assert_eq!(fitted, stored_model(&twin));
+    assert_eq!(
+        (recorded_decimal_mark(&model), recorded_decimal_mark(&twin)),
+        ("comma".into(), "point".into())
+    );
+    // validate reads the logs as the model records (format 6): the comma logs without the
+    // flag give the figures of the point twins with theirs, with a note; naming a point is
+    // said to differ (and refused at the first cell).
+    let validated = |m: &Path, logs: &Path, flag: &[&str]| {
+        let mut args = vec!["validate", "--json", "--model", s(m)];
+        args.extend(flag);
+        args.push(s(logs));
+        run(&args)
+    };
+    let out = validated(&model, &commas, &[]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success() && stderr.contains("read with a decimal comma, as"), "{stderr}");
+    let figures = |out: &Output| {
+        let doc: Value = serde_json::from_slice(&out.stdout).unwrap();
+        (doc["raw_bias_stability_dph"].clone(), doc["compensated_bias_stability_dph"].clone())
+    };
+    assert_eq!(figures(&out), figures(&validated(&twin, &points, &[])));
+    let out = validated(&model, &commas, &["--decimal-mark", "point"]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("was fitted on logs with a decimal comma; these are read with a decimal point"),
+        "{stderr}"
+    );
     // The flag on a log with points names the cell and the way back.
     let out = run(&["allan", "--decimal-mark", "comma", s(&points.join("run0.csv"))]);
     let stderr = String::from_utf8_lossy(&out.stderr);

@@ -66,6 +66,12 @@ pub enum Error {
         /// Which field: `time_column`, `date_column`, `time_unit` or `sample_rate_hz`.
         field: &'static str,
     },
+    /// A field of the log-reading record (format version 6, after the log-time record) holds
+    /// a value outside its allowed range.
+    BadLogReading {
+        /// Which field: `decimal_mark`.
+        field: &'static str,
+    },
     /// A field of the file header (before any axis section) holds a value outside its
     /// allowed range.
     BadHeaderValue {
@@ -180,6 +186,9 @@ impl fmt::Display for Error {
             Error::BadLogTime { field } => {
                 write!(f, "log time: {field} holds a value outside its allowed range")
             }
+            Error::BadLogReading { field } => {
+                write!(f, "log reading: {field} holds a value outside its allowed range")
+            }
             Error::BadHeaderValue { field, found } => {
                 write!(f, "file header: {field} is {found}, outside its allowed range")
             }
@@ -202,13 +211,11 @@ impl fmt::Display for Error {
             Error::BadMesh { check, axis, index } => {
                 write!(f, "axis {axis}: mesh check '{check}' failed at element {index}")
             }
-            Error::NoSuchAxis { requested, available } => {
-                write!(
-                    f,
-                    "axis {requested} requested but the model has {available} {}",
-                    if available == 1 { "axis" } else { "axes" }
-                )
-            }
+            Error::NoSuchAxis { requested, available } => match available {
+                0 => write!(f, "axis {requested} requested but the model has no axes"),
+                1 => write!(f, "axis {requested} requested but the model has 1 axis, numbered 0"),
+                n => write!(f, "axis {requested} requested but the model has {n} axes, numbered 0 to {}", n - 1),
+            },
             Error::CapacityTooSmall { needed, capacity } => {
                 write!(f, "feature tracker holds {capacity} blocks but the model needs {needed}")
             }

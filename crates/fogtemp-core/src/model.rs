@@ -6,7 +6,7 @@ use crate::mesh::{
     barycentric, edge_vertices, plane_value, Mesh, MeshValue, OutsidePolicy, StartGrid, TriangleRecord,
     WalkHint,
 };
-use crate::names::{AxisColumns, LogTime};
+use crate::names::{AxisColumns, LogReading, LogTime};
 use crate::poly::{parse_term, Poly};
 use crate::region::{PolyOutside, Region};
 use crate::wire::*;
@@ -317,7 +317,11 @@ impl<'a> Model<'a> {
             offset = offset.saturating_add(len);
         }
         if version >= FIRST_VERSION_WITH_COLUMN_NAMES {
-            crate::names::validate(body, offset, axis_count, version >= FIRST_VERSION_WITH_LOG_TIME)?;
+            let records = crate::names::Records {
+                time: version >= FIRST_VERSION_WITH_LOG_TIME,
+                reading: version >= FIRST_VERSION_WITH_LOG_READING,
+            };
+            crate::names::validate(body, offset, axis_count, records)?;
         } else if offset != body_len {
             return Err(Error::LengthMismatch {
                 field: "sum of section_len",
@@ -426,6 +430,16 @@ impl<'a> Model<'a> {
             return None;
         }
         crate::names::log_time(self.bytes, self.names_offset()?, self.axis_count)
+    }
+
+    /// How the fit read its logs' numbers (the decimal mark) and a digest of each calibration
+    /// log (format version 6; `None` for an older blob). Not used by evaluation: it lets a host
+    /// read a log as the fit did and tell a validation log that was among the fit's.
+    pub fn log_reading(&self) -> Option<LogReading<'a>> {
+        if self.version < FIRST_VERSION_WITH_LOG_READING {
+            return None;
+        }
+        crate::names::log_reading(self.bytes, self.names_offset()?, self.axis_count)
     }
 
     /// Where the log-columns section starts: after the axis sections, whose lengths were

@@ -16,9 +16,17 @@
 //! 2 microseconds, 3 date-time, 4 time of day) and `sample_rate_hz` (f64: 0, or the rate of a
 //! log without a time column, whose time column is then empty). An empty time column with rate
 //! 0 means not recorded (a fit from arrays). A date column needs the date-time unit.
+//!
+//! From format version 6 the **log-reading record** follows: `decimal_mark` (u8: 0 point,
+//! 1 comma), `log_count` (u16) and `log_count` digests of 8 bytes, the first bytes of the
+//! SHA-256 of each calibration log (its bytes, or a run given as arrays: its samples), in
+//! the order the fit read them, so a host can tell a validation log that was among them.
 
 use crate::error::Error;
-use crate::wire::{f64_at, u32_at, COLUMN_UNITS_LEN, LOG_TIME_FIXED_LEN, NAMES_LEN_LEN};
+use crate::wire::{
+    f64_at, u16_at, u32_at, COLUMN_UNITS_LEN, LOG_DIGEST_LEN, LOG_READING_FIXED_LEN, LOG_TIME_FIXED_LEN,
+    NAMES_LEN_LEN,
+};
 
 /// What one axis records of its log columns (names `""` = not recorded).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -90,16 +98,52 @@ pub struct LogTime<'a> {
     pub sample_rate_hz: f64,
 }
 
+/// How the fit read its logs' numbers, and which logs it read (format version 6).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LogReading<'a> {
+    /// The logs wrote numbers with a decimal comma (`3,14`), not a point.
+    pub decimal_comma: bool,
+    /// The calibration logs' digests, [`crate::wire::LOG_DIGEST_LEN`] bytes each, in the
+    /// order the fit read them.
+    digests: &'a [u8],
+}
+
+impl<'a> LogReading<'a> {
+    /// How many calibration logs have a digest.
+    pub fn log_count(&self) -> usize {
+        self.digests.len() / LOG_DIGEST_LEN
+    }
+
+    /// The digest of calibration log `index` (the first 8 bytes of its SHA-256), `None` past
+    /// the last.
+    pub fn log_digest(&self, index: usize) -> Option<[u8; LOG_DIGEST_LEN]> {
+        let start = index.checked_mul(LOG_DIGEST_LEN)?;
+        self.digests.get(start..start.checked_add(LOG_DIGEST_LEN)?)?.try_into().ok()
+    }
+}
+
+/// Which records end the section after the axes' records.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct Records {
+    /// The log-time record (version 5).
+    pub(crate) time: bool,
+    /// The log-reading record after it (version 6).
+    pub(crate) reading: bool,
+}
+
 /// Checks the section that starts at `offset` and runs to the end of `body` (the blob without
-/// its CRC) for `axis_count` axes, with the log-time record at its end when `with_time`.
-pub(crate) fn validate(body: &[u8], offset: usize, axis_count: u16, with_time: bool) -> Result<(), Error> {
+/// its CRC) for `axis_count` axes, with the records `records` at its end.
+pub(crate) fn validate(body: &[u8], offset: usize, axis_count: u16, records: Records) -> Result<(), Error> {
     let mut at = section_start(body, offset)?;
     for axis in 0..axis_count {
         let (_, next) = record_at(body, at, axis)?;
         at = next;
     }
-    if with_time {
+    if records.time {
         at = log_time_at(body, at)?.1;
+    }
+    if records.reading {
+        at = log_reading_at(body, at)?.1;
     }
     if at != body.len() {
         return Err(Error::LengthMismatch {
@@ -129,6 +173,37 @@ pub(crate) fn log_time(body: &[u8], offset: usize, axis_count: u16) -> Option<Lo
     }
     let (time, _) = log_time_at(body, at).ok()?;
     (!time.column.is_empty() || time.sample_rate_hz > 0.0).then_some(time)
+}
+
+/// The log-reading record of a validated version-6 section at `offset` with `axis_count` axes.
+pub(crate) fn log_reading(body: &[u8], offset: usize, axis_count: u16) -> Option<LogReading<'_>> {
+    let mut at = section_start(body, offset).ok()?;
+    for _ in 0..axis_count {
+        at = record_at(body, at, 0).ok()?.1;
+    }
+    let at = log_time_at(body, at).ok()?.1;
+    log_reading_at(body, at).ok().map(|(reading, _)| reading)
+}
+
+/// The log-reading record at `at` and where it ends.
+fn log_reading_at(body: &[u8], at: usize) -> Result<(LogReading<'_>, usize), Error> {
+    let fixed_end = at.saturating_add(LOG_READING_FIXED_LEN);
+    if body.len() < fixed_end {
+        return Err(Error::Truncated { field: "log reading", needed: fixed_end, found: body.len() });
+    }
+    let decimal_comma = match body.get(at) {
+        Some(0) => false,
+        Some(1) => true,
+        _ => return Err(Error::BadLogReading { field: "decimal_mark" }),
+    };
+    let count = usize::from(u16_at(body, at.saturating_add(1)).unwrap_or(0));
+    let end = fixed_end.saturating_add(count.saturating_mul(LOG_DIGEST_LEN));
+    let digests = body.get(fixed_end..end).ok_or(Error::Truncated {
+        field: "log_digests",
+        needed: end,
+        found: body.len(),
+    })?;
+    Ok((LogReading { decimal_comma, digests }, end))
 }
 
 /// The log-time record at `at` and where it ends.

@@ -33,9 +33,10 @@ use core::ops::Range;
 /// The four bytes every blob starts with.
 pub const MAGIC: [u8; 4] = *b"FOGM";
 /// The newest format version this build reads, and the one it writes for a blob that records
-/// the log columns each axis was fitted on and the log's time (the log-columns section after
-/// the axis sections, ending with the log-time record).
-pub const FORMAT_VERSION: u16 = 5;
+/// the log columns each axis was fitted on, the log's time and how its logs were read (the
+/// log-columns section after the axis sections, ending with the log-time record and the
+/// log-reading record).
+pub const FORMAT_VERSION: u16 = 6;
 /// The version this build writes for a blob without column names whose mesh is continued by
 /// stored gradients (`outside_policy = 3`, which needs it).
 pub const FORMAT_VERSION_WITH_GRADIENTS: u16 = 3;
@@ -48,6 +49,14 @@ pub const FIRST_VERSION_WITH_COLUMN_NAMES: u16 = 4;
 /// The oldest format version whose log-columns section ends with the log-time record (the
 /// time column, date column, time unit and sample rate the fit read its logs with).
 pub const FIRST_VERSION_WITH_LOG_TIME: u16 = 5;
+/// The oldest format version whose log-columns section ends, after the log-time record, with
+/// the log-reading record (the decimal mark and a digest of each calibration log).
+pub const FIRST_VERSION_WITH_LOG_READING: u16 = 6;
+/// The log-reading record's fixed part: `decimal_mark` (u8) and `log_count` (u16).
+pub const LOG_READING_FIXED_LEN: usize = 3;
+/// Bytes of one calibration log's digest in the log-reading record (the first 8 bytes of
+/// the SHA-256 of the log's bytes: enough to recognise a log, not a security measure).
+pub const LOG_DIGEST_LEN: usize = 8;
 /// The longest column name the names section holds, in bytes (its length is one byte).
 pub const MAX_COLUMN_NAME_LEN: usize = 255;
 /// `names_len`: u32 at the start of the column-names section, the section's bytes with this

@@ -22,7 +22,8 @@ use std::path::PathBuf;
 use common::blob::{
     core_digest, exercise, fix_len_and_crc, golden_queries, put_u16, put_u32, u32_at, GOLDEN_BLOB,
     GOLDEN_CSV, GOLDEN_HEADER, GOLDEN_V2_BLOB, GOLDEN_V2_CSV, GOLDEN_V3_BLOB, GOLDEN_V3_CSV, GOLDEN_V4_BLOB,
-    GOLDEN_V4_COLUMNS, GOLDEN_V4_CSV, GOLDEN_V5_BLOB, GOLDEN_V5_CSV, GOLDEN_V5_TIME,
+    GOLDEN_V4_COLUMNS, GOLDEN_V4_CSV, GOLDEN_V5_BLOB, GOLDEN_V5_CSV, GOLDEN_V5_TIME, GOLDEN_V6_BLOB,
+    GOLDEN_V6_CSV, GOLDEN_V6_READING,
 };
 use common::rng;
 use fogtemp_core::wire::*;
@@ -149,6 +150,53 @@ fn golden_v5_blob_evaluates_as_version_4_and_reads_the_log_time() {
     for code in 0..=255u8 {
         assert_eq!(LogTimeUnit::from_code(code).map(LogTimeUnit::code), (code <= 4).then_some(code));
     }
+}
+
+#[test]
+fn golden_v6_blob_evaluates_as_version_4_and_reads_the_log_reading() {
+    let model = check_golden(GOLDEN_V6_BLOB, GOLDEN_V6_CSV, 6);
+    assert_eq!(
+        std::fs::read(golden_dir().join(GOLDEN_V6_CSV)).ok(),
+        std::fs::read(golden_dir().join(GOLDEN_V4_CSV)).ok()
+    );
+    assert_eq!(model.log_time().map(|t| t.column), Some(GOLDEN_V5_TIME.0));
+    let reading = model.log_reading().expect("recorded");
+    let (comma, digests) = GOLDEN_V6_READING;
+    assert_eq!(reading.decimal_comma, comma);
+    assert_eq!(reading.log_count(), 2);
+    assert_eq!([reading.log_digest(0), reading.log_digest(1)], [Some(digests[0]), Some(digests[1])]);
+    assert_eq!(reading.log_digest(2), None);
+    assert_eq!(reading.log_digest(usize::MAX), None);
+    for older in [GOLDEN_BLOB, GOLDEN_V2_BLOB, GOLDEN_V3_BLOB, GOLDEN_V4_BLOB, GOLDEN_V5_BLOB] {
+        let blob = read_golden(older);
+        assert_eq!(Model::from_bytes(&blob).expect("parses").log_reading(), None, "{older}");
+    }
+}
+
+#[test]
+fn a_damaged_log_reading_record_is_refused_by_field() {
+    let golden = read_golden(GOLDEN_V6_BLOB);
+    let body_end = golden.len() - CRC_LEN;
+    // The record is the section's last 1 + 2 + 2 x 8 bytes: the mark, the count, two digests.
+    let record = body_end - 19;
+    let reread = |mutate: &dyn Fn(&mut Vec<u8>)| {
+        let mut b = golden.clone();
+        mutate(&mut b);
+        fix_len_and_crc(&mut b);
+        Model::from_bytes(&b).map(|_| ())
+    };
+    assert_eq!(reread(&|_| {}), Ok(()));
+    assert_eq!(reread(&|b| b[record] = 0), Ok(()));
+    assert_eq!(reread(&|b| b[record] = 2), Err(Error::BadLogReading { field: "decimal_mark" }));
+    // A count beyond the digests present: the record runs past the section.
+    assert!(matches!(reread(&|b| b[record + 1] = 3), Err(Error::Truncated { field: "log_digests", .. })));
+    // A count short of them: the section does not end where the record does.
+    assert!(matches!(reread(&|b| b[record + 1] = 1), Err(Error::LengthMismatch { field: "names_len", .. })));
+    // A version-5 blob relabelled 6 lacks the record.
+    let mut v5 = read_golden(GOLDEN_V5_BLOB);
+    put_u16(&mut v5, FILE_VERSION.start, 6);
+    fix_len_and_crc(&mut v5);
+    assert!(matches!(Model::from_bytes(&v5), Err(Error::Truncated { field: "log reading", .. })));
 }
 
 #[test]

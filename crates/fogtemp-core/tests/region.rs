@@ -220,11 +220,16 @@ fn malformed_regions_and_policies_are_refused() {
     assert!(matches!(bad(poly_blob(2, &nan, hold)), Error::NonFinite { field: "region.x", .. }));
     // Version 1 has no region: the bytes are reserved.
     assert!(matches!(bad(poly_blob(1, &REGION, hold)), Error::BadValue { field: "reserved", .. }));
-    // Version 6 is not known (3 adds the mesh's stored hull gradients, none here; 4 the
-    // column names and 5 the log time, so a version-4 or -5 blob without them ends early).
-    assert!(matches!(bad(poly_blob(6, &REGION, hold)), Error::UnsupportedVersion { expected: 5, found: 6 }));
-    assert!(matches!(bad(poly_blob(4, &REGION, hold)), Error::Truncated { field: "names_len", .. }));
-    assert!(matches!(bad(poly_blob(5, &REGION, hold)), Error::Truncated { field: "names_len", .. }));
+    // Version 7 is not known (3 adds the mesh's stored hull gradients, none here; 4 the
+    // column names, 5 the log time and 6 the log reading, so a version-4 to -6 blob without
+    // them ends early).
+    assert!(matches!(bad(poly_blob(7, &REGION, hold)), Error::UnsupportedVersion { expected: 6, found: 7 }));
+    for version in 4..=6 {
+        assert!(matches!(
+            bad(poly_blob(version, &REGION, hold)),
+            Error::Truncated { field: "names_len", .. }
+        ));
+    }
     assert!(Model::from_bytes(&poly_blob(3, &REGION, hold)).is_ok());
     // Version 1 without a region reads, and extrapolates.
     let v1 = poly_blob(1, &[], 0);

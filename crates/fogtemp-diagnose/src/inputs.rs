@@ -208,6 +208,15 @@ pub fn runs_file_meta(
         .collect())
 }
 
+/// What looks wrong in a runs file's positions ([`RunsFile::position_notes`]: two input
+/// rates under one position, a position of one run beside larger ones).
+///
+/// # Errors
+/// [`DiagnoseError::Cal`] naming the file and line.
+pub fn runs_file_notes(path: &Path) -> Result<Vec<String>, DiagnoseError> {
+    Ok(RunsFile::read(path)?.position_notes())
+}
+
 /// What the user is told when nothing says what each run was (no runs file, no
 /// `manifest.json` beside the simulated logs): `None` when `meta` describes some run.
 #[must_use]

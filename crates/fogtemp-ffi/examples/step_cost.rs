@@ -87,6 +87,7 @@ fn large_mesh_blob() -> Vec<u8> {
         axes: vec![axis],
         columns: Vec::new(),
         log_time: Default::default(),
+        log_reading: Default::default(),
     };
     encode(&file).expect("encodes")
 }

@@ -102,9 +102,10 @@ impl fogtemp_status {
             Error::UnsupportedVersion { .. } => Self::UnsupportedVersion,
             Error::LengthMismatch { .. } | Error::SectionLength { .. } => Self::LengthMismatch,
             Error::CrcMismatch { .. } => Self::CrcMismatch,
-            Error::BadValue { .. } | Error::BadHeaderValue { .. } | Error::BadLogTime { .. } => {
-                Self::BadValue
-            }
+            Error::BadValue { .. }
+            | Error::BadHeaderValue { .. }
+            | Error::BadLogTime { .. }
+            | Error::BadLogReading { .. } => Self::BadValue,
             Error::NonFinite { .. } => Self::NonFinite,
             Error::IndexOutOfRange { .. } => Self::IndexOutOfRange,
             Error::BadMesh { .. } => Self::BadMesh,
@@ -553,7 +554,7 @@ fn details(e: &Error) -> (u32, u32, u64, u64) {
             (u32::from(axis), index, 0, 0)
         }
         Error::BadHeaderValue { found, .. } => (FOGTEMP_NO_AXIS, 0, 0, found),
-        Error::BadLogTime { .. } => (FOGTEMP_NO_AXIS, 0, 0, 0),
+        Error::BadLogTime { .. } | Error::BadLogReading { .. } => (FOGTEMP_NO_AXIS, 0, 0, 0),
         Error::IndexOutOfRange { axis, index, value, limit, .. } => {
             (u32::from(axis), index, u64::from(limit), u64::from(value))
         }

@@ -174,7 +174,7 @@ fn an_axis_past_the_end_is_named_in_good_grammar() {
         );
         assert_eq!(fogtemp_model_axis(&model, 1, &mut axis, &mut err), fogtemp_status::NoSuchAxis);
     }
-    assert_eq!(message(&err), "axis 1 requested but the model has 1 axis");
+    assert_eq!(message(&err), "axis 1 requested but the model has 1 axis, numbered 0");
 }
 
 #[test]
@@ -492,6 +492,7 @@ fn a_value_beyond_f32_is_a_status_not_infinity() {
         axes: vec![axis],
         columns: Vec::new(),
         log_time: Default::default(),
+        log_reading: Default::default(),
     };
     let blob: &'static [u8] = Box::leak(fogtemp_cal::encode(&file).unwrap().into_boxed_slice());
     let mut blocks = vec![0.0f32; 8];
@@ -516,6 +517,7 @@ fn twin_axes_blob() -> Vec<u8> {
         axes: vec![axis.clone(), axis],
         columns: Vec::new(),
         log_time: Default::default(),
+        log_reading: Default::default(),
     };
     encode(&file).unwrap()
 }

@@ -207,6 +207,11 @@ pub fn diagnose<'py>(
         (None, Side::Arrays(..)) => Ok(Default::default()),
     }
     .map_err(diagnose_error)?;
+    for note in
+        runs.as_deref().map(inputs::runs_file_notes).transpose().map_err(diagnose_error)?.unwrap_or_default()
+    {
+        progress::warn(py, &note)?;
+    }
     if let Some(note) = inputs::unknown_setup_note(&meta) {
         progress::warn(py, &format!("{note} (runs=)"))?;
     }

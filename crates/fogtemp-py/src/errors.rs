@@ -45,8 +45,22 @@ fn hint(e: &CalError) -> &'static str {
              their index (skip_bad_rows=True would keep one row per stamp and drop the rest)"
         }
         CalError::BadRow { row, .. } if row.kind == BadRowKind::BackwardTime => {
-            "; the time goes back: a logger restart (a new run starts here: split the file there) or two logs \
-             joined? skip_bad_rows=True would drop every row until the time passes the old one"
+            "; the time goes back: a logger restart (a new run starts here: split the file there), two logs \
+             joined, or a corrupted stamp in the row before that jumps ahead? skip_bad_rows=True would drop every \
+             row until the time passes the old one"
+        }
+        CalError::BadRow { row, .. } if row.kind == BadRowKind::NotADateTime => {
+            "; date-times are read in ISO 8601 (2026-11-24T23:30:00, or with a space, optional .fff and Z or \
+             +hh:mm); convert other formats first (DD.MM.YYYY and MM/DD/YYYY cannot be told apart), or pass \
+             sample_rate_hz= to time the rows by their index"
+        }
+        CalError::BadRow { row, .. } if row.kind == BadRowKind::NotATimeOfDay => {
+            "; times of day are read as hh:mm[:ss[.fff]] on a 24-hour clock; convert others first (11:30:00 PM), \
+             or pass sample_rate_hz= to time the rows by their index"
+        }
+        CalError::BadRow { row, .. } if row.kind == BadRowKind::RateBeyondRange => {
+            "; a logger's overload code: skip_bad_rows=True skips such rows (listed); a unit or scale far off: \
+             check gyro_unit=/gyro_scale="
         }
         CalError::BadRow { row, .. } if row.kind == BadRowKind::ImpossibleTemperature => {
             "; raw counts or kelvin? pass temp_scale=/temp_offset=; a logger's mark for a missing reading: empty \

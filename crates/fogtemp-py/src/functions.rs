@@ -431,6 +431,9 @@ fn file_runs(
     let mut rows = None;
     if let Some(path) = runs_file {
         let file = fogtemp_cal::runs::RunsFile::read(path).map_err(errors::cal)?;
+        for note in file.position_notes() {
+            progress::warn(py, &note)?;
+        }
         let kept: Vec<(PathBuf, fogtemp_cal::runs::RunMetadata)> = logs
             .iter()
             .zip(file.for_logs(&logs).map_err(errors::cal)?)
@@ -470,7 +473,10 @@ fn file_runs(
         }
         runs.push(run);
     }
-    let digest = py.detach(|| fogtemp_cal::digest::digests_of_files(&logs)).map_err(errors::cal)?.0;
+    let (digest, each) = py.detach(|| fogtemp_cal::digest::digests_of_files(&logs)).map_err(errors::cal)?;
+    for (run, log_digest) in runs.iter_mut().zip(each) {
+        run.digest = Some(log_digest);
+    }
     Ok((runs, digest, rows))
 }
 
@@ -517,11 +523,14 @@ fn array_features(
     let mut features = Vec::with_capacity(runs.len());
     for run in runs {
         run.digest_into(&mut hasher)?;
+        let mut own = sha2::Sha256::new();
+        run.digest_into(&mut own)?;
         let columns = ArrayColumns::new(run)?;
         let view = columns.view();
         let f = py.detach(|| extract_run_arrays(&view, config));
         py.check_signals()?;
-        let f = f.map_err(array_error)?;
+        let mut f = f.map_err(array_error)?;
+        f.digest = Some(own.finalize().into());
         if f.ingest.rows == 0 {
             return Err(errors::value(format!("{}: no samples", run.name.display())));
         }
@@ -593,6 +602,7 @@ pub fn read_log<'py>(
         (o.any_given(&["gyro_column"])?, o.any_given(&["temp_column"])?),
         (o.any_given(&["gyro_unit", "gyro_scale"])?, o.any_given(&["temp_scale", "temp_offset"])?),
         time_named(&o)?,
+        o.any_given(&["decimal_mark"])?,
     );
     let mut ingest = options::ingest(&mut o)?;
     o.finish()?;
@@ -699,6 +709,7 @@ pub fn validate<'py>(
     let units_named =
         (o.any_given(&["gyro_unit", "gyro_scale"])?, o.any_given(&["temp_scale", "temp_offset"])?);
     let time_named = time_named(&o)?;
+    let decimal_named = o.any_given(&["decimal_mark"])?;
     let mut ingest = options::ingest(&mut o)?;
     let stability = options::stability(&mut o)?;
     let capacity = o.int("capacity", fogtemp_core::DEFAULT_CAPACITY, options::MIN_CAPACITY, u64::MAX)?;
@@ -750,8 +761,14 @@ pub fn validate<'py>(
         if let Some(path) = &runs_file {
             logs = fogtemp_cal::runs::validation_logs(logs, path).map_err(errors::cal)?;
         }
-        choose_columns(py, &mut ingest, (columns_named, units_named, time_named), &blobs, &models)?;
-        if let Some(note) = in_sample_note(py, &blobs[0].1, models[0].input_digest(), &logs)? {
+        choose_columns(
+            py,
+            &mut ingest,
+            (columns_named, units_named, time_named, decimal_named),
+            &blobs,
+            &models,
+        )?;
+        if let Some(note) = in_sample_note(py, &blobs[0].1, &models[0], &logs)? {
             progress::warn(py, &note)?;
         }
         let gyro_columns = ingest.format.gyro_columns.len();
@@ -803,17 +820,15 @@ pub fn validate<'py>(
     convert::document(py, &ValidationDocument::new(&stability, &validation, comparison))
 }
 
-/// Every log file replayed through every model, one log at a time (the library's validation
-/// of each, in log order), so that Ctrl-C is raised between two logs.
 /// `validate`'s note for logs the model was fitted on (`fogtemp_cal::digest`), their digests
 /// taken one file at a time so that Ctrl-C is raised between two (the logs are read twice).
 fn in_sample_note(
     py: Python<'_>,
-    model: &str,
-    digest: [u8; 32],
+    name: &str,
+    model: &CoreModel<'_>,
     logs: &[PathBuf],
 ) -> PyResult<Option<String>> {
-    if digest == [0; 32] {
+    if model.input_digest() == [0; 32] && model.log_reading().is_none_or(|r| r.log_count() == 0) {
         return Ok(None);
     }
     let mut digests = fogtemp_cal::digest::InputDigest::new();
@@ -821,7 +836,7 @@ fn in_sample_note(
         py.detach(|| digests.add_file(log)).map_err(errors::cal)?;
         py.check_signals()?;
     }
-    Ok(fogtemp_cal::digest::in_sample_note_from(model, digest, logs, &digests.finish()))
+    Ok(fogtemp_cal::digest::in_sample_note_from(name, model, logs, &digests.finish()))
 }
 
 /// Which time keywords were given (the others are read as a model records them).
@@ -836,12 +851,17 @@ fn time_named(o: &Options<'_>) -> PyResult<TimeNamed> {
 
 /// The log columns, units and time for replaying `models` (the first is validated, the rest
 /// compared): the ones each model records unless `gyro_column=`, `temp_column=`, the unit
-/// keywords or the time keywords were given (`named`), named columns checked against them (as
+/// keywords, the time keywords or `decimal_mark=` were given (`named`), named columns checked against them (as
 /// the command line's `validate`); notes become warnings.
 fn choose_columns(
     py: Python<'_>,
     ingest: &mut IngestOptions,
-    ((gyro_named, temp_named), (gyro_units, temp_units), time): ((bool, bool), (bool, bool), TimeNamed),
+    ((gyro_named, temp_named), (gyro_units, temp_units), time, decimal_mark): (
+        (bool, bool),
+        (bool, bool),
+        TimeNamed,
+        bool,
+    ),
     blobs: &[(Vec<u8>, String)],
     models: &[CoreModel<'_>],
 ) -> PyResult<()> {
@@ -854,6 +874,7 @@ fn choose_columns(
         gyro_units,
         temp_units,
         time,
+        decimal_mark,
     };
     let mut format = ingest.format.clone();
     for (index, ((_, source), model)) in blobs.iter().zip(models).enumerate() {
@@ -875,6 +896,8 @@ fn choose_columns(
     Ok(())
 }
 
+/// Every log file replayed through every model, one log at a time (the library's validation
+/// of each, in log order), so that Ctrl-C is raised between two logs.
 fn validate_log_files(
     py: Python<'_>,
     logs: &[PathBuf],

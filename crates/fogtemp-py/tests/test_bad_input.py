@@ -505,7 +505,7 @@ def test_validate_reads_the_time_the_model_records(tmp_path):
     ms_logs = write_gyro_logs(tmp_path, "gyro_dph", lambda g: f"{g!r}", time_header="t_ms", time_per_s=1000.0)
     model = fogtemp.fit(ms_logs, method="poly", time_column="t_ms", time_unit="ms", progress=False)
     info = model.inspect()
-    assert info["format_version"] == 5
+    assert info["format_version"] == 6
     assert (info["log_time"]["time_column"], info["log_time"]["time_unit"]) == ("t_ms", "ms")
     named = fogtemp.validate(model, ms_logs[:1], time_column="t_ms", time_unit="ms", progress=False)
     with pytest.warns(UserWarning, match=r"the logs' time is read as .* records it: column 't_ms' in ms"):
@@ -525,5 +525,15 @@ def test_validate_reads_the_time_the_model_records(tmp_path):
     for key in by_hand:
         np.testing.assert_array_equal(by_model[key], by_hand[key])
     single = fogtemp.fit(synthetic_runs(runs=3), method="poly", progress=False)
-    assert single.inspect()["format_version"] == 5
+    assert single.inspect()["format_version"] == 6
     assert (single.inspect()["log_time"]["time_column"], single.inspect()["log_time"]["time_unit"]) == ("time_s", "s")
+
+
+def test_validate_names_calibration_logs_among_the_validation_logs(tmp_path):
+    # A model records each calibration log's digest (format 6): validating those logs with
+    # others names them as in-sample, one by one.
+    logs = write_gyro_logs(tmp_path, "gyro_dph", lambda g: f"{g!r}")
+    model = fogtemp.fit(logs[:2], method="poly", progress=False)
+    assert len(model.inspect()["log_reading"]["log_digests"]) == 2
+    with pytest.warns(fogtemp.FogtempWarning, match=r"\(1 of the 2 logs given\) is among the 2 logs .* fitted on"):
+        fogtemp.validate(model, [logs[1], logs[2]], progress=False)

@@ -98,11 +98,15 @@ def test_fit_from_arrays_equals_fit_from_the_same_csv(tmp_path):
         from_arrays = fogtemp.fit(runs, method=method, progress=False)
         from_frames = fogtemp.fit([pd.DataFrame(r) for r in runs], method=method, progress=False)
         a, c, f = from_arrays.inspect(), from_csv.inspect(), from_frames.inspect()
-        # Identical model in every field; only the input digest (of files vs of arrays) and
-        # the name differ. The blobs differ in those 32 bytes and the CRC only.
+        # Identical model in every field; only the digests (of files vs of arrays: the input
+        # digest and each run's) and the name differ. The blobs differ in those bytes and the
+        # CRC only. Arrays and data frames of the same samples have the same digests.
         assert a["input_digest"] != c["input_digest"]
+        assert a["log_reading"]["log_digests"] == f["log_reading"]["log_digests"] != c["log_reading"]["log_digests"]
         for doc in (a, c, f):
             doc.pop("input_digest"), doc.pop("model")
+            reading = doc.pop("log_reading")
+            assert (reading["decimal_mark"], len(reading["log_digests"])) == ("point", len(runs))
         assert a == c == f, method
         assert len(from_arrays.to_bytes()) == len(from_csv.to_bytes())
         grid_t, grid_r = np.meshgrid(np.linspace(-25, 40, 50), np.linspace(-1, 4, 40))

@@ -253,21 +253,36 @@ fn refuse_binary_header(path: &Path, header: &Fields<'_>, line: u64) -> Result<(
     Ok(())
 }
 
+/// A header field's text: UTF-8, or else Latin-1 (ISO 8859-1, each byte its own character: a
+/// Windows logger's `Temp (\u{b0}C)` writes the degree sign as the single byte 0xB0, which is no
+/// UTF-8; read lossily it could not be named, review12 F15). The values are numbers in ASCII
+/// either way.
+fn header_text(field: &[u8]) -> std::borrow::Cow<'_, str> {
+    match std::str::from_utf8(field) {
+        Ok(text) => std::borrow::Cow::Borrowed(text),
+        Err(_) => std::borrow::Cow::Owned(field.iter().map(|&b| char::from(b)).collect()),
+    }
+}
+
 fn locate_columns(path: &Path, header: Fields<'_>, f: &LogFormat, line: u64) -> Result<Columns, CalError> {
     refuse_binary_header(path, &header, line)?;
     let names: Vec<String> = (0..header.len())
         .map(|i| {
             let h = header.get(i).unwrap_or(b"");
-            String::from_utf8_lossy(h).trim().trim_start_matches('\u{feff}').to_string()
+            header_text(h).trim().trim_start_matches('\u{feff}').to_string()
         })
         .collect();
+    // A similar name that another role reads is no suggestion (a 3-axis model's gyro_z
+    // missing: gyro_x and gyro_y are the other axes', review12 F16).
+    let read_elsewhere =
+        |n: &String| f.gyro_columns.contains(n) || f.temp_columns.contains(n) || *n == f.time_column;
     let find_as = |wanted: &str, role: &'static str| {
         names.iter().position(|n| n == wanted).ok_or_else(|| CalError::MissingColumn {
             path: path.to_path_buf(),
             column: wanted.to_string(),
             role,
             available: names.join(", "),
-            similar: similar_names(wanted, &names),
+            similar: similar_names(wanted, &names).into_iter().filter(|n| !read_elsewhere(n)).collect(),
         })
     };
     let has_time_column = names.contains(&f.time_column);
@@ -775,6 +790,21 @@ mod tests {
             ),
             "{e}"
         );
+        // A column another axis reads is no suggestion: a 3-axis read of a log without gyro_z.
+        let three = IngestOptions {
+            format: LogFormat {
+                gyro_columns: vec!["gyro_x".into(), "gyro_y".into(), "gyro_z".into()],
+                ..LogFormat::default()
+            },
+            ..IngestOptions::default()
+        };
+        let (_, result) = run(b"time_s,temp_c,gyro_x,gyro_y\n0,20,1,2\n", &three);
+        match result {
+            Err(CalError::MissingColumn { column, similar, .. }) => {
+                assert_eq!((column.as_str(), similar), ("gyro_z", Vec::<String>::new()));
+            }
+            other => panic!("{}", summary(&other)),
+        }
     }
 
     #[test]

@@ -935,6 +935,16 @@ mod tests {
             let mut record = csv::ByteRecord::new();
             while reader.read_byte_record(&mut record).unwrap() {
                 let line = record.position().map_or(0, |p| p.line());
+                // A line of spaces or tabs (unquoted) is blank, as an empty one is.
+                let at = record.position().map_or(0, |p| p.byte() as usize);
+                // (The position may be that of blank lines the crate skipped before the record.)
+                let raw = data.get(at..).unwrap_or_default();
+                let raw = &raw[raw.iter().position(|&b| b != b'\n' && b != b'\r').unwrap_or(raw.len())..];
+                let raw_line =
+                    &raw[..raw.iter().position(|&b| b == b'\n' || b == b'\r').unwrap_or(raw.len())];
+                if raw_line.trim_ascii().is_empty() {
+                    continue;
+                }
                 let mut bounds = Vec::new();
                 let mut start = 0;
                 for f in record.iter() {

@@ -465,6 +465,11 @@ impl<R: Read> Parser<R> {
                 return Ok(Flow::Continue);
             }
         } else {
+            if record.trim_ascii().is_empty() {
+                // Only spaces or tabs (an editor's trailing line): a blank line, as without them.
+                self.src.pos = start + len;
+                return Ok(Flow::Continue);
+            }
             if memchr(b'"', record).is_some() {
                 self.quoted = Some(Quoted { line: self.src.line, out_len: 0, ends_len: 0 });
                 return Ok(Flow::Continue);
@@ -595,6 +600,11 @@ mod tests {
         let b = bad(&format!("{HEADER}0,20,1\n\n\n1,20,1\r\n\r\n2,20,x\n"));
         expect(&b, 7, 3, "gyro_dph", "x", BadRowKind::NotANumber);
         let b = bad("\n\ntime_s,temp_c,gyro_dph\n0,20,x\n");
+        expect(&b, 4, 3, "gyro_dph", "x", BadRowKind::NotANumber);
+        // Lines of spaces or tabs are blank too (a trailing one was a short row, review11 F14).
+        let seen = rows(&format!("{HEADER}0,20,1\n \t \n1,20,2\n  \n"), &default_options());
+        assert_eq!(seen.iter().map(|s| s.line).collect::<Vec<_>>(), vec![2, 4]);
+        let b = bad(&format!("{HEADER}0,20,1\n\t\n1,20,x\n"));
         expect(&b, 4, 3, "gyro_dph", "x", BadRowKind::NotANumber);
     }
 

@@ -530,6 +530,28 @@ fn a_rate_beyond_the_compensators_f32_is_a_bad_row_in_every_reader_mode() {
 }
 
 #[test]
+fn a_latin1_header_is_read_as_latin1_so_its_columns_can_be_named() {
+    // A Windows logger's header: the degree sign as the single byte 0xB0 (no UTF-8).
+    let mut data = b"time_s,Temp (\xb0C),gyro_dph\n".to_vec();
+    data.extend_from_slice(b"0,20,1\n1,20.5,2\n");
+    let format = LogFormat { temp_columns: vec!["Temp (\u{b0}C)".into()], ..LogFormat::default() };
+    let (seen, result) = run(&data, &with(format.clone()));
+    assert!(result.is_ok(), "{}", summary(&result));
+    let read: Vec<(u64, f64)> = values(&seen).into_iter().map(|r| (r.0, r.2[0])).collect();
+    assert_eq!(read, vec![(2, 20.0), (3, 20.5)]);
+    // The same name in UTF-8 reads alike; a missing name lists the Latin-1 one as text.
+    assert_eq!(
+        values(&rows("time_s,Temp (\u{b0}C),gyro_dph\n0,20,1\n1,20.5,2\n", &with(format))),
+        values(&seen)
+    );
+    let e = match run(&data, &default_options()).1 {
+        Err(e) => e.to_string(),
+        Ok(_) => panic!("temp_c is not a column"),
+    };
+    assert!(e.contains("the header has: time_s, Temp (\u{b0}C), gyro_dph"), "{e}");
+}
+
+#[test]
 fn a_binary_or_utf16_file_is_refused_as_not_text() {
     // A binary file's first bytes (an ELF header) and a UTF-16 CSV: refused on line 1 as not
     // text, not listed byte by byte as the header's column names.

@@ -1,5 +1,7 @@
 //! `compensate`: one log replayed through the model, as CSV.
 
+use std::io::Write;
+
 use anyhow::{bail, Result};
 use fogtemp_cal::calibrate::{self, TimeGaps};
 use fogtemp_cal::spikes::{Sample, SpikeGuard};
@@ -21,8 +23,13 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
             a.model.display()
         );
     }
-    refuse_overwriting_inputs(&a.out, &[&a.log, &a.model])?;
-    check_output_file(&a.out)?;
+    // `--out -`: the CSV on stdout (for a pipe), the summary on stderr (review12 F11: it wrote
+    // a file named '-').
+    let to_stdout = a.out.as_os_str() == "-";
+    if !to_stdout {
+        refuse_overwriting_inputs(&a.out, &[&a.log, &a.model])?;
+        check_output_file(&a.out)?;
+    }
     let blob = read_model(&a.model)?;
     check_capacity(&a.model, &blob, a.capacity)?;
     let model = Model::from_bytes(&blob).map_err(|e| anyhow::anyhow!("{e}"))?;
@@ -49,7 +56,7 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
     let mut report = None;
     // A problem in the log is reported as the log's (with its hint), not as the output's.
     let mut input_error: Option<anyhow::Error> = None;
-    let written = write_atomic(&a.out, |w| {
+    let mut body = |w: &mut dyn Write| -> Result<()> {
         let mut out = csv::Writer::from_writer(w);
         let mut header = vec!["time_s".to_string()];
         for i in 0..axes {
@@ -117,10 +124,20 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
         out.flush()?;
         report = Some(r);
         Ok(())
-    });
+    };
+    let written = if to_stdout {
+        let mut stdout = std::io::BufWriter::new(std::io::stdout().lock());
+        body(&mut stdout).and_then(|()| Ok(stdout.flush()?))
+    } else {
+        write_atomic(&a.out, body)
+    };
     bar.finish_and_clear();
     if let Some(e) = input_error {
         return Err(e);
+    }
+    // A reader that stops early (`| head`) closes the pipe: done, as other tools end there.
+    if to_stdout && written.as_ref().is_err_and(broken_pipe) {
+        return Ok(());
     }
     written?;
     if let Some(r) = &report {
@@ -168,14 +185,37 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
                 eprintln!("note: {note}");
             }
         }
-        println!(
-            "wrote {} ({} rows, {})",
-            a.out.display(),
-            r.rows,
-            super::counted(axes as u64, "axis", "axes")
-        );
+        let summary = format!("({} rows, {})", r.rows, super::counted(axes as u64, "axis", "axes"));
+        if to_stdout {
+            eprintln!("wrote the compensated log to stdout {summary}");
+        } else {
+            println!("wrote {} {summary}", a.out.display());
+        }
     }
     Ok(())
+}
+
+/// Whether `e` comes from writing to a closed pipe.
+fn broken_pipe(e: &anyhow::Error) -> bool {
+    let pipe = |io: &std::io::Error| io.kind() == std::io::ErrorKind::BrokenPipe;
+    // The CSV writer's error travels inside the I/O error the writer wraps it in.
+    let mut causes: Vec<&(dyn std::error::Error + 'static)> = e.chain().collect();
+    while let Some(cause) = causes.pop() {
+        let found = match (cause.downcast_ref::<std::io::Error>(), cause.downcast_ref::<csv::Error>()) {
+            (Some(io), _) => {
+                // `io::Error::source` skips the error it wraps: look inside it too.
+                causes.extend(io.get_ref().map(|inner| inner as &(dyn std::error::Error + 'static)));
+                pipe(io)
+            }
+            (_, Some(c)) => matches!(c.kind(), csv::ErrorKind::Io(io) if pipe(io)),
+            _ => false,
+        };
+        if found {
+            return true;
+        }
+        causes.extend(cause.source());
+    }
+    false
 }
 
 /// A time stamp to the nanosecond, without trailing zeros: the log's own time, without the

@@ -69,6 +69,9 @@ pub fn diagnose(a: DiagnoseArgs, recorded_ingest: IngestOptions) -> Result<()> {
         Some(path) => inputs::runs_file_meta(path, &simulated)?,
         None => manifest_meta(&a.simulated)?,
     };
+    for note in a.runs.as_deref().map(inputs::runs_file_notes).transpose()?.unwrap_or_default() {
+        eprintln!("note: {note}");
+    }
     if let Some(note) = inputs::unknown_setup_note(&meta) {
         eprintln!("note: {note} (--runs FILE)");
     }

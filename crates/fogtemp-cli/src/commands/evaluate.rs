@@ -18,7 +18,7 @@ pub fn evaluate(a: EvaluateArgs) -> Result<()> {
     let blob = read_model(&a.model)?;
     let model = Model::from_bytes(&blob).map_err(|e| anyhow::anyhow!("{e}"))?;
     let axis = model.axis(a.axis).map_err(|e| anyhow::anyhow!("{}: {e}", a.model.display()))?;
-    let delimiter = points_delimiter(&a.points)?;
+    let delimiter = points_delimiter(&a.points, a.decimal_mark)?;
     let mut reader = csv::ReaderBuilder::new()
         .trim(csv::Trim::All)
         .delimiter(delimiter)
@@ -42,11 +42,12 @@ pub fn evaluate(a: EvaluateArgs) -> Result<()> {
         let line = rec.position().map_or(k as u64 + 2, |p| p.line());
         let cell = |i: usize, name: &str| -> Result<f64> {
             let text = rec.get(i).unwrap_or("");
-            let v: f64 = text.parse().map_err(|_| {
+            let v: f64 = number(text, a.decimal_mark).ok_or_else(|| {
                 anyhow::anyhow!(
-                    "{}:{line}:{}: column '{name}': not a number (found '{text}')",
+                    "{}:{line}:{}: column '{name}': not a number (found '{text}'){}",
                     a.points.display(),
-                    i + 1
+                    i + 1,
+                    decimal_hint(text, a.decimal_mark)
                 )
             })?;
             if !v.is_finite() {
@@ -81,17 +82,40 @@ pub fn evaluate(a: EvaluateArgs) -> Result<()> {
     }
 }
 
+/// A cell's number with the points' decimal mark (with a comma, a cell holding a point is
+/// not a number: there it would be a thousands separator).
+fn number(text: &str, mark: DecimalMark) -> Option<f64> {
+    match mark {
+        DecimalMark::Point => text.parse().ok(),
+        DecimalMark::Comma if text.contains('.') => None,
+        DecimalMark::Comma => text.replace(',', ".").parse().ok(),
+    }
+}
+
+/// What to give when a cell is a number with the other decimal mark.
+fn decimal_hint(text: &str, mark: DecimalMark) -> &'static str {
+    match mark {
+        DecimalMark::Point if number(text, DecimalMark::Comma).is_some() => {
+            "; the points seem to write numbers with a decimal comma: use --decimal-mark comma"
+        }
+        DecimalMark::Comma if number(text, DecimalMark::Point).is_some() => {
+            "; a point in points read with a decimal comma: leave out --decimal-mark comma"
+        }
+        _ => "",
+    }
+}
+
 /// The points file's delimiter, from its header as a log's is found (`--delimiter auto`):
 /// the most frequent of comma, semicolon and tab (a spreadsheet in a European locale writes
 /// `temp_c;rate_c_per_min`).
-fn points_delimiter(path: &std::path::Path) -> Result<u8> {
+fn points_delimiter(path: &std::path::Path, mark: DecimalMark) -> Result<u8> {
     use std::io::BufRead;
     let file = std::fs::File::open(path).with_context(|| format!("cannot open {}", path.display()))?;
     let mut header = Vec::new();
     std::io::BufReader::new(file)
         .read_until(b'\n', &mut header)
         .with_context(|| format!("{}: cannot read the header", path.display()))?;
-    match Delimiter::Auto.resolve_with(&header, DecimalMark::Point) {
+    match Delimiter::Auto.resolve_with(&header, mark) {
         Delimiter::Byte(b) => Ok(b),
         _ => bail!(
             "{}:1: the columns are separated by spaces: separate them with commas, semicolons or tabs",

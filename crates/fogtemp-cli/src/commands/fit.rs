@@ -16,8 +16,7 @@ use crate::args::{
     CvCorrectionArg, CvSchemeArg, CvScoringArg, FitArgs, MethodArg, PolyArg, RuleScaleArg, ThinningArg,
 };
 use crate::output::{
-    check_output_file, check_report_folder, digest_files, expand_logs, refuse_overwriting_inputs,
-    write_atomic, RowProgress,
+    check_output_file, check_report_folder, expand_logs, refuse_overwriting_inputs, write_atomic, RowProgress,
 };
 
 /// Calibration points from which a fit without a terminal says that it started (one
@@ -107,7 +106,10 @@ pub fn fit(a: FitArgs) -> Result<()> {
     subtract_input_rates(&mut runs, input_rates_dph.as_deref(), config.ingest.format.gyro_columns.len());
     let mut warnings = fogtemp_cal::identifiability::fit_warnings(&runs, &config, &a.identifiability());
     warnings.iter().for_each(|w| eprintln!("warning: {}", w.message));
-    let digest = digest_files(&logs)?;
+    let (digest, each) = fogtemp_cal::digest::digests_of_files(&logs)?;
+    for (run, log_digest) in runs.iter_mut().zip(each) {
+        run.digest = Some(log_digest);
+    }
     let selection = SelectionOptions {
         positions,
         inside_range_only: a.cv_inside_range_only,
@@ -303,6 +305,9 @@ fn calibration_logs(logs: &[std::path::PathBuf], runs: Option<&std::path::Path>)
     };
     let file = RunsFile::read(path)?;
     let rows = file.for_logs(logs)?;
+    for note in file.position_notes() {
+        eprintln!("note: {note}");
+    }
     let kept: Vec<_> = logs.iter().zip(rows).filter(|(_, row)| row.role != Some(Role::Val)).collect();
     if kept.is_empty() {
         bail!("{}: every run has role 'val': none is left to calibrate on", path.display());

@@ -29,6 +29,15 @@ pub fn inspect(a: InspectArgs) -> Result<()> {
         None if doc.format_version < 5 => println!("log time: not recorded (format {})", doc.format_version),
         None => println!("log time: not recorded"),
     }
+    match &doc.log_reading {
+        Some(r) => println!(
+            "log reading: decimal {}; {} calibration log digest{} (validate names a log among them)",
+            r.decimal_mark,
+            r.log_digests.len(),
+            if r.log_digests.len() == 1 { "" } else { "s" }
+        ),
+        None => println!("log reading: not recorded (format {})", doc.format_version),
+    }
     // The stored values are f32: printed to the digits they hold (every one is in --json).
     let number = |v: f64, digits: usize| if v.is_finite() { format!("{v:.digits$}") } else { "null".into() };
     for axis in &doc.axes {

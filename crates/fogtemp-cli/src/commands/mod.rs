@@ -65,6 +65,7 @@ fn ingest_options_for(
             sample_rate: a.sample_rate_hz.is_some(),
             date: a.date_column.is_some(),
         },
+        decimal_mark: a.decimal_mark.is_some(),
     };
     let chosen = fogtemp_cal::axis_columns::choose_for_replay(
         model,

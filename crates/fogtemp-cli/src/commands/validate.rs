@@ -101,9 +101,7 @@ pub fn validate(a: ValidateArgs) -> Result<()> {
     for note in runs.iter().flat_map(calibrate::RunValidation::coverage_notes) {
         eprintln!("note: {note}");
     }
-    if let Some(note) =
-        fogtemp_cal::digest::in_sample_note(&a.model.display().to_string(), model.input_digest(), &logs)?
-    {
+    if let Some(note) = fogtemp_cal::digest::in_sample_note(&a.model.display().to_string(), model, &logs)? {
         eprintln!("note: {note}");
     }
     let comparison = compare_models(&a, &models, &validation, &compared);

@@ -145,6 +145,17 @@ pub const GOLDEN_V5_CSV: &str = "model-v5.expected.csv";
 /// What the version-5 golden model records of its logs' time: time column, date column, unit
 /// code (1: milliseconds), sample rate (0: the log has a time column).
 pub const GOLDEN_V5_TIME: (&str, &str, u8, f64) = ("Zeit [ms]", "", 1, 0.0);
+/// The golden files of format version 6: the version-5 golden model with the log-reading
+/// record (the decimal mark and each calibration log's digest) after the log-time record.
+pub const GOLDEN_V6_BLOB: &str = "model-v6.fogm";
+pub const GOLDEN_V6_CSV: &str = "model-v6.expected.csv";
+/// What the version-6 golden model records of its logs' reading: a decimal comma, and the
+/// first 8 bytes of the SHA-256 of two logs, "abc" (FIPS 180-2's example,
+/// ba7816bf8f01cfea...) and an empty file (e3b0c44298fc1c14...).
+pub const GOLDEN_V6_READING: (bool, [[u8; 8]; 2]) = (
+    true,
+    [[0xba, 0x78, 0x16, 0xbf, 0x8f, 0x01, 0xcf, 0xea], [0xe3, 0xb0, 0xc4, 0x42, 0x98, 0xfc, 0x1c, 0x14]],
+);
 pub const GOLDEN_HEADER: &str = "axis,temp_c,rate_c_per_min,value_dph_bits,outside";
 
 /// The input digest the golden model (and the root's three-axis model) carries.
