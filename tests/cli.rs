@@ -1998,8 +1998,30 @@ fn validate_on_the_fitted_logs_says_in_sample() {
     let same = stderr(&cal_logs);
     assert!(same.contains("these 8 logs are the ones") && same.contains("in-sample"), "{same}");
     let other: Vec<PathBuf> = (0..VAL_STARTS.len()).map(|i| logs().val.join(format!("run{i}.csv"))).collect();
-    let other = stderr(&other);
-    assert!(!other.contains("in-sample"), "{other}");
+    let quiet = stderr(&other);
+    assert!(!quiet.contains("in-sample"), "{quiet}");
+    // Two calibration logs among the validation logs (format 6 records each log's digest):
+    // named, with how many of the logs given they are, on stderr and in the report.
+    let mixed: Vec<PathBuf> = other.iter().chain(&cal_logs[..2]).cloned().collect();
+    let report = dir.path().join("report");
+    let mut args = args!["validate", "--model", &model, "--report", &report];
+    args.extend(mixed.iter().map(OsString::from));
+    let out = cal().args(args).assert().success();
+    let said = String::from_utf8_lossy(&out.get_output().stderr).into_owned();
+    let expected = format!(
+        "{}, {} (2 of the {} logs given) are among the 8 logs {} was fitted on (their digests match)",
+        cal_logs[0].display(),
+        cal_logs[1].display(),
+        mixed.len(),
+        model.display()
+    );
+    assert!(said.contains(&expected), "{said}");
+    let md = std::fs::read_to_string(report.join("report.md")).expect("report");
+    assert!(
+        md.contains("Runs the model was fitted on (their figures are in-sample):\n\n- ")
+            && md.contains(&expected),
+        "{md}"
+    );
 }
 
 /// A gzip-compressed log is named as such (review12 finding 7: "the header row is not text"

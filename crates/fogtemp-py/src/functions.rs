@@ -741,6 +741,7 @@ pub fn validate<'py>(
         }
     }
     let refs: Vec<&CoreModel<'_>> = models.iter().collect();
+    let mut in_sample: Vec<String> = Vec::new();
     let per_log = if arrays {
         let runs = array_runs_of(&items, names.as_deref())?;
         if let Some(note) = calibrate::axis_count_note(
@@ -770,6 +771,7 @@ pub fn validate<'py>(
         )?;
         if let Some(note) = in_sample_note(py, &blobs[0].1, &models[0], &logs)? {
             progress::warn(py, &note)?;
+            in_sample.push(note);
         }
         let gyro_columns = ingest.format.gyro_columns.len();
         if let Some(note) =
@@ -815,7 +817,15 @@ pub fn validate<'py>(
     };
     if let Some(dir) = &report {
         let source = Path::new(&blobs[0].1);
-        py.detach(|| write_validation_report(dir, source, &models[0], &validation, &stability, &comparison))?;
+        py.detach(|| {
+            write_validation_report(dir, source, &models[0], &validation, &stability, &comparison)?;
+            fogtemp_cal::report::add_notes_to_validation_report(
+                dir,
+                "Runs the model was fitted on (their figures are in-sample):",
+                &in_sample,
+            )
+            .map_err(errors::cal)
+        })?;
     }
     convert::document(py, &ValidationDocument::new(&stability, &validation, comparison))
 }

@@ -573,6 +573,24 @@ pub fn add_comparison_to_validation_report(
     write_html_beside(&path)
 }
 
+/// Adds `notes` under `heading` to the validation report in `dir`, before its first section
+/// (what the command line said about the runs as a whole: the in-sample note).
+///
+/// # Errors
+/// [`CalError::Io`] when the report cannot be read or written.
+pub fn add_notes_to_validation_report(dir: &Path, heading: &str, notes: &[String]) -> Result<(), CalError> {
+    if notes.is_empty() {
+        return Ok(());
+    }
+    let section = bullet_section(heading, notes);
+    let path = dir.join("report.md");
+    let text = std::fs::read_to_string(&path)
+        .map_err(|source| CalError::Io { path: path.clone(), source })?
+        .replacen("\n## ", &format!("\n{section}## "), 1);
+    write_file_atomic(&path, |w| w.write_all(text.as_bytes()))?;
+    write_html_beside(&path)
+}
+
 /// [`write_validation_report`] with the bias-stability settings the runs were measured with
 /// (the drift figure uses their window length and exclusion).
 ///

@@ -101,7 +101,8 @@ pub fn validate(a: ValidateArgs) -> Result<()> {
     for note in runs.iter().flat_map(calibrate::RunValidation::coverage_notes) {
         eprintln!("note: {note}");
     }
-    if let Some(note) = fogtemp_cal::digest::in_sample_note(&a.model.display().to_string(), model, &logs)? {
+    let in_sample = fogtemp_cal::digest::in_sample_note(&a.model.display().to_string(), model, &logs)?;
+    if let Some(note) = &in_sample {
         eprintln!("note: {note}");
     }
     let comparison = compare_models(&a, &models, &validation, &compared);
@@ -118,6 +119,8 @@ pub fn validate(a: ValidateArgs) -> Result<()> {
         if !comparison.is_empty() {
             fogtemp_cal::report::add_comparison_to_validation_report(dir, &comparison)?;
         }
+        let in_sample: Vec<String> = in_sample.into_iter().collect();
+        fogtemp_cal::report::add_notes_to_validation_report(dir, IN_SAMPLE_HEADING, &in_sample)?;
         eprintln!("report: {}", dir.join("report.md").display());
     }
     if a.json {
@@ -222,3 +225,6 @@ fn run_labels(runs: &[calibrate::RunValidation]) -> Vec<String> {
         })
         .collect()
 }
+
+/// The validation report's heading of the in-sample note.
+const IN_SAMPLE_HEADING: &str = "Runs the model was fitted on (their figures are in-sample):";
