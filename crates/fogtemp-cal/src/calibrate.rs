@@ -1525,6 +1525,7 @@ impl RunValidation {
             notes.push(outside_region_note(&name, outside, s.samples, "flag OUTSIDE_HULL"));
         }
         notes.extend(self.worse_than_raw_note(&name));
+        notes.extend(self.gyro_outlier_note(&name));
         notes.extend(temperature_spike_note(&name, &self.path, &s.temperature_spikes));
         let stale = s.flag_counts[Flags::TEMP_STALE.0.trailing_zeros() as usize];
         if stale > 0 && s.compensating_from_s.is_finite() {
@@ -1537,6 +1538,27 @@ impl RunValidation {
             ));
         }
         notes
+    }
+}
+
+impl RunValidation {
+    /// The note for gyro block means beyond 10 robust SDs of their neighbours' median (the
+    /// screen `fit` reads as missing, [`crate::outliers::screen`]): `validate` measures the
+    /// data as logged, so such a spike (an overload code's 9.91e37 deg/h made a run's bias
+    /// stability 1.2e35 with ratio 1.00, review13 F1) stays in its figures, and is named.
+    fn gyro_outlier_note(&self, name: &str) -> Option<String> {
+        let s = &self.series;
+        let (found, robust_sd) = crate::outliers::screen(&s.raw_dph);
+        let (&(first, deviation), count) = (found.first()?, found.len());
+        let (deviation, sds) = crate::outliers::deviation_text(deviation, robust_sd);
+        let at = s.time_s.get(first).copied().unwrap_or(f64::NAN);
+        Some(format!(
+            "{name}: {} of the raw gyro lie beyond {} robust SDs of the median around them (the first at \
+             {at:.0} s, {deviation} deg/h from it, {sds} SDs): spikes or a logger's overload code, kept in this \
+             run's figures as logged (fit reads them as missing); check the log there",
+            if count == 1 { "1 block mean".to_string() } else { format!("{count} block means") },
+            crate::outliers::ROBUST_SDS,
+        ))
     }
 }
 

@@ -104,8 +104,13 @@ pub fn continued_logs<'a>(
 
 /// What reading split parts as runs of their own does.
 const READ_APART: &str =
-    "Each log is read as a run of its own (the features and the compensator start again in \
-                          each, and each gets its own bias stability, lower than the whole run's)";
+    "Each log is read as a run of its own (the features and the compensator start again \
+                          in each, and each part gets a bias stability of its own, not the whole run's)";
+
+/// How the join command must change for other log shapes.
+const OTHER_SHAPES: &str =
+    "for logs whose data start on line 2; with banner lines or without a header, start \
+                            each later part at its first data line instead (tail -n +K)";
 
 impl Continued {
     /// What the reader is told: which logs, why they look like one run, what reading them
@@ -118,12 +123,14 @@ impl Continued {
                 let join: Vec<String> = std::iter::once(format!("cat {first}"))
                     .chain(rest.iter().map(|r| format!("tail -n +2 {r}")))
                     .collect();
+                let listed = match names.split_last() {
+                    Some((last, before)) if !before.is_empty() => format!("{} and {last}", before.join(", ")),
+                    _ => names.join(""),
+                };
                 format!(
-                    "{} continue{} {first} (each starts at most {} s after the one before it ends): one run split over \
-                     files? {READ_APART}; to read them as one run, join them first, e.g. {{ {}; }} > joined.csv (for \
-                     logs with one header line)",
-                    rest.join(", "),
-                    if rest.len() == 1 { "s" } else { "" },
+                    "{listed} follow one another in time (each starts at most {} s after the one before it ends): one \
+                     run split over files? {READ_APART}; to read them as one run, join them first, e.g. {{ {}; }} > \
+                     joined.csv ({OTHER_SHAPES})",
                     seconds(*largest_step_s),
                     join.join("; "),
                 )
@@ -131,8 +138,7 @@ impl Continued {
             Continued::Unpaired { later, earlier, largest_step_s } => format!(
                 "{} each start at most {} s after one of {} ends, and the time stamps cannot tell which: runs split \
                  over files, with a clock that counts on from the previous part? {READ_APART}; to read a run as one, \
-                 join its parts in order first (cat the first, then tail -n +2 each later part, for logs with one \
-                 header line)",
+                 join its parts in order first (cat the first, then tail -n +2 each later part, {OTHER_SHAPES})",
                 names(later),
                 seconds(*largest_step_s),
                 names(earlier),
@@ -186,7 +192,12 @@ mod tests {
         assert_eq!(names, ["b1.csv", "b2.csv", "b3.csv"]);
         assert_eq!(*largest_step_s, 1.0);
         let text = chains[0].message();
-        assert!(text.starts_with("b2.csv, b3.csv continue b1.csv (each starts at most 1 s after"), "{text}");
+        assert!(
+            text.starts_with(
+                "b1.csv, b2.csv and b3.csv follow one another in time (each starts at most 1 s after"
+            ),
+            "{text}"
+        );
         assert!(
             text.contains("{ cat b1.csv; tail -n +2 b2.csv; tail -n +2 b3.csv; } > joined.csv"),
             "{text}"

@@ -118,6 +118,34 @@ pub fn in_sample_note_from(
     in_sample_logs(name, &fitted, logs.len(), recorded.len())
 }
 
+/// The note for logs among `logs` with the same bytes (`each`: their digests, in order): a
+/// copy under another name counts twice, in a fit and its cross-validation as in a
+/// validation's overall figure (review13 F3: the same path twice is refused, a copy was not).
+pub fn same_logs_note(logs: &[PathBuf], each: &[[u8; 32]]) -> Option<String> {
+    let mut groups: Vec<Vec<&PathBuf>> = Vec::new();
+    for (k, (log, digest)) in logs.iter().zip(each).enumerate() {
+        if each[..k].contains(digest) {
+            continue;
+        }
+        let same: Vec<&PathBuf> =
+            logs.iter().zip(each).skip(k + 1).filter(|(_, d)| *d == digest).map(|(l, _)| l).collect();
+        if !same.is_empty() {
+            groups.push(std::iter::once(log).chain(same).collect());
+        }
+    }
+    let described: Vec<String> = groups
+        .iter()
+        .map(|g| g.iter().map(|l| l.display().to_string()).collect::<Vec<_>>().join(" = "))
+        .collect();
+    (!groups.is_empty()).then(|| {
+        format!(
+            "logs with the same bytes, each counted as a run of its own: {} (a copy under another name? give each \
+             run once)",
+            described.join("; ")
+        )
+    })
+}
+
 fn in_sample_log(name: &str, log: &Path) -> String {
     format!(
         "{} is the log {name} was fitted on (its input digest matches): its figures are in-sample",
@@ -131,12 +159,20 @@ fn in_sample_logs(name: &str, fitted: &[&PathBuf], given: usize, recorded: usize
     let shown: Vec<String> = fitted.iter().take(6).map(|p| p.display().to_string()).collect();
     let more = fitted.len().saturating_sub(shown.len());
     let listed = if more > 0 { format!("{} and {more} more", shown.join(", ")) } else { shown.join(", ") };
-    let among = format!("among the {recorded} logs {name} was fitted on (their digests match)");
+    let among = if recorded == 1 {
+        format!("the log {name} was fitted on (its digest matches)")
+    } else {
+        format!("among the {recorded} logs {name} was fitted on (their digests match)")
+    };
     match fitted.len() {
         0 => None,
         n if n == given => Some(format!(
             "{} {among}: the figures are in-sample, not a validation on runs the model did not see",
-            if n == 1 { format!("{listed} is") } else { format!("all {n} logs given are") }
+            match n {
+                1 => format!("{listed} is"),
+                2 => "both logs given are".to_string(),
+                _ => format!("all {n} logs given are"),
+            }
         )),
         n => Some(format!(
             "{listed} ({n} of the {given} logs given) {} {among}: {} in-sample, and the overall figures mix \
@@ -203,6 +239,20 @@ mod tests {
     }
 
     #[test]
+    fn logs_with_the_same_bytes_are_named_together() {
+        let logs: Vec<PathBuf> = ["a.csv", "b.csv", "c.csv", "d.csv"].iter().map(PathBuf::from).collect();
+        let each = [[1; 32], [2; 32], [1; 32], [1; 32]];
+        assert_eq!(
+            same_logs_note(&logs, &each).as_deref(),
+            Some(
+                "logs with the same bytes, each counted as a run of its own: a.csv = c.csv = d.csv (a copy under \
+                 another name? give each run once)"
+            )
+        );
+        assert_eq!(same_logs_note(&logs[..2], &each[..2]), None);
+    }
+
+    #[test]
     fn a_model_with_log_digests_names_each_calibration_log_among_the_validation_logs() {
         // Fitted on a and b together; validated on b, c and d: b is named, as 1 of 3.
         let dir = tempfile::tempdir().expect("tempdir");
@@ -229,7 +279,7 @@ mod tests {
             ))
         );
         let all_in = note(&["b.csv", "a.csv"]).expect("note");
-        assert!(all_in.starts_with("all 2 logs given are among the 2 logs m.fogm was fitted on"), "{all_in}");
+        assert!(all_in.starts_with("both logs given are among the 2 logs m.fogm was fitted on"), "{all_in}");
         assert_eq!(note(&["b.csv"]).map(|n| n.starts_with(&format!("{b} is among the 2 logs"))), Some(true));
         // The logs in the fit's order have the input digest: said as before.
         let same = note(&["a.csv", "b.csv"]).expect("note");

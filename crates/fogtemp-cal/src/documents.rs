@@ -192,9 +192,19 @@ pub struct ValidationDocument {
     pub runs: Vec<RunValidationDocument>,
     /// The primary model then every compared one (empty without a comparison).
     pub comparison: Vec<ComparedModel>,
+    /// What the command said about the runs beside the figures (stderr's notes: gaps, logs
+    /// that continue one another, samples outside the calibrated region, spikes, logs with
+    /// the same bytes, in-sample runs), so a script can tell (review13 F7).
+    pub notes: Vec<String>,
 }
 
 impl ValidationDocument {
+    /// The document with the `notes` the command gave.
+    #[must_use]
+    pub fn with_notes(self, notes: Vec<String>) -> Self {
+        Self { notes, ..self }
+    }
+
     /// The document of `validation` under `options`, with the `comparison` rows
     /// ([`ComparedModel::new`]).
     pub fn new(
@@ -219,6 +229,7 @@ impl ValidationDocument {
                 .collect(),
             runs: validation.runs.iter().map(RunValidationDocument::new).collect(),
             comparison,
+            notes: Vec::new(),
         }
     }
 }

@@ -552,7 +552,7 @@ pub struct CompensateArgs {
     pub model: PathBuf,
     /// Log to compensate.
     pub log: PathBuf,
-    /// Output CSV (written atomically; `-` for stdout): time_s (the log's own time stamps, s; from the row index with --sample-rate-hz), then per axis raw, compensated, bias, flags.
+    /// Output CSV (written atomically; `-` for stdout, streamed: an error part-way leaves the rows before it): time_s (the log's own time stamps, s; from the row index with --sample-rate-hz), then per axis raw, compensated, bias, flags.
     #[arg(long, short)]
     pub out: PathBuf,
     /// Log columns and units.

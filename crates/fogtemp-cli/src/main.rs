@@ -109,7 +109,10 @@ fn flag_hint(e: &(dyn std::error::Error + 'static)) -> Option<&'static str> {
             Some("; the log seems to write numbers with a decimal comma: use --decimal-mark comma")
         }
         CalError::BadRow { row, .. } if row.kind == BadRowKind::PointWithDecimalComma => {
-            Some("; leave out --decimal-mark comma if the log writes decimal points")
+            Some(
+                "; the log writes decimal points? give --decimal-mark point (a model fitted on decimal-comma logs \
+                 reads its logs so unless told)",
+            )
         }
         CalError::BadRow { row, .. } if row.kind == BadRowKind::TextRow && row.line <= 3 => Some(
             "; a banner above the data (a terminal program's log line)? skip it with --skip-lines N; \

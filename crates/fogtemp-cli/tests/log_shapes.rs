@@ -381,7 +381,7 @@ fn decimal_comma_logs_fit_the_same_model_as_their_point_twins() {
         stderr.contains("run0.csv:2:1: column 'time_s': a point in a log read with a decimal comma"),
         "{stderr}"
     );
-    assert!(stderr.contains("leave out --decimal-mark comma"), "{stderr}");
+    assert!(stderr.contains("the log writes decimal points? give --decimal-mark point"), "{stderr}");
 }
 
 /// A logger's run with ISO 8601 date-times (1 Hz from `start` local time at +01:00), or the
@@ -603,7 +603,11 @@ fn a_run_split_over_files_is_named_by_fit_and_validate() {
         (warned[0]["values"]["logs"].as_f64(), warned[0]["values"]["largest_step_s"].as_f64()),
         (Some(2.0), Some(1.0))
     );
-    let expected = format!("{} continues {} (each starts at most 1 s after", s(&logs[3]), s(&logs[2]));
+    let expected = format!(
+        "{} and {} follow one another in time (each starts at most 1 s after",
+        s(&logs[2]),
+        s(&logs[3])
+    );
     assert!(stderr.contains(&format!("warning: {expected}")), "{stderr}");
     assert!(stderr.contains(&format!("tail -n +2 {}; }} > joined.csv", s(&logs[3]))), "{stderr}");
 

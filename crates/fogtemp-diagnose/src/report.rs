@@ -146,9 +146,13 @@ fn rate_label(c: &MapCell) -> String {
     }
 }
 
-/// The (T, dT/dt) map: one rectangle per cell coloured by z (clamped to +-5), significant
-/// cells outlined in black; rate bins on the vertical axis by index.
-fn plot_map(path: &Path, cells: &[MapCell], title: &str) -> Result<(), CalError> {
+/// The (T, dT/dt) map: one rectangle per cell coloured by the z of its mean relative to
+/// `offset_dph` (the overall offset: a residual offset everywhere coloured every cell alike
+/// and said nothing about where, review11 finding 13), clamped to +-5; cells significant
+/// against zero (the statements' test) outlined in black; rate bins on the vertical axis by
+/// index.
+fn plot_map(path: &Path, cells: &[MapCell], offset_dph: f64, title: &str) -> Result<(), CalError> {
+    let z = |c: &MapCell| if c.hac_se_dph > 0.0 { (c.mean_dph - offset_dph) / c.hac_se_dph } else { 0.0 };
     write_svg(path, (1100, 640), |root| {
         root.fill(&WHITE).map_err(|e| io_err(path, e))?;
         let (root, key) = root.split_horizontally(980);
@@ -191,7 +195,7 @@ fn plot_map(path: &Path, cells: &[MapCell], title: &str) -> Result<(), CalError>
                 let y = c.rate_bin as f64;
                 Rectangle::new(
                     [(c.temp_lo_c, y + 0.05), (c.temp_hi_c, y + 0.95)],
-                    diverging(c.z / 5.0).filled(),
+                    diverging(z(c) / 5.0).filled(),
                 )
             }))
             .map_err(|e| io_err(path, e))?;
@@ -203,10 +207,10 @@ fn plot_map(path: &Path, cells: &[MapCell], title: &str) -> Result<(), CalError>
             .map_err(|e| io_err(path, e))?;
         // The key ends at +-5; a cell beyond it shows its z, so 12 is not read as 5.
         chart
-            .draw_series(cells.iter().filter(|c| c.z.abs() > 5.0).map(|c| {
+            .draw_series(cells.iter().filter(|c| z(c).abs() > 5.0).map(|c| {
                 let at = (0.5 * (c.temp_lo_c + c.temp_hi_c), c.rate_bin as f64 + 0.5);
                 Text::new(
-                    format!("z {:+.1}", c.z),
+                    format!("z {:+.1}", z(c)),
                     at,
                     ("sans-serif", 14).into_font().color(&WHITE).pos(Pos::new(HPos::Center, VPos::Center)),
                 )
@@ -370,9 +374,11 @@ fn verdict_item(e: &crate::LeftOutEffect) -> String {
         format!("better in {} of {} informative runs", e.folds_improved, e.folds_informative)
     };
     let small = e.heldout_improvement <= 0.0 || e.folds_informative == 0;
+    let plain = crate::effects::Effect::ALL.iter().find(|x| x.name() == e.effect).map_or("", |x| x.plain());
     format!(
-        "**{}** ({}{:+.1} % held-out residual, {runs})",
+        "**{}**{} ({}{:+.1} % held-out residual, {runs})",
         e.effect,
+        if plain.is_empty() { String::new() } else { format!(", {plain}") },
         if small { "possible, small: " } else { "" },
         -100.0 * e.heldout_improvement,
     )
@@ -604,7 +610,13 @@ fn location_markdown(d: &Diagnosis, figures: OptionalFigures) -> String {
         );
     }
     if figures.map {
-        let _ = writeln!(md, "\n![map](map.svg)");
+        let _ = writeln!(
+            md,
+            "\n![map](map.svg)\n\nColour: the z (HAC) of each cell's mean residual relative to the overall offset \
+             ({:+.5} deg/h), so the map shows where the residual departs from it; outlined: the cells significant \
+             against 0 (the table below and the statements).",
+            loc.overall_offset_dph
+        );
     } else {
         let _ = writeln!(
             md,
@@ -703,10 +715,12 @@ pub fn write_diagnosis_report(dir: &Path, d: &Diagnosis) -> Result<(), DiagnoseE
     // No cell held enough short means (psim-tvc's bursts): empty axes said nothing (review11
     // finding 7); the report says why instead.
     if !d.location.map.is_empty() {
+        let offset = d.location.overall_offset_dph;
         plot_map(
             &dir.join("map.svg"),
             &d.location.map,
-            "Raw residual by (T, dT/dt): colour = z (HAC), outlined = significant",
+            offset,
+            &format!("Residual by (T, dT/dt), relative to its overall offset {offset:+.5} deg/h"),
         )?;
         figures.map = true;
     }
@@ -762,7 +776,8 @@ mod tests {
         };
         assert_eq!(
             verdict_item(&lag),
-            "**thermal_lag** (-2.4 % held-out residual, better in 5 of 5 informative runs)"
+            "**thermal_lag**, the coil lags the temperature sensor (-2.4 % held-out residual, better in 5 of 5 \
+             informative runs)"
         );
         let rate = crate::LeftOutEffect {
             effect: "gradient_rate".into(),
@@ -771,7 +786,8 @@ mod tests {
         };
         assert_eq!(
             verdict_item(&rate),
-            "**gradient_rate** (possible, small: -0.5 % held-out residual, in no run large enough to judge)"
+            "**gradient_rate**, a bias in d2T/dt2, the change of the heating rate (a shifting gradient) (possible, \
+             small: -0.5 % held-out residual, in no run large enough to judge)"
         );
         let worse = crate::LeftOutEffect { heldout_improvement: -0.01, folds_informative: 3, ..lag };
         assert!(verdict_item(&worse).contains("(possible, small: +1.0 %"), "{}", verdict_item(&worse));

@@ -38,7 +38,8 @@ fn hint(e: &CalError) -> &'static str {
             "; the log seems to write numbers with a decimal comma: pass decimal_mark='comma'"
         }
         CalError::BadRow { row, .. } if row.kind == BadRowKind::PointWithDecimalComma => {
-            "; leave out decimal_mark='comma' if the log writes decimal points"
+            "; the log writes decimal points? pass decimal_mark='point' (a model fitted on decimal-comma logs \
+             reads its logs so unless told)"
         }
         CalError::BadRow { row, .. } if row.kind == BadRowKind::DuplicateTime => {
             "; repeated time stamps: a clock coarser than the sample rate? pass sample_rate_hz= to time the rows by \

@@ -474,6 +474,9 @@ fn file_runs(
         runs.push(run);
     }
     let (digest, each) = py.detach(|| fogtemp_cal::digest::digests_of_files(&logs)).map_err(errors::cal)?;
+    if let Some(warning) = fogtemp_cal::digest::same_logs_note(&logs, &each) {
+        progress::warn(py, &warning)?;
+    }
     for (run, log_digest) in runs.iter_mut().zip(each) {
         run.digest = Some(log_digest);
     }
@@ -741,7 +744,7 @@ pub fn validate<'py>(
         }
     }
     let refs: Vec<&CoreModel<'_>> = models.iter().collect();
-    let mut in_sample: Vec<String> = Vec::new();
+    let (mut in_sample, mut file_notes): (Vec<String>, Vec<String>) = (Vec::new(), Vec::new());
     let per_log = if arrays {
         let runs = array_runs_of(&items, names.as_deref())?;
         if let Some(note) = calibrate::axis_count_note(
@@ -769,10 +772,12 @@ pub fn validate<'py>(
             &blobs,
             &models,
         )?;
-        if let Some(note) = in_sample_note(py, &blobs[0].1, &models[0], &logs)? {
-            progress::warn(py, &note)?;
-            in_sample.push(note);
+        let (same, in_sample_logs) = digest_notes(py, &blobs[0].1, &models[0], &logs)?;
+        for note in same.iter().chain(&in_sample_logs) {
+            progress::warn(py, note)?;
         }
+        file_notes.extend(same);
+        in_sample.extend(in_sample_logs);
         let gyro_columns = ingest.format.gyro_columns.len();
         if let Some(note) =
             calibrate::axis_count_note(&blobs[0].1, models[0].axis_count(), gyro_columns, "gyro_column=")
@@ -791,10 +796,13 @@ pub fn validate<'py>(
         }
         warn_skipped(py, &r.ingest, arrays)?;
     }
-    for note in
-        calibrate::gap_notes(&validation.runs).into_iter().chain(calibrate::continued_notes(&validation.runs))
-    {
-        progress::warn(py, &note)?;
+    // The notes in the command line's order, for the document's `notes`.
+    let mut notes: Vec<String> = calibrate::gap_notes(&validation.runs)
+        .into_iter()
+        .chain(calibrate::continued_notes(&validation.runs))
+        .collect();
+    for note in &notes {
+        progress::warn(py, note)?;
     }
     // A log's time unit is a setting; arrays are in seconds (as fit() reads them).
     for r in validation.runs.iter().filter(|r| r.axis == 0 && !arrays) {
@@ -805,7 +813,10 @@ pub fn validate<'py>(
     }
     for note in validation.runs.iter().flat_map(calibrate::RunValidation::coverage_notes) {
         progress::warn(py, &note)?;
+        notes.push(note);
     }
+    notes.extend(file_notes);
+    notes.extend(in_sample.iter().cloned());
     let comparison: Vec<ComparedModel> = if compare.is_empty() {
         Vec::new()
     } else {
@@ -827,26 +838,26 @@ pub fn validate<'py>(
             .map_err(errors::cal)
         })?;
     }
-    convert::document(py, &ValidationDocument::new(&stability, &validation, comparison))
+    convert::document(py, &ValidationDocument::new(&stability, &validation, comparison).with_notes(notes))
 }
 
-/// `validate`'s note for logs the model was fitted on (`fogtemp_cal::digest`), their digests
-/// taken one file at a time so that Ctrl-C is raised between two (the logs are read twice).
-fn in_sample_note(
+/// `validate`'s notes from the logs' digests (`fogtemp_cal::digest`): logs with the same bytes,
+/// and logs the model was fitted on; the digests taken one file at a time so that Ctrl-C is
+/// raised between two (the logs are read twice).
+fn digest_notes(
     py: Python<'_>,
     name: &str,
     model: &CoreModel<'_>,
     logs: &[PathBuf],
-) -> PyResult<Option<String>> {
-    if model.input_digest() == [0; 32] && model.log_reading().is_none_or(|r| r.log_count() == 0) {
-        return Ok(None);
-    }
+) -> PyResult<(Option<String>, Option<String>)> {
     let mut digests = fogtemp_cal::digest::InputDigest::new();
     for log in logs {
         py.detach(|| digests.add_file(log)).map_err(errors::cal)?;
         py.check_signals()?;
     }
-    Ok(fogtemp_cal::digest::in_sample_note_from(name, model, logs, &digests.finish()))
+    let digests = digests.finish();
+    let same = fogtemp_cal::digest::same_logs_note(logs, &digests.1);
+    Ok((same, fogtemp_cal::digest::in_sample_note_from(name, model, logs, &digests)))
 }
 
 /// Which time keywords were given (the others are read as a model records them).

@@ -132,11 +132,16 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
         write_atomic(&a.out, body)
     };
     bar.finish_and_clear();
+    // Streamed rows cannot be taken back (a file is written atomically instead).
+    let pipe_closed = written.as_ref().is_err_and(broken_pipe);
+    if to_stdout && written.is_err() && !pipe_closed {
+        eprintln!("note: the CSV on stdout is cut short where the error below stopped it: discard it");
+    }
     if let Some(e) = input_error {
         return Err(e);
     }
     // A reader that stops early (`| head`) closes the pipe: done, as other tools end there.
-    if to_stdout && written.as_ref().is_err_and(broken_pipe) {
+    if to_stdout && pipe_closed {
         return Ok(());
     }
     written?;

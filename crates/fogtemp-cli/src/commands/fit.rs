@@ -103,13 +103,17 @@ pub fn fit(a: FitArgs) -> Result<()> {
         warn_if_mostly_gaps(&run.path, &run.gaps, run.ingest.rows);
         runs.push(run);
     }
-    subtract_input_rates(&mut runs, input_rates_dph.as_deref(), config.ingest.format.gyro_columns.len());
-    let mut warnings = fogtemp_cal::identifiability::fit_warnings(&runs, &config, &a.identifiability());
-    warnings.iter().for_each(|w| eprintln!("warning: {}", w.message));
     let (digest, each) = fogtemp_cal::digest::digests_of_files(&logs)?;
+    if let Some(warning) = fogtemp_cal::digest::same_logs_note(&logs, &each) {
+        eprintln!("warning: {warning}");
+    }
     for (run, log_digest) in runs.iter_mut().zip(each) {
         run.digest = Some(log_digest);
     }
+    subtract_input_rates(&mut runs, input_rates_dph.as_deref(), config.ingest.format.gyro_columns.len());
+    let mut warnings = fogtemp_cal::identifiability::fit_warnings(&runs, &config, &a.identifiability());
+    warnings.iter().for_each(|w| eprintln!("warning: {}", w.message));
+
     let selection = SelectionOptions {
         positions,
         inside_range_only: a.cv_inside_range_only,

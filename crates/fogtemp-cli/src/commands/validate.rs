@@ -92,17 +92,19 @@ pub fn validate(a: ValidateArgs) -> Result<()> {
         }
         report_skipped(&r.ingest);
     }
-    for note in calibrate::gap_notes(runs).into_iter().chain(calibrate::continued_notes(runs)) {
-        eprintln!("note: {note}");
-    }
+    // Every note goes to stderr and into --json's `notes`.
+    let mut notes: Vec<String> =
+        calibrate::gap_notes(runs).into_iter().chain(calibrate::continued_notes(runs)).collect();
     for r in runs.iter().filter(|r| r.axis == 0) {
         super::warn_if_mostly_gaps(&r.path, &r.series.gaps, r.ingest.rows);
     }
-    for note in runs.iter().flat_map(calibrate::RunValidation::coverage_notes) {
-        eprintln!("note: {note}");
-    }
-    let in_sample = fogtemp_cal::digest::in_sample_note(&a.model.display().to_string(), model, &logs)?;
-    if let Some(note) = &in_sample {
+    notes.extend(runs.iter().flat_map(calibrate::RunValidation::coverage_notes));
+    let digests = fogtemp_cal::digest::digests_of_files(&logs)?;
+    notes.extend(fogtemp_cal::digest::same_logs_note(&logs, &digests.1));
+    let in_sample =
+        fogtemp_cal::digest::in_sample_note_from(&a.model.display().to_string(), model, &logs, &digests);
+    notes.extend(in_sample.clone());
+    for note in &notes {
         eprintln!("note: {note}");
     }
     let comparison = compare_models(&a, &models, &validation, &compared);
@@ -124,7 +126,7 @@ pub fn validate(a: ValidateArgs) -> Result<()> {
         eprintln!("report: {}", dir.join("report.md").display());
     }
     if a.json {
-        print_json(&ValidationDocument::new(&options, &validation, comparison))?;
+        print_json(&ValidationDocument::new(&options, &validation, comparison).with_notes(notes))?;
         return nothing_validated(runs);
     }
     println!("{}", options.describe());
