@@ -2056,3 +2056,62 @@ fn compensate_of_a_folder_says_to_run_it_per_file() {
     assert!(err.contains("a folder; compensate takes one log and writes one CSV: run it per file"), "{err}");
     assert!(!dir.path().join("c.csv").exists());
 }
+
+/// review13: a spike within the f32 range stays in validate's figures (data as logged) and is
+/// named on stderr and in --json's notes; a copy of a log under another name is named by fit
+/// and validate; compensate --out - writes to stdout what a file output holds.
+#[test]
+fn spikes_copies_and_streamed_output_are_said() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let model = dir.path().join("m.fogm");
+    let cal_logs: Vec<PathBuf> =
+        (0..CAL_STARTS.len()).map(|i| logs().cal.join(format!("run{i}.csv"))).collect();
+    // A copy of the first calibration log under another name: fitted twice, said.
+    let copy = dir.path().join("copy.csv");
+    fs::copy(&cal_logs[0], &copy).expect("copy");
+    let mut args = args!["fit", "--method", "poly", "--out", &model];
+    args.extend(cal_logs.iter().chain([&copy]).map(OsString::from));
+    let out = cal().args(args).assert().success();
+    let said = String::from_utf8_lossy(&out.get_output().stderr).into_owned();
+    let same = format!(
+        "logs with the same bytes, each counted as a run of its own: {} = {}",
+        cal_logs[0].display(),
+        copy.display()
+    );
+    assert!(said.contains(&format!("warning: {same}")), "{said}");
+    // One row of a validation log holds an overload code.
+    let val = logs().val.join("run0.csv");
+    let text = fs::read_to_string(&val).expect("read");
+    let mut lines: Vec<String> = text.lines().map(String::from).collect();
+    let mut cells: Vec<String> = lines[1000].split(',').map(String::from).collect();
+    let gyro = cells.len() - 1;
+    cells[gyro] = "9.91E+37".into();
+    lines[1000] = cells.join(",");
+    let spiked = dir.path().join("spiked.csv");
+    fs::write(&spiked, lines.join("\n") + "\n").expect("write");
+    let doc = json(&run_ok(args!["validate", "--json", "--model", &model, &spiked, &val]));
+    let notes: Vec<&str> = doc["notes"].as_array().expect("notes").iter().filter_map(Value::as_str).collect();
+    let spike_note = notes.iter().find(|n| n.contains("beyond 10 robust SDs")).expect("the spike is named");
+    assert!(
+        spike_note
+            .starts_with(&format!("{} axis 0: the raw gyro has 1 block mean beyond 10", spiked.display())),
+        "{spike_note}"
+    );
+    // One block mean (of the log's samples) holds the code: its share shows in exponent form.
+    assert!(
+        spike_note.contains("e36 deg/h from it") || spike_note.contains("e37 deg/h from it"),
+        "{spike_note}"
+    );
+    assert!(
+        !notes.iter().any(|n| n.starts_with(&format!("{} axis 0: the raw gyro", val.display()))),
+        "{notes:?}"
+    );
+    // The figures keep it: the spiked run's raw bias stability is beyond any gyro's.
+    assert!(f(&doc["runs"][0]["raw_bias_stability_dph"]) > 1e30, "{doc}");
+    // compensate to stdout: the same bytes as to a file.
+    let file = dir.path().join("comp.csv");
+    run_ok(args!["compensate", "--model", &model, "--out", &file, &val]);
+    let streamed = run_ok(args!["compensate", "--model", &model, "--out", "-", &val]);
+    assert_eq!(streamed, fs::read_to_string(&file).expect("read"));
+    assert!(!dir.path().join("-").exists() && !Path::new("-").exists());
+}

@@ -1553,11 +1553,12 @@ impl RunValidation {
         let (deviation, sds) = crate::outliers::deviation_text(deviation, robust_sd);
         let at = s.time_s.get(first).copied().unwrap_or(f64::NAN);
         Some(format!(
-            "{name}: {} of the raw gyro lie beyond {} robust SDs of the median around them (the first at \
-             {at:.0} s, {deviation} deg/h from it, {sds} SDs): spikes or a logger's overload code, kept in this \
-             run's figures as logged (fit reads them as missing); check the log there",
+            "{name}: the raw gyro has {} beyond {} robust SDs of the median around {} (the first at {at:.0} s, \
+             {deviation} deg/h from it, {sds} SDs): spikes or a logger's overload code, kept in this run's figures \
+             as logged (fit reads them as missing); check the log there",
             if count == 1 { "1 block mean".to_string() } else { format!("{count} block means") },
             crate::outliers::ROBUST_SDS,
+            if count == 1 { "it" } else { "them" },
         ))
     }
 }
