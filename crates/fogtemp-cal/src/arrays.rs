@@ -121,6 +121,9 @@ pub fn visit_rows(
                 previous = Some(time);
                 report.rows += 1;
                 report.last_time_s = time - report.time_origin_s;
+                if let Some(&t) = temps.first().filter(|t| !t.is_nan()) {
+                    report.temp_ends_c.get_or_insert((t, t)).1 = t;
+                }
                 visit(&Row {
                     line: index as u64,
                     time_s: time - report.time_origin_s,

@@ -6,8 +6,9 @@
 //! run that is silently optimistic (review12 finding 2: a 2 h run split in three read 0.01027,
 //! 0.00337 and 0.00505 deg/h against 0.01159 whole). A log whose first time stamp follows
 //! another's last by more than 0 and at most the tracker's `max_gap_s` (a gap the tracker
-//! would have bridged had the two been one file) is named with the one it continues, so the
-//! reader can join them. Logs whose time restarts at 0 in every file never match.
+//! would have bridged had the two been one file), and whose first temperature reading the
+//! other's last can reach in that time, is named with the one it continues, so the reader can
+//! join them. Logs whose time restarts at 0 in every file never match.
 
 use std::path::{Path, PathBuf};
 
@@ -37,11 +38,13 @@ pub enum Continued {
     },
 }
 
-/// A log's path and its first and last time stamps (s, in the log's clock).
+/// A log's path, its first and last time stamps (s, in the log's clock) and its first and
+/// last temperature readings (deg C).
 struct Span<'a> {
     path: &'a Path,
     first_s: f64,
     last_s: f64,
+    temp_ends_c: Option<(f64, f64)>,
 }
 
 /// The logs among `reports` that continue one another: the chains (earliest first, each at
@@ -57,14 +60,21 @@ pub fn continued_logs<'a>(
         let (first_s, last_s) = (r.time_origin_s, r.time_origin_s + r.last_time_s);
         if r.rows > 0 && first_s.is_finite() && last_s.is_finite() && !spans.iter().any(|s| s.path == r.path)
         {
-            spans.push(Span { path: r.path.as_path(), first_s, last_s });
+            spans.push(Span { path: r.path.as_path(), first_s, last_s, temp_ends_c: r.temp_ends_c });
         }
     }
     spans.sort_by(|a, b| a.first_s.total_cmp(&b.first_s));
     let step = |earlier: &Span<'_>, later: &Span<'_>| later.first_s - earlier.last_s;
+    // The later log starts within the gap, at a temperature the earlier one's last reading
+    // can reach in that time (the glitch limit of `crate::spikes`: a -35 C run logged one
+    // second after a +10 C run ended does not continue it, review13 F4).
     let follows = |j: usize, i: usize| {
         let s = step(&spans[j], &spans[i]);
-        s > 0.0 && s <= max_gap_s
+        let temperature_carries_on = match (spans[j].temp_ends_c, spans[i].temp_ends_c) {
+            (Some((_, last)), Some((first, _))) => (first - last).abs() <= crate::spikes::jump_limit_c(s),
+            _ => true,
+        };
+        s > 0.0 && s <= max_gap_s && temperature_carries_on
     };
     let n = spans.len();
     let before: Vec<Vec<usize>> = (0..n).map(|i| (0..n).filter(|&j| follows(j, i)).collect()).collect();
@@ -221,6 +231,17 @@ mod tests {
         let empty =
             [report("a.csv", 0.0, 3600.0), IngestReport { rows: 0, ..report("b.csv", 3601.0, 3601.0) }];
         assert!(continued_logs(&empty, 5.0).is_empty());
+    }
+
+    #[test]
+    fn a_log_that_starts_at_another_temperature_does_not_continue() {
+        // Back to back in one clock: a +10 C run ends at 20 C, a -35 C run starts 1 s later.
+        let warm = IngestReport { temp_ends_c: Some((10.0, 20.0)), ..report("warm.csv", 0.0, 7199.0) };
+        let cold = IngestReport { temp_ends_c: Some((-35.0, -20.0)), ..report("cold.csv", 7200.0, 14399.0) };
+        assert!(continued_logs(&[warm.clone(), cold], 5.0).is_empty());
+        // The same run's next part starts where the last reading left it (within 1 C).
+        let next = IngestReport { temp_ends_c: Some((20.4, 25.0)), ..report("next.csv", 7200.0, 14399.0) };
+        assert_eq!(continued_logs(&[warm, next], 5.0).len(), 1);
     }
 
     #[test]

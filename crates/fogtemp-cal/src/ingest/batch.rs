@@ -99,6 +99,15 @@ impl Consumer {
         if let Some(last) = batch.values.chunks_exact(self.stride).next_back() {
             self.report.last_time_s = last[0] - origin;
         }
+        if self.temps > 0 {
+            // The first temperature column's first and last readings (an empty cell is NaN).
+            let mut readings = batch.values.chunks_exact(self.stride).map(|v| v[1]).filter(|t| !t.is_nan());
+            if let Some(first) = readings.next() {
+                let last = readings.next_back().unwrap_or(first);
+                let ends = self.report.temp_ends_c.get_or_insert((first, first));
+                ends.1 = last;
+            }
+        }
         self.report.rows += batch.lines.len() as u64;
         Ok(())
     }

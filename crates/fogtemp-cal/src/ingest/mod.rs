@@ -609,6 +609,9 @@ pub struct IngestReport {
     pub time_origin_s: f64,
     /// Time of the last accepted row, s since [`IngestReport::time_origin_s`] (0 without rows).
     pub last_time_s: f64,
+    /// The first and the last reading of the first temperature column, deg C (`None` without
+    /// any): whether another log continues this one ([`crate::continued`]).
+    pub temp_ends_c: Option<(f64, f64)>,
 }
 
 /// How many skipped rows are listed individually.
@@ -963,6 +966,9 @@ mod tests {
                         previous = Some(time);
                         report.rows += 1;
                         report.last_time_s = time - report.time_origin_s;
+                        if let Some(&t) = temps.first().filter(|t| !t.is_nan()) {
+                            report.temp_ends_c.get_or_insert((t, t)).1 = t;
+                        }
                         seen.push(Seen::of(&Row {
                             line,
                             time_s: time - report.time_origin_s,
