@@ -173,18 +173,21 @@ fn golden_v6_blob_evaluates_as_version_4_and_reads_the_log_reading() {
     }
 }
 
+/// `golden` mutated, its lengths and CRC fixed, read again.
+fn reread_mutated(golden: &[u8], mutate: &dyn Fn(&mut Vec<u8>)) -> Result<(), Error> {
+    let mut b = golden.to_vec();
+    mutate(&mut b);
+    fix_len_and_crc(&mut b);
+    Model::from_bytes(&b).map(|_| ())
+}
+
 #[test]
 fn a_damaged_log_reading_record_is_refused_by_field() {
     let golden = read_golden(GOLDEN_V6_BLOB);
     let body_end = golden.len() - CRC_LEN;
     // The record is the section's last 1 + 2 + 2 x 8 bytes: the mark, the count, two digests.
     let record = body_end - 19;
-    let reread = |mutate: &dyn Fn(&mut Vec<u8>)| {
-        let mut b = golden.clone();
-        mutate(&mut b);
-        fix_len_and_crc(&mut b);
-        Model::from_bytes(&b).map(|_| ())
-    };
+    let reread = |mutate: &dyn Fn(&mut Vec<u8>)| reread_mutated(&golden, mutate);
     assert_eq!(reread(&|_| {}), Ok(()));
     assert_eq!(reread(&|b| b[record] = 0), Ok(()));
     assert_eq!(reread(&|b| b[record] = 2), Err(Error::BadLogReading { field: "decimal_mark" }));
@@ -207,12 +210,7 @@ fn a_damaged_log_time_record_is_refused_by_field() {
     // unit 1, rate 0.
     let record = body_end - 20;
     let (date_len, unit, rate) = (record + 10, record + 11, record + 12);
-    let reread = |mutate: &dyn Fn(&mut Vec<u8>)| {
-        let mut b = golden.clone();
-        mutate(&mut b);
-        fix_len_and_crc(&mut b);
-        Model::from_bytes(&b).map(|_| ())
-    };
+    let reread = |mutate: &dyn Fn(&mut Vec<u8>)| reread_mutated(&golden, mutate);
     assert_eq!(reread(&|_| {}), Ok(()));
     assert_eq!(reread(&|b| b[unit] = 5), Err(Error::BadLogTime { field: "time_unit" }));
     for bad_rate in [f64::NAN, -1.0, 50.0] {
@@ -264,12 +262,7 @@ fn a_damaged_names_section_is_refused_by_field_and_axis() {
     let first_name = at + NAMES_LEN_LEN + 1; // "gyro_x" of axis 0
     let units0 = at + NAMES_LEN_LEN + (1 + 6) * 2; // axis 0's three numbers
     let second_axis_gyro = units0 + COLUMN_UNITS_LEN + 1; // axis 1's gyro name
-    let reread = |mutate: &dyn Fn(&mut Vec<u8>)| {
-        let mut b = golden.clone();
-        mutate(&mut b);
-        fix_len_and_crc(&mut b);
-        Model::from_bytes(&b).map(|_| ())
-    };
+    let reread = |mutate: &dyn Fn(&mut Vec<u8>)| reread_mutated(&golden, mutate);
     let names_len = u32_at(&golden, at) as usize;
     assert_eq!(
         reread(&|b| put_u32(b, at, names_len as u32 + 1)),

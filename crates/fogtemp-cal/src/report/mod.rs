@@ -565,11 +565,16 @@ pub fn add_comparison_to_validation_report(
             c.raw_bias_stability_dph / c.compensated_bias_stability_dph
         ));
     }
+    insert_before_first_section(dir, &format!("{table}\n"))
+}
+
+/// Inserts `text` into the report in `dir` before its first section, and writes its HTML again.
+fn insert_before_first_section(dir: &Path, text: &str) -> Result<(), CalError> {
     let path = dir.join("report.md");
-    let text = std::fs::read_to_string(&path)
+    let report = std::fs::read_to_string(&path)
         .map_err(|source| CalError::Io { path: path.clone(), source })?
-        .replacen("\n## ", &format!("\n{table}\n## "), 1);
-    write_file_atomic(&path, |w| w.write_all(text.as_bytes()))?;
+        .replacen("\n## ", &format!("\n{text}## "), 1);
+    write_file_atomic(&path, |w| w.write_all(report.as_bytes()))?;
     write_html_beside(&path)
 }
 
@@ -582,13 +587,7 @@ pub fn add_notes_to_validation_report(dir: &Path, heading: &str, notes: &[String
     if notes.is_empty() {
         return Ok(());
     }
-    let section = bullet_section(heading, notes);
-    let path = dir.join("report.md");
-    let text = std::fs::read_to_string(&path)
-        .map_err(|source| CalError::Io { path: path.clone(), source })?
-        .replacen("\n## ", &format!("\n{section}## "), 1);
-    write_file_atomic(&path, |w| w.write_all(text.as_bytes()))?;
-    write_html_beside(&path)
+    insert_before_first_section(dir, &bullet_section(heading, notes))
 }
 
 /// [`write_validation_report`] with the bias-stability settings the runs were measured with
