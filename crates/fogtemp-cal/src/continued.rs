@@ -78,7 +78,10 @@ pub fn continued_logs<'a>(
     };
     let n = spans.len();
     let before: Vec<Vec<usize>> = (0..n).map(|i| (0..n).filter(|&j| follows(j, i)).collect()).collect();
-    let after: Vec<Vec<usize>> = (0..n).map(|j| (0..n).filter(|&i| follows(j, i)).collect()).collect();
+    let mut after: Vec<Vec<usize>> = vec![Vec::new(); n];
+    for (i, earlier) in before.iter().enumerate() {
+        earlier.iter().for_each(|&j| after[j].push(i));
+    }
     // A link where each is the other's only candidate.
     let next: Vec<Option<usize>> = (0..n)
         .map(|j| after[j].first().copied().filter(|&i| after[j].len() == 1 && before[i] == [j]))

@@ -414,7 +414,10 @@ impl<R: Read> Parser<R> {
             if plan.temp_slots.iter().any(|&k| refused(values[k])) {
                 break; // an impossible temperature: likewise (the general path reads the record again)
             }
-            if plan.gyro_slots.iter().any(|&k| !super::is_representable_rate(values[k] * plan.gyro_factor)) {
+            for &k in &plan.gyro_slots {
+                values[k] *= plan.gyro_factor; // to deg/h once, checked then pushed
+            }
+            if plan.gyro_slots.iter().any(|&k| !super::is_representable_rate(values[k])) {
                 break; // a rate beyond the compensator's f32: likewise
             }
             if previous_time.is_some_and(|p| time <= p) {
@@ -429,7 +432,7 @@ impl<R: Read> Parser<R> {
                 batch.values.push(values[k]);
             }
             for &k in &plan.gyro_slots {
-                batch.values.push(values[k] * plan.gyro_factor);
+                batch.values.push(values[k]);
             }
             count += 1;
             pos = terminator;
