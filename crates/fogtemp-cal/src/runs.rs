@@ -74,7 +74,7 @@ pub enum RunsProblem {
         first_line: u64,
     },
     /// A row names a run that none of the logs is.
-    #[error("run '{run}' has no log among the {logs} given: give every log the file lists (fit and validate then take the runs its `role` column marks cal and val, or all of them without one), or leave the row out")]
+    #[error("run '{run}' has no log among the {logs} given: give its log, or leave the row out (fit needs no log for a row of role val, validate none for one of role cal: each takes the runs its `role` column marks cal or val, or all of them without one)")]
     UnknownRun {
         /// The run.
         run: String,
@@ -296,20 +296,19 @@ impl RunsFile {
         notes
     }
 
-    /// The rows that name no log, for the error of a log without a row (a typo in one of them,
-    /// `up_poweron_-2OC` for `up_poweron_-20C`, is the usual cause: review11 F11).
-    fn rows_without_log(&self, logs: &[PathBuf]) -> Option<String> {
-        let orphans: Vec<String> = self
-            .runs
-            .iter()
-            .filter(|r| !logs.iter().any(|l| run_name(l) == r.run))
-            .map(|r| format!("line {} '{}'", r.line, r.run))
-            .collect();
-        let shown = orphans.iter().take(3).cloned().collect::<Vec<_>>().join(", ");
+    /// The rows that name no log, for the error of the log `missing` without a row (a typo in
+    /// one of them, `up_poweron_-2OC` for `up_poweron_-20C`, is the usual cause: review11
+    /// F11), the row most like `missing` first (fewest character edits; review13 F13: they
+    /// were listed in file order).
+    fn rows_without_log(&self, logs: &[PathBuf], missing: &str) -> Option<String> {
+        let mut orphans: Vec<&RunMetadata> =
+            self.runs.iter().filter(|r| !logs.iter().any(|l| run_name(l) == r.run)).collect();
+        orphans.sort_by_key(|r| (edit_distance(&r.run, missing), r.line));
+        let shown: Vec<String> = orphans.iter().take(3).map(|r| format!("line {} '{}'", r.line, r.run)).collect();
         let more = orphans.len().saturating_sub(3);
         let more = if more > 0 { format!(" and {more} more") } else { String::new() };
         (!orphans.is_empty())
-            .then(|| format!(" (rows that name no log: {shown}{more}; a typo in the run name?)"))
+            .then(|| format!(" (rows that name no log: {}{more}; a typo in the run name?)", shown.join(", ")))
     }
 
     /// The row of every log, in the logs' order, checking that the file and the logs name
@@ -320,6 +319,22 @@ impl RunsFile {
     /// [`RunsProblem::MissingRun`] for a log without a row (line 0),
     /// [`RunsProblem::UnknownRun`] for a row without a log (its line).
     pub fn for_logs(&self, logs: &[PathBuf]) -> Result<Vec<&RunMetadata>, CalError> {
+        self.for_logs_of_a_command(logs, None)
+    }
+
+    /// [`RunsFile::for_logs`] for a command that does not read the runs of role `unused`:
+    /// their rows need no log (`fit` given only the `cal` logs of a lab's runs file that
+    /// also lists its `val` runs, or `validate` only the `val` logs: review13 F13; before,
+    /// each had to be given every log the file lists).
+    ///
+    /// # Errors
+    /// As [`RunsFile::for_logs`], except that a row of role `unused` without a log is no
+    /// error.
+    pub fn for_logs_of_a_command(
+        &self,
+        logs: &[PathBuf],
+        unused: Option<Role>,
+    ) -> Result<Vec<&RunMetadata>, CalError> {
         let by_name: BTreeMap<&str, &RunMetadata> = self.runs.iter().map(|r| (r.run.as_str(), r)).collect();
         let mut first_log: BTreeMap<String, &PathBuf> = BTreeMap::new();
         let mut out = Vec::with_capacity(logs.len());
@@ -330,17 +345,36 @@ impl RunsFile {
                 return Err(problem(&self.path, 0, shared));
             }
             let row = by_name.get(name.as_str()).ok_or_else(|| {
-                let hint = self.near_miss(log, &name).or_else(|| self.rows_without_log(logs));
+                let hint = self.near_miss(log, &name).or_else(|| self.rows_without_log(logs, &name));
                 problem(&self.path, 0, RunsProblem::MissingRun { log: log.clone(), hint })
             })?;
             out.push(*row);
         }
-        if let Some(extra) = self.runs.iter().find(|r| !logs.iter().any(|l| run_name(l) == r.run)) {
+        let needs_a_log = |r: &&RunMetadata| unused.is_none() || r.role != unused;
+        if let Some(extra) =
+            self.runs.iter().filter(needs_a_log).find(|r| !logs.iter().any(|l| run_name(l) == r.run))
+        {
             let unknown = RunsProblem::UnknownRun { run: extra.run.clone(), logs: logs.len() };
             return Err(problem(&self.path, extra.line, unknown));
         }
         Ok(out)
     }
+}
+
+/// The fewest single-character insertions, deletions and substitutions that turn `a` into
+/// `b` (Levenshtein), over characters.
+fn edit_distance(a: &str, b: &str) -> usize {
+    let b: Vec<char> = b.chars().collect();
+    let mut previous: Vec<usize> = (0..=b.len()).collect();
+    for (i, ca) in a.chars().enumerate() {
+        let mut current = vec![i + 1; b.len() + 1];
+        for (j, cb) in b.iter().enumerate() {
+            let substitution = previous[j] + usize::from(ca != *cb);
+            current[j + 1] = substitution.min(previous[j + 1] + 1).min(current[j] + 1);
+        }
+        previous = current;
+    }
+    previous[b.len()]
 }
 
 /// `line 3`, `lines 3, 4`.
@@ -353,15 +387,15 @@ fn lines_text(lines: &[u64]) -> String {
 }
 
 /// The logs `validate --runs FILE` validates (and Python's `validate(runs=)`): when the runs
-/// file (which must describe every log, and only them) gives roles, the logs of role `val`;
-/// else every log.
+/// file (which must describe every log, and every run but those of role `cal`) gives roles,
+/// the logs of role `val`; else every log.
 ///
 /// # Errors
 /// The runs file cannot be read or does not describe the logs ([`RunsFile::for_logs`]), or it
 /// gives roles and none is `val` ([`RunsProblem::NoValidationRun`]).
 pub fn validation_logs(logs: Vec<PathBuf>, runs: &Path) -> Result<Vec<PathBuf>, CalError> {
     let file = RunsFile::read(runs)?;
-    let rows = file.for_logs(&logs)?;
+    let rows = file.for_logs_of_a_command(&logs, Some(Role::Cal))?;
     if rows.iter().all(|r| r.role.is_none()) {
         return Ok(logs);
     }
@@ -570,5 +604,50 @@ mod tests {
             "{err}"
         );
         assert!(err.to_string().starts_with("runs.csv:3: "), "{err}");
+    }
+
+    #[test]
+    fn a_command_needs_no_log_for_the_rows_of_the_role_it_does_not_read() {
+        let f = parse("run,position,input_rate_dph,role\nu1,up,1,cal\nu2,up,1,cal\nd1,down,-1,val\nx,up,1,\n")
+            .expect("valid");
+        let cal = [PathBuf::from("u1.csv"), PathBuf::from("u2.csv"), PathBuf::from("x.csv")];
+        let rows = f.for_logs_of_a_command(&cal, Some(Role::Val)).expect("the val row needs no log for fit");
+        assert_eq!(rows.iter().map(|r| r.line).collect::<Vec<_>>(), [2, 3, 5]);
+        // A row without a role is read by both commands, so it still needs its log.
+        let err = f.for_logs_of_a_command(&cal[..2], Some(Role::Val)).unwrap_err();
+        assert!(
+            matches!(&err, CalError::Runs { line: 5, problem: RunsProblem::UnknownRun { run, .. }, .. } if run == "x"),
+            "{err}"
+        );
+        let val = [PathBuf::from("d1.csv"), PathBuf::from("x.csv")];
+        assert_eq!(f.for_logs_of_a_command(&val, Some(Role::Cal)).expect("cal rows need no log").len(), 2);
+        // The plain check (diagnose) still wants every row's log.
+        let err = f.for_logs(&cal).unwrap_err();
+        assert!(matches!(&err, CalError::Runs { line: 4, .. }), "{err}");
+    }
+
+    #[test]
+    fn rows_without_a_log_are_listed_most_alike_first() {
+        let f = parse(
+            "run,position,input_rate_dph\ndown_poweron_-35C,d,1\ndown_poweron_-20C,d,1\nup_poweron_-2OC,u,1\nup_step,u,1\n",
+        )
+        .expect("valid");
+        let err = f.for_logs(&[PathBuf::from("up_poweron_-20C.csv")]).unwrap_err();
+        assert!(
+            err.to_string().ends_with(
+                "(rows that name no log: line 4 'up_poweron_-2OC', line 3 'down_poweron_-20C', line 2 'down_poweron_-35C' and 1 more; a typo in the run name?)"
+            ),
+            "{err}"
+        );
+    }
+
+    #[test]
+    fn edit_distance_counts_single_character_edits() {
+        assert_eq!(edit_distance("", ""), 0);
+        assert_eq!(edit_distance("abc", ""), 3);
+        assert_eq!(edit_distance("", "ab"), 2);
+        assert_eq!(edit_distance("kitten", "sitting"), 3);
+        assert_eq!(edit_distance("-20C", "-2OC"), 1);
+        assert_eq!(edit_distance("°C", "C"), 1, "characters, not bytes");
     }
 }

@@ -217,6 +217,47 @@ fn runs_file_problems_name_the_file_and_the_line() {
     assert!(fit.contains("allval.csv: every run has role 'val'"), "{fit}");
 }
 
+/// One runs file serves `fit` given only its `cal` logs and `validate` given only its `val`
+/// logs (review13 F13): the same model and the same validation as when both get every log;
+/// a row without a role still needs its log.
+#[test]
+fn one_runs_file_serves_fit_and_validate_each_given_its_own_logs() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let logs = strings(&write_runs(dir.path()));
+    let runs = dir.path().join("runs.csv");
+    let roles = ["cal", "cal", "cal", "cal", "val", "val"];
+    let rows: Vec<String> = roles.iter().enumerate().map(|(k, role)| format!("run{k},a,0,{role}")).collect();
+    std::fs::write(&runs, format!("run,position,input_rate_dph,role\n{}\n", rows.join("\n"))).expect("write");
+    let runs = runs.display().to_string();
+    let fit = |model: &str, logs: &[String]| {
+        let mut args = vec!["fit", "--method", "poly", "--out", model, "--runs", runs.as_str()];
+        args.extend(logs.iter().map(String::as_str));
+        let out = cal(&args);
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    };
+    let (whole, own) = (dir.path().join("whole.fogm"), dir.path().join("own.fogm"));
+    let (whole, own) = (whole.display().to_string(), own.display().to_string());
+    fit(&whole, &logs);
+    fit(&own, &logs[..4]);
+    let (a, b) = (ok_json(&["inspect", "--json", &whole]), ok_json(&["inspect", "--json", &own]));
+    assert_eq!(a["axes"], b["axes"], "the same fit from the cal logs alone");
+    let validate = |logs: &[String]| {
+        let mut args = vec!["validate", "--json", "--model", own.as_str(), "--runs", runs.as_str()];
+        args.extend(logs.iter().map(String::as_str));
+        ok_json(&args)
+    };
+    let (all, val) = (validate(&logs), validate(&logs[4..]));
+    assert_eq!(all["runs"], val["runs"], "the same two val runs validated");
+    assert_eq!(val["runs"].as_array().map(Vec::len), Some(2));
+    // A row without a role is read by both commands: its log must be given.
+    let plain = dir.path().join("plain.csv");
+    std::fs::write(&plain, "run,position,input_rate_dph,role\nrun0,a,0,cal\nrun1,a,0,cal\nrun2,a,0,cal\nrun5,a,0,\n")
+        .expect("write");
+    let plain = plain.display().to_string();
+    let err = err_text(&["fit", "--out", &own, "--runs", &plain, &logs[0], &logs[1], &logs[2]]);
+    assert!(err.contains("plain.csv:5: run 'run5' has no log among the 3 given"), "{err}");
+}
+
 /// `fit --poly-outside`: the policy is stored in the model (`inspect --json`); inside the
 /// calibrated region both policies give the same value bit for bit; far outside it the
 /// extrapolated polynomial equals an f64 evaluation of its own coefficients at the query,

@@ -436,7 +436,7 @@ fn file_runs(
         }
         let kept: Vec<(PathBuf, fogtemp_cal::runs::RunMetadata)> = logs
             .iter()
-            .zip(file.for_logs(&logs).map_err(errors::cal)?)
+            .zip(file.for_logs_of_a_command(&logs, Some(fogtemp_cal::runs::Role::Val)).map_err(errors::cal)?)
             .filter(|(_, row)| row.role != Some(fogtemp_cal::runs::Role::Val))
             .map(|(log, row)| (log.clone(), row.clone()))
             .collect();

@@ -153,6 +153,9 @@ def test_validate_runs_file_keeps_the_val_runs_like_the_command_line(mesh_model,
     assert ours == json.loads(done.stdout)
     assert [r["path"] for r in ours["runs"]] == [str(folder / p.name) for p in val_logs[:2]]
     assert ours == fogtemp.validate(model_path, [folder / p.name for p in val_logs[:2]], progress=False)
+    # The same runs file with only the val logs given: its cal rows need no log.
+    only_val = [folder / p.name for p in val_logs[:2]]
+    assert ours == fogtemp.validate(model_path, only_val, runs=runs_csv, progress=False)
     # Without roles every log is validated; roles without a val run, or a log the file does
     # not describe, are errors (the command line's messages).
     no_roles = tmp_path / "no_roles.csv"

@@ -308,7 +308,7 @@ fn calibration_logs(logs: &[std::path::PathBuf], runs: Option<&std::path::Path>)
         return Ok(CalibrationLogs { logs: logs.to_vec(), positions: None, input_rates_dph: None });
     };
     let file = RunsFile::read(path)?;
-    let rows = file.for_logs(logs)?;
+    let rows = file.for_logs_of_a_command(logs, Some(Role::Val))?;
     for note in file.position_notes() {
         eprintln!("note: {note}");
     }
