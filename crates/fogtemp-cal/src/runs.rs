@@ -304,7 +304,8 @@ impl RunsFile {
         let mut orphans: Vec<&RunMetadata> =
             self.runs.iter().filter(|r| !logs.iter().any(|l| run_name(l) == r.run)).collect();
         orphans.sort_by_key(|r| (edit_distance(&r.run, missing), r.line));
-        let shown: Vec<String> = orphans.iter().take(3).map(|r| format!("line {} '{}'", r.line, r.run)).collect();
+        let shown: Vec<String> =
+            orphans.iter().take(3).map(|r| format!("line {} '{}'", r.line, r.run)).collect();
         let more = orphans.len().saturating_sub(3);
         let more = if more > 0 { format!(" and {more} more") } else { String::new() };
         (!orphans.is_empty())
@@ -608,8 +609,9 @@ mod tests {
 
     #[test]
     fn a_command_needs_no_log_for_the_rows_of_the_role_it_does_not_read() {
-        let f = parse("run,position,input_rate_dph,role\nu1,up,1,cal\nu2,up,1,cal\nd1,down,-1,val\nx,up,1,\n")
-            .expect("valid");
+        let f =
+            parse("run,position,input_rate_dph,role\nu1,up,1,cal\nu2,up,1,cal\nd1,down,-1,val\nx,up,1,\n")
+                .expect("valid");
         let cal = [PathBuf::from("u1.csv"), PathBuf::from("u2.csv"), PathBuf::from("x.csv")];
         let rows = f.for_logs_of_a_command(&cal, Some(Role::Val)).expect("the val row needs no log for fit");
         assert_eq!(rows.iter().map(|r| r.line).collect::<Vec<_>>(), [2, 3, 5]);

@@ -626,9 +626,10 @@ pub struct EvaluateArgs {
     #[arg(long, default_value_t = 0)]
     pub axis: usize,
     /// Decimal mark of the points' numbers: point (20.5) or comma (20,5; then the columns
-    /// are separated by semicolons or tabs).
-    #[arg(long, value_name = "MARK", default_value = "point", value_parser = parse_decimal_mark)]
-    pub decimal_mark: DecimalMark,
+    /// are separated by semicolons or tabs) [default: the mark of the model's calibration
+    /// logs (format 6), else point]. The output always writes points.
+    #[arg(long, value_name = "MARK", value_parser = parse_decimal_mark)]
+    pub decimal_mark: Option<DecimalMark>,
     /// Output CSV (temp_c,rate_c_per_min,value_dph,flags); stdout if absent. flags is 0 for
     /// a point inside the calibrated region and 4 (the compensator's OUTSIDE_HULL) outside
     /// it, where the model holds or continues its boundary value.

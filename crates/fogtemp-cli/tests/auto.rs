@@ -251,8 +251,11 @@ fn one_runs_file_serves_fit_and_validate_each_given_its_own_logs() {
     assert_eq!(val["runs"].as_array().map(Vec::len), Some(2));
     // A row without a role is read by both commands: its log must be given.
     let plain = dir.path().join("plain.csv");
-    std::fs::write(&plain, "run,position,input_rate_dph,role\nrun0,a,0,cal\nrun1,a,0,cal\nrun2,a,0,cal\nrun5,a,0,\n")
-        .expect("write");
+    std::fs::write(
+        &plain,
+        "run,position,input_rate_dph,role\nrun0,a,0,cal\nrun1,a,0,cal\nrun2,a,0,cal\nrun5,a,0,\n",
+    )
+    .expect("write");
     let plain = plain.display().to_string();
     let err = err_text(&["fit", "--out", &own, "--runs", &plain, &logs[0], &logs[1], &logs[2]]);
     assert!(err.contains("plain.csv:5: run 'run5' has no log among the 3 given"), "{err}");

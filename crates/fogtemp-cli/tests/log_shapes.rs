@@ -374,6 +374,25 @@ fn decimal_comma_logs_fit_the_same_model_as_their_point_twins() {
         stderr.contains("was fitted on logs with a decimal comma; these are read with a decimal point"),
         "{stderr}"
     );
+    // evaluate reads a grid with the model's decimal comma too (review13 F11): the values of
+    // the point grid under the point twin, with a note; a point grid is told the flag.
+    let (comma_grid, point_grid) = (dir.path().join("grid_comma.csv"), dir.path().join("grid.csv"));
+    std::fs::write(&comma_grid, "temp_c;rate_c_per_min\n25,5;0,1\n40;-0,25\n").unwrap();
+    std::fs::write(&point_grid, "temp_c,rate_c_per_min\n25.5,0.1\n40,-0.25\n").unwrap();
+    let out = run(&["evaluate", "--model", s(&model), "--points", s(&comma_grid)]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        out.status.success() && stderr.contains("grid_comma.csv: read with a decimal comma, as"),
+        "{stderr}"
+    );
+    let twin_values = run(&["evaluate", "--model", s(&twin), "--points", s(&point_grid)]);
+    assert_eq!(out.stdout, twin_values.stdout, "the same points, the same stored model: the same output");
+    let out = run(&["evaluate", "--model", s(&model), "--points", s(&point_grid)]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && stderr.contains("grid.csv:2:1: column 'temp_c'"), "{stderr}");
+    assert!(stderr.contains("use --decimal-mark point"), "{stderr}");
+    let out = run(&["evaluate", "--decimal-mark", "point", "--model", s(&model), "--points", s(&point_grid)]);
+    assert_eq!(out.stdout, twin_values.stdout, "{}", String::from_utf8_lossy(&out.stderr));
     // The flag on a log with points names the cell and the way back.
     let out = run(&["allan", "--decimal-mark", "comma", s(&points.join("run0.csv"))]);
     let stderr = String::from_utf8_lossy(&out.stderr);

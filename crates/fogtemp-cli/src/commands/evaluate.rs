@@ -18,7 +18,8 @@ pub fn evaluate(a: EvaluateArgs) -> Result<()> {
     let blob = read_model(&a.model)?;
     let model = Model::from_bytes(&blob).map_err(|e| anyhow::anyhow!("{e}"))?;
     let axis = model.axis(a.axis).map_err(|e| anyhow::anyhow!("{}: {e}", a.model.display()))?;
-    let delimiter = points_delimiter(&a.points, a.decimal_mark)?;
+    let mark = points_decimal_mark(&model, &a);
+    let delimiter = points_delimiter(&a.points, mark)?;
     let mut reader = csv::ReaderBuilder::new()
         .trim(csv::Trim::All)
         .delimiter(delimiter)
@@ -42,12 +43,12 @@ pub fn evaluate(a: EvaluateArgs) -> Result<()> {
         let line = rec.position().map_or(k as u64 + 2, |p| p.line());
         let cell = |i: usize, name: &str| -> Result<f64> {
             let text = rec.get(i).unwrap_or("");
-            let v: f64 = number(text, a.decimal_mark).ok_or_else(|| {
+            let v: f64 = number(text, mark).ok_or_else(|| {
                 anyhow::anyhow!(
                     "{}:{line}:{}: column '{name}': not a number (found '{text}'){}",
                     a.points.display(),
                     i + 1,
-                    decimal_hint(text, a.decimal_mark)
+                    decimal_hint(text, mark, a.decimal_mark.is_some())
                 )
             })?;
             if !v.is_finite() {
@@ -92,14 +93,37 @@ fn number(text: &str, mark: DecimalMark) -> Option<f64> {
     }
 }
 
-/// What to give when a cell is a number with the other decimal mark.
-fn decimal_hint(text: &str, mark: DecimalMark) -> &'static str {
+/// The points' decimal mark: as `--decimal-mark` names it, else as the model records of its
+/// calibration logs (format 6: a lab whose logs write 20,5 writes its grids so too; review13
+/// F11), with a note when that is a comma; else a point.
+fn points_decimal_mark(model: &Model<'_>, a: &EvaluateArgs) -> DecimalMark {
+    if let Some(named) = a.decimal_mark {
+        return named;
+    }
+    let recorded = model.log_reading().is_some_and(|r| r.decimal_comma);
+    if !recorded {
+        return DecimalMark::Point;
+    }
+    eprintln!(
+        "note: {}: read with a decimal comma, as {} records of its calibration logs (--decimal-mark point to read points)",
+        a.points.display(),
+        a.model.display()
+    );
+    DecimalMark::Comma
+}
+
+/// What to give when a cell is a number with the other decimal mark (`named`: the mark was
+/// given with `--decimal-mark`, not taken from the model).
+fn decimal_hint(text: &str, mark: DecimalMark, named: bool) -> &'static str {
     match mark {
         DecimalMark::Point if number(text, DecimalMark::Comma).is_some() => {
             "; the points seem to write numbers with a decimal comma: use --decimal-mark comma"
         }
-        DecimalMark::Comma if number(text, DecimalMark::Point).is_some() => {
+        DecimalMark::Comma if number(text, DecimalMark::Point).is_some() && named => {
             "; a point in points read with a decimal comma: leave out --decimal-mark comma"
+        }
+        DecimalMark::Comma if number(text, DecimalMark::Point).is_some() => {
+            "; a point in points read with the decimal comma of the model's calibration logs: use --decimal-mark point"
         }
         _ => "",
     }
