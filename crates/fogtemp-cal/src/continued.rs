@@ -8,7 +8,9 @@
 //! another's last by more than 0 and at most the tracker's `max_gap_s` (a gap the tracker
 //! would have bridged had the two been one file), and whose first temperature reading the
 //! other's last can reach in that time, is named with the one it continues, so the reader can
-//! join them. Logs whose time restarts at 0 in every file never match.
+//! join them. So is a log that starts with the other's last row again, at the same time stamp
+//! and temperature reading (some loggers repeat it at the top of a new file; review13 F10).
+//! Logs whose time restarts at 0 in every file never match.
 
 use std::path::{Path, PathBuf};
 
@@ -24,6 +26,9 @@ pub enum Continued {
         parts: Vec<PathBuf>,
         /// The longest step from one part's last time stamp to the next's first, s.
         largest_step_s: f64,
+        /// Per part after the first: whether it starts with the previous part's last row
+        /// again (a step of 0 s), which a join must drop.
+        repeats_last_row: Vec<bool>,
     },
     /// Logs that each start at most `max_gap_s` after one of several others ends (runs in
     /// relative time of the same length, each split alike): which part continues which
@@ -65,6 +70,10 @@ pub fn continued_logs<'a>(
     }
     spans.sort_by(|a, b| a.first_s.total_cmp(&b.first_s));
     let step = |earlier: &Span<'_>, later: &Span<'_>| later.first_s - earlier.last_s;
+    let repeats_last_row = |earlier: &Span<'_>, later: &Span<'_>| {
+        let same_reading = matches!((earlier.temp_ends_c, later.temp_ends_c), (Some((_, last)), Some((first, _))) if first == last);
+        later.first_s == earlier.last_s && earlier.last_s > earlier.first_s && same_reading
+    };
     // The later log starts within the gap, at a temperature the earlier one's last reading
     // can reach in that time (the glitch limit of `crate::spikes`: a -35 C run logged one
     // second after a +10 C run ended does not continue it, review13 F4).
@@ -74,7 +83,7 @@ pub fn continued_logs<'a>(
             (Some((_, last)), Some((first, _))) => (first - last).abs() <= crate::spikes::jump_limit_c(s),
             _ => true,
         };
-        s > 0.0 && s <= max_gap_s && temperature_carries_on
+        s > 0.0 && s <= max_gap_s && temperature_carries_on || repeats_last_row(&spans[j], &spans[i])
     };
     let n = spans.len();
     let before: Vec<Vec<usize>> = (0..n).map(|i| (0..n).filter(|&j| follows(j, i)).collect()).collect();
@@ -90,12 +99,14 @@ pub fn continued_logs<'a>(
     let mut found = Vec::new();
     for start in (0..n).filter(|&i| !linked_to[i] && next[i].is_some()) {
         let (mut parts, mut largest_step_s, mut at) = (vec![spans[start].path.to_path_buf()], 0.0_f64, start);
+        let mut repeats = Vec::new();
         while let Some(i) = next[at] {
             largest_step_s = largest_step_s.max(step(&spans[at], &spans[i]));
+            repeats.push(repeats_last_row(&spans[at], &spans[i]));
             parts.push(spans[i].path.to_path_buf());
             at = i;
         }
-        found.push(Continued::Chain { parts, largest_step_s });
+        found.push(Continued::Chain { parts, largest_step_s, repeats_last_row: repeats });
     }
     let later: Vec<usize> = (0..n).filter(|&i| !before[i].is_empty() && !linked_to[i]).collect();
     if !later.is_empty() {
@@ -130,19 +141,31 @@ impl Continued {
     /// apart does, and how to join them.
     pub fn message(&self) -> String {
         match self {
-            Continued::Chain { parts, largest_step_s } => {
+            Continued::Chain { parts, largest_step_s, repeats_last_row } => {
                 let names: Vec<String> = parts.iter().map(|p| p.display().to_string()).collect();
                 let (first, rest) = names.split_first().map_or(("", &[][..]), |(f, r)| (f.as_str(), r));
+                let first_kept_line = |k: usize| if repeats_last_row.get(k) == Some(&true) { 3 } else { 2 };
                 let join: Vec<String> = std::iter::once(format!("cat {first}"))
-                    .chain(rest.iter().map(|r| format!("tail -n +2 {r}")))
+                    .chain(rest.iter().enumerate().map(|(k, r)| format!("tail -n +{} {r}", first_kept_line(k))))
                     .collect();
+                let repeated: Vec<&str> = rest
+                    .iter()
+                    .zip(repeats_last_row)
+                    .filter(|(_, repeats)| **repeats)
+                    .map(|(r, _)| r.as_str())
+                    .collect();
+                let repeated = match repeated.len() {
+                    0 => String::new(),
+                    1 => format!("; {} starts with the last row of the part before it again, which the join drops", repeated.join("")),
+                    _ => format!("; {} start with the last row of the part before them again, which the join drops", repeated.join(", ")),
+                };
                 let listed = match names.split_last() {
                     Some((last, before)) if !before.is_empty() => format!("{} and {last}", before.join(", ")),
                     _ => names.join(""),
                 };
                 format!(
-                    "{listed} follow one another in time (each starts at most {} s after the one before it ends): one \
-                     run split over files? {READ_APART}; to read them as one run, join them first, e.g. {{ {}; }} > \
+                    "{listed} follow one another in time (each starts at most {} s after the one before it ends{repeated}): \
+                     one run split over files? {READ_APART}; to read them as one run, join them first, e.g. {{ {}; }} > \
                      joined.csv ({OTHER_SHAPES})",
                     seconds(*largest_step_s),
                     join.join("; "),
@@ -200,7 +223,7 @@ mod tests {
         ];
         let chains = continued_logs(&reports, 5.0);
         assert_eq!(chains.len(), 1, "{chains:?}");
-        let Continued::Chain { parts, largest_step_s } = &chains[0] else { panic!("{chains:?}") };
+        let Continued::Chain { parts, largest_step_s, .. } = &chains[0] else { panic!("{chains:?}") };
         let names: Vec<_> = parts.iter().map(|p| p.display().to_string()).collect();
         assert_eq!(names, ["b1.csv", "b2.csv", "b3.csv"]);
         assert_eq!(*largest_step_s, 1.0);
@@ -277,5 +300,36 @@ mod tests {
             "{}",
             found[1].message()
         );
+    }
+
+    #[test]
+    fn a_part_that_repeats_the_last_row_continues_and_the_join_drops_the_repeat() {
+        let at = |name: &str, first_s: f64, last_s: f64, temps: (f64, f64)| IngestReport {
+            temp_ends_c: Some(temps),
+            ..report(name, first_s, last_s)
+        };
+        // The second part starts at the first part's last time stamp with its last reading.
+        let parts = [
+            at("p1.csv", 0.0, 2399.0, (10.0, 14.5)),
+            at("p2.csv", 2399.0, 4799.0, (14.5, 18.0)),
+            at("p3.csv", 4800.0, 7199.0, (18.0625, 20.0)),
+        ];
+        let found = continued_logs(&parts, 5.0);
+        let [Continued::Chain { parts: names, repeats_last_row, .. }] = &found[..] else {
+            panic!("{found:?}")
+        };
+        assert_eq!(names.len(), 3);
+        assert_eq!(repeats_last_row, &[true, false]);
+        let text = found[0].message();
+        assert!(
+            text.contains("{ cat p1.csv; tail -n +3 p2.csv; tail -n +2 p3.csv; } > joined.csv"),
+            "{text}"
+        );
+        assert!(text.contains("p2.csv starts with the last row of the part before it again"), "{text}");
+        // The same time stamp with another reading, or a log of one time stamp, is no repeat.
+        let other = [at("p1.csv", 0.0, 2399.0, (10.0, 14.5)), at("p2.csv", 2399.0, 4799.0, (14.4375, 18.0))];
+        assert!(continued_logs(&other, 5.0).is_empty());
+        let single = [at("s.csv", 0.0, 0.0, (14.5, 14.5)), at("r.csv", 0.0, 3600.0, (14.5, 20.0))];
+        assert!(continued_logs(&single, 5.0).is_empty());
     }
 }

@@ -181,7 +181,7 @@ fn continued_logs(runs: &[RunFeatures], max_gap_s: f64) -> Vec<Warning> {
         .into_iter()
         .map(|found| {
             let (logs, largest_step_s) = match &found {
-                crate::continued::Continued::Chain { parts, largest_step_s } => {
+                crate::continued::Continued::Chain { parts, largest_step_s, .. } => {
                     (parts.len(), *largest_step_s)
                 }
                 crate::continued::Continued::Unpaired { later, earlier, largest_step_s } => {
