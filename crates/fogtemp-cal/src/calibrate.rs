@@ -14,7 +14,7 @@ use crate::error::CalError;
 use crate::features::{smoothed_gyro_dph, AxisFeatureStream, FeaturePoint, CAL_CAPACITY};
 use crate::ingest::{read_from, read_log_with_progress, IngestOptions, IngestReport, Row};
 use crate::mesh::{build_mesh, MeshPoint};
-use crate::metrics::{bias_stability, rms_over_runs, stability_of_means, window_means, BiasStabilityOptions};
+use crate::metrics::{bias_stability, rms_over_runs, stability_of_means, window_stats, BiasStabilityOptions};
 use crate::poly_fit::{fit_poly, PolyFit, TermSelection};
 use crate::selection::{Selection, SelectionOptions};
 use crate::spikes::{AxisSpikes, Sample, SpikeGuard};
@@ -1525,6 +1525,7 @@ impl RunValidation {
             notes.push(outside_region_note(&name, outside, s.samples, "flag OUTSIDE_HULL"));
         }
         notes.extend(self.worse_than_raw_note(&name));
+        notes.extend(self.sparse_windows_note(&name));
         notes.extend(self.gyro_outlier_note(&name));
         notes.extend(temperature_spike_note(&name, &self.path, &s.temperature_spikes));
         let stale = s.flag_counts[Flags::TEMP_STALE.0.trailing_zeros() as usize];
@@ -1542,6 +1543,29 @@ impl RunValidation {
 }
 
 impl RunValidation {
+    /// The note for averaging windows that data fill for less than half their length (a log
+    /// recorded in bursts, review14 F2: psim-tvc's 5 s bursts every 100 s or so gave a "100 s"
+    /// bias stability that is the scatter of 5 s means, with 46 of 65 windows empty, without a
+    /// word): the data time per used window is its block means times their median spacing.
+    fn sparse_windows_note(&self, name: &str) -> Option<String> {
+        let w = self.windows;
+        if w.used == 0 || w.tau_s <= 0.0 {
+            return None;
+        }
+        let from = self.series.first_compensated_block(1.0);
+        let step_s = crate::metrics::median_positive_step(self.series.time_s.get(from..)?)?;
+        let data_s = w.samples_used as f64 / w.used as f64 * step_s;
+        let tau = w.tau_s;
+        (data_s < 0.5 * tau).then(|| {
+            format!(
+                "{name}: data fill about {data_s:.1} s of each {tau} s averaging window ({} used, {} left out as empty \
+                 or cut short): the log is recorded in bursts or with gaps, so its bias stability is the scatter of \
+                 about {data_s:.0} s means {tau} s apart, not comparable with a {tau} s specification",
+                w.used, w.left_out
+            )
+        })
+    }
+
     /// The note for gyro block means beyond 10 robust SDs of their neighbours' median (the
     /// screen `fit` reads as missing, [`crate::outliers::screen`]): `validate` measures the
     /// data as logged, so such a spike (an overload code's 9.91e37 deg/h made a run's bias
@@ -1628,13 +1652,17 @@ pub fn continued_notes(runs: &[RunValidation]) -> Vec<String> {
 }
 
 /// The averaging windows behind one run's bias stability.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct MetricWindows {
     /// Windows whose means the metric used.
     pub used: usize,
-    /// Windows left out: cut short by a gap in the time stamps or by the run's end (a last
-    /// window counts when it holds at least 90 % of the fullest's samples).
+    /// Windows left out: empty, or cut short by a gap in the time stamps or by the run's end
+    /// (a window counts when it holds at least 90 % of the fullest's samples).
     pub left_out: usize,
+    /// Block means (the series' samples) in the windows used.
+    pub samples_used: usize,
+    /// The windows' length, s (0: unknown).
+    pub tau_s: f64,
 }
 
 /// [`Validation::per_axis`] of `runs`.
@@ -1766,9 +1794,15 @@ pub fn validations(
                 let from = series.first_compensated_block(1.0);
                 let times = series.time_s.get(from..).unwrap_or_default();
                 let raw = bias_stability(times, series.raw_dph.get(from..).unwrap_or_default(), options);
-                let (means, left_out) =
-                    window_means(times, series.compensated_dph.get(from..).unwrap_or_default(), options);
-                let windows = MetricWindows { used: means.len(), left_out };
+                let stats =
+                    window_stats(times, series.compensated_dph.get(from..).unwrap_or_default(), options);
+                let windows = MetricWindows {
+                    used: stats.means.len(),
+                    left_out: stats.left_out,
+                    samples_used: stats.samples_used,
+                    tau_s: options.tau_s,
+                };
+                let means = stats.means;
                 model_runs.push(RunValidation {
                     windows,
                     path: path.clone(),
@@ -1796,6 +1830,46 @@ mod tests {
     }
 
     #[test]
+    fn windows_that_data_fill_for_less_than_half_their_length_are_noted() {
+        // 1 s block means: bursts of 5 blocks every 100 s (a logger that records 5 s in
+        // 100), against the same run logged throughout, and a 0.1 Hz log (one block every
+        // 10 s fills its windows: 10 samples x 10 s).
+        let run_of = |time_s: Vec<f64>| {
+            let values = vec![0.0; time_s.len()];
+            let options = BiasStabilityOptions::default();
+            let stats = window_stats(&time_s, &values, &options);
+            RunValidation {
+                path: PathBuf::from("run.csv"),
+                axis: 0,
+                raw_bias_stability_dph: 0.0,
+                compensated_bias_stability_dph: 0.0,
+                series: ReplaySeries { time_s, compensating_from_s: 0.0, ..ReplaySeries::default() },
+                ingest: IngestReport::default(),
+                windows: MetricWindows {
+                    used: stats.means.len(),
+                    left_out: stats.left_out,
+                    samples_used: stats.samples_used,
+                    tau_s: options.tau_s,
+                },
+            }
+        };
+        let bursts: Vec<f64> =
+            (0..30).flat_map(|b| (0..5).map(move |k| 100.0 * b as f64 + 0.5 + k as f64)).collect();
+        let note = run_of(bursts).sparse_windows_note("run.csv axis 0").expect("5 s in 100");
+        assert!(
+            note.starts_with(
+                "run.csv axis 0: data fill about 5.0 s of each 100 s averaging window (30 used, 0 left out"
+            ),
+            "{note}"
+        );
+        assert!(note.contains("the scatter of about 5 s means 100 s apart"), "{note}");
+        let whole: Vec<f64> = (0..3000).map(|k| k as f64 + 0.5).collect();
+        assert!(run_of(whole).sparse_windows_note("r").is_none());
+        let slow: Vec<f64> = (0..300).map(|k| 10.0 * k as f64 + 0.5).collect();
+        assert!(run_of(slow).sparse_windows_note("r").is_none());
+    }
+
+    #[test]
     fn a_run_made_worse_beyond_the_metrics_scatter_is_noted() {
         // 51 windows: relative standard error 1 / sqrt(100) = 10 %, so the bound is 1.2 x raw.
         let run = |raw: f64, comp: f64, used: usize| RunValidation {
@@ -1805,7 +1879,7 @@ mod tests {
             compensated_bias_stability_dph: comp,
             series: ReplaySeries::default(),
             ingest: IngestReport::default(),
-            windows: MetricWindows { used, left_out: 0 },
+            windows: MetricWindows { used, left_out: 0, ..MetricWindows::default() },
         };
         let note = run(0.005, 0.0232, 51).worse_than_raw_note("run.csv axis 1").expect("4.6 x worse");
         assert!(

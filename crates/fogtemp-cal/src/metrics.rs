@@ -39,6 +39,23 @@ impl BiasStabilityOptions {
 /// a window counts only if it holds at least 90 % of the samples of the fullest window,
 /// so windows cut by gaps or the run's end are left out (and counted).
 pub fn window_means(times_s: &[f64], values: &[f64], options: &BiasStabilityOptions) -> (Vec<f64>, usize) {
+    let stats = window_stats(times_s, values, options);
+    (stats.means, stats.left_out)
+}
+
+/// The windows behind a bias stability ([`window_stats`]).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct WindowStats {
+    /// The means of the windows used.
+    pub means: Vec<f64>,
+    /// Windows left out: empty, or cut short by a gap or the run's end.
+    pub left_out: usize,
+    /// Samples in the windows used.
+    pub samples_used: usize,
+}
+
+/// [`window_means`] with the samples the used windows hold.
+pub fn window_stats(times_s: &[f64], values: &[f64], options: &BiasStabilityOptions) -> WindowStats {
     let start = times_s.first().copied().unwrap_or(0.0) + options.exclude_first_s;
     // Sum and count per sub-window of tau/step; overlapping windows combine `step` of them.
     let step = if options.overlapping { 10 } else { 1 };
@@ -61,19 +78,16 @@ pub fn window_means(times_s: &[f64], values: &[f64], options: &BiasStabilityOpti
         .map(|w| w.iter().fold((0.0, 0), |a, b| (a.0 + b.0, a.1 + b.1)))
         .collect();
     let threshold = fullness_threshold(windows.iter().map(|w| w.1));
-    let mut dropped = 0;
-    let means = windows
-        .into_iter()
-        .filter_map(|(s, c)| {
-            if c >= threshold {
-                Some(s / c as f64)
-            } else {
-                dropped += 1;
-                None
-            }
-        })
-        .collect();
-    (means, dropped)
+    let mut stats = WindowStats::default();
+    for (sum, count) in windows {
+        if count >= threshold {
+            stats.means.push(sum / count as f64);
+            stats.samples_used += count;
+        } else {
+            stats.left_out += 1;
+        }
+    }
+    stats
 }
 
 /// The fewest samples an averaging window must hold to count, given every window's count:
@@ -82,6 +96,17 @@ pub fn window_means(times_s: &[f64], values: &[f64], options: &BiasStabilityOpti
 pub fn fullness_threshold(counts: impl Iterator<Item = usize>) -> usize {
     let fullest = counts.max().unwrap_or(0);
     ((fullest as f64 * 0.9).ceil() as usize).max(1)
+}
+
+/// The median of the positive steps between consecutive `times_s` (`None` without one).
+pub fn median_positive_step(times_s: &[f64]) -> Option<f64> {
+    let mut steps: Vec<f64> = times_s.windows(2).map(|w| w[1] - w[0]).filter(|d| *d > 0.0).collect();
+    if steps.is_empty() {
+        return None;
+    }
+    let mid = steps.len() / 2;
+    let (_, median, _) = steps.select_nth_unstable_by(mid, |a, b| a.total_cmp(b));
+    Some(*median)
 }
 
 /// Bias stability of one run, deg/h (NaN with fewer than 2 windows).
