@@ -45,6 +45,11 @@ pub struct MeshFigure {
     pub triangles: Vec<[u32; 3]>,
     /// Calibration points: (temp_c, rate_c_per_min).
     pub points: Vec<(f64, f64)>,
+    /// The calibrated region's vertices (temp_c, rate_c_per_min), in order (empty: the model
+    /// records none).
+    pub region: Vec<(f64, f64)>,
+    /// Per triangle: its centroid lies within the calibrated region (all `true` without one).
+    pub inside_region: Vec<bool>,
 }
 
 /// Tick label with at most 4 significant digits and no float noise (0.01000000000001 -> 0.01).
@@ -314,10 +319,13 @@ pub fn plot_mesh(path: &Path, title: &str, mesh: &MeshFigure) -> Result<(), CalE
         root.fill(&WHITE).map_err(|e| plot_err(path, e))?;
         let (main, legend) = root.split_horizontally(900);
         // The key goes under the title: the mesh fills the plane, a legend box would hide part.
-        let key = if mesh.points.is_empty() {
-            "black dots: nodes"
-        } else {
-            "black dots: nodes, grey: calibration points"
+        let key = match (mesh.points.is_empty(), mesh.region.is_empty()) {
+            (true, true) => "black dots: nodes",
+            (false, true) => "black dots: nodes, grey: calibration points",
+            (true, false) => "black dots: nodes; thick line: the calibrated region (pale outside it: flagged OUTSIDE_HULL)",
+            (false, false) => {
+                "black dots: nodes, grey: calibration points; thick line: the calibrated region (pale outside it: flagged OUTSIDE_HULL)"
+            }
         };
         let main = main.titled(title, ("sans-serif", 20)).map_err(|e| plot_err(path, e))?;
         let main = main.titled(key, ("sans-serif", 14)).map_err(|e| plot_err(path, e))?;
@@ -344,12 +352,13 @@ pub fn plot_mesh(path: &Path, title: &str, mesh: &MeshFigure) -> Result<(), CalE
             .map_err(|e| plot_err(path, e))?;
         let node = |i: u32| mesh.nodes.get(i as usize).copied().unwrap_or((0.0, 0.0, 0.0));
         chart
-            .draw_series(mesh.triangles.iter().map(|t| {
+            .draw_series(mesh.triangles.iter().enumerate().map(|(k, t)| {
                 let [a, b, c] = t.map(node);
-                Polygon::new(
-                    vec![(a.0, a.1), (b.0, b.1), (c.0, c.1)],
-                    diverging(scale((a.2 + b.2 + c.2) / 3.0)).filled(),
-                )
+                let colour = diverging(scale((a.2 + b.2 + c.2) / 3.0));
+                // Outside the calibrated region the firmware flags the value: drawn pale.
+                let inside = mesh.inside_region.get(k).copied().unwrap_or(true);
+                let fill = if inside { colour.filled() } else { colour.mix(0.3).filled() };
+                Polygon::new(vec![(a.0, a.1), (b.0, b.1), (c.0, c.1)], fill)
             }))
             .map_err(|e| plot_err(path, e))?;
         chart
@@ -371,6 +380,13 @@ pub fn plot_mesh(path: &Path, title: &str, mesh: &MeshFigure) -> Result<(), CalE
         chart
             .draw_series(mesh.nodes.iter().map(|n| Circle::new((n.0, n.1), 2, BLACK.filled())))
             .map_err(|e| plot_err(path, e))?;
+        if let Some(&first) = mesh.region.first() {
+            let outline: Vec<(f64, f64)> =
+                mesh.region.iter().copied().chain(std::iter::once(first)).collect();
+            chart
+                .draw_series(std::iter::once(PathElement::new(outline, BLACK.stroke_width(3))))
+                .map_err(|e| plot_err(path, e))?;
+        }
         // Colour bar.
         let mut bar = ChartBuilder::on(&legend)
             .margin_top(60)
@@ -506,8 +522,25 @@ pub fn mesh_figure(axis: &fogtemp_core::Axis<'_>, points: Vec<(f64, f64)>) -> Op
             (t, r, poly + f64::from(v.value_dph))
         })
         .collect();
-    let triangles = (0..mesh.triangle_count()).filter_map(|k| mesh.triangle(k)).map(|t| t.vertices).collect();
-    Some(MeshFigure { nodes, triangles, points })
+    let triangles: Vec<[u32; 3]> =
+        (0..mesh.triangle_count()).filter_map(|k| mesh.triangle(k)).map(|t| t.vertices).collect();
+    let region = axis.region.map_or_else(Vec::new, |r| {
+        (0..r.vertex_count())
+            .filter_map(|k| r.vertex(k))
+            .map(|(x, y)| crate::mesh::to_physical(n, f64::from(x), f64::from(y)))
+            .collect()
+    });
+    // A triangle's centroid in the normalised plane the region is tested in.
+    let inside_region = triangles
+        .iter()
+        .map(|t| {
+            let corners: Vec<(f32, f32)> =
+                t.iter().filter_map(|&k| mesh.vertex(k)).map(|v| (v.x, v.y)).collect();
+            let (x, y) = corners.iter().fold((0.0, 0.0), |(x, y), c| (x + c.0 / 3.0, y + c.1 / 3.0));
+            axis.region.is_none_or(|r| r.contains(x, y))
+        })
+        .collect();
+    Some(MeshFigure { nodes, triangles, points, region, inside_region })
 }
 
 fn file_name(p: &Path) -> String {
