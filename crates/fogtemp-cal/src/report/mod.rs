@@ -585,7 +585,7 @@ pub fn add_comparison_to_validation_report(
     rows: &[crate::documents::ComparedModel],
 ) -> Result<(), CalError> {
     let mut table = String::from(
-        "## Models compared on the same logs\n\n| model | mesh nodes | polynomial terms | raw, deg/h | compensated, deg/h | ratio |\n|---|---|---|---|---|---|\n",
+        "## Models compared on the same logs\n\n| model | mesh nodes | polynomial terms | raw, deg/h | compensated, deg/h | raw / compensated (above 1: better) |\n|---|---|---|---|---|---|\n",
     );
     for c in rows {
         table.push_str(&format!(
@@ -647,7 +647,7 @@ pub fn write_validation_report_with(
          left out of figures and metric alike).\n\n"
     ));
     md.push_str(
-        "| run | axis | raw, deg/h | compensated, deg/h | ratio | outside the calibrated region |\n|---|---|---|---|---|---|\n",
+        "| run | axis | raw, deg/h | compensated, deg/h | raw / compensated (above 1: better) | outside the calibrated region |\n|---|---|---|---|---|---|\n",
     );
     let outside_bit = fogtemp_core::Flags::OUTSIDE_HULL.0.trailing_zeros() as usize;
     for r in runs {

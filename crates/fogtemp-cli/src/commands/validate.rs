@@ -133,7 +133,7 @@ pub fn validate(a: ValidateArgs) -> Result<()> {
     let names = run_labels(runs);
     // As wide as the longest name, so that long names do not push the columns out of line.
     let width = names.iter().map(|n| n.chars().count() + 1).max().unwrap_or(0).max(40);
-    println!("{:<width$} {:>4} {:>14} {:>14} {:>8}", "run", "axis", "raw deg/h", "comp deg/h", "ratio");
+    println!("{:<width$} {:>4} {:>14} {:>14} {:>8}", "run", "axis", "raw deg/h", "comp deg/h", "raw/comp");
     for (r, name) in runs.iter().zip(&names) {
         println!(
             "{:<width$} {:>4} {:>14.5} {:>14.5} {:>8.2}",
@@ -164,7 +164,7 @@ pub fn validate(a: ValidateArgs) -> Result<()> {
         println!("\nmodels compared on the same logs (overall, RMS over runs):");
         println!(
             "{:<40} {:>11} {:>8} {:>14} {:>14} {:>8}",
-            "model", "mesh nodes", "terms", "raw deg/h", "comp deg/h", "ratio"
+            "model", "mesh nodes", "terms", "raw deg/h", "comp deg/h", "raw/comp"
         );
         for c in &comparison {
             println!(
