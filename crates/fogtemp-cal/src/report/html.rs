@@ -154,10 +154,23 @@ pub fn markdown_to_html(
     );
     let lines: Vec<&str> = markdown.lines().collect();
     let mut i = 0;
-    let mut paragraph: Vec<&str> = Vec::new();
-    let flush = |paragraph: &mut Vec<&str>, html: &mut String| {
+    // A paragraph's lines, each with whether it ends in a Markdown hard break (two spaces:
+    // the diagnose verdict's lines, which ran together in one paragraph, review14 F13).
+    let mut paragraph: Vec<(&str, bool)> = Vec::new();
+    let flush = |paragraph: &mut Vec<(&str, bool)>, html: &mut String| {
         if !paragraph.is_empty() {
-            html.push_str(&format!("<p>{}</p>\n", inline(&paragraph.join(" "))));
+            // Joined first, so a bold or code span may run across lines; a hard break is a
+            // character no report writes, replaced once the text is HTML.
+            const HARD_BREAK: char = '\u{1}';
+            let mut text = String::new();
+            for (k, (line, _)) in paragraph.iter().enumerate() {
+                if k > 0 {
+                    text.push(if paragraph[k - 1].1 { HARD_BREAK } else { ' ' });
+                }
+                text.push_str(line);
+            }
+            let body = inline(&text).replace(HARD_BREAK, "<br>\n");
+            html.push_str(&format!("<p>{body}</p>\n"));
             paragraph.clear();
         }
     };
@@ -205,7 +218,7 @@ pub fn markdown_to_html(
             }
             html.push_str("</ul>\n");
         } else {
-            paragraph.push(trimmed);
+            paragraph.push((trimmed, line.ends_with("  ")));
         }
         i += 1;
     }
@@ -269,6 +282,19 @@ mod tests {
         let html = markdown_to_html(md, "t", |_| Ok(String::new())).unwrap();
         assert!(html.contains("<pre>  method   CV\n  poly     0.1 &lt;- chosen</pre>"), "{html}");
         assert!(html.contains("<p>after</p>") && !html.contains("```"), "{html}");
+    }
+
+    #[test]
+    fn a_hard_break_ends_a_line_and_plain_lines_join() {
+        // The diagnose verdict: lines ending in two spaces, the rest of a paragraph joined.
+        let md = "**Verdict:** the simulation leaves out a.  \nThese runs hardly tell a from b.  \nThe rest\nof it.\n";
+        let html = markdown_to_html(md, "t", |_| Ok(String::new())).unwrap();
+        assert!(
+            html.contains(
+                "<p><strong>Verdict:</strong> the simulation leaves out a.<br>\nThese runs hardly tell a from b.<br>\nThe rest of it.</p>"
+            ),
+            "{html}"
+        );
     }
 
     #[test]
