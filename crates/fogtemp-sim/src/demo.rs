@@ -527,7 +527,7 @@ pub fn demo_markdown(r: &DemoResult) -> String {
     md.push_str("## Table 1: validation bias stability, deg/h\n\n");
     md.push_str("| model | paper | fogtemp | ratio raw/model (paper) | ratio raw/model (fogtemp) |\n");
     md.push_str("|---|---|---|---|---|\n");
-    md.push_str(&format!("| raw (uncompensated) | {PAPER_RAW_DPH:.4} | {:.4} | 1 | 1 |\n", r.raw_dph));
+    md.push_str(&format!("| raw (uncompensated) | {PAPER_RAW_DPH:.4} | {:.5} | 1 | 1 |\n", r.raw_dph));
     for m in &r.models {
         let paper = match m.key.as_str() {
             "poly" => Some(PAPER_POLY_DPH),
@@ -535,7 +535,7 @@ pub fn demo_markdown(r: &DemoResult) -> String {
             _ => None,
         };
         md.push_str(&format!(
-            "| `{}` | {} | {:.4} | {} | {:.2} |\n",
+            "| `{}` | {} | {:.5} | {} | {:.2} |\n",
             m.key,
             paper.map_or_else(|| "-".into(), |p| format!("{p:.4}")),
             m.compensated_dph,
