@@ -518,6 +518,40 @@ fn gaps_in_the_time_stamps_are_reported_by_fit_validate_and_compensate() {
         md.contains("Gaps in the time stamps:\n\n- ") && md.contains("run0.csv: 1 gap in the time stamps"),
         "{md}"
     );
+    // ... and what was fitted (review14 F9): each term of `fit --json` with its coefficient,
+    // and the calibrated range `inspect --json` gives.
+    let terms = doc["axes"][0]["poly"]["terms"].as_array().unwrap();
+    assert!(
+        !terms.is_empty() && md.contains("| term | coefficient, deg/h | standard error, deg/h | p |"),
+        "{md}"
+    );
+    for t in terms {
+        let name = match (t["temp_power"].as_u64().unwrap(), t["rate_power"].as_u64().unwrap()) {
+            (0, 0) => "1".to_string(),
+            (a, b) => [("x", a), ("y", b)]
+                .iter()
+                .filter(|(_, k)| *k > 0)
+                .map(|(v, k)| if *k == 1 { v.to_string() } else { format!("{v}^{k}") })
+                .collect::<Vec<_>>()
+                .join(" "),
+        };
+        let row = format!(
+            "| {name} | {:.6} | {:.6} |",
+            t["coefficient_dph"].as_f64().unwrap(),
+            t["std_error_dph"].as_f64().unwrap()
+        );
+        assert!(md.contains(&row), "{row} in {md}");
+    }
+    let (inspect, _) = ok_json(&["inspect", "--json", s(&model)]);
+    let p = &inspect["axes"][0]["provenance"];
+    let range = format!(
+        "  - calibrated range: {:.2} .. {:.2} C, {:.4} .. {:.4} C/min",
+        p["temp_min_c"].as_f64().unwrap(),
+        p["temp_max_c"].as_f64().unwrap(),
+        p["rate_min_c_per_min"].as_f64().unwrap(),
+        p["rate_max_c_per_min"].as_f64().unwrap()
+    );
+    assert!(md.contains(&range), "{range} in {md}");
     let gaps: Vec<&Value> = doc["runs"].as_array().unwrap().iter().map(|r| &r["time_gaps"]).collect();
     assert_eq!(gaps[0]["count"], 1, "{doc}");
     assert_eq!(

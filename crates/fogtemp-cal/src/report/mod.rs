@@ -888,11 +888,26 @@ pub fn write_fit_report_for(
         .map(|(axis, r)| {
             let table =
                 r.selection.as_ref().map_or(String::new(), |s| format!("\n\n{}", selection_markdown(axis, s)));
+            let model_axis = model.axis(axis).ok();
+            let range = model_axis.as_ref().map_or(String::new(), calibrated_range_item);
+            let merged = if r.dropped_flat > 0 || r.merged_duplicates > 0 {
+                format!(
+                    "\n  - mesh: {} duplicate points merged, {} points dropped for flat hull triangles",
+                    r.merged_duplicates, r.dropped_flat
+                )
+            } else {
+                String::new()
+            };
+            let terms = match (&r.poly, &model_axis) {
+                (Some(p), Some(a)) => format!("\n\n{}", poly_terms_markdown(axis, p, &a.normalisation)),
+                _ => String::new(),
+            };
             format!(
-                "- axis {axis}: {}, {} calibration points, residual RMS {:.5} deg/h, {} mesh nodes, {} polynomial terms{table}",
+                "- axis {axis}: {}, {} calibration points, residual RMS {:.5} deg/h (max {:.5}), {} mesh nodes, {} polynomial terms{range}{merged}{terms}{table}",
                 r.method.name(),
                 r.points,
                 r.residual_rms_dph,
+                r.residual_max_abs_dph,
                 r.mesh_nodes,
                 r.poly.as_ref().map_or(0, |p| p.terms.len())
             )
@@ -906,6 +921,53 @@ pub fn write_fit_report_for(
         summary.push_str(warned.trim_end());
     }
     write_fit_report(dir, model_path, &model, runs, &summary)
+}
+
+/// The calibrated range of a model axis as a sub-item of its summary line: what the
+/// validation's "outside the calibrated region" notes refer to (review14 F9: the fit report
+/// did not say where the model is valid).
+fn calibrated_range_item(axis: &fogtemp_core::Axis<'_>) -> String {
+    let p = &axis.provenance;
+    let region = axis.region.map_or(String::new(), |r| {
+        format!("; the firmware flags OUTSIDE_HULL beyond the region's {} vertices", r.vertex_count())
+    });
+    format!(
+        "\n  - calibrated range: {:.2} .. {:.2} C, {:.4} .. {:.4} C/min{region}",
+        p.temp_min_c, p.temp_max_c, p.rate_min_c_per_min, p.rate_max_c_per_min
+    )
+}
+
+/// The polynomial's terms as a table (coefficient, standard error, p), in the normalised
+/// inputs the firmware evaluates, with their definition (review14 F9: the report gave only the
+/// number of terms).
+fn poly_terms_markdown(
+    axis: usize,
+    poly: &crate::poly_fit::PolyFit,
+    n: &fogtemp_core::Normalisation,
+) -> String {
+    let power = |name: &str, k: u8| match k {
+        0 => String::new(),
+        1 => name.to_string(),
+        _ => format!("{name}^{k}"),
+    };
+    let mut md = format!(
+        "Polynomial terms, axis {axis}, in x = (T - {:.4} C) x {:.6} /C and y = (dT/dt - {:.6} C/min) x {:.6} min/C \
+         (the stepwise selection's; p from its t-test with the effective sample size {:.1}):\n\n\
+         | term | coefficient, deg/h | standard error, deg/h | p |\n|---|---|---|---|\n",
+        n.temp_offset_c, n.temp_scale_per_c, n.rate_offset_c_per_min, n.rate_scale_per_c_per_min, poly.n_eff
+    );
+    for t in &poly.terms {
+        let name = [power("x", t.temp_power), power("y", t.rate_power)]
+            .into_iter()
+            .filter(|s| !s.is_empty())
+            .collect::<Vec<_>>()
+            .join(" ");
+        let name = if name.is_empty() { "1".to_string() } else { name };
+        // A p below the smallest f64 is 0: shown as a bound, not as "0e0".
+        let p = if t.p_value > 0.0 { format!("{:.2e}", t.p_value) } else { "< 1e-300".to_string() };
+        md.push_str(&format!("| {name} | {:.6} | {:.6} | {p} |\n", t.coefficient_dph, t.std_error_dph));
+    }
+    md
 }
 
 /// Writes `fit-report.md` and its figures into `dir` for a fit: calibration runs
