@@ -1267,6 +1267,56 @@ pub struct ReplaySeries {
     /// Single-reading temperature spikes ([`crate::spikes`]), found but compensated as read
     /// (as the firmware would).
     pub temperature_spikes: AxisSpikes,
+    /// How far the blocks with samples flagged `OUTSIDE_HULL` lie beyond the calibrated
+    /// ranges (`None` when the model records none).
+    pub outside_reach: Option<OutsideReach>,
+}
+
+/// How far a replay went beyond a model axis's calibrated temperature and rate ranges, at the
+/// tracker's features of the blocks with samples outside the calibrated region.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct OutsideReach {
+    /// The calibrated temperature range, deg C.
+    pub temp_range_c: (f64, f64),
+    /// The calibrated rate range, deg C/min.
+    pub rate_range_c_per_min: (f64, f64),
+    /// The furthest temperature beyond the range, deg C (0: within it).
+    pub temp_beyond_c: f64,
+    /// The furthest rate beyond the range, deg C/min (0: within it).
+    pub rate_beyond_c_per_min: f64,
+}
+
+impl OutsideReach {
+    /// Widens the reach by the features `(temp_c, rate_c_per_min)` of a block with samples
+    /// outside the region.
+    fn observe(&mut self, temp_c: f64, rate_c_per_min: f64) {
+        let beyond = |v: f64, (lo, hi): (f64, f64)| (lo - v).max(v - hi).max(0.0);
+        if temp_c.is_finite() {
+            self.temp_beyond_c = self.temp_beyond_c.max(beyond(temp_c, self.temp_range_c));
+        }
+        if rate_c_per_min.is_finite() {
+            self.rate_beyond_c_per_min =
+                self.rate_beyond_c_per_min.max(beyond(rate_c_per_min, self.rate_range_c_per_min));
+        }
+    }
+
+    /// How far outside, for the outside-region note (review14 F5: "85 % extrapolated" read as
+    /// dire for a run 0.5 C past the calibrated maximum).
+    pub fn text(&self) -> String {
+        let (t0, t1) = self.temp_range_c;
+        let (r0, r1) = self.rate_range_c_per_min;
+        if self.temp_beyond_c == 0.0 && self.rate_beyond_c_per_min == 0.0 {
+            return format!(
+                "within the calibrated ranges ({t0:.2} .. {t1:.2} C, {r0:.4} .. {r1:.4} C/min), at combinations of \
+                 temperature and rate no calibration run held"
+            );
+        }
+        format!(
+            "at most {:.2} C beyond the calibrated {t0:.2} .. {t1:.2} C and {:.4} C/min beyond the calibrated \
+             {r0:.4} .. {r1:.4} C/min (the tracker's features)",
+            self.temp_beyond_c, self.rate_beyond_c_per_min
+        )
+    }
 }
 
 impl ReplaySeries {
@@ -1295,6 +1345,8 @@ struct Replayer<'m> {
     previous_s: Option<f64>,
     /// Finds temperature spikes (only reports them: the compensator takes every reading).
     spikes: SpikeGuard,
+    /// The open block has a sample flagged `OUTSIDE_HULL`.
+    block_outside: bool,
 }
 
 impl<'m> Replayer<'m> {
@@ -1302,14 +1354,34 @@ impl<'m> Replayer<'m> {
         let comp = Compensator::new(model, axis)
             .map_err(|source| CalError::Model { path: path.to_path_buf(), source })?;
         let max_gap_s = comp.tracker().max_gap_us() as f64 * 1e-6;
+        let outside_reach = model.axis(axis).ok().map(|a| OutsideReach {
+            temp_range_c: (f64::from(a.provenance.temp_min_c), f64::from(a.provenance.temp_max_c)),
+            rate_range_c_per_min: (
+                f64::from(a.provenance.rate_min_c_per_min),
+                f64::from(a.provenance.rate_max_c_per_min),
+            ),
+            ..OutsideReach::default()
+        });
         let series = ReplaySeries {
             compensating_from_s: f64::NAN,
             gaps: TimeGaps::new(max_gap_s),
+            outside_reach,
             ..ReplaySeries::default()
         };
         let acc = (0, 0.0, 0.0, 0.0, 0);
         let spikes = SpikeGuard::new(max_gap_s);
-        Ok(Self { comp, axis, block_s, series, acc, fullest_block: 0, previous_s: None, spikes })
+        let block_outside = false;
+        Ok(Self {
+            comp,
+            axis,
+            block_s,
+            series,
+            acc,
+            fullest_block: 0,
+            previous_s: None,
+            spikes,
+            block_outside,
+        })
     }
 
     fn step(&mut self, row: &crate::ingest::Row<'_>) {
@@ -1337,6 +1409,7 @@ impl<'m> Replayer<'m> {
         self.acc.2 += f64::from(out.rate_dph);
         self.acc.3 += f64::from(out.bias_dph);
         self.series.samples += 1;
+        self.block_outside |= out.flags.0 & fogtemp_core::Flags::OUTSIDE_HULL.0 != 0;
         for (bit, count) in self.series.flag_counts.iter_mut().enumerate() {
             if out.flags.0 & (1 << bit) != 0 {
                 *count += 1;
@@ -1357,9 +1430,13 @@ impl<'m> Replayer<'m> {
             series.bias_dph.push(bias / n);
             series.temp_c.push(f.map_or(f64::NAN, |f| f64::from(f.temp_c)));
             series.rate_c_per_min.push(f.map_or(f64::NAN, |f| f64::from(f.rate_c_per_min)));
+            if let (true, Some(reach), Some(f)) = (self.block_outside, series.outside_reach.as_mut(), f) {
+                reach.observe(f64::from(f.temp_c), f64::from(f.rate_c_per_min));
+            }
         }
         self.fullest_block = self.fullest_block.max(self.acc.0);
         self.acc = (0, 0.0, 0.0, 0.0, block);
+        self.block_outside = false;
     }
 
     /// The series at the end of the log. A last block cut short by the end (under 90 % of
@@ -1522,7 +1599,11 @@ impl RunValidation {
         }
         let outside = s.flag_counts[Flags::OUTSIDE_HULL.0.trailing_zeros() as usize];
         if outside > 0 {
-            notes.push(outside_region_note(&name, outside, s.samples, "flag OUTSIDE_HULL"));
+            let mut note = outside_region_note(&name, outside, s.samples, "flag OUTSIDE_HULL");
+            if let Some(reach) = &s.outside_reach {
+                note.push_str(&format!(", {}", reach.text()));
+            }
+            notes.push(note);
         }
         notes.extend(self.worse_than_raw_note(&name));
         notes.extend(self.sparse_windows_note(&name));
@@ -1827,6 +1908,29 @@ mod tests {
         assert_eq!(share_percent(0, 7200), "0.0");
         assert_eq!(share_percent(250, 6250), "4.0");
         assert_eq!(share_percent(7200, 7200), "100.0");
+    }
+
+    #[test]
+    fn the_outside_reach_is_the_furthest_feature_beyond_the_calibrated_ranges() {
+        let mut reach = OutsideReach {
+            temp_range_c: (-35.0, 62.55),
+            rate_range_c_per_min: (-0.08, 0.54),
+            ..OutsideReach::default()
+        };
+        assert!(reach
+            .text()
+            .starts_with("within the calibrated ranges (-35.00 .. 62.55 C, -0.0800 .. 0.5400 C/min)"));
+        reach.observe(63.06, 0.1);
+        reach.observe(62.9, -0.10);
+        reach.observe(f64::NAN, f64::NAN);
+        assert!(
+            (reach.temp_beyond_c - 0.51).abs() < 1e-9 && (reach.rate_beyond_c_per_min - 0.02).abs() < 1e-9
+        );
+        assert_eq!(
+            reach.text(),
+            "at most 0.51 C beyond the calibrated -35.00 .. 62.55 C and 0.0200 C/min beyond the calibrated \
+             -0.0800 .. 0.5400 C/min (the tracker's features)"
+        );
     }
 
     #[test]
