@@ -153,9 +153,18 @@ fn rate_label(c: &MapCell) -> String {
 /// index.
 fn plot_map(path: &Path, cells: &[MapCell], offset_dph: f64, title: &str) -> Result<(), CalError> {
     let z = |c: &MapCell| if c.hac_se_dph > 0.0 { (c.mean_dph - offset_dph) / c.hac_se_dph } else { 0.0 };
-    write_svg(path, (1100, 640), |root| {
+    // The outline's test in the figure itself (review14 F7: only the text under it said so,
+    // and the limit was printed nowhere).
+    let outline = format!(
+        "colour: z relative to the offset; black outline: |z against 0| above {:.2} (5 %, Bonferroni over {} cells)",
+        crate::locate::bonferroni_z(cells.len()),
+        cells.len()
+    );
+    write_svg(path, (1100, 660), |root| {
         root.fill(&WHITE).map_err(|e| io_err(path, e))?;
         let (root, key) = root.split_horizontally(980);
+        let root = root.titled(title, ("sans-serif", 20)).map_err(|e| io_err(path, e))?;
+        let root = root.titled(&outline, ("sans-serif", 14)).map_err(|e| io_err(path, e))?;
         draw_z_key(&key, path)?;
         let (t0, t1) = range(cells.iter().flat_map(|c| [c.temp_lo_c, c.temp_hi_c]));
         let bins = cells.iter().map(|c| c.rate_bin).max().unwrap_or(0) + 1;
@@ -166,7 +175,6 @@ fn plot_map(path: &Path, cells: &[MapCell], offset_dph: f64, title: &str) -> Res
             labels[c.rate_bin] = rate_label(c);
         }
         let mut chart = ChartBuilder::on(&root)
-            .caption(title, ("sans-serif", 20))
             .margin(12)
             .x_label_area_size(40)
             .y_label_area_size(110)
@@ -614,8 +622,11 @@ fn location_markdown(d: &Diagnosis, figures: OptionalFigures) -> String {
             md,
             "\n![map](map.svg)\n\nColour: the z (HAC) of each cell's mean residual relative to the overall offset \
              ({:+.5} deg/h), so the map shows where the residual departs from it; outlined: the cells significant \
-             against 0 (the table below and the statements).",
-            loc.overall_offset_dph
+             against 0 (the table below and the statements), |z| above {:.2}, the two-sided 5 % limit Bonferroni-corrected \
+             over the {} cells.",
+            loc.overall_offset_dph,
+            crate::locate::bonferroni_z(loc.map.len()),
+            loc.map.len()
         );
     } else {
         let _ = writeln!(
@@ -623,11 +634,11 @@ fn location_markdown(d: &Diagnosis, figures: OptionalFigures) -> String {
             "\nNo (T, dT/dt) cell holds enough short means for the map (too few short means per cell: sparse or bursty logs)."
         );
     }
-    let _ = writeln!(md, "\n| T, deg C | dT/dt, deg C/min | n | runs | mean, deg/h | HAC SE | z | significant |\n|---|---|---|---|---|---|---|---|");
+    let _ = writeln!(md, "\n| T, deg C | dT/dt, deg C/min | n | runs | mean, deg/h | HAC SE | z against 0 | significant |\n|---|---|---|---|---|---|---|---|");
     for c in &loc.map {
         let _ = writeln!(
             md,
-            "| {:.1}..{:.1} | {} | {} | {} | {:+.5} | {:.5} | {:+.1} | {} |",
+            "| {:.1}..{:.1} | {} | {} | {} | {:+.5} | {:.5} | {:+.2} | {} |",
             c.temp_lo_c,
             c.temp_hi_c,
             rate_label(c),

@@ -488,10 +488,12 @@ pub fn plot_allan(path: &Path, title: &str, curves: &[(String, Vec<AllanPoint>)]
             .draw()
             .map_err(|e| plot_err(path, e))?;
         for (i, (name, curve)) in curves.iter().enumerate() {
-            // Raw grey and compensated blue, as in the bars figure beside it.
+            // Raw grey and compensated blue, as in the bars figure beside it; the diagnosis's
+            // residual before its model grey and after it blue likewise (review14 F8: before
+            // was blue there, after orange).
             let colour = match name.as_str() {
-                "raw" => figures::RAW_GREY,
-                "compensated" => run_colour(0),
+                "raw" | "residual before" => figures::RAW_GREY,
+                "compensated" | "residual after the final model" => run_colour(0),
                 _ => run_colour(i),
             };
             chart
