@@ -836,6 +836,49 @@ mod tests {
         assert_eq!(median_step(&[1.0, 1.0, 0.5]), None);
     }
 
+    /// A log read in two streaming passes gives the document its rows give as arrays
+    /// (`AllanDocument::new`), bit for bit: here with two gaps, a left-out start (the rows
+    /// before the first with a positive second column, as a compensator's start-up) and a
+    /// stretch of 150 000 samples, so that sizes above the exact limit are in the curve.
+    #[test]
+    fn a_log_read_twice_gives_the_arrays_document() {
+        let dir = std::env::temp_dir().join(format!("fogtemp-allan-stream-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).expect("temp dir");
+        let path = dir.join("static.csv");
+        let mut csv = String::from("time_s,gyro_dph,gyro2_dph\n");
+        let noise = white(21, 170_000, 0.3, 2.0);
+        let mut t_ms = 0u64;
+        for (k, r) in noise.iter().enumerate() {
+            t_ms += if k == 9_000 || k == 12_000 { 700 } else { 10 };
+            let flag = if k < 500 { -1.0 } else { 1.0 };
+            csv.push_str(&format!("{}.{:03},{r:.6},{flag}\n", t_ms / 1000, t_ms % 1000));
+        }
+        std::fs::write(&path, csv).expect("write log");
+        let mut options = IngestOptions::default();
+        options.format.temp_columns.clear();
+        options.format.gyro_columns = vec!["gyro_dph".into(), "gyro2_dph".into()];
+        let columns = vec!["gyro_dph".to_string()];
+        let scan = scan_log(&path, &options, |row| row.gyros_dph.get(1).is_some_and(|f| *f > 0.0), |_, _| {})
+            .expect("pass 1");
+        assert_eq!(scan.start_row, 500);
+        let streamed = allan_of_scanned_log(&path, &options, &columns, &scan, DEFAULT_EXACT_LIMIT, |_, _| {})
+            .expect("pass 2")
+            .expect("a period");
+        let series = crate::ingest::read_gyro_series(&path, &options, |_, _| {}).expect("read");
+        let _ = std::fs::remove_dir_all(&dir);
+        let arrays = AllanDocument::new(
+            &path,
+            &columns,
+            &series.time_s[500..],
+            &[series.gyros_dph[0][500..].to_vec()],
+        )
+        .expect("a period");
+        assert_eq!(streamed, arrays);
+        assert_eq!(streamed.gaps, 2);
+        assert_eq!(streamed.axes[0].samples, 169_500);
+        assert!(streamed.axes[0].curve.iter().any(|p| p.tau_s > DEFAULT_EXACT_LIMIT as f64 * 0.01));
+    }
+
     /// The in-memory median: the positive step at index len/2 of the sorted steps.
     fn sorted_median(times: &[f64]) -> f64 {
         let mut steps: Vec<f64> = times.windows(2).map(|w| w[1] - w[0]).filter(|d| *d > 0.0).collect();
