@@ -301,7 +301,7 @@ impl AllanAccumulator {
             if j & (level.ring.stride - 1) != 0 {
                 break;
             }
-            let newest = level.ring.len - 1;
+            let newest = level.ring.len.saturating_sub(1);
             for cluster in level.clusters.iter_mut() {
                 if 2 * cluster.steps > newest {
                     break;
@@ -478,13 +478,13 @@ impl StepMedian {
             None => {
                 *self.exact.entry(step_s.to_bits()).or_insert(0) += count;
                 if self.exact.len() > MAX_DISTINCT_STEPS {
-                    self.to_bins();
+                    self.switch_to_bins();
                 }
             }
         }
     }
 
-    fn to_bins(&mut self) {
+    fn switch_to_bins(&mut self) {
         let mut bins = LogBins { width_ln: STEP_BIN_RELATIVE_WIDTH.ln_1p(), counts: HashMap::new() };
         for (bits, count) in std::mem::take(&mut self.exact) {
             bins.add(f64::from_bits(bits), count);
