@@ -13,12 +13,10 @@ use std::path::Path;
 use fogtemp_core::{Model, OutsidePolicy};
 use serde::Serialize;
 
+use crate::allan_stream::{median_step, AllanAccumulator};
 use crate::calibrate::{AxisFitReport, FittedModel, RunFeatures, RunValidation, Validation};
 use crate::ingest::{BadRow, IngestReport};
-use crate::metrics::{
-    allan_deviation_in_segments, fit_noise_terms, gap_free_ranges, AllanPoint, BiasStabilityOptions,
-    NoiseTerms,
-};
+use crate::metrics::{fit_noise_terms, gap_free_ranges, AllanPoint, BiasStabilityOptions, NoiseTerms};
 
 /// Lower-case hex of a byte string (the model's input digest).
 pub fn hex(bytes: &[u8]) -> String {
@@ -708,7 +706,7 @@ pub struct MeshNodeDocument {
 }
 
 /// What `allan --json` says the curve is.
-pub const ALLAN_DEFINITION: &str = "overlapping Allan deviation (IEEE Std 952) of the gyro, from the f64 angle cumsum with the mean removed, within the stretches between gaps (time steps longer than 1.5 times the median sample period; no cluster spans a gap); N, B, K by non-negative least squares on sigma^2; bias_instability_at_most_dph = the curve's minimum / 0.664 (the flicker floor lies under the curve)";
+pub const ALLAN_DEFINITION: &str = "overlapping Allan deviation (IEEE Std 952) of the gyro, from the f64 angle cumsum (the rate relative to the mean of a stretch's first 1024 samples; the second difference cancels a constant rate), within the stretches between gaps (time steps longer than 1.5 times the median sample period; no cluster spans a gap); N, B, K by non-negative least squares on sigma^2; bias_instability_at_most_dph = the curve's minimum / 0.664 (the flicker floor lies under the curve); cluster sizes up to 65536 samples from every overlapping cluster, larger ones from clusters started every d samples (d the smallest power of two with m <= 65536 d, m rounded down to a multiple of d, tau from the rounded m; partially overlapping estimator, NIST SP 1065 section 5.2.4); sample period = median of the positive time steps (with more than 65536 distinct steps, the centre of its bin of relative width 1e-6)";
 
 /// `allan --json`: the Allan deviation of every gyro column of a log and its noise terms.
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -726,34 +724,50 @@ pub struct AllanDocument {
 impl AllanDocument {
     /// The document of a log's gyro `columns`, sampled at `times_s` (s) with one series per
     /// column in `series_dph` (deg/h). `None` when no two times increase (no sample period).
+    /// The same accumulator and median as the streaming route
+    /// ([`crate::allan_stream::allan_of_scanned_log`]), so a log and its rows as arrays give
+    /// the same document.
     pub fn new(log: &Path, columns: &[String], times_s: &[f64], series_dph: &[Vec<f64>]) -> Option<Self> {
         let dt_s = median_step(times_s)?;
         let gaps = times_s.windows(2).filter(|w| (w[1] - w[0]) > 1.5 * dt_s).count();
-        let axes = series_dph
+        let samples = series_dph.first().map_or(0, Vec::len);
+        let curves = series_dph
             .iter()
             .zip(columns)
-            .enumerate()
-            .map(|(axis, (s, column))| {
-                let segments: Vec<&[f64]> = gap_free_ranges(times_s, dt_s).filter_map(|r| s.get(r)).collect();
-                let curve = allan_deviation_in_segments(&segments, dt_s);
-                let minimum = curve
-                    .iter()
-                    .filter(|p| p.adev_dph.is_finite() && p.relative_error <= MINIMUM_RELATIVE_ERROR)
-                    .min_by(|a, b| a.adev_dph.total_cmp(&b.adev_dph));
-                AllanAxisDocument {
-                    axis,
-                    column: column.clone(),
-                    sample_period_s: dt_s,
-                    samples: s.len(),
-                    noise: fit_noise_terms(&curve),
-                    adev_min_dph: minimum.map_or(f64::NAN, |p| p.adev_dph),
-                    adev_min_tau_s: minimum.map_or(f64::NAN, |p| p.tau_s),
-                    bias_instability_at_most_dph: minimum.map_or(f64::NAN, |p| p.adev_dph / FLICKER_FLOOR),
-                    curve,
+            .map(|(s, _)| {
+                let mut accumulator = AllanAccumulator::new(dt_s);
+                for range in gap_free_ranges(times_s, dt_s) {
+                    for &rate_dph in s.get(range).unwrap_or_default() {
+                        accumulator.push(rate_dph);
+                    }
+                    accumulator.end_segment();
                 }
+                accumulator.finish()
             })
             .collect();
-        Some(Self { log: log.display().to_string(), definition: ALLAN_DEFINITION, gaps, axes })
+        Some(Self::from_curves(log, columns, dt_s, gaps, samples, curves))
+    }
+
+    /// The document from the curves already computed (one per column, in order; the
+    /// streaming route): the sample period `sample_period_s`, the `gaps` split at and the
+    /// `samples` per column.
+    pub fn from_curves(
+        log: &Path,
+        columns: &[String],
+        sample_period_s: f64,
+        gaps: usize,
+        samples: usize,
+        curves: Vec<Vec<AllanPoint>>,
+    ) -> Self {
+        let axes = curves
+            .into_iter()
+            .zip(columns)
+            .enumerate()
+            .map(|(axis, (curve, column))| {
+                AllanAxisDocument::new(axis, column, sample_period_s, samples, curve)
+            })
+            .collect();
+        Self { log: log.display().to_string(), definition: ALLAN_DEFINITION, gaps, axes }
     }
 }
 
@@ -792,6 +806,25 @@ const FLICKER_FLOOR: f64 = 0.664;
 const MINIMUM_RELATIVE_ERROR: f64 = 0.25;
 
 impl AllanAxisDocument {
+    /// The document of one column's `curve`: its noise terms and minimum.
+    fn new(axis: usize, column: &str, sample_period_s: f64, samples: usize, curve: Vec<AllanPoint>) -> Self {
+        let minimum = curve
+            .iter()
+            .filter(|p| p.adev_dph.is_finite() && p.relative_error <= MINIMUM_RELATIVE_ERROR)
+            .min_by(|a, b| a.adev_dph.total_cmp(&b.adev_dph));
+        Self {
+            axis,
+            column: column.to_string(),
+            sample_period_s,
+            samples,
+            noise: fit_noise_terms(&curve),
+            adev_min_dph: minimum.map_or(f64::NAN, |p| p.adev_dph),
+            adev_min_tau_s: minimum.map_or(f64::NAN, |p| p.tau_s),
+            bias_instability_at_most_dph: minimum.map_or(f64::NAN, |p| p.adev_dph / FLICKER_FLOOR),
+            curve,
+        }
+    }
+
     /// The note for noise terms the fit put at zero (`None` when all three are positive or
     /// unknown): a term at its bound is not resolved by the curve, usually because another
     /// term or a drift covers it; for B the curve's minimum still bounds it.
@@ -840,15 +873,4 @@ impl AllanAxisDocument {
             )
         })
     }
-}
-
-/// Median of the positive steps between consecutive times.
-fn median_step(times: &[f64]) -> Option<f64> {
-    let mut steps: Vec<f64> = times.windows(2).map(|w| w[1] - w[0]).filter(|d| *d > 0.0).collect();
-    if steps.is_empty() {
-        return None;
-    }
-    let mid = steps.len() / 2;
-    let (_, m, _) = steps.select_nth_unstable_by(mid, |a, b| a.total_cmp(b));
-    Some(*m)
 }

@@ -49,6 +49,7 @@
 //! # }
 //! ```
 
+pub mod allan_stream;
 pub mod arrays;
 pub mod axis_columns;
 pub mod blob;

@@ -2,6 +2,7 @@
 
 use std::path::{Path, PathBuf};
 
+use fogtemp_cal::allan_stream;
 use fogtemp_cal::arrays::{extract_run_arrays, RunArrays};
 use fogtemp_cal::axis_columns::TimeNamed;
 use fogtemp_cal::calibrate::{self, CalibrationConfig, Method, RunFeatures, Validation};
@@ -1073,14 +1074,29 @@ pub fn allan<'py>(
     let ingest: IngestOptions = options::ingest(&mut o)?;
     o.finish()?;
     let path: PathBuf = log.extract()?;
-    let mut bar = Progress::new(format!("allan {}", file_name(&path)), progress);
-    let series = py.detach(|| fogtemp_cal::ingest::read_gyro_series(&path, &ingest, |b, r| bar.rows(b, r)));
+    // Two passes in memory that does not grow with the log: the median sample period, then
+    // the curves (the same document as the arrays of the log would give).
+    let mut bar = Progress::new(format!("allan 1/2 {}", file_name(&path)), progress);
+    let scan = py.detach(|| allan_stream::scan_log(&path, &ingest, |_| true, |b, r| bar.rows(b, r)));
     bar.finish();
     bar.boundary(py)?;
-    let series = series.map_err(errors::cal)?;
-    warn_skipped(py, &series.report, false)?;
-    let doc = py
-        .detach(|| AllanDocument::new(&path, &ingest.format.gyro_columns, &series.time_s, &series.gyros_dph))
+    let scan = scan.map_err(errors::cal)?;
+    warn_skipped(py, &scan.report, false)?;
+    let mut bar = Progress::new(format!("allan 2/2 {}", file_name(&path)), progress);
+    let doc = py.detach(|| {
+        allan_stream::allan_of_scanned_log(
+            &path,
+            &ingest,
+            &ingest.format.gyro_columns,
+            &scan,
+            allan_stream::DEFAULT_EXACT_LIMIT,
+            |b, r| bar.rows(b, r),
+        )
+    });
+    bar.finish();
+    bar.boundary(py)?;
+    let doc = doc
+        .map_err(errors::cal)?
         .ok_or_else(|| errors::value(format!("{}: the log needs at least two rows", path.display())))?;
     for note in doc.axes.iter().filter_map(AllanAxisDocument::too_short_note) {
         progress::warn(py, &note)?;

@@ -4,7 +4,7 @@ use std::io::{BufRead, BufReader, Read};
 use std::path::Path;
 
 use anyhow::{Context, Result};
-use fogtemp_cal::documents::AllanDocument;
+use fogtemp_cal::allan_stream::{allan_of_scanned_log, scan_log, DEFAULT_EXACT_LIMIT};
 use fogtemp_cal::ingest::LogFormat;
 use fogtemp_core::Flags;
 
@@ -31,26 +31,34 @@ pub fn allan(a: AllanArgs) -> Result<()> {
     let gyro_columns = ingest.format.gyro_columns.clone();
     let flag_columns = compensate_flag_columns(&a.log, &ingest.format);
     ingest.format.gyro_columns.extend(flag_columns.iter().cloned());
-    let bar = RowProgress::new(&a.log, "allan");
-    let mut series = fogtemp_cal::ingest::read_gyro_series(&a.log, &ingest, |b, r| bar.update(b, r))?;
-    bar.finish_and_clear();
-    report_skipped(&series.report);
+    // Two passes, in memory that does not grow with the log: the first finds the first
+    // compensated row and the median sample period, the second the curves.
     let factor = ingest.format.gyro_unit.dph() * ingest.format.gyro_scale;
-    let flags: Vec<Vec<f64>> = series.gyros_dph.split_off(gyro_columns.len());
-    let start = first_compensated_row(&flags, factor);
-    if start > 0 {
+    let axes = gyro_columns.len();
+    let bar = RowProgress::new(&a.log, "allan 1/2");
+    let scan = scan_log(
+        &a.log,
+        &ingest,
+        |row| !warming_up(row.gyros_dph.get(axes..).unwrap_or_default(), factor),
+        |b, r| bar.update(b, r),
+    )?;
+    bar.finish_and_clear();
+    report_skipped(&scan.report);
+    if scan.start_row > 0 {
         eprintln!(
-            "note: {}: the first {start} rows ({:.1} s) are the compensator's start-up (flag WARMING_UP in {}: its output is the raw gyro, then it steps by the bias): the Allan deviation starts at the first compensated row, as validate's does",
+            "note: {}: the first {} rows ({:.1} s) are the compensator's start-up (flag WARMING_UP in {}: its output is the raw gyro, then it steps by the bias): the Allan deviation starts at the first compensated row, as validate's does",
             a.log.display(),
-            series.time_s.get(start).copied().unwrap_or(f64::NAN) - series.time_s.first().copied().unwrap_or(0.0),
+            scan.start_row,
+            scan.start_time_s - scan.first_time_s,
             flag_columns.join(", ")
         );
     }
-    let time_s = series.time_s.get(start..).unwrap_or_default();
-    let gyros_dph: Vec<Vec<f64>> =
-        series.gyros_dph.iter().map(|g| g.get(start..).unwrap_or_default().to_vec()).collect();
-    let doc = AllanDocument::new(&a.log, &gyro_columns, time_s, &gyros_dph)
-        .with_context(|| format!("{}: the log needs at least two rows", a.log.display()))?;
+    let bar = RowProgress::new(&a.log, "allan 2/2");
+    let doc = allan_of_scanned_log(&a.log, &ingest, &gyro_columns, &scan, DEFAULT_EXACT_LIMIT, |b, r| {
+        bar.update(b, r);
+    });
+    bar.finish_and_clear();
+    let doc = doc?.with_context(|| format!("{}: the log needs at least two rows", a.log.display()))?;
     if a.json {
         return print_json(&doc);
     }
@@ -143,15 +151,11 @@ fn first_line(log: &Path) -> Option<String> {
     Some(line)
 }
 
-/// The first row where no flag column has `WARMING_UP` set (the row count when every row
-/// has; 0 without flag columns). `factor` is the unit factor the flags were read with.
-fn first_compensated_row(flags: &[Vec<f64>], factor: f64) -> usize {
-    let rows = flags.first().map_or(0, Vec::len);
-    let warming = |row: usize| {
-        flags.iter().any(|f| {
-            let bits = (f[row] / factor).round();
-            bits.is_finite() && (bits as u64) & u64::from(Flags::WARMING_UP.0) != 0
-        })
-    };
-    (0..rows).find(|&row| !warming(row)).unwrap_or(rows)
+/// Whether a row's `flags` (compensate's flag columns, read with the unit factor `factor`)
+/// have `WARMING_UP` set in any column (false without flag columns).
+fn warming_up(flags: &[f64], factor: f64) -> bool {
+    flags.iter().any(|f| {
+        let bits = (f / factor).round();
+        bits.is_finite() && (bits as u64) & u64::from(Flags::WARMING_UP.0) != 0
+    })
 }
