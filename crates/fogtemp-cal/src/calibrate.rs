@@ -1634,7 +1634,7 @@ impl RunValidation {
             return None;
         }
         let from = self.series.first_compensated_block(1.0);
-        let step_s = crate::metrics::median_positive_step(self.series.time_s.get(from..)?)?;
+        let step_s = crate::allan_stream::median_step(self.series.time_s.get(from..)?)?;
         let data_s = w.samples_used as f64 / w.used as f64 * step_s;
         let tau = w.tau_s;
         (data_s < 0.5 * tau).then(|| {

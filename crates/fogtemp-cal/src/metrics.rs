@@ -98,17 +98,6 @@ pub fn fullness_threshold(counts: impl Iterator<Item = usize>) -> usize {
     ((fullest as f64 * 0.9).ceil() as usize).max(1)
 }
 
-/// The median of the positive steps between consecutive `times_s` (`None` without one).
-pub fn median_positive_step(times_s: &[f64]) -> Option<f64> {
-    let mut steps: Vec<f64> = times_s.windows(2).map(|w| w[1] - w[0]).filter(|d| *d > 0.0).collect();
-    if steps.is_empty() {
-        return None;
-    }
-    let mid = steps.len() / 2;
-    let (_, median, _) = steps.select_nth_unstable_by(mid, |a, b| a.total_cmp(b));
-    Some(*median)
-}
-
 /// Bias stability of one run, deg/h (NaN with fewer than 2 windows).
 pub fn bias_stability(times_s: &[f64], values: &[f64], options: &BiasStabilityOptions) -> f64 {
     stability_of_means(window_means(times_s, values, options).0, options)
