@@ -1563,6 +1563,14 @@ fn outputs_never_replace_inputs_and_logs_count_once() {
     ] {
         expect_failure(&args, dir.path(), Some(&out), &["is named twice", "its run would count twice"]);
     }
+    // The same path twice is said once, not "(as a.csv and as a.csv)".
+    let stderr = expect_failure(
+        &args!["fit", "--method", "poly", "--out", &out, &a, &a],
+        dir.path(),
+        Some(&out),
+        &["is named twice (given twice)"],
+    );
+    assert!(!stderr.contains(" and as "), "{stderr}");
     run_ok(args!["fit", "--method", "poly", "--out", &out, &sub]);
 }
 

@@ -588,6 +588,17 @@ impl Selection {
         for f in &self.skipped_folds {
             out.push_str(&format!("  fold '{}' skipped: {}\n", f.group, f.reason));
         }
+        if !self.skipped_folds.is_empty() {
+            // What a skipped fold means for the choice (review14 F5: the folds of the hottest
+            // and coldest runs were skipped in every testbed case and nothing said so).
+            let runs = if self.skipped_folds.len() == 1 { "its runs" } else { "their runs" };
+            out.push_str(&format!(
+                "  the choice rests on the {} scored folds: cross-validation did not test the methods where {runs} \
+                 lie outside the others' region (often the ends of the temperature range); validation runs there \
+                 show how the chosen one does\n",
+                self.folds
+            ));
+        }
         out
     }
 }

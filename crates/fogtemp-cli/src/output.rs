@@ -82,8 +82,15 @@ pub fn expand_logs(args: &[PathBuf]) -> Result<Vec<PathBuf>> {
             let origin =
                 if log == *arg { format!("as {}", arg.display()) } else { format!("in {}", arg.display()) };
             if let Some((_, first)) = seen.iter().find(|(c, _)| *c == canonical) {
+                // The same path given twice is said once (review13 F13: "x.csv is named twice
+                // (as x.csv and as x.csv)").
+                let how = if *first == origin {
+                    "given twice".to_string()
+                } else {
+                    format!("{first} and {origin}")
+                };
                 bail!(
-                    "{} is named twice ({first} and {origin}): its run would count twice; name each log once",
+                    "{} is named twice ({how}): its run would count twice; name each log once",
                     log.display()
                 );
             }

@@ -239,6 +239,8 @@ mod tests {
             "{md}"
         );
         assert!(md.contains("- fold 'd' skipped: no windows inside\n"), "{md}");
+        assert!(md.contains("- the choice rests on the "), "what a skipped fold means: {md}");
+        assert!(md.contains("cross-validation did not test the methods where its runs lie outside"), "{md}");
     }
 
     #[test]
