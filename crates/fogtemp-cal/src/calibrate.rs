@@ -1559,7 +1559,7 @@ impl RunValidation {
         if !(raw.is_finite() && comp.is_finite()) || windows < 2 {
             return None;
         }
-        let relative_se = 1.0 / (2.0 * (windows as f64 - 1.0)).sqrt();
+        let relative_se = self.windows.relative_standard_error()?;
         (comp > raw * (1.0 + 2.0 * relative_se)).then(|| {
             format!(
                 "{name}: compensation made the bias stability worse: {comp:.5} deg/h against {raw:.5} raw \
@@ -1744,6 +1744,14 @@ pub struct MetricWindows {
     pub samples_used: usize,
     /// The windows' length, s (0: unknown).
     pub tau_s: f64,
+}
+
+impl MetricWindows {
+    /// The relative standard error of a bias stability from these windows: `1 / sqrt(2 (n - 1))`
+    /// for the standard deviation of `n` independent, normal window means; `None` under 2.
+    pub fn relative_standard_error(&self) -> Option<f64> {
+        (self.used >= 2).then(|| 1.0 / (2.0 * (self.used as f64 - 1.0)).sqrt())
+    }
 }
 
 /// [`Validation::per_axis`] of `runs`.

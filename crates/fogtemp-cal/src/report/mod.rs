@@ -649,18 +649,23 @@ pub fn write_validation_report_with(
          left out of figures and metric alike).\n\n"
     ));
     md.push_str(
-        "| run | axis | raw, deg/h | compensated, deg/h | raw / compensated (above 1: better) | outside the calibrated region |\n|---|---|---|---|---|---|\n",
+        "| run | axis | raw, deg/h | compensated, deg/h | raw / compensated (above 1: better) | windows (scatter of each figure) | outside the calibrated region |\n|---|---|---|---|---|---|---|\n",
     );
     let outside_bit = fogtemp_core::Flags::OUTSIDE_HULL.0.trailing_zeros() as usize;
     for r in runs {
         let outside = r.series.flag_counts.get(outside_bit).copied().unwrap_or(0);
+        let scatter = r
+            .windows
+            .relative_standard_error()
+            .map_or(String::new(), |se| format!(" (+-{:.0} %)", 100.0 * se));
         md.push_str(&format!(
-            "| {} | {} | {:.5} | {:.5} | {:.2} | {} % |\n",
+            "| {} | {} | {:.5} | {:.5} | {:.2} | {}{scatter} | {} % |\n",
             file_name(&r.path),
             r.axis,
             r.raw_bias_stability_dph,
             r.compensated_bias_stability_dph,
             r.raw_bias_stability_dph / r.compensated_bias_stability_dph,
+            r.windows.used,
             crate::calibrate::share_percent(outside, r.series.samples)
         ));
     }
@@ -668,7 +673,7 @@ pub fn write_validation_report_with(
     if per_axis.len() > 1 {
         for (axis, raw, comp) in &per_axis {
             md.push_str(&format!(
-                "| overall of axis {axis} (RMS over its runs) | {axis} | {raw:.5} | {comp:.5} | {:.2} | |\n",
+                "| overall of axis {axis} (RMS over its runs) | {axis} | {raw:.5} | {comp:.5} | {:.2} | | |\n",
                 raw / comp
             ));
         }
@@ -676,11 +681,19 @@ pub fn write_validation_report_with(
     let label =
         if per_axis.len() > 1 { "overall (RMS over runs and axes)" } else { "overall (RMS over runs)" };
     md.push_str(&format!(
-        "| **{label}** | | **{:.5}** | **{:.5}** | **{:.2}** | |\n\n",
+        "| **{label}** | | **{:.5}** | **{:.5}** | **{:.2}** | | |\n\n",
         overall.0,
         overall.1,
         overall.0 / overall.1
     ));
+    // How far one run's figure moves with its noise alone (review14 F4: per-run ratios of
+    // 0.87-0.96 read as compensation making things worse, within a run's ~8 % scatter).
+    md.push_str(
+        "Scatter: the relative standard error of one run's bias stability from its averaging windows, \
+         1 / sqrt(2 (n - 1)) for n independent window means; raw and compensated figures, and so their ratio, \
+         move by about that with the noise alone, so a run's ratio within about twice it of 1 says neither \
+         better nor worse.\n\n",
+    );
     md.push_str(&bullet_section(
         "Samples the model did not compensate as calibrated (\"outside\": the share of a run's samples flagged \
          OUTSIDE_HULL, where the model is extrapolated):",
