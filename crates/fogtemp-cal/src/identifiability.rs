@@ -141,11 +141,15 @@ pub struct Warning {
     pub message: String,
     /// The numbers behind it, by name (thresholds included).
     pub values: BTreeMap<&'static str, f64>,
+    /// The logs it names, in its order (`continued_logs`; empty, and absent from the JSON,
+    /// for the others), so a script need not parse the message (review13 F13).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub logs: Vec<String>,
 }
 
 impl Warning {
     fn new(axis: usize, kind: WarningKind, message: String, values: &[(&'static str, f64)]) -> Self {
-        Self { axis, kind, message, values: values.iter().copied().collect() }
+        Self { axis, kind, message, values: values.iter().copied().collect(), logs: Vec::new() }
     }
 }
 
@@ -180,17 +184,19 @@ fn continued_logs(runs: &[RunFeatures], max_gap_s: f64) -> Vec<Warning> {
     crate::continued::continued_logs(runs.iter().map(|r| &r.ingest), max_gap_s)
         .into_iter()
         .map(|found| {
-            let (logs, largest_step_s) = match &found {
+            let (named, largest_step_s) = match &found {
                 crate::continued::Continued::Chain { parts, largest_step_s, .. } => {
-                    (parts.len(), *largest_step_s)
+                    (parts.clone(), *largest_step_s)
                 }
                 crate::continued::Continued::Unpaired { later, earlier, largest_step_s } => {
-                    (later.len() + earlier.len(), *largest_step_s)
+                    (earlier.iter().chain(later).cloned().collect(), *largest_step_s)
                 }
             };
             let values =
-                [("logs", logs as f64), ("largest_step_s", largest_step_s), ("max_gap_s", max_gap_s)];
-            Warning::new(0, WarningKind::ContinuedLogs, found.message(), &values)
+                [("logs", named.len() as f64), ("largest_step_s", largest_step_s), ("max_gap_s", max_gap_s)];
+            let mut warning = Warning::new(0, WarningKind::ContinuedLogs, found.message(), &values);
+            warning.logs = named.iter().map(|p| p.display().to_string()).collect();
+            warning
         })
         .collect()
 }

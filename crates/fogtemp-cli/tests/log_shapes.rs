@@ -656,6 +656,13 @@ fn a_run_split_over_files_is_named_by_fit_and_validate() {
         (warned[0]["values"]["logs"].as_f64(), warned[0]["values"]["largest_step_s"].as_f64()),
         (Some(2.0), Some(1.0))
     );
+    // The logs themselves, in order, for a script (review13 F13).
+    assert_eq!(warned[0]["logs"], serde_json::json!([s(&logs[2]), s(&logs[3])]), "{doc}");
+    assert!(doc["warnings"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .all(|w| w["kind"] == "continued_logs" || w.get("logs").is_none()));
     let expected = format!(
         "{} and {} follow one another in time (each starts at most 1 s after",
         s(&logs[2]),
