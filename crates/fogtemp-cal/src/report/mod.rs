@@ -437,10 +437,17 @@ pub fn log_ticks(lo: f64, hi: f64) -> Vec<f64> {
     };
     let coarse = ticks(&[1.0, 2.0, 5.0]);
     if coarse.len() >= 3 {
-        coarse
-    } else {
-        ticks(&[1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0])
+        return coarse;
     }
+    let every = ticks(&[1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0]);
+    if every.len() >= 2 {
+        return every;
+    }
+    // A range holding at most one multiple (psim-tvc's burst Allan deviations, 12.6 to 19.7
+    // deg/h, were labelled "10" alone, below the curves: review14 F11): steps of 0.2 in the
+    // mantissa.
+    let fine: Vec<f64> = (5..50).map(|k| f64::from(k) * 0.2).collect();
+    ticks(&fine)
 }
 
 /// Whether [`plot_allan`] has a point to draw: a positive, finite deviation (a log scale
@@ -1096,6 +1103,9 @@ mod tests {
         );
         // Under a decade: every multiple.
         assert_eq!(log_ticks(0.0025, 0.0045), [0.003, 0.004]);
+        // At most one multiple in the range: steps of 0.2 in the mantissa.
+        assert_eq!(log_ticks(12.6, 19.7), [14.0, 16.0, 18.0]);
+        assert_eq!(log_ticks(2.1, 2.9), [2.2, 2.4, 2.6, 2.8]);
         assert!(log_ticks(0.0, 1.0).is_empty());
     }
 
