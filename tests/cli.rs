@@ -1931,7 +1931,42 @@ fn allan_of_a_log_too_short_says_so() {
         ),
         "{stderr}"
     );
-    assert!(String::from_utf8_lossy(&out.stdout).contains("N = NaN"));
+    // Unknown, not NaN (review15 F7).
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains("N = unknown deg/sqrt(h), B = unknown deg/h (at most unknown)"), "{stdout}");
+    assert!(!stdout.contains("NaN") && !stderr.contains("NaN"), "{stdout}{stderr}");
+}
+
+/// A log cut into many stretches (a dropped sample in 100) is told how to time its rows by
+/// index, with the rate; a few gaps are not (review15 F1).
+#[test]
+fn allan_of_a_log_with_many_gaps_says_how_to_time_its_rows() {
+    let dir = TempDir::new().expect("tempdir");
+    let write = |name: &str, dropped: &dyn Fn(u32) -> bool| {
+        let mut text = String::from("time_s,gyro_dph\n");
+        for k in (0..20_000u32).filter(|k| !dropped(*k)) {
+            // A deterministic, noise-like sequence: the hint does not depend on the values.
+            let gyro = f64::from((k * 7919) % 1000) / 1000.0;
+            text.push_str(&format!("{:.2},{gyro:.3}\n", f64::from(k) * 0.01));
+        }
+        let log = dir.path().join(name);
+        fs::write(&log, text).expect("write");
+        log
+    };
+    let many = write("many.csv", &|k| k % 100 == 50);
+    let few = write("few.csv", &|k| k == 5000 || k == 15000);
+    let stderr = |log: &Path| {
+        let assert = cal().args(args!["allan", log]).assert().success();
+        String::from_utf8_lossy(&assert.get_output().stderr).into_owned()
+    };
+    let told = stderr(&many);
+    assert!(told.contains("200 steps longer than 1.5x the median sample period"), "{told}");
+    assert!(
+        told.contains("That is over 1 step in 1000") && told.contains("--sample-rate-hz 100.000000"),
+        "{told}"
+    );
+    let quiet = stderr(&few);
+    assert!(quiet.contains("2 steps longer") && !quiet.contains("over 1 step in 1000"), "{quiet}");
 }
 
 // ---------------------------------------------------------------------------------------

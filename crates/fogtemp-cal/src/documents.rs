@@ -840,10 +840,16 @@ impl AllanAxisDocument {
             return None;
         }
         let terms = at_zero.join(" and ");
-        let bound = format!(
-            "B is at most {:.6} deg/h (the curve's minimum {:.6} deg/h at {:.0} s over 0.664)",
-            self.bias_instability_at_most_dph, self.adev_min_dph, self.adev_min_tau_s
-        );
+        let bound = if self.adev_min_dph.is_finite() {
+            format!(
+                "B is at most {:.6} deg/h (the curve's minimum {:.6} deg/h at {:.0} s over 0.664)",
+                self.bias_instability_at_most_dph, self.adev_min_dph, self.adev_min_tau_s
+            )
+        } else {
+            // No averaging time has a relative error of 25 % or less (a few samples): no bound
+            // (it printed "at most NaN", review15 F7).
+            "no averaging time is known to 25 % or better, so the curve bounds B nowhere".to_string()
+        };
         let last = self.curve.last().map_or(f64::NAN, |p| p.adev_dph);
         let why = if last > 1.5 * self.adev_min_dph {
             format!(

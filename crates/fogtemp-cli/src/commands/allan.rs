@@ -58,21 +58,29 @@ pub fn allan(a: AllanArgs) -> Result<()> {
         bar.update(b, r);
     });
     bar.finish_and_clear();
-    let doc = doc?.with_context(|| format!("{}: the log needs at least two rows", a.log.display()))?;
+    let doc = doc?.with_context(|| {
+        format!(
+            "{}: the log needs at least two rows with increasing times for a sample period (and {} samples for an Allan deviation)",
+            a.log.display(),
+            fogtemp_cal::metrics::ALLAN_MIN_SAMPLES
+        )
+    })?;
     if a.json {
         return print_json(&doc);
     }
     if doc.gaps > 0 {
         let steps = if doc.gaps == 1 { "step" } else { "steps" };
         eprintln!(
-            "note: {}: {} {steps} longer than 1.5x the median sample period: the Allan deviation is computed within the {} stretches between them (no averaging cluster spans a gap), so averaging times stop below the longest stretch",
+            "note: {}: {} {steps} longer than 1.5x the median sample period: the Allan deviation is computed within the {} stretches between them (no averaging cluster spans a gap), so averaging times stop below the longest stretch{}",
             a.log.display(),
             doc.gaps,
-            doc.gaps + 1
+            doc.gaps + 1,
+            many_gaps_hint(&doc)
         );
     }
     // A number JSON prints as null (NaN, infinite) shows as `or`.
     let finite_or = |x: f64, or: f64| if x.is_finite() { x } else { or };
+    let value = |x: f64| if x.is_finite() { format!("{x:.6}") } else { "unknown".to_string() };
     for d in &doc.axes {
         if let Some(note) = d.too_short_note() {
             eprintln!("warning: {note}");
@@ -80,14 +88,15 @@ pub fn allan(a: AllanArgs) -> Result<()> {
         if let Some(note) = d.unresolved_terms_note() {
             eprintln!("note: {note}");
         }
+        // Unknown, not NaN, where the curve is too short (review15 F7).
         println!(
-            "axis {} ({}): N = {:.6} deg/sqrt(h), B = {:.6} deg/h (at most {:.6}), K = {:.6} deg/h/sqrt(h)",
+            "axis {} ({}): N = {} deg/sqrt(h), B = {} deg/h (at most {}), K = {} deg/h/sqrt(h)",
             d.axis,
             json_text(&d.column),
-            finite_or(d.noise.arw_deg_per_sqrt_h, f64::NAN),
-            finite_or(d.noise.bias_instability_dph, f64::NAN),
-            finite_or(d.bias_instability_at_most_dph, f64::NAN),
-            finite_or(d.noise.rrw_dph_per_sqrt_h, f64::NAN)
+            value(d.noise.arw_deg_per_sqrt_h),
+            value(d.noise.bias_instability_dph),
+            value(d.bias_instability_at_most_dph),
+            value(d.noise.rrw_dph_per_sqrt_h)
         );
         for p in &d.curve {
             println!(
@@ -98,6 +107,24 @@ pub fn allan(a: AllanArgs) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// What to do when gaps cut a log into many short stretches (over 1 step in 1000): time
+/// stamps that jitter about even spacing, or single dropped samples, each split the log, so
+/// the curve stopped at seconds in a 2 h log and B and K were fitted to that (review15 F1).
+fn many_gaps_hint(doc: &fogtemp_cal::documents::AllanDocument) -> String {
+    let samples = doc.axes.first().map_or(0, |d| d.samples);
+    if doc.gaps * 1000 <= samples {
+        return String::new();
+    }
+    let last_tau_s = doc.axes.iter().flat_map(|d| d.curve.last()).map(|p| p.tau_s).fold(0.0, f64::max);
+    let rate_hz = doc.axes.first().map_or(f64::NAN, |d| 1.0 / d.sample_period_s);
+    format!(
+        ". That is over 1 step in 1000, and the curve ends at {last_tau_s:.1} s: if the rows are evenly spaced \
+         and only their time stamps jitter, time them by row instead (--skip-lines 1 --columns with the header's \
+         names and the time column renamed, --sample-rate-hz {rate_hz:.6}); if samples were dropped, N is measured \
+         but B and K only over these short stretches"
+    )
 }
 
 /// The `flags` columns of `compensate`'s output that belong to the gyro columns read
