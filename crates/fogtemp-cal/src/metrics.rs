@@ -52,6 +52,9 @@ pub struct WindowStats {
     pub left_out: usize,
     /// Samples in the windows used.
     pub samples_used: usize,
+    /// The median spacing of consecutive used windows' starts, s (NaN with fewer than 2):
+    /// the window length, unless windows between are left out (a log in bursts).
+    pub used_spacing_s: f64,
 }
 
 /// [`window_means`] with the samples the used windows hold.
@@ -78,14 +81,23 @@ pub fn window_stats(times_s: &[f64], values: &[f64], options: &BiasStabilityOpti
         .map(|w| w.iter().fold((0.0, 0), |a, b| (a.0 + b.0, a.1 + b.1)))
         .collect();
     let threshold = fullness_threshold(windows.iter().map(|w| w.1));
-    let mut stats = WindowStats::default();
-    for (sum, count) in windows {
+    let mut stats = WindowStats { used_spacing_s: f64::NAN, ..WindowStats::default() };
+    let mut used_at = Vec::new();
+    for (k, (sum, count)) in windows.into_iter().enumerate() {
         if count >= threshold {
             stats.means.push(sum / count as f64);
             stats.samples_used += count;
+            used_at.push(k);
         } else {
             stats.left_out += 1;
         }
+    }
+    // Window k starts k sub-windows (overlapping) or k windows after the first.
+    let start_step_s = if options.overlapping { sub_s } else { options.tau_s };
+    let mut spacings: Vec<usize> = used_at.windows(2).map(|w| w[1] - w[0]).collect();
+    spacings.sort_unstable();
+    if let Some(&median) = spacings.get(spacings.len() / 2) {
+        stats.used_spacing_s = median as f64 * start_step_s;
     }
     stats
 }
