@@ -1286,38 +1286,63 @@ pub struct OutsideReach {
     pub temp_beyond_c: f64,
     /// The furthest rate beyond the range, deg C/min (0: within it).
     pub rate_beyond_c_per_min: f64,
+    /// Samples flagged outside in blocks whose features lie beyond either range.
+    pub samples_beyond: u64,
+    /// Samples flagged outside in blocks whose features lie within both ranges (a combination
+    /// of temperature and rate no calibration run held).
+    pub samples_within: u64,
 }
 
 impl OutsideReach {
     /// Widens the reach by the features `(temp_c, rate_c_per_min)` of a block with samples
     /// outside the region.
-    fn observe(&mut self, temp_c: f64, rate_c_per_min: f64) {
-        let beyond = |v: f64, (lo, hi): (f64, f64)| (lo - v).max(v - hi).max(0.0);
-        if temp_c.is_finite() {
-            self.temp_beyond_c = self.temp_beyond_c.max(beyond(temp_c, self.temp_range_c));
-        }
-        if rate_c_per_min.is_finite() {
-            self.rate_beyond_c_per_min =
-                self.rate_beyond_c_per_min.max(beyond(rate_c_per_min, self.rate_range_c_per_min));
+    fn observe(&mut self, temp_c: f64, rate_c_per_min: f64, samples: u64) {
+        let beyond =
+            |v: f64, (lo, hi): (f64, f64)| if v.is_finite() { (lo - v).max(v - hi).max(0.0) } else { 0.0 };
+        let (temp, rate) =
+            (beyond(temp_c, self.temp_range_c), beyond(rate_c_per_min, self.rate_range_c_per_min));
+        self.temp_beyond_c = self.temp_beyond_c.max(temp);
+        self.rate_beyond_c_per_min = self.rate_beyond_c_per_min.max(rate);
+        if temp > 0.0 || rate > 0.0 {
+            self.samples_beyond += samples;
+        } else {
+            self.samples_within += samples;
         }
     }
 
     /// How far outside, for the outside-region note (review14 F5: "85 % extrapolated" read as
-    /// dire for a run 0.5 C past the calibrated maximum).
+    /// dire for a run 0.5 C past the calibrated maximum); only the ranges exceeded are named,
+    /// with the samples beyond them and those within both (review15 F4).
     pub fn text(&self) -> String {
         let (t0, t1) = self.temp_range_c;
         let (r0, r1) = self.rate_range_c_per_min;
-        if self.temp_beyond_c == 0.0 && self.rate_beyond_c_per_min == 0.0 {
-            return format!(
-                "within the calibrated ranges ({t0:.2} .. {t1:.2} C, {r0:.4} .. {r1:.4} C/min), at combinations of \
-                 temperature and rate no calibration run held"
-            );
+        let within = format!(
+            "within the calibrated ranges ({t0:.2} .. {t1:.2} C, {r0:.4} .. {r1:.4} C/min) at combinations of \
+             temperature and rate no calibration run held"
+        );
+        if self.samples_beyond == 0 {
+            return within;
         }
-        format!(
-            "at most {:.2} C beyond the calibrated {t0:.2} .. {t1:.2} C and {:.4} C/min beyond the calibrated \
-             {r0:.4} .. {r1:.4} C/min (the tracker's features)",
-            self.temp_beyond_c, self.rate_beyond_c_per_min
-        )
+        let mut reach = Vec::new();
+        if self.temp_beyond_c > 0.0 {
+            reach.push(format!("{:.2} C beyond the calibrated {t0:.2} .. {t1:.2} C", self.temp_beyond_c));
+        }
+        if self.rate_beyond_c_per_min > 0.0 {
+            reach.push(format!(
+                "{:.4} C/min beyond the calibrated {r0:.4} .. {r1:.4} C/min",
+                self.rate_beyond_c_per_min
+            ));
+        }
+        let beyond = format!(
+            "{} of them at most {} (the tracker's features)",
+            self.samples_beyond,
+            reach.join(" and ")
+        );
+        if self.samples_within == 0 {
+            format!("all {beyond}")
+        } else {
+            format!("{beyond}, {} {within}", self.samples_within)
+        }
     }
 }
 
@@ -1347,8 +1372,8 @@ struct Replayer<'m> {
     previous_s: Option<f64>,
     /// Finds temperature spikes (only reports them: the compensator takes every reading).
     spikes: SpikeGuard,
-    /// The open block has a sample flagged `OUTSIDE_HULL`.
-    block_outside: bool,
+    /// The open block's samples flagged `OUTSIDE_HULL`.
+    block_outside: u64,
 }
 
 impl<'m> Replayer<'m> {
@@ -1372,7 +1397,7 @@ impl<'m> Replayer<'m> {
         };
         let acc = (0, 0.0, 0.0, 0.0, 0);
         let spikes = SpikeGuard::new(max_gap_s);
-        let block_outside = false;
+        let block_outside = 0;
         Ok(Self {
             comp,
             axis,
@@ -1411,7 +1436,7 @@ impl<'m> Replayer<'m> {
         self.acc.2 += f64::from(out.rate_dph);
         self.acc.3 += f64::from(out.bias_dph);
         self.series.samples += 1;
-        self.block_outside |= out.flags.0 & fogtemp_core::Flags::OUTSIDE_HULL.0 != 0;
+        self.block_outside += u64::from(out.flags.0 & fogtemp_core::Flags::OUTSIDE_HULL.0 != 0);
         for (bit, count) in self.series.flag_counts.iter_mut().enumerate() {
             if out.flags.0 & (1 << bit) != 0 {
                 *count += 1;
@@ -1432,13 +1457,13 @@ impl<'m> Replayer<'m> {
             series.bias_dph.push(bias / n);
             series.temp_c.push(f.map_or(f64::NAN, |f| f64::from(f.temp_c)));
             series.rate_c_per_min.push(f.map_or(f64::NAN, |f| f64::from(f.rate_c_per_min)));
-            if let (true, Some(reach), Some(f)) = (self.block_outside, series.outside_reach.as_mut(), f) {
-                reach.observe(f64::from(f.temp_c), f64::from(f.rate_c_per_min));
+            if let (true, Some(reach), Some(f)) = (self.block_outside > 0, series.outside_reach.as_mut(), f) {
+                reach.observe(f64::from(f.temp_c), f64::from(f.rate_c_per_min), self.block_outside);
             }
         }
         self.fullest_block = self.fullest_block.max(self.acc.0);
         self.acc = (0, 0.0, 0.0, 0.0, block);
-        self.block_outside = false;
+        self.block_outside = 0;
     }
 
     /// The series at the end of the log. A last block cut short by the end (under 90 % of
@@ -1604,7 +1629,7 @@ impl RunValidation {
         if outside > 0 {
             let mut note = outside_region_note(&name, outside, s.samples, "flag OUTSIDE_HULL");
             if let Some(reach) = &s.outside_reach {
-                note.push_str(&format!(", {}", reach.text()));
+                note.push_str(&format!(": {}", reach.text()));
             }
             notes.push(note);
         }
@@ -1938,19 +1963,29 @@ mod tests {
             rate_range_c_per_min: (-0.08, 0.54),
             ..OutsideReach::default()
         };
-        assert!(reach
-            .text()
-            .starts_with("within the calibrated ranges (-35.00 .. 62.55 C, -0.0800 .. 0.5400 C/min)"));
-        reach.observe(63.06, 0.1);
-        reach.observe(62.9, -0.10);
-        reach.observe(f64::NAN, f64::NAN);
-        assert!(
-            (reach.temp_beyond_c - 0.51).abs() < 1e-9 && (reach.rate_beyond_c_per_min - 0.02).abs() < 1e-9
-        );
+        reach.observe(20.0, 0.1, 7);
         assert_eq!(
             reach.text(),
-            "at most 0.51 C beyond the calibrated -35.00 .. 62.55 C and 0.0200 C/min beyond the calibrated \
-             -0.0800 .. 0.5400 C/min (the tracker's features)"
+            "within the calibrated ranges (-35.00 .. 62.55 C, -0.0800 .. 0.5400 C/min) at combinations of \
+             temperature and rate no calibration run held"
+        );
+        reach.observe(63.06, 0.1, 10);
+        reach.observe(62.9, 0.3, 5);
+        reach.observe(f64::NAN, f64::NAN, 1);
+        assert!((reach.temp_beyond_c - 0.51).abs() < 1e-9 && reach.rate_beyond_c_per_min == 0.0);
+        assert_eq!((reach.samples_beyond, reach.samples_within), (15, 8));
+        assert_eq!(
+            reach.text(),
+            "15 of them at most 0.51 C beyond the calibrated -35.00 .. 62.55 C (the tracker's features), 8 within the \
+             calibrated ranges (-35.00 .. 62.55 C, -0.0800 .. 0.5400 C/min) at combinations of temperature and rate \
+             no calibration run held"
+        );
+        let mut rate_only = OutsideReach { samples_within: 0, ..reach };
+        rate_only.temp_beyond_c = 0.0;
+        rate_only.rate_beyond_c_per_min = 0.02;
+        assert_eq!(
+            rate_only.text(),
+            "all 15 of them at most 0.0200 C/min beyond the calibrated -0.0800 .. 0.5400 C/min (the tracker's features)"
         );
     }
 
