@@ -156,8 +156,17 @@ impl Continued {
                     .collect();
                 let repeated = match repeated.len() {
                     0 => String::new(),
-                    1 => format!("; {} starts with the last row of the part before it again, which the join drops", repeated.join("")),
-                    _ => format!("; {} start with the last row of the part before them again, which the join drops", repeated.join(", ")),
+                    // Only the time stamp and temperature are compared (review15 F8).
+                    1 => format!(
+                        "; {} starts at the time stamp and temperature reading of the last row before it (that row \
+                         logged again?), which the join drops",
+                        repeated.join("")
+                    ),
+                    _ => format!(
+                        "; {} start at the time stamp and temperature reading of the last row before them (that row \
+                         logged again?), which the join drops",
+                        repeated.join(", ")
+                    ),
                 };
                 let listed = match names.split_last() {
                     Some((last, before)) if !before.is_empty() => format!("{} and {last}", before.join(", ")),
@@ -325,7 +334,12 @@ mod tests {
             text.contains("{ cat p1.csv; tail -n +3 p2.csv; tail -n +2 p3.csv; } > joined.csv"),
             "{text}"
         );
-        assert!(text.contains("p2.csv starts with the last row of the part before it again"), "{text}");
+        assert!(
+            text.contains(
+                "p2.csv starts at the time stamp and temperature reading of the last row before it"
+            ),
+            "{text}"
+        );
         // The same time stamp with another reading, or a log of one time stamp, is no repeat.
         let other = [at("p1.csv", 0.0, 2399.0, (10.0, 14.5)), at("p2.csv", 2399.0, 4799.0, (14.4375, 18.0))];
         assert!(continued_logs(&other, 5.0).is_empty());

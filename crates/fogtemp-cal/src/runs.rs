@@ -116,6 +116,13 @@ pub enum RunsProblem {
         "is a folder: give the runs file (CSV: run,position,input_rate_dph[,role]), e.g. FOLDER/runs.csv"
     )]
     Folder,
+    /// Roles are given, but this row has none: `fit` and `validate` cannot tell which of
+    /// them it is for.
+    #[error("run '{run}' has no role while other rows give one: write cal or val")]
+    MissingRole {
+        /// The run.
+        run: String,
+    },
     /// Roles are given, but no run has role `val`: nothing to validate.
     #[error("no run has role 'val': nothing to validate")]
     NoValidationRun,
@@ -300,9 +307,14 @@ impl RunsFile {
     /// one of them, `up_poweron_-2OC` for `up_poweron_-20C`, is the usual cause: review11
     /// F11), the row most like `missing` first (fewest character edits; review13 F13: they
     /// were listed in file order).
-    fn rows_without_log(&self, logs: &[PathBuf], missing: &str) -> Option<String> {
-        let mut orphans: Vec<&RunMetadata> =
-            self.runs.iter().filter(|r| !logs.iter().any(|l| run_name(l) == r.run)).collect();
+    fn rows_without_log(&self, logs: &[PathBuf], missing: &str, unused: Option<Role>) -> Option<String> {
+        // Rows of the role the command does not read need no log: not candidates.
+        let mut orphans: Vec<&RunMetadata> = self
+            .runs
+            .iter()
+            .filter(|r| unused.is_none() || r.role != unused)
+            .filter(|r| !logs.iter().any(|l| run_name(l) == r.run))
+            .collect();
         orphans.sort_by_key(|r| (edit_distance(&r.run, missing), r.line));
         let shown: Vec<String> =
             orphans.iter().take(3).map(|r| format!("line {} '{}'", r.line, r.run)).collect();
@@ -336,6 +348,14 @@ impl RunsFile {
         logs: &[PathBuf],
         unused: Option<Role>,
     ) -> Result<Vec<&RunMetadata>, CalError> {
+        // With roles, a row without one is neither command's (review15 F6: fit calibrated on it
+        // while validate wanted its log and then did not validate it).
+        if unused.is_some() && self.runs.iter().any(|r| r.role.is_some()) {
+            if let Some(blank) = self.runs.iter().find(|r| r.role.is_none()) {
+                let missing = RunsProblem::MissingRole { run: blank.run.clone() };
+                return Err(problem(&self.path, blank.line, missing));
+            }
+        }
         let by_name: BTreeMap<&str, &RunMetadata> = self.runs.iter().map(|r| (r.run.as_str(), r)).collect();
         let mut first_log: BTreeMap<String, &PathBuf> = BTreeMap::new();
         let mut out = Vec::with_capacity(logs.len());
@@ -346,7 +366,7 @@ impl RunsFile {
                 return Err(problem(&self.path, 0, shared));
             }
             let row = by_name.get(name.as_str()).ok_or_else(|| {
-                let hint = self.near_miss(log, &name).or_else(|| self.rows_without_log(logs, &name));
+                let hint = self.near_miss(log, &name).or_else(|| self.rows_without_log(logs, &name, unused));
                 problem(&self.path, 0, RunsProblem::MissingRun { log: log.clone(), hint })
             })?;
             out.push(*row);
@@ -609,23 +629,34 @@ mod tests {
 
     #[test]
     fn a_command_needs_no_log_for_the_rows_of_the_role_it_does_not_read() {
-        let f =
-            parse("run,position,input_rate_dph,role\nu1,up,1,cal\nu2,up,1,cal\nd1,down,-1,val\nx,up,1,\n")
-                .expect("valid");
-        let cal = [PathBuf::from("u1.csv"), PathBuf::from("u2.csv"), PathBuf::from("x.csv")];
+        let f = parse("run,position,input_rate_dph,role\nu1,up,1,cal\nu2,up,1,cal\nd1,down,-1,val\n")
+            .expect("valid");
+        let cal = [PathBuf::from("u1.csv"), PathBuf::from("u2.csv")];
         let rows = f.for_logs_of_a_command(&cal, Some(Role::Val)).expect("the val row needs no log for fit");
-        assert_eq!(rows.iter().map(|r| r.line).collect::<Vec<_>>(), [2, 3, 5]);
-        // A row without a role is read by both commands, so it still needs its log.
-        let err = f.for_logs_of_a_command(&cal[..2], Some(Role::Val)).unwrap_err();
+        assert_eq!(rows.iter().map(|r| r.line).collect::<Vec<_>>(), [2, 3]);
+        // A cal row still needs its log for fit.
+        let err = f.for_logs_of_a_command(&cal[..1], Some(Role::Val)).unwrap_err();
         assert!(
-            matches!(&err, CalError::Runs { line: 5, problem: RunsProblem::UnknownRun { run, .. }, .. } if run == "x"),
+            matches!(&err, CalError::Runs { line: 3, problem: RunsProblem::UnknownRun { run, .. }, .. } if run == "u2"),
             "{err}"
         );
-        let val = [PathBuf::from("d1.csv"), PathBuf::from("x.csv")];
-        assert_eq!(f.for_logs_of_a_command(&val, Some(Role::Cal)).expect("cal rows need no log").len(), 2);
+        let val = [PathBuf::from("d1.csv")];
+        assert_eq!(f.for_logs_of_a_command(&val, Some(Role::Cal)).expect("cal rows need no log").len(), 1);
         // The plain check (diagnose) still wants every row's log.
         let err = f.for_logs(&cal).unwrap_err();
         assert!(matches!(&err, CalError::Runs { line: 4, .. }), "{err}");
+        // With roles, a row without one is refused by fit and validate (not by diagnose).
+        let blank =
+            parse("run,position,input_rate_dph,role\nu1,up,1,cal\nx,up,1,\nd1,down,-1,val\n").expect("valid");
+        let logs = [PathBuf::from("u1.csv"), PathBuf::from("x.csv"), PathBuf::from("d1.csv")];
+        for unused in [Role::Val, Role::Cal] {
+            let err = blank.for_logs_of_a_command(&logs, Some(unused)).unwrap_err();
+            assert!(
+                matches!(&err, CalError::Runs { line: 3, problem: RunsProblem::MissingRole { run }, .. } if run == "x"),
+                "{err}"
+            );
+        }
+        assert_eq!(blank.for_logs(&logs).expect("diagnose reads no role").len(), 3);
     }
 
     #[test]

@@ -219,7 +219,7 @@ fn runs_file_problems_name_the_file_and_the_line() {
 
 /// One runs file serves `fit` given only its `cal` logs and `validate` given only its `val`
 /// logs (review13 F13): the same model and the same validation as when both get every log;
-/// a row without a role still needs its log.
+/// with roles, a row without one is refused (review15 F6).
 #[test]
 fn one_runs_file_serves_fit_and_validate_each_given_its_own_logs() {
     let dir = tempfile::tempdir().expect("tempdir");
@@ -249,7 +249,7 @@ fn one_runs_file_serves_fit_and_validate_each_given_its_own_logs() {
     let (all, val) = (validate(&logs), validate(&logs[4..]));
     assert_eq!(all["runs"], val["runs"], "the same two val runs validated");
     assert_eq!(val["runs"].as_array().map(Vec::len), Some(2));
-    // A row without a role is read by both commands: its log must be given.
+    // With roles, a row without one is refused by name and line (neither command's).
     let plain = dir.path().join("plain.csv");
     std::fs::write(
         &plain,
@@ -257,8 +257,10 @@ fn one_runs_file_serves_fit_and_validate_each_given_its_own_logs() {
     )
     .expect("write");
     let plain = plain.display().to_string();
-    let err = err_text(&["fit", "--out", &own, "--runs", &plain, &logs[0], &logs[1], &logs[2]]);
-    assert!(err.contains("plain.csv:5: run 'run5' has no log among the 3 given"), "{err}");
+    let err = err_text(&["fit", "--out", &own, "--runs", &plain, &logs[0], &logs[1], &logs[2], &logs[5]]);
+    assert!(err.contains("plain.csv:5: run 'run5' has no role while other rows give one"), "{err}");
+    let err = err_text(&["validate", "--model", &own, "--runs", &plain, &logs[5]]);
+    assert!(err.contains("plain.csv:5: run 'run5' has no role while other rows give one"), "{err}");
 }
 
 /// `fit --poly-outside`: the policy is stored in the model (`inspect --json`); inside the

@@ -322,9 +322,15 @@ pub fn plot_mesh(path: &Path, title: &str, mesh: &MeshFigure) -> Result<(), CalE
         let key = match (mesh.points.is_empty(), mesh.region.is_empty()) {
             (true, true) => "black dots: nodes",
             (false, true) => "black dots: nodes, grey: calibration points",
-            (true, false) => "black dots: nodes; thick line: the calibrated region (pale outside it: flagged OUTSIDE_HULL)",
+            // The region is the hull of the full-window points, so partial-window points and
+            // nodes can lie outside it; a triangle is pale by its centre (review15 F5).
+            (true, false) => {
+                "black dots: nodes; thick line: the calibrated region (hull of the full-window points; beyond it \
+                 flagged OUTSIDE_HULL); triangles centred outside it pale"
+            }
             (false, false) => {
-                "black dots: nodes, grey: calibration points; thick line: the calibrated region (pale outside it: flagged OUTSIDE_HULL)"
+                "black dots: nodes, grey: calibration points; thick line: the calibrated region (hull of the \
+                 full-window points; beyond it flagged OUTSIDE_HULL); triangles centred outside it pale"
             }
         };
         let main = main.titled(title, ("sans-serif", 20)).map_err(|e| plot_err(path, e))?;
