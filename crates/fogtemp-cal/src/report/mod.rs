@@ -319,22 +319,20 @@ pub fn plot_mesh(path: &Path, title: &str, mesh: &MeshFigure) -> Result<(), CalE
         root.fill(&WHITE).map_err(|e| plot_err(path, e))?;
         let (main, legend) = root.split_horizontally(900);
         // The key goes under the title: the mesh fills the plane, a legend box would hide part.
-        let key = match (mesh.points.is_empty(), mesh.region.is_empty()) {
-            (true, true) => "black dots: nodes",
-            (false, true) => "black dots: nodes, grey: calibration points",
-            // The region is the hull of the full-window points, so partial-window points and
-            // nodes can lie outside it; a triangle is pale by its centre (review15 F5).
-            (true, false) => {
-                "black dots: nodes; thick line: the calibrated region (hull of the full-window points; beyond it \
-                 flagged OUTSIDE_HULL); triangles centred outside it pale"
-            }
-            (false, false) => {
-                "black dots: nodes, grey: calibration points; thick line: the calibrated region (hull of the \
-                 full-window points; beyond it flagged OUTSIDE_HULL); triangles centred outside it pale"
-            }
+        let dots = if mesh.points.is_empty() {
+            "black dots: nodes"
+        } else {
+            "black dots: nodes, grey: calibration points"
         };
         let main = main.titled(title, ("sans-serif", 20)).map_err(|e| plot_err(path, e))?;
-        let main = main.titled(key, ("sans-serif", 14)).map_err(|e| plot_err(path, e))?;
+        let mut main = main.titled(dots, ("sans-serif", 14)).map_err(|e| plot_err(path, e))?;
+        if !mesh.region.is_empty() {
+            // The region is the hull of the full-window points, so partial-window points and
+            // nodes can lie outside it; a triangle is pale by its centre (review15 F5).
+            let region = "thick line: the calibrated region (hull of the full-window points; OUTSIDE_HULL beyond it); \
+                          triangles centred outside it pale";
+            main = main.titled(region, ("sans-serif", 14)).map_err(|e| plot_err(path, e))?;
+        }
         let (t0, t1) = finite_range(mesh.nodes.iter().map(|n| n.0).chain(mesh.points.iter().map(|p| p.0)));
         let (r0, r1) = finite_range(mesh.nodes.iter().map(|n| n.1).chain(mesh.points.iter().map(|p| p.1)));
         let (v0, v1) = finite_range(mesh.nodes.iter().map(|n| n.2));
