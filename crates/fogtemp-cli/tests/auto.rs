@@ -115,7 +115,25 @@ fn auto_is_the_default_and_reports_its_cross_validation() {
     let recorded = format!("{method}, chosen by leave-one-run-out cross-validation");
     assert_eq!(inspected["axes"][0]["provenance"]["selection"], recorded.as_str());
     let inspect_text = cal(&["inspect", &model]);
-    assert!(String::from_utf8_lossy(&inspect_text.stdout).contains(&format!("method: {recorded}")));
+    let inspect_text = String::from_utf8_lossy(&inspect_text.stdout);
+    assert!(inspect_text.contains(&format!("method: {recorded}")));
+    // The text lists the polynomial's terms: read back, the coefficients of `--json` to the
+    // 6 decimals printed, term by term (review15: only their count was shown).
+    if let Some(terms) = inspected["axes"][0]["poly"].as_array() {
+        let line =
+            inspect_text.lines().find(|l| l.starts_with("  polynomial, deg/h: ")).expect("the terms line");
+        let body =
+            line.trim_start_matches("  polynomial, deg/h: ").split(" (x = ").next().unwrap_or_default();
+        let signed = body.replace(" - ", " + -");
+        let printed: Vec<f64> = signed
+            .split(" + ")
+            .map(|t| t.split(' ').next().unwrap_or_default().parse::<f64>().expect("a coefficient"))
+            .collect();
+        assert_eq!(printed.len(), terms.len(), "{line}");
+        for (p, t) in printed.iter().zip(terms) {
+            assert!((p - t["coefficient_dph"].as_f64().unwrap()).abs() <= 5e-7, "{line} vs {t}");
+        }
+    }
 }
 
 #[test]

@@ -65,6 +65,25 @@ pub fn inspect(a: InspectArgs) -> Result<()> {
             number(axis.provenance.rate_max_c_per_min, 4),
             axis.features.blocks_needed
         );
+        if let Some(terms) = axis.poly.as_ref().filter(|t| !t.is_empty()) {
+            // The terms themselves, as `--help` promises (review15: only their count was shown).
+            let n = &axis.normalisation;
+            let listed: Vec<String> = terms
+                .iter()
+                .map(|t| match (t.temp_power, t.rate_power) {
+                    (0, 0) => number(t.coefficient_dph, 6),
+                    (a, b) => format!("{} {}", number(t.coefficient_dph, 6), term_name(a, b)),
+                })
+                .collect();
+            println!(
+                "  polynomial, deg/h: {} (x = (T - {} C) x {} /C, y = (dT/dt - {} C/min) x {} min/C)",
+                listed.join(" + ").replace("+ -", "- "),
+                number(n.temp_offset_c, 4),
+                number(n.temp_scale_per_c, 6),
+                number(n.rate_offset_c_per_min, 6),
+                number(n.rate_scale_per_c_per_min, 6)
+            );
+        }
         if let Some(outside) = axis.poly_outside {
             println!(
                 "  polynomial outside the calibrated region ({} vertices): {outside}",
@@ -93,4 +112,19 @@ pub fn inspect(a: InspectArgs) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// A polynomial term's monomial in the normalised x (temperature) and y (rate): `x`,
+/// `x^2 y` (empty for the constant).
+fn term_name(temp_power: u8, rate_power: u8) -> String {
+    let power = |name: &str, k: u8| match k {
+        0 => String::new(),
+        1 => name.to_string(),
+        _ => format!("{name}^{k}"),
+    };
+    [power("x", temp_power), power("y", rate_power)]
+        .into_iter()
+        .filter(|p| !p.is_empty())
+        .collect::<Vec<_>>()
+        .join(" ")
 }
