@@ -62,6 +62,21 @@ pub struct FittedTerm {
     pub p_value: f64,
 }
 
+/// A term's monomial in the normalised temperature `x` and rate `y`, as reports and
+/// `inspect` write it: `x`, `x^2 y`; empty for the constant.
+pub fn monomial(temp_power: u8, rate_power: u8) -> String {
+    let power = |name: &str, k: u8| match k {
+        0 => String::new(),
+        1 => name.to_string(),
+        _ => format!("{name}^{k}"),
+    };
+    [power("x", temp_power), power("y", rate_power)]
+        .into_iter()
+        .filter(|p| !p.is_empty())
+        .collect::<Vec<_>>()
+        .join(" ")
+}
+
 /// A fitted polynomial with its statistics.
 #[derive(Clone, Debug, PartialEq, serde::Serialize)]
 pub struct PolyFit {

@@ -971,11 +971,6 @@ fn poly_terms_markdown(
     poly: &crate::poly_fit::PolyFit,
     n: &fogtemp_core::Normalisation,
 ) -> String {
-    let power = |name: &str, k: u8| match k {
-        0 => String::new(),
-        1 => name.to_string(),
-        _ => format!("{name}^{k}"),
-    };
     let mut md = format!(
         "Polynomial terms, axis {axis}, in x = (T - {:.4} C) x {:.6} /C and y = (dT/dt - {:.6} C/min) x {:.6} min/C \
          (the stepwise selection's; p from its t-test with the effective sample size {:.1}):\n\n\
@@ -983,12 +978,10 @@ fn poly_terms_markdown(
         n.temp_offset_c, n.temp_scale_per_c, n.rate_offset_c_per_min, n.rate_scale_per_c_per_min, poly.n_eff
     );
     for t in &poly.terms {
-        let name = [power("x", t.temp_power), power("y", t.rate_power)]
-            .into_iter()
-            .filter(|s| !s.is_empty())
-            .collect::<Vec<_>>()
-            .join(" ");
-        let name = if name.is_empty() { "1".to_string() } else { name };
+        let name = match crate::poly_fit::monomial(t.temp_power, t.rate_power) {
+            constant if constant.is_empty() => "1".to_string(),
+            name => name,
+        };
         // A p below the smallest f64 is 0: shown as a bound, not as "0e0".
         let p = if t.p_value > 0.0 { format!("{:.2e}", t.p_value) } else { "< 1e-300".to_string() };
         md.push_str(&format!("| {name} | {:.6} | {:.6} | {p} |\n", t.coefficient_dph, t.std_error_dph));

@@ -72,7 +72,9 @@ pub fn inspect(a: InspectArgs) -> Result<()> {
                 .iter()
                 .map(|t| match (t.temp_power, t.rate_power) {
                     (0, 0) => number(t.coefficient_dph, 6),
-                    (a, b) => format!("{} {}", number(t.coefficient_dph, 6), term_name(a, b)),
+                    (a, b) => {
+                        format!("{} {}", number(t.coefficient_dph, 6), fogtemp_cal::poly_fit::monomial(a, b))
+                    }
                 })
                 .collect();
             println!(
@@ -112,19 +114,4 @@ pub fn inspect(a: InspectArgs) -> Result<()> {
         }
     }
     Ok(())
-}
-
-/// A polynomial term's monomial in the normalised x (temperature) and y (rate): `x`,
-/// `x^2 y` (empty for the constant).
-fn term_name(temp_power: u8, rate_power: u8) -> String {
-    let power = |name: &str, k: u8| match k {
-        0 => String::new(),
-        1 => name.to_string(),
-        _ => format!("{name}^{k}"),
-    };
-    [power("x", temp_power), power("y", rate_power)]
-        .into_iter()
-        .filter(|p| !p.is_empty())
-        .collect::<Vec<_>>()
-        .join(" ")
 }
