@@ -119,6 +119,31 @@ fn write_warmup(path: &Path, start_c: f64, minutes: f64, seed: u64) {
     w.flush().expect("flush log");
 }
 
+/// `validate --json`'s white-noise floors against the closed form of the logs' white noise:
+/// `NOISE_DPH` per sample at `RATE_HZ` gives 100 s means scattered by
+/// `NOISE_DPH / sqrt(100 RATE_HZ)`. Each run's estimate, from its Allan deviation at 1 s over
+/// about 1700 s, carries about 1 / sqrt(2 x 1700) = 1.7 % relative error (6 %: over three of
+/// it); the RMS over 8 runs about 0.6 % (2 %).
+fn check_white_noise_floor(doc: &Value, runs: &[Value]) {
+    let closed_form = NOISE_DPH / (100.0 * RATE_HZ).sqrt();
+    for r in runs {
+        let floor = &r["white_noise_floor"];
+        let (from, adev, value) = (f(&floor["from_tau_s"]), f(&floor["adev_dph"]), f(&floor["floor_dph"]));
+        let averaged = f(&floor["averaged_s"]);
+        assert_eq!(from, 1.0, "{floor}");
+        // Full windows, but for blocks that are partly before the compensator's first sample.
+        assert!((99.0..=100.0).contains(&averaged), "{floor}");
+        assert!((value - adev * (from / averaged).sqrt()).abs() <= 1e-12 * value, "{floor}");
+        assert!((value / closed_form - 1.0).abs() < 0.06, "{floor} against {closed_form}");
+    }
+    let overall = f(&doc["white_noise_floor"]["floor_dph"]);
+    let rms = (runs.iter().map(|r| f(&r["white_noise_floor"]["floor_dph"]).powi(2)).sum::<f64>()
+        / runs.len() as f64)
+        .sqrt();
+    assert!((overall - rms).abs() <= 1e-12 * overall, "{overall} vs RMS {rms}");
+    assert!((overall / closed_form - 1.0).abs() < 0.02, "{overall} against {closed_form}");
+}
+
 /// The shared warm-up logs: `cal/run0..7.csv` and `val/run0..7.csv`.
 struct Logs {
     cal: PathBuf,
@@ -260,6 +285,7 @@ fn round_trip(method: &str) {
         let rms = (vruns.iter().map(|r| f(&r[key]).powi(2)).sum::<f64>() / vruns.len() as f64).sqrt();
         assert!((rms - overall).abs() <= 1e-12 * overall, "{key}: {overall} vs RMS {rms}");
     }
+    check_white_noise_floor(&v, vruns);
     // The first 100 s window holds the 10 s before the first feature (nothing subtracted
     // while the raw bias is 1-3 deg/h) and the partial-window start, so it dominates the
     // compensated figure; leaving it out shows the model itself.

@@ -201,6 +201,10 @@ def validate(
     figures, with the table of the ``compare`` models).
     Gaps in a log's time stamps longer than the model's max gap raise a FogtempWarning (a UserWarning)
     (``runs[].time_gaps``; the metric's windows they cut: ``runs[].metric_windows``).
+    ``white_noise_floor`` (overall, per axis and per run; None when unknown): the compensated
+    output's Allan deviation at its shortest averaging time, extrapolated as white noise to the
+    data a window mean averages (``from_tau_s``, ``adev_dph``, ``averaged_s``, ``floor_dph``):
+    a lower bound on the noise floor (flicker and random walk come on top).
     Log files are read with the gyro and temperature columns the model records (models fitted
     on files since blob format 4) unless gyro_column= / temp_column= name others, and in the
     units its fit read them in unless gyro_unit=, gyro_scale=, temp_scale= or temp_offset= are

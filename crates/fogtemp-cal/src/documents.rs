@@ -14,7 +14,10 @@ use fogtemp_core::{Model, OutsidePolicy};
 use serde::Serialize;
 
 use crate::allan_stream::{median_step, AllanAccumulator};
-use crate::calibrate::{AxisFitReport, FittedModel, RunFeatures, RunValidation, Validation};
+use crate::calibrate::{
+    overall_white_noise_floor, AxisFitReport, FittedModel, RunFeatures, RunValidation, Validation,
+    WhiteNoiseFloor,
+};
 use crate::ingest::{BadRow, IngestReport};
 use crate::metrics::{fit_noise_terms, gap_free_ranges, AllanPoint, BiasStabilityOptions, NoiseTerms};
 
@@ -184,6 +187,11 @@ pub struct ValidationDocument {
     pub compensated_bias_stability_dph: f64,
     /// raw / compensated.
     pub improvement_ratio: f64,
+    /// The white-noise floor under the compensated figure (RMS over runs; `null` when a run
+    /// has none): `from_tau_s`, the compensated output's Allan deviation there `adev_dph`, and
+    /// `floor_dph`, that extrapolated to the window as white noise
+    /// ([`crate::calibrate::WhiteNoiseFloor`]). Flicker and random walk come on top.
+    pub white_noise_floor: Option<WhiteNoiseFloor>,
     /// Per axis: the RMS over that axis's runs (the overall figures above pool every axis).
     pub axes: Vec<AxisValidationDocument>,
     /// Every run and axis.
@@ -215,6 +223,7 @@ impl ValidationDocument {
             raw_bias_stability_dph: validation.raw_bias_stability_dph,
             compensated_bias_stability_dph: validation.compensated_bias_stability_dph,
             improvement_ratio: validation.raw_bias_stability_dph / validation.compensated_bias_stability_dph,
+            white_noise_floor: overall_white_noise_floor(&validation.runs),
             axes: validation
                 .per_axis()
                 .into_iter()
@@ -223,6 +232,9 @@ impl ValidationDocument {
                     raw_bias_stability_dph: raw,
                     compensated_bias_stability_dph: comp,
                     improvement_ratio: raw / comp,
+                    white_noise_floor: overall_white_noise_floor(
+                        validation.runs.iter().filter(|r| r.axis == axis),
+                    ),
                 })
                 .collect(),
             runs: validation.runs.iter().map(RunValidationDocument::new).collect(),
@@ -243,6 +255,8 @@ pub struct AxisValidationDocument {
     pub compensated_bias_stability_dph: f64,
     /// raw / compensated.
     pub improvement_ratio: f64,
+    /// The white-noise floor, RMS over the axis's runs (as the document's).
+    pub white_noise_floor: Option<WhiteNoiseFloor>,
 }
 
 /// One run and axis of a validation.
@@ -256,6 +270,9 @@ pub struct RunValidationDocument {
     pub raw_bias_stability_dph: f64,
     /// Compensated bias stability, deg/h.
     pub compensated_bias_stability_dph: f64,
+    /// The run's white-noise floor (as the document's; `null` when its gap-free stretches
+    /// are too short for an Allan deviation).
+    pub white_noise_floor: Option<WhiteNoiseFloor>,
     /// Samples replayed.
     pub samples: u64,
     /// Samples that carried each compensator flag.
@@ -287,6 +304,7 @@ impl RunValidationDocument {
             axis: r.axis,
             raw_bias_stability_dph: r.raw_bias_stability_dph,
             compensated_bias_stability_dph: r.compensated_bias_stability_dph,
+            white_noise_floor: r.white_noise_floor(),
             samples: r.series.samples,
             flag_samples: FlagSamples::new(&r.series.flag_counts),
             skipped_rows: r.ingest.skipped,

@@ -286,8 +286,16 @@ def test_validate_runs_given_as_arrays_is_validate_of_the_same_samples_as_files(
     from_arrays = fogtemp.validate(model, runs, progress=False)
     assert [r["path"] for r in from_arrays["runs"]] == [f"runs[{k}]" for k in range(4)]
     keys = ("raw_bias_stability_dph", "compensated_bias_stability_dph", "samples", "flag_samples", "metric_windows")
+    keys += ("white_noise_floor",)
     for a, f in zip(from_arrays["runs"], from_files["runs"]):
         assert {k: a[k] for k in keys} == {k: f[k] for k in keys}
+    # The white-noise floor against the closed form of the runs' noise: 0.05 deg/h per sample
+    # at 5 Hz gives 100 s means scattered by 0.05 / sqrt(500); from the 1 s Allan deviation of
+    # about 1400 s, each run's estimate carries about 1 / sqrt(2 x 1400) = 1.9 % (6 %: over three).
+    for r in from_arrays["runs"]:
+        floor = r["white_noise_floor"]
+        assert floor["from_tau_s"] == 1.0 and floor["averaged_s"] == pytest.approx(100.0, rel=0.01)
+        assert floor["floor_dph"] == pytest.approx(0.05 / np.sqrt(500.0), rel=0.06)
     for k in ("raw_bias_stability_dph", "compensated_bias_stability_dph"):
         assert from_arrays[k] == from_files[k]
     assert from_arrays["compensated_bias_stability_dph"] < from_arrays["raw_bias_stability_dph"]

@@ -505,12 +505,15 @@ pub fn plot_allan(path: &Path, title: &str, curves: &[(String, Vec<AllanPoint>)]
             let colour = match name.as_str() {
                 "raw" | "residual before" => figures::RAW_GREY,
                 "compensated" | "residual after the final model" => run_colour(0),
+                white if white.starts_with("white noise") => BLACK,
                 _ => run_colour(i),
             };
+            // A reference line thinner than the measured curves it runs along.
+            let width = if name.starts_with("white noise") { 1 } else { 2 };
             chart
                 .draw_series(LineSeries::new(
                     curve.iter().map(|p| (p.tau_s, p.adev_dph)),
-                    colour.stroke_width(2),
+                    colour.stroke_width(width),
                 ))
                 .map_err(|e| plot_err(path, e))?
                 .label(name.clone())
@@ -660,8 +663,11 @@ pub fn write_validation_report_with(
          left out of figures and metric alike).\n\n"
     ));
     md.push_str(
-        "| run | axis | raw, deg/h | compensated, deg/h | raw / compensated (above 1: better) | windows (scatter of each figure) | outside the calibrated region |\n|---|---|---|---|---|---|---|\n",
+        "| run | axis | raw, deg/h | compensated, deg/h | raw / compensated (above 1: better) | white-noise floor, deg/h | windows (scatter of each figure) | outside the calibrated region |\n|---|---|---|---|---|---|---|---|\n",
     );
+    let floor_cell = |f: Option<crate::calibrate::WhiteNoiseFloor>| {
+        f.map_or_else(|| "unknown".to_string(), |f| format!("{:.5}", f.floor_dph))
+    };
     let outside_bit = fogtemp_core::Flags::OUTSIDE_HULL.0.trailing_zeros() as usize;
     for r in runs {
         let outside = r.series.flag_counts.get(outside_bit).copied().unwrap_or(0);
@@ -670,12 +676,13 @@ pub fn write_validation_report_with(
             .relative_standard_error()
             .map_or(String::new(), |se| format!(" (+-{:.0} %)", 100.0 * se));
         md.push_str(&format!(
-            "| {} | {} | {:.5} | {:.5} | {:.2} | {}{scatter} | {} % |\n",
+            "| {} | {} | {:.5} | {:.5} | {:.2} | {} | {}{scatter} | {} % |\n",
             file_name(&r.path),
             r.axis,
             r.raw_bias_stability_dph,
             r.compensated_bias_stability_dph,
             r.raw_bias_stability_dph / r.compensated_bias_stability_dph,
+            floor_cell(r.white_noise_floor()),
             r.windows.used,
             crate::calibrate::share_percent(outside, r.series.samples)
         ));
@@ -684,18 +691,26 @@ pub fn write_validation_report_with(
     if per_axis.len() > 1 {
         for (axis, raw, comp) in &per_axis {
             md.push_str(&format!(
-                "| overall of axis {axis} (RMS over its runs) | {axis} | {raw:.5} | {comp:.5} | {:.2} | | |\n",
-                raw / comp
+                "| overall of axis {axis} (RMS over its runs) | {axis} | {raw:.5} | {comp:.5} | {:.2} | {} | | |\n",
+                raw / comp,
+                floor_cell(crate::calibrate::overall_white_noise_floor(runs.iter().filter(|r| r.axis == *axis)))
             ));
         }
     }
     let label =
         if per_axis.len() > 1 { "overall (RMS over runs and axes)" } else { "overall (RMS over runs)" };
+    let overall_floor = crate::calibrate::overall_white_noise_floor(runs);
     md.push_str(&format!(
-        "| **{label}** | | **{:.5}** | **{:.5}** | **{:.2}** | | |\n\n",
+        "| **{label}** | | **{:.5}** | **{:.5}** | **{:.2}** | {} | | |\n\n",
         overall.0,
         overall.1,
-        overall.0 / overall.1
+        overall.0 / overall.1,
+        floor_cell(overall_floor)
+    ));
+    // What a compensated figure is to be judged against (review14 F4).
+    md.push_str(&format!(
+        "White-noise floor: {}\n\n",
+        white_noise_floor_explanation(overall_floor, overall.1, options.tau_s)
     ));
     // How far one run's figure moves with its noise alone (review14 F4: per-run ratios of
     // 0.87-0.96 read as compensation making things worse, within a run's ~8 % scatter).
@@ -829,7 +844,13 @@ fn validation_axis_figures(
     md.push_str(&format!("![Bias stability per run, raw beside compensated]({bars_svg})\n\n"));
     let series: Vec<&crate::calibrate::ReplaySeries> = runs.iter().map(|r| &r.series).collect();
     let (raw, comp) = data::span_allan(&series, 1.0);
-    let curves = [("raw".to_string(), raw.clone()), ("compensated".to_string(), comp.clone())];
+    let mut curves = vec![("raw".to_string(), raw.clone()), ("compensated".to_string(), comp.clone())];
+    if let Some(f) = crate::calibrate::overall_white_noise_floor(runs.iter().copied()) {
+        curves.push((
+            format!("white noise through compensated at {} s (slope -1/2)", f.from_tau_s),
+            white_noise_line(&f, &comp),
+        ));
+    }
     if !raw.is_empty() && !comp.is_empty() && allan_plottable(&curves) {
         let allan_svg = format!("allan-axis{axis}.svg");
         plot_allan(
@@ -845,6 +866,19 @@ fn validation_axis_figures(
         md.push_str(&allan_table(&raw, &comp));
     }
     Ok(md)
+}
+
+/// The white-noise line of `floor` at the averaging times of `curve`:
+/// `adev * sqrt(from_tau_s / tau)`.
+fn white_noise_line(floor: &crate::calibrate::WhiteNoiseFloor, curve: &[AllanPoint]) -> Vec<AllanPoint> {
+    curve
+        .iter()
+        .map(|p| AllanPoint {
+            tau_s: p.tau_s,
+            adev_dph: floor.adev_dph * (floor.from_tau_s / p.tau_s).sqrt(),
+            relative_error: 0.0,
+        })
+        .collect()
 }
 
 /// Raw and compensated Allan deviation at 1, 10, 100 and 1000 s (where present), and
@@ -876,6 +910,49 @@ fn allan_table(raw: &[AllanPoint], comp: &[AllanPoint]) -> String {
     }
     md.push('\n');
     md
+}
+
+/// What the white-noise floor beside a validation's figures means, and what it bounds: the
+/// drift the compensation left is at most about `sqrt(comp^2 - floor^2)`, the part of the
+/// compensated figure above noise that is at least the floor (the terminal's line under its
+/// table, and the report's).
+pub fn white_noise_floor_explanation(
+    floor: Option<crate::calibrate::WhiteNoiseFloor>,
+    compensated_dph: f64,
+    window_s: f64,
+) -> String {
+    let Some(f) = floor else {
+        return format!(
+            "unknown: a run's gap-free stretches are too short for an Allan deviation at up to a tenth of \
+             the {window_s} s window"
+        );
+    };
+    let to = if f.averaged_s < 0.9 * window_s {
+        format!("the about {:.1} s of data each {window_s} s window holds", f.averaged_s)
+    } else {
+        format!("the {window_s} s window")
+    };
+    let meaning = format!(
+        "the compensated output's Allan deviation at {} s, where temperature drift does \
+         not show yet, extrapolated to {to} as 1/sqrt(tau). Flicker and rate random walk, which \
+         no model removes, come on top, so the real floor is higher",
+        f.from_tau_s
+    );
+    let above = compensated_dph * compensated_dph - f.floor_dph * f.floor_dph;
+    if !compensated_dph.is_finite() {
+        return format!("{meaning}.");
+    }
+    if above <= 0.0 {
+        return format!(
+            "{meaning}. The compensated figure ({compensated_dph:.5} deg/h) is at the floor: the noise hides any drift left."
+        );
+    }
+    format!(
+        "{meaning}. The compensated figure is {:.2} x the floor: the drift left is at most about {:.5} deg/h \
+         (sqrt(compensated^2 - floor^2)), less by what flicker and random walk add.",
+        compensated_dph / f.floor_dph,
+        above.sqrt()
+    )
 }
 
 /// A Markdown paragraph `heading` followed by one bullet per item, and a blank line; empty

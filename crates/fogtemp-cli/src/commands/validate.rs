@@ -133,33 +133,54 @@ pub fn validate(a: ValidateArgs) -> Result<()> {
     let names = run_labels(runs);
     // As wide as the longest name, so that long names do not push the columns out of line.
     let width = names.iter().map(|n| n.chars().count() + 1).max().unwrap_or(0).max(40);
-    println!("{:<width$} {:>4} {:>14} {:>14} {:>8}", "run", "axis", "raw deg/h", "comp deg/h", "raw/comp");
+    println!(
+        "{:<width$} {:>4} {:>14} {:>14} {:>8} {:>14}",
+        "run", "axis", "raw deg/h", "comp deg/h", "raw/comp", "floor deg/h"
+    );
+    let floor = |f: Option<calibrate::WhiteNoiseFloor>| {
+        f.map_or("unknown".to_string(), |f| format!("{:.5}", f.floor_dph))
+    };
     for (r, name) in runs.iter().zip(&names) {
         println!(
-            "{:<width$} {:>4} {:>14.5} {:>14.5} {:>8.2}",
+            "{:<width$} {:>4} {:>14.5} {:>14.5} {:>8.2} {:>14}",
             name,
             r.axis,
             r.raw_bias_stability_dph,
             r.compensated_bias_stability_dph,
-            r.raw_bias_stability_dph / r.compensated_bias_stability_dph
+            r.raw_bias_stability_dph / r.compensated_bias_stability_dph,
+            floor(r.white_noise_floor())
         );
     }
     let per_axis = validation.per_axis();
     if per_axis.len() > 1 {
         for (axis, axis_raw, axis_comp) in &per_axis {
             println!(
-                "{:<width$} {:>4} {:>14.5} {:>14.5} {:>8.2}",
+                "{:<width$} {:>4} {:>14.5} {:>14.5} {:>8.2} {:>14}",
                 "overall of the axis (RMS over runs)",
                 axis,
                 axis_raw,
                 axis_comp,
-                axis_raw / axis_comp
+                axis_raw / axis_comp,
+                floor(calibrate::overall_white_noise_floor(runs.iter().filter(|r| r.axis == *axis)))
             );
         }
     }
     let overall =
         if per_axis.len() > 1 { "overall (RMS over runs and axes)" } else { "overall (RMS over runs)" };
-    println!("{:<width$} {:>4} {:>14.5} {:>14.5} {:>8.2}", overall, "", raw, comp, raw / comp);
+    let overall_floor = calibrate::overall_white_noise_floor(runs);
+    println!(
+        "{:<width$} {:>4} {:>14.5} {:>14.5} {:>8.2} {:>14}",
+        overall,
+        "",
+        raw,
+        comp,
+        raw / comp,
+        floor(overall_floor)
+    );
+    println!(
+        "floor = white noise alone: {}",
+        fogtemp_cal::report::white_noise_floor_explanation(overall_floor, comp, options.tau_s)
+    );
     if !comparison.is_empty() {
         println!("\nmodels compared on the same logs (overall, RMS over runs):");
         println!(
