@@ -472,6 +472,23 @@ fn diagnose_names_a_left_out_lag_and_nothing_in_the_null_case() {
         (tau["value"].as_f64().unwrap_or(f64::NAN), tau["std_error"].as_f64().unwrap_or(f64::NAN));
     assert!((value - 546.0).abs() <= 4.0 * se.max(30.0), "tau {value} +- {se} s");
     assert!(report.join("report.md").is_file(), "no report.md");
+    // The text gives the fitted parameters beside the verdict, as --json has them.
+    let text = run_ok(["diagnose", "--simulated", s(&simulated), "--recorded", s(&recorded)]);
+    let fitted = text.split("Fitted (value +- standard error):\n").nth(1).expect("a Fitted block");
+    let lag_line = fitted.lines().next().unwrap_or_default();
+    assert!(lag_line.starts_with("thermal_lag: "), "{text}");
+    for (name, p) in lag["parameters"].as_object().expect("parameters") {
+        assert!(lag_line.contains(&format!("{name} ")), "{name} missing: {lag_line}");
+        if let Some(units) = p["units"].as_str() {
+            assert!(lag_line.contains(units), "{units} missing: {lag_line}");
+        }
+    }
+    let tau_text = lag_line.split("tau_s ").nth(1).and_then(|t| t.split(' ').next()).unwrap_or_default();
+    let tau_read: f64 = tau_text.parse().unwrap_or(f64::NAN);
+    assert!(
+        (tau_read - value).abs() <= 0.01 * se.max(1.0) + 0.5,
+        "tau {tau_text} in text, {value} in --json"
+    );
 
     // The scenario updated with what was found, simulated again (another noise seed):
     // nothing is left out any more and the residual shrinks.

@@ -50,7 +50,7 @@ use serde::Serialize;
 pub use documents::DiagnoseDocument;
 pub use error::{DiagnoseError, SeriesProblem, Side};
 #[cfg(feature = "report")]
-pub use report::{verdict_text, write_diagnosis_report};
+pub use report::{fitted_text, verdict_text, write_diagnosis_report};
 pub use update::{updated_scenario, write_updated_scenario};
 
 /// One run (one power-on) as a time series: the simulated or the recorded member of a pair.

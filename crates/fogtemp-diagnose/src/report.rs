@@ -449,6 +449,27 @@ pub fn verdict_text(d: &Diagnosis) -> String {
     verdict(d).replace("**", "").replace("  \n", "\n")
 }
 
+/// The named effects' fitted parameters, one line per effect, each as value +- standard error
+/// (a grid choice says so): `diagnose`'s text gives them beside the verdict (review16 F8: the
+/// size of the missing term was only in `--json` and the report). Empty when nothing is named.
+pub fn fitted_text(d: &Diagnosis) -> String {
+    let line = |e: &super::LeftOutEffect| {
+        let parameters: Vec<String> = e
+            .parameters
+            .iter()
+            .map(|(name, p)| match p.std_error.filter(|se| se.is_finite() && *se > 0.0) {
+                Some(_) => {
+                    let (value, se) = value_and_error(p.value, p.std_error);
+                    format!("{name} {value} +- {se} {}", p.units)
+                }
+                None => format!("{name} {} {} (grid choice)", significant(p.value, 4), p.units),
+            })
+            .collect();
+        format!("{}: {}", e.effect, parameters.join(", "))
+    };
+    d.left_out.iter().map(line).collect::<Vec<_>>().join("\n")
+}
+
 /// A parameter and its standard error as text, to the precision the error supports (two
 /// significant digits of the error); a parameter without one is a grid choice (a profiled
 /// time constant, width or basis size picked from its grid) and says so, with four

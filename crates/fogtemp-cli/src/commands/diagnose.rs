@@ -131,7 +131,13 @@ pub fn diagnose(a: DiagnoseArgs, recorded_ingest: IngestOptions) -> Result<()> {
         })?;
     } else {
         // The verdict first: the full summary (the report's "In full") is long.
-        println!("{}\n\nIn full: {}", fogtemp_diagnose::verdict_text(&d), d.summary);
+        let fitted = fogtemp_diagnose::fitted_text(&d);
+        let fitted = if fitted.is_empty() {
+            String::new()
+        } else {
+            format!("\n\nFitted (value +- standard error):\n{fitted}")
+        };
+        println!("{}{fitted}\n\nIn full: {}", fogtemp_diagnose::verdict_text(&d), d.summary);
         eprintln!("diagnosed {} run pairs in {seconds:.1} s", pairs.len());
     }
     Ok(())

@@ -212,6 +212,16 @@ pub fn fit(a: FitArgs) -> Result<()> {
                     }
                 );
                 print!("{}", s.table());
+                // The rule, where it did not take the lowest score (review16 F2: "chosen by
+                // cross-validation" beside a lower score read as a mistake).
+                if let Some(best) = s.best.filter(|b| *b != s.method) {
+                    println!(
+                        "  {} is chosen, not {} (the lowest): the rule takes {}",
+                        s.method.name(),
+                        best.name(),
+                        s.rule
+                    );
+                }
             }
             println!(
                 "axis {axis}: {}, {} points, fit residual RMS {:.5} deg/h (max {:.5}), {} mesh nodes, {} triangles{}",

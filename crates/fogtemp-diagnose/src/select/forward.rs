@@ -244,8 +244,8 @@ pub(super) fn judge(
         ("accepted", format!("passes the noise-model GLS test ({})", gls_note(gls)), None)
     } else {
         let mut why = failed.join("; ");
-        if gls.is_some() {
-            why.push_str(&format!("; noise-model GLS test not significant ({})", gls_note(gls)));
+        if let Some(v) = gls {
+            why.push_str(&format!("; noise-model GLS test {} ({})", v.why_not(), gls_note(gls)));
         }
         ("rejected", why, None)
     };
@@ -757,6 +757,22 @@ impl GlsVerdict {
             None => cv_falls && sign_ok,
         };
         self.family_p <= GLS_FAMILY_LEVEL && claim
+    }
+
+    /// Why the route did not accept, in words: the condition that failed (review16 F7: "not
+    /// significant" beside a family-wise p of 0.0000, where the held-out error had not fallen).
+    pub(super) fn why_not(&self) -> &'static str {
+        if self.family_p.is_nan() {
+            "not decided (no family-wise p)"
+        } else if self.family_p > GLS_FAMILY_LEVEL {
+            "not significant"
+        } else {
+            match self.heldout {
+                Some((false, _)) => "significant, but its held-out GLS error does not fall",
+                Some((true, false)) => "significant, but its GLS coefficient has the unphysical sign",
+                _ => "significant, but the held-out run-level error does not fall or the sign is unphysical",
+            }
+        }
     }
 }
 
@@ -1626,6 +1642,30 @@ mod tests {
         assert!(!route_significant(GLS_FAMILY_LEVEL * 1.01, Some((true, true))));
         assert!(!route_significant(0.0, Some((false, true))));
         assert!(!route_significant(0.0, Some((true, false))));
+    }
+
+    #[test]
+    fn a_rejection_by_the_route_names_the_condition_that_failed() {
+        let verdict = |family_p: f64, heldout: Option<(bool, bool)>| GlsVerdict {
+            min_p: 1e-9,
+            point: 0,
+            heldout_gls_fall: None,
+            family_p,
+            levels: (1e-6, 1e-7),
+            heldout,
+            own_levels: false,
+            split: LevelSplit::None,
+        };
+        assert_eq!(verdict(f64::NAN, None).why_not(), "not decided (no family-wise p)");
+        assert_eq!(verdict(GLS_FAMILY_LEVEL * 1.01, Some((true, true))).why_not(), "not significant");
+        assert_eq!(
+            verdict(0.0, Some((false, true))).why_not(),
+            "significant, but its held-out GLS error does not fall"
+        );
+        assert_eq!(
+            verdict(GLS_FAMILY_LEVEL, Some((true, false))).why_not(),
+            "significant, but its GLS coefficient has the unphysical sign"
+        );
     }
 
     #[test]
