@@ -613,10 +613,11 @@ fn rate_signs(points: &CalibrationPoints, axis: usize) -> Option<Warning> {
         axis,
         kind,
         format!(
-            "axis {axis}: the calibration only {what} (dT/dt from {p01:.3} to {p99:.3} C/min, 1st to 99th \
-             percentile; changing means beyond +-{MOVING_RATE_C_PER_MIN} C/min): {missing} rates are outside \
+            "axis {axis}: the calibration only {what} (dT/dt of the fit's points from {p01:.3} to {p99:.3} C/min, \
+             1st to 99th percentile, partial tracker windows included, so it can reach beyond the calibrated region inspect \
+             shows; changing means beyond +-{MOVING_RATE_C_PER_MIN} C/min): {missing} rates are outside \
              the calibrated region (by default a polynomial continues linearly from its boundary and a mesh from its hull's nearest point) and heating/cooling hysteresis \
-             cannot be seen; add {missing} runs"
+             cannot be seen; add {missing} runs to the calibration"
         ),
         &[
             ("rate_p01_c_per_min", p01),
