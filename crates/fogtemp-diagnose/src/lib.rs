@@ -278,6 +278,9 @@ pub struct Parameter {
     pub std_error: Option<f64>,
     /// Units of value and standard error.
     pub units: String,
+    /// Whether the value is a profiled parameter at its grid's first or last point: a bound
+    /// (the best fit may lie beyond), given without a standard error.
+    pub at_grid_edge: bool,
 }
 
 /// One catalogue effect the simulation leaves out, as chosen by forward selection.
@@ -711,7 +714,12 @@ fn single_run(prep: &prepare::Prepared, options: &DiagnoseOptions) -> Result<Dia
     let nan_runs: Vec<Vec<f64>> = resid.iter().map(|v| vec![f64::NAN; v.len()]).collect();
     let outcome = select::FinalOutcome {
         left_out: Vec::new(),
-        global_offset: Parameter { value: offset, std_error: None, units: "deg/h".into() },
+        global_offset: Parameter {
+            value: offset,
+            std_error: None,
+            units: "deg/h".into(),
+            at_grid_edge: false,
+        },
         residual_before_dph: f64::NAN,
         residual_after_dph: f64::NAN,
         bias_stability_before_dph: f64::NAN,

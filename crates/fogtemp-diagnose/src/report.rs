@@ -462,6 +462,13 @@ pub fn fitted_text(d: &Diagnosis) -> String {
                     let (value, se) = value_and_error(p.value, p.std_error);
                     format!("{name} {value} +- {se} {}", p.units)
                 }
+                None if p.at_grid_edge => {
+                    format!(
+                        "{name} {} {} (at its grid's edge: a bound, not an estimate)",
+                        significant(p.value, 4),
+                        p.units
+                    )
+                }
                 None => format!("{name} {} {} (grid choice)", significant(p.value, 4), p.units),
             })
             .collect();
@@ -539,7 +546,10 @@ fn markdown(d: &Diagnosis, figures: OptionalFigures) -> String {
             e.effect, e.statement
         );
         for (name, p) in &e.parameters {
-            let (value, se) = value_and_error(p.value, p.std_error);
+            let (value, mut se) = value_and_error(p.value, p.std_error);
+            if p.at_grid_edge {
+                se = "- (at the grid's edge: a bound, not an estimate)".into();
+            }
             let _ = writeln!(md, "| {name} | {value} | {se} | {} |", p.units);
         }
         if e.effect == "static_shape" && figures.static_shape {

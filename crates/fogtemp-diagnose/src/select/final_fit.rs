@@ -106,6 +106,19 @@ pub(super) fn derivative_columns(
     (per_run, width)
 }
 
+/// The smallest and largest value of the grid's parameter `m`.
+fn grid_span(grid: &EffectGrid, m: usize) -> (f64, f64) {
+    let values = grid.points.iter().filter_map(|pt| pt.theta.get(m).copied());
+    values.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(v), b.max(v)))
+}
+
+/// Whether `value` of the grid's parameter `m` lies at (or beyond) the grid's smallest or
+/// largest point (also where the grid holds one value): a bound, not an estimate.
+fn at_edge_of_grid(grid: &EffectGrid, m: usize, value: f64) -> bool {
+    let (lo, hi) = grid_span(grid, m);
+    value <= lo || value >= hi
+}
+
 pub(super) fn parameters_of(
     prep: &Prepared,
     grid: &EffectGrid,
@@ -117,10 +130,21 @@ pub(super) fn parameters_of(
 ) -> BTreeMap<String, Parameter> {
     let mut out = BTreeMap::new();
     for (((name, units), v), s) in cols.coefficients.iter().zip(coef).zip(se) {
-        out.insert(name.clone(), Parameter { value: *v, std_error: Some(*s), units: units.clone() });
+        out.insert(
+            name.clone(),
+            Parameter { value: *v, std_error: Some(*s), units: units.clone(), at_grid_edge: false },
+        );
     }
-    for ((p, v), s) in grid.params.iter().zip(&cols.theta).zip(theta_se) {
-        out.insert(p.name.to_string(), Parameter { value: *v, std_error: *s, units: p.units.to_string() });
+    for (m, ((p, v), s)) in grid.params.iter().zip(&cols.theta).zip(theta_se).enumerate() {
+        // A continuous parameter at its grid's first or last point is a bound (review16 F5:
+        // a lag's 3600 s read as an estimate without a standard error); a 0 there stands for
+        // the term's absence (a second time constant of 0: one exponential), not a bound.
+        let (lo, hi) = grid_span(grid, m);
+        let at_grid_edge = p.continuous && *v != 0.0 && lo < hi && at_edge_of_grid(grid, m, *v);
+        out.insert(
+            p.name.to_string(),
+            Parameter { value: *v, std_error: *s, units: p.units.to_string(), at_grid_edge },
+        );
     }
     if grid.effect == Effect::StaticShape {
         let (lo, hi) = prep.temp_range_c;
@@ -132,6 +156,7 @@ pub(super) fn parameters_of(
                 value: static_shape_peak_to_peak(lo, hi, k, coef),
                 std_error: jackknife_se(&per_fold),
                 units: "deg/h".into(),
+                at_grid_edge: false,
             },
         );
         // Where the shape departs most from its mean, and by how much: what an engineer
@@ -145,6 +170,7 @@ pub(super) fn parameters_of(
                 value: at_c,
                 std_error: jackknife_se(&per_fold.iter().map(|p| p.0).collect::<Vec<_>>()),
                 units: "deg C (where the shape is furthest from its mean)".into(),
+                at_grid_edge: false,
             },
         );
         out.insert(
@@ -153,6 +179,7 @@ pub(super) fn parameters_of(
                 value: depth_dph,
                 std_error: jackknife_se(&per_fold.iter().map(|p| p.1).collect::<Vec<_>>()),
                 units: "deg/h (the shape there, less its mean over the basis range)".into(),
+                at_grid_edge: false,
             },
         );
         out.insert(
@@ -161,21 +188,32 @@ pub(super) fn parameters_of(
                 value: (hi - lo) / (k.max(4) - 3) as f64,
                 std_error: None,
                 units: "deg C (features narrower than this are flattened)".into(),
+                at_grid_edge: false,
             },
         );
         out.insert(
             "t_min_c".into(),
-            Parameter { value: lo, std_error: None, units: "deg C (basis range start)".into() },
+            Parameter {
+                value: lo,
+                std_error: None,
+                units: "deg C (basis range start)".into(),
+                at_grid_edge: false,
+            },
         );
         out.insert(
             "t_max_c".into(),
-            Parameter { value: hi, std_error: None, units: "deg C (basis range end)".into() },
+            Parameter {
+                value: hi,
+                std_error: None,
+                units: "deg C (basis range end)".into(),
+                at_grid_edge: false,
+            },
         );
     }
     if grid.effect == Effect::ScaleFactorTemperature || grid.effect == Effect::Hysteresis {
         out.insert(
             "t_ref_c".into(),
-            Parameter { value: prep.temp_ref_c, std_error: None, units: "deg C".into() },
+            Parameter { value: prep.temp_ref_c, std_error: None, units: "deg C".into(), at_grid_edge: false },
         );
     }
     out
@@ -265,12 +303,7 @@ pub(super) fn fit_parameters(
         for (m, p) in grid.map(|g| g.params.as_slice()).unwrap_or(&[]).iter().enumerate() {
             // A parameter at the edge of its grid is a bound, not an estimate: its derivative
             // column would be near-collinear with the term and inflate every other SE.
-            let at_edge = grid.is_some_and(|g| {
-                let values = g.points.iter().map(|pt| pt.theta[m]);
-                let (lo, hi) =
-                    values.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(v), b.max(v)));
-                t.theta[m] <= lo || t.theta[m] >= hi
-            });
+            let at_edge = grid.is_some_and(|g| at_edge_of_grid(g, m, t.theta[m]));
             if p.continuous && !at_edge {
                 extra.push(derivative_columns(prep, c.effect, t, &coef[ti], m).0);
                 owner.push((ti, m));
@@ -316,7 +349,12 @@ pub(super) fn fit_parameters(
     for (j, (ti, m)) in owner.iter().enumerate() {
         theta_se[*ti][*m] = Some(se_of(design.p() + j));
     }
-    let offset = Parameter { value: unscaled[0], std_error: Some(se_of(0)), units: "deg/h".into() };
+    let offset = Parameter {
+        value: unscaled[0],
+        std_error: Some(se_of(0)),
+        units: "deg/h".into(),
+        at_grid_edge: false,
+    };
     Fitted { coef, se, theta_se, offset }
 }
 
@@ -708,6 +746,29 @@ mod tests {
         );
     }
 
+    #[test]
+    fn a_value_at_its_grids_first_or_last_point_is_at_the_edge() {
+        use crate::effects::{EffectGrid, TermColumns};
+        let point = |tau: f64| TermColumns {
+            theta: vec![tau, 1.0],
+            coefficients: Vec::new(),
+            per_run: Vec::new(),
+            penalty: None,
+        };
+        let grid = EffectGrid {
+            effect: Effect::ThermalLag,
+            params: Vec::new(),
+            points: [300.0, 900.0, 3600.0].map(point).to_vec(),
+            unmet_requirement: None,
+        };
+        assert!(at_edge_of_grid(&grid, 0, 3600.0) && at_edge_of_grid(&grid, 0, 300.0));
+        assert!(!at_edge_of_grid(&grid, 0, 900.0));
+        // A parameter the grid does not vary (the second, 1 at every point) is at its edge for
+        // the fit (no derivative column), but its span says it was never profiled.
+        assert!(at_edge_of_grid(&grid, 1, 1.0));
+        assert_eq!((grid_span(&grid, 0), grid_span(&grid, 1)), ((300.0, 3600.0), (1.0, 1.0)));
+    }
+
     /// k = 4 on [0, 10], coefficients (0, 0, c): c u^3 with u = t / 10, mean c / 4 over the
     /// interval; furthest from it at t = 10, by 3c / 4 (against c / 4 at t = 0). The grid's
     /// mean of 1001 points differs from the integral by under 1e-3 of c.
@@ -743,7 +804,7 @@ mod tests {
         let with_gain = |gain: f64| {
             BTreeMap::from([(
                 "gain".to_string(),
-                Parameter { value: gain, std_error: Some(0.5), units: String::new() },
+                Parameter { value: gain, std_error: Some(0.5), units: String::new(), at_grid_edge: false },
             )])
         };
         for gain in [3.19, 2.01, 0.49, -0.2] {
