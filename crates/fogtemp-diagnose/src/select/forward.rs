@@ -230,7 +230,12 @@ pub(super) fn judge(
             Some(crate::effects::separating_experiment(grid.effect, &crate::effects::run_content(ctx.prep))),
         )
     } else if accepted && failed.is_empty() {
-        let rules = "passes LORO, fold, BIC and concealment rules";
+        // With no informative run the fold rule passes without evidence: say so (review16 F4).
+        let rules = if informative == 0 {
+            "passes LORO, BIC and concealment rules (the fold rule had no run large enough to judge)"
+        } else {
+            "passes LORO, fold, BIC and concealment rules"
+        };
         let note = match &permutation {
             Some(t) => format!(
                 "{rules} and the permutation test of the position labels (p {:.4}, {} relabellings)",
