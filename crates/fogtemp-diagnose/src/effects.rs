@@ -163,6 +163,10 @@ impl Effect {
 pub struct RunContent {
     /// Some run moves its temperature after the warm-up span (a chamber ramp or step).
     pub ramps: bool,
+    /// Distinct chamber rates among the runs that ramp: each such run's median |dT/dt| over its
+    /// ramp blocks, counted as distinct when 1.5 x apart (a triangle at 0.25 C/min and a step
+    /// that moves at 0.54 are two).
+    pub ramp_rates: usize,
     /// The runs heat and cool (chamber cycling).
     pub heating_and_cooling: bool,
     /// Positions with at least two runs.
@@ -179,7 +183,18 @@ const SETTLED_AFTER_S: f64 = 1800.0;
 /// What `prep`'s runs contain (see [`RunContent`]).
 pub fn run_content(prep: &Prepared) -> RunContent {
     let blocks = || prep.runs.iter().flat_map(|r| r.blocks.iter());
-    let ramps = blocks().any(|b| b.since_on_s >= SETTLED_AFTER_S && b.rate_c_per_min.abs() >= RAMP_C_PER_MIN);
+    let is_ramp = |b: &&crate::prepare::Block| {
+        b.since_on_s >= SETTLED_AFTER_S && b.rate_c_per_min.abs() >= RAMP_C_PER_MIN
+    };
+    let ramps = blocks().any(|b| is_ramp(&b));
+    let run_ramp_rates: Vec<f64> = prep
+        .runs
+        .iter()
+        .filter_map(|r| {
+            let rates: Vec<f64> = r.blocks.iter().filter(is_ramp).map(|b| b.rate_c_per_min.abs()).collect();
+            median_of(rates)
+        })
+        .collect();
     let cooling = blocks().filter(|b| b.rate_c_per_min < COOLING_C_PER_MIN).count();
     let heating = blocks().filter(|b| b.rate_c_per_min > -COOLING_C_PER_MIN).count();
     let g = groups(prep);
@@ -192,7 +207,36 @@ pub fn run_content(prep: &Prepared) -> RunContent {
     rates.sort_by(f64::total_cmp);
     let input_rates =
         if rates.is_empty() { 0 } else { rates.windows(2).filter(|w| w[1] - w[0] > 1.0).count() + 1 };
-    RunContent { ramps, heating_and_cooling: cooling >= 10 && heating >= 10, repeated_positions, input_rates }
+    RunContent {
+        ramps,
+        ramp_rates: distinct_by_ratio(run_ramp_rates, 1.5),
+        heating_and_cooling: cooling >= 10 && heating >= 10,
+        repeated_positions,
+        input_rates,
+    }
+}
+
+/// The median of `values` (`None` when empty).
+fn median_of(mut values: Vec<f64>) -> Option<f64> {
+    values.sort_by(f64::total_cmp);
+    let n = values.len();
+    (n > 0).then(|| if n % 2 == 1 { values[n / 2] } else { 0.5 * (values[n / 2 - 1] + values[n / 2]) })
+}
+
+/// How many of the positive `values` are distinct when counted `ratio` x apart: sorted, a value
+/// counts when it is at least `ratio` times the last counted one.
+fn distinct_by_ratio(mut values: Vec<f64>, ratio: f64) -> usize {
+    values.retain(|v| *v > 0.0 && v.is_finite());
+    values.sort_by(f64::total_cmp);
+    let mut last = f64::NAN;
+    let mut count = 0;
+    for v in values {
+        if last.is_nan() || v >= last * ratio {
+            count += 1;
+            last = v;
+        }
+    }
+    count
 }
 
 /// The experiment that would separate `effect` from what it is confused with, given what the
@@ -201,6 +245,11 @@ pub fn separating_experiment(effect: Effect, content: &RunContent) -> String {
     let base = effect.experiment();
     let already = |what: &str, next: &str| format!("{next} (these runs already hold {what})");
     match effect {
+        Effect::ThermalLag | Effect::ShupeRate | Effect::GradientRate if content.ramp_rates >= 2 => already(
+            "chamber ramps at two or more rates",
+            "ambient temperature sinusoids at two periods (a lag's phase saturates, a dT/dt term grows with the \
+             frequency, a d2T/dt2 term with its square)",
+        ),
         Effect::ThermalLag | Effect::ShupeRate if content.ramps => already(
             "chamber ramps or steps",
             "ambient temperature sinusoids at two periods (a lag's phase saturates, a dT/dt term's grows with frequency), or ramps at a second rate over a wider temperature span",
@@ -979,8 +1028,13 @@ mod play_tests {
     #[test]
     fn a_separating_experiment_is_never_one_the_runs_already_hold() {
         let none = RunContent::default();
-        let all =
-            RunContent { ramps: true, heating_and_cooling: true, repeated_positions: 2, input_rates: 2 };
+        let all = RunContent {
+            ramps: true,
+            ramp_rates: 1,
+            heating_and_cooling: true,
+            repeated_positions: 2,
+            input_rates: 2,
+        };
         for effect in Effect::ALL {
             assert_eq!(separating_experiment(effect, &none), effect.experiment());
         }
@@ -993,5 +1047,26 @@ mod play_tests {
         assert!(!s.starts_with("chamber ramps") && s.contains("sinusoids"), "{s}");
         let o = separating_experiment(Effect::OrientationOffset, &all);
         assert!(o.starts_with("more power-ons per position"), "{o}");
+        // Ramps at two rates already there (review16 F6: a triangle at 0.25 C/min and a step at
+        // 0.54): neither a second rate nor a ramp run is recommended, only sinusoids.
+        let two_rates = RunContent { ramp_rates: 2, ..all };
+        for effect in [Effect::ThermalLag, Effect::ShupeRate, Effect::GradientRate] {
+            let e = separating_experiment(effect, &two_rates);
+            assert!(e.starts_with("ambient temperature sinusoids at two periods"), "{e}");
+            let recommended = e.split(" (these runs").next().unwrap_or_default();
+            assert!(!recommended.contains("ramp"), "{e}");
+            assert!(e.ends_with("(these runs already hold chamber ramps at two or more rates)"), "{e}");
+        }
+    }
+
+    #[test]
+    fn ramp_rates_count_as_distinct_when_half_again_apart() {
+        assert_eq!(distinct_by_ratio(vec![0.25, 0.54], 1.5), 2);
+        assert_eq!(distinct_by_ratio(vec![0.25, 0.26, 0.3, 0.36], 1.5), 1);
+        assert_eq!(distinct_by_ratio(vec![0.1, 0.16, 0.2, 0.5, f64::NAN, 0.0], 1.5), 3);
+        assert_eq!(distinct_by_ratio(Vec::new(), 1.5), 0);
+        assert_eq!(median_of(vec![3.0, 1.0, 2.0]), Some(2.0));
+        assert_eq!(median_of(vec![4.0, 1.0, 2.0, 3.0]), Some(2.5));
+        assert_eq!(median_of(Vec::new()), None);
     }
 }
