@@ -2183,4 +2183,18 @@ fn spikes_copies_and_streamed_output_are_said() {
     let streamed = run_ok(args!["compensate", "--model", &model, "--out", "-", &val]);
     assert_eq!(streamed, fs::read_to_string(&file).expect("read"));
     assert!(!dir.path().join("-").exists() && !Path::new("-").exists());
+    // A reader that closes stdout at once (`| head`): status 0, and a note that the notes on
+    // the whole log were not reached (review13 F12: they were lost without a word).
+    let mut child = std::process::Command::new(common::fogtemp_cal_bin())
+        .args(args!["compensate", "--model", &model, "--out", "-", &val])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("spawn");
+    drop(child.stdout.take());
+    let output = child.wait_with_output().expect("wait");
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(output.status.success(), "{:?}: {stderr}", output.status);
+    assert!(stderr.contains("the reader of stdout closed it before the log's end"), "{stderr}");
+    assert!(stderr.contains("--out FILE"), "{stderr}");
 }

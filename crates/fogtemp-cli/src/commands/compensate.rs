@@ -140,8 +140,15 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
     if let Some(e) = input_error {
         return Err(e);
     }
-    // A reader that stops early (`| head`) closes the pipe: done, as other tools end there.
+    // A reader that stops early (`| head`) closes the pipe: done, as other tools end there,
+    // but the notes on the whole log were never reached: say so (review13 F12).
     if to_stdout && pipe_closed {
+        eprintln!(
+            "note: {}: the reader of stdout closed it before the log's end, so compensate stopped there; \
+             the notes on the whole log (gaps, spikes, samples outside the calibrated region) need all of it: \
+             write to a file with --out FILE for them",
+            a.log.display()
+        );
         return Ok(());
     }
     written?;
