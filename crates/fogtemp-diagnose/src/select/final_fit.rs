@@ -418,6 +418,20 @@ pub(super) fn how_chosen(
                         100.0 * (1.0 - chosen_cv / other_cv)
                     );
                     match &step.tie_break {
+                        // Neither adds beyond the other: the test decided nothing (review16 F5:
+                        // "kept it" beside p 0.28 and 0.52 read as a firm choice).
+                        Some(t)
+                            if t.loro_winner == chosen
+                                && t.winner_given_runner_up_p >= ENCOMPASSING_LEVEL
+                                && t.runner_up_given_winner_p >= ENCOMPASSING_LEVEL =>
+                        {
+                            format!(
+                                "only the lower LORO RMS chose {chosen} ({lower}); the noise model's encompassing test \
+                                 did not tell them apart either: {chosen} adds beyond {} at GLS Wald p {:.2e}, {} \
+                                 beyond it at p {:.2e}, neither below {ENCOMPASSING_LEVEL}",
+                                t.runner_up, t.winner_given_runner_up_p, t.runner_up, t.runner_up_given_winner_p
+                            )
+                        }
                         Some(t) if t.loro_winner == chosen => format!(
                             "the lower LORO RMS chose {chosen} ({lower}), and the noise model's encompassing test kept \
                              it: it adds beyond {} at GLS Wald p {:.2e}, {} beyond it at p {:.2e}",
@@ -730,6 +744,19 @@ mod tests {
             "the lower LORO RMS chose thermal_lag (0.010960 against 0.011010 deg/h for shupe_rate, 0.454 % lower), \
              and the noise model's encompassing test kept it: it adds beyond shupe_rate at GLS Wald p 5.87e-3, \
              shupe_rate beyond it at p 1.93e-2"
+        );
+        // Neither adds beyond the other at the 5 % level (review16's seed 303 shupe case: p 0.277
+        // and 0.517): the test decided nothing, and the statement says the LORO RMS alone chose.
+        let undecided = crate::TieBreak {
+            winner_given_runner_up_p: 0.277,
+            runner_up_given_winner_p: 0.517,
+            ..kept.clone()
+        };
+        assert_eq!(
+            how_chosen(&step_with(Some(undecided)), "thermal_lag", 0.01096, &[("shupe_rate".into(), 0.01101)]),
+            "only the lower LORO RMS chose thermal_lag (0.010960 against 0.011010 deg/h for shupe_rate, 0.454 % lower); \
+             the noise model's encompassing test did not tell them apart either: thermal_lag adds beyond shupe_rate at \
+             GLS Wald p 2.77e-1, shupe_rate beyond it at p 5.17e-1, neither below 0.05"
         );
         // Without a tie-break, only the LORO RMS chose; a margin below the fifth decimal is
         // shown with the decimals that resolve it (testbed seed 3's coil lag: 0.0077467 against
