@@ -1104,17 +1104,23 @@ fn a_closed_output_pipe_ends_quietly_and_allan_needs_no_temperature() {
     let curve = |doc: &str| json(doc)["axes"][0]["curve"].clone();
     assert_eq!(curve(&with_temp), curve(&without), "the same gyro gives the same Allan deviation");
     for _ in 0..3 {
-        let mut child = std::process::Command::new(common::fogtemp_cal_bin())
-            .args(args!["allan", &ok])
-            .stdout(std::process::Stdio::piped())
-            .stderr(std::process::Stdio::piped())
-            .spawn()
-            .expect("spawn");
-        drop(child.stdout.take());
-        let output = child.wait_with_output().expect("wait");
-        let stderr = String::from_utf8_lossy(&output.stderr);
-        assert!(output.status.success() && !stderr.contains("panicked"), "{:?}: {stderr}", output.status);
+        let (status, stderr) = run_with_stdout_closed(args!["allan", &ok]);
+        assert!(status.success() && !stderr.contains("panicked"), "{status:?}: {stderr}");
     }
+}
+
+/// Runs the command with its stdout closed at once (a reader that has gone, as `| head`
+/// leaves it): its exit status and stderr.
+fn run_with_stdout_closed(args: Vec<OsString>) -> (std::process::ExitStatus, String) {
+    let mut child = std::process::Command::new(common::fogtemp_cal_bin())
+        .args(args)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("spawn");
+    drop(child.stdout.take());
+    let output = child.wait_with_output().expect("wait");
+    (output.status, String::from_utf8_lossy(&output.stderr).into_owned())
 }
 
 /// A model whose axes and the log's gyro columns differ in number is used on the first of
@@ -2185,16 +2191,8 @@ fn spikes_copies_and_streamed_output_are_said() {
     assert!(!dir.path().join("-").exists() && !Path::new("-").exists());
     // A reader that closes stdout at once (`| head`): status 0, and a note that the notes on
     // the whole log were not reached (review13 F12: they were lost without a word).
-    let mut child = std::process::Command::new(common::fogtemp_cal_bin())
-        .args(args!["compensate", "--model", &model, "--out", "-", &val])
-        .stdout(std::process::Stdio::piped())
-        .stderr(std::process::Stdio::piped())
-        .spawn()
-        .expect("spawn");
-    drop(child.stdout.take());
-    let output = child.wait_with_output().expect("wait");
-    let stderr = String::from_utf8_lossy(&output.stderr);
-    assert!(output.status.success(), "{:?}: {stderr}", output.status);
+    let (status, stderr) = run_with_stdout_closed(args!["compensate", "--model", &model, "--out", "-", &val]);
+    assert!(status.success(), "{status:?}: {stderr}");
     assert!(stderr.contains("the reader of stdout closed it before the log's end"), "{stderr}");
     assert!(stderr.contains("--out FILE"), "{stderr}");
 }

@@ -2171,40 +2171,26 @@ mod tests {
         let overall = overall_white_noise_floor([&flat, &drifting]).expect("both have floors");
         let rms = ((floor(&flat).powi(2) + floor(&drifting).powi(2)) / 2.0).sqrt();
         assert!((overall.floor_dph - rms).abs() < 1e-12);
+        // `flat`'s windows over other block times: the noise's first samples at them.
+        let at_times = |time_s: Vec<f64>| RunValidation {
+            series: ReplaySeries {
+                compensated_dph: noise[..time_s.len()].to_vec(),
+                time_s,
+                compensating_from_s: 0.0,
+                ..ReplaySeries::default()
+            },
+            ..flat.clone()
+        };
         // A run of 3 s stretches (under the 4 samples an Allan deviation needs): none; nor a
         // run sampled every 20 s (its spacing over a tenth of the 100 s window).
-        let short = RunValidation {
-            series: ReplaySeries {
-                time_s: (0..15).map(|k| 60.0 * (k / 3) as f64 + (k % 3) as f64 + 0.5).collect(),
-                compensated_dph: noise[..15].to_vec(),
-                compensating_from_s: 0.0,
-                ..ReplaySeries::default()
-            },
-            ..flat.clone()
-        };
+        let short = at_times((0..15).map(|k| 60.0 * (k / 3) as f64 + (k % 3) as f64 + 0.5).collect());
         assert!(short.white_noise_floor().is_none());
         assert!(overall_white_noise_floor([&flat, &short]).is_none());
-        let sparse = RunValidation {
-            series: ReplaySeries {
-                time_s: (0..360).map(|k| 20.0 * k as f64 + 0.5).collect(),
-                compensated_dph: noise[..360].to_vec(),
-                compensating_from_s: 0.0,
-                ..ReplaySeries::default()
-            },
-            ..flat.clone()
-        };
+        let sparse = at_times((0..360).map(|k| 20.0 * k as f64 + 0.5).collect());
         assert!(sparse.white_noise_floor().is_none());
         // Every 10 s: the floor from 10 s blocks, sigma_1s / sqrt(100 / 10) (one sample per
         // block here), within 3 x 1 / sqrt(2 x 358) = 11 %.
-        let slow = RunValidation {
-            series: ReplaySeries {
-                time_s: (0..720).map(|k| 10.0 * k as f64 + 0.5).collect(),
-                compensated_dph: noise[..720].to_vec(),
-                compensating_from_s: 0.0,
-                ..ReplaySeries::default()
-            },
-            ..flat.clone()
-        };
+        let slow = at_times((0..720).map(|k| 10.0 * k as f64 + 0.5).collect());
         // Bursts of 5 s every 300 s (psim-tvc's shape): a window mean averages 5 s of data,
         // so the floor is the 1 s deviation over sqrt(5), within 3 x 1 / sqrt(2 x 96) = 22 %
         // (120 differences inside 30 bursts).
