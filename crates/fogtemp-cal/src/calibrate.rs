@@ -1682,10 +1682,6 @@ impl RunValidation {
 }
 
 impl RunValidation {
-    /// The note for averaging windows that data fill for less than half their length (a log
-    /// recorded in bursts, review14 F2: psim-tvc's 5 s bursts every 100 s or so gave a "100 s"
-    /// bias stability that is the scatter of 5 s means, with 46 of 65 windows empty, without a
-    /// word): the data time per used window is its block means times their median spacing.
     /// The data time a used averaging window holds on average, s (`None` without windows):
     /// its blocks times the share of a full block the run's blocks hold on average (blocks at
     /// a burst's edges hold part of one: psim-tvc's 5 s bursts touch 6 one-second blocks;
@@ -1702,6 +1698,10 @@ impl RunValidation {
         Some(w.samples_used as f64 / w.used as f64 * step_s * fill.min(1.0))
     }
 
+    /// The note for averaging windows that data fill for less than half their length (a log
+    /// recorded in bursts, review14 F2: psim-tvc's 5 s bursts every 100 s or so gave a "100 s"
+    /// bias stability that is the scatter of 5 s means, with 46 of 65 windows empty, without a
+    /// word): the data time per used window from [`RunValidation::window_data_s`].
     fn sparse_windows_note(&self, name: &str) -> Option<String> {
         let w = self.windows;
         let data_s = self.window_data_s()?;
