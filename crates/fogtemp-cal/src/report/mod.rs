@@ -502,14 +502,15 @@ pub fn plot_allan(path: &Path, title: &str, curves: &[(String, Vec<AllanPoint>)]
             // Raw grey and compensated blue, as in the bars figure beside it; the diagnosis's
             // residual before its model grey and after it blue likewise (review14 F8: before
             // was blue there, after orange).
+            // The white-noise line is a reference: black, thinner than the measured curves.
+            let reference = name.starts_with("white noise");
             let colour = match name.as_str() {
                 "raw" | "residual before" => figures::RAW_GREY,
                 "compensated" | "residual after the final model" => run_colour(0),
-                white if white.starts_with("white noise") => BLACK,
+                _ if reference => BLACK,
                 _ => run_colour(i),
             };
-            // A reference line thinner than the measured curves it runs along.
-            let width = if name.starts_with("white noise") { 1 } else { 2 };
+            let width = if reference { 1 } else { 2 };
             chart
                 .draw_series(LineSeries::new(
                     curve.iter().map(|p| (p.tau_s, p.adev_dph)),
@@ -665,9 +666,6 @@ pub fn write_validation_report_with(
     md.push_str(
         "| run | axis | raw, deg/h | compensated, deg/h | raw / compensated (above 1: better) | white-noise floor, deg/h | windows (scatter of each figure) | outside the calibrated region |\n|---|---|---|---|---|---|---|---|\n",
     );
-    let floor_cell = |f: Option<crate::calibrate::WhiteNoiseFloor>| {
-        f.map_or_else(|| "unknown".to_string(), |f| format!("{:.5}", f.floor_dph))
-    };
     let outside_bit = fogtemp_core::Flags::OUTSIDE_HULL.0.trailing_zeros() as usize;
     for r in runs {
         let outside = r.series.flag_counts.get(outside_bit).copied().unwrap_or(0);
@@ -682,7 +680,7 @@ pub fn write_validation_report_with(
             r.raw_bias_stability_dph,
             r.compensated_bias_stability_dph,
             r.raw_bias_stability_dph / r.compensated_bias_stability_dph,
-            floor_cell(r.white_noise_floor()),
+            white_noise_floor_cell(r.white_noise_floor()),
             r.windows.used,
             crate::calibrate::share_percent(outside, r.series.samples)
         ));
@@ -693,7 +691,7 @@ pub fn write_validation_report_with(
             md.push_str(&format!(
                 "| overall of axis {axis} (RMS over its runs) | {axis} | {raw:.5} | {comp:.5} | {:.2} | {} | | |\n",
                 raw / comp,
-                floor_cell(crate::calibrate::overall_white_noise_floor(runs.iter().filter(|r| r.axis == *axis)))
+                white_noise_floor_cell(crate::calibrate::overall_white_noise_floor(runs.iter().filter(|r| r.axis == *axis)))
             ));
         }
     }
@@ -705,7 +703,7 @@ pub fn write_validation_report_with(
         overall.0,
         overall.1,
         overall.0 / overall.1,
-        floor_cell(overall_floor)
+        white_noise_floor_cell(overall_floor)
     ));
     // What a compensated figure is to be judged against (review14 F4).
     md.push_str(&format!(
@@ -910,6 +908,12 @@ fn allan_table(raw: &[AllanPoint], comp: &[AllanPoint]) -> String {
     }
     md.push('\n');
     md
+}
+
+/// A white-noise floor as a table cell, deg/h to 5 decimals, or "unknown" (the validation
+/// report's column and `validate`'s).
+pub fn white_noise_floor_cell(floor: Option<crate::calibrate::WhiteNoiseFloor>) -> String {
+    floor.map_or_else(|| "unknown".to_string(), |f| format!("{:.5}", f.floor_dph))
 }
 
 /// What the white-noise floor beside a validation's figures means, and what it bounds: the

@@ -137,9 +137,6 @@ pub fn validate(a: ValidateArgs) -> Result<()> {
         "{:<width$} {:>4} {:>14} {:>14} {:>8} {:>14}",
         "run", "axis", "raw deg/h", "comp deg/h", "raw/comp", "floor deg/h"
     );
-    let floor = |f: Option<calibrate::WhiteNoiseFloor>| {
-        f.map_or("unknown".to_string(), |f| format!("{:.5}", f.floor_dph))
-    };
     for (r, name) in runs.iter().zip(&names) {
         println!(
             "{:<width$} {:>4} {:>14.5} {:>14.5} {:>8.2} {:>14}",
@@ -148,7 +145,7 @@ pub fn validate(a: ValidateArgs) -> Result<()> {
             r.raw_bias_stability_dph,
             r.compensated_bias_stability_dph,
             r.raw_bias_stability_dph / r.compensated_bias_stability_dph,
-            floor(r.white_noise_floor())
+            fogtemp_cal::report::white_noise_floor_cell(r.white_noise_floor())
         );
     }
     let per_axis = validation.per_axis();
@@ -161,7 +158,9 @@ pub fn validate(a: ValidateArgs) -> Result<()> {
                 axis_raw,
                 axis_comp,
                 axis_raw / axis_comp,
-                floor(calibrate::overall_white_noise_floor(runs.iter().filter(|r| r.axis == *axis)))
+                fogtemp_cal::report::white_noise_floor_cell(calibrate::overall_white_noise_floor(
+                    runs.iter().filter(|r| r.axis == *axis)
+                ))
             );
         }
     }
@@ -175,7 +174,7 @@ pub fn validate(a: ValidateArgs) -> Result<()> {
         raw,
         comp,
         raw / comp,
-        floor(overall_floor)
+        fogtemp_cal::report::white_noise_floor_cell(overall_floor)
     );
     println!(
         "floor = white noise alone: {}",
