@@ -322,6 +322,7 @@ fn run_diagnosis(plans: &[RunPlan], effect: Injected, rate_hz: f64, seed: u64) -
     for e in &d.left_out {
         eprintln!("  left out {}: {:?}", e.effect, e.parameters);
     }
+    common::assert_selection_consistent(&d);
     d
 }
 

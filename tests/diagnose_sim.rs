@@ -44,6 +44,7 @@ fn run(label: &str, scale: f64) -> (Diagnosis, std::collections::BTreeMap<String
     for e in &d.left_out {
         eprintln!("  left out {}: {:?}", e.effect, e.parameters);
     }
+    common::assert_selection_consistent(&d);
     (d, truth_map(&ds, &g))
 }
 

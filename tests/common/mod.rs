@@ -195,3 +195,32 @@ pub fn correlation(a: &[f64], b: &[f64]) -> f64 {
     let vb: f64 = b.iter().map(|y| (y - mb).powi(2)).sum();
     cov / (va * vb).sqrt()
 }
+
+/// What every diagnosis promises about its named, dropped and alternative effects
+/// (backward elimination, review16 F3): a dropped effect is not named and its removal did
+/// not raise the LORO error; no named effect is another's alternative; and every effect the
+/// run-level rules named lowers the held-out residual with the others kept (the test that
+/// dropped the rest). A term only the noise-model route accepted is judged in the GLS metric
+/// and may show a rise in the unweighted figure (its statement says it was accepted by that
+/// test).
+pub fn assert_selection_consistent(d: &fogtemp_diagnose::Diagnosis) {
+    let named: Vec<&str> = d.left_out.iter().map(|e| e.effect.as_str()).collect();
+    for e in &d.dropped {
+        assert!(!named.contains(&e.effect.as_str()), "{} both named and dropped", e.effect);
+        assert!(e.loro_rms_without_dph <= e.loro_rms_with_dph, "{e:?}");
+        assert!(e.entered_at_step >= 1 && e.entered_at_step <= d.selection.len(), "{e:?}");
+    }
+    for e in &d.left_out {
+        for alternative in &e.alternatives {
+            assert!(
+                !named.contains(&alternative.as_str()),
+                "{alternative} named and {}'s alternative",
+                e.effect
+            );
+        }
+        let route_only = e.statement.contains("accepted by the noise-model GLS test");
+        if d.left_out.len() > 1 && !route_only {
+            assert!(e.heldout_improvement > 0.0, "{}: {}", e.effect, e.statement);
+        }
+    }
+}

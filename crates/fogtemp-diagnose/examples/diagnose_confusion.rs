@@ -13,7 +13,8 @@
 //! tenth session's tie-break, `--level-per-candidate` turns on and `--no-orientation-families` off the
 //! eleventh session's two splits of the noise-model route's family-wise level, `--family-levels`
 //! turns on its orientation family's own levels, `--no-position-permutation` turns off the twelfth
-//! session's permutation test of the position labels (docs/diagnose.md).
+//! session's permutation test of the position labels, `--no-backward` the backward elimination
+//! of 2026-11-28 (docs/diagnose.md).
 
 use std::collections::BTreeMap;
 use std::time::Instant;
@@ -80,6 +81,7 @@ fn main() {
         noise_model_orientation_families: !args.iter().any(|a| a == "--no-orientation-families"),
         noise_model_family_levels: args.iter().any(|a| a == "--family-levels"),
         position_permutation: !args.iter().any(|a| a == "--no-position-permutation"),
+        backward_elimination: !args.iter().any(|a| a == "--no-backward"),
         ..DiagnoseOptions::default()
     };
     let positional: Vec<&String> = args.iter().filter(|a| !a.starts_with('-')).collect();

@@ -172,6 +172,11 @@ pub struct DiagnoseOptions {
     /// in two positions the permutation cannot reach the level and the noise-model route
     /// decides alone (docs/diagnose.md, twelfth session).
     pub position_permutation: bool,
+    /// After forward selection, drop a term that no longer lowers the LORO error once the
+    /// terms that entered after it are in (backward elimination; a term only the noise-model
+    /// route accepted is kept). On by default since 2026-11-28 (review16 F3: early terms that
+    /// later ones made useless were named; docs/diagnose.md, "Backward elimination").
+    pub backward_elimination: bool,
 }
 
 impl Default for DiagnoseOptions {
@@ -199,6 +204,7 @@ impl Default for DiagnoseOptions {
             noise_model_orientation_families: true,
             noise_model_family_levels: false,
             position_permutation: true,
+            backward_elimination: true,
         }
     }
 }
@@ -316,6 +322,47 @@ pub struct LeftOutEffect {
     pub alternatives: Vec<String>,
     /// Plain-language statement.
     pub statement: String,
+}
+
+/// An effect forward selection chose and backward elimination dropped: with the effects that
+/// entered after it in the model, it no longer lowers the leave-one-run-out error
+/// ([`DiagnoseOptions::backward_elimination`]).
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct DroppedEffect {
+    /// Catalogue name.
+    pub effect: String,
+    /// The forward-selection step at which it entered (1 = the first, as the text counts).
+    pub entered_at_step: usize,
+    /// The effects in the model it was judged in.
+    pub judged_with: Vec<String>,
+    /// LORO RMS of short means of that model with it, deg/h.
+    pub loro_rms_with_dph: f64,
+    /// The same without it, deg/h (not above `loro_rms_with_dph`).
+    pub loro_rms_without_dph: f64,
+    /// Plain-language statement.
+    pub statement: String,
+}
+
+impl DroppedEffect {
+    fn of(term: &select::DroppedTerm) -> Self {
+        let (with, without) = (term.loro_rms_with_dph, term.loro_rms_without_dph);
+        let decimals = select::distinguishing_decimals(with, without);
+        let statement = format!(
+            "{} (entered at step {}): with {} in the model it no longer lowers the held-out error \
+             (LORO RMS {without:.decimals$} deg/h without it, {with:.decimals$} with it): the rest of the model explains what it explained",
+            term.effect.name(),
+            term.step + 1,
+            term.judged_with.join(" and "),
+        );
+        Self {
+            effect: term.effect.name().to_string(),
+            entered_at_step: term.step + 1,
+            judged_with: term.judged_with.clone(),
+            loro_rms_with_dph: with,
+            loro_rms_without_dph: without,
+            statement,
+        }
+    }
 }
 
 /// How a catalogue effect fared at one step of forward selection.
@@ -612,6 +659,8 @@ pub struct Diagnosis {
     pub location: Location,
     /// Forward selection, step by step, with every candidate's scores.
     pub selection: Vec<SelectionStep>,
+    /// Effects forward selection chose and backward elimination dropped (not in `left_out`).
+    pub dropped: Vec<DroppedEffect>,
     /// What remains after the final model.
     pub unexplained: Unexplained,
     /// Noise of the residual.
@@ -728,7 +777,7 @@ fn single_run(prep: &prepare::Prepared, options: &DiagnoseOptions) -> Result<Dia
         heldout_resid: nan_runs.clone(),
         baseline_heldout: nan_runs,
     };
-    let selection = select::Selection { steps: Vec::new(), chosen: Vec::new() };
+    let selection = select::Selection { steps: Vec::new(), chosen: Vec::new(), dropped: Vec::new() };
     let basis = noise_model::NoiseBasis::of(prep);
     let mut d = locate::assemble(prep, &[], basis.as_ref(), selection, outcome, options)?;
     let claimed = format!(" No catalogue effect is left out: {}", d.unexplained.statement);
@@ -744,4 +793,31 @@ fn single_run(prep: &prepare::Prepared, options: &DiagnoseOptions) -> Result<Dia
         d.summary
     );
     Ok(d)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Review16's seed 301 hysteresis case: the statement names the step, the model it was
+    /// judged in and both LORO RMS, with the decimals that tell them apart (a difference of
+    /// 6.9e-6 deg/h: seven).
+    #[test]
+    fn a_dropped_effect_says_when_it_entered_and_what_made_it_useless() {
+        let term = select::DroppedTerm {
+            effect: effects::Effect::WarmupTransient,
+            step: 0,
+            loro_rms_with_dph: 0.0059674,
+            loro_rms_without_dph: 0.0059605,
+            judged_with: vec!["hysteresis".into(), "gradient_rate".into()],
+        };
+        let dropped = DroppedEffect::of(&term);
+        assert_eq!(dropped.entered_at_step, 1);
+        assert_eq!(
+            dropped.statement,
+            "warmup_transient (entered at step 1): with hysteresis and gradient_rate in the model it no longer \
+             lowers the held-out error (LORO RMS 0.0059605 deg/h without it, 0.0059674 with it): the rest of the \
+             model explains what it explained"
+        );
+    }
 }

@@ -779,7 +779,11 @@ fn summary(d: &Diagnosis, grids: &[EffectGrid]) -> String {
         s.push_str(" Left out: ");
         let parts: Vec<String> = d.left_out.iter().map(|e| e.statement.clone()).collect();
         s.push_str(&parts.join("; "));
-        s.push_str(". Afterwards: ");
+        s.push('.');
+        for e in &d.dropped {
+            s.push_str(&format!(" Dropped after selection: {}.", e.statement));
+        }
+        s.push_str(" Afterwards: ");
     }
     s.push_str(&d.unexplained.statement);
     s.push_str(". ");
@@ -833,6 +837,7 @@ pub fn assemble(
         summary: String::new(),
         left_out: outcome.left_out.clone(),
         location,
+        dropped: selection.dropped.iter().map(super::DroppedEffect::of).collect(),
         selection: selection.steps,
         unexplained,
         noise,

@@ -435,6 +435,9 @@ fn verdict(d: &Diagnosis) -> String {
             ));
         }
     }
+    for e in &d.dropped {
+        lines.push(format!("Dropped after selection: {}.", e.statement));
+    }
     let mut rest = d.unexplained.statement.clone();
     if let Some(first) = rest.get(..1).map(str::to_uppercase) {
         rest.replace_range(..1, &first);

@@ -361,13 +361,16 @@ pub(super) fn fit_parameters(
 /// Alternative explanations of the effect chosen at step `k`: candidates that passed every
 /// rule at that step (only the lower LORO error decided) and no longer pass once the chosen
 /// effect is in the model (it explains what they explained), with their LORO RMS. When
-/// selection stopped at `max_effects` there is no next step and every runner-up counts.
-pub(super) fn alternatives(steps: &[SelectionStep], k: usize) -> Vec<(String, f64)> {
+/// selection stopped at `max_effects` there is no next step and every runner-up counts. An
+/// effect the final model names itself is not its alternative (review16 F3: `gradient_rate`
+/// was named and listed as `shupe_rate`'s alternative, having entered two steps later).
+pub(super) fn alternatives(steps: &[SelectionStep], k: usize, named: &[ChosenTerm]) -> Vec<(String, f64)> {
     let Some(step) = steps.get(k) else { return Vec::new() };
     let next = steps.get(k + 1).filter(|s| !s.candidates.is_empty());
     step.candidates
         .iter()
         .filter(|c| c.runner_up_alternative)
+        .filter(|c| !named.iter().any(|t| t.effect.name() == c.effect))
         .filter(|c| {
             next.is_none_or(|n| {
                 n.candidates
@@ -381,7 +384,7 @@ pub(super) fn alternatives(steps: &[SelectionStep], k: usize) -> Vec<(String, f6
 
 /// Decimals (5 to 9) that show `a` and `b` apart, with two significant digits of their difference: a review read "LORO RMS 0.00775" for both
 /// the chosen effect and its alternative (0.0077467 against 0.0077478).
-pub(super) fn distinguishing_decimals(a: f64, b: f64) -> usize {
+pub fn distinguishing_decimals(a: f64, b: f64) -> usize {
     let difference = (a - b).abs();
     if !(difference.is_finite() && difference > 0.0) {
         return 5;
@@ -622,9 +625,9 @@ pub fn evaluate_final(
         if let Some(caveat) = lag_gain_caveat(c.effect.name(), &parameters) {
             statement.push_str(&caveat);
         }
-        let alternatives = alternatives(&selection.steps, i);
+        let alternatives = alternatives(&selection.steps, c.step, chosen);
         if !alternatives.is_empty() {
-            let chosen_cv = selection.steps[i]
+            let chosen_cv = selection.steps[c.step]
                 .candidates
                 .iter()
                 .find(|r| r.effect == c.effect.name())
@@ -640,7 +643,7 @@ pub fn evaluate_final(
                 "; alternative explanation: {} passed every rule too and no longer does once {} is in ({}); to separate them run {}",
                 list.join(", "),
                 c.effect.name(),
-                how_chosen(&selection.steps[i], c.effect.name(), chosen_cv, &alternatives),
+                how_chosen(&selection.steps[c.step], c.effect.name(), chosen_cv, &alternatives),
                 crate::effects::separating_experiment(c.effect, &content)
             ));
         }
@@ -699,6 +702,7 @@ mod tests {
             concealment_index: 0.0,
             most_confused_with: None,
             route,
+            step: 0,
         }
     }
 

@@ -35,6 +35,9 @@ pub struct ChosenTerm {
     /// with the LORO-profiled `columns`; the final fit reports the term at the route's point
     /// (`final_fit::reported_terms`).
     pub route: Option<RouteEvidence>,
+    /// The forward-selection step at which it entered (0-based index into
+    /// [`Selection::steps`]; backward elimination may remove terms before it).
+    pub step: usize,
 }
 
 /// What the noise-model route measured for a term it accepted and the run-level rules did not.
@@ -56,8 +59,26 @@ pub struct RouteEvidence {
 pub struct Selection {
     /// Steps with every candidate's scores.
     pub steps: Vec<SelectionStep>,
-    /// Chosen terms in order of entry.
+    /// Chosen terms in order of entry, those backward elimination dropped left out.
     pub chosen: Vec<ChosenTerm>,
+    /// Terms forward selection chose and backward elimination dropped, in the order dropped.
+    pub dropped: Vec<DroppedTerm>,
+}
+
+/// A term forward selection chose that no longer lowers the LORO error once the terms that
+/// entered after it are in ([`backward_eliminate`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct DroppedTerm {
+    /// The effect.
+    pub effect: Effect,
+    /// The step at which it entered (0-based index into [`Selection::steps`]).
+    pub step: usize,
+    /// LORO RMS of the model with it (the terms left at the time it was dropped), deg/h.
+    pub loro_rms_with_dph: f64,
+    /// LORO RMS of the same model without it, deg/h (at most `loro_rms_with_dph`).
+    pub loro_rms_without_dph: f64,
+    /// The effects kept in the model it was judged in.
+    pub judged_with: Vec<String>,
 }
 
 pub(super) fn profile_map(grid: &EffectGrid, point: usize) -> BTreeMap<String, f64> {
@@ -688,12 +709,128 @@ pub fn forward_select(
                     concealment_index,
                     most_confused_with,
                     route,
+                    step,
                 })
             }
             None => break,
         }
     }
-    Ok(Selection { steps, chosen })
+    let dropped = if options.backward_elimination {
+        let ctx = BackwardContext { prep, grids, ys: &ys, noise_basis, options };
+        backward_eliminate(&ctx, &mut chosen)?
+    } else {
+        Vec::new()
+    };
+    Ok(Selection { steps, chosen, dropped })
+}
+
+/// LORO sum of squared held-out errors (short means) of the model with these terms.
+fn loro_sse(prep: &Prepared, parts: &[&TermColumns], ys: &[Vec<f64>]) -> Result<f64, DiagnoseError> {
+    let design = build_design(prep, parts);
+    Ok(fold_eval(&design, ys)?.fold_sse.iter().sum())
+}
+
+/// Backward elimination after forward selection: a term that entered early may be made
+/// useless by terms that entered after it (review16 F3: testbed seed 301's hysteresis case
+/// named `warmup_transient` at step 1, 0.3 standard errors from zero and +0.1 % held-out once
+/// `hysteresis` was in). Every term had to pass a held-out test to enter; with all the others
+/// in the model it is judged by the same test again:
+/// - a term the run-level rules accepted must still lower the LORO error (the final model's
+///   LORO error below that of the model without it);
+/// - a term only the noise-model route accepted (its held-out claim is made in the GLS
+///   metric) is dropped when it fails the first test and the route, run again with the
+///   others as the model ([`GlsStep::of`]), no longer accepts it; when the noise model cannot
+///   judge (it cannot be fitted or fails its check) the term is kept.
+///
+/// Of the terms that fail, the one whose removal lowers the LORO error most is dropped first,
+/// and the rest are judged again. The terms are judged at the columns the final model reports
+/// ([`super::final_fit::reported_terms`]), so every run-level term left shows a held-out fall
+/// in its statement.
+///
+/// # Errors
+/// [`DiagnoseError::Fit`] if a least-squares problem fails.
+pub(super) fn backward_eliminate(
+    ctx: &BackwardContext<'_>,
+    chosen: &mut Vec<ChosenTerm>,
+) -> Result<Vec<DroppedTerm>, DiagnoseError> {
+    let n_blocks = ctx.prep.n_blocks().max(1) as f64;
+    let mut dropped = Vec::new();
+    while chosen.len() >= 2 {
+        let reported = super::final_fit::reported_terms(ctx.grids, chosen);
+        let with_all = loro_sse(ctx.prep, &chosen_parts(&reported), ctx.ys)?;
+        let mut without_sse = Vec::with_capacity(reported.len());
+        for i in 0..reported.len() {
+            without_sse.push(loro_sse(ctx.prep, &chosen_parts(&all_but(&reported, i)), ctx.ys)?);
+        }
+        let route_only: Vec<bool> = reported.iter().map(|t| t.route.is_some()).collect();
+        let still_accepted = |i: usize| ctx.route_still_accepts(&reported, i, dropped.len());
+        let Some(i) = weakest_failing(with_all, &without_sse, &route_only, still_accepted) else { break };
+        let without = without_sse[i];
+        let term = chosen.remove(i);
+        dropped.push(DroppedTerm {
+            effect: term.effect,
+            step: term.step,
+            loro_rms_with_dph: (with_all / n_blocks).sqrt(),
+            loro_rms_without_dph: (without / n_blocks).sqrt(),
+            judged_with: model_names(chosen),
+        });
+    }
+    Ok(dropped)
+}
+
+/// What backward elimination reads: the data, the grids and the noise-model route's inputs.
+pub(super) struct BackwardContext<'a> {
+    pub(super) prep: &'a Prepared,
+    pub(super) grids: &'a [EffectGrid],
+    pub(super) ys: &'a [Vec<f64>],
+    pub(super) noise_basis: Option<&'a crate::noise_model::NoiseBasis>,
+    pub(super) options: &'a DiagnoseOptions,
+}
+
+impl BackwardContext<'_> {
+    /// Whether the noise-model route, run with every term of `reported` but the `i`-th as
+    /// the model, still accepts the `i`-th term's effect; true when the route cannot judge.
+    /// `round` picks the simulated null's stream (one per backward round, after the forward
+    /// steps').
+    fn route_still_accepts(&self, reported: &[ChosenTerm], i: usize, round: usize) -> bool {
+        let Some(basis) = self.noise_basis else { return true };
+        let others = all_but(reported, i);
+        let base = build_design(self.prep, &chosen_parts(&others));
+        let in_model: Vec<Effect> = others.iter().map(|t| t.effect).collect();
+        let step = self.options.max_effects + 1 + round;
+        match GlsStep::of(basis, &base, self.ys, self.grids, &in_model, step, self.options) {
+            Some(gls) => {
+                gls.verdict(reported[i].effect).is_none_or(|v| route_significant(v.family_p, v.heldout))
+            }
+            None => true,
+        }
+    }
+}
+
+/// Every term but the `i`-th.
+fn all_but(terms: &[ChosenTerm], i: usize) -> Vec<ChosenTerm> {
+    terms.iter().enumerate().filter(|(j, _)| *j != i).map(|(_, t)| t.clone()).collect()
+}
+
+/// The term backward elimination drops next, if any: of the terms whose removal does not
+/// raise the LORO error (`without_sse[i] <= with_all`, sums of squared held-out errors) and,
+/// for a term only the noise-model route accepted (`route_only[i]`), that the route no longer
+/// accepts (`still_accepted(i)`, asked only of such terms), the one whose removal lowers the
+/// error most.
+fn weakest_failing(
+    with_all: f64,
+    without_sse: &[f64],
+    route_only: &[bool],
+    mut still_accepted: impl FnMut(usize) -> bool,
+) -> Option<usize> {
+    let mut weakest: Option<usize> = None;
+    for (i, (&without, &route)) in without_sse.iter().zip(route_only).enumerate() {
+        let lower = weakest.is_none_or(|w| without < without_sse[w]);
+        if without <= with_all && lower && (!route || !still_accepted(i)) {
+            weakest = Some(i);
+        }
+    }
+    weakest
 }
 
 /// Family-wise level of the noise-model route at one step (over every open candidate and
@@ -1671,6 +1808,29 @@ mod tests {
             verdict(GLS_FAMILY_LEVEL, Some((true, false))).why_not(),
             "significant, but its GLS coefficient has the unphysical sign"
         );
+    }
+
+    #[test]
+    fn backward_elimination_drops_the_term_whose_removal_lowers_the_error_most() {
+        // The model with all four terms has a LORO SSE of 10; without each: 9.5 (run-level,
+        // fails), 12 (needed), 9.0 (route-only), 9.8 (run-level, fails).
+        let without = [9.5, 12.0, 9.0, 9.8];
+        let route_only = [false, false, true, false];
+        let mut asked = Vec::new();
+        // The route still accepts the third: the first goes, the lowest of the failing rest.
+        let kept = weakest_failing(10.0, &without, &route_only, |i| {
+            asked.push(i);
+            true
+        });
+        assert_eq!(kept, Some(0));
+        // Only a route-only term is put to the route.
+        assert_eq!(asked, [2]);
+        // The route no longer accepts it: its removal lowers the error most, it goes first.
+        assert_eq!(weakest_failing(10.0, &without, &route_only, |_| false), Some(2));
+        // A removal that leaves the error equal counts as not lowering it: the term goes.
+        assert_eq!(weakest_failing(10.0, &[10.0, 11.0], &[false, false], |_| true), Some(0));
+        // Every removal raises the error: nothing goes, and the route is not asked.
+        assert_eq!(weakest_failing(10.0, &[10.5, 11.0], &[true, false], |_| panic!("asked")), None);
     }
 
     #[test]

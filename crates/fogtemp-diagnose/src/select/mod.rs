@@ -38,6 +38,11 @@
 //!   winner adds beyond it, `forward::encompassing_p`,
 //!   `DiagnoseOptions::encompassing_tie_break`); selection stops when no candidate is
 //!   accepted or `max_effects` are in.
+//! - backward elimination (`DiagnoseOptions::backward_elimination`, on by default): after
+//!   forward selection every term is judged again with all the others in the model; a term
+//!   whose removal does not raise the LORO error is dropped (a term only the noise-model route
+//!   accepted, only when the route, run with the others as the model, no longer accepts it
+//!   either), the one whose removal lowers the error most first (`forward::backward_eliminate`).
 //! - concealment index: R^2 of the candidate's fitted contribution on the terms already
 //!   in the model.
 //! - noise-model route (`DiagnoseOptions::noise_model_acceptance`, on by default): at each
@@ -75,8 +80,8 @@ pub use design::{
     bic, block_indices, build_design, fold_eval, heldout_residuals, pooled_rms, r_squared_runs, residuals,
     targets, Design, FoldEval,
 };
-pub use final_fit::{evaluate_final, heldout_bias_stability, FinalOutcome};
-pub use forward::{chosen_parts, forward_select, ChosenTerm, Selection, GLS_FAMILY_LEVEL};
+pub use final_fit::{distinguishing_decimals, evaluate_final, heldout_bias_stability, FinalOutcome};
+pub use forward::{chosen_parts, forward_select, ChosenTerm, DroppedTerm, Selection, GLS_FAMILY_LEVEL};
 pub use rules::{
     fold_counts, folds_pass, material_runs, signed_rank_p, stability_limit, MIN_INFORMATIVE_FOLDS,
 };
