@@ -58,6 +58,7 @@ pub mod continued;
 pub mod cv_correction;
 pub mod digest;
 pub mod documents;
+pub mod envelope;
 pub mod error;
 pub mod features;
 pub mod identifiability;

@@ -627,7 +627,7 @@ fn unexplained_statement(
 }
 
 fn definitions(options: &DiagnoseOptions, prep: &Prepared) -> Vec<String> {
-    vec![
+    let mut definitions = vec![
         format!("residual = recorded gyro - simulated gyro, averaged into short means of {} s on a common 1 s grid (a mean counts if >= {} % of its seconds hold data: --block-coverage)", prep.block_s, 100.0 * options.block_coverage),
         format!("T and dT/dt = level and slope of a centred least-squares line over {} s of 1 s temperature means; d2T/dt2 = least-squares slope of dT/dt over {} s", options.rate_window_s, options.accel_window_s),
         format!("HAC standard error of a span's or map cell's mean = the larger of its own Newey-West estimate (Bartlett weights, bandwidth {} short means = {} s, lags within a run only) and the error the final model's residual implies for those short means: its noise model (white + bias-instability decades, levels by REML, as in the acceptance) when that passes its innovation check, else its autocovariances pooled over all runs up to the bandwidth; Newey-West alone collapses in cells of fewer means than its bandwidth and misses flicker beyond it", prep.hac_lag_blocks, options.hac_lag_s),
@@ -643,7 +643,17 @@ fn definitions(options: &DiagnoseOptions, prep: &Prepared) -> Vec<String> {
         "residual_before_dph / residual_after_dph = held-out (LORO) RMS of residual short means without / with the effect (the rest of the final model unchanged); heldout_improvement = 1 - after/before".into(),
         format!("bias stability = standard deviation (n-1) of non-overlapping {} s means of the 1 s held-out residual, per run; overall = RMS over runs", options.bias_stability_tau_s),
         "unexplained structure: a lookup table of residual means per (T, dT/dt) cell or per time-since-power-on bin, fitted on the other runs, passes the same LORO and fold rules".into(),
-    ]
+    ];
+    if options.backward_elimination {
+        definitions.push(
+            "backward elimination (after the forward steps): every chosen term is judged again with all the others in \
+             the model; one whose removal does not raise the LORO error is dropped (a term only the noise-model route \
+             accepted, only when the route, run with the others as the model, no longer accepts it either), the one \
+             whose removal lowers the error most first, and the rest judged again"
+                .to_string(),
+        );
+    }
+    definitions
 }
 
 fn traces(prep: &Prepared, outcome: &FinalOutcome) -> Vec<RunTraceOut> {
