@@ -535,18 +535,16 @@ fn envelope_order(rows: &[Row], penalty: &DMatrix<f64>) -> Vec<usize> {
     for (i, list) in neighbours.iter_mut().enumerate() {
         list.extend((0..n).filter(|&j| j != i && penalty[(i, j)] != 0.0));
     }
+    // Checked before each push: a row's pairs repeat over the many points of one triangle, and
+    // the lists stay short (a node's neighbours).
     for r in rows {
         for (a, _) in r.entries() {
             for (b, _) in r.entries() {
-                if a != b && a < n && b < n {
+                if a != b && a < n && b < n && !neighbours[a].contains(&b) {
                     neighbours[a].push(b);
                 }
             }
         }
-    }
-    for list in &mut neighbours {
-        list.sort_unstable();
-        list.dedup();
     }
     let order = reverse_cuthill_mckee(&neighbours);
     let mut position = vec![0; n];
