@@ -1833,6 +1833,89 @@ mod tests {
         assert_eq!(weakest_failing(10.0, &[10.5, 11.0], &[true, false], |_| panic!("asked")), None);
     }
 
+    /// Backward elimination on prepared runs (6 runs of 2 h at 1 Hz, recorded gyro white
+    /// noise, 20 s short means): `useful` is the data's short means plus a third of their noise
+    /// again; `useless` is `useful` plus a column of the same size the data do not hold, and
+    /// entered first. With `useful` in the model, `useless` only adds a coefficient fitted to
+    /// noise: removing it lowers the LORO error, so it is dropped; `useful` alone then stays
+    /// (removing it leaves the constant, far worse). Route-only terms are not asked without a
+    /// noise basis (the route cannot judge: kept), so the same pair marked route-only keeps both.
+    #[test]
+    fn backward_elimination_drops_a_term_a_later_one_made_useless() {
+        let runs: Vec<crate::RunSeries> = (0..6)
+            .map(|r| {
+                let n = 7200;
+                let noise = normals(40 + r as u64, n);
+                crate::RunSeries {
+                    name: format!("run{r}"),
+                    time_s: (0..n).map(|i| i as f64).collect(),
+                    temp_c: (0..n).map(|i| 10.0 * r as f64 + i as f64 / 600.0).collect(),
+                    gyro_dph: noise.iter().map(|e| 0.05 * e).collect(),
+                    meta: crate::RunMeta::default(),
+                }
+            })
+            .collect();
+        let simulated: Vec<crate::RunSeries> = runs
+            .iter()
+            .map(|r| crate::RunSeries { gyro_dph: vec![0.0; r.time_s.len()], ..r.clone() })
+            .collect();
+        let options = DiagnoseOptions::default();
+        let prep = crate::prepare::prepare(&simulated, &runs, &options).expect("prepared");
+        let ys = targets(&prep);
+        let sigma = prep.noise_sigma_dph;
+        let column = |values: &dyn Fn(usize, usize) -> f64| -> Vec<DMatrix<f64>> {
+            ys.iter().enumerate().map(|(r, y)| DMatrix::from_fn(y.len(), 1, |i, _| values(r, i))).collect()
+        };
+        let extra: Vec<Vec<f64>> = (0..ys.len()).map(|r| normals(90 + r as u64, ys[r].len())).collect();
+        let useful = column(&|r, i| ys[r][i] + sigma / 3.0 * extra[r][i]);
+        let useless = column(&|r, i| useful[r][(i, 0)] + sigma * ((i + 7 * r) as f64 / 5.0).sin());
+        let term = |effect: Effect, per_run: Vec<DMatrix<f64>>, step: usize, route: bool| ChosenTerm {
+            effect,
+            point: 0,
+            columns: TermColumns {
+                theta: Vec::new(),
+                coefficients: vec![("c".into(), "deg/h".into())],
+                per_run,
+                penalty: None,
+            },
+            concealment_index: 0.0,
+            most_confused_with: None,
+            route: route.then_some(RouteEvidence {
+                point: 0,
+                min_p: 1e-9,
+                family_p: 1e-4,
+                heldout_gls_fall: None,
+            }),
+            step,
+        };
+        let ctx = BackwardContext { prep: &prep, grids: &[], ys: &ys, noise_basis: None, options: &options };
+        let mut chosen = vec![
+            term(Effect::WarmupTransient, useless.clone(), 0, false),
+            term(Effect::Hysteresis, useful.clone(), 1, false),
+        ];
+        let dropped = backward_eliminate(&ctx, &mut chosen).expect("fits");
+        assert_eq!(chosen.iter().map(|t| t.effect).collect::<Vec<_>>(), [Effect::Hysteresis]);
+        assert_eq!(dropped.len(), 1, "{dropped:?}");
+        let d = &dropped[0];
+        assert_eq!(
+            (d.effect, d.step, d.judged_with.clone()),
+            (Effect::WarmupTransient, 0, vec!["hysteresis".to_string()])
+        );
+        assert!(d.loro_rms_without_dph <= d.loro_rms_with_dph, "{d:?}");
+        // The figures are the LORO RMS of the two models, computed here directly.
+        let n = prep.n_blocks() as f64;
+        let rms = |parts: &[&TermColumns]| (loro_sse(&prep, parts, &ys).unwrap() / n).sqrt();
+        let (useless_cols, useful_cols) =
+            (&term(Effect::WarmupTransient, useless.clone(), 0, false).columns, &chosen[0].columns);
+        assert_eq!(d.loro_rms_with_dph, rms(&[useless_cols, useful_cols]));
+        assert_eq!(d.loro_rms_without_dph, rms(&[useful_cols]));
+        // Marked route-only, the useless term is kept: without a noise basis the route cannot judge.
+        let mut chosen =
+            vec![term(Effect::WarmupTransient, useless, 0, true), term(Effect::Hysteresis, useful, 1, false)];
+        assert!(backward_eliminate(&ctx, &mut chosen).expect("fits").is_empty());
+        assert_eq!(chosen.len(), 2);
+    }
+
     #[test]
     fn encompassing_p_finds_the_term_in_the_data() {
         // 6 runs of 180 short means of 20 s, white noise of SD 0.01 per short mean (level
