@@ -8,66 +8,19 @@
 
 use std::path::Path;
 
-use fogtemp_cal::ingest::{read_from, DecimalMark, Delimiter, IngestOptions, LogFormat, TimeUnit};
+use fogtemp_cal::ingest::{read_from, IngestOptions};
 use fogtemp_cal::CalError;
 use libfuzzer_sys::fuzz_target;
 
+#[path = "ingest_options.rs"]
+mod ingest_options;
+
 fuzz_target!(|data: &[u8]| {
     let (Some(&a), Some(&b)) = (data.first(), data.get(1)) else { return };
-    let options = options(a, b);
+    let options = ingest_options::options(a, b);
     let stop_after = (b & 0x80 != 0).then_some(3u64);
     read(&data[2..], &options, stop_after);
 });
-
-/// The option set of the two option bytes `a` and `b`.
-fn options(a: u8, b: u8) -> IngestOptions {
-    let mut f = LogFormat::default();
-    f.delimiter = match a & 0x07 {
-        1 => Delimiter::Byte(b','),
-        2 => Delimiter::Byte(b';'),
-        3 => Delimiter::Byte(b'\t'),
-        4 => Delimiter::Whitespace,
-        5 => Delimiter::Byte(b'|'),
-        _ => Delimiter::Auto,
-    };
-    if a & 0x08 != 0 {
-        f.decimal_mark = DecimalMark::Comma;
-        if f.delimiter == Delimiter::Byte(b',') {
-            f.delimiter = Delimiter::Byte(b';');
-        }
-    }
-    f.time_unit = match (a >> 5) & 0x03 {
-        1 => TimeUnit::Milliseconds,
-        2 => TimeUnit::DateTime,
-        3 => TimeUnit::TimeOfDay,
-        _ => TimeUnit::Seconds,
-    };
-    if a & 0x80 != 0 {
-        f.column_names = vec!["time_s".into(), "temp_c".into(), "gyro_dph".into()];
-    }
-    f.skip_lines = u64::from(b & 0x03);
-    if b & 0x04 != 0 {
-        f.sample_rate_hz = Some(50.0);
-        f.time_unit = TimeUnit::Seconds;
-        if a & 0x80 != 0 {
-            f.column_names = vec!["temp_c".into(), "gyro_dph".into()];
-        }
-    }
-    if b & 0x08 != 0 {
-        f.comment = None;
-    }
-    if b & 0x10 != 0 {
-        f.gyro_columns = vec!["gyro_dph".into(), "g2".into()];
-    }
-    if b & 0x20 != 0 && f.time_unit == TimeUnit::DateTime {
-        f.date_column = Some("date".into());
-    }
-    if b & 0x40 != 0 {
-        f.temp_scale = 0.0625;
-        f.temp_offset_c = -10.0;
-    }
-    IngestOptions { format: f, skip_bad_rows: a & 0x10 != 0 }
-}
 
 /// Reads `bytes` with `options`, checking every row; the visitor fails after `stop_after` rows.
 fn read(bytes: &[u8], options: &IngestOptions, stop_after: Option<u64>) {

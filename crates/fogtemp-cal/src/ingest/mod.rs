@@ -754,6 +754,38 @@ where
     read_with_tuning(name, reader, options, Tuning::default(), visit, progress)
 }
 
+/// [`read_from`] through the parallel reader, as a log of 1 MiB or more is read, with its
+/// chunks, read buffer and row batches shrunk to `chunk_bytes` (at least 1), so that small
+/// inputs cross every boundary: for the fuzz target that checks it against the one-thread
+/// reader (`fuzz/fuzz_targets/ingest_parallel.rs`). Not part of the API.
+///
+/// # Errors
+/// As [`read_from`].
+#[doc(hidden)]
+pub fn read_from_in_chunks<R, F, P>(
+    reader: R,
+    name: &Path,
+    options: &IngestOptions,
+    workers: usize,
+    chunk_bytes: usize,
+    visit: F,
+    progress: P,
+) -> Result<IngestReport, CalError>
+where
+    R: Read + Send,
+    F: FnMut(&Row<'_>) -> Result<(), CalError>,
+    P: FnMut(u64, u64),
+{
+    let small = chunk_bytes.max(1);
+    let tuning = Tuning {
+        mode: Mode::Parallel { workers: workers.clamp(1, MAX_WORKERS) },
+        buffer_bytes: small,
+        batch_rows: small,
+        chunk_bytes: small,
+    };
+    read_with_tuning(name, reader, options, tuning, visit, progress)
+}
+
 /// How [`read_with_tuning`] runs.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Mode {
