@@ -75,6 +75,16 @@ impl Envelope {
         true
     }
 
+    /// This matrix with `rows` more rows and columns after it, each new row stored in full
+    /// (from column 0: a border that couples with every earlier unknown), zero.
+    pub fn with_full_rows(&self, rows: usize) -> Self {
+        let mut first = self.first.clone();
+        first.extend(std::iter::repeat_n(0, rows));
+        let mut bordered = Self::zeros(&first);
+        bordered.values[..self.values.len()].copy_from_slice(&self.values);
+        bordered
+    }
+
     /// The Cholesky factor `L` (`A = L L'`) in the same envelope, or `None` when a pivot is not
     /// positive and finite (the matrix is not positive definite in floating point).
     pub fn cholesky(mut self) -> Option<Self> {
@@ -226,6 +236,13 @@ mod tests {
         assert!(e.clone().cholesky().is_none());
         let other = Envelope::zeros(&[0, 0, 0]);
         assert!(!e.add_scaled(&other, 1.0));
+        // A border keeps every entry and stores its rows in full.
+        let bordered = e.with_full_rows(2);
+        assert_eq!(bordered.len(), 5);
+        assert_eq!((bordered.get(0, 1), bordered.get(1, 1), bordered.get(2, 2)), (3.0, 0.0, 0.0));
+        let mut bordered = bordered;
+        assert!(bordered.add(4, 0, 1.5) && bordered.add(4, 3, 2.5));
+        assert_eq!((bordered.get(0, 4), bordered.get(3, 4)), (1.5, 2.5));
     }
 
     /// A path graph given in scrambled order comes back as a path: every edge joins

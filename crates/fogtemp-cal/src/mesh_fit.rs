@@ -424,38 +424,24 @@ impl NormalSystem {
         for (k, &at) in position.iter().enumerate() {
             penalty_basis.row_mut(at).copy_from(&penalty_basis_nodes.row(k));
         }
-        let mut system = Self {
+        let gram = envelope_gram(rows, &position, &first, |_| true);
+        let gram_trace: f64 = (0..n).map(|i| gram.get(i, i)).sum();
+        Ok(Self {
             position,
             first,
             penalty: penalty_envelope,
             penalty_basis,
             basis_penalty_basis,
-            gram: Envelope::zeros(&[]),
+            gram,
             rhs: normal_rhs(rows, n, |_| true),
-            balance: 0.0,
-            ridge: 0.0,
-        };
-        system.gram = system.gram_of(rows, |_| true);
-        let gram_trace: f64 = (0..n).map(|i| system.gram.get(i, i)).sum();
-        system.balance = gram_trace / projected_trace.max(f64::MIN_POSITIVE);
-        system.ridge = 1e-10 * gram_trace / n.max(1) as f64;
-        Ok(system)
+            balance: gram_trace / projected_trace.max(f64::MIN_POSITIVE),
+            ridge: 1e-10 * gram_trace / n.max(1) as f64,
+        })
     }
 
     /// `A'A` over the rows `keep` accepts, in the envelope order.
     fn gram_of(&self, rows: &[Row], keep: impl Fn(&Row) -> bool) -> Envelope {
-        let mut m = Envelope::zeros(&self.first);
-        for r in rows.iter().filter(|r| keep(r)) {
-            for (va, wa) in r.entries() {
-                for (vb, wb) in r.entries() {
-                    let (a, b) = (self.position[va], self.position[vb]);
-                    if a >= b {
-                        m.add(a, b, wa * wb);
-                    }
-                }
-            }
-        }
-        m
+        envelope_gram(rows, &self.position, &self.first, keep)
     }
 
     /// Node values solving `(gram + lambda P~ + ridge) v = rhs` (`gram` from
@@ -472,14 +458,7 @@ impl NormalSystem {
         for i in 0..n {
             nodes.add(i, i, self.ridge.max(f64::MIN_POSITIVE));
         }
-        let mut first = self.first.clone();
-        first.extend(std::iter::repeat_n(0, free));
-        let mut system = Envelope::zeros(&first);
-        for i in 0..n {
-            for j in self.first[i]..=i {
-                system.add(i, j, nodes.get(i, j));
-            }
-        }
+        let mut system = nodes.with_full_rows(free);
         let root = lambda.max(0.0).sqrt();
         for a in 0..free {
             for i in 0..n {
@@ -498,6 +477,22 @@ impl NormalSystem {
         let v: Vec<f64> = self.position.iter().map(|&at| x[at]).collect();
         v.iter().all(|x| x.is_finite()).then_some(v)
     }
+}
+
+/// `A'A` over the rows `keep` accepts, in the envelope `first` of the order `position`.
+fn envelope_gram(rows: &[Row], position: &[usize], first: &[usize], keep: impl Fn(&Row) -> bool) -> Envelope {
+    let mut m = Envelope::zeros(first);
+    for r in rows.iter().filter(|r| keep(r)) {
+        for (va, wa) in r.entries() {
+            for (vb, wb) in r.entries() {
+                let (a, b) = (position[va], position[vb]);
+                if a >= b {
+                    m.add(a, b, wa * wb);
+                }
+            }
+        }
+    }
+    m
 }
 
 /// `P B` and `B'P B` of the free terms' basis `b` (node order), or no columns when `b` has none
