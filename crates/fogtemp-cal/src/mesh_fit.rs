@@ -379,8 +379,9 @@ pub fn fit_node_values_tied_at(
 /// whose Schur complement on `v` is exactly the projected system. The node block is sparse (a
 /// node couples with the nodes of neighbouring triangles); with the nodes in reverse
 /// Cuthill-McKee order and the few free terms last, its Cholesky factor stays in a narrow
-/// envelope ([`crate::envelope`]): a 1068-node fit factors about 30 times faster than dense
-/// (since 2026-11-28; the dense solve had been three quarters of `fit`'s time on 1 kHz logs).
+/// envelope ([`crate::envelope`]). Since 2026-11-28: the dense factorisations had been a third
+/// of `fit`'s time on a testbed case (about 8 s of 25; the envelope's about 1 s of 14.5) and
+/// three quarters on 1 kHz logs (docs/performance.md).
 struct NormalSystem {
     /// Each node's row in the envelope order.
     position: Vec<usize>,
