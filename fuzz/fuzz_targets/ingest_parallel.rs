@@ -21,9 +21,8 @@ fuzz_target!(|data: &[u8]| {
     let chunk_bytes = usize::from(c & 0x3f) + 1;
     let workers = usize::from(c >> 6) + 1;
     let one_thread = rows_of(|visit| read_from(bytes, Path::new("fuzz.csv"), &options, visit, |_, _| {}));
-    let parallel = rows_of(|visit| {
-        read_from_in_chunks(bytes, Path::new("fuzz.csv"), &options, workers, chunk_bytes, visit, |_, _| {})
-    });
+    let parallel =
+        rows_of(|visit| read_from_in_chunks(bytes, Path::new("fuzz.csv"), &options, workers, chunk_bytes, visit));
     assert_eq!(one_thread, parallel, "chunks of {chunk_bytes} bytes, {workers} workers");
 });
 

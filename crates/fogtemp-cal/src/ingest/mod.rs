@@ -754,7 +754,7 @@ where
     read_with_tuning(name, reader, options, Tuning::default(), visit, progress)
 }
 
-/// [`read_from`] through the parallel reader, as a log of 1 MiB or more is read, with its
+/// [`read_from`] on bytes in memory through the parallel reader, as a log of 1 MiB or more is read, with its
 /// chunks, read buffer and row batches shrunk to `chunk_bytes` (at least 1), so that small
 /// inputs cross every boundary: for the fuzz target that checks it against the one-thread
 /// reader (`fuzz/fuzz_targets/ingest_parallel.rs`). Not part of the API.
@@ -762,20 +762,14 @@ where
 /// # Errors
 /// As [`read_from`].
 #[doc(hidden)]
-pub fn read_from_in_chunks<R, F, P>(
-    reader: R,
+pub fn read_from_in_chunks(
+    bytes: &[u8],
     name: &Path,
     options: &IngestOptions,
     workers: usize,
     chunk_bytes: usize,
-    visit: F,
-    progress: P,
-) -> Result<IngestReport, CalError>
-where
-    R: Read + Send,
-    F: FnMut(&Row<'_>) -> Result<(), CalError>,
-    P: FnMut(u64, u64),
-{
+    visit: &mut dyn FnMut(&Row<'_>) -> Result<(), CalError>,
+) -> Result<IngestReport, CalError> {
     let small = chunk_bytes.max(1);
     let tuning = Tuning {
         mode: Mode::Parallel { workers: workers.clamp(1, MAX_WORKERS) },
@@ -783,7 +777,7 @@ where
         batch_rows: small,
         chunk_bytes: small,
     };
-    read_with_tuning(name, reader, options, tuning, visit, progress)
+    read_with_tuning(name, bytes, options, tuning, visit, |_, _| {})
 }
 
 /// How [`read_with_tuning`] runs.
