@@ -10,9 +10,10 @@ use fogtemp_core::{
 };
 
 use crate::blob::{encode, AxisModel, ModelFile};
+use crate::digest::InputDigest;
 use crate::error::CalError;
 use crate::features::{smoothed_gyro_dph, AxisFeatureStream, FeaturePoint, CAL_CAPACITY};
-use crate::ingest::{read_from, read_log_with_progress, IngestOptions, IngestReport, Row};
+use crate::ingest::{read_from, read_log_digested, read_log_with_progress, IngestOptions, IngestReport, Row};
 use crate::mesh::{build_mesh, MeshPoint};
 use crate::metrics::{bias_stability, rms_over_runs, stability_of_means, window_stats, BiasStabilityOptions};
 use crate::poly_fit::{fit_poly, PolyFit, TermSelection};
@@ -512,6 +513,28 @@ pub fn extract_run(
     progress: impl FnMut(u64, u64),
 ) -> Result<RunFeatures, CalError> {
     extract_with(path, config, |visit| read_log_with_progress(path, &config.ingest, visit, progress))
+}
+
+/// [`extract_run`] that adds the log's bytes to `digest` as they are read (the model's input
+/// digest, in one read of the log) and keeps the log's own digest in [`RunFeatures::digest`].
+/// `digest` is left as it was when the read fails.
+///
+/// # Errors
+/// As [`extract_run`].
+pub fn extract_run_digested(
+    path: &Path,
+    config: &CalibrationConfig,
+    digest: &mut InputDigest,
+    progress: impl FnMut(u64, u64),
+) -> Result<RunFeatures, CalError> {
+    let mut log_digest = None;
+    let mut run = extract_with(path, config, |visit| {
+        let (report, this_log) = read_log_digested(path, &config.ingest, digest, visit, progress)?;
+        log_digest = Some(this_log);
+        Ok(report)
+    })?;
+    run.digest = log_digest;
+    Ok(run)
 }
 
 /// [`extract_run`] from any reader; `name` stands for the source in errors and in
@@ -1951,6 +1974,29 @@ pub fn validate_models(
 ) -> Result<Vec<Validation>, CalError> {
     let replays = paths.iter().enumerate().map(|(i, path)| {
         Ok((path.clone(), replay_models(path, models, ingest, 1.0, |b, r| progress(i, b, r))?))
+    });
+    validations(models.len(), replays, options)
+}
+
+/// [`validate_models`] that adds the logs' bytes to `digest` as they are read (what
+/// `validate` compares with the model's input digest), so that each log is read once.
+///
+/// # Errors
+/// As [`replay_models`].
+pub fn validate_models_digested(
+    paths: &[PathBuf],
+    models: &[&Model<'_>],
+    ingest: &IngestOptions,
+    options: &BiasStabilityOptions,
+    digest: &mut InputDigest,
+    mut progress: impl FnMut(usize, u64, u64),
+) -> Result<Vec<Validation>, CalError> {
+    let replays = paths.iter().enumerate().map(|(i, path)| {
+        let replay = replay_with(path, models, ingest, 1.0, |visit| {
+            let (report, _) = read_log_digested(path, ingest, digest, visit, |b, r| progress(i, b, r))?;
+            Ok(report)
+        })?;
+        Ok((path.clone(), replay))
     });
     validations(models.len(), replays, options)
 }

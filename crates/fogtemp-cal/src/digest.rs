@@ -12,6 +12,9 @@ use fogtemp_core::Model;
 use crate::blob::{short_digest, LogReadingRecord};
 use crate::error::CalError;
 
+/// The digest of the logs together (the model's input digest) and of each alone, in order.
+pub type Digests = ([u8; 32], Vec<[u8; 32]>);
+
 /// The input digest built one file at a time (a caller can stop between two files), with
 /// each file's own digest beside it.
 #[derive(Clone, Debug, Default)]
@@ -47,9 +50,50 @@ impl InputDigest {
         Ok(())
     }
 
+    /// A reader over `inner` that adds the bytes it yields to this digest as they are read,
+    /// so that a log's digest comes with its one read (`ingest::read_log_digested`). The
+    /// digest takes them only at [`DigestingReader::finish`]: a read that fails leaves it as
+    /// it was.
+    pub fn reading<R: Read>(&mut self, inner: R) -> DigestingReader<'_, R> {
+        DigestingReader { all: self.all.clone(), one: Sha256::new(), inner, digest: self }
+    }
+
     /// The digest of the files together and of each alone, in the order they were added.
-    pub fn finish(self) -> ([u8; 32], Vec<[u8; 32]>) {
+    pub fn finish(self) -> Digests {
         (self.all.finalize().into(), self.each)
+    }
+}
+
+/// A reader that hashes what passes through it, for [`InputDigest::reading`].
+#[derive(Debug)]
+pub struct DigestingReader<'a, R> {
+    inner: R,
+    all: Sha256,
+    one: Sha256,
+    digest: &'a mut InputDigest,
+}
+
+impl<R: Read> Read for DigestingReader<'_, R> {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        let n = self.inner.read(buf)?;
+        self.all.update(&buf[..n]);
+        self.one.update(&buf[..n]);
+        Ok(n)
+    }
+}
+
+impl<R: Read> DigestingReader<'_, R> {
+    /// Hashes whatever the reader has not yet yielded (a reader stopped early still gets the
+    /// whole file's digest), adds the file to the digest and returns the file's own digest.
+    ///
+    /// # Errors
+    /// The inner reader's error.
+    pub fn finish(mut self) -> std::io::Result<[u8; 32]> {
+        std::io::copy(&mut self, &mut std::io::sink())?;
+        let one: [u8; 32] = self.one.finalize().into();
+        self.digest.all = self.all;
+        self.digest.each.push(one);
+        Ok(one)
     }
 }
 
@@ -58,7 +102,7 @@ impl InputDigest {
 ///
 /// # Errors
 /// [`CalError::Io`] naming the file that cannot be opened or read.
-pub fn digests_of_files(paths: &[PathBuf]) -> Result<([u8; 32], Vec<[u8; 32]>), CalError> {
+pub fn digests_of_files(paths: &[PathBuf]) -> Result<Digests, CalError> {
     let mut digest = InputDigest::new();
     for path in paths {
         digest.add_file(path)?;
@@ -86,7 +130,7 @@ pub fn in_sample_note_from(
     name: &str,
     model: &Model<'_>,
     logs: &[PathBuf],
-    (all, each): &([u8; 32], Vec<[u8; 32]>),
+    (all, each): &Digests,
 ) -> Option<String> {
     let digest = model.input_digest();
     if digest != [0; 32] && *all == digest {

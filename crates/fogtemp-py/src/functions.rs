@@ -6,6 +6,7 @@ use fogtemp_cal::allan_stream;
 use fogtemp_cal::arrays::{extract_run_arrays, RunArrays};
 use fogtemp_cal::axis_columns::TimeNamed;
 use fogtemp_cal::calibrate::{self, CalibrationConfig, Method, RunFeatures, Validation};
+use fogtemp_cal::digest::Digests;
 use fogtemp_cal::documents::{
     AllanAxisDocument, AllanDocument, ComparedModel, FitDocument, ValidationDocument,
 };
@@ -451,9 +452,12 @@ fn file_runs(
         rows = Some(kept.into_iter().map(|(_, row)| row).collect());
     }
     let mut runs = Vec::with_capacity(logs.len());
+    let mut input_digest = fogtemp_cal::digest::InputDigest::new();
     for log in &logs {
         let mut bar = Progress::new(format!("features {}", file_name(log)), show);
-        let run = py.detach(|| calibrate::extract_run(log, config, |b, r| bar.rows(b, r)));
+        let run = py.detach(|| {
+            calibrate::extract_run_digested(log, config, &mut input_digest, |b, r| bar.rows(b, r))
+        });
         bar.finish();
         // Ctrl-C is raised here, between two logs.
         bar.boundary(py)?;
@@ -474,12 +478,9 @@ fn file_runs(
         }
         runs.push(run);
     }
-    let (digest, each) = py.detach(|| fogtemp_cal::digest::digests_of_files(&logs)).map_err(errors::cal)?;
+    let (digest, each) = input_digest.finish();
     if let Some(warning) = fogtemp_cal::digest::same_logs_note(&logs, &each) {
         progress::warn(py, &warning)?;
-    }
-    for (run, log_digest) in runs.iter_mut().zip(each) {
-        run.digest = Some(log_digest);
     }
     Ok((runs, digest, rows))
 }
@@ -773,19 +774,20 @@ pub fn validate<'py>(
             &blobs,
             &models,
         )?;
-        let (same, in_sample_logs) = digest_notes(py, &blobs[0].1, &models[0], &logs)?;
-        for note in same.iter().chain(&in_sample_logs) {
-            progress::warn(py, note)?;
-        }
-        file_notes.extend(same);
-        in_sample.extend(in_sample_logs);
         let gyro_columns = ingest.format.gyro_columns.len();
         if let Some(note) =
             calibrate::axis_count_note(&blobs[0].1, models[0].axis_count(), gyro_columns, "gyro_column=")
         {
             progress::warn(py, &note)?;
         }
-        validate_log_files(py, &logs, &refs, &ingest, &stability, progress)?
+        let (per_log, digests) = validate_log_files(py, &logs, &refs, &ingest, &stability, progress)?;
+        let (same, in_sample_logs) = digest_notes(&blobs[0].1, &models[0], &logs, &digests);
+        for note in same.iter().chain(&in_sample_logs) {
+            progress::warn(py, note)?;
+        }
+        file_notes.extend(same);
+        in_sample.extend(in_sample_logs);
+        per_log
     };
     let mut outcomes = Validation::combine_logs(refs.len(), per_log);
     let compared = outcomes.split_off(1.min(outcomes.len()));
@@ -842,23 +844,16 @@ pub fn validate<'py>(
     convert::document(py, &ValidationDocument::new(&stability, &validation, comparison).with_notes(notes))
 }
 
-/// `validate`'s notes from the logs' digests (`fogtemp_cal::digest`): logs with the same bytes,
-/// and logs the model was fitted on; the digests taken one file at a time so that Ctrl-C is
-/// raised between two (the logs are read twice).
+/// `validate`'s notes from the logs' digests (`fogtemp_cal::digest`):
+/// logs with the same bytes, and logs the model was fitted on.
 fn digest_notes(
-    py: Python<'_>,
     name: &str,
     model: &CoreModel<'_>,
     logs: &[PathBuf],
-) -> PyResult<(Option<String>, Option<String>)> {
-    let mut digests = fogtemp_cal::digest::InputDigest::new();
-    for log in logs {
-        py.detach(|| digests.add_file(log)).map_err(errors::cal)?;
-        py.check_signals()?;
-    }
-    let digests = digests.finish();
+    digests: &Digests,
+) -> (Option<String>, Option<String>) {
     let same = fogtemp_cal::digest::same_logs_note(logs, &digests.1);
-    Ok((same, fogtemp_cal::digest::in_sample_note_from(name, model, logs, &digests)))
+    (same, fogtemp_cal::digest::in_sample_note_from(name, model, logs, digests))
 }
 
 /// Which time keywords were given (the others are read as a model records them).
@@ -919,7 +914,8 @@ fn choose_columns(
 }
 
 /// Every log file replayed through every model, one log at a time (the library's validation
-/// of each, in log order), so that Ctrl-C is raised between two logs.
+/// of each, in log order), so that Ctrl-C is raised between two logs; with the logs' digests
+/// taken as they are read.
 fn validate_log_files(
     py: Python<'_>,
     logs: &[PathBuf],
@@ -927,12 +923,14 @@ fn validate_log_files(
     ingest: &IngestOptions,
     stability: &BiasStabilityOptions,
     progress: bool,
-) -> PyResult<Vec<Vec<Validation>>> {
+) -> PyResult<(Vec<Vec<Validation>>, Digests)> {
     let mut per_log = Vec::with_capacity(logs.len());
+    let mut digest = fogtemp_cal::digest::InputDigest::new();
     for log in logs {
         let mut bar = Progress::new(format!("validate {}", file_name(log)), progress);
         let outcome = py.detach(|| {
-            calibrate::validate_models(std::slice::from_ref(log), models, ingest, stability, |_, b, r| {
+            let one = std::slice::from_ref(log);
+            calibrate::validate_models_digested(one, models, ingest, stability, &mut digest, |_, b, r| {
                 bar.rows(b, r);
             })
         });
@@ -940,7 +938,7 @@ fn validate_log_files(
         bar.boundary(py)?;
         per_log.push(outcome.map_err(errors::cal)?);
     }
-    Ok(per_log)
+    Ok((per_log, digest.finish()))
 }
 
 /// Every run given as arrays replayed through every model with the row rules and the

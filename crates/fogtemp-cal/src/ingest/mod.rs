@@ -39,6 +39,7 @@ use std::fs::File;
 use std::io::Read;
 use std::path::{Path, PathBuf};
 
+use crate::digest::InputDigest;
 use crate::error::CalError;
 use batch::{Batch, Consumer};
 use parallel::read_parallel;
@@ -720,6 +721,37 @@ where
     F: FnMut(&Row<'_>) -> Result<(), CalError>,
     P: FnMut(u64, u64),
 {
+    let (file, tuning) = open_log(path)?;
+    read_with_tuning(path, file, options, tuning, visit, progress)
+}
+
+/// [`read_log_with_progress`] that adds the log's bytes to `digest` as they are read (the
+/// model's input digest, `docs/model-format.md`), so that the log is read once, and returns
+/// the log's own digest beside the report. `digest` is left as it was when the read fails.
+///
+/// # Errors
+/// As [`read_log`].
+pub fn read_log_digested<F, P>(
+    path: &Path,
+    options: &IngestOptions,
+    digest: &mut InputDigest,
+    visit: F,
+    progress: P,
+) -> Result<(IngestReport, [u8; 32]), CalError>
+where
+    F: FnMut(&Row<'_>) -> Result<(), CalError>,
+    P: FnMut(u64, u64),
+{
+    let (file, tuning) = open_log(path)?;
+    let mut reader = digest.reading(file);
+    let report = read_with_tuning(path, &mut reader, options, tuning, visit, progress)?;
+    let log_digest = reader.finish().map_err(|source| CalError::Io { path: path.to_path_buf(), source })?;
+    Ok((report, log_digest))
+}
+
+/// The log at `path`, opened, and how to read it: a log of 1 MiB or more by worker threads
+/// when there is more than one core.
+fn open_log(path: &Path) -> Result<(File, Tuning), CalError> {
     let file = File::open(path).map_err(|source| CalError::Io { path: path.to_path_buf(), source })?;
     let size = file.metadata().map_or(0, |m| m.len());
     let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
@@ -728,8 +760,7 @@ where
     } else {
         Mode::Single
     };
-    let tuning = Tuning { mode, ..Tuning::default() };
-    read_with_tuning(path, file, options, tuning, visit, progress)
+    Ok((file, Tuning { mode, ..Tuning::default() }))
 }
 
 /// [`read_log_with_progress`] from any reader (a socket, a decompressor, bytes in memory),
@@ -1131,5 +1162,64 @@ mod tests {
             assert_eq!(ours, theirs, "rows differ for {text:?}");
             assert_eq!(summary(&our_result), summary(&their_result), "result differs for {text:?}");
         }
+    }
+
+    /// The digest taken while reading (one read of each log) is SHA-256 of the bytes, the
+    /// same as a separate read of the files gives (`digest::digests_of_files`, itself checked
+    /// against FIPS 180-2), for a small log and one of more than 1 MiB (read by worker threads
+    /// when there are two cores); a read that fails, or that its visitor stops, leaves the
+    /// digest as it was.
+    #[test]
+    fn the_digest_taken_while_reading_is_the_files_sha256() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let small = dir.path().join("small.csv");
+        let large = dir.path().join("large.csv");
+        let bad = dir.path().join("bad.csv");
+        std::fs::write(&small, format!("{HEADER}0.0,25.0,0.5\n1.0,25.5,-0.25")).expect("write");
+        let mut text = String::from(HEADER);
+        for i in 0..(1 << 16) {
+            text.push_str(&format!(
+                "{}.{:03},{:.4},{:.6}\n",
+                i / 1000,
+                i % 1000,
+                20.0 + f64::from(i) * 1e-4,
+                0.5
+            ));
+        }
+        assert!(text.len() as u64 > PARALLEL_MIN_BYTES);
+        std::fs::write(&large, &text).expect("write");
+        std::fs::write(&bad, format!("{HEADER}0.0,25.0,0.5\n1.0,x,0.5\n")).expect("write");
+        let options = default_options();
+        let mut digest = InputDigest::new();
+        let mut own = Vec::new();
+        for log in [&small, &large] {
+            let (report, one) =
+                read_log_digested(log, &options, &mut digest, |_| Ok(()), |_, _| {}).expect("reads");
+            assert!(report.rows > 0);
+            own.push(one);
+        }
+        let failed = read_log_digested(&bad, &options, &mut digest, |_| Ok(()), |_, _| {});
+        assert!(matches!(failed, Err(CalError::BadRow { .. })), "{:?}", failed.map(|r| r.0.rows));
+        let stopped = read_log_digested(
+            &large,
+            &options,
+            &mut digest,
+            |row| {
+                if row.line > 100 {
+                    Err(CalError::Io {
+                        path: PathBuf::from("visitor"),
+                        source: std::io::Error::other("stop"),
+                    })
+                } else {
+                    Ok(())
+                }
+            },
+            |_, _| {},
+        );
+        assert!(stopped.is_err());
+        let (all, each) = digest.finish();
+        let (want_all, want_each) = crate::digest::digests_of_files(&[small, large]).expect("digests");
+        assert_eq!((all, &each), (want_all, &want_each));
+        assert_eq!(own, want_each);
     }
 }

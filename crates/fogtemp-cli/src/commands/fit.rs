@@ -83,9 +83,10 @@ pub fn fit(a: FitArgs) -> Result<()> {
         mesh_cv_salt: a.mesh_cv_salt,
     };
     let mut runs = Vec::with_capacity(logs.len());
+    let mut input_digest = fogtemp_cal::digest::InputDigest::new();
     for log in &logs {
         let bar = RowProgress::new(log, "features");
-        let run = calibrate::extract_run(log, &config, |b, r| bar.update(b, r))
+        let run = calibrate::extract_run_digested(log, &config, &mut input_digest, |b, r| bar.update(b, r))
             .with_context(|| format!("reading calibration log {}", log.display()))?;
         bar.finish_and_clear();
         if run.ingest.rows == 0 {
@@ -103,12 +104,9 @@ pub fn fit(a: FitArgs) -> Result<()> {
         warn_if_mostly_gaps(&run.path, &run.gaps, run.ingest.rows);
         runs.push(run);
     }
-    let (digest, each) = fogtemp_cal::digest::digests_of_files(&logs)?;
+    let (digest, each) = input_digest.finish();
     if let Some(warning) = fogtemp_cal::digest::same_logs_note(&logs, &each) {
         eprintln!("warning: {warning}");
-    }
-    for (run, log_digest) in runs.iter_mut().zip(each) {
-        run.digest = Some(log_digest);
     }
     subtract_input_rates(&mut runs, input_rates_dph.as_deref(), config.ingest.format.gyro_columns.len());
     let mut warnings = fogtemp_cal::identifiability::fit_warnings(&runs, &config, &a.identifiability());

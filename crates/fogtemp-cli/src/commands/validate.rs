@@ -72,12 +72,14 @@ pub fn validate(a: ValidateArgs) -> Result<()> {
     }
     let refs: Vec<&Model<'_>> = models.iter().collect();
     let bars: Vec<_> = logs.iter().map(|l| RowProgress::new(l, "validate")).collect();
-    let mut outcomes = calibrate::validate_models(&logs, &refs, &ingest, &options, |i, b, r| {
-        if let Some(bar) = bars.get(i) {
-            bar.update(b, r);
-        }
-    })
-    .map_err(|e| columns.explain(e))?;
+    let mut input_digest = fogtemp_cal::digest::InputDigest::new();
+    let mut outcomes =
+        calibrate::validate_models_digested(&logs, &refs, &ingest, &options, &mut input_digest, |i, b, r| {
+            if let Some(bar) = bars.get(i) {
+                bar.update(b, r);
+            }
+        })
+        .map_err(|e| columns.explain(e))?;
     for bar in &bars {
         bar.finish_and_clear();
     }
@@ -99,7 +101,7 @@ pub fn validate(a: ValidateArgs) -> Result<()> {
         super::warn_if_mostly_gaps(&r.path, &r.series.gaps, r.ingest.rows);
     }
     notes.extend(runs.iter().flat_map(calibrate::RunValidation::coverage_notes));
-    let digests = fogtemp_cal::digest::digests_of_files(&logs)?;
+    let digests = input_digest.finish();
     notes.extend(fogtemp_cal::digest::same_logs_note(&logs, &digests.1));
     let in_sample =
         fogtemp_cal::digest::in_sample_note_from(&a.model.display().to_string(), model, &logs, &digests);
