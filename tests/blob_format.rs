@@ -31,7 +31,8 @@ use std::path::{Path, PathBuf};
 use std::sync::Once;
 
 use common::{bias_surface, paper_points, random_points, rng, FEATURES, NORMALISATION};
-use fogtemp_cal::blob::{triangle_transform, LogReadingRecord, LogTimeRecord};
+use fogtemp_cal::blob::{triangle_transform, LogReadingRecord, LogShapeRecord, LogTimeRecord};
+use fogtemp_cal::ingest::Delimiter;
 use fogtemp_cal::{build_mesh, encode, AxisModel, CalError, ColumnNames, MeshModel, MeshPoint, ModelFile};
 use fogtemp_core::wire::*;
 use fogtemp_core::{
@@ -43,7 +44,7 @@ use shared::{
     core_digest, exercise, fix_crc, fix_len_and_crc, golden_queries, put_f32, put_u16, put_u32, u16_at,
     u32_at, GOLDEN_HEADER, GOLDEN_V2_BLOB, GOLDEN_V2_CSV, GOLDEN_V3_BLOB, GOLDEN_V3_CSV, GOLDEN_V4_BLOB,
     GOLDEN_V4_COLUMNS, GOLDEN_V4_CSV, GOLDEN_V5_BLOB, GOLDEN_V5_CSV, GOLDEN_V5_TIME, GOLDEN_V6_BLOB,
-    GOLDEN_V6_CSV, GOLDEN_V6_READING,
+    GOLDEN_V6_CSV, GOLDEN_V6_READING, GOLDEN_V7_BLOB, GOLDEN_V7_CSV, GOLDEN_V7_SHAPE,
 };
 
 // ---------------------------------------------------------------------------------------------
@@ -475,8 +476,27 @@ fn golden_model_v5() -> ModelFile {
 fn golden_model_v6() -> ModelFile {
     let mut model = golden_model_v5();
     let (decimal_comma, digests) = GOLDEN_V6_READING;
-    model.log_reading = LogReadingRecord { decimal_comma, log_digests: digests.to_vec() };
+    model.log_reading =
+        LogReadingRecord { decimal_comma, log_digests: digests.to_vec(), ..Default::default() };
     model
+}
+
+/// The version-7 golden model: the version-6 one with its logs' shape recorded.
+fn golden_model_v7() -> ModelFile {
+    let mut model = golden_model_v6();
+    model.log_reading.shape = golden_shape_v7();
+    model
+}
+
+/// [`GOLDEN_V7_SHAPE`] as the writer takes it.
+fn golden_shape_v7() -> LogShapeRecord {
+    let (skip_lines, delimiter, comment, columns) = GOLDEN_V7_SHAPE;
+    LogShapeRecord {
+        skip_lines: u64::from(skip_lines),
+        delimiter: Delimiter::Byte(delimiter),
+        comment: Some(comment.into()),
+        column_names: columns.iter().map(|c| c.to_string()).collect(),
+    }
 }
 
 /// One expected row: evaluated with a fresh default hint, so the row does not depend on the
@@ -500,6 +520,7 @@ fn bless_if_requested() {
             (golden_model_v4(), GOLDEN_V4_BLOB, GOLDEN_V4_CSV),
             (golden_model_v5(), GOLDEN_V5_BLOB, GOLDEN_V5_CSV),
             (golden_model_v6(), GOLDEN_V6_BLOB, GOLDEN_V6_CSV),
+            (golden_model_v7(), GOLDEN_V7_BLOB, GOLDEN_V7_CSV),
         ] {
             let blob = encode(&model).expect("golden model encodes");
             let parsed = Model::from_bytes(&blob).expect("parses");
@@ -655,6 +676,69 @@ fn golden_v6_blob_is_reproduced_byte_for_byte_by_todays_writer() {
         u8::from_str_radix(&hex[2 * i..2 * i + 2], 16).expect("hex")
     });
     assert_eq!(LogReadingRecord::of_logs(true, &[sha_abc]).log_digests, vec![GOLDEN_V6_READING.1[0]]);
+}
+
+#[test]
+fn golden_v7_blob_is_reproduced_byte_for_byte_by_todays_writer() {
+    let golden = read_golden(GOLDEN_V7_BLOB);
+    let today = encode(&golden_model_v7()).expect("encodes");
+    assert_eq!(u16_at(&golden, FILE_VERSION.start), 7);
+    assert!(today == golden, "the writer's output for the version-7 golden model changed");
+    // Version 7 is version 6 with the log-shape record after the log-reading record, counted
+    // here by hand: 2 lines skipped (u32), the delimiter code 1 and ';', the comment flag 1
+    // and "//", then 5 column names, each a length byte and its UTF-8.
+    let v6 = read_golden(GOLDEN_V6_BLOB);
+    let v6_end = v6.len() - CRC_LEN;
+    let axes_end = names_offset(&v6);
+    assert_eq!(golden[FILE_HEADER_LEN..axes_end], v6[FILE_HEADER_LEN..axes_end]);
+    let mut expected = v6[axes_end + 4..v6_end].to_vec();
+    expected.extend_from_slice(&[2, 0, 0, 0, 1, b';', 1, 2, b'/', b'/', 5]);
+    for name in ["Zeit [ms]", "gyro_x", "temp_c", "Drehrate Y (°/h)", "T_y"] {
+        expected.push(name.len() as u8);
+        expected.extend_from_slice(name.as_bytes());
+    }
+    let names = &golden[axes_end..golden.len() - CRC_LEN];
+    assert_eq!(u32_at(names, 0) as usize, 4 + expected.len());
+    assert_eq!(names[4..], expected[..]);
+    // Read back as written.
+    let model = Model::from_bytes(&golden).expect("parses");
+    assert_eq!(LogShapeRecord::of(&model), golden_shape_v7());
+    // The default shape is not recorded: version 6, byte for byte.
+    assert!(encode(&golden_model_v6()).expect("encodes") == v6);
+    let mut default_shape = golden_model_v7();
+    default_shape.log_reading.shape = LogShapeRecord::default();
+    assert!(encode(&default_shape).expect("encodes") == v6);
+}
+
+#[test]
+fn a_log_shape_the_record_cannot_hold_is_not_recorded() {
+    let version_of = |shape: LogShapeRecord| {
+        let mut model = golden_model_v6();
+        model.log_reading.shape = shape;
+        let blob = encode(&model).expect("encodes");
+        (u16_at(&blob, FILE_VERSION.start), LogShapeRecord::of(&Model::from_bytes(&blob).expect("parses")))
+    };
+    let shape = golden_shape_v7();
+    for bad in [
+        LogShapeRecord { skip_lines: u64::from(u32::MAX) + 1, ..shape.clone() },
+        LogShapeRecord { delimiter: Delimiter::Byte(b'"'), ..shape.clone() },
+        LogShapeRecord { delimiter: Delimiter::Byte(0xe9), ..shape.clone() },
+        LogShapeRecord { comment: Some(String::new()), ..shape.clone() },
+        LogShapeRecord { column_names: vec!["a".into(), String::new()], ..shape.clone() },
+        LogShapeRecord { column_names: vec!["a\tb".into()], ..shape.clone() },
+        LogShapeRecord { column_names: (0..256).map(|i| format!("c{i}")).collect(), ..shape.clone() },
+    ] {
+        assert_eq!(version_of(bad.clone()), (6, LogShapeRecord::default()), "{bad:?}");
+    }
+    // At the limits: stored and read back.
+    for good in [
+        LogShapeRecord { skip_lines: u64::from(u32::MAX), ..shape.clone() },
+        LogShapeRecord { delimiter: Delimiter::Whitespace, comment: None, ..shape.clone() },
+        LogShapeRecord { delimiter: Delimiter::Byte(b'\t'), column_names: Vec::new(), ..shape.clone() },
+        LogShapeRecord { column_names: (0..255).map(|i| format!("c{i}")).collect(), ..shape.clone() },
+    ] {
+        assert_eq!(version_of(good.clone()), (7, good.clone()), "{good:?}");
+    }
 }
 
 /// Where the names section starts: after the axis sections.
@@ -977,12 +1061,12 @@ fn a_wrong_section_len_names_its_axis() {
 fn targeted_header_corruptions_give_their_specific_errors() {
     let r = mutated(|b, _| b[0] = b'X');
     assert!(matches!(r, Err(Error::BadMagic)), "{r:?}");
-    let r = mutated(|b, _| put_u16(b, FILE_VERSION.start, 7));
-    assert!(matches!(r, Err(Error::UnsupportedVersion { expected: 6, found: 7 })), "{r:?}");
+    let r = mutated(|b, _| put_u16(b, FILE_VERSION.start, 8));
+    assert!(matches!(r, Err(Error::UnsupportedVersion { expected: 7, found: 8 })), "{r:?}");
     let r = mutated(|b, _| put_u16(b, FILE_VERSION.start, 0));
-    assert!(matches!(r, Err(Error::UnsupportedVersion { expected: 6, found: 0 })), "{r:?}");
-    // Versions 4 to 6 have a names section after the axes: a blob without one ends early.
-    for version in 4..=6 {
+    assert!(matches!(r, Err(Error::UnsupportedVersion { expected: 7, found: 0 })), "{r:?}");
+    // Versions 4 to 7 have a names section after the axes: a blob without one ends early.
+    for version in 4..=7 {
         let r = mutated(|b, _| put_u16(b, FILE_VERSION.start, version));
         assert!(matches!(r, Err(Error::Truncated { field: "names_len", .. })), "{version}: {r:?}");
     }

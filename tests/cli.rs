@@ -1455,6 +1455,95 @@ fn the_time_the_model_records_is_read_when_none_is_named() {
     );
 }
 
+/// A model records its logs' shape when it is not the default (format 7): a serial capture (a
+/// banner line, no header, no time column, fields separated by spaces, `%` comments) fitted with
+/// the shape options validates and compensates without them, bit for bit as with them (oracle:
+/// the same commands with every option named), says where the shape came from, and a log
+/// shaped otherwise is refused naming the recorded shape and how to name another.
+#[test]
+fn the_shape_the_model_records_is_read_when_none_is_named() {
+    let dir = TempDir::new().expect("tempdir");
+    let (csv, lines) = short_log(dir.path(), "ok.csv");
+    let mut capture = vec!["COM3 115200 8N1 - capture started".to_string()];
+    for (k, l) in lines[1..].iter().enumerate() {
+        let fields: Vec<&str> = l.split(',').collect();
+        capture.push(format!(" {}   {}", fields[2], fields[1]));
+        if k == 100 {
+            capture.push("% the chamber door was opened".to_string());
+        }
+    }
+    let log = dir.path().join("capture.txt");
+    write_lines(&log, &capture);
+    let step_s = lines[2].split(',').next().and_then(|t| t.parse::<f64>().ok()).expect("time");
+    let rate = format!("{}", 1.0 / step_s);
+    let shape =
+        ["--skip-lines", "1", "--columns", "gyro_dph,temp_c", "--delimiter", "whitespace", "--comment", "%"];
+    let model = dir.path().join("m.fogm");
+    let mut fit_args = args!["fit", "--method", "poly", "--out", &model, &log, "--sample-rate-hz", &rate];
+    fit_args.extend(shape.iter().map(OsString::from));
+    run_ok(fit_args);
+    let inspect = json(&run_ok(args!["inspect", "--json", &model]));
+    assert_eq!(inspect["format_version"], 7);
+    let recorded = &inspect["log_shape"];
+    assert_eq!(
+        (recorded["skip_lines"].as_u64(), recorded["delimiter"].as_str()),
+        (Some(1), Some("whitespace"))
+    );
+    assert_eq!(
+        (recorded["comment"].as_str(), recorded["columns"].clone()),
+        (Some("%"), serde_json::json!(["gyro_dph", "temp_c"]))
+    );
+    let inspect_text = run_ok(args!["inspect", &model]);
+    assert!(
+        inspect_text.contains("log shape: 1 line skipped at the start; fields separated by spaces or tabs"),
+        "{inspect_text}"
+    );
+    // Validated without the shape options: bit for bit as with them.
+    let (named, quiet) = validated_quietly(&model, &log, &shape);
+    let (from_model, said) = validated_quietly(&model, &log, &[]);
+    let comp = |d: &Value| f(&d["compensated_bias_stability_dph"]);
+    assert!(comp(&named).is_finite());
+    assert_eq!(comp(&from_model).to_bits(), comp(&named).to_bits(), "read the same way, bit for bit");
+    assert!(!quiet.contains("records of its fit's logs"), "{quiet}");
+    assert!(
+        said.contains("the logs are read as") && said.contains("no header row, columns gyro_dph,temp_c"),
+        "{said}"
+    );
+    // Compensated without them: the same file as with them.
+    let (out_named, out_model) = (dir.path().join("named.csv"), dir.path().join("model.csv"));
+    let mut comp_args = args!["compensate", "--model", &model, &log, "--out", &out_named];
+    comp_args.extend(shape.iter().map(OsString::from));
+    run_ok(comp_args);
+    run_ok(args!["compensate", "--model", &model, &log, "--out", &out_model]);
+    assert_eq!(fs::read(&out_model).expect("read"), fs::read(&out_named).expect("read"));
+    // The CSV log with a header row: refused in the recorded shape, naming it and the way out.
+    let err = run_err(args!["validate", "--model", &model, &csv]);
+    assert!(
+        err.contains("the log was read in the shape") && err.contains("--columns '' for a header row"),
+        "{err}"
+    );
+    // Named as it is (a header row, nothing skipped, its time column): validated, with a note
+    // naming the model's shape.
+    let (csv_doc, noted) = validated_quietly(
+        &model,
+        &csv,
+        &[
+            "--columns",
+            "",
+            "--skip-lines",
+            "0",
+            "--delimiter",
+            "auto",
+            "--comment",
+            "#",
+            "--time-column",
+            "time_s",
+        ],
+    );
+    assert!(comp(&csv_doc).is_finite());
+    assert!(noted.contains("was fitted on logs shaped otherwise"), "{noted}");
+}
+
 /// Settings no fit can use are refused before any log is read, naming the option (they
 /// used to surface after the fitting as a blob field out of range, or not at all).
 #[test]

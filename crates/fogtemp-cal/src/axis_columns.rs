@@ -5,8 +5,8 @@
 
 use fogtemp_core::Model;
 
-use crate::blob::{ColumnNames, LogTimeRecord};
-use crate::ingest::{DecimalMark, LogFormat, RateUnit};
+use crate::blob::{ColumnNames, LogShapeRecord, LogTimeRecord};
+use crate::ingest::{DecimalMark, Delimiter, LogFormat, RateUnit};
 
 /// The columns chosen for a model, and what the user is told about them.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
@@ -61,6 +61,27 @@ pub struct Named<'a> {
     pub time: TimeNamed,
     /// `--decimal-mark` given.
     pub decimal_mark: bool,
+    /// Which of `--skip-lines`, `--delimiter`, `--comment`, `--columns` were given.
+    pub shape: ShapeNamed,
+}
+
+/// Which log-shape settings the user named for a replay; the others come from the model's
+/// log-shape record ([`choose_shape`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ShapeNamed {
+    /// `--skip-lines` given.
+    pub skip_lines: bool,
+    /// `--delimiter` given.
+    pub delimiter: bool,
+    /// `--comment` given.
+    pub comment: bool,
+    /// `--columns` given.
+    pub columns: bool,
+}
+
+impl ShapeNamed {
+    /// Every shape setting named.
+    pub const ALL: Self = Self { skip_lines: true, delimiter: true, comment: true, columns: true };
 }
 
 /// Which time settings the user named for a replay; the others come from the model's
@@ -98,13 +119,14 @@ impl<'a> Named<'a> {
             temp_units: true,
             time: TimeNamed::ALL,
             decimal_mark: true,
+            shape: ShapeNamed::ALL,
         }
     }
 }
 
 /// The names of the options in the messages: gyro columns, temperature columns, gyro units,
-/// temperature units, time, decimal mark.
-pub type OptionNames<'a> = [&'a str; 6];
+/// temperature units, time, decimal mark, log shape.
+pub type OptionNames<'a> = [&'a str; 7];
 /// The command line's options.
 pub const CLI_OPTIONS: OptionNames<'static> = [
     "--gyro-column",
@@ -113,6 +135,7 @@ pub const CLI_OPTIONS: OptionNames<'static> = [
     "--temp-scale/--temp-offset",
     "--time-column/--time-unit/--sample-rate-hz/--date-column",
     "--decimal-mark",
+    "--skip-lines/--delimiter/--comment/--columns",
 ];
 /// Python's keywords.
 pub const PYTHON_OPTIONS: OptionNames<'static> = [
@@ -122,6 +145,7 @@ pub const PYTHON_OPTIONS: OptionNames<'static> = [
     "temp_scale=/temp_offset=",
     "time_column=/time_unit=/sample_rate_hz=/date_column=",
     "decimal_mark=",
+    "skip_lines=/delimiter=/comment=/columns=",
 ];
 
 /// [`choose`] and [`choose_units`] together: `format` (what was named, defaults elsewhere)
@@ -135,7 +159,7 @@ pub fn choose_for_replay(
     model_name: &str,
     format: &mut LogFormat,
     named: Named<'_>,
-    [gyro_column, temp_column, gyro_units, temp_units, time, decimal_mark]: OptionNames<'_>,
+    [gyro_column, temp_column, gyro_units, temp_units, time, decimal_mark, shape]: OptionNames<'_>,
 ) -> Result<ChosenColumns, Box<SwappedColumn>> {
     let mut chosen =
         choose(model, model_name, (named.gyro_columns, named.temp_columns), (gyro_column, temp_column))?;
@@ -144,6 +168,7 @@ pub fn choose_for_replay(
     chosen.notes.extend(unit_notes);
     chosen.notes.extend(choose_time(model, model_name, format, named.time, time));
     chosen.notes.extend(choose_decimal_mark(model, model_name, format, named.decimal_mark, decimal_mark));
+    chosen.notes.extend(choose_shape(model, model_name, format, named.shape, shape));
     format.gyro_columns.clone_from(&chosen.gyro);
     format.temp_columns.clone_from(&chosen.temp);
     Ok(chosen)
@@ -174,6 +199,104 @@ pub fn choose_decimal_mark(
             word(format.decimal_mark)
         )
     })
+}
+
+/// How the logs are shaped for `model`: each of the lines skipped, the delimiter, the comment
+/// prefix and the headerless column names as the model records them (format version 7) unless
+/// `named`, with a note saying what was taken when it is not the default, and one when what is
+/// read differs from the record (`option` names the settings). `format` is set to what is
+/// read; the notes are returned. A model that records no shape leaves `format` as it is.
+pub fn choose_shape(
+    model: &Model<'_>,
+    model_name: &str,
+    format: &mut LogFormat,
+    named: ShapeNamed,
+    option: &str,
+) -> Vec<String> {
+    let recorded = LogShapeRecord::of(model);
+    let mut read = LogShapeRecord::of_format(format);
+    if !named.skip_lines {
+        read.skip_lines = recorded.skip_lines;
+    }
+    if !named.delimiter {
+        read.delimiter = recorded.delimiter;
+    }
+    if !named.comment {
+        read.comment.clone_from(&recorded.comment);
+    }
+    if !named.columns {
+        read.column_names.clone_from(&recorded.column_names);
+    }
+    read.apply_to(format);
+    let mut notes = Vec::new();
+    let taken = describe_shape(&recorded, |field| match field {
+        ShapeField::SkipLines => !named.skip_lines,
+        ShapeField::Delimiter => !named.delimiter,
+        ShapeField::Comment => !named.comment,
+        ShapeField::Columns => !named.columns,
+    });
+    if !taken.is_empty() {
+        notes.push(format!(
+            "the logs are read as {model_name} records of its fit's logs: {}",
+            taken.join("; ")
+        ));
+    }
+    if recorded.is_recorded() && read != recorded {
+        notes.push(format!(
+            "{model_name} was fitted on logs shaped otherwise ({}); {option} give {}: used as given (for logs \
+             from the same logger, leave {option} out)",
+            shape_in_words(&recorded),
+            shape_in_words(&read)
+        ));
+    }
+    notes
+}
+
+/// What `shape` differs from the default in, in words ("the default shape" for none).
+pub fn shape_in_words(shape: &LogShapeRecord) -> String {
+    let words = describe_shape(shape, |_| true);
+    if words.is_empty() {
+        "the default shape".to_string()
+    } else {
+        words.join("; ")
+    }
+}
+
+/// The log-shape settings, for [`describe_shape`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum ShapeField {
+    SkipLines,
+    Delimiter,
+    Comment,
+    Columns,
+}
+
+/// The settings of `shape` that differ from the default and that `include` selects, in words.
+fn describe_shape(shape: &LogShapeRecord, include: impl Fn(ShapeField) -> bool) -> Vec<String> {
+    let default = LogShapeRecord::default();
+    let mut words = Vec::new();
+    if include(ShapeField::SkipLines) && shape.skip_lines != default.skip_lines {
+        let s = if shape.skip_lines == 1 { "" } else { "s" };
+        words.push(format!("{} line{s} skipped at the start", shape.skip_lines));
+    }
+    if include(ShapeField::Delimiter) && shape.delimiter != default.delimiter {
+        words.push(match shape.delimiter {
+            Delimiter::Byte(b'\t') => "fields separated by tabs".to_string(),
+            Delimiter::Byte(b) => format!("fields separated by '{}'", char::from(b)),
+            Delimiter::Whitespace => "fields separated by spaces or tabs".to_string(),
+            Delimiter::Auto => "the delimiter detected".to_string(),
+        });
+    }
+    if include(ShapeField::Comment) && shape.comment != default.comment {
+        words.push(match &shape.comment {
+            Some(prefix) => format!("comment lines start with '{prefix}'"),
+            None => "no comment lines".to_string(),
+        });
+    }
+    if include(ShapeField::Columns) && shape.column_names != default.column_names {
+        words.push(format!("no header row, columns {}", shape.column_names.join(",")));
+    }
+    words
 }
 
 /// How to read the logs' time for `model`: as the model records it (format version 5) for

@@ -1,14 +1,16 @@
 //! Model blob writer (format version 4 with column names, 5 with the log time, 6 with the
-//! log reading; without column names 2, or 3 with a mesh continued by stored gradients; spec in `docs/model-format.md`, offsets in
+//! log reading, 7 with a log shape other than the default; without column names 2, or 3 with a mesh continued by stored gradients; spec in `docs/model-format.md`, offsets in
 //! [`fogtemp_core::wire`]). Every blob is read back through `Model::from_bytes`
 //! before it is returned, so a writer bug is reported here instead of in firmware.
 
 use fogtemp_core::wire::*;
 use fogtemp_core::{
-    AxisProvenance, FeatureSettings, LogTimeUnit, Model, Normalisation, OutsidePolicy, PolyOutside, PolyTerm,
+    AxisProvenance, FeatureSettings, LogDelimiter, LogTimeUnit, Model, Normalisation, OutsidePolicy,
+    PolyOutside, PolyTerm,
 };
 
 use crate::error::{CalError, EncodeProblem};
+use crate::ingest::{Delimiter, LogFormat};
 use crate::mesh::MeshModel;
 
 /// One gyro axis to encode.
@@ -62,18 +64,22 @@ pub struct LogReadingRecord {
     /// Per calibration log, in the order the fit read them: the first 8 bytes of the SHA-256
     /// of its bytes (of its samples for a run given as arrays); more than 65535 do not encode.
     pub log_digests: Vec<[u8; LOG_DIGEST_LEN]>,
+    /// The logs' shape (written as the log-shape record of format version 7 when it is not
+    /// the default).
+    pub shape: LogShapeRecord,
 }
 
 impl LogReadingRecord {
-    /// Whether it records anything (a decimal comma, or a log's digest).
+    /// Whether it records anything (a decimal comma, a log's digest, or a shape other than
+    /// the default).
     pub fn is_recorded(&self) -> bool {
-        self.decimal_comma || !self.log_digests.is_empty()
+        self.decimal_comma || !self.log_digests.is_empty() || self.shape.is_recorded()
     }
 
     /// The record of logs read with `decimal_comma` whose full SHA-256 digests are `digests`.
     pub fn of_logs(decimal_comma: bool, digests: &[[u8; 32]]) -> Self {
         let log_digests = digests.iter().map(short_digest).collect();
-        Self { decimal_comma, log_digests }
+        Self { decimal_comma, log_digests, shape: LogShapeRecord::default() }
     }
 
     /// What `model` records (the default before format version 6).
@@ -81,6 +87,84 @@ impl LogReadingRecord {
         model.log_reading().map_or_else(Self::default, |r| Self {
             decimal_comma: r.decimal_comma,
             log_digests: (0..r.log_count()).filter_map(|i| r.log_digest(i)).collect(),
+            shape: LogShapeRecord::of(model),
+        })
+    }
+}
+
+/// The shape of the fit's logs: the log-shape record of format version 7. The default is the
+/// default [`LogFormat`]'s shape, which a blob does not record.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct LogShapeRecord {
+    /// Lines dropped unread at the start of each log.
+    pub skip_lines: u64,
+    /// How the fields are separated.
+    pub delimiter: Delimiter,
+    /// The comment prefix; `None` for no comment lines.
+    pub comment: Option<String>,
+    /// The column names of logs without a header row; empty when they have one.
+    pub column_names: Vec<String>,
+}
+
+impl Default for LogShapeRecord {
+    fn default() -> Self {
+        Self::of_format(&LogFormat::default())
+    }
+}
+
+impl LogShapeRecord {
+    /// The shape `format` reads.
+    pub fn of_format(format: &LogFormat) -> Self {
+        Self {
+            skip_lines: format.skip_lines,
+            delimiter: format.delimiter,
+            comment: format.comment.clone(),
+            column_names: format.column_names.clone(),
+        }
+    }
+
+    /// Sets `format` to read this shape.
+    pub fn apply_to(&self, format: &mut LogFormat) {
+        format.skip_lines = self.skip_lines;
+        format.delimiter = self.delimiter;
+        format.comment.clone_from(&self.comment);
+        format.column_names.clone_from(&self.column_names);
+    }
+
+    /// Whether it differs from the default shape (only then is it written).
+    pub fn is_recorded(&self) -> bool {
+        *self != Self::default()
+    }
+
+    /// Whether the record can hold it: at most `u32::MAX` lines skipped, a delimiter byte
+    /// that is ASCII and not a quote, line end or NUL, and a comment prefix and at most 255
+    /// column names of 1 to 255 bytes without control characters. A shape it cannot hold is
+    /// not written (the logs' shape has to be named again when the model is replayed).
+    pub fn is_storable(&self) -> bool {
+        let delimiter = match self.delimiter {
+            Delimiter::Byte(b) => b.is_ascii() && !matches!(b, 0 | b'"' | b'\n' | b'\r'),
+            Delimiter::Auto | Delimiter::Whitespace => true,
+        };
+        let comment = self.comment.as_deref().is_none_or(|c| !c.is_empty() && storable_name(c));
+        let names = self.column_names.len() <= usize::from(u8::MAX)
+            && self.column_names.iter().all(|n| !n.is_empty() && storable_name(n));
+        u32::try_from(self.skip_lines).is_ok() && delimiter && comment && names
+    }
+
+    /// What `model` records (the default before format version 7, or when it records none).
+    pub fn of(model: &Model<'_>) -> Self {
+        model.log_shape().map_or_else(Self::default, |shape| Self {
+            skip_lines: u64::from(shape.skip_lines),
+            delimiter: match shape.delimiter {
+                LogDelimiter::Detected => Delimiter::Auto,
+                LogDelimiter::Byte(b) => Delimiter::Byte(b),
+                LogDelimiter::Whitespace => Delimiter::Whitespace,
+            },
+            comment: shape.comment.map(str::to_string),
+            column_names: (0..shape.column_count())
+                .filter_map(|i| shape.column_name(i))
+                .map(str::to_string)
+                .collect(),
         })
     }
 }
@@ -208,9 +292,14 @@ pub fn encode_with_selection(model: &ModelFile, selection: &[u16]) -> Result<Vec
     // The log-time record needs version 5, the log-reading record 6 (with the log-time record
     // before it, recording nothing if need be); a model with columns and neither stays
     // version 4.
-    let with_reading = !model.columns.is_empty() && model.log_reading.is_recorded();
+    // The log-shape record needs version 7, after the two records; written only when the
+    // shape is not the default, so other blobs stay version 6 byte for byte.
+    let shape = &model.log_reading.shape;
+    let with_shape = !model.columns.is_empty() && shape.is_recorded() && shape.is_storable();
+    let with_reading = with_shape || (!model.columns.is_empty() && model.log_reading.is_recorded());
     let with_time = with_reading || (!model.columns.is_empty() && model.log_time.is_recorded());
     let version = match (model.columns.is_empty(), with_time, with_reading, needs_gradients) {
+        (false, _, true, _) if with_shape => FIRST_VERSION_WITH_LOG_SHAPE,
         (false, _, true, _) => FIRST_VERSION_WITH_LOG_READING,
         (false, true, false, _) => FIRST_VERSION_WITH_LOG_TIME,
         (false, false, _, _) => FIRST_VERSION_WITH_COLUMN_NAMES,
@@ -232,6 +321,9 @@ pub fn encode_with_selection(model: &ModelFile, selection: &[u16]) -> Result<Vec
         encode_column_names(&mut out, &model.columns, with_time.then_some(&model.log_time));
         if with_reading {
             encode_log_reading(&mut out, &model.log_reading)?;
+            if with_shape {
+                encode_log_shape(&mut out, shape);
+            }
             let len = out.len() - names_start;
             put_u32(&mut out, names_start, len as u32);
         }
@@ -293,6 +385,23 @@ fn encode_log_reading(out: &mut Vec<u8>, reading: &LogReadingRecord) -> Result<(
         out.extend_from_slice(digest);
     }
     Ok(())
+}
+
+/// The log-shape record (version 7) after the log-reading record, for a shape
+/// [`LogShapeRecord::is_storable`] says it can hold.
+fn encode_log_shape(out: &mut Vec<u8>, shape: &LogShapeRecord) {
+    out.extend_from_slice(&u32::try_from(shape.skip_lines).unwrap_or(u32::MAX).to_le_bytes());
+    let (code, byte) = match shape.delimiter {
+        Delimiter::Auto => (0, 0),
+        Delimiter::Byte(b) => (1, b),
+        Delimiter::Whitespace => (2, 0),
+    };
+    out.extend_from_slice(&[code, byte, u8::from(shape.comment.is_some())]);
+    push_name(out, shape.comment.as_deref().unwrap_or(""));
+    out.push(shape.column_names.len() as u8);
+    for name in &shape.column_names {
+        push_name(out, name);
+    }
 }
 
 /// Whether the section can hold `name` (at most 255 bytes, no control character).

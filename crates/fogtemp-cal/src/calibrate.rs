@@ -1254,12 +1254,15 @@ pub fn fit_model_replaying(
     Ok(FittedModel { blob, axes: reports })
 }
 
-/// The log-reading record of a fit on `runs` read with `format`: the decimal mark, and each
-/// run's digest when every run has one.
+/// The log-reading record of a fit on `runs` read with `format`: the decimal mark, each
+/// run's digest when every run has one, and the logs' shape.
 fn log_reading(runs: &[RunFeatures], format: &crate::ingest::LogFormat) -> crate::blob::LogReadingRecord {
     let digests: Option<Vec<[u8; 32]>> = runs.iter().map(|r| r.digest).collect();
     let decimal_comma = format.decimal_mark == crate::ingest::DecimalMark::Comma;
-    crate::blob::LogReadingRecord::of_logs(decimal_comma, &digests.unwrap_or_default())
+    crate::blob::LogReadingRecord {
+        shape: crate::blob::LogShapeRecord::of_format(format),
+        ..crate::blob::LogReadingRecord::of_logs(decimal_comma, &digests.unwrap_or_default())
+    }
 }
 
 /// Raw and compensated series of one run and axis, as block means (1 s by default).

@@ -395,6 +395,12 @@ pub struct ModelDocument {
     /// `decimal_mark` (`point` or `comma`), `log_digests` (per calibration log, the first 8
     /// bytes of its SHA-256, hex, in the order the fit read them).
     pub log_reading: Option<LogReadingDocument>,
+    /// The shape of the fit's logs (format 7, when not the default; `null` otherwise):
+    /// `skip_lines`, `delimiter` (as `--delimiter` names it: `auto`, `comma`, `semicolon`,
+    /// `tab`, `whitespace` or the character), `comment` (the prefix, `null` for no comment
+    /// lines), `columns` (the names of a headerless log, in order; empty with a header row),
+    /// `description` (in words).
+    pub log_shape: Option<LogShapeDocument>,
     /// Every axis.
     pub axes: Vec<ModelAxisDocument>,
 }
@@ -416,6 +422,42 @@ impl LogReadingDocument {
         Some(Self {
             decimal_mark: if record.decimal_comma { "comma" } else { "point" },
             log_digests: record.log_digests.iter().map(|d| hex(d)).collect(),
+        })
+    }
+}
+
+/// A model's log-shape record in `inspect --json`.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct LogShapeDocument {
+    /// Lines dropped unread at the start of each log.
+    pub skip_lines: u64,
+    /// As `--delimiter` names it.
+    pub delimiter: String,
+    /// The comment prefix; `None` for no comment lines.
+    pub comment: Option<String>,
+    /// The column names of a headerless log, in order; empty with a header row.
+    pub columns: Vec<String>,
+    /// The shape in words, as `validate` and `compensate` say it.
+    pub description: String,
+}
+
+impl LogShapeDocument {
+    fn of(model: &Model<'_>) -> Option<Self> {
+        model.log_shape()?;
+        let record = crate::blob::LogShapeRecord::of(model);
+        Some(Self {
+            skip_lines: record.skip_lines,
+            delimiter: match record.delimiter {
+                crate::ingest::Delimiter::Auto => "auto".to_string(),
+                crate::ingest::Delimiter::Whitespace => "whitespace".to_string(),
+                crate::ingest::Delimiter::Byte(b',') => "comma".to_string(),
+                crate::ingest::Delimiter::Byte(b';') => "semicolon".to_string(),
+                crate::ingest::Delimiter::Byte(b'\t') => "tab".to_string(),
+                crate::ingest::Delimiter::Byte(b) => char::from(b).to_string(),
+            },
+            description: crate::axis_columns::shape_in_words(&record),
+            comment: record.comment,
+            columns: record.column_names,
         })
     }
 }
@@ -464,6 +506,7 @@ impl ModelDocument {
             input_digest: hex(&model.input_digest()),
             log_time: LogTimeDocument::of(&model),
             log_reading: LogReadingDocument::of(&model),
+            log_shape: LogShapeDocument::of(&model),
             axes: (0..model.axis_count())
                 .map(|i| {
                     let mut axis = ModelAxisDocument::new(i, &model.axis(i)?);

@@ -72,17 +72,19 @@ pub struct IngestArgs {
     #[arg(long, value_name = "HZ", allow_negative_numbers = true, conflicts_with_all = ["time_column", "time_unit"], help_heading = "Log shape")]
     pub sample_rate_hz: Option<f64>,
     /// Lines at the start of every log to drop unread (e.g. a terminal program's banner),
-    /// before the header or, with --columns, the data. Error line numbers still count them.
-    #[arg(long, value_name = "N", default_value_t = 0, help_heading = "Log shape")]
-    pub skip_lines: u64,
+    /// before the header or, with --columns, the data. Error line numbers still count them
+    /// [default: 0; replaying a model: as its fit's logs].
+    #[arg(long, value_name = "N", help_heading = "Log shape")]
+    pub skip_lines: Option<u64>,
     /// The logs have no header row: these are their column names, in order (a,b,c). Then
-    /// --time-column, --temp-column and --gyro-column choose among them.
+    /// --time-column, --temp-column and --gyro-column choose among them; '' for logs with a
+    /// header row [replaying a model: as its fit's logs].
     #[arg(long, value_name = "NAMES", value_delimiter = ',', help_heading = "Log shape")]
     pub columns: Vec<String>,
     /// Lines starting with this text (after spaces or tabs) are comments, skipped anywhere;
-    /// '' for none.
-    #[arg(long, value_name = "PREFIX", default_value = "#", help_heading = "Log shape")]
-    pub comment: String,
+    /// '' for none [default: #; replaying a model: as its fit's logs].
+    #[arg(long, value_name = "PREFIX", help_heading = "Log shape")]
+    pub comment: Option<String>,
     /// Temperature column(s): one shared by all axes, or one per gyro column [default: temp_c;
     /// replaying a model: the columns it was fitted with].
     #[arg(long = "temp-column", help_heading = "Log columns")]
@@ -108,9 +110,9 @@ pub struct IngestArgs {
     /// Field delimiter: auto (from the header, or the first data row: the most frequent of
     /// comma, semicolon and tab, else whitespace if the fields are separated by spaces),
     /// comma, semicolon, tab, whitespace (runs of spaces and tabs, no quoting) or any one
-    /// ASCII character.
-    #[arg(long, value_name = "DELIMITER", default_value = "auto", value_parser = parse_delimiter, help_heading = "Log shape")]
-    pub delimiter: Delimiter,
+    /// ASCII character [default: auto; replaying a model: as its fit's logs].
+    #[arg(long, value_name = "DELIMITER", value_parser = parse_delimiter, help_heading = "Log shape")]
+    pub delimiter: Option<Delimiter>,
     /// Decimal mark of the numbers: point (20.5) or comma (20,5, as written in many European
     /// locales; then the delimiter is not a comma, and a cell with a point is refused rather
     /// than read as a thousands separator or a decimal) [default: point; replaying a model: as
@@ -153,10 +155,17 @@ impl IngestArgs {
                 Some(GyroUnitArg::Rps) => RateUnit::RadPerSecond,
             },
             gyro_scale: self.gyro_scale.unwrap_or(defaults.gyro_scale),
-            delimiter: self.delimiter,
-            skip_lines: self.skip_lines,
-            comment: (!self.comment.is_empty()).then(|| self.comment.clone()),
-            column_names: self.columns.iter().map(|c| c.trim().to_string()).collect(),
+            delimiter: self.delimiter.unwrap_or(defaults.delimiter),
+            skip_lines: self.skip_lines.unwrap_or(defaults.skip_lines),
+            comment: match &self.comment {
+                None => defaults.comment.clone(),
+                Some(prefix) => (!prefix.is_empty()).then(|| prefix.clone()),
+            },
+            // `--columns ''`: the logs have a header row (over a model's headerless columns).
+            column_names: match self.columns.as_slice() {
+                [only] if only.trim().is_empty() => Vec::new(),
+                names => names.iter().map(|c| c.trim().to_string()).collect(),
+            },
             sample_rate_hz: self.sample_rate_hz,
             date_column: self.date_column.clone(),
             decimal_mark: self.decimal_mark.unwrap_or_default(),

@@ -66,10 +66,11 @@ pub enum Error {
         /// Which field: `time_column`, `date_column`, `time_unit` or `sample_rate_hz`.
         field: &'static str,
     },
-    /// A field of the log-reading record (format version 6, after the log-time record) holds
-    /// a value outside its allowed range.
+    /// A field of the log-reading record (format version 6, after the log-time record) or of
+    /// the log-shape record after it (version 7) holds a value outside its allowed range.
     BadLogReading {
-        /// Which field: `decimal_mark`.
+        /// Which field: `decimal_mark`; `delimiter`, `delimiter_byte`, `comment` or
+        /// `column_names` of the log shape.
         field: &'static str,
     },
     /// A field of the file header (before any axis section) holds a value outside its

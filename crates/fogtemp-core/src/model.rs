@@ -6,7 +6,7 @@ use crate::mesh::{
     barycentric, edge_vertices, plane_value, Mesh, MeshValue, OutsidePolicy, StartGrid, TriangleRecord,
     WalkHint,
 };
-use crate::names::{AxisColumns, LogReading, LogTime};
+use crate::names::{AxisColumns, LogReading, LogShape, LogTime};
 use crate::poly::{parse_term, Poly};
 use crate::region::{PolyOutside, Region};
 use crate::wire::*;
@@ -320,6 +320,7 @@ impl<'a> Model<'a> {
             let records = crate::names::Records {
                 time: version >= FIRST_VERSION_WITH_LOG_TIME,
                 reading: version >= FIRST_VERSION_WITH_LOG_READING,
+                shape: version >= FIRST_VERSION_WITH_LOG_SHAPE,
             };
             crate::names::validate(body, offset, axis_count, records)?;
         } else if offset != body_len {
@@ -440,6 +441,17 @@ impl<'a> Model<'a> {
             return None;
         }
         crate::names::log_reading(self.bytes, self.names_offset()?, self.axis_count)
+    }
+
+    /// The shape of the fit's logs: lines skipped before the header or data, the delimiter,
+    /// the comment prefix and, for logs without a header row, their column names (format
+    /// version 7, written when the shape was not the default; `None` otherwise). Not used by
+    /// evaluation: it lets a host read a log as the fit did.
+    pub fn log_shape(&self) -> Option<LogShape<'a>> {
+        if self.version < FIRST_VERSION_WITH_LOG_SHAPE {
+            return None;
+        }
+        crate::names::log_shape(self.bytes, self.names_offset()?, self.axis_count)
     }
 
     /// Where the log-columns section starts: after the axis sections, whose lengths were

@@ -21,11 +21,20 @@
 //! 1 comma), `log_count` (u16) and `log_count` digests of 8 bytes, the first bytes of the
 //! SHA-256 of each calibration log (its bytes, or a run given as arrays: its samples), in
 //! the order the fit read them, so a host can tell a validation log that was among them.
+//!
+//! From format version 7 the **log-shape record** follows, written only when the fit's logs
+//! did not have the default shape: `skip_lines` (u32, lines dropped unread at the start),
+//! `delimiter` (u8: 0 detected, 1 one byte, 2 runs of spaces and tabs), `delimiter_byte` (u8:
+//! the byte for code 1, ASCII, not a quote, line end or NUL; 0 otherwise), `has_comment` (u8:
+//! 0 no comment lines, 1 lines starting with the comment prefix are comments), the comment
+//! prefix (a one-byte length and UTF-8: length 0 without comments, at least 1 with), then
+//! `column_count` (u8: 0 = the logs have a header row) and that many column names of a
+//! headerless log, in order (each a one-byte length, at least 1, and UTF-8).
 
 use crate::error::Error;
 use crate::wire::{
-    f64_at, u16_at, u32_at, COLUMN_UNITS_LEN, LOG_DIGEST_LEN, LOG_READING_FIXED_LEN, LOG_TIME_FIXED_LEN,
-    NAMES_LEN_LEN,
+    f64_at, u16_at, u32_at, COLUMN_UNITS_LEN, LOG_DIGEST_LEN, LOG_READING_FIXED_LEN, LOG_SHAPE_FIXED_LEN,
+    LOG_TIME_FIXED_LEN, NAMES_LEN_LEN,
 };
 
 /// What one axis records of its log columns (names `""` = not recorded).
@@ -122,6 +131,51 @@ impl<'a> LogReading<'a> {
     }
 }
 
+/// How the fields of a log's records are separated, as the log-shape record stores it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LogDelimiter {
+    /// Detected from the first line read (code 0).
+    Detected,
+    /// One byte (code 1): `,`, `;`, a tab, ...
+    Byte(u8),
+    /// Runs of spaces and tabs (code 2).
+    Whitespace,
+}
+
+/// The shape of the fit's logs (format version 7): what comes before the data and how a
+/// record is cut into fields.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LogShape<'a> {
+    /// Lines at the start of each log dropped unread (a terminal program's banner).
+    pub skip_lines: u32,
+    /// How the fields are separated.
+    pub delimiter: LogDelimiter,
+    /// Lines starting with this text are comments; `None` for none.
+    pub comment: Option<&'a str>,
+    /// The column names of a headerless log: `column_count` validated names.
+    names: &'a [u8],
+    column_count: u8,
+}
+
+impl<'a> LogShape<'a> {
+    /// How many column names the record holds (0: the logs have a header row).
+    pub fn column_count(&self) -> usize {
+        usize::from(self.column_count)
+    }
+
+    /// Column `index` of a headerless log, `None` past the last.
+    pub fn column_name(&self, index: usize) -> Option<&'a str> {
+        if index >= self.column_count() {
+            return None;
+        }
+        let mut at = 0;
+        for _ in 0..index {
+            at = name_at(self.names, at, "column_names", 0).ok()?.1;
+        }
+        name_at(self.names, at, "column_names", 0).ok().map(|(name, _)| name)
+    }
+}
+
 /// Which records end the section after the axes' records.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(crate) struct Records {
@@ -129,6 +183,8 @@ pub(crate) struct Records {
     pub(crate) time: bool,
     /// The log-reading record after it (version 6).
     pub(crate) reading: bool,
+    /// The log-shape record after that (version 7).
+    pub(crate) shape: bool,
 }
 
 /// Checks the section that starts at `offset` and runs to the end of `body` (the blob without
@@ -144,6 +200,9 @@ pub(crate) fn validate(body: &[u8], offset: usize, axis_count: u16, records: Rec
     }
     if records.reading {
         at = log_reading_at(body, at)?.1;
+    }
+    if records.shape {
+        at = log_shape_at(body, at)?.1;
     }
     if at != body.len() {
         return Err(Error::LengthMismatch {
@@ -183,6 +242,70 @@ pub(crate) fn log_reading(body: &[u8], offset: usize, axis_count: u16) -> Option
     }
     let at = log_time_at(body, at).ok()?.1;
     log_reading_at(body, at).ok().map(|(reading, _)| reading)
+}
+
+/// The log-shape record of a validated version-7 section at `offset` with `axis_count` axes.
+pub(crate) fn log_shape(body: &[u8], offset: usize, axis_count: u16) -> Option<LogShape<'_>> {
+    let mut at = section_start(body, offset).ok()?;
+    for _ in 0..axis_count {
+        at = record_at(body, at, 0).ok()?.1;
+    }
+    let at = log_time_at(body, at).ok()?.1;
+    let at = log_reading_at(body, at).ok()?.1;
+    log_shape_at(body, at).ok().map(|(shape, _)| shape)
+}
+
+/// The log-shape record at `at` and where it ends.
+fn log_shape_at(body: &[u8], at: usize) -> Result<(LogShape<'_>, usize), Error> {
+    let bad = |field| Error::BadLogReading { field };
+    let fixed_end = at.saturating_add(LOG_SHAPE_FIXED_LEN);
+    let fixed = body.get(at..fixed_end).ok_or(Error::Truncated {
+        field: "log shape",
+        needed: fixed_end,
+        found: body.len(),
+    })?;
+    let &[s0, s1, s2, s3, code, byte, has_comment] = fixed else {
+        return Err(Error::Truncated { field: "log shape", needed: fixed_end, found: body.len() });
+    };
+    let skip_lines = u32::from_le_bytes([s0, s1, s2, s3]);
+    let delimiter = match (code, byte) {
+        (0, 0) => LogDelimiter::Detected,
+        (2, 0) => LogDelimiter::Whitespace,
+        (1, b) if b.is_ascii() && !matches!(b, 0 | b'"' | b'\n' | b'\r') => LogDelimiter::Byte(b),
+        (0..=2, _) => return Err(bad("delimiter_byte")),
+        _ => return Err(bad("delimiter")),
+    };
+    let (comment, at) = name_at(body, fixed_end, "comment", 0).map_err(|e| reading_bad(e, "comment"))?;
+    let comment = match (has_comment, comment.is_empty()) {
+        (0, true) => None,
+        (1, false) => Some(comment),
+        _ => return Err(bad("comment")),
+    };
+    let count = *body.get(at).ok_or(Error::Truncated {
+        field: "column_count",
+        needed: at.saturating_add(1),
+        found: body.len(),
+    })?;
+    let names_start = at.saturating_add(1);
+    let mut end = names_start;
+    for _ in 0..count {
+        let (name, next) =
+            name_at(body, end, "column_names", 0).map_err(|e| reading_bad(e, "column_names"))?;
+        if name.is_empty() {
+            return Err(bad("column_names"));
+        }
+        end = next;
+    }
+    let names = body.get(names_start..end).unwrap_or_default();
+    Ok((LogShape { skip_lines, delimiter, comment, names, column_count: count }, end))
+}
+
+/// A name's invalid text as [`Error::BadLogReading`]; truncation stays as it is.
+fn reading_bad(e: Error, field: &'static str) -> Error {
+    match e {
+        Error::BadValue { .. } => Error::BadLogReading { field },
+        other => other,
+    }
 }
 
 /// The log-reading record at `at` and where it ends.

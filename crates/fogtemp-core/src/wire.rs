@@ -35,8 +35,9 @@ pub const MAGIC: [u8; 4] = *b"FOGM";
 /// The newest format version this build reads, and the one it writes for a blob that records
 /// the log columns each axis was fitted on, the log's time and how its logs were read (the
 /// log-columns section after the axis sections, ending with the log-time record and the
-/// log-reading record).
-pub const FORMAT_VERSION: u16 = 6;
+/// log-reading record), and its logs' shape when that is not the default (the log-shape
+/// record, version 7); a blob whose logs had the default shape is written as version 6.
+pub const FORMAT_VERSION: u16 = 7;
 /// The version this build writes for a blob without column names whose mesh is continued by
 /// stored gradients (`outside_policy = 3`, which needs it).
 pub const FORMAT_VERSION_WITH_GRADIENTS: u16 = 3;
@@ -52,6 +53,13 @@ pub const FIRST_VERSION_WITH_LOG_TIME: u16 = 5;
 /// The oldest format version whose log-columns section ends, after the log-time record, with
 /// the log-reading record (the decimal mark and a digest of each calibration log).
 pub const FIRST_VERSION_WITH_LOG_READING: u16 = 6;
+/// The oldest format version whose log-columns section ends, after the log-reading record,
+/// with the log-shape record (lines skipped, delimiter, comment prefix, headerless column
+/// names).
+pub const FIRST_VERSION_WITH_LOG_SHAPE: u16 = 7;
+/// The log-shape record's fixed part before its names: `skip_lines` (u32), `delimiter` (u8),
+/// `delimiter_byte` (u8) and `has_comment` (u8).
+pub const LOG_SHAPE_FIXED_LEN: usize = 7;
 /// The log-reading record's fixed part: `decimal_mark` (u8) and `log_count` (u16).
 pub const LOG_READING_FIXED_LEN: usize = 3;
 /// Bytes of one calibration log's digest in the log-reading record (the first 8 bytes of

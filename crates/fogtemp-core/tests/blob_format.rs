@@ -23,11 +23,11 @@ use common::blob::{
     core_digest, exercise, fix_len_and_crc, golden_queries, put_u16, put_u32, u32_at, GOLDEN_BLOB,
     GOLDEN_CSV, GOLDEN_HEADER, GOLDEN_V2_BLOB, GOLDEN_V2_CSV, GOLDEN_V3_BLOB, GOLDEN_V3_CSV, GOLDEN_V4_BLOB,
     GOLDEN_V4_COLUMNS, GOLDEN_V4_CSV, GOLDEN_V5_BLOB, GOLDEN_V5_CSV, GOLDEN_V5_TIME, GOLDEN_V6_BLOB,
-    GOLDEN_V6_CSV, GOLDEN_V6_READING,
+    GOLDEN_V6_CSV, GOLDEN_V6_READING, GOLDEN_V7_BLOB, GOLDEN_V7_CSV, GOLDEN_V7_SHAPE,
 };
 use common::rng;
 use fogtemp_core::wire::*;
-use fogtemp_core::{Error, LogTimeUnit, Model, OutsidePolicy, PolyOutside, WalkHint};
+use fogtemp_core::{Error, LogDelimiter, LogTimeUnit, Model, OutsidePolicy, PolyOutside, WalkHint};
 use proptest::prelude::*;
 use proptest::test_runner::{Config, RngAlgorithm, RngSeed};
 use rand::Rng;
@@ -171,6 +171,81 @@ fn golden_v6_blob_evaluates_as_version_4_and_reads_the_log_reading() {
         let blob = read_golden(older);
         assert_eq!(Model::from_bytes(&blob).expect("parses").log_reading(), None, "{older}");
     }
+}
+
+#[test]
+fn golden_v7_blob_evaluates_as_version_4_and_reads_the_log_shape() {
+    let model = check_golden(GOLDEN_V7_BLOB, GOLDEN_V7_CSV, 7);
+    assert_eq!(
+        std::fs::read(golden_dir().join(GOLDEN_V7_CSV)).ok(),
+        std::fs::read(golden_dir().join(GOLDEN_V4_CSV)).ok()
+    );
+    assert_eq!(model.log_reading().map(|r| r.log_count()), Some(2));
+    let shape = model.log_shape().expect("recorded");
+    let (skip_lines, delimiter, comment, columns) = GOLDEN_V7_SHAPE;
+    assert_eq!(
+        (shape.skip_lines, shape.delimiter, shape.comment),
+        (skip_lines, LogDelimiter::Byte(delimiter), Some(comment))
+    );
+    assert_eq!(shape.column_count(), columns.len());
+    let read: Vec<Option<&str>> = (0..=columns.len()).map(|i| shape.column_name(i)).collect();
+    let expected: Vec<Option<&str>> = columns.iter().map(|c| Some(*c)).chain([None]).collect();
+    assert_eq!(read, expected);
+    assert_eq!(shape.column_name(usize::MAX), None);
+    for older in [GOLDEN_BLOB, GOLDEN_V2_BLOB, GOLDEN_V3_BLOB, GOLDEN_V4_BLOB, GOLDEN_V5_BLOB, GOLDEN_V6_BLOB]
+    {
+        let blob = read_golden(older);
+        assert_eq!(Model::from_bytes(&blob).expect("parses").log_shape(), None, "{older}");
+    }
+}
+
+#[test]
+fn a_damaged_log_shape_record_is_refused_by_field() {
+    let golden = read_golden(GOLDEN_V7_BLOB);
+    let body_end = golden.len() - CRC_LEN;
+    // The record: skip_lines (4), delimiter code and byte, comment flag, "//" with its length,
+    // the column count, then the names with their lengths.
+    let names: usize = GOLDEN_V7_SHAPE.3.iter().map(|n| 1 + n.len()).sum();
+    let record = body_end - (4 + 3 + 3 + 1 + names);
+    let (code, byte, flag, comment_len, count) =
+        (record + 4, record + 5, record + 6, record + 7, record + 10);
+    let first_name = count + 1;
+    let reread = |mutate: &dyn Fn(&mut Vec<u8>)| reread_mutated(&golden, mutate);
+    let field = |field| Err(Error::BadLogReading { field });
+    assert_eq!(reread(&|_| {}), Ok(()));
+    assert_eq!(reread(&|b| b[record + 3] = 0xff), Ok(()), "any count of lines skipped");
+    assert_eq!(reread(&|b| b[code] = 3), field("delimiter"));
+    for (c, d) in [(1, 0), (1, b'"'), (1, b'\n'), (1, 0x80), (0, b';'), (2, b' ')] {
+        assert_eq!(
+            reread(&|b| {
+                b[code] = c;
+                b[byte] = d;
+            }),
+            field("delimiter_byte"),
+            "code {c} byte {d}"
+        );
+    }
+    assert_eq!(
+        reread(&|b| {
+            b[code] = 2;
+            b[byte] = 0;
+        }),
+        Ok(())
+    );
+    assert_eq!(reread(&|b| b[flag] = 0), field("comment"), "a prefix without comments");
+    assert_eq!(reread(&|b| b[flag] = 2), field("comment"));
+    assert_eq!(reread(&|b| b[comment_len + 1] = 0x07), field("comment"), "a control character");
+    assert_eq!(reread(&|b| b[first_name] = 0), field("column_names"), "an empty name");
+    assert_eq!(reread(&|b| b[first_name + 1] = 0xff), field("column_names"), "not UTF-8");
+    // A count beyond the names present: the record runs past the section.
+    assert!(matches!(reread(&|b| b[count] = 6), Err(Error::Truncated { field: "column_names", .. })));
+    // A count short of them: the section does not end where the record does.
+    assert!(matches!(reread(&|b| b[count] = 4), Err(Error::LengthMismatch { field: "names_len", .. })));
+    // A version-6 blob relabelled 7 lacks the record.
+    let mut v6 = read_golden(GOLDEN_V6_BLOB);
+    put_u16(&mut v6, FILE_VERSION.start, 7);
+    fix_len_and_crc(&mut v6);
+    assert!(matches!(Model::from_bytes(&v6), Err(Error::Truncated { field: "log shape", .. })));
 }
 
 /// `golden` mutated, its lengths and CRC fixed, read again.

@@ -4,7 +4,7 @@ use std::path::{Path, PathBuf};
 
 use fogtemp_cal::allan_stream;
 use fogtemp_cal::arrays::{extract_run_arrays, RunArrays};
-use fogtemp_cal::axis_columns::TimeNamed;
+use fogtemp_cal::axis_columns::{ShapeNamed, TimeNamed};
 use fogtemp_cal::calibrate::{self, CalibrationConfig, Method, RunFeatures, Validation};
 use fogtemp_cal::digest::Digests;
 use fogtemp_cal::documents::{
@@ -608,6 +608,7 @@ pub fn read_log<'py>(
         (o.any_given(&["gyro_unit", "gyro_scale"])?, o.any_given(&["temp_scale", "temp_offset"])?),
         time_named(&o)?,
         o.any_given(&["decimal_mark"])?,
+        shape_named(&o)?,
     );
     let mut ingest = options::ingest(&mut o)?;
     o.finish()?;
@@ -715,6 +716,7 @@ pub fn validate<'py>(
         (o.any_given(&["gyro_unit", "gyro_scale"])?, o.any_given(&["temp_scale", "temp_offset"])?);
     let time_named = time_named(&o)?;
     let decimal_named = o.any_given(&["decimal_mark"])?;
+    let shape_named = shape_named(&o)?;
     let mut ingest = options::ingest(&mut o)?;
     let stability = options::stability(&mut o)?;
     let capacity = o.int("capacity", fogtemp_core::DEFAULT_CAPACITY, options::MIN_CAPACITY, u64::MAX)?;
@@ -770,7 +772,7 @@ pub fn validate<'py>(
         choose_columns(
             py,
             &mut ingest,
-            (columns_named, units_named, time_named, decimal_named),
+            (columns_named, units_named, time_named, decimal_named, shape_named),
             &blobs,
             &models,
         )?;
@@ -866,19 +868,28 @@ fn time_named(o: &Options<'_>) -> PyResult<TimeNamed> {
     })
 }
 
-/// The log columns, units and time for replaying `models` (the first is validated, the rest
-/// compared): the ones each model records unless `gyro_column=`, `temp_column=`, the unit
-/// keywords, the time keywords or `decimal_mark=` were given (`named`), named columns checked against them (as
-/// the command line's `validate`); notes become warnings.
+/// Which log-shape keywords were given (the others are read as a model records them).
+fn shape_named(o: &Options<'_>) -> PyResult<ShapeNamed> {
+    Ok(ShapeNamed {
+        skip_lines: o.any_given(&["skip_lines"])?,
+        delimiter: o.any_given(&["delimiter"])?,
+        comment: o.any_given(&["comment"])?,
+        columns: o.any_given(&["columns"])?,
+    })
+}
+
+/// Which of the column, unit, time, decimal-mark and shape keywords were given.
+type NamedKeywords = ((bool, bool), (bool, bool), TimeNamed, bool, ShapeNamed);
+
+/// The log columns, units, time and shape for replaying `models` (the first is validated,
+/// the rest compared): the ones each model records unless `gyro_column=`, `temp_column=`, the
+/// unit keywords, the time keywords, `decimal_mark=` or the shape keywords were given
+/// (`named`), named columns checked against them (as the command line's `validate`); notes
+/// become warnings.
 fn choose_columns(
     py: Python<'_>,
     ingest: &mut IngestOptions,
-    ((gyro_named, temp_named), (gyro_units, temp_units), time, decimal_mark): (
-        (bool, bool),
-        (bool, bool),
-        TimeNamed,
-        bool,
-    ),
+    ((gyro_named, temp_named), (gyro_units, temp_units), time, decimal_mark, shape): NamedKeywords,
     blobs: &[(Vec<u8>, String)],
     models: &[CoreModel<'_>],
 ) -> PyResult<()> {
@@ -892,6 +903,7 @@ fn choose_columns(
         temp_units,
         time,
         decimal_mark,
+        shape,
     };
     let mut format = ingest.format.clone();
     for (index, ((_, source), model)) in blobs.iter().zip(models).enumerate() {

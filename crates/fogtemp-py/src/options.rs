@@ -262,7 +262,9 @@ pub fn ingest(o: &mut Options<'_>) -> PyResult<IngestOptions> {
     let decimal_mark = DecimalMark::from_name(&o.string("decimal_mark", "point")?)
         .map_err(|e| errors::value(format!("decimal_mark: {e}")))?;
     let comment = o.string("comment", "#")?;
+    // `columns=""` or `[]`: the logs have a header row (over a model's headerless columns).
     let columns = if o.any_given(&["columns"])? { o.strings("columns", "")? } else { Vec::new() };
+    let columns = if columns.len() == 1 && columns[0].trim().is_empty() { Vec::new() } else { columns };
     Ok(IngestOptions {
         format: LogFormat {
             time_column: o.string("time_column", "time_s")?,

@@ -38,6 +38,12 @@ pub fn inspect(a: InspectArgs) -> Result<()> {
         ),
         None => println!("log reading: not recorded (format {})", doc.format_version),
     }
+    if let Some(shape) = &doc.log_shape {
+        println!(
+            "log shape: {} (validate and compensate read logs so unless told otherwise)",
+            shape.description
+        );
+    }
     // The stored values are f32: printed to the digits they hold (every one is in --json).
     let number = |v: f64, digits: usize| if v.is_finite() { format!("{v:.digits$}") } else { "null".into() };
     for axis in &doc.axes {

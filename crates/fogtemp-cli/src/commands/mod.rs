@@ -16,6 +16,7 @@ mod validate;
 use std::path::Path;
 
 use anyhow::{bail, Context, Result};
+use fogtemp_cal::axis_columns::ShapeNamed;
 use fogtemp_cal::ingest::{IngestOptions, IngestReport};
 use fogtemp_core::Model;
 use serde::Serialize;
@@ -54,6 +55,12 @@ fn ingest_options_for(
     path: &Path,
 ) -> Result<(IngestOptions, ModelColumns)> {
     let mut ingest = a.options()?;
+    let shape_named = fogtemp_cal::axis_columns::ShapeNamed {
+        skip_lines: a.skip_lines.is_some(),
+        delimiter: a.delimiter.is_some(),
+        comment: a.comment.is_some(),
+        columns: !a.columns.is_empty(),
+    };
     let named = fogtemp_cal::axis_columns::Named {
         gyro_columns: &a.gyro_columns,
         temp_columns: &a.temp_columns,
@@ -66,6 +73,7 @@ fn ingest_options_for(
             date: a.date_column.is_some(),
         },
         decimal_mark: a.decimal_mark.is_some(),
+        shape: shape_named,
     };
     let chosen = fogtemp_cal::axis_columns::choose_for_replay(
         model,
@@ -85,20 +93,35 @@ fn ingest_options_for(
             chosen.temp.join(", ")
         )
     });
-    Ok((ingest, ModelColumns(from_model)))
+    let recorded_shape = fogtemp_cal::blob::LogShapeRecord::of(model);
+    let shape_from_model = (recorded_shape.is_recorded() && shape_named != ShapeNamed::ALL).then(|| {
+        format!(
+            "the log was read in the shape {} records of its fit's logs ({}); name the shape of logs shaped \
+             otherwise with --skip-lines, --delimiter, --comment and --columns (--columns '' for a header row)",
+            path.display(),
+            fogtemp_cal::axis_columns::shape_in_words(&recorded_shape)
+        )
+    });
+    Ok((ingest, ModelColumns { columns: from_model, shape: shape_from_model }))
 }
 
-/// Whether the gyro columns were taken from the model, said as the context of a missing
-/// column (the log may name them differently).
-struct ModelColumns(Option<String>);
+/// Whether the gyro columns and the log's shape were taken from the model, said as the
+/// context of a missing column or a bad row (the log may be named or shaped differently).
+struct ModelColumns {
+    columns: Option<String>,
+    shape: Option<String>,
+}
 
 impl ModelColumns {
-    /// `e`, with the columns' origin when a column the model records is missing.
+    /// `e`, with the columns' or the shape's origin when a column the model records is
+    /// missing or a row cannot be read.
     fn explain(&self, e: fogtemp_cal::CalError) -> anyhow::Error {
-        match (&self.0, &e) {
-            (Some(origin), fogtemp_cal::CalError::MissingColumn { .. }) => {
-                anyhow::Error::new(e).context(origin.clone())
+        use fogtemp_cal::CalError::{BadRow, MissingColumn};
+        match (&self.shape, &self.columns, &e) {
+            (Some(shape), _, MissingColumn { .. } | BadRow { .. }) => {
+                anyhow::Error::new(e).context(shape.clone())
             }
+            (None, Some(origin), MissingColumn { .. }) => anyhow::Error::new(e).context(origin.clone()),
             _ => e.into(),
         }
     }

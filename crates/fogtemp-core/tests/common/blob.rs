@@ -156,6 +156,15 @@ pub const GOLDEN_V6_READING: (bool, [[u8; 8]; 2]) = (
     true,
     [[0xba, 0x78, 0x16, 0xbf, 0x8f, 0x01, 0xcf, 0xea], [0xe3, 0xb0, 0xc4, 0x42, 0x98, 0xfc, 0x1c, 0x14]],
 );
+/// The golden files of format version 7: the version-6 golden model with the log-shape record
+/// after the log-reading record.
+pub const GOLDEN_V7_BLOB: &str = "model-v7.fogm";
+pub const GOLDEN_V7_CSV: &str = "model-v7.expected.csv";
+/// What the version-7 golden model records of its logs' shape: 2 lines skipped, fields
+/// separated by `;`, comment lines starting with `//`, and no header row, the columns named in
+/// order.
+pub const GOLDEN_V7_SHAPE: (u32, u8, &str, [&str; 5]) =
+    (2, b';', "//", ["Zeit [ms]", "gyro_x", "temp_c", "Drehrate Y (°/h)", "T_y"]);
 pub const GOLDEN_HEADER: &str = "axis,temp_c,rate_c_per_min,value_dph_bits,outside";
 
 /// The input digest the golden model (and the root's three-axis model) carries.
