@@ -529,6 +529,39 @@ def test_validate_reads_the_time_the_model_records(tmp_path):
     assert (single.inspect()["log_time"]["time_column"], single.inspect()["log_time"]["time_unit"]) == ("time_s", "s")
 
 
+def test_validate_reads_the_shape_the_model_records(tmp_path):
+    # A model fitted on headerless captures (a banner line, fields separated by spaces)
+    # records their shape (format 7): validate() and read_log(model=) read them so without the
+    # shape keywords, with a warning that says so, and the same as with them; columns="" names
+    # a header row.
+    logs = write_gyro_logs(tmp_path, "gyro_dph", lambda g: f"{g!r}")
+    captures = []
+    for log in logs:
+        rows = log.read_text().splitlines()[1:]
+        capture = log.with_suffix(".txt")
+        capture.write_text("COM3 115200 8N1\n" + "".join(" " + r.replace(",", "   ") + "\n" for r in rows))
+        captures.append(capture)
+    shape = dict(skip_lines=1, columns=["time_s", "temp_c", "gyro_dph"], delimiter="whitespace")
+    model = fogtemp.fit(captures, method="poly", progress=False, **shape)
+    info = model.inspect()
+    assert info["format_version"] == 7
+    assert (info["log_shape"]["skip_lines"], info["log_shape"]["delimiter"]) == (1, "whitespace")
+    assert info["log_shape"]["columns"] == ["time_s", "temp_c", "gyro_dph"]
+    named = fogtemp.validate(model, captures[:1], progress=False, **shape)
+    with pytest.warns(UserWarning, match=r"the logs are read as .* records of its fit's logs: 1 line skipped"):
+        recorded = fogtemp.validate(model, captures[:1], progress=False)
+    assert recorded["runs"] == named["runs"]
+    with pytest.warns(UserWarning, match=r"no header row, columns time_s,temp_c,gyro_dph"):
+        by_model = fogtemp.read_log(captures[0], model=model, progress=False)
+    by_hand = fogtemp.read_log(captures[0], progress=False, **shape)
+    for key in by_hand:
+        np.testing.assert_array_equal(by_model[key], by_hand[key])
+    # The CSV twin: a header row, named so, read as the capture (the same numbers).
+    with pytest.warns(UserWarning, match=r"was fitted on logs shaped otherwise"):
+        csv = fogtemp.validate(model, logs[:1], columns="", skip_lines=0, delimiter="auto", progress=False)
+    assert csv["runs"][0]["compensated_bias_stability_dph"] == named["runs"][0]["compensated_bias_stability_dph"]
+
+
 def test_validate_names_calibration_logs_among_the_validation_logs(tmp_path):
     # A model records each calibration log's digest (format 6): validating those logs with
     # others names them as in-sample, one by one.
