@@ -27,6 +27,21 @@ fn check(bytes: &[u8], seed_bytes: &[u8]) {
     let Ok(model) = Model::from_bytes(bytes) else { return };
     let _ = (model.tool_version(), model.input_digest(), model.format_version());
     assert!(model.axis(model.axis_count()).is_err());
+    // The log records (versions 4 to 7): every accessor, one past the last entry too.
+    for index in 0..=model.axis_count() {
+        let _ = model.axis_columns(index);
+    }
+    let _ = model.log_time();
+    if let Some(reading) = model.log_reading() {
+        for index in 0..=reading.log_count() {
+            let _ = reading.log_digest(index);
+        }
+    }
+    if let Some(shape) = model.log_shape() {
+        let names = (0..shape.column_count()).filter_map(|i| shape.column_name(i)).count();
+        assert_eq!(names, shape.column_count(), "an accepted shape hands out each of its names");
+        assert!(shape.column_name(shape.column_count()).is_none());
+    }
     // Queries: a few fixed ones, and f32s taken from the input (any bit pattern: NaN, inf,
     // subnormal, huge).
     let mut queries = vec![(20.0f32, 0.5f32), (-40.0, 0.0), (80.0, 1.0), (1.0e30, -1.0e30), (f32::NAN, 0.0)];

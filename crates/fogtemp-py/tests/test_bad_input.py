@@ -530,7 +530,7 @@ def test_validate_reads_the_time_the_model_records(tmp_path):
 
 
 def test_validate_reads_the_shape_the_model_records(tmp_path):
-    # A model fitted on headerless captures (a banner line, fields separated by spaces)
+    # A model fitted on headerless captures (a banner line, fields separated by semicolons)
     # records their shape (format 7): validate() and read_log(model=) read them so without the
     # shape keywords, with a warning that says so, and the same as with them; columns="" names
     # a header row.
@@ -539,13 +539,13 @@ def test_validate_reads_the_shape_the_model_records(tmp_path):
     for log in logs:
         rows = log.read_text().splitlines()[1:]
         capture = log.with_suffix(".txt")
-        capture.write_text("COM3 115200 8N1\n" + "".join(" " + r.replace(",", "   ") + "\n" for r in rows))
+        capture.write_text("COM3 115200 8N1\n" + "".join(r.replace(",", ";") + "\n" for r in rows))
         captures.append(capture)
-    shape = dict(skip_lines=1, columns=["time_s", "temp_c", "gyro_dph"], delimiter="whitespace")
+    shape = dict(skip_lines=1, columns=["time_s", "temp_c", "gyro_dph"], delimiter="semicolon")
     model = fogtemp.fit(captures, method="poly", progress=False, **shape)
     info = model.inspect()
     assert info["format_version"] == 7
-    assert (info["log_shape"]["skip_lines"], info["log_shape"]["delimiter"]) == (1, "whitespace")
+    assert (info["log_shape"]["skip_lines"], info["log_shape"]["delimiter"]) == (1, "semicolon")
     assert info["log_shape"]["columns"] == ["time_s", "temp_c", "gyro_dph"]
     named = fogtemp.validate(model, captures[:1], progress=False, **shape)
     with pytest.warns(UserWarning, match=r"the logs are read as .* records of its fit's logs: 1 line skipped"):

@@ -65,6 +65,21 @@ pub fn exercise(model: &Model<'_>, seed: u64) -> usize {
     let mut n = 0;
     let _ = (model.tool_version(), model.input_digest(), model.format_version());
     assert!(model.axis(model.axis_count()).is_err());
+    // The log records (versions 4 to 7): every accessor, one past the last entry too.
+    for index in 0..=model.axis_count() {
+        let _ = model.axis_columns(index);
+    }
+    let _ = model.log_time();
+    if let Some(reading) = model.log_reading() {
+        for index in 0..=reading.log_count() {
+            let _ = reading.log_digest(index);
+        }
+    }
+    if let Some(shape) = model.log_shape() {
+        let names = (0..shape.column_count()).filter_map(|i| shape.column_name(i)).count();
+        assert_eq!(names, shape.column_count(), "an accepted shape hands out each of its names");
+        assert!(shape.column_name(shape.column_count()).is_none());
+    }
     for i in 0..model.axis_count() {
         let axis = model.axis(i).expect("an accepted model hands out each of its axes");
         let mut queries: Vec<(f32, f32)> =
