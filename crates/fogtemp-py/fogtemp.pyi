@@ -98,7 +98,18 @@ class Model:
         Through the core's f32 evaluation; GIL released; ``threads`` defaults to every core.
         With ``return_outside=True``: ``(values, outside)``, outside a bool array (a bool for
         scalars), True where the point is outside the calibrated region (the model's
-        continuation; C's ``fogtemp_evaluate`` outside flag)."""
+        continuation; C's ``fogtemp_evaluate`` outside flag); not flagged there for a polynomial
+        fitted with ``poly_outside="extrapolate"``."""
+    @overload
+    def evaluate(
+        self,
+        temp_c: float,
+        rate_c_per_min: float,
+        axis: int = 0,
+        threads: Optional[int] = None,
+        *,
+        return_outside: Literal[True],
+    ) -> Tuple[float, bool]: ...
     @overload
     def evaluate(
         self,

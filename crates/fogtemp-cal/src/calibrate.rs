@@ -395,6 +395,48 @@ pub fn never_corrected_note(
     format!("{name}: the compensator never corrected a sample: its feature tracker never had features ({cause}); {consequence}")
 }
 
+/// The notes on one axis's compensated output (`compensate`, Python's `Model.compensate`)
+/// from how many of its `samples` carried each flag bit (`flag_counts[bit]`): that nothing
+/// was corrected (with `never_consequence`, and then nothing else), and the shares of samples
+/// flagged `BAD_INPUT`, `TEMP_STALE` and `OUTSIDE_HULL`; `name` names the axis, `output` the
+/// place of the flags ("the output", "flags").
+pub fn compensation_notes(
+    name: &str,
+    flag_counts: &[u64; 8],
+    samples: u64,
+    max_gap_s: f64,
+    output: &str,
+    never_consequence: &str,
+) -> Vec<String> {
+    use fogtemp_core::Flags;
+    let count = |flag: Flags| flag_counts[flag.0.trailing_zeros() as usize & 7];
+    if samples == 0 {
+        return Vec::new();
+    }
+    if count(Flags::WARMING_UP) == samples {
+        return vec![never_corrected_note(name, never_consequence, flag_counts, samples, max_gap_s)];
+    }
+    let mut notes = Vec::new();
+    let bad = count(Flags::BAD_INPUT);
+    if bad > 0 {
+        notes.push(format!(
+            "{name}: {bad} of {samples} samples ({} %) had a temperature no sensor reads (below -273.15 C or above \
+             1000 C, a logger's mark for a missing reading?) or a time not after the one before (flag BAD_INPUT \
+             in {output}): compensated as the firmware does, without them in the features",
+            share_percent(bad, samples)
+        ));
+    }
+    let (stale, outside) = (count(Flags::TEMP_STALE), count(Flags::OUTSIDE_HULL));
+    if stale > 0 {
+        let flagged = format!("flag TEMP_STALE in {output}");
+        notes.push(stale_temperature_note(name, stale, samples, max_gap_s, &flagged));
+    }
+    if outside > 0 {
+        notes.push(outside_region_note(name, outside, samples, &format!("flag OUTSIDE_HULL in {output}")));
+    }
+    notes
+}
+
 /// The note for `outside` of `samples` samples outside the calibrated region (`flagged`
 /// says where the flag can be seen).
 pub fn outside_region_note(name: &str, outside: u64, samples: u64, flagged: &str) -> String {

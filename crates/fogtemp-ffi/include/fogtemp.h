@@ -24,8 +24,9 @@
 #define FOGTEMP_FLAG_PARTIAL_WINDOW 2
 
 // Flag bit: the features lie outside the calibrated mesh (the mesh's outside policy gave its
-// value) or outside the calibrated region (blob format 2: a polynomial is held at its
-// boundary; a mesh still interpolates there, between nodes only partial windows reached).
+// value) or outside the calibrated region (blob format 2: a polynomial is held at, or continued
+// linearly from, its boundary, not one that extrapolates; a mesh still interpolates there,
+// between nodes only partial windows reached).
 #define FOGTEMP_FLAG_OUTSIDE_HULL 4
 
 // Flag bit: no temperature for longer than the model's `max_gap_s`; the bias is held.
@@ -288,7 +289,8 @@ fogtemp_status fogtemp_step_u32(const fogtemp_axis *axis,
 
 // The modelled bias (deg/h) of `*axis` at `temp_c` (deg C) and `rate_c_per_min`
 // (deg C/min) into `*bias_dph`, and whether the point is outside the mesh hull (or the
-// calibrated region of a held polynomial) into `*outside_hull` (may be NULL). Walks from,
+// calibrated region of a polynomial held at or continued linearly from its boundary; not of
+// one that extrapolates) into `*outside_hull` (may be NULL). Walks from,
 // and moves, the state's walk hint; the tracker is not touched. A state initialised for
 // another axis is `FOGTEMP_STATUS_STATE_AXIS_MISMATCH`.
 //

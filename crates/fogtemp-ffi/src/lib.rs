@@ -182,8 +182,9 @@ pub const FOGTEMP_FLAG_WARMING_UP: u8 = 0x01;
 /// Flag bit: features exist but the window is not yet full.
 pub const FOGTEMP_FLAG_PARTIAL_WINDOW: u8 = 0x02;
 /// Flag bit: the features lie outside the calibrated mesh (the mesh's outside policy gave its
-/// value) or outside the calibrated region (blob format 2: a polynomial is held at its
-/// boundary; a mesh still interpolates there, between nodes only partial windows reached).
+/// value) or outside the calibrated region (blob format 2: a polynomial is held at, or continued
+/// linearly from, its boundary, not one that extrapolates; a mesh still interpolates there,
+/// between nodes only partial windows reached).
 pub const FOGTEMP_FLAG_OUTSIDE_HULL: u8 = 0x04;
 /// Flag bit: no temperature for longer than the model's `max_gap_s`; the bias is held.
 pub const FOGTEMP_FLAG_TEMP_STALE: u8 = 0x08;
@@ -883,7 +884,8 @@ pub unsafe extern "C" fn fogtemp_step_u32(
 
 /// The modelled bias (deg/h) of `*axis` at `temp_c` (deg C) and `rate_c_per_min`
 /// (deg C/min) into `*bias_dph`, and whether the point is outside the mesh hull (or the
-/// calibrated region of a held polynomial) into `*outside_hull` (may be NULL). Walks from,
+/// calibrated region of a polynomial held at or continued linearly from its boundary; not of
+/// one that extrapolates) into `*outside_hull` (may be NULL). Walks from,
 /// and moves, the state's walk hint; the tracker is not touched. A state initialised for
 /// another axis is `FOGTEMP_STATUS_STATE_AXIS_MISMATCH`.
 ///

@@ -12,8 +12,9 @@ use crate::errors;
 /// missing value (NaN), as pandas reads an empty cell.
 ///
 /// # Errors
-/// `TypeError` naming `what` for `None` itself, text (`"20"`, an array of strings) and
-/// booleans, which numpy would turn into NaN, 20.0 and 1.0 without a word;
+/// `TypeError` naming `what` for `None` itself, text (`"20"`, an array of strings),
+/// booleans and complex numbers, which numpy would turn into NaN, 20.0, 1.0 and their real
+/// part without a word (complex: a `ComplexWarning` at most);
 /// `ValueError` naming `what` when numpy cannot convert it.
 pub fn f64_array<'py>(value: &Bound<'py, PyAny>, what: &str) -> PyResult<PyReadonlyArrayDyn<'py, f64>> {
     let py = value.py();
@@ -47,6 +48,8 @@ fn refused_kind(kind: &str) -> Option<&'static str> {
     match kind {
         "U" | "S" | "T" => Some("text (convert it with float() or pandas.to_numeric first)"),
         "b" => Some("booleans"),
+        // numpy drops the imaginary part with no more than a ComplexWarning (review17 F4).
+        "c" => Some("complex numbers (give the real part, z.real, if that is meant)"),
         "M" | "m" => Some(
             "date-times (datetime64/timedelta64); give seconds, e.g. (t - t.iloc[0]).dt.total_seconds() for a pandas column",
         ),

@@ -173,6 +173,24 @@ fn columns<'py>(value: &Bound<'py, PyAny>, what: &str) -> PyResult<Vec<numpy::Py
     }
 }
 
+/// The keys or columns a run given as a dict or DataFrame has, and how to rename them, for
+/// the error of a missing one (review17 F5: a log file's error lists its header, a
+/// DataFrame's listed nothing).
+fn keys_found(run: &Bound<'_, PyAny>) -> String {
+    let keys = run.getattr("columns").or_else(|_| run.call_method0("keys")).and_then(|k| {
+        k.try_iter()?.map(|key| key?.str().map(|s| s.to_string())).collect::<PyResult<Vec<_>>>()
+    });
+    match keys {
+        Ok(keys) if !keys.is_empty() => format!(
+            "it has {}; rename, e.g. df.rename(columns={{'{}': 'time_s', ...}}), converting units first (gyro in \
+             deg/h, temperature in deg C, time in s)",
+            keys.iter().map(|k| format!("'{k}'")).collect::<Vec<_>>().join(", "),
+            keys[0]
+        ),
+        _ => "it has no keys or columns".to_string(),
+    }
+}
+
 impl<'py> ArrayRun<'py> {
     /// Run `index` of a list from a dict or DataFrame with `time_s`, `temp_c`, `gyro_dph`.
     fn new(index: usize, run: &Bound<'py, PyAny>) -> PyResult<Self> {
@@ -184,12 +202,14 @@ impl<'py> ArrayRun<'py> {
     pub(crate) fn named(name: PathBuf, run: &Bound<'py, PyAny>) -> PyResult<Self> {
         let label = name.display().to_string();
         let get = |key: &str| -> PyResult<Bound<'py, PyAny>> {
-            convert::item(run, key)?.ok_or_else(|| {
-                errors::value(format!(
-                    "{label}: no '{key}' (a run needs time_s, temp_c and gyro_dph; a DataFrame's index is not read: \
-                     reset_index() makes it a column)"
-                ))
-            })
+            match convert::item(run, key)? {
+                Some(value) => Ok(value),
+                None => Err(errors::value(format!(
+                    "{label}: no '{key}' (a run needs time_s, temp_c and gyro_dph; {}; a DataFrame's index is not \
+                     read: reset_index() makes it a column)",
+                    keys_found(run)
+                ))),
+            }
         };
         let time = get("time_s")?;
         let time_s = f64_vector(&time, &format!("{label}['time_s']"))?;
@@ -602,6 +622,12 @@ pub fn read_log<'py>(
     progress: bool,
     options: Option<&Bound<'py, PyDict>>,
 ) -> PyResult<Bound<'py, PyAny>> {
+    if path.is_dir() {
+        return Err(pyo3::exceptions::PyIsADirectoryError::new_err(format!(
+            "{}: a folder; read_log() reads one log (fit() and validate() take folders)",
+            path.display()
+        )));
+    }
     let mut o = Options::new("read_log", options);
     let named = (
         (o.any_given(&["gyro_column"])?, o.any_given(&["temp_column"])?),
@@ -1144,10 +1170,8 @@ pub fn simulate<'py>(
         .apply_overrides(rate, seed, duration_s)
         .map_err(|e| errors::value(format!("scenario after the overrides: {e}")))?;
     if overridden {
-        text = format!(
-            "# {scenario} with overrides (rate {rate:?} Hz, seed {seed:?}, duration {duration_s:?} s)\n{}",
-            sc.to_toml().map_err(errors::sim)?
-        );
+        let comment = Scenario::overrides_comment(scenario, rate, seed, duration_s);
+        text = format!("{comment}\n{}", sc.to_toml().map_err(errors::sim)?);
     }
     std::fs::create_dir_all(&out)
         .map_err(|e| errors::cal(fogtemp_cal::CalError::Io { path: out.clone(), source: e }))?;

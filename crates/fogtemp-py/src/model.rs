@@ -157,7 +157,9 @@ impl Model {
     /// With `return_outside=True`, returns `(values, outside)`: `outside` (bool, same shape)
     /// is True where the point lies outside the calibrated region, where the value is the
     /// model's continuation (the core's `outside_hull`, C's `fogtemp_evaluate`, the
-    /// compensator's `OUTSIDE_HULL` flag); False at a NaN point.
+    /// compensator's `OUTSIDE_HULL` flag); False at a NaN point, and outside the region of a
+    /// polynomial fitted with `poly_outside="extrapolate"` (its value there is the polynomial's
+    /// own, not flagged: mask by `inspect()`'s calibrated range instead).
     #[pyo3(signature = (temp_c, rate_c_per_min, axis = None, threads = None, return_outside = None))]
     #[pyo3(text_signature = "(self, temp_c, rate_c_per_min, axis=0, threads=None, return_outside=False)")]
     #[allow(clippy::too_many_arguments)] // Python's keywords, each with its default
@@ -254,6 +256,7 @@ impl Model {
         let model = self.core()?;
         let mut comp: Box<Compensator<'_, CAL_CAPACITY>> =
             Box::new(Compensator::new(&model, axis).map_err(|e| errors::model(&self.source, e))?);
+        let max_gap_s = comp.tracker().max_gap_us() as f64 * 1e-6;
         let replay = py.detach(|| {
             let n = ts.len();
             let (mut out, mut bias, mut flags) = (vec![0.0; n], vec![0.0; n], vec![0u8; n]);
@@ -269,6 +272,7 @@ impl Model {
             (out, bias, flags)
         });
         let (out, bias, flags) = replay;
+        warn_about_compensation(py, axis, ts, &flags, max_gap_s)?;
         let mut items: Vec<Bound<'py, PyAny>> =
             vec![PyArray1::from_vec(py, out).into_any(), PyArray1::from_vec(py, flags).into_any()];
         if return_bias {
@@ -483,4 +487,52 @@ fn blob_bytes(data: &Bound<'_, PyAny>) -> PyResult<Vec<u8>> {
             "Model.from_bytes(): data must be bytes, bytearray or memoryview (a model blob), got {type_name}"
         ))
     })
+}
+
+/// What `fogtemp-cal compensate` notes of its output, as warnings (review17 F1: a notebook
+/// user who does not decode the flags got the raw gyro back, or a bias continued far outside
+/// the calibration, without a word): times mostly further apart than the tracker's max gap
+/// (another unit?), nothing corrected, and the shares of samples flagged `BAD_INPUT`,
+/// `TEMP_STALE` and `OUTSIDE_HULL`.
+fn warn_about_compensation(
+    py: Python<'_>,
+    axis: usize,
+    time_s: &[f64],
+    flags: &[u8],
+    max_gap_s: f64,
+) -> PyResult<()> {
+    let name = format!("Model.compensate axis {axis}");
+    let mut gaps = fogtemp_cal::calibrate::TimeGaps::new(max_gap_s);
+    gaps.in_samples = true;
+    for (k, pair) in time_s.windows(2).enumerate() {
+        gaps.observe(Some(pair[0]), pair[1], k as u64 + 1);
+    }
+    let samples = flags.len() as u64;
+    let path = Path::new(&name);
+    if samples > 2 && gaps.count * 2 > samples {
+        let note = format!(
+            "{name}: {} of its {} steps between samples are longer than the tracker's max gap of {max_gap_s} s: \
+             is time_s in another unit? It is read in seconds (milliseconds / 1000)",
+            gaps.count,
+            samples - 1
+        );
+        crate::progress::warn(py, &note)?;
+    } else if let Some(note) =
+        gaps.note_then(path, "after each the compensator held its bias until its tracker had features again")
+    {
+        crate::progress::warn(py, &note)?;
+    }
+    let mut counts = [0u64; 8];
+    for f in flags {
+        for (bit, count) in counts.iter_mut().enumerate() {
+            *count += u64::from((f >> bit) & 1);
+        }
+    }
+    let consequence = "the returned rate is the gyro input and its bias 0";
+    for note in
+        fogtemp_cal::calibrate::compensation_notes(&name, &counts, samples, max_gap_s, "flags", consequence)
+    {
+        crate::progress::warn(py, &note)?;
+    }
+    Ok(())
 }

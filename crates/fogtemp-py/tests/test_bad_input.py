@@ -570,3 +570,40 @@ def test_validate_names_calibration_logs_among_the_validation_logs(tmp_path):
     assert len(model.inspect()["log_reading"]["log_digests"]) == 2
     with pytest.warns(fogtemp.FogtempWarning, match=r"\(1 of the 2 logs given\) is among the 2 logs .* fitted on"):
         fogtemp.validate(model, [logs[1], logs[2]], progress=False)
+
+
+def test_compensate_warns_where_the_cli_notes(tmp_path):
+    # Review17 F1: Model.compensate gave the raw gyro back (times in ms passed as s) or a bias
+    # continued far outside the calibration (kelvin) without a word, where fogtemp-cal
+    # compensate notes both.
+    runs = synthetic_runs(runs=3)
+    model = fogtemp.fit(runs, method="poly", progress=False)
+    run = runs[1]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        out, flags = model.compensate(run["time_s"], run["gyro_dph"], run["temp_c"])
+    assert np.any(out != run["gyro_dph"].astype(np.float32))
+    with pytest.warns(fogtemp.FogtempWarning) as seen:
+        out, flags = model.compensate(run["time_s"] * 1000.0, run["gyro_dph"], run["temp_c"])
+    said = " | ".join(str(w.message) for w in seen)
+    assert np.all(flags & 1) and np.array_equal(out, run["gyro_dph"].astype(np.float32))
+    assert "is time_s in another unit" in said and "never corrected a sample" in said, said
+    with pytest.warns(fogtemp.FogtempWarning, match=r"lie outside the model's calibrated \(T, dT/dt\) region \(flag OUTSIDE_HULL in flags\)"):
+        _, flags = model.compensate(run["time_s"], run["gyro_dph"], run["temp_c"] + 273.15)
+    outside = int(np.count_nonzero(flags & 4))
+    with pytest.warns(fogtemp.FogtempWarning, match=rf"{outside} of {flags.size} samples"):
+        model.compensate(run["time_s"], run["gyro_dph"], run["temp_c"] + 273.15)
+
+
+def test_complex_numbers_folders_and_dataframe_columns_are_named(tmp_path):
+    # Review17 F4-F6: a complex input is refused (numpy would drop its imaginary part), read_log
+    # of a folder says it is one, and a run missing a column lists the ones it has.
+    model = fogtemp.fit(synthetic_runs(runs=3), method="poly", progress=False)
+    with pytest.raises(TypeError, match=r"temp_c must be numbers, got complex numbers"):
+        model.evaluate(np.array([20.0 + 1.0j]), [0.1])
+    with pytest.raises(IsADirectoryError, match=r"a folder; read_log\(\) reads one log"):
+        fogtemp.read_log(tmp_path)
+    run = synthetic_runs(runs=1)[0]
+    renamed = {"t": run["time_s"], "T": run["temp_c"], "w": run["gyro_dph"]}
+    with pytest.raises(ValueError, match=r"no 'time_s' .*it has 't', 'T', 'w'; rename, e.g. df.rename"):
+        fogtemp.fit([renamed, renamed, renamed], method="poly", progress=False)

@@ -558,6 +558,27 @@ impl Scenario {
         Ok(overridden)
     }
 
+    /// The comment line `simulate` writes above a scenario it stores after overrides: what
+    /// was overridden, in words (`# paper with overrides: rate 1 Hz, seed 3`).
+    pub fn overrides_comment(
+        name: &str,
+        rate_hz: Option<f64>,
+        seed: Option<u64>,
+        duration_s: Option<f64>,
+    ) -> String {
+        let mut parts = Vec::new();
+        if let Some(rate) = rate_hz {
+            parts.push(format!("rate {rate} Hz"));
+        }
+        if let Some(seed) = seed {
+            parts.push(format!("seed {seed}"));
+        }
+        if let Some(duration) = duration_s {
+            parts.push(format!("every run {duration} s long"));
+        }
+        format!("# {name} with overrides: {}", parts.join(", "))
+    }
+
     /// Checks every number that the simulator relies on.
     ///
     /// # Errors

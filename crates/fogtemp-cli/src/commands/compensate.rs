@@ -5,7 +5,7 @@ use std::io::Write;
 use anyhow::{bail, Result};
 use fogtemp_cal::calibrate::{self, TimeGaps};
 use fogtemp_cal::spikes::{Sample, SpikeGuard};
-use fogtemp_core::{Compensator, Flags, Model};
+use fogtemp_core::{Compensator, Model};
 
 use super::{check_capacity, read_model, report_skipped};
 use crate::args::CompensateArgs;
@@ -166,36 +166,10 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
             if let Some(note) = calibrate::temperature_spike_note(&name, &a.log, &spikes) {
                 eprintln!("note: {note}");
             }
-            let count = |flag: Flags| counts[flag.0.trailing_zeros() as usize];
-            if count(Flags::WARMING_UP) == r.rows {
-                let consequence = "the output's bias is 0";
-                let note = calibrate::never_corrected_note(&name, consequence, counts, r.rows, max_gap_s);
-                eprintln!("note: {note}");
-                continue;
-            }
-            let bad = count(Flags::BAD_INPUT);
-            if bad > 0 {
-                eprintln!(
-                    "note: {name}: {bad} of {} samples ({} %) had a temperature no sensor reads (below -273.15 C or above \
-                     1000 C, a logger's mark for a missing reading?) or a time not after the one before (flag BAD_INPUT \
-                     in the output): compensated as the firmware does, without them in the features",
-                    r.rows,
-                    calibrate::share_percent(bad, r.rows)
-                );
-            }
-            let (stale, outside) = (count(Flags::TEMP_STALE), count(Flags::OUTSIDE_HULL));
-            if stale > 0 {
-                let flagged = "flag TEMP_STALE in the output";
-                eprintln!(
-                    "note: {}",
-                    calibrate::stale_temperature_note(&name, stale, r.rows, max_gap_s, flagged)
-                );
-            }
-            if outside > 0 {
-                let note =
-                    calibrate::outside_region_note(&name, outside, r.rows, "flag OUTSIDE_HULL in the output");
-                eprintln!("note: {note}");
-            }
+            let consequence = "the output's bias is 0";
+            let notes =
+                calibrate::compensation_notes(&name, counts, r.rows, max_gap_s, "the output", consequence);
+            notes.iter().for_each(|note| eprintln!("note: {note}"));
         }
         let summary = format!("({} rows, {})", r.rows, super::counted(axes as u64, "axis", "axes"));
         if to_stdout {

@@ -31,14 +31,8 @@ pub fn load_scenario(
         .map_err(|e| anyhow::anyhow!("scenario after command-line overrides: {e}"))?;
     if overridden {
         // Store what was simulated, not the file before the overrides.
-        text = format!(
-            "# {} with command-line overrides (rate {:?} Hz, seed {:?}, duration {:?} s)\n{}",
-            name,
-            rate_hz,
-            seed,
-            duration_s,
-            scenario.to_toml()?
-        );
+        let comment = Scenario::overrides_comment(name, rate_hz, seed, duration_s);
+        text = format!("{comment}\n{}", scenario.to_toml()?);
     }
     Ok((scenario, text))
 }
