@@ -221,7 +221,11 @@ fn simulate_is_deterministic_per_seed() {
     let e = sim("e", &["--rate", "4", "--seed", "9"]);
     assert_eq!(lines(&e), 1202, "300 s at 4 Hz plus the header");
     let stored = fs::read_to_string(e.join("scenario.toml")).expect("scenario.toml");
-    assert!(stored.starts_with("# ") && stored.contains("with overrides: rate 4 Hz, seed 9\n"), "{stored}");
+    assert!(
+        stored.starts_with("# ")
+            && stored.contains("with overrides: rate 4 Hz, seed 9, every run 300 s long\n"),
+        "{stored}"
+    );
     assert!(!stored.contains("Some(") && !stored.contains("None"), "Rust's debug text: {stored}");
     let back = Scenario::from_toml(&stored, "stored").expect("the stored scenario parses");
     assert_eq!((back.sample_rate_hz, back.seed, back.runs[0].duration_s), (4.0, 9, 300.0));
