@@ -82,7 +82,11 @@ pub fn monomial(temp_power: u8, rate_power: u8) -> String {
 pub struct PolyFit {
     /// Terms, constant first.
     pub terms: Vec<FittedTerm>,
-    /// RMS of the residuals at the calibration points, deg/h.
+    /// RMS of the least-squares residuals at the calibration points, deg/h: of the polynomial
+    /// alone, in f64, before it is stored (`fit --json` `axes[].poly.residual_rms_dph`). The
+    /// axis-level `axes[].residual_rms_dph` is the whole model's (a hybrid's mesh included) as
+    /// the firmware evaluates it, in f32 through the core, so the two differ in the last digits
+    /// for a polynomial and by the mesh's part for a hybrid.
     pub residual_rms_dph: f64,
     /// Largest absolute residual, deg/h (not serialised: the `fit --json` document has the
     /// model's own at the axis level).
