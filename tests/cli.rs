@@ -1519,7 +1519,9 @@ fn the_shape_the_model_records_is_read_when_none_is_named() {
     // The CSV log with a header row: refused in the recorded shape, naming it and the way out.
     let err = run_err(args!["validate", "--model", &model, &csv]);
     assert!(
-        err.contains("the log was read in the shape") && err.contains("--columns '' for a header row"),
+        err.contains("the log was read in this shape, ")
+            && err.contains("1 line skipped at the start; fields separated by spaces or tabs")
+            && err.contains("--columns '' for a header row"),
         "{err}"
     );
     // Named as it is (a header row, nothing skipped, its time column): validated, with a note

@@ -245,8 +245,8 @@ pub fn choose_shape(
         notes.push(format!(
             "{model_name} was fitted on logs shaped otherwise ({}); {option} give {}: used as given (for logs \
              from the same logger, leave {option} out)",
-            shape_in_words(&recorded),
-            shape_in_words(&read)
+            shape_in_full(&recorded),
+            shape_in_full(&read)
         ));
     }
     notes
@@ -260,6 +260,32 @@ pub fn shape_in_words(shape: &LogShapeRecord) -> String {
     } else {
         words.join("; ")
     }
+}
+
+/// Every setting of `shape` in words, defaults included ("no line skipped; the delimiter
+/// detected; comment lines start with '#'; a header row"), for the shape a log was read in.
+pub fn shape_in_full(shape: &LogShapeRecord) -> String {
+    let lines = match shape.skip_lines {
+        0 => "no line skipped".to_string(),
+        1 => "1 line skipped at the start".to_string(),
+        n => format!("{n} lines skipped at the start"),
+    };
+    let delimiter = match shape.delimiter {
+        Delimiter::Auto => "the delimiter detected".to_string(),
+        Delimiter::Byte(b'\t') => "fields separated by tabs".to_string(),
+        Delimiter::Byte(b) => format!("fields separated by '{}'", char::from(b)),
+        Delimiter::Whitespace => "fields separated by spaces or tabs".to_string(),
+    };
+    let comment = match &shape.comment {
+        Some(prefix) => format!("comment lines start with '{prefix}'"),
+        None => "no comment lines".to_string(),
+    };
+    let header = if shape.column_names.is_empty() {
+        "a header row".to_string()
+    } else {
+        format!("no header row, columns {}", shape.column_names.join(","))
+    };
+    format!("{lines}; {delimiter}; {comment}; {header}")
 }
 
 /// The log-shape settings, for [`describe_shape`].

@@ -523,7 +523,7 @@ impl BadRowKind {
                  header repeated where two logs were joined?)"
             }
             BadRowKind::NonFinite => "NaN or infinite",
-            BadRowKind::ShortRow => "fewer fields than the header",
+            BadRowKind::ShortRow => "fewer fields than the header (or the names --columns gives)",
             BadRowKind::LongRow => {
                 "more fields than the header (or the names --columns gives): two records run together (a lost line \
                  break)? name every field of a log without a header"

@@ -254,7 +254,10 @@ impl<R: Read> Parser<R> {
                         return Err(CalError::LogFormat {
                             path: self.path.clone(),
                             line: self.src.line,
-                            problem: format!("the log ends within the {to_skip} lines to skip"),
+                            problem: format!(
+                                "the log ends within the {to_skip} line{} to skip",
+                                if to_skip == 1 { "" } else { "s" }
+                            ),
                         });
                     }
                 }

@@ -91,7 +91,7 @@ fn time_from_the_sample_rate_counts_rejected_rows() {
     assert_eq!((report.rows, report.skipped, report.time_origin_s), (4, 1, 0.0));
     expect(&report.first_skipped[0], 5, 2, "gyro_dph", "", BadRowKind::ShortRow);
     let e = error_of(data, &with(format.clone()));
-    assert_eq!(e.to_string(), "log.csv:5:2: column 'gyro_dph': fewer fields than the header (found '')");
+    assert_eq!(e.to_string(), "log.csv:5:2: column 'gyro_dph': fewer fields than the header (or the names --columns gives) (found '')");
     // A time column as well is ambiguous, with or without a header.
     let ambiguous = LogFormat { sample_rate_hz: Some(50.0), ..LogFormat::default() };
     let e = error_of(&format!("{HEADER}0,20,1\n"), &with(ambiguous));
@@ -229,7 +229,7 @@ fn serial_capture_rows_exactly() {
         &text,
         &IngestOptions { format: capture_format(), skip_bad_rows: false, ..IngestOptions::default() },
     );
-    assert_eq!(e.to_string(), "log.csv:1236:2: column 'temp_c': fewer fields than the header (found '')");
+    assert_eq!(e.to_string(), "log.csv:1236:2: column 'temp_c': fewer fields than the header (or the names --columns gives) (found '')");
 }
 
 #[test]

@@ -149,8 +149,12 @@ pub fn fit(a: FitArgs) -> Result<()> {
     }
     let fitted = calibrate::fit_model_with(&runs, &config, digest, &selection, |fold, folds| {
         if bar.length().is_none() {
-            bar.set_style(indicatif::ProgressStyle::default_bar());
-            bar.set_message("cross-validation (folds)");
+            // review18 F8: the default bar said only "0/3".
+            let style =
+                indicatif::ProgressStyle::with_template("{msg} [{bar:30}] {pos}/{len} folds, eta {eta}")
+                    .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar());
+            bar.set_style(style.progress_chars("=> "));
+            bar.set_message("cross-validation");
         }
         bar.set_length(folds as u64);
         bar.set_position(fold as u64);

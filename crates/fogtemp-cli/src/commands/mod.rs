@@ -93,35 +93,54 @@ fn ingest_options_for(
             chosen.temp.join(", ")
         )
     });
+    // The shape read, when the model gave part of it: said with a log that cannot be read so.
+    let read_shape = fogtemp_cal::blob::LogShapeRecord::of_format(&ingest.format);
     let recorded_shape = fogtemp_cal::blob::LogShapeRecord::of(model);
-    let shape_from_model = (recorded_shape.is_recorded() && shape_named != ShapeNamed::ALL).then(|| {
-        format!(
-            "the log was read in the shape {} records of its fit's logs ({}); name the shape of logs shaped \
-             otherwise with --skip-lines, --delimiter, --comment and --columns (--columns '' for a header row)",
+    let shape = (recorded_shape.is_recorded() && shape_named != ShapeNamed::ALL).then(|| ShapeFromModel {
+        context: format!(
+            "the log was read in this shape, {} giving what was not named: {}; a log shaped otherwise needs \
+             --skip-lines, --delimiter, --comment and --columns (--columns '' for a header row)",
             path.display(),
-            fogtemp_cal::axis_columns::shape_in_words(&recorded_shape)
-        )
+            fogtemp_cal::axis_columns::shape_in_full(&read_shape)
+        ),
+        // The header's line, or the first data line of a log without one.
+        last_shape_line: read_shape.skip_lines + 1 + u64::from(read_shape.column_names.is_empty()),
     });
-    Ok((ingest, ModelColumns { columns: from_model, shape: shape_from_model }))
+    Ok((ingest, ModelColumns { columns: from_model, shape }))
+}
+
+/// The shape a log was read in when the model gave part of it, for its errors.
+struct ShapeFromModel {
+    /// What is said.
+    context: String,
+    /// The last line whose failure is the shape's (the header, or the first data row without
+    /// one): a bad row beyond it is a bad row in a log of that shape.
+    last_shape_line: u64,
 }
 
 /// Whether the gyro columns and the log's shape were taken from the model, said as the
-/// context of a missing column or a bad row (the log may be named or shaped differently).
+/// context of a missing column or a log that fails where its shape shows (the log may be
+/// named or shaped differently).
 struct ModelColumns {
     columns: Option<String>,
-    shape: Option<String>,
+    shape: Option<ShapeFromModel>,
 }
 
 impl ModelColumns {
-    /// `e`, with the columns' or the shape's origin when a column the model records is
-    /// missing or a row cannot be read.
+    /// `e`, with the shape's origin when the model gave part of it and the log fails where
+    /// its shape shows (a missing column, the header, the first data row, a log ending among
+    /// the lines to skip), else with the columns' origin when a column the model records is
+    /// missing.
     fn explain(&self, e: fogtemp_cal::CalError) -> anyhow::Error {
-        use fogtemp_cal::CalError::{BadRow, MissingColumn};
+        use fogtemp_cal::CalError::{BadRow, LogFormat, MissingColumn};
+        let shape_shows = |shape: &ShapeFromModel| match &e {
+            MissingColumn { .. } | LogFormat { .. } => true,
+            BadRow { row, .. } => row.line <= shape.last_shape_line,
+            _ => false,
+        };
         match (&self.shape, &self.columns, &e) {
-            (Some(shape), _, MissingColumn { .. } | BadRow { .. }) => {
-                anyhow::Error::new(e).context(shape.clone())
-            }
-            (None, Some(origin), MissingColumn { .. }) => anyhow::Error::new(e).context(origin.clone()),
+            (Some(shape), _, _) if shape_shows(shape) => anyhow::Error::new(e).context(shape.context.clone()),
+            (_, Some(origin), MissingColumn { .. }) => anyhow::Error::new(e).context(origin.clone()),
             _ => e.into(),
         }
     }
@@ -182,7 +201,10 @@ fn warn_axis_count(model_path: &Path, model_axes: usize, gyro_columns: usize) {
 /// (`--skip-bad-rows`; then the skipped rows are listed first, and the likely cause named).
 fn no_rows_error(report: &IngestReport) -> anyhow::Error {
     if report.skipped == 0 {
-        return anyhow::anyhow!("{}: no data rows (only a header)", report.path.display());
+        return anyhow::anyhow!(
+            "{}: no data rows (only a header, or with --columns only skipped and comment lines)",
+            report.path.display()
+        );
     }
     report_skipped(report);
     anyhow::anyhow!(
