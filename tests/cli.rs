@@ -1543,6 +1543,11 @@ fn the_shape_the_model_records_is_read_when_none_is_named() {
         ],
     );
     assert!(comp(&csv_doc).is_finite());
+    let json_notes = csv_doc["notes"].to_string();
+    assert!(
+        json_notes.contains("was fitted on logs shaped otherwise"),
+        "the shape note in --json: {json_notes}"
+    );
     assert!(noted.contains("was fitted on logs shaped otherwise"), "{noted}");
 }
 

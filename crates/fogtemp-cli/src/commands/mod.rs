@@ -106,7 +106,7 @@ fn ingest_options_for(
         // The header's line, or the first data line of a log without one.
         last_shape_line: read_shape.skip_lines + 1 + u64::from(read_shape.column_names.is_empty()),
     });
-    Ok((ingest, ModelColumns { columns: from_model, shape }))
+    Ok((ingest, ModelColumns { columns: from_model, shape, notes: chosen.notes }))
 }
 
 /// The shape a log was read in when the model gave part of it, for its errors.
@@ -124,6 +124,8 @@ struct ShapeFromModel {
 struct ModelColumns {
     columns: Option<String>,
     shape: Option<ShapeFromModel>,
+    /// The notes printed on how the log is read (columns, units, time, shape), for `--json`.
+    notes: Vec<String>,
 }
 
 impl ModelColumns {

@@ -128,7 +128,9 @@ pub fn validate(a: ValidateArgs) -> Result<()> {
         eprintln!("report: {}", dir.join("report.md").display());
     }
     if a.json {
-        print_json(&ValidationDocument::new(&options, &validation, comparison).with_notes(notes))?;
+        // How the logs were read (printed first) goes into the document's notes too.
+        let all_notes = columns.notes.iter().cloned().chain(notes).collect();
+        print_json(&ValidationDocument::new(&options, &validation, comparison).with_notes(all_notes))?;
         return nothing_validated(runs);
     }
     println!("{}", options.describe());
