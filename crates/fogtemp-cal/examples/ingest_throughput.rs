@@ -26,7 +26,8 @@ fn main() {
             .and_then(|i| args.get(i + 1))
             .map_or(default, |v| v.parse().unwrap_or_else(|_| panic!("{name} needs a number, got {v}")))
     };
-    let (Some(cmd), Some(path)) = (args.first(), args.get(1)) else {
+    // A path that looks like an option (`gen --help`) is the usage, not a file to write.
+    let (Some(cmd), Some(path)) = (args.first(), args.get(1).filter(|p| !p.starts_with('-'))) else {
         eprintln!(
             "usage: ingest_throughput gen|read|features PATH [--runs N] [--rows-per-run R] [--repeat N]"
         );

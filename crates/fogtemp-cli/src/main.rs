@@ -48,6 +48,10 @@ fn main() -> std::process::ExitCode {
     // the default action stays (outputs are still atomic: no half file under its name).
     let _ = ctrlc::set_handler(|| {
         fogtemp_cal::output::remove_pending_outputs();
+        // A CSV streamed to stdout cannot be taken back: say it is cut short (review18 F9).
+        if commands::compensate::STREAMING_TO_STDOUT.load(std::sync::atomic::Ordering::SeqCst) {
+            eprintln!("note: interrupted: the CSV on stdout is cut short where the interrupt stopped it: discard it");
+        }
         std::process::exit(130);
     });
     let cli = args::Cli::parse();

@@ -11,6 +11,9 @@ use super::{check_capacity, read_model, report_skipped};
 use crate::args::CompensateArgs;
 use crate::output::{check_output_file, refuse_overwriting_inputs, write_atomic, RowProgress};
 
+/// Set while `compensate --out -` streams its CSV to stdout, for the interrupt handler's note.
+pub static STREAMING_TO_STDOUT: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
 pub fn compensate(a: CompensateArgs) -> Result<()> {
     // One log in, one CSV out: a folder was read as a log ("Is a directory (os error 21)"
     // at line 1, review12 finding 11).
@@ -126,6 +129,7 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
         Ok(())
     };
     let written = if to_stdout {
+        STREAMING_TO_STDOUT.store(true, std::sync::atomic::Ordering::SeqCst);
         let mut stdout = std::io::BufWriter::new(std::io::stdout().lock());
         body(&mut stdout).and_then(|()| Ok(stdout.flush()?))
     } else {

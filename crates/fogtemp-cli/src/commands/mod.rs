@@ -4,7 +4,7 @@
 //! options, reading a model, skipped-row warnings).
 
 mod allan;
-mod compensate;
+pub(crate) mod compensate;
 mod diagnose;
 mod evaluate;
 mod export;
