@@ -1390,6 +1390,15 @@ fn compensate_keeps_a_sentinel_temperature_row_flagged_as_the_firmware_does() {
     }
     assert!(said.contains("1 of") && said.contains("flag BAD_INPUT in the output"), "{said}");
     assert!(!said.contains("glitch"), "a sentinel is not a glitch: {said}");
+    // 'NaN' and 'inf' written for the reading: the same as -999 (review18 F3: compensate
+    // stopped there, though the firmware flags them alike).
+    for cell in ["NaN", "inf", "-Infinity"] {
+        let (log, out) = (dir.path().join("nonfinite.csv"), dir.path().join("c3.csv"));
+        write_lines(&log, &with_cell(cell));
+        run_ok(args!["compensate", "--model", &model, &log, "--out", &out]);
+        let nonfinite = fs::read_to_string(&out).expect("read");
+        assert!(nonfinite.lines().eq(a.iter().copied()), "{cell}: as -999");
+    }
 }
 
 /// `validate --json --tau-s 10` of `log` with `model` and the `extra` options: the document

@@ -421,7 +421,7 @@ pub fn compensation_notes(
     if bad > 0 {
         notes.push(format!(
             "{name}: {bad} of {samples} samples ({} %) had a temperature no sensor reads (below -273.15 C or above \
-             1000 C, a logger's mark for a missing reading?) or a time not after the one before (flag BAD_INPUT \
+             1000 C, or not a number: a logger's mark for a missing reading?) or a time not after the one before (flag BAD_INPUT \
              in {output}): compensated as the firmware does, without them in the features",
             share_percent(bad, samples)
         ));

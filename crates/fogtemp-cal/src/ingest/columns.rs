@@ -494,8 +494,15 @@ pub(super) fn parse_row(
         }
     }
     for (slot, &field) in temps.iter_mut().zip(&columns.temps) {
-        *slot = parse_cell(plan, fields, field, line)?
-            .map_or(f64::NAN, |raw| raw * plan.temp_scale + plan.temp_offset_c);
+        let reading = match parse_cell(plan, fields, field, line) {
+            // 'NaN' or 'inf' written for a reading: kept as one no sensor reads, like -999, where
+            // impossible temperatures are kept (an empty cell stays NaN: no reading).
+            Err(bad) if bad.kind == BadRowKind::NonFinite && plan.keep_impossible_temperatures => {
+                Some(f64::INFINITY)
+            }
+            other => other?,
+        };
+        *slot = reading.map_or(f64::NAN, |raw| raw * plan.temp_scale + plan.temp_offset_c);
         if !slot.is_nan() && !super::is_physical(*slot) && !plan.keep_impossible_temperatures {
             let raw = fields.get(field).unwrap_or(b"");
             return Err(bad_row(columns, line, field, raw, BadRowKind::ImpossibleTemperature));

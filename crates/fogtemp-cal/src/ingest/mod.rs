@@ -626,8 +626,9 @@ pub struct IngestOptions {
     /// Skip bad rows (and report them) instead of stopping at the first.
     pub skip_bad_rows: bool,
     /// Pass a temperature no sensor reads (a logger's -999) through as read instead of
-    /// refusing its row: for `compensate`, whose `Compensator` flags such a sample
-    /// `BAD_INPUT` and keeps it, as the firmware does, so its output stays row for row.
+    /// refusing its row, and a `NaN` or `inf` cell as an infinite one: for `compensate`,
+    /// whose `Compensator` flags such a sample `BAD_INPUT` and keeps it, as the firmware
+    /// does, so its output stays row for row.
     pub keep_impossible_temperatures: bool,
 }
 

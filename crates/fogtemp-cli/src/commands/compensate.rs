@@ -94,7 +94,7 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
                         spike_guards[i].push(sample, &mut |_| {});
                     }
                     let o =
-                        comp.step(time_us, row.gyros_dph[i] as f32, temp.is_finite().then_some(temp as f32));
+                        comp.step(time_us, row.gyros_dph[i] as f32, (!temp.is_nan()).then_some(temp as f32));
                     record.push(raw_text(row.gyros_dph[i]));
                     record.push(format!("{}", o.rate_dph));
                     record.push(format!("{}", o.bias_dph));
