@@ -265,6 +265,20 @@ pub fn shape_in_words(shape: &LogShapeRecord) -> String {
 /// Every setting of `shape` in words, defaults included ("no line skipped; the delimiter
 /// detected; comment lines start with '#'; a header row"), for the shape a log was read in.
 pub fn shape_in_full(shape: &LogShapeRecord) -> String {
+    shape_settings(shape).map(|(_, words)| words).join("; ")
+}
+
+/// The log-shape settings, for [`describe_shape`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum ShapeField {
+    SkipLines,
+    Delimiter,
+    Comment,
+    Columns,
+}
+
+/// Each setting of `shape` in words.
+fn shape_settings(shape: &LogShapeRecord) -> [(ShapeField, String); 4] {
     let lines = match shape.skip_lines {
         0 => "no line skipped".to_string(),
         1 => "1 line skipped at the start".to_string(),
@@ -285,44 +299,28 @@ pub fn shape_in_full(shape: &LogShapeRecord) -> String {
     } else {
         format!("no header row, columns {}", shape.column_names.join(","))
     };
-    format!("{lines}; {delimiter}; {comment}; {header}")
-}
-
-/// The log-shape settings, for [`describe_shape`].
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum ShapeField {
-    SkipLines,
-    Delimiter,
-    Comment,
-    Columns,
+    [
+        (ShapeField::SkipLines, lines),
+        (ShapeField::Delimiter, delimiter),
+        (ShapeField::Comment, comment),
+        (ShapeField::Columns, header),
+    ]
 }
 
 /// The settings of `shape` that differ from the default and that `include` selects, in words.
 fn describe_shape(shape: &LogShapeRecord, include: impl Fn(ShapeField) -> bool) -> Vec<String> {
     let default = LogShapeRecord::default();
-    let mut words = Vec::new();
-    if include(ShapeField::SkipLines) && shape.skip_lines != default.skip_lines {
-        let s = if shape.skip_lines == 1 { "" } else { "s" };
-        words.push(format!("{} line{s} skipped at the start", shape.skip_lines));
-    }
-    if include(ShapeField::Delimiter) && shape.delimiter != default.delimiter {
-        words.push(match shape.delimiter {
-            Delimiter::Byte(b'\t') => "fields separated by tabs".to_string(),
-            Delimiter::Byte(b) => format!("fields separated by '{}'", char::from(b)),
-            Delimiter::Whitespace => "fields separated by spaces or tabs".to_string(),
-            Delimiter::Auto => "the delimiter detected".to_string(),
-        });
-    }
-    if include(ShapeField::Comment) && shape.comment != default.comment {
-        words.push(match &shape.comment {
-            Some(prefix) => format!("comment lines start with '{prefix}'"),
-            None => "no comment lines".to_string(),
-        });
-    }
-    if include(ShapeField::Columns) && shape.column_names != default.column_names {
-        words.push(format!("no header row, columns {}", shape.column_names.join(",")));
-    }
-    words
+    let differs = |field: ShapeField| match field {
+        ShapeField::SkipLines => shape.skip_lines != default.skip_lines,
+        ShapeField::Delimiter => shape.delimiter != default.delimiter,
+        ShapeField::Comment => shape.comment != default.comment,
+        ShapeField::Columns => shape.column_names != default.column_names,
+    };
+    shape_settings(shape)
+        .into_iter()
+        .filter(|(field, _)| include(*field) && differs(*field))
+        .map(|(_, words)| words)
+        .collect()
 }
 
 /// How to read the logs' time for `model`: as the model records it (format version 5) for

@@ -331,7 +331,7 @@ pub fn subtract_input_rates(runs: &mut [RunFeatures], rates_dph: &[f64], axes: u
 /// max gap (a time column read in the wrong unit: ms read as s), or `None`. `unit_hint`
 /// names the setting to check (the command line's `--time-unit`, Python's `time_unit=`).
 pub fn mostly_gaps_note(path: &Path, gaps: &TimeGaps, rows: u64, unit_hint: &str) -> Option<String> {
-    (rows > 2 && gaps.count * 2 > rows).then(|| {
+    gaps.mostly_gaps(rows).then(|| {
         format!(
             "{}: {} of its {} steps between rows are longer than the tracker's max gap of {} s: are its \
              times in another unit? ({unit_hint} s, ms or us)",
@@ -497,6 +497,12 @@ pub struct TimeGaps {
 }
 
 impl TimeGaps {
+    /// Whether most of the steps between `rows` rows are gaps (more than two rows): a time
+    /// column read in the wrong unit, ms read as s.
+    pub fn mostly_gaps(&self, rows: u64) -> bool {
+        rows > 2 && self.count * 2 > rows
+    }
+
     /// What a technician is told about the gaps of the log `path` (`None` without gaps): the
     /// command line's `note:` and Python's warning.
     pub fn note(&self, path: &Path) -> Option<String> {

@@ -447,14 +447,7 @@ impl LogShapeDocument {
         let record = crate::blob::LogShapeRecord::of(model);
         Some(Self {
             skip_lines: record.skip_lines,
-            delimiter: match record.delimiter {
-                crate::ingest::Delimiter::Auto => "auto".to_string(),
-                crate::ingest::Delimiter::Whitespace => "whitespace".to_string(),
-                crate::ingest::Delimiter::Byte(b',') => "comma".to_string(),
-                crate::ingest::Delimiter::Byte(b';') => "semicolon".to_string(),
-                crate::ingest::Delimiter::Byte(b'\t') => "tab".to_string(),
-                crate::ingest::Delimiter::Byte(b) => char::from(b).to_string(),
-            },
+            delimiter: record.delimiter.name(),
             description: crate::axis_columns::shape_in_words(&record),
             comment: record.comment,
             columns: record.column_names,

@@ -509,7 +509,7 @@ fn warn_about_compensation(
     }
     let samples = flags.len() as u64;
     let path = Path::new(&name);
-    if samples > 2 && gaps.count * 2 > samples {
+    if gaps.mostly_gaps(samples) {
         let note = format!(
             "{name}: {} of its {} steps between samples are longer than the tracker's max gap of {max_gap_s} s: \
              is time_s in another unit? It is read in seconds (milliseconds / 1000)",

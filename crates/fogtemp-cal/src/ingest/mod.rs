@@ -249,6 +249,19 @@ impl Delimiter {
         })
     }
 
+    /// The name [`Delimiter::from_name`] reads back: `auto`, `comma`, `semicolon`, `tab`,
+    /// `whitespace`, or the character itself.
+    pub fn name(self) -> String {
+        match self {
+            Delimiter::Auto => "auto".to_string(),
+            Delimiter::Whitespace => "whitespace".to_string(),
+            Delimiter::Byte(b',') => "comma".to_string(),
+            Delimiter::Byte(b';') => "semicolon".to_string(),
+            Delimiter::Byte(b'\t') => "tab".to_string(),
+            Delimiter::Byte(b) => char::from(b).to_string(),
+        }
+    }
+
     /// The delimiter [`Delimiter::Auto`] picks for `line` (other variants return themselves).
     pub fn resolve(self, line: &[u8]) -> Delimiter {
         self.resolve_with(line, DecimalMark::Point)
