@@ -20,6 +20,7 @@ macro_rules! print {
 
 mod args;
 mod commands;
+mod compensated_csv;
 mod output;
 
 /// Writes to standard output; a closed pipe exits with status 0 (the reader has what it

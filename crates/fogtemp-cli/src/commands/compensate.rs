@@ -9,6 +9,7 @@ use fogtemp_core::{Compensator, Model};
 
 use super::{check_capacity, read_model, report_skipped};
 use crate::args::CompensateArgs;
+use crate::compensated_csv::{self, AxisOutput, RowSink};
 use crate::output::{check_output_file, refuse_overwriting_inputs, write_atomic, RowProgress};
 
 /// Set while `compensate --out -` streams its CSV to stdout, for the interrupt handler's note.
@@ -60,56 +61,54 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
     // A problem in the log is reported as the log's (with its hint), not as the output's.
     let mut input_error: Option<anyhow::Error> = None;
     let mut body = |w: &mut dyn Write| -> Result<()> {
-        let mut out = csv::Writer::from_writer(w);
-        let mut header = vec!["time_s".to_string()];
-        for i in 0..axes {
-            let suffix = if axes == 1 { String::new() } else { format!("_{i}") };
-            for col in ["raw_dph", "compensated_dph", "bias_dph", "flags"] {
-                header.push(format!("{col}{suffix}"));
-            }
-        }
-        out.write_record(&header)?;
-        let mut record: Vec<String> = Vec::with_capacity(header.len());
-        let r = fogtemp_cal::ingest::read_log_with_progress(
-            &a.log,
-            &ingest,
-            |row| {
-                gaps.observe(previous_s, row.time_s, row.line);
-                previous_s = Some(row.time_s);
-                record.clear();
-                // The log's own time stamp, so the output joins other channels by time.
-                record.push(time_text(row.origin_s + row.time_s));
-                let time_us = row.time_us();
-                for (i, comp) in comps.iter_mut().enumerate() {
-                    let temp = row.temp_c_for_axis(i);
-                    // Only readings: rows without one change no verdict, and neither do
-                    // temperatures no sensor reads (the compensator flags those BAD_INPUT).
-                    if temp.is_finite() && fogtemp_core::is_physical_temperature(temp as f32) {
-                        let sample = Sample {
-                            time_s: row.time_s,
-                            gyro_dph: row.gyros_dph[i],
-                            temp_c: temp,
-                            line: row.line,
-                        };
-                        spike_guards[i].push(sample, &mut |_| {});
-                    }
-                    let o =
-                        comp.step(time_us, row.gyros_dph[i] as f32, (!temp.is_nan()).then_some(temp as f32));
-                    record.push(raw_text(row.gyros_dph[i]));
-                    record.push(format!("{}", o.rate_dph));
-                    record.push(format!("{}", o.bias_dph));
-                    record.push(format!("{}", o.flags.0));
-                    for (bit, count) in flag_counts[i].iter_mut().enumerate() {
-                        *count += u64::from((o.flags.0 >> bit) & 1);
-                    }
-                }
-                out.write_record(&record).map_err(|e| fogtemp_cal::CalError::Io {
-                    path: a.out.clone(),
-                    source: std::io::Error::other(e),
-                })
-            },
-            |b, r| bar.update(b, r),
-        );
+        // Rows are gathered in blocks whose text is made on all cores: every field is a
+        // number (or a flag count), which CSV never quotes, so no CSV writer is needed.
+        let output_error = |source: std::io::Error| fogtemp_cal::CalError::Io { path: a.out.clone(), source };
+        w.write_all(&compensated_csv::header(axes)).map_err(output_error)?;
+        let read = |sink: &mut RowSink<'_>| {
+            fogtemp_cal::ingest::read_log_with_progress(
+                &a.log,
+                &ingest,
+                |row| {
+                    gaps.observe(previous_s, row.time_s, row.line);
+                    previous_s = Some(row.time_s);
+                    let time_us = row.time_us();
+                    let outputs = comps.iter_mut().enumerate().map(|(i, comp)| {
+                        let temp = row.temp_c_for_axis(i);
+                        // Only readings: rows without one change no verdict, and neither do
+                        // temperatures no sensor reads (the compensator flags those BAD_INPUT).
+                        if temp.is_finite() && fogtemp_core::is_physical_temperature(temp as f32) {
+                            let sample = Sample {
+                                time_s: row.time_s,
+                                gyro_dph: row.gyros_dph[i],
+                                temp_c: temp,
+                                line: row.line,
+                            };
+                            spike_guards[i].push(sample, &mut |_| {});
+                        }
+                        let o = comp.step(
+                            time_us,
+                            row.gyros_dph[i] as f32,
+                            (!temp.is_nan()).then_some(temp as f32),
+                        );
+                        for (bit, count) in flag_counts[i].iter_mut().enumerate() {
+                            *count += u64::from((o.flags.0 >> bit) & 1);
+                        }
+                        AxisOutput {
+                            raw_dph: row.gyros_dph[i],
+                            compensated_dph: o.rate_dph,
+                            bias_dph: o.bias_dph,
+                            flags: o.flags.0,
+                        }
+                    });
+                    // The log's own time stamp, so the output joins other channels by time.
+                    sink.push(row.origin_s + row.time_s, outputs).map_err(output_error)
+                },
+                |b, r| bar.update(b, r),
+            )
+        };
+        let (r, written) =
+            compensated_csv::write_rows(w, axes, read, |r| r.as_ref().is_ok_and(|r| r.rows > 0));
         let r = match r {
             Err(fogtemp_cal::CalError::Io { path, source }) if path == a.out => {
                 return Err(fogtemp_cal::CalError::Io { path, source }.into())
@@ -124,7 +123,7 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
             input_error = Some(super::no_rows_error(&r));
             bail!("the log has no data rows");
         }
-        out.flush()?;
+        written.map_err(output_error)?;
         report = Some(r);
         Ok(())
     };
@@ -206,53 +205,4 @@ fn broken_pipe(e: &anyhow::Error) -> bool {
         causes.extend(cause.source());
     }
     false
-}
-
-/// A time stamp to the nanosecond, without trailing zeros: the log's own time, without the
-/// float noise of re-adding its origin (`0.019000000000000128` was written for 0.019).
-fn time_text(time_s: f64) -> String {
-    let text = format!("{time_s:.9}");
-    let trimmed = text.trim_end_matches('0').trim_end_matches('.');
-    if trimmed.is_empty() || trimmed == "-" {
-        "0".to_string()
-    } else {
-        trimmed.to_string()
-    }
-}
-
-/// A raw reading in deg/h to 12 significant digits, the shortest text that reads back as
-/// that: the logged value without the float noise of its unit conversion (0.1 deg/s was
-/// written `360.00000000000006`); 12 digits keep more than any gyro resolves.
-fn raw_text(raw_dph: f64) -> String {
-    if !raw_dph.is_finite() {
-        return format!("{raw_dph}");
-    }
-    let rounded: f64 = format!("{raw_dph:.11e}").parse().unwrap_or(raw_dph);
-    format!("{rounded}")
-}
-
-#[cfg(test)]
-mod tests {
-    use super::{raw_text, time_text};
-
-    #[test]
-    fn raw_readings_are_written_without_conversion_noise() {
-        assert_eq!(raw_text(0.1 * 3600.0), "360");
-        assert_eq!(raw_text(0.000_123_456_789_012_345_6), "0.000123456789012");
-        assert_eq!(raw_text(-216.0326), "-216.0326");
-        assert_eq!(raw_text(0.0), "0");
-        assert_eq!(raw_text(f64::NAN), "NaN");
-        // 12 significant digits: a reading with more is rounded there.
-        assert_eq!(raw_text(1.234_567_890_123_4), "1.23456789012");
-    }
-
-    #[test]
-    fn time_stamps_are_written_without_float_noise() {
-        assert_eq!(time_text(0.019000000000000128), "0.019");
-        assert_eq!(time_text(1_700_000_000.25), "1700000000.25");
-        assert_eq!(time_text(12.0), "12");
-        assert_eq!(time_text(0.0), "0");
-        assert_eq!(time_text(-0.5), "-0.5");
-        assert_eq!(time_text(3.000_000_001), "3.000000001");
-    }
 }

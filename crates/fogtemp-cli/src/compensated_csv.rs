@@ -1,0 +1,424 @@
+//! `compensate`'s CSV, quickly: it writes tens of millions of rows, and formatting them was
+//! most of its time (review18 F7). Rows are gathered in blocks and each block's text is made
+//! on all cores, then written in order. Each number's text is byte for byte what its
+//! definition gives (the tests check the quick ways against the definitions).
+
+use std::io::Write;
+
+use rayon::prelude::*;
+
+/// What the compensator gave one axis for one row.
+#[derive(Clone, Copy)]
+pub struct AxisOutput {
+    pub raw_dph: f64,
+    pub compensated_dph: f32,
+    pub bias_dph: f32,
+    pub flags: u8,
+}
+
+/// The header line: `time_s`, then per axis its four columns (suffixed `_i` when there are
+/// several axes).
+pub fn header(axes: usize) -> Vec<u8> {
+    let mut text = b"time_s".to_vec();
+    for i in 0..axes {
+        let suffix = if axes == 1 { String::new() } else { format!("_{i}") };
+        for col in ["raw_dph", "compensated_dph", "bias_dph", "flags"] {
+            text.extend_from_slice(format!(",{col}{suffix}").as_bytes());
+        }
+    }
+    text.push(b'\n');
+    text
+}
+
+/// Rows waiting to be written: their times and, row after row, each axis's output.
+struct PendingRows {
+    axes: usize,
+    times_s: Vec<f64>,
+    outputs: Vec<AxisOutput>,
+}
+
+/// Rows gathered before their text is made: enough to share among cores, little memory.
+const BLOCK_ROWS: usize = 1 << 16;
+
+/// Rows whose text one task makes.
+const TASK_ROWS: usize = 1 << 12;
+
+impl PendingRows {
+    fn new(axes: usize) -> Self {
+        Self { axes, times_s: Vec::with_capacity(BLOCK_ROWS), outputs: Vec::with_capacity(BLOCK_ROWS * axes) }
+    }
+
+    /// Adds a row: its time and one output per axis, in order.
+    fn push(&mut self, time_s: f64, outputs: impl IntoIterator<Item = AxisOutput>) {
+        self.times_s.push(time_s);
+        self.outputs.extend(outputs);
+    }
+
+    /// Whether a block is gathered.
+    fn is_full(&self) -> bool {
+        self.times_s.len() >= BLOCK_ROWS
+    }
+
+    /// The gathered rows' text, made on all cores.
+    fn text(&self) -> Vec<Vec<u8>> {
+        let axes = self.axes.max(1);
+        self.times_s
+            .par_chunks(TASK_ROWS)
+            .zip(self.outputs.par_chunks(TASK_ROWS * axes))
+            .map(|(times_s, outputs)| rows_text(times_s, outputs, axes))
+            .collect()
+    }
+}
+
+/// Rows in, CSV text out to `w` while the rows go on coming: `body` gets a [`RowSink`];
+/// full blocks are turned into text on other threads, and written in order here. After
+/// `body`, the rest is written when it succeeded (`Ok` from `succeeded`).
+pub fn write_rows<T>(
+    w: &mut dyn Write,
+    axes: usize,
+    body: impl FnOnce(&mut RowSink<'_>) -> T,
+    succeeded: impl FnOnce(&T) -> bool,
+) -> (T, std::io::Result<()>) {
+    std::thread::scope(|scope| {
+        // One block queued behind the one in hand: the rows in memory stay few.
+        let (to_text, blocks) = std::sync::mpsc::sync_channel::<PendingRows>(1);
+        let (to_write, texts) = std::sync::mpsc::channel::<Vec<Vec<u8>>>();
+        scope.spawn(move || {
+            for block in blocks {
+                if to_write.send(block.text()).is_err() {
+                    break;
+                }
+            }
+        });
+        let mut sink = RowSink { pending: PendingRows::new(axes), to_text, texts, w };
+        let result = body(&mut sink);
+        let written = if succeeded(&result) { sink.finish() } else { Ok(()) };
+        (result, written)
+    })
+}
+
+/// Where [`write_rows`]'s body puts rows.
+pub struct RowSink<'w> {
+    pending: PendingRows,
+    to_text: std::sync::mpsc::SyncSender<PendingRows>,
+    texts: std::sync::mpsc::Receiver<Vec<Vec<u8>>>,
+    w: &'w mut dyn Write,
+}
+
+impl RowSink<'_> {
+    /// Adds a row; a full block goes to be turned into text, and the text that is ready is
+    /// written.
+    pub fn push(
+        &mut self,
+        time_s: f64,
+        outputs: impl IntoIterator<Item = AxisOutput>,
+    ) -> std::io::Result<()> {
+        self.pending.push(time_s, outputs);
+        if !self.pending.is_full() {
+            return Ok(());
+        }
+        let axes = self.pending.axes;
+        let block = std::mem::replace(&mut self.pending, PendingRows::new(axes));
+        self.send(block)?;
+        while let Ok(text) = self.texts.try_recv() {
+            write_all(self.w, &text)?;
+        }
+        Ok(())
+    }
+
+    /// Sends the last block and writes every text still to come.
+    fn finish(mut self) -> std::io::Result<()> {
+        let block = std::mem::replace(&mut self.pending, PendingRows::new(0));
+        self.send(block)?;
+        // The text thread ends when nothing more can come.
+        drop(self.to_text);
+        for text in self.texts {
+            write_all(self.w, &text)?;
+        }
+        self.w.flush()
+    }
+
+    fn send(&self, block: PendingRows) -> std::io::Result<()> {
+        self.to_text.send(block).map_err(|_| std::io::Error::other("the CSV text thread stopped"))
+    }
+}
+
+fn write_all(w: &mut dyn Write, texts: &[Vec<u8>]) -> std::io::Result<()> {
+    texts.iter().try_for_each(|text| w.write_all(text))
+}
+
+/// The CSV lines of rows: a time, then each axis's four fields.
+fn rows_text(times_s: &[f64], outputs: &[AxisOutput], axes: usize) -> Vec<u8> {
+    let mut text = Vec::with_capacity(times_s.len() * (16 + 40 * axes));
+    for (time_s, row) in times_s.iter().zip(outputs.chunks(axes)) {
+        push_time_text(&mut text, *time_s);
+        for o in row {
+            text.push(b',');
+            push_raw_text(&mut text, o.raw_dph);
+            text.push(b',');
+            push_shortest(&mut text, o.compensated_dph);
+            text.push(b',');
+            push_shortest(&mut text, o.bias_dph);
+            // Writing to a Vec cannot fail.
+            let _ = write!(text, ",{}", o.flags);
+        }
+        text.push(b'\n');
+    }
+    text
+}
+
+/// `value`'s shortest text that reads back as it, as `format!("{value}")` writes it.
+fn push_shortest(text: &mut Vec<u8>, value: impl std::fmt::Display) {
+    // Writing to a Vec cannot fail.
+    let _ = write!(text, "{value}");
+}
+
+/// A time stamp to the nanosecond, without trailing zeros: the log's own time, without the
+/// float noise of re-adding its origin (`0.019000000000000128` was written for 0.019).
+fn push_time_text(text: &mut Vec<u8>, time_s: f64) {
+    let start = text.len();
+    push_shortest(text, time_s);
+    // Below 2^22 s (48 days) a time's ulp is under 1 ns, so a shortest text with at most 9
+    // decimals is already the time rounded to the nanosecond: the quick and usual case.
+    // Larger times (Unix epoch stamps) and longer texts are rounded as defined.
+    if time_s.abs() < QUICK_TIME_LIMIT_S && decimals(&text[start..]) <= 9 {
+        return;
+    }
+    text.truncate(start);
+    // Writing to a Vec cannot fail.
+    let _ = write!(text, "{time_s:.9}");
+    // The fraction's trailing zeros, then its point when nothing is left of it.
+    while text.len() > start && text.last() == Some(&b'0') {
+        text.pop();
+    }
+    if text.last() == Some(&b'.') {
+        text.pop();
+    }
+    if text.len() == start || text[start..] == *b"-" {
+        text.truncate(start);
+        text.push(b'0');
+    }
+}
+
+/// Times below this have an ulp under 1 ns (2^22 s: ulp 2^-30 s).
+const QUICK_TIME_LIMIT_S: f64 = 4_194_304.0;
+
+/// The digits after the decimal point in a number's plain decimal text.
+fn decimals(number: &[u8]) -> usize {
+    number.iter().position(|&b| b == b'.').map_or(0, |point| number.len() - point - 1)
+}
+
+/// A raw reading in deg/h to 12 significant digits, the shortest text that reads back as
+/// that: the logged value without the float noise of its unit conversion (0.1 deg/s was
+/// written `360.00000000000006`); 12 digits keep more than any gyro resolves.
+fn push_raw_text(text: &mut Vec<u8>, raw_dph: f64) {
+    let start = text.len();
+    push_shortest(text, raw_dph);
+    // The shortest text of a value with at most 12 significant digits is already that value
+    // rounded to 12 digits (the value lies within half a unit in its 17th digit of it), so
+    // only longer texts are rounded, which is the rare and slow case.
+    if !raw_dph.is_finite() || significant_digits(&text[start..]) <= RAW_SIGNIFICANT_DIGITS {
+        return;
+    }
+    text.truncate(start);
+    let rounded: f64 = format!("{raw_dph:.*e}", RAW_SIGNIFICANT_DIGITS - 1).parse().unwrap_or(raw_dph);
+    // Writing to a Vec cannot fail.
+    let _ = write!(text, "{rounded}");
+}
+
+/// Significant digits kept in a raw reading's text.
+const RAW_SIGNIFICANT_DIGITS: usize = 12;
+
+/// The significant digits in a number's plain decimal text (no exponent): its digits less
+/// the leading and trailing zeros.
+fn significant_digits(number: &[u8]) -> usize {
+    let digits = number.iter().filter(|b| b.is_ascii_digit()).skip_while(|&&d| d == b'0');
+    // The count up to the last digit that is not zero.
+    digits.enumerate().filter(|&(_, &d)| d != b'0').last().map_or(0, |(k, _)| k + 1)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{push_raw_text, push_time_text, significant_digits};
+
+    fn raw_text(raw_dph: f64) -> String {
+        let mut text = Vec::new();
+        push_raw_text(&mut text, raw_dph);
+        String::from_utf8(text).unwrap()
+    }
+
+    fn time_text(time_s: f64) -> String {
+        let mut text = b"x,".to_vec();
+        push_time_text(&mut text, time_s);
+        String::from_utf8(text[2..].to_vec()).unwrap()
+    }
+
+    /// The definition: the value rounded to 12 significant digits, then its shortest text.
+    fn raw_text_by_definition(raw_dph: f64) -> String {
+        if !raw_dph.is_finite() {
+            return format!("{raw_dph}");
+        }
+        let rounded: f64 = format!("{raw_dph:.11e}").parse().unwrap();
+        format!("{rounded}")
+    }
+
+    #[test]
+    fn raw_readings_are_written_without_conversion_noise() {
+        assert_eq!(raw_text(0.1 * 3600.0), "360");
+        assert_eq!(raw_text(0.000_123_456_789_012_345_6), "0.000123456789012");
+        assert_eq!(raw_text(-216.0326), "-216.0326");
+        assert_eq!(raw_text(0.0), "0");
+        assert_eq!(raw_text(f64::NAN), "NaN");
+        // 12 significant digits: a reading with more is rounded there.
+        assert_eq!(raw_text(1.234_567_890_123_4), "1.23456789012");
+    }
+
+    #[test]
+    fn the_quick_raw_text_is_the_definitions_for_any_value() {
+        // Values of every magnitude and digit count, from a fixed-seed generator: logged
+        // readings (few digits), converted ones (float noise), and arbitrary bit patterns.
+        let mut state = 0x9e37_79b9_7f4a_7c15_u64;
+        let mut next = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state
+        };
+        for k in 0..200_000 {
+            let bits = next();
+            let value = match k % 3 {
+                0 => f64::from_bits(bits),
+                1 => (bits % 2_000_000) as f64 / 1e6 - 1.0,
+                _ => (bits % 100_000) as f64 * 1e-4 * 3600.0 / 7.0,
+            };
+            assert_eq!(raw_text(value), raw_text_by_definition(value), "{value:e} ({bits:#x})");
+        }
+    }
+
+    /// The definition: the time rounded to the nanosecond, less trailing zeros.
+    fn time_text_by_definition(time_s: f64) -> String {
+        let text = format!("{time_s:.9}");
+        let trimmed = text.trim_end_matches('0').trim_end_matches('.');
+        if trimmed.is_empty() || trimmed == "-" {
+            "0".to_string()
+        } else {
+            trimmed.to_string()
+        }
+    }
+
+    #[test]
+    fn the_quick_time_text_is_the_definitions_for_any_time() {
+        let mut state = 0x2545_f491_4f6c_dd1d_u64;
+        let mut next = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state
+        };
+        for k in 0..200_000 {
+            let bits = next();
+            let time_s = match k % 4 {
+                // Sample times of logs at 1 Hz to 10 kHz, from an origin added in f64.
+                0 => 12.5 + (bits % 100_000_000) as f64 * 1e-4,
+                1 => (bits % 1_000_000_000) as f64 / 1000.0,
+                // Unix epoch stamps and times near the quick path's limit.
+                2 => 1_700_000_000.0 + (bits % 1_000_000) as f64 * 1e-3,
+                _ => super::QUICK_TIME_LIMIT_S + ((bits % 2_000_001) as f64 - 1e6) * 1e-6,
+            };
+            assert_eq!(time_text(time_s), time_text_by_definition(time_s), "{time_s:e}");
+            assert_eq!(time_text(-time_s), time_text_by_definition(-time_s), "{time_s:e}");
+        }
+        for bits in (0..200_000).map(|_| next()) {
+            let time_s = f64::from_bits(bits);
+            if time_s.is_finite() {
+                assert_eq!(time_text(time_s), time_text_by_definition(time_s), "{time_s:e}");
+            }
+        }
+    }
+
+    #[test]
+    fn significant_digits_ignore_leading_and_trailing_zeros() {
+        assert_eq!(significant_digits(b"0"), 0);
+        assert_eq!(significant_digits(b"-0.000120"), 2);
+        assert_eq!(significant_digits(b"100000000000000000000"), 1);
+        assert_eq!(significant_digits(b"1200.5"), 5);
+        assert_eq!(significant_digits(b"360.00000000000006"), 17);
+    }
+
+    #[test]
+    fn time_stamps_are_written_without_float_noise() {
+        assert_eq!(time_text(0.019000000000000128), "0.019");
+        assert_eq!(time_text(1_700_000_000.25), "1700000000.25");
+        assert_eq!(time_text(12.0), "12");
+        assert_eq!(time_text(100.0), "100");
+        assert_eq!(time_text(0.0), "0");
+        assert_eq!(time_text(-0.5), "-0.5");
+        assert_eq!(time_text(3.000_000_001), "3.000000001");
+    }
+
+    /// Rows of every block size and two axes, written through the threads, are the rows
+    /// written one by one by the definitions, in order; a body that failed writes only the
+    /// blocks it had finished.
+    #[test]
+    fn rows_written_through_the_threads_are_the_rows_in_order() {
+        let axes = 2;
+        let rows = 3 * super::BLOCK_ROWS + 12_345;
+        let output = |k: usize, axis: usize| super::AxisOutput {
+            raw_dph: (k as f64 * 0.1 + axis as f64) * 3600.0 / 7.0,
+            compensated_dph: (k as f32).sin() * 0.01,
+            bias_dph: k as f32 * 1e-7 - axis as f32,
+            flags: ((k + axis) % 32) as u8,
+        };
+        let time_s = |k: usize| 1_000.0 + k as f64 * 0.001;
+        let mut expected = super::header(axes);
+        for k in 0..rows {
+            expected.extend_from_slice(time_text_by_definition(time_s(k)).as_bytes());
+            for axis in 0..axes {
+                let o = output(k, axis);
+                let fields = format!(
+                    ",{},{},{},{}",
+                    raw_text_by_definition(o.raw_dph),
+                    o.compensated_dph,
+                    o.bias_dph,
+                    o.flags
+                );
+                expected.extend_from_slice(fields.as_bytes());
+            }
+            expected.push(b'\n');
+        }
+        let mut written = super::header(axes);
+        let (count, result) = super::write_rows(
+            &mut written,
+            axes,
+            |sink| (0..rows).map(|k| sink.push(time_s(k), (0..axes).map(|axis| output(k, axis)))).count(),
+            |_| true,
+        );
+        result.unwrap();
+        assert_eq!(count, rows);
+        assert!(
+            written == expected,
+            "the text differs from the definitions' (lengths {} and {})",
+            written.len(),
+            expected.len()
+        );
+
+        // A failed body: the rows of its whole blocks only, each whole.
+        let mut cut = Vec::new();
+        let failed_at = super::BLOCK_ROWS + 10;
+        let (_, result) = super::write_rows(
+            &mut cut,
+            axes,
+            |sink| {
+                for k in 0..failed_at {
+                    sink.push(time_s(k), (0..axes).map(|axis| output(k, axis))).unwrap();
+                }
+            },
+            |_| false,
+        );
+        result.unwrap();
+        let header_len = super::header(axes).len();
+        assert!(cut.len() <= expected.len() - header_len);
+        assert_eq!(cut, expected[header_len..header_len + cut.len()]);
+        assert_eq!(cut.iter().filter(|&&b| b == b'\n').count() % super::BLOCK_ROWS, 0);
+    }
+}
