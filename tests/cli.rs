@@ -1538,6 +1538,26 @@ fn the_shape_the_model_records_is_read_when_none_is_named() {
             && err.contains("--columns '' for a header row"),
         "{err}"
     );
+    // Its shape named but not its time column: the model's sample rate is said to be the
+    // model's, with the option that names the column (not the shape's options).
+    let err = run_err(args![
+        "validate",
+        "--model",
+        &model,
+        &csv,
+        "--columns",
+        "",
+        "--skip-lines",
+        "0",
+        "--delimiter",
+        "auto"
+    ]);
+    assert!(
+        err.contains(&format!("the sample rate, {rate} Hz, is the one"))
+            && err.contains("name it with --time-column")
+            && !err.contains("the log was read in this shape"),
+        "{err}"
+    );
     // Named as it is (a header row, nothing skipped, its time column): validated, with a note
     // naming the model's shape.
     let (csv_doc, noted) = validated_quietly(

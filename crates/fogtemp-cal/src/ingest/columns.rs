@@ -10,6 +10,10 @@ use super::{
 };
 use crate::error::CalError;
 
+/// How the error for a log with a time column read at a given sample rate begins (a caller
+/// that gave the rate from a model says so).
+pub const AMBIGUOUS_TIME: &str = "ambiguous time";
+
 /// `Plan::roles` entry of a field no row value comes from.
 pub(super) const SKIP: usize = usize::MAX;
 
@@ -291,7 +295,7 @@ fn locate_columns(path: &Path, header: Fields<'_>, f: &LogFormat, line: u64) -> 
             path: path.to_path_buf(),
             line,
             problem: format!(
-                "ambiguous time: the log has a time column '{}' and a sample rate of {rate} Hz was given; \
+                "{AMBIGUOUS_TIME}: the log has a time column '{}' and a sample rate of {rate} Hz was given; \
                  use one of them",
                 f.time_column
             ),

@@ -26,6 +26,7 @@
 
 mod batch;
 mod columns;
+pub use columns::AMBIGUOUS_TIME;
 mod datetime;
 mod decimal;
 mod parallel;

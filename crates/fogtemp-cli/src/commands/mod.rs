@@ -106,7 +106,14 @@ fn ingest_options_for(
         // The header's line, or the first data line of a log without one.
         last_shape_line: read_shape.skip_lines + 1 + u64::from(read_shape.column_names.is_empty()),
     });
-    Ok((ingest, ModelColumns { columns: from_model, shape, notes: chosen.notes }))
+    let sample_rate = ingest.format.sample_rate_hz.filter(|_| a.sample_rate_hz.is_none()).map(|rate| {
+        format!(
+            "the sample rate, {rate} Hz, is the one {} records of its fit's logs, which had no time column: \
+             for a log with one, name it with --time-column (and --time-unit if not seconds)",
+            path.display()
+        )
+    });
+    Ok((ingest, ModelColumns { columns: from_model, shape, sample_rate, notes: chosen.notes }))
 }
 
 /// The shape a log was read in when the model gave part of it, for its errors.
@@ -124,6 +131,8 @@ struct ShapeFromModel {
 struct ModelColumns {
     columns: Option<String>,
     shape: Option<ShapeFromModel>,
+    /// Said when the model gave the sample rate and the log has a time column.
+    sample_rate: Option<String>,
     /// The notes printed on how the log is read (columns, units, time, shape), for `--json`.
     notes: Vec<String>,
 }
@@ -140,6 +149,11 @@ impl ModelColumns {
             BadRow { row, .. } => row.line <= shape.last_shape_line,
             _ => false,
         };
+        if let (Some(origin), LogFormat { problem, .. }) = (&self.sample_rate, &e) {
+            if problem.starts_with(fogtemp_cal::ingest::AMBIGUOUS_TIME) {
+                return anyhow::Error::new(e).context(origin.clone());
+            }
+        }
         match (&self.shape, &self.columns, &e) {
             (Some(shape), _, _) if shape_shows(shape) => anyhow::Error::new(e).context(shape.context.clone()),
             (_, Some(origin), MissingColumn { .. }) => anyhow::Error::new(e).context(origin.clone()),
