@@ -152,7 +152,7 @@ impl Model {
     /// and broadcast against each other; the result has their broadcast shape, or is a
     /// Python float when both are scalars (or 0-d arrays), as numpy's ufuncs do. A NaN or
     /// infinite input gives NaN at that point. Runs with the GIL released, on `threads`
-    /// threads (default: every core) for large inputs.
+    /// threads (default: every core; 0 or 1: the calling thread) for large inputs.
     ///
     /// With `return_outside=True`, returns `(values, outside)`: `outside` (bool, same shape)
     /// is True where the point lies outside the calibrated region, where the value is the
