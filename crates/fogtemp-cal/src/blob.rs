@@ -534,10 +534,9 @@ fn encode_axis(out: &mut Vec<u8>, id: u16, axis: &AxisModel, selection: u16) -> 
 /// The calibrated region of normalised points: their convex hull, counter-clockwise,
 /// without collinear vertices (Andrew's monotone chain, exact in f64 for f32 inputs),
 /// starting from the lowest-leftmost point. A hull of more than [`MAX_REGION_VERTICES`]
-/// vertices is reduced by repeatedly removing the vertex whose triangle with its neighbours
-/// has the smallest area: the polygon stays convex and only shrinks (the polynomial is held
-/// slightly inside the calibrated points, never outside them). Empty for fewer than 3
-/// non-collinear points (no region: the polynomial is extrapolated).
+/// vertices is reduced to a convex polygon that still holds every point
+/// ([`enclosing_reduction`]). Empty for fewer than 3 non-collinear points (no region: the
+/// polynomial is extrapolated).
 pub fn calibrated_region(points: &[(f32, f32)]) -> Vec<[f32; 2]> {
     let mut p: Vec<(f32, f32)> =
         points.iter().copied().filter(|(x, y)| x.is_finite() && y.is_finite()).collect();
@@ -564,13 +563,115 @@ pub fn calibrated_region(points: &[(f32, f32)]) -> Vec<[f32; 2]> {
     if hull.len() < 3 {
         return Vec::new();
     }
-    while hull.len() > MAX_REGION_VERTICES as usize {
-        let n = hull.len();
-        let area = |i: usize| cross(hull[(i + n - 1) % n], hull[i], hull[(i + 1) % n]).abs();
-        let smallest = (0..n).min_by(|&a, &b| area(a).total_cmp(&area(b))).unwrap_or(0);
-        hull.remove(smallest);
+    if hull.len() > MAX_REGION_VERTICES as usize {
+        return enclosing_reduction(&hull, MAX_REGION_VERTICES as usize);
     }
     hull.into_iter().map(|(x, y)| [x, y]).collect()
+}
+
+/// A convex polygon (counter-clockwise, more than `max_vertices` vertices) reduced to
+/// `max_vertices` that still encloses it: repeatedly the edge whose removal adds the least
+/// area is replaced by the meeting point of its two neighbouring edges, extended (the
+/// greedy enclosing k-gon). The polygon only grows, by slivers along the boundary, so a
+/// trajectory that runs along the boundary (a temperature cycle's loop in (T, dT/dt)) stays
+/// inside it. The meeting points are moved [`REGION_OUTWARD_NUDGE`] further out, so their
+/// rounding to f32 cannot put a point of the old boundary outside.
+///
+/// Before (until 2026-11-28) the vertex of least triangle area was dropped instead, so the
+/// region only shrank: chords cut inside the hull, and on a temperature-cycling calibration
+/// most samples of a run fitted on were flagged `OUTSIDE_HULL` (98.5 % on a 1 kHz log of 2
+/// C/min cycles; review18 F6).
+fn enclosing_reduction(hull: &[(f32, f32)], max_vertices: usize) -> Vec<[f32; 2]> {
+    let mut polygon: Vec<[f64; 2]> = hull.iter().map(|&(x, y)| [f64::from(x), f64::from(y)]).collect();
+    // Per edge i (vertex i to i + 1): the area its removal adds and the meeting point.
+    let mut costs: Vec<Option<(f64, [f64; 2])>> =
+        (0..polygon.len()).map(|i| edge_removal(&polygon, i)).collect();
+    while polygon.len() > max_vertices.max(3) {
+        let cheapest = costs
+            .iter()
+            .enumerate()
+            .filter_map(|(i, c)| c.map(|(area, _)| (i, area)))
+            .min_by(|a, b| a.1.total_cmp(&b.1));
+        // A convex polygon of more than 4 vertices always has an edge whose neighbours
+        // meet outside it (its turns add up to one full turn); no such edge: stop here.
+        let Some((edge, _)) = cheapest else { break };
+        let Some((_, meeting)) = costs[edge] else { break };
+        let n = polygon.len();
+        let next = (edge + 1) % n;
+        polygon[edge] = meeting;
+        polygon.remove(next);
+        costs.remove(next);
+        // The removals of the edges within two of the new vertex change.
+        let n = polygon.len();
+        let at = if next == 0 { edge - 1 } else { edge };
+        for offset in [n - 2, n - 1, 0, 1] {
+            let i = (at + offset) % n;
+            costs[i] = edge_removal(&polygon, i);
+        }
+    }
+    let rounded: Vec<[f32; 2]> = polygon.iter().map(|&[x, y]| [x as f32, y as f32]).collect();
+    without_reflex_vertices(rounded)
+}
+
+/// `polygon` without the vertices where it turns right (or repeats), as the nudge or the
+/// rounding to f32 can leave where it was nearly straight: dropping such a vertex only
+/// grows the polygon (its neighbours' chord passes outside it), so it stays enclosing.
+fn without_reflex_vertices(mut polygon: Vec<[f32; 2]>) -> Vec<[f32; 2]> {
+    let turn = |p: &[[f32; 2]], i: usize| {
+        let n = p.len();
+        let ([ax, ay], [bx, by], [cx, cy]) = (p[(i + n - 1) % n], p[i], p[(i + 1) % n]);
+        let (e1, e2) = (
+            [f64::from(bx) - f64::from(ax), f64::from(by) - f64::from(ay)],
+            [f64::from(cx) - f64::from(bx), f64::from(cy) - f64::from(by)],
+        );
+        (e1 == [0.0, 0.0], e1[0] * e2[1] - e1[1] * e2[0])
+    };
+    while polygon.len() > 3 {
+        let Some(reflex) = (0..polygon.len()).find(|&i| {
+            let (repeated, cross) = turn(&polygon, i);
+            repeated || cross < 0.0
+        }) else {
+            break;
+        };
+        polygon.remove(reflex);
+    }
+    polygon
+}
+
+/// How far (normalised units) a meeting point of [`enclosing_reduction`] is moved outward,
+/// along the outward normal of the edge it replaces: 16 f32 ulps at 1, more than rounding.
+const REGION_OUTWARD_NUDGE: f64 = 2e-6;
+
+/// Removing edge `i` of a counter-clockwise convex polygon: the area added and the point
+/// where the edges before and after it meet when extended; `None` when they do not meet
+/// beyond it (their turns add up to half a turn or more).
+fn edge_removal(polygon: &[[f64; 2]], i: usize) -> Option<(f64, [f64; 2])> {
+    let n = polygon.len();
+    let vertex = |k: usize| polygon[k % n];
+    let (before, a, b, after) = (vertex(i + n - 1), vertex(i), vertex(i + 1), vertex(i + 2));
+    let sub = |p: [f64; 2], q: [f64; 2]| [p[0] - q[0], p[1] - q[1]];
+    let cross = |u: [f64; 2], v: [f64; 2]| u[0] * v[1] - u[1] * v[0];
+    let (d1, edge, d2) = (sub(a, before), sub(b, a), sub(after, b));
+    let turn = cross(d1, d2);
+    if turn <= 0.0 {
+        return None;
+    }
+    // a + t d1 on the line of (b, after): t = cross(b - a, d2) / cross(d1, d2).
+    let t = cross(edge, d2) / turn;
+    if !t.is_finite() || t < 0.0 {
+        return None;
+    }
+    let meeting = [a[0] + t * d1[0], a[1] + t * d1[1]];
+    let area = 0.5 * cross(edge, sub(meeting, a)).abs();
+    let length = edge[0].hypot(edge[1]);
+    if !area.is_finite() || length == 0.0 {
+        return None;
+    }
+    let outward = [edge[1] / length, -edge[0] / length];
+    Some((
+        area,
+        [meeting[0] + REGION_OUTWARD_NUDGE * outward[0], meeting[1] + REGION_OUTWARD_NUDGE * outward[1]],
+    ))
 }
 
 /// `mesh` with its vertices renumbered so that hull vertex h (the start of hull edge h) is
@@ -761,5 +862,107 @@ pub(crate) fn test_poly_axis(poly: Vec<PolyTerm>) -> AxisModel {
         },
         region: Vec::new(),
         poly_outside: PolyOutside::Extrapolate,
+    }
+}
+
+#[cfg(test)]
+mod region_tests {
+    use super::{calibrated_region, encode, test_poly_axis, ModelFile, MAX_REGION_VERTICES};
+    use fogtemp_core::{PolyOutside, PolyTerm};
+
+    /// The region as the core reads it from a blob (which also checks it is convex and
+    /// goes round once).
+    fn core_contains(region: &[[f32; 2]], points: &[(f32, f32)]) -> Vec<bool> {
+        let mut axis = test_poly_axis(vec![PolyTerm { temp_power: 0, rate_power: 0, coefficient_dph: 1.0 }]);
+        axis.region = region.to_vec();
+        axis.poly_outside = PolyOutside::HoldAtBoundary;
+        let model = ModelFile {
+            tool_version: String::new(),
+            input_digest: [0; 32],
+            axes: vec![axis],
+            columns: Vec::new(),
+            log_time: Default::default(),
+            log_reading: Default::default(),
+        };
+        let blob = encode(&model).expect("the region encodes and the core accepts it");
+        let model = fogtemp_core::Model::from_bytes(&blob).expect("reads");
+        let region = model.axis(0).expect("axis").region.expect("a region");
+        points.iter().map(|&(x, y)| region.contains(x, y)).collect()
+    }
+
+    /// The shoelace area of a polygon.
+    fn area(polygon: &[[f64; 2]]) -> f64 {
+        let n = polygon.len();
+        0.5 * (0..n)
+            .map(|i| {
+                let (a, b) = (polygon[i], polygon[(i + 1) % n]);
+                a[0] * b[1] - a[1] * b[0]
+            })
+            .sum::<f64>()
+    }
+
+    /// A fixed-seed jitter in [-amplitude, amplitude].
+    fn jitter(seed: &mut u64, amplitude: f64) -> f64 {
+        *seed ^= *seed << 13;
+        *seed ^= *seed >> 7;
+        *seed ^= *seed << 17;
+        ((*seed >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0) * amplitude
+    }
+
+    /// A temperature cycle's loop in (T, dT/dt) (an ellipse, 3000 features on it) and a
+    /// stadium (ramps at constant rates joined by turns, jittered): the region has at most
+    /// 64 vertices, holds every point by the core's own test, and is at most 2 % larger
+    /// than the points' convex hull (the polygon through the boundary points in order).
+    #[test]
+    fn a_region_reduced_to_64_vertices_holds_every_point() {
+        let mut seed = 0x5eed_u64;
+        let ellipse: Vec<[f64; 2]> = (0..3000)
+            .map(|k| {
+                let phase = k as f64 / 3000.0 * std::f64::consts::TAU;
+                [0.95 * phase.cos(), 0.9 * phase.sin()]
+            })
+            .collect();
+        let mut stadium = Vec::new();
+        for k in 0..1000 {
+            let x = -0.6 + 1.2 * k as f64 / 1000.0;
+            stadium.push([x, -0.8 + jitter(&mut seed, 1e-4)]);
+        }
+        for k in 0..500 {
+            let phase = -std::f64::consts::FRAC_PI_2 + std::f64::consts::PI * k as f64 / 500.0;
+            stadium.push([0.6 + 0.3 * phase.cos(), 0.8 * phase.sin()]);
+        }
+        for k in 0..1000 {
+            let x = 0.6 - 1.2 * k as f64 / 1000.0;
+            stadium.push([x, 0.8 + jitter(&mut seed, 1e-4)]);
+        }
+        for k in 0..500 {
+            let phase = std::f64::consts::FRAC_PI_2 + std::f64::consts::PI * k as f64 / 500.0;
+            stadium.push([-0.6 + 0.3 * phase.cos(), 0.8 * phase.sin()]);
+        }
+        for boundary in [ellipse, stadium] {
+            let mut points: Vec<(f32, f32)> = boundary.iter().map(|p| (p[0] as f32, p[1] as f32)).collect();
+            // Points inside too, which change nothing.
+            points.extend((0..500).map(|_| (jitter(&mut seed, 0.5) as f32, jitter(&mut seed, 0.5) as f32)));
+            let region = calibrated_region(&points);
+            assert!((3..=MAX_REGION_VERTICES as usize).contains(&region.len()), "{} vertices", region.len());
+            let inside = core_contains(&region, &points);
+            let outside: Vec<_> = points.iter().zip(&inside).filter(|(_, &i)| !i).map(|(p, _)| p).collect();
+            assert!(outside.is_empty(), "{} points outside, e.g. {:?}", outside.len(), outside.first());
+            let region_area =
+                area(&region.iter().map(|v| [f64::from(v[0]), f64::from(v[1])]).collect::<Vec<_>>());
+            let hull_area = area(&boundary);
+            assert!(
+                region_area >= hull_area && region_area <= 1.02 * hull_area,
+                "{region_area} vs {hull_area}"
+            );
+        }
+    }
+
+    /// A hull of at most 64 vertices is the region as it is: its vertices are calibration
+    /// points, counter-clockwise from the lowest-leftmost.
+    #[test]
+    fn a_small_hull_is_the_region_unchanged() {
+        let points = [(0.0, 0.0), (1.0, 0.0), (0.5, 0.2), (1.0, 1.0), (0.0, 1.0), (0.5, 1.0)];
+        assert_eq!(calibrated_region(&points), vec![[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]]);
     }
 }
