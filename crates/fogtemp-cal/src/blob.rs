@@ -838,6 +838,20 @@ fn put_f32(buf: &mut [u8], at: usize, v: f32) {
 
 /// A polynomial axis over the identity normalisation (T in C, dT/dt in C/min), with the
 /// default feature settings and no region: the unit tests' small models.
+/// The blob of a model of one axis, `axis`, with nothing else recorded.
+#[cfg(test)]
+pub(crate) fn test_blob(axis: AxisModel) -> Vec<u8> {
+    encode(&ModelFile {
+        tool_version: String::new(),
+        input_digest: [0; 32],
+        axes: vec![axis],
+        columns: Vec::new(),
+        log_time: Default::default(),
+        log_reading: Default::default(),
+    })
+    .expect("encodes")
+}
+
 #[cfg(test)]
 pub(crate) fn test_poly_axis(poly: Vec<PolyTerm>) -> AxisModel {
     AxisModel {
@@ -867,7 +881,7 @@ pub(crate) fn test_poly_axis(poly: Vec<PolyTerm>) -> AxisModel {
 
 #[cfg(test)]
 mod region_tests {
-    use super::{calibrated_region, encode, test_poly_axis, ModelFile, MAX_REGION_VERTICES};
+    use super::{calibrated_region, test_blob, test_poly_axis, MAX_REGION_VERTICES};
     use fogtemp_core::{PolyOutside, PolyTerm};
 
     /// The region as the core reads it from a blob (which also checks it is convex and
@@ -876,15 +890,7 @@ mod region_tests {
         let mut axis = test_poly_axis(vec![PolyTerm { temp_power: 0, rate_power: 0, coefficient_dph: 1.0 }]);
         axis.region = region.to_vec();
         axis.poly_outside = PolyOutside::HoldAtBoundary;
-        let model = ModelFile {
-            tool_version: String::new(),
-            input_digest: [0; 32],
-            axes: vec![axis],
-            columns: Vec::new(),
-            log_time: Default::default(),
-            log_reading: Default::default(),
-        };
-        let blob = encode(&model).expect("the region encodes and the core accepts it");
+        let blob = test_blob(axis);
         let model = fogtemp_core::Model::from_bytes(&blob).expect("reads");
         let region = model.axis(0).expect("axis").region.expect("a region");
         points.iter().map(|&(x, y)| region.contains(x, y)).collect()

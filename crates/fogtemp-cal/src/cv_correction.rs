@@ -124,22 +124,12 @@ pub fn corrected(fold_scores: &[f64], full: f64, folds: &[f64]) -> Vec<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::blob::{encode, ModelFile};
     use fogtemp_core::PolyTerm;
 
     /// A blob with one polynomial axis `c0 + c1 * T` (identity normalisation).
     fn linear_in_t(c0: f32, c1: f32) -> Vec<u8> {
         let term = |temp_power, coefficient_dph| PolyTerm { temp_power, rate_power: 0, coefficient_dph };
-        let axis = crate::blob::test_poly_axis(vec![term(0, c0), term(1, c1)]);
-        encode(&ModelFile {
-            tool_version: String::new(),
-            input_digest: [0; 32],
-            axes: vec![axis],
-            columns: Vec::new(),
-            log_time: Default::default(),
-            log_reading: Default::default(),
-        })
-        .expect("encodes")
+        crate::blob::test_blob(crate::blob::test_poly_axis(vec![term(0, c0), term(1, c1)]))
     }
 
     fn points(n: usize, f: impl Fn(f64) -> (f64, f64)) -> Vec<FeaturePoint> {

@@ -262,6 +262,16 @@ mod tests {
         format!("{rounded}")
     }
 
+    /// A fixed-seed xorshift generator of 64-bit values.
+    fn xorshift(mut state: u64) -> impl FnMut() -> u64 {
+        move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state
+        }
+    }
+
     #[test]
     fn raw_readings_are_written_without_conversion_noise() {
         assert_eq!(raw_text(0.1 * 3600.0), "360");
@@ -277,13 +287,7 @@ mod tests {
     fn the_quick_raw_text_is_the_definitions_for_any_value() {
         // Values of every magnitude and digit count, from a fixed-seed generator: logged
         // readings (few digits), converted ones (float noise), and arbitrary bit patterns.
-        let mut state = 0x9e37_79b9_7f4a_7c15_u64;
-        let mut next = || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            state
-        };
+        let mut next = xorshift(0x9e37_79b9_7f4a_7c15);
         for k in 0..200_000 {
             let bits = next();
             let value = match k % 3 {
@@ -308,13 +312,7 @@ mod tests {
 
     #[test]
     fn the_quick_time_text_is_the_definitions_for_any_time() {
-        let mut state = 0x2545_f491_4f6c_dd1d_u64;
-        let mut next = || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            state
-        };
+        let mut next = xorshift(0x2545_f491_4f6c_dd1d);
         for k in 0..200_000 {
             let bits = next();
             let time_s = match k % 4 {
