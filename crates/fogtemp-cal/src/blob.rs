@@ -564,40 +564,42 @@ pub fn calibrated_region(points: &[(f32, f32)]) -> Vec<[f32; 2]> {
         return Vec::new();
     }
     if hull.len() > MAX_REGION_VERTICES as usize {
-        return enclosing_reduction(&hull, MAX_REGION_VERTICES as usize);
+        let max = MAX_REGION_VERTICES as usize;
+        // The enclosing polygon when it passes every check; else the shrinking reduction,
+        // which always gives a valid region, so a fit never fails because of its region.
+        return enclosing_reduction(&hull, max).unwrap_or_else(|| shrinking_reduction(hull, max));
     }
     hull.into_iter().map(|(x, y)| [x, y]).collect()
 }
 
-/// A convex polygon (counter-clockwise, more than `max_vertices` vertices) reduced to
+/// A convex polygon (counter-clockwise, more than `max_vertices` vertices) reduced to at most
 /// `max_vertices` that still encloses it: repeatedly the edge whose removal adds the least
-/// area is replaced by the meeting point of its two neighbouring edges, extended (the
-/// greedy enclosing k-gon). The polygon only grows, by slivers along the boundary, so a
+/// area is replaced by the meeting point of its two neighbouring edges, extended (the greedy
+/// enclosing k-gon), in f64. The polygon only grows, by slivers along the boundary, so a
 /// trajectory that runs along the boundary (a temperature cycle's loop in (T, dT/dt)) stays
-/// inside it. The meeting points are moved [`REGION_OUTWARD_NUDGE`] further out, so their
-/// rounding to f32 cannot put a point of the old boundary outside.
+/// inside it. The result is then offset outward by [`REGION_OUTWARD_OFFSET`] (so rounding to
+/// f32 cannot cut the old boundary off), rounded, and cleared of vertices where rounding
+/// left it turning right. `None` when the result fails a check ([`is_enclosing_region`]).
 ///
-/// Before (until 2026-11-28) the vertex of least triangle area was dropped instead, so the
-/// region only shrank: chords cut inside the hull, and on a temperature-cycling calibration
-/// most samples of a run fitted on were flagged `OUTSIDE_HULL` (98.5 % on a 1 kHz log of 2
-/// C/min cycles; review18 F6).
-fn enclosing_reduction(hull: &[(f32, f32)], max_vertices: usize) -> Vec<[f32; 2]> {
+/// Before (until 2026-11-28) the vertex of least triangle area was dropped instead
+/// ([`shrinking_reduction`], now the fallback), so the region only shrank: chords cut inside
+/// the hull, and on a temperature-cycling calibration most samples of a run fitted on were
+/// flagged `OUTSIDE_HULL` (98.5 % on a 1 kHz log of 2 C/min cycles; review18 F6). A first
+/// version moved each meeting point outward inside the loop; on dense, smooth hulls that bent
+/// the neighbouring turns backward and the fit failed (review19 F1).
+fn enclosing_reduction(hull: &[(f32, f32)], max_vertices: usize) -> Option<Vec<[f32; 2]>> {
     let mut polygon: Vec<[f64; 2]> = hull.iter().map(|&(x, y)| [f64::from(x), f64::from(y)]).collect();
     // Per edge i (vertex i to i + 1): the area its removal adds and the meeting point.
     let mut costs: Vec<Option<(f64, [f64; 2])>> =
         (0..polygon.len()).map(|i| edge_removal(&polygon, i)).collect();
-    while polygon.len() > max_vertices.max(3) {
-        let cheapest = costs
+    while polygon.len() > max_vertices.max(4) {
+        let (edge, meeting) = costs
             .iter()
             .enumerate()
-            .filter_map(|(i, c)| c.map(|(area, _)| (i, area)))
-            .min_by(|a, b| a.1.total_cmp(&b.1));
-        // A convex polygon of more than 4 vertices always has an edge whose neighbours
-        // meet outside it (its turns add up to one full turn); no such edge: stop here.
-        let Some((edge, _)) = cheapest else { break };
-        let Some((_, meeting)) = costs[edge] else { break };
-        let n = polygon.len();
-        let next = (edge + 1) % n;
+            .filter_map(|(i, c)| c.map(|(area, meeting)| (i, area, meeting)))
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+            .map(|(i, _, meeting)| (i, meeting))?;
+        let next = (edge + 1) % polygon.len();
         polygon[edge] = meeting;
         polygon.remove(next);
         costs.remove(next);
@@ -609,21 +611,111 @@ fn enclosing_reduction(hull: &[(f32, f32)], max_vertices: usize) -> Vec<[f32; 2]
             costs[i] = edge_removal(&polygon, i);
         }
     }
-    let rounded: Vec<[f32; 2]> = polygon.iter().map(|&[x, y]| [x as f32, y as f32]).collect();
-    without_reflex_vertices(rounded)
+    let offset = offset_outward(&polygon, REGION_OUTWARD_OFFSET)?;
+    let region = without_reflex_vertices(offset.iter().map(|&[x, y]| [x as f32, y as f32]).collect());
+    is_enclosing_region(&region, hull, max_vertices).then_some(region)
 }
 
-/// `polygon` without the vertices where it turns right (or repeats), as the nudge or the
-/// rounding to f32 can leave where it was nearly straight: dropping such a vertex only
-/// grows the polygon (its neighbours' chord passes outside it), so it stays enclosing.
+/// How far (normalised units) the reduced region is offset outward before rounding to f32:
+/// 16 f32 ulps at 1, more than rounding moves a vertex.
+const REGION_OUTWARD_OFFSET: f64 = 2e-6;
+
+/// The largest area of an enclosing region against its hull's that is taken: slivers along
+/// a boundary add a few per cent; more means a meeting point flung far out.
+const MAX_REGION_AREA_RATIO: f64 = 1.1;
+
+/// A convex counter-clockwise polygon with every edge moved `distance` outward (parallel):
+/// vertex i where the moved edges before and after it meet. `None` when two edges are
+/// parallel or meet backward (no convex polygon).
+fn offset_outward(polygon: &[[f64; 2]], distance: f64) -> Option<Vec<[f64; 2]>> {
+    let n = polygon.len();
+    let moved_edge = |i: usize| {
+        let (a, b) = (polygon[i], polygon[(i + 1) % n]);
+        let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
+        let length = dx.hypot(dy);
+        let outward = [dy / length * distance, -dx / length * distance];
+        ([a[0] + outward[0], a[1] + outward[1]], [dx, dy])
+    };
+    (0..n)
+        .map(|i| {
+            let ((p, d1), (q, d2)) = (moved_edge((i + n - 1) % n), moved_edge(i));
+            let turn = d1[0] * d2[1] - d1[1] * d2[0];
+            // p + t d1 on the line q + u d2.
+            let t = ((q[0] - p[0]) * d2[1] - (q[1] - p[1]) * d2[0]) / turn;
+            let vertex = [p[0] + t * d1[0], p[1] + t * d1[1]];
+            (turn > 0.0 && vertex.iter().all(|c| c.is_finite())).then_some(vertex)
+        })
+        .collect()
+}
+
+/// Whether `region` is a valid calibrated region that encloses `hull`: 3 to `max_vertices`
+/// distinct vertices, turning left or straight at each (in f64 of the f32 values: stricter
+/// than the core's check), round once; every hull point inside by the core's test; an area
+/// at most [`MAX_REGION_AREA_RATIO`] times the hull's.
+fn is_enclosing_region(region: &[[f32; 2]], hull: &[(f32, f32)], max_vertices: usize) -> bool {
+    let n = region.len();
+    if !(3..=max_vertices).contains(&n) || region.iter().flatten().any(|c| !c.is_finite()) {
+        return false;
+    }
+    let edge = |i: usize| {
+        let (a, b) = (region[i], region[(i + 1) % n]);
+        [f64::from(b[0]) - f64::from(a[0]), f64::from(b[1]) - f64::from(a[1])]
+    };
+    let upper = |e: [f64; 2]| e[1] > 0.0 || (e[1] == 0.0 && e[0] > 0.0);
+    let mut windings = 0;
+    for i in 0..n {
+        let (e1, e2) = (edge(i), edge((i + 1) % n));
+        if e1 == [0.0, 0.0] || e1[0] * e2[1] - e1[1] * e2[0] < 0.0 {
+            return false;
+        }
+        windings += usize::from(!upper(e1) && upper(e2));
+    }
+    let contains = |x: f32, y: f32| {
+        (0..n).all(|i| {
+            let ([ax, ay], [bx, by]) = (region[i], region[(i + 1) % n]);
+            (bx - ax) * (y - ay) - (by - ay) * (x - ax) >= 0.0
+        })
+    };
+    let area = |points: &mut dyn Iterator<Item = [f64; 2]>| {
+        let points: Vec<[f64; 2]> = points.collect();
+        let m = points.len();
+        0.5 * (0..m)
+            .map(|i| points[i][0] * points[(i + 1) % m][1] - points[(i + 1) % m][0] * points[i][1])
+            .sum::<f64>()
+    };
+    let region_area = area(&mut region.iter().map(|v| [f64::from(v[0]), f64::from(v[1])]));
+    let hull_area = area(&mut hull.iter().map(|&(x, y)| [f64::from(x), f64::from(y)]));
+    windings == 1
+        && hull.iter().all(|&(x, y)| contains(x, y))
+        && region_area <= MAX_REGION_AREA_RATIO * hull_area
+}
+
+/// The reduction used until 2026-11-28, kept as the fallback: repeatedly the vertex whose
+/// triangle with its neighbours has the smallest area is dropped, so the polygon stays convex
+/// and only shrinks (its vertices are calibration points: always a valid region).
+fn shrinking_reduction(mut hull: Vec<(f32, f32)>, max_vertices: usize) -> Vec<[f32; 2]> {
+    let cross = |o: (f32, f32), a: (f32, f32), b: (f32, f32)| {
+        let (ox, oy) = (f64::from(o.0), f64::from(o.1));
+        (f64::from(a.0) - ox) * (f64::from(b.1) - oy) - (f64::from(a.1) - oy) * (f64::from(b.0) - ox)
+    };
+    while hull.len() > max_vertices {
+        let n = hull.len();
+        let area = |i: usize| cross(hull[(i + n - 1) % n], hull[i], hull[(i + 1) % n]).abs();
+        let smallest = (0..n).min_by(|&a, &b| area(a).total_cmp(&area(b))).unwrap_or(0);
+        hull.remove(smallest);
+    }
+    hull.into_iter().map(|(x, y)| [x, y]).collect()
+}
+
+/// `polygon` without the vertices where it turns right (or repeats), as rounding to f32 can
+/// leave where it was nearly straight: dropping such a vertex only grows the polygon (its
+/// neighbours' chord passes outside it), so it stays enclosing.
 fn without_reflex_vertices(mut polygon: Vec<[f32; 2]>) -> Vec<[f32; 2]> {
     let turn = |p: &[[f32; 2]], i: usize| {
         let n = p.len();
         let ([ax, ay], [bx, by], [cx, cy]) = (p[(i + n - 1) % n], p[i], p[(i + 1) % n]);
-        let (e1, e2) = (
-            [f64::from(bx) - f64::from(ax), f64::from(by) - f64::from(ay)],
-            [f64::from(cx) - f64::from(bx), f64::from(cy) - f64::from(by)],
-        );
+        let e1 = [f64::from(bx) - f64::from(ax), f64::from(by) - f64::from(ay)];
+        let e2 = [f64::from(cx) - f64::from(bx), f64::from(cy) - f64::from(by)];
         (e1 == [0.0, 0.0], e1[0] * e2[1] - e1[1] * e2[0])
     };
     while polygon.len() > 3 {
@@ -638,13 +730,9 @@ fn without_reflex_vertices(mut polygon: Vec<[f32; 2]>) -> Vec<[f32; 2]> {
     polygon
 }
 
-/// How far (normalised units) a meeting point of [`enclosing_reduction`] is moved outward,
-/// along the outward normal of the edge it replaces: 16 f32 ulps at 1, more than rounding.
-const REGION_OUTWARD_NUDGE: f64 = 2e-6;
-
 /// Removing edge `i` of a counter-clockwise convex polygon: the area added and the point
 /// where the edges before and after it meet when extended; `None` when they do not meet
-/// beyond it (their turns add up to half a turn or more).
+/// beyond it (their turns add up to half a turn or more, or to nothing).
 fn edge_removal(polygon: &[[f64; 2]], i: usize) -> Option<(f64, [f64; 2])> {
     let n = polygon.len();
     let vertex = |k: usize| polygon[k % n];
@@ -663,15 +751,7 @@ fn edge_removal(polygon: &[[f64; 2]], i: usize) -> Option<(f64, [f64; 2])> {
     }
     let meeting = [a[0] + t * d1[0], a[1] + t * d1[1]];
     let area = 0.5 * cross(edge, sub(meeting, a)).abs();
-    let length = edge[0].hypot(edge[1]);
-    if !area.is_finite() || length == 0.0 {
-        return None;
-    }
-    let outward = [edge[1] / length, -edge[0] / length];
-    Some((
-        area,
-        [meeting[0] + REGION_OUTWARD_NUDGE * outward[0], meeting[1] + REGION_OUTWARD_NUDGE * outward[1]],
-    ))
+    area.is_finite().then_some((area, meeting))
 }
 
 /// `mesh` with its vertices renumbered so that hull vertex h (the start of hull edge h) is
@@ -907,6 +987,28 @@ mod region_tests {
             .sum::<f64>()
     }
 
+    /// The convex hull of points, counter-clockwise (monotone chain, f64).
+    fn convex_hull(points: &[[f64; 2]]) -> Vec<[f64; 2]> {
+        let mut sorted = points.to_vec();
+        sorted.sort_by(|a, b| a[0].total_cmp(&b[0]).then(a[1].total_cmp(&b[1])));
+        sorted.dedup();
+        let cross = |o: [f64; 2], a: [f64; 2], b: [f64; 2]| {
+            (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0])
+        };
+        let mut hull: Vec<[f64; 2]> = Vec::new();
+        for pass in [sorted.clone(), sorted.iter().rev().copied().collect()] {
+            let start = hull.len();
+            for q in pass {
+                while hull.len() >= start + 2 && cross(hull[hull.len() - 2], hull[hull.len() - 1], q) <= 0.0 {
+                    hull.pop();
+                }
+                hull.push(q);
+            }
+            hull.pop();
+        }
+        hull
+    }
+
     /// A fixed-seed jitter in [-amplitude, amplitude].
     fn jitter(seed: &mut u64, amplitude: f64) -> f64 {
         *seed ^= *seed << 13;
@@ -915,10 +1017,11 @@ mod region_tests {
         ((*seed >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0) * amplitude
     }
 
-    /// A temperature cycle's loop in (T, dT/dt) (an ellipse, 3000 features on it) and a
-    /// stadium (ramps at constant rates joined by turns, jittered): the region has at most
-    /// 64 vertices, holds every point by the core's own test, and is at most 2 % larger
-    /// than the points' convex hull (the polygon through the boundary points in order).
+    /// A temperature cycle's loop in (T, dT/dt) (an ellipse, 3000 features on it), a
+    /// stadium (ramps at constant rates joined by turns, jittered) and a quantised loop: the
+    /// region has at most 64 vertices, holds every point by the core's own test, and is at
+    /// most 2 % larger than the points' convex hull, and not smaller (the shrinking fallback
+    /// would be).
     #[test]
     fn a_region_reduced_to_64_vertices_holds_every_point() {
         let mut seed = 0x5eed_u64;
@@ -945,7 +1048,16 @@ mod region_tests {
             let phase = std::f64::consts::FRAC_PI_2 + std::f64::consts::PI * k as f64 / 500.0;
             stadium.push([-0.6 + 0.3 * phase.cos(), 0.8 * phase.sin()]);
         }
-        for boundary in [ellipse, stadium] {
+        // A dense, smooth loop with a second harmonic, its temperature quantised to 1/3000
+        // of its span (a thermometer's 0.01 C over a 60 C cycle: a turn of about 1e-9 at
+        // each hull vertex), which made the first version of the reduction fail (review19).
+        let quantised: Vec<[f64; 2]> = (0..20_000)
+            .map(|k| {
+                let phase = k as f64 / 20_000.0 * std::f64::consts::TAU;
+                [(phase.cos() * 1500.0).round() / 1500.0, phase.sin() + 0.3 * (2.0 * phase).sin()]
+            })
+            .collect();
+        for boundary in [ellipse, stadium, quantised] {
             let mut points: Vec<(f32, f32)> = boundary.iter().map(|p| (p[0] as f32, p[1] as f32)).collect();
             // Points inside too, which change nothing.
             points.extend((0..500).map(|_| (jitter(&mut seed, 0.5) as f32, jitter(&mut seed, 0.5) as f32)));
@@ -956,7 +1068,7 @@ mod region_tests {
             assert!(outside.is_empty(), "{} points outside, e.g. {:?}", outside.len(), outside.first());
             let region_area =
                 area(&region.iter().map(|v| [f64::from(v[0]), f64::from(v[1])]).collect::<Vec<_>>());
-            let hull_area = area(&boundary);
+            let hull_area = area(&convex_hull(&boundary));
             assert!(
                 region_area >= hull_area && region_area <= 1.02 * hull_area,
                 "{region_area} vs {hull_area}"

@@ -4,6 +4,7 @@
 //! definition gives (the tests check the quick ways against the definitions).
 
 use std::io::Write;
+use std::time::{Duration, Instant};
 
 use rayon::prelude::*;
 
@@ -72,12 +73,14 @@ impl PendingRows {
 
 /// Rows in, CSV text out to `w` while the rows go on coming: `body` gets a [`RowSink`];
 /// full blocks are turned into text on other threads, and written in order here. After
-/// `body`, the rest is written when it succeeded (`Ok` from `succeeded`).
+/// `body`, the rest is written too, also when `body` failed (on a stream, the rows before an
+/// error are kept). With `latency` (a stream read as it is written, such as stdout), the
+/// rows gathered are written and flushed at least that often while rows come.
 pub fn write_rows<T>(
     w: &mut dyn Write,
     axes: usize,
+    latency: Option<Duration>,
     body: impl FnOnce(&mut RowSink<'_>) -> T,
-    succeeded: impl FnOnce(&T) -> bool,
 ) -> (T, std::io::Result<()>) {
     std::thread::scope(|scope| {
         // One block queued behind the one in hand: the rows in memory stay few.
@@ -90,9 +93,17 @@ pub fn write_rows<T>(
                 }
             }
         });
-        let mut sink = RowSink { pending: PendingRows::new(axes), to_text, texts, w };
+        let mut sink = RowSink {
+            pending: PendingRows::new(axes),
+            to_text,
+            texts,
+            in_flight: 0,
+            latency,
+            last_written: Instant::now(),
+            w,
+        };
         let result = body(&mut sink);
-        let written = if succeeded(&result) { sink.finish() } else { Ok(()) };
+        let written = sink.finish();
         (result, written)
     })
 }
@@ -102,39 +113,70 @@ pub struct RowSink<'w> {
     pending: PendingRows,
     to_text: std::sync::mpsc::SyncSender<PendingRows>,
     texts: std::sync::mpsc::Receiver<Vec<Vec<u8>>>,
+    /// Blocks sent whose text is not written yet.
+    in_flight: usize,
+    latency: Option<Duration>,
+    last_written: Instant,
     w: &'w mut dyn Write,
 }
 
+/// Rows between two looks at the clock when writing with a latency.
+const ROWS_PER_CLOCK_LOOK: usize = 16;
+
 impl RowSink<'_> {
     /// Adds a row; a full block goes to be turned into text, and the text that is ready is
-    /// written.
+    /// written. With a latency, rows waiting longer are written and flushed now.
     pub fn push(
         &mut self,
         time_s: f64,
         outputs: impl IntoIterator<Item = AxisOutput>,
     ) -> std::io::Result<()> {
         self.pending.push(time_s, outputs);
-        if !self.pending.is_full() {
+        if self.pending.is_full() {
+            self.send_pending()?;
+            while let Ok(text) = self.texts.try_recv() {
+                self.in_flight -= 1;
+                write_all(self.w, &text)?;
+            }
+        }
+        if let Some(latency) = self.latency {
+            let look = self.pending.times_s.len() % ROWS_PER_CLOCK_LOOK == 0;
+            if look && self.last_written.elapsed() >= latency {
+                self.send_pending()?;
+                self.write_in_flight()?;
+                self.w.flush()?;
+                self.last_written = Instant::now();
+            }
+        }
+        Ok(())
+    }
+
+    /// Sends the rows gathered (if any) to be turned into text.
+    fn send_pending(&mut self) -> std::io::Result<()> {
+        if self.pending.times_s.is_empty() {
             return Ok(());
         }
         let axes = self.pending.axes;
         let block = std::mem::replace(&mut self.pending, PendingRows::new(axes));
         self.send(block)?;
-        while let Ok(text) = self.texts.try_recv() {
+        self.in_flight += 1;
+        Ok(())
+    }
+
+    /// Waits for the text of every block sent and writes it.
+    fn write_in_flight(&mut self) -> std::io::Result<()> {
+        while self.in_flight > 0 {
+            let text = self.texts.recv().map_err(|_| std::io::Error::other("the CSV text thread stopped"))?;
+            self.in_flight -= 1;
             write_all(self.w, &text)?;
         }
         Ok(())
     }
 
-    /// Sends the last block and writes every text still to come.
+    /// Sends the last rows and writes every text still to come.
     fn finish(mut self) -> std::io::Result<()> {
-        let block = std::mem::replace(&mut self.pending, PendingRows::new(0));
-        self.send(block)?;
-        // The text thread ends when nothing more can come.
-        drop(self.to_text);
-        for text in self.texts {
-            write_all(self.w, &text)?;
-        }
+        self.send_pending()?;
+        self.write_in_flight()?;
         self.w.flush()
     }
 
@@ -385,12 +427,9 @@ mod tests {
             expected.push(b'\n');
         }
         let mut written = super::header(axes);
-        let (count, result) = super::write_rows(
-            &mut written,
-            axes,
-            |sink| (0..rows).map(|k| sink.push(time_s(k), (0..axes).map(|axis| output(k, axis)))).count(),
-            |_| true,
-        );
+        let (count, result) = super::write_rows(&mut written, axes, None, |sink| {
+            (0..rows).map(|k| sink.push(time_s(k), (0..axes).map(|axis| output(k, axis)))).count()
+        });
         result.unwrap();
         assert_eq!(count, rows);
         assert!(
@@ -400,23 +439,59 @@ mod tests {
             expected.len()
         );
 
-        // A failed body: the rows of its whole blocks only, each whole.
+        // A body that stops part-way (a bad row): every row it gave is written, in order.
+        let stopped_at = super::BLOCK_ROWS + 10;
         let mut cut = Vec::new();
-        let failed_at = super::BLOCK_ROWS + 10;
-        let (_, result) = super::write_rows(
-            &mut cut,
-            axes,
-            |sink| {
-                for k in 0..failed_at {
-                    sink.push(time_s(k), (0..axes).map(|axis| output(k, axis))).unwrap();
-                }
-            },
-            |_| false,
-        );
+        let ((), result) = super::write_rows(&mut cut, axes, None, |sink| {
+            for k in 0..stopped_at {
+                sink.push(time_s(k), (0..axes).map(|axis| output(k, axis))).unwrap();
+            }
+        });
         result.unwrap();
         let header_len = super::header(axes).len();
-        assert!(cut.len() <= expected.len() - header_len);
         assert_eq!(cut, expected[header_len..header_len + cut.len()]);
-        assert_eq!(cut.iter().filter(|&&b| b == b'\n').count() % super::BLOCK_ROWS, 0);
+        assert_eq!(cut.iter().filter(|&&b| b == b'\n').count(), stopped_at);
+    }
+
+    /// A writer that counts the bytes it was given and the flushes, readable while it is lent.
+    struct Counting(std::rc::Rc<std::cell::Cell<(usize, usize)>>);
+
+    impl std::io::Write for Counting {
+        fn write(&mut self, bytes: &[u8]) -> std::io::Result<usize> {
+            let (written, flushes) = self.0.get();
+            self.0.set((written + bytes.len(), flushes));
+            Ok(bytes.len())
+        }
+        fn flush(&mut self) -> std::io::Result<()> {
+            let (written, flushes) = self.0.get();
+            self.0.set((written, flushes + 1));
+            Ok(())
+        }
+    }
+
+    /// With a latency, rows are written and flushed while the body goes on (a live stream);
+    /// without, they wait for a whole block.
+    #[test]
+    fn a_stream_gets_its_rows_while_they_come() {
+        let output = super::AxisOutput { raw_dph: 1.5, compensated_dph: 1.25, bias_dph: 0.25, flags: 0 };
+        for (latency, expect_early) in [(Some(std::time::Duration::ZERO), true), (None, false)] {
+            let seen = std::rc::Rc::new(std::cell::Cell::new((0, 0)));
+            let mut w = Counting(seen.clone());
+            let (during, result) = super::write_rows(&mut w, 1, latency, |sink| {
+                for k in 0..100 {
+                    sink.push(k as f64, [output]).unwrap();
+                }
+                seen.get()
+            });
+            result.unwrap();
+            let (written, flushes) = during;
+            assert_eq!(
+                written > 0 && flushes > 0,
+                expect_early,
+                "{latency:?}: {written} bytes, {flushes} flushes"
+            );
+            let total: usize = (0..100).map(|k| format!("{k},1.5,1.25,0.25,0\n").len()).sum();
+            assert_eq!(seen.get().0, total, "every row written in the end");
+        }
     }
 }

@@ -12,6 +12,10 @@ use crate::args::CompensateArgs;
 use crate::compensated_csv::{self, AxisOutput, RowSink};
 use crate::output::{check_output_file, refuse_overwriting_inputs, write_atomic, RowProgress};
 
+/// How long rows may wait before `--out -` writes them: a live log piped in is compensated
+/// as it comes.
+const STREAM_LATENCY: std::time::Duration = std::time::Duration::from_millis(100);
+
 /// Set while `compensate --out -` streams its CSV to stdout, for the interrupt handler's note.
 pub static STREAMING_TO_STDOUT: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
 
@@ -65,6 +69,10 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
         // number (or a flag count), which CSV never quotes, so no CSV writer is needed.
         let output_error = |source: std::io::Error| fogtemp_cal::CalError::Io { path: a.out.clone(), source };
         w.write_all(&compensated_csv::header(axes)).map_err(output_error)?;
+        if to_stdout {
+            // A stream shows its header at once.
+            w.flush().map_err(output_error)?;
+        }
         let read = |sink: &mut RowSink<'_>| {
             fogtemp_cal::ingest::read_log_with_progress(
                 &a.log,
@@ -107,8 +115,7 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
                 |b, r| bar.update(b, r),
             )
         };
-        let (r, written) =
-            compensated_csv::write_rows(w, axes, read, |r| r.as_ref().is_ok_and(|r| r.rows > 0));
+        let (r, written) = compensated_csv::write_rows(w, axes, to_stdout.then_some(STREAM_LATENCY), read);
         let r = match r {
             Err(fogtemp_cal::CalError::Io { path, source }) if path == a.out => {
                 return Err(fogtemp_cal::CalError::Io { path, source }.into())
