@@ -215,15 +215,19 @@ fn push_shortest(text: &mut Vec<u8>, value: impl std::fmt::Display) {
     let _ = write!(text, "{value}");
 }
 
-/// A time stamp to the nanosecond, without trailing zeros: the log's own time, without the
-/// float noise of re-adding its origin (`0.019000000000000128` was written for 0.019).
+/// A time stamp without float noise: its shortest text when that has at most 9 decimals,
+/// else the time rounded to the nanosecond, without trailing zeros. The log's own time, not
+/// the noise of re-adding its origin (`0.019000000000000128` was written for 0.019).
+///
+/// Below 2^22 s (48 days) a time's ulp is under 1 ns, so a shortest text with at most 9
+/// decimals is the time rounded to the nanosecond: the two are one rule there. Above, the
+/// ulp of a Unix epoch stamp is 238 ns, and the shortest text (`1700007200.001`) is what the
+/// log said, where nanosecond rounding wrote the binary value's digits (`1700007200.000999928`,
+/// until 2026-11-28, review19 F7); both read back as the same f64.
 fn push_time_text(text: &mut Vec<u8>, time_s: f64) {
     let start = text.len();
     push_shortest(text, time_s);
-    // Below 2^22 s (48 days) a time's ulp is under 1 ns, so a shortest text with at most 9
-    // decimals is already the time rounded to the nanosecond: the quick and usual case.
-    // Larger times (Unix epoch stamps) and longer texts are rounded as defined.
-    if time_s.abs() < QUICK_TIME_LIMIT_S && decimals(&text[start..]) <= 9 {
+    if decimals(&text[start..]) <= 9 {
         return;
     }
     text.truncate(start);
@@ -243,7 +247,8 @@ fn push_time_text(text: &mut Vec<u8>, time_s: f64) {
 }
 
 /// Times below this have an ulp under 1 ns (2^22 s: ulp 2^-30 s).
-const QUICK_TIME_LIMIT_S: f64 = 4_194_304.0;
+#[cfg(test)]
+const NANOSECOND_ULP_LIMIT_S: f64 = 4_194_304.0;
 
 /// The digits after the decimal point in a number's plain decimal text.
 fn decimals(number: &[u8]) -> usize {
@@ -352,8 +357,21 @@ mod tests {
         }
     }
 
+    /// Below 2^22 s: the nanosecond rounding's text exactly. Above: a text that reads back
+    /// as the time itself, or else the nanosecond rounding's, and never longer than it.
+    fn check_time_text(time_s: f64) {
+        let (written, rounded) = (time_text(time_s), time_text_by_definition(time_s));
+        if time_s.abs() < super::NANOSECOND_ULP_LIMIT_S {
+            assert_eq!(written, rounded, "{time_s:e}");
+        } else {
+            let reads_back = written.parse::<f64>().is_ok_and(|t| t == time_s);
+            assert!(reads_back || written == rounded, "{time_s:e}: {written} ({rounded})");
+            assert!(written.len() <= rounded.len(), "{time_s:e}: {written} ({rounded})");
+        }
+    }
+
     #[test]
-    fn the_quick_time_text_is_the_definitions_for_any_time() {
+    fn time_texts_are_the_nanosecond_rounding_or_read_back_as_the_time() {
         let mut next = xorshift(0x2545_f491_4f6c_dd1d);
         for k in 0..200_000 {
             let bits = next();
@@ -363,15 +381,16 @@ mod tests {
                 1 => (bits % 1_000_000_000) as f64 / 1000.0,
                 // Unix epoch stamps and times near the quick path's limit.
                 2 => 1_700_000_000.0 + (bits % 1_000_000) as f64 * 1e-3,
-                _ => super::QUICK_TIME_LIMIT_S + ((bits % 2_000_001) as f64 - 1e6) * 1e-6,
+                _ => super::NANOSECOND_ULP_LIMIT_S + ((bits % 2_000_001) as f64 - 1e6) * 1e-6,
             };
-            assert_eq!(time_text(time_s), time_text_by_definition(time_s), "{time_s:e}");
-            assert_eq!(time_text(-time_s), time_text_by_definition(-time_s), "{time_s:e}");
+            for time_s in [time_s, -time_s] {
+                check_time_text(time_s);
+            }
         }
         for bits in (0..200_000).map(|_| next()) {
             let time_s = f64::from_bits(bits);
             if time_s.is_finite() {
-                assert_eq!(time_text(time_s), time_text_by_definition(time_s), "{time_s:e}");
+                check_time_text(time_s);
             }
         }
     }
@@ -394,6 +413,8 @@ mod tests {
         assert_eq!(time_text(0.0), "0");
         assert_eq!(time_text(-0.5), "-0.5");
         assert_eq!(time_text(3.000_000_001), "3.000000001");
+        // A Unix epoch stamp as logged, not its binary value's digits.
+        assert_eq!(time_text(1_700_007_200.001), "1700007200.001");
     }
 
     /// Rows of every block size and two axes, written through the threads, are the rows
