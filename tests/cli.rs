@@ -1642,6 +1642,16 @@ fn outputs_are_atomic() {
         assert_eq!(entries(dir.path()), before, "{args:?}");
     }
 
+    // --out under a file, as if it were a folder: said so (it used to say "does not exist").
+    let under_file = dir.path().join("existing_file");
+    fs::write(&under_file, "x").expect("write");
+    let inside = under_file.join("out.file");
+    for args in commands(&inside).into_iter().take(2) {
+        let stderr = run_err(&args);
+        assert!(stderr.contains("existing_file is a file, not a folder"), "{args:?}: {stderr}");
+    }
+    fs::remove_file(&under_file).expect("remove");
+
     // --out names an existing folder: every command refuses it before its work (the rename
     // failure behind that check is `fogtemp_cal::output`'s test).
     let taken = dir.path().join("taken");

@@ -48,6 +48,9 @@ pub fn check_output_file(out: &Path) -> Result<()> {
         Some(p) if !p.as_os_str().is_empty() => p,
         _ => Path::new("."),
     };
+    if folder.exists() && !folder.is_dir() {
+        bail!("{}: {} is a file, not a folder", out.display(), folder.display());
+    }
     if !folder.is_dir() {
         bail!("{}: the folder {} does not exist", out.display(), folder.display());
     }
