@@ -295,7 +295,7 @@ fn locate_columns(path: &Path, header: Fields<'_>, f: &LogFormat, line: u64) -> 
             path: path.to_path_buf(),
             line,
             problem: format!(
-                "{AMBIGUOUS_TIME}: the log has a time column '{}' and a sample rate of {rate} Hz was given; \
+                "{AMBIGUOUS_TIME}: the log has a time column '{}' and a sample rate of {rate} Hz is set (named, or recorded by the model); \
                  use one of them",
                 f.time_column
             ),
