@@ -545,15 +545,11 @@ pub fn calibrated_region(points: &[(f32, f32)]) -> Vec<[f32; 2]> {
     if p.len() < 3 {
         return Vec::new();
     }
-    let cross = |o: (f32, f32), a: (f32, f32), b: (f32, f32)| {
-        let (ox, oy) = (f64::from(o.0), f64::from(o.1));
-        (f64::from(a.0) - ox) * (f64::from(b.1) - oy) - (f64::from(a.1) - oy) * (f64::from(b.0) - ox)
-    };
     let mut hull: Vec<(f32, f32)> = Vec::with_capacity(2 * p.len());
     for pass in [p.clone(), p.iter().rev().copied().collect::<Vec<_>>()] {
         let start = hull.len();
         for q in pass {
-            while hull.len() >= start + 2 && cross(hull[hull.len() - 2], hull[hull.len() - 1], q) <= 0.0 {
+            while hull.len() >= start + 2 && turn(hull[hull.len() - 2], hull[hull.len() - 1], q) <= 0.0 {
                 hull.pop();
             }
             hull.push(q);
@@ -588,7 +584,7 @@ pub fn calibrated_region(points: &[(f32, f32)]) -> Vec<[f32; 2]> {
 /// version moved each meeting point outward inside the loop; on dense, smooth hulls that bent
 /// the neighbouring turns backward and the fit failed (review19 F1).
 fn enclosing_reduction(hull: &[(f32, f32)], max_vertices: usize) -> Option<Vec<[f32; 2]>> {
-    let mut polygon: Vec<[f64; 2]> = hull.iter().map(|&(x, y)| [f64::from(x), f64::from(y)]).collect();
+    let mut polygon: Vec<[f64; 2]> = hull.iter().map(|&p| widen(p)).collect();
     // Per edge i (vertex i to i + 1): the area its removal adds and the meeting point.
     let mut costs: Vec<Option<(f64, [f64; 2])>> =
         (0..polygon.len()).map(|i| edge_removal(&polygon, i)).collect();
@@ -630,18 +626,17 @@ const MAX_REGION_AREA_RATIO: f64 = 1.1;
 fn offset_outward(polygon: &[[f64; 2]], distance: f64) -> Option<Vec<[f64; 2]>> {
     let n = polygon.len();
     let moved_edge = |i: usize| {
-        let (a, b) = (polygon[i], polygon[(i + 1) % n]);
-        let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
-        let length = dx.hypot(dy);
-        let outward = [dy / length * distance, -dx / length * distance];
-        ([a[0] + outward[0], a[1] + outward[1]], [dx, dy])
+        let (a, d) = (polygon[i], sub(polygon[(i + 1) % n], polygon[i]));
+        let length = d[0].hypot(d[1]);
+        let outward = [d[1] / length * distance, -d[0] / length * distance];
+        ([a[0] + outward[0], a[1] + outward[1]], d)
     };
     (0..n)
         .map(|i| {
             let ((p, d1), (q, d2)) = (moved_edge((i + n - 1) % n), moved_edge(i));
-            let turn = d1[0] * d2[1] - d1[1] * d2[0];
+            let turn = cross(d1, d2);
             // p + t d1 on the line q + u d2.
-            let t = ((q[0] - p[0]) * d2[1] - (q[1] - p[1]) * d2[0]) / turn;
+            let t = cross(sub(q, p), d2) / turn;
             let vertex = [p[0] + t * d1[0], p[1] + t * d1[1]];
             (turn > 0.0 && vertex.iter().all(|c| c.is_finite())).then_some(vertex)
         })
@@ -657,50 +652,73 @@ fn is_enclosing_region(region: &[[f32; 2]], hull: &[(f32, f32)], max_vertices: u
     if !(3..=max_vertices).contains(&n) || region.iter().flatten().any(|c| !c.is_finite()) {
         return false;
     }
-    let edge = |i: usize| {
-        let (a, b) = (region[i], region[(i + 1) % n]);
-        [f64::from(b[0]) - f64::from(a[0]), f64::from(b[1]) - f64::from(a[1])]
-    };
-    let upper = |e: [f64; 2]| e[1] > 0.0 || (e[1] == 0.0 && e[0] > 0.0);
-    let mut windings = 0;
-    for i in 0..n {
-        let (e1, e2) = (edge(i), edge((i + 1) % n));
-        if e1 == [0.0, 0.0] || e1[0] * e2[1] - e1[1] * e2[0] < 0.0 {
-            return false;
-        }
-        windings += usize::from(!upper(e1) && upper(e2));
+    if (0..n).any(|i| is_reflex_or_repeated(region, i)) {
+        return false;
     }
+    let upper = |e: [f64; 2]| e[1] > 0.0 || (e[1] == 0.0 && e[0] > 0.0);
+    let windings = (0..n).filter(|&i| !upper(edge_f64(region, i)) && upper(edge_f64(region, i + 1))).count();
     let contains = |x: f32, y: f32| {
         (0..n).all(|i| {
             let ([ax, ay], [bx, by]) = (region[i], region[(i + 1) % n]);
             (bx - ax) * (y - ay) - (by - ay) * (x - ax) >= 0.0
         })
     };
-    let area = |points: &mut dyn Iterator<Item = [f64; 2]>| {
-        let points: Vec<[f64; 2]> = points.collect();
-        let m = points.len();
-        0.5 * (0..m)
-            .map(|i| points[i][0] * points[(i + 1) % m][1] - points[(i + 1) % m][0] * points[i][1])
-            .sum::<f64>()
-    };
-    let region_area = area(&mut region.iter().map(|v| [f64::from(v[0]), f64::from(v[1])]));
-    let hull_area = area(&mut hull.iter().map(|&(x, y)| [f64::from(x), f64::from(y)]));
+    let region_area = polygon_area(&region.iter().map(|&[x, y]| widen((x, y))).collect::<Vec<_>>());
+    let hull_area = polygon_area(&hull.iter().map(|&p| widen(p)).collect::<Vec<_>>());
     windings == 1
         && hull.iter().all(|&(x, y)| contains(x, y))
         && region_area <= MAX_REGION_AREA_RATIO * hull_area
+}
+
+/// Edge `i` of an f32 polygon (from vertex i to the next, indices taken round), in f64.
+fn edge_f64(polygon: &[[f32; 2]], i: usize) -> [f64; 2] {
+    let n = polygon.len();
+    let (a, b) = (polygon[i % n], polygon[(i + 1) % n]);
+    [f64::from(b[0]) - f64::from(a[0]), f64::from(b[1]) - f64::from(a[1])]
+}
+
+/// Whether an f32 polygon turns right at vertex `i`, or repeats the vertex before it
+/// (exactly, in f64 of the f32 values).
+fn is_reflex_or_repeated(polygon: &[[f32; 2]], i: usize) -> bool {
+    let n = polygon.len();
+    let (e1, e2) = (edge_f64(polygon, i + n - 1), edge_f64(polygon, i));
+    e1 == [0.0, 0.0] || cross(e1, e2) < 0.0
+}
+
+/// The z component of the cross product of two plane vectors.
+fn cross(u: [f64; 2], v: [f64; 2]) -> f64 {
+    u[0] * v[1] - u[1] * v[0]
+}
+
+/// An f32 point in f64 (exact).
+fn widen((x, y): (f32, f32)) -> [f64; 2] {
+    [f64::from(x), f64::from(y)]
+}
+
+/// Twice the signed area of the triangle (o, a, b), exact in f64 for f32 points: positive
+/// when it turns left at a.
+fn turn(o: (f32, f32), a: (f32, f32), b: (f32, f32)) -> f64 {
+    cross(sub(widen(a), widen(o)), sub(widen(b), widen(o)))
+}
+
+/// `p - q`.
+fn sub(p: [f64; 2], q: [f64; 2]) -> [f64; 2] {
+    [p[0] - q[0], p[1] - q[1]]
+}
+
+/// The signed (shoelace) area of a polygon: positive counter-clockwise.
+fn polygon_area(polygon: &[[f64; 2]]) -> f64 {
+    let n = polygon.len();
+    0.5 * (0..n).map(|i| cross(polygon[i], polygon[(i + 1) % n])).sum::<f64>()
 }
 
 /// The reduction used until 2026-11-28, kept as the fallback: repeatedly the vertex whose
 /// triangle with its neighbours has the smallest area is dropped, so the polygon stays convex
 /// and only shrinks (its vertices are calibration points: always a valid region).
 fn shrinking_reduction(mut hull: Vec<(f32, f32)>, max_vertices: usize) -> Vec<[f32; 2]> {
-    let cross = |o: (f32, f32), a: (f32, f32), b: (f32, f32)| {
-        let (ox, oy) = (f64::from(o.0), f64::from(o.1));
-        (f64::from(a.0) - ox) * (f64::from(b.1) - oy) - (f64::from(a.1) - oy) * (f64::from(b.0) - ox)
-    };
     while hull.len() > max_vertices {
         let n = hull.len();
-        let area = |i: usize| cross(hull[(i + n - 1) % n], hull[i], hull[(i + 1) % n]).abs();
+        let area = |i: usize| turn(hull[(i + n - 1) % n], hull[i], hull[(i + 1) % n]).abs();
         let smallest = (0..n).min_by(|&a, &b| area(a).total_cmp(&area(b))).unwrap_or(0);
         hull.remove(smallest);
     }
@@ -711,18 +729,8 @@ fn shrinking_reduction(mut hull: Vec<(f32, f32)>, max_vertices: usize) -> Vec<[f
 /// leave where it was nearly straight: dropping such a vertex only grows the polygon (its
 /// neighbours' chord passes outside it), so it stays enclosing.
 fn without_reflex_vertices(mut polygon: Vec<[f32; 2]>) -> Vec<[f32; 2]> {
-    let turn = |p: &[[f32; 2]], i: usize| {
-        let n = p.len();
-        let ([ax, ay], [bx, by], [cx, cy]) = (p[(i + n - 1) % n], p[i], p[(i + 1) % n]);
-        let e1 = [f64::from(bx) - f64::from(ax), f64::from(by) - f64::from(ay)];
-        let e2 = [f64::from(cx) - f64::from(bx), f64::from(cy) - f64::from(by)];
-        (e1 == [0.0, 0.0], e1[0] * e2[1] - e1[1] * e2[0])
-    };
     while polygon.len() > 3 {
-        let Some(reflex) = (0..polygon.len()).find(|&i| {
-            let (repeated, cross) = turn(&polygon, i);
-            repeated || cross < 0.0
-        }) else {
+        let Some(reflex) = (0..polygon.len()).find(|&i| is_reflex_or_repeated(&polygon, i)) else {
             break;
         };
         polygon.remove(reflex);
@@ -737,8 +745,6 @@ fn edge_removal(polygon: &[[f64; 2]], i: usize) -> Option<(f64, [f64; 2])> {
     let n = polygon.len();
     let vertex = |k: usize| polygon[k % n];
     let (before, a, b, after) = (vertex(i + n - 1), vertex(i), vertex(i + 1), vertex(i + 2));
-    let sub = |p: [f64; 2], q: [f64; 2]| [p[0] - q[0], p[1] - q[1]];
-    let cross = |u: [f64; 2], v: [f64; 2]| u[0] * v[1] - u[1] * v[0];
     let (d1, edge, d2) = (sub(a, before), sub(b, a), sub(after, b));
     let turn = cross(d1, d2);
     if turn <= 0.0 {

@@ -166,7 +166,7 @@ impl RowSink<'_> {
     /// Waits for the text of every block sent and writes it.
     fn write_in_flight(&mut self) -> std::io::Result<()> {
         while self.in_flight > 0 {
-            let text = self.texts.recv().map_err(|_| std::io::Error::other("the CSV text thread stopped"))?;
+            let text = self.texts.recv().map_err(|_| text_thread_stopped())?;
             self.in_flight -= 1;
             write_all(self.w, &text)?;
         }
@@ -181,8 +181,12 @@ impl RowSink<'_> {
     }
 
     fn send(&self, block: PendingRows) -> std::io::Result<()> {
-        self.to_text.send(block).map_err(|_| std::io::Error::other("the CSV text thread stopped"))
+        self.to_text.send(block).map_err(|_| text_thread_stopped())
     }
+}
+
+fn text_thread_stopped() -> std::io::Error {
+    std::io::Error::other("the CSV text thread stopped")
 }
 
 fn write_all(w: &mut dyn Write, texts: &[Vec<u8>]) -> std::io::Result<()> {

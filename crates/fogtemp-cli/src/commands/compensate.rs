@@ -193,21 +193,15 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
 
 /// Whether `e` comes from writing to a closed pipe.
 fn broken_pipe(e: &anyhow::Error) -> bool {
-    let pipe = |io: &std::io::Error| io.kind() == std::io::ErrorKind::BrokenPipe;
-    // The CSV writer's error travels inside the I/O error the writer wraps it in.
+    // The write error may travel inside another I/O error (`write_atomic` wraps the body's).
     let mut causes: Vec<&(dyn std::error::Error + 'static)> = e.chain().collect();
     while let Some(cause) = causes.pop() {
-        let found = match (cause.downcast_ref::<std::io::Error>(), cause.downcast_ref::<csv::Error>()) {
-            (Some(io), _) => {
-                // `io::Error::source` skips the error it wraps: look inside it too.
-                causes.extend(io.get_ref().map(|inner| inner as &(dyn std::error::Error + 'static)));
-                pipe(io)
+        if let Some(io) = cause.downcast_ref::<std::io::Error>() {
+            if io.kind() == std::io::ErrorKind::BrokenPipe {
+                return true;
             }
-            (_, Some(c)) => matches!(c.kind(), csv::ErrorKind::Io(io) if pipe(io)),
-            _ => false,
-        };
-        if found {
-            return true;
+            // `io::Error::source` skips the error it wraps: look inside it too.
+            causes.extend(io.get_ref().map(|inner| inner as &(dyn std::error::Error + 'static)));
         }
         causes.extend(cause.source());
     }
