@@ -1583,6 +1583,26 @@ fn the_shape_the_model_records_is_read_when_none_is_named() {
         "the shape note in --json: {json_notes}"
     );
     assert!(noted.contains("was fitted on logs shaped otherwise"), "{noted}");
+    // A time column of another name (review19 F4): refused as ambiguous, naming the column
+    // and both ways out, where it used to be left unread and the rows timed at the model's
+    // rate. With the rate named, the rows are timed by their index as asked.
+    let renamed = dir.path().join("t.csv");
+    let text = fs::read_to_string(&csv).expect("read");
+    fs::write(&renamed, text.replacen("time_s", "Time (s)", 1)).expect("write");
+    let header_shape = ["--columns", "", "--skip-lines", "0", "--delimiter", "auto", "--comment", "#"];
+    let mut ambiguous = args!["validate", "--model", &model, &renamed];
+    ambiguous.extend(header_shape.iter().map(OsString::from));
+    let err = run_err(ambiguous);
+    assert!(
+        err.contains("ambiguous time: the log has a column 'Time (s)' that looks like a time")
+            && err.contains("name it with --time-column")
+            && err.contains("name --sample-rate-hz"),
+        "{err}"
+    );
+    // The same rows as the capture, timed the same way: bit for bit its figure.
+    let (by_index, _) =
+        validated_quietly(&model, &renamed, &[&header_shape[..], &["--sample-rate-hz", &rate]].concat());
+    assert_eq!(comp(&by_index).to_bits(), comp(&from_model).to_bits());
 }
 
 /// Settings no fit can use are refused before any log is read, naming the option (they

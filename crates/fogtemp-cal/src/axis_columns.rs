@@ -343,6 +343,7 @@ pub fn choose_time(
     }
     if !named.any() {
         format.set_log_time(&recorded);
+        format.sample_rate_from_model = format.sample_rate_hz.is_some();
         if recorded == LogFormat::default().log_time() {
             return Vec::new();
         }

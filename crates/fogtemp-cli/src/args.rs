@@ -167,6 +167,7 @@ impl IngestArgs {
                 names => names.iter().map(|c| c.trim().to_string()).collect(),
             },
             sample_rate_hz: self.sample_rate_hz,
+            sample_rate_from_model: false,
             date_column: self.date_column.clone(),
             decimal_mark: self.decimal_mark.unwrap_or_default(),
         };

@@ -280,6 +280,7 @@ pub fn ingest(o: &mut Options<'_>) -> PyResult<IngestOptions> {
             comment: (!comment.is_empty()).then_some(comment),
             column_names: columns.iter().map(|c| c.trim().to_string()).collect(),
             sample_rate_hz: o.opt_f64("sample_rate_hz")?,
+            sample_rate_from_model: false,
             date_column: o.opt_string("date_column")?,
             decimal_mark,
         },

@@ -301,6 +301,21 @@ fn locate_columns(path: &Path, header: Fields<'_>, f: &LogFormat, line: u64) -> 
             ),
         });
     }
+    if let (Some(rate), true, true) = (f.sample_rate_hz, f.sample_rate_from_model, f.column_names.is_empty())
+    {
+        let unread = |n: &&String| !f.temp_columns.contains(n) && !f.gyro_columns.contains(n);
+        if let Some(time_like) = names.iter().filter(unread).find(|n| looks_like_time(n)) {
+            return Err(CalError::LogFormat {
+                path: path.to_path_buf(),
+                line,
+                problem: format!(
+                    "{AMBIGUOUS_TIME}: the log has a column '{time_like}' that looks like a time, and the sample rate of \
+                     {rate} Hz recorded by the model would read time from the row index instead; name the time column, \
+                     or name the sample rate to read the row index"
+                ),
+            });
+        }
+    }
     let located = (|| {
         let time = match f.sample_rate_hz {
             Some(_) => None,
@@ -360,6 +375,35 @@ fn similar_names(wanted: &str, names: &[String]) -> Vec<String> {
         })
         .cloned()
         .collect()
+}
+
+/// A header name that reads as a time: a word such as `time`, `timestamp`, `epoch` or
+/// `elapsed` in it (`Time (ms)`, `gps_time`), or `t` or `ts` alone or with a unit of time
+/// (`t`, `t_s`), or such a unit alone (`ms`, `seconds`; not `s`). Words are runs of ASCII letters, compared in lower case.
+fn looks_like_time(name: &str) -> bool {
+    const TIME_WORDS: [&str; 10] = [
+        "time",
+        "times",
+        "timestamp",
+        "timestamps",
+        "datetime",
+        "epoch",
+        "elapsed",
+        "tstamp",
+        "millis",
+        "micros",
+    ];
+    const UNITS: [&str; 8] = ["s", "sec", "secs", "second", "seconds", "ms", "us", "ns"];
+    let lower = name.to_ascii_lowercase();
+    let words: Vec<&str> =
+        lower.split(|c: char| !c.is_ascii_alphabetic()).filter(|w| !w.is_empty()).collect();
+    let time_word = words.iter().any(|w| TIME_WORDS.contains(w));
+    let alone = match words.as_slice() {
+        [one] => matches!(*one, "t" | "ts") || (*one != "s" && UNITS.contains(one)),
+        [stem, unit] => matches!(*stem, "t" | "ts") && UNITS.contains(unit),
+        _ => false,
+    };
+    time_word || alone
 }
 
 /// Every cell a number (or, in a log read with date-times or times of day, one of those): a data row, not a
@@ -590,9 +634,34 @@ pub(super) fn check_time(
 
 #[cfg(test)]
 mod tests {
-    use super::similar_names;
+    use super::{looks_like_time, similar_names};
     use crate::ingest::test_support::*;
     use crate::ingest::*;
+
+    #[test]
+    fn time_like_names() {
+        for time in [
+            "t",
+            "T [s]",
+            "ts",
+            "time",
+            "Time (ms)",
+            "TIMESTAMP",
+            "gps_time",
+            "t_ms",
+            "elapsed",
+            "epoch_s",
+            "seconds",
+            "us",
+        ] {
+            assert!(looks_like_time(time), "{time}");
+        }
+        for other in
+            ["s", "temp", "tempo", "temp_c", "gyro_dph", "t_case", "tc", "status", "mag1x [T]", "", "2"]
+        {
+            assert!(!looks_like_time(other), "{other}");
+        }
+    }
 
     #[test]
     fn not_a_number_names_line_column_and_text() {

@@ -176,6 +176,12 @@ pub struct LogFormat {
     /// rejected records but not blank or comment lines) is at `k / rate` seconds. A log
     /// that also has a column named `time_column` is refused as ambiguous.
     pub sample_rate_hz: Option<f64>,
+    /// The sample rate is not named but the one a model records of its fit's logs
+    /// (`axis_columns::choose_time`): a header column whose name looks like a time (`t`,
+    /// `Time (ms)`, `timestamp`) is then refused as ambiguous too, as one named
+    /// `time_column` always is, instead of being left unread while time comes from the row
+    /// index.
+    pub sample_rate_from_model: bool,
     /// A column holding the date of each row when the time column holds only the time of
     /// day (a spreadsheet export's `Date` and `Time`): the two cells are read as one
     /// date-time, `date` `T` `time`. Needs [`TimeUnit::DateTime`].
@@ -314,6 +320,7 @@ impl Default for LogFormat {
             comment: Some("#".into()),
             column_names: Vec::new(),
             sample_rate_hz: None,
+            sample_rate_from_model: false,
             date_column: None,
             decimal_mark: DecimalMark::Point,
         }

@@ -109,6 +109,32 @@ fn time_from_the_sample_rate_counts_rejected_rows() {
 }
 
 #[test]
+fn a_time_like_column_is_ambiguous_with_a_rate_from_the_model() {
+    // Review19 F4: a model fitted on time-less captures gives the rate; a log with a time
+    // column of another name was read at that rate with the column unread.
+    let from_model =
+        LogFormat { sample_rate_hz: Some(100.0), sample_rate_from_model: true, ..LogFormat::default() };
+    for time in ["t", "Time (ms)", "gps_time", "timestamp", "t_s", "elapsed [s]", "ms"] {
+        let e = error_of(&format!("{time},temp_c,gyro_dph\n0,20,1\n"), &with(from_model.clone()));
+        assert!(
+            matches!(&e, CalError::LogFormat { line: 1, problem, .. }
+                if problem.starts_with(AMBIGUOUS_TIME) && problem.contains(&format!("'{time}'"))),
+            "{time}: {e}"
+        );
+    }
+    // Names that are no time, a rate the user named, and the model's headerless columns are
+    // read at the rate as before.
+    let data = "status,temp_c,gyro_dph,t_case\n0,20,1,21\n0,20,2,21\n";
+    let v = values(&rows(data, &with(from_model.clone())));
+    assert_eq!(v.iter().map(|r| (r.1, r.3[0])).collect::<Vec<_>>(), vec![(0.0, 1.0), (0.01, 2.0)]);
+    let named = LogFormat { sample_rate_from_model: false, ..from_model.clone() };
+    assert_eq!(rows("t,temp_c,gyro_dph\n0,20,1\n", &with(named)).len(), 1);
+    let headerless =
+        LogFormat { column_names: vec!["t".into(), "temp_c".into(), "gyro_dph".into()], ..from_model };
+    assert_eq!(rows("0,20,1\n", &with(headerless)).len(), 1);
+}
+
+#[test]
 fn comment_lines_anywhere_and_lines_still_exact() {
     let data =
         format!("# logger v2 \"quoted, text\"\n{HEADER}0,20,1\n  # indented, 1, 2\n1,20,2\n#\n2,20,x\n");

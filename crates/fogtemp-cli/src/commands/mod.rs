@@ -109,7 +109,8 @@ fn ingest_options_for(
     let sample_rate = ingest.format.sample_rate_hz.filter(|_| a.sample_rate_hz.is_none()).map(|rate| {
         format!(
             "the sample rate, {rate} Hz, is the one {} records of its fit's logs, which had no time column: \
-             for a log with one, name it with --time-column (and --time-unit if not seconds)",
+             for a log with one, name it with --time-column (and --time-unit if not seconds); \
+             to read time from the row index at that rate all the same, name --sample-rate-hz",
             path.display()
         )
     });
