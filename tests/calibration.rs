@@ -313,6 +313,30 @@ fn bias_stability_exclusion_and_gaps() {
     assert_eq!(window_means(&t2, &v2, &opts).0.len(), 20);
 }
 
+/// Review15 F2: the same duty cycle (40 s of data in each 100 s window) counts alike
+/// whether the 60 s gaps fall inside the windows (bursts at their starts) or across their
+/// edges after 500 s of full data; and a window holding two bursts does not leave out the
+/// windows that hold one. Oracle: hand counts of the windows.
+#[test]
+fn windows_count_alike_wherever_the_gaps_fall() {
+    let t = times(2000 * 10, 10.0);
+    let opts = BiasStabilityOptions::default();
+    let counts = |keep: &dyn Fn(f64) -> bool| {
+        let kept: Vec<f64> = t.iter().copied().filter(|&x| keep(x)).collect();
+        let (means, left_out) = window_means(&kept, &vec![1.0; kept.len()], &opts);
+        (means.len(), left_out)
+    };
+    // Bursts: the first 40 s of every window.
+    assert_eq!(counts(&|x| x % 100.0 < 40.0), (20, 0));
+    // Full for 500 s, then 40 s kept from 10 s into each window: 5 full windows and 15 of
+    // 40 s; the old rule (90 % of the fullest) kept the 5 and left out the 15.
+    assert_eq!(counts(&|x| x < 500.0 || (10.0..50.0).contains(&(x % 100.0))), (20, 0));
+    // 5 s bursts every 100 s, and one more in window 7: every window counts.
+    assert_eq!(counts(&|x| x % 100.0 < 5.0 || (750.0..755.0).contains(&x)), (20, 0));
+    // A burst cut short (2 s of 5) is still left out.
+    assert_eq!(counts(&|x| if x < 100.0 { x < 2.0 } else { x % 100.0 < 5.0 }), (19, 1));
+}
+
 #[test]
 fn rms_over_runs_closed_form() {
     assert!((rms_over_runs(&[3.0, 4.0]) - 12.5f64.sqrt()).abs() < 1e-15);

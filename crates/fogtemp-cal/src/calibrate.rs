@@ -1925,7 +1925,8 @@ pub struct MetricWindows {
     /// Windows whose means the metric used.
     pub used: usize,
     /// Windows left out: empty, or cut short by a gap in the time stamps or by the run's end
-    /// (a window counts when it holds at least 90 % of the fullest's samples).
+    /// (a window counts when it holds at least 90 % of the typical window's samples,
+    /// `metrics::fullness_threshold`).
     pub left_out: usize,
     /// Block means (the series' samples) in the windows used.
     pub samples_used: usize,

@@ -36,8 +36,9 @@ impl BiasStabilityOptions {
 }
 
 /// Window means of a run: non-overlapping `tau_s` windows aligned to the first sample;
-/// a window counts only if it holds at least 90 % of the samples of the fullest window,
-/// so windows cut by gaps or the run's end are left out (and counted).
+/// a window counts only if it holds at least 90 % of the samples of the typical window
+/// ([`fullness_threshold`]), so windows cut by gaps or the run's end are left out (and
+/// counted).
 pub fn window_means(times_s: &[f64], values: &[f64], options: &BiasStabilityOptions) -> (Vec<f64>, usize) {
     let stats = window_stats(times_s, values, options);
     (stats.means, stats.left_out)
@@ -103,11 +104,23 @@ pub fn window_stats(times_s: &[f64], values: &[f64], options: &BiasStabilityOpti
 }
 
 /// The fewest samples an averaging window must hold to count, given every window's count:
-/// 90 % of the fullest (at least 1), so windows cut by a gap or the run's end are left out.
-/// The one rule of the metric's windows, its figures' and the cross-validation's.
+/// 90 % of the typical window's, the median of the windows that hold any sample (at least
+/// 1), so windows cut by a gap or the run's end are left out. The one rule of the metric's
+/// windows, its figures' and the cross-validation's.
+///
+/// The median, not the fullest (the rule until 2026-11-28, review15 F2): a log whose
+/// windows each hold a 60 s gap then counts them alike wherever the gaps fall (they were
+/// all left out but the few full windows before the first gap, while bursts of the same
+/// duty cycle aligned to the windows were all kept), and one window that holds two bursts
+/// of a burst log no longer leaves out all the others. A log without gaps has the same
+/// threshold either way (every window but the last is full).
 pub fn fullness_threshold(counts: impl Iterator<Item = usize>) -> usize {
-    let fullest = counts.max().unwrap_or(0);
-    ((fullest as f64 * 0.9).ceil() as usize).max(1)
+    let mut held: Vec<usize> = counts.filter(|&c| c > 0).collect();
+    let typical = match held.len() {
+        0 => 0,
+        n => *held.select_nth_unstable(n / 2).1,
+    };
+    ((typical as f64 * 0.9).ceil() as usize).max(1)
 }
 
 /// Bias stability of one run, deg/h (NaN with fewer than 2 windows).

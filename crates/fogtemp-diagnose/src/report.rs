@@ -33,7 +33,7 @@ const FIGURE_MEAN_S: f64 = 300.0;
 
 /// Means of `values` over consecutive `window_s` windows of `time_s` (from 0), each at its
 /// window's mean time; a window counts if it holds at least 90 % of the finite values of the
-/// fullest (as the bias stability's windows), so the one cut by the run's end is left out.
+/// typical window (as the bias stability's windows), so the one cut by the run's end is left out.
 fn window_means(time_s: &[f64], values: &[f64], window_s: f64) -> Vec<(f64, f64)> {
     let mut sums: Vec<(f64, f64, usize)> = Vec::new();
     for (&t, &v) in time_s.iter().zip(values) {

@@ -53,7 +53,7 @@ pub struct RelativeMeans {
 /// Non-overlapping `options.tau_s` windows of one run, exactly the windows the bias
 /// stability averages ([`crate::metrics::window_means`] without overlap: aligned to the
 /// first sample plus `exclude_first_s`; a window counts only if it holds at least 90 % of
-/// the samples of the fullest, so a window cut by the run's end is left out), each mean
+/// the samples of the typical window, so a window cut by the run's end is left out), each mean
 /// given relative to the mean of the kept windows. Their sample standard deviation is the
 /// run's (non-detrended, non-overlapping) bias stability.
 pub fn relative_window_means(
