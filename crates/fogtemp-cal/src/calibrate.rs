@@ -1363,14 +1363,22 @@ pub struct OutsideReach {
     /// Samples flagged outside in blocks whose features lie beyond either range.
     pub samples_beyond: u64,
     /// Samples flagged outside in blocks whose features lie within both ranges (a combination
-    /// of temperature and rate no calibration run held).
+    /// of temperature and rate no calibration run held), outside the calibrated region.
     pub samples_within: u64,
+    /// Samples flagged outside in blocks whose features lie inside the calibrated region: a
+    /// mesh's hull (its thinned nodes) lies inside the region, and between the two the mesh
+    /// is continued from its edge.
+    pub samples_in_region: u64,
 }
 
 impl OutsideReach {
     /// Widens the reach by the features `(temp_c, rate_c_per_min)` of a block with samples
     /// outside the region.
-    fn observe(&mut self, temp_c: f64, rate_c_per_min: f64, samples: u64) {
+    fn observe(&mut self, temp_c: f64, rate_c_per_min: f64, samples: u64, in_region: bool) {
+        if in_region {
+            self.samples_in_region += samples;
+            return;
+        }
         let beyond =
             |v: f64, (lo, hi): (f64, f64)| if v.is_finite() { (lo - v).max(v - hi).max(0.0) } else { 0.0 };
         let (temp, rate) =
@@ -1386,7 +1394,8 @@ impl OutsideReach {
 
     /// How far outside, for the outside-region note (review14 F5: "85 % extrapolated" read as
     /// dire for a run 0.5 C past the calibrated maximum); only the ranges exceeded are named,
-    /// with the samples beyond them and those within both (review15 F4).
+    /// with the samples beyond them and those within both (review15 F4), and those inside the
+    /// region beyond a mesh's outermost nodes.
     pub fn text(&self) -> String {
         let (t0, t1) = self.temp_range_c;
         let (r0, r1) = self.rate_range_c_per_min;
@@ -1394,8 +1403,27 @@ impl OutsideReach {
             "within the calibrated ranges ({t0:.2} .. {t1:.2} C, {r0:.4} .. {r1:.4} C/min) at combinations of \
              temperature and rate no calibration run held"
         );
+        let in_region =
+            "inside the calibrated region but beyond the mesh's outermost nodes (its hull, which lies \
+                         inside the region), where the mesh is continued from its edge";
+        match (self.text_outside_region(&within), self.samples_in_region) {
+            (None, _) => format!("all of them {in_region}"),
+            (Some(text), 0) => text,
+            (Some(text), n) => format!("{text}; {n} {in_region}"),
+        }
+    }
+
+    /// [`OutsideReach::text`] for the samples outside the region (`None` without any).
+    fn text_outside_region(&self, within: &str) -> Option<String> {
+        let (t0, t1) = self.temp_range_c;
+        let (r0, r1) = self.rate_range_c_per_min;
         if self.samples_beyond == 0 {
-            return within;
+            // Alone, the note's count is theirs; beside the region's, they are counted.
+            return match (self.samples_within, self.samples_in_region) {
+                (0, 1..) => None,
+                (_, 0) => Some(within.to_string()),
+                (k, _) => Some(format!("{k} {within}")),
+            };
         }
         let mut reach = Vec::new();
         if self.temp_beyond_c > 0.0 {
@@ -1412,11 +1440,11 @@ impl OutsideReach {
             self.samples_beyond,
             reach.join(" and ")
         );
-        if self.samples_within == 0 {
-            format!("all {beyond}")
-        } else {
-            format!("{beyond}, {} {within}", self.samples_within)
-        }
+        Some(match (self.samples_within, self.samples_in_region) {
+            (0, 0) => format!("all {beyond}"),
+            (0, _) => beyond,
+            (k, _) => format!("{beyond}, {k} {within}"),
+        })
     }
 }
 
@@ -1448,6 +1476,9 @@ struct Replayer<'m> {
     spikes: SpikeGuard,
     /// The open block's samples flagged `OUTSIDE_HULL`.
     block_outside: u64,
+    /// The calibrated region of an axis with a mesh and the plane it is drawn in, for the
+    /// outside note (a polynomial alone is flagged only outside the region).
+    region: Option<(fogtemp_core::Region<'m>, fogtemp_core::Normalisation)>,
 }
 
 impl<'m> Replayer<'m> {
@@ -1482,6 +1513,11 @@ impl<'m> Replayer<'m> {
             previous_s: None,
             spikes,
             block_outside,
+            region: model
+                .axis(axis)
+                .ok()
+                .filter(|a| a.mesh.is_some())
+                .and_then(|a| Some((a.region?, a.normalisation))),
         })
     }
 
@@ -1532,7 +1568,16 @@ impl<'m> Replayer<'m> {
             series.temp_c.push(f.map_or(f64::NAN, |f| f64::from(f.temp_c)));
             series.rate_c_per_min.push(f.map_or(f64::NAN, |f| f64::from(f.rate_c_per_min)));
             if let (true, Some(reach), Some(f)) = (self.block_outside > 0, series.outside_reach.as_mut(), f) {
-                reach.observe(f64::from(f.temp_c), f64::from(f.rate_c_per_min), self.block_outside);
+                let in_region = self.region.is_some_and(|(region, normalisation)| {
+                    let (x, y) = normalisation.apply(f.temp_c, f.rate_c_per_min);
+                    region.contains(x, y)
+                });
+                reach.observe(
+                    f64::from(f.temp_c),
+                    f64::from(f.rate_c_per_min),
+                    self.block_outside,
+                    in_region,
+                );
             }
         }
         self.fullest_block = self.fullest_block.max(self.acc.0);
@@ -1731,7 +1776,15 @@ impl RunValidation {
         }
         let outside = s.flag_counts[Flags::OUTSIDE_HULL.0.trailing_zeros() as usize];
         if outside > 0 {
-            let mut note = outside_region_note(&name, outside, s.samples, "flag OUTSIDE_HULL");
+            let mut note = match &s.outside_reach {
+                // Some inside the region: "outside the region" is not said of them all.
+                Some(reach) if reach.samples_in_region > 0 => format!(
+                    "{name}: {outside} of {} samples ({} %) are where the model is extrapolated (flag OUTSIDE_HULL)",
+                    s.samples,
+                    share_percent(outside, s.samples)
+                ),
+                _ => outside_region_note(&name, outside, s.samples, "flag OUTSIDE_HULL"),
+            };
             if let Some(reach) = &s.outside_reach {
                 note.push_str(&format!(": {}", reach.text()));
             }
@@ -2139,15 +2192,15 @@ mod tests {
             rate_range_c_per_min: (-0.08, 0.54),
             ..OutsideReach::default()
         };
-        reach.observe(20.0, 0.1, 7);
+        reach.observe(20.0, 0.1, 7, false);
         assert_eq!(
             reach.text(),
             "within the calibrated ranges (-35.00 .. 62.55 C, -0.0800 .. 0.5400 C/min) at combinations of \
              temperature and rate no calibration run held"
         );
-        reach.observe(63.06, 0.1, 10);
-        reach.observe(62.9, 0.3, 5);
-        reach.observe(f64::NAN, f64::NAN, 1);
+        reach.observe(63.06, 0.1, 10, false);
+        reach.observe(62.9, 0.3, 5, false);
+        reach.observe(f64::NAN, f64::NAN, 1, false);
         assert!((reach.temp_beyond_c - 0.51).abs() < 1e-9 && reach.rate_beyond_c_per_min == 0.0);
         assert_eq!((reach.samples_beyond, reach.samples_within), (15, 8));
         assert_eq!(
@@ -2162,6 +2215,29 @@ mod tests {
         assert_eq!(
             rate_only.text(),
             "all 15 of them at most 0.0200 C/min beyond the calibrated -0.0800 .. 0.5400 C/min (the tracker's features)"
+        );
+        // A mesh's samples inside the region (beyond its node hull) are counted apart, and
+        // their features do not widen the reach.
+        let beside = "inside the calibrated region but beyond the mesh's outermost nodes (its hull, which lies inside \
+                      the region), where the mesh is continued from its edge";
+        rate_only.observe(70.0, 0.1, 4, true);
+        assert_eq!(rate_only.temp_beyond_c, 0.0);
+        assert_eq!(
+            rate_only.text(),
+            format!(
+                "15 of them at most 0.0200 C/min beyond the calibrated -0.0800 .. 0.5400 C/min (the tracker's \
+                 features); 4 {beside}"
+            )
+        );
+        let mut mesh_only = OutsideReach { samples_beyond: 0, samples_within: 0, ..reach };
+        mesh_only.observe(20.0, 0.1, 3, true);
+        assert_eq!(mesh_only.text(), format!("all of them {beside}"));
+        mesh_only.observe(20.0, 0.4, 2, false);
+        assert!(mesh_only.text().starts_with("2 within the calibrated ranges"), "{}", mesh_only.text());
+        assert!(
+            mesh_only.text().ends_with(&format!("no calibration run held; 3 {beside}")),
+            "{}",
+            mesh_only.text()
         );
     }
 
