@@ -1416,6 +1416,42 @@ fn validated_quietly(model: &Path, log: &Path, extra: &[&str]) -> (Value, String
     (json(&String::from_utf8_lossy(&output.stdout)), String::from_utf8_lossy(&output.stderr).into_owned())
 }
 
+/// A header that says its units (`time (ms)`, `gyro rad/s`) read in the defaults' units (s,
+/// deg/h) is warned of before the fit, naming the option; read in those units, nothing is
+/// said; a model's replay, which folds the gyro unit into a scale, says nothing either.
+#[test]
+fn units_that_column_names_say_are_warned_of_when_not_read() {
+    let dir = TempDir::new().expect("tempdir");
+    let (_, lines) = short_log(dir.path(), "ok.csv");
+    let mut named = vec!["time (ms),temp_c,gyro rad/s".to_string()];
+    for l in &lines[1..] {
+        let f: Vec<f64> = l.split(',').map(|v| v.parse().expect("number")).collect();
+        named.push(format!("{},{},{}", f[0] * 1000.0, f[1], f[2] / (3600.0 * 180.0 / std::f64::consts::PI)));
+    }
+    let log = dir.path().join("named.csv");
+    write_lines(&log, &named);
+    let model = dir.path().join("m.fogm");
+    let columns = ["--time-column", "time (ms)", "--gyro-column", "gyro rad/s"];
+    let mut fit = args!["fit", "--method", "poly", "--out", &model, &log];
+    fit.extend(columns.iter().map(OsString::from));
+    let said = String::from_utf8_lossy(&cal().args(&fit).output().expect("run").stderr).into_owned();
+    assert!(
+        said.contains("warning: the time column 'time (ms)' says ms in its name but is read in s")
+            && said.contains(
+                "warning: the gyro column 'gyro rad/s' says rad/s in its name but is read in deg/h"
+            )
+            && said.contains("--gyro-unit/--gyro-scale"),
+        "{said}"
+    );
+    fit.extend(args!["--time-unit", "ms", "--gyro-unit", "rps"]);
+    let output = cal().args(&fit).output().expect("run");
+    let quiet = String::from_utf8_lossy(&output.stderr);
+    assert!(output.status.success() && !quiet.contains("in its name"), "{quiet}");
+    let output = cal().args(args!["validate", "--model", &model, &log]).output().expect("run");
+    let replay = String::from_utf8_lossy(&output.stderr);
+    assert!(output.status.success() && !replay.contains("in its name"), "{replay}");
+}
+
 /// A model records how its fit read the logs' time (format 5): a log whose time is in
 /// milliseconds under another name validates without the time options, bit for bit as with
 /// them (oracle: the same validation with every option named), and with the time column

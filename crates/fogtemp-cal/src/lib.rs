@@ -76,6 +76,7 @@ pub mod runs;
 pub mod selection;
 pub mod spikes;
 pub mod thin;
+pub mod unit_names;
 
 pub use blob::{encode, AxisModel, ColumnNames, LogReadingRecord, ModelFile};
 pub use error::CalError;

@@ -177,6 +177,9 @@ pub fn diagnose<'py>(
         ));
     }
     let recorded_ingest = options::ingest(&mut o)?;
+    if !recorded.is_instance_of::<PyDict>() {
+        crate::functions::warn_unit_names(py, &recorded_ingest.format)?;
+    }
     let defaults = DiagnoseOptions::default();
     let bin_s = o.f64("bin_s", 1.0)?;
     let settings = DiagnoseOptions {

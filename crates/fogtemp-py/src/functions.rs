@@ -296,6 +296,9 @@ pub fn fit(
         ));
     }
     let ingest = options::ingest(&mut o)?;
+    if !arrays {
+        warn_unit_names(py, &ingest.format)?;
+    }
     let mut config =
         options::calibration(&mut o, CalibrationConfig { ingest, method, ..CalibrationConfig::default() })?;
     let capacity = o.int("capacity", fogtemp_core::DEFAULT_CAPACITY, options::MIN_CAPACITY, u64::MAX)?;
@@ -643,6 +646,7 @@ pub fn read_log<'py>(
         let core = CoreModel::from_bytes(&blob.0).map_err(|e| errors::model(&blob.1, e))?;
         choose_columns(py, &mut ingest, named, std::slice::from_ref(&blob), std::slice::from_ref(&core))?;
     }
+    warn_unit_names(py, &ingest.format)?;
     let (temps, gyros) = (ingest.format.temp_columns.len(), ingest.format.gyro_columns.len());
     let mut time = Vec::new();
     let mut temp_cols: Vec<Vec<f64>> = vec![Vec::new(); temps];
@@ -802,6 +806,7 @@ pub fn validate<'py>(
             &blobs,
             &models,
         )?;
+        warn_unit_names(py, &ingest.format)?;
         let gyro_columns = ingest.format.gyro_columns.len();
         if let Some(note) =
             calibrate::axis_count_note(&blobs[0].1, models[0].axis_count(), gyro_columns, "gyro_column=")
@@ -902,6 +907,15 @@ fn shape_named(o: &Options<'_>) -> PyResult<ShapeNamed> {
         comment: o.any_given(&["comment"])?,
         columns: o.any_given(&["columns"])?,
     })
+}
+
+/// Warns for columns whose names give another unit than the one they are read in
+/// (`fogtemp_cal::unit_names`), as the command line does.
+pub(crate) fn warn_unit_names(py: Python<'_>, format: &fogtemp_cal::ingest::LogFormat) -> PyResult<()> {
+    for note in fogtemp_cal::unit_names::unit_name_notes(format, fogtemp_cal::axis_columns::PYTHON_OPTIONS) {
+        progress::warn(py, &note)?;
+    }
+    Ok(())
 }
 
 /// Which of the column, unit, time, decimal-mark and shape keywords were given.
@@ -1109,6 +1123,7 @@ pub fn allan<'py>(
     }
     let ingest: IngestOptions = options::ingest(&mut o)?;
     o.finish()?;
+    warn_unit_names(py, &ingest.format)?;
     let path: PathBuf = log.extract()?;
     // Two passes in memory that does not grow with the log: the median sample period, then
     // the curves (the same document as the arrays of the log would give).

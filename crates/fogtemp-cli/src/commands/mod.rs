@@ -43,7 +43,17 @@ pub fn run(command: Command) -> Result<()> {
 }
 
 fn ingest_options(a: &IngestArgs) -> Result<IngestOptions> {
-    a.options()
+    let options = a.options()?;
+    warn_unit_names(&options.format);
+    Ok(options)
+}
+
+/// Warns for columns whose names give another unit than the one they are read in
+/// (`fogtemp_cal::unit_names`).
+fn warn_unit_names(format: &fogtemp_cal::ingest::LogFormat) {
+    for note in fogtemp_cal::unit_names::unit_name_notes(format, fogtemp_cal::axis_columns::CLI_OPTIONS) {
+        eprintln!("warning: {note}");
+    }
 }
 
 /// The ingest settings for replaying `model` (read from `path`): the log columns and units it
@@ -85,6 +95,7 @@ fn ingest_options_for(
     for note in &chosen.notes {
         eprintln!("note: {note}");
     }
+    warn_unit_names(&ingest.format);
     let from_model = chosen.gyro_from_model.then(|| {
         format!(
             "the log was read with the columns {} records (gyro {}; temperature {})",
