@@ -376,16 +376,19 @@ pub fn never_corrected_note(
 ) -> String {
     let count = |flag: Flags| flags.get(flag.0.trailing_zeros() as usize).copied().unwrap_or(0);
     let (stale, bad) = (count(Flags::TEMP_STALE), count(Flags::BAD_INPUT));
-    let cause = if 4 * stale > samples {
+    // Rejected readings leave the temperature stale too: they are the cause to name first
+    // (review20 F1: raw counts were put down to the gap limit).
+    let cause = if 2 * bad > samples {
+        format!(
+            "{bad} of {samples} samples had their temperature or time rejected (BAD_INPUT): temperatures no \
+             sensor reads (raw sensor counts read as deg C, above 1000; a logger's -999; NaN), or times out of \
+             order; raw counts need the temperature's scale and offset"
+        )
+    } else if 4 * stale > samples {
         format!(
             "the temperature was silent for longer than the model's max gap of {max_gap_s} s at {stale} of \
              {samples} samples (TEMP_STALE): readings further apart than that, or an empty temperature \
              column; the gap limit is the model's, set by fit --max-gap-s"
-        )
-    } else if 2 * bad > samples {
-        format!(
-            "{bad} of {samples} samples had their temperature or time rejected (BAD_INPUT): temperatures \
-             that are no reading (NaN, -999), or times out of order"
         )
     } else {
         "no usable temperature, e.g. an empty temperature column, or time stamps in another unit than \
@@ -2183,6 +2186,29 @@ mod tests {
         assert_eq!(share_percent(0, 7200), "0.0");
         assert_eq!(share_percent(250, 6250), "4.0");
         assert_eq!(share_percent(7200, 7200), "100.0");
+    }
+
+    #[test]
+    fn a_run_never_corrected_is_put_down_to_its_rejected_readings_first() {
+        use fogtemp_core::Flags;
+        let bit = |flag: Flags| flag.0.trailing_zeros() as usize;
+        let mut flags = [0u64; 8];
+        // Raw counts (65236) in every row: rejected (BAD_INPUT), so the temperature is stale
+        // (TEMP_STALE) and the tracker warms up throughout (review20 F1).
+        for flag in [Flags::WARMING_UP, Flags::TEMP_STALE, Flags::BAD_INPUT] {
+            flags[bit(flag)] = 7200;
+        }
+        let note = never_corrected_note("run.csv", "the output's bias is 0", &flags, 7200, 5.0);
+        assert!(
+            note.contains("7200 of 7200 samples had their temperature or time rejected (BAD_INPUT)")
+                && note.contains("raw counts need the temperature's scale and offset")
+                && !note.contains("silent"),
+            "{note}"
+        );
+        // Readings too far apart, none rejected: the gap limit.
+        flags[bit(Flags::BAD_INPUT)] = 0;
+        let note = never_corrected_note("run.csv", "the output's bias is 0", &flags, 7200, 5.0);
+        assert!(note.contains("silent for longer than the model's max gap of 5 s at 7200 of 7200"), "{note}");
     }
 
     #[test]
