@@ -2385,6 +2385,14 @@ fn spikes_copies_and_streamed_output_are_said() {
     let streamed = run_ok(args!["compensate", "--model", &model, "--out", "-", &val]);
     assert_eq!(streamed, fs::read_to_string(&file).expect("read"));
     assert!(!dir.path().join("-").exists() && !Path::new("-").exists());
+    // A log that does not exist: the error alone, nothing on stdout (review20 F11: the CSV
+    // header was written first).
+    let missing = dir.path().join("nosuch.csv");
+    let output =
+        cal().args(args!["compensate", "--model", &model, "--out", "-", &missing]).output().expect("run");
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(!output.status.success() && output.stdout.is_empty(), "{:?}", output.stdout);
+    assert!(stderr.contains("nosuch.csv") && !stderr.contains("cut short"), "{stderr}");
     // A reader that closes stdout at once (`| head`): status 0, and a note that the notes on
     // the whole log were not reached (review13 F12: they were lost without a word).
     let (status, stderr) = run_with_stdout_closed(args!["compensate", "--model", &model, "--out", "-", &val]);

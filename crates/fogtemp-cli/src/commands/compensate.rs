@@ -38,6 +38,11 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
         refuse_overwriting_inputs(&a.out, &[&a.log, &a.model])?;
         check_output_file(&a.out)?;
     }
+    // A log that cannot be opened is said before anything is written (review20 F11: `--out -`
+    // wrote the CSV header to the pipe first).
+    if let Err(source) = std::fs::File::open(&a.log) {
+        return Err(fogtemp_cal::CalError::Io { path: a.log.clone(), source }.into());
+    }
     let blob = read_model(&a.model)?;
     check_capacity(&a.model, &blob, a.capacity)?;
     let model = Model::from_bytes(&blob).map_err(|e| anyhow::anyhow!("{e}"))?;
