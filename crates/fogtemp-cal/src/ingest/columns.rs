@@ -28,7 +28,8 @@ pub(super) struct Plan {
     pub(super) time_slot: Option<usize>,
     pub(super) temp_slots: Vec<usize>,
     pub(super) gyro_slots: Vec<usize>,
-    pub(super) time_factor: f64,
+    /// Time units per second: a time cell is divided by it.
+    pub(super) time_per_second: f64,
     /// How the time column is written: numbers in a unit, date-times or times of day.
     pub(super) time_unit: TimeUnit,
     /// Time of data record `k` is `k / rate` (no time column).
@@ -210,7 +211,7 @@ pub(super) fn make_plan(path: &Path, header: Fields<'_>, f: &LogFormat, line: u6
         time_slot,
         temp_slots,
         gyro_slots,
-        time_factor: f.time_unit.seconds(),
+        time_per_second: f.time_unit.per_second(),
         time_unit: f.time_unit,
         sample_rate_hz: f.sample_rate_hz,
         gyro_factor: f.gyro_unit.dph() * f.gyro_scale,
@@ -531,7 +532,7 @@ pub(super) fn parse_row(
     let time = match columns.time {
         Some(field) if plan.time_unit == TimeUnit::DateTime => datetime_cell(plan, fields, field, line)?,
         Some(field) if plan.time_unit == TimeUnit::TimeOfDay => time_of_day_cell(plan, fields, field, line)?,
-        Some(field) => required(field)? * plan.time_factor,
+        Some(field) => required(field)? / plan.time_per_second,
         None => time_of_record(index, plan.sample_rate_hz),
     };
     for (slot, &field) in gyros.iter_mut().zip(&columns.gyros) {
