@@ -140,7 +140,13 @@ class Model:
         axis: int = 0,
         return_bias: Literal[True] = ...,
         capacity: int = 128,
-    ) -> Tuple[npt.NDArray[np.float64], npt.NDArray[np.uint8], npt.NDArray[np.float64]]: ...
+    ) -> Tuple[npt.NDArray[np.float64], npt.NDArray[np.uint8], npt.NDArray[np.float64]]:
+        """Replays the samples through the firmware's Compensator (``fogtemp-cal compensate``):
+        ``(compensated_dph, flags)``, and ``bias_dph`` with ``return_bias=True``, row for row.
+        FogtempWarnings say what ``fogtemp-cal compensate`` notes: time that goes back (named by
+        the sample index; the command line refuses such a log, the compensator restarts there),
+        gaps, temperature glitches (``sample:INDEX``, 0-based), and the shares of samples flagged
+        BAD_INPUT, TEMP_STALE and OUTSIDE_HULL."""
     def __eq__(self, other: object) -> bool:
         """True when ``other`` is a Model with the same blob bytes."""
     def __hash__(self) -> int:

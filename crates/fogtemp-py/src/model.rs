@@ -10,6 +10,7 @@ use pyo3::exceptions::PyFileNotFoundError;
 use pyo3::prelude::*;
 use pyo3::types::{PyBool, PyBytes, PyDict, PyFloat, PyTuple};
 
+use crate::compensate_notes;
 use crate::convert::{self, f64_array, f64_vector, slice};
 use crate::errors;
 use crate::options::{int_arg, MIN_CAPACITY};
@@ -218,6 +219,12 @@ impl Model {
     /// holding the core's f32 results exactly, and uint8 flags (`fogtemp.FLAG_BITS`).
     /// `capacity` is the firmware's tracker capacity (the core's default, 128): a model whose
     /// window needs more blocks is refused, as the command line refuses it.
+    ///
+    /// FogtempWarnings say what the command line's `compensate` notes: time that goes back
+    /// (named by the sample index; the command line refuses such a log, the compensator
+    /// restarts there and the output stays row for row), gaps, temperature glitches (as
+    /// `sample:INDEX`, 0-based), and the shares of samples flagged BAD_INPUT, TEMP_STALE and
+    /// OUTSIDE_HULL.
     #[pyo3(signature = (time_s, gyro_dph, temp_c, axis = None, return_bias = None, capacity = None))]
     #[pyo3(text_signature = "(self, time_s, gyro_dph, temp_c, axis=0, return_bias=False, capacity=128)")]
     #[allow(clippy::too_many_arguments)] // Python's keywords, each with its default
@@ -269,10 +276,11 @@ impl Model {
                 bias[k] = f64::from(o.bias_dph);
                 flags[k] = o.flags.0;
             }
-            (out, bias, flags)
+            let glitches = compensate_notes::temperature_glitches(ts, gs, cs, max_gap_s);
+            (out, bias, flags, glitches)
         });
-        let (out, bias, flags) = replay;
-        warn_about_compensation(py, axis, ts, &flags, max_gap_s)?;
+        let (out, bias, flags, glitches) = replay;
+        warn_about_compensation(py, axis, ts, &flags, max_gap_s, &glitches)?;
         let mut items: Vec<Bound<'py, PyAny>> =
             vec![PyArray1::from_vec(py, out).into_any(), PyArray1::from_vec(py, flags).into_any()];
         if return_bias {
@@ -491,17 +499,22 @@ fn blob_bytes(data: &Bound<'_, PyAny>) -> PyResult<Vec<u8>> {
 
 /// What `fogtemp-cal compensate` notes of its output, as warnings (review17 F1: a notebook
 /// user who does not decode the flags got the raw gyro back, or a bias continued far outside
-/// the calibration, without a word): times mostly further apart than the tracker's max gap
-/// (another unit?), nothing corrected, and the shares of samples flagged `BAD_INPUT`,
-/// `TEMP_STALE` and `OUTSIDE_HULL`.
+/// the calibration, without a word): time that goes back (which the command line refuses),
+/// times mostly further apart than the tracker's max gap (another unit?), temperature
+/// glitches, nothing corrected, and the shares of samples flagged `BAD_INPUT`, `TEMP_STALE`
+/// and `OUTSIDE_HULL`.
 fn warn_about_compensation(
     py: Python<'_>,
     axis: usize,
     time_s: &[f64],
     flags: &[u8],
     max_gap_s: f64,
+    glitches: &fogtemp_cal::spikes::AxisSpikes,
 ) -> PyResult<()> {
     let name = format!("Model.compensate axis {axis}");
+    if let Some(note) = compensate_notes::backward_time_note(&name, time_s, max_gap_s) {
+        crate::progress::warn(py, &note)?;
+    }
     let mut gaps = fogtemp_cal::calibrate::TimeGaps::new(max_gap_s);
     gaps.in_samples = true;
     for (k, pair) in time_s.windows(2).enumerate() {
@@ -520,6 +533,9 @@ fn warn_about_compensation(
     } else if let Some(note) =
         gaps.note_then(path, "after each the compensator held its bias until its tracker had features again")
     {
+        crate::progress::warn(py, &note)?;
+    }
+    if let Some(note) = compensate_notes::temperature_glitch_note(&name, glitches) {
         crate::progress::warn(py, &note)?;
     }
     let mut counts = [0u64; 8];
