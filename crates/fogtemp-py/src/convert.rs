@@ -128,10 +128,53 @@ pub fn item<'py>(obj: &Bound<'py, PyAny>, key: &str) -> PyResult<Option<Bound<'p
 /// True for a run given as arrays: a dict, a pandas DataFrame, or any mapping with a
 /// `time_s` key (paths are strings or `os.PathLike`). A dict or DataFrame without `time_s`
 /// counts too, so that its missing column is named rather than it being taken for a path.
+///
+/// # Errors
+/// `TypeError` for a tuple, a list or a numpy array (structured or not), which have no
+/// column names to read (review20 F9: numpy's own errors said nothing of what a run is).
 pub fn is_arrays(obj: &Bound<'_, PyAny>) -> PyResult<bool> {
     if obj.is_instance_of::<pyo3::types::PyString>() || obj.hasattr("__fspath__")? {
         return Ok(false);
     }
+    refuse_runs_without_names(obj)?;
     let table = obj.is_instance_of::<PyDict>() || obj.hasattr("columns")?;
     Ok(table || item(obj, "time_s")?.is_some())
+}
+
+/// A run given as a tuple or list of arrays, or as a numpy array, is refused naming what a
+/// run must be (its `in` test would compare "time_s" with the arrays themselves).
+pub fn refuse_runs_without_names(obj: &Bound<'_, PyAny>) -> PyResult<()> {
+    let ndarray = obj.py().import("numpy")?.getattr("ndarray")?;
+    let sequence =
+        obj.is_instance_of::<pyo3::types::PyTuple>() || obj.is_instance_of::<pyo3::types::PyList>();
+    // A list of paths inside the list of logs is left to the paths' own error.
+    let of_arrays = sequence
+        && obj.try_iter()?.any(|e| {
+            e.is_ok_and(|e| {
+                !e.is_instance_of::<pyo3::types::PyString>() && e.hasattr("__len__").unwrap_or(false)
+            })
+        });
+    let (found, fix) = if of_arrays {
+        let kind = if obj.is_instance_of::<pyo3::types::PyTuple>() { "a tuple" } else { "a list" };
+        (kind.to_string(), "name its arrays: {'time_s': t, 'temp_c': c, 'gyro_dph': g}".to_string())
+    } else if obj.is_instance(&ndarray)? {
+        let fields = obj.getattr("dtype")?.getattr("names")?;
+        if fields.is_none() {
+            ("a numpy array".to_string(), "name its columns: {'time_s': a[:, 0], ...}".to_string())
+        } else {
+            let names: Vec<String> =
+                fields.try_iter()?.map(|n| n?.repr().map(|r| r.to_string())).collect::<PyResult<_>>()?;
+            (
+                format!("a numpy structured array (fields {})", names.join(", ")),
+                "pandas.DataFrame(array) makes one of it (fields named time_s, temp_c and gyro_dph)"
+                    .to_string(),
+            )
+        }
+    } else {
+        return Ok(());
+    };
+    Err(errors::type_(format!(
+        "a run given as arrays must be a dict or a pandas DataFrame keyed by column name, with time_s (s), \
+         temp_c (deg C) and gyro_dph (deg/h); got {found}: {fix}"
+    )))
 }

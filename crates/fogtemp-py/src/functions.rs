@@ -173,22 +173,61 @@ fn columns<'py>(value: &Bound<'py, PyAny>, what: &str) -> PyResult<Vec<numpy::Py
     }
 }
 
-/// The keys or columns a run given as a dict or DataFrame has, and how to rename them, for
-/// the error of a missing one (review17 F5: a log file's error lists its header, a
-/// DataFrame's listed nothing).
-fn keys_found(run: &Bound<'_, PyAny>) -> String {
-    let keys = run.getattr("columns").or_else(|_| run.call_method0("keys")).and_then(|k| {
-        k.try_iter()?.map(|key| key?.str().map(|s| s.to_string())).collect::<PyResult<Vec<_>>>()
-    });
-    match keys {
-        Ok(keys) if !keys.is_empty() => format!(
-            "it has {}; rename, e.g. df.rename(columns={{'{}': 'time_s', ...}}), converting units first (gyro in \
-             deg/h, temperature in deg C, time in s)",
-            keys.iter().map(|k| format!("'{k}'")).collect::<Vec<_>>().join(", "),
-            keys[0]
-        ),
-        _ => "it has no keys or columns".to_string(),
+/// What a run given as a dict or DataFrame has instead of its `missing` column, and how to
+/// rename one (review17 F5: a log file's error lists its header, a DataFrame's listed
+/// nothing). The keys are shown as Python writes them (`repr`: `0` is not `'0'`), the rename
+/// names a source only when one is plausible (review20 F9: it named the first key, which
+/// could be the temperature for the time), and MultiIndex columns get a way to one level.
+fn missing_column_help(run: &Bound<'_, PyAny>, missing: &str) -> String {
+    let frame = run.hasattr("columns").unwrap_or(false);
+    let keys: PyResult<Vec<Bound<'_, PyAny>>> =
+        run.getattr("columns").or_else(|_| run.call_method0("keys")).and_then(|k| k.try_iter()?.collect());
+    let keys = match keys {
+        Ok(keys) if !keys.is_empty() => keys,
+        _ => return "it has no keys or columns".to_string(),
+    };
+    let shown: Vec<String> =
+        keys.iter().map(|k| k.repr().map_or_else(|_| "?".into(), |r| r.to_string())).collect();
+    let has = format!("it has {}", shown.join(", "));
+    if let Some(group) = keys.first().filter(|k| k.is_instance_of::<pyo3::types::PyTuple>()) {
+        let first_level =
+            group.get_item(0).and_then(|l| l.repr()).map_or_else(|_| "...".into(), |r| r.to_string());
+        return format!(
+            "{has}: the columns are a MultiIndex; select one group, e.g. df[{first_level}], or drop the outer \
+             level with df.droplevel(0, axis=1)"
+        );
     }
+    let source = keys
+        .iter()
+        .zip(&shown)
+        .find(|(k, _)| k.extract::<String>().is_ok_and(|name: String| plausible_source(&name, missing)))
+        .map_or("...", |(_, shown)| shown.as_str());
+    let rename = if frame {
+        format!("df.rename(columns={{{source}: '{missing}'}})")
+    } else {
+        format!("run['{missing}'] = run.pop({source})")
+    };
+    let index = if frame { "; a DataFrame's index is not read: reset_index() makes it a column" } else { "" };
+    format!(
+        "{has}; rename, e.g. {rename}, converting units first (gyro in deg/h, temperature in deg C, time in s){index}"
+    )
+}
+
+/// Whether a column `name` (not one of a run's own) plausibly holds the run's `missing`
+/// column: a time, a temperature or a gyro rate by its name.
+fn plausible_source(name: &str, missing: &str) -> bool {
+    let lower = name.to_ascii_lowercase();
+    if ["time_s", "temp_c", "gyro_dph"].contains(&lower.as_str()) {
+        return false;
+    }
+    let words: &[&str] = match missing {
+        "time_s" => &["time", "timestamp", "sec"],
+        "temp_c" => &["temp", "tmp", "degc"],
+        "gyro_dph" => &["gyro", "rate", "omega", "dph", "dps"],
+        _ => &[],
+    };
+    words.iter().any(|w| lower.contains(w))
+        || (missing == "time_s" && (lower == "t" || lower.starts_with("t_")))
 }
 
 impl<'py> ArrayRun<'py> {
@@ -200,14 +239,15 @@ impl<'py> ArrayRun<'py> {
     /// A run named `name` (in errors and documents) from a dict or DataFrame with `time_s`,
     /// `temp_c`, `gyro_dph`.
     pub(crate) fn named(name: PathBuf, run: &Bound<'py, PyAny>) -> PyResult<Self> {
+        // (diagnose's dict of runs comes here without `is_arrays`.)
+        convert::refuse_runs_without_names(run)?;
         let label = name.display().to_string();
         let get = |key: &str| -> PyResult<Bound<'py, PyAny>> {
             match convert::item(run, key)? {
                 Some(value) => Ok(value),
                 None => Err(errors::value(format!(
-                    "{label}: no '{key}' (a run needs time_s, temp_c and gyro_dph; {}; a DataFrame's index is not \
-                     read: reset_index() makes it a column)",
-                    keys_found(run)
+                    "{label}: no '{key}' (a run needs time_s, temp_c and gyro_dph; {})",
+                    missing_column_help(run, key)
                 ))),
             }
         };
@@ -990,9 +1030,10 @@ fn choose_columns(
         }
         if index == 0 {
             format = ingest.format.clone();
+            how_read = chosen.notes;
         }
     }
-    Ok(())
+    Ok(how_read)
 }
 
 /// Every log file replayed through every model, one log at a time (the library's validation
