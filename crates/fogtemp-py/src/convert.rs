@@ -32,6 +32,9 @@ pub fn f64_array<'py>(value: &Bound<'py, PyAny>, what: &str) -> PyResult<PyReado
     if kind == "O" {
         refuse_objects_that_are_not_numbers(&as_is, what)?;
     }
+    if matches!(kind.as_str(), "f" | "i" | "u") {
+        refuse_booleans_in_sequences(value, what, &mut 0)?;
+    }
     let kwargs = PyDict::new(py);
     kwargs.set_item("dtype", numpy.getattr("float64")?)?;
     kwargs.set_item("order", "C")?;
@@ -87,6 +90,43 @@ fn refuse_objects_that_are_not_numbers(array: &Bound<'_, PyAny>, what: &str) -> 
                 element.repr()?
             )));
         }
+    }
+    Ok(())
+}
+
+/// Booleans inside a list or tuple (nested ones too), which numpy turns into 1.0 and 0.0 as
+/// it converts the list with the numbers beside them (review20 F10: `[20.0, True]` read as
+/// `[20.0, 1.0]`), are refused as in an object array. Only Python's own containers are walked
+/// (`element` counts their values in order, numpy's flat order), not the arrays inside them,
+/// whose dtype tells.
+fn refuse_booleans_in_sequences(value: &Bound<'_, PyAny>, what: &str, element: &mut usize) -> PyResult<()> {
+    use pyo3::types::{PyBool, PyFloat, PyInt, PyList, PyTuple};
+    if !(value.is_instance_of::<PyList>() || value.is_instance_of::<PyTuple>()) {
+        return Ok(());
+    }
+    for item in value.try_iter()? {
+        let item = item?;
+        if item.is_instance_of::<PyList>() || item.is_instance_of::<PyTuple>() {
+            refuse_booleans_in_sequences(&item, what, element)?;
+            continue;
+        }
+        // Plain numbers first: a long list is mostly floats, and a failed attribute lookup
+        // costs an exception each.
+        let plain = !item.is_instance_of::<PyBool>()
+            && (item.is_instance_of::<PyFloat>() || item.is_instance_of::<PyInt>());
+        if plain {
+            *element += 1;
+            continue;
+        }
+        // numpy's bool scalars, bool arrays and bool pandas columns carry their dtype.
+        let dtype_kind = item.getattr("dtype").and_then(|d| d.getattr("kind")?.extract::<String>()).ok();
+        if item.is_instance_of::<PyBool>() || dtype_kind.as_deref() == Some("b") {
+            return Err(errors::type_(format!(
+                "{what} must be numbers, got booleans (element {element}: {})",
+                item.repr()?
+            )));
+        }
+        *element += item.getattr("size").and_then(|n| n.extract::<usize>()).unwrap_or(1);
     }
     Ok(())
 }

@@ -147,3 +147,24 @@ def test_structured_arrays_and_tuples_are_refused_saying_what_a_run_is(model, ru
     with pytest.raises(TypeError, match="must be paths"):
         fogtemp.fit([["a.csv", "b.csv"]], progress=False)
 
+
+def test_booleans_inside_lists_are_refused_as_in_object_arrays(model, runs):
+    # Review20 F10: numpy turned [20.0, True] into [20.0, 1.0] before the dtype check.
+    with pytest.raises(TypeError) as as_object:
+        model.evaluate(np.array([20.0, True], dtype=object), 0.0)
+    assert str(as_object.value) == "temp_c must be numbers, got booleans (element 1: True)"
+    for bad in ([20.0, True], (20.0, True), [20.0, np.True_], [[20.0], [True]]):
+        with pytest.raises(TypeError) as caught:
+            model.evaluate(bad, [0.0, 0.0] if np.ndim(bad) == 1 else [[0.0], [0.0]])
+        assert str(caught.value) == str(as_object.value).replace("True", repr(np.asarray(bad, dtype=object).ravel()[1])), bad
+    with pytest.raises(TypeError, match=r"rate_c_per_min must be numbers, got booleans \(element 2: False\)"):
+        model.evaluate([20.0, 21.0, 22.0], [0, 1, False])
+    # The other array-taking calls share the conversion.
+    run = runs[0]
+    with pytest.raises(TypeError, match=r"gyro_dph must be numbers, got booleans \(element 1: True\)"):
+        model.compensate([0.0, 1.0, 2.0], [0.5, True, 0.5], [20.0, 20.0, 20.0])
+    bad_run = dict(run, gyro_dph=[float(g) for g in run["gyro_dph"][:-1]] + [False])
+    with pytest.raises(TypeError, match=r"runs\[0\]\['gyro_dph'\] must be numbers, got booleans \(element 7499: False\)"):
+        fogtemp.validate(model, [bad_run], progress=False)
+    # Numbers in lists still read, as before: ints beside floats, numpy scalars.
+    assert model.evaluate([20.0, 1], [0, np.float32(0.0)])[1] == model.evaluate(1.0, 0.0)
