@@ -96,7 +96,7 @@ class Model:
         A float when both inputs are scalars (a 0-d array counts as one, so this overload's type is
         exact for arrays of at least one dimension), else an array of the broadcast shape.
         Through the core's f32 evaluation; GIL released; ``threads`` defaults to every core
-        (0 or 1: the calling thread).
+        (0 or 1: the calling thread; more than the cores available are capped at their number).
         With ``return_outside=True``: ``(values, outside)``, outside a bool array (a bool for
         scalars), True where the point is outside the calibrated region (the model's
         continuation; C's ``fogtemp_evaluate`` outside flag); not flagged there for a polynomial

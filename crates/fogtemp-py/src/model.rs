@@ -153,7 +153,8 @@ impl Model {
     /// and broadcast against each other; the result has their broadcast shape, or is a
     /// Python float when both are scalars (or 0-d arrays), as numpy's ufuncs do. A NaN or
     /// infinite input gives NaN at that point. Runs with the GIL released, on `threads`
-    /// threads (default: every core; 0 or 1: the calling thread) for large inputs.
+    /// threads for large inputs (default: every core; 0 or 1: the calling thread; more than
+    /// the cores available to the process are capped at their number).
     ///
     /// With `return_outside=True`, returns `(values, outside)`: `outside` (bool, same shape)
     /// is True where the point lies outside the calibrated region, where the value is the
@@ -186,8 +187,10 @@ impl Model {
         }
         let shape = t.shape().to_vec();
         let (ts, rs) = (slice(&t, "temp_c")?, slice(&r, "rate_c_per_min")?);
-        let threads =
-            threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get())).max(1);
+        // More threads than cores only add spawning and switching (review20 F12: threads=100000
+        // spawned that many and ran 7x slower).
+        let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+        let threads = threads.unwrap_or(cores).clamp(1, cores);
         let cached = self.grids.get(axis).and_then(Option::as_ref);
         let values = py.detach(|| evaluate_points(&core_axis, cached, ts, rs, threads));
         let outside = return_outside.then(|| py.detach(|| outside_points(&core_axis, ts, rs, threads)));
