@@ -47,12 +47,19 @@ pub fn backward_time_note(name: &str, time_s: &[f64], max_gap_s: f64) -> Option<
         };
         format!(
             "{name}: the time goes back at sample {first} (time_s[{first}] = {at_s} is before time_s[{}] = \
-             {before_s}){more}: a logger restart, or two runs joined (pd.concat)? {did}. fogtemp.validate() \
+             {before_s}){more}: a logger restart, or two runs joined (pd.concat)? {}. fogtemp.validate() \
              and fogtemp-cal compensate refuse such a log: compensate each run on its own (split the arrays \
              at sample {first})",
-            first - 1
+            first - 1,
+            capitalised(&did)
         )
     })
+}
+
+/// `text` with its first letter a capital, to start a sentence.
+fn capitalised(text: &str) -> String {
+    let mut chars = text.chars();
+    chars.next().map_or_else(String::new, |first| first.to_uppercase().chain(chars).collect())
 }
 
 /// The temperature glitches `fogtemp-cal compensate` notes (review20 F7), found by the

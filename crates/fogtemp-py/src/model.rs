@@ -268,19 +268,14 @@ impl Model {
             Box::new(Compensator::new(&model, axis).map_err(|e| errors::model(&self.source, e))?);
         let max_gap_s = comp.tracker().max_gap_us() as f64 * 1e-6;
         let replay = py.detach(|| {
-            let n = ts.len();
-            let (mut out, mut bias, mut flags) = (vec![0.0; n], vec![0.0; n], vec![0u8; n]);
-            let origin = ts.first().copied().unwrap_or(0.0);
-            for k in 0..n {
-                let temp = cs[k];
-                let o =
-                    comp.step(micros(ts[k] - origin), gs[k] as f32, temp.is_finite().then_some(temp as f32));
-                out[k] = f64::from(o.rate_dph);
-                bias[k] = f64::from(o.bias_dph);
-                flags[k] = o.flags.0;
-            }
-            let glitches = compensate_notes::temperature_glitches(ts, gs, cs, max_gap_s);
-            (out, bias, flags, glitches)
+            // The glitches are looked for beside the replay (they only read the inputs), so
+            // that the note costs no time where a second core is free.
+            std::thread::scope(|scope| {
+                let glitches = scope.spawn(|| compensate_notes::temperature_glitches(ts, gs, cs, max_gap_s));
+                let (out, bias, flags) = replay_samples(&mut comp, ts, gs, cs);
+                let glitches = glitches.join().unwrap_or_else(|panic| std::panic::resume_unwind(panic));
+                (out, bias, flags, glitches)
+            })
         });
         let (out, bias, flags, glitches) = replay;
         warn_about_compensation(py, axis, ts, &flags, max_gap_s, &glitches)?;
@@ -456,6 +451,27 @@ fn evaluate_chunk(axis: &Axis<'_>, grid: Option<&StartGrid<'_>>, ts: &[f64], rs:
             }
         }
     }
+}
+
+/// Every sample through `comp`, as firmware steps it (times as microseconds since the first
+/// sample; a non-finite temperature is no reading): the rate, bias and flags of each.
+fn replay_samples(
+    comp: &mut Compensator<'_, CAL_CAPACITY>,
+    ts: &[f64],
+    gs: &[f64],
+    cs: &[f64],
+) -> (Vec<f64>, Vec<f64>, Vec<u8>) {
+    let n = ts.len();
+    let (mut out, mut bias, mut flags) = (vec![0.0; n], vec![0.0; n], vec![0u8; n]);
+    let origin = ts.first().copied().unwrap_or(0.0);
+    for k in 0..n {
+        let temp = cs[k];
+        let o = comp.step(micros(ts[k] - origin), gs[k] as f32, temp.is_finite().then_some(temp as f32));
+        out[k] = f64::from(o.rate_dph);
+        bias[k] = f64::from(o.bias_dph);
+        flags[k] = o.flags.0;
+    }
+    (out, bias, flags)
 }
 
 /// `{name: bit}` of the compensator's flags.

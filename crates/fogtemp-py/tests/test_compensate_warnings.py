@@ -49,7 +49,7 @@ def test_two_runs_joined_warn_at_the_sample_where_the_time_goes_back(model, runs
     assert len(back) == 1, said
     assert back[0].startswith(f"Model.compensate axis 0: the time goes back at sample {join_index} ("), back[0]
     assert "two runs joined (pd.concat)" in back[0] and "split the arrays at sample" in back[0]
-    assert "the compensator restarted there" in back[0]
+    assert "The compensator restarted there" in back[0]
     # Row for row, and the restart it describes: warming up again right after the join.
     assert len(out) == len(joined["time_s"])
     assert flags[join_index] & WARMING_UP and not flags[join_index - 1] & WARMING_UP
