@@ -96,7 +96,7 @@ class Model:
         A float when both inputs are scalars (a 0-d array counts as one, so this overload's type is
         exact for arrays of at least one dimension), else an array of the broadcast shape.
         Through the core's f32 evaluation; GIL released; ``threads`` defaults to every core
-        (0 or 1: the calling thread).
+        (0 or 1: the calling thread; more than the cores available are capped at their number).
         With ``return_outside=True``: ``(values, outside)``, outside a bool array (a bool for
         scalars), True where the point is outside the calibrated region (the model's
         continuation; C's ``fogtemp_evaluate`` outside flag); not flagged there for a polynomial
@@ -140,7 +140,13 @@ class Model:
         axis: int = 0,
         return_bias: Literal[True] = ...,
         capacity: int = 128,
-    ) -> Tuple[npt.NDArray[np.float64], npt.NDArray[np.uint8], npt.NDArray[np.float64]]: ...
+    ) -> Tuple[npt.NDArray[np.float64], npt.NDArray[np.uint8], npt.NDArray[np.float64]]:
+        """Replays the samples through the firmware's Compensator (``fogtemp-cal compensate``):
+        ``(compensated_dph, flags)``, and ``bias_dph`` with ``return_bias=True``, row for row.
+        FogtempWarnings say what ``fogtemp-cal compensate`` notes: time that goes back (named by
+        the sample index; the command line refuses such a log, the compensator restarts there),
+        gaps, temperature glitches (``sample:INDEX``, 0-based), and the shares of samples flagged
+        BAD_INPUT, TEMP_STALE and OUTSIDE_HULL."""
     def __eq__(self, other: object) -> bool:
         """True when ``other`` is a Model with the same blob bytes."""
     def __hash__(self) -> int:
@@ -166,7 +172,9 @@ def fit(
     the default, "hold" or "linear_from_boundary"; a mesh model's mesh beyond its hull), capacity, operating_temp_c as a
     (min, max) pair) and, for files, the log-column options (time_column, time_unit ("s", "ms", "us", "datetime" or "time_of_day"), temp_column,
     temp_scale, temp_offset, gyro_column, gyro_unit, gyro_scale, delimiter, skip_lines, columns,
-    sample_rate_hz, comment, decimal_mark ("point" or "comma"), date_column, skip_bad_rows) and runs (log files only: a runs file, run,position,input_rate_dph[,role], describing exactly the logs given; as fit --runs, val runs are left out and each run's input rate is subtracted from its gyro). Identifiability warnings (too few runs, heating only,
+    sample_rate_hz, comment, decimal_mark ("point" or "comma"), date_column, skip_bad_rows; the
+    log's shape as ``read_log`` describes it: ``columns`` is a list of str or one str of
+    comma-separated names) and runs (log files only: a runs file, run,position,input_rate_dph[,role], describing exactly the logs given; as fit --runs, val runs are left out and each run's input rate is subtracted from its gyro). Identifiability warnings (too few runs, heating only,
     ...) are issued as Python warnings and listed in ``Model.fit_report["warnings"]`` (a property).
     ``report`` (a folder) writes fit-report.md, fit-report.html and the figures, as fit --report.
     ``progress`` shows reading and cross-validation progress on stderr.
@@ -180,11 +188,21 @@ def read_log(
     as_dataframe: Literal[False] = False,
     progress: bool = True,
     **options: Any,
-) -> Dict[str, npt.NDArray[np.float64]]:
+) -> Dict[str, Any]:
     """A CSV log as numpy arrays: time_s (s since the first row), temp_c (deg C, NaN without a
-    reading), gyro_dph (deg/h); ``temp_c_0``, ``gyro_dph_0``, ... for several columns.
-    Keywords: the log-column options of ``fit``. ``model=``: read the log as the model's fit read
-    its logs (columns, units, time), as ``validate`` does, ready for ``Model.compensate``."""
+    reading), gyro_dph (deg/h); ``temp_c_0``, ``gyro_dph_0``, ... for several columns; and
+    ``time_origin_s`` (a float): the first row's time in the log's own clock, seconds (an epoch
+    stamp in s, ms or us as seconds; seconds since 1970 UTC for time_unit="datetime", since
+    midnight for "time_of_day"; 0 when timed by sample_rate_hz), so ``time_origin_s + time_s``
+    is each row's own stamp, as ``fogtemp-cal compensate`` writes it.
+    Keywords: the log-column options of ``fit``. The log's shape: ``skip_lines`` (int: lines
+    dropped before the header or the data), ``delimiter`` ("auto", "comma", "semicolon", "tab",
+    "whitespace" or one character), ``comment`` (a line prefix, "" for none) and ``columns``
+    (a headerless log's column names in order: a list of str, or one str of comma-separated
+    names as on the command line, "time_s,temp_c,gyro_dph"; "" or [] for a header row).
+    ``model=``: read the log as the model's fit read its logs (columns, units, time and, for a
+    model that records it, format 7, the shape: skip_lines, delimiter, comment, columns), as
+    ``validate`` does, ready for ``Model.compensate``."""
 @overload
 def read_log(
     path: _PathLike,
@@ -194,7 +212,7 @@ def read_log(
     progress: bool = True,
     **options: Any,
 ) -> Any:
-    """``read_log`` as a pandas DataFrame."""
+    """``read_log`` as a pandas DataFrame of the arrays, with ``df.attrs["time_origin_s"]``."""
 def validate(
     model: Union[Model, _PathLike],
     logs: Union[_PathLike, _Run, Sequence[Union[_PathLike, _Run]]],
@@ -223,7 +241,11 @@ def validate(
     given, and with the time the model records (since blob format 5: time column and unit, or
     sample rate) for each of time_column=, time_unit=, sample_rate_hz=, date_column= not given; a
     gyro column the model fitted on another axis raises ValueError, a name, unit or time it does
-    not record a FogtempWarning."""
+    not record a FogtempWarning. A model that records its logs' shape (format 7) also gives the
+    shape keywords not named (skip_lines, delimiter, comment, columns: a list of str or one str of
+    comma-separated names; "" for a header row). How the logs were read (the gyro and
+    temperature units and the time as the model records them, the shape) is also said first in
+    the document's ``notes``, as ``validate --json`` says it."""
 
 def allan(log: Union[_PathLike, _Run], *, progress: bool = True, **options: Any) -> Dict[str, Any]:
     """The ``fogtemp-cal allan --json`` document: overlapping Allan deviation, N, B, K, and the

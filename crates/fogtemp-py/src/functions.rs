@@ -173,22 +173,61 @@ fn columns<'py>(value: &Bound<'py, PyAny>, what: &str) -> PyResult<Vec<numpy::Py
     }
 }
 
-/// The keys or columns a run given as a dict or DataFrame has, and how to rename them, for
-/// the error of a missing one (review17 F5: a log file's error lists its header, a
-/// DataFrame's listed nothing).
-fn keys_found(run: &Bound<'_, PyAny>) -> String {
-    let keys = run.getattr("columns").or_else(|_| run.call_method0("keys")).and_then(|k| {
-        k.try_iter()?.map(|key| key?.str().map(|s| s.to_string())).collect::<PyResult<Vec<_>>>()
-    });
-    match keys {
-        Ok(keys) if !keys.is_empty() => format!(
-            "it has {}; rename, e.g. df.rename(columns={{'{}': 'time_s', ...}}), converting units first (gyro in \
-             deg/h, temperature in deg C, time in s)",
-            keys.iter().map(|k| format!("'{k}'")).collect::<Vec<_>>().join(", "),
-            keys[0]
-        ),
-        _ => "it has no keys or columns".to_string(),
+/// What a run given as a dict or DataFrame has instead of its `missing` column, and how to
+/// rename one (review17 F5: a log file's error lists its header, a DataFrame's listed
+/// nothing). The keys are shown as Python writes them (`repr`: `0` is not `'0'`), the rename
+/// names a source only when one is plausible (review20 F9: it named the first key, which
+/// could be the temperature for the time), and MultiIndex columns get a way to one level.
+fn missing_column_help(run: &Bound<'_, PyAny>, missing: &str) -> String {
+    let frame = run.hasattr("columns").unwrap_or(false);
+    let keys: PyResult<Vec<Bound<'_, PyAny>>> =
+        run.getattr("columns").or_else(|_| run.call_method0("keys")).and_then(|k| k.try_iter()?.collect());
+    let keys = match keys {
+        Ok(keys) if !keys.is_empty() => keys,
+        _ => return "it has no keys or columns".to_string(),
+    };
+    let shown: Vec<String> =
+        keys.iter().map(|k| k.repr().map_or_else(|_| "?".into(), |r| r.to_string())).collect();
+    let has = format!("it has {}", shown.join(", "));
+    if let Some(group) = keys.first().filter(|k| k.is_instance_of::<pyo3::types::PyTuple>()) {
+        let first_level =
+            group.get_item(0).and_then(|l| l.repr()).map_or_else(|_| "...".into(), |r| r.to_string());
+        return format!(
+            "{has}: the columns are a MultiIndex; select one group, e.g. df[{first_level}], or drop the outer \
+             level with df.droplevel(0, axis=1)"
+        );
     }
+    let source = keys
+        .iter()
+        .zip(&shown)
+        .find(|(k, _)| k.extract::<String>().is_ok_and(|name: String| plausible_source(&name, missing)))
+        .map_or("...", |(_, shown)| shown.as_str());
+    let rename = if frame {
+        format!("df.rename(columns={{{source}: '{missing}'}})")
+    } else {
+        format!("run['{missing}'] = run.pop({source})")
+    };
+    let index = if frame { "; a DataFrame's index is not read: reset_index() makes it a column" } else { "" };
+    format!(
+        "{has}; rename, e.g. {rename}, converting units first (gyro in deg/h, temperature in deg C, time in s){index}"
+    )
+}
+
+/// Whether a column `name` (not one of a run's own) plausibly holds the run's `missing`
+/// column: a time, a temperature or a gyro rate by its name.
+fn plausible_source(name: &str, missing: &str) -> bool {
+    let lower = name.to_ascii_lowercase();
+    if ["time_s", "temp_c", "gyro_dph"].contains(&lower.as_str()) {
+        return false;
+    }
+    let words: &[&str] = match missing {
+        "time_s" => &["time", "timestamp", "sec"],
+        "temp_c" => &["temp", "tmp", "degc"],
+        "gyro_dph" => &["gyro", "rate", "omega", "dph", "dps"],
+        _ => &[],
+    };
+    words.iter().any(|w| lower.contains(w))
+        || (missing == "time_s" && (lower == "t" || lower.starts_with("t_")))
 }
 
 impl<'py> ArrayRun<'py> {
@@ -200,14 +239,15 @@ impl<'py> ArrayRun<'py> {
     /// A run named `name` (in errors and documents) from a dict or DataFrame with `time_s`,
     /// `temp_c`, `gyro_dph`.
     pub(crate) fn named(name: PathBuf, run: &Bound<'py, PyAny>) -> PyResult<Self> {
+        // (diagnose's dict of runs comes here without `is_arrays`.)
+        convert::refuse_runs_without_names(run)?;
         let label = name.display().to_string();
         let get = |key: &str| -> PyResult<Bound<'py, PyAny>> {
             match convert::item(run, key)? {
                 Some(value) => Ok(value),
                 None => Err(errors::value(format!(
-                    "{label}: no '{key}' (a run needs time_s, temp_c and gyro_dph; {}; a DataFrame's index is not \
-                     read: reset_index() makes it a column)",
-                    keys_found(run)
+                    "{label}: no '{key}' (a run needs time_s, temp_c and gyro_dph; {})",
+                    missing_column_help(run, key)
                 ))),
             }
         };
@@ -265,7 +305,9 @@ pub(crate) fn array_error(e: fogtemp_cal::CalError) -> PyErr {
 /// `max_degree`, `p_enter`, `p_remove`, `poly_outside`, `mesh_outside`, `capacity`, `operating_temp_c`) and, for files, its
 /// log-column options (`time_column`, `time_unit`, `temp_column`, `temp_scale`, `temp_offset`,
 /// `gyro_column`, `gyro_unit`, `gyro_scale`, `delimiter`, `skip_lines`, `columns`,
-/// `sample_rate_hz`, `comment`, `decimal_mark`, `date_column`, `skip_bad_rows`) and `runs`
+/// `sample_rate_hz`, `comment`, `decimal_mark`, `date_column`, `skip_bad_rows`; the log's
+/// shape as `read_log` describes it: `columns` is a list of str or one str of comma-separated
+/// names, "" for a header row) and `runs`
 /// (a runs file, `run,position,input_rate_dph[,role]`, as `fit --runs`: `val` runs left out,
 /// one position left out at a time by `auto`, each run's input rate subtracted from its gyro);
 /// identifiability warnings as Python warnings. `report` (a folder) writes `fit-report.md`,
@@ -608,12 +650,24 @@ fn warn_skipped(py: Python<'_>, report: &IngestReport, samples: bool) -> PyResul
 
 /// Reads a CSV log into numpy arrays (the library's ingest, as every command reads logs).
 ///
-/// Returns `{"time_s", "temp_c", "gyro_dph"}`: time in seconds since the first row, deg C
-/// (NaN where a row has no temperature reading), deg/h; with several temperature or gyro
-/// columns the keys are `temp_c_0`, `temp_c_1`, ... and `gyro_dph_0`, .... Keywords: the
-/// log-column options of `fit`. `as_dataframe=True` returns a pandas DataFrame instead.
-/// `model=` (a `Model`, or a model file): read the log as the model's fit read its logs,
-/// columns, units and time (as `validate` does; keywords given still win, with a warning
+/// Returns `{"time_s", "temp_c", "gyro_dph", "time_origin_s"}`: time in seconds since the
+/// first row, deg C (NaN where a row has no temperature reading), deg/h; with several
+/// temperature or gyro columns the keys are `temp_c_0`, `temp_c_1`, ... and `gyro_dph_0`,
+/// .... `time_origin_s` (a float) is the first row's time in the log's own clock, seconds:
+/// its time cell in seconds for `time_unit` 's', 'ms' and 'us' (an epoch stamp stays one),
+/// seconds since 1970 UTC for 'datetime', since midnight for 'time_of_day', 0 when the rows
+/// are timed by `sample_rate_hz`; `time_origin_s + time_s` is each row's own stamp, as `fogtemp-cal
+/// compensate` writes it. `as_dataframe=True` returns a pandas DataFrame of the arrays
+/// instead, with `df.attrs["time_origin_s"]`.
+///
+/// Keywords: the log-column options of `fit`. The log's shape: `skip_lines` (lines to drop
+/// before the header or the data), `delimiter` ("auto", "comma", "semicolon", "tab",
+/// "whitespace" or one character), `comment` (a line prefix; "" for none) and `columns`, the names of a
+/// headerless log's columns in order: a list of str, or one str of comma-separated names as
+/// on the command line ("time_s,temp_c,gyro_dph"); "" (or []) for a log with a header row.
+/// `model=` (a `Model`, or a model file): read the log as the model's fit read its logs:
+/// columns, units, time and, for a model that records it (format 7), the shape (skip_lines,
+/// delimiter, comment, columns), as `validate` does (keywords given still win, with a warning
 /// where they differ), so the arrays go straight into `Model.compensate`.
 #[pyfunction]
 #[pyo3(signature = (path, *, model = None, as_dataframe = false, progress = true, **options))]
@@ -688,14 +742,20 @@ pub fn read_log<'py>(
     for (k, c) in gyro_cols.into_iter().enumerate() {
         dict.set_item(named("gyro_dph", k, gyros), PyArray1::from_vec(py, c))?;
     }
+    // The log's own clock at its first row, so that `time_origin_s + time_s` joins other
+    // channels by time as `compensate`'s output does (review20 F5).
+    let time_origin_s = report.time_origin_s;
     if as_dataframe {
         let pandas = py.import("pandas").map_err(|e| {
             pyo3::exceptions::PyImportError::new_err(format!(
                 "read_log(as_dataframe=True) needs pandas ({e})"
             ))
         })?;
-        return pandas.call_method1("DataFrame", (dict,));
+        let frame = pandas.call_method1("DataFrame", (dict,))?;
+        frame.getattr("attrs")?.set_item("time_origin_s", time_origin_s)?;
+        return Ok(frame);
     }
+    dict.set_item("time_origin_s", time_origin_s)?;
     Ok(dict.into_any())
 }
 
@@ -720,7 +780,12 @@ fn model_arg(value: &Bound<'_, PyAny>) -> PyResult<(Vec<u8>, String)> {
 /// models replayed on the same logs), `runs` (a runs file describing every log, as
 /// `validate --runs`: when it gives roles, only the `val` runs are validated), `report` (a
 /// folder: `report.md`, `report.html` and the figures, as `validate --report`), and the
-/// log-column options (files only; `runs` too). Ctrl-C is raised between two logs.
+/// log-column options (files only; `runs` too). Log files are read with the columns, units,
+/// time and, for a model that records it (format 7), the shape (`skip_lines`, `delimiter`,
+/// `comment`, `columns`: a list of str or one str of comma-separated names, "" for a header
+/// row) the model records, for each keyword not given (with a warning); the document's
+/// `notes` start with how the logs were read, as `validate --json`'s do. Ctrl-C is raised
+/// between two logs.
 #[pyfunction]
 #[pyo3(signature = (model, logs, *, progress = true, **options))]
 pub fn validate<'py>(
@@ -779,6 +844,8 @@ pub fn validate<'py>(
     }
     let refs: Vec<&CoreModel<'_>> = models.iter().collect();
     let (mut in_sample, mut file_notes): (Vec<String>, Vec<String>) = (Vec::new(), Vec::new());
+    // How the logs were read, first in the document's notes as in `validate --json`'s.
+    let mut how_read: Vec<String> = Vec::new();
     let per_log = if arrays {
         let runs = array_runs_of(&items, names.as_deref())?;
         if let Some(note) = calibrate::axis_count_note(
@@ -799,7 +866,7 @@ pub fn validate<'py>(
         if let Some(path) = &runs_file {
             logs = fogtemp_cal::runs::validation_logs(logs, path).map_err(errors::cal)?;
         }
-        choose_columns(
+        how_read = choose_columns(
             py,
             &mut ingest,
             (columns_named, units_named, time_named, decimal_named, shape_named),
@@ -874,6 +941,7 @@ pub fn validate<'py>(
             .map_err(errors::cal)
         })?;
     }
+    let notes = how_read.into_iter().chain(notes).collect();
     convert::document(py, &ValidationDocument::new(&stability, &validation, comparison).with_notes(notes))
 }
 
@@ -925,14 +993,15 @@ type NamedKeywords = ((bool, bool), (bool, bool), TimeNamed, bool, ShapeNamed);
 /// the rest compared): the ones each model records unless `gyro_column=`, `temp_column=`, the
 /// unit keywords, the time keywords, `decimal_mark=` or the shape keywords were given
 /// (`named`), named columns checked against them (as the command line's `validate`); notes
-/// become warnings.
+/// become warnings. Returns the first model's notes, how the logs are read, which
+/// `validate --json` puts first in its document's `notes` (review20 F6).
 fn choose_columns(
     py: Python<'_>,
     ingest: &mut IngestOptions,
     ((gyro_named, temp_named), (gyro_units, temp_units), time, decimal_mark, shape): NamedKeywords,
     blobs: &[(Vec<u8>, String)],
     models: &[CoreModel<'_>],
-) -> PyResult<()> {
+) -> PyResult<Vec<String>> {
     use fogtemp_cal::axis_columns::{choose_for_replay, Named, PYTHON_OPTIONS};
     let none = Vec::new();
     let (gyro, temp) = (ingest.format.gyro_columns.clone(), ingest.format.temp_columns.clone());
@@ -946,6 +1015,7 @@ fn choose_columns(
         shape,
     };
     let mut format = ingest.format.clone();
+    let mut how_read = Vec::new();
     for (index, ((_, source), model)) in blobs.iter().zip(models).enumerate() {
         // The compared models are checked against the columns and units chosen for the first.
         let chosen = match index {
@@ -960,9 +1030,10 @@ fn choose_columns(
         }
         if index == 0 {
             format = ingest.format.clone();
+            how_read = chosen.notes;
         }
     }
-    Ok(())
+    Ok(how_read)
 }
 
 /// Every log file replayed through every model, one log at a time (the library's validation

@@ -7,6 +7,7 @@
 //! is a `ValueError` naming file, line and column; a missing file a `FileNotFoundError`.
 //! Long work (ingest, fit, replay, evaluation of many points) runs with the GIL released.
 
+mod compensate_notes;
 mod convert;
 mod diagnose;
 mod errors;

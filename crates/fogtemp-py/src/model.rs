@@ -10,6 +10,7 @@ use pyo3::exceptions::PyFileNotFoundError;
 use pyo3::prelude::*;
 use pyo3::types::{PyBool, PyBytes, PyDict, PyFloat, PyTuple};
 
+use crate::compensate_notes;
 use crate::convert::{self, f64_array, f64_vector, slice};
 use crate::errors;
 use crate::options::{int_arg, MIN_CAPACITY};
@@ -152,7 +153,8 @@ impl Model {
     /// and broadcast against each other; the result has their broadcast shape, or is a
     /// Python float when both are scalars (or 0-d arrays), as numpy's ufuncs do. A NaN or
     /// infinite input gives NaN at that point. Runs with the GIL released, on `threads`
-    /// threads (default: every core; 0 or 1: the calling thread) for large inputs.
+    /// threads for large inputs (default: every core; 0 or 1: the calling thread; more than
+    /// the cores available to the process are capped at their number).
     ///
     /// With `return_outside=True`, returns `(values, outside)`: `outside` (bool, same shape)
     /// is True where the point lies outside the calibrated region, where the value is the
@@ -185,8 +187,10 @@ impl Model {
         }
         let shape = t.shape().to_vec();
         let (ts, rs) = (slice(&t, "temp_c")?, slice(&r, "rate_c_per_min")?);
-        let threads =
-            threads.unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get())).max(1);
+        // More threads than cores only add spawning and switching (review20 F12: threads=100000
+        // spawned that many and ran 7x slower).
+        let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+        let threads = threads.unwrap_or(cores).clamp(1, cores);
         let cached = self.grids.get(axis).and_then(Option::as_ref);
         let values = py.detach(|| evaluate_points(&core_axis, cached, ts, rs, threads));
         let outside = return_outside.then(|| py.detach(|| outside_points(&core_axis, ts, rs, threads)));
@@ -218,6 +222,12 @@ impl Model {
     /// holding the core's f32 results exactly, and uint8 flags (`fogtemp.FLAG_BITS`).
     /// `capacity` is the firmware's tracker capacity (the core's default, 128): a model whose
     /// window needs more blocks is refused, as the command line refuses it.
+    ///
+    /// FogtempWarnings say what the command line's `compensate` notes: time that goes back
+    /// (named by the sample index; the command line refuses such a log, the compensator
+    /// restarts there and the output stays row for row), gaps, temperature glitches (as
+    /// `sample:INDEX`, 0-based), and the shares of samples flagged BAD_INPUT, TEMP_STALE and
+    /// OUTSIDE_HULL.
     #[pyo3(signature = (time_s, gyro_dph, temp_c, axis = None, return_bias = None, capacity = None))]
     #[pyo3(text_signature = "(self, time_s, gyro_dph, temp_c, axis=0, return_bias=False, capacity=128)")]
     #[allow(clippy::too_many_arguments)] // Python's keywords, each with its default
@@ -258,21 +268,17 @@ impl Model {
             Box::new(Compensator::new(&model, axis).map_err(|e| errors::model(&self.source, e))?);
         let max_gap_s = comp.tracker().max_gap_us() as f64 * 1e-6;
         let replay = py.detach(|| {
-            let n = ts.len();
-            let (mut out, mut bias, mut flags) = (vec![0.0; n], vec![0.0; n], vec![0u8; n]);
-            let origin = ts.first().copied().unwrap_or(0.0);
-            for k in 0..n {
-                let temp = cs[k];
-                let o =
-                    comp.step(micros(ts[k] - origin), gs[k] as f32, temp.is_finite().then_some(temp as f32));
-                out[k] = f64::from(o.rate_dph);
-                bias[k] = f64::from(o.bias_dph);
-                flags[k] = o.flags.0;
-            }
-            (out, bias, flags)
+            // The glitches are looked for beside the replay (they only read the inputs), so
+            // that the note costs no time where a second core is free.
+            std::thread::scope(|scope| {
+                let glitches = scope.spawn(|| compensate_notes::temperature_glitches(ts, gs, cs, max_gap_s));
+                let (out, bias, flags) = replay_samples(&mut comp, ts, gs, cs);
+                let glitches = glitches.join().unwrap_or_else(|panic| std::panic::resume_unwind(panic));
+                (out, bias, flags, glitches)
+            })
         });
-        let (out, bias, flags) = replay;
-        warn_about_compensation(py, axis, ts, &flags, max_gap_s)?;
+        let (out, bias, flags, glitches) = replay;
+        warn_about_compensation(py, axis, ts, &flags, max_gap_s, &glitches)?;
         let mut items: Vec<Bound<'py, PyAny>> =
             vec![PyArray1::from_vec(py, out).into_any(), PyArray1::from_vec(py, flags).into_any()];
         if return_bias {
@@ -447,6 +453,27 @@ fn evaluate_chunk(axis: &Axis<'_>, grid: Option<&StartGrid<'_>>, ts: &[f64], rs:
     }
 }
 
+/// Every sample through `comp`, as firmware steps it (times as microseconds since the first
+/// sample; a non-finite temperature is no reading): the rate, bias and flags of each.
+fn replay_samples(
+    comp: &mut Compensator<'_, CAL_CAPACITY>,
+    ts: &[f64],
+    gs: &[f64],
+    cs: &[f64],
+) -> (Vec<f64>, Vec<f64>, Vec<u8>) {
+    let n = ts.len();
+    let (mut out, mut bias, mut flags) = (vec![0.0; n], vec![0.0; n], vec![0u8; n]);
+    let origin = ts.first().copied().unwrap_or(0.0);
+    for k in 0..n {
+        let temp = cs[k];
+        let o = comp.step(micros(ts[k] - origin), gs[k] as f32, temp.is_finite().then_some(temp as f32));
+        out[k] = f64::from(o.rate_dph);
+        bias[k] = f64::from(o.bias_dph);
+        flags[k] = o.flags.0;
+    }
+    (out, bias, flags)
+}
+
 /// `{name: bit}` of the compensator's flags.
 pub fn flag_bits(py: Python<'_>) -> PyResult<Bound<'_, PyDict>> {
     let d = PyDict::new(py);
@@ -491,17 +518,22 @@ fn blob_bytes(data: &Bound<'_, PyAny>) -> PyResult<Vec<u8>> {
 
 /// What `fogtemp-cal compensate` notes of its output, as warnings (review17 F1: a notebook
 /// user who does not decode the flags got the raw gyro back, or a bias continued far outside
-/// the calibration, without a word): times mostly further apart than the tracker's max gap
-/// (another unit?), nothing corrected, and the shares of samples flagged `BAD_INPUT`,
-/// `TEMP_STALE` and `OUTSIDE_HULL`.
+/// the calibration, without a word): time that goes back (which the command line refuses),
+/// times mostly further apart than the tracker's max gap (another unit?), temperature
+/// glitches, nothing corrected, and the shares of samples flagged `BAD_INPUT`, `TEMP_STALE`
+/// and `OUTSIDE_HULL`.
 fn warn_about_compensation(
     py: Python<'_>,
     axis: usize,
     time_s: &[f64],
     flags: &[u8],
     max_gap_s: f64,
+    glitches: &fogtemp_cal::spikes::AxisSpikes,
 ) -> PyResult<()> {
     let name = format!("Model.compensate axis {axis}");
+    if let Some(note) = compensate_notes::backward_time_note(&name, time_s, max_gap_s) {
+        crate::progress::warn(py, &note)?;
+    }
     let mut gaps = fogtemp_cal::calibrate::TimeGaps::new(max_gap_s);
     gaps.in_samples = true;
     for (k, pair) in time_s.windows(2).enumerate() {
@@ -520,6 +552,9 @@ fn warn_about_compensation(
     } else if let Some(note) =
         gaps.note_then(path, "after each the compensator held its bias until its tracker had features again")
     {
+        crate::progress::warn(py, &note)?;
+    }
+    if let Some(note) = compensate_notes::temperature_glitch_note(&name, glitches) {
         crate::progress::warn(py, &note)?;
     }
     let mut counts = [0u64; 8];

@@ -262,9 +262,7 @@ pub fn ingest(o: &mut Options<'_>) -> PyResult<IngestOptions> {
     let decimal_mark = DecimalMark::from_name(&o.string("decimal_mark", "point")?)
         .map_err(|e| errors::value(format!("decimal_mark: {e}")))?;
     let comment = o.string("comment", "#")?;
-    // `columns=""` or `[]`: the logs have a header row (over a model's headerless columns).
-    let columns = if o.any_given(&["columns"])? { o.strings("columns", "")? } else { Vec::new() };
-    let columns = if columns.len() == 1 && columns[0].trim().is_empty() { Vec::new() } else { columns };
+    let columns = column_names(o)?;
     Ok(IngestOptions {
         format: LogFormat {
             time_column: o.string("time_column", "time_s")?,
@@ -278,7 +276,7 @@ pub fn ingest(o: &mut Options<'_>) -> PyResult<IngestOptions> {
             delimiter,
             skip_lines: o.int("skip_lines", 0, 0, u64::MAX)?,
             comment: (!comment.is_empty()).then_some(comment),
-            column_names: columns.iter().map(|c| c.trim().to_string()).collect(),
+            column_names: columns,
             sample_rate_hz: o.opt_f64("sample_rate_hz")?,
             sample_rate_from_model: false,
             date_column: o.opt_string("date_column")?,
@@ -304,6 +302,24 @@ pub fn ingest(o: &mut Options<'_>) -> PyResult<IngestOptions> {
         )?;
         Ok(options)
     })
+}
+
+/// `columns=`: the names of a headerless log's columns, in order, trimmed: a list of names,
+/// or one string of names separated by commas as the command line's `--columns a,b,c` takes
+/// them (review20 F8: "a,b,c" was read as one name). `""` or `[]`: the logs have a header
+/// row (over a model's headerless columns); not given: none.
+fn column_names(o: &mut Options<'_>) -> PyResult<Vec<String>> {
+    if !o.any_given(&["columns"])? {
+        return Ok(Vec::new());
+    }
+    let text = o.get("columns")?.is_some_and(|v| v.is_instance_of::<PyString>());
+    let given = o.strings("columns", "")?;
+    let names: Vec<String> = if text {
+        given.iter().flat_map(|g| g.split(',')).map(|name| name.trim().to_string()).collect()
+    } else {
+        given.iter().map(|name| name.trim().to_string()).collect()
+    };
+    Ok(if matches!(names.as_slice(), [only] if only.is_empty()) { Vec::new() } else { names })
 }
 
 /// A `ValueError` naming the keyword, what it must be and what it was, unless `ok`.

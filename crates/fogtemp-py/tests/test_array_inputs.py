@@ -90,3 +90,81 @@ def test_diagnose_names_what_it_cannot_pair_or_read(runs):
         fogtemp.diagnose(named, empty, progress=False)
     with pytest.warns(UserWarning, match="no runs file and no manifest.json .* position and input rate are unknown"):
         fogtemp.diagnose(named, named, progress=False)
+
+
+def test_the_missing_column_message_names_keys_as_python_writes_them_and_a_rename_that_works(model, runs):
+    # Review20 F9: the rename example took the first key (the temperature, for a DataFrame
+    # indexed by time), quoted int keys as strings and wrote invalid Python for a MultiIndex.
+    df = frame(runs[0])
+    with pytest.raises(ValueError) as caught:
+        fogtemp.validate(model, [df.set_index("time_s")], progress=False)
+    text = str(caught.value)
+    assert "it has 'temp_c', 'gyro_dph'; rename, e.g. df.rename(columns={...: 'time_s'})" in text, text
+    assert "reset_index() makes it a column" in text
+    # A plausible source is named, and following the example reads the run.
+    renamed = df.rename(columns={"time_s": "Time (s)"})
+    with pytest.raises(ValueError, match=r"df\.rename\(columns=\{'Time \(s\)': 'time_s'\}\)"):
+        fogtemp.validate(model, [renamed], progress=False)
+    expected = fogtemp.validate(model, [df], progress=False)
+    assert fogtemp.validate(model, [renamed.rename(columns={"Time (s)": "time_s"})], progress=False) == expected
+    # Int keys as ints, and a dict's own rename.
+    numbered = {0: df.time_s.values, 1: df.temp_c.values, 2: df.gyro_dph.values}
+    with pytest.raises(ValueError) as caught:
+        fogtemp.validate(model, [numbered], progress=False)
+    text = str(caught.value)
+    assert "it has 0, 1, 2; rename, e.g. run['time_s'] = run.pop(...)" in text and "'0'" not in text, text
+    assert "reset_index" not in text
+    # MultiIndex columns: a way to one level, which works.
+    grouped = pd.concat({"a": df}, axis=1)
+    with pytest.raises(ValueError) as caught:
+        fogtemp.validate(model, [grouped], progress=False)
+    text = str(caught.value)
+    assert "it has ('a', 'time_s'), ('a', 'temp_c'), ('a', 'gyro_dph'): the columns are a MultiIndex" in text, text
+    assert "df['a'], or drop the outer level with df.droplevel(0, axis=1)" in text
+    assert fogtemp.validate(model, [grouped["a"]], progress=False) == expected
+    assert fogtemp.validate(model, [grouped.droplevel(0, axis=1)], progress=False) == expected
+
+
+def test_structured_arrays_and_tuples_are_refused_saying_what_a_run_is(model, runs):
+    # Review20 F9: numpy's own errors ("Cannot compare structured or void to non-void arrays",
+    # "The truth value of an array ... is ambiguous") said nothing of what a run must be.
+    df = frame(runs[0])
+    what = r"a run given as arrays must be a dict or a pandas DataFrame keyed by column name, with time_s \(s\)"
+    records = df.to_records(index=False)
+    with pytest.raises(TypeError, match=what + r".*got a numpy structured array \(fields 'time_s', 'temp_c', 'gyro_dph'\): pandas\.DataFrame\(array\)"):
+        fogtemp.fit([records] * 3, method="poly", progress=False)
+    # Following the message reads it.
+    assert fogtemp.validate(model, [pd.DataFrame(records)], progress=False) == fogtemp.validate(model, [df], progress=False)
+    for bad, found in ((tuple(df.values.T), "a tuple"), ([df.time_s.values, df.temp_c.values], "a list"), (df.values, "a numpy array")):
+        with pytest.raises(TypeError, match=what + f".*got {found}:"):
+            fogtemp.validate(model, [bad], progress=False)
+    # diagnose's dict of runs too.
+    named = {f"run{k}": r for k, r in enumerate(runs)}
+    as_tuples = {name: tuple(r[k] for k in ("time_s", "temp_c", "gyro_dph")) for name, r in named.items()}
+    with pytest.raises(TypeError, match=what + ".*got a tuple:"):
+        fogtemp.diagnose(as_tuples, named, progress=False)
+    # A list of paths in the list of logs keeps the paths' own error.
+    with pytest.raises(TypeError, match="must be paths"):
+        fogtemp.fit([["a.csv", "b.csv"]], progress=False)
+
+
+def test_booleans_inside_lists_are_refused_as_in_object_arrays(model, runs):
+    # Review20 F10: numpy turned [20.0, True] into [20.0, 1.0] before the dtype check.
+    with pytest.raises(TypeError) as as_object:
+        model.evaluate(np.array([20.0, True], dtype=object), 0.0)
+    assert str(as_object.value) == "temp_c must be numbers, got booleans (element 1: True)"
+    for bad in ([20.0, True], (20.0, True), [20.0, np.True_], [[20.0], [True]]):
+        with pytest.raises(TypeError) as caught:
+            model.evaluate(bad, [0.0, 0.0] if np.ndim(bad) == 1 else [[0.0], [0.0]])
+        assert str(caught.value) == str(as_object.value).replace("True", repr(np.asarray(bad, dtype=object).ravel()[1])), bad
+    with pytest.raises(TypeError, match=r"rate_c_per_min must be numbers, got booleans \(element 2: False\)"):
+        model.evaluate([20.0, 21.0, 22.0], [0, 1, False])
+    # The other array-taking calls share the conversion.
+    run = runs[0]
+    with pytest.raises(TypeError, match=r"gyro_dph must be numbers, got booleans \(element 1: True\)"):
+        model.compensate([0.0, 1.0, 2.0], [0.5, True, 0.5], [20.0, 20.0, 20.0])
+    bad_run = dict(run, gyro_dph=[float(g) for g in run["gyro_dph"][:-1]] + [False])
+    with pytest.raises(TypeError, match=r"runs\[0\]\['gyro_dph'\] must be numbers, got booleans \(element 7499: False\)"):
+        fogtemp.validate(model, [bad_run], progress=False)
+    # Numbers in lists still read, as before: ints beside floats, numpy scalars.
+    assert model.evaluate([20.0, 1], [0, np.float32(0.0)])[1] == model.evaluate(1.0, 0.0)

@@ -608,5 +608,5 @@ def test_complex_numbers_folders_and_dataframe_columns_are_named(tmp_path):
         fogtemp.read_log(tmp_path)
     run = synthetic_runs(runs=1)[0]
     renamed = {"t": run["time_s"], "T": run["temp_c"], "w": run["gyro_dph"]}
-    with pytest.raises(ValueError, match=r"no 'time_s' .*it has 't', 'T', 'w'; rename, e.g. df.rename"):
+    with pytest.raises(ValueError, match=r"no 'time_s' .*it has 't', 'T', 'w'; rename, e.g. run\['time_s'\] = run.pop\('t'\)"):
         fogtemp.fit([renamed, renamed, renamed], method="poly", progress=False)

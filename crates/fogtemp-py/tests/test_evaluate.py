@@ -175,3 +175,33 @@ def test_scalar_inputs_give_a_python_float(mesh_model):
     assert type(nan) is float and np.isnan(nan)
     assert mesh_model.evaluate([20.0], 0.1).shape == (1,)
     assert mesh_model.evaluate(20.0, np.array([[0.1, 0.2]])).shape == (1, 2)
+
+
+def test_threads_beyond_the_cores_are_capped(mesh_model):
+    # Review20 F12: threads=100000 spawned that many threads (and ran 7x slower). Oracle: the
+    # process's thread count (Linux /proc), sampled while the evaluation runs with the GIL
+    # released, never exceeds what it was by more than the cores.
+    import os
+    import threading
+
+    status = "/proc/self/status"
+    if not os.path.exists(status):
+        pytest.skip("needs /proc")
+
+    def threads_now():
+        with open(status) as f:
+            return next(int(line.split()[1]) for line in f if line.startswith("Threads:"))
+
+    rng = np.random.default_rng(3)
+    temp, rate = rng.uniform(-30.0, 60.0, 1_000_000), rng.uniform(-1.0, 1.0, 1_000_000)
+    result = {}
+    worker = threading.Thread(target=lambda: result.setdefault("values", mesh_model.evaluate(temp, rate, threads=100_000)))
+    before = threads_now()
+    worker.start()
+    most = before
+    while worker.is_alive():
+        most = max(most, threads_now())
+    worker.join()
+    assert most - before <= (os.cpu_count() or 1) + 2, (before, most)  # + this test's worker thread, + slack
+    np.testing.assert_array_equal(result["values"], mesh_model.evaluate(temp, rate, threads=1))
+    assert "capped" in fogtemp.Model.evaluate.__doc__
