@@ -218,7 +218,8 @@ impl Model {
     ///
     /// `time_s` (seconds, any origin: the compensator sees microseconds since the first
     /// sample), `gyro_dph` (deg/h) and `temp_c` (deg C; NaN where a sample has no
-    /// temperature reading) are 1-D and of equal length. The outputs are float64 arrays
+    /// temperature reading; an infinite or impossible one, -999 or 65236, is flagged
+    /// BAD_INPUT as firmware flags it) are 1-D and of equal length. The outputs are float64 arrays
     /// holding the core's f32 results exactly, and uint8 flags (`fogtemp.FLAG_BITS`).
     /// `capacity` is the firmware's tracker capacity (the core's default, 128): a model whose
     /// window needs more blocks is refused, as the command line refuses it.
@@ -454,7 +455,9 @@ fn evaluate_chunk(axis: &Axis<'_>, grid: Option<&StartGrid<'_>>, ts: &[f64], rs:
 }
 
 /// Every sample through `comp`, as firmware steps it (times as microseconds since the first
-/// sample; a non-finite temperature is no reading): the rate, bias and flags of each.
+/// sample; a NaN temperature is no reading, an infinite one a reading the compensator flags
+/// BAD_INPUT, as the command line and the C API pass it; review20 F2): the rate, bias and
+/// flags of each.
 fn replay_samples(
     comp: &mut Compensator<'_, CAL_CAPACITY>,
     ts: &[f64],
@@ -466,7 +469,7 @@ fn replay_samples(
     let origin = ts.first().copied().unwrap_or(0.0);
     for k in 0..n {
         let temp = cs[k];
-        let o = comp.step(micros(ts[k] - origin), gs[k] as f32, temp.is_finite().then_some(temp as f32));
+        let o = comp.step(micros(ts[k] - origin), gs[k] as f32, (!temp.is_nan()).then_some(temp as f32));
         out[k] = f64::from(o.rate_dph);
         bias[k] = f64::from(o.bias_dph);
         flags[k] = o.flags.0;
