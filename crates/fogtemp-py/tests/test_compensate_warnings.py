@@ -55,6 +55,25 @@ def test_two_runs_joined_warn_at_the_sample_where_the_time_goes_back(model, runs
     assert flags[join_index] & WARMING_UP and not flags[join_index - 1] & WARMING_UP
 
 
+def test_the_warning_counts_every_place_the_time_goes_back(model, runs):
+    # Review20 F3: the warning names the first sample where the time goes back and how many
+    # more there are. Three runs joined go back twice, at len(a) and len(a) + len(b); a fourth
+    # joined run makes it three times.
+    parts = [runs[0], runs[1], runs[2]]
+    joined = {k: np.concatenate([p[k] for p in parts]) for k in ("time_s", "temp_c", "gyro_dph")}
+    first = len(parts[0]["time_s"])
+    _, said = compensate_warnings(model, joined["time_s"], joined["gyro_dph"], joined["temp_c"])
+    back = [s for s in said if "the time goes back" in s]
+    assert len(back) == 1, said
+    assert f"the time goes back at sample {first} (" in back[0], back[0]
+    assert "), and at 1 more sample: a logger restart" in back[0], back[0]
+    parts.append(runs[0])
+    joined = {k: np.concatenate([p[k] for p in parts]) for k in ("time_s", "temp_c", "gyro_dph")}
+    _, said = compensate_warnings(model, joined["time_s"], joined["gyro_dph"], joined["temp_c"])
+    back = [s for s in said if "the time goes back" in s]
+    assert len(back) == 1 and "), and at 2 more samples: a logger restart" in back[0], said
+
+
 def test_one_stamp_back_is_said_to_go_back_not_only_as_a_gap(model, runs):
     run = runs[1]
     t = run["time_s"].copy()
