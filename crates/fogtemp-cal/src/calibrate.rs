@@ -1396,38 +1396,22 @@ impl OutsideReach {
     }
 
     /// How far outside, for the outside-region note (review14 F5: "85 % extrapolated" read as
-    /// dire for a run 0.5 C past the calibrated maximum); only the ranges exceeded are named,
-    /// with the samples beyond them and those within both (review15 F4), and those inside the
-    /// region beyond a mesh's outermost nodes.
+    /// dire for a run 0.5 C past the calibrated maximum): the samples beyond the calibrated
+    /// ranges with how far (only the ranges exceeded are named), those within both (review15
+    /// F4), and those inside the region beyond a mesh's outermost nodes, each part with its
+    /// count (`all of them` when it is the only part).
     pub fn text(&self) -> String {
-        let (t0, t1) = self.temp_range_c;
-        let (r0, r1) = self.rate_range_c_per_min;
-        let within = format!(
-            "within the calibrated ranges ({t0:.2} .. {t1:.2} C, {r0:.4} .. {r1:.4} C/min) at combinations of \
-             temperature and rate no calibration run held"
-        );
-        let in_region =
-            "inside the calibrated region but beyond the mesh's outermost nodes (its hull, which lies \
-                         inside the region), where the mesh is continued from its edge";
-        match (self.text_outside_region(&within), self.samples_in_region) {
-            (None, _) => format!("all of them {in_region}"),
-            (Some(text), 0) => text,
-            (Some(text), n) => format!("{text}; {n} {in_region}"),
+        let parts = self.parts();
+        match parts.as_slice() {
+            [(_, only)] => format!("all of them {only}"),
+            _ => parts.iter().map(|(n, part)| format!("{n} of them {part}")).collect::<Vec<_>>().join("; "),
         }
     }
 
-    /// [`OutsideReach::text`] for the samples outside the region (`None` without any).
-    fn text_outside_region(&self, within: &str) -> Option<String> {
+    /// The parts of [`OutsideReach::text`] that hold samples, each with its count.
+    fn parts(&self) -> Vec<(u64, String)> {
         let (t0, t1) = self.temp_range_c;
         let (r0, r1) = self.rate_range_c_per_min;
-        if self.samples_beyond == 0 {
-            // Alone, the note's count is theirs; beside the region's, they are counted.
-            return match (self.samples_within, self.samples_in_region) {
-                (0, 1..) => None,
-                (_, 0) => Some(within.to_string()),
-                (k, _) => Some(format!("{k} {within}")),
-            };
-        }
         let mut reach = Vec::new();
         if self.temp_beyond_c > 0.0 {
             reach.push(format!("{:.2} C beyond the calibrated {t0:.2} .. {t1:.2} C", self.temp_beyond_c));
@@ -1438,16 +1422,19 @@ impl OutsideReach {
                 self.rate_beyond_c_per_min
             ));
         }
-        let beyond = format!(
-            "{} of them at most {} (the tracker's features)",
-            self.samples_beyond,
-            reach.join(" and ")
+        let beyond = format!("at most {} (the tracker's features)", reach.join(" and "));
+        let within = format!(
+            "within the calibrated ranges ({t0:.2} .. {t1:.2} C, {r0:.4} .. {r1:.4} C/min) at combinations of \
+             temperature and rate no calibration run held"
         );
-        Some(match (self.samples_within, self.samples_in_region) {
-            (0, 0) => format!("all {beyond}"),
-            (0, _) => beyond,
-            (k, _) => format!("{beyond}, {k} {within}"),
-        })
+        let in_region =
+            "inside the calibrated region but beyond the mesh's outermost nodes (its hull, which lies \
+                         inside the region), where the mesh is continued from its edge"
+                .to_string();
+        [(self.samples_beyond, beyond), (self.samples_within, within), (self.samples_in_region, in_region)]
+            .into_iter()
+            .filter(|(samples, _)| *samples > 0)
+            .collect()
     }
 }
 
@@ -2221,8 +2208,8 @@ mod tests {
         reach.observe(20.0, 0.1, 7, false);
         assert_eq!(
             reach.text(),
-            "within the calibrated ranges (-35.00 .. 62.55 C, -0.0800 .. 0.5400 C/min) at combinations of \
-             temperature and rate no calibration run held"
+            "all of them within the calibrated ranges (-35.00 .. 62.55 C, -0.0800 .. 0.5400 C/min) at combinations \
+             of temperature and rate no calibration run held"
         );
         reach.observe(63.06, 0.1, 10, false);
         reach.observe(62.9, 0.3, 5, false);
@@ -2231,8 +2218,8 @@ mod tests {
         assert_eq!((reach.samples_beyond, reach.samples_within), (15, 8));
         assert_eq!(
             reach.text(),
-            "15 of them at most 0.51 C beyond the calibrated -35.00 .. 62.55 C (the tracker's features), 8 within the \
-             calibrated ranges (-35.00 .. 62.55 C, -0.0800 .. 0.5400 C/min) at combinations of temperature and rate \
+            "15 of them at most 0.51 C beyond the calibrated -35.00 .. 62.55 C (the tracker's features); 8 of them \
+             within the calibrated ranges (-35.00 .. 62.55 C, -0.0800 .. 0.5400 C/min) at combinations of temperature and rate \
              no calibration run held"
         );
         let mut rate_only = OutsideReach { samples_within: 0, ..reach };
@@ -2240,7 +2227,7 @@ mod tests {
         rate_only.rate_beyond_c_per_min = 0.02;
         assert_eq!(
             rate_only.text(),
-            "all 15 of them at most 0.0200 C/min beyond the calibrated -0.0800 .. 0.5400 C/min (the tracker's features)"
+            "all of them at most 0.0200 C/min beyond the calibrated -0.0800 .. 0.5400 C/min (the tracker's features)"
         );
         // A mesh's samples inside the region (beyond its node hull) are counted apart, and
         // their features do not widen the reach.
@@ -2252,16 +2239,20 @@ mod tests {
             rate_only.text(),
             format!(
                 "15 of them at most 0.0200 C/min beyond the calibrated -0.0800 .. 0.5400 C/min (the tracker's \
-                 features); 4 {beside}"
+                 features); 4 of them {beside}"
             )
         );
         let mut mesh_only = OutsideReach { samples_beyond: 0, samples_within: 0, ..reach };
         mesh_only.observe(20.0, 0.1, 3, true);
         assert_eq!(mesh_only.text(), format!("all of them {beside}"));
         mesh_only.observe(20.0, 0.4, 2, false);
-        assert!(mesh_only.text().starts_with("2 within the calibrated ranges"), "{}", mesh_only.text());
         assert!(
-            mesh_only.text().ends_with(&format!("no calibration run held; 3 {beside}")),
+            mesh_only.text().starts_with("2 of them within the calibrated ranges"),
+            "{}",
+            mesh_only.text()
+        );
+        assert!(
+            mesh_only.text().ends_with(&format!("no calibration run held; 3 of them {beside}")),
             "{}",
             mesh_only.text()
         );

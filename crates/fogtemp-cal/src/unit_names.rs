@@ -52,7 +52,7 @@ pub fn unit_name_notes(format: &LogFormat, options: OptionNames<'_>) -> Vec<Stri
 }
 
 /// Lower-case words of a name: runs of ASCII letters (`Time (ms)` -> `time`, `ms`).
-fn words(name: &str) -> Vec<String> {
+pub(crate) fn words(name: &str) -> Vec<String> {
     name.to_ascii_lowercase()
         .split(|c: char| !c.is_ascii_alphabetic())
         .filter(|w| !w.is_empty())

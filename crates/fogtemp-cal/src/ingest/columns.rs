@@ -395,9 +395,8 @@ fn looks_like_time(name: &str) -> bool {
         "micros",
     ];
     const UNITS: [&str; 8] = ["s", "sec", "secs", "second", "seconds", "ms", "us", "ns"];
-    let lower = name.to_ascii_lowercase();
-    let words: Vec<&str> =
-        lower.split(|c: char| !c.is_ascii_alphabetic()).filter(|w| !w.is_empty()).collect();
+    let owned = crate::unit_names::words(name);
+    let words: Vec<&str> = owned.iter().map(String::as_str).collect();
     let time_word = words.iter().any(|w| TIME_WORDS.contains(w));
     let alone = match words.as_slice() {
         [one] => matches!(*one, "t" | "ts") || (*one != "s" && UNITS.contains(one)),
