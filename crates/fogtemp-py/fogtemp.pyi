@@ -202,7 +202,13 @@ def read_log(
     names as on the command line, "time_s,temp_c,gyro_dph"; "" or [] for a header row).
     ``model=``: read the log as the model's fit read its logs (columns, units, time and, for a
     model that records it, format 7, the shape: skip_lines, delimiter, comment, columns), as
-    ``validate`` does, ready for ``Model.compensate``."""
+    ``validate`` does, ready for ``Model.compensate``.
+    ``keep_impossible_temperatures=True`` reads a log as ``fogtemp-cal compensate`` does: a
+    temperature no sensor reads (below absolute zero, a logger's -999) is kept as read and a
+    ``NaN`` or ``inf`` temperature cell is read as ``inf``, instead of refusing the row (or
+    skipping it with ``skip_bad_rows``); ``Model.compensate`` flags those samples BAD_INPUT and
+    keeps them, so its output is the command's row for row. (An empty cell stays NaN: no
+    reading.)"""
 @overload
 def read_log(
     path: _PathLike,

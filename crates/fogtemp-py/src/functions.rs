@@ -694,6 +694,8 @@ pub fn read_log<'py>(
         shape_named(&o)?,
     );
     let mut ingest = options::ingest(&mut o)?;
+    // Only read_log takes it: fit and validate refuse such rows (review20 F2, the file part).
+    ingest.keep_impossible_temperatures = o.bool("keep_impossible_temperatures", false)?;
     o.finish()?;
     if let Some(model) = model {
         let blob = model_arg(model)?;

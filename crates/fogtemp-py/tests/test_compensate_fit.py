@@ -39,6 +39,41 @@ def test_compensate_equals_the_command_line(mesh_model, val_logs, tmp_path, cli)
     assert (flags & fogtemp.FLAG_BITS["WARMING_UP"]).any() and not (flags & fogtemp.FLAG_BITS["WARMING_UP"]).all()
 
 
+def test_read_log_keeps_impossible_temperatures_as_compensate_does(mesh_model, val_logs, tmp_path, cli):
+    # Review20 F2 (the file part): a logger's -999 and a NaN temperature cell are rows the
+    # command's compensate keeps (flagged BAD_INPUT); read_log refused them, and with
+    # skip_bad_rows dropped them, so Model.compensate could not give the command's output.
+    frame = pd.read_csv(val_logs[3]).head(3000)
+    frame["temp_c"] = frame["temp_c"].astype(object)
+    frame.loc[[1200, 1201], "temp_c"] = -999.0
+    frame.loc[1500, "temp_c"] = "NaN"
+    log = tmp_path / "bad-temps.csv"
+    frame.to_csv(log, index=False)
+    model_path = tmp_path / "m.fogm"
+    mesh_model.save(model_path)
+    out = tmp_path / "comp.csv"
+    done = cli("compensate", "--model", model_path, log, "--out", out)
+    assert done.returncode == 0, done.stderr
+    expected = pd.read_csv(out)
+    with pytest.raises(ValueError, match=r"bad-temps.csv:1202:"):
+        fogtemp.read_log(log, progress=False)
+    data = fogtemp.read_log(log, progress=False, keep_impossible_temperatures=True)
+    assert len(data["time_s"]) == len(frame) == len(expected)
+    assert data["temp_c"][1200] == -999.0 and data["temp_c"][1500] == np.inf
+    compensated, flags, bias = mesh_model.compensate(
+        data["time_s"], data["gyro_dph"], data["temp_c"], return_bias=True
+    )
+    np.testing.assert_array_equal(compensated.astype(np.float32), expected["compensated_dph"].to_numpy(np.float32))
+    np.testing.assert_array_equal(bias.astype(np.float32), expected["bias_dph"].to_numpy(np.float32))
+    np.testing.assert_array_equal(flags, expected["flags"].to_numpy(np.uint8))
+    bad = (flags & fogtemp.FLAG_BITS["BAD_INPUT"]) != 0
+    assert bad[[1200, 1201, 1500]].all() and bad.sum() == 3
+    with pytest.raises(TypeError, match=r"keep_impossible_temperatures must be True or False"):
+        fogtemp.read_log(log, progress=False, keep_impossible_temperatures="yes")
+    with pytest.raises(TypeError, match=r"unexpected keyword argument 'keep_impossible_temperatures'"):
+        fogtemp.validate(mesh_model, [log], progress=False, keep_impossible_temperatures=True)
+
+
 def test_evaluate_return_outside_is_the_command_lines_outside_flag(mesh_model, poly_model, tmp_path, cli):
     # Review10 F1: which evaluated points lie outside the calibrated region. Oracle: the
     # command line's evaluate, whose flags column has OUTSIDE_HULL for them.
