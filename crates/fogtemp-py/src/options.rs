@@ -317,6 +317,16 @@ fn column_names(o: &mut Options<'_>) -> PyResult<Vec<String>> {
     let names: Vec<String> = if text {
         given.iter().flat_map(|g| g.split(',')).map(|name| name.trim().to_string()).collect()
     } else {
+        // A list item with commas would be one column of that name, which a comma-separated
+        // log cannot have: the list was meant as names.
+        if let Some(joined) = given.iter().find(|name| name.contains(',')) {
+            let split: Vec<String> = joined.split(',').map(|n| format!("'{}'", n.trim())).collect();
+            return Err(errors::value(format!(
+                "columns: the list item '{joined}' holds commas: give each name as its own item \
+                 ([{}]), or all of them as one string '{joined}'",
+                split.join(", ")
+            )));
+        }
         given.iter().map(|name| name.trim().to_string()).collect()
     };
     Ok(if matches!(names.as_slice(), [only] if only.is_empty()) { Vec::new() } else { names })

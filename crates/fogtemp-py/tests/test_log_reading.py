@@ -62,6 +62,11 @@ def test_columns_as_the_command_line_writes_them(tmp_path, cli):
     )["runs"][0]
     for key in ("samples", "flag_samples", "raw_bias_stability_dph", "compensated_bias_stability_dph"):
         assert got[key] == expected[key], key
+    # A list item with commas is the one shape that cannot be a column name of a comma-
+    # separated log: refused, naming both ways to write it.
+    with pytest.raises(ValueError, match=r"the list item 'time_s,temp_c,gyro_dph' holds commas: give each name "
+                       r"as its own item \(\['time_s', 'temp_c', 'gyro_dph'\]\)"):
+        fogtemp.read_log(captures[0], progress=False, **dict(SHAPE_LIST, columns=["time_s,temp_c,gyro_dph"]))
     # "" and []: a log with a header row.
     csv = tmp_path / "header.csv"
     csv.write_text("time_s,temp_c,gyro_dph\n0,20,1\n1,20.5,2\n")
