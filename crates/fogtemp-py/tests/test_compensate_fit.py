@@ -13,6 +13,24 @@ import fogtemp
 from conftest import synthetic_runs, write_csv
 
 
+def compensated_by_the_command(model, log, tmp_path, cli):
+    """`fogtemp-cal compensate` of `log` with `model`: its output as a DataFrame."""
+    model_path = tmp_path / "m.fogm"
+    model.save(model_path)
+    out = tmp_path / "comp.csv"
+    done = cli("compensate", "--model", model_path, log, "--out", out)
+    assert done.returncode == 0, done.stderr
+    return pd.read_csv(out)
+
+
+def assert_equals_the_command(compensated, flags, bias, expected):
+    """The command prints the core's f32 results in their shortest form: equal as f32, bit for bit."""
+    assert len(compensated) == len(expected)
+    np.testing.assert_array_equal(compensated.astype(np.float32), expected["compensated_dph"].to_numpy(np.float32))
+    np.testing.assert_array_equal(bias.astype(np.float32), expected["bias_dph"].to_numpy(np.float32))
+    np.testing.assert_array_equal(flags, expected["flags"].to_numpy(np.uint8))
+
+
 def test_compensate_equals_the_command_line(mesh_model, val_logs, tmp_path, cli):
     # The simulated log with the temperature kept on every 10th row only (a 1 Hz sensor
     # beside a 10 Hz gyro): the empty cells are "no reading" to both.
@@ -20,22 +38,13 @@ def test_compensate_equals_the_command_line(mesh_model, val_logs, tmp_path, cli)
     frame.loc[frame.index % 10 != 0, "temp_c"] = np.nan
     log = tmp_path / "sparse.csv"
     frame.to_csv(log, index=False, na_rep="")
-    model_path = tmp_path / "m.fogm"
-    mesh_model.save(model_path)
-    out = tmp_path / "comp.csv"
-    done = cli("compensate", "--model", model_path, log, "--out", out)
-    assert done.returncode == 0, done.stderr
-    expected = pd.read_csv(out)
+    expected = compensated_by_the_command(mesh_model, log, tmp_path, cli)
     data = fogtemp.read_log(log, progress=False)
     assert np.isnan(data["temp_c"]).mean() == pytest.approx(0.9, abs=0.01)
     compensated, flags, bias = mesh_model.compensate(
         data["time_s"], data["gyro_dph"], data["temp_c"], return_bias=True
     )
-    assert len(compensated) == len(expected)
-    # The command prints the core's f32 results in their shortest form: equal as f32, bit for bit.
-    np.testing.assert_array_equal(compensated.astype(np.float32), expected["compensated_dph"].to_numpy(np.float32))
-    np.testing.assert_array_equal(bias.astype(np.float32), expected["bias_dph"].to_numpy(np.float32))
-    np.testing.assert_array_equal(flags, expected["flags"].to_numpy(np.uint8))
+    assert_equals_the_command(compensated, flags, bias, expected)
     assert (flags & fogtemp.FLAG_BITS["WARMING_UP"]).any() and not (flags & fogtemp.FLAG_BITS["WARMING_UP"]).all()
 
 
@@ -49,12 +58,7 @@ def test_read_log_keeps_impossible_temperatures_as_compensate_does(mesh_model, v
     frame.loc[1500, "temp_c"] = "NaN"
     log = tmp_path / "bad-temps.csv"
     frame.to_csv(log, index=False)
-    model_path = tmp_path / "m.fogm"
-    mesh_model.save(model_path)
-    out = tmp_path / "comp.csv"
-    done = cli("compensate", "--model", model_path, log, "--out", out)
-    assert done.returncode == 0, done.stderr
-    expected = pd.read_csv(out)
+    expected = compensated_by_the_command(mesh_model, log, tmp_path, cli)
     with pytest.raises(ValueError, match=r"bad-temps.csv:1202:"):
         fogtemp.read_log(log, progress=False)
     data = fogtemp.read_log(log, progress=False, keep_impossible_temperatures=True)
@@ -63,9 +67,7 @@ def test_read_log_keeps_impossible_temperatures_as_compensate_does(mesh_model, v
     compensated, flags, bias = mesh_model.compensate(
         data["time_s"], data["gyro_dph"], data["temp_c"], return_bias=True
     )
-    np.testing.assert_array_equal(compensated.astype(np.float32), expected["compensated_dph"].to_numpy(np.float32))
-    np.testing.assert_array_equal(bias.astype(np.float32), expected["bias_dph"].to_numpy(np.float32))
-    np.testing.assert_array_equal(flags, expected["flags"].to_numpy(np.uint8))
+    assert_equals_the_command(compensated, flags, bias, expected)
     bad = (flags & fogtemp.FLAG_BITS["BAD_INPUT"]) != 0
     assert bad[[1200, 1201, 1500]].all() and bad.sum() == 3
     with pytest.raises(TypeError, match=r"keep_impossible_temperatures must be True or False"):
