@@ -1557,22 +1557,24 @@ impl<'m> Replayer<'m> {
             series.bias_dph.push(bias / n);
             series.temp_c.push(f.map_or(f64::NAN, |f| f64::from(f.temp_c)));
             series.rate_c_per_min.push(f.map_or(f64::NAN, |f| f64::from(f.rate_c_per_min)));
-            if let (true, Some(reach), Some(f)) = (self.block_outside > 0, series.outside_reach.as_mut(), f) {
-                let in_region = self.region.is_some_and(|(region, normalisation)| {
-                    let (x, y) = normalisation.apply(f.temp_c, f.rate_c_per_min);
-                    region.contains(x, y)
-                });
-                reach.observe(
-                    f64::from(f.temp_c),
-                    f64::from(f.rate_c_per_min),
-                    self.block_outside,
-                    in_region,
-                );
-            }
         }
+        self.observe_outside();
         self.fullest_block = self.fullest_block.max(self.acc.0);
         self.acc = (0, 0.0, 0.0, 0.0, block);
         self.block_outside = 0;
+    }
+
+    /// Counts the block's samples flagged outside in the reach, at the tracker's features.
+    fn observe_outside(&mut self) {
+        let f = self.comp.tracker().features();
+        if let (true, Some(reach), Some(f)) = (self.block_outside > 0, self.series.outside_reach.as_mut(), f)
+        {
+            let in_region = self.region.is_some_and(|(region, normalisation)| {
+                let (x, y) = normalisation.apply(f.temp_c, f.rate_c_per_min);
+                region.contains(x, y)
+            });
+            reach.observe(f64::from(f.temp_c), f64::from(f.rate_c_per_min), self.block_outside, in_region);
+        }
     }
 
     /// The series at the end of the log. A last block cut short by the end (under 90 % of
@@ -1581,6 +1583,10 @@ impl<'m> Replayer<'m> {
     fn finish(mut self) -> ReplaySeries {
         if self.acc.0 * 10 >= self.fullest_block * 9 {
             self.flush();
+        } else {
+            // The series leaves the block out; the outside note still counts its samples
+            // (review21 F3: a run's last sample alone outside gave the note an empty reach).
+            self.observe_outside();
         }
         self.series.fullest_block_samples = self.fullest_block;
         self.series.temperature_spikes = self.spikes.finish(&mut |_| {});
@@ -1775,7 +1781,7 @@ impl RunValidation {
                 ),
                 _ => outside_region_note(&name, outside, s.samples, "flag OUTSIDE_HULL"),
             };
-            if let Some(reach) = &s.outside_reach {
+            if let Some(reach) = s.outside_reach.as_ref().filter(|r| !r.parts().is_empty()) {
                 note.push_str(&format!(": {}", reach.text()));
             }
             notes.push(note);
@@ -2578,6 +2584,37 @@ mod tests {
         assert_eq!(a.axes[0].mesh_nodes, b.axes[0].mesh_nodes);
         assert!(a.axes[0].mesh_nodes > 3, "{}", a.axes[0].mesh_nodes);
         assert!(a.blob == b.blob, "the blobs differ");
+    }
+
+    /// Review21 F3: the outside note counted a run's flagged samples, its reach only those in
+    /// the blocks the series keeps; a last sample alone in its block (left out of the series)
+    /// and outside gave the note an empty reach. Now the reach's parts count every flagged one.
+    #[test]
+    fn the_outside_reach_counts_the_samples_of_a_last_block_the_series_leaves_out() {
+        let config = CalibrationConfig { method: Method::Poly, ..CalibrationConfig::default() };
+        let runs: Vec<RunFeatures> = [(-10.0, 0.5), (0.0, -0.3), (5.0, 0.2)]
+            .iter()
+            .enumerate()
+            .map(|(i, &(start_c, rate))| {
+                extract_run_from(ramp_log(start_c, rate).as_bytes(), Path::new(&format!("r{i}.csv")), &config)
+                    .expect("reads")
+            })
+            .collect();
+        let fitted = fit_model(&runs, &config, [0; 32]).expect("fits");
+        let model = Model::from_bytes(&fitted.blob).expect("parses");
+        // A ramp that leaves the calibrated temperatures (up to 15 C) for 45 C, and one more
+        // row at 3000 s: alone in its 10 s block, which the series leaves out.
+        let mut log = ramp_log(20.0, 0.5);
+        log.push_str("3000.0,45.0000,0.450000\n");
+        let replay = replay_models_from(log.as_bytes(), Path::new("v.csv"), &[&model], &config.ingest, 10.0)
+            .expect("replays");
+        let series = &replay.models[0][0];
+        assert_eq!(series.time_s.len(), 300, "the last, one-sample block is left out of the series");
+        let flagged = series.flag_counts[Flags::OUTSIDE_HULL.0.trailing_zeros() as usize];
+        let reach = series.outside_reach.expect("a polynomial with a region records its reach");
+        let counted = reach.samples_beyond + reach.samples_within + reach.samples_in_region;
+        assert!(flagged > 2000, "{flagged}");
+        assert_eq!(counted, flagged, "every flagged sample is in one part of the reach");
     }
 
     /// `ramp_log` with the temperature cell of data row `row` (0-based) replaced by `cell`.
