@@ -325,8 +325,33 @@ fn round_trip(method: &str) {
         assert!(!arr(&iaxis["poly"]).is_empty());
     }
 
+    // inspect's text names the kind, a polynomial with a rate term as plain `poly`.
+    let text = run_ok(args!["inspect", &model]);
+    let with_rate = has_poly && arr(&iaxis["poly"]).iter().any(|t| t["rate_power"].as_u64() != Some(0));
+    let expected_kind = match (has_poly, has_mesh) {
+        (true, true) => "poly+mesh",
+        (false, true) => "mesh",
+        _ => "poly",
+    };
+    assert!(with_rate || !has_poly, "the warm-up logs' Shupe-like term gives the fit a rate term");
+    assert!(text.contains(&format!("axis 0: {expected_kind} |")), "{text}");
+
     // export
     check_export(&model, &blob, dir.path());
+}
+
+/// Review21 F7: a cubic in T alone was listed by `inspect` as `poly`, the (T, dT/dt) fit's name.
+#[test]
+fn inspect_says_a_cubic_t_model_is_a_polynomial_in_t_alone() {
+    let logs = logs();
+    let dir = tempfile::tempdir().expect("tempdir");
+    let model = dir.path().join("cubic.fogm");
+    fit("cubic-t", &model, &[&logs.cal]);
+    let text = run_ok(args!["inspect", &model]);
+    assert!(text.contains("axis 0: poly in T alone |"), "{text}");
+    let inspect = json(&run_ok(args!["inspect", &model, "--json"]));
+    let terms = arr(&arr(&inspect["axes"])[0]["poly"]).clone();
+    assert!(!terms.is_empty() && terms.iter().all(|t| t["rate_power"].as_u64() == Some(0)), "{terms:?}");
 }
 
 /// `compensate` output: the header, one row per input row, time and raw as logged, and

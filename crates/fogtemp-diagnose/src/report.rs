@@ -462,17 +462,19 @@ pub fn fitted_text(d: &Diagnosis) -> String {
             .iter()
             .map(|(name, p)| match p.std_error.filter(|se| se.is_finite() && *se > 0.0) {
                 Some(_) => {
-                    let (value, se) = value_and_error(p.value, p.std_error);
-                    format!("{name} {value} +- {se} {}", p.units)
+                    let (value, se) = value_and_error(p.value, p.std_error, &p.units);
+                    format!("{name} {value} +- {se}{}", unit_suffix(&p.units))
                 }
                 None if p.at_grid_edge => {
                     format!(
-                        "{name} {} {} (at its grid's edge: a bound, not an estimate)",
-                        significant(p.value, 4),
-                        p.units
+                        "{name} {}{} (at its grid's edge: a bound, not an estimate)",
+                        grid_value(p.value, &p.units),
+                        unit_suffix(&p.units)
                     )
                 }
-                None => format!("{name} {} {} (grid choice)", significant(p.value, 4), p.units),
+                None => {
+                    format!("{name} {}{} (grid choice)", grid_value(p.value, &p.units), unit_suffix(&p.units))
+                }
             })
             .collect();
         format!("{}: {}", e.effect, parameters.join(", "))
@@ -484,13 +486,32 @@ pub fn fitted_text(d: &Diagnosis) -> String {
 /// significant digits of the error); a parameter without one is a grid choice (a profiled
 /// time constant, width or basis size picked from its grid) and says so, with four
 /// significant digits.
-fn value_and_error(value: f64, std_error: Option<f64>) -> (String, String) {
+fn value_and_error(value: f64, std_error: Option<f64>, units: &str) -> (String, String) {
     match std_error.filter(|se| se.is_finite() && *se > 0.0) {
         Some(se) => {
             let decimals = (1 - se.log10().floor() as i32).max(0) as usize;
             (format!("{value:.decimals$}"), format!("{se:.decimals$}"))
         }
-        None => (significant(value, 4), "- (grid choice)".into()),
+        None => (grid_value(value, units), "- (grid choice)".into()),
+    }
+}
+
+/// A grid choice's value: a count (units `1`, a whole number: basis functions, a degree) as
+/// the whole number (review21 F9: `basis_functions 8.000 1`), else four significant digits.
+fn grid_value(value: f64, units: &str) -> String {
+    if units == "1" && value.fract() == 0.0 && value.abs() < 1e9 {
+        format!("{value:.0}")
+    } else {
+        significant(value, 4)
+    }
+}
+
+/// ` units` after a value in running text; nothing for a pure number (units `1`).
+fn unit_suffix(units: &str) -> String {
+    if units == "1" {
+        String::new()
+    } else {
+        format!(" {units}")
     }
 }
 
@@ -549,7 +570,7 @@ fn markdown(d: &Diagnosis, figures: OptionalFigures) -> String {
             e.effect, e.statement
         );
         for (name, p) in &e.parameters {
-            let (value, mut se) = value_and_error(p.value, p.std_error);
+            let (value, mut se) = value_and_error(p.value, p.std_error, &p.units);
             if p.at_grid_edge {
                 se = "- (at the grid's edge: a bound, not an estimate)".into();
             }
@@ -803,10 +824,14 @@ mod tests {
     /// value without an error is a grid choice at four significant digits.
     #[test]
     fn parameters_are_given_to_the_precision_of_their_error() {
-        assert_eq!(value_and_error(1602.412891, Some(436.7114)), ("1602".into(), "437".into()));
-        assert_eq!(value_and_error(0.043225, Some(0.0036)), ("0.0432".into(), "0.0036".into()));
-        assert_eq!(value_and_error(4.0, None), ("4.000".into(), "- (grid choice)".into()));
-        assert_eq!(value_and_error(1800.0, Some(f64::NAN)), ("1800".into(), "- (grid choice)".into()));
+        assert_eq!(value_and_error(1602.412891, Some(436.7114), "s"), ("1602".into(), "437".into()));
+        assert_eq!(value_and_error(0.043225, Some(0.0036), "deg/h"), ("0.0432".into(), "0.0036".into()));
+        assert_eq!(value_and_error(4.0, None, "C"), ("4.000".into(), "- (grid choice)".into()));
+        assert_eq!(value_and_error(1800.0, Some(f64::NAN), "s"), ("1800".into(), "- (grid choice)".into()));
+        // A count chosen from its grid is a whole number, without a unit in running text.
+        assert_eq!(value_and_error(8.0, None, "1"), ("8".into(), "- (grid choice)".into()));
+        assert_eq!(value_and_error(2.5, None, "1"), ("2.500".into(), "- (grid choice)".into()));
+        assert_eq!((unit_suffix("1"), unit_suffix("s")), (String::new(), " s".to_string()));
     }
 
     /// A term judged in no run, or with no held-out improvement, is "possible, small".

@@ -295,7 +295,8 @@ impl Model {
             .map(|a| {
                 let mut kind = Vec::new();
                 if let Some(p) = a.poly {
-                    kind.push(format!("poly({} terms)", p.len()));
+                    let t_alone = if p.terms().all(|t| t.rate_power == 0) { ", T alone" } else { "" };
+                    kind.push(format!("poly({} terms{t_alone})", p.len()));
                 }
                 if let Some(m) = a.mesh {
                     kind.push(format!("mesh({} nodes)", m.vertex_count()));

@@ -371,3 +371,10 @@ def test_gaps_in_runs_given_as_arrays_are_named_by_sample():
         model = fogtemp.fit([gappy, runs[1], runs[2]], method="poly", progress=False)
     with pytest.warns(UserWarning, match=r"runs\[0\]: 1 gap in the time stamps longer than .* before sample 700;"):
         fogtemp.validate(model, [gappy], progress=False)
+
+
+def test_repr_says_a_polynomial_in_t_alone():
+    # Review21 F7: a cubic-t model was shown as plain poly(4 terms).
+    model = fogtemp.fit(synthetic_runs(runs=3), method="cubic-t", progress=False)
+    assert "T alone" in repr(model), repr(model)
+    assert "axes: [poly(" in repr(model)

@@ -52,7 +52,7 @@ pub fn inspect(a: InspectArgs) -> Result<()> {
         println!(
             "axis {}: {} | window {} s in {} blocks, restart after {} s | {} polynomial terms, {} nodes, {} triangles, {} | fit residual RMS {} deg/h over {} points",
             axis.axis,
-            axis.kind.join("+"),
+            kind_text(axis),
             json_text(&axis.features.window_s),
             axis.features.block_count,
             json_text(&axis.features.max_gap_s),
@@ -120,4 +120,15 @@ pub fn inspect(a: InspectArgs) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// The axis's kind, a polynomial without a rate term said to be in T alone (a `cubic-t`, or a
+/// stepwise fit that admitted no rate term: review21 F7, "poly" read as the (T, dT/dt) fit).
+fn kind_text(axis: &fogtemp_cal::documents::ModelAxisDocument) -> String {
+    let t_alone = axis.poly.as_ref().is_some_and(|terms| terms.iter().all(|t| t.rate_power == 0));
+    axis.kind
+        .iter()
+        .map(|&k| if k == "poly" && t_alone { "poly in T alone" } else { k })
+        .collect::<Vec<_>>()
+        .join("+")
 }
