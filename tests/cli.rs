@@ -1419,6 +1419,10 @@ fn compensate_keeps_a_sentinel_temperature_row_flagged_as_the_firmware_does() {
         }
     }
     assert!(said.contains("1 of") && said.contains("flag BAD_INPUT in the output"), "{said}");
+    // The note names the line, and no cause the reader refuses (review21 F8: a time not
+    // after the one before stops compensate with an error).
+    assert!(said.contains("(flag BAD_INPUT in the output; at line 101)"), "{said}");
+    assert!(!said.contains("a time not after"), "{said}");
     assert!(!said.contains("glitch"), "a sentinel is not a glitch: {said}");
     // 'NaN' and 'inf' written for the reading: the same as -999 (review18 F3: compensate
     // stopped there, though the firmware flags them alike).

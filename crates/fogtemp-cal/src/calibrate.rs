@@ -398,11 +398,45 @@ pub fn never_corrected_note(
     format!("{name}: the compensator never corrected a sample: its feature tracker never had features ({cause}); {consequence}")
 }
 
+/// Where the samples a compensation flagged `BAD_INPUT` can come from, for
+/// [`compensation_notes`] (review21 F8: `compensate`'s note named no line, and a cause its
+/// reader refuses).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct BadInputSources {
+    /// The reader refused times not after the one before (a log file), so they are no cause.
+    pub times_refused: bool,
+    /// The log lines of the first flagged samples (empty when there are none: arrays).
+    pub first_lines: Vec<u64>,
+}
+
+/// How many flagged samples' lines [`BadInputSources::first_lines`] keeps.
+pub const BAD_INPUT_LINES_LISTED: usize = 5;
+
+/// The note on samples flagged `BAD_INPUT`, with the first lines when known.
+fn bad_input_note(name: &str, bad: u64, samples: u64, output: &str, sources: &BadInputSources) -> String {
+    let time = if sources.times_refused { "" } else { " or a time not after the one before" };
+    let lines = match sources.first_lines.as_slice() {
+        [] => String::new(),
+        [one] => format!("; at line {one}"),
+        many => {
+            let listed: Vec<String> = many.iter().map(u64::to_string).collect();
+            let first = if (many.len() as u64) < bad { "first " } else { "" };
+            format!("; {first}at lines {}", listed.join(", "))
+        }
+    };
+    format!(
+        "{name}: {bad} of {samples} samples ({} %) had a temperature no sensor reads (below -273.15 C or above \
+         1000 C, or not a number: a logger's mark for a missing reading?){time} (flag BAD_INPUT in {output}{lines}): \
+         compensated as the firmware does, without them in the features",
+        share_percent(bad, samples)
+    )
+}
+
 /// The notes on one axis's compensated output (`compensate`, Python's `Model.compensate`)
 /// from how many of its `samples` carried each flag bit (`flag_counts[bit]`): that nothing
 /// was corrected (with `never_consequence`, and then nothing else), and the shares of samples
 /// flagged `BAD_INPUT`, `TEMP_STALE` and `OUTSIDE_HULL`; `name` names the axis, `output` the
-/// place of the flags ("the output", "flags").
+/// place of the flags ("the output", "flags"); `bad` where the `BAD_INPUT` samples can come from.
 pub fn compensation_notes(
     name: &str,
     flag_counts: &[u64; 8],
@@ -410,6 +444,7 @@ pub fn compensation_notes(
     max_gap_s: f64,
     output: &str,
     never_consequence: &str,
+    bad: &BadInputSources,
 ) -> Vec<String> {
     use fogtemp_core::Flags;
     let count = |flag: Flags| flag_counts[flag.0.trailing_zeros() as usize & 7];
@@ -420,14 +455,9 @@ pub fn compensation_notes(
         return vec![never_corrected_note(name, never_consequence, flag_counts, samples, max_gap_s)];
     }
     let mut notes = Vec::new();
-    let bad = count(Flags::BAD_INPUT);
+    let (bad, sources) = (count(Flags::BAD_INPUT), bad);
     if bad > 0 {
-        notes.push(format!(
-            "{name}: {bad} of {samples} samples ({} %) had a temperature no sensor reads (below -273.15 C or above \
-             1000 C, or not a number: a logger's mark for a missing reading?) or a time not after the one before (flag BAD_INPUT \
-             in {output}): compensated as the firmware does, without them in the features",
-            share_percent(bad, samples)
-        ));
+        notes.push(bad_input_note(name, bad, samples, output, sources));
     }
     let (stale, outside) = (count(Flags::TEMP_STALE), count(Flags::OUTSIDE_HULL));
     if stale > 0 {
@@ -2202,6 +2232,22 @@ mod tests {
         flags[bit(Flags::BAD_INPUT)] = 0;
         let note = never_corrected_note("run.csv", "the output's bias is 0", &flags, 7200, 5.0);
         assert!(note.contains("silent for longer than the model's max gap of 5 s at 7200 of 7200"), "{note}");
+    }
+
+    #[test]
+    fn the_bad_input_note_names_the_first_lines_and_only_causes_that_can_occur() {
+        let from_file = BadInputSources { times_refused: true, first_lines: vec![101, 230, 231, 400, 512] };
+        let note = bad_input_note("run.csv axis 0", 9, 7200, "the output", &from_file);
+        assert!(
+            note.contains("(flag BAD_INPUT in the output; first at lines 101, 230, 231, 400, 512)"),
+            "{note}"
+        );
+        assert!(!note.contains("a time not after"), "{note}");
+        let all_listed = BadInputSources { first_lines: vec![7, 9], ..from_file };
+        let note = bad_input_note("run.csv axis 0", 2, 7200, "the output", &all_listed);
+        assert!(note.contains("; at lines 7, 9)"), "{note}");
+        let arrays = bad_input_note("runs[0] axis 0", 1, 10, "flags", &BadInputSources::default());
+        assert!(arrays.contains("or a time not after the one before (flag BAD_INPUT in flags)"), "{arrays}");
     }
 
     #[test]

@@ -568,9 +568,15 @@ fn warn_about_compensation(
         }
     }
     let consequence = "the returned rate is the gyro input and its bias 0";
-    for note in
-        fogtemp_cal::calibrate::compensation_notes(&name, &counts, samples, max_gap_s, "flags", consequence)
-    {
+    for note in fogtemp_cal::calibrate::compensation_notes(
+        &name,
+        &counts,
+        samples,
+        max_gap_s,
+        "flags",
+        consequence,
+        &fogtemp_cal::calibrate::BadInputSources::default(),
+    ) {
         crate::progress::warn(py, &note)?;
     }
     Ok(())

@@ -63,6 +63,8 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
     // Per axis: samples per flag bit (corrected = not WARMING_UP; OUTSIDE_HULL; the cause
     // when nothing was corrected).
     let mut flag_counts = vec![[0_u64; 8]; axes];
+    // Per axis: the lines of the first samples flagged BAD_INPUT, for the note.
+    let mut bad_lines: Vec<Vec<u64>> = vec![Vec::new(); axes];
     // Per axis: temperature spikes, reported (the compensator takes every reading).
     let mut spike_guards: Vec<SpikeGuard> = (0..axes).map(|_| SpikeGuard::new(max_gap_s)).collect();
     let bar = RowProgress::new(&a.log, "compensate");
@@ -106,6 +108,11 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
                         );
                         for (bit, count) in flag_counts[i].iter_mut().enumerate() {
                             *count += u64::from((o.flags.0 >> bit) & 1);
+                        }
+                        if o.flags.contains(fogtemp_core::Flags::BAD_INPUT)
+                            && bad_lines[i].len() < calibrate::BAD_INPUT_LINES_LISTED
+                        {
+                            bad_lines[i].push(row.line);
                         }
                         AxisOutput {
                             raw_dph: row.gyros_dph[i],
@@ -175,15 +182,26 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
             eprintln!("note: {note}");
         }
         super::warn_if_mostly_gaps(&a.log, &gaps, r.rows);
-        for (axis, (counts, guard)) in flag_counts.iter().zip(spike_guards).enumerate() {
+        for (axis, ((counts, guard), first_lines)) in
+            flag_counts.iter().zip(spike_guards).zip(bad_lines).enumerate()
+        {
             let name = format!("{} axis {axis}", a.log.display());
             let spikes = guard.finish(&mut |_| {});
             if let Some(note) = calibrate::temperature_spike_note(&name, &a.log, &spikes) {
                 eprintln!("note: {note}");
             }
             let consequence = "the output's bias is 0";
-            let notes =
-                calibrate::compensation_notes(&name, counts, r.rows, max_gap_s, "the output", consequence);
+            // The reader refuses a time not after the one before: not a cause here.
+            let bad = calibrate::BadInputSources { times_refused: true, first_lines };
+            let notes = calibrate::compensation_notes(
+                &name,
+                counts,
+                r.rows,
+                max_gap_s,
+                "the output",
+                consequence,
+                &bad,
+            );
             notes.iter().for_each(|note| eprintln!("note: {note}"));
         }
         let summary = format!("({} rows, {})", r.rows, super::counted(axes as u64, "axis", "axes"));
