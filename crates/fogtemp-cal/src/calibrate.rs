@@ -1159,9 +1159,25 @@ pub fn fit_axis(
     };
     let (temp_min, temp_max) = range(&|p| p.temp_c);
     let (rate_min, rate_max) = range(&|p| p.rate_c_per_min);
-    let region = crate::blob::calibrated_region(
-        &region_points.iter().map(|p| crate::mesh::normalised(p, &normalisation)).collect::<Vec<_>>(),
-    );
+    // A polynomial in T alone (cubic-t, or a stepwise fit that admitted no rate term) is
+    // calibrated over the rectangle of the temperature and rate ranges: continued from the
+    // hull's nearest point, a query cooling faster than any run took the value of a boundary
+    // point at another temperature, so a model without the rate changed with it (review21 F1,
+    // 0.004 deg/h at -0.5 C/min), and combinations inside both ranges were flagged (F2).
+    // From the rectangle's nearest point the rate moves alone and the value is the cubic's.
+    let t_alone = mesh.is_none()
+        && poly.as_ref().is_some_and(|p| p.blob_terms().iter().all(|term| term.rate_power == 0));
+    let region_plane: Vec<(f32, f32)> = if t_alone && region_points.len() >= 3 {
+        [(temp_min, rate_min), (temp_max, rate_min), (temp_max, rate_max), (temp_min, rate_max)]
+            .iter()
+            .map(|&(temp_c, rate_c_per_min)| {
+                crate::mesh::normalised(&MeshPoint { temp_c, rate_c_per_min, value_dph: 0.0 }, &normalisation)
+            })
+            .collect()
+    } else {
+        region_points.iter().map(|p| crate::mesh::normalised(p, &normalisation)).collect()
+    };
+    let region = crate::blob::calibrated_region(&region_plane);
     let poly_outside =
         if region.len() >= 3 { config.poly_outside } else { fogtemp_core::PolyOutside::Extrapolate };
     let mut axis = AxisModel {
@@ -2661,6 +2677,48 @@ mod tests {
         let counted = reach.samples_beyond + reach.samples_within + reach.samples_in_region;
         assert!(flagged > 2000, "{flagged}");
         assert_eq!(counted, flagged, "every flagged sample is in one part of the reach");
+    }
+
+    /// Review21 F1/F2: a cubic in T alone, continued from the (T, dT/dt) hull's nearest point,
+    /// changed with a rate it does not use, and flagged combinations inside both ranges. Oracle:
+    /// its own value inside the calibrated region at the same temperature, and the ranges.
+    #[test]
+    fn a_polynomial_in_t_alone_does_not_change_with_the_rate_outside_the_region() {
+        let config = CalibrationConfig { method: Method::CubicT, ..CalibrationConfig::default() };
+        let runs: Vec<RunFeatures> = [(-10.0, 0.5), (0.0, 0.3), (5.0, 0.2)]
+            .iter()
+            .enumerate()
+            .map(|(i, &(start_c, rate))| {
+                extract_run_from(ramp_log(start_c, rate).as_bytes(), Path::new(&format!("r{i}.csv")), &config)
+                    .expect("reads")
+            })
+            .collect();
+        let fitted = fit_model(&runs, &config, [0; 32]).expect("fits");
+        let model = Model::from_bytes(&fitted.blob).expect("parses");
+        let axis = model.axis(0).expect("axis 0");
+        let p = axis.provenance;
+        let mid_rate = 0.5 * (p.rate_min_c_per_min + p.rate_max_c_per_min);
+        let mut hint = fogtemp_core::WalkHint::default();
+        let mut at = |temp: f32, rate: f32| axis.evaluate(temp, rate, &mut hint).expect("finite");
+        for temp in
+            [p.temp_min_c + 1.0, 0.5 * (p.temp_min_c + p.temp_max_c), p.temp_max_c - 1.0, p.temp_max_c + 5.0]
+        {
+            let inside = at(temp, mid_rate);
+            for rate in [p.rate_min_c_per_min, p.rate_max_c_per_min, -2.0, 3.0] {
+                let other = at(temp, rate);
+                assert!(
+                    (other.value_dph - inside.value_dph).abs() <= 1e-6 * inside.value_dph.abs().max(1e-3),
+                    "T {temp} C: {} deg/h at {rate} C/min, {} at {mid_rate}",
+                    other.value_dph,
+                    inside.value_dph
+                );
+            }
+        }
+        // Inside both ranges is inside the region; beyond either range is outside it.
+        assert!(!at(p.temp_min_c + 0.5, p.rate_max_c_per_min - 0.01).outside_hull);
+        assert!(!at(p.temp_max_c - 0.5, p.rate_min_c_per_min + 0.01).outside_hull);
+        assert!(at(p.temp_max_c - 0.5, p.rate_max_c_per_min + 0.5).outside_hull);
+        assert!(at(p.temp_max_c + 0.5, mid_rate).outside_hull);
     }
 
     /// `ramp_log` with the temperature cell of data row `row` (0-based) replaced by `cell`.
