@@ -2648,21 +2648,26 @@ mod tests {
         assert!(a.blob == b.blob, "the blobs differ");
     }
 
+    /// The model `config` fits on `ramp_log`s starting at each `(start_c, rate_c_per_min)`.
+    fn fit_ramps(config: &CalibrationConfig, ramps: &[(f64, f64)]) -> FittedModel {
+        let runs: Vec<RunFeatures> = ramps
+            .iter()
+            .enumerate()
+            .map(|(i, &(start_c, rate))| {
+                extract_run_from(ramp_log(start_c, rate).as_bytes(), Path::new(&format!("r{i}.csv")), config)
+                    .expect("reads")
+            })
+            .collect();
+        fit_model(&runs, config, [0; 32]).expect("fits")
+    }
+
     /// Review21 F3: the outside note counted a run's flagged samples, its reach only those in
     /// the blocks the series keeps; a last sample alone in its block (left out of the series)
     /// and outside gave the note an empty reach. Now the reach's parts count every flagged one.
     #[test]
     fn the_outside_reach_counts_the_samples_of_a_last_block_the_series_leaves_out() {
         let config = CalibrationConfig { method: Method::Poly, ..CalibrationConfig::default() };
-        let runs: Vec<RunFeatures> = [(-10.0, 0.5), (0.0, -0.3), (5.0, 0.2)]
-            .iter()
-            .enumerate()
-            .map(|(i, &(start_c, rate))| {
-                extract_run_from(ramp_log(start_c, rate).as_bytes(), Path::new(&format!("r{i}.csv")), &config)
-                    .expect("reads")
-            })
-            .collect();
-        let fitted = fit_model(&runs, &config, [0; 32]).expect("fits");
+        let fitted = fit_ramps(&config, &[(-10.0, 0.5), (0.0, -0.3), (5.0, 0.2)]);
         let model = Model::from_bytes(&fitted.blob).expect("parses");
         // A ramp that leaves the calibrated temperatures (up to 15 C) for 45 C, and one more
         // row at 3000 s: alone in its 10 s block, which the series leaves out.
@@ -2685,15 +2690,7 @@ mod tests {
     #[test]
     fn a_polynomial_in_t_alone_does_not_change_with_the_rate_outside_the_region() {
         let config = CalibrationConfig { method: Method::CubicT, ..CalibrationConfig::default() };
-        let runs: Vec<RunFeatures> = [(-10.0, 0.5), (0.0, 0.3), (5.0, 0.2)]
-            .iter()
-            .enumerate()
-            .map(|(i, &(start_c, rate))| {
-                extract_run_from(ramp_log(start_c, rate).as_bytes(), Path::new(&format!("r{i}.csv")), &config)
-                    .expect("reads")
-            })
-            .collect();
-        let fitted = fit_model(&runs, &config, [0; 32]).expect("fits");
+        let fitted = fit_ramps(&config, &[(-10.0, 0.5), (0.0, 0.3), (5.0, 0.2)]);
         let model = Model::from_bytes(&fitted.blob).expect("parses");
         let axis = model.axis(0).expect("axis 0");
         let p = axis.provenance;
