@@ -436,7 +436,7 @@ fn bad_input_note(name: &str, bad: u64, samples: u64, output: &str, sources: &Ba
 /// from how many of its `samples` carried each flag bit (`flag_counts[bit]`): that nothing
 /// was corrected (with `never_consequence`, and then nothing else), and the shares of samples
 /// flagged `BAD_INPUT`, `TEMP_STALE` and `OUTSIDE_HULL`; `name` names the axis, `output` the
-/// place of the flags ("the output", "flags"); `bad` where the `BAD_INPUT` samples can come from.
+/// place of the flags ("the output", "flags"); `sources` where the `BAD_INPUT` samples can come from.
 pub fn compensation_notes(
     name: &str,
     flag_counts: &[u64; 8],
@@ -444,7 +444,7 @@ pub fn compensation_notes(
     max_gap_s: f64,
     output: &str,
     never_consequence: &str,
-    bad: &BadInputSources,
+    sources: &BadInputSources,
 ) -> Vec<String> {
     use fogtemp_core::Flags;
     let count = |flag: Flags| flag_counts[flag.0.trailing_zeros() as usize & 7];
@@ -455,7 +455,7 @@ pub fn compensation_notes(
         return vec![never_corrected_note(name, never_consequence, flag_counts, samples, max_gap_s)];
     }
     let mut notes = Vec::new();
-    let (bad, sources) = (count(Flags::BAD_INPUT), bad);
+    let bad = count(Flags::BAD_INPUT);
     if bad > 0 {
         notes.push(bad_input_note(name, bad, samples, output, sources));
     }
