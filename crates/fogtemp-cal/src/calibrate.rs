@@ -1751,11 +1751,13 @@ impl RunValidation {
         let relative_se = self.windows.relative_standard_error()?;
         (comp > raw * (1.0 + 2.0 * relative_se)).then(|| {
             format!(
-                "{name}: compensation made the bias stability worse: {comp:.5} deg/h against {raw:.5} raw \
+                "{name}: compensation made the bias stability worse: {} deg/h against {} raw \
                  (ratio {:.2}), beyond the metric's own scatter (about {:.0} % from {windows} averaging windows). \
                  Check that the log's gyro and temperature columns and units are the ones the model was fitted \
                  on (fogtemp-cal inspect shows the columns), and that the run's temperatures and rates lie within \
                  the calibration's",
+                crate::numbers::dph(comp),
+                crate::numbers::dph(raw),
                 raw / comp,
                 100.0 * relative_se
             )
@@ -1792,10 +1794,31 @@ impl RunValidation {
         })
     }
 
-    /// What a technician is told about samples the model did not compensate as calibrated
-    /// (none compensated at all, with the likely causes; a share outside the calibrated
-    /// region, extrapolated; temperature spikes or silences) and about a run compensation
-    /// made clearly worse ([`RunValidation::worse_than_raw_note`]). Empty when nothing of that.
+    /// Every note on this run: [`RunValidation::coverage_notes`], then
+    /// [`RunValidation::figure_notes`].
+    pub fn notes(&self) -> Vec<String> {
+        let mut notes = self.coverage_notes();
+        notes.extend(self.figure_notes());
+        notes
+    }
+
+    /// What a technician is told about the run's figures themselves: a run compensation made
+    /// clearly worse ([`RunValidation::worse_than_raw_note`]), averaging windows the data fill
+    /// in part, gyro spikes left in the figures. Empty when nothing of that. Apart from
+    /// [`RunValidation::coverage_notes`], so a report does not list a verdict under the
+    /// heading for extrapolated samples (review21 second report F4).
+    pub fn figure_notes(&self) -> Vec<String> {
+        let name = format!("{} axis {}", self.path.display(), self.axis);
+        let mut notes = Vec::new();
+        notes.extend(self.worse_than_raw_note(&name));
+        notes.extend(self.sparse_windows_note(&name));
+        notes.extend(self.gyro_outlier_note(&name));
+        notes
+    }
+
+    /// What a technician is told about samples the model did not compensate as calibrated:
+    /// none compensated at all, with the likely causes; a share outside the calibrated
+    /// region, extrapolated; temperature spikes or silences. Empty when nothing of that.
     pub fn coverage_notes(&self) -> Vec<String> {
         let name = format!("{} axis {}", self.path.display(), self.axis);
         let s = &self.series;
@@ -1832,9 +1855,6 @@ impl RunValidation {
             }
             notes.push(note);
         }
-        notes.extend(self.worse_than_raw_note(&name));
-        notes.extend(self.sparse_windows_note(&name));
-        notes.extend(self.gyro_outlier_note(&name));
         notes.extend(temperature_spike_note(&name, &self.path, &s.temperature_spikes));
         let stale = s.flag_counts[Flags::TEMP_STALE.0.trailing_zeros() as usize];
         if stale > 0 && s.compensating_from_s.is_finite() {
@@ -2510,10 +2530,10 @@ mod tests {
             "one window: no scatter to compare"
         );
         assert!(run(f64::NAN, 0.0232, 51).worse_than_raw_note("r").is_none());
-        assert!(run(0.005, 0.0232, 51)
-            .coverage_notes()
-            .iter()
-            .any(|n| n.contains("made the bias stability worse")));
+        let worse = run(0.005, 0.0232, 51);
+        assert!(worse.figure_notes().iter().any(|n| n.contains("made the bias stability worse")));
+        assert!(worse.notes().iter().any(|n| n.contains("made the bias stability worse")));
+        assert!(!worse.coverage_notes().iter().any(|n| n.contains("made the bias stability worse")));
     }
 
     use super::*;

@@ -906,8 +906,17 @@ impl AllanAxisDocument {
         };
         let last = self.curve.last().map_or(f64::NAN, |p| p.adev_dph);
         let why = if last > 1.5 * self.adev_min_dph {
+            // On compensate's output the rise is the drift the model left: advising to run
+            // compensate there was advice to do what was done (review21 second report F8).
+            let advice = if self.column.starts_with("compensated_dph") {
+                "this is compensate's output, so the rise is drift the model left (or slow noise the terms do not \
+                 model), and the other terms, K above all, are upper bounds of the sensor's; for the sensor's own \
+                 noise terms use a static run at constant temperature"
+            } else {
+                "for the sensor's noise terms use a static run at constant temperature, or the output of `compensate`"
+            };
             format!(
-                "the curve rises {:.1}x from its minimum at {:.0} s to its longest averaging time, as drift (temperature) does, and the fit gives that rise to the other terms; {bound}; for the sensor's noise terms use a static run at constant temperature, or the output of `compensate`",
+                "the curve rises {:.1}x from its minimum at {:.0} s to its longest averaging time, as drift (temperature) does, and the fit gives that rise to the other terms; {bound}; {advice}",
                 last / self.adev_min_dph,
                 self.adev_min_tau_s
             )
@@ -932,5 +941,36 @@ impl AllanAxisDocument {
                 crate::metrics::ALLAN_MIN_SAMPLES
             )
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A curve with white noise falling to 0.001 deg/h at 100 s and then rising 4x, as drift
+    /// does, with B fitted at zero: the note's advice depends on whether the column is
+    /// compensate's output (review21 second report F8).
+    fn rising(column: &str) -> AllanAxisDocument {
+        let curve: Vec<AllanPoint> =
+            [(1.0, 0.01, 0.01), (10.0, 0.0032, 0.03), (100.0, 0.001, 0.1), (1000.0, 0.004, 0.4)]
+                .iter()
+                .map(|&(tau_s, adev_dph, relative_error)| AllanPoint { tau_s, adev_dph, relative_error })
+                .collect();
+        let mut doc = AllanAxisDocument::new(0, column, 1.0, 7200, curve);
+        doc.noise =
+            NoiseTerms { arw_deg_per_sqrt_h: 1.7e-4, bias_instability_dph: 0.0, rrw_dph_per_sqrt_h: 0.01 };
+        doc
+    }
+
+    #[test]
+    fn the_rise_on_compensate_output_is_called_drift_left_not_a_reason_to_compensate() {
+        let note = rising("compensated_dph").unresolved_terms_note().expect("B at zero");
+        assert!(note.contains("the curve rises 4.0x from its minimum at 100 s"), "{note}");
+        assert!(note.contains("this is compensate's output, so the rise is drift the model left"), "{note}");
+        assert!(!note.contains("or the output of `compensate`"), "{note}");
+        let raw = rising("gyro_dph").unresolved_terms_note().expect("B at zero");
+        assert!(raw.contains("or the output of `compensate`"), "{raw}");
+        assert!(!raw.contains("this is compensate's output"), "{raw}");
     }
 }

@@ -66,6 +66,7 @@ pub mod ingest;
 pub mod mesh;
 pub mod mesh_fit;
 pub mod metrics;
+pub mod numbers;
 pub mod outliers;
 pub mod output;
 pub mod poly_fit;

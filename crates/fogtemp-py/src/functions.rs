@@ -916,7 +916,7 @@ pub fn validate<'py>(
             progress::warn(py, &note)?;
         }
     }
-    for note in validation.runs.iter().flat_map(calibrate::RunValidation::coverage_notes) {
+    for note in validation.runs.iter().flat_map(calibrate::RunValidation::notes) {
         progress::warn(py, &note)?;
         notes.push(note);
     }

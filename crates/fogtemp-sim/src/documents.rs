@@ -112,12 +112,15 @@ pub struct PaperTable {
     pub raw_dph: f64,
     /// Polynomial model, deg/h ([`PAPER_POLY_DPH`]).
     pub poly_dph: f64,
-    /// 2-D interpolation model, deg/h ([`PAPER_MESH_DPH`]).
-    pub mesh_dph: f64,
+    /// 2-D interpolation model, deg/h ([`PAPER_MESH_DPH`]): the paper's thinned mesh, so
+    /// named like the demo's `mesh_paper` model it is compared with, not like fogtemp's own
+    /// `mesh` (review21 second report F6: `paper.mesh_dph` beside the top-level `mesh_dph`
+    /// compared different models).
+    pub mesh_paper_dph: f64,
 }
 
 impl Default for PaperTable {
     fn default() -> Self {
-        Self { raw_dph: PAPER_RAW_DPH, poly_dph: PAPER_POLY_DPH, mesh_dph: PAPER_MESH_DPH }
+        Self { raw_dph: PAPER_RAW_DPH, poly_dph: PAPER_POLY_DPH, mesh_paper_dph: PAPER_MESH_DPH }
     }
 }

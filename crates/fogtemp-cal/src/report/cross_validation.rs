@@ -31,12 +31,12 @@ pub struct CrossValidationRow {
     pub correction_dph: Option<f64>,
 }
 
-/// `v` to 5 decimals (`+` sign with `signed`), "-" when not finite.
+/// `v` as [`crate::numbers::dph`] (`+` sign with `signed`), "-" when not finite.
 fn number_or_dash(v: f64, signed: bool) -> String {
     match (v.is_finite(), signed) {
         (false, _) => "-".into(),
-        (true, true) => format!("{v:+.5}"),
-        (true, false) => format!("{v:.5}"),
+        (true, true) => crate::numbers::dph_signed(v),
+        (true, false) => crate::numbers::dph(v),
     }
 }
 

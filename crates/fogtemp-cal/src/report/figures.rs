@@ -11,6 +11,7 @@ use super::{
     PanelLayout,
 };
 use crate::error::CalError;
+use crate::numbers::dph;
 
 /// One validation run for the drift figure, over the metric's span.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -79,8 +80,8 @@ pub fn plot_drift(
         draw_run_legend(&legend, path, runs.iter().map(|r| r.name.as_str()))?;
 
         let panels = [
-            (&left, format!("raw: bias stability {:.4} deg/h", stability_dph.0), false),
-            (&right, format!("compensated: bias stability {:.4} deg/h", stability_dph.1), true),
+            (&left, format!("raw: bias stability {} deg/h", dph(stability_dph.0)), false),
+            (&right, format!("compensated: bias stability {} deg/h", dph(stability_dph.1)), true),
         ];
         for (area, caption, compensated) in panels {
             let layout = PanelLayout { caption: Some(&caption), margin_right: 20, y_label_area: 80 };
@@ -251,7 +252,7 @@ pub fn plot_grouped_bars(
                 } else {
                     (font.transform(FontTransform::Rotate270), Pos::new(HPos::Left, VPos::Center))
                 };
-                Text::new(format!("{v:.4}"), (i as f64 + offset, v), font.pos(pos))
+                Text::new(dph(v), (i as f64 + offset, v), font.pos(pos))
             });
             chart.draw_series(values).map_err(|e| plot_err(path, e))?;
         }

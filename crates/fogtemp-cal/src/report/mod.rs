@@ -8,6 +8,7 @@ use plotters::prelude::*;
 
 use crate::error::CalError;
 use crate::metrics::AllanPoint;
+use crate::numbers::dph;
 use crate::output::write_file_atomic;
 
 pub mod cross_validation;
@@ -418,40 +419,76 @@ pub fn plot_mesh(path: &Path, title: &str, mesh: &MeshFigure) -> Result<(), CalE
     })
 }
 
-/// Tick values for a log axis over [`lo`, `hi`]: 1, 2 and 5 times the powers of ten inside
-/// it, or every integer multiple 1..9 when that gives fewer than 3 (a range under a decade).
-pub fn log_ticks(lo: f64, hi: f64) -> Vec<f64> {
+/// Tick values for a log axis over `axis` (low, high) such that at least two fall inside
+/// `data`, the span of the values drawn (one when that span is a single value): 1, 2 and 5
+/// times the powers of ten; else every integer multiple 1..9 (a range under a decade); else
+/// the multiples of a round linear step (1, 2 or 5 times a power of ten).
+///
+/// Counting the ticks inside the data, not on the padded axis, keeps a label beside the
+/// curves: psim-tvc's Allan axis, padded to 8.95..19.8 deg/h around curves at 11.2..15.8,
+/// was labelled 9 and 10 alone, both below every curve (review21 second report F2; review14
+/// F11 before it).
+pub fn log_ticks(axis: (f64, f64), data: (f64, f64)) -> Vec<f64> {
+    let (lo, hi) = axis;
     if !(lo > 0.0 && hi > lo && hi.is_finite()) {
         return Vec::new();
     }
-    let ticks = |mantissas: &[f64]| -> Vec<f64> {
-        let mut out = Vec::new();
-        let mut exponent = lo.log10().floor() as i32;
-        while 10f64.powi(exponent) <= hi {
-            for m in mantissas {
-                // Rounded to 12 significant digits so 0.001 * 2 prints as 0.002.
-                let v: f64 = format!("{:.11e}", m * 10f64.powi(exponent)).parse().unwrap_or(f64::NAN);
-                if v >= lo && v <= hi {
-                    out.push(v);
-                }
-            }
-            exponent += 1;
-        }
-        out
-    };
-    let coarse = ticks(&[1.0, 2.0, 5.0]);
-    if coarse.len() >= 3 {
+    let (data_lo, data_hi) = (data.0.max(lo), data.1.min(hi));
+    let needed_inside = if data_hi > data_lo * (1.0 + 1e-9) { 2 } else { 1 };
+    let inside = |ticks: &[f64]| ticks.iter().filter(|&&v| v >= data_lo && v <= data_hi).count();
+    let coarse = log_multiples(lo, hi, &[1.0, 2.0, 5.0]);
+    if coarse.len() >= 3 && inside(&coarse) >= needed_inside {
         return coarse;
     }
-    let every = ticks(&[1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0]);
-    if every.len() >= 2 {
+    let every = log_multiples(lo, hi, &[1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0]);
+    if every.len() >= 2 && inside(&every) >= needed_inside {
         return every;
     }
-    // A range holding at most one multiple (psim-tvc's burst Allan deviations, 12.6 to 19.7
-    // deg/h, were labelled "10" alone, below the curves: review14 F11): steps of 0.2 in the
-    // mantissa.
-    let fine: Vec<f64> = (5..50).map(|k| f64::from(k) * 0.2).collect();
-    ticks(&fine)
+    // The largest round step with enough multiples inside the data; steps fall 5, 2, 1 per
+    // decade from the axis's own size, so the loop ends within a few dozen steps.
+    let mut exponent = hi.log10().ceil() as i32;
+    for _ in 0..60 {
+        for mantissa in [5.0, 2.0, 1.0] {
+            let step = mantissa * 10f64.powi(exponent - 1);
+            let ticks = linear_multiples(lo, hi, step);
+            if ticks.len() >= 2 && inside(&ticks) >= needed_inside {
+                return ticks;
+            }
+        }
+        exponent -= 1;
+    }
+    every
+}
+
+/// `mantissas` times each power of ten, within `lo..=hi`.
+fn log_multiples(lo: f64, hi: f64, mantissas: &[f64]) -> Vec<f64> {
+    let mut out = Vec::new();
+    let mut exponent = lo.log10().floor() as i32;
+    while 10f64.powi(exponent) <= hi {
+        for m in mantissas {
+            let v = round_12(m * 10f64.powi(exponent));
+            if v >= lo && v <= hi {
+                out.push(v);
+            }
+        }
+        exponent += 1;
+    }
+    out
+}
+
+/// The multiples of `step` within `lo..=hi` (none when there would be more than 100).
+fn linear_multiples(lo: f64, hi: f64, step: f64) -> Vec<f64> {
+    let (first, last) = ((lo / step).ceil(), (hi / step).floor());
+    if !(first.is_finite() && last.is_finite()) || last - first > 100.0 {
+        return Vec::new();
+    }
+    let count = (last - first) as i64;
+    (0..=count).map(|k| round_12((first + k as f64) * step)).filter(|v| *v >= lo && *v <= hi).collect()
+}
+
+/// Rounded to 12 significant digits, so 0.001 * 2 prints as 0.002.
+fn round_12(v: f64) -> f64 {
+    format!("{v:.11e}").parse().unwrap_or(f64::NAN)
 }
 
 /// Whether [`plot_allan`] has a point to draw: a positive, finite deviation (a log scale
@@ -484,8 +521,8 @@ pub fn plot_allan(path: &Path, title: &str, curves: &[(String, Vec<AllanPoint>)]
             .x_label_area_size(45)
             .y_label_area_size(80)
             .build_cartesian_2d(
-                (t0 * 0.8..t1 * 1.25).log_scale().with_key_points(log_ticks(t0 * 0.8, t1 * 1.25)),
-                (a0 * 0.8..a1 * 1.25).log_scale().with_key_points(log_ticks(a0 * 0.8, a1 * 1.25)),
+                (t0 * 0.8..t1 * 1.25).log_scale().with_key_points(log_ticks((t0 * 0.8, t1 * 1.25), (t0, t1))),
+                (a0 * 0.8..a1 * 1.25).log_scale().with_key_points(log_ticks((a0 * 0.8, a1 * 1.25), (a0, a1))),
             )
             .map_err(|e| plot_err(path, e))?;
         chart
@@ -606,12 +643,12 @@ pub fn add_comparison_to_validation_report(
     );
     for c in rows {
         table.push_str(&format!(
-            "| {} | {} | {} | {:.5} | {:.5} | {:.2} |\n",
+            "| {} | {} | {} | {} | {} | {:.2} |\n",
             c.model,
             c.mesh_nodes,
             c.polynomial_terms,
-            c.raw_bias_stability_dph,
-            c.compensated_bias_stability_dph,
+            dph(c.raw_bias_stability_dph),
+            dph(c.compensated_bias_stability_dph),
             c.raw_bias_stability_dph / c.compensated_bias_stability_dph
         ));
     }
@@ -674,11 +711,11 @@ pub fn write_validation_report_with(
             .relative_standard_error()
             .map_or(String::new(), |se| format!(" (+-{:.0} %)", 100.0 * se));
         md.push_str(&format!(
-            "| {} | {} | {:.5} | {:.5} | {:.2} | {} | {}{scatter} | {} % |\n",
+            "| {} | {} | {} | {} | {:.2} | {} | {}{scatter} | {} % |\n",
             file_name(&r.path),
             r.axis,
-            r.raw_bias_stability_dph,
-            r.compensated_bias_stability_dph,
+            dph(r.raw_bias_stability_dph),
+            dph(r.compensated_bias_stability_dph),
             r.raw_bias_stability_dph / r.compensated_bias_stability_dph,
             white_noise_floor_cell(r.white_noise_floor()),
             r.windows.used,
@@ -689,9 +726,13 @@ pub fn write_validation_report_with(
     if per_axis.len() > 1 {
         for (axis, raw, comp) in &per_axis {
             md.push_str(&format!(
-                "| overall of axis {axis} (RMS over its runs) | {axis} | {raw:.5} | {comp:.5} | {:.2} | {} | | |\n",
+                "| overall of axis {axis} (RMS over its runs) | {axis} | {} | {} | {:.2} | {} | | |\n",
+                dph(*raw),
+                dph(*comp),
                 raw / comp,
-                white_noise_floor_cell(crate::calibrate::overall_white_noise_floor(runs.iter().filter(|r| r.axis == *axis)))
+                white_noise_floor_cell(crate::calibrate::overall_white_noise_floor(
+                    runs.iter().filter(|r| r.axis == *axis)
+                ))
             ));
         }
     }
@@ -699,9 +740,9 @@ pub fn write_validation_report_with(
         if per_axis.len() > 1 { "overall (RMS over runs and axes)" } else { "overall (RMS over runs)" };
     let overall_floor = crate::calibrate::overall_white_noise_floor(runs);
     md.push_str(&format!(
-        "| **{label}** | | **{:.5}** | **{:.5}** | **{:.2}** | {} | | |\n\n",
-        overall.0,
-        overall.1,
+        "| **{label}** | | **{}** | **{}** | **{:.2}** | {} | | |\n\n",
+        dph(overall.0),
+        dph(overall.1),
         overall.0 / overall.1,
         white_noise_floor_cell(overall_floor)
     ));
@@ -722,6 +763,11 @@ pub fn write_validation_report_with(
         "Samples the model did not compensate as calibrated (\"outside\": the share of a run's samples flagged \
          OUTSIDE_HULL, where the model is extrapolated):",
         &runs.iter().flat_map(crate::calibrate::RunValidation::coverage_notes).collect::<Vec<_>>(),
+    ));
+    md.push_str(&bullet_section(
+        "Runs whose figures need a word (compensation made clearly worse; averaging windows the data fill in \
+         part; gyro spikes left in the figures):",
+        &runs.iter().flat_map(crate::calibrate::RunValidation::figure_notes).collect::<Vec<_>>(),
     ));
     md.push_str(&bullet_section(
         "Gaps in the time stamps (the drift figure shows them as breaks):",
@@ -897,10 +943,10 @@ fn allan_table(raw: &[AllanPoint], comp: &[AllanPoint]) -> String {
             if (r.tau_s / target).ln().abs() < 0.5 && !shown.contains(&r.tau_s) {
                 shown.push(r.tau_s);
                 md.push_str(&format!(
-                    "| {} | {:.5} | {:.5} | {:.3} |\n",
+                    "| {} | {} | {} | {:.3} |\n",
                     r.tau_s,
-                    r.adev_dph,
-                    c.adev_dph,
+                    dph(r.adev_dph),
+                    dph(c.adev_dph),
                     c.adev_dph / r.adev_dph
                 ));
             }
@@ -910,10 +956,10 @@ fn allan_table(raw: &[AllanPoint], comp: &[AllanPoint]) -> String {
     md
 }
 
-/// A white-noise floor as a table cell, deg/h to 5 decimals, or "unknown" (the validation
+/// A white-noise floor as a table cell, deg/h ([`dph`]), or "unknown" (the validation
 /// report's column and `validate`'s).
 pub fn white_noise_floor_cell(floor: Option<crate::calibrate::WhiteNoiseFloor>) -> String {
-    floor.map_or_else(|| "unknown".to_string(), |f| format!("{:.5}", f.floor_dph))
+    floor.map_or_else(|| "unknown".to_string(), |f| dph(f.floor_dph))
 }
 
 /// What the white-noise floor beside a validation's figures means, and what it bounds: the
@@ -948,14 +994,15 @@ pub fn white_noise_floor_explanation(
     }
     if above <= 0.0 {
         return format!(
-            "{meaning}. The compensated figure ({compensated_dph:.5} deg/h) is at the floor: the noise hides any drift left."
+            "{meaning}. The compensated figure ({} deg/h) is at the floor: the noise hides any drift left.",
+            dph(compensated_dph)
         );
     }
     format!(
-        "{meaning}. The compensated figure is {:.2} x the floor: the drift left is at most about {:.5} deg/h \
+        "{meaning}. The compensated figure is {:.2} x the floor: the drift left is at most about {} deg/h \
          (sqrt(compensated^2 - floor^2)), less by what flicker and random walk add.",
         compensated_dph / f.floor_dph,
-        above.sqrt()
+        dph(above.sqrt())
     )
 }
 
@@ -1010,11 +1057,11 @@ pub fn write_fit_report_for(
                 _ => String::new(),
             };
             format!(
-                "- axis {axis}: {}, {} calibration points, residual RMS {:.5} deg/h (max {:.5}), {} mesh nodes, {} polynomial terms{range}{merged}{terms}{table}",
+                "- axis {axis}: {}, {} calibration points, residual RMS {} deg/h (max {}), {} mesh nodes, {} polynomial terms{range}{merged}{terms}{table}",
                 r.method.name(),
                 r.points,
-                r.residual_rms_dph,
-                r.residual_max_abs_dph,
+                dph(r.residual_rms_dph),
+                dph(r.residual_max_abs_dph),
                 r.mesh_nodes,
                 r.poly.as_ref().map_or(0, |p| p.terms.len())
             )
@@ -1172,19 +1219,40 @@ mod tests {
 
     #[test]
     fn log_ticks_by_hand() {
+        let over = |lo: f64, hi: f64| log_ticks((lo, hi), (lo, hi));
         // 0.0014..0.037: 0.002, 0.005, 0.01, 0.02.
-        assert_eq!(log_ticks(0.0014, 0.037), [0.002, 0.005, 0.01, 0.02]);
+        assert_eq!(over(0.0014, 0.037), [0.002, 0.005, 0.01, 0.02]);
         // 0.8..4000: 1, 2, 5, 10, ..., 2000.
-        assert_eq!(
-            log_ticks(0.8, 4000.0),
-            [1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0, 200.0, 500.0, 1000.0, 2000.0]
-        );
+        assert_eq!(over(0.8, 4000.0), [1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0, 200.0, 500.0, 1000.0, 2000.0]);
         // Under a decade: every multiple.
-        assert_eq!(log_ticks(0.0025, 0.0045), [0.003, 0.004]);
-        // At most one multiple in the range: steps of 0.2 in the mantissa.
-        assert_eq!(log_ticks(12.6, 19.7), [14.0, 16.0, 18.0]);
-        assert_eq!(log_ticks(2.1, 2.9), [2.2, 2.4, 2.6, 2.8]);
-        assert!(log_ticks(0.0, 1.0).is_empty());
+        assert_eq!(over(0.0025, 0.0045), [0.003, 0.004]);
+        // At most one multiple in the range: a round linear step.
+        assert_eq!(over(12.6, 19.7), [14.0, 16.0, 18.0]);
+        assert_eq!(over(2.1, 2.9), [2.2, 2.4, 2.6, 2.8]);
+        assert!(over(0.0, 1.0).is_empty());
+    }
+
+    /// psim-tvc's Allan figure (review21 second report F2): curves at 11.2..15.8 deg/h on an
+    /// axis padded by 0.8 and 1.25. Every multiple gives 9 and 10, both below the curves;
+    /// the ticks must include two inside the curves' span.
+    #[test]
+    fn log_ticks_label_the_span_of_the_curves_not_only_the_padding() {
+        let (data_lo, data_hi) = (11.2, 15.8);
+        let ticks = log_ticks((data_lo * 0.8, data_hi * 1.25), (data_lo, data_hi));
+        assert_eq!(ticks, [10.0, 12.0, 14.0, 16.0, 18.0]);
+        let inside = ticks.iter().filter(|&&v| (data_lo..=data_hi).contains(&v)).count();
+        assert!(inside >= 2, "{ticks:?}");
+        // A single value: one tick at it or beside it is enough.
+        let single = log_ticks((0.004 * 0.8, 0.004 * 1.25), (0.004, 0.004));
+        assert!(single.contains(&0.004), "{single:?}");
+        // Every tick of each case lies on its axis.
+        for (axis, data) in
+            [((8.96, 19.75), (11.2, 15.8)), ((0.0032, 0.005), (0.004, 0.004)), ((0.8, 2.5), (1.0, 2.0))]
+        {
+            let ticks = log_ticks(axis, data);
+            assert!(ticks.iter().all(|v| (axis.0..=axis.1).contains(v)), "{axis:?}: {ticks:?}");
+            assert!(ticks.len() >= 2, "{axis:?}: {ticks:?}");
+        }
     }
 
     /// A 2 h log at 10 Hz: temperature rising 20 -> 40 C with a time constant of 30 min,

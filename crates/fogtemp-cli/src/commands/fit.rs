@@ -226,11 +226,11 @@ pub fn fit(a: FitArgs) -> Result<()> {
                 }
             }
             println!(
-                "axis {axis}: {}, {} points, fit residual RMS {:.5} deg/h (max {:.5}), {} mesh nodes, {} triangles{}",
+                "axis {axis}: {}, {} points, fit residual RMS {} deg/h (max {}), {} mesh nodes, {} triangles{}",
                 r.method.name(),
                 r.points,
-                r.residual_rms_dph,
-                r.residual_max_abs_dph,
+                fogtemp_cal::numbers::dph(r.residual_rms_dph),
+                fogtemp_cal::numbers::dph(r.residual_max_abs_dph),
                 r.mesh_nodes,
                 r.mesh_triangles,
                 r.poly.as_ref().map_or(String::new(), |p| format!(

@@ -8,6 +8,7 @@ use fogtemp_cal::calibrate::{self, Validation};
 use fogtemp_cal::documents::{ComparedModel, ValidationDocument};
 use fogtemp_cal::ingest::LogFormat;
 use fogtemp_cal::metrics::BiasStabilityOptions;
+use fogtemp_cal::numbers::dph;
 use fogtemp_core::Model;
 
 use super::{check_capacity, print_json, read_model, report_skipped};
@@ -100,7 +101,7 @@ pub fn validate(a: ValidateArgs) -> Result<()> {
     for r in runs.iter().filter(|r| r.axis == 0) {
         super::warn_if_mostly_gaps(&r.path, &r.series.gaps, r.ingest.rows);
     }
-    notes.extend(runs.iter().flat_map(calibrate::RunValidation::coverage_notes));
+    notes.extend(runs.iter().flat_map(calibrate::RunValidation::notes));
     let digests = input_digest.finish();
     notes.extend(fogtemp_cal::digest::same_logs_note(&logs, &digests.1));
     let in_sample =
@@ -143,11 +144,11 @@ pub fn validate(a: ValidateArgs) -> Result<()> {
     );
     for (r, name) in runs.iter().zip(&names) {
         println!(
-            "{:<width$} {:>4} {:>14.5} {:>14.5} {:>8.2} {:>14}",
+            "{:<width$} {:>4} {:>14} {:>14} {:>8.2} {:>14}",
             name,
             r.axis,
-            r.raw_bias_stability_dph,
-            r.compensated_bias_stability_dph,
+            dph(r.raw_bias_stability_dph),
+            dph(r.compensated_bias_stability_dph),
             r.raw_bias_stability_dph / r.compensated_bias_stability_dph,
             fogtemp_cal::report::white_noise_floor_cell(r.white_noise_floor())
         );
@@ -156,11 +157,11 @@ pub fn validate(a: ValidateArgs) -> Result<()> {
     if per_axis.len() > 1 {
         for (axis, axis_raw, axis_comp) in &per_axis {
             println!(
-                "{:<width$} {:>4} {:>14.5} {:>14.5} {:>8.2} {:>14}",
+                "{:<width$} {:>4} {:>14} {:>14} {:>8.2} {:>14}",
                 "overall of the axis (RMS over runs)",
                 axis,
-                axis_raw,
-                axis_comp,
+                dph(*axis_raw),
+                dph(*axis_comp),
                 axis_raw / axis_comp,
                 fogtemp_cal::report::white_noise_floor_cell(calibrate::overall_white_noise_floor(
                     runs.iter().filter(|r| r.axis == *axis)
@@ -172,11 +173,11 @@ pub fn validate(a: ValidateArgs) -> Result<()> {
         if per_axis.len() > 1 { "overall (RMS over runs and axes)" } else { "overall (RMS over runs)" };
     let overall_floor = calibrate::overall_white_noise_floor(runs);
     println!(
-        "{:<width$} {:>4} {:>14.5} {:>14.5} {:>8.2} {:>14}",
+        "{:<width$} {:>4} {:>14} {:>14} {:>8.2} {:>14}",
         overall,
         "",
-        raw,
-        comp,
+        dph(raw),
+        dph(comp),
         raw / comp,
         fogtemp_cal::report::white_noise_floor_cell(overall_floor)
     );
@@ -192,12 +193,12 @@ pub fn validate(a: ValidateArgs) -> Result<()> {
         );
         for c in &comparison {
             println!(
-                "{:<40} {:>11} {:>8} {:>14.5} {:>14.5} {:>8.2}",
+                "{:<40} {:>11} {:>8} {:>14} {:>14} {:>8.2}",
                 c.model,
                 c.mesh_nodes,
                 c.polynomial_terms,
-                c.raw_bias_stability_dph,
-                c.compensated_bias_stability_dph,
+                dph(c.raw_bias_stability_dph),
+                dph(c.compensated_bias_stability_dph),
                 c.raw_bias_stability_dph / c.compensated_bias_stability_dph
             );
         }

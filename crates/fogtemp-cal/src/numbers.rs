@@ -1,0 +1,72 @@
+//! Numbers as text for people: a deg/h figure to at most 5 decimals and 4 significant
+//! figures.
+//!
+//! Five decimals keep the small figures fogtemp is about as before (0.01286, 0.00396: the
+//! demo's Table 1, where four decimals printed poly and mesh alike). Above 0.1 they would
+//! claim more than a bias stability from a few dozen windows holds: psim-tvc's "216.0326"
+//! and "at most about 12.39106 deg/h" (review21 second report F7); 4 significant figures
+//! give 216.0 and 12.39. A value that rounds to zero prints without a minus sign.
+
+/// The decimals that show `v` to `significant` figures, at most `max_decimals` (and
+/// `max_decimals` for 0 and non-finite values).
+pub fn decimals_for(v: f64, max_decimals: usize, significant: usize) -> usize {
+    if !v.is_finite() || v == 0.0 {
+        return max_decimals;
+    }
+    let leading = v.abs().log10().floor();
+    let wanted = significant as f64 - 1.0 - leading;
+    if wanted <= 0.0 {
+        0
+    } else {
+        (wanted as usize).min(max_decimals)
+    }
+}
+
+/// A deg/h figure (bias stability, residual, floor): see the module documentation.
+pub fn dph(v: f64) -> String {
+    let decimals = decimals_for(v, 5, 4);
+    format!("{:.decimals$}", no_negative_zero(v, decimals))
+}
+
+/// [`dph`] with a sign always (`+0.00012`, `-216.0`).
+pub fn dph_signed(v: f64) -> String {
+    let decimals = decimals_for(v, 5, 4);
+    format!("{:+.decimals$}", no_negative_zero(v, decimals))
+}
+
+/// `v`, or `+0.0` when it prints as zero at `decimals` (so `-0.000001` is not `-0.00000`).
+fn no_negative_zero(v: f64, decimals: usize) -> f64 {
+    let scale = 10f64.powi(decimals.min(300) as i32);
+    if v.is_finite() && (v * scale).round() == 0.0 {
+        0.0
+    } else {
+        v
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn small_figures_keep_five_decimals_and_large_ones_four_significant_figures() {
+        assert_eq!(dph(0.012_857), "0.01286");
+        assert_eq!(dph(0.003_962), "0.00396");
+        assert_eq!(dph(0.000_012_3), "0.00001");
+        assert_eq!(dph(0.512_34), "0.5123");
+        assert_eq!(dph(216.0326), "216.0");
+        assert_eq!(dph(14.2819), "14.28");
+        assert_eq!(dph(12.391_06), "12.39");
+        assert_eq!(dph(31_416.0), "31416");
+        assert_eq!(dph(0.0), "0.00000");
+        assert_eq!(dph(f64::NAN), "NaN");
+    }
+
+    #[test]
+    fn a_value_that_rounds_to_zero_has_no_minus_sign() {
+        assert_eq!(dph(-0.000_001), "0.00000");
+        assert_eq!(dph_signed(-0.000_001), "+0.00000");
+        assert_eq!(dph_signed(-0.000_12), "-0.00012");
+        assert_eq!(dph_signed(12.391), "+12.39");
+    }
+}
