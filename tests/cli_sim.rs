@@ -401,6 +401,47 @@ fn demo_compensates_below_raw() {
     // Every model file is a valid blob for the library's own reader.
     let inspect = run_json(&["inspect", s(&out.join("models").join("hybrid.fogm")), "--json"]);
     assert!(inspect.is_object());
+
+    // The paper's figures are named like the models they compare with (review21 second
+    // report F6).
+    assert_eq!(doc["paper"]["mesh_paper_dph"].as_f64(), Some(0.0051), "{}", doc["paper"]);
+    assert!(doc["paper"].get("mesh_dph").is_none(), "{}", doc["paper"]);
+    demo_models_know_their_calibration_logs(&out);
+}
+
+/// The demo's models record their calibration logs as `fit`'s do (review21 second report F1):
+/// a non-zero input digest, and `validate` given the position-1 logs says they are in-sample,
+/// given the position-2 logs does not.
+fn demo_models_know_their_calibration_logs(out: &Path) {
+    let model = out.join("models").join("poly.fogm");
+    let inspect = run_json(&["inspect", s(&model), "--json"]);
+    let digest = inspect["input_digest"].as_str().expect("input_digest");
+    assert!(digest.len() == 64 && digest.chars().any(|c| c != '0'), "{digest}");
+    let logs_of = |position: &str| -> Vec<String> {
+        let mut logs: Vec<String> = fs::read_dir(out.join("logs"))
+            .expect("logs")
+            .filter_map(Result::ok)
+            .map(|e| e.path())
+            .filter(|p| p.file_name().and_then(|n| n.to_str()).is_some_and(|n| n.starts_with(position)))
+            .map(|p| p.display().to_string())
+            .collect();
+        logs.sort();
+        logs
+    };
+    let validate_stderr = |position: &str| {
+        let mut args = vec!["validate".to_string(), "--model".into(), s(&model).into()];
+        args.extend(logs_of(position));
+        let output = cal().args(&args).assert().success();
+        String::from_utf8_lossy(&output.get_output().stderr).into_owned()
+    };
+    let calibration = validate_stderr("pos1_");
+    assert!(calibration.contains("figures are in-sample"), "{calibration}");
+    let validation = validate_stderr("pos2_");
+    assert!(!validation.contains("in-sample"), "{validation}");
+    // The demo's fit report gives the calibrated range as `fit --report` does.
+    let fit_report =
+        fs::read_to_string(out.join("report").join("mesh").join("fit-report.md")).expect("fit report");
+    assert!(fit_report.contains("  - calibrated range: "), "{fit_report}");
 }
 
 /// `demo` needs runs in positions pos1 and pos2: a scenario without pos2 is refused with a

@@ -634,15 +634,15 @@ fn rate_signs(points: &CalibrationPoints, axis: usize) -> Option<Warning> {
              heating/cooling hysteresis cannot be seen; add {missing} runs to the calibration"
         )
     } else {
-        let share_percent = 100.0 * opposite as f64 / rates.len() as f64;
         format!(
-            "axis {axis}: the calibration mostly {what}: {opposite} of its {} points ({share_percent:.1} %) \
-             {missing_verb} faster than {MOVING_RATE_C_PER_MIN} C/min, to {extreme:.3} C/min at most ({span}, {p01:.3} \
-             to {p99:.3} at the 1st and 99th percentiles, partial tracker windows included): \
-             a rate effect's {missing} side and heating/cooling hysteresis rest on those few points, and \
-             {missing} beyond them is outside the calibrated region {outside_policy}; add {missing} runs to \
-             the calibration",
-            rates.len()
+            "axis {axis}: the calibration mostly {what}: {opposite} of its {} points ({} %) {missing_verb} faster \
+             than {MOVING_RATE_C_PER_MIN} C/min, to {extreme:.3} C/min at most ({span}, {p01:.3} to {p99:.3} at the \
+             1st and 99th percentiles, partial tracker windows included): a rate effect's {missing} side and \
+             heating/cooling hysteresis rest on those few points at most, and beyond the calibrated region \
+             (`inspect` shows how far it reaches; it is drawn from full tracker windows only) the model is \
+             extrapolated {outside_policy}; add {missing} runs to the calibration",
+            rates.len(),
+            crate::calibrate::share_percent(opposite as u64, rates.len() as u64)
         )
     };
     Some(Warning::new(
@@ -874,7 +874,7 @@ mod tests {
             "{}",
             w.message
         );
-        assert!(w.message.contains("cooling beyond them is outside the calibrated region"), "{}", w.message);
+        assert!(!w.message.contains("cooling rates are outside"), "{}", w.message);
         // With none, cooling is outside.
         let w = rate_signs(&points(&heating), 0).expect("heating only");
         assert!(w.message.contains("only heats: no point cools faster than 0.05 C/min"), "{}", w.message);

@@ -250,17 +250,21 @@ pub fn run_demo(
     // Features depend on the ingest and tracker settings only: compute them once per setting.
     let started = Instant::now();
     progress.stage("features", calibration_logs.len() as u64);
-    let mut feature_sets: Vec<(CalibrationConfig, Vec<RunFeatures>)> = Vec::new();
+    // Each log's digest is taken in the same read, as `fit` does, so the models record their
+    // calibration logs and `validate` names them when given them again (review21 second
+    // report F1: the demo's models had a digest of zeros).
+    let mut feature_sets: Vec<(CalibrationConfig, Vec<RunFeatures>, [u8; 32])> = Vec::new();
     for model in &options.models {
-        if feature_sets.iter().any(|(c, _)| same_features(c, &model.config)) {
+        if feature_sets.iter().any(|(c, _, _)| same_features(c, &model.config)) {
             continue;
         }
         let mut set = Vec::new();
+        let mut digest = fogtemp_cal::digest::InputDigest::new();
         for log in &calibration_logs {
-            set.push(calibrate::extract_run(log, &model.config, |_, _| {})?);
+            set.push(calibrate::extract_run_digested(log, &model.config, &mut digest, |_, _| {})?);
             progress.advance(1);
         }
-        feature_sets.push((model.config.clone(), set));
+        feature_sets.push((model.config.clone(), set, digest.finish().0));
     }
     seconds.features = started.elapsed().as_secs_f64();
 
@@ -269,20 +273,15 @@ pub fn run_demo(
     let mut blobs = Vec::new();
     let mut selections = Vec::new();
     for model in &options.models {
-        let features = feature_sets
+        let (features, input_digest) = feature_sets
             .iter()
-            .find(|(c, _)| same_features(c, &model.config))
-            .map(|(_, f)| f.as_slice())
-            .unwrap_or_default();
-        let fitted = calibrate::fit_model(features, &model.config, [0; 32])?;
-        let (blob, reports) = (fitted.blob, fitted.axes);
+            .find(|(c, _, _)| same_features(c, &model.config))
+            .map_or((&[][..], [0; 32]), |(_, f, d)| (f.as_slice(), *d));
+        let fitted = calibrate::fit_model(features, &model.config, input_digest)?;
         let path = models_dir.join(format!("{}.fogm", model.key));
-        fogtemp_cal::output::write_file_atomic(&path, |w| std::io::Write::write_all(w, &blob))?;
-        let residual = reports.first().map_or(f64::NAN, |r| r.residual_rms_dph);
-        let nodes = reports.first().map_or(0, |r| r.mesh_nodes);
-        let terms = reports.first().and_then(|r| r.poly.as_ref()).map_or(0, |p| p.terms.len());
-        selections.push(reports.first().and_then(|r| r.selection.clone()));
-        blobs.push((path, blob, residual, nodes, terms));
+        fogtemp_cal::output::write_file_atomic(&path, |w| std::io::Write::write_all(w, &fitted.blob))?;
+        selections.push(fitted.axes.first().and_then(|r| r.selection.clone()));
+        blobs.push(FittedFile { path, fitted });
         progress.advance(1);
     }
     seconds.fit = started.elapsed().as_secs_f64();
@@ -291,14 +290,14 @@ pub fn run_demo(
     progress.stage("validate", validation_logs.len() as u64);
     let parsed: Vec<Model<'_>> = blobs
         .iter()
-        .map(|b| Model::from_bytes(&b.1).map_err(CalError::SelfCheck))
+        .map(|b| Model::from_bytes(&b.fitted.blob).map_err(CalError::SelfCheck))
         .collect::<Result<_, _>>()?;
     let outcomes = validate_all(&validation_logs, &parsed, options, progress)?;
     let mut results = Vec::new();
     let mut validations: Vec<(Vec<RunValidation>, f64)> = Vec::new();
     let mut raw_dph = f64::NAN;
     let mut raw_runs = Vec::new();
-    for (((model, (path, blob, residual, nodes, terms)), validation), selection) in
+    for (((model, file), validation), selection) in
         options.models.iter().zip(&blobs).zip(outcomes).zip(selections)
     {
         let Validation { runs, raw_bias_stability_dph: raw, compensated_bias_stability_dph: comp } =
@@ -308,11 +307,11 @@ pub fn run_demo(
         results.push(ModelResult {
             key: model.key.clone(),
             description: model.description.clone(),
-            model_file: path.clone(),
-            model_bytes: blob.len(),
-            mesh_nodes: *nodes,
-            poly_terms: *terms,
-            fit_residual_rms_dph: *residual,
+            model_file: file.path.clone(),
+            model_bytes: file.fitted.blob.len(),
+            mesh_nodes: file.first_axis().map_or(0, |r| r.mesh_nodes),
+            poly_terms: file.first_axis().and_then(|r| r.poly.as_ref()).map_or(0, |p| p.terms.len()),
+            fit_residual_rms_dph: file.first_axis().map_or(f64::NAN, |r| r.residual_rms_dph),
             compensated_dph: comp,
             improvement_ratio: raw / comp,
             runs: runs.iter().map(|r| (run_name(&r.path), r.compensated_bias_stability_dph)).collect(),
@@ -351,8 +350,18 @@ pub fn run_demo(
     Ok(result)
 }
 
-/// A fitted model's file, bytes, fit residual RMS, mesh nodes and polynomial terms.
-type Blob = (PathBuf, Vec<u8>, f64, usize, usize);
+/// A fitted model and the file it was written to.
+struct FittedFile {
+    path: PathBuf,
+    fitted: calibrate::FittedModel,
+}
+
+impl FittedFile {
+    /// The fit's report of axis 0 (the demo's logs have one gyro axis).
+    fn first_axis(&self) -> Option<&calibrate::AxisFitReport> {
+        self.fitted.axes.first()
+    }
+}
 
 /// Validates every model on the validation logs: in one pass over each log when the models
 /// read the logs alike (the usual case), else model by model. Advances `progress` per log.
@@ -388,14 +397,16 @@ fn validate_all(
 fn write_demo_report(
     dir: &Path,
     result: &DemoResult,
-    blobs: &[Blob],
+    blobs: &[FittedFile],
     validations: &[(Vec<RunValidation>, f64)],
-    feature_sets: &[(CalibrationConfig, Vec<RunFeatures>)],
+    feature_sets: &[(CalibrationConfig, Vec<RunFeatures>, [u8; 32])],
     stability: &BiasStabilityOptions,
 ) -> Result<(), CalError> {
     std::fs::create_dir_all(dir).map_err(|source| CalError::Io { path: dir.to_path_buf(), source })?;
-    for (model, ((path, blob, ..), (runs, raw))) in result.models.iter().zip(blobs.iter().zip(validations)) {
-        let parsed = Model::from_bytes(blob).map_err(CalError::SelfCheck)?;
+    for (model, (FittedFile { path, fitted }, (runs, raw))) in
+        result.models.iter().zip(blobs.iter().zip(validations))
+    {
+        let parsed = Model::from_bytes(&fitted.blob).map_err(CalError::SelfCheck)?;
         fogtemp_cal::report::write_validation_report_with(
             &dir.join(&model.key),
             path,
@@ -406,22 +417,19 @@ fn write_demo_report(
             &result.definition,
         )?;
         if model.mesh_nodes > 0 {
-            if let Some((config, features)) = feature_sets.first() {
-                // The summary and warnings `fit --report` gives for the same logs.
+            if let Some((config, features, _)) = feature_sets.first() {
+                // The summary and warnings `fit --report` gives for the same logs, under the
+                // model's description.
                 let warnings = fogtemp_cal::identifiability::fit_warnings(
                     features,
                     config,
                     &fogtemp_cal::identifiability::IdentifiabilitySettings::default(),
                 );
-                let messages: Vec<String> = warnings.iter().map(|w| w.message.clone()).collect();
                 let summary = format!(
-                    "{}.\n\n- axis 0: {}, fit residual RMS {:.5} deg/h, {} mesh nodes, {} polynomial terms\n\n{}",
+                    "{} (`{}`).\n\n{}",
                     model.description,
                     model.key,
-                    model.fit_residual_rms_dph,
-                    model.mesh_nodes,
-                    model.poly_terms,
-                    fogtemp_cal::report::bullet_section("Warnings (what the data cannot support):", &messages)
+                    fogtemp_cal::report::fit_summary_markdown(&parsed, fitted, &warnings)
                 );
                 fogtemp_cal::report::write_fit_report(
                     &dir.join(&model.key),
@@ -481,9 +489,9 @@ fn demo_bars(dir: &Path, result: &DemoResult) -> Result<String, CalError> {
 fn write_demo_report(
     _dir: &Path,
     _result: &DemoResult,
-    _blobs: &[Blob],
+    _blobs: &[FittedFile],
     _validations: &[(Vec<RunValidation>, f64)],
-    _feature_sets: &[(CalibrationConfig, Vec<RunFeatures>)],
+    _feature_sets: &[(CalibrationConfig, Vec<RunFeatures>, [u8; 32])],
     _stability: &BiasStabilityOptions,
 ) -> Result<(), CalError> {
     Ok(())

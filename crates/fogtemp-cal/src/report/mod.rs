@@ -1035,6 +1035,19 @@ pub fn write_fit_report_for(
     warnings: &[crate::identifiability::Warning],
 ) -> Result<(), CalError> {
     let model = fogtemp_core::Model::from_bytes(&fitted.blob).map_err(CalError::SelfCheck)?;
+    let summary = fit_summary_markdown(&model, fitted, warnings);
+    write_fit_report(dir, model_path, &model, runs, &summary)
+}
+
+/// The summary [`write_fit_report_for`] puts at the top of a fit report: per axis its method,
+/// points, residual, mesh nodes, polynomial terms, calibrated range, merged or dropped mesh
+/// points, polynomial terms and cross-validation table, then the warnings. The demo's fit
+/// reports use it too (review21 second report F1: theirs lacked the range and the points).
+pub fn fit_summary_markdown(
+    model: &fogtemp_core::Model<'_>,
+    fitted: &crate::calibrate::FittedModel,
+    warnings: &[crate::identifiability::Warning],
+) -> String {
     let summary: Vec<String> = fitted
         .axes
         .iter()
@@ -1074,7 +1087,7 @@ pub fn write_fit_report_for(
         summary.push_str("\n\n");
         summary.push_str(warned.trim_end());
     }
-    write_fit_report(dir, model_path, &model, runs, &summary)
+    summary
 }
 
 /// The calibrated range of a model axis as a sub-item of its summary line: what the
