@@ -1474,8 +1474,8 @@ impl OutsideReach {
              temperature and rate no calibration run held"
         );
         let in_region =
-            "inside the calibrated region but beyond the mesh's outermost nodes (its hull, which lies \
-                         inside the region), where the mesh is continued from its edge"
+            "inside the calibrated region but outside the hull of the mesh's nodes, where the mesh is \
+                         continued from its edge"
                 .to_string();
         [(self.samples_beyond, beyond), (self.samples_within, within), (self.samples_in_region, in_region)]
             .into_iter()
@@ -2319,8 +2319,8 @@ mod tests {
         );
         // A mesh's samples inside the region (beyond its node hull) are counted apart, and
         // their features do not widen the reach.
-        let beside = "inside the calibrated region but beyond the mesh's outermost nodes (its hull, which lies inside \
-                      the region), where the mesh is continued from its edge";
+        let beside = "inside the calibrated region but outside the hull of the mesh's nodes, where the mesh is continued \
+                      from its edge";
         rate_only.observe(70.0, 0.1, 4, true);
         assert_eq!(rate_only.temp_beyond_c, 0.0);
         assert_eq!(

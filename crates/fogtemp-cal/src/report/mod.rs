@@ -310,6 +310,29 @@ pub fn diverging(t: f64) -> RGBColor {
     }
 }
 
+/// A sequential colour map for values of one sign, `t` in [0, 1]: light yellow through
+/// orange to brown (ColorBrewer YlOrBr, lightness falling monotonically), with no white, so
+/// no colour reads as "no bias" (review21 second report F5: the diverging map put white at
+/// 9.7 deg/h for node values of 9.42 to 9.99 that include the Earth rate).
+pub fn sequential(t: f64) -> RGBColor {
+    let t = t.clamp(0.0, 1.0);
+    let lerp = |a: f64, b: f64, s: f64| (a + (b - a) * s) as u8;
+    let stops = [(255.0, 237.0, 160.0), (254.0, 153.0, 41.0), (140.0, 45.0, 4.0)];
+    let (from, to, s) =
+        if t < 0.5 { (stops[0], stops[1], t / 0.5) } else { (stops[1], stops[2], (t - 0.5) / 0.5) };
+    RGBColor(lerp(from.0, to.0, s), lerp(from.1, to.1, s), lerp(from.2, to.2, s))
+}
+
+/// The colour map of a mesh figure over node values `v0..v1`: [`diverging`] with white at
+/// zero when they change sign, else [`sequential`]; and the key's note on it.
+fn value_colours(v0: f64, v1: f64) -> (fn(f64) -> RGBColor, &'static str) {
+    if v0 < 0.0 && v1 > 0.0 {
+        (diverging, "colour: white is zero")
+    } else {
+        (sequential, "colour: values of one sign, light to dark")
+    }
+}
+
 /// The (T, rate) plane: triangles filled by their mean node value, edges, nodes and the
 /// calibration points, with a colour scale.
 ///
@@ -320,13 +343,15 @@ pub fn plot_mesh(path: &Path, title: &str, mesh: &MeshFigure) -> Result<(), CalE
         root.fill(&WHITE).map_err(|e| plot_err(path, e))?;
         let (main, legend) = root.split_horizontally(900);
         // The key goes under the title: the mesh fills the plane, a legend box would hide part.
+        let (v0, v1) = finite_range(mesh.nodes.iter().map(|n| n.2));
+        let (colours, colours_note) = value_colours(v0, v1);
         let dots = if mesh.points.is_empty() {
-            "black dots: nodes"
+            format!("black dots: nodes; {colours_note}")
         } else {
-            "black dots: nodes, grey: calibration points"
+            format!("black dots: nodes, grey: calibration points; {colours_note}")
         };
         let main = main.titled(title, ("sans-serif", 20)).map_err(|e| plot_err(path, e))?;
-        let mut main = main.titled(dots, ("sans-serif", 14)).map_err(|e| plot_err(path, e))?;
+        let mut main = main.titled(&dots, ("sans-serif", 14)).map_err(|e| plot_err(path, e))?;
         if !mesh.region.is_empty() {
             // The region is the hull of the full-window points, so partial-window points and
             // nodes can lie outside it; a triangle is pale by its centre (review15 F5).
@@ -336,7 +361,6 @@ pub fn plot_mesh(path: &Path, title: &str, mesh: &MeshFigure) -> Result<(), CalE
         }
         let (t0, t1) = finite_range(mesh.nodes.iter().map(|n| n.0).chain(mesh.points.iter().map(|p| p.0)));
         let (r0, r1) = finite_range(mesh.nodes.iter().map(|n| n.1).chain(mesh.points.iter().map(|p| p.1)));
-        let (v0, v1) = finite_range(mesh.nodes.iter().map(|n| n.2));
         // Values on both sides of zero: limits symmetric about it, so white is no bias.
         let (v0, v1) = if v0 < 0.0 && v1 > 0.0 { (-v0.abs().max(v1), v0.abs().max(v1)) } else { (v0, v1) };
         let scale = |v: f64| (v - v0) / (v1 - v0);
@@ -359,7 +383,7 @@ pub fn plot_mesh(path: &Path, title: &str, mesh: &MeshFigure) -> Result<(), CalE
         chart
             .draw_series(mesh.triangles.iter().enumerate().map(|(k, t)| {
                 let [a, b, c] = t.map(node);
-                let colour = diverging(scale((a.2 + b.2 + c.2) / 3.0));
+                let colour = colours(scale((a.2 + b.2 + c.2) / 3.0));
                 // Outside the calibrated region the firmware flags the value: drawn pale.
                 let inside = mesh.inside_region.get(k).copied().unwrap_or(true);
                 let fill = if inside { colour.filled() } else { colour.mix(0.3).filled() };
@@ -412,7 +436,7 @@ pub fn plot_mesh(path: &Path, title: &str, mesh: &MeshFigure) -> Result<(), CalE
         bar.draw_series((0..steps).map(|k| {
             let a = v0 + (v1 - v0) * k as f64 / steps as f64;
             let b = v0 + (v1 - v0) * (k + 1) as f64 / steps as f64;
-            Rectangle::new([(0.0, a), (1.0, b)], diverging(scale((a + b) / 2.0)).filled())
+            Rectangle::new([(0.0, a), (1.0, b)], colours(scale((a + b) / 2.0)).filled())
         }))
         .map_err(|e| plot_err(path, e))?;
         root.present().map_err(|e| plot_err(path, e))
