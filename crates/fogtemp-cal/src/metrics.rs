@@ -329,7 +329,10 @@ fn nnls3(rows: &[([f64; 3], f64, f64)]) -> [f64; 3] {
     }
     best.0
 }
-/// RMS over runs of Allan deviation curves, on the cluster sizes all runs share.
+/// RMS over runs of Allan deviation curves, on the cluster sizes all runs share; each
+/// point's relative error is the first run's (callers that pool scale it themselves, as the
+/// diagnosis does by the square root of the runs). [`rms_allan_pooled_error`] gives the RMS's
+/// own.
 pub fn rms_allan(curves: &[Vec<AllanPoint>]) -> Vec<AllanPoint> {
     let shortest = curves.iter().map(Vec::len).min().unwrap_or(0);
     (0..shortest)
@@ -342,4 +345,52 @@ pub fn rms_allan(curves: &[Vec<AllanPoint>]) -> Vec<AllanPoint> {
             }
         })
         .collect()
+}
+
+/// [`rms_allan`] with each point's relative error that of the RMS: a run's Allan variance
+/// has about twice its deviation's relative error, the mean of the runs' variances the root
+/// sum of squares of those (independent estimates) over their sum, and the RMS half that
+/// (the validation report's figure and table; review21 second report F9).
+pub fn rms_allan_pooled_error(curves: &[Vec<AllanPoint>]) -> Vec<AllanPoint> {
+    let mut pooled = rms_allan(curves);
+    for (k, point) in pooled.iter_mut().enumerate() {
+        let (sum, spread_sq) = curves.iter().map(|c| (c[k].adev_dph.powi(2), c[k].relative_error)).fold(
+            (0.0, 0.0),
+            |(sum, spread), (variance, relative)| {
+                (sum + variance, spread + (2.0 * relative * variance).powi(2))
+            },
+        );
+        if sum > 0.0 {
+            point.relative_error = spread_sq.sqrt() / sum / 2.0;
+        }
+    }
+    pooled
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The RMS over runs and its relative error by hand: one run keeps its own; four equal
+    /// runs halve it (1 / sqrt(4)); runs of unequal length share the shorter's points.
+    #[test]
+    fn rms_allan_pooled_error_by_hand() {
+        let rms_allan = rms_allan_pooled_error;
+        let point =
+            |tau_s: f64, adev_dph: f64, relative_error: f64| AllanPoint { tau_s, adev_dph, relative_error };
+        let one = vec![vec![point(1.0, 0.02, 0.1), point(2.0, 0.01, 0.4)]];
+        assert_eq!(rms_allan(&one), one[0]);
+        let four = vec![one[0].clone(); 4];
+        let rms = rms_allan(&four);
+        assert!((rms[1].relative_error - 0.2).abs() < 1e-12, "{rms:?}");
+        assert!((rms[1].adev_dph - 0.01).abs() < 1e-15);
+        // Variances 1e-4 and 4e-4 with 10 % each: RMS sqrt(2.5e-4), relative error
+        // sqrt((2 * 0.1 * 1e-4)^2 + (2 * 0.1 * 4e-4)^2) / 5e-4 / 2.
+        let two = vec![vec![point(1.0, 0.01, 0.1)], vec![point(1.0, 0.02, 0.1), point(2.0, 0.02, 0.2)]];
+        let rms = rms_allan(&two);
+        assert_eq!(rms.len(), 1);
+        assert!((rms[0].adev_dph - 2.5e-4f64.sqrt()).abs() < 1e-15);
+        let expected = ((2e-5f64).powi(2) + (8e-5f64).powi(2)).sqrt() / 5e-4 / 2.0;
+        assert!((rms[0].relative_error - expected).abs() < 1e-12, "{} vs {expected}", rms[0].relative_error);
+    }
 }

@@ -9,7 +9,8 @@
 
 use crate::calibrate::{ReplaySeries, RunValidation};
 use crate::metrics::{
-    allan_deviation_in_segments, gap_free_ranges, rms_allan, rms_over_runs, AllanPoint, BiasStabilityOptions,
+    allan_deviation_in_segments, gap_free_ranges, rms_allan_pooled_error, rms_over_runs, AllanPoint,
+    BiasStabilityOptions,
 };
 
 /// Block means of one run over the span the metric covers.
@@ -124,20 +125,40 @@ pub fn run_bars(runs: &[&RunValidation], name: impl Fn(&RunValidation) -> String
 /// burst (bridging its gaps made a 5 s burst every 300 s read as 1 s means at 12-50 s).
 pub fn span_allan(series: &[&ReplaySeries], block_s: f64) -> (Vec<AllanPoint>, Vec<AllanPoint>) {
     let curves = |pick: for<'a> fn(&Span<'a>) -> &'a [f64]| -> Vec<AllanPoint> {
-        let per_run: Vec<Vec<AllanPoint>> = series
-            .iter()
-            .map(|s| {
-                let span = compensated_span(s, block_s);
-                let values = pick(&span);
-                let segments: Vec<&[f64]> =
-                    gap_free_ranges(span.time_s, block_s).filter_map(|r| values.get(r)).collect();
-                allan_deviation_in_segments(&segments, block_s)
-            })
-            .filter(|c| !c.is_empty())
-            .collect();
-        rms_allan(&per_run)
+        rms_allan_pooled_error(&run_allan_curves(series, block_s, pick))
     };
     (curves(|s| s.raw_dph), curves(|s| s.compensated_dph))
+}
+
+/// The longest averaging time of any one run's compensated curve, s (0 without one): beyond
+/// the RMS curve's last point when the runs differ in length, since [`span_allan`] keeps the
+/// averaging times every run reaches (review21 second report F9: the report stopped at the
+/// shortest run's without a word).
+pub fn longest_run_allan_tau_s(series: &[&ReplaySeries], block_s: f64) -> f64 {
+    run_allan_curves(series, block_s, |s| s.compensated_dph)
+        .iter()
+        .filter_map(|c| c.last().map(|p| p.tau_s))
+        .fold(0.0, f64::max)
+}
+
+/// Each run's Allan deviation of the series `pick` chooses, over the metric's span and within
+/// its gap-free stretches; runs without a point left out.
+fn run_allan_curves(
+    series: &[&ReplaySeries],
+    block_s: f64,
+    pick: for<'a> fn(&Span<'a>) -> &'a [f64],
+) -> Vec<Vec<AllanPoint>> {
+    series
+        .iter()
+        .map(|s| {
+            let span = compensated_span(s, block_s);
+            let values = pick(&span);
+            let segments: Vec<&[f64]> =
+                gap_free_ranges(span.time_s, block_s).filter_map(|r| values.get(r)).collect();
+            allan_deviation_in_segments(&segments, block_s)
+        })
+        .filter(|c| !c.is_empty())
+        .collect()
 }
 
 #[cfg(test)]

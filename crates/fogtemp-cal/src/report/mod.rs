@@ -572,6 +572,16 @@ pub fn plot_allan(path: &Path, title: &str, curves: &[(String, Vec<AllanPoint>)]
                 _ => run_colour(i),
             };
             let width = if reference { 1 } else { 2 };
+            // Each point's relative error as a bar, cut at the axis (review21 second report F9:
+            // the longest averaging times rest on one or two differences).
+            let (axis_lo, axis_hi) = (a0 * 0.8, a1 * 1.25);
+            chart
+                .draw_series(curve.iter().filter(|p| plottable(p) && p.relative_error > 0.0).map(|p| {
+                    let lo = (p.adev_dph * (1.0 - p.relative_error)).max(axis_lo);
+                    let hi = (p.adev_dph * (1.0 + p.relative_error)).min(axis_hi);
+                    PathElement::new(vec![(p.tau_s, lo), (p.tau_s, hi)], colour.mix(0.6).stroke_width(1))
+                }))
+                .map_err(|e| plot_err(path, e))?;
             chart
                 .draw_series(LineSeries::new(
                     curve.iter().map(|p| (p.tau_s, p.adev_dph)),
@@ -931,6 +941,7 @@ fn validation_axis_figures(
         md.push_str(&format!(
             "![Allan deviation, raw and compensated, each run from its first compensated sample]({allan_svg})\n\n"
         ));
+        md.push_str(&allan_reach_sentence(&comp, data::longest_run_allan_tau_s(&series, 1.0)));
         md.push_str(&allan_table(&raw, &comp));
     }
     Ok(md)
@@ -949,11 +960,32 @@ fn white_noise_line(floor: &crate::calibrate::WhiteNoiseFloor, curve: &[AllanPoi
         .collect()
 }
 
-/// Raw and compensated Allan deviation at 1, 10, 100 and 1000 s (where present), and
-/// their ratio.
+/// What the Allan figure's span and bars are: the bars are each point's relative error
+/// (`1 / sqrt(2 (clusters - 1))` per run, pooled over the runs), and when a run reaches
+/// longer averaging times than the RMS curve shows (runs of unequal length), how far.
+fn allan_reach_sentence(comp: &[AllanPoint], longest_run_tau_s: f64) -> String {
+    let mut text = String::from(
+        "The bars are each point's relative error (from the number of independent clusters, pooled over the \
+         runs): points with few clusters, at the longest averaging times, rest on one or two differences.",
+    );
+    if let Some(last) = comp.last() {
+        if longest_run_tau_s > 1.5 * last.tau_s {
+            text.push_str(&format!(
+                " The curves stop at {} s, the longest averaging time every run reaches; the longest run reaches {} s \
+                 (the RMS over runs is taken where all runs have a point).",
+                last.tau_s, longest_run_tau_s
+            ));
+        }
+    }
+    text.push_str("\n\n");
+    text
+}
+
+/// Raw and compensated Allan deviation at 1, 10, 100 and 1000 s (where present), their
+/// ratio and the compensated point's relative error.
 fn allan_table(raw: &[AllanPoint], comp: &[AllanPoint]) -> String {
     let mut md = String::from(
-        "| tau, s | raw ADEV, deg/h | compensated ADEV, deg/h | compensated / raw |\n|---|---|---|---|\n",
+        "| tau, s | raw ADEV, deg/h | compensated ADEV, deg/h | compensated / raw | relative error |\n|---|---|---|---|---|\n",
     );
     let mut shown = Vec::new();
     for target in [1.0f64, 10.0, 100.0, 1000.0] {
@@ -967,11 +999,12 @@ fn allan_table(raw: &[AllanPoint], comp: &[AllanPoint]) -> String {
             if (r.tau_s / target).ln().abs() < 0.5 && !shown.contains(&r.tau_s) {
                 shown.push(r.tau_s);
                 md.push_str(&format!(
-                    "| {} | {} | {} | {:.3} |\n",
+                    "| {} | {} | {} | {:.3} | +-{:.0} % |\n",
                     r.tau_s,
                     dph(r.adev_dph),
                     dph(c.adev_dph),
-                    c.adev_dph / r.adev_dph
+                    c.adev_dph / r.adev_dph,
+                    100.0 * c.relative_error
                 ));
             }
         }
