@@ -1398,7 +1398,7 @@ pub struct ReplaySeries {
 }
 
 /// How far a replay went beyond a model axis's calibrated temperature and rate ranges, at the
-/// tracker's features of the blocks with samples outside the calibrated region.
+/// tracker's features of each sample flagged outside the calibrated region.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct OutsideReach {
     /// The calibrated temperature range, deg C.
@@ -1409,19 +1409,19 @@ pub struct OutsideReach {
     pub temp_beyond_c: f64,
     /// The furthest rate beyond the range, deg C/min (0: within it).
     pub rate_beyond_c_per_min: f64,
-    /// Samples flagged outside in blocks whose features lie beyond either range.
+    /// Samples flagged outside whose features lie beyond either range.
     pub samples_beyond: u64,
-    /// Samples flagged outside in blocks whose features lie within both ranges (a combination
+    /// Samples flagged outside whose features lie within both ranges (a combination
     /// of temperature and rate no calibration run held), outside the calibrated region.
     pub samples_within: u64,
-    /// Samples flagged outside in blocks whose features lie inside the calibrated region: a
-    /// mesh's hull (its thinned nodes) lies inside the region, and between the two the mesh
-    /// is continued from its edge.
+    /// Samples flagged outside whose features lie inside the calibrated region: a
+    /// mesh's hull (its thinned nodes) need not cover the region, and between the two the
+    /// mesh is continued from its edge.
     pub samples_in_region: u64,
 }
 
 impl OutsideReach {
-    /// Widens the reach by the features `(temp_c, rate_c_per_min)` of a block with samples
+    /// Widens the reach by the features `(temp_c, rate_c_per_min)` of `samples` samples
     /// outside the region.
     fn observe(&mut self, temp_c: f64, rate_c_per_min: f64, samples: u64, in_region: bool) {
         if in_region {
@@ -1510,8 +1510,10 @@ struct Replayer<'m> {
     previous_s: Option<f64>,
     /// Finds temperature spikes (only reports them: the compensator takes every reading).
     spikes: SpikeGuard,
-    /// The open block's samples flagged `OUTSIDE_HULL`.
-    block_outside: u64,
+    /// The tracker's features at the last sample flagged `OUTSIDE_HULL` and whether they lie
+    /// in the region: features change once per tracker block, so a run of flagged samples
+    /// tests the region once.
+    last_outside: Option<(f32, f32, bool)>,
     /// The calibrated region of an axis with a mesh and the plane it is drawn in, for the
     /// outside note (a polynomial alone is flagged only outside the region).
     region: Option<(fogtemp_core::Region<'m>, fogtemp_core::Normalisation)>,
@@ -1538,7 +1540,6 @@ impl<'m> Replayer<'m> {
         };
         let acc = (0, 0.0, 0.0, 0.0, 0);
         let spikes = SpikeGuard::new(max_gap_s);
-        let block_outside = 0;
         Ok(Self {
             comp,
             axis,
@@ -1548,7 +1549,7 @@ impl<'m> Replayer<'m> {
             fullest_block: 0,
             previous_s: None,
             spikes,
-            block_outside,
+            last_outside: None,
             region: model
                 .axis(axis)
                 .ok()
@@ -1582,7 +1583,9 @@ impl<'m> Replayer<'m> {
         self.acc.2 += f64::from(out.rate_dph);
         self.acc.3 += f64::from(out.bias_dph);
         self.series.samples += 1;
-        self.block_outside += u64::from(out.flags.0 & fogtemp_core::Flags::OUTSIDE_HULL.0 != 0);
+        if out.flags.0 & fogtemp_core::Flags::OUTSIDE_HULL.0 != 0 {
+            self.observe_outside();
+        }
         for (bit, count) in self.series.flag_counts.iter_mut().enumerate() {
             if out.flags.0 & (1 << bit) != 0 {
                 *count += 1;
@@ -1604,22 +1607,34 @@ impl<'m> Replayer<'m> {
             series.temp_c.push(f.map_or(f64::NAN, |f| f64::from(f.temp_c)));
             series.rate_c_per_min.push(f.map_or(f64::NAN, |f| f64::from(f.rate_c_per_min)));
         }
-        self.observe_outside();
         self.fullest_block = self.fullest_block.max(self.acc.0);
         self.acc = (0, 0.0, 0.0, 0.0, block);
-        self.block_outside = 0;
     }
 
-    /// Counts the block's samples flagged outside in the reach, at the tracker's features.
+    /// Counts a sample flagged outside in the reach, at the tracker's features as the
+    /// compensator flagged it. (Until 2026-11-29 a block's flagged samples were counted at the
+    /// features of the block's end, which, with tracker and replay blocks not aligned, put some
+    /// "within the calibrated ranges" that were flagged beyond them: psim-tvc's T-alone model,
+    /// 49 of 250.)
     fn observe_outside(&mut self) {
-        let f = self.comp.tracker().features();
-        if let (true, Some(reach), Some(f)) = (self.block_outside > 0, self.series.outside_reach.as_mut(), f)
-        {
-            let in_region = self.region.is_some_and(|(region, normalisation)| {
-                let (x, y) = normalisation.apply(f.temp_c, f.rate_c_per_min);
-                region.contains(x, y)
-            });
-            reach.observe(f64::from(f.temp_c), f64::from(f.rate_c_per_min), self.block_outside, in_region);
+        let Some(f) = self.comp.tracker().features() else { return };
+        let in_region = match self.last_outside {
+            Some((temp_c, rate_c_per_min, inside))
+                if temp_c == f.temp_c && rate_c_per_min == f.rate_c_per_min =>
+            {
+                inside
+            }
+            _ => {
+                let inside = self.region.is_some_and(|(region, normalisation)| {
+                    let (x, y) = normalisation.apply(f.temp_c, f.rate_c_per_min);
+                    region.contains(x, y)
+                });
+                self.last_outside = Some((f.temp_c, f.rate_c_per_min, inside));
+                inside
+            }
+        };
+        if let Some(reach) = self.series.outside_reach.as_mut() {
+            reach.observe(f64::from(f.temp_c), f64::from(f.rate_c_per_min), 1, in_region);
         }
     }
 
@@ -1627,12 +1642,11 @@ impl<'m> Replayer<'m> {
     /// the fullest block, e.g. the one sample logged at exactly the run's duration) is left
     /// out: its mean of few samples is much noisier than the others and spiked the figures.
     fn finish(mut self) -> ReplaySeries {
+        // A block cut short is left out of the series; the outside note has counted its
+        // samples as they came (review21 F3: a run's last sample alone outside gave the note
+        // an empty reach).
         if self.acc.0 * 10 >= self.fullest_block * 9 {
             self.flush();
-        } else {
-            // The series leaves the block out; the outside note still counts its samples
-            // (review21 F3: a run's last sample alone outside gave the note an empty reach).
-            self.observe_outside();
         }
         self.series.fullest_block_samples = self.fullest_block;
         self.series.temperature_spikes = self.spikes.finish(&mut |_| {});
@@ -2736,6 +2750,29 @@ mod tests {
         assert!(!at(p.temp_max_c - 0.5, p.rate_min_c_per_min + 0.01).outside_hull);
         assert!(at(p.temp_max_c - 0.5, p.rate_max_c_per_min + 0.5).outside_hull);
         assert!(at(p.temp_max_c + 0.5, mid_rate).outside_hull);
+    }
+
+    /// A polynomial in T alone is calibrated over the box of its ranges, so a sample flagged
+    /// outside has features beyond a range: the outside note may count none "within the
+    /// calibrated ranges". A run cooling into the range crosses it inside a 10 s replay block;
+    /// counted at the block's end, the flagged samples of that block were "within" (psim-tvc:
+    /// 49 of 250). Counted at each sample's own features, none is.
+    #[test]
+    fn a_model_in_t_alone_counts_no_flagged_sample_within_its_ranges() {
+        let config = CalibrationConfig { method: Method::CubicT, ..CalibrationConfig::default() };
+        let fitted = fit_ramps(&config, &[(-10.0, 0.5), (0.0, -0.3), (5.0, 0.2)]);
+        let model = Model::from_bytes(&fitted.blob).expect("parses");
+        let p = model.axis(0).expect("axis 0").provenance;
+        // From 10 C above the calibrated maximum, cooling into the range within the rates.
+        let log = ramp_log(f64::from(p.temp_max_c) + 10.0, -0.25);
+        let replay = replay_models_from(log.as_bytes(), Path::new("v.csv"), &[&model], &config.ingest, 10.0)
+            .expect("replays");
+        let series = &replay.models[0][0];
+        let flagged = series.flag_counts[Flags::OUTSIDE_HULL.0.trailing_zeros() as usize];
+        let reach = series.outside_reach.expect("reach");
+        assert!(flagged > 0, "the run starts outside");
+        assert_eq!(reach.samples_within, 0, "{reach:?}");
+        assert_eq!(reach.samples_beyond, flagged, "{reach:?}");
     }
 
     /// `ramp_log` with the temperature cell of data row `row` (0-based) replaced by `cell`.
