@@ -999,18 +999,25 @@ fn allan_table(raw: &[AllanPoint], comp: &[AllanPoint]) -> String {
             if (r.tau_s / target).ln().abs() < 0.5 && !shown.contains(&r.tau_s) {
                 shown.push(r.tau_s);
                 md.push_str(&format!(
-                    "| {} | {} | {} | {:.3} | +-{:.0} % |\n",
+                    "| {} | {} | {} | {:.3} | +-{} % |\n",
                     r.tau_s,
                     dph(r.adev_dph),
                     dph(c.adev_dph),
                     c.adev_dph / r.adev_dph,
-                    100.0 * c.relative_error
+                    percent_to_two_figures(100.0 * c.relative_error)
                 ));
             }
         }
     }
     md.push('\n');
     md
+}
+
+/// A percentage to two significant figures, at most one decimal (0.31 -> "0.3", 9.6 -> "9.6",
+/// 67.4 -> "67").
+fn percent_to_two_figures(percent: f64) -> String {
+    let decimals = crate::numbers::decimals_for(percent, 1, 2);
+    format!("{percent:.decimals$}")
 }
 
 /// A white-noise floor as a table cell, deg/h ([`dph`]), or "unknown" (the validation
