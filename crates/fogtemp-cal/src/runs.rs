@@ -456,6 +456,81 @@ pub fn run_name(log: &Path) -> String {
     name.strip_suffix(".csv").map(str::to_string).unwrap_or(name)
 }
 
+/// Sorts logs in the order a person reads runs: by file name, signed numbers compared as
+/// numbers (`..._-35C`, `-20C`, `-05C`, `+10C`, ...), then by path. `validate` lists its runs
+/// so (review21 F10: the testbed's runs read +10, +25, +40, +55, -05, -20, -35 in text
+/// order). Only for what is shown: `fit`'s model does not depend on the logs' order, and
+/// `diagnose` keeps its own.
+pub fn sort_for_reading(logs: &mut [PathBuf]) {
+    logs.sort_by(|a, b| {
+        let key = |p: &Path| {
+            reading_key(&p.file_name().map_or_else(String::new, |n| n.to_string_lossy().into_owned()))
+        };
+        compare_keys(&key(a), &key(b)).then_with(|| a.cmp(b))
+    });
+}
+
+/// A part of a name for [`sort_for_reading`].
+#[derive(Debug, PartialEq)]
+enum NamePart {
+    Number(f64),
+    Text(String),
+}
+
+/// `name` as text and numbers; a `+` or `-` right before a digit and not after a letter or
+/// digit is the number's sign (`pos2_-10C`: "pos", 2, "_", -10, "C").
+fn reading_key(name: &str) -> Vec<NamePart> {
+    let chars: Vec<char> = name.chars().collect();
+    let mut parts = Vec::new();
+    let mut text = String::new();
+    let mut i = 0;
+    while i < chars.len() {
+        let after_word = i > 0 && chars[i - 1].is_alphanumeric();
+        let signed = (chars[i] == '+' || chars[i] == '-')
+            && !after_word
+            && chars.get(i + 1).is_some_and(char::is_ascii_digit);
+        if chars[i].is_ascii_digit() || signed {
+            let start = i;
+            i += 1;
+            while i < chars.len()
+                && (chars[i].is_ascii_digit()
+                    || (chars[i] == '.' && chars.get(i + 1).is_some_and(char::is_ascii_digit)))
+            {
+                i += 1;
+            }
+            let number: String = chars[start..i].iter().collect();
+            if !text.is_empty() {
+                parts.push(NamePart::Text(std::mem::take(&mut text)));
+            }
+            parts.push(NamePart::Number(number.parse().unwrap_or(f64::NAN)));
+        } else {
+            text.push(chars[i]);
+            i += 1;
+        }
+    }
+    if !text.is_empty() {
+        parts.push(NamePart::Text(text));
+    }
+    parts
+}
+
+/// Part by part: numbers by value, before text; text as text.
+fn compare_keys(a: &[NamePart], b: &[NamePart]) -> std::cmp::Ordering {
+    use std::cmp::Ordering;
+    for (x, y) in a.iter().zip(b) {
+        let order = match (x, y) {
+            (NamePart::Number(p), NamePart::Number(q)) => p.total_cmp(q),
+            (NamePart::Number(_), NamePart::Text(_)) => Ordering::Less,
+            (NamePart::Text(_), NamePart::Number(_)) => Ordering::Greater,
+            (NamePart::Text(p), NamePart::Text(q)) => p.cmp(q),
+        };
+        if order != Ordering::Equal {
+            return order;
+        }
+    }
+    a.len().cmp(&b.len())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -682,5 +757,43 @@ mod tests {
         assert_eq!(edit_distance("kitten", "sitting"), 3);
         assert_eq!(edit_distance("-20C", "-2OC"), 1);
         assert_eq!(edit_distance("°C", "C"), 1, "characters, not bytes");
+    }
+
+    #[test]
+    fn logs_sort_for_reading_by_signed_numbers() {
+        let mut logs: Vec<PathBuf> = [
+            "r/up_poweron_+10C.csv",
+            "r/down_poweron_-05C.csv",
+            "r/down_poweron_+55C.csv",
+            "r/down_poweron_+10C.csv",
+            "r/down_poweron_-35C.csv",
+            "r/down_triangle_+30C.csv",
+            "r/pos2_5C.csv",
+            "r/pos2_-10C.csv",
+            "r/pos10_0C.csv",
+            "r/run-2.csv",
+            "r/run-10.csv",
+        ]
+        .iter()
+        .map(PathBuf::from)
+        .collect();
+        sort_for_reading(&mut logs);
+        let names: Vec<String> = logs.iter().map(|l| run_name(l)).collect();
+        assert_eq!(
+            names,
+            [
+                "down_poweron_-35C",
+                "down_poweron_-05C",
+                "down_poweron_+10C",
+                "down_poweron_+55C",
+                "down_triangle_+30C",
+                "pos2_-10C",
+                "pos2_5C",
+                "pos10_0C",
+                "run-2",
+                "run-10",
+                "up_poweron_+10C"
+            ]
+        );
     }
 }

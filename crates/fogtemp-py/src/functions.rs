@@ -868,6 +868,7 @@ pub fn validate<'py>(
         if let Some(path) = &runs_file {
             logs = fogtemp_cal::runs::validation_logs(logs, path).map_err(errors::cal)?;
         }
+        fogtemp_cal::runs::sort_for_reading(&mut logs);
         how_read = choose_columns(
             py,
             &mut ingest,

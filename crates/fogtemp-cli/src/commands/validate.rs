@@ -55,10 +55,11 @@ pub fn validate(a: ValidateArgs) -> Result<()> {
     let blob = read_model(&a.model)?;
     check_capacity(&a.model, &blob, a.capacity)?;
     let model = Model::from_bytes(&blob).map_err(|e| anyhow::anyhow!("{e}"))?;
-    let logs = match a.runs.as_deref() {
+    let mut logs = match a.runs.as_deref() {
         Some(runs) => fogtemp_cal::runs::validation_logs(expand_logs(&a.logs)?, runs)?,
         None => expand_logs(&a.logs)?,
     };
+    fogtemp_cal::runs::sort_for_reading(&mut logs);
     let (ingest, columns) = super::ingest_options_for(&a.ingest, &model, &a.model)?;
     super::warn_axis_count(&a.model, model.axis_count(), ingest.format.gyro_columns.len());
     let options = stability_options(&a.stability)?;
