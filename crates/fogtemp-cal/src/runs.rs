@@ -457,10 +457,10 @@ pub fn run_name(log: &Path) -> String {
 }
 
 /// Sorts logs in the order a person reads runs: by file name, signed numbers compared as
-/// numbers (`..._-35C`, `-20C`, `-05C`, `+10C`, ...), then by path. `validate` lists its runs
-/// so (review21 F10: the testbed's runs read +10, +25, +40, +55, -05, -20, -35 in text
-/// order). Only for what is shown: `fit`'s model does not depend on the logs' order, and
-/// `diagnose` keeps its own.
+/// numbers (`..._-35C`, `-20C`, `-05C`, `+10C`, ...), then by path. `validate` lists a
+/// folder's runs so (review21 F10: the testbed's runs read +10, +25, +40, +55, -05, -20, -35
+/// in text order); logs named one by one keep the order given. Only for what is shown:
+/// `fit`'s model does not depend on the logs' order, and `diagnose` keeps its own.
 pub fn sort_for_reading(logs: &mut [PathBuf]) {
     logs.sort_by(|a, b| {
         let key = |p: &Path| {

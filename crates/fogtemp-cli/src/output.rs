@@ -75,10 +75,27 @@ pub fn check_report_folder(dir: &Path) -> Result<()> {
 /// The same file named twice (directly, through a folder, or by another path) is an error:
 /// its run would count twice.
 pub fn expand_logs(args: &[PathBuf]) -> Result<Vec<PathBuf>> {
+    expand_logs_ordered(args, false)
+}
+
+/// [`expand_logs`] with each folder's logs in reading order
+/// ([`fogtemp_cal::runs::sort_for_reading`]: `-35C`, `-05C`, `+10C`), for `validate`'s list
+/// of runs (review21 F10); logs named one by one keep the order given.
+///
+/// # Errors
+/// As [`expand_logs`].
+pub fn expand_logs_for_reading(args: &[PathBuf]) -> Result<Vec<PathBuf>> {
+    expand_logs_ordered(args, true)
+}
+
+fn expand_logs_ordered(args: &[PathBuf], reading_order: bool) -> Result<Vec<PathBuf>> {
     let mut seen: Vec<(PathBuf, String)> = Vec::new();
     let mut logs = Vec::new();
     for arg in args {
-        let found = expand_log_paths(arg)?;
+        let mut found = expand_log_paths(arg)?;
+        if reading_order && arg.is_dir() {
+            fogtemp_cal::runs::sort_for_reading(&mut found);
+        }
         for log in found {
             let canonical =
                 std::fs::canonicalize(&log).with_context(|| format!("cannot open {}", log.display()))?;

@@ -48,6 +48,16 @@ pub fn parse_method(name: &str) -> PyResult<Method> {
 /// Paths from a path, a list of paths, folders expanded to their `*.csv` files sorted by
 /// name (the command line's rule).
 pub fn expand_logs(items: &[PathBuf]) -> PyResult<Vec<PathBuf>> {
+    expand_logs_ordered(items, false)
+}
+
+/// [`expand_logs`] with each folder's logs in reading order, as the command line's
+/// `validate` lists them ([`fogtemp_cal::runs::sort_for_reading`]).
+pub fn expand_logs_for_reading(items: &[PathBuf]) -> PyResult<Vec<PathBuf>> {
+    expand_logs_ordered(items, true)
+}
+
+fn expand_logs_ordered(items: &[PathBuf], reading_order: bool) -> PyResult<Vec<PathBuf>> {
     let mut out = Vec::new();
     for arg in items {
         if arg.is_dir() {
@@ -59,6 +69,9 @@ pub fn expand_logs(items: &[PathBuf]) -> PyResult<Vec<PathBuf>> {
                 .filter(|p| p.extension().is_some_and(|x| x.eq_ignore_ascii_case("csv")) && p.is_file())
                 .collect();
             found.sort();
+            if reading_order {
+                fogtemp_cal::runs::sort_for_reading(&mut found);
+            }
             if found.is_empty() {
                 return Err(errors::value(format!("{}: folder holds no *.csv files", arg.display())));
             }
@@ -861,14 +874,13 @@ pub fn validate<'py>(
         validate_array_runs(py, &runs, &refs, ingest, &stability)?
     } else {
         let paths: Vec<PathBuf> = items.iter().map(|l| l.extract::<PathBuf>()).collect::<PyResult<_>>()?;
-        let mut logs = expand_logs(&paths)?;
+        let mut logs = expand_logs_for_reading(&paths)?;
         if logs.is_empty() {
             return Err(errors::value("validate() needs at least one log"));
         }
         if let Some(path) = &runs_file {
             logs = fogtemp_cal::runs::validation_logs(logs, path).map_err(errors::cal)?;
         }
-        fogtemp_cal::runs::sort_for_reading(&mut logs);
         how_read = choose_columns(
             py,
             &mut ingest,

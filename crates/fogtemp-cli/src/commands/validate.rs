@@ -13,7 +13,7 @@ use fogtemp_core::Model;
 
 use super::{check_capacity, print_json, read_model, report_skipped};
 use crate::args::{StabilityArgs, ValidateArgs};
-use crate::output::{expand_logs, RowProgress};
+use crate::output::{expand_logs_for_reading, RowProgress};
 
 fn stability_options(a: &StabilityArgs) -> Result<BiasStabilityOptions> {
     if !a.tau_s.is_finite() || a.tau_s <= 0.0 {
@@ -55,11 +55,10 @@ pub fn validate(a: ValidateArgs) -> Result<()> {
     let blob = read_model(&a.model)?;
     check_capacity(&a.model, &blob, a.capacity)?;
     let model = Model::from_bytes(&blob).map_err(|e| anyhow::anyhow!("{e}"))?;
-    let mut logs = match a.runs.as_deref() {
-        Some(runs) => fogtemp_cal::runs::validation_logs(expand_logs(&a.logs)?, runs)?,
-        None => expand_logs(&a.logs)?,
+    let logs = match a.runs.as_deref() {
+        Some(runs) => fogtemp_cal::runs::validation_logs(expand_logs_for_reading(&a.logs)?, runs)?,
+        None => expand_logs_for_reading(&a.logs)?,
     };
-    fogtemp_cal::runs::sort_for_reading(&mut logs);
     let (ingest, columns) = super::ingest_options_for(&a.ingest, &model, &a.model)?;
     super::warn_axis_count(&a.model, model.axis_count(), ingest.format.gyro_columns.len());
     let options = stability_options(&a.stability)?;
