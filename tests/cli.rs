@@ -459,6 +459,22 @@ fn check_export(model: &Path, blob: &[u8], dir: &Path) {
     assert!(source.contains("#include \"model.h\""), "{source}");
     let decl = format!("const uint8_t gyro_model[{n}] = {{");
     assert_eq!(array_bytes(&source, &decl, "};"), blob, "C export bytes");
+    // The guard is the export's own, never fogtemp.h's (review22 F6: --name fogtemp gave
+    // FOGTEMP_H and the second include vanished).
+    assert!(header.contains("#ifndef GYRO_MODEL_FOGTEMP_EXPORT_H"), "{header}");
+    run_ok(args!["export", "--model", model, "--format", "c", "--name", "fogtemp", "--out", &c]);
+    let header = fs::read_to_string(dir.join("model.h")).expect("model.h");
+    assert!(!header.contains("FOGTEMP_H\n"), "{header}");
+    let err =
+        run_err(args!["export", "--model", model, "--format", "c", "--name", "fogtemp_model", "--out", &c]);
+    assert!(err.contains("fogtemp.h declares its types and functions as fogtemp_*"), "{err}");
+
+    // `--out -` is stdout for Rust, the same text as the file; C needs a path.
+    let streamed = run_ok(args!["export", "--model", model, "--format", "rust", "--out", "-"]);
+    assert_eq!(streamed, text);
+    assert!(!Path::new("-").exists(), "no file named -");
+    let err = run_err(args!["export", "--model", model, "--format", "c", "--out", "-"]);
+    assert!(err.contains("--format c writes a source and a header beside it, so it needs a path"), "{err}");
 }
 
 // ---------------------------------------------------------------------------------------

@@ -780,7 +780,7 @@ fn single_run(prep: &prepare::Prepared, options: &DiagnoseOptions) -> Result<Dia
     let selection = select::Selection { steps: Vec::new(), chosen: Vec::new(), dropped: Vec::new() };
     let basis = noise_model::NoiseBasis::of(prep);
     let mut d = locate::assemble(prep, &[], basis.as_ref(), selection, outcome, options)?;
-    let claimed = format!(" No catalogue effect is left out: {}", d.unexplained.statement);
+    let claimed = format!(" No catalogue effect is shown to be left out: {}", d.unexplained.statement);
     d.unexplained.structured = false;
     d.unexplained.tables.clear();
     d.unexplained.statement = "not tested: one run gives no held-out run to test a structure against".into();

@@ -620,7 +620,7 @@ fn unexplained_statement(
         );
     }
     if left_out_empty {
-        "the residual is consistent with noise: no catalogue effect improves held-out runs and no span or cell is significant".to_string()
+        "the residual is consistent with noise: no catalogue effect passes the acceptance rules on held-out runs, and once the overall offset is taken out no span or cell is significant".to_string()
     } else {
         "after the chosen effects the residual is consistent with noise: no span or cell is significant and no structure repeats across runs".to_string()
     }
@@ -784,7 +784,7 @@ fn summary(d: &Diagnosis, grids: &[EffectGrid]) -> String {
         s.push('.');
     }
     if d.left_out.is_empty() {
-        s.push_str(" No catalogue effect is left out: ");
+        s.push_str(" No catalogue effect is shown to be left out: ");
     } else {
         s.push_str(" Left out: ");
         let parts: Vec<String> = d.left_out.iter().map(|e| e.statement.clone()).collect();

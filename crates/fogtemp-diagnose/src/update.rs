@@ -33,7 +33,14 @@ pub fn write_updated_scenario(
     let mut out =
         format!("# {} updated by `fogtemp-cal diagnose` with the effects it found:\n", source.display());
     if changes.is_empty() {
-        out.push_str("# (none: nothing is left out)\n");
+        // As the verdict says it (review22 F4: one run read "nothing is left out" here while
+        // the verdict said "not tested").
+        let why = if diagnosis.runs.len() < 2 {
+            "not tested: one paired run gives no held-out run, so no effect can be named; no change made"
+        } else {
+            "no catalogue effect is shown to be left out; no change made"
+        };
+        out.push_str(&format!("# ({why})\n"));
     }
     for c in &changes {
         out.push_str(&format!("# - {c}\n"));
