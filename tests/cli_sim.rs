@@ -521,6 +521,7 @@ fn diagnose_names_a_left_out_lag_and_nothing_in_the_null_case() {
     // The text gives the fitted parameters beside the verdict, as --json has them.
     let text = run_ok(["diagnose", "--simulated", s(&simulated), "--recorded", s(&recorded)]);
     let fitted = text.split("Fitted (value +- standard error):\n").nth(1).expect("a Fitted block");
+    assert!(fitted.contains("(statistical errors only, the spread over the runs"), "{text}");
     let lag_line = fitted.lines().next().unwrap_or_default();
     assert!(lag_line.starts_with("thermal_lag: "), "{text}");
     for (name, p) in lag["parameters"].as_object().expect("parameters") {
@@ -552,7 +553,7 @@ fn diagnose_names_a_left_out_lag_and_nothing_in_the_null_case() {
     // The text output: the verdict's lines first, then the full summary.
     let text = run_ok(["diagnose", "--simulated", s(&simulated), "--recorded", s(&null)]);
     let summary = doc["summary"].as_str().expect("summary");
-    assert!(text.starts_with("Verdict: no catalogue effect is left out"), "{text}");
+    assert!(text.starts_with("Verdict: no catalogue effect is shown to be left out"), "{text}");
     assert!(text.contains(&format!("\n\nIn full: {summary}")), "{text}");
 }
 
@@ -597,7 +598,8 @@ fn diagnose_of_one_run_locates_but_names_nothing_and_says_why() {
     assert_eq!(doc["left_out"].as_array().map(Vec::len), Some(0), "{doc}");
     let summary = doc["summary"].as_str().unwrap_or_default();
     assert!(
-        summary.starts_with("ONE PAIRED RUN") && !summary.contains("No catalogue effect is left out"),
+        summary.starts_with("ONE PAIRED RUN")
+            && !summary.contains("No catalogue effect is shown to be left out"),
         "{summary}"
     );
     assert!(doc["location"]["spans"].as_array().is_some_and(|s| !s.is_empty()), "no spans located");
@@ -612,6 +614,10 @@ fn diagnose_of_one_run_locates_but_names_nothing_and_says_why() {
     assert!(before.as_array().is_some_and(|b| !b.is_empty() && b.iter().all(Value::is_f64)), "{before}");
     let md = fs::read_to_string(report.join("report.md")).expect("report.md");
     assert!(!md.contains("NaN -> NaN") && md.contains("Whole model on held-out runs: not measured"), "{md}");
+    // No NaN in prose and no count after a model that was not fitted (review22 F4).
+    assert!(!md.contains("NaN deg/h"), "{md}");
+    assert!(md.contains("After the model: not tested (one paired run: no model was fitted)."), "{md}");
     let svg = fs::read_to_string(report.join("residuals.svg")).expect("residuals.svg");
     assert!(svg.contains("<circle"), "no residual points drawn");
+    assert!(svg.contains("no held-out prediction to draw"), "the title promises no line");
 }

@@ -135,7 +135,14 @@ pub fn diagnose(a: DiagnoseArgs, recorded_ingest: IngestOptions) -> Result<()> {
         let fitted = if fitted.is_empty() {
             String::new()
         } else {
-            format!("\n\nFitted (value +- standard error):\n{fitted}")
+            // The errors' limit beside the numbers, not only in the report's definitions
+            // (review22 F3: seed 2's Shupe 1.40 x the truth, 4.9 of its errors away).
+            format!(
+                "\n\nFitted (value +- standard error):\n{fitted}\n(statistical errors only, the spread over the runs: \
+                 where a catalogue term only approximates the effect's shape, as a Shupe term for a coil rate that lags \
+                 the sensor, the estimate also carries a bias they do not hold; docs/diagnose.md, \"How far the \
+                 standard errors hold\")"
+            )
         };
         println!("{}{fitted}\n\nIn full: {}", fogtemp_diagnose::verdict_text(&d), d.summary);
         eprintln!("diagnosed {} run pairs in {seconds:.1} s", pairs.len());
