@@ -188,10 +188,13 @@ def test_validate_runs_file_keeps_the_val_runs_like_the_command_line(mesh_model,
     done = cli("validate", "--model", model_path, "--runs", runs_csv, "--json", folder)
     assert done.returncode == 0, done.stderr
     assert ours == json.loads(done.stdout)
-    assert [r["path"] for r in ours["runs"]] == [str(folder / p.name) for p in val_logs[:2]]
-    assert ours == fogtemp.validate(model_path, [folder / p.name for p in val_logs[:2]], progress=False)
+    # A folder's runs in reading order (by the signed temperature in the name: -25C before
+    # -10C), as the command lists them; logs named one by one keep the order given.
+    reading = sorted(val_logs[:2], key=lambda p: float(p.stem.split("_")[-1].rstrip("C")))
+    assert [r["path"] for r in ours["runs"]] == [str(folder / p.name) for p in reading]
+    assert ours == fogtemp.validate(model_path, [folder / p.name for p in reading], progress=False)
     # The same runs file with only the val logs given: its cal rows need no log.
-    only_val = [folder / p.name for p in val_logs[:2]]
+    only_val = [folder / p.name for p in reading]
     assert ours == fogtemp.validate(model_path, only_val, runs=runs_csv, progress=False)
     # Without roles every log is validated; roles without a val run, or a log the file does
     # not describe, are errors (the command line's messages).
