@@ -657,6 +657,13 @@ fn markdown(d: &Diagnosis, figures: OptionalFigures) -> String {
             }
             let _ = writeln!(md, "| {name} | {value} | {se} | {} |", p.units);
         }
+        if e.parameters.values().any(|p| p.std_error.is_some_and(|se| se.is_finite() && se > 0.0)) {
+            // Beside the numbers, not only in the definitions (review22 F3).
+            let _ = writeln!(
+                md,
+                "\nStandard errors are statistical only (the spread over the runs): where the catalogue term only approximates the effect's shape, the estimate also carries a bias they do not hold."
+            );
+        }
         if e.effect == "static_shape" && figures.static_shape {
             let _ = writeln!(md, "\n![static shape](static_shape.svg)");
         }
@@ -788,7 +795,10 @@ fn location_markdown(d: &Diagnosis, figures: OptionalFigures) -> String {
         );
     }
     if figures.allan {
-        let _ = writeln!(md, "\n![Allan deviation](allan.svg)");
+        let _ = writeln!(
+            md,
+            "\n![Allan deviation](allan.svg)\n\nThe bars are each point's relative error from its number of independent clusters."
+        );
     } else {
         let _ = writeln!(
             md,
