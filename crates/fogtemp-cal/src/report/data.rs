@@ -123,22 +123,29 @@ pub fn run_bars(runs: &[&RunValidation], name: impl Fn(&RunValidation) -> String
 /// from its first compensated block (the span of the metric) and within its gap-free
 /// stretches ([`gap_free_ranges`]): a log of bursts gets no averaging time longer than a
 /// burst (bridging its gaps made a 5 s burst every 300 s read as 1 s means at 12-50 s).
-pub fn span_allan(series: &[&ReplaySeries], block_s: f64) -> (Vec<AllanPoint>, Vec<AllanPoint>) {
-    let curves = |pick: for<'a> fn(&Span<'a>) -> &'a [f64]| -> Vec<AllanPoint> {
-        rms_allan_pooled_error(&run_allan_curves(series, block_s, pick))
-    };
-    (curves(|s| s.raw_dph), curves(|s| s.compensated_dph))
+pub struct SpanAllan {
+    /// The raw gyro's curve, RMS over runs.
+    pub raw: Vec<AllanPoint>,
+    /// The compensated output's curve, RMS over runs.
+    pub compensated: Vec<AllanPoint>,
+    /// The longest averaging time of any one run's compensated curve, s (0 without one):
+    /// beyond the RMS curve's last point when the runs differ in length, since the RMS keeps
+    /// the averaging times every run reaches (review21 second report F9: the report stopped
+    /// at the shortest run's without a word).
+    pub longest_run_tau_s: f64,
 }
 
-/// The longest averaging time of any one run's compensated curve, s (0 without one): beyond
-/// the RMS curve's last point when the runs differ in length, since [`span_allan`] keeps the
-/// averaging times every run reaches (review21 second report F9: the report stopped at the
-/// shortest run's without a word).
-pub fn longest_run_allan_tau_s(series: &[&ReplaySeries], block_s: f64) -> f64 {
-    run_allan_curves(series, block_s, |s| s.compensated_dph)
-        .iter()
-        .filter_map(|c| c.last().map(|p| p.tau_s))
-        .fold(0.0, f64::max)
+/// The [`SpanAllan`] of `series`.
+pub fn span_allan(series: &[&ReplaySeries], block_s: f64) -> SpanAllan {
+    let raw_runs = run_allan_curves(series, block_s, |s| s.raw_dph);
+    let compensated_runs = run_allan_curves(series, block_s, |s| s.compensated_dph);
+    let longest_run_tau_s =
+        compensated_runs.iter().filter_map(|c| c.last().map(|p| p.tau_s)).fold(0.0, f64::max);
+    SpanAllan {
+        raw: rms_allan_pooled_error(&raw_runs),
+        compensated: rms_allan_pooled_error(&compensated_runs),
+        longest_run_tau_s,
+    }
 }
 
 /// Each run's Allan deviation of the series `pick` chooses, over the metric's span and within
@@ -324,7 +331,7 @@ mod tests {
         for (k, c) in s.compensated_dph.iter_mut().enumerate().take(200) {
             *c = k as f64 * 0.05;
         }
-        let (raw, comp) = span_allan(&[&s], 1.0);
+        let SpanAllan { raw, compensated: comp, .. } = span_allan(&[&s], 1.0);
         assert!(!raw.is_empty());
         for (r, c) in raw.iter().zip(&comp) {
             assert_eq!(r.tau_s, c.tau_s);
@@ -361,7 +368,7 @@ mod tests {
         let ranges: Vec<_> = gap_free_ranges(&s.time_s, 1.0).collect();
         assert_eq!(ranges.len(), 25);
         assert!(ranges.iter().all(|r| r.len() == 5));
-        let (raw, _) = span_allan(&[&s], 1.0);
+        let raw = span_allan(&[&s], 1.0).raw;
         let one_burst = crate::metrics::allan_deviation(&s.raw_dph[..5], 1.0);
         assert_eq!(raw.iter().map(|p| p.tau_s).collect::<Vec<_>>(), vec![1.0, 2.0]);
         for (a, b) in raw.iter().zip(&one_burst) {

@@ -921,7 +921,7 @@ fn validation_axis_figures(
     plot_run_bars(&dir.join(&bars_svg), &format!("Bias stability per validation run, axis {axis}"), &bars)?;
     md.push_str(&format!("![Bias stability per run, raw beside compensated]({bars_svg})\n\n"));
     let series: Vec<&crate::calibrate::ReplaySeries> = runs.iter().map(|r| &r.series).collect();
-    let (raw, comp) = data::span_allan(&series, 1.0);
+    let data::SpanAllan { raw, compensated: comp, longest_run_tau_s } = data::span_allan(&series, 1.0);
     let mut curves = vec![("raw".to_string(), raw.clone()), ("compensated".to_string(), comp.clone())];
     if let Some(f) = crate::calibrate::overall_white_noise_floor(runs.iter().copied()) {
         curves.push((
@@ -941,7 +941,7 @@ fn validation_axis_figures(
         md.push_str(&format!(
             "![Allan deviation, raw and compensated, each run from its first compensated sample]({allan_svg})\n\n"
         ));
-        md.push_str(&allan_reach_sentence(&comp, data::longest_run_allan_tau_s(&series, 1.0)));
+        md.push_str(&allan_reach_sentence(&comp, longest_run_tau_s));
         md.push_str(&allan_table(&raw, &comp));
     }
     Ok(md)
