@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use fogtemp_cal::CalError;
 use fogtemp_sim::scenario::{InputAxis, Node, Scenario};
 
-use super::{Diagnosis, LeftOutEffect};
+use super::{Diagnosis, LeftOutEffect, TemperatureComparison};
 use crate::DiagnoseError;
 
 /// When the simulation folder `simulated` holds the `scenario.toml` it was made from, writes
@@ -30,25 +30,51 @@ pub fn write_updated_scenario(
         std::fs::read_to_string(&source).map_err(|e| CalError::Io { path: source.clone(), source: e })?;
     let scenario = Scenario::from_toml(&text, &source.display().to_string())?;
     let (updated, changes) = updated_scenario(&scenario, diagnosis);
+    let mut out = header_comment(&source, diagnosis.runs.len(), &changes, &diagnosis.location.temperature);
+    out.push_str(&updated.to_toml()?);
+    let path = dir.join("scenario-updated.toml");
+    fogtemp_cal::output::write_file_atomic(&path, |w| w.write_all(out.as_bytes()))?;
+    Ok(Some((path, changes)))
+}
+
+/// The comment at the top of the updated scenario: what changed, or why nothing did, and
+/// a thermal model that does not match (which no catalogue effect changes).
+fn header_comment(
+    source: &Path,
+    runs: usize,
+    changes: &[String],
+    temperature: &TemperatureComparison,
+) -> String {
     let mut out =
         format!("# {} updated by `fogtemp-cal diagnose` with the effects it found:\n", source.display());
     if changes.is_empty() {
         // As the verdict says it (review22 F4: one run read "nothing is left out" here while
         // the verdict said "not tested").
-        let why = if diagnosis.runs.len() < 2 {
+        let why = if runs < 2 {
             "not tested: one paired run gives no held-out run, so no effect can be named; no change made"
         } else {
             "no catalogue effect is shown to be left out; no change made"
         };
         out.push_str(&format!("# ({why})\n"));
     }
-    for c in &changes {
+    for c in changes {
         out.push_str(&format!("# - {c}\n"));
     }
-    out.push_str(&updated.to_toml()?);
-    let path = dir.join("scenario-updated.toml");
-    fogtemp_cal::output::write_file_atomic(&path, |w| w.write_all(out.as_bytes()))?;
-    Ok(Some((path, changes)))
+    // Said so that the engineer does not simulate again with temperatures that are off
+    // (review22 F4: psim-tvc's 19 C RMS went unmentioned here).
+    if temperature.mismatch {
+        out.push_str(&format!(
+            "# Not changed: the thermal model. {}: the simulated temperatures need mending before the bias can be compared.\n",
+            capitalised(&temperature.statement)
+        ));
+    }
+    out
+}
+
+/// `text` with its first letter upper-cased.
+fn capitalised(text: &str) -> String {
+    let mut chars = text.chars();
+    chars.next().map_or_else(String::new, |c| c.to_uppercase().chain(chars).collect())
 }
 
 /// `scenario` with every effect of `diagnosis.left_out` added, and one line per effect
@@ -163,4 +189,41 @@ fn tilt_groups(s: &mut Scenario, e: &LeftOutEffect) -> String {
         return "orientation_offset: no per-position offset to map".into();
     }
     format!("orientation_offset: {}", notes.join("; "))
+}
+
+#[cfg(test)]
+mod header_tests {
+    use super::*;
+
+    fn comparison(mismatch: bool, statement: &str) -> TemperatureComparison {
+        TemperatureComparison { runs: Vec::new(), mismatch, statement: statement.into() }
+    }
+
+    #[test]
+    fn a_thermal_mismatch_is_said_beside_the_changes() {
+        let statement = "thermal-model mismatch: recorded and simulated temperature differ by up to 18.97 C RMS (tolerance 0.05 C)";
+        let text = header_comment(Path::new("sim/scenario.toml"), 1, &[], &comparison(true, statement));
+        let lines: Vec<&str> = text.lines().collect();
+        assert_eq!(lines.len(), 3, "{text}");
+        assert!(lines[1].starts_with("# (not tested: one paired run"), "{text}");
+        assert_eq!(
+            lines[2],
+            "# Not changed: the thermal model. Thermal-model mismatch: recorded and simulated temperature differ by up to 18.97 C RMS (tolerance 0.05 C): the simulated temperatures need mending before the bias can be compared."
+        );
+    }
+
+    #[test]
+    fn matching_temperatures_add_no_line() {
+        let changes = vec!["thermal_lag: bias.temperature_node = \"coil\"".to_string()];
+        let text = header_comment(
+            Path::new("sim/scenario.toml"),
+            6,
+            &changes,
+            &comparison(false, "recorded and simulated temperature agree within 0.05 C RMS in every run"),
+        );
+        assert_eq!(
+            text,
+            "# sim/scenario.toml updated by `fogtemp-cal diagnose` with the effects it found:\n# - thermal_lag: bias.temperature_node = \"coil\"\n"
+        );
+    }
 }
