@@ -170,7 +170,7 @@ def fit(
     fast_rate, settled_every, poly, max_degree, p_enter, p_remove, poly_outside ("linear_from_boundary",
     the default, "extrapolate" or "hold_at_boundary"), mesh_outside ("linear_stored_gradients",
     the default, "hold" or "linear_from_boundary"; a mesh model's mesh beyond its hull), capacity, operating_temp_c as a
-    (min, max) pair) and, for files, the log-column options (time_column, time_unit ("s", "ms", "us", "datetime" or "time_of_day"), temp_column,
+    (min, max) pair) and, for files, the log-column options (time_column, time_unit ("s", "ms", "us", "ns", "min", "h", "datetime" or "time_of_day"), temp_column,
     temp_scale, temp_offset, gyro_column, gyro_unit, gyro_scale, delimiter, skip_lines, columns,
     sample_rate_hz, comment, decimal_mark ("point" or "comma"), date_column, skip_bad_rows; the
     log's shape as ``read_log`` describes it: ``columns`` is a list of str or one str of
@@ -192,7 +192,7 @@ def read_log(
     """A CSV log as numpy arrays: time_s (s since the first row), temp_c (deg C, NaN without a
     reading), gyro_dph (deg/h); ``temp_c_0``, ``gyro_dph_0``, ... for several columns; and
     ``time_origin_s`` (a float): the first row's time in the log's own clock, seconds (an epoch
-    stamp in s, ms or us as seconds; seconds since 1970 UTC for time_unit="datetime", since
+    stamp in s, ms, us, ns, min or h as seconds; seconds since 1970 UTC for time_unit="datetime", since
     midnight for "time_of_day"; 0 when timed by sample_rate_hz), so ``time_origin_s + time_s``
     is each row's own stamp, as ``fogtemp-cal compensate`` writes it.
     Keywords: the log-column options of ``fit``. The log's shape: ``skip_lines`` (int: lines

@@ -334,7 +334,7 @@ pub fn mostly_gaps_note(path: &Path, gaps: &TimeGaps, rows: u64, unit_hint: &str
     gaps.mostly_gaps(rows).then(|| {
         format!(
             "{}: {} of its {} steps between rows are longer than the tracker's max gap of {} s: are its \
-             times in another unit? ({unit_hint} s, ms or us)",
+             times in another unit? ({unit_hint} s, ms, us, ns, min or h)",
             path.display(),
             gaps.count,
             rows - 1,

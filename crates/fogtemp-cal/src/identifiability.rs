@@ -49,6 +49,9 @@
 //!   Calibration read them as missing; the warning names each by file and line.
 //! - `implausible_temperatures`: every calibration temperature above 150 C, beyond any
 //!   gyro's operating range: kelvin read as deg C, or raw counts.
+//! - `implausible_rates`: half the calibration points change temperature faster than 3 x the
+//!   peak case rate of docs/physics.md (2.01 C/min): a time column in minutes or hours read
+//!   as seconds.
 //! - `gyro_outliers`: feature points whose gyro mean lay beyond 10 robust standard
 //!   deviations of the median of the points around them ([`crate::outliers`]: a corrupted
 //!   sample, an overload code). Calibration read them as missing; the warning names each by
@@ -108,6 +111,9 @@ pub enum WarningKind {
     GyroOutliers,
     /// Every calibration temperature above [`IMPLAUSIBLE_TEMP_C`] (kelvin read as deg C?).
     ImplausibleTemperatures,
+    /// Half the calibration points change temperature faster than a gyro's case can follow
+    /// ([`IMPLAUSIBLE_RATE_C_PER_MIN`]): a time column in another unit (minutes read as seconds?).
+    ImplausibleRates,
     /// Logs that continue one another in time ([`crate::continued`]): one run split over
     /// files, read as several runs. Reported on axis 0.
     ContinuedLogs,
@@ -127,6 +133,7 @@ impl WarningKind {
             WarningKind::TemperatureSpikes => "temperature_spikes",
             WarningKind::GyroOutliers => "gyro_outliers",
             WarningKind::ImplausibleTemperatures => "implausible_temperatures",
+            WarningKind::ImplausibleRates => "implausible_rates",
             WarningKind::ContinuedLogs => "continued_logs",
         }
     }
@@ -457,6 +464,7 @@ pub fn warnings(points: &CalibrationPoints, axis: usize, settings: &Identifiabil
         temperature_range(points, axis, settings),
         rate_signs(points, axis),
         implausible_temperatures(points, axis),
+        implausible_rates(points, axis),
     ]
     .into_iter()
     .flatten()
@@ -487,6 +495,34 @@ fn implausible_temperatures(points: &CalibrationPoints, axis: usize) -> Option<W
                  will feed it"
             ),
             &[("temp_min_c", lo), ("temp_max_c", hi), ("implausible_temp_c", IMPLAUSIBLE_TEMP_C)],
+        )
+    })
+}
+
+/// Above this median |dT/dt| half the calibration points change temperature faster than a
+/// gyro's case follows, deg C/min: the peak rate of docs/physics.md (0.67 C/min, the case;
+/// the coil's is 0.30) times the margin the spike screen allows ([`crate::spikes`]). A time
+/// column in minutes read as seconds makes every rate 60 times too large (review23b F1: 1.9
+/// to 16 C/min from runs that heat at up to 0.5 C/min, fitted without a word).
+pub const IMPLAUSIBLE_RATE_C_PER_MIN: f64 =
+    crate::spikes::PHYSICS_MARGIN * crate::spikes::FASTEST_TEMP_RATE_C_PER_MIN;
+
+/// `implausible_rates`: the median |dT/dt| of the calibration points above
+/// [`IMPLAUSIBLE_RATE_C_PER_MIN`].
+fn implausible_rates(points: &CalibrationPoints, axis: usize) -> Option<Warning> {
+    let mut speeds: Vec<f64> = points.points.iter().map(|p| p.rate_c_per_min.abs()).collect();
+    speeds.sort_by(f64::total_cmp);
+    let median = *speeds.get(speeds.len() / 2)?;
+    (median > IMPLAUSIBLE_RATE_C_PER_MIN).then(|| {
+        Warning::new(
+            axis,
+            WarningKind::ImplausibleRates,
+            format!(
+                "axis {axis}: half the calibration points change temperature faster than {median:.2} C/min, beyond \
+                 what a gyro's case follows (> {IMPLAUSIBLE_RATE_C_PER_MIN:.2} C/min): is the time column in \
+                 another unit? minutes or hours read as seconds: give --time-unit min or h (Python time_unit=)"
+            ),
+            &[("median_abs_rate_c_per_min", median), ("implausible_rate_c_per_min", IMPLAUSIBLE_RATE_C_PER_MIN)],
         )
     })
 }
@@ -820,6 +856,32 @@ mod tests {
         assert_eq!(w.values["temp_min_c"], 238.15);
         assert!(implausible_temperatures(&points(&[(0, 20.0, 0.1), (1, 140.0, 0.2)]), 0).is_none());
         assert!(implausible_temperatures(&points(&[(0, 149.0, 0.1), (1, 300.0, 0.2)]), 0).is_none());
+    }
+
+    /// Minutes read as seconds (every rate 60 times too large) warns with the median and the
+    /// fix; a calibration whose fastest points exceed the limit, but not half of them, does not.
+    #[test]
+    fn rates_a_gyro_cannot_follow_are_said_to_be_a_time_unit() {
+        let minutes: Vec<(usize, f64, f64)> = [0.1, -0.05, 0.3, 0.5, 0.2]
+            .iter()
+            .enumerate()
+            .map(|(k, r)| (k, 20.0 + k as f64, 60.0 * r))
+            .collect();
+        let w = implausible_rates(&points(&minutes), 0).expect("warned");
+        assert_eq!(w.kind.name(), "implausible_rates");
+        // Sorted speeds 3, 6, 12, 18, 30 C/min: the median is 12.
+        assert_eq!(w.values["median_abs_rate_c_per_min"], 12.0);
+        assert!(
+            w.message.contains("faster than 12.00 C/min") && w.message.contains("--time-unit min"),
+            "{}",
+            w.message
+        );
+        let seconds: Vec<(usize, f64, f64)> = minutes.iter().map(|&(k, t, r)| (k, t, r / 60.0)).collect();
+        assert!(implausible_rates(&points(&seconds), 0).is_none());
+        let fast_tail = points(&[(0, 20.0, 0.1), (1, 21.0, 0.2), (2, 22.0, 5.0), (3, 23.0, 9.0)]);
+        assert!(implausible_rates(&fast_tail, 0).is_some(), "median of 4 is the upper middle: 5 C/min");
+        let fast_few = points(&[(0, 20.0, 0.1), (1, 21.0, 0.2), (2, 22.0, 0.3), (3, 23.0, 9.0)]);
+        assert!(implausible_rates(&fast_few, 0).is_none());
     }
 
     #[test]

@@ -38,7 +38,7 @@ pub const SPIKE_JUMP_C: f64 = 1.0;
 pub const FASTEST_TEMP_RATE_C_PER_MIN: f64 = 0.67;
 /// How many times the fastest physical change over the same time a jump must exceed: room
 /// for chambers that ramp faster than the source's.
-const PHYSICS_MARGIN: f64 = 3.0;
+pub const PHYSICS_MARGIN: f64 = 3.0;
 /// How many glitches per axis and run are listed individually (all are counted).
 pub const MAX_LISTED_SPIKES: usize = 20;
 

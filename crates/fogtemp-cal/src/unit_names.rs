@@ -26,18 +26,28 @@ pub fn unit_name_notes(format: &LogFormat, options: OptionNames<'_>) -> Vec<Stri
             }
         }
     }
-    // A gyro read with a scale is taken as converted (a model's replay folds its unit into
-    // the scale: deg/h times the recorded factor).
-    let read = rate_unit_text(format.gyro_unit);
-    for column in format.gyro_columns.iter().filter(|_| format.gyro_scale == 1.0) {
-        if let Some(named) = rate_unit_in_name(column).filter(|&named| named != format.gyro_unit) {
-            notes.push(format!(
-                "the gyro column '{column}' says {} in its name but is read in {read}: if it is in {}, give the \
-                 unit ({gyro_units})",
-                rate_unit_text(named),
-                rate_unit_text(named)
-            ));
+    // A gyro read with a scale is taken as converted when the scale keeps it within a factor
+    // [`SCALE_TOLERANCE`] of the unit its name gives (psim-tvc's rad/s x 0.5); beyond that the
+    // name and the reading disagree by orders of magnitude (a model fitted in deg/s replayed
+    // on a deg/h column: review23b F2, 3600 times too large, said nowhere).
+    let read_dph_per_unit = format.gyro_unit.dph() * format.gyro_scale;
+    let read = if format.gyro_scale == 1.0 {
+        rate_unit_text(format.gyro_unit).to_string()
+    } else {
+        format!("{} deg/h per unit", read_dph_per_unit as f32)
+    };
+    for column in &format.gyro_columns {
+        let Some(named) = rate_unit_in_name(column) else { continue };
+        let ratio = read_dph_per_unit / named.dph();
+        if (1.0 / SCALE_TOLERANCE..=SCALE_TOLERANCE).contains(&ratio) {
+            continue;
         }
+        notes.push(format!(
+            "the gyro column '{column}' says {} in its name but is read in {read}: if it is in {}, give the \
+             unit ({gyro_units})",
+            rate_unit_text(named),
+            rate_unit_text(named)
+        ));
     }
     let as_read = format.temp_scale == 1.0 && format.temp_offset_c == 0.0;
     for column in format.temp_columns.iter().filter(|_| as_read) {
@@ -50,6 +60,11 @@ pub fn unit_name_notes(format: &LogFormat, options: OptionNames<'_>) -> Vec<Stri
     }
     notes
 }
+
+/// How far a gyro scale may take the reading from the unit the column's name gives before
+/// the two are said to disagree: the units themselves differ by 3600 (deg/h, deg/s) and 57.3
+/// (deg/s, rad/s), a scale for counts or a half-range (psim-tvc's 0.5) by less.
+const SCALE_TOLERANCE: f64 = 10.0;
 
 /// Lower-case words of a name: runs of ASCII letters (`Time (ms)` -> `time`, `ms`).
 pub(crate) fn words(name: &str) -> Vec<String> {
@@ -66,6 +81,9 @@ fn time_unit_in_name(name: &str) -> Option<&'static str> {
         "s" | "sec" | "secs" | "second" | "seconds" => Some("s"),
         "ms" | "msec" | "msecs" | "millis" | "millisecond" | "milliseconds" => Some("ms"),
         "us" | "usec" | "usecs" | "micros" | "microsecond" | "microseconds" => Some("us"),
+        "ns" | "nsec" | "nsecs" | "nanos" | "nanosecond" | "nanoseconds" => Some("ns"),
+        "min" | "mins" | "minute" | "minutes" => Some("min"),
+        "h" | "hr" | "hrs" | "hour" | "hours" => Some("h"),
         _ => None,
     };
     // The micro sign (micro or Greek mu) is no ASCII letter: `t (µs)` is read as `t (us)`.
@@ -83,6 +101,9 @@ fn time_unit_read(unit: TimeUnit) -> Option<&'static str> {
         TimeUnit::Seconds => Some("s"),
         TimeUnit::Milliseconds => Some("ms"),
         TimeUnit::Microseconds => Some("us"),
+        TimeUnit::Nanoseconds => Some("ns"),
+        TimeUnit::Minutes => Some("min"),
+        TimeUnit::Hours => Some("h"),
         TimeUnit::DateTime | TimeUnit::TimeOfDay => None,
     }
 }
@@ -159,12 +180,19 @@ mod tests {
 
     #[test]
     fn units_in_names() {
-        for (name, unit) in
-            [("time_s", Some("s")), ("Time (ms)", Some("ms")), ("t_us", Some("us")), ("t [µs]", Some("us"))]
-        {
+        for (name, unit) in [
+            ("time_s", Some("s")),
+            ("Time (ms)", Some("ms")),
+            ("t_us", Some("us")),
+            ("t [µs]", Some("us")),
+            ("time_ns", Some("ns")),
+            ("Time (min)", Some("min")),
+            ("elapsed minutes", Some("min")),
+            ("Time [h]", Some("h")),
+        ] {
             assert_eq!(time_unit_in_name(name), unit, "{name}");
         }
-        for name in ["timestamp", "t", "time_ns", "s_ms"] {
+        for name in ["timestamp", "t", "s_ms", "h_min"] {
             assert_eq!(time_unit_in_name(name), None, "{name}");
         }
         for (name, unit) in [
@@ -213,9 +241,18 @@ mod tests {
             ..psim.clone()
         };
         assert!(unit_name_notes(&read_so, CLI_OPTIONS).is_empty());
-        // A scale given: the gyro is taken as converted.
+        // A scale given: the gyro is taken as converted within a factor 10 of its name's unit
+        // (psim-tvc's rad/s x 0.5 is 103,132 deg/h per unit).
         let scaled = LogFormat { gyro_scale: 103_132.41, time_unit: TimeUnit::Milliseconds, ..psim.clone() };
         assert!(unit_name_notes(&scaled, CLI_OPTIONS).is_empty());
+        // A model fitted in deg/s replays a deg/h column at 3600 deg/h per unit (review23b F2).
+        let replayed = LogFormat { gyro_scale: 3600.0, ..format("time_s", "gyro_dph", "temp_c") };
+        assert_eq!(
+            unit_name_notes(&replayed, CLI_OPTIONS),
+            vec!["the gyro column 'gyro_dph' says deg/h in its name but is read in 3600 deg/h per unit: if it is in \
+                  deg/h, give the unit (--gyro-unit/--gyro-scale)"
+                .to_string()]
+        );
         // A time from the sample rate has no column to check; a converted temperature is
         // taken as converted.
         let kelvin = LogFormat { sample_rate_hz: Some(50.0), ..format("time (ms)", "gyro_dph", "temp_k") };

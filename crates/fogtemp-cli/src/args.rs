@@ -141,6 +141,9 @@ impl IngestArgs {
                 Some(TimeUnitArg::S) => TimeUnit::Seconds,
                 Some(TimeUnitArg::Ms) => TimeUnit::Milliseconds,
                 Some(TimeUnitArg::Us) => TimeUnit::Microseconds,
+                Some(TimeUnitArg::Ns) => TimeUnit::Nanoseconds,
+                Some(TimeUnitArg::Min) => TimeUnit::Minutes,
+                Some(TimeUnitArg::H) => TimeUnit::Hours,
                 Some(TimeUnitArg::Datetime) => TimeUnit::DateTime,
                 Some(TimeUnitArg::TimeOfDay) => TimeUnit::TimeOfDay,
             },
@@ -199,6 +202,12 @@ pub enum TimeUnitArg {
     Ms,
     /// Microseconds.
     Us,
+    /// Nanoseconds.
+    Ns,
+    /// Minutes (elapsed time as chamber controllers and data loggers write it).
+    Min,
+    /// Hours.
+    H,
     /// ISO 8601 date-times (2026-11-24T10:00:00.125, or with a space for the T; optional Z or
     /// +01:00); without a zone read as UTC.
     Datetime,

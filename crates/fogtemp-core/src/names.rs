@@ -67,6 +67,12 @@ pub enum LogTimeUnit {
     DateTime,
     /// Clock times without a date (code 4).
     TimeOfDay,
+    /// Minutes (code 5), as chamber controllers and data loggers write elapsed time.
+    Minutes,
+    /// Hours (code 6).
+    Hours,
+    /// Nanoseconds (code 7), e.g. an epoch stamp in ns.
+    Nanoseconds,
 }
 
 impl LogTimeUnit {
@@ -78,6 +84,9 @@ impl LogTimeUnit {
             2 => Self::Microseconds,
             3 => Self::DateTime,
             4 => Self::TimeOfDay,
+            5 => Self::Minutes,
+            6 => Self::Hours,
+            7 => Self::Nanoseconds,
             _ => return None,
         })
     }
@@ -90,6 +99,9 @@ impl LogTimeUnit {
             Self::Microseconds => 2,
             Self::DateTime => 3,
             Self::TimeOfDay => 4,
+            Self::Minutes => 5,
+            Self::Hours => 6,
+            Self::Nanoseconds => 7,
         }
     }
 }

@@ -667,7 +667,7 @@ fn warn_skipped(py: Python<'_>, report: &IngestReport, samples: bool) -> PyResul
 /// first row, deg C (NaN where a row has no temperature reading), deg/h; with several
 /// temperature or gyro columns the keys are `temp_c_0`, `temp_c_1`, ... and `gyro_dph_0`,
 /// .... `time_origin_s` (a float) is the first row's time in the log's own clock, seconds:
-/// its time cell in seconds for `time_unit` 's', 'ms' and 'us' (an epoch stamp stays one),
+/// its time cell in seconds for `time_unit` 's', 'ms', 'us', 'ns', 'min' and 'h' (an epoch stamp stays one),
 /// seconds since 1970 UTC for 'datetime', since midnight for 'time_of_day', 0 when the rows
 /// are timed by `sample_rate_hz`; `time_origin_s + time_s` is each row's own stamp, as `fogtemp-cal
 /// compensate` writes it. `as_dataframe=True` returns a pandas DataFrame of the arrays

@@ -241,12 +241,15 @@ pub fn ingest(o: &mut Options<'_>) -> PyResult<IngestOptions> {
         "s" => TimeUnit::Seconds,
         "ms" => TimeUnit::Milliseconds,
         "us" => TimeUnit::Microseconds,
+        "ns" => TimeUnit::Nanoseconds,
+        "min" => TimeUnit::Minutes,
+        "h" => TimeUnit::Hours,
         "datetime" => TimeUnit::DateTime,
         "time_of_day" => TimeUnit::TimeOfDay,
         other => {
             return Err(errors::value(format!(
-                "time_unit must be 's', 'ms', 'us', 'datetime' or 'time_of_day', got '{other}'"
-            )))
+            "time_unit must be 's', 'ms', 'us', 'ns', 'min', 'h', 'datetime' or 'time_of_day', got '{other}'"
+        )))
         }
     };
     let gyro_unit = match o.string("gyro_unit", "dph")?.as_str() {

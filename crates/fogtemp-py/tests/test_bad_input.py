@@ -351,7 +351,7 @@ def test_validate_warns_of_a_wrong_time_unit_and_of_unpaired_axes(poly_model, tm
     run = synthetic_runs(runs=1)[0]
     in_ms = dict(run, time_s=run["time_s"] * 1000.0)
     write_csv(tmp_path / "ms.csv", in_ms)
-    with pytest.warns(UserWarning, match=r"are its times in another unit\? \(time_unit= s, ms or us\)"):
+    with pytest.warns(UserWarning, match=r"are its times in another unit\? \(time_unit= s, ms, us, ns, min or h\)"):
         fogtemp.validate(poly_model, [tmp_path / "ms.csv"], progress=False)
     two = tmp_path / "two.csv"
     with open(two, "w") as f:

@@ -28,8 +28,6 @@ pub(super) struct Plan {
     pub(super) time_slot: Option<usize>,
     pub(super) temp_slots: Vec<usize>,
     pub(super) gyro_slots: Vec<usize>,
-    /// Time units per second: a time cell is divided by it.
-    pub(super) time_per_second: f64,
     /// How the time column is written: numbers in a unit, date-times or times of day.
     pub(super) time_unit: TimeUnit,
     /// Time of data record `k` is `k / rate` (no time column).
@@ -211,7 +209,6 @@ pub(super) fn make_plan(path: &Path, header: Fields<'_>, f: &LogFormat, line: u6
         time_slot,
         temp_slots,
         gyro_slots,
-        time_per_second: f.time_unit.per_second(),
         time_unit: f.time_unit,
         sample_rate_hz: f.sample_rate_hz,
         gyro_factor: f.gyro_unit.dph() * f.gyro_scale,
@@ -282,13 +279,28 @@ fn locate_columns(path: &Path, header: Fields<'_>, f: &LogFormat, line: u64) -> 
     let read_elsewhere =
         |n: &String| f.gyro_columns.contains(n) || f.temp_columns.contains(n) || *n == f.time_column;
     let find_as = |wanted: &str, role: &'static str| {
-        names.iter().position(|n| n == wanted).ok_or_else(|| CalError::MissingColumn {
-            path: path.to_path_buf(),
-            column: wanted.to_string(),
-            role,
-            available: names.join(", "),
-            similar: similar_names(wanted, &names).into_iter().filter(|n| !read_elsewhere(n)).collect(),
-        })
+        let at: Vec<usize> = names.iter().enumerate().filter(|(_, n)| *n == wanted).map(|(i, _)| i).collect();
+        match at.as_slice() {
+            [] => Err(CalError::MissingColumn {
+                path: path.to_path_buf(),
+                column: wanted.to_string(),
+                role,
+                available: names.join(", "),
+                similar: similar_names(wanted, &names).into_iter().filter(|n| !read_elsewhere(n)).collect(),
+            }),
+            [one] => Ok(*one),
+            // Two sensors logged under one name: reading the first without a word moved a
+            // calibration by 30 C (review23b F3).
+            several => Err(CalError::LogFormat {
+                path: path.to_path_buf(),
+                line,
+                problem: format!(
+                    "columns {} are each named '{wanted}' ({role}): which one is meant cannot be told; rename \
+                     them, or name the columns in order with --skip-lines 1 --columns (Python skip_lines=, columns=)",
+                    column_list(several)
+                ),
+            }),
+        }
     };
     let has_time_column = names.contains(&f.time_column);
     if let (Some(rate), true) = (f.sample_rate_hz, has_time_column) {
@@ -531,7 +543,7 @@ pub(super) fn parse_row(
     let time = match columns.time {
         Some(field) if plan.time_unit == TimeUnit::DateTime => datetime_cell(plan, fields, field, line)?,
         Some(field) if plan.time_unit == TimeUnit::TimeOfDay => time_of_day_cell(plan, fields, field, line)?,
-        Some(field) => required(field)? / plan.time_per_second,
+        Some(field) => plan.time_unit.to_seconds(required(field)?),
         None => time_of_record(index, plan.sample_rate_hz),
     };
     for (slot, &field) in gyros.iter_mut().zip(&columns.gyros) {
@@ -629,6 +641,15 @@ pub(super) fn check_time(
         Some(p) if time == p => Err(bad_row(columns, line, field, found(), BadRowKind::DuplicateTime)),
         Some(p) if time < p => Err(bad_row(columns, line, field, found(), BadRowKind::BackwardTime)),
         _ => Ok(time),
+    }
+}
+
+/// 1-based column numbers as prose: "2 and 4", "2, 4 and 6".
+fn column_list(indices: &[usize]) -> String {
+    let numbers: Vec<String> = indices.iter().map(|i| (i + 1).to_string()).collect();
+    match numbers.split_last() {
+        Some((last, rest)) if !rest.is_empty() => format!("{} and {last}", rest.join(", ")),
+        _ => numbers.join(""),
     }
 }
 
@@ -903,5 +924,22 @@ mod tests {
         // A header alone is a log without rows.
         let report = run(HEADER.trim_end().as_bytes(), &default_options()).1.unwrap();
         assert_eq!(report.rows, 0);
+    }
+
+    /// Two columns under a name the reader needs are refused, naming both (review23b F3: the
+    /// first was read without a word); a duplicated name no one reads is no matter.
+    #[test]
+    fn a_needed_name_on_two_columns_is_refused() {
+        let (seen, result) = run(b"time_s,temp_c,gyro_dph,temp_c\n0,50,1,20\n", &default_options());
+        let message = summary(&result);
+        assert!(seen.is_empty(), "{message}");
+        assert!(
+            message.contains("columns 2 and 4 are each named 'temp_c' (temperature)")
+                && message.contains("--columns"),
+            "{message}"
+        );
+        let report = run(b"time_s,temp_c,gyro_dph,spare,spare\n0,50,1,2,3\n", &default_options()).1;
+        assert_eq!(report.map(|r| r.rows).ok(), Some(1));
+        assert_eq!(super::column_list(&[1, 3, 5]), "2, 4 and 6");
     }
 }

@@ -55,6 +55,12 @@ pub enum TimeUnit {
     Milliseconds,
     /// Microseconds.
     Microseconds,
+    /// Nanoseconds (an epoch stamp in ns reads to about 0.25 us: an f64's resolution there).
+    Nanoseconds,
+    /// Minutes, as chamber controllers and data loggers write elapsed time.
+    Minutes,
+    /// Hours.
+    Hours,
     /// ISO 8601 date-times as loggers write them (`2026-11-24T10:00:00.125`, a space for
     /// the `T`, `/` for the `-`, optionally `Z` or an offset such as `+01:00`); a time
     /// without a zone is read as UTC (only differences between rows are used).
@@ -74,6 +80,9 @@ impl TimeUnit {
             TimeUnit::Seconds => L::Seconds,
             TimeUnit::Milliseconds => L::Milliseconds,
             TimeUnit::Microseconds => L::Microseconds,
+            TimeUnit::Nanoseconds => L::Nanoseconds,
+            TimeUnit::Minutes => L::Minutes,
+            TimeUnit::Hours => L::Hours,
             TimeUnit::DateTime => L::DateTime,
             TimeUnit::TimeOfDay => L::TimeOfDay,
         }
@@ -86,6 +95,9 @@ impl TimeUnit {
             L::Seconds => TimeUnit::Seconds,
             L::Milliseconds => TimeUnit::Milliseconds,
             L::Microseconds => TimeUnit::Microseconds,
+            L::Nanoseconds => TimeUnit::Nanoseconds,
+            L::Minutes => TimeUnit::Minutes,
+            L::Hours => TimeUnit::Hours,
             L::DateTime => TimeUnit::DateTime,
             L::TimeOfDay => TimeUnit::TimeOfDay,
         }
@@ -97,19 +109,26 @@ impl TimeUnit {
             TimeUnit::Seconds => "s",
             TimeUnit::Milliseconds => "ms",
             TimeUnit::Microseconds => "us",
+            TimeUnit::Nanoseconds => "ns",
+            TimeUnit::Minutes => "min",
+            TimeUnit::Hours => "h",
             TimeUnit::DateTime => "datetime",
             TimeUnit::TimeOfDay => "time-of-day",
         }
     }
 
-    /// Units per second (1 for date-times and times of day, read into seconds). A time is
-    /// divided by it: `1700007200001234 / 1e6` is the f64 nearest the logged microseconds,
-    /// where `* 1e-6` (1e-6 is not exact in binary) can be one step off (review20 F4).
-    pub fn per_second(self) -> f64 {
+    /// A time cell's value in seconds (date-times and times of day are read into seconds).
+    /// Fractions of a second are divided out: `1700007200001234 / 1e6` is the f64 nearest
+    /// the logged microseconds, where `* 1e-6` (1e-6 is not exact in binary) can be one step
+    /// off (review20 F4); minutes and hours are multiplied (60 is exact, 1/60 is not).
+    pub fn to_seconds(self, value: f64) -> f64 {
         match self {
-            TimeUnit::Seconds | TimeUnit::DateTime | TimeUnit::TimeOfDay => 1.0,
-            TimeUnit::Milliseconds => 1.0e3,
-            TimeUnit::Microseconds => 1.0e6,
+            TimeUnit::Seconds | TimeUnit::DateTime | TimeUnit::TimeOfDay => value,
+            TimeUnit::Milliseconds => value / 1.0e3,
+            TimeUnit::Microseconds => value / 1.0e6,
+            TimeUnit::Nanoseconds => value / 1.0e9,
+            TimeUnit::Minutes => value * 60.0,
+            TimeUnit::Hours => value * 3600.0,
         }
     }
 
@@ -974,6 +993,27 @@ mod tests {
                 seen.iter().map(|s| f64::from_bits(s.origin) + f64::from_bits(s.time)).collect();
             let nearest: Vec<f64> = logged.iter().map(|&t| t as f64 / per_second).collect();
             assert_eq!(stamps, nearest, "{unit:?}");
+        }
+    }
+
+    /// Elapsed time in minutes or hours (chamber controllers, review23b F1) reads as seconds:
+    /// 1.25 min is 75 s exactly, 0.5 h is 1800 s; nanoseconds as ms and us are read.
+    #[test]
+    fn minutes_hours_and_nanoseconds_read_as_seconds() {
+        for (unit, cells, seconds) in [
+            (TimeUnit::Minutes, ["0", "0.25", "1.25"], [0.0, 15.0, 75.0]),
+            (TimeUnit::Hours, ["0", "0.5", "2"], [0.0, 1800.0, 7200.0]),
+            (TimeUnit::Nanoseconds, ["0", "500000000", "1250000000"], [0.0, 0.5, 1.25]),
+        ] {
+            let mut data = String::from("t,temp_c,gyro_dph\n");
+            for t in cells {
+                data.push_str(&format!("{t},25.0,0.5\n"));
+            }
+            let format = LogFormat { time_column: "t".into(), time_unit: unit, ..LogFormat::default() };
+            let seen = rows(&data, &IngestOptions { format, ..default_options() });
+            let stamps: Vec<f64> =
+                seen.iter().map(|s| f64::from_bits(s.origin) + f64::from_bits(s.time)).collect();
+            assert_eq!(stamps, seconds, "{unit:?}");
         }
     }
 

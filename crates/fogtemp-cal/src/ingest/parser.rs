@@ -403,7 +403,7 @@ impl<R: Read> Parser<R> {
                 break;
             };
             let time = match plan.time_slot {
-                Some(slot) => values[slot] / plan.time_per_second,
+                Some(slot) => plan.time_unit.to_seconds(values[slot]),
                 None => time_of_record(*records, plan.sample_rate_hz),
             };
             if time.is_nan() || plan.gyro_slots.iter().any(|&k| values[k].is_nan()) {
