@@ -468,6 +468,13 @@ fn check_export(model: &Path, blob: &[u8], dir: &Path) {
     let err =
         run_err(args!["export", "--model", model, "--format", "c", "--name", "fogtemp_model", "--out", &c]);
     assert!(err.contains("fogtemp.h declares its types and functions as fogtemp_*"), "{err}");
+    // Nor the header's constants, nor a macro the export derives (review23a F7).
+    for (name, clash) in
+        [("FOGTEMP_STATUS_OK", "FOGTEMP_STATUS_OK"), ("FOGTEMP_FLAG_BAD_INPUT", "FOGTEMP_FLAG_BAD_INPUT")]
+    {
+        let err = run_err(args!["export", "--model", model, "--format", "c", "--name", name, "--out", &c]);
+        assert!(err.contains(&format!("fogtemp.h already declares {clash}")), "{err}");
+    }
 
     // `--out -` is stdout for Rust, the same text as the file; C needs a path.
     let streamed = run_ok(args!["export", "--model", model, "--format", "rust", "--out", "-"]);

@@ -311,7 +311,8 @@ const char *fogtemp_status_message(uint32_t status);
 // Writes the full message of `*err` (what and where, e.g. "feature tracker holds 100
 // blocks but the model needs 200") into `buf[0..len]`, truncated and always
 // NUL-terminated when `len > 0`. Returns the message's full length without the NUL (like
-// `snprintf`), or 0 if `err` is NULL, misaligned or not filled by a `fogtemp_*` call.
+// `snprintf`), or 0 if `err` is NULL, misaligned or not filled by a `fogtemp_*` call (the
+// empty string then).
 //
 // # Safety
 // `err` is NULL or points to a readable `fogtemp_error`; `buf` is NULL (then `len` must

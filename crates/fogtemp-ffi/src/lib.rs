@@ -963,7 +963,8 @@ impl fmt::Write for Truncating<'_> {
 /// Writes the full message of `*err` (what and where, e.g. "feature tracker holds 100
 /// blocks but the model needs 200") into `buf[0..len]`, truncated and always
 /// NUL-terminated when `len > 0`. Returns the message's full length without the NUL (like
-/// `snprintf`), or 0 if `err` is NULL, misaligned or not filled by a `fogtemp_*` call.
+/// `snprintf`), or 0 if `err` is NULL, misaligned or not filled by a `fogtemp_*` call (the
+/// empty string then).
 ///
 /// # Safety
 /// `err` is NULL or points to a readable `fogtemp_error`; `buf` is NULL (then `len` must
@@ -974,8 +975,14 @@ pub unsafe extern "C" fn fogtemp_error_message(
     buf: *mut c_char,
     len: usize,
 ) -> usize {
+    let buf: &mut [u8] = if buf.is_null() || len == 0 || len > isize::MAX as usize {
+        &mut []
+    } else {
+        // SAFETY: non-null, `u8` has no alignment, writable for `len` bytes per contract.
+        unsafe { core::slice::from_raw_parts_mut(buf.cast::<u8>(), len) }
+    };
     if check(err).is_err() {
-        return 0;
+        return empty_message(buf);
     }
     // SAFETY: `err` non-null, aligned (checked) and readable per contract.
     let err = unsafe { &*err };
@@ -983,12 +990,6 @@ pub unsafe extern "C" fn fogtemp_error_message(
     // SAFETY: `ErrorCell` fits in the opaque array with no stricter alignment (compile-time
     // assertion); the tag is a plain u64.
     let tag = unsafe { ptr::addr_of!((*cell).tag).read() };
-    let buf: &mut [u8] = if buf.is_null() || len == 0 || len > isize::MAX as usize {
-        &mut []
-    } else {
-        // SAFETY: non-null, `u8` has no alignment, writable for `len` bytes per contract.
-        unsafe { core::slice::from_raw_parts_mut(buf.cast::<u8>(), len) }
-    };
     let mut w = Truncating { buf, written: 0, total: 0 };
     if tag == ERROR_TAG {
         // SAFETY: the tag says `fail` wrote an `ErrorCell` here.
@@ -999,7 +1000,7 @@ pub unsafe extern "C" fn fogtemp_error_message(
         // carries no core error. A zeroed struct (status OK) was not filled by a failed call.
         let status = err.status;
         let found = fogtemp_status::ALL.iter().find(|s| **s as u32 == status && **s != fogtemp_status::Ok);
-        let Some(s) = found else { return 0 };
+        let Some(s) = found else { return empty_message(w.buf) };
         if *s == fogtemp_status::BadValue {
             // Counted in the argument's own elements: bytes of a blob, floats of a blocks
             // array (PTRDIFF_MAX bytes of them).
@@ -1020,6 +1021,15 @@ pub unsafe extern "C" fn fogtemp_error_message(
         *nul = 0;
     }
     w.total
+}
+
+/// No message: `buf` holds the empty string (when it has room for one), so a caller that
+/// prints it unconditionally prints nothing rather than what the buffer held (review23a F4).
+fn empty_message(buf: &mut [u8]) -> usize {
+    if let Some(first) = buf.first_mut() {
+        *first = 0;
+    }
+    0
 }
 
 /// `sizeof` and `_Alignof` of the opaque structs as this build sees them, for a C program

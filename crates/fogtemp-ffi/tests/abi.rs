@@ -389,6 +389,16 @@ fn error_message_truncates_and_always_terminates() {
         }
         assert!(buf[len..].iter().all(|&b| b == 0x7F), "wrote past len {len}");
     }
+    // No message (a zeroed or NULL err): the empty string, not what the buffer held
+    // (review23a F4), and nothing past it.
+    let zeroed = no_error();
+    for err in [&zeroed as *const fogtemp_error, ptr::null()] {
+        let mut buf = [b'X'; 16];
+        // SAFETY: `buf` is writable for 8 of its bytes; `err` is NULL or a live zeroed struct.
+        let n = unsafe { fogtemp_error_message(err, buf.as_mut_ptr().cast(), 8) };
+        assert_eq!((n, buf[0]), (0, 0));
+        assert!(buf[1..].iter().all(|&b| b == b'X'));
+    }
     // Every status has a static message; unknown codes too.
     for code in 0..=20u32 {
         // SAFETY: the ABI returns a static NUL-terminated string, never NULL.

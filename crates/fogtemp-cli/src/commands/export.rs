@@ -46,6 +46,20 @@ pub fn export(a: ExportArgs) -> Result<()> {
     if a.format == ExportFormat::C && name.starts_with("fogtemp_") {
         bail!("--name '{name}': fogtemp.h declares its types and functions as fogtemp_*, so the array could clash with one (fogtemp_model is a type); choose another name (the default is FOGTEMP_MODEL)");
     }
+    // The names the export declares must not be fogtemp.h's own (review23a F7:
+    // --name FOGTEMP_STATUS_OK compiled into a redeclaration).
+    let upper = name.to_ascii_uppercase();
+    if a.format == ExportFormat::C {
+        let declared = [
+            name.clone(),
+            format!("{upper}_LEN"),
+            format!("{upper}_CAPACITY"),
+            format!("{upper}_FOGTEMP_EXPORT_H"),
+        ];
+        if let Some(clash) = declared.iter().find(|d| header_declares(d)) {
+            bail!("--name '{name}': fogtemp.h already declares {clash}, which the export would declare again; choose another name (the default is FOGTEMP_MODEL)");
+        }
+    }
     let bytes_lines = |per_line: usize| -> String {
         blob.chunks(per_line)
             .map(|c| format!("    {}", c.iter().map(|b| format!("0x{b:02x},")).collect::<Vec<_>>().join(" ")))
@@ -61,7 +75,6 @@ pub fn export(a: ExportArgs) -> Result<()> {
         .map(|x| x.blocks_needed())
         .max()
         .unwrap_or(0);
-    let upper = name.to_ascii_uppercase();
     match a.format {
         ExportFormat::Rust if to_stdout => {
             let mut out = std::io::stdout().lock();
@@ -189,3 +202,11 @@ const C_KEYWORDS: [&str; 44] = [
     "_Static_assert",
     "_Thread_local",
 ];
+
+/// The C header every exported model is compiled beside.
+const FOGTEMP_H: &str = include_str!("../../../fogtemp-ffi/include/fogtemp.h");
+
+/// `identifier` occurs as a whole identifier in fogtemp.h.
+fn header_declares(identifier: &str) -> bool {
+    FOGTEMP_H.split(|c: char| !(c.is_ascii_alphanumeric() || c == '_')).any(|word| word == identifier)
+}
