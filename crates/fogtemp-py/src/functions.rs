@@ -138,11 +138,12 @@ fn array_runs_of<'py>(items: &[Bound<'py, PyAny>], names: Option<&[String]>) -> 
 
 /// Times given in a float type narrower than float64 whose steps it could not hold (float32
 /// keeps 24 bits: 1 s steps vanish above 2^24 s, a Unix time's 0.1 s steps long before) are
-/// refused naming the cause; the row rules would report a repeated time and suggest skipping.
-fn refuse_times_lost_to_precision(
+/// refused naming the cause (`what`: how the caller names the array, e.g. `runs[0]['time_s']`);
+/// the row rules would report a repeated time and suggest skipping.
+pub(crate) fn refuse_times_lost_to_precision(
     given: &Bound<'_, PyAny>,
     time_s: &numpy::PyReadonlyArrayDyn<'_, f64>,
-    label: &str,
+    what: &str,
 ) -> PyResult<()> {
     // Times in order (every good run) need no look at the dtype, which takes another
     // conversion of what was given: only a run the row rules would refuse pays for it.
@@ -154,7 +155,7 @@ fn refuse_times_lost_to_precision(
         (dtype.getattr("kind")?.extract()?, dtype.getattr("itemsize")?.extract()?);
     if kind == "f" && bytes < 8 {
         return Err(errors::value(format!(
-            "{label}['time_s'] is float{}: too coarse for these times (steps vanish); give float64 times, \
+            "{what} is float{}: too coarse for these times (steps vanish); give float64 times, \
              or subtract the start time before narrowing",
             8 * bytes
         )));
@@ -266,7 +267,7 @@ impl<'py> ArrayRun<'py> {
         };
         let time = get("time_s")?;
         let time_s = f64_vector(&time, &format!("{label}['time_s']"))?;
-        refuse_times_lost_to_precision(&time, &time_s, &label)?;
+        refuse_times_lost_to_precision(&time, &time_s, &format!("{label}['time_s']"))?;
         Ok(Self {
             time_s,
             temps_c: columns(&get("temp_c")?, &format!("{label}['temp_c']"))?,

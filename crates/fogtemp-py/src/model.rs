@@ -219,7 +219,8 @@ impl Model {
     /// `time_s` (seconds, any origin: the compensator sees microseconds since the first
     /// sample), `gyro_dph` (deg/h) and `temp_c` (deg C; NaN where a sample has no
     /// temperature reading; an infinite or impossible one, -999 or 65236, is flagged
-    /// BAD_INPUT as firmware flags it) are 1-D and of equal length. The outputs are float64 arrays
+    /// BAD_INPUT as firmware flags it) are 1-D and of equal length; times in a float type too
+    /// narrow for their steps (float32 at a Unix time) are refused. The outputs are float64 arrays
     /// holding the core's f32 results exactly, and uint8 flags (`fogtemp.FLAG_BITS`).
     /// `capacity` is the firmware's tracker capacity (the core's default, 128): a model whose
     /// window needs more blocks is refused, as the command line refuses it.
@@ -264,6 +265,9 @@ impl Model {
         if let Some(k) = ts.iter().position(|t| !t.is_finite()) {
             return Err(errors::value(format!("time_s[{k}] is not a finite number ({})", ts[k])));
         }
+        // As fit and validate refuse them (review23a F1: float32 times 11 h into a run lost 74 %
+        // of their steps, flagged BAD_INPUT under a note that blamed the data).
+        crate::functions::refuse_times_lost_to_precision(time_s, &t, "time_s")?;
         let model = self.core()?;
         let mut comp: Box<Compensator<'_, CAL_CAPACITY>> =
             Box::new(Compensator::new(&model, axis).map_err(|e| errors::model(&self.source, e))?);

@@ -57,6 +57,11 @@ def test_float32_times_too_coarse_for_their_steps_are_named(model, runs):
     # Small float32 times keep their steps and are read.
     small = df.assign(time_s=df.time_s.astype("float32"))
     assert fogtemp.validate(model, [small], progress=False)["compensated_bias_stability_dph"] > 0
+    # Model.compensate refuses them alike (review23a F1: it flagged 74 % BAD_INPUT instead).
+    with pytest.raises(ValueError, match=r"^time_s is float32: too coarse for these times"):
+        model.compensate(epoch.time_s.to_numpy(), epoch.gyro_dph.to_numpy(), epoch.temp_c.to_numpy())
+    rate, _ = model.compensate(small.time_s.to_numpy(), small.gyro_dph.to_numpy(), small.temp_c.to_numpy())
+    assert len(rate) == len(small)
 
 
 def test_a_dataframe_without_time_s_is_named_not_taken_for_a_path(model, runs):
