@@ -455,6 +455,18 @@ fn check_export(model: &Path, blob: &[u8], dir: &Path) {
     let header = fs::read_to_string(dir.join("model.h")).expect("C export writes model.h beside model.c");
     assert!(header.contains(&format!("#define GYRO_MODEL_LEN {n}u")), "{header}");
     assert!(header.contains(&format!("extern const uint8_t gyro_model[{n}];")), "{header}");
+    // The units the model was fitted in, as inspect reports them (review23a F2).
+    let inspect = json(&run_ok(args!["inspect", model, "--json"]));
+    let axis = &arr(&inspect["axes"])[0];
+    for (key, constant) in [
+        ("gyro_dph_per_unit", "GYRO_DPH_PER_UNIT"),
+        ("temp_c_per_unit", "TEMP_C_PER_UNIT"),
+        ("temp_offset_c", "TEMP_OFFSET_C"),
+    ] {
+        let value = axis[key].as_f64().unwrap_or(f64::NAN);
+        assert!(header.contains(&format!("#define GYRO_MODEL_{constant} {value:?} ")), "{key}: {header}");
+        assert!(text.contains(&format!("pub const FOGTEMP_MODEL_{constant}: f64 = {value:?};")), "{key}: {text}");
+    }
     let source = fs::read_to_string(&c).expect("read C export");
     assert!(source.contains("#include \"model.h\""), "{source}");
     let decl = format!("const uint8_t gyro_model[{n}] = {{");

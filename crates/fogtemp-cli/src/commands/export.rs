@@ -75,14 +75,20 @@ pub fn export(a: ExportArgs) -> Result<()> {
         .map(|x| x.blocks_needed())
         .max()
         .unwrap_or(0);
+    let units = unit_constants(&model, &upper);
+    if a.format == ExportFormat::C {
+        if let Some((clash, _, _)) = units.iter().find(|(n, _, _)| header_declares(n)) {
+            bail!("--name '{name}': fogtemp.h already declares {clash}, which the export would declare again; choose another name (the default is FOGTEMP_MODEL)");
+        }
+    }
     match a.format {
         ExportFormat::Rust if to_stdout => {
             let mut out = std::io::stdout().lock();
-            write_rust(&mut out, &source, &blob, name, &upper, capacity, &bytes_lines(16))?;
+            write_rust(&mut out, &source, &blob, (name, &upper), capacity, &units, &bytes_lines(16))?;
             return Ok(());
         }
         ExportFormat::Rust => write_atomic(&a.out, |w| {
-            write_rust(w, &source, &blob, name, &upper, capacity, &bytes_lines(16))?;
+            write_rust(w, &source, &blob, (name, &upper), capacity, &units, &bytes_lines(16))?;
             Ok(())
         }),
         ExportFormat::C => {
@@ -101,6 +107,12 @@ pub fn export(a: ExportArgs) -> Result<()> {
                 writeln!(w, "#define {upper}_LEN {}u", blob.len())?;
                 writeln!(w, "/* feature tracker capacity (blocks) the model needs: the blocks array of fogtemp_state_init */")?;
                 writeln!(w, "#define {upper}_CAPACITY {capacity}u")?;
+                if !units.is_empty() {
+                    writeln!(w, "/* {UNITS_NOTE} */")?;
+                }
+                for (constant, value, what) in &units {
+                    writeln!(w, "#define {constant} {value:?} /* {what} */")?;
+                }
                 writeln!(w, "extern const uint8_t {name}[{}];\n\n#endif", blob.len())?;
                 Ok(())
             })?;
@@ -120,14 +132,48 @@ pub fn export(a: ExportArgs) -> Result<()> {
     Ok(())
 }
 
-/// The Rust source of an export: the blob as a static array and the tracker capacity it needs.
+/// What the unit constants are for, above them in the export.
+const UNITS_NOTE: &str = "the sensor's units as the model was fitted (fogtemp-cal inspect: \"read as\"): \
+     convert before each step: gyro_dph = gyro * GYRO_DPH_PER_UNIT, temp_c = temperature * TEMP_C_PER_UNIT + TEMP_OFFSET_C";
+
+/// The conversions each axis was fitted with, as constants `(name, value, what)`: `UPPER_` or,
+/// with several axes, `UPPER_AXIS<i>_` then `GYRO_DPH_PER_UNIT`, `TEMP_C_PER_UNIT`,
+/// `TEMP_OFFSET_C`. None for a model that records no columns (before format 4): its
+/// inputs are deg/h and deg C. The firmware feeds the core deg/h and deg C, so a model fitted
+/// on raw counts or rad/s needs these (review23a F2: psim-tvc's rad/s x 0.5 and counts were
+/// said nowhere a C build could read).
+fn unit_constants(model: &fogtemp_core::Model<'_>, upper: &str) -> Vec<(String, f64, &'static str)> {
+    let axes = model.axis_count();
+    (0..axes)
+        .filter_map(|i| fogtemp_cal::blob::ColumnNames::of(model, i).map(|c| (i, c)))
+        .flat_map(|(i, c)| {
+            let prefix = if axes == 1 { upper.to_string() } else { format!("{upper}_AXIS{i}") };
+            [
+                (
+                    format!("{prefix}_GYRO_DPH_PER_UNIT"),
+                    c.gyro_dph_per_unit,
+                    "deg/h per unit of the gyro column",
+                ),
+                (
+                    format!("{prefix}_TEMP_C_PER_UNIT"),
+                    c.temp_c_per_unit,
+                    "deg C per unit of the temperature column",
+                ),
+                (format!("{prefix}_TEMP_OFFSET_C"), c.temp_offset_c, "deg C added after the scale"),
+            ]
+        })
+        .collect()
+}
+
+/// The Rust source of an export: the blob as a static array, the tracker capacity it needs
+/// and the units it was fitted in.
 fn write_rust(
     w: &mut (impl std::io::Write + ?Sized),
     source: &str,
     blob: &[u8],
-    name: &str,
-    upper: &str,
+    (name, upper): (&str, &str),
     capacity: usize,
+    units: &[(String, f64, &str)],
     bytes: &str,
 ) -> std::io::Result<()> {
     writeln!(
@@ -143,6 +189,12 @@ fn write_rust(
     writeln!(w, "pub static {name}: [u8; {}] = [\n{bytes}\n];", blob.len())?;
     writeln!(w, "/// Feature tracker capacity (blocks) the model needs: `Compensator::<N>` with N >= this.")?;
     writeln!(w, "pub const {upper}_CAPACITY: usize = {capacity};")?;
+    if !units.is_empty() {
+        writeln!(w, "// {UNITS_NOTE}")?;
+    }
+    for (constant, value, what) in units {
+        writeln!(w, "/// {what}\npub const {constant}: f64 = {value:?};")?;
+    }
     Ok(())
 }
 
