@@ -465,7 +465,10 @@ fn check_export(model: &Path, blob: &[u8], dir: &Path) {
     ] {
         let value = axis[key].as_f64().unwrap_or(f64::NAN);
         assert!(header.contains(&format!("#define GYRO_MODEL_{constant} {value:?} ")), "{key}: {header}");
-        assert!(text.contains(&format!("pub const FOGTEMP_MODEL_{constant}: f64 = {value:?};")), "{key}: {text}");
+        assert!(
+            text.contains(&format!("pub const FOGTEMP_MODEL_{constant}: f64 = {value:?};")),
+            "{key}: {text}"
+        );
     }
     let source = fs::read_to_string(&c).expect("read C export");
     assert!(source.contains("#include \"model.h\""), "{source}");

@@ -929,6 +929,22 @@ impl AllanAxisDocument {
         ))
     }
 
+    /// The note for a fitted B above the curve's own bound (`None` otherwise): the fit spreads
+    /// the curve over three terms and can put more into B than the curve's minimum allows, so
+    /// the bound is the figure to report (review23b F6: "B = 0.003188 deg/h (at most 0.002856)"
+    /// on one testbed log, unexplained).
+    pub fn b_above_bound_note(&self) -> Option<String> {
+        let (fitted, bound) = (self.noise.bias_instability_dph, self.bias_instability_at_most_dph);
+        (fitted > bound).then(|| {
+            format!(
+                "axis {} (column '{}'): the fitted B ({fitted:.6} deg/h) is above the curve's bound ({bound:.6} deg/h, \
+                 its minimum {:.6} deg/h at {:.0} s over 0.664): the three-term fit does not resolve B on this curve; \
+                 report B as at most {bound:.6} deg/h",
+                self.axis, self.column, self.adev_min_dph, self.adev_min_tau_s
+            )
+        })
+    }
+
     /// The warning for a column too short for any averaging time (its curve empty and its
     /// noise terms unknown, NaN), or `None`.
     pub fn too_short_note(&self) -> Option<String> {
@@ -972,5 +988,22 @@ mod tests {
         let raw = rising("gyro_dph").unresolved_terms_note().expect("B at zero");
         assert!(raw.contains("or the output of `compensate`"), "{raw}");
         assert!(!raw.contains("this is compensate's output"), "{raw}");
+    }
+
+    /// A fitted B above the curve's minimum / 0.664 is said, with the bound to report; one
+    /// below it is not.
+    #[test]
+    fn a_fitted_b_above_the_curves_bound_is_said() {
+        let mut doc = rising("gyro_dph");
+        // The minimum 0.001 deg/h at 100 s bounds B at 0.001 / 0.664 = 0.001506 deg/h.
+        assert!((doc.bias_instability_at_most_dph - 0.001 / 0.664).abs() < 1e-12);
+        assert!(doc.b_above_bound_note().is_none(), "B fitted at zero");
+        doc.noise.bias_instability_dph = 0.0016;
+        let note = doc.b_above_bound_note().expect("above the bound");
+        assert!(
+            note.contains("the fitted B (0.001600 deg/h) is above the curve's bound (0.001506 deg/h"),
+            "{note}"
+        );
+        assert!(note.contains("report B as at most 0.001506 deg/h"), "{note}");
     }
 }
