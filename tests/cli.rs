@@ -2019,6 +2019,8 @@ fn a_folders_other_entries_are_named() {
     let (_, lines) = short_log(&logs, "a.csv");
     write_lines(&logs.join("b.txt"), &lines);
     fs::create_dir(logs.join("c.csv")).expect("mkdir");
+    // A macOS copy's AppleDouble companion: binary, named and left out (review23b F8).
+    fs::write(logs.join("._a.csv"), b"\x00\x05\x16\x07\x00\x02\x00\x00Mac OS X").expect("write");
     let output = cal()
         .args(args!["fit", "--method", "poly", "--out", &dir.path().join("m.fogm"), &logs])
         .output()
@@ -2026,7 +2028,10 @@ fn a_folders_other_entries_are_named() {
     let stderr = String::from_utf8_lossy(&output.stderr);
     assert!(output.status.success(), "{stderr}");
     assert!(
-        stderr.contains("read 1 *.csv file; left out: b.txt, c.csv/ (a folder: not searched), sub/ (a folder: not searched)"),
+        stderr.contains(
+            "read 1 *.csv file; left out: ._a.csv (a macOS copy's resource file), b.txt, c.csv/ (a folder: not \
+             searched), sub/ (a folder: not searched)"
+        ),
         "{stderr}"
     );
 }

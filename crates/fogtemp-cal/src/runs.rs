@@ -428,6 +428,14 @@ pub fn validation_logs(logs: Vec<PathBuf>, runs: &Path) -> Result<Vec<PathBuf>, 
     Ok(kept)
 }
 
+/// A folder's entry that is a log: a file named `*.csv` (any case), not a macOS AppleDouble
+/// companion `._*.csv` (resource data a copy to a FAT or exFAT stick leaves beside each file:
+/// binary, it stopped a whole folder, review23b F8). Everything else is named as left out.
+pub fn is_log_file(path: &Path) -> bool {
+    let apple_double = path.file_name().is_some_and(|n| n.to_string_lossy().starts_with("._"));
+    path.extension().is_some_and(|x| x.eq_ignore_ascii_case("csv")) && !apple_double && path.is_file()
+}
+
 /// The run names of `logs` ([`run_name`]), except that logs sharing a file name (the same
 /// `run.csv` in folders `day1/` and `day2/`) are named by their paths without `.csv`: each
 /// log is its own run (they used to count as one run, and cross-validation was skipped

@@ -110,6 +110,10 @@ fn flag_hint(e: &(dyn std::error::Error + 'static)) -> Option<&'static str> {
         CalError::BadRow { row, .. } if row.looks_like_time_of_day() => {
             Some("; the time column holds times of day: use --time-unit time-of-day")
         }
+        CalError::BadRow { row, .. } if row.looks_like_thousands_separators() && !row.looks_like_decimal_comma() => {
+            Some("; thousands separators in the numbers (a spreadsheet's number format): save the log without them \
+                  (--skip-bad-rows would drop every row from 1000 on)")
+        }
         CalError::BadRow { row, .. } if row.looks_like_decimal_comma() => {
             Some("; the log seems to write numbers with a decimal comma: use --decimal-mark comma")
         }

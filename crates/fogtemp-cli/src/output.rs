@@ -135,6 +135,8 @@ fn left_out_note(folder: &Path, read: usize, left: &[PathBuf]) -> Option<String>
             format!("{n}/ (a folder: not searched)")
         } else if !p.exists() {
             format!("{n} (a broken link)")
+        } else if n.starts_with("._") {
+            format!("{n} (a macOS copy's resource file)")
         } else {
             n
         }
@@ -159,9 +161,8 @@ fn expand_log_paths(arg: &Path) -> Result<Vec<PathBuf>> {
             .with_context(|| format!("cannot list {}", arg.display()))?
             .filter_map(|e| e.ok().map(|e| e.path()))
             .collect();
-        let is_csv = |p: &Path| p.extension().is_some_and(|x| x.eq_ignore_ascii_case("csv"));
         let (mut found, mut left): (Vec<PathBuf>, Vec<PathBuf>) =
-            entries.into_iter().partition(|p| is_csv(p) && p.is_file());
+            entries.into_iter().partition(|p| fogtemp_cal::runs::is_log_file(p));
         found.sort();
         left.sort();
         if found.is_empty() {

@@ -66,7 +66,7 @@ fn expand_logs_ordered(items: &[PathBuf], reading_order: bool) -> PyResult<Vec<P
             })?;
             let mut found: Vec<PathBuf> = listing
                 .filter_map(|e| e.ok().map(|e| e.path()))
-                .filter(|p| p.extension().is_some_and(|x| x.eq_ignore_ascii_case("csv")) && p.is_file())
+                .filter(|p| fogtemp_cal::runs::is_log_file(p))
                 .collect();
             found.sort();
             if reading_order {

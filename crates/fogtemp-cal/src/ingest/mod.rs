@@ -632,6 +632,24 @@ impl BadRow {
             && unsigned.split_once(',').is_some_and(|(int, frac)| digits(int) && digits(frac))
             && exponent.is_none_or(digits)
     }
+
+    /// The cell is not a number but would be one without thousands separators (`1,000.000`,
+    /// `-12,345`: a spreadsheet's number format): skipping such rows drops every value from
+    /// 1000 on (review23b F8: a fit on the first 1000 s of every run, exit status 0).
+    pub fn looks_like_thousands_separators(&self) -> bool {
+        let text = self.found.trim();
+        let unsigned = text.strip_prefix(['+', '-']).unwrap_or(text);
+        let integer = unsigned.split_once('.').map_or(unsigned, |(int, _)| int);
+        let mut groups = integer.split(',');
+        let first = groups.next().unwrap_or("");
+        let grouped = (1..=3).contains(&first.len())
+            && first.bytes().all(|b| b.is_ascii_digit())
+            && integer.contains(',')
+            && groups.all(|g| g.len() == 3 && g.bytes().all(|b| b.is_ascii_digit()));
+        self.kind == BadRowKind::NotANumber
+            && grouped
+            && unsigned.split_once('.').is_none_or(|(_, frac)| frac.bytes().all(|b| b.is_ascii_digit()))
+    }
 }
 
 /// How many rows were rejected, and where the first of them are.

@@ -346,7 +346,7 @@ impl<R: Read> Parser<R> {
                             return Err(CalError::Csv {
                                 path: self.rows.path.clone(),
                                 line: 1,
-                                message: "empty file: no header row".into(),
+                                message: "empty file: no header row (a logger that stopped before writing; remove it from the folder, or give the other logs by name)".into(),
                             });
                         }
                         return Ok(true);

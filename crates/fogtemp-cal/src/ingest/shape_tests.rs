@@ -369,6 +369,23 @@ fn a_decimal_comma_in_a_point_log_is_recognised_for_the_hint() {
 }
 
 #[test]
+fn thousands_separators_are_recognised_for_the_hint() {
+    let cell = |found: &str| BadRow {
+        line: 2,
+        column: 1,
+        column_name: "t".into(),
+        found: found.into(),
+        kind: BadRowKind::NotANumber,
+    };
+    for found in ["1,000.000", "-12,345", "1,234,567.5", "+999,000.25"] {
+        assert!(cell(found).looks_like_thousands_separators(), "{found}");
+    }
+    for found in ["1000.5", "1,00.5", "1234,567", ",000", "1,000.0x", "20,5", ""] {
+        assert!(!cell(found).looks_like_thousands_separators(), "{found}");
+    }
+}
+
+#[test]
 fn date_time_logs_read_as_seconds_from_their_first_row() {
     // 10 Hz from 23:59:59 across midnight and the end of a month; the zone changes from
     // +01:00 to +02:00 at row 15 (a logger switching to summer time), which the offsets
