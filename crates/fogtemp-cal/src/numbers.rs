@@ -5,7 +5,8 @@
 //! demo's Table 1, where four decimals printed poly and mesh alike). Above 0.1 they would
 //! claim more than a bias stability from a few dozen windows holds: psim-tvc's "216.0326"
 //! and "at most about 12.39106 deg/h" (review21 second report F7); 4 significant figures
-//! give 216.0 and 12.39. A value that rounds to zero prints without a minus sign.
+//! give 216.0 and 12.39. A signed value that rounds to zero prints without a minus sign; an
+//! unsigned figure below 5e-6 deg/h, which no FOG reaches, in scientific notation.
 
 /// The decimals that show `v` to `significant` figures, at most `max_decimals` (and
 /// `max_decimals` for 0 and non-finite values).
@@ -22,8 +23,16 @@ pub fn decimals_for(v: f64, max_decimals: usize, significant: usize) -> usize {
     }
 }
 
+/// Below this magnitude a nonzero deg/h figure prints in scientific notation, deg/h: five
+/// decimals would print it as 0.00000, and no FOG is that quiet (a gyro logged in deg/s and
+/// read as deg/h printed every figure as 0.00000 beside ratios of 1.02-1.86: review23b F4).
+const SCIENTIFIC_BELOW_DPH: f64 = 5e-6;
+
 /// A deg/h figure (bias stability, residual, floor): see the module documentation.
 pub fn dph(v: f64) -> String {
+    if v != 0.0 && v.abs() < SCIENTIFIC_BELOW_DPH {
+        return format!("{v:.3e}");
+    }
     let decimals = decimals_for(v, 5, 4);
     format!("{:.decimals$}", no_negative_zero(v, decimals))
 }
@@ -63,8 +72,14 @@ mod tests {
     }
 
     #[test]
+    fn a_figure_five_decimals_would_print_as_zero_is_in_scientific_notation() {
+        assert_eq!(dph(1.65e-7), "1.650e-7");
+        assert_eq!(dph(-0.000_001), "-1.000e-6");
+        assert_eq!(dph(0.000_005), "0.00001");
+    }
+
+    #[test]
     fn a_value_that_rounds_to_zero_has_no_minus_sign() {
-        assert_eq!(dph(-0.000_001), "0.00000");
         assert_eq!(dph_signed(-0.000_001), "+0.00000");
         assert_eq!(dph_signed(-0.000_12), "-0.00012");
         assert_eq!(dph_signed(12.391), "+12.39");

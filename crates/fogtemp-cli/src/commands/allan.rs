@@ -80,7 +80,13 @@ pub fn allan(a: AllanArgs) -> Result<()> {
     }
     // A number JSON prints as null (NaN, infinite) shows as `or`.
     let finite_or = |x: f64, or: f64| if x.is_finite() { x } else { or };
-    let value = |x: f64| if x.is_finite() { format!("{x:.6}") } else { "unknown".to_string() };
+    // Six decimals, or scientific notation where they would print a nonzero term as 0.000000
+    // (a gyro in deg/s read as deg/h: review23b F4).
+    let value = |x: f64| match x {
+        x if !x.is_finite() => "unknown".to_string(),
+        x if x != 0.0 && x.abs() < 5e-7 => format!("{x:.3e}"),
+        x => format!("{x:.6}"),
+    };
     for d in &doc.axes {
         if let Some(note) = d.too_short_note() {
             eprintln!("warning: {note}");
