@@ -258,7 +258,40 @@ const C_KEYWORDS: [&str; 44] = [
 /// The C header every exported model is compiled beside.
 const FOGTEMP_H: &str = include_str!("../../../fogtemp-ffi/include/fogtemp.h");
 
-/// `identifier` occurs as a whole identifier in fogtemp.h.
+/// `identifier` occurs as a whole identifier in fogtemp.h's code (its comments left out:
+/// they name "fogtemp" itself).
 fn header_declares(identifier: &str) -> bool {
-    FOGTEMP_H.split(|c: char| !(c.is_ascii_alphanumeric() || c == '_')).any(|word| word == identifier)
+    without_comments(FOGTEMP_H)
+        .split(|c: char| !(c.is_ascii_alphanumeric() || c == '_'))
+        .any(|word| word == identifier)
+}
+
+/// C text without its `//` and `/* */` comments (the header holds no string literals).
+fn without_comments(text: &str) -> String {
+    let mut code = String::with_capacity(text.len());
+    let mut rest = text;
+    while let Some(at) = rest.find("//").into_iter().chain(rest.find("/*")).min() {
+        code.push_str(&rest[..at]);
+        code.push(' ');
+        let end = if rest[at..].starts_with("//") {
+            rest[at..].find('\n')
+        } else {
+            rest[at..].find("*/").map(|e| e + 2)
+        };
+        rest = end.map_or("", |e| &rest[at + e..]);
+    }
+    code.push_str(rest);
+    code
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn comments_are_not_declarations() {
+        assert_eq!(without_comments("a // b\nc /* d\n e */ f"), "a  \nc   f");
+        assert!(header_declares("FOGTEMP_STATUS_OK") && header_declares("fogtemp_step"));
+        assert!(!header_declares("fogtemp") && !header_declares("FOGTEMP_MODEL"));
+    }
 }
