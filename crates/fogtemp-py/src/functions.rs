@@ -187,6 +187,38 @@ fn columns<'py>(value: &Bound<'py, PyAny>, what: &str) -> PyResult<Vec<numpy::Py
     }
 }
 
+/// A run's columns for `key`, one per axis: `key` itself (1-D, or 2-D with one column per
+/// axis), or `key_0`, `key_1`, ... as `read_log` returns a log of several axes (review23a F3:
+/// read_log's own output was refused, and renaming `gyro_dph_0` as the error advised fitted
+/// one axis and dropped the other without a word). `None` when neither is there; `key` beside
+/// `key_1` is refused as ambiguous.
+fn numbered_columns<'py>(
+    run: &Bound<'py, PyAny>,
+    key: &str,
+    label: &str,
+) -> PyResult<Option<Vec<numpy::PyReadonlyArrayDyn<'py, f64>>>> {
+    let mut numbered = Vec::new();
+    while let Some(value) = convert::item(run, &format!("{key}_{}", numbered.len()))? {
+        numbered.push(value);
+    }
+    // `key_1` alone (no `key_0`: renamed to `key`) still says there is a second axis.
+    let second = convert::item(run, &format!("{key}_1"))?.is_some();
+    match convert::item(run, key)? {
+        Some(_) if !numbered.is_empty() || second => Err(errors::value(format!(
+            "{label}: both '{key}' and '{key}_1': which columns are the axes cannot be told; give them as \
+             {key}_0, {key}_1, ... (as read_log returns them) or as one 2-D '{key}' (np.column_stack)"
+        ))),
+        Some(value) => columns(&value, &format!("{label}['{key}']")).map(Some),
+        None if numbered.is_empty() => Ok(None),
+        None => numbered
+            .iter()
+            .enumerate()
+            .map(|(k, v)| f64_vector(v, &format!("{label}['{key}_{k}']")))
+            .collect::<PyResult<Vec<_>>>()
+            .map(Some),
+    }
+}
+
 /// What a run given as a dict or DataFrame has instead of its `missing` column, and how to
 /// rename one (review17 F5: a log file's error lists its header, a DataFrame's listed
 /// nothing). The keys are shown as Python writes them (`repr`: `0` is not `'0'`), the rename
@@ -256,24 +288,19 @@ impl<'py> ArrayRun<'py> {
         // (diagnose's dict of runs comes here without `is_arrays`.)
         convert::refuse_runs_without_names(run)?;
         let label = name.display().to_string();
-        let get = |key: &str| -> PyResult<Bound<'py, PyAny>> {
-            match convert::item(run, key)? {
-                Some(value) => Ok(value),
-                None => Err(errors::value(format!(
-                    "{label}: no '{key}' (a run needs time_s, temp_c and gyro_dph; {})",
-                    missing_column_help(run, key)
-                ))),
-            }
+        let missing = |key: &str| {
+            errors::value(format!(
+                "{label}: no '{key}' (a run needs time_s, temp_c and gyro_dph; {})",
+                missing_column_help(run, key)
+            ))
         };
-        let time = get("time_s")?;
+        let time = convert::item(run, "time_s")?.ok_or_else(|| missing("time_s"))?;
         let time_s = f64_vector(&time, &format!("{label}['time_s']"))?;
         refuse_times_lost_to_precision(&time, &time_s, &format!("{label}['time_s']"))?;
-        Ok(Self {
-            time_s,
-            temps_c: columns(&get("temp_c")?, &format!("{label}['temp_c']"))?,
-            gyros_dph: columns(&get("gyro_dph")?, &format!("{label}['gyro_dph']"))?,
-            name,
-        })
+        let per_axis = |key: &str| -> PyResult<Vec<numpy::PyReadonlyArrayDyn<'py, f64>>> {
+            numbered_columns(run, key, &label)?.ok_or_else(|| missing(key))
+        };
+        Ok(Self { time_s, temps_c: per_axis("temp_c")?, gyros_dph: per_axis("gyro_dph")?, name })
     }
 
     /// SHA-256 input: every array's little-endian bytes in order.

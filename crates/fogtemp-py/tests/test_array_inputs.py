@@ -173,3 +173,25 @@ def test_booleans_inside_lists_are_refused_as_in_object_arrays(model, runs):
         fogtemp.validate(model, [bad_run], progress=False)
     # Numbers in lists still read, as before: ints beside floats, numpy scalars.
     assert model.evaluate([20.0, 1], [0, np.float32(0.0)])[1] == model.evaluate(1.0, 0.0)
+
+
+def test_numbered_axes_as_read_log_returns_them_fit_every_axis(runs):
+    # read_log gives gyro_dph_0, gyro_dph_1, ... for a log of several gyro columns: fit takes
+    # them as axes, the same model as one 2-D gyro_dph (the oracle); renaming one of them to
+    # gyro_dph, as the old error advised, is refused instead of dropping the other (review23a F3).
+    def numbered(run):
+        return {"time_s": run["time_s"], "temp_c": run["temp_c"],
+                "gyro_dph_0": run["gyro_dph"], "gyro_dph_1": 2.0 * run["gyro_dph"]}
+
+    def stacked(run):
+        return {"time_s": run["time_s"], "temp_c": run["temp_c"],
+                "gyro_dph": np.column_stack([run["gyro_dph"], 2.0 * run["gyro_dph"]])}
+
+    from_numbered = fogtemp.fit([numbered(r) for r in runs], method="poly", progress=False)
+    from_stacked = fogtemp.fit([stacked(r) for r in runs], method="poly", progress=False)
+    assert from_numbered.axis_count == 2
+    assert [a["poly"] for a in from_numbered.inspect()["axes"]] == [a["poly"] for a in from_stacked.inspect()["axes"]]
+    renamed = numbered(runs[0])
+    renamed["gyro_dph"] = renamed.pop("gyro_dph_0")
+    with pytest.raises(ValueError, match=r"both 'gyro_dph' and 'gyro_dph_1'"):
+        fogtemp.fit([renamed], method="poly", progress=False)
