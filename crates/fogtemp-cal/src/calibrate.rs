@@ -407,6 +407,10 @@ pub struct BadInputSources {
     pub times_refused: bool,
     /// The log lines of the first flagged samples (empty when there are none: arrays).
     pub first_lines: Vec<u64>,
+    /// Flagged samples whose gyro value was not finite (NaN or infinite: the core passes it
+    /// through). A log's reader refuses them; arrays can hold them (review23a F6: the note
+    /// blamed a temperature or a time).
+    pub gyro_not_finite: u64,
 }
 
 /// How many flagged samples' lines [`BadInputSources::first_lines`] keeps.
@@ -424,10 +428,24 @@ fn bad_input_note(name: &str, bad: u64, samples: u64, output: &str, sources: &Ba
             format!("; {first}at lines {}", listed.join(", "))
         }
     };
+    let gyro = sources.gyro_not_finite.min(bad);
+    if gyro == bad {
+        return format!(
+            "{name}: {bad} of {samples} samples ({} %) had a gyro value that is not a number or infinite (flag \
+             BAD_INPUT in {output}{lines}): passed through as given, as the firmware does; their temperatures \
+             still feed the features",
+            share_percent(bad, samples)
+        );
+    }
+    let gyro_too = if gyro > 0 {
+        format!("; {gyro} of them a gyro value that is not a number or infinite, passed through as given")
+    } else {
+        String::new()
+    };
     format!(
         "{name}: {bad} of {samples} samples ({} %) had a temperature no sensor reads (below -273.15 C or above \
          1000 C, or not a number: a logger's mark for a missing reading?){time} (flag BAD_INPUT in {output}{lines}): \
-         compensated as the firmware does, without them in the features",
+         compensated as the firmware does, without them in the features{gyro_too}",
         share_percent(bad, samples)
     )
 }
@@ -2298,6 +2316,19 @@ mod tests {
         assert!(note.contains("; at lines 7, 9)"), "{note}");
         let arrays = bad_input_note("runs[0] axis 0", 1, 10, "flags", &BadInputSources::default());
         assert!(arrays.contains("or a time not after the one before (flag BAD_INPUT in flags)"), "{arrays}");
+        // Non-finite gyro values are said as such (review23a F6), alone or beside the rest.
+        let nan_gyro = BadInputSources { gyro_not_finite: 1, ..BadInputSources::default() };
+        let note = bad_input_note("runs[0] axis 0", 1, 10, "flags", &nan_gyro);
+        assert!(
+            note.contains("1 of 10 samples (10 %) had a gyro value that is not a number or infinite"),
+            "{note}"
+        );
+        assert!(!note.contains("temperature no sensor reads"), "{note}");
+        let note = bad_input_note("runs[0] axis 0", 3, 10, "flags", &nan_gyro);
+        assert!(
+            note.contains("temperature no sensor reads") && note.contains("; 1 of them a gyro value"),
+            "{note}"
+        );
     }
 
     #[test]

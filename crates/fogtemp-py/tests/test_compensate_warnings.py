@@ -125,3 +125,17 @@ def test_temperature_glitches_are_warned_of_as_the_command_line_notes_them(model
     # Without the glitches: no such warning.
     _, said = compensate_warnings(model, runs[1]["time_s"], runs[1]["gyro_dph"], runs[1]["temp_c"])
     assert not any("temperature glitch" in s for s in said), said
+
+
+def test_a_nan_gyro_sample_is_named_as_such(model, runs):
+    # Review23a F6: a NaN gyro sample (flagged BAD_INPUT, passed through) was blamed on a
+    # temperature or a time; the warning now says what it was.
+    run = runs[0]
+    gyro = run["gyro_dph"].copy()
+    gyro[350] = np.nan
+    (rate, flags), notes = compensate_warnings(model, run["time_s"], gyro, run["temp_c"])
+    assert flags[350] & BAD_INPUT and np.isnan(rate[350])
+    bad = [n for n in notes if "BAD_INPUT" in n]
+    assert len(bad) == 1, notes
+    assert "1 of" in bad[0] and "had a gyro value that is not a number or infinite" in bad[0], bad[0]
+    assert "temperature no sensor reads" not in bad[0], bad[0]

@@ -192,7 +192,7 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
             }
             let consequence = "the output's bias is 0";
             // The reader refuses a time not after the one before: not a cause here.
-            let bad = calibrate::BadInputSources { times_refused: true, first_lines };
+            let bad = calibrate::BadInputSources { times_refused: true, first_lines, gyro_not_finite: 0 };
             let notes = calibrate::compensation_notes(
                 &name,
                 counts,
