@@ -2304,7 +2304,11 @@ mod tests {
 
     #[test]
     fn the_bad_input_note_names_the_first_lines_and_only_causes_that_can_occur() {
-        let from_file = BadInputSources { times_refused: true, first_lines: vec![101, 230, 231, 400, 512] };
+        let from_file = BadInputSources {
+            times_refused: true,
+            first_lines: vec![101, 230, 231, 400, 512],
+            gyro_not_finite: 0,
+        };
         let note = bad_input_note("run.csv axis 0", 9, 7200, "the output", &from_file);
         assert!(
             note.contains("(flag BAD_INPUT in the output; first at lines 101, 230, 231, 400, 512)"),
@@ -2320,7 +2324,7 @@ mod tests {
         let nan_gyro = BadInputSources { gyro_not_finite: 1, ..BadInputSources::default() };
         let note = bad_input_note("runs[0] axis 0", 1, 10, "flags", &nan_gyro);
         assert!(
-            note.contains("1 of 10 samples (10 %) had a gyro value that is not a number or infinite"),
+            note.contains("1 of 10 samples (10.0 %) had a gyro value that is not a number or infinite"),
             "{note}"
         );
         assert!(!note.contains("temperature no sensor reads"), "{note}");

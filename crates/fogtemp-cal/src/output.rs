@@ -95,8 +95,27 @@ pub fn stage(
         Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
         _ => PathBuf::from("."),
     };
+    // A write-protected destination is refused, as the shell's `>` refuses it: the rename
+    // below would replace it regardless (review23b F5: a released model, chmod 444, was
+    // replaced without a word).
+    if std::fs::metadata(path).is_ok_and(|m| m.is_file() && m.permissions().readonly()) {
+        return Err(CalError::Output {
+            action: "will not replace the write-protected file",
+            path: path.to_path_buf(),
+            source: std::io::Error::new(
+                std::io::ErrorKind::PermissionDenied,
+                "it is read-only: make it writable or remove it first to replace it",
+            ),
+        });
+    }
     let mut builder = tempfile::Builder::new();
-    builder.prefix(".fogtemp-");
+    // Named after the destination, so that a file left by a killed process (SIGKILL runs no
+    // handler) says whose it was: `.run-comp.csv.fogtemp-XXXXXX`.
+    let prefix = format!(
+        ".{}.fogtemp-",
+        path.file_name().map_or_else(String::new, |n| n.to_string_lossy().into_owned())
+    );
+    builder.prefix(&prefix);
     // The usual mode of a new file (0666 less the umask), not tempfile's private 0600.
     #[cfg(unix)]
     builder.permissions(std::os::unix::fs::PermissionsExt::from_mode(0o666));
@@ -172,6 +191,29 @@ mod tests {
             .collect();
         assert_eq!(names, ["taken"], "no temporary file left");
         assert!(taken.is_dir() && std::fs::read_dir(&taken).expect("list").next().is_none());
+    }
+
+    /// A write-protected destination is refused and kept (review23b F5); a staged file is
+    /// named after its destination, so a leftover says whose it was.
+    #[test]
+    fn a_write_protected_file_is_kept_and_staged_files_name_their_destination() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let path = dir.path().join("released.fogm");
+        std::fs::write(&path, "old").expect("seed file");
+        let mut permissions = std::fs::metadata(&path).expect("metadata").permissions();
+        permissions.set_readonly(true);
+        std::fs::set_permissions(&path, permissions).expect("chmod");
+        let err = write_file_atomic(&path, |w| w.write_all(b"new")).expect_err("write-protected");
+        assert!(err.to_string().contains("will not replace the write-protected file"), "{err}");
+        assert_eq!(std::fs::read_to_string(&path).expect("read"), "old");
+        let staged = stage(&dir.path().join("run-comp.csv"), |w| w.write_all(b"x")).expect("stage");
+        let names: Vec<String> = std::fs::read_dir(dir.path())
+            .expect("list")
+            .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
+            .filter(|n| n != "released.fogm")
+            .collect();
+        assert!(names.len() == 1 && names[0].starts_with(".run-comp.csv.fogtemp-"), "{names:?}");
+        drop(staged);
     }
 
     #[test]
