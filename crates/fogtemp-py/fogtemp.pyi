@@ -40,7 +40,7 @@ _ArrayLike = npt.ArrayLike
 _Run = Mapping[str, Any]
 """A run given as arrays: a dict or pandas DataFrame with ``time_s`` (s), ``temp_c`` (deg C, NaN =
 no reading) and ``gyro_dph`` (deg/h; for several axes a dict holding a 2-D array with one column
-per axis). Columns hold numbers (int, float32 or float64; None or pandas NA = missing); text,
+per axis, or ``gyro_dph_0``, ``gyro_dph_1``, ... as ``read_log`` returns them; ``temp_c`` alike). Columns hold numbers (int, float32 or float64; None or pandas NA = missing); text,
 booleans and date-times are refused (TypeError): give time in seconds, e.g.
 ``(t - t.iloc[0]).dt.total_seconds()``. A DataFrame's index is not read (``reset_index()``).
 The gyro is the bias plus the true input rate: subtract each run's input rate (Earth rate in its

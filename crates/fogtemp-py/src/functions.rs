@@ -339,7 +339,8 @@ pub(crate) fn array_error(e: fogtemp_cal::CalError) -> PyErr {
 ///
 /// `logs` is a path (a CSV log or a folder of them), a list of paths, or a list of runs given
 /// as arrays: dicts or pandas DataFrames with `time_s` (s), `temp_c` (deg C, NaN = no reading)
-/// and `gyro_dph` (deg/h; 2-D for several axes). `method` is "auto" (what the command
+/// and `gyro_dph` (deg/h; 2-D for several axes, or `gyro_dph_0`, `gyro_dph_1`, ... as
+/// `read_log` returns them). `method` is "auto" (what the command
 /// line's `fit` does by default), "poly", "mesh", "hybrid" or "cubic-t". Keywords: the command line's `fit` options (`window_s`, `blocks`,
 /// `min_blocks`, `max_gap_s`, `target_window_s`, `full_windows_only`, `thinning`,
 /// `tolerance_dph`, `max_nodes`, `interpolate_nodes`, `fast_rate`, `settled_every`, `poly`,
