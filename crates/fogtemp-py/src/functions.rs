@@ -202,15 +202,18 @@ fn numbered_columns<'py>(
         numbered.push(value);
     }
     // `key_1` alone (no `key_0`: renamed to `key`) still says there is a second axis.
-    let second = convert::item(run, &format!("{key}_1"))?.is_some();
-    match convert::item(run, key)? {
-        Some(_) if !numbered.is_empty() || second => Err(errors::value(format!(
-            "{label}: both '{key}' and '{key}_1': which columns are the axes cannot be told; give them as \
+    let other = match numbered.is_empty() {
+        false => Some(format!("{key}_0")),
+        true => convert::item(run, &format!("{key}_1"))?.map(|_| format!("{key}_1")),
+    };
+    match (convert::item(run, key)?, other) {
+        (Some(_), Some(other)) => Err(errors::value(format!(
+            "{label}: both '{key}' and '{other}': which columns are the axes cannot be told; give them as \
              {key}_0, {key}_1, ... (as read_log returns them) or as one 2-D '{key}' (np.column_stack)"
         ))),
-        Some(value) => columns(&value, &format!("{label}['{key}']")).map(Some),
-        None if numbered.is_empty() => Ok(None),
-        None => numbered
+        (Some(value), None) => columns(&value, &format!("{label}['{key}']")).map(Some),
+        (None, _) if numbered.is_empty() => Ok(None),
+        (None, _) => numbered
             .iter()
             .enumerate()
             .map(|(k, v)| f64_vector(v, &format!("{label}['{key}_{k}']")))

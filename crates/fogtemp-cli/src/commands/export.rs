@@ -46,20 +46,7 @@ pub fn export(a: ExportArgs) -> Result<()> {
     if a.format == ExportFormat::C && name.starts_with("fogtemp_") {
         bail!("--name '{name}': fogtemp.h declares its types and functions as fogtemp_*, so the array could clash with one (fogtemp_model is a type); choose another name (the default is FOGTEMP_MODEL)");
     }
-    // The names the export declares must not be fogtemp.h's own (review23a F7:
-    // --name FOGTEMP_STATUS_OK compiled into a redeclaration).
     let upper = name.to_ascii_uppercase();
-    if a.format == ExportFormat::C {
-        let declared = [
-            name.clone(),
-            format!("{upper}_LEN"),
-            format!("{upper}_CAPACITY"),
-            format!("{upper}_FOGTEMP_EXPORT_H"),
-        ];
-        if let Some(clash) = declared.iter().find(|d| header_declares(d)) {
-            bail!("--name '{name}': fogtemp.h already declares {clash}, which the export would declare again; choose another name (the default is FOGTEMP_MODEL)");
-        }
-    }
     let bytes_lines = |per_line: usize| -> String {
         blob.chunks(per_line)
             .map(|c| format!("    {}", c.iter().map(|b| format!("0x{b:02x},")).collect::<Vec<_>>().join(" ")))
@@ -76,8 +63,17 @@ pub fn export(a: ExportArgs) -> Result<()> {
         .max()
         .unwrap_or(0);
     let units = unit_constants(&model, &upper);
+    // The names the export declares must not be fogtemp.h's own (review23a F7:
+    // --name FOGTEMP_STATUS_OK compiled into a redeclaration).
     if a.format == ExportFormat::C {
-        if let Some((clash, _, _)) = units.iter().find(|(n, _, _)| header_declares(n)) {
+        let fixed = [
+            name.clone(),
+            format!("{upper}_LEN"),
+            format!("{upper}_CAPACITY"),
+            format!("{upper}_FOGTEMP_EXPORT_H"),
+        ];
+        if let Some(clash) = fixed.iter().chain(units.iter().map(|(n, _, _)| n)).find(|d| header_declares(d))
+        {
             bail!("--name '{name}': fogtemp.h already declares {clash}, which the export would declare again; choose another name (the default is FOGTEMP_MODEL)");
         }
     }
