@@ -432,8 +432,14 @@ pub fn validation_logs(logs: Vec<PathBuf>, runs: &Path) -> Result<Vec<PathBuf>, 
 /// companion `._*.csv` (resource data a copy to a FAT or exFAT stick leaves beside each file:
 /// binary, it stopped a whole folder, review23b F8). Everything else is named as left out.
 pub fn is_log_file(path: &Path) -> bool {
-    let apple_double = path.file_name().is_some_and(|n| n.to_string_lossy().starts_with("._"));
-    path.extension().is_some_and(|x| x.eq_ignore_ascii_case("csv")) && !apple_double && path.is_file()
+    path.extension().is_some_and(|x| x.eq_ignore_ascii_case("csv"))
+        && !is_apple_double(path)
+        && path.is_file()
+}
+
+/// A macOS AppleDouble companion (`._name`), which [`is_log_file`] leaves out.
+pub fn is_apple_double(path: &Path) -> bool {
+    path.file_name().is_some_and(|n| n.to_string_lossy().starts_with("._"))
 }
 
 /// The run names of `logs` ([`run_name`]), except that logs sharing a file name (the same

@@ -135,7 +135,7 @@ fn left_out_note(folder: &Path, read: usize, left: &[PathBuf]) -> Option<String>
             format!("{n}/ (a folder: not searched)")
         } else if !p.exists() {
             format!("{n} (a broken link)")
-        } else if n.starts_with("._") {
+        } else if fogtemp_cal::runs::is_apple_double(p) {
             format!("{n} (a macOS copy's resource file)")
         } else {
             n
