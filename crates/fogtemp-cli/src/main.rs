@@ -153,6 +153,9 @@ fn flag_hint(e: &(dyn std::error::Error + 'static)) -> Option<&'static str> {
             "; raw counts or kelvin? give --temp-scale/--temp-offset; a logger's mark for a missing reading: \
              empty the cell, or --skip-bad-rows",
         ),
+        CalError::BadRow { row, .. } if row.kind == BadRowKind::NulBytes => Some(
+            "; --skip-bad-rows skips such lines and lists them",
+        ),
         CalError::BadRow { .. } => Some("; use --skip-bad-rows to skip such rows"),
         CalError::MissingColumn { role: "time", .. } => Some(
             "; name the time column with --time-column (its unit with --time-unit), or give --sample-rate-hz \

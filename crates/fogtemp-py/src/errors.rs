@@ -34,6 +34,10 @@ fn hint(e: &CalError) -> &'static str {
         CalError::BadRow { row, .. } if row.looks_like_time_of_day() => {
             "; the time column holds times of day: pass time_unit='time_of_day'"
         }
+        CalError::BadRow { row, .. } if row.looks_like_thousands_separators() && !row.looks_like_decimal_comma() => {
+            "; thousands separators in the numbers (a spreadsheet's number format): save the log without them \
+             (skip_bad_rows=True would drop every row from 1000 on)"
+        }
         CalError::BadRow { row, .. } if row.looks_like_decimal_comma() => {
             "; the log seems to write numbers with a decimal comma: pass decimal_mark='comma'"
         }
@@ -66,6 +70,9 @@ fn hint(e: &CalError) -> &'static str {
         CalError::BadRow { row, .. } if row.kind == BadRowKind::ImpossibleTemperature => {
             "; raw counts or kelvin? pass temp_scale=/temp_offset=; a logger's mark for a missing reading: empty \
              the cell, or skip_bad_rows=True"
+        }
+        CalError::BadRow { row, .. } if row.kind == BadRowKind::NulBytes => {
+            "; skip_bad_rows=True skips such lines and lists them"
         }
         CalError::BadRow { .. } => "; pass skip_bad_rows=True to skip such rows",
         CalError::NoCalibrationPoints { .. } => {

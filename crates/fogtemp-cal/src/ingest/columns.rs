@@ -145,7 +145,8 @@ impl RowState {
         let parsed = parse_row(fields, plan, line, index, &mut self.temps, &mut self.gyros)
             .map_err(|bad| named_text_row(bad, fields, plan))
             .map(|time| continue_time(plan, time, self.previous_time))
-            .and_then(|time| check_time(time, self.previous_time, &plan.columns, line, fields));
+            .and_then(|time| check_time(time, self.previous_time, &plan.columns, line, fields))
+            .map_err(|bad| named_nul_bytes(bad, fields, plan));
         match parsed {
             Ok(time) => {
                 let origin = *self.origin.get_or_insert(time);
@@ -454,6 +455,9 @@ fn parse_number(trimmed: &[u8], decimal: DecimalMark) -> Option<f64> {
     }
 }
 
+/// A bad cell's text is cut to this many characters.
+const MAX_FOUND_CHARS: usize = 40;
+
 fn bad_row(columns: &Columns, line: u64, field: usize, found: &[u8], kind: BadRowKind) -> BadRow {
     let text = String::from_utf8_lossy(found);
     BadRow {
@@ -464,7 +468,7 @@ fn bad_row(columns: &Columns, line: u64, field: usize, found: &[u8], kind: BadRo
             .get(field)
             .cloned()
             .unwrap_or_else(|| format!("(unnamed: the header names {})", columns.names.len())),
-        found: text.chars().take(40).collect(),
+        found: text.chars().take(MAX_FOUND_CHARS).collect(),
         kind,
     }
 }
@@ -489,6 +493,30 @@ fn named_text_row(bad: BadRow, fields: Fields<'_>, plan: &Plan) -> BadRow {
         BadRow { kind: BadRowKind::TextRow, ..bad }
     } else {
         bad
+    }
+}
+
+/// A bad row whose record holds NUL bytes is named [`BadRowKind::NulBytes`] at the first
+/// cell that holds one, the NULs shown as `\0` (a file padded with zeros after a power cut
+/// reads as a short row or a number with junk behind it otherwise); else `bad` as is.
+fn named_nul_bytes(bad: BadRow, fields: Fields<'_>, plan: &Plan) -> BadRow {
+    let Some((field, cell)) =
+        (0..fields.len()).filter_map(|k| Some((k, fields.get(k)?))).find(|(_, cell)| cell.contains(&0))
+    else {
+        return bad;
+    };
+    let mut shown = String::new();
+    for c in String::from_utf8_lossy(cell).chars() {
+        let piece = if c == '\0' { "\\0".to_string() } else { c.to_string() };
+        if shown.chars().count() + piece.chars().count() > MAX_FOUND_CHARS {
+            break;
+        }
+        shown.push_str(&piece);
+    }
+    BadRow {
+        kind: BadRowKind::NulBytes,
+        found: shown,
+        ..bad_row(&plan.columns, bad.line, field, b"", bad.kind)
     }
 }
 

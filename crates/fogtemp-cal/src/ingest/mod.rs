@@ -541,6 +541,10 @@ pub enum BadRowKind {
     /// (magnitude above 3.4e38, infinite there): no rate a gyro reads, and its square
     /// overflows every statistic.
     RateBeyondRange,
+    /// The record holds NUL bytes: a file padded with zeros after a power cut, or a block of
+    /// an SD card that was never written (read as a short row or junk behind a number
+    /// otherwise).
+    NulBytes,
 }
 
 /// Whether a temperature read from a log is one a sensor can report: the compensator's rule
@@ -579,6 +583,10 @@ impl BadRowKind {
             BadRowKind::ImpossibleTemperature => {
                 "not a temperature a sensor reads (below -273.15 C or above 1000 C; a logger's mark for a missing \
                  reading? leave the cell empty)"
+            }
+            BadRowKind::NulBytes => {
+                "NUL bytes in the line (a file padded with zeros after a power cut, or a block of an SD card never \
+                 written?)"
             }
             BadRowKind::RateBeyondRange => {
                 "a rate beyond the f32 range the compensator takes (magnitude above 3.4e38 deg/h; an instrument's \

@@ -386,6 +386,25 @@ fn thousands_separators_are_recognised_for_the_hint() {
 }
 
 #[test]
+fn lines_of_nul_bytes_are_named_as_such() {
+    // An SD card's log after a power cut: a block of zeros where lines were, then the
+    // logger's next rows; or a row cut short with zeros behind its last number.
+    let padded = format!("{HEADER}0,20,1\n{}\n1,20,2\n", "\0".repeat(60));
+    let b = bad(&padded);
+    expect(&b, 3, 1, "time_s", &"\\0".repeat(20), BadRowKind::NulBytes);
+    let (seen, report) = run(padded.as_bytes(), &skipping());
+    let report = report.expect("skipping reads on");
+    assert_eq!(
+        (values(&seen).len(), report.skipped, report.first_skipped[0].kind),
+        (2, 1, BadRowKind::NulBytes)
+    );
+    let cut = bad(&format!("{HEADER}0,20,1\n1,20,2.5\0\0\0"));
+    expect(&cut, 3, 3, "gyro_dph", "2.5\\0\\0\\0", BadRowKind::NulBytes);
+    // Without NULs the same short row is a short row.
+    expect(&bad(&format!("{HEADER}0,20,1\nx\n")), 3, 2, "temp_c", "", BadRowKind::ShortRow);
+}
+
+#[test]
 fn date_time_logs_read_as_seconds_from_their_first_row() {
     // 10 Hz from 23:59:59 across midnight and the end of a month; the zone changes from
     // +01:00 to +02:00 at row 15 (a logger switching to summer time), which the offsets
