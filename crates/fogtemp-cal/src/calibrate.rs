@@ -236,6 +236,9 @@ pub struct RunFeatures {
     /// Per axis: feature points whose gyro mean was an outlier (a spike in the log), read as
     /// missing ([`screen_gyro_means`]); empty where none was looked for.
     pub gyro_outliers: Vec<Vec<GyroOutlier>>,
+    /// Per axis: the smallest step between consecutive different temperature readings, and
+    /// how many changes there were ([`TemperatureSteps`]); empty where none was looked for.
+    pub temperature_steps: Vec<TemperatureSteps>,
     /// SHA-256 of the log's bytes (of its samples for a run given as arrays), when the caller
     /// took it (`fit` and Python's `fit` do, with the input digest): a model fitted on runs
     /// that all have one records each ([`crate::blob::LogReadingRecord`]), so `validate` can
@@ -663,13 +666,15 @@ pub(crate) fn extract_with(
     let mut silences: Vec<TemperatureSilences> =
         (0..axes).map(|_| TemperatureSilences::new(max_gap_s)).collect();
     let mut gaps = TimeGaps::new(max_gap_s);
+    let mut temperature_steps = vec![TemperatureSteps::default(); axes];
     let mut previous_s = None;
     let ingest = read(&mut |row: &Row<'_>| {
         gaps.observe(previous_s, row.time_s, row.line);
         previous_s = Some(row.time_s);
-        for (axis, ((stream, guard), silence)) in
-            streams.iter_mut().zip(&mut guards).zip(&mut silences).enumerate()
+        for (axis, (((stream, guard), silence), steps)) in
+            streams.iter_mut().zip(&mut guards).zip(&mut silences).zip(&mut temperature_steps).enumerate()
         {
+            steps.observe(row.temp_c_for_axis(axis));
             let sample = Sample {
                 time_s: row.time_s,
                 gyro_dph: row.gyros_dph[axis],
@@ -711,8 +716,43 @@ pub(crate) fn extract_with(
         temperature_spikes,
         temperature_silences,
         gyro_outliers,
+        temperature_steps,
         digest: None,
     })
+}
+
+/// The resolution a run's temperature readings show: the smallest step between
+/// consecutive readings that differ, and how many such changes there were. A staircase of
+/// whole degrees (a 1 C sensor, or decimals cut off by a decimal comma in a comma-separated
+/// log: review24a F5) gives rates no 100 s window can resolve.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TemperatureSteps {
+    /// The smallest |change| between consecutive finite readings that differ, deg C
+    /// (infinite without a change).
+    pub smallest_c: f64,
+    /// Changes between consecutive finite readings.
+    pub changes: u64,
+    last_c: Option<f64>,
+}
+
+impl Default for TemperatureSteps {
+    fn default() -> Self {
+        Self { smallest_c: f64::INFINITY, changes: 0, last_c: None }
+    }
+}
+
+impl TemperatureSteps {
+    /// One reading (NaN: none).
+    pub fn observe(&mut self, temp_c: f64) {
+        if !temp_c.is_finite() {
+            return;
+        }
+        if let Some(last) = self.last_c.filter(|&last| last != temp_c) {
+            self.smallest_c = self.smallest_c.min((temp_c - last).abs());
+            self.changes += 1;
+        }
+        self.last_c = Some(temp_c);
+    }
 }
 
 /// A duration in a note: whole seconds, but a tenth under 10 s (a 3.5 s gap is not "4 s").
@@ -774,35 +814,43 @@ pub struct CalibrationPoints {
     /// every block; larger for sparse logs (bursts minutes apart), where each point stands for
     /// all the time since the last one.
     pub block_equivalents: f64,
-    /// Whether each point's features come from a full tracker window.
-    pub window_full: Vec<bool>,
+    /// Whether each point may set the calibrated region: its features come from a full
+    /// tracker window, or, in a segment (a run, or its part after a tracker restart) that
+    /// never fills one, such as a run shorter than the window, it comes half a window or more
+    /// after the segment's first feature ([`calibration_points`]).
+    pub in_region: Vec<bool>,
 }
 
 impl CalibrationPoints {
-    /// The points that define the calibrated region: those from full tracker windows, or all
-    /// of them when those do not span an area (runs shorter than the window). A partial
-    /// window's dT/dt is a line fitted to fewer blocks, its noise larger by (blocks in the
-    /// window / blocks so far)^1.5: the demo's one 0.06 C quantum at 12 s, 13 blocks into a
-    /// 100-block window, read -0.12 C/min in a run that only heats, and its convex hull
-    /// claimed cooling as calibrated at every temperature. Those points are still fitted.
+    /// The points that define the calibrated region: those [`Self::in_region`] marks (full
+    /// tracker windows, and a never-full segment's points from half a window after its first
+    /// feature on), or all of
+    /// them when those do not span an area. A partial window's dT/dt is a line fitted to
+    /// fewer blocks, its noise larger by (blocks in the window / blocks so far)^1.5: the
+    /// demo's one 0.06 C quantum at 12 s, 13 blocks into a 100-block window, read -0.12 C/min
+    /// in a run that only heats, and its convex hull claimed cooling as calibrated at every
+    /// temperature. Those points are still fitted. A run shorter than the window has no full
+    /// window at all: leaving every point of it out put a 65 s run at 13 C outside the region
+    /// of a model fitted on it (review24a F1); from half a window on, its rates are at most
+    /// 2^1.5 = 2.8 times as noisy as a full window's.
     pub fn region_points(&self) -> Vec<MeshPoint> {
-        if self.region_leaves_out_partial_windows() {
-            self.points.iter().zip(&self.window_full).filter(|(_, &f)| f).map(|(p, _)| *p).collect()
+        if self.region_leaves_out_points() {
+            self.points.iter().zip(&self.in_region).filter(|(_, &f)| f).map(|(p, _)| *p).collect()
         } else {
             self.points.clone()
         }
     }
 
-    /// Whether [`Self::region_points`] leaves points out: some come from partial windows and
-    /// the full-window points span an area.
-    pub fn region_leaves_out_partial_windows(&self) -> bool {
-        if self.window_full.iter().all(|&f| f) {
+    /// Whether [`Self::region_points`] leaves points out: some are not [`Self::in_region`]
+    /// and those that are span an area.
+    pub fn region_leaves_out_points(&self) -> bool {
+        if self.in_region.iter().all(|&f| f) {
             return false;
         }
         let plane: Vec<(f32, f32)> = self
             .points
             .iter()
-            .zip(&self.window_full)
+            .zip(&self.in_region)
             .filter(|(_, &f)| f)
             .map(|(p, _)| (p.temp_c as f32, p.rate_c_per_min as f32))
             .collect();
@@ -817,22 +865,42 @@ impl CalibrationPoints {
     }
 }
 
+/// [`calibration_points`] with `config`'s tracker and smoothing settings.
+pub fn calibration_points_of(
+    runs: &[RunFeatures],
+    axis: usize,
+    config: &CalibrationConfig,
+) -> CalibrationPoints {
+    let window_s = f64::from(config.features.window_s);
+    let block_s = window_s / f64::from(config.features.block_count.max(1));
+    calibration_points(runs, axis, config.full_windows_only, block_s, window_s, config.target_window_s)
+}
+
 /// Calibration points of one axis over all runs, with the run index of each and the time
-/// they cover (in tracker blocks of `block_s`, at most `target_window_s` per point). Runs
-/// come in [`canonical_run_order`], each run's points in time order.
+/// they cover (in tracker blocks of `block_s`, at most `target_window_s` per point), and
+/// whether each may set the calibrated region (`window_s` is the tracker's feature window).
+/// Runs come in [`canonical_run_order`], each run's points in time order.
 pub fn calibration_points(
     runs: &[RunFeatures],
     axis: usize,
     full_windows_only: bool,
     block_s: f64,
+    window_s: f64,
     target_window_s: f64,
 ) -> CalibrationPoints {
     let max_blocks = (target_window_s / block_s).round().max(1.0);
     let mut out = CalibrationPoints::default();
     for r in canonical_run_order(runs, axis) {
         let Some((features, targets)) = runs[r].axes.get(axis) else { continue };
+        let never_full = segments_never_full(features);
+        let mut segment_start_s = f64::NAN;
         let mut previous: Option<&FeaturePoint> = None;
         for (f, &target) in features.iter().zip(targets) {
+            if previous.is_none_or(|p| p.segment != f.segment) {
+                // Counted from the segment's first feature (a few blocks after the tracker's
+                // start): half a window from there is at least half a window of blocks.
+                segment_start_s = f.time_s;
+            }
             // Whole blocks since the previous update of this segment (rounded: block close
             // times are block multiples up to the microsecond clock).
             let blocks = match previous {
@@ -849,12 +917,22 @@ pub fn calibration_points(
                     value_dph: target,
                 });
                 out.run_of.push(r);
-                out.window_full.push(f.window_full);
+                let half_window = f.time_s - segment_start_s >= 0.5 * window_s;
+                out.in_region.push(f.window_full || (never_full.contains(&f.segment) && half_window));
                 out.block_equivalents += blocks;
             }
         }
     }
     out
+}
+
+/// The segments (tracker restarts) of one run's features none of whose points has a full
+/// window.
+fn segments_never_full(features: &[FeaturePoint]) -> Vec<u32> {
+    let mut segments: Vec<u32> = features.iter().map(|f| f.segment).collect();
+    segments.dedup();
+    segments.retain(|&s| !features.iter().any(|f| f.segment == s && f.window_full));
+    segments
 }
 
 /// The runs in an order fixed by their content (a hash of the axis's first feature point and
@@ -1336,8 +1414,7 @@ pub fn fit_model_replaying(
         let method = choice.as_ref().map_or(config.method, |s| s.method);
         let config = &CalibrationConfig { method, ..config.clone() };
         let block_s = f64::from(config.features.window_s) / f64::from(config.features.block_count);
-        let calibration =
-            calibration_points(runs, axis, config.full_windows_only, block_s, config.target_window_s);
+        let calibration = calibration_points_of(runs, axis, config);
         if calibration.points.is_empty() {
             return Err(CalError::NoCalibrationPoints {
                 axis,
@@ -1979,7 +2056,7 @@ pub fn temperature_spike_note(name: &str, log: &Path, spikes: &AxisSpikes) -> Op
         "{name}: {glitches} ({}{more}): readings that jump by more than {:.0} C (more where readings are far apart) \
          from the readings around them and back: \
          compensated as read, as the firmware would, so the output after each is disturbed for up to a feature window; \
-         a FOG's temperature does not move like that, so check the sensor or the logger",
+         a gyro's temperature does not move like that, so check the sensor or the logger",
         named.join(", "),
         crate::spikes::SPIKE_JUMP_C,
     ))
@@ -2621,7 +2698,7 @@ mod tests {
         let run =
             extract_run_from(burst_log(100.0).as_bytes(), Path::new("bursts.csv"), &config).expect("reads");
         let block_s = 1200.0 / 40.0;
-        let c = calibration_points(std::slice::from_ref(&run), 0, false, block_s, 1200.0);
+        let c = calibration_points(std::slice::from_ref(&run), 0, false, block_s, 1200.0, 1200.0);
         // One feature update per burst (the 5 s burst lies inside one 30 s block), 300 s =
         // 10 blocks apart: every point after the first of its segment counts 10 blocks.
         let n = c.points.len() as f64;
@@ -2674,7 +2751,7 @@ mod tests {
         }
         let config = CalibrationConfig::default();
         let run = extract_run_from(csv.as_bytes(), Path::new("c.csv"), &config).expect("reads");
-        let c = calibration_points(std::slice::from_ref(&run), 0, false, 1.0, 100.0);
+        let c = calibration_points(std::slice::from_ref(&run), 0, false, 1.0, 100.0, 100.0);
         assert!(!c.points.is_empty());
         assert_eq!(c.block_equivalents, c.points.len() as f64);
     }
@@ -2701,8 +2778,8 @@ mod tests {
         let given = vec![read("a.csv", -10.0, 0.5), read("b.csv", 0.0, -0.3), read("c.csv", 5.0, 0.2)];
         let rotated: Vec<RunFeatures> = [2, 0, 1].iter().map(|&r| given[r].clone()).collect();
         let (p, q) = (
-            calibration_points(&given, 0, false, 1.0, 100.0),
-            calibration_points(&rotated, 0, false, 1.0, 100.0),
+            calibration_points(&given, 0, false, 1.0, 100.0, 100.0),
+            calibration_points(&rotated, 0, false, 1.0, 100.0, 100.0),
         );
         assert!(p.points == q.points, "the points come in another order ({} points)", p.points.len());
         // Run r of `rotated` is run [2, 0, 1][r] of `given`.
@@ -2852,7 +2929,7 @@ mod tests {
         let (g, e, c) = (fit(&glitched), fit(&emptied), fit(&clean));
         assert!(g.blob == e.blob, "the models differ");
         let rates = |runs: &[RunFeatures]| {
-            let p = calibration_points(runs, 0, false, 1.0, 100.0).points;
+            let p = calibration_points(runs, 0, false, 1.0, 100.0, 100.0).points;
             p.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), q| {
                 (lo.min(q.rate_c_per_min), hi.max(q.rate_c_per_min))
             })
@@ -2989,12 +3066,12 @@ mod tests {
                 extract_run_from(log.as_bytes(), Path::new(&format!("r{i}.csv")), &config).expect("reads")
             })
             .collect();
-        let calibration = calibration_points(&runs, 0, false, 1.0, 100.0);
+        let calibration = calibration_points(&runs, 0, false, 1.0, 100.0, 100.0);
         let extremes = |full: bool| {
             calibration
                 .points
                 .iter()
-                .zip(&calibration.window_full)
+                .zip(&calibration.in_region)
                 .filter(|(_, &f)| f || !full)
                 .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), (p, _)| {
                     (lo.min(p.rate_c_per_min), hi.max(p.rate_c_per_min))
@@ -3022,6 +3099,48 @@ mod tests {
         }
     }
 
+    /// A run shorter than the feature window (review24a F1: a 65 s run at 13 C beside runs at
+    /// 47 C) sets the calibrated region with its points from half a window on; its earlier
+    /// points, and every partial window of a run that fills one, do not.
+    #[test]
+    fn a_run_shorter_than_the_window_sets_the_region_from_half_a_window_on() {
+        let config = CalibrationConfig { method: Method::Poly, ..CalibrationConfig::default() };
+        let long: Vec<RunFeatures> = [(40.0, 0.3), (45.0, -0.3)]
+            .iter()
+            .enumerate()
+            .map(|(i, &(start_c, rate))| {
+                extract_run_from(
+                    ramp_log(start_c, rate).as_bytes(),
+                    Path::new(&format!("long{i}.csv")),
+                    &config,
+                )
+                .expect("reads")
+            })
+            .collect();
+        let short_log: String = ramp_log(13.0, 0.05).lines().take(66).map(|l| format!("{l}\n")).collect();
+        let short = extract_run_from(short_log.as_bytes(), Path::new("short.csv"), &config).expect("reads");
+        assert!(short.axes[0].0.iter().all(|f| !f.window_full), "65 s never fills a 100 s window");
+        let runs: Vec<RunFeatures> = long.iter().cloned().chain([short]).collect();
+        let c = calibration_points_of(&runs, 0, &config);
+        let short_run = 2;
+        for ((p, &in_region), &r) in c.points.iter().zip(&c.in_region).zip(&c.run_of) {
+            let feature = runs[r].axes[0]
+                .0
+                .iter()
+                .find(|f| f.temp_c == p.temp_c && f.rate_c_per_min == p.rate_c_per_min);
+            let feature = feature.expect("a point is a feature");
+            let first_s = runs[r].axes[0].0[0].time_s;
+            let expected = feature.window_full || (r == short_run && feature.time_s - first_s >= 50.0);
+            assert_eq!(in_region, expected, "run {r} at {} s", feature.time_s);
+        }
+        let lowest = c.region_points().iter().map(|p| p.temp_c).fold(f64::INFINITY, f64::min);
+        assert!((13.0..14.0).contains(&lowest), "the short run's temperature is in the region: {lowest}");
+        let fitted = fit_model(&runs, &config, [0; 32]).expect("fits");
+        let model = Model::from_bytes(&fitted.blob).expect("parses");
+        let p = model.axis(0).expect("axis 0").provenance;
+        assert!(p.temp_min_c < 14.0 && p.temp_max_c > 50.0, "{} .. {}", p.temp_min_c, p.temp_max_c);
+    }
+
     /// Full-window points without an area (on one line) do not make a region: then every
     /// point does; with an area, only they do.
     #[test]
@@ -3032,7 +3151,7 @@ mod tests {
             points: line.clone(),
             run_of: vec![0; 4],
             block_equivalents: 4.0,
-            window_full: vec![true, true, true, false],
+            in_region: vec![true, true, true, false],
         };
         assert_eq!(calibration.region_points(), line);
         let mut square = calibration.clone();

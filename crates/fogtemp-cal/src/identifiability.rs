@@ -62,7 +62,9 @@ use std::collections::BTreeMap;
 use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
 
-use crate::calibrate::{calibration_points, CalibrationConfig, CalibrationPoints, RunFeatures};
+use crate::calibrate::{
+    calibration_points_of, CalibrationConfig, CalibrationPoints, RunFeatures, TemperatureSteps,
+};
 
 /// Largest variance inflation factor of dT/dt over the cubic-in-T terms before
 /// `temperature_rate_confounded` (see the module documentation).
@@ -117,6 +119,9 @@ pub enum WarningKind {
     /// Logs that continue one another in time ([`crate::continued`]): one run split over
     /// files, read as several runs. Reported on axis 0.
     ContinuedLogs,
+    /// A run's temperature changes only in steps of [`COARSE_TEMPERATURE_STEP_C`] or more (a
+    /// coarse sensor, or decimals cut off): dT/dt is a staircase's.
+    CoarseTemperature,
 }
 
 impl WarningKind {
@@ -135,6 +140,7 @@ impl WarningKind {
             WarningKind::ImplausibleTemperatures => "implausible_temperatures",
             WarningKind::ImplausibleRates => "implausible_rates",
             WarningKind::ContinuedLogs => "continued_logs",
+            WarningKind::CoarseTemperature => "coarse_temperature",
         }
     }
 }
@@ -169,17 +175,16 @@ pub fn fit_warnings(
     config: &CalibrationConfig,
     settings: &IdentifiabilitySettings,
 ) -> Vec<Warning> {
-    let block_s = f64::from(config.features.window_s) / f64::from(config.features.block_count.max(1));
     (0..config.ingest.format.gyro_columns.len())
         .flat_map(|axis| {
-            let points =
-                calibration_points(runs, axis, config.full_windows_only, block_s, config.target_window_s);
+            let points = calibration_points_of(runs, axis, config);
             let mut found = warnings(&points, axis, settings);
             found.extend(short_runs(runs, axis, f64::from(config.features.window_s)));
             let temp_columns = &config.ingest.format.temp_columns;
             let column = temp_columns.get(axis.min(temp_columns.len().saturating_sub(1)));
             found.extend(temperature_spikes(runs, axis, column.map_or("temperature", String::as_str)));
             found.extend(gyro_outliers(runs, axis));
+            found.extend(coarse_temperature(runs, axis, f64::from(config.features.window_s)));
             found
         })
         .chain(continued_logs(runs, f64::from(config.features.max_gap_s)))
@@ -233,8 +238,9 @@ fn short_runs(runs: &[RunFeatures], axis: usize, window_s: f64) -> Option<Warnin
         WarningKind::ShortRuns,
         format!(
             "axis {axis}: {} of {} never fill the {window_s:.0} s feature window ({first}, features up to {span_s:.0} s{others}): \
-             their T and dT/dt come from partial windows and a short log's smoothed target fits any model; \
-             record runs of several windows, or choose a feature window (window_s) below the runs' length",
+             their T and dT/dt come from partial windows (from half a window after their first feature \
+             on, their points count in the calibrated region) and a short log's smoothed target fits any model; \
+             record runs of several windows, or choose a feature window (--window-s, Python window_s=) below the runs' length",
             short.len(),
             if runs.len() == 1 { "1 run".to_string() } else { format!("{} runs", runs.len()) }
         ),
@@ -276,11 +282,61 @@ fn temperature_spikes(runs: &[RunFeatures], axis: usize, column: &str) -> Option
             "axis {axis}: {glitches} in {runs_text} ({}{more}): readings that jump by more than {:.0} C \
              (more where readings are far apart) from the readings around them and back: \
              read as missing, so they neither set features nor widen the calibrated region; \
-             a FOG's temperature does not move like that, so check the sensor or the logger",
+             a gyro's temperature does not move like that, so check the sensor or the logger",
             named.join(", "),
             crate::spikes::SPIKE_JUMP_C,
         ),
         &[("temperature_spikes", total as f64), ("spike_jump_c", crate::spikes::SPIKE_JUMP_C)],
+    ))
+}
+
+/// The smallest temperature step, deg C, below which a run's readings count as resolved: a
+/// run whose temperature changes (at least [`COARSE_MIN_CHANGES`] times) only in steps this
+/// large or larger gets the `coarse_temperature` warning. Half a degree: an LM75's
+/// resolution; common sensors read 0.0625 C (DS18B20, TMP117 0.0078 C) or finer.
+pub const COARSE_TEMPERATURE_STEP_C: f64 = 0.5;
+
+/// Changes a run's temperature must make before its steps say anything of its resolution.
+pub const COARSE_MIN_CHANGES: u64 = 3;
+
+/// `coarse_temperature` for axis `axis`: the runs whose temperature changes only in steps of
+/// [`COARSE_TEMPERATURE_STEP_C`] or more. A tracker window of `window_s` sees such a
+/// staircase change at most once per step, so rates below step / window are not resolved
+/// (review24a F5: a decimal comma inside a comma-separated log read 32,04466 C as 32 C).
+fn coarse_temperature(runs: &[RunFeatures], axis: usize, window_s: f64) -> Option<Warning> {
+    let coarse: Vec<(String, TemperatureSteps)> = runs
+        .iter()
+        .filter_map(|run| Some((crate::runs::run_name(&run.path), *run.temperature_steps.get(axis)?)))
+        .filter(|(_, steps)| {
+            steps.changes >= COARSE_MIN_CHANGES && steps.smallest_c >= COARSE_TEMPERATURE_STEP_C
+        })
+        .collect();
+    let (first, steps) = coarse.first()?;
+    let smallest_c = coarse.iter().map(|(_, s)| s.smallest_c).fold(f64::INFINITY, f64::min);
+    let resolved_c_per_min = smallest_c / window_s * 60.0;
+    let others = match coarse.len() {
+        1 => String::new(),
+        n => format!(" and {} more", n - 1),
+    };
+    Some(Warning::new(
+        axis,
+        WarningKind::CoarseTemperature,
+        format!(
+            "axis {axis}: the temperature changes only in steps of {smallest_c:.2} C or more in {} of {} ({first}: {} \
+             changes, none smaller{others}): dT/dt over the {window_s:.0} s feature window is a staircase's, rates \
+             below {resolved_c_per_min:.2} C/min are not resolved; a sensor of that resolution, or decimals cut off \
+             (a decimal comma inside a comma-separated log reads 32,04 as 32 and a column of 04: convert such a log \
+             to semicolons first)",
+            coarse.len(),
+            if runs.len() == 1 { "1 run".to_string() } else { format!("{} runs", runs.len()) },
+            steps.changes,
+        ),
+        &[
+            ("coarse_runs", coarse.len() as f64),
+            ("smallest_step_c", smallest_c),
+            ("step_limit_c", COARSE_TEMPERATURE_STEP_C),
+            ("resolved_rate_c_per_min", resolved_c_per_min),
+        ],
     ))
 }
 
@@ -319,7 +375,7 @@ fn gyro_outliers(runs: &[RunFeatures], axis: usize) -> Option<Warning> {
         format!(
             "axis {axis}: {means} of the feature points in {runs_text} lay beyond {:.0} robust standard deviations of \
              the median of the points around them ({}{more}): read as missing, so no target is smoothed over them; \
-             a FOG's bias does not jump like that, so check those rows of the logs (a corrupted sample, an overload \
+             a gyro's bias does not jump like that, so check those rows of the logs (a corrupted sample, an overload \
              code, a shock)",
             crate::outliers::ROBUST_SDS,
             named.join(", "),
@@ -348,7 +404,46 @@ pub fn run_offsets(
     if spread <= OFFSET_NOISE_MULTIPLE * target_noise_dph || share <= 0.5 {
         return None;
     }
-    Some(run_offsets_warning(axis, (lowest, highest), target_noise_dph, share))
+    let mut warning = run_offsets_warning(axis, (lowest, highest), target_noise_dph, share);
+    if let Some(follows) = offsets_follow_temperature(&per_run) {
+        warning.message.push_str(&follows);
+    }
+    Some(warning)
+}
+
+/// How closely the runs' mean residuals must follow their mean temperatures (|Pearson r|)
+/// for the `run_offsets` warning to name a temperature effect as a cause.
+const OFFSETS_FOLLOW_TEMPERATURE_R: f64 = 0.9;
+
+/// The clause `run_offsets` adds when the runs' mean residuals follow their mean
+/// temperatures (|r| >= [`OFFSETS_FOLLOW_TEMPERATURE_R`] over runs whose mean temperatures
+/// differ): a temperature effect the fit did not take up (review24a F2: two plateau runs 35 C
+/// apart, a constant model, and a warning that named only positions and turn-on biases). With
+/// two runs r is +-1 whenever their temperatures differ, so the clause says it cannot tell.
+fn offsets_follow_temperature(per_run: &[RunMean]) -> Option<String> {
+    let n = per_run.len() as f64;
+    let mean = |f: &dyn Fn(&RunMean) -> f64| per_run.iter().map(f).sum::<f64>() / n;
+    let (residual, temp) = (mean(&|r| r.1), mean(&|r| r.3));
+    let covariance = per_run.iter().map(|r| (r.1 - residual) * (r.3 - temp)).sum::<f64>();
+    let var_residual = per_run.iter().map(|r| (r.1 - residual).powi(2)).sum::<f64>();
+    let var_temp = per_run.iter().map(|r| (r.3 - temp).powi(2)).sum::<f64>();
+    let r = covariance / (var_residual * var_temp).sqrt();
+    let coldest = per_run.iter().min_by(|a, b| a.3.total_cmp(&b.3))?;
+    let hottest = per_run.iter().max_by(|a, b| a.3.total_cmp(&b.3))?;
+    if !(r.abs() >= OFFSETS_FOLLOW_TEMPERATURE_R) {
+        return None;
+    }
+    let evidence = if per_run.len() == 2 {
+        "two runs cannot tell a temperature effect from a run offset".to_string()
+    } else {
+        format!("r = {r:+.2} over {} runs", per_run.len())
+    };
+    Some(format!(
+        "; the offsets follow the runs' mean temperatures ({} at {:.1} C, {} at {:.1} C; {evidence}): if it is \
+         the temperature, the fit did not take it up (too few independent points for its term tests?); record \
+         runs at more temperatures",
+        coldest.0, coldest.3, hottest.0, hottest.3
+    ))
 }
 
 /// The warnings that need the fitted model (`run_offsets`), for every axis of `fitted`.
@@ -410,8 +505,9 @@ fn run_offsets_warning(
     )
 }
 
-/// One run's mean residual: (run name, mean `target - model` in deg/h, points).
-type RunMean = (String, f64, usize);
+/// One run's mean residual: (run name, mean `target - model` in deg/h, points, mean
+/// temperature of those points in deg C).
+type RunMean = (String, f64, usize, f64);
 
 /// Per run, its [`RunMean`] on axis `axis`, and the share of the residual's variance the
 /// run means hold; `None` with fewer than two runs.
@@ -426,18 +522,20 @@ fn per_run_residual_means(
     let mut all: Vec<f64> = Vec::new();
     for run in runs {
         let Some((features, targets)) = run.axes.get(axis) else { continue };
-        let residuals: Vec<f64> = features
+        let (residuals, temps_c): (Vec<f64>, Vec<f64>) = features
             .iter()
             .zip(targets)
             .filter(|(_, t)| t.is_finite())
             .filter_map(|(f, t)| {
                 let e = fitted.evaluate(f.temp_c as f32, f.rate_c_per_min as f32, &mut hint).ok()?;
-                Some(t - f64::from(e.value_dph))
+                Some((t - f64::from(e.value_dph), f.temp_c))
             })
-            .collect();
+            .unzip();
         if !residuals.is_empty() {
-            let mean = residuals.iter().sum::<f64>() / residuals.len() as f64;
-            per_run.push((crate::runs::run_name(&run.path), mean, residuals.len()));
+            let count = residuals.len() as f64;
+            let mean = residuals.iter().sum::<f64>() / count;
+            let temp_c = temps_c.iter().sum::<f64>() / count;
+            per_run.push((crate::runs::run_name(&run.path), mean, residuals.len(), temp_c));
             all.extend(residuals);
         }
     }
@@ -447,7 +545,7 @@ fn per_run_residual_means(
     let n = all.len() as f64;
     let grand = all.iter().sum::<f64>() / n;
     let total_var = all.iter().map(|r| (r - grand).powi(2)).sum::<f64>() / n;
-    let between_var = per_run.iter().map(|(_, m, k)| *k as f64 * (m - grand).powi(2)).sum::<f64>() / n;
+    let between_var = per_run.iter().map(|(_, m, k, _)| *k as f64 * (m - grand).powi(2)).sum::<f64>() / n;
     let share = if total_var > 0.0 { between_var / total_var } else { 0.0 };
     Some((per_run, share))
 }
@@ -749,6 +847,62 @@ mod tests {
     use super::*;
     use crate::mesh::MeshPoint;
 
+    /// A ramp of 0.3 C/min for 3000 s at 1 Hz, its temperature rounded to `step_c`.
+    fn ramp_in_steps(step_c: f64) -> RunFeatures {
+        let mut csv = String::from("time_s,temp_c,gyro_dph\n");
+        for k in 0..3000 {
+            let temp_c = ((20.0 + 0.3 * f64::from(k) / 60.0) / step_c).round() * step_c;
+            csv.push_str(&format!("{k},{temp_c:.4},{:.6}\n", 0.01 * temp_c));
+        }
+        let config = CalibrationConfig::default();
+        crate::calibrate::extract_run_from(csv.as_bytes(), std::path::Path::new("ramp.csv"), &config)
+            .expect("reads")
+    }
+
+    /// Whole degrees (15 changes over 15 C) are coarse; 0.0625 C steps are not. The staircase
+    /// resolves rates down to 1 C / 100 s = 0.60 C/min. A run with fewer than three changes
+    /// says nothing. Steps by hand: 20, 20, 21, 22.5, 22.5, 20 change 3 times, 1.0 the least.
+    #[test]
+    fn a_temperature_in_whole_degrees_is_warned_of() {
+        let whole = ramp_in_steps(1.0);
+        let w = coarse_temperature(std::slice::from_ref(&whole), 0, 100.0).expect("whole degrees");
+        assert_eq!(w.kind.name(), "coarse_temperature");
+        assert_eq!((w.values["smallest_step_c"], w.values["resolved_rate_c_per_min"]), (1.0, 0.6));
+        assert!(
+            w.message.contains("steps of 1.00 C or more in 1 of 1 run (ramp: 15 changes"),
+            "{}",
+            w.message
+        );
+        assert_eq!(coarse_temperature(&[ramp_in_steps(0.0625)], 0, 100.0), None);
+        let mut steps = TemperatureSteps::default();
+        for t in [20.0, 20.0, f64::NAN, 21.0, 22.5, 22.5, 20.0] {
+            steps.observe(t);
+        }
+        assert_eq!((steps.smallest_c, steps.changes), (1.0, 3));
+        let mut two = whole.clone();
+        two.temperature_steps[0].changes = 2;
+        assert_eq!(coarse_temperature(&[two], 0, 100.0), None, "two changes say nothing");
+    }
+
+    /// The run_offsets clause on temperature: Pearson r of the run means against their mean
+    /// temperatures, by hand: residuals (-1, 0, 1) at (10, 20, 30) C give r = 1; at (10, 30,
+    /// 20) C, r = 0.5 (covariance 10, variances 2 and 200); equal temperatures give no r.
+    #[test]
+    fn run_offsets_name_a_temperature_effect_when_the_offsets_follow_temperature() {
+        let runs = |temps: &[f64]| -> Vec<RunMean> {
+            temps.iter().enumerate().map(|(i, &t)| (format!("r{i}"), i as f64 - 1.0, 10, t)).collect()
+        };
+        let follows = offsets_follow_temperature(&runs(&[10.0, 20.0, 30.0])).expect("r = 1");
+        assert!(
+            follows.contains("r = +1.00 over 3 runs") && follows.contains("r0 at 10.0 C, r2 at 30.0 C"),
+            "{follows}"
+        );
+        assert_eq!(offsets_follow_temperature(&runs(&[10.0, 30.0, 20.0])), None, "r = 0.5");
+        assert_eq!(offsets_follow_temperature(&runs(&[20.0, 20.0, 20.0])), None, "no spread in temperature");
+        let two = offsets_follow_temperature(&runs(&[13.0, 47.0])[..2]).expect("two runs");
+        assert!(two.contains("two runs cannot tell"), "{two}");
+    }
+
     /// Points from (run, temp, rate) triples (the targets do not matter here).
     fn points(triples: &[(usize, f64, f64)]) -> CalibrationPoints {
         CalibrationPoints {
@@ -758,7 +912,7 @@ mod tests {
                 .collect(),
             run_of: triples.iter().map(|t| t.0).collect(),
             block_equivalents: triples.len() as f64,
-            window_full: vec![true; triples.len()],
+            in_region: vec![true; triples.len()],
         }
     }
 

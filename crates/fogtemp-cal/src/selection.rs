@@ -46,7 +46,7 @@ use fogtemp_core::{Model, Normalisation};
 use serde::Serialize;
 
 use crate::calibrate::{
-    calibration_points, choose_normalisation, fit_model, validations, CalibrationConfig, Method, Replay,
+    calibration_points_of, choose_normalisation, fit_model, validations, CalibrationConfig, Method, Replay,
     ReplaySeries, RunFeatures,
 };
 use crate::cv_correction::{corrected, fold_corrections, mean_run_score, CvCorrection};
@@ -947,6 +947,7 @@ pub fn without_block(run: &RunFeatures, blocks: &RunBlocks, j: usize, guard_s: f
         temperature_spikes: run.temperature_spikes.clone(),
         temperature_silences: run.temperature_silences.clone(),
         gyro_outliers: run.gyro_outliers.clone(),
+        temperature_steps: run.temperature_steps.clone(),
         digest: run.digest,
     }
 }
@@ -1092,9 +1093,7 @@ pub struct TrainingRegion {
 impl TrainingRegion {
     /// The region of `training`'s calibration points on `axis`, with `fit`'s normalisation.
     pub fn of(training: &[RunFeatures], axis: usize, config: &CalibrationConfig) -> Self {
-        let block_s = f64::from(config.features.window_s) / f64::from(config.features.block_count);
-        let calibration =
-            calibration_points(training, axis, config.full_windows_only, block_s, config.target_window_s);
+        let calibration = calibration_points_of(training, axis, config);
         let Ok(mut normalisation) = choose_normalisation(&calibration.points) else {
             let normalisation = Normalisation {
                 temp_offset_c: 0.0,
@@ -1784,6 +1783,7 @@ mod tests {
             temperature_spikes: Vec::new(),
             temperature_silences: Vec::new(),
             gyro_outliers: Vec::new(),
+            temperature_steps: Vec::new(),
             digest: None,
         }
     }

@@ -187,6 +187,11 @@ impl Columns {
     pub(super) fn named_fields(&self) -> usize {
         self.names.len()
     }
+
+    /// The fields read: time, date, temperatures and gyros.
+    fn read(&self) -> impl Iterator<Item = usize> + '_ {
+        self.time.iter().chain(&self.date).chain(&self.temps).chain(&self.gyros).copied()
+    }
 }
 
 /// The plan from the header (`line`: its line, 0 for names given in [`LogFormat::column_names`]).
@@ -369,7 +374,13 @@ fn locate_columns(path: &Path, header: Fields<'_>, f: &LogFormat, line: u64) -> 
             similar: Vec::new(),
         });
     }
-    let min_fields = temps.iter().chain(&gyros).copied().chain(time).chain(date).max().unwrap_or(0) + 1;
+    let read_fields = temps.iter().chain(&gyros).copied().chain(time).chain(date).max().unwrap_or(0) + 1;
+    // A headerless log read with `--columns` names every field (more fields with text are a
+    // long row), so a row with fewer is a fragment (the tail of a record whose start a serial
+    // link lost) even where the fields it lacks are not read: its cells are shifted
+    // (review24a F4: a fragment's first cell read as 0 C). A header may name trailing
+    // columns a logger leaves off, so there only the fields read are required.
+    let min_fields = if f.column_names.is_empty() { read_fields } else { read_fields.max(names.len()) };
     Ok(Columns { time, date, temps, gyros, names, min_fields })
 }
 
@@ -550,7 +561,9 @@ pub(super) fn parse_row(
 ) -> Result<f64, BadRow> {
     let columns = &plan.columns;
     if fields.len() < columns.min_fields {
-        let field = fields.len();
+        // The first missing field that is read (review24a F8: the error named a column the
+        // user does not read), else the first missing one.
+        let field = columns.read().filter(|&k| k >= fields.len()).min().unwrap_or(fields.len());
         return Err(bad_row(
             columns,
             line,

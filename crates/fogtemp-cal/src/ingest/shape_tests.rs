@@ -386,6 +386,38 @@ fn thousands_separators_are_recognised_for_the_hint() {
 }
 
 #[test]
+fn a_headerless_row_short_of_the_given_names_is_a_fragment() {
+    // Seven names, three read; the fragment `0,0.003,-0.032,0.73,0.12,-1.10` (the tail of a
+    // record whose start a serial link lost) has six fields: refused at the first missing
+    // field, although every read one is there (review24a F4).
+    let names = ["temp_c", "ax", "ay", "az", "gx", "gy", "gz"];
+    let format = LogFormat {
+        column_names: names.iter().map(|n| n.to_string()).collect(),
+        gyro_columns: vec!["gx".into()],
+        sample_rate_hz: Some(50.0),
+        ..LogFormat::default()
+    };
+    let data = "47.3,0.01,0.02,0.99,0.5,-0.1,0.2\n0,0.003,-0.032,0.73,0.12,-1.10\n47.3,0.01,0.02,0.99,0.6,-0.1,0.2\n";
+    let b = bad_with(data, &with(format.clone()));
+    expect(&b, 2, 7, "gz", "", BadRowKind::ShortRow);
+    let (seen, report) = run(data.as_bytes(), &IngestOptions { skip_bad_rows: true, ..with(format) });
+    assert_eq!((values(&seen).len(), report.expect("reads").skipped), (2, 1));
+    // With a header, trailing columns a logger leaves off are not required: the same row is
+    // read (its read cells are all there).
+    let headed = format!("{}\n0,20,1,x\n1,20,2\n", "time_s,temp_c,gyro_dph,note");
+    assert_eq!(values(&rows(&headed, &default_options())).len(), 2);
+}
+
+#[test]
+fn a_short_row_names_the_first_read_column_it_lacks() {
+    // Five columns, temperature in the fourth: a row of two fields lacks an unread column
+    // (3) first, and the temperature (4): the error names the temperature (review24a F8).
+    let format = LogFormat { temp_columns: vec!["Temperature".into()], ..LogFormat::default() };
+    let data = "time_s,gyro_dph,aux,Temperature,other\n0,1,5,20,9\n1,2\n";
+    expect(&bad_with(data, &with(format)), 3, 4, "Temperature", "", BadRowKind::ShortRow);
+}
+
+#[test]
 fn lines_of_nul_bytes_are_named_as_such() {
     // An SD card's log after a power cut: a block of zeros where lines were, then the
     // logger's next rows; or a row cut short with zeros behind its last number.
