@@ -625,7 +625,8 @@ pub fn describe_blob_code(code: u16) -> Option<String> {
 
 /// Cross-validates every candidate on `runs` (features extracted once, from logs that can
 /// be read again at their [`RunFeatures::path`]) and chooses a method per axis by [`RULE`].
-/// `progress(fold, folds)` is called as each fold starts.
+/// `progress(fold, folds)` is called as each fold starts, and with `fold == folds` once
+/// every fold is done.
 ///
 /// # Errors
 /// Ingest errors while replaying a held-out log, [`CalError::SelfCheck`] for a blob the core
@@ -672,6 +673,12 @@ pub fn select(
             by_groups
         }
     };
+    let total_folds = match options.scheme {
+        CvScheme::LeaveOneGroupOut => folds.len(),
+        CvScheme::BlockedKFold => k,
+        CvScheme::RunsAndBlocks => folds.len() + k,
+    };
+    progress(total_folds, total_folds);
     Ok((0..axes)
         .map(|axis| {
             let inside: Vec<bool> = folds

@@ -18,6 +18,17 @@ macro_rules! print {
     };
 }
 
+// `eprintln!` likewise: standard error that is the same closed pipe (`2>&1 | head`) drops
+// the message instead of std's panic "failed printing to stderr" (status 101, review24b F8).
+macro_rules! eprintln {
+    () => {
+        $crate::write_stderr(format_args!("\n"))
+    };
+    ($($arg:tt)*) => {
+        $crate::write_stderr(format_args!("{}\n", format_args!($($arg)*)))
+    };
+}
+
 mod args;
 mod commands;
 mod compensated_csv;
@@ -34,6 +45,12 @@ fn write_stdout(text: std::fmt::Arguments<'_>) {
         eprintln!("error: writing to standard output: {e}");
         std::process::exit(1);
     }
+}
+
+/// Writes to standard error; a failure is dropped (there is nowhere left to report it).
+fn write_stderr(text: std::fmt::Arguments<'_>) {
+    use std::io::Write;
+    let _ = std::io::stderr().lock().write_fmt(text);
 }
 
 use clap::Parser;

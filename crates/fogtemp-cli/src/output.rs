@@ -17,8 +17,30 @@ pub fn write_atomic(path: &Path, write: impl FnOnce(&mut dyn Write) -> Result<()
 /// The first half of [`write_atomic`]: for outputs that must all be written before any
 /// of them is moved into place ([`Staged::commit`]).
 pub fn stage(path: &Path, write: impl FnOnce(&mut dyn Write) -> Result<()>) -> Result<Staged> {
-    // The closure's error chain travels inside the I/O error ("{:#}" keeps every cause).
-    Ok(fogtemp_cal::output::stage(path, |w| write(w).map_err(|e| std::io::Error::other(format!("{e:#}"))))?)
+    // The closure's error chain travels inside the I/O error.
+    Ok(fogtemp_cal::output::stage(path, |w| {
+        write(w).map_err(|e| std::io::Error::other(chain_text(&e, path)))
+    })?)
+}
+
+/// `e` and its causes on one line, each cause left out when the text before already holds
+/// it, and without a leading `path: ` (the output error names the path): "writing x.csv:
+/// x.csv: No space left on device (os error 28): No space left on device (os error 28)"
+/// said the path and the OS error twice (review24b F10).
+fn chain_text(e: &anyhow::Error, path: &Path) -> String {
+    let mut text = String::new();
+    for cause in e.chain() {
+        let part = cause.to_string();
+        if text.contains(&part) {
+            continue;
+        }
+        if !text.is_empty() {
+            text.push_str(": ");
+        }
+        text.push_str(&part);
+    }
+    let prefix = format!("{}: ", path.display());
+    text.strip_prefix(&prefix).map_or(text.clone(), str::to_string)
 }
 
 /// Refuses to write `out` when it is one of `inputs` (the same file, however named): the
@@ -246,5 +268,23 @@ impl RowProgress {
     /// Removes the bar.
     pub fn finish_and_clear(&self) {
         self.bar.finish_and_clear();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The chain of a write error as compensate makes it (a `CalError::Io` naming the output
+    /// around the OS error): the path and the OS error once each.
+    #[test]
+    fn a_write_error_says_the_os_error_once_without_the_path() {
+        let os =
+            std::io::Error::new(std::io::ErrorKind::StorageFull, "No space left on device (os error 28)");
+        let io = fogtemp_cal::CalError::Io { path: "small/comp.csv".into(), source: os };
+        let e = anyhow::Error::new(io);
+        assert_eq!(chain_text(&e, Path::new("small/comp.csv")), "No space left on device (os error 28)");
+        let other = anyhow::anyhow!("the CSV text thread stopped").context("streaming rows");
+        assert_eq!(chain_text(&other, Path::new("x.csv")), "streaming rows: the CSV text thread stopped");
     }
 }

@@ -149,7 +149,9 @@ pub fn fit(a: FitArgs) -> Result<()> {
     }
     let fitted = calibrate::fit_model_with(&runs, &config, digest, &selection, |fold, folds| {
         if bar.length().is_none() {
-            // review18 F8: the default bar said only "0/3".
+            // The length before the style: styled first, the bar drew "0/0 folds" until the
+            // next draw (review24b F6). review18 F8: the default bar said only "0/3".
+            bar.set_length(folds as u64);
             let style =
                 indicatif::ProgressStyle::with_template("{msg} [{bar:30}] {pos}/{len} folds, eta {eta}")
                     .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar());
@@ -158,6 +160,10 @@ pub fn fit(a: FitArgs) -> Result<()> {
         }
         bar.set_length(folds as u64);
         bar.set_position(fold as u64);
+        // Every fold done (the selection's last call): the chosen model's own fit follows.
+        if fold >= folds {
+            bar.set_message("folds done; fitting the chosen model");
+        }
     })
     .context("fitting the model")?;
     bar.finish_and_clear();
@@ -179,7 +185,18 @@ pub fn fit(a: FitArgs) -> Result<()> {
     }
     write_atomic(&a.out, |w| Ok(w.write_all(blob)?))?;
     if let Some(dir) = &a.report {
-        fogtemp_cal::report::write_fit_report_for(dir, &a.out, &fitted, &runs, &warnings)?;
+        // The model is in place by now: a report that fails (a full disk) must say so, or the
+        // status 1 reads as "nothing written" (review24b F3).
+        fogtemp_cal::report::write_fit_report_for(dir, &a.out, &fitted, &runs, &warnings).with_context(
+            || {
+                format!(
+                    "wrote the model {} ({} bytes), complete; its report in {} was not written",
+                    a.out.display(),
+                    blob.len(),
+                    dir.display()
+                )
+            },
+        )?;
         eprintln!("report: {}", dir.join("fit-report.md").display());
     }
     if a.json {
