@@ -2021,7 +2021,7 @@ impl RunValidation {
     /// stability 1.2e35 with ratio 1.00, review13 F1) stays in its figures, and is named.
     fn gyro_outlier_note(&self, name: &str) -> Option<String> {
         let s = &self.series;
-        let (found, robust_sd) = crate::outliers::screen(&s.raw_dph);
+        let (found, robust_sd) = crate::outliers::screen(&not_at_gap_edges(&s.time_s, &s.raw_dph));
         let (&(first, deviation), count) = (found.first()?, found.len());
         let (deviation, sds) = crate::outliers::deviation_text(deviation, robust_sd);
         let at = s.time_s.get(first).copied().unwrap_or(f64::NAN);
@@ -2034,6 +2034,26 @@ impl RunValidation {
             if count == 1 { "it" } else { "them" },
         ))
     }
+}
+
+/// `values` (one per block, at `time_s`) with the blocks next to a gap read as missing: a
+/// block at a gap's edge may hold a single sample, whose noise is a full block's times the
+/// square root of its samples (review24b F7: one 1 kHz sample before a 180 s gap's end read
+/// as a 30-SD spike of the raw gyro that the log does not have). A gap is a step between
+/// block times beyond 1.5 times their median step.
+fn not_at_gap_edges(time_s: &[f64], values: &[f64]) -> Vec<f64> {
+    let mut steps: Vec<f64> = time_s.windows(2).map(|w| w[1] - w[0]).filter(|d| d.is_finite()).collect();
+    if steps.is_empty() {
+        return values.to_vec();
+    }
+    steps.sort_by(f64::total_cmp);
+    let limit = 1.5 * steps[steps.len() / 2];
+    let gap_after = |k: usize| time_s.get(k + 1).is_some_and(|next| next - time_s[k] > limit);
+    values
+        .iter()
+        .enumerate()
+        .map(|(k, &v)| if gap_after(k) || (k > 0 && gap_after(k - 1)) { f64::NAN } else { v })
+        .collect()
 }
 
 /// The note for temperature spikes in a log being compensated (`None` without any): the
@@ -3097,6 +3117,19 @@ mod tests {
             let inside_hull = mesh.interpolate(x, y, &mut hint).map(|m| !m.outside_hull);
             assert_eq!(inside_hull, Ok(true), "the mesh's own hull reaches the partial window");
         }
+    }
+
+    /// Blocks next to a gap (a step beyond 1.5 x the median step) are read as missing, the
+    /// others kept: times 0..=4, a gap, 100..=103 leave out the blocks at 4 and 100.
+    #[test]
+    fn blocks_at_a_gaps_edges_are_not_judged() {
+        let time_s = [0.0, 1.0, 2.0, 3.0, 4.0, 100.0, 101.0, 102.0, 103.0];
+        let values: Vec<f64> = (0..9).map(f64::from).collect();
+        let kept = not_at_gap_edges(&time_s, &values);
+        let missing: Vec<usize> = (0..9).filter(|&k| kept[k].is_nan()).collect();
+        assert_eq!(missing, vec![4, 5]);
+        assert_eq!(kept[3], 3.0);
+        assert_eq!(not_at_gap_edges(&time_s[..5], &values[..5]), values[..5].to_vec(), "no gap, no change");
     }
 
     /// A run shorter than the feature window (review24a F1: a 65 s run at 13 C beside runs at
