@@ -1000,7 +1000,12 @@ fn skip_bad_rows_reports_count_and_where() {
         .args(args!["--out", &model, &log])
         .assert()
         .success()
-        .stderr(predicate::str::contains(format!("{}: skipped 3 bad rows", log.display())))
+        .stderr(predicate::str::contains(format!(
+            "{}: skipped 3 bad rows of {} rows ({:.3} %) (--skip-bad-rows); first ones:",
+            log.display(),
+            lines.len() - 1,
+            300.0 / (lines.len() - 1) as f64
+        )))
         .stderr(predicate::str::contains("line 50 column 3 'gyro_dph': not a number (found 'abc')"))
         .stderr(predicate::str::contains("line 500 column 2 'temp_c': NaN or infinite (found 'NaN')"))
         .stderr(predicate::str::contains("line 1500 column 1 'time_s': time equal to the previous row"));

@@ -17,10 +17,33 @@ pub fn write_atomic(path: &Path, write: impl FnOnce(&mut dyn Write) -> Result<()
 /// The first half of [`write_atomic`]: for outputs that must all be written before any
 /// of them is moved into place ([`Staged::commit`]).
 pub fn stage(path: &Path, write: impl FnOnce(&mut dyn Write) -> Result<()>) -> Result<Staged> {
+    note_leftover_temporaries(path);
     // The closure's error chain travels inside the I/O error.
     Ok(fogtemp_cal::output::stage(path, |w| {
         write(w).map_err(|e| std::io::Error::other(chain_text(&e, path)))
     })?)
+}
+
+/// Names the temporary files of `path` that an earlier run left (review24b F9).
+fn note_leftover_temporaries(path: &Path) {
+    let found = fogtemp_cal::output::leftover_temporaries(path);
+    let Some((first, _)) = found.first() else { return };
+    let bytes: u64 = found.iter().map(|(_, b)| b).sum();
+    let more = if found.len() > 1 {
+        format!(" and {} more, {} in all", found.len() - 1, indicatif::HumanBytes(bytes))
+    } else {
+        format!(", {}", indicatif::HumanBytes(bytes))
+    };
+    eprintln!(
+        "note: {} temporary file{} of {} ({}{more}) left by a run that did not finish (killed?), or being \
+         written by one still running: remove {} once no fogtemp-cal writes {}",
+        found.len(),
+        if found.len() == 1 { "" } else { "s" },
+        path.display(),
+        first.display(),
+        if found.len() == 1 { "it" } else { "them" },
+        path.display()
+    );
 }
 
 /// `e` and its causes on one line, each cause left out when the text before already holds
