@@ -243,6 +243,20 @@ fn refuse_binary_header(path: &Path, header: &Fields<'_>, line: u64) -> Result<(
             problem: "the file is gzip-compressed: decompress it first (gunzip, or zcat into a .csv)".into(),
         });
     }
+    // A UTF-16 byte-order mark: say so, rather than list "\u{ff}\u{fe}time_s" as a name
+    // (review24b S7).
+    if let Some(mark) =
+        header.get(0).and_then(|f| f.get(..2)).filter(|m| *m == [0xff, 0xfe] || *m == [0xfe, 0xff])
+    {
+        return Err(CalError::LogFormat {
+            path: path.to_path_buf(),
+            line,
+            problem: format!(
+                "the file starts with a UTF-16 byte-order mark ({:02X} {:02X}): save it as UTF-8 or ASCII text",
+                mark[0], mark[1]
+            ),
+        });
+    }
     for i in 0..header.len() {
         let field = header.get(i).unwrap_or(b"");
         if let Some(at) = binary(field) {

@@ -418,6 +418,20 @@ fn a_short_row_names_the_first_read_column_it_lacks() {
 }
 
 #[test]
+fn a_utf16_byte_order_mark_is_named() {
+    for (bom, text) in [(&[0xff_u8, 0xfe][..], "FF FE"), (&[0xfe, 0xff][..], "FE FF")] {
+        let mut data = bom.to_vec();
+        data.extend_from_slice(b"time_s,temp_c,gyro_dph\n0,20,1\n");
+        match run(&data, &default_options()).1 {
+            Err(CalError::LogFormat { line: 1, problem, .. }) => {
+                assert!(problem.contains(&format!("UTF-16 byte-order mark ({text})")), "{problem}")
+            }
+            other => panic!("{}", summary(&other)),
+        }
+    }
+}
+
+#[test]
 fn lines_of_nul_bytes_are_named_as_such() {
     // An SD card's log after a power cut: a block of zeros where lines were, then the
     // logger's next rows; or a row cut short with zeros behind its last number.
