@@ -160,7 +160,8 @@ pub fn stage(
     Ok(Staged { tmp, path: path.to_path_buf(), _pending: pending })
 }
 
-/// Writes `path` atomically: [`stage`] then [`Staged::commit`].
+/// Writes `path` atomically: [`stage`] then [`Staged::commit`]; inside [`all_or_nothing`],
+/// the commit waits for the end of the scope.
 ///
 /// # Errors
 /// [`CalError::Output`] naming the file and what failed; nothing is left under `path`'s
@@ -169,12 +170,128 @@ pub fn write_file_atomic(
     path: &Path,
     write: impl FnOnce(&mut dyn Write) -> std::io::Result<()>,
 ) -> Result<(), CalError> {
-    stage(path, write)?.commit()
+    let staged = stage(path, write)?;
+    // Held back by an open scope, or committed now.
+    let unheld = DEFERRED.with(|d| match d.borrow_mut().as_mut() {
+        Some(scope) => {
+            scope.staged.push(staged);
+            None
+        }
+        None => Some(staged),
+    });
+    unheld.map_or(Ok(()), Staged::commit)
+}
+
+/// What an [`all_or_nothing`] scope holds back until its end: staged files (in order: a
+/// later one of the same path wins) and files to remove.
+#[derive(Debug, Default)]
+struct Deferred {
+    staged: Vec<Staged>,
+    removals: Vec<PathBuf>,
+}
+
+thread_local! {
+    /// The open [`all_or_nothing`] scope of this thread, if any.
+    static DEFERRED: std::cell::RefCell<Option<Deferred>> = const { std::cell::RefCell::new(None) };
+}
+
+/// Runs `work`, holding back every file it writes with [`write_file_atomic`] (and removes
+/// with [`remove_file_deferred`]) on this thread until it has succeeded, then moves them all
+/// into place; on an error nothing is moved and the staged files are removed. For a report
+/// folder: written file by file, a full disk or an interrupt left new figures beside an old
+/// `report.md` (review24b F4). Renaming the staged files is quick, so an interrupt can only
+/// mix the two reports in that short window. A scope inside a scope joins the outer one.
+/// Files read while the scope is open should be read with [`read_current`].
+///
+/// # Errors
+/// What `work` returns, or [`CalError::Output`] for a rename or removal that fails.
+pub fn all_or_nothing<T, E: From<CalError>>(work: impl FnOnce() -> Result<T, E>) -> Result<T, E> {
+    if DEFERRED.with(|d| d.borrow().is_some()) {
+        return work();
+    }
+    DEFERRED.with(|d| *d.borrow_mut() = Some(Deferred::default()));
+    let result = work();
+    let deferred = DEFERRED.with(|d| d.borrow_mut().take()).unwrap_or_default();
+    let value = result?;
+    for staged in deferred.staged {
+        staged.commit()?;
+    }
+    for path in deferred.removals {
+        match std::fs::remove_file(&path) {
+            Err(e) if e.kind() != std::io::ErrorKind::NotFound => {
+                return Err(CalError::Output { action: "cannot remove", path, source: e }.into());
+            }
+            _ => {}
+        }
+    }
+    Ok(value)
+}
+
+/// Removes `path` now, or at the end of an open [`all_or_nothing`] scope.
+///
+/// # Errors
+/// The I/O error of a removal done now.
+pub fn remove_file_deferred(path: &Path) -> std::io::Result<()> {
+    let deferred =
+        DEFERRED.with(|d| d.borrow_mut().as_mut().map(|scope| scope.removals.push(path.to_path_buf())));
+    match deferred {
+        Some(()) => Ok(()),
+        None => std::fs::remove_file(path),
+    }
+}
+
+/// The text of `path` as it will be: the last version staged in this thread's open
+/// [`all_or_nothing`] scope, else the file itself.
+///
+/// # Errors
+/// The I/O error of the read.
+pub fn read_current(path: &Path) -> std::io::Result<String> {
+    let staged = DEFERRED.with(|d| {
+        d.borrow().as_ref().and_then(|scope| {
+            scope.staged.iter().rev().find(|s| s.path == path).map(|s| s.tmp.path().to_path_buf())
+        })
+    });
+    std::fs::read_to_string(staged.as_deref().unwrap_or(path))
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Inside a scope nothing moves until its end: a failure replaces none of the old files
+    /// (and removes none), a success all of them; `read_current` sees the staged text.
+    #[test]
+    fn a_scope_replaces_all_its_files_or_none() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let (a, b, stale) = (dir.path().join("a.md"), dir.path().join("b.svg"), dir.path().join("old.svg"));
+        for path in [&a, &b, &stale] {
+            std::fs::write(path, b"old").expect("write");
+        }
+        let failed: Result<(), CalError> = all_or_nothing(|| {
+            write_file_atomic(&a, |w| w.write_all(b"new a"))?;
+            assert_eq!(read_current(&a).expect("reads"), "new a", "the staged text");
+            assert_eq!(std::fs::read_to_string(&a).expect("reads"), "old", "not moved yet");
+            remove_file_deferred(&stale).expect("deferred");
+            write_file_atomic(&b, |_| Err(std::io::Error::other("disk full")))
+        });
+        assert!(failed.is_err());
+        for path in [&a, &b, &stale] {
+            assert_eq!(std::fs::read_to_string(path).expect("kept"), "old", "{}", path.display());
+        }
+        let files = || std::fs::read_dir(dir.path()).expect("lists").count();
+        assert_eq!(files(), 3, "no temporary file left");
+        all_or_nothing(|| -> Result<(), CalError> {
+            write_file_atomic(&a, |w| w.write_all(b"new a"))?;
+            write_file_atomic(&a, |w| w.write_all(b"newer a"))?;
+            remove_file_deferred(&stale).expect("deferred");
+            write_file_atomic(&b, |w| w.write_all(b"new b"))
+        })
+        .expect("writes");
+        assert_eq!(std::fs::read_to_string(&a).expect("a"), "newer a", "the last version wins");
+        assert_eq!(std::fs::read_to_string(&b).expect("b"), "new b");
+        assert!(!stale.exists());
+        assert_eq!(files(), 2);
+    }
 
     /// A file named like `out.txt`'s temporary files is found, with its size; others are not.
     #[test]

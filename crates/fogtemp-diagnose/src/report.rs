@@ -871,6 +871,12 @@ fn location_markdown(d: &Diagnosis, figures: OptionalFigures) -> String {
 /// # Errors
 /// [`DiagnoseError::Cal`] with [`fogtemp_cal::CalError::Io`] when a file cannot be written.
 pub fn write_diagnosis_report(dir: &Path, d: &Diagnosis) -> Result<(), DiagnoseError> {
+    // All or nothing: no new figure beside an old report.md (review24b F4).
+    fogtemp_cal::output::all_or_nothing(|| diagnosis_report_files(dir, d))
+}
+
+/// The files of [`write_diagnosis_report`], written one by one.
+fn diagnosis_report_files(dir: &Path, d: &Diagnosis) -> Result<(), DiagnoseError> {
     std::fs::create_dir_all(dir).map_err(|source| CalError::Io { path: dir.to_path_buf(), source })?;
     plot_residuals(&dir.join("residuals.svg"), d)?;
     let mut figures = OptionalFigures::default();

@@ -336,14 +336,17 @@ pub fn run_demo(
     if options.report {
         let started = Instant::now();
         progress.stage("report", 1);
-        write_demo_report(
-            &out.join("report"),
-            &result,
-            &blobs,
-            &validations,
-            &feature_sets,
-            &options.stability,
-        )?;
+        // All or nothing: no new figure beside an old report.md (review24b F4).
+        fogtemp_cal::output::all_or_nothing(|| {
+            write_demo_report(
+                &out.join("report"),
+                &result,
+                &blobs,
+                &validations,
+                &feature_sets,
+                &options.stability,
+            )
+        })?;
         progress.advance(1);
         result.seconds.report = started.elapsed().as_secs_f64();
     }

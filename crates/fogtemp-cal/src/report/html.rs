@@ -260,7 +260,7 @@ fn table(lines: &[&str]) -> String {
 /// that cannot be written.
 pub fn write_html_beside(md_path: &Path) -> Result<(), CalError> {
     let read = |path: &Path| {
-        std::fs::read_to_string(path).map_err(|source| CalError::Io { path: path.to_path_buf(), source })
+        crate::output::read_current(path).map_err(|source| CalError::Io { path: path.to_path_buf(), source })
     };
     let markdown = read(md_path)?;
     let dir = md_path.parent().unwrap_or_else(|| Path::new("."));

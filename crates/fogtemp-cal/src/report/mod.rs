@@ -692,7 +692,7 @@ pub fn add_comparison_to_validation_report(
 /// Inserts `text` into the report in `dir` before its first section, and writes its HTML again.
 fn insert_before_first_section(dir: &Path, text: &str) -> Result<(), CalError> {
     let path = dir.join("report.md");
-    let report = std::fs::read_to_string(&path)
+    let report = crate::output::read_current(&path)
         .map_err(|source| CalError::Io { path: path.clone(), source })?
         .replacen("\n## ", &format!("\n{text}## "), 1);
     write_file_atomic(&path, |w| w.write_all(report.as_bytes()))?;
@@ -716,7 +716,7 @@ pub fn add_notes_to_validation_report(dir: &Path, heading: &str, notes: &[String
 ///
 /// # Errors
 /// [`CalError::Io`] when a file cannot be written.
-pub fn write_validation_report_with(
+fn validation_report_files(
     dir: &Path,
     model_path: &Path,
     model: &fogtemp_core::Model<'_>,
@@ -857,7 +857,7 @@ fn remove_stale_figures(dir: &Path, prefixes: &[&str], markdown: &str) -> Result
         });
         if ours && !markdown.contains(&format!("]({name})")) {
             let path = dir.join(&name);
-            std::fs::remove_file(&path).map_err(io(path.clone()))?;
+            crate::output::remove_file_deferred(&path).map_err(io(path.clone()))?;
         }
     }
     Ok(())
@@ -1199,7 +1199,7 @@ fn poly_terms_markdown(
 ///
 /// # Errors
 /// [`CalError::Io`] when a file cannot be written.
-pub fn write_fit_report(
+fn fit_report_files(
     dir: &Path,
     model_path: &Path,
     model: &fogtemp_core::Model<'_>,
@@ -1281,6 +1281,41 @@ pub fn write_fit_report(
     let path = dir.join("fit-report.md");
     write_file_atomic(&path, |w| w.write_all(md.as_bytes()))?;
     write_html_beside(&path)
+}
+
+/// The validation report of `runs` in `dir` (`validation_report_files`: `report.md`,
+/// `report.html` and the figures), all or nothing: every file is staged and moved into place
+/// only when all are written ([`crate::output::all_or_nothing`]; review24b F4).
+///
+/// # Errors
+/// [`CalError::Io`] when a file cannot be written (then none is replaced).
+pub fn write_validation_report_with(
+    dir: &Path,
+    model_path: &Path,
+    model: &fogtemp_core::Model<'_>,
+    runs: &[crate::calibrate::RunValidation],
+    overall: (f64, f64),
+    options: &crate::metrics::BiasStabilityOptions,
+    definition: &str,
+) -> Result<(), CalError> {
+    crate::output::all_or_nothing(|| {
+        validation_report_files(dir, model_path, model, runs, overall, options, definition)
+    })
+}
+
+/// The fit report of `runs` in `dir` (`fit_report_files`), all or nothing like
+/// [`write_validation_report_with`].
+///
+/// # Errors
+/// [`CalError::Io`] when a file cannot be written (then none is replaced).
+pub fn write_fit_report(
+    dir: &Path,
+    model_path: &Path,
+    model: &fogtemp_core::Model<'_>,
+    runs: &[crate::calibrate::RunFeatures],
+    summary_markdown: &str,
+) -> Result<(), CalError> {
+    crate::output::all_or_nothing(|| fit_report_files(dir, model_path, model, runs, summary_markdown))
 }
 
 #[cfg(test)]

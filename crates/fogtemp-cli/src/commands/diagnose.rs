@@ -113,8 +113,9 @@ pub fn diagnose(a: DiagnoseArgs, recorded_ingest: IngestOptions) -> Result<()> {
     let mut scenario_changes = Vec::new();
     let mut updated_path = None;
     if let Some(dir) = &a.report {
-        write_diagnosis_report(dir, &d)
-            .with_context(|| format!("writing the report into {}", dir.display()))?;
+        write_diagnosis_report(dir, &d).with_context(|| {
+            format!("writing the report into {} (the folder is as it was)", dir.display())
+        })?;
         eprintln!("report: {} (and report.html)", dir.join("report.md").display());
         if let Some((path, changes)) = fogtemp_diagnose::write_updated_scenario(&a.simulated, dir, &d)? {
             eprintln!("scenario with the effects found: {}", path.display());

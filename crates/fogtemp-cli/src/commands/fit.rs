@@ -190,7 +190,7 @@ pub fn fit(a: FitArgs) -> Result<()> {
         fogtemp_cal::report::write_fit_report_for(dir, &a.out, &fitted, &runs, &warnings).with_context(
             || {
                 format!(
-                    "wrote the model {} ({} bytes), complete; its report in {} was not written",
+                    "wrote the model {} ({} bytes), complete; its report in {} was not written (the folder is as it was)",
                     a.out.display(),
                     blob.len(),
                     dir.display()

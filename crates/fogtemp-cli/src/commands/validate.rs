@@ -129,7 +129,8 @@ pub fn validate(a: ValidateArgs) -> Result<()> {
             (raw, comp),
             &options,
             &options.describe(),
-        )?;
+        )
+        .with_context(|| format!("writing the report into {} (the folder is as it was)", dir.display()))?;
         if !comparison.is_empty() {
             fogtemp_cal::report::add_comparison_to_validation_report(dir, &comparison)?;
         }
