@@ -22,6 +22,8 @@ use crate::output::{
 /// Calibration points from which a fit without a terminal says that it started (one
 /// million: minutes of stepwise selection; a review's 65-day log had 5.65 million).
 const LONG_FIT_POINTS: usize = 1_000_000;
+/// Cross-validation folds from which `fit` says how long the choice of method can take.
+const MANY_FOLDS: usize = 30;
 
 /// The `fit` command.
 pub fn fit(a: FitArgs) -> Result<()> {
@@ -142,6 +144,21 @@ pub fn fit(a: FitArgs) -> Result<()> {
     let bar = indicatif::ProgressBar::new_spinner()
         .with_message(format!("fitting the model on {points} calibration points"));
     bar.enable_steady_tick(std::time::Duration::from_millis(200));
+    // Leave-one-run-out over many runs refits every candidate once per run: 200 logs of 2 h
+    // took about 145 s a fold, some 8 hours in all, with only "can take minutes" said
+    // (review24b F2).
+    let folds = match &selection.positions {
+        Some(positions) => positions.iter().collect::<std::collections::BTreeSet<_>>().len(),
+        None => runs.len(),
+    };
+    if config.method == Method::Auto && folds >= MANY_FOLDS {
+        eprintln!(
+            "note: choosing the method by cross-validation refits every candidate once per {} ({folds} folds, \
+             {points} calibration points): on many long runs that takes hours; a runs file with positions (--runs) \
+             leaves out a position per fold instead, and --method poly (or mesh, hybrid, cubic-t) skips the choice",
+            if selection.positions.is_some() { "position" } else { "run" }
+        );
+    }
     if bar.is_hidden() && points >= LONG_FIT_POINTS {
         eprintln!(
             "note: fitting the model on {points} calibration points (a fit this large can take minutes)"
