@@ -122,6 +122,9 @@ pub enum WarningKind {
     /// A run's temperature changes only in steps of [`COARSE_TEMPERATURE_STEP_C`] or more (a
     /// coarse sensor, or decimals cut off): dT/dt is a staircase's.
     CoarseTemperature,
+    /// No calibration point over more than [`TEMPERATURE_GAP_C`] inside the calibrated
+    /// temperature range (plateau runs far apart): the model is interpolated there.
+    TemperatureGap,
 }
 
 impl WarningKind {
@@ -141,6 +144,7 @@ impl WarningKind {
             WarningKind::ImplausibleRates => "implausible_rates",
             WarningKind::ContinuedLogs => "continued_logs",
             WarningKind::CoarseTemperature => "coarse_temperature",
+            WarningKind::TemperatureGap => "temperature_gap",
         }
     }
 }
@@ -560,6 +564,7 @@ pub fn warnings(points: &CalibrationPoints, axis: usize, settings: &Identifiabil
         confounding(points, axis),
         too_few_runs(points, axis),
         temperature_range(points, axis, settings),
+        temperature_gap(points, axis),
         rate_signs(points, axis),
         implausible_temperatures(points, axis),
         implausible_rates(points, axis),
@@ -623,6 +628,36 @@ fn implausible_rates(points: &CalibrationPoints, axis: usize) -> Option<Warning>
             &[("median_abs_rate_c_per_min", median), ("implausible_rate_c_per_min", IMPLAUSIBLE_RATE_C_PER_MIN)],
         )
     })
+}
+
+/// The widest stretch of temperature without a calibration point, inside the calibrated
+/// range, beyond which `temperature_gap` warns, deg C: half the span of one power-on's
+/// self-heating (up to 20 C, the narrow-range limit), so runs at chamber temperatures 10 C
+/// apart never trip it, plateaus 35 C apart do (review24a F3).
+pub const TEMPERATURE_GAP_C: f64 = 10.0;
+
+/// `temperature_gap`: the widest gap between the sorted temperatures of the region's points.
+fn temperature_gap(points: &CalibrationPoints, axis: usize) -> Option<Warning> {
+    let mut temps: Vec<f64> =
+        points.region_points().iter().map(|p| p.temp_c).filter(|t| t.is_finite()).collect();
+    temps.sort_by(f64::total_cmp);
+    let (lo, hi) =
+        temps.windows(2).map(|w| (w[0], w[1])).max_by(|a, b| (a.1 - a.0).total_cmp(&(b.1 - b.0)))?;
+    let gap_c = hi - lo;
+    if gap_c <= TEMPERATURE_GAP_C {
+        return None;
+    }
+    Some(Warning::new(
+        axis,
+        WarningKind::TemperatureGap,
+        format!(
+            "axis {axis}: no calibration point between {lo:.1} and {hi:.1} C ({gap_c:.1} C without data inside the \
+             calibrated range): the model is interpolated there from the points on either side (a polynomial's \
+             shape between two clusters is set by its terms, not by data), and the firmware does not flag those \
+             temperatures; calibrate at temperatures in between"
+        ),
+        &[("gap_low_c", lo), ("gap_high_c", hi), ("gap_c", gap_c), ("max_gap_c", TEMPERATURE_GAP_C)],
+    ))
 }
 
 /// `temperature_rate_confounded`, from the R^2 of dT/dt on {1, T, T^2, T^3}.
@@ -846,6 +881,25 @@ fn percentile(sorted: &[f64], q: f64) -> f64 {
 mod tests {
     use super::*;
     use crate::mesh::MeshPoint;
+
+    /// Two clusters 30 C apart leave a gap of 30 C (hand: 15 to 45 C), warned; clusters 8 C
+    /// apart do not.
+    #[test]
+    fn a_gap_between_plateaus_is_warned_of() {
+        let plateaus = |low_c: f64, high_c: f64| {
+            let mut triples = Vec::new();
+            for k in 0..50 {
+                let wiggle = f64::from(k % 5) * 0.25;
+                triples.push((0, low_c - wiggle, 0.01 * f64::from(k % 3)));
+                triples.push((1, high_c + wiggle, -0.01 * f64::from(k % 3)));
+            }
+            points(&triples)
+        };
+        let w = temperature_gap(&plateaus(15.0, 45.0), 0).expect("a 30 C gap");
+        assert_eq!((w.values["gap_low_c"], w.values["gap_high_c"], w.values["gap_c"]), (15.0, 45.0, 30.0));
+        assert!(w.message.contains("no calibration point between 15.0 and 45.0 C"), "{}", w.message);
+        assert_eq!(temperature_gap(&plateaus(20.0, 28.0), 0), None);
+    }
 
     /// A ramp of 0.3 C/min for 3000 s at 1 Hz, its temperature rounded to `step_c`.
     fn ramp_in_steps(step_c: f64) -> RunFeatures {
