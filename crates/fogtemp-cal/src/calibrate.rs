@@ -1942,9 +1942,21 @@ impl RunValidation {
                 s.gaps.longer_than_s,
             ));
         } else if self.compensated_bias_stability_dph.is_nan() && s.samples > 0 {
+            // How long the compensated span is, and the averaging time that gives figures: two
+            // windows at least (review24a F6: 65 s and 131 s runs printed NaN, no way out said).
+            let span_s = s.time_s.last().map_or(0.0, |&t| t - s.compensating_from_s);
+            let shorter = if span_s >= 2.0 {
+                format!(
+                    "; the compensated span is {span_s:.0} s: a shorter averaging time gives figures (--tau-s at most \
+                     {:.0}, Python tau_s=)",
+                    (span_s / 2.0).floor()
+                )
+            } else {
+                String::new()
+            };
             notes.push(format!(
                 "{name}: the compensated bias stability is undefined: too few complete averaging windows \
-                 after the compensator's start-up ({} used)",
+                 after the compensator's start-up ({} used){shorter}",
                 self.windows.used
             ));
         }

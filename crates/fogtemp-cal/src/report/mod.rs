@@ -1036,6 +1036,12 @@ pub fn white_noise_floor_explanation(
     window_s: f64,
 ) -> String {
     let Some(f) = floor else {
+        // Taken over the runs with a compensated figure: with none, there is nothing to bound
+        // (review24a F7: the stretches were blamed while each run's floor was printed).
+        if !compensated_dph.is_finite() {
+            return "unknown: no run has a compensated bias stability to set it beside (see the notes)"
+                .into();
+        }
         return format!(
             "unknown: a run's gap-free stretches are too short for an Allan deviation at up to a tenth of \
              the {window_s} s window"

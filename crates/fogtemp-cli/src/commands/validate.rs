@@ -152,14 +152,24 @@ pub fn validate(a: ValidateArgs) -> Result<()> {
         "{:<width$} {:>4} {:>14} {:>14} {:>8} {:>14}",
         "run", "axis", "raw deg/h", "comp deg/h", "raw/comp", "floor deg/h"
     );
+    // An undefined figure (a run shorter than two windows) says so, not NaN (review24a F6).
+    let dph = |v: f64| if v.is_nan() { "undefined".to_string() } else { dph(v) };
+    let ratio = |raw: f64, comp: f64| {
+        let r = raw / comp;
+        if r.is_nan() {
+            "-".to_string()
+        } else {
+            format!("{r:.2}")
+        }
+    };
     for (r, name) in runs.iter().zip(&names) {
         println!(
-            "{:<width$} {:>4} {:>14} {:>14} {:>8.2} {:>14}",
+            "{:<width$} {:>4} {:>14} {:>14} {:>8} {:>14}",
             name,
             r.axis,
             dph(r.raw_bias_stability_dph),
             dph(r.compensated_bias_stability_dph),
-            r.raw_bias_stability_dph / r.compensated_bias_stability_dph,
+            ratio(r.raw_bias_stability_dph, r.compensated_bias_stability_dph),
             fogtemp_cal::report::white_noise_floor_cell(r.white_noise_floor())
         );
     }
@@ -167,12 +177,12 @@ pub fn validate(a: ValidateArgs) -> Result<()> {
     if per_axis.len() > 1 {
         for (axis, axis_raw, axis_comp) in &per_axis {
             println!(
-                "{:<width$} {:>4} {:>14} {:>14} {:>8.2} {:>14}",
+                "{:<width$} {:>4} {:>14} {:>14} {:>8} {:>14}",
                 "overall of the axis (RMS over runs)",
                 axis,
                 dph(*axis_raw),
                 dph(*axis_comp),
-                axis_raw / axis_comp,
+                ratio(*axis_raw, *axis_comp),
                 fogtemp_cal::report::white_noise_floor_cell(calibrate::overall_white_noise_floor(
                     runs.iter().filter(|r| r.axis == *axis)
                 ))
@@ -183,12 +193,12 @@ pub fn validate(a: ValidateArgs) -> Result<()> {
         if per_axis.len() > 1 { "overall (RMS over runs and axes)" } else { "overall (RMS over runs)" };
     let overall_floor = calibrate::overall_white_noise_floor(runs);
     println!(
-        "{:<width$} {:>4} {:>14} {:>14} {:>8.2} {:>14}",
+        "{:<width$} {:>4} {:>14} {:>14} {:>8} {:>14}",
         overall,
         "",
         dph(raw),
         dph(comp),
-        raw / comp,
+        ratio(raw, comp),
         fogtemp_cal::report::white_noise_floor_cell(overall_floor)
     );
     println!(
