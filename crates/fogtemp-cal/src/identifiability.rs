@@ -434,7 +434,7 @@ fn offsets_follow_temperature(per_run: &[RunMean]) -> Option<String> {
     let r = covariance / (var_residual * var_temp).sqrt();
     let coldest = per_run.iter().min_by(|a, b| a.3.total_cmp(&b.3))?;
     let hottest = per_run.iter().max_by(|a, b| a.3.total_cmp(&b.3))?;
-    if !(r.abs() >= OFFSETS_FOLLOW_TEMPERATURE_R) {
+    if r.is_nan() || r.abs() < OFFSETS_FOLLOW_TEMPERATURE_R {
         return None;
     }
     let evidence = if per_run.len() == 2 {
