@@ -69,6 +69,9 @@ fn main() -> std::process::ExitCode {
         // A CSV streamed to stdout cannot be taken back: say it is cut short (review18 F9).
         if commands::compensate::STREAMING_TO_STDOUT.load(std::sync::atomic::Ordering::SeqCst) {
             eprintln!("note: interrupted: the CSV on stdout is cut short where the interrupt stopped it: discard it");
+        } else {
+            // Said, so that a silent status 130 does not leave the user guessing (review24b S4).
+            eprintln!("note: interrupted: the files being written were removed; those already finished are in place");
         }
         std::process::exit(130);
     });
