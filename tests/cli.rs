@@ -1057,7 +1057,8 @@ fn validate_reports_skipped_rows() {
         .assert()
         .success()
         .stderr(
-            predicate::str::contains("skipped 1 bad row (").and(predicate::str::contains("line 50 column 3")),
+            predicate::str::contains("skipped 1 bad row of 3600 rows (0.028 %) (")
+                .and(predicate::str::contains("line 50 column 3")),
         );
     let doc = json(&String::from_utf8_lossy(&out.get_output().stdout));
     assert_eq!(arr(&doc["runs"])[0]["skipped_rows"], 1);
