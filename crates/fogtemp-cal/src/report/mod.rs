@@ -712,11 +712,12 @@ pub fn add_notes_to_validation_report(dir: &Path, heading: &str, notes: &[String
 }
 
 /// [`write_validation_report`] with the bias-stability settings the runs were measured with
-/// (the drift figure uses their window length and exclusion).
+/// (the drift figure uses their window length and exclusion). All or nothing: the files are
+/// moved into place only when all are written ([`crate::output::all_or_nothing`]).
 ///
 /// # Errors
-/// [`CalError::Io`] when a file cannot be written.
-fn validation_report_files(
+/// [`CalError::Io`] when a file cannot be written (then no file of the folder is replaced).
+pub fn write_validation_report_with(
     dir: &Path,
     model_path: &Path,
     model: &fogtemp_core::Model<'_>,
@@ -725,114 +726,119 @@ fn validation_report_files(
     options: &crate::metrics::BiasStabilityOptions,
     definition: &str,
 ) -> Result<(), CalError> {
-    std::fs::create_dir_all(dir).map_err(|source| CalError::Io { path: dir.to_path_buf(), source })?;
-    let mut md = String::new();
-    md.push_str(&format!("# Validation of {}\n\n", file_name(model_path)));
-    md.push_str(&format!(
-        "Definition: {definition}. Runs replayed through the firmware's `Compensator`. \
-         Every figure covers the same span as the metric: each run from the first sample the \
-         compensator corrected (the start-up before it, where the output is the raw input, is \
-         left out of figures and metric alike).\n\n"
-    ));
-    md.push_str(
-        "| run | axis | raw, deg/h | compensated, deg/h | raw / compensated (above 1: better) | white-noise floor, deg/h | windows (scatter of each figure) | outside the calibrated region |\n|---|---|---|---|---|---|---|---|\n",
-    );
-    let outside_bit = fogtemp_core::Flags::OUTSIDE_HULL.0.trailing_zeros() as usize;
-    for r in runs {
-        let outside = r.series.flag_counts.get(outside_bit).copied().unwrap_or(0);
-        let scatter = r
-            .windows
-            .relative_standard_error()
-            .map_or(String::new(), |se| format!(" (+-{:.0} %)", 100.0 * se));
+    // All or nothing: every file staged, all moved into place at the end (review24b F4).
+    crate::output::all_or_nothing(|| {
+        std::fs::create_dir_all(dir).map_err(|source| CalError::Io { path: dir.to_path_buf(), source })?;
+        let mut md = String::new();
+        md.push_str(&format!("# Validation of {}\n\n", file_name(model_path)));
         md.push_str(&format!(
-            "| {} | {} | {} | {} | {:.2} | {} | {}{scatter} | {} % |\n",
-            file_name(&r.path),
-            r.axis,
-            dph(r.raw_bias_stability_dph),
-            dph(r.compensated_bias_stability_dph),
-            r.raw_bias_stability_dph / r.compensated_bias_stability_dph,
-            white_noise_floor_cell(r.white_noise_floor()),
-            r.windows.used,
-            crate::calibrate::share_percent(outside, r.series.samples)
+            "Definition: {definition}. Runs replayed through the firmware's `Compensator`. \
+             Every figure covers the same span as the metric: each run from the first sample the \
+             compensator corrected (the start-up before it, where the output is the raw input, is \
+             left out of figures and metric alike).\n\n"
         ));
-    }
-    let per_axis = crate::calibrate::per_axis_overall(runs);
-    if per_axis.len() > 1 {
-        for (axis, raw, comp) in &per_axis {
+        md.push_str(
+            "| run | axis | raw, deg/h | compensated, deg/h | raw / compensated (above 1: better) | white-noise floor, deg/h | windows (scatter of each figure) | outside the calibrated region |\n|---|---|---|---|---|---|---|---|\n",
+        );
+        let outside_bit = fogtemp_core::Flags::OUTSIDE_HULL.0.trailing_zeros() as usize;
+        for r in runs {
+            let outside = r.series.flag_counts.get(outside_bit).copied().unwrap_or(0);
+            let scatter = r
+                .windows
+                .relative_standard_error()
+                .map_or(String::new(), |se| format!(" (+-{:.0} %)", 100.0 * se));
             md.push_str(&format!(
-                "| overall of axis {axis} (RMS over its runs) | {axis} | {} | {} | {:.2} | {} | | |\n",
-                dph(*raw),
-                dph(*comp),
-                raw / comp,
-                white_noise_floor_cell(crate::calibrate::overall_white_noise_floor(
-                    runs.iter().filter(|r| r.axis == *axis)
-                ))
+                "| {} | {} | {} | {} | {:.2} | {} | {}{scatter} | {} % |\n",
+                file_name(&r.path),
+                r.axis,
+                dph(r.raw_bias_stability_dph),
+                dph(r.compensated_bias_stability_dph),
+                r.raw_bias_stability_dph / r.compensated_bias_stability_dph,
+                white_noise_floor_cell(r.white_noise_floor()),
+                r.windows.used,
+                crate::calibrate::share_percent(outside, r.series.samples)
             ));
         }
-    }
-    let label =
-        if per_axis.len() > 1 { "overall (RMS over runs and axes)" } else { "overall (RMS over runs)" };
-    let overall_floor = crate::calibrate::overall_white_noise_floor(runs);
-    md.push_str(&format!(
-        "| **{label}** | | **{}** | **{}** | **{:.2}** | {} | | |\n\n",
-        dph(overall.0),
-        dph(overall.1),
-        overall.0 / overall.1,
-        white_noise_floor_cell(overall_floor)
-    ));
-    // What a compensated figure is to be judged against (review14 F4).
-    md.push_str(&format!(
-        "White-noise floor: {}\n\n",
-        white_noise_floor_explanation(overall_floor, overall.1, options.tau_s)
-    ));
-    // How far one run's figure moves with its noise alone (review14 F4: per-run ratios of
-    // 0.87-0.96 read as compensation making things worse, within a run's ~8 % scatter).
-    md.push_str(
-        "Scatter: the relative standard error of one run's bias stability from its averaging windows, \
-         1 / sqrt(2 (n - 1)) for n independent window means; raw and compensated figures, and so their ratio, \
-         move by about that with the noise alone, so a run's ratio within about twice it of 1 says neither \
-         better nor worse.\n\n",
-    );
-    md.push_str(&bullet_section(
-        "Samples the model did not compensate as calibrated (\"outside\": the share of a run's samples flagged \
-         OUTSIDE_HULL, where the model is extrapolated):",
-        &runs.iter().flat_map(crate::calibrate::RunValidation::coverage_notes).collect::<Vec<_>>(),
-    ));
-    md.push_str(&bullet_section(
-        "Runs whose figures need a word (compensation made clearly worse; averaging windows the data fill in \
-         part; gyro spikes left in the figures):",
-        &runs.iter().flat_map(crate::calibrate::RunValidation::figure_notes).collect::<Vec<_>>(),
-    ));
-    md.push_str(&bullet_section(
-        "Gaps in the time stamps (the drift figure shows them as breaks):",
-        &crate::calibrate::gap_notes(runs),
-    ));
-    md.push_str(&bullet_section(
-        "Logs that continue one another (each scored as a run of its own):",
-        &crate::calibrate::continued_notes(runs),
-    ));
-    for axis in 0..model.axis_count() {
-        let axis_runs: Vec<&crate::calibrate::RunValidation> =
-            runs.iter().filter(|r| r.axis == axis).collect();
-        if axis_runs.is_empty() {
-            continue;
+        let per_axis = crate::calibrate::per_axis_overall(runs);
+        if per_axis.len() > 1 {
+            for (axis, raw, comp) in &per_axis {
+                md.push_str(&format!(
+                    "| overall of axis {axis} (RMS over its runs) | {axis} | {} | {} | {:.2} | {} | | |\n",
+                    dph(*raw),
+                    dph(*comp),
+                    raw / comp,
+                    white_noise_floor_cell(crate::calibrate::overall_white_noise_floor(
+                        runs.iter().filter(|r| r.axis == *axis)
+                    ))
+                ));
+            }
         }
-        md.push_str(&format!("## Axis {axis}\n\n"));
-        md.push_str(&validation_axis_figures(dir, axis, &axis_runs, options)?);
-        if let Some(fig) = model.axis(axis).ok().and_then(|a| mesh_figure(&a, Vec::new())) {
-            let mesh_svg = format!("mesh-axis{axis}.svg");
-            plot_mesh(
-                &dir.join(&mesh_svg),
-                &format!("Model mesh, axis {axis}: value at nodes, deg/h"),
-                &fig,
-            )?;
-            md.push_str(&format!("![The model's mesh over (T, dT/dt), value at the nodes]({mesh_svg})\n\n"));
+        let label =
+            if per_axis.len() > 1 { "overall (RMS over runs and axes)" } else { "overall (RMS over runs)" };
+        let overall_floor = crate::calibrate::overall_white_noise_floor(runs);
+        md.push_str(&format!(
+            "| **{label}** | | **{}** | **{}** | **{:.2}** | {} | | |\n\n",
+            dph(overall.0),
+            dph(overall.1),
+            overall.0 / overall.1,
+            white_noise_floor_cell(overall_floor)
+        ));
+        // What a compensated figure is to be judged against (review14 F4).
+        md.push_str(&format!(
+            "White-noise floor: {}\n\n",
+            white_noise_floor_explanation(overall_floor, overall.1, options.tau_s)
+        ));
+        // How far one run's figure moves with its noise alone (review14 F4: per-run ratios of
+        // 0.87-0.96 read as compensation making things worse, within a run's ~8 % scatter).
+        md.push_str(
+            "Scatter: the relative standard error of one run's bias stability from its averaging windows, \
+             1 / sqrt(2 (n - 1)) for n independent window means; raw and compensated figures, and so their ratio, \
+             move by about that with the noise alone, so a run's ratio within about twice it of 1 says neither \
+             better nor worse.\n\n",
+        );
+        md.push_str(&bullet_section(
+            "Samples the model did not compensate as calibrated (\"outside\": the share of a run's samples flagged \
+             OUTSIDE_HULL, where the model is extrapolated):",
+            &runs.iter().flat_map(crate::calibrate::RunValidation::coverage_notes).collect::<Vec<_>>(),
+        ));
+        md.push_str(&bullet_section(
+            "Runs whose figures need a word (compensation made clearly worse; averaging windows the data fill in \
+             part; gyro spikes left in the figures):",
+            &runs.iter().flat_map(crate::calibrate::RunValidation::figure_notes).collect::<Vec<_>>(),
+        ));
+        md.push_str(&bullet_section(
+            "Gaps in the time stamps (the drift figure shows them as breaks):",
+            &crate::calibrate::gap_notes(runs),
+        ));
+        md.push_str(&bullet_section(
+            "Logs that continue one another (each scored as a run of its own):",
+            &crate::calibrate::continued_notes(runs),
+        ));
+        for axis in 0..model.axis_count() {
+            let axis_runs: Vec<&crate::calibrate::RunValidation> =
+                runs.iter().filter(|r| r.axis == axis).collect();
+            if axis_runs.is_empty() {
+                continue;
+            }
+            md.push_str(&format!("## Axis {axis}\n\n"));
+            md.push_str(&validation_axis_figures(dir, axis, &axis_runs, options)?);
+            if let Some(fig) = model.axis(axis).ok().and_then(|a| mesh_figure(&a, Vec::new())) {
+                let mesh_svg = format!("mesh-axis{axis}.svg");
+                plot_mesh(
+                    &dir.join(&mesh_svg),
+                    &format!("Model mesh, axis {axis}: value at nodes, deg/h"),
+                    &fig,
+                )?;
+                md.push_str(&format!(
+                    "![The model's mesh over (T, dT/dt), value at the nodes]({mesh_svg})\n\n"
+                ));
+            }
         }
-    }
-    remove_stale_figures(dir, &VALIDATION_FIGURES, &md)?;
-    let path = dir.join("report.md");
-    write_file_atomic(&path, |w| w.write_all(md.as_bytes()))?;
-    write_html_beside(&path)
+        remove_stale_figures(dir, &VALIDATION_FIGURES, &md)?;
+        let path = dir.join("report.md");
+        write_file_atomic(&path, |w| w.write_all(md.as_bytes()))?;
+        write_html_beside(&path)
+    })
 }
 
 /// The figures a validation report draws, `{prefix}{axis}.svg`.
@@ -1201,119 +1207,11 @@ fn poly_terms_markdown(
 }
 
 /// Writes `fit-report.md` and its figures into `dir` for a fit: calibration runs
-/// (features and raw gyro), and per axis the mesh with the calibration points.
+/// (features and raw gyro), and per axis the mesh with the calibration points; all or
+/// nothing, as [`write_validation_report_with`].
 ///
 /// # Errors
-/// [`CalError::Io`] when a file cannot be written.
-fn fit_report_files(
-    dir: &Path,
-    model_path: &Path,
-    model: &fogtemp_core::Model<'_>,
-    runs: &[crate::calibrate::RunFeatures],
-    summary_markdown: &str,
-) -> Result<(), CalError> {
-    std::fs::create_dir_all(dir).map_err(|source| CalError::Io { path: dir.to_path_buf(), source })?;
-    let mut md = format!("# Fit of {}\n\n{summary_markdown}\n\n", file_name(model_path));
-    let gap_notes: Vec<String> = runs.iter().filter_map(|r| r.gaps.note(&r.path)).collect();
-    md.push_str(&bullet_section("Gaps in the time stamps:", &gap_notes));
-    let silences: Vec<String> = runs
-        .iter()
-        .flat_map(|r| (0..r.temperature_silences.len()).filter_map(|axis| r.temperature_silence_note(axis)))
-        .collect();
-    md.push_str(&bullet_section("Temperature silent while the gyro went on:", &silences));
-    for axis in 0..model.axis_count() {
-        let traces: Vec<RunTrace> = runs
-            .iter()
-            .filter_map(|r| {
-                let (points, targets) = r.axes.get(axis)?;
-                Some(RunTrace {
-                    name: file_name(&r.path),
-                    time_s: points.iter().map(|p| p.time_s).collect(),
-                    temp_c: points.iter().map(|p| p.temp_c).collect(),
-                    rate_c_per_min: points.iter().map(|p| p.rate_c_per_min).collect(),
-                    raw_dph: targets.clone(),
-                    compensated_dph: Vec::new(),
-                })
-            })
-            .collect();
-        let runs_svg = format!("fit-runs-axis{axis}.svg");
-        let input_rates: Vec<f64> = runs
-            .iter()
-            .filter_map(|r| r.input_rate_subtracted_dph.get(axis).copied())
-            .filter(|rate| *rate != 0.0)
-            .collect();
-        let gyro_label = if input_rates.is_empty() {
-            "gyro, uncompensated, deg/h"
-        } else {
-            "gyro less the runs file's input rate, deg/h"
-        };
-        plot_runs(
-            &dir.join(&runs_svg),
-            &format!("Calibration runs, axis {axis} (gyro: the smoothed target the model is fitted to)"),
-            gyro_label,
-            &traces,
-        )?;
-        md.push_str(&format!(
-            "## Axis {axis}\n\n![Calibration runs: temperature, rate and the smoothed gyro target against time]({runs_svg})\n\n"
-        ));
-        if let (Some(lo), Some(hi)) =
-            (input_rates.iter().copied().reduce(f64::min), input_rates.iter().copied().reduce(f64::max))
-        {
-            let range = if (hi - lo).abs() < 5e-4 {
-                format!("{lo:.3} deg/h")
-            } else {
-                format!("{lo:.3} to {hi:.3} deg/h")
-            };
-            md.push_str(&format!(
-                "Each run's `input_rate_dph` from the runs file ({range}: the Earth rate's \
-                 projection or a turntable's rate) was subtracted from its gyro before the fit, so the model \
-                 is the bias alone; the gyro panel shows the gyro less that rate.\n\n"
-            ));
-        }
-        let points: Vec<(f64, f64)> = runs
-            .iter()
-            .filter_map(|r| r.axes.get(axis))
-            .flat_map(|(p, _)| p.iter().step_by(5).map(|f| (f.temp_c, f.rate_c_per_min)))
-            .collect();
-        if let Some(fig) = model.axis(axis).ok().and_then(|a| mesh_figure(&a, points)) {
-            let mesh_svg = format!("fit-mesh-axis{axis}.svg");
-            plot_mesh(&dir.join(&mesh_svg), &format!("Mesh over the calibration points, axis {axis}"), &fig)?;
-            md.push_str(&format!(
-                "![The mesh over (T, dT/dt): model value at the nodes, calibration points in grey]({mesh_svg})\n\n"
-            ));
-        }
-    }
-    remove_stale_figures(dir, &FIT_FIGURES, &md)?;
-    let path = dir.join("fit-report.md");
-    write_file_atomic(&path, |w| w.write_all(md.as_bytes()))?;
-    write_html_beside(&path)
-}
-
-/// The validation report of `runs` in `dir` (`validation_report_files`: `report.md`,
-/// `report.html` and the figures), all or nothing: every file is staged and moved into place
-/// only when all are written ([`crate::output::all_or_nothing`]; review24b F4).
-///
-/// # Errors
-/// [`CalError::Io`] when a file cannot be written (then none is replaced).
-pub fn write_validation_report_with(
-    dir: &Path,
-    model_path: &Path,
-    model: &fogtemp_core::Model<'_>,
-    runs: &[crate::calibrate::RunValidation],
-    overall: (f64, f64),
-    options: &crate::metrics::BiasStabilityOptions,
-    definition: &str,
-) -> Result<(), CalError> {
-    crate::output::all_or_nothing(|| {
-        validation_report_files(dir, model_path, model, runs, overall, options, definition)
-    })
-}
-
-/// The fit report of `runs` in `dir` (`fit_report_files`), all or nothing like
-/// [`write_validation_report_with`].
-///
-/// # Errors
-/// [`CalError::Io`] when a file cannot be written (then none is replaced).
+/// [`CalError::Io`] when a file cannot be written (then no file of the folder is replaced).
 pub fn write_fit_report(
     dir: &Path,
     model_path: &Path,
@@ -1321,7 +1219,90 @@ pub fn write_fit_report(
     runs: &[crate::calibrate::RunFeatures],
     summary_markdown: &str,
 ) -> Result<(), CalError> {
-    crate::output::all_or_nothing(|| fit_report_files(dir, model_path, model, runs, summary_markdown))
+    // All or nothing, as the validation report.
+    crate::output::all_or_nothing(|| {
+        std::fs::create_dir_all(dir).map_err(|source| CalError::Io { path: dir.to_path_buf(), source })?;
+        let mut md = format!("# Fit of {}\n\n{summary_markdown}\n\n", file_name(model_path));
+        let gap_notes: Vec<String> = runs.iter().filter_map(|r| r.gaps.note(&r.path)).collect();
+        md.push_str(&bullet_section("Gaps in the time stamps:", &gap_notes));
+        let silences: Vec<String> = runs
+            .iter()
+            .flat_map(|r| {
+                (0..r.temperature_silences.len()).filter_map(|axis| r.temperature_silence_note(axis))
+            })
+            .collect();
+        md.push_str(&bullet_section("Temperature silent while the gyro went on:", &silences));
+        for axis in 0..model.axis_count() {
+            let traces: Vec<RunTrace> = runs
+                .iter()
+                .filter_map(|r| {
+                    let (points, targets) = r.axes.get(axis)?;
+                    Some(RunTrace {
+                        name: file_name(&r.path),
+                        time_s: points.iter().map(|p| p.time_s).collect(),
+                        temp_c: points.iter().map(|p| p.temp_c).collect(),
+                        rate_c_per_min: points.iter().map(|p| p.rate_c_per_min).collect(),
+                        raw_dph: targets.clone(),
+                        compensated_dph: Vec::new(),
+                    })
+                })
+                .collect();
+            let runs_svg = format!("fit-runs-axis{axis}.svg");
+            let input_rates: Vec<f64> = runs
+                .iter()
+                .filter_map(|r| r.input_rate_subtracted_dph.get(axis).copied())
+                .filter(|rate| *rate != 0.0)
+                .collect();
+            let gyro_label = if input_rates.is_empty() {
+                "gyro, uncompensated, deg/h"
+            } else {
+                "gyro less the runs file's input rate, deg/h"
+            };
+            plot_runs(
+                &dir.join(&runs_svg),
+                &format!("Calibration runs, axis {axis} (gyro: the smoothed target the model is fitted to)"),
+                gyro_label,
+                &traces,
+            )?;
+            md.push_str(&format!(
+                "## Axis {axis}\n\n![Calibration runs: temperature, rate and the smoothed gyro target against time]({runs_svg})\n\n"
+            ));
+            if let (Some(lo), Some(hi)) =
+                (input_rates.iter().copied().reduce(f64::min), input_rates.iter().copied().reduce(f64::max))
+            {
+                let range = if (hi - lo).abs() < 5e-4 {
+                    format!("{lo:.3} deg/h")
+                } else {
+                    format!("{lo:.3} to {hi:.3} deg/h")
+                };
+                md.push_str(&format!(
+                    "Each run's `input_rate_dph` from the runs file ({range}: the Earth rate's \
+                     projection or a turntable's rate) was subtracted from its gyro before the fit, so the model \
+                     is the bias alone; the gyro panel shows the gyro less that rate.\n\n"
+                ));
+            }
+            let points: Vec<(f64, f64)> = runs
+                .iter()
+                .filter_map(|r| r.axes.get(axis))
+                .flat_map(|(p, _)| p.iter().step_by(5).map(|f| (f.temp_c, f.rate_c_per_min)))
+                .collect();
+            if let Some(fig) = model.axis(axis).ok().and_then(|a| mesh_figure(&a, points)) {
+                let mesh_svg = format!("fit-mesh-axis{axis}.svg");
+                plot_mesh(
+                    &dir.join(&mesh_svg),
+                    &format!("Mesh over the calibration points, axis {axis}"),
+                    &fig,
+                )?;
+                md.push_str(&format!(
+                    "![The mesh over (T, dT/dt): model value at the nodes, calibration points in grey]({mesh_svg})\n\n"
+                ));
+            }
+        }
+        remove_stale_figures(dir, &FIT_FIGURES, &md)?;
+        let path = dir.join("fit-report.md");
+        write_file_atomic(&path, |w| w.write_all(md.as_bytes()))?;
+        write_html_beside(&path)
+    })
 }
 
 #[cfg(test)]
