@@ -701,6 +701,39 @@ fn write_lines(path: &Path, lines: &[String]) {
     fs::write(path, lines.join("\n") + "\n").expect("write log");
 }
 
+/// A log cut off mid-line (a power loss) is named as cut off on its last line; the same short
+/// row with a line end after it, or before other rows, is not (review24b S1).
+#[test]
+fn a_log_cut_off_mid_line_is_named_as_such() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let (_, lines) = short_log(dir.path(), "whole.csv");
+    let cut_row: String = lines[3000].split(',').take(2).collect::<Vec<_>>().join(",");
+    let mut kept: Vec<String> = lines[..3000].to_vec();
+    kept.push(cut_row);
+    let cut = dir.path().join("cut.csv");
+    fs::write(&cut, kept.join("\n")).expect("write");
+    let model = dir.path().join("m.fogm");
+    let said = expect_failure(
+        &args!["fit", "--out", &model, &cut],
+        dir.path(),
+        Some(&model),
+        &[&format!("{}:3001:3:", cut.display())],
+    );
+    assert!(
+        said.contains("this is the file's last line and the file ends in it without a line end: cut off"),
+        "{said}"
+    );
+    let ended = dir.path().join("ended.csv");
+    write_lines(&ended, &kept);
+    let said = expect_failure(
+        &args!["fit", "--out", &model, &ended],
+        dir.path(),
+        Some(&model),
+        &["ended.csv:3001:3:"],
+    );
+    assert!(!said.contains("cut off"), "{said}");
+}
+
 #[test]
 fn bad_log_rows_are_located_and_nothing_is_written() {
     let dir = TempDir::new().expect("tempdir");

@@ -100,10 +100,49 @@ fn error_paragraph(e: &anyhow::Error) -> String {
             message.push_str("\n  caused by: ");
         }
         message.push_str(&text);
+        message.push_str(&cut_off_note(cause));
         message.push_str(flag_hint(cause).unwrap_or_default());
         previous = text;
     }
     message
+}
+
+/// For a bad row on a log's last line when the log ends without a line end: the file was cut
+/// off there (review24b S1: a power loss mid-line read as any short row). Reads the file
+/// again, only on this error.
+fn cut_off_note(e: &(dyn std::error::Error + 'static)) -> String {
+    let Some(CalError::BadRow { path, row }) = cal_error(e) else { return String::new() };
+    match line_breaks(path) {
+        Some((breaks, true)) if row.line == breaks + 1 => {
+            "; this is the file's last line and the file ends in it \
+             without a line end: cut off (a power loss, or a copy still being written?)"
+                .into()
+        }
+        _ => String::new(),
+    }
+}
+
+/// The line breaks of the file at `path` as the reader counts them (a CR, an LF or a CRLF
+/// ends a line), and whether its last byte ends no line; read in 1 MiB pieces.
+fn line_breaks(path: &std::path::Path) -> Option<(u64, bool)> {
+    use std::io::Read;
+    let mut file = std::fs::File::open(path).ok()?;
+    let mut buffer = vec![0u8; 1 << 20];
+    let (mut breaks, mut last) = (0u64, None);
+    loop {
+        let n = file.read(&mut buffer).ok()?;
+        if n == 0 {
+            break;
+        }
+        for &b in &buffer[..n] {
+            // A CR counts when no LF follows it; an LF after a CR ends the same line.
+            if (b == b'\n' && last != Some(b'\r')) || b == b'\r' {
+                breaks += 1;
+            }
+            last = Some(b);
+        }
+    }
+    Some((breaks, last.is_some_and(|b| b != b'\n' && b != b'\r')))
 }
 
 /// The library's error inside `e`, if it is one (directly or wrapped by the simulator or
