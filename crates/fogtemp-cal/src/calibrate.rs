@@ -928,11 +928,16 @@ pub fn calibration_points(
 
 /// The segments (tracker restarts) of one run's features none of whose points has a full
 /// window.
-fn segments_never_full(features: &[FeaturePoint]) -> Vec<u32> {
-    let mut segments: Vec<u32> = features.iter().map(|f| f.segment).collect();
-    segments.dedup();
-    segments.retain(|&s| !features.iter().any(|f| f.segment == s && f.window_full));
-    segments
+fn segments_never_full(features: &[FeaturePoint]) -> std::collections::BTreeSet<u32> {
+    let mut full = std::collections::BTreeSet::new();
+    let mut seen = std::collections::BTreeSet::new();
+    for f in features {
+        seen.insert(f.segment);
+        if f.window_full {
+            full.insert(f.segment);
+        }
+    }
+    seen.difference(&full).copied().collect()
 }
 
 /// The runs in an order fixed by their content (a hash of the axis's first feature point and
