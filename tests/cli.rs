@@ -1188,6 +1188,49 @@ fn input_rates_from_a_runs_file_are_subtracted_and_their_absence_is_warned() {
     assert!(!kinds(&with).contains(&"run_offsets".to_string()), "{:?}", kinds(&with));
     assert!(!kinds(&original).contains(&"run_offsets".to_string()), "{:?}", kinds(&original));
     assert!((rms(&with) - rms(&original)).abs() < 1e-6, "{} vs {}", rms(&with), rms(&original));
+    check_validated_means(dir.path(), &shifted, &runs);
+}
+
+/// `validate`'s per-run means (review24a S1: a model that leaves a run's bias behind) on the
+/// shifted logs of [`input_rates_from_a_runs_file_are_subtracted_and_their_absence_is_warned`]
+/// with the model fitted with their rates. The oracle: `compensate`'s output of the same log,
+/// averaged over the samples it corrected (flags without WARMING_UP), less the run's rate;
+/// to the rounding of the written CSV (6 decimals). Without `--runs` the means keep the rate.
+fn check_validated_means(dir: &Path, shifted: &Path, runs: &Path) {
+    let model = dir.join("m.fogm");
+    let validate = |extra: &[&Path]| -> Value {
+        let mut args = args!["validate", "--json", "--model", &model];
+        for e in extra {
+            args.extend(args!["--runs", e]);
+        }
+        args.push(shifted.into());
+        json(&run_ok(args))
+    };
+    let (with, without) = (validate(&[runs]), validate(&[]));
+    let out = dir.join("compensated.csv");
+    for (i, (r, bare)) in arr(&with["runs"]).iter().zip(arr(&without["runs"])).enumerate() {
+        let rate = if i % 2 == 0 { 9.66 } else { -9.66 };
+        assert_eq!(f(&r["input_rate_dph"]), rate, "{r}");
+        assert!(bare["input_rate_dph"].is_null(), "{bare}");
+        run_ok(args!["compensate", "--model", &model, "--out", &out, shifted.join(format!("run{i}.csv"))]);
+        let text = fs::read_to_string(&out).expect("read compensated");
+        let corrected: Vec<(f64, f64)> = text
+            .lines()
+            .skip(1)
+            .map(|l| l.split(',').map(|c| c.parse().expect("number")).collect::<Vec<f64>>())
+            .filter(|c| (c[4] as u32) & 1 == 0)
+            .map(|c| (c[1], c[2]))
+            .collect();
+        let n = corrected.len() as f64;
+        let raw_mean = corrected.iter().map(|c| c.0).sum::<f64>() / n - rate;
+        let comp_mean = corrected.iter().map(|c| c.1).sum::<f64>() / n - rate;
+        assert!((f(&r["raw_mean_dph"]) - raw_mean).abs() < 2e-6, "{r} against {raw_mean}");
+        assert!((f(&r["compensated_mean_dph"]) - comp_mean).abs() < 2e-6, "{r} against {comp_mean}");
+        assert!((f(&bare["compensated_mean_dph"]) - (comp_mean + rate)).abs() < 2e-6, "{bare}");
+        // The model was fitted with the rates subtracted: what it leaves is near zero,
+        // against a raw mean that is the warm-up bias (tens of deg/h here).
+        assert!(comp_mean.abs() < 0.05 * raw_mean.abs(), "{comp_mean} against raw {raw_mean}");
+    }
 }
 
 /// Output into a pipe whose reader has gone (`fogtemp-cal allan log | head -1`) ends the

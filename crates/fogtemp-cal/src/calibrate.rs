@@ -1819,7 +1819,7 @@ pub(crate) fn replay_with(
 }
 
 /// Raw vs compensated bias stability of one run.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct RunValidation {
     /// The log.
     pub path: PathBuf,
@@ -1836,9 +1836,26 @@ pub struct RunValidation {
     /// The averaging windows of the metric: how many it used and how many it left out
     /// because a gap or the run's end cut them short ([`crate::metrics::window_means`]).
     pub windows: MetricWindows,
+    /// The run's mean raw output over the metric's span, deg/h ([`span_means`]); NaN when
+    /// the span is empty. Bias stability is blind to a constant; this is where a model that
+    /// leaves a run's bias behind shows (review24a S1: two plateaus of a MEMS calibration).
+    pub raw_mean_dph: f64,
+    /// The run's mean compensated output over the same span, deg/h: its residual bias, plus
+    /// the true input rate unless [`Self::input_rate_dph`] names it.
+    pub compensated_mean_dph: f64,
+    /// The true rate about the input axis that a runs file gives for this run, deg/h
+    /// ([`Validation::with_input_rates`]); `None` when none was given.
+    pub input_rate_dph: Option<f64>,
 }
 
 impl RunValidation {
+    /// The run's mean raw and compensated output over the metric's span less its true input
+    /// rate where a runs file gave one, deg/h: what each leaves of the run's bias.
+    pub fn residual_means_dph(&self) -> (f64, f64) {
+        let rate = self.input_rate_dph.unwrap_or(0.0);
+        (self.raw_mean_dph - rate, self.compensated_mean_dph - rate)
+    }
+
     /// What a technician is told about the gaps in this run's time stamps (`None` without
     /// gaps): the command line's `note:` and Python's warning.
     pub fn gap_note(&self) -> Option<String> {
@@ -2219,6 +2236,29 @@ pub fn per_axis_overall(runs: &[RunValidation]) -> Vec<(usize, f64, f64)> {
         .collect()
 }
 
+/// The mean raw and compensated block values over the metric's span: the blocks from
+/// `from` (the first the compensator corrected) whose centres lie at least `exclude_first_s`
+/// after that block's, as [`bias_stability`] takes them. Every block counts once (a block cut
+/// by a gap counts as much as a full one); NaN when no block is in the span.
+pub fn span_means(series: &ReplaySeries, from: usize, exclude_first_s: f64) -> (f64, f64) {
+    let times = series.time_s.get(from..).unwrap_or_default();
+    let start_s = times.first().copied().unwrap_or(0.0) + exclude_first_s;
+    let (mut raw_sum, mut comp_sum, mut blocks) = (0.0, 0.0, 0usize);
+    let raw = series.raw_dph.get(from..).unwrap_or_default();
+    let comp = series.compensated_dph.get(from..).unwrap_or_default();
+    for ((t, r), c) in times.iter().zip(raw).zip(comp) {
+        if *t >= start_s && r.is_finite() && c.is_finite() {
+            raw_sum += r;
+            comp_sum += c;
+            blocks += 1;
+        }
+    }
+    if blocks == 0 {
+        return (f64::NAN, f64::NAN);
+    }
+    (raw_sum / blocks as f64, comp_sum / blocks as f64)
+}
+
 /// One model's validation: per run and axis, and overall (RMS over runs and axes).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Validation {
@@ -2255,6 +2295,19 @@ impl Validation {
             }
         }
         runs.into_iter().map(Self::from_runs).collect()
+    }
+
+    /// The same validation with each run's true input rate from a runs file
+    /// (`rates[log]`, deg/h), so that its residual bias can be read: set on axis 0 of models
+    /// of one axis only, as `fit` subtracts the rates ([`subtract_input_rates`]).
+    pub fn with_input_rates(mut self, rates: &[(PathBuf, f64)]) -> Self {
+        if self.runs.iter().any(|r| r.axis != 0) {
+            return self;
+        }
+        for run in &mut self.runs {
+            run.input_rate_dph = rates.iter().find(|(log, _)| *log == run.path).map(|(_, rate)| *rate);
+        }
+        self
     }
 }
 
@@ -2367,8 +2420,12 @@ pub fn validations(
                     used_spacing_s: stats.used_spacing_s,
                 };
                 let means = stats.means;
+                let (raw_mean_dph, compensated_mean_dph) = span_means(&series, from, options.exclude_first_s);
                 model_runs.push(RunValidation {
                     windows,
+                    raw_mean_dph,
+                    compensated_mean_dph,
+                    input_rate_dph: None,
                     path: path.clone(),
                     axis,
                     raw_bias_stability_dph: raw,
@@ -2532,6 +2589,9 @@ mod tests {
                     ..ReplaySeries::default()
                 },
                 ingest: IngestReport::default(),
+                raw_mean_dph: f64::NAN,
+                compensated_mean_dph: f64::NAN,
+                input_rate_dph: None,
                 windows: MetricWindows {
                     used: stats.means.len(),
                     left_out: stats.left_out,
@@ -2590,6 +2650,9 @@ mod tests {
                     ..ReplaySeries::default()
                 },
                 ingest: IngestReport::default(),
+                raw_mean_dph: f64::NAN,
+                compensated_mean_dph: f64::NAN,
+                input_rate_dph: None,
                 windows: MetricWindows {
                     used: stats.means.len(),
                     samples_used: stats.samples_used,
@@ -2666,6 +2729,39 @@ mod tests {
     }
 
     #[test]
+    fn span_means_take_the_blocks_of_the_metrics_span_on_hand_computed_numbers() {
+        let series = ReplaySeries {
+            time_s: vec![0.5, 1.5, 2.5, 3.5, 4.5, 5.5],
+            raw_dph: vec![9.0, 1.0, 2.0, f64::NAN, 4.0, 6.0],
+            compensated_dph: vec![9.0, 0.5, -0.5, 7.0, 1.5, 0.5],
+            ..ReplaySeries::default()
+        };
+        // From block 1: (1 + 2 + 4 + 6) / 4 and (0.5 - 0.5 + 1.5 + 0.5) / 4 (block 3 has no
+        // raw value and counts for neither).
+        assert_eq!(span_means(&series, 1, 0.0), (3.25, 0.5));
+        // 2 s excluded after block 1's centre (1.5 s): blocks from 3.5 s on.
+        assert_eq!(span_means(&series, 1, 2.0), (5.0, 1.0));
+        let (raw, comp) = span_means(&series, 6, 0.0);
+        assert!(raw.is_nan() && comp.is_nan(), "an empty span");
+        let run = |path: &str, axis: usize| RunValidation {
+            path: PathBuf::from(path),
+            axis,
+            raw_mean_dph: 12.0,
+            compensated_mean_dph: 10.5,
+            ..RunValidation::default()
+        };
+        let rates = [(PathBuf::from("a.csv"), 10.0)];
+        let one_axis = Validation::from_runs(vec![run("a.csv", 0), run("b.csv", 0)]).with_input_rates(&rates);
+        assert_eq!(one_axis.runs[0].input_rate_dph, Some(10.0));
+        assert_eq!(one_axis.runs[0].residual_means_dph(), (2.0, 0.5));
+        assert_eq!(one_axis.runs[1].input_rate_dph, None);
+        assert_eq!(one_axis.runs[1].residual_means_dph(), (12.0, 10.5));
+        // Several axes: a runs file's rate is about one input axis, so none is set.
+        let two_axes = Validation::from_runs(vec![run("a.csv", 0), run("a.csv", 1)]).with_input_rates(&rates);
+        assert!(two_axes.runs.iter().all(|r| r.input_rate_dph.is_none()));
+    }
+
+    #[test]
     fn a_run_made_worse_beyond_the_metrics_scatter_is_noted() {
         // 51 windows: relative standard error 1 / sqrt(100) = 10 %, so the bound is 1.2 x raw.
         let run = |raw: f64, comp: f64, used: usize| RunValidation {
@@ -2675,6 +2771,9 @@ mod tests {
             compensated_bias_stability_dph: comp,
             series: ReplaySeries::default(),
             ingest: IngestReport::default(),
+            raw_mean_dph: f64::NAN,
+            compensated_mean_dph: f64::NAN,
+            input_rate_dph: None,
             windows: MetricWindows { used, left_out: 0, ..MetricWindows::default() },
         };
         let note = run(0.005, 0.0232, 51).worse_than_raw_note("run.csv axis 1").expect("4.6 x worse");

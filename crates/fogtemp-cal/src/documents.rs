@@ -273,6 +273,15 @@ pub struct RunValidationDocument {
     /// The run's white-noise floor (as the document's; `null` when its gap-free stretches
     /// are too short for an Allan deviation).
     pub white_noise_floor: Option<WhiteNoiseFloor>,
+    /// The run's mean raw output over the metric's span less `input_rate_dph` (when given),
+    /// deg/h: the bias the run starts with (`null` when the span is empty).
+    pub raw_mean_dph: f64,
+    /// The same for the compensated output: the bias the model leaves, which bias stability
+    /// does not see (`null` when the span is empty).
+    pub compensated_mean_dph: f64,
+    /// The run's true input rate from `--runs`, deg/h, subtracted from both means; `null`
+    /// without a runs file or for a model of several axes.
+    pub input_rate_dph: Option<f64>,
     /// Samples replayed.
     pub samples: u64,
     /// Samples that carried each compensator flag.
@@ -305,6 +314,9 @@ impl RunValidationDocument {
             raw_bias_stability_dph: r.raw_bias_stability_dph,
             compensated_bias_stability_dph: r.compensated_bias_stability_dph,
             white_noise_floor: r.white_noise_floor(),
+            raw_mean_dph: r.residual_means_dph().0,
+            compensated_mean_dph: r.residual_means_dph().1,
+            input_rate_dph: r.input_rate_dph,
             samples: r.series.samples,
             flag_samples: FlagSamples::new(&r.series.flag_counts),
             skipped_rows: r.ingest.skipped,

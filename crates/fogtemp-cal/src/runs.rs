@@ -415,14 +415,24 @@ fn lines_text(lines: &[u64]) -> String {
 /// The runs file cannot be read or does not describe the logs ([`RunsFile::for_logs`]), or it
 /// gives roles and none is `val` ([`RunsProblem::NoValidationRun`]).
 pub fn validation_logs(logs: Vec<PathBuf>, runs: &Path) -> Result<Vec<PathBuf>, CalError> {
+    Ok(validation_runs(logs, runs)?.into_iter().map(|(log, _)| log).collect())
+}
+
+/// [`validation_logs`] with each kept log's true input rate from the runs file, deg/h.
+///
+/// # Errors
+/// As [`validation_logs`].
+pub fn validation_runs(logs: Vec<PathBuf>, runs: &Path) -> Result<Vec<(PathBuf, f64)>, CalError> {
     let file = RunsFile::read(runs)?;
     let rows = file.for_logs_of_a_command(&logs, Some(Role::Cal))?;
-    if rows.iter().all(|r| r.role.is_none()) {
-        return Ok(logs);
-    }
-    let kept: Vec<PathBuf> =
-        logs.iter().zip(rows).filter(|(_, r)| r.role == Some(Role::Val)).map(|(l, _)| l.clone()).collect();
-    if kept.is_empty() {
+    let with_roles = rows.iter().any(|r| r.role.is_some());
+    let kept: Vec<(PathBuf, f64)> = logs
+        .iter()
+        .zip(rows)
+        .filter(|(_, r)| !with_roles || r.role == Some(Role::Val))
+        .map(|(l, r)| (l.clone(), r.input_rate_dph))
+        .collect();
+    if kept.is_empty() && with_roles {
         return Err(problem(runs, 0, RunsProblem::NoValidationRun));
     }
     Ok(kept)

@@ -108,23 +108,38 @@ fn error_paragraph(e: &anyhow::Error) -> String {
 }
 
 /// For a bad row on a log's last line when the log ends without a line end: the file was cut
-/// off there (review24b S1: a power loss mid-line read as any short row). Reads the file
-/// again, only on this error.
+/// off there (review24b S1: a power loss mid-line read as any short row). Reads the file's
+/// last byte again, only on this error, and counts its line breaks only when that byte ends
+/// no line.
 fn cut_off_note(e: &(dyn std::error::Error + 'static)) -> String {
     let Some(CalError::BadRow { path, row }) = cal_error(e) else { return String::new() };
+    if ends_without_line_end(path) != Some(true) {
+        return String::new();
+    }
     match line_breaks(path) {
-        Some((breaks, true)) if row.line == breaks + 1 => {
-            "; this is the file's last line and the file ends in it \
+        Some(breaks) if row.line == breaks + 1 => "; this is the file's last line and the file ends in it \
              without a line end: cut off (a power loss, or a copy still being written?)"
-                .into()
-        }
+            .into(),
         _ => String::new(),
     }
 }
 
+/// Whether the file at `path` is not empty and its last byte ends no line (neither CR nor LF).
+fn ends_without_line_end(path: &std::path::Path) -> Option<bool> {
+    use std::io::{Read, Seek, SeekFrom};
+    let mut file = std::fs::File::open(path).ok()?;
+    if file.seek(SeekFrom::End(0)).ok()? == 0 {
+        return Some(false);
+    }
+    file.seek(SeekFrom::End(-1)).ok()?;
+    let mut last = [0u8; 1];
+    file.read_exact(&mut last).ok()?;
+    Some(last[0] != b'\n' && last[0] != b'\r')
+}
+
 /// The line breaks of the file at `path` as the reader counts them (a CR, an LF or a CRLF
-/// ends a line), and whether its last byte ends no line; read in 1 MiB pieces.
-fn line_breaks(path: &std::path::Path) -> Option<(u64, bool)> {
+/// ends a line); read in 1 MiB pieces.
+fn line_breaks(path: &std::path::Path) -> Option<u64> {
     use std::io::Read;
     let mut file = std::fs::File::open(path).ok()?;
     let mut buffer = vec![0u8; 1 << 20];
@@ -142,7 +157,7 @@ fn line_breaks(path: &std::path::Path) -> Option<(u64, bool)> {
             last = Some(b);
         }
     }
-    Some((breaks, last.is_some_and(|b| b != b'\n' && b != b'\r')))
+    Some(breaks)
 }
 
 /// The library's error inside `e`, if it is one (directly or wrapped by the simulator or

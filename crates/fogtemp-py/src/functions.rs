@@ -893,6 +893,8 @@ pub fn validate<'py>(
     let (mut in_sample, mut file_notes): (Vec<String>, Vec<String>) = (Vec::new(), Vec::new());
     // How the logs were read, first in the document's notes as in `validate --json`'s.
     let mut how_read: Vec<String> = Vec::new();
+    // Each log's true input rate from the runs file (none for arrays or without one).
+    let mut input_rates: Vec<(PathBuf, f64)> = Vec::new();
     let per_log = if arrays {
         let runs = array_runs_of(&items, names.as_deref())?;
         if let Some(note) = calibrate::axis_count_note(
@@ -911,7 +913,8 @@ pub fn validate<'py>(
             return Err(errors::value("validate() needs at least one log"));
         }
         if let Some(path) = &runs_file {
-            logs = fogtemp_cal::runs::validation_logs(logs, path).map_err(errors::cal)?;
+            input_rates = fogtemp_cal::runs::validation_runs(logs, path).map_err(errors::cal)?;
+            logs = input_rates.iter().map(|(log, _)| log.clone()).collect();
         }
         how_read = choose_columns(
             py,
@@ -938,7 +941,7 @@ pub fn validate<'py>(
     };
     let mut outcomes = Validation::combine_logs(refs.len(), per_log);
     let compared = outcomes.split_off(1.min(outcomes.len()));
-    let validation = outcomes.pop().unwrap_or_default();
+    let validation = outcomes.pop().unwrap_or_default().with_input_rates(&input_rates);
     for r in validation.runs.iter().filter(|r| r.axis == 0) {
         if r.ingest.rows == 0 {
             let what = if arrays { "no samples" } else { "no data rows (only a header)" };

@@ -304,6 +304,9 @@ mod tests {
             compensated_bias_stability_dph: comp,
             series: ReplaySeries::default(),
             ingest: crate::ingest::IngestReport::default(),
+            raw_mean_dph: f64::NAN,
+            compensated_mean_dph: f64::NAN,
+            input_rate_dph: None,
             windows: crate::calibrate::MetricWindows::default(),
         }
     }

@@ -738,7 +738,7 @@ pub fn write_validation_report_with(
              left out of figures and metric alike).\n\n"
         ));
         md.push_str(
-            "| run | axis | raw, deg/h | compensated, deg/h | raw / compensated (above 1: better) | white-noise floor, deg/h | windows (scatter of each figure) | outside the calibrated region |\n|---|---|---|---|---|---|---|---|\n",
+            "| run | axis | raw, deg/h | compensated, deg/h | raw / compensated (above 1: better) | white-noise floor, deg/h | windows (scatter of each figure) | outside the calibrated region | mean raw, deg/h | mean compensated, deg/h |\n|---|---|---|---|---|---|---|---|---|---|\n",
         );
         let outside_bit = fogtemp_core::Flags::OUTSIDE_HULL.0.trailing_zeros() as usize;
         for r in runs {
@@ -747,8 +747,9 @@ pub fn write_validation_report_with(
                 .windows
                 .relative_standard_error()
                 .map_or(String::new(), |se| format!(" (+-{:.0} %)", 100.0 * se));
+            let (raw_mean, comp_mean) = r.residual_means_dph();
             md.push_str(&format!(
-                "| {} | {} | {} | {} | {:.2} | {} | {}{scatter} | {} % |\n",
+                "| {} | {} | {} | {} | {:.2} | {} | {}{scatter} | {} % | {} | {} |\n",
                 file_name(&r.path),
                 r.axis,
                 dph(r.raw_bias_stability_dph),
@@ -756,14 +757,16 @@ pub fn write_validation_report_with(
                 r.raw_bias_stability_dph / r.compensated_bias_stability_dph,
                 white_noise_floor_cell(r.white_noise_floor()),
                 r.windows.used,
-                crate::calibrate::share_percent(outside, r.series.samples)
+                crate::calibrate::share_percent(outside, r.series.samples),
+                mean_cell(raw_mean),
+                mean_cell(comp_mean)
             ));
         }
         let per_axis = crate::calibrate::per_axis_overall(runs);
         if per_axis.len() > 1 {
             for (axis, raw, comp) in &per_axis {
                 md.push_str(&format!(
-                    "| overall of axis {axis} (RMS over its runs) | {axis} | {} | {} | {:.2} | {} | | |\n",
+                    "| overall of axis {axis} (RMS over its runs) | {axis} | {} | {} | {:.2} | {} | | | | |\n",
                     dph(*raw),
                     dph(*comp),
                     raw / comp,
@@ -777,7 +780,7 @@ pub fn write_validation_report_with(
             if per_axis.len() > 1 { "overall (RMS over runs and axes)" } else { "overall (RMS over runs)" };
         let overall_floor = crate::calibrate::overall_white_noise_floor(runs);
         md.push_str(&format!(
-            "| **{label}** | | **{}** | **{}** | **{:.2}** | {} | | |\n\n",
+            "| **{label}** | | **{}** | **{}** | **{:.2}** | {} | | | | |\n\n",
             dph(overall.0),
             dph(overall.1),
             overall.0 / overall.1,
@@ -788,6 +791,7 @@ pub fn write_validation_report_with(
             "White-noise floor: {}\n\n",
             white_noise_floor_explanation(overall_floor, overall.1, options.tau_s)
         ));
+        md.push_str(&format!("Means: {}.\n\n", crate::report::means_meaning(runs)));
         // How far one run's figure moves with its noise alone (review14 F4: per-run ratios of
         // 0.87-0.96 read as compensation making things worse, within a run's ~8 % scatter).
         md.push_str(
@@ -1303,6 +1307,35 @@ pub fn write_fit_report(
         write_file_atomic(&path, |w| w.write_all(md.as_bytes()))?;
         write_html_beside(&path)
     })
+}
+
+/// A run's mean output in a table cell, deg/h ("undefined" for an empty span).
+fn mean_cell(value_dph: f64) -> String {
+    if value_dph.is_nan() {
+        "undefined".into()
+    } else {
+        format!("{value_dph:.4}")
+    }
+}
+
+/// What the validation's mean columns are (`validate`'s table and report): each run's mean
+/// output over the metric's span, the bias a constant leaves that bias stability does not
+/// see; less the true input rate where a runs file gave it.
+pub fn means_meaning(runs: &[crate::calibrate::RunValidation]) -> String {
+    let given = runs.iter().filter(|r| r.input_rate_dph.is_some()).count();
+    let rate = if given == 0 {
+        "it includes the rate the gyro sensed (the Earth rate's share): a runs file with \
+         input_rate_dph subtracts it"
+            .to_string()
+    } else if given == runs.len() {
+        "less the run's input rate from the runs file".to_string()
+    } else {
+        format!("less the run's input rate from the runs file for {given} of {} rows", runs.len())
+    };
+    format!(
+        "each run's mean output over the metric's span, deg/h: the bias the run starts with (raw) \
+         and the bias the model leaves (compensated), which bias stability does not see; {rate}"
+    )
 }
 
 #[cfg(test)]

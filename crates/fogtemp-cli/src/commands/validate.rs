@@ -55,9 +55,12 @@ pub fn validate(a: ValidateArgs) -> Result<()> {
     let blob = read_model(&a.model)?;
     check_capacity(&a.model, &blob, a.capacity)?;
     let model = Model::from_bytes(&blob).map_err(|e| anyhow::anyhow!("{e}"))?;
-    let logs = match a.runs.as_deref() {
-        Some(runs) => fogtemp_cal::runs::validation_logs(expand_logs_for_reading(&a.logs)?, runs)?,
-        None => expand_logs_for_reading(&a.logs)?,
+    let (logs, input_rates): (Vec<_>, Vec<_>) = match a.runs.as_deref() {
+        Some(runs) => {
+            let kept = fogtemp_cal::runs::validation_runs(expand_logs_for_reading(&a.logs)?, runs)?;
+            (kept.iter().map(|(log, _)| log.clone()).collect(), kept)
+        }
+        None => (expand_logs_for_reading(&a.logs)?, Vec::new()),
     };
     let (ingest, columns) = super::ingest_options_for(&a.ingest, &model, &a.model)?;
     super::warn_axis_count(&a.model, model.axis_count(), ingest.format.gyro_columns.len());
@@ -94,7 +97,7 @@ pub fn validate(a: ValidateArgs) -> Result<()> {
         done.finish_and_clear();
     }
     let compared = outcomes.split_off(1.min(outcomes.len()));
-    let validation = outcomes.pop().unwrap_or_default();
+    let validation = outcomes.pop().unwrap_or_default().with_input_rates(&input_rates);
     let (runs, raw, comp) =
         (&validation.runs, validation.raw_bias_stability_dph, validation.compensated_bias_stability_dph);
     let model = &models[0];
@@ -149,8 +152,8 @@ pub fn validate(a: ValidateArgs) -> Result<()> {
     // As wide as the longest name, so that long names do not push the columns out of line.
     let width = names.iter().map(|n| n.chars().count() + 1).max().unwrap_or(0).max(40);
     println!(
-        "{:<width$} {:>4} {:>14} {:>14} {:>8} {:>14}",
-        "run", "axis", "raw deg/h", "comp deg/h", "raw/comp", "floor deg/h"
+        "{:<width$} {:>4} {:>14} {:>14} {:>8} {:>14} {:>14} {:>14}",
+        "run", "axis", "raw deg/h", "comp deg/h", "raw/comp", "floor deg/h", "raw mean", "comp mean"
     );
     // An undefined figure (a run shorter than two windows) says so, not NaN (review24a F6).
     let dph = |v: f64| if v.is_nan() { "undefined".to_string() } else { dph(v) };
@@ -162,15 +165,19 @@ pub fn validate(a: ValidateArgs) -> Result<()> {
             format!("{r:.2}")
         }
     };
+    let mean = |v: f64| if v.is_nan() { "undefined".to_string() } else { format!("{v:.4}") };
     for (r, name) in runs.iter().zip(&names) {
+        let (raw_mean, comp_mean) = r.residual_means_dph();
         println!(
-            "{:<width$} {:>4} {:>14} {:>14} {:>8} {:>14}",
+            "{:<width$} {:>4} {:>14} {:>14} {:>8} {:>14} {:>14} {:>14}",
             name,
             r.axis,
             dph(r.raw_bias_stability_dph),
             dph(r.compensated_bias_stability_dph),
             ratio(r.raw_bias_stability_dph, r.compensated_bias_stability_dph),
-            fogtemp_cal::report::white_noise_floor_cell(r.white_noise_floor())
+            fogtemp_cal::report::white_noise_floor_cell(r.white_noise_floor()),
+            mean(raw_mean),
+            mean(comp_mean)
         );
     }
     let per_axis = validation.per_axis();
@@ -205,6 +212,7 @@ pub fn validate(a: ValidateArgs) -> Result<()> {
         "floor = white noise alone: {}",
         fogtemp_cal::report::white_noise_floor_explanation(overall_floor, comp, options.tau_s)
     );
+    println!("raw mean, comp mean = {}", fogtemp_cal::report::means_meaning(runs));
     if !comparison.is_empty() {
         println!("\nmodels compared on the same logs (overall, RMS over runs):");
         println!(
