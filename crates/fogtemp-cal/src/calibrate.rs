@@ -1966,10 +1966,18 @@ impl RunValidation {
         } else if self.compensated_bias_stability_dph.is_nan() && s.samples > 0 {
             // How long the compensated span is, and the averaging time that gives figures: two
             // windows at least (review24a F6: 65 s and 131 s runs printed NaN, no way out said).
-            let span_s = s.time_s.last().map_or(0.0, |&t| t - s.compensating_from_s);
+            // The metric's own span: after the start the metric leaves out (review25a 5: the
+            // advice ignored --exclude-first-s and still gave no figures).
+            let excluded_s = self.windows.excluded_s.max(0.0);
+            let span_s = s.time_s.last().map_or(0.0, |&t| t - s.compensating_from_s - excluded_s);
+            let after = if excluded_s > 0.0 {
+                format!(" after the first {excluded_s} s left out")
+            } else {
+                String::new()
+            };
             let shorter = if span_s >= 2.0 {
                 format!(
-                    "; the compensated span is {span_s:.0} s: a shorter averaging time gives figures (--tau-s at most \
+                    "; the compensated span is {span_s:.0} s{after}: a shorter averaging time gives figures (--tau-s at most \
                      {:.0}, Python tau_s=)",
                     (span_s / 2.0).floor()
                 )
@@ -2212,6 +2220,8 @@ pub struct MetricWindows {
     pub tau_s: f64,
     /// The median spacing of consecutive used windows, s (NaN: unknown).
     pub used_spacing_s: f64,
+    /// The start of each run the metric left out (`--exclude-first-s`), s.
+    pub excluded_s: f64,
 }
 
 impl MetricWindows {
@@ -2418,6 +2428,7 @@ pub fn validations(
                     samples_used: stats.samples_used,
                     tau_s: options.tau_s,
                     used_spacing_s: stats.used_spacing_s,
+                    excluded_s: options.exclude_first_s,
                 };
                 let means = stats.means;
                 let (raw_mean_dph, compensated_mean_dph) = span_means(&series, from, options.exclude_first_s);
@@ -2598,6 +2609,7 @@ mod tests {
                     samples_used: stats.samples_used,
                     tau_s: options.tau_s,
                     used_spacing_s: stats.used_spacing_s,
+                    excluded_s: 0.0,
                 },
             }
         };
@@ -2726,6 +2738,37 @@ mod tests {
         let floor = slow.white_noise_floor().expect("a 10 s spacing is a tenth of the window");
         assert_eq!(floor.from_tau_s, 10.0);
         assert!((floor.floor_dph / (sigma_1s / 10f64.sqrt()) - 1.0).abs() < 0.11, "{floor:?}");
+    }
+
+    #[test]
+    fn the_shorter_averaging_time_advised_counts_the_start_left_out() {
+        // Blocks at 0.5 .. 239.5 s, corrected from 10 s on: 229.5 s of compensated span to
+        // the last block's centre; with the first 100 s left out, 129.5 s.
+        let run = |excluded_s: f64| RunValidation {
+            path: PathBuf::from("short.csv"),
+            compensated_bias_stability_dph: f64::NAN,
+            series: ReplaySeries {
+                time_s: (0..240).map(|k| k as f64 + 0.5).collect(),
+                compensating_from_s: 10.0,
+                samples: 240,
+                ..ReplaySeries::default()
+            },
+            windows: MetricWindows { excluded_s, ..MetricWindows::default() },
+            ..RunValidation::default()
+        };
+        let said = |r: RunValidation| r.notes().join("\n");
+        let plain = said(run(0.0));
+        assert!(
+            plain.contains(
+                "the compensated span is 230 s: a shorter averaging time gives figures (--tau-s at most 114"
+            ),
+            "{plain}"
+        );
+        let excluded = said(run(100.0));
+        assert!(
+            excluded.contains("the compensated span is 130 s after the first 100 s left out: a shorter averaging time gives figures (--tau-s at most 64"),
+            "{excluded}"
+        );
     }
 
     #[test]

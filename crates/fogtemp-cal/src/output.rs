@@ -81,10 +81,23 @@ impl Staged {
     }
 }
 
-/// The prefix of the temporary files that [`stage`] makes for `path`: `.NAME.fogtemp-`.
-fn temporary_prefix(path: &Path) -> String {
-    format!(".{}.fogtemp-", path.file_name().map_or_else(String::new, |n| n.to_string_lossy().into_owned()))
+/// The prefix of the temporary files that [`stage`] makes for `path`: `.NAME.fogtemp-`, with
+/// NAME cut to its first [`PREFIX_NAME_BYTES`] bytes (at a character boundary), so that the
+/// temporary's name (the prefix and 6 random characters) stays within the 255 bytes a file
+/// name may have wherever the destination's does (review25a 3: a 245-byte name failed after
+/// the whole fit).
+pub fn temporary_prefix(path: &Path) -> String {
+    let name = path.file_name().map_or_else(String::new, |n| n.to_string_lossy().into_owned());
+    let mut end = name.len().min(PREFIX_NAME_BYTES);
+    while !name.is_char_boundary(end) {
+        end -= 1;
+    }
+    format!(".{}.fogtemp-", &name[..end])
 }
+
+/// The bytes of a destination's name that its temporary files' names keep: 255 less the
+/// 16 that the dots, `fogtemp-` and the 6 random characters take, rounded down.
+const PREFIX_NAME_BYTES: usize = 230;
 
 /// Temporary files of `path` already in its folder, with their sizes in bytes, by name: left
 /// by a process killed with SIGKILL (no handler runs), or being written by one still running
@@ -210,9 +223,26 @@ pub fn all_or_nothing<T, E: From<CalError>>(work: impl FnOnce() -> Result<T, E>)
         return work();
     }
     DEFERRED.with(|d| *d.borrow_mut() = Some(Deferred::default()));
+    // Closes the scope however `work` ends, a panic included: a scope left open would hold
+    // back every later write on this thread (a Python session survives a panic; review25a 11).
+    let _close = CloseScope;
     let result = work();
     let deferred = DEFERRED.with(|d| d.borrow_mut().take()).unwrap_or_default();
     let value = result?;
+    // Everything that would stop a rename or a removal half way is looked for before the
+    // first one, so that a failure leaves the old files as they were (review25a 1: a folder
+    // in a figure's place was found after the report's text had been replaced).
+    let in_the_way =
+        deferred.staged.iter().map(Staged::path).chain(deferred.removals.iter().map(PathBuf::as_path));
+    for path in in_the_way {
+        if path.is_dir() {
+            let source =
+                std::io::Error::new(std::io::ErrorKind::IsADirectory, "a folder is in the file's place");
+            return Err(
+                CalError::Output { action: "cannot replace", path: path.to_path_buf(), source }.into()
+            );
+        }
+    }
     for staged in deferred.staged {
         staged.commit()?;
     }
@@ -225,6 +255,16 @@ pub fn all_or_nothing<T, E: From<CalError>>(work: impl FnOnce() -> Result<T, E>)
         }
     }
     Ok(value)
+}
+
+/// Closes this thread's [`all_or_nothing`] scope when dropped (its staged files are removed
+/// with it).
+struct CloseScope;
+
+impl Drop for CloseScope {
+    fn drop(&mut self) {
+        DEFERRED.with(|d| d.borrow_mut().take());
+    }
 }
 
 /// Removes `path` now, or at the end of an open [`all_or_nothing`] scope.
@@ -257,6 +297,35 @@ pub fn read_current(path: &Path) -> std::io::Result<String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A folder in the place of one of a scope's files is found before anything moves: the
+    /// other files keep their old text (review25a 1); a panic inside a scope closes it, so
+    /// later writes on the thread are not held back.
+    #[test]
+    fn a_folder_in_the_way_moves_nothing_and_a_panic_closes_the_scope() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let (text, figure) = (dir.path().join("report.md"), dir.path().join("figure.svg"));
+        std::fs::write(&text, b"old").expect("write");
+        std::fs::create_dir(&figure).expect("mkdir");
+        let failed: Result<(), CalError> = all_or_nothing(|| {
+            write_file_atomic(&text, |w| w.write_all(b"new"))?;
+            write_file_atomic(&figure, |w| w.write_all(b"<svg/>"))
+        });
+        let err = failed.expect_err("a folder is in the figure's place");
+        assert!(err.to_string().contains("cannot replace"), "{err}");
+        assert_eq!(std::fs::read_to_string(&text).expect("read"), "old");
+        let names = std::fs::read_dir(dir.path()).expect("list").count();
+        assert_eq!(names, 2, "no temporary file left");
+        let panicked = std::panic::catch_unwind(|| {
+            let _: Result<(), CalError> = all_or_nothing(|| {
+                write_file_atomic(&text, |w| w.write_all(b"half"))?;
+                panic!("a bug inside the scope")
+            });
+        });
+        assert!(panicked.is_err());
+        write_file_atomic(&text, |w| w.write_all(b"after")).expect("write");
+        assert_eq!(std::fs::read_to_string(&text).expect("read"), "after", "written at once, no scope open");
+    }
 
     /// Inside a scope nothing moves until its end: a failure replaces none of the old files
     /// (and removes none), a success all of them; `read_current` sees the staged text.
@@ -366,6 +435,14 @@ mod tests {
             .filter(|n| n != "released.fogm")
             .collect();
         assert!(names.len() == 1 && names[0].starts_with(".run-comp.csv.fogtemp-"), "{names:?}");
+        // A destination name near the 255-byte limit (3-byte characters): the temporary's
+        // name is cut to fit and the file is written.
+        let long = dir.path().join(format!("{}.fogm", "\u{6a21}".repeat(83)));
+        assert_eq!(long.file_name().map(|n| n.len()), Some(254));
+        let prefix = temporary_prefix(&long);
+        assert!(prefix.len() + 6 <= 255 && prefix.ends_with(".fogtemp-"), "{}", prefix.len());
+        write_file_atomic(&long, |w| w.write_all(b"m")).expect("a 254-byte name is written");
+        assert_eq!(std::fs::read(&long).expect("read"), b"m");
         drop(staged);
     }
 

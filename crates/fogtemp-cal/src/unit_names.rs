@@ -38,7 +38,9 @@ pub fn unit_name_notes(format: &LogFormat, options: OptionNames<'_>) -> Vec<Stri
     };
     for column in &format.gyro_columns {
         let Some(named) = rate_unit_in_name(column) else { continue };
-        let ratio = read_dph_per_unit / named.dph();
+        // The size only: a negative scale turns an axis mounted the other way round, which is
+        // no unit (review25a 4).
+        let ratio = (read_dph_per_unit / named.dph()).abs();
         if (1.0 / SCALE_TOLERANCE..=SCALE_TOLERANCE).contains(&ratio) {
             continue;
         }
@@ -152,11 +154,25 @@ fn rate_unit_in_name(name: &str) -> Option<RateUnit> {
 
 /// A temperature unit other than deg C that a name gives as a word of its own (`temp_k`,
 /// `T [K]`, `Temp (F)`, `kelvin`), with the conversion to deg C.
+///
+/// Words here run over letters and digits, so a sensor's label (`temp_F1`, `TK2`) is no unit;
+/// a `K` after `type` is a thermocouple's type, and a name that also gives deg C (`TC1 type K
+/// [°C]`) says its unit (review25a 8).
 fn temperature_unit_in_name(name: &str) -> Option<(&'static str, &'static str)> {
-    let words = words(name);
+    let words: Vec<String> = name
+        .to_ascii_lowercase()
+        .split(|c: char| !c.is_ascii_alphanumeric())
+        .filter(|w| !w.is_empty())
+        .map(str::to_string)
+        .collect();
     let has = |list: &[&str]| words.iter().any(|w| list.contains(&w.as_str()));
-    let kelvin = has(&["k", "kelvin"]);
+    let celsius = has(&["c", "degc", "celsius"]) || name.contains("\u{b0}C");
+    let thermocouple_k = |i: usize| i > 0 && words.get(i - 1).is_some_and(|w| w == "type");
+    let kelvin = words.iter().enumerate().any(|(i, w)| w == "kelvin" || (w == "k" && !thermocouple_k(i)));
     let fahrenheit = has(&["f", "degf", "fahrenheit"]) || name.contains("\u{b0}F");
+    if celsius {
+        return None;
+    }
     match (kelvin, fahrenheit) {
         (true, false) => Some(("kelvin", "offset -273.15")),
         (false, true) => Some(("deg F", "scale 0.5555556, offset -17.777778")),
@@ -212,7 +228,9 @@ mod tests {
         for name in ["temp_k", "T [K]", "Temp (F)", "temp_kelvin", "t °F"] {
             assert!(temperature_unit_in_name(name).is_some(), "{name}");
         }
-        for name in ["temp_c", "temp", "T [°C]", "kf", "temp_k_f"] {
+        for name in
+            ["temp_c", "temp", "T [°C]", "kf", "temp_k_f", "TC1 type K [°C]", "TC1 type K", "temp_F1", "TK2"]
+        {
             assert_eq!(temperature_unit_in_name(name), None, "{name}");
         }
     }
@@ -245,6 +263,9 @@ mod tests {
         // (psim-tvc's rad/s x 0.5 is 103,132 deg/h per unit).
         let scaled = LogFormat { gyro_scale: 103_132.41, time_unit: TimeUnit::Milliseconds, ..psim.clone() };
         assert!(unit_name_notes(&scaled, CLI_OPTIONS).is_empty());
+        // A negative scale turns an axis round: no unit (review25a 4).
+        let inverted = LogFormat { gyro_scale: -1.0, ..format("time_s", "gyro_dph", "temp_c") };
+        assert!(unit_name_notes(&inverted, CLI_OPTIONS).is_empty());
         // A model fitted in deg/s replays a deg/h column at 3600 deg/h per unit (review23b F2).
         let replayed = LogFormat { gyro_scale: 3600.0, ..format("time_s", "gyro_dph", "temp_c") };
         assert_eq!(

@@ -99,7 +99,10 @@ pub fn check_output_file(out: &Path) -> Result<()> {
     if !folder.is_dir() {
         bail!("{}: the folder {} does not exist", out.display(), folder.display());
     }
-    tempfile::NamedTempFile::new_in(folder)
+    // With the prefix the output's own temporary will have (a name near the length limit).
+    tempfile::Builder::new()
+        .prefix(&fogtemp_cal::output::temporary_prefix(out))
+        .tempfile_in(folder)
         .map(drop)
         .with_context(|| format!("{}: cannot create a temporary file in {}", out.display(), folder.display()))
 }

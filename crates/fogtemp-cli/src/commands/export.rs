@@ -80,8 +80,15 @@ pub fn export(a: ExportArgs) -> Result<()> {
     match a.format {
         ExportFormat::Rust if to_stdout => {
             let mut out = std::io::stdout().lock();
-            write_rust(&mut out, &source, &blob, (name, &upper), capacity, &units, &bytes_lines(16))?;
-            return Ok(());
+            let written =
+                write_rust(&mut out, &source, &blob, (name, &upper), capacity, &units, &bytes_lines(16))
+                    .and_then(|()| std::io::Write::flush(&mut out));
+            // A reader that closed the pipe (`| head`) has what it wanted: a quiet end, as
+            // every other output to stdout (review25a 6).
+            return match written {
+                Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => std::process::exit(0),
+                other => Ok(other?),
+            };
         }
         ExportFormat::Rust => write_atomic(&a.out, |w| {
             write_rust(w, &source, &blob, (name, &upper), capacity, &units, &bytes_lines(16))?;
