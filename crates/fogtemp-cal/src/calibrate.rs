@@ -1560,12 +1560,15 @@ impl OutsideReach {
         let (r0, r1) = self.rate_range_c_per_min;
         let mut reach = Vec::new();
         if self.temp_beyond_c > 0.0 {
-            reach.push(format!("{:.2} C beyond the calibrated {t0:.2} .. {t1:.2} C", self.temp_beyond_c));
+            reach.push(format!(
+                "{} C beyond the calibrated {t0:.2} .. {t1:.2} C",
+                distance_text(self.temp_beyond_c, 2)
+            ));
         }
         if self.rate_beyond_c_per_min > 0.0 {
             reach.push(format!(
-                "{:.4} C/min beyond the calibrated {r0:.4} .. {r1:.4} C/min",
-                self.rate_beyond_c_per_min
+                "{} C/min beyond the calibrated {r0:.4} .. {r1:.4} C/min",
+                distance_text(self.rate_beyond_c_per_min, 4)
             ));
         }
         let beyond = format!("at most {} (the tracker's features)", reach.join(" and "));
@@ -1582,6 +1585,17 @@ impl OutsideReach {
             .filter(|(samples, _)| *samples > 0)
             .collect()
     }
+}
+
+/// A positive distance to `decimals` decimals, or to its first significant digit when it is
+/// smaller than that shows (review25b F8: "at most 0.00 C beyond").
+fn distance_text(value: f64, decimals: usize) -> String {
+    let shown = 10f64.powi(-(decimals as i32));
+    if value >= 0.5 * shown || value.is_nan() || value <= 0.0 {
+        return format!("{value:.decimals$}");
+    }
+    let needed = (-value.log10()).ceil().clamp(decimals as f64, 12.0) as usize;
+    format!("{value:.needed$}")
 }
 
 impl ReplaySeries {
@@ -2738,6 +2752,15 @@ mod tests {
         let floor = slow.white_noise_floor().expect("a 10 s spacing is a tenth of the window");
         assert_eq!(floor.from_tau_s, 10.0);
         assert!((floor.floor_dph / (sigma_1s / 10f64.sqrt()) - 1.0).abs() < 0.11, "{floor:?}");
+    }
+
+    #[test]
+    fn distances_below_the_decimals_show_their_first_digit() {
+        assert_eq!(distance_text(1.234, 2), "1.23");
+        assert_eq!(distance_text(0.005, 2), "0.01");
+        assert_eq!(distance_text(0.0043, 2), "0.004");
+        assert_eq!(distance_text(0.00047, 2), "0.0005");
+        assert_eq!(distance_text(0.00002, 4), "0.00002");
     }
 
     #[test]
