@@ -732,12 +732,15 @@ pub struct TemperatureSteps {
     pub smallest_c: f64,
     /// Changes between consecutive finite readings.
     pub changes: u64,
+    /// Finite readings: a staircase holds each value over several of them, a fine sensor
+    /// read seldom changes at nearly every one (review25a 10).
+    pub readings: u64,
     last_c: Option<f64>,
 }
 
 impl Default for TemperatureSteps {
     fn default() -> Self {
-        Self { smallest_c: f64::INFINITY, changes: 0, last_c: None }
+        Self { smallest_c: f64::INFINITY, changes: 0, readings: 0, last_c: None }
     }
 }
 
@@ -747,6 +750,7 @@ impl TemperatureSteps {
         if !temp_c.is_finite() {
             return;
         }
+        self.readings += 1;
         if let Some(last) = self.last_c.filter(|&last| last != temp_c) {
             self.smallest_c = self.smallest_c.min((temp_c - last).abs());
             self.changes += 1;

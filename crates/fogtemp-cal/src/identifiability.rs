@@ -303,6 +303,12 @@ pub const COARSE_TEMPERATURE_STEP_C: f64 = 0.5;
 /// Changes a run's temperature must make before its steps say anything of its resolution.
 pub const COARSE_MIN_CHANGES: u64 = 3;
 
+/// Readings per change, on average, from which large steps are a staircase: a sensor of
+/// coarse resolution holds each value over several readings; a fine one read seldom on a
+/// ramp (once a minute at 0.8 C/min) changes at every reading by as much, which says nothing
+/// of its resolution (review25a 10). Two: a staircase repeats each value at least once.
+pub const COARSE_READINGS_PER_STEP: u64 = 2;
+
 /// `coarse_temperature` for axis `axis`: the runs whose temperature changes only in steps of
 /// [`COARSE_TEMPERATURE_STEP_C`] or more. A tracker window of `window_s` sees such a
 /// staircase change at most once per step, so rates below step / window are not resolved
@@ -312,7 +318,9 @@ fn coarse_temperature(runs: &[RunFeatures], axis: usize, window_s: f64) -> Optio
         .iter()
         .filter_map(|run| Some((crate::runs::run_name(&run.path), *run.temperature_steps.get(axis)?)))
         .filter(|(_, steps)| {
-            steps.changes >= COARSE_MIN_CHANGES && steps.smallest_c >= COARSE_TEMPERATURE_STEP_C
+            steps.changes >= COARSE_MIN_CHANGES
+                && steps.smallest_c >= COARSE_TEMPERATURE_STEP_C
+                && steps.readings >= COARSE_READINGS_PER_STEP * steps.changes
         })
         .collect();
     let (first, steps) = coarse.first()?;
@@ -932,10 +940,34 @@ mod tests {
         for t in [20.0, 20.0, f64::NAN, 21.0, 22.5, 22.5, 20.0] {
             steps.observe(t);
         }
-        assert_eq!((steps.smallest_c, steps.changes), (1.0, 3));
+        assert_eq!((steps.smallest_c, steps.changes, steps.readings), (1.0, 3, 6));
         let mut two = whole.clone();
         two.temperature_steps[0].changes = 2;
         assert_eq!(coarse_temperature(&[two], 0, 100.0), None, "two changes say nothing");
+    }
+
+    /// A fine sensor read once a minute on a 0.8 C/min ramp changes by 0.8 C at every reading:
+    /// large steps, but no staircase (review25a 10). Readings 3 decimals, 1 Hz gyro rows, the
+    /// temperature cell empty in the other 59 of each 60.
+    #[test]
+    fn a_fine_temperature_read_seldom_is_no_staircase() {
+        let mut csv = String::from("time_s,temp_c,gyro_dph\n");
+        for k in 0..3600 {
+            let temp = if k % 60 == 0 {
+                format!("{:.3}", 20.0 + 0.8 * f64::from(k) / 60.0 + 0.0123)
+            } else {
+                String::new()
+            };
+            csv.push_str(&format!("{k},{temp},{:.6}\n", 0.001 * f64::from(k)));
+        }
+        let config = CalibrationConfig::default();
+        let run =
+            crate::calibrate::extract_run_from(csv.as_bytes(), std::path::Path::new("sparse.csv"), &config)
+                .expect("reads");
+        let steps = run.temperature_steps[0];
+        assert_eq!((steps.readings, steps.changes), (60, 59));
+        assert!((steps.smallest_c - 0.8).abs() < 1e-9, "{steps:?}");
+        assert_eq!(coarse_temperature(&[run], 0, 600.0), None);
     }
 
     /// The run_offsets clause on temperature: Pearson r of the run means against their mean

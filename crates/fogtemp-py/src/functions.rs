@@ -671,17 +671,11 @@ fn warn_skipped(py: Python<'_>, report: &IngestReport, samples: bool) -> PyResul
     if report.skipped == 0 {
         return Ok(());
     }
-    let unit = match (samples, report.skipped) {
-        (true, 1) => "sample",
-        (true, _) => "samples",
-        (false, 1) => "row",
-        (false, _) => "rows",
-    };
-    let mut text = format!(
-        "{}: skipped {} bad {unit} (skip_bad_rows); first ones:",
-        report.path.display(),
-        report.skipped
-    );
+    let unit = if samples { "sample" } else { "row" };
+    // The share and, from 1 %, the advice to check the log, as the command line says them
+    // (review25a 9).
+    let mut text =
+        format!("{}: {}; first ones:", report.path.display(), report.skipped_summary(unit, "skip_bad_rows"));
     for b in &report.first_skipped {
         let place = if samples {
             format!("sample {} '{}'", b.line, b.column_name)

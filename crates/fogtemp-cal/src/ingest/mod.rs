@@ -686,6 +686,32 @@ pub struct IngestReport {
 /// How many skipped rows are listed individually.
 pub const MAX_REPORTED_BAD_ROWS: usize = 20;
 
+/// The share of skipped rows, percent, from which the warning says to check the log.
+pub const MANY_SKIPPED_PERCENT: f64 = 1.0;
+
+impl IngestReport {
+    /// What the command line and Python say of the skipped rows, before the list of the
+    /// first ones: `skipped N bad rows of M rows (x %) (OPTION)`, and from
+    /// [`MANY_SKIPPED_PERCENT`] on, to check the log (review24b S2: 36,001 of 72,001 rows
+    /// skipped read like a few). `unit` names a row (`row`, or `sample` for arrays).
+    pub fn skipped_summary(&self, unit: &str, option: &str) -> String {
+        let read = self.rows + self.skipped;
+        let share = 100.0 * self.skipped as f64 / read.max(1) as f64;
+        let loud = if share >= MANY_SKIPPED_PERCENT {
+            " (check the log: this many bad rows is no stray glitch, and the fit sees only the rest)"
+        } else {
+            ""
+        };
+        let plural = |n: u64| if n == 1 { "" } else { "s" };
+        format!(
+            "skipped {} bad {unit}{} of {read} {unit}{} ({share:.3} %) ({option}){loud}",
+            self.skipped,
+            plural(self.skipped),
+            plural(read)
+        )
+    }
+}
+
 /// Options for [`read_log`].
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct IngestOptions {

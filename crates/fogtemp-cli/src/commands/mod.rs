@@ -249,25 +249,14 @@ fn bad_rows(count: u64) -> String {
     format!("{count} bad row{}", if count == 1 { "" } else { "s" })
 }
 
-/// The share of skipped rows, percent, from which the warning says to check the log.
-const MANY_SKIPPED_PERCENT: f64 = 1.0;
-
 fn report_skipped(report: &IngestReport) {
     if report.skipped == 0 {
         return;
     }
-    // The share read: 36,001 of 72,001 rows skipped looked like a few (review24b S2).
-    let read = report.rows + report.skipped;
-    let share = 100.0 * report.skipped as f64 / read as f64;
-    let loud = if share >= MANY_SKIPPED_PERCENT {
-        " (check the log: this many bad rows is no stray glitch, and the fit sees only the rest)"
-    } else {
-        ""
-    };
     eprintln!(
-        "warning: {}: skipped {} of {read} rows ({share:.3} %) (--skip-bad-rows){loud}; first ones:",
+        "warning: {}: {}; first ones:",
         report.path.display(),
-        bad_rows(report.skipped)
+        report.skipped_summary("row", "--skip-bad-rows")
     );
     for b in &report.first_skipped {
         eprintln!(
