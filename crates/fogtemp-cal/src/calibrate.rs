@@ -414,6 +414,11 @@ pub struct BadInputSources {
     /// through). A log's reader refuses them; arrays can hold them (review23a F6: the note
     /// blamed a temperature or a time).
     pub gyro_not_finite: u64,
+    /// Flagged samples whose time fell in the same whole microsecond as the sample's before:
+    /// the compensator's clock counts microseconds, so their temperature reading is refused
+    /// as not after the one before, though the reader (in f64 seconds) took them (review25a 2:
+    /// nanosecond stamps 200 ns apart were put down to temperatures no sensor reads).
+    pub same_microsecond: u64,
 }
 
 /// How many flagged samples' lines [`BadInputSources::first_lines`] keeps.
@@ -431,6 +436,25 @@ fn bad_input_note(name: &str, bad: u64, samples: u64, output: &str, sources: &Ba
             format!("; {first}at lines {}", listed.join(", "))
         }
     };
+    let same_us = sources.same_microsecond.min(bad);
+    if same_us > 0 {
+        let rest = if same_us < bad {
+            format!(
+                "; the other {} a temperature no sensor reads or a gyro value that is not a number",
+                bad - same_us
+            )
+        } else {
+            String::new()
+        };
+        return format!(
+            "{name}: {bad} of {samples} samples ({} %) had an input rejected (flag BAD_INPUT in {output}{lines}); {same_us} of them \
+             came in the same microsecond as the sample before: the compensator counts time in whole \
+             microseconds, so their temperature readings were refused as not after the one before (time stamps \
+             finer than 1 us, e.g. several samples of a packet stamped ns apart: give each sample its own time, \
+             or average the packet){rest}",
+            share_percent(bad, samples)
+        );
+    }
     let gyro = sources.gyro_not_finite.min(bad);
     if gyro == bad {
         return format!(
@@ -2508,6 +2532,7 @@ mod tests {
             times_refused: true,
             first_lines: vec![101, 230, 231, 400, 512],
             gyro_not_finite: 0,
+            same_microsecond: 0,
         };
         let note = bad_input_note("run.csv axis 0", 9, 7200, "the output", &from_file);
         assert!(
@@ -2515,6 +2540,19 @@ mod tests {
             "{note}"
         );
         assert!(!note.contains("a time not after"), "{note}");
+        // Time stamps finer than the compensator's microsecond (review25a 2): named, not put
+        // down to the temperature.
+        let bursts = BadInputSources { same_microsecond: 9, ..from_file.clone() };
+        let note = bad_input_note("run.csv axis 0", 9, 7200, "the output", &bursts);
+        assert!(note.contains("9 of them came in the same microsecond as the sample before"), "{note}");
+        assert!(!note.contains("no sensor reads"), "{note}");
+        let mixed = BadInputSources { same_microsecond: 6, ..from_file.clone() };
+        let note = bad_input_note("run.csv axis 0", 9, 7200, "the output", &mixed);
+        assert!(
+            note.contains("6 of them came in the same microsecond")
+                && note.contains("the other 3 a temperature"),
+            "{note}"
+        );
         let all_listed = BadInputSources { first_lines: vec![7, 9], ..from_file };
         let note = bad_input_note("run.csv axis 0", 2, 7200, "the output", &all_listed);
         assert!(note.contains("; at lines 7, 9)"), "{note}");

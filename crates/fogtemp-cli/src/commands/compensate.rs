@@ -65,6 +65,10 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
     let mut flag_counts = vec![[0_u64; 8]; axes];
     // Per axis: the lines of the first samples flagged BAD_INPUT, for the note.
     let mut bad_lines: Vec<Vec<u64>> = vec![Vec::new(); axes];
+    // Per axis: samples flagged BAD_INPUT at the same whole microsecond as the row before:
+    // the compensator's clock (`--time-unit ns` reads steps under 1 us; review25a 2).
+    let mut same_microsecond = vec![0_u64; axes];
+    let mut previous_us = None;
     // Per axis: temperature spikes, reported (the compensator takes every reading).
     let mut spike_guards: Vec<SpikeGuard> = (0..axes).map(|_| SpikeGuard::new(max_gap_s)).collect();
     let bar = RowProgress::new(&a.log, "compensate");
@@ -88,6 +92,8 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
                     gaps.observe(previous_s, row.time_s, row.line);
                     previous_s = Some(row.time_s);
                     let time_us = row.time_us();
+                    let same_us_as_before = previous_us == Some(time_us);
+                    previous_us = Some(time_us);
                     let outputs = comps.iter_mut().enumerate().map(|(i, comp)| {
                         let temp = row.temp_c_for_axis(i);
                         // Only readings: rows without one change no verdict, and neither do
@@ -109,11 +115,11 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
                         for (bit, count) in flag_counts[i].iter_mut().enumerate() {
                             *count += u64::from((o.flags.0 >> bit) & 1);
                         }
-                        if o.flags.contains(fogtemp_core::Flags::BAD_INPUT)
-                            && bad_lines[i].len() < calibrate::BAD_INPUT_LINES_LISTED
-                        {
+                        let bad = o.flags.contains(fogtemp_core::Flags::BAD_INPUT);
+                        if bad && bad_lines[i].len() < calibrate::BAD_INPUT_LINES_LISTED {
                             bad_lines[i].push(row.line);
                         }
+                        same_microsecond[i] += u64::from(bad && same_us_as_before);
                         AxisOutput {
                             raw_dph: row.gyros_dph[i],
                             compensated_dph: o.rate_dph,
@@ -192,7 +198,12 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
             }
             let consequence = "the output's bias is 0";
             // The reader refuses a time not after the one before: not a cause here.
-            let bad = calibrate::BadInputSources { times_refused: true, first_lines, gyro_not_finite: 0 };
+            let bad = calibrate::BadInputSources {
+                times_refused: true,
+                first_lines,
+                gyro_not_finite: 0,
+                same_microsecond: same_microsecond[axis],
+            };
             let notes = calibrate::compensation_notes(
                 &name,
                 counts,
