@@ -252,11 +252,21 @@ fn simulate_never_replaces_logs_it_did_not_write() {
         .filter_map(|e| e.ok().map(|e| e.file_name().to_string_lossy().into_owned()))
         .find(|n| n.ends_with(".csv"))
         .expect("a simulated log");
-    // Again into the simulation's own folder: fine.
-    cal()
+    // Again into the simulation's own folder: fine; a temporary file a killed run left there
+    // is named (review25b F6), and kept (it may be another run's).
+    let leftover = first.join(format!(".{name}.fogtemp-Xy12Zz"));
+    fs::write(&leftover, vec![b'1'; 2048]).expect("plant a leftover");
+    let again = cal()
         .args(["simulate", "--scenario", s(&file), "--out", s(&first), "--duration-s", "60"])
         .assert()
         .success();
+    let said = String::from_utf8_lossy(&again.get_output().stderr).into_owned();
+    assert!(
+        said.contains(&format!("note: 1 temporary file (2.00 KiB) in {}", first.display()))
+            && said.contains(&leftover.display().to_string()),
+        "{said}"
+    );
+    assert!(leftover.exists());
     // A lab folder with a log of that name: refused, the log untouched.
     let lab = dir.path().join("lab");
     fs::create_dir(&lab).expect("mkdir");

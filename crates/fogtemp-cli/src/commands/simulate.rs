@@ -80,6 +80,7 @@ pub fn simulate_into(
     out: &std::path::Path,
 ) -> Result<(Vec<sim::RunSummary>, f64)> {
     refuse_overwriting_other_logs(scenario, out)?;
+    crate::output::note_leftover_temporaries_in(out);
     std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
     let bar = samples_bar(total_samples(scenario), "simulate");
     let done = AtomicU64::new(0);
@@ -156,6 +157,7 @@ pub fn demo(a: crate::args::DemoArgs) -> Result<()> {
     let (scenario, text) = load_scenario(&a.scenario, a.rate, a.seed, None)?;
     let options = DemoOptions { report: !a.no_report, ..DemoOptions::default() };
     let bars = StageBars { bar: std::sync::Mutex::new(None) };
+    crate::output::note_leftover_temporaries_in(&a.out);
     let result = run_demo(&scenario, &text, &a.out, &options, &bars).context("running the demo")?;
     if let Ok(mut slot) = bars.bar.lock() {
         if let Some(bar) = slot.take() {
