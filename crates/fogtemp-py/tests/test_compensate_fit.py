@@ -174,7 +174,8 @@ def test_validate_compare_and_model_objects(mesh_model, poly_model, val_logs):
 
 def test_validate_runs_file_keeps_the_val_runs_like_the_command_line(mesh_model, cal_logs, val_logs, tmp_path, cli):
     # Two calibration and two validation logs in one folder, the runs file giving roles: as
-    # `validate --runs`, only the val runs are validated (input rates and positions unused).
+    # `validate --runs`, only the val runs are validated; their input rates are subtracted from
+    # the runs' means (the bias left), nothing else uses them or the positions.
     folder = tmp_path / "logs"
     folder.mkdir()
     for log in (*cal_logs[:2], *val_logs[:2]):
@@ -192,7 +193,18 @@ def test_validate_runs_file_keeps_the_val_runs_like_the_command_line(mesh_model,
     # -10C), as the command lists them; logs named one by one keep the order given.
     reading = sorted(val_logs[:2], key=lambda p: float(p.stem.split("_")[-1].rstrip("C")))
     assert [r["path"] for r in ours["runs"]] == [str(folder / p.name) for p in reading]
-    assert ours == fogtemp.validate(model_path, [folder / p.name for p in reading], progress=False)
+    without = fogtemp.validate(model_path, [folder / p.name for p in reading], progress=False)
+    means = ("raw_mean_dph", "compensated_mean_dph", "input_rate_dph")
+    for run, bare in zip(ours["runs"], without["runs"]):
+        assert run["input_rate_dph"] == -9.66 and bare["input_rate_dph"] is None
+        for key in means[:2]:
+            assert run[key] == pytest.approx(bare[key] + 9.66, abs=1e-9), key
+
+    def without_means(doc):
+        runs = [{k: v for k, v in r.items() if k not in means} for r in doc["runs"]]
+        return dict(doc, runs=runs)
+
+    assert without_means(ours) == without_means(without)
     # The same runs file with only the val logs given: its cal rows need no log.
     only_val = [folder / p.name for p in reading]
     assert ours == fogtemp.validate(model_path, only_val, runs=runs_csv, progress=False)
