@@ -1314,7 +1314,7 @@ fn mean_cell(value_dph: f64) -> String {
     if value_dph.is_nan() {
         "undefined".into()
     } else {
-        format!("{value_dph:.4}")
+        dph(value_dph)
     }
 }
 
