@@ -86,8 +86,10 @@ pub fn fit(a: FitArgs) -> Result<()> {
     };
     let mut runs = Vec::with_capacity(logs.len());
     let mut input_digest = fogtemp_cal::digest::InputDigest::new();
-    for log in &logs {
-        let bar = RowProgress::new(log, "features");
+    for (k, log) in logs.iter().enumerate() {
+        // Which log of how many: a campaign's bar alone did not say how far the command was
+        // (review24b S3).
+        let bar = RowProgress::new(log, &format!("features {}/{}", k + 1, logs.len()));
         let run = calibrate::extract_run_digested(log, &config, &mut input_digest, |b, r| bar.update(b, r))
             .with_context(|| format!("reading calibration log {}", log.display()))?;
         bar.finish_and_clear();

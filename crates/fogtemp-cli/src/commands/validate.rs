@@ -86,7 +86,8 @@ pub fn validate(a: ValidateArgs) -> Result<()> {
                 if let Some((_, done)) = bar.take() {
                     done.finish_and_clear();
                 }
-                bar = logs.get(i).map(|log| (i, RowProgress::new(log, "validate")));
+                let label = format!("validate {}/{}", i + 1, logs.len());
+                bar = logs.get(i).map(|log| (i, RowProgress::new(log, &label)));
             }
             if let Some((_, current)) = &bar {
                 current.update(b, r);
