@@ -34,6 +34,17 @@ use tempfile::TempDir;
 // The binary (run by `common::{cal, run_ok, run_err}`) and its output
 // ---------------------------------------------------------------------------------------
 
+/// A share in percent as messages print it: one decimal, or from below 0.1 % its first
+/// significant digit (`0.03` for 1 of 3600).
+fn share_text(percent: f64) -> String {
+    if percent > 0.0 && percent < 0.1 {
+        let digits = (-percent.log10().floor()) as usize;
+        format!("{percent:.digits$}")
+    } else {
+        format!("{percent:.1}")
+    }
+}
+
 fn json(text: &str) -> Value {
     serde_json::from_str(text).unwrap_or_else(|e| panic!("not one JSON document ({e}):\n{text}"))
 }
@@ -1034,10 +1045,10 @@ fn skip_bad_rows_reports_count_and_where() {
         .assert()
         .success()
         .stderr(predicate::str::contains(format!(
-            "{}: skipped 3 bad rows of {} rows ({:.3} %) (--skip-bad-rows); first ones:",
+            "{}: skipped 3 bad rows of {} rows ({} %) (--skip-bad-rows); first ones:",
             log.display(),
             lines.len() - 1,
-            300.0 / (lines.len() - 1) as f64
+            share_text(300.0 / (lines.len() - 1) as f64)
         )))
         .stderr(predicate::str::contains("line 50 column 3 'gyro_dph': not a number (found 'abc')"))
         .stderr(predicate::str::contains("line 500 column 2 'temp_c': NaN or infinite (found 'NaN')"))
@@ -1090,7 +1101,7 @@ fn validate_reports_skipped_rows() {
         .assert()
         .success()
         .stderr(
-            predicate::str::contains("skipped 1 bad row of 3600 rows (0.028 %) (")
+            predicate::str::contains("skipped 1 bad row of 3600 rows (0.03 %) (")
                 .and(predicate::str::contains("line 50 column 3")),
         );
     let doc = json(&String::from_utf8_lossy(&out.get_output().stdout));

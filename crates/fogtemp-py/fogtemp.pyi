@@ -232,8 +232,9 @@ def validate(
     through the firmware's Compensator with the row rules a log file holding the same samples
     gets. Options: tau_s, overlapping, detrend, exclude_first_s, capacity, compare, log-column options,
     runs (a runs file, run,position,input_rate_dph[,role], describing every log: as validate --runs,
-    when it gives roles only the runs with role "val" are validated; input rates and positions are
-    not used; log files only) and report (a folder: as validate --report, report.md, report.html and the SVG
+    when it gives roles only the runs with role "val" are validated; for a model of one axis each
+    run's input rate is subtracted from its means, ``runs[].input_rate_dph``; positions are not
+    used; log files only) and report (a folder: as validate --report, report.md, report.html and the SVG
     figures, with the table of the ``compare`` models).
     Gaps in a log's time stamps longer than the model's max gap raise a FogtempWarning (a UserWarning)
     (``runs[].time_gaps``; the metric's windows they cut: ``runs[].metric_windows``).
@@ -241,6 +242,9 @@ def validate(
     output's Allan deviation at its shortest averaging time, extrapolated as white noise to the
     data a window mean averages (``from_tau_s``, ``adev_dph``, ``averaged_s``, ``floor_dph``):
     a lower bound on the noise floor (flicker and random walk come on top).
+    ``runs[].raw_mean_dph`` and ``runs[].compensated_mean_dph``: each run's mean output over the
+    metric's span less its input rate from ``runs`` (None when the span is empty): the bias the
+    model leaves, which bias stability does not see.
     Log files are read with the gyro and temperature columns the model records (models fitted
     on files since blob format 4) unless gyro_column= / temp_column= name others, and in the
     units its fit read them in unless gyro_unit=, gyro_scale=, temp_scale= or temp_offset= are

@@ -421,6 +421,23 @@ pub struct BadInputSources {
     pub same_microsecond: u64,
 }
 
+/// The samples flagged `BAD_INPUT` whose time falls in the whole microsecond of the sample
+/// before and whose temperature is one a sensor reads ([`BadInputSources::same_microsecond`]),
+/// from a replay's inputs and flags (Python's `Model.compensate`; the command line counts
+/// them as it streams).
+pub fn same_microsecond_rejections(time_s: &[f64], temp_c: &[f64], flags: &[u8]) -> u64 {
+    let bad = fogtemp_core::Flags::BAD_INPUT.0;
+    let physical = |t: f64| t.is_finite() && fogtemp_core::is_physical_temperature(t as f32);
+    let count = (1..flags.len().min(time_s.len()).min(temp_c.len()))
+        .filter(|&k| {
+            flags[k] & bad != 0
+                && crate::features::micros(time_s[k]) == crate::features::micros(time_s[k - 1])
+                && physical(temp_c[k])
+        })
+        .count();
+    count as u64
+}
+
 /// How many flagged samples' lines [`BadInputSources::first_lines`] keeps.
 pub const BAD_INPUT_LINES_LISTED: usize = 5;
 
@@ -2017,7 +2034,12 @@ impl RunValidation {
             } else {
                 String::new()
             };
-            let shorter = if span_s >= 2.0 {
+            let shorter = if span_s <= 0.0 && excluded_s > 0.0 {
+                format!(
+                    "; the first {excluded_s} s left out cover the whole compensated span: a shorter \
+                     --exclude-first-s (Python exclude_first_s=) gives figures"
+                )
+            } else if span_s >= 2.0 {
                 format!(
                     "; the compensated span is {span_s:.0} s{after}: a shorter averaging time gives figures (--tau-s at most \
                      {:.0}, Python tau_s=)",
@@ -2527,6 +2549,18 @@ mod tests {
     }
 
     #[test]
+    fn rejections_in_the_microsecond_before_count_only_readings_a_sensor_gives() {
+        let bad = fogtemp_core::Flags::BAD_INPUT.0;
+        // Times in s: 1.0000002 shares 1.0's microsecond; 2.0000004 shares 2.0000002's.
+        let time_s = [1.0, 1.000_000_2, 2.0, 2.000_000_2, 2.000_000_4, 3.0];
+        let temp_c = [20.0, 20.0, 20.0, 20.0, -999.0, 20.0];
+        let flags = [0, bad, 0, bad, bad, bad];
+        // Sample 1 and 3 count; 4 is a -999 reading (refused for itself); 5 is a new microsecond.
+        assert_eq!(same_microsecond_rejections(&time_s, &temp_c, &flags), 2);
+        assert_eq!(same_microsecond_rejections(&time_s[..1], &temp_c[..1], &flags[..1]), 0);
+    }
+
+    #[test]
     fn the_bad_input_note_names_the_first_lines_and_only_causes_that_can_occur() {
         let from_file = BadInputSources {
             times_refused: true,
@@ -2829,6 +2863,8 @@ mod tests {
             ),
             "{plain}"
         );
+        let all = said(run(300.0));
+        assert!(all.contains("the first 300 s left out cover the whole compensated span"), "{all}");
         let excluded = said(run(100.0));
         assert!(
             excluded.contains("the compensated span is 130 s after the first 100 s left out: a shorter averaging time gives figures (--tau-s at most 64"),

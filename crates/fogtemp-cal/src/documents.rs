@@ -274,7 +274,7 @@ pub struct RunValidationDocument {
     /// are too short for an Allan deviation).
     pub white_noise_floor: Option<WhiteNoiseFloor>,
     /// The run's mean raw output over the metric's span less `input_rate_dph` (when given),
-    /// deg/h: the bias the run starts with (`null` when the span is empty).
+    /// deg/h: the run's own bias before compensation (`null` when the span is empty).
     pub raw_mean_dph: f64,
     /// The same for the compensated output: the bias the model leaves, which bias stability
     /// does not see (`null` when the span is empty).

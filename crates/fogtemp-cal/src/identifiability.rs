@@ -336,7 +336,8 @@ fn coarse_temperature(runs: &[RunFeatures], axis: usize, window_s: f64) -> Optio
         format!(
             "axis {axis}: the temperature changes only in steps of {smallest_c:.2} C or more in {} of {} ({first}: {} \
              changes, none smaller{others}): dT/dt over the {window_s:.0} s feature window is a staircase's, rates \
-             below {resolved_c_per_min:.2} C/min are not resolved; a sensor of that resolution, or decimals cut off \
+             below {resolved_c_per_min:.2} C/min are not resolved; a sensor of that resolution, a slow sensor's \
+             reading repeated on every row until the next, or decimals cut off \
              (a decimal comma inside a comma-separated log reads 32,04 as 32 and a column of 04: convert such a log \
              to semicolons first)",
             coarse.len(),

@@ -88,11 +88,19 @@ impl Staged {
 /// the whole fit).
 pub fn temporary_prefix(path: &Path) -> String {
     let name = path.file_name().map_or_else(String::new, |n| n.to_string_lossy().into_owned());
-    let mut end = name.len().min(PREFIX_NAME_BYTES);
+    if name.len() <= PREFIX_NAME_BYTES {
+        return format!(".{name}.fogtemp-");
+    }
+    // Cut, with a digest of the whole name: two long names that share their first bytes get
+    // prefixes of their own, so that neither's temporaries read as the other's leftovers.
+    let mut end = PREFIX_NAME_BYTES - 9;
     while !name.is_char_boundary(end) {
         end -= 1;
     }
-    format!(".{}.fogtemp-", &name[..end])
+    let digest = name
+        .bytes()
+        .fold(0xcbf2_9ce4_8422_2325_u64, |h, b| (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3));
+    format!(".{}~{:08x}.fogtemp-", &name[..end], digest as u32)
 }
 
 /// The bytes of a destination's name that its temporary files' names keep: 255 less the
@@ -443,6 +451,12 @@ mod tests {
         assert!(prefix.len() + 6 <= 255 && prefix.ends_with(".fogtemp-"), "{}", prefix.len());
         write_file_atomic(&long, |w| w.write_all(b"m")).expect("a 254-byte name is written");
         assert_eq!(std::fs::read(&long).expect("read"), b"m");
+        let sibling = dir.path().join(format!("{}.fogm", "\u{6a21}".repeat(82) + "x"));
+        assert_ne!(
+            temporary_prefix(&sibling),
+            prefix,
+            "names that differ past the cut keep their own prefixes"
+        );
         drop(staged);
     }
 

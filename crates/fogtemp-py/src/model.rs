@@ -283,8 +283,12 @@ impl Model {
             })
         });
         let (out, bias, flags, glitches) = replay;
-        let gyro_not_finite = gs.iter().filter(|g| !g.is_finite()).count() as u64;
-        warn_about_compensation(py, axis, ts, &flags, max_gap_s, &glitches, gyro_not_finite)?;
+        let sources = fogtemp_cal::calibrate::BadInputSources {
+            gyro_not_finite: gs.iter().filter(|g| !g.is_finite()).count() as u64,
+            same_microsecond: fogtemp_cal::calibrate::same_microsecond_rejections(ts, cs, &flags),
+            ..Default::default()
+        };
+        warn_about_compensation(py, axis, ts, &flags, max_gap_s, &glitches, &sources)?;
         let mut items: Vec<Bound<'py, PyAny>> =
             vec![PyArray1::from_vec(py, out).into_any(), PyArray1::from_vec(py, flags).into_any()];
         if return_bias {
@@ -529,8 +533,9 @@ fn blob_bytes(data: &Bound<'_, PyAny>) -> PyResult<Vec<u8>> {
 /// user who does not decode the flags got the raw gyro back, or a bias continued far outside
 /// the calibration, without a word): time that goes back (which the command line refuses),
 /// times mostly further apart than the tracker's max gap (another unit?), temperature
-/// glitches, nothing corrected, and the shares of samples flagged `BAD_INPUT` (`gyro_not_finite`
-/// of them with a gyro value that is not finite), `TEMP_STALE` and `OUTSIDE_HULL`.
+/// glitches, nothing corrected, and the shares of samples flagged `BAD_INPUT` (`sources`: how
+/// many with a gyro value that is not finite, or in the microsecond of the sample before),
+/// `TEMP_STALE` and `OUTSIDE_HULL`.
 #[allow(clippy::too_many_arguments)] // one call site; the arguments are the replay's results
 fn warn_about_compensation(
     py: Python<'_>,
@@ -539,7 +544,7 @@ fn warn_about_compensation(
     flags: &[u8],
     max_gap_s: f64,
     glitches: &fogtemp_cal::spikes::AxisSpikes,
-    gyro_not_finite: u64,
+    sources: &fogtemp_cal::calibrate::BadInputSources,
 ) -> PyResult<()> {
     let name = format!("Model.compensate axis {axis}");
     if let Some(note) = compensate_notes::backward_time_note(&name, time_s, max_gap_s) {
@@ -582,7 +587,7 @@ fn warn_about_compensation(
         max_gap_s,
         "flags",
         consequence,
-        &fogtemp_cal::calibrate::BadInputSources { gyro_not_finite, ..Default::default() },
+        sources,
     ) {
         crate::progress::warn(py, &note)?;
     }

@@ -446,11 +446,15 @@ pub fn stability(o: &mut Options<'_>) -> PyResult<BiasStabilityOptions> {
     if !tau_s.is_finite() || tau_s <= 0.0 {
         return Err(errors::value("tau_s must be positive"));
     }
+    let exclude_first_s = o.f64("exclude_first_s", d.exclude_first_s)?;
+    if !exclude_first_s.is_finite() || exclude_first_s < 0.0 {
+        return Err(errors::value("exclude_first_s must be zero or positive"));
+    }
     Ok(BiasStabilityOptions {
         tau_s,
         overlapping: o.bool("overlapping", d.overlapping)?,
         detrend: o.bool("detrend", d.detrend)?,
-        exclude_first_s: o.f64("exclude_first_s", d.exclude_first_s)?,
+        exclude_first_s,
     })
 }
 

@@ -67,7 +67,7 @@ def test_malformed_row_names_file_line_and_column_like_the_command_line(tmp_path
     assert done.returncode == 1 and expected in done.stderr
     # Skipping is reported, not silent, with its share and, from 1 %, the advice the command
     # line gives (one of three rows).
-    with pytest.warns(UserWarning, match=r"skipped 1 bad row of 3 rows \(33\.333 %\) \(skip_bad_rows\) \(check the log"):
+    with pytest.warns(UserWarning, match=r"skipped 1 bad row of 3 rows \(33\.3 %\) \(skip_bad_rows\) \(check the input"):
         data = fogtemp.read_log(log, skip_bad_rows=True, progress=False)
     assert len(data["time_s"]) == 2
 

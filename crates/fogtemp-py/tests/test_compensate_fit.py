@@ -373,7 +373,7 @@ def test_validate_runs_given_as_arrays_refuses_file_options_and_mixed_axes(tmp_p
     bad["gyro_dph"][5] = np.nan
     with pytest.raises(ValueError, match=r"runs\[0\]: sample 5: gyro_dph"):
         fogtemp.validate(model, [bad], progress=False)
-    with pytest.warns(UserWarning, match=r"runs\[0\]: skipped 1 bad sample of \d+ samples \(0\.\d+ %\) \(skip_bad_rows\); first ones:\n  sample 5 'gyro_dph'"):
+    with pytest.warns(UserWarning, match=r"runs\[0\]: skipped 1 bad sample of \d+ samples \(0\.0*[1-9] %\) \(skip_bad_rows\); first ones:\n  sample 5 'gyro_dph'"):
         skipped = fogtemp.validate(model, [bad], skip_bad_rows=True, progress=False)
     assert np.isfinite(skipped["compensated_bias_stability_dph"]) and skipped["runs"][0]["skipped_rows"] == 1
 

@@ -139,3 +139,20 @@ def test_a_nan_gyro_sample_is_named_as_such(model, runs):
     assert len(bad) == 1, notes
     assert "1 of" in bad[0] and "had a gyro value that is not a number or infinite" in bad[0], bad[0]
     assert "temperature no sensor reads" not in bad[0], bad[0]
+
+
+def test_samples_in_the_microsecond_of_the_one_before_are_named_as_such(model, runs):
+    # Review25a 2/3: times 200 ns after the sample before fall in its microsecond, the
+    # compensator's clock, which refuses their temperature readings; the warning names that,
+    # as the command line does, and not temperatures no sensor reads.
+    run = runs[0]
+    time_s = run["time_s"].copy()
+    time_s[400:410] = time_s[399] + 2e-7 * np.arange(1, 11)
+    order = np.argsort(time_s, kind="stable")
+    (_, flags), notes = compensate_warnings(model, time_s[order], run["gyro_dph"][order], run["temp_c"][order])
+    bad = [n for n in notes if "BAD_INPUT" in n]
+    assert len(bad) == 1, notes
+    refused = int(np.count_nonzero(flags & BAD_INPUT))
+    assert refused >= 5, refused
+    assert f"{refused} of them came in the same microsecond as the sample before" in bad[0], bad[0]
+    assert "no sensor reads" not in bad[0], bad[0]

@@ -697,17 +697,19 @@ impl IngestReport {
     pub fn skipped_summary(&self, unit: &str, option: &str) -> String {
         let read = self.rows + self.skipped;
         let share = 100.0 * self.skipped as f64 / read.max(1) as f64;
-        let loud = if share >= MANY_SKIPPED_PERCENT {
-            " (check the log: this many bad rows is no stray glitch, and the fit sees only the rest)"
-        } else {
-            ""
-        };
         let plural = |n: u64| if n == 1 { "" } else { "s" };
+        // Said of whatever reads the rows (fit, validate, compensate, a read of arrays).
+        let loud = if share >= MANY_SKIPPED_PERCENT {
+            format!(" (check the input: this many bad {unit}s is no stray glitch, and only the rest is used)")
+        } else {
+            String::new()
+        };
         format!(
-            "skipped {} bad {unit}{} of {read} {unit}{} ({share:.3} %) ({option}){loud}",
+            "skipped {} bad {unit}{} of {read} {unit}{} ({} %) ({option}){loud}",
             self.skipped,
             plural(self.skipped),
-            plural(read)
+            plural(read),
+            crate::calibrate::share_percent(self.skipped, read)
         )
     }
 }

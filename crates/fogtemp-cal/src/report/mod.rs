@@ -1324,8 +1324,8 @@ fn mean_cell(value_dph: f64) -> String {
 pub fn means_meaning(runs: &[crate::calibrate::RunValidation]) -> String {
     let given = runs.iter().filter(|r| r.input_rate_dph.is_some()).count();
     let rate = if given == 0 {
-        "it includes the rate the gyro sensed (the Earth rate's share): a runs file with \
-         input_rate_dph subtracts it"
+        "it includes the rate the gyro sensed (the Earth rate's share), which a runs file's \
+         input_rate_dph takes off for a model of one axis (a rate is about one input axis)"
             .to_string()
     } else if given == runs.len() {
         "less the run's input rate from the runs file".to_string()
@@ -1333,7 +1333,7 @@ pub fn means_meaning(runs: &[crate::calibrate::RunValidation]) -> String {
         format!("less the run's input rate from the runs file for {given} of {} rows", runs.len())
     };
     format!(
-        "each run's mean output over the metric's span, deg/h: the bias the run starts with (raw) \
+        "each run's mean output over the metric's span, deg/h: the bias raw (the gyro's own, after start-up) \
          and the bias the model leaves (compensated), which bias stability does not see; {rate}"
     )
 }

@@ -119,7 +119,9 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
                         if bad && bad_lines[i].len() < calibrate::BAD_INPUT_LINES_LISTED {
                             bad_lines[i].push(row.line);
                         }
-                        same_microsecond[i] += u64::from(bad && same_us_as_before);
+                        // A reading no sensor gives (-999) is refused for itself, whatever its time.
+                        let physical = temp.is_finite() && fogtemp_core::is_physical_temperature(temp as f32);
+                        same_microsecond[i] += u64::from(bad && same_us_as_before && physical);
                         AxisOutput {
                             raw_dph: row.gyros_dph[i],
                             compensated_dph: o.rate_dph,

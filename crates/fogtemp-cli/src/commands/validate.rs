@@ -19,6 +19,9 @@ fn stability_options(a: &StabilityArgs) -> Result<BiasStabilityOptions> {
     if !a.tau_s.is_finite() || a.tau_s <= 0.0 {
         bail!("--tau-s must be positive");
     }
+    if !a.exclude_first_s.is_finite() || a.exclude_first_s < 0.0 {
+        bail!("--exclude-first-s must be zero or positive");
+    }
     Ok(BiasStabilityOptions {
         tau_s: a.tau_s,
         overlapping: a.overlapping,
