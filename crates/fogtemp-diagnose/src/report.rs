@@ -105,11 +105,19 @@ fn plot_residuals(path: &Path, d: &Diagnosis) -> Result<(), CalError> {
             "Residual per run: recorded - simulated in 5 min means (dots); no held-out prediction to draw"
         };
         head.draw(&Text::new(title, (20, 12), ("sans-serif", 20))).map_err(|e| io_err(path, e))?;
-        let note = "global offset removed; one scale for every run, deg/h against minutes since power-on";
+        // Panel titles by the part of the runs' names that differs (review26b F1: lab names
+        // overran their panels and one another).
+        let (labels, shared) =
+            fogtemp_cal::report::run_labels(&panels.iter().map(|p| p.run.to_string()).collect::<Vec<_>>());
+        let mut note = "global offset removed; one scale for every run, deg/h against minutes since power-on"
+            .to_string();
+        if let Some((prefix, suffix)) = &shared {
+            note.push_str(&format!("; runs named {prefix}\u{2026}{suffix}"));
+        }
         head.draw(&Text::new(note, (20, 42), ("sans-serif", 14))).map_err(|e| io_err(path, e))?;
-        for (area, panel) in body.split_evenly((rows, columns)).iter().zip(&panels) {
+        for ((area, panel), label) in body.split_evenly((rows, columns)).iter().zip(&panels).zip(&labels) {
             let mut chart = ChartBuilder::on(area)
-                .caption(panel.run, ("sans-serif", 13))
+                .caption(label, ("sans-serif", 13))
                 .margin(6)
                 .x_label_area_size(20)
                 .y_label_area_size(52)
@@ -131,11 +139,18 @@ fn plot_residuals(path: &Path, d: &Diagnosis) -> Result<(), CalError> {
                     BLACK.mix(0.4),
                 )))
                 .map_err(|e| io_err(path, e))?;
+            // The line first and the dots over it: drawn the other way the line hid the dots
+            // that agree with it (review26b F2: 68 of 408).
             chart
-                .draw_series(panel.residual_means.iter().map(|p| Circle::new(*p, 2, RAW_GREY.filled())))
+                .draw_series(LineSeries::new(
+                    panel.prediction.iter().copied(),
+                    colour(0).mix(0.8).stroke_width(2),
+                ))
                 .map_err(|e| io_err(path, e))?;
             chart
-                .draw_series(LineSeries::new(panel.prediction.iter().copied(), colour(0).stroke_width(2)))
+                .draw_series(panel.residual_means.iter().flat_map(|p| {
+                    [Circle::new(*p, 3, WHITE.filled()), Circle::new(*p, 2, RAW_GREY.filled())]
+                }))
                 .map_err(|e| io_err(path, e))?;
         }
         root.present().map_err(|e| io_err(path, e))

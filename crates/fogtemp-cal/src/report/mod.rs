@@ -297,6 +297,71 @@ pub fn draw_run_legend<'n>(
     Ok(())
 }
 
+/// The longest names a figure's legend, bar labels and panel titles show whole, characters.
+pub const LABEL_CHARS: usize = 22;
+
+/// Figure labels for runs: their names without the part every name shares at its start and
+/// its end (cut at a `_`, `-`, `.` or space), when some name is longer than [`LABEL_CHARS`]
+/// and what is left still tells the runs apart; with the shared parts (`prefix`, `suffix`)
+/// for the caption. Lab names (`2026-03-07_FOG-SN001234_chamber-B_down_poweron_-35C_validation`)
+/// were cut at the figure's edge to the same first 21 characters in every legend entry
+/// (review26b F1). Names left longer than [`LABEL_CHARS`] keep their start and end around an
+/// ellipsis.
+pub fn run_labels(names: &[String]) -> (Vec<String>, Option<(String, String)>) {
+    let long = |n: &String| n.chars().count() > LABEL_CHARS;
+    if names.len() < 2 || !names.iter().any(long) {
+        return (names.iter().map(|n| middle_ellipsis(n)).collect(), None);
+    }
+    let is_separator = |c: char| matches!(c, '_' | '-' | '.' | ' ');
+    let chars: Vec<Vec<char>> = names.iter().map(|n| n.chars().collect()).collect();
+    let shortest = chars.iter().map(Vec::len).min().unwrap_or(0);
+    let same_at = |k: usize, from_end: bool| {
+        let at = |c: &Vec<char>| if from_end { c[c.len() - 1 - k] } else { c[k] };
+        chars.iter().all(|c| at(c) == at(&chars[0]))
+    };
+    let mut prefix = (0..shortest).take_while(|&k| same_at(k, false)).count();
+    // Back to just after a separator, so that a label starts at a word ("-35C", not "5C").
+    while prefix > 0 && !is_separator(chars[0][prefix - 1]) {
+        prefix -= 1;
+    }
+    let mut suffix = (0..shortest - prefix).take_while(|&k| same_at(k, true)).count();
+    while suffix > 0 && !is_separator(chars[0][chars[0].len() - suffix]) {
+        suffix -= 1;
+    }
+    let labels: Vec<String> = chars.iter().map(|c| c[prefix..c.len() - suffix].iter().collect()).collect();
+    let distinct = labels.iter().collect::<std::collections::BTreeSet<_>>().len() == labels.len();
+    if (prefix == 0 && suffix == 0) || !distinct || labels.iter().any(|l| l.is_empty()) {
+        return (names.iter().map(|n| middle_ellipsis(n)).collect(), None);
+    }
+    let shared = |range: &[char]| range.iter().collect::<String>();
+    let first = &chars[0];
+    let parts = (shared(&first[..prefix]), shared(&first[first.len() - suffix..]));
+    (labels.iter().map(|l| middle_ellipsis(l)).collect(), Some(parts))
+}
+
+/// A name longer than [`LABEL_CHARS`] as its start and end around an ellipsis: the ends are
+/// where names differ (a date in front, the condition at the back).
+fn middle_ellipsis(name: &str) -> String {
+    let chars: Vec<char> = name.chars().collect();
+    if chars.len() <= LABEL_CHARS {
+        return name.to_string();
+    }
+    let keep = (LABEL_CHARS - 1) / 2;
+    let head: String = chars[..keep].iter().collect();
+    let tail: String = chars[chars.len() - keep..].iter().collect();
+    format!("{head}\u{2026}{tail}")
+}
+
+/// The caption line for [`run_labels`]' shared parts (empty without them).
+pub fn run_labels_caption(parts: &Option<(String, String)>) -> String {
+    match parts {
+        Some((prefix, suffix)) => format!(
+            "Runs are labelled by the part of their names that differs: `{prefix}`\u{2026}`{suffix}` left out.\n\n"
+        ),
+        None => String::new(),
+    }
+}
+
 /// Blue (low, `t` = 0) to red (high, `t` = 1) through white (0.5); `t` is clamped to [0, 1].
 pub fn diverging(t: f64) -> RGBColor {
     let t = t.clamp(0.0, 1.0);
@@ -881,15 +946,22 @@ fn validation_axis_figures(
     options: &crate::metrics::BiasStabilityOptions,
 ) -> Result<String, CalError> {
     let mut md = String::new();
-    let name = |r: &crate::calibrate::RunValidation| {
-        r.path.file_stem().map_or_else(|| file_name(&r.path), |s| s.to_string_lossy().into_owned())
+    let stems: Vec<String> = runs
+        .iter()
+        .map(|r| r.path.file_stem().map_or_else(|| file_name(&r.path), |s| s.to_string_lossy().into_owned()))
+        .collect();
+    let (labels, shared) = run_labels(&stems);
+    md.push_str(&run_labels_caption(&shared));
+    let label_of = |r: &crate::calibrate::RunValidation| {
+        runs.iter().position(|x| std::ptr::eq(*x, r)).and_then(|i| labels.get(i).cloned()).unwrap_or_default()
     };
     let drift: Vec<DriftRun> = runs
         .iter()
-        .map(|r| {
+        .zip(&labels)
+        .map(|(r, label)| {
             let span = data::compensated_span(&r.series, 1.0);
             DriftRun {
-                name: name(r),
+                name: label.clone(),
                 time_s: span.time_s.to_vec(),
                 temp_c: span.temp_c.to_vec(),
                 raw: data::relative_window_means(span.time_s, span.raw_dph, options),
@@ -897,7 +969,7 @@ fn validation_axis_figures(
             }
         })
         .collect();
-    let bars = data::run_bars(runs, name);
+    let bars = data::run_bars(runs, label_of);
     let overall = bars.last().map_or((f64::NAN, f64::NAN), |b| (b.raw_dph, b.compensated_dph));
     let starts: Vec<f64> = runs
         .iter()
@@ -1236,13 +1308,16 @@ pub fn write_fit_report(
             })
             .collect();
         md.push_str(&bullet_section("Temperature silent while the gyro went on:", &silences));
+        let (labels, shared) = run_labels(&runs.iter().map(|r| file_name(&r.path)).collect::<Vec<_>>());
+        md.push_str(&run_labels_caption(&shared));
         for axis in 0..model.axis_count() {
             let traces: Vec<RunTrace> = runs
                 .iter()
-                .filter_map(|r| {
+                .zip(&labels)
+                .filter_map(|(r, label)| {
                     let (points, targets) = r.axes.get(axis)?;
                     Some(RunTrace {
-                        name: file_name(&r.path),
+                        name: label.clone(),
                         time_s: points.iter().map(|p| p.time_s).collect(),
                         temp_c: points.iter().map(|p| p.temp_c).collect(),
                         rate_c_per_min: points.iter().map(|p| p.rate_c_per_min).collect(),
@@ -1341,6 +1416,33 @@ pub fn means_meaning(runs: &[crate::calibrate::RunValidation]) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Lab names lose what every one shares, cut at separators; short names (the testbed's)
+    /// and names that would not stay apart are kept (ends around an ellipsis when long).
+    #[test]
+    fn run_labels_keep_the_part_that_differs() {
+        let lab: Vec<String> = ["-35C", "+10C", "-05C"]
+            .iter()
+            .map(|t| format!("2026-03-07_FOG-SN001234_chamber-B_down_poweron_{t}_validation"))
+            .collect();
+        let (labels, shared) = run_labels(&lab);
+        assert_eq!(labels, ["-35C", "+10C", "-05C"]);
+        assert_eq!(
+            shared,
+            Some(("2026-03-07_FOG-SN001234_chamber-B_down_poweron_".to_string(), "_validation".to_string()))
+        );
+        assert!(run_labels_caption(&shared).contains("`2026-03-07_FOG-SN001234_chamber-B_down_poweron_`"));
+        let testbed: Vec<String> =
+            ["down_poweron_-35C.csv", "down_triangle_+30C.csv"].map(String::from).to_vec();
+        assert_eq!(run_labels(&testbed), (testbed.clone(), None));
+        // Shared digits are cut back to the separator: "run_12" and "run_13" keep "12", "13".
+        let numbered: Vec<String> =
+            ["chamber_B_serial_0042_run_12", "chamber_B_serial_0042_run_13"].map(String::from).to_vec();
+        assert_eq!(run_labels(&numbered).0, ["12", "13"]);
+        // One long name alone: its ends around an ellipsis (10 + 1 + 10 characters).
+        let one = vec!["abcdefghij_0123456789_klmnopqrst".to_string()];
+        assert_eq!(run_labels(&one).0, ["abcdefghij\u{2026}klmnopqrst"]);
+    }
 
     #[test]
     fn ticks_print_an_accumulated_zero_as_zero() {
