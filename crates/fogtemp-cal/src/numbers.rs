@@ -53,6 +53,16 @@ fn no_negative_zero(v: f64, decimals: usize) -> f64 {
     }
 }
 
+/// `- v` or, for a negative `v`, `+ |v|`, to `decimals` decimals: an offset taken away in a
+/// formula (`dT/dt - -0.060096` read as a typo; review26b L7).
+pub fn minus_text(v: f64, decimals: usize) -> String {
+    if v < 0.0 {
+        format!("+ {:.decimals$}", -v)
+    } else {
+        format!("- {v:.decimals$}")
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -1265,10 +1265,14 @@ fn poly_terms_markdown(
     n: &fogtemp_core::Normalisation,
 ) -> String {
     let mut md = format!(
-        "Polynomial terms, axis {axis}, in x = (T - {:.4} C) x {:.6} /C and y = (dT/dt - {:.6} C/min) x {:.6} min/C \
+        "Polynomial terms, axis {axis}, in x = (T {} C) x {:.6} /C and y = (dT/dt {} C/min) x {:.6} min/C \
          (the stepwise selection's; p from its t-test with the effective sample size {:.1}):\n\n\
          | term | coefficient, deg/h | standard error, deg/h | p |\n|---|---|---|---|\n",
-        n.temp_offset_c, n.temp_scale_per_c, n.rate_offset_c_per_min, n.rate_scale_per_c_per_min, poly.n_eff
+        crate::numbers::minus_text(f64::from(n.temp_offset_c), 4),
+        n.temp_scale_per_c,
+        crate::numbers::minus_text(f64::from(n.rate_offset_c_per_min), 6),
+        n.rate_scale_per_c_per_min,
+        poly.n_eff
     );
     for t in &poly.terms {
         let name = match crate::poly_fit::monomial(t.temp_power, t.rate_power) {
@@ -1400,7 +1404,10 @@ pub fn means_meaning(runs: &[crate::calibrate::RunValidation]) -> String {
     let given = runs.iter().filter(|r| r.input_rate_dph.is_some()).count();
     let rate = if given == 0 {
         "it includes the rate the gyro sensed (the Earth rate's share), which a runs file's \
-         input_rate_dph takes off for a model of one axis (a rate is about one input axis)"
+         input_rate_dph takes off for a model of one axis (a rate is about one input axis); and a \
+         model fitted without the runs' rates holds its calibration runs' rate as bias, so a run in \
+         another position shows the difference of the two (twice the Earth rate's share in the \
+         opposite position)"
             .to_string()
     } else if given == runs.len() {
         "less the run's input rate from the runs file".to_string()

@@ -84,11 +84,11 @@ pub fn inspect(a: InspectArgs) -> Result<()> {
                 })
                 .collect();
             println!(
-                "  polynomial, deg/h: {} (x = (T - {} C) x {} /C, y = (dT/dt - {} C/min) x {} min/C)",
+                "  polynomial, deg/h: {} (x = (T {} C) x {} /C, y = (dT/dt {} C/min) x {} min/C)",
                 listed.join(" + ").replace("+ -", "- "),
-                number(n.temp_offset_c, 4),
+                fogtemp_cal::numbers::minus_text(n.temp_offset_c, 4),
                 number(n.temp_scale_per_c, 6),
-                number(n.rate_offset_c_per_min, 6),
+                fogtemp_cal::numbers::minus_text(n.rate_offset_c_per_min, 6),
                 number(n.rate_scale_per_c_per_min, 6)
             );
         }
