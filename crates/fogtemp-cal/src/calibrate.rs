@@ -421,21 +421,40 @@ pub struct BadInputSources {
     pub same_microsecond: u64,
 }
 
-/// The samples flagged `BAD_INPUT` whose time falls in the whole microsecond of the sample
-/// before and whose temperature is one a sensor reads ([`BadInputSources::same_microsecond`]),
+/// The samples flagged `BAD_INPUT` whose temperature reading, one a sensor gives, falls in
+/// the whole microsecond of the last reading the tracker took ([`BadInputSources::same_microsecond`]),
 /// from a replay's inputs and flags (Python's `Model.compensate`; the command line counts
-/// them as it streams).
+/// them as it streams, with [`SameMicrosecond`]).
 pub fn same_microsecond_rejections(time_s: &[f64], temp_c: &[f64], flags: &[u8]) -> u64 {
     let bad = fogtemp_core::Flags::BAD_INPUT.0;
-    let physical = |t: f64| t.is_finite() && fogtemp_core::is_physical_temperature(t as f32);
-    let count = (1..flags.len().min(time_s.len()).min(temp_c.len()))
-        .filter(|&k| {
-            flags[k] & bad != 0
-                && crate::features::micros(time_s[k]) == crate::features::micros(time_s[k - 1])
-                && physical(temp_c[k])
-        })
-        .count();
-    count as u64
+    let mut counter = SameMicrosecond::default();
+    for ((&t, &temp), &f) in time_s.iter().zip(temp_c).zip(flags) {
+        counter.observe(crate::features::micros(t), temp, f & bad != 0);
+    }
+    counter.count
+}
+
+/// Counts the temperature readings the tracker refused for coming in the microsecond of the
+/// last one it took (its clock's resolution): time stamps finer than 1 us (review25a 2).
+#[derive(Clone, Copy, Debug, Default)]
+pub struct SameMicrosecond {
+    last_reading_us: Option<u64>,
+    /// Readings refused so.
+    pub count: u64,
+}
+
+impl SameMicrosecond {
+    /// One sample: its time, its temperature (NaN: none) and whether it was flagged `BAD_INPUT`.
+    pub fn observe(&mut self, time_us: u64, temp_c: f64, flagged_bad: bool) {
+        if !(temp_c.is_finite() && fogtemp_core::is_physical_temperature(temp_c as f32)) {
+            return;
+        }
+        if flagged_bad && self.last_reading_us == Some(time_us) {
+            self.count += 1;
+        } else {
+            self.last_reading_us = Some(time_us);
+        }
+    }
 }
 
 /// How many flagged samples' lines [`BadInputSources::first_lines`] keeps.
@@ -465,7 +484,7 @@ fn bad_input_note(name: &str, bad: u64, samples: u64, output: &str, sources: &Ba
         };
         return format!(
             "{name}: {bad} of {samples} samples ({} %) had an input rejected (flag BAD_INPUT in {output}{lines}); {same_us} of them \
-             came in the same microsecond as the sample before: the compensator counts time in whole \
+             came in the same microsecond as the last reading taken: the compensator counts time in whole \
              microseconds, so their temperature readings were refused as not after the one before (time stamps \
              finer than 1 us, e.g. several samples of a packet stamped ns apart: give each sample its own time, \
              or average the packet){rest}",
@@ -2551,11 +2570,12 @@ mod tests {
     #[test]
     fn rejections_in_the_microsecond_before_count_only_readings_a_sensor_gives() {
         let bad = fogtemp_core::Flags::BAD_INPUT.0;
-        // Times in s: 1.0000002 shares 1.0's microsecond; 2.0000004 shares 2.0000002's.
-        let time_s = [1.0, 1.000_000_2, 2.0, 2.000_000_2, 2.000_000_4, 3.0];
-        let temp_c = [20.0, 20.0, 20.0, 20.0, -999.0, 20.0];
-        let flags = [0, bad, 0, bad, bad, bad];
-        // Sample 1 and 3 count; 4 is a -999 reading (refused for itself); 5 is a new microsecond.
+        // Times in s: 1.0000002 shares 1.0's microsecond, and 2.0000004 that of 2.0 (the last
+        // reading taken: 2.0000002 has none).
+        let time_s = [1.0, 1.000_000_2, 2.0, 2.000_000_2, 2.000_000_4, 2.000_000_4, 3.0];
+        let temp_c = [20.0, 20.0, 20.0, f64::NAN, 20.0, -999.0, 20.0];
+        let flags = [0, bad, 0, 0, bad, bad, bad];
+        // Samples 1 and 4 count; 5 is a -999 reading (refused for itself); 6 is a new microsecond.
         assert_eq!(same_microsecond_rejections(&time_s, &temp_c, &flags), 2);
         assert_eq!(same_microsecond_rejections(&time_s[..1], &temp_c[..1], &flags[..1]), 0);
     }
@@ -2578,7 +2598,7 @@ mod tests {
         // down to the temperature.
         let bursts = BadInputSources { same_microsecond: 9, ..from_file.clone() };
         let note = bad_input_note("run.csv axis 0", 9, 7200, "the output", &bursts);
-        assert!(note.contains("9 of them came in the same microsecond as the sample before"), "{note}");
+        assert!(note.contains("9 of them came in the same microsecond as the last reading taken"), "{note}");
         assert!(!note.contains("no sensor reads"), "{note}");
         let mixed = BadInputSources { same_microsecond: 6, ..from_file.clone() };
         let note = bad_input_note("run.csv axis 0", 9, 7200, "the output", &mixed);

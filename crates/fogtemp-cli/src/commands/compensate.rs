@@ -65,10 +65,9 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
     let mut flag_counts = vec![[0_u64; 8]; axes];
     // Per axis: the lines of the first samples flagged BAD_INPUT, for the note.
     let mut bad_lines: Vec<Vec<u64>> = vec![Vec::new(); axes];
-    // Per axis: samples flagged BAD_INPUT at the same whole microsecond as the row before:
+    // Per axis: readings refused for coming in the whole microsecond of the last one taken:
     // the compensator's clock (`--time-unit ns` reads steps under 1 us; review25a 2).
-    let mut same_microsecond = vec![0_u64; axes];
-    let mut previous_us = None;
+    let mut same_microsecond = vec![calibrate::SameMicrosecond::default(); axes];
     // Per axis: temperature spikes, reported (the compensator takes every reading).
     let mut spike_guards: Vec<SpikeGuard> = (0..axes).map(|_| SpikeGuard::new(max_gap_s)).collect();
     let bar = RowProgress::new(&a.log, "compensate");
@@ -92,8 +91,6 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
                     gaps.observe(previous_s, row.time_s, row.line);
                     previous_s = Some(row.time_s);
                     let time_us = row.time_us();
-                    let same_us_as_before = previous_us == Some(time_us);
-                    previous_us = Some(time_us);
                     let outputs = comps.iter_mut().enumerate().map(|(i, comp)| {
                         let temp = row.temp_c_for_axis(i);
                         // Only readings: rows without one change no verdict, and neither do
@@ -119,9 +116,7 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
                         if bad && bad_lines[i].len() < calibrate::BAD_INPUT_LINES_LISTED {
                             bad_lines[i].push(row.line);
                         }
-                        // A reading no sensor gives (-999) is refused for itself, whatever its time.
-                        let physical = temp.is_finite() && fogtemp_core::is_physical_temperature(temp as f32);
-                        same_microsecond[i] += u64::from(bad && same_us_as_before && physical);
+                        same_microsecond[i].observe(time_us, temp, bad);
                         AxisOutput {
                             raw_dph: row.gyros_dph[i],
                             compensated_dph: o.rate_dph,
@@ -204,7 +199,7 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
                 times_refused: true,
                 first_lines,
                 gyro_not_finite: 0,
-                same_microsecond: same_microsecond[axis],
+                same_microsecond: same_microsecond[axis].count,
             };
             let notes = calibrate::compensation_notes(
                 &name,
