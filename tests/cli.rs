@@ -916,6 +916,15 @@ fn evaluate_points_with_bad_cells_are_located() {
         ("temp_c,rate_c_per_min\n21,0.5\n22,0.4\nNaN,0.1\n", ":4:1: column 'temp_c': NaN or infinite"),
         ("temp,rate_c_per_min\n21,0.5\n", ": no column named 'temp_c'"),
         ("temp_c rate_c_per_min\n21 0.5\n", ":1: the columns are separated by spaces"),
+        // Review27a 12: rows of another length at their line and column; below absolute zero.
+        (
+            "temp_c,rate_c_per_min\n21,0.5\n22\n",
+            ":3:2: column 'rate_c_per_min': fewer fields than the header (1 of 2)",
+        ),
+        ("temp_c,rate_c_per_min\n21,0.5,7\n", ":2: 3 fields where the header names 2"),
+        ("temp_c,rate_c_per_min\n-300,0.1\n", ":2:1: column 'temp_c': not a temperature a sensor reads"),
+        ("", ": empty file"),
+        ("# grid\ntemp_c,rate_c_per_min\n# cold\n21,abc\n", ":4:2: column 'rate_c_per_min': not a number"),
     ];
     for (i, (text, needle)) in cases.iter().enumerate() {
         let points = dir.path().join(format!("points{i}.csv"));
@@ -924,6 +933,16 @@ fn evaluate_points_with_bad_cells_are_located() {
         let args = args!["evaluate", "--model", &model, "--points", &points, "--out", &out];
         expect_failure(&args, dir.path(), Some(&out), &[&msg]);
     }
+    // `#` comment lines and blank lines are skipped, as in the logs (review27a 12).
+    let commented = dir.path().join("commented.csv");
+    fs::write(&commented, "# grid for the report\ntemp_c,rate_c_per_min\n21,0.5\n\n# cold end\n-60,0\n")
+        .expect("write");
+    let plain = dir.path().join("plain.csv");
+    fs::write(&plain, "temp_c,rate_c_per_min\n21,0.5\n-60,0\n").expect("write");
+    assert_eq!(
+        run_ok(args!["evaluate", "--model", &model, "--points", &commented]),
+        run_ok(args!["evaluate", "--model", &model, "--points", &plain])
+    );
     // Semicolons or tabs (a spreadsheet's export) read as commas do (review6 F17).
     let comma = dir.path().join("comma.csv");
     fs::write(&comma, "temp_c,rate_c_per_min\n21,0.5\n-60,0\n").expect("write points");

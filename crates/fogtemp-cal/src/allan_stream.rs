@@ -14,6 +14,7 @@ use std::path::Path;
 use crate::documents::AllanDocument;
 use crate::ingest::{read_log_with_progress, IngestOptions, IngestReport, Row};
 use crate::metrics::{AllanPoint, ALLAN_MIN_SAMPLES};
+use crate::outliers::{BlockMeans, OutlierSummary};
 use crate::CalError;
 
 /// The default exact limit `L`: every cluster size up to 2^16 samples is computed from
@@ -599,6 +600,8 @@ pub fn allan_of_scanned_log(
     let Some(period_s) = scan.period_s else { return Ok(None) };
     let mut axes: Vec<AllanAccumulator> =
         columns.iter().map(|_| AllanAccumulator::with_exact_limit(period_s, exact_limit)).collect();
+    let mut blocks: Vec<BlockMeans> =
+        columns.iter().map(|_| BlockMeans::of_duration(crate::documents::SPIKE_BLOCK_S, period_s)).collect();
     let (mut row_index, mut gaps, mut previous_s) = (0u64, 0usize, None::<f64>);
     let report = read_log_with_progress(
         path,
@@ -611,10 +614,12 @@ pub fn allan_of_scanned_log(
             if previous_s.is_some_and(|p| row.time_s - p > 1.5 * period_s) {
                 gaps += 1;
                 axes.iter_mut().for_each(AllanAccumulator::end_segment);
+                blocks.iter_mut().for_each(BlockMeans::end_segment);
             }
             previous_s = Some(row.time_s);
-            for (axis, rate_dph) in axes.iter_mut().zip(row.gyros_dph) {
+            for ((axis, block), rate_dph) in axes.iter_mut().zip(&mut blocks).zip(row.gyros_dph) {
                 axis.push(*rate_dph);
+                block.push(row.time_s, *rate_dph);
             }
             Ok(())
         },
@@ -632,7 +637,8 @@ pub fn allan_of_scanned_log(
     }
     let samples = axes.first().map_or(0, AllanAccumulator::samples);
     let curves = axes.into_iter().map(AllanAccumulator::finish).collect();
-    Ok(Some(AllanDocument::from_curves(path, columns, period_s, gaps, samples, curves)))
+    let outliers = blocks.iter().map(OutlierSummary::of).collect();
+    Ok(Some(AllanDocument::from_curves(path, columns, period_s, gaps, samples, curves, outliers)))
 }
 
 #[cfg(test)]

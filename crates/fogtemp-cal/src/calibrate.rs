@@ -1167,7 +1167,10 @@ pub fn fit_axis(
     }
     let poly = match config.method {
         Method::Poly | Method::Hybrid => Some(fit_poly(points, &normalisation, config.poly, n_eff)?),
-        Method::CubicT => Some(fit_poly(points, &normalisation, TermSelection::CubicInTemperature, n_eff)?),
+        Method::CubicT => {
+            enough_temperatures_for_a_cubic(points)?;
+            Some(fit_poly(points, &normalisation, TermSelection::CubicInTemperature, n_eff)?)
+        }
         Method::Mesh | Method::Auto => None,
     };
     let residual_points: Vec<MeshPoint> = points
@@ -1686,6 +1689,9 @@ struct Replayer<'m> {
     fullest_block: u64,
     /// The time of the previous row, seconds.
     previous_s: Option<f64>,
+    /// Where the block grid starts, seconds (from the log's first two rows:
+    /// [`block_grid_origin_s`]); `None` until the second row.
+    grid_origin_s: Option<f64>,
     /// Finds temperature spikes (only reports them: the compensator takes every reading).
     spikes: SpikeGuard,
     /// The tracker's features at the last sample flagged `OUTSIDE_HULL` and whether they lie
@@ -1726,6 +1732,7 @@ impl<'m> Replayer<'m> {
             acc,
             fullest_block: 0,
             previous_s: None,
+            grid_origin_s: None,
             spikes,
             last_outside: None,
             region: model
@@ -1738,6 +1745,12 @@ impl<'m> Replayer<'m> {
 
     fn step(&mut self, row: &crate::ingest::Row<'_>) {
         self.series.gaps.observe(self.previous_s, row.time_s, row.line);
+        if let (Some(first_s), None) = (self.previous_s, self.grid_origin_s) {
+            // The open block holds the first row alone: it moves to the grid the first step sets.
+            let origin_s = block_grid_origin_s(first_s, row.time_s - first_s, self.block_s);
+            self.grid_origin_s = Some(origin_s);
+            self.acc.4 = ((first_s - origin_s) / self.block_s).floor() as i64;
+        }
         self.previous_s = Some(row.time_s);
         let temp = row.temp_c_for_axis(self.axis);
         let raw = row.gyros_dph[self.axis];
@@ -1751,7 +1764,7 @@ impl<'m> Replayer<'m> {
         if self.series.compensating_from_s.is_nan() && out.flags.0 & fogtemp_core::Flags::WARMING_UP.0 == 0 {
             self.series.compensating_from_s = row.time_s;
         }
-        let block = (row.time_s / self.block_s).floor() as i64;
+        let block = ((row.time_s - self.grid_origin_s.unwrap_or(0.0)) / self.block_s).floor() as i64;
         if block != self.acc.4 {
             self.flush();
             self.acc.4 = block;
@@ -1829,6 +1842,47 @@ impl<'m> Replayer<'m> {
         self.series.fullest_block_samples = self.fullest_block;
         self.series.temperature_spikes = self.spikes.finish(&mut |_| {});
         self.series
+    }
+}
+
+/// Refuses a cubic in T on fewer distinct temperatures than its 4 terms, naming them.
+fn enough_temperatures_for_a_cubic(points: &[MeshPoint]) -> Result<(), CalError> {
+    const TERMS: usize = 4;
+    let mut temperatures: Vec<f64> = points.iter().map(|p| p.temp_c).filter(|t| t.is_finite()).collect();
+    temperatures.sort_by(f64::total_cmp);
+    temperatures.dedup();
+    if temperatures.len() >= TERMS {
+        return Ok(());
+    }
+    let listed: Vec<String> = temperatures.iter().map(|t| format!("{t:.2} C")).collect();
+    Err(CalError::TooFewTemperatures {
+        distinct: temperatures.len(),
+        needed: TERMS,
+        temperatures: if listed.is_empty() { "none".into() } else { listed.join(", ") },
+    })
+}
+
+/// Where a replay's block grid starts, seconds, from the log's first time stamp and its first
+/// step. For a log of at most two samples a block (a step of half a block or more): half a
+/// sample spacing (the step, at most a block) before the first stamp's phase on that spacing,
+/// so each stamp sits mid-way between two block edges and stamps that jitter by less than half
+/// a spacing stay in their blocks: a 1 Hz log stamped 1.000020, 1.999990, ... on a
+/// whole-second grid gave blocks of 2, 0 and 1 samples, and every empty one cut the white-noise
+/// floor's stretches short (review25a). A log on multiples of its spacing is grouped as by
+/// whole seconds either way. Denser logs keep whole seconds (origin 0): jitter moves a sample
+/// of many, and the figures of logs in bursts, whose edge blocks hold a few samples, stay as
+/// they were. The block's time stays `(block + 0.5) * block_s`.
+fn block_grid_origin_s(first_s: f64, first_step_s: f64, block_s: f64) -> f64 {
+    let spacing_s =
+        if first_step_s.is_finite() && first_step_s > 0.0 { first_step_s.min(block_s) } else { block_s };
+    if spacing_s < block_s / 2.0 {
+        return 0.0;
+    }
+    let phase_s = first_s.rem_euclid(spacing_s);
+    if phase_s.is_finite() {
+        phase_s - spacing_s / 2.0
+    } else {
+        0.0
     }
 }
 
@@ -1982,7 +2036,18 @@ impl RunValidation {
     /// when the stretches are too short for an Allan deviation, or the spacing is over a tenth
     /// of the window.
     pub fn white_noise_floor(&self) -> Option<WhiteNoiseFloor> {
-        let from = self.series.first_compensated_block(1.0);
+        let compensated_from = self.series.first_compensated_block(1.0);
+        // The metric's span leaves out the first `excluded_s` after that, as its windows do
+        // (review27b F2: the floor took the warm-up that --exclude-first-s left out).
+        let excluded_s = self.windows.excluded_s.max(0.0);
+        let span_start_s = self.series.time_s.get(compensated_from).map_or(f64::INFINITY, |t| t + excluded_s);
+        let from = compensated_from
+            + self
+                .series
+                .time_s
+                .get(compensated_from..)
+                .unwrap_or_default()
+                .partition_point(|&t| t < span_start_s);
         let times = self.series.time_s.get(from..).unwrap_or_default();
         let values = self.series.compensated_dph.get(from..).unwrap_or_default();
         let spacing_s = crate::allan_stream::median_step(times)?.max(1.0);
@@ -3065,6 +3130,87 @@ mod tests {
             csv.push_str(&format!("{t:.1},{temp_c:.4},{:.6}\n", 0.01 * temp_c + 0.002 * temp_c.sin()));
         }
         csv
+    }
+
+    /// Review25a: a 1 Hz log whose stamps jitter by 20 us about whole seconds fell into 1 s
+    /// blocks of 2, 0 and 1 samples, so the white-noise floor's gap-free stretches were too
+    /// short. Oracle: the same log with exact stamps, whose blocks each hold one sample.
+    #[test]
+    fn a_1_hz_log_whose_stamps_jitter_gives_one_sample_a_block() {
+        let config = CalibrationConfig { method: Method::Poly, ..CalibrationConfig::default() };
+        let fitted = fit_ramps(&config, &[(-10.0, 0.5), (0.0, -0.3), (5.0, 0.2)]);
+        let model = Model::from_bytes(&fitted.blob).expect("parses");
+        let exact = ramp_log(0.0, 0.2);
+        // A fixed pattern of early and late stamps: 2, 0 and 1 samples a block on a whole-second grid.
+        let jittered: String = exact
+            .lines()
+            .enumerate()
+            .map(|(i, line)| match line.split_once(',') {
+                Some((t, rest)) if i > 0 => {
+                    let jitter_s = if (i * 7 + i / 3) % 4 < 2 { 20e-6 } else { -20e-6 };
+                    let t: f64 = t.parse().expect("a time");
+                    format!("{:.6},{rest}\n", t + if i == 1 { 0.0 } else { jitter_s })
+                }
+                _ => format!("{line}\n"),
+            })
+            .collect();
+        let replay = |log: &str| {
+            replay_models_from(log.as_bytes(), Path::new("j.csv"), &[&model], &config.ingest, 1.0)
+                .expect("replays")
+                .models[0][0]
+                .clone()
+        };
+        let (a, b) = (replay(&exact), replay(&jittered));
+        assert_eq!(a.time_s.len(), 3000, "one block a sample with exact stamps");
+        assert_eq!(b.time_s, a.time_s, "the jittered log's blocks are the exact log's");
+        assert_eq!(b.raw_dph, a.raw_dph, "each block holds the same one sample");
+        assert_eq!(b.fullest_block_samples, 1);
+    }
+
+    /// Review27b F2: the white-noise floor took the start that `--exclude-first-s` leaves out
+    /// of the metric. Closed form: blocks alternating +-a have a 1 s Allan deviation of
+    /// `a sqrt(2)`; the first 500 s alternate +-10, the rest +-1.
+    #[test]
+    fn the_white_noise_floor_leaves_out_the_start_the_metric_leaves_out() {
+        let time_s: Vec<f64> = (0..1000).map(|k| f64::from(k) + 0.5).collect();
+        let compensated_dph: Vec<f64> = (0..1000)
+            .map(|k| if k % 2 == 0 { 1.0 } else { -1.0 } * if k < 500 { 10.0 } else { 1.0 })
+            .collect();
+        let run = |excluded_s: f64| RunValidation {
+            series: ReplaySeries {
+                time_s: time_s.clone(),
+                compensated_dph: compensated_dph.clone(),
+                compensating_from_s: 0.0,
+                ..ReplaySeries::default()
+            },
+            windows: MetricWindows { tau_s: 100.0, excluded_s, ..MetricWindows::default() },
+            ..RunValidation::default()
+        };
+        let floor = |excluded_s: f64| run(excluded_s).white_noise_floor().expect("a floor").adev_dph;
+        assert!((floor(500.0) - 2f64.sqrt()).abs() < 1e-9, "{}", floor(500.0));
+        // Without: the mean square of both halves (and one step between them).
+        let both = (0.5 * (2.0 * 100.0 + 2.0 * 1.0_f64)).sqrt();
+        assert!((floor(0.0) - both).abs() < 0.01 * both, "{} against {both}", floor(0.0));
+    }
+
+    /// The block grid's origin: half a sample spacing before the stamps' phase, so a log on
+    /// multiples of its spacing is grouped by whole seconds as before. Closed forms.
+    #[test]
+    fn the_block_grid_puts_each_stamp_half_a_spacing_from_the_edges() {
+        let close = |a: f64, b: f64| (a - b).abs() < 1e-12;
+        assert!(close(block_grid_origin_s(12.0, 1.0, 1.0), -0.5), "1 Hz on whole seconds");
+        assert!(close(block_grid_origin_s(7.5, 1.0, 1.0), 0.0), "1 Hz on half seconds");
+        assert!(close(block_grid_origin_s(7.3, 0.5, 1.0), 0.05), "2 Hz off the grid");
+        assert!(close(block_grid_origin_s(3.0, 40.0, 1.0), -0.5), "a gap first: at most a block");
+        assert!(close(block_grid_origin_s(3.0, 0.0, 1.0), -0.5), "no step: a block");
+        assert!(close(block_grid_origin_s(0.03, 0.1, 1.0), 0.0), "10 Hz: whole seconds");
+        assert!(close(block_grid_origin_s(15.352, 0.019, 1.0), 0.0), "50 Hz: whole seconds");
+        // 2 Hz from 0 s: the samples 0.0 and 0.5 s in block 0, 1.0 s in block 1, as floor(t).
+        let origin_s = block_grid_origin_s(0.0, 0.5, 1.0);
+        for k in 0..40 {
+            let t = f64::from(k) * 0.5;
+            assert_eq!(((t - origin_s) / 1.0).floor(), t.floor(), "{t} s");
+        }
     }
 
     /// The same logs in another order give the same calibration points in the same order

@@ -333,7 +333,8 @@ pub struct FlagSamples {
     pub warming_up: u64,
     /// `PARTIAL_WINDOW` (bit 1): the window is not yet full.
     pub partial_window: u64,
-    /// `OUTSIDE_HULL` (bit 2): outside the calibrated mesh.
+    /// `OUTSIDE_HULL` (bit 2): outside the calibrated region (a mesh's hull, or the region a
+    /// polynomial stores), the model continued by its outside policy.
     pub outside_hull: u64,
     /// `TEMP_STALE` (bit 3): no temperature for longer than `max_gap_s`.
     pub temp_stale: u64,
@@ -401,7 +402,7 @@ pub struct ModelDocument {
     pub input_digest: String,
     /// How the fit read its logs' time (format 5; `null` when not recorded): `time_column`
     /// (`null` for a log without one), `date_column`, `time_unit` (`s`, `ms`, `us`,
-    /// `datetime`, `time-of-day`), `sample_rate_hz` (`null` with a time column).
+    /// `ns`, `min`, `h`, `datetime`, `time-of-day`: `--time-unit`'s names), `sample_rate_hz` (`null` with a time column).
     pub log_time: Option<LogTimeDocument>,
     /// How the fit read its logs' numbers and which logs it read (format 6; `null` before):
     /// `decimal_mark` (`point` or `comma`), `log_digests` (per calibration log, the first 8
@@ -540,13 +541,16 @@ pub struct ModelAxisDocument {
     pub features: FeaturesDocument,
     /// The normalisation of (T, dT/dt) onto the model's axes.
     pub normalisation: NormalisationDocument,
-    /// `nearest_hull` or `zero` with a mesh, `None` (null) without one.
+    /// How a mesh continues beyond its hull: `nearest_hull`, `zero` (a hybrid's mesh),
+    /// `linear_from_boundary` or `linear_stored_gradients` (the default of `fit
+    /// --mesh-outside`, spelt there `linear-stored-gradients`); `None` (null) without a mesh.
     pub outside_policy: Option<&'static str>,
     /// What the polynomial does outside the calibrated region: `extrapolate`,
     /// `hold_at_boundary` or `linear_from_boundary` (blob format 2); null without a polynomial.
     pub poly_outside: Option<&'static str>,
-    /// Vertices of the calibrated region stored in the blob (its convex hull in the
-    /// normalised plane; 0 for none, as in format 1).
+    /// Vertices of the calibrated region stored in the blob (the convex hull of the
+    /// calibration points in the normalised plane; for a model without a rate term, such as
+    /// `cubic-t`, the rectangle of the temperature and rate ranges; 0 for none, as in format 1).
     pub region_vertex_count: u32,
     /// Those vertices, counter-clockwise, normalised and in deg C and deg C/min.
     pub region: Vec<RegionVertexDocument>,
@@ -797,26 +801,31 @@ impl AllanDocument {
         let dt_s = median_step(times_s)?;
         let gaps = times_s.windows(2).filter(|w| (w[1] - w[0]) > 1.5 * dt_s).count();
         let samples = series_dph.first().map_or(0, Vec::len);
-        let curves = series_dph
+        let (curves, outliers) = series_dph
             .iter()
             .zip(columns)
             .map(|(s, _)| {
                 let mut accumulator = AllanAccumulator::new(dt_s);
+                let mut blocks = crate::outliers::BlockMeans::of_duration(SPIKE_BLOCK_S, dt_s);
                 for range in gap_free_ranges(times_s, dt_s) {
-                    for &rate_dph in s.get(range).unwrap_or_default() {
+                    let times = times_s.get(range.clone()).unwrap_or_default();
+                    for (&rate_dph, &time_s) in s.get(range).unwrap_or_default().iter().zip(times) {
                         accumulator.push(rate_dph);
+                        blocks.push(time_s, rate_dph);
                     }
                     accumulator.end_segment();
+                    blocks.end_segment();
                 }
-                accumulator.finish()
+                (accumulator.finish(), crate::outliers::OutlierSummary::of(&blocks))
             })
-            .collect();
-        Some(Self::from_curves(log, columns, dt_s, gaps, samples, curves))
+            .unzip();
+        Some(Self::from_curves(log, columns, dt_s, gaps, samples, curves, outliers))
     }
 
     /// The document from the curves already computed (one per column, in order; the
-    /// streaming route): the sample period `sample_period_s`, the `gaps` split at and the
-    /// `samples` per column.
+    /// streaming route): the sample period `sample_period_s`, the `gaps` split at, the
+    /// `samples` per column, and each column's spikes ([`SPIKE_BLOCK_S`] means screened by
+    /// [`crate::outliers::screen`]).
     pub fn from_curves(
         log: &Path,
         columns: &[String],
@@ -824,13 +833,16 @@ impl AllanDocument {
         gaps: usize,
         samples: usize,
         curves: Vec<Vec<AllanPoint>>,
+        outliers: Vec<Option<crate::outliers::OutlierSummary>>,
     ) -> Self {
         let axes = curves
             .into_iter()
             .zip(columns)
+            .zip(outliers.into_iter().chain(std::iter::repeat(None)))
             .enumerate()
-            .map(|(axis, (curve, column))| {
-                AllanAxisDocument::new(axis, column, sample_period_s, samples, curve)
+            .map(|(axis, ((curve, column), gyro_outliers))| AllanAxisDocument {
+                gyro_outliers,
+                ..AllanAxisDocument::new(axis, column, sample_period_s, samples, curve)
             })
             .collect();
         Self { log: log.display().to_string(), definition: ALLAN_DEFINITION, gaps, axes }
@@ -859,9 +871,17 @@ pub struct AllanAxisDocument {
     /// The most B can be, deg/h: the flicker floor 0.664 B lies under the curve everywhere,
     /// as the other noise terms and any drift only add to it, so B <= `adev_min_dph` / 0.664.
     pub bias_instability_at_most_dph: f64,
-    /// The curve, octave-spaced.
+    /// The curve, at cluster sizes about sqrt(2) apart (1, 2, 3, 5, 8, 12, ... samples).
     pub curve: Vec<AllanPoint>,
+    /// The gyro's 1 s means (or samples, when slower) beyond 10 robust SDs of their
+    /// neighbours' median: spikes, which the curve and N, B, K keep as logged (`count`,
+    /// `first_at_s`, `deviation_dph`, `robust_sd_dph`); null without any (review27a 9: one
+    /// spiked sample set N 190 times too large, and nothing said so).
+    pub gyro_outliers: Option<crate::outliers::OutlierSummary>,
 }
+
+/// The means the spike screen of `allan` judges, s: as `validate`'s 1 s blocks.
+pub const SPIKE_BLOCK_S: f64 = 1.0;
 
 /// The flicker floor of the Allan deviation in units of B (IEEE 952: sqrt(2 ln 2 / pi)).
 const FLICKER_FLOOR: f64 = 0.664;
@@ -888,7 +908,26 @@ impl AllanAxisDocument {
             adev_min_tau_s: minimum.map_or(f64::NAN, |p| p.tau_s),
             bias_instability_at_most_dph: minimum.map_or(f64::NAN, |p| p.adev_dph / FLICKER_FLOOR),
             curve,
+            gyro_outliers: None,
         }
+    }
+
+    /// The note for spikes in the gyro ([`Self::gyro_outliers`]), `None` without any.
+    pub fn outlier_note(&self) -> Option<String> {
+        let o = self.gyro_outliers?;
+        let (deviation, sds) = crate::outliers::deviation_text(o.deviation_dph, o.robust_sd_dph);
+        Some(format!(
+            "axis {} (column '{}'): {} of the gyro beyond {} robust SDs of the median around {} (the first at \
+             {:.0} s, {deviation} deg/h from it, {sds} SDs): spikes or a logger's overload code, kept in the curve \
+             and in N, B and K as logged, which they can raise many times over; check the log there, and quote \
+             noise terms from a log without them (fit reads them as missing, validate names them)",
+            self.axis,
+            self.column,
+            if o.count == 1 { "1 mean".to_string() } else { format!("{} means", o.count) },
+            crate::outliers::ROBUST_SDS,
+            if o.count == 1 { "it" } else { "them" },
+            o.first_at_s,
+        ))
     }
 
     /// The note for noise terms the fit put at zero (`None` when all three are positive or
@@ -975,6 +1014,28 @@ impl AllanAxisDocument {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Review27a 9: `allan` said nothing of a spike that set N 190 times too large. Oracle:
+    /// the sample spiked, in a 10 Hz series of +-0.1 deg/h (a fixed pattern), is named at
+    /// its 1 s block; the same series without it names nothing.
+    #[test]
+    fn allan_names_a_spike_in_the_gyro() {
+        let times_s: Vec<f64> = (0..6000).map(|k| f64::from(k) * 0.1).collect();
+        let clean: Vec<f64> = (0..6000).map(|k| 9.6 + 0.1 * f64::from((k * 7919) % 13) / 6.0 - 0.1).collect();
+        let mut spiked = clean.clone();
+        spiked[2345] = 1000.0;
+        let columns = vec!["gyro_dph".to_string()];
+        let doc = |series: &Vec<f64>| {
+            AllanDocument::new(Path::new("x.csv"), &columns, &times_s, std::slice::from_ref(series))
+                .expect("a document")
+        };
+        assert_eq!(doc(&clean).axes[0].gyro_outliers, None);
+        let found = doc(&spiked).axes[0].gyro_outliers.expect("the spike is found");
+        assert_eq!(found.count, 1);
+        assert!((found.first_at_s - 234.0).abs() < 1e-9, "{}", found.first_at_s);
+        assert!((found.deviation_dph - (1000.0 - 9.6) / 10.0).abs() < 0.05, "{}", found.deviation_dph);
+        assert!(doc(&spiked).axes[0].outlier_note().expect("a note").contains("the first at 234 s"));
+    }
 
     /// A curve with white noise falling to 0.001 deg/h at 100 s and then rising 4x, as drift
     /// does, with B fitted at zero: the note's advice depends on whether the column is

@@ -7,7 +7,12 @@ use std::path::PathBuf;
 #[non_exhaustive]
 pub enum CalError {
     /// The point set cannot be triangulated (fewer than 3 distinct points, or all collinear).
-    #[error("cannot build a mesh: {reason} ({points} distinct points)")]
+    #[error(
+        "cannot build a mesh: {reason} ({points} distinct point{}): a mesh needs calibration runs whose \
+         temperatures and rates vary (a temperature that never changes, a stuck sensor or the wrong column, gives \
+         one point); calibrate at several temperatures, or fit --method poly",
+        if *points == 1 { "" } else { "s" }
+    )]
     DegenerateMesh {
         /// Why.
         reason: &'static str,
@@ -25,6 +30,20 @@ pub enum CalError {
     /// A least-squares fit failed (too few points, rank deficient).
     #[error("fit failed: {0}")]
     Fit(FitProblem),
+    /// A cubic in T alone on fewer distinct temperatures than its terms (review27a 4: a
+    /// constant temperature said "design matrix is rank deficient").
+    #[error(
+        "a cubic in T needs at least {needed} distinct temperatures; the calibration points hold {distinct} \
+         ({temperatures}): calibrate at more temperatures, or fit --method poly"
+    )]
+    TooFewTemperatures {
+        /// Distinct temperatures among the calibration points.
+        distinct: usize,
+        /// Terms of the cubic.
+        needed: usize,
+        /// The temperatures, or their range, as text.
+        temperatures: String,
+    },
     /// No axis point ever had features: the tracker never had `min_blocks` blocks of
     /// temperature data without a gap longer than `max_gap_s` (the temperature column, the
     /// window or the gap limit do not suit the log's temperature sampling).

@@ -7,7 +7,8 @@
 pub struct BiasStabilityOptions {
     /// Averaging time, seconds (100 s default, 10 s option).
     pub tau_s: f64,
-    /// Overlapping windows (stepped by one sample block) instead of non-overlapping.
+    /// Overlapping windows (starting every tenth of `tau_s`: every 10 s for 100 s windows)
+    /// instead of non-overlapping.
     pub overlapping: bool,
     /// Remove a least-squares line from the window means before the standard deviation.
     pub detrend: bool,
@@ -64,36 +65,27 @@ pub fn window_stats(times_s: &[f64], values: &[f64], options: &BiasStabilityOpti
     // Sum and count per sub-window of tau/step; overlapping windows combine `step` of them.
     let step = if options.overlapping { 10 } else { 1 };
     let sub_s = options.tau_s / step as f64;
-    let mut sums: Vec<(f64, usize)> = Vec::new();
-    for (&t, &v) in times_s.iter().zip(values) {
-        if t < start || !v.is_finite() {
-            continue;
-        }
-        let k = ((t - start) / sub_s) as usize;
-        if sums.len() <= k {
-            sums.resize(k + 1, (0.0, 0));
-        }
-        sums[k].0 += v;
-        sums[k].1 += 1;
-    }
-    let windows: Vec<(f64, usize)> = sums
-        .windows(step)
-        .step_by(if options.overlapping { 1 } else { step })
-        .map(|w| w.iter().fold((0.0, 0), |a, b| (a.0 + b.0, a.1 + b.1)))
-        .collect();
-    let threshold = fullness_threshold(windows.iter().map(|w| w.1));
+    let finite = |i: usize| values.get(i).is_some_and(|v| v.is_finite());
+    let subs = sparse_bins(times_s, start, sub_s, finite, |w: &mut (f64, usize), i| {
+        w.0 += values[i];
+        w.1 += 1;
+    });
+    let (windows, window_count) = sparse_windows(&subs, step, |w, b| {
+        w.0 += b.0;
+        w.1 += b.1;
+    });
+    let threshold = fullness_threshold(windows.iter().map(|w| w.1 .1));
     let mut stats = WindowStats { used_spacing_s: f64::NAN, ..WindowStats::default() };
     let mut used_at = Vec::new();
-    for (k, (sum, count)) in windows.into_iter().enumerate() {
+    for &(j, (sum, count)) in &windows {
         if count >= threshold {
             stats.means.push(sum / count as f64);
             stats.samples_used += count;
-            used_at.push(k);
-        } else {
-            stats.left_out += 1;
+            used_at.push(j);
         }
     }
-    // Window k starts k sub-windows (overlapping) or k windows after the first.
+    stats.left_out = window_count - used_at.len();
+    // Window j starts j sub-windows (overlapping) or j windows after the first.
     let start_step_s = if options.overlapping { sub_s } else { options.tau_s };
     let mut spacings: Vec<usize> = used_at.windows(2).map(|w| w[1] - w[0]).collect();
     spacings.sort_unstable();
@@ -101,6 +93,72 @@ pub fn window_stats(times_s: &[f64], values: &[f64], options: &BiasStabilityOpti
         stats.used_spacing_s = median as f64 * start_step_s;
     }
     stats
+}
+
+/// The bins of `width_s` from `start_s` (bin k holds `start_s + k width_s <= t < start_s +
+/// (k + 1) width_s`) that hold a sample `take` accepts, in bin order: each bin's number and
+/// what `add` gathered of its samples (given each sample's index, in the order given).
+///
+/// Sparse: only bins that hold a sample exist, so a clock that jumps by years costs nothing
+/// (review27a 13: one slot per 100 s window of a 1e12 s jump asked for 160 GB and aborted
+/// the process).
+pub fn sparse_bins<A: Default>(
+    times_s: &[f64],
+    start_s: f64,
+    width_s: f64,
+    take: impl Fn(usize) -> bool,
+    mut add: impl FnMut(&mut A, usize),
+) -> Vec<(usize, A)> {
+    let mut bins: Vec<(usize, A)> = Vec::new();
+    for (i, &t) in times_s.iter().enumerate() {
+        if t.is_nan() || t < start_s || !take(i) {
+            continue;
+        }
+        let k = ((t - start_s) / width_s) as usize;
+        let at = match bins.last() {
+            Some(&(last, _)) if last == k => bins.len() - 1,
+            Some(&(last, _)) if last > k => match bins.binary_search_by_key(&k, |b| b.0) {
+                Ok(at) => at,
+                Err(at) => {
+                    bins.insert(at, (k, A::default()));
+                    at
+                }
+            },
+            _ => {
+                bins.push((k, A::default()));
+                bins.len() - 1
+            }
+        };
+        if let Some(bin) = bins.get_mut(at) {
+            add(&mut bin.1, i);
+        }
+    }
+    bins
+}
+
+/// The windows of `step` consecutive bins of [`sparse_bins`] (window j: bins j to
+/// j + step - 1, each window's last bin within the bins' span) that hold any bin, in order,
+/// each `combine`d from its bins in order; and how many windows the span holds, empty ones
+/// too.
+pub fn sparse_windows<A: Default + Clone>(
+    bins: &[(usize, A)],
+    step: usize,
+    mut combine: impl FnMut(&mut A, &A),
+) -> (Vec<(usize, A)>, usize) {
+    let step = step.max(1);
+    let window_count = bins.last().map_or(0, |&(last, _)| (last + 1).saturating_sub(step - 1));
+    if step == 1 {
+        return (bins.to_vec(), window_count);
+    }
+    let mut windows: std::collections::BTreeMap<usize, A> = std::collections::BTreeMap::new();
+    for (k, bin) in bins {
+        for j in k.saturating_sub(step - 1)..=*k {
+            if j < window_count {
+                combine(windows.entry(j).or_default(), bin);
+            }
+        }
+    }
+    (windows.into_iter().collect(), window_count)
 }
 
 /// The fewest samples an averaging window must hold to count, given every window's count:
@@ -189,7 +247,7 @@ pub struct AllanPoint {
 pub const ALLAN_MIN_SAMPLES: usize = 4;
 
 /// Overlapping Allan deviation (IEEE 952) of a rate series sampled every `dt_s`, at
-/// octave-spaced cluster sizes, computed on the f64 angle `theta = cumsum(rate * dt)`
+/// cluster sizes about sqrt(2) apart (1, 2, 3, 5, 8, 12, ...), computed on the f64 angle `theta = cumsum(rate * dt)`
 /// with the mean rate removed.
 pub fn allan_deviation(rate_dph: &[f64], dt_s: f64) -> Vec<AllanPoint> {
     allan_deviation_in_segments(&[rate_dph], dt_s)
@@ -370,6 +428,38 @@ pub fn rms_allan_pooled_error(curves: &[Vec<AllanPoint>]) -> Vec<AllanPoint> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Review27a 13: a clock that jumps by 1e12 s mid-log (a multiple of the window, so the
+    /// windows after it align as without it) asked for one slot per window of the jump.
+    /// Oracle: the same log without the jump gives the same means; the windows of the jump,
+    /// all empty, are counted as left out (1e10 of them), and overlapping windows alike.
+    #[test]
+    fn a_clock_jump_of_years_costs_nothing_and_changes_no_window_mean() {
+        let values: Vec<f64> =
+            (0..3000).map(|k| f64::from(k % 37) * 0.01 + (f64::from(k) * 0.01).sin()).collect();
+        let plain: Vec<f64> = (0..3000).map(f64::from).collect();
+        let jumped: Vec<f64> = plain.iter().map(|&t| if t >= 1500.0 { t + 1e12 } else { t }).collect();
+        for overlapping in [false, true] {
+            let options = BiasStabilityOptions { overlapping, ..BiasStabilityOptions::default() };
+            let (a, b) = (window_stats(&plain, &values, &options), window_stats(&jumped, &values, &options));
+            assert_eq!(a.left_out, 0, "3000 s fill every window");
+            if overlapping {
+                // 291 windows stepped by 10 s. Of the 9 on each side of the jump that hold part
+                // of it, the one with 90 of 100 samples counts (the 90 % rule), the other 8 are
+                // left out; the jump itself holds 1e11 empty starts.
+                assert_eq!(a.means.len(), 291);
+                assert_eq!(b.means.len(), 141 + 1 + 1 + 141);
+                assert_eq!(b.means[..141], a.means[..141]);
+                assert_eq!(b.means[143..], a.means[150..]);
+                assert_eq!(b.samples_used, 282 * 100 + 2 * 90);
+                assert_eq!(b.left_out, 100_000_000_000 + 291 - 284);
+            } else {
+                assert_eq!(b.means, a.means);
+                assert_eq!(b.samples_used, a.samples_used);
+                assert_eq!(b.left_out, 10_000_000_000);
+            }
+        }
+    }
 
     /// The RMS over runs and its relative error by hand: one run keeps its own; four equal
     /// runs halve it (1 / sqrt(4)); runs of unequal length share the shorter's points.

@@ -67,6 +67,83 @@ pub fn screen(values: &[f64]) -> (Vec<(usize, f64)>, f64) {
     (found, robust_sd)
 }
 
+/// Means of consecutive samples in blocks of a fixed count, streamed: the series [`screen`]
+/// judges for a log too long to hold (`allan`'s). A block never spans a gap
+/// ([`BlockMeans::end_segment`]); one cut short by a gap or the end is left out, as its mean of
+/// fewer samples is noisier than the others.
+#[derive(Clone, Debug, Default)]
+pub struct BlockMeans {
+    samples_per_block: usize,
+    sum: f64,
+    count: usize,
+    first_s: f64,
+    /// Each block's first sample time, s.
+    pub time_s: Vec<f64>,
+    /// Each block's mean.
+    pub means: Vec<f64>,
+}
+
+impl BlockMeans {
+    /// Blocks of `samples_per_block` samples (at least 1).
+    pub fn new(samples_per_block: usize) -> Self {
+        Self { samples_per_block: samples_per_block.max(1), ..Self::default() }
+    }
+
+    /// Blocks of about `block_s` of samples `period_s` apart (one sample when slower).
+    pub fn of_duration(block_s: f64, period_s: f64) -> Self {
+        let per_block = (block_s / period_s).round();
+        Self::new(if per_block.is_finite() && per_block >= 1.0 { per_block as usize } else { 1 })
+    }
+
+    /// Adds a sample at `time_s`.
+    pub fn push(&mut self, time_s: f64, value: f64) {
+        if self.count == 0 {
+            self.first_s = time_s;
+        }
+        self.sum += value;
+        self.count += 1;
+        if self.count == self.samples_per_block {
+            self.time_s.push(self.first_s);
+            self.means.push(self.sum / self.count as f64);
+            self.end_segment();
+        }
+    }
+
+    /// A gap: the open block is left out.
+    pub fn end_segment(&mut self) {
+        self.sum = 0.0;
+        self.count = 0;
+    }
+}
+
+/// A series' outliers ([`screen`]) for a note: how many, and the first's time, deviation and
+/// size.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct OutlierSummary {
+    /// Means beyond [`ROBUST_SDS`] robust SDs of their neighbours' median.
+    pub count: usize,
+    /// The first one's time, s.
+    pub first_at_s: f64,
+    /// The first one's deviation from its neighbours' median, deg/h.
+    pub deviation_dph: f64,
+    /// The series' robust standard deviation, deg/h.
+    pub robust_sd_dph: f64,
+}
+
+impl OutlierSummary {
+    /// The outliers of `blocks`' means, `None` without any.
+    pub fn of(blocks: &BlockMeans) -> Option<Self> {
+        let (found, robust_sd_dph) = screen(&blocks.means);
+        let &(first, deviation_dph) = found.first()?;
+        Some(Self {
+            count: found.len(),
+            first_at_s: blocks.time_s.get(first).copied().unwrap_or(f64::NAN),
+            deviation_dph,
+            robust_sd_dph,
+        })
+    }
+}
+
 /// An outlier's deviation (deg/h, signed) and its size in robust SDs as text: five decimals
 /// and whole SDs for ordinary sizes, and four significant digits in exponent form for an
 /// overload code's 9.91e37 (its 38 digits said nothing).

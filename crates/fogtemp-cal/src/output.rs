@@ -53,21 +53,24 @@ pub fn remove_pending_outputs() {
 
 /// An output written and synced to a temporary file beside its destination; dropping it
 /// removes the temporary file, [`Staged::commit`] renames it into place.
+/// An output to a device or a named pipe (`/dev/null`, a FIFO) has no temporary file: it
+/// was written straight into its destination ([`is_special_file`]).
 #[derive(Debug)]
 pub struct Staged {
-    tmp: tempfile::NamedTempFile,
+    tmp: Option<(tempfile::NamedTempFile, Pending)>,
     path: PathBuf,
-    _pending: Pending,
 }
 
 impl Staged {
-    /// Renames the staged file over its destination.
+    /// Renames the staged file over its destination (nothing to do for a device or a pipe,
+    /// written already).
     ///
     /// # Errors
     /// [`CalError::Output`] if the rename fails (the temporary file is removed).
     pub fn commit(self) -> Result<(), CalError> {
+        let Some((tmp, _pending)) = self.tmp else { return Ok(()) };
         let path = self.path;
-        self.tmp.persist(&path).map_err(|e| CalError::Output {
+        tmp.persist(&path).map_err(|e| CalError::Output {
             action: "cannot move the output into place at",
             path,
             source: e.error,
@@ -127,8 +130,72 @@ pub fn leftover_temporaries(path: &Path) -> Vec<(PathBuf, u64)> {
     found
 }
 
+/// Where writing `path` puts the bytes: the file a symbolic link names (followed to the end,
+/// as the shell's `>` follows it), else `path` itself. Renaming a temporary over the link
+/// replaced the link and left its target as it was (review27a 1).
+pub fn destination(path: &Path) -> PathBuf {
+    if !std::fs::symlink_metadata(path).is_ok_and(|m| m.file_type().is_symlink()) {
+        return path.to_path_buf();
+    }
+    if let Ok(target) = std::fs::canonicalize(path) {
+        return target;
+    }
+    // A link to a file not there yet: its target, read relative to the link's folder.
+    match std::fs::read_link(path) {
+        Ok(target) if target.is_absolute() => target,
+        Ok(target) => path.parent().map_or(target.clone(), |dir| dir.join(&target)),
+        Err(_) => path.to_path_buf(),
+    }
+}
+
+/// Whether `path` is there and neither a regular file nor a folder: a device (`/dev/null`,
+/// `/dev/full`, a terminal), a named pipe or a socket. Such an output is written straight
+/// into, as the shell's `>` writes it: a temporary renamed over it replaced the machine's
+/// `/dev/full` and `/dev/stdout` with regular files (review27a 1).
+pub fn is_special_file(path: &Path) -> bool {
+    std::fs::metadata(path).is_ok_and(|m| !m.is_file() && !m.is_dir())
+}
+
+/// Checks before any long work that the file `path` can be written where it is named: not a
+/// folder, its folder exists and a file can be made in it (with the prefix its temporary will
+/// have; the check's file is removed at once). A device or a pipe is fine as it is. For the
+/// command line and Python alike (review27a 11: Python's `fit(out=FOLDER)` found the folder
+/// after the fit and lost the model).
+///
+/// # Errors
+/// [`CalError::Output`] naming the path and what is wrong.
+pub fn check_output_file(path: &Path) -> Result<(), CalError> {
+    let out = &destination(path);
+    if is_special_file(out) {
+        return Ok(());
+    }
+    let refuse = |text: String| CalError::Output {
+        action: "cannot write",
+        path: path.to_path_buf(),
+        source: std::io::Error::other(text),
+    };
+    if out.is_dir() {
+        return Err(refuse("is a folder; give the path of the file to write".into()));
+    }
+    let folder = match out.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    if folder.exists() && !folder.is_dir() {
+        return Err(refuse(format!("{} is a file, not a folder", folder.display())));
+    }
+    if !folder.is_dir() {
+        return Err(refuse(format!("the folder {} does not exist", folder.display())));
+    }
+    tempfile::Builder::new().prefix(&temporary_prefix(out)).tempfile_in(folder).map(drop).map_err(|source| {
+        CalError::Output { action: "cannot create a temporary file in", path: folder.to_path_buf(), source }
+    })
+}
+
 /// Writes `path`'s content with `write` into a synced temporary file in the same folder
-/// (mode 0666 less the umask, like a new file), ready to be moved into place.
+/// (mode 0666 less the umask, like a new file), ready to be moved into place. The
+/// destination is the file a symbolic link names ([`destination`]); a device or a named
+/// pipe is written straight into at once ([`is_special_file`]).
 ///
 /// # Errors
 /// [`CalError::Output`] naming the folder or file and what failed; the temporary file is
@@ -137,6 +204,11 @@ pub fn stage(
     path: &Path,
     write: impl FnOnce(&mut dyn Write) -> std::io::Result<()>,
 ) -> Result<Staged, CalError> {
+    let path = &destination(path);
+    if is_special_file(path) {
+        write_into_special_file(path, write)?;
+        return Ok(Staged { tmp: None, path: path.to_path_buf() });
+    }
     let dir = match path.parent() {
         Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
         _ => PathBuf::from("."),
@@ -178,7 +250,23 @@ pub fn stage(
         buffered.flush().map_err(failed("writing"))?;
     }
     tmp.as_file().sync_all().map_err(failed("syncing"))?;
-    Ok(Staged { tmp, path: path.to_path_buf(), _pending: pending })
+    Ok(Staged { tmp: Some((tmp, pending)), path: path.to_path_buf() })
+}
+
+/// Writes into a device or a named pipe as it is (no temporary, no sync: `/dev/null` cannot
+/// be synced, and a pipe's reader has the bytes).
+fn write_into_special_file(
+    path: &Path,
+    write: impl FnOnce(&mut dyn Write) -> std::io::Result<()>,
+) -> Result<(), CalError> {
+    let failed = |action: &'static str| {
+        let path = path.to_path_buf();
+        move |source| CalError::Output { action, path, source }
+    };
+    let file = std::fs::OpenOptions::new().write(true).open(path).map_err(failed("cannot open"))?;
+    let mut buffered = std::io::BufWriter::with_capacity(WRITE_BUFFER_BYTES, file);
+    write(&mut buffered).map_err(failed("writing"))?;
+    buffered.flush().map_err(failed("writing"))
 }
 
 /// Writes `path` atomically: [`stage`] then [`Staged::commit`]; inside [`all_or_nothing`],
@@ -296,7 +384,12 @@ pub fn remove_file_deferred(path: &Path) -> std::io::Result<()> {
 pub fn read_current(path: &Path) -> std::io::Result<String> {
     let staged = DEFERRED.with(|d| {
         d.borrow().as_ref().and_then(|scope| {
-            scope.staged.iter().rev().find(|s| s.path == path).map(|s| s.tmp.path().to_path_buf())
+            scope
+                .staged
+                .iter()
+                .rev()
+                .find(|s| s.path == path)
+                .and_then(|s| Some(s.tmp.as_ref()?.0.path().to_path_buf()))
         })
     });
     std::fs::read_to_string(staged.as_deref().unwrap_or(path))
@@ -467,5 +560,50 @@ mod tests {
         let err = write_file_atomic(&path, |w| w.write_all(b"x")).expect_err("no folder");
         assert!(err.to_string().contains("cannot create a temporary file in"), "{err}");
         assert!(err.to_string().contains("no/such"), "{err}");
+    }
+
+    /// Review27a 1: a temporary renamed over a symbolic link replaced the link and left its
+    /// target as it was. Oracle: the link stays a link, and its target holds the new bytes.
+    #[cfg(unix)]
+    #[test]
+    fn a_symbolic_link_is_written_through() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let target = dir.path().join("model-v3.fogm");
+        let link = dir.path().join("current.fogm");
+        std::fs::write(&target, b"old").expect("seed file");
+        std::os::unix::fs::symlink("model-v3.fogm", &link).expect("link");
+        write_file_atomic(&link, |w| w.write_all(b"new")).expect("writes");
+        assert!(std::fs::symlink_metadata(&link).expect("link").file_type().is_symlink(), "the link is kept");
+        assert_eq!(std::fs::read(&target).expect("target"), b"new");
+        // A link to a file not there yet makes it.
+        let dangling = dir.path().join("next.fogm");
+        std::os::unix::fs::symlink("model-v4.fogm", &dangling).expect("link");
+        write_file_atomic(&dangling, |w| w.write_all(b"v4")).expect("writes");
+        assert_eq!(std::fs::read(dir.path().join("model-v4.fogm")).expect("made"), b"v4");
+    }
+
+    /// Review27a 1: a temporary renamed over a device or a named pipe replaced it with a
+    /// regular file (the machine's /dev/full). A named pipe is written straight into. Oracle:
+    /// it stays a pipe, and its reader gets the bytes.
+    #[cfg(unix)]
+    #[test]
+    fn a_named_pipe_is_written_into_not_replaced() {
+        use std::os::unix::fs::FileTypeExt;
+        let dir = tempfile::tempdir().expect("temp dir");
+        let fifo = dir.path().join("pipe");
+        let made = std::process::Command::new("mkfifo").arg(&fifo).status();
+        if !made.is_ok_and(|s| s.success()) {
+            eprintln!("SKIPPED: mkfifo is not available here");
+            return;
+        }
+        let reader = {
+            let fifo = fifo.clone();
+            std::thread::spawn(move || std::fs::read(fifo).expect("reads the pipe"))
+        };
+        assert!(is_special_file(&fifo));
+        write_file_atomic(&fifo, |w| w.write_all(b"through the pipe")).expect("writes");
+        assert_eq!(reader.join().expect("reader"), b"through the pipe");
+        assert!(std::fs::metadata(&fifo).expect("there").file_type().is_fifo(), "still a pipe");
+        assert!(leftover_temporaries(&fifo).is_empty());
     }
 }

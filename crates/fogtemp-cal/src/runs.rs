@@ -48,7 +48,7 @@ pub struct RunMetadata {
 #[non_exhaustive]
 pub enum RunsProblem {
     /// The header lacks a required column.
-    #[error("no column named '{column}' (the header has: {available})")]
+    #[error("no column named '{column}' (the header has: {available}){}", delimiter_hint(available))]
     MissingColumn {
         /// The required column.
         column: &'static str,
@@ -88,6 +88,16 @@ pub enum RunsProblem {
         cells: usize,
         /// Columns in the header.
         columns: usize,
+    },
+    /// A row has fewer cells than the header names: a required one is missing.
+    #[error("{cells} cells where the header names {columns}: the row lacks '{column}'")]
+    FewerCells {
+        /// Cells in the row.
+        cells: usize,
+        /// Columns in the header.
+        columns: usize,
+        /// The first required column the row lacks.
+        column: &'static str,
     },
     /// Two logs have the same run name (file name without `.csv`), so one row would
     /// describe both.
@@ -131,6 +141,25 @@ pub enum RunsProblem {
     Csv(String),
 }
 
+/// Why a header lacks the columns, when its one cell holds another delimiter: the runs file
+/// is read comma-separated (review27a 6: `run;position;input_rate_dph` said only which
+/// columns it lacked).
+fn delimiter_hint(available: &str) -> &'static str {
+    if available.contains(';') {
+        ": the runs file is read with commas between cells, and this header has semicolons; write it with commas"
+    } else if available.contains('\t') {
+        ": the runs file is read with commas between cells, and this header has tabs; write it with commas"
+    } else {
+        ""
+    }
+}
+
+/// The largest true input rate a runs file may give, deg/h: 10,000 deg/s, beyond the range
+/// of any gyro (tactical MEMS reach a few thousand deg/s). A larger one is a unit slip or a
+/// typo, and subtracted from the gyro it would become the model's bias (review27a 5: 1e30
+/// wrote a model with a residual of 1e22 deg/h and said nothing).
+pub const MAX_INPUT_RATE_DPH: f64 = 3.6e7;
+
 /// A parsed runs file.
 #[derive(Clone, Debug, PartialEq)]
 pub struct RunsFile {
@@ -164,15 +193,33 @@ impl RunsFile {
     /// # Errors
     /// [`CalError::Runs`] with the line and the problem.
     pub fn from_reader<R: Read>(reader: R, name: &Path) -> Result<Self, CalError> {
-        let mut csv = csv::ReaderBuilder::new().trim(csv::Trim::All).flexible(true).from_reader(reader);
-        let header = csv.headers().map_err(|e| problem(name, 1, RunsProblem::Csv(e.to_string())))?.clone();
-        if header.is_empty() {
-            return Err(problem(name, 1, RunsProblem::Empty));
+        let mut csv = csv::ReaderBuilder::new()
+            .trim(csv::Trim::All)
+            .flexible(true)
+            .has_headers(false)
+            .from_reader(reader);
+        // `#` lines are comments, as in the logs: read as records and passed over (the csv
+        // crate's own `comment` leaves them out of the line numbers), the header the first other.
+        let is_comment = |r: &csv::StringRecord| r.get(0).is_some_and(|c| c.starts_with('#'));
+        let mut records = csv.records().filter(|r| r.as_ref().map_or(true, |r| !is_comment(r)));
+        let (header, header_line) = match records.next() {
+            None => return Err(problem(name, 1, RunsProblem::Empty)),
+            Some(Err(e)) => {
+                let line = e.position().map_or(1, csv::Position::line);
+                return Err(problem(name, line, RunsProblem::Csv(e.to_string())));
+            }
+            Some(Ok(h)) => {
+                let line = h.position().map_or(1, csv::Position::line);
+                (h, line)
+            }
+        };
+        if header.iter().all(str::is_empty) {
+            return Err(problem(name, header_line, RunsProblem::Empty));
         }
         let column = |wanted: &'static str| {
             header.iter().position(|h| h.eq_ignore_ascii_case(wanted)).ok_or_else(|| {
                 let available = header.iter().collect::<Vec<_>>().join(", ");
-                problem(name, 1, RunsProblem::MissingColumn { column: wanted, available })
+                problem(name, header_line, RunsProblem::MissingColumn { column: wanted, available })
             })
         };
         let (run_col, position_col, rate_col) =
@@ -180,7 +227,7 @@ impl RunsFile {
         let role_col = header.iter().position(|h| h.eq_ignore_ascii_case("role"));
         let mut runs: Vec<RunMetadata> = Vec::new();
         let mut first_line: BTreeMap<String, u64> = BTreeMap::new();
-        for record in csv.records() {
+        for record in records {
             let record = record.map_err(|e| {
                 let line = e.position().map_or(0, csv::Position::line);
                 problem(name, line, RunsProblem::Csv(e.to_string()))
@@ -191,6 +238,14 @@ impl RunsFile {
                     name,
                     line,
                     RunsProblem::ExtraCells { cells: record.len(), columns: header.len() },
+                ));
+            }
+            let required = [("run", run_col), ("position", position_col), ("input_rate_dph", rate_col)];
+            if let Some(&(column, _)) = required.iter().find(|(_, i)| *i >= record.len()) {
+                return Err(problem(
+                    name,
+                    line,
+                    RunsProblem::FewerCells { cells: record.len(), columns: header.len(), column },
                 ));
             }
             let cell = |i: usize| record.get(i).unwrap_or("");
@@ -211,6 +266,12 @@ impl RunsFile {
                 .ok()
                 .filter(|v: &f64| v.is_finite())
                 .ok_or_else(|| bad("input_rate_dph", "not a finite number", rate_text))?;
+            if input_rate_dph.abs() > MAX_INPUT_RATE_DPH {
+                let what =
+                    "beyond 10,000 deg/s (3.6e7 deg/h), more than any gyro measures: the rate is in deg/h \
+                            (a rate in another unit, or a typo?)";
+                return Err(bad("input_rate_dph", what, rate_text));
+            }
             let role = match role_col.map(cell) {
                 None | Some("") => None,
                 Some("cal") => Some(Role::Cal),
@@ -615,6 +676,20 @@ mod tests {
         let (line, p) = runs_problem(parse("run,position,input_rate_dph\na,up,NaN\n"));
         assert_eq!(line, 2);
         assert!(matches!(p, RunsProblem::BadCell { column: "input_rate_dph", .. }), "{p}");
+        // Review27a 5 and 6: a rate beyond any gyro's range, a short row, semicolons, comments.
+        let (line, p) = runs_problem(parse("run,position,input_rate_dph\na,up,9.6\nb,up,1e30\n"));
+        assert_eq!(line, 3);
+        assert!(p.to_string().contains("beyond 10,000 deg/s"), "{p}");
+        assert!(parse("run,position,input_rate_dph\na,up,-3.6e7\n").is_ok(), "10,000 deg/s itself is read");
+        let (line, p) = runs_problem(parse("run,position,input_rate_dph\na,up\n"));
+        assert_eq!(line, 2);
+        assert_eq!(p, RunsProblem::FewerCells { cells: 2, columns: 3, column: "input_rate_dph" });
+        let (_, p) = runs_problem(parse("run;position;input_rate_dph\na;up;1\n"));
+        assert!(p.to_string().contains("this header has semicolons"), "{p}");
+        let commented =
+            parse("# lab runs, 2026-11\nrun,position,input_rate_dph\n# up first\na,up,1\n").expect("reads");
+        assert_eq!(commented.runs.len(), 1);
+        assert_eq!(commented.runs[0].line, 4);
         let (line, p) = runs_problem(parse("run,position,input_rate_dph,role\na,up,1,calibrate\n"));
         assert_eq!(line, 2);
         assert!(matches!(p, RunsProblem::BadCell { column: "role", .. }), "{p}");

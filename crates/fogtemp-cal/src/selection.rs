@@ -1222,25 +1222,21 @@ pub fn window_means_inside(
     let start = times_s.first().copied().unwrap_or(0.0) + options.exclude_first_s;
     let step = if options.overlapping { 10 } else { 1 };
     let sub_s = options.tau_s / step as f64;
-    // Per sub-window: sum, count, every sample inside.
-    let mut subs: Vec<(f64, usize, bool)> = Vec::new();
-    for (i, (&t, &v)) in times_s.iter().zip(values).enumerate() {
-        if t < start || !v.is_finite() {
-            continue;
-        }
-        let k = ((t - start) / sub_s) as usize;
-        if subs.len() <= k {
-            subs.resize(k + 1, (0.0, 0, true));
-        }
-        subs[k].0 += v;
-        subs[k].1 += 1;
-        subs[k].2 &= inside.is_none_or(|m| m.get(i).copied().unwrap_or(false));
-    }
-    let windows: Vec<(f64, usize, bool)> = subs
-        .windows(step)
-        .step_by(if options.overlapping { 1 } else { step })
-        .map(|w| w.iter().fold((0.0, 0, true), |a, b| (a.0 + b.0, a.1 + b.1, a.2 && b.2)))
-        .collect();
+    // Per sub-window: sum, count, samples outside.
+    let finite = |i: usize| values.get(i).is_some_and(|v| v.is_finite());
+    let subs =
+        crate::metrics::sparse_bins(times_s, start, sub_s, finite, |w: &mut (f64, usize, usize), i| {
+            w.0 += values[i];
+            w.1 += 1;
+            w.2 += usize::from(!inside.is_none_or(|m| m.get(i).copied().unwrap_or(false)));
+        });
+    let (windows, _) = crate::metrics::sparse_windows(&subs, step, |w, b| {
+        w.0 += b.0;
+        w.1 += b.1;
+        w.2 += b.2;
+    });
+    let windows: Vec<(f64, usize, bool)> =
+        windows.into_iter().map(|(_, (s, c, out))| (s, c, out == 0)).collect();
     let threshold = crate::metrics::fullness_threshold(windows.iter().map(|w| w.1));
     let full = windows.into_iter().filter(|w| w.1 >= threshold);
     let (kept, outside): (Vec<_>, Vec<_>) = full.partition(|w| w.2);

@@ -13,7 +13,8 @@ use fogtemp_cal::ingest::{DecimalMark, Delimiter, IngestOptions, LogFormat, Rate
 /// time_s (seconds), temp_c (deg C) and gyro_dph (deg/h); the ingest options map other
 /// names and units, and read other shapes (a banner to skip, no header, no time column,
 /// comment lines, semicolon, tab or whitespace delimiters). A folder argument means every
-/// *.csv file in it, sorted by name.
+/// *.csv file in it, sorted by name with signed numbers read as numbers (`-40C` before
+/// `-10C` before `5C`).
 #[derive(Debug, Parser)]
 #[command(name = "fogtemp-cal", version, about, long_about = None, propagate_version = true)]
 pub struct Cli {

@@ -17,7 +17,7 @@ pub fn write_atomic(path: &Path, write: impl FnOnce(&mut dyn Write) -> Result<()
 /// The first half of [`write_atomic`]: for outputs that must all be written before any
 /// of them is moved into place ([`Staged::commit`]).
 pub fn stage(path: &Path, write: impl FnOnce(&mut dyn Write) -> Result<()>) -> Result<Staged> {
-    note_leftover_temporaries(path);
+    note_leftover_temporaries(&fogtemp_cal::output::destination(path));
     // The closure's error chain travels inside the I/O error.
     Ok(fogtemp_cal::output::stage(path, |w| {
         write(w).map_err(|e| std::io::Error::other(chain_text(&e, path)))
@@ -124,29 +124,11 @@ pub fn refuse_overwriting_inputs(out: &Path, inputs: &[&Path]) -> Result<()> {
     Ok(())
 }
 
-/// Checks before any long work that the file `out` can be written where it is named: its
-/// folder exists and a file can be created in it (the check's file is removed at once), and
-/// `out` is not a folder.
+/// Checks before any long work that the file `out` can be written where it is named
+/// (`fogtemp_cal::output::check_output_file`): not a folder, its folder exists and a file can
+/// be made in it; a device or a pipe as it is.
 pub fn check_output_file(out: &Path) -> Result<()> {
-    if out.is_dir() {
-        bail!("{}: is a folder; give the path of the file to write", out.display());
-    }
-    let folder = match out.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p,
-        _ => Path::new("."),
-    };
-    if folder.exists() && !folder.is_dir() {
-        bail!("{}: {} is a file, not a folder", out.display(), folder.display());
-    }
-    if !folder.is_dir() {
-        bail!("{}: the folder {} does not exist", out.display(), folder.display());
-    }
-    // With the prefix the output's own temporary will have (a name near the length limit).
-    tempfile::Builder::new()
-        .prefix(&fogtemp_cal::output::temporary_prefix(out))
-        .tempfile_in(folder)
-        .map(drop)
-        .with_context(|| format!("{}: cannot create a temporary file in {}", out.display(), folder.display()))
+    Ok(fogtemp_cal::output::check_output_file(out)?)
 }
 
 /// Checks before any long work that `dir` can hold a report: an existing folder, or a path

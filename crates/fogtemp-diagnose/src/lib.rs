@@ -584,7 +584,24 @@ pub struct TemperatureRun {
     pub rms_diff_at_best_lag_c: f64,
     /// Recorded rise / simulated rise over the run (NaN if the simulated rise < 1 C).
     pub rise_ratio: f64,
+    /// Highest less lowest recorded temperature over the run (its 1 s means), deg C.
+    pub recorded_span_c: f64,
+    /// Highest less lowest simulated temperature over the run, deg C.
+    pub simulated_span_c: f64,
 }
+
+impl TemperatureRun {
+    /// Whether the recorded temperature never moves while the simulation's spans a degree
+    /// or more: a stuck sensor, or the wrong column (review27a 8: a constant recorded
+    /// temperature was explained as a -1800 s time shift, the edge of the shift's search).
+    pub fn recorded_stuck(&self) -> bool {
+        self.recorded_span_c < STUCK_SPAN_C && self.simulated_span_c >= 1.0
+    }
+}
+
+/// The span below which a run's recorded temperature counts as not moving, deg C: under any
+/// sensor's resolution that logs a change (0.01 C).
+pub const STUCK_SPAN_C: f64 = 0.01;
 
 /// Temperature channel comparison.
 #[derive(Clone, Debug, PartialEq, Serialize)]

@@ -359,6 +359,7 @@ pub fn temperature(prep: &Prepared, options: &DiagnoseOptions) -> TemperatureCom
     let statement = if mismatch {
         let lagged: Vec<String> = runs
             .iter()
+            .filter(|r| !r.recorded_stuck())
             .filter(|r| r.best_lag_s.abs() >= 60.0 && r.rms_diff_at_best_lag_c < 0.5 * r.rms_diff_c)
             .map(|r| format!("{} ({:+.0} s)", r.run, r.best_lag_s))
             .collect();
@@ -368,6 +369,23 @@ pub fn temperature(prep: &Prepared, options: &DiagnoseOptions) -> TemperatureCom
         );
         if !lagged.is_empty() {
             s.push_str(&format!("; a time shift explains most of it in: {}", lagged.join(", ")));
+        }
+        let stuck: Vec<String> = runs
+            .iter()
+            .filter(|r| r.recorded_stuck())
+            .map(|r| {
+                format!(
+                    "{} ({:.2} C span against {:.1} C simulated)",
+                    r.run, r.recorded_span_c, r.simulated_span_c
+                )
+            })
+            .collect();
+        if !stuck.is_empty() {
+            s.push_str(&format!(
+                "; the recorded temperature never moves in: {} (a stuck sensor, or the wrong temperature column?): \
+                 check those logs, or leave those runs out",
+                stuck.join(", ")
+            ));
         }
         s
     } else {
@@ -413,7 +431,20 @@ fn temperature_run(run: &RunData) -> TemperatureRun {
         f.last().copied().unwrap_or(0.0) - f.first().copied().unwrap_or(0.0)
     };
     let sim_rise = rise(&s.temp_sim_c);
+    let span = |v: &[f64]| {
+        let (lo, hi) = v
+            .iter()
+            .filter(|x| x.is_finite())
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &x| (lo.min(x), hi.max(x)));
+        if hi >= lo {
+            hi - lo
+        } else {
+            f64::NAN
+        }
+    };
     TemperatureRun {
+        recorded_span_c: span(&s.temp_c),
+        simulated_span_c: span(&s.temp_sim_c),
         run: run.name.clone(),
         mean_diff_c: mean(&diff),
         rms_diff_c: rms(&diff),

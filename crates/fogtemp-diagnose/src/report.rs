@@ -35,19 +35,18 @@ const FIGURE_MEAN_S: f64 = 300.0;
 /// window's mean time; a window counts if it holds at least 90 % of the finite values of the
 /// typical window (as the bias stability's windows), so the one cut by the run's end is left out.
 fn window_means(time_s: &[f64], values: &[f64], window_s: f64) -> Vec<(f64, f64)> {
-    let mut sums: Vec<(f64, f64, usize)> = Vec::new();
-    for (&t, &v) in time_s.iter().zip(values) {
-        if !t.is_finite() || !v.is_finite() || t < 0.0 {
-            continue;
-        }
-        let k = (t / window_s) as usize;
-        if sums.len() <= k {
-            sums.resize(k + 1, (0.0, 0.0, 0));
-        }
-        sums[k] = (sums[k].0 + t, sums[k].1 + v, sums[k].2 + 1);
-    }
-    let threshold = fogtemp_cal::metrics::fullness_threshold(sums.iter().map(|w| w.2));
-    sums.into_iter().filter(|w| w.2 >= threshold).map(|(t, v, n)| (t / n as f64, v / n as f64)).collect()
+    let finite = |i: usize| {
+        time_s.get(i).is_some_and(|t| t.is_finite()) && values.get(i).is_some_and(|v| v.is_finite())
+    };
+    let sums =
+        fogtemp_cal::metrics::sparse_bins(time_s, 0.0, window_s, finite, |w: &mut (f64, f64, usize), i| {
+            *w = (w.0 + time_s[i], w.1 + values[i], w.2 + 1);
+        });
+    let threshold = fogtemp_cal::metrics::fullness_threshold(sums.iter().map(|(_, w)| w.2));
+    sums.into_iter()
+        .filter(|(_, w)| w.2 >= threshold)
+        .map(|(_, (t, v, n))| (t / n as f64, v / n as f64))
+        .collect()
 }
 
 /// What the residual figure draws for one run: the residual (offset only) in

@@ -7,9 +7,7 @@ use fogtemp_cal::arrays::{extract_run_arrays, RunArrays};
 use fogtemp_cal::axis_columns::{ShapeNamed, TimeNamed};
 use fogtemp_cal::calibrate::{self, CalibrationConfig, Method, RunFeatures, Validation};
 use fogtemp_cal::digest::Digests;
-use fogtemp_cal::documents::{
-    AllanAxisDocument, AllanDocument, ComparedModel, FitDocument, ValidationDocument,
-};
+use fogtemp_cal::documents::{AllanDocument, ComparedModel, FitDocument, ValidationDocument};
 use fogtemp_cal::ingest::{read_log_with_progress, IngestOptions, IngestReport};
 use fogtemp_cal::metrics::BiasStabilityOptions;
 use fogtemp_core::Model as CoreModel;
@@ -371,6 +369,11 @@ pub fn fit(
     options: Option<&Bound<'_, PyDict>>,
 ) -> PyResult<Model> {
     let method = parse_method(method)?;
+    // Before the fit, as the command line checks --out (review27a 11: a folder given by
+    // mistake was found after the fit, and the model was lost).
+    if let Some(path) = &out {
+        fogtemp_cal::output::check_output_file(path).map_err(errors::cal)?;
+    }
     let (items, names) = runs_and_names(logs)?;
     if items.is_empty() {
         return Err(errors::value("fit() needs at least one log or run"));
@@ -1231,7 +1234,7 @@ pub fn allan<'py>(
             py.detach(|| AllanDocument::new(Path::new("<arrays>"), &names, times, &series)).ok_or_else(
                 || errors::value("allan(): the log needs at least two samples with increasing time"),
             )?;
-        for note in doc.axes.iter().filter_map(AllanAxisDocument::too_short_note) {
+        for note in doc.axes.iter().flat_map(|d| d.too_short_note().into_iter().chain(d.outlier_note())) {
             progress::warn(py, &note)?;
         }
         return convert::document(py, &doc);
@@ -1264,7 +1267,7 @@ pub fn allan<'py>(
     let doc = doc
         .map_err(errors::cal)?
         .ok_or_else(|| errors::value(format!("{}: the log needs at least two rows", path.display())))?;
-    for note in doc.axes.iter().filter_map(AllanAxisDocument::too_short_note) {
+    for note in doc.axes.iter().flat_map(|d| d.too_short_note().into_iter().chain(d.outlier_note())) {
         progress::warn(py, &note)?;
     }
     convert::document(py, &doc)

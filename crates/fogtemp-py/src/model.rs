@@ -115,6 +115,7 @@ impl Model {
     /// then renamed into place).
     fn save(&self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
         let blob = &self.blob;
+        fogtemp_cal::output::check_output_file(&path).map_err(errors::cal)?;
         py.detach(|| fogtemp_cal::output::write_file_atomic(&path, |w| w.write_all(blob)))
             .map_err(errors::cal)
     }
@@ -187,6 +188,16 @@ impl Model {
         }
         let shape = t.shape().to_vec();
         let (ts, rs) = (slice(&t, "temp_c")?, slice(&r, "rate_c_per_min")?);
+        // NaN gives NaN (a missing point); an infinite one gave NaN marked inside the
+        // calibrated region (review27a 3).
+        for (values, name) in [(ts, "temp_c"), (rs, "rate_c_per_min")] {
+            if let Some(k) = values.iter().position(|v| v.is_infinite()) {
+                return Err(errors::value(format!(
+                    "Model.evaluate: {name}[{k}] is {}: not a temperature or rate (NaN gives NaN)",
+                    values[k]
+                )));
+            }
+        }
         // More threads than cores only add spawning and switching (review20 F12: threads=100000
         // spawned that many and ran 7x slower).
         let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
@@ -264,6 +275,14 @@ impl Model {
         }
         if let Some(k) = ts.iter().position(|t| !t.is_finite()) {
             return Err(errors::value(format!("time_s[{k}] is not a finite number ({})", ts[k])));
+        }
+        // As the logs' reader refuses it (review27a 2: 1e300 came out as inf under a warning
+        // that blamed the temperature or the time). NaN and inf pass through as the firmware's.
+        if let Some(k) = gs.iter().position(|g| g.is_finite() && g.abs() > f64::from(f32::MAX)) {
+            return Err(errors::value(format!(
+                "gyro_dph[{k}] is {:.3e}, beyond the f32 the compensator takes (about 3.4e38 deg/h)",
+                gs[k]
+            )));
         }
         // As fit and validate refuse them (review23a F1: float32 times 11 h into a run lost 74 %
         // of their steps, flagged BAD_INPUT under a note that blamed the data).

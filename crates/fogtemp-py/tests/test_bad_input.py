@@ -612,3 +612,34 @@ def test_complex_numbers_folders_and_dataframe_columns_are_named(tmp_path):
     renamed = {"t": run["time_s"], "T": run["temp_c"], "w": run["gyro_dph"]}
     with pytest.raises(ValueError, match=r"no 'time_s' .*it has 't', 'T', 'w'; rename, e.g. run\['time_s'\] = run.pop\('t'\)"):
         fogtemp.fit([renamed, renamed, renamed], method="poly", progress=False)
+
+
+def test_an_output_folder_is_refused_before_the_fit(small_model, tmp_path):
+    """Review27a 11: `fit(out=FOLDER)` fitted, then failed to move the model into place and
+    lost it; `Model.save(FOLDER)` said "Not a directory". Both are refused first, by name: a log
+    that does not exist would fail the fit, so the folder's error shows the check came first."""
+    with pytest.raises(OSError, match="is a folder; give the path of the file to write"):
+        fogtemp.fit(str(tmp_path / "no_such_log.csv"), method="poly", out=str(tmp_path), progress=False)
+    with pytest.raises(OSError, match="the folder .*missing.* does not exist"):
+        fogtemp.fit(str(tmp_path / "no_such_log.csv"), method="poly", out=str(tmp_path / "missing" / "m.fogm"),
+                    progress=False)
+    with pytest.raises(OSError, match="is a folder"):
+        small_model.save(str(tmp_path))
+    small_model.save(str(tmp_path / "m.fogm"))
+    assert fogtemp.Model.from_file(str(tmp_path / "m.fogm")).to_bytes() == small_model.to_bytes()
+
+
+def test_a_gyro_beyond_f32_and_infinite_points_are_named(small_model):
+    """Review27a 2 and 3: a gyro of 1e300 came out as inf under a warning that blamed the
+    temperature; an infinite temperature gave NaN marked inside the calibrated region."""
+    n = 300
+    times = np.arange(n) * 1.0
+    gyro = np.full(n, 9.6)
+    gyro[-1] = 1e300
+    with pytest.raises(ValueError, match=r"gyro_dph\[299\] is 1\.000e300, beyond the f32"):
+        small_model.compensate(times, gyro, np.full(n, 20.0))
+    with pytest.raises(ValueError, match=r"temp_c\[0\] is inf"):
+        small_model.evaluate(np.array([np.inf, 20.0]), np.array([0.0, 0.0]), return_outside=True)
+    with pytest.raises(ValueError, match=r"rate_c_per_min\[1\] is -inf"):
+        small_model.evaluate(np.array([20.0, 20.0]), np.array([0.0, -np.inf]))
+    assert np.isnan(small_model.evaluate(np.nan, 0.0))

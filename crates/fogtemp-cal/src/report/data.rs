@@ -64,24 +64,17 @@ pub fn relative_window_means(
 ) -> RelativeMeans {
     let Some(&first) = times_s.first() else { return RelativeMeans::default() };
     let start = first + options.exclude_first_s;
-    let mut sums: Vec<(f64, usize)> = Vec::new();
-    for (&t, &v) in times_s.iter().zip(values) {
-        if t < start || !v.is_finite() {
-            continue;
-        }
-        let k = ((t - start) / options.tau_s) as usize;
-        if sums.len() <= k {
-            sums.resize(k + 1, (0.0, 0));
-        }
-        sums[k].0 += v;
-        sums[k].1 += 1;
-    }
-    let threshold = crate::metrics::fullness_threshold(sums.iter().map(|w| w.1));
+    let finite = |i: usize| values.get(i).is_some_and(|v| v.is_finite());
+    let sums =
+        crate::metrics::sparse_bins(times_s, start, options.tau_s, finite, |w: &mut (f64, usize), i| {
+            w.0 += values[i];
+            w.1 += 1;
+        });
+    let threshold = crate::metrics::fullness_threshold(sums.iter().map(|(_, w)| w.1));
     let (time_s, means): (Vec<f64>, Vec<f64>) = sums
         .iter()
-        .enumerate()
         .filter(|(_, w)| w.1 >= threshold)
-        .map(|(k, w)| (start + (k as f64 + 0.5) * options.tau_s, w.0 / w.1 as f64))
+        .map(|&(k, w)| (start + (k as f64 + 0.5) * options.tau_s, w.0 / w.1 as f64))
         .unzip();
     let mean = means.iter().sum::<f64>() / means.len().max(1) as f64;
     RelativeMeans { time_s, deviation_dph: means.iter().map(|m| m - mean).collect() }

@@ -97,6 +97,9 @@ pub fn allan(a: AllanArgs) -> Result<()> {
         if let Some(note) = d.b_above_bound_note() {
             eprintln!("note: {note}");
         }
+        if let Some(note) = d.outlier_note() {
+            eprintln!("warning: {note}");
+        }
         // Unknown, not NaN, where the curve is too short (review15 F7).
         println!(
             "axis {} ({}): N = {} deg/sqrt(h), B = {} deg/h (at most {}), K = {} deg/h/sqrt(h)",

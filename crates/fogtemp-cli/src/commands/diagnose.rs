@@ -109,6 +109,13 @@ pub fn diagnose(a: DiagnoseArgs, recorded_ingest: IngestOptions) -> Result<()> {
             .map_or_else(|| run.run.clone(), |(_, r)| r.display().to_string());
         eprintln!("note: {}", fogtemp_diagnose::prepare::outliers_note(&log, &run.seconds));
     }
+    for run in d.location.temperature.runs.iter().filter(|r| r.recorded_stuck()) {
+        eprintln!(
+            "warning: {}: the recorded temperature never moves ({:.2} C span, against {:.1} C simulated): a stuck \
+             sensor, or the wrong temperature column? The run feeds the diagnosis as logged: check it, or leave it out",
+            run.run, run.recorded_span_c, run.simulated_span_c
+        );
+    }
     let seconds = started.elapsed().as_secs_f64();
     let mut scenario_changes = Vec::new();
     let mut updated_path = None;

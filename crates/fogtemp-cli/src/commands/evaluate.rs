@@ -20,13 +20,22 @@ pub fn evaluate(a: EvaluateArgs) -> Result<()> {
     let axis = model.axis(a.axis).map_err(|e| anyhow::anyhow!("{}: {e}", a.model.display()))?;
     let mark = points_decimal_mark(&model, &a);
     let delimiter = points_delimiter(&a.points, mark)?;
+    // `#` lines are comments and rows of another length are said at their line, as in the
+    // logs (review27a 12: the csv crate's "record 2 (line: 3, byte: 29)"). Comments are read as
+    // records and passed over: the csv crate's own `comment` leaves them out of line numbers.
     let mut reader = csv::ReaderBuilder::new()
         .trim(csv::Trim::All)
         .delimiter(delimiter)
+        .flexible(true)
+        .has_headers(false)
         .from_path(&a.points)
         .with_context(|| format!("cannot open {}", a.points.display()))?;
-    let header =
-        reader.headers().with_context(|| format!("{}: cannot read the header", a.points.display()))?.clone();
+    let is_comment = |r: &csv::StringRecord| r.get(0).is_some_and(|c| c.starts_with('#'));
+    let mut records = reader.records().filter(|r| r.as_ref().map_or(true, |r| !is_comment(r)));
+    let header = match records.next() {
+        Some(header) => header.with_context(|| format!("{}: cannot read the header", a.points.display()))?,
+        None => csv::StringRecord::new(),
+    };
     let col = |name: &str| {
         header.iter().position(|h| h == name).with_context(|| {
             format!(
@@ -36,13 +45,35 @@ pub fn evaluate(a: EvaluateArgs) -> Result<()> {
             )
         })
     };
+    if header.iter().all(str::is_empty) {
+        bail!(
+            "{}: empty file: a header temp_c,rate_c_per_min and one point a row are needed",
+            a.points.display()
+        );
+    }
     let (ti, ri) = (col("temp_c")?, col("rate_c_per_min")?);
     let mut rows = Vec::new();
-    for (k, rec) in reader.records().enumerate() {
+    for (k, rec) in records.enumerate() {
         let rec = rec.with_context(|| format!("{}: malformed CSV", a.points.display()))?;
         let line = rec.position().map_or(k as u64 + 2, |p| p.line());
+        if rec.len() > header.len() {
+            bail!(
+                "{}:{line}: {} fields where the header names {} (a decimal comma with comma delimiters? quote the cell, or use --decimal-mark comma with semicolons)",
+                a.points.display(),
+                rec.len(),
+                header.len()
+            );
+        }
         let cell = |i: usize, name: &str| -> Result<f64> {
-            let text = rec.get(i).unwrap_or("");
+            let Some(text) = rec.get(i) else {
+                bail!(
+                    "{}:{line}:{}: column '{name}': fewer fields than the header ({} of {})",
+                    a.points.display(),
+                    rec.len() + 1,
+                    rec.len(),
+                    header.len()
+                );
+            };
             let v: f64 = number(text, mark).ok_or_else(|| {
                 anyhow::anyhow!(
                     "{}:{line}:{}: column '{name}': not a number (found '{text}'){}",
@@ -60,7 +91,17 @@ pub fn evaluate(a: EvaluateArgs) -> Result<()> {
             }
             Ok(v)
         };
-        rows.push((cell(ti, "temp_c")?, cell(ri, "rate_c_per_min")?));
+        let temp_c = cell(ti, "temp_c")?;
+        let physical =
+            f64::from(fogtemp_core::MIN_PHYSICAL_TEMP_C)..=f64::from(fogtemp_core::MAX_PHYSICAL_TEMP_C);
+        if !physical.contains(&temp_c) {
+            bail!(
+                "{}:{line}:{}: column 'temp_c': not a temperature a sensor reads (below -273.15 C or above 1000 C; found {temp_c})",
+                a.points.display(),
+                ti + 1
+            );
+        }
+        rows.push((temp_c, cell(ri, "rate_c_per_min")?));
     }
     let mut hint = WalkHint::default();
     let mut lines = Vec::with_capacity(rows.len());
@@ -135,14 +176,24 @@ fn decimal_hint(text: &str, mark: DecimalMark, named: bool) -> &'static str {
 fn points_delimiter(path: &std::path::Path, mark: DecimalMark) -> Result<u8> {
     use std::io::BufRead;
     let file = std::fs::File::open(path).with_context(|| format!("cannot open {}", path.display()))?;
-    let mut header = Vec::new();
-    std::io::BufReader::new(file)
-        .read_until(b'\n', &mut header)
-        .with_context(|| format!("{}: cannot read the header", path.display()))?;
+    let mut reader = std::io::BufReader::new(file);
+    // The header: the first line that is neither blank nor a `#` comment.
+    let (mut header, mut line) = (Vec::new(), 0u64);
+    loop {
+        header.clear();
+        let read = reader
+            .read_until(b'\n', &mut header)
+            .with_context(|| format!("{}: cannot read the header", path.display()))?;
+        line += 1;
+        let first = header.iter().find(|b| !b.is_ascii_whitespace());
+        if read == 0 || first.is_some_and(|&b| b != b'#') {
+            break;
+        }
+    }
     match Delimiter::Auto.resolve_with(&header, mark) {
         Delimiter::Byte(b) => Ok(b),
         _ => bail!(
-            "{}:1: the columns are separated by spaces: separate them with commas, semicolons or tabs",
+            "{}:{line}: the columns are separated by spaces: separate them with commas, semicolons or tabs",
             path.display()
         ),
     }

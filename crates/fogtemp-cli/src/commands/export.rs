@@ -18,6 +18,14 @@ pub fn export(a: ExportArgs) -> Result<()> {
     }
     refuse_overwriting_inputs(&a.out, &[&a.model])?;
     if a.format == ExportFormat::C {
+        // A device or a pipe has no folder of its own for the header (review27a 1: `--out
+        // /dev/full` made /dev/full.h).
+        if fogtemp_cal::output::is_special_file(&fogtemp_cal::output::destination(&a.out)) {
+            bail!(
+                "--out {}: is a device or a pipe; --format c writes a source and a header beside it, so it needs the path of a .c file (e.g. --out model.c)",
+                a.out.display()
+            );
+        }
         if a.out.with_extension("h") == a.out {
             bail!(
                 "--out {}: for --format c, --out names the C source, and its header is written beside it with the extension .h; give a .c path (e.g. {})",
