@@ -92,7 +92,7 @@ class Model:
         axis: int = 0,
         threads: Optional[int] = None,
     ) -> npt.NDArray[np.float64]:
-        """Bias in deg/h at (temp_c, rate_c_per_min), broadcast, any shape; NaN for NaN input, ValueError for an infinite one.
+        """Bias in deg/h at (temp_c, rate_c_per_min), broadcast, any shape; NaN for NaN or infinite input (a warning for infinite).
         A float when both inputs are scalars (a 0-d array counts as one, so this overload's type is
         exact for arrays of at least one dimension), else an array of the broadcast shape.
         Through the core's f32 evaluation; GIL released; ``threads`` defaults to every core

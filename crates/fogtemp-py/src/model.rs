@@ -188,14 +188,20 @@ impl Model {
         }
         let shape = t.shape().to_vec();
         let (ts, rs) = (slice(&t, "temp_c")?, slice(&r, "rate_c_per_min")?);
-        // NaN gives NaN (a missing point); an infinite one gave NaN marked inside the
-        // calibrated region (review27a 3).
+        // NaN or infinite gives NaN (not a point to place, so not outside either); an infinite
+        // one is warned of, as it passed without a word (review27a 3).
         for (values, name) in [(ts, "temp_c"), (rs, "rate_c_per_min")] {
+            let infinite = values.iter().filter(|v| v.is_infinite()).count();
             if let Some(k) = values.iter().position(|v| v.is_infinite()) {
-                return Err(errors::value(format!(
-                    "Model.evaluate: {name}[{k}] is {}: not a temperature or rate (NaN gives NaN)",
-                    values[k]
-                )));
+                crate::progress::warn(
+                    py,
+                    &format!(
+                        "Model.evaluate: {infinite} point{} with an infinite {name} (the first {name}[{k}] = {}) \
+                         give NaN, as NaN does, and are not marked outside",
+                        if infinite == 1 { "" } else { "s" },
+                        values[k]
+                    ),
+                )?;
             }
         }
         // More threads than cores only add spawning and switching (review20 F12: threads=100000

@@ -638,8 +638,9 @@ def test_a_gyro_beyond_f32_and_infinite_points_are_named(small_model):
     gyro[-1] = 1e300
     with pytest.raises(ValueError, match=r"gyro_dph\[299\] is 1\.000e300, beyond the f32"):
         small_model.compensate(times, gyro, np.full(n, 20.0))
-    with pytest.raises(ValueError, match=r"temp_c\[0\] is inf"):
-        small_model.evaluate(np.array([np.inf, 20.0]), np.array([0.0, 0.0]), return_outside=True)
-    with pytest.raises(ValueError, match=r"rate_c_per_min\[1\] is -inf"):
+    with pytest.warns(UserWarning, match=r"1 point with an infinite temp_c \(the first temp_c\[0\] = inf\)"):
+        values, outside = small_model.evaluate(np.array([np.inf, 20.0]), np.array([0.0, 0.0]), return_outside=True)
+    assert np.isnan(values[0]) and np.isfinite(values[1]) and not outside[0]
+    with pytest.warns(UserWarning, match=r"rate_c_per_min\[1\] = -inf"):
         small_model.evaluate(np.array([20.0, 20.0]), np.array([0.0, -np.inf]))
     assert np.isnan(small_model.evaluate(np.nan, 0.0))
