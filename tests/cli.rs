@@ -935,8 +935,12 @@ fn evaluate_points_with_bad_cells_are_located() {
     }
     // `#` comment lines and blank lines are skipped, as in the logs (review27a 12).
     let commented = dir.path().join("commented.csv");
-    fs::write(&commented, "# grid for the report\ntemp_c,rate_c_per_min\n21,0.5\n\n# cold end\n-60,0\n")
-        .expect("write");
+    // A quote in a comment must not open a field (review28a 3); a line of blanks is blank.
+    fs::write(
+        &commented,
+        "# grid for the \"report\"\ntemp_c,rate_c_per_min\n21,0.5\n   \n# cold end\n-60,0\n",
+    )
+    .expect("write");
     let plain = dir.path().join("plain.csv");
     fs::write(&plain, "temp_c,rate_c_per_min\n21,0.5\n-60,0\n").expect("write");
     assert_eq!(

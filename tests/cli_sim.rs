@@ -320,6 +320,11 @@ fn simulate_rejects_a_bad_scenario_file() {
     let err = run_err(["simulate", "--scenario", s(&file), "--out", s(&out), "--rate", "0"]);
     assert!(err.contains("sample_rate_hz"), "{err}");
     assert!(!out.exists(), "nothing written");
+    // More CSV than a disk holds is refused before the first row (review27a 7): the small
+    // scenario's runs at 1e12 Hz, about 24 bytes a sample.
+    let err = run_err(["simulate", "--scenario", s(&file), "--out", s(&out), "--rate", "1e12"]);
+    assert!(err.contains("more than a disk holds") && err.contains("lower the rate (--rate)"), "{err}");
+    assert!(!out.exists(), "nothing written");
 }
 
 /// The paper scenario with 4 start temperatures (-40, -10, 20, 50 C) x 2 positions x 30 min

@@ -1863,19 +1863,20 @@ fn enough_temperatures_for_a_cubic(points: &[MeshPoint]) -> Result<(), CalError>
 }
 
 /// Where a replay's block grid starts, seconds, from the log's first time stamp and its first
-/// step. For a log of at most two samples a block (a step of half a block or more): half a
-/// sample spacing (the step, at most a block) before the first stamp's phase on that spacing,
-/// so each stamp sits mid-way between two block edges and stamps that jitter by less than half
-/// a spacing stay in their blocks: a 1 Hz log stamped 1.000020, 1.999990, ... on a
-/// whole-second grid gave blocks of 2, 0 and 1 samples, and every empty one cut the white-noise
-/// floor's stretches short (review25a). A log on multiples of its spacing is grouped as by
-/// whole seconds either way. Denser logs keep whole seconds (origin 0): jitter moves a sample
-/// of many, and the figures of logs in bursts, whose edge blocks hold a few samples, stay as
-/// they were. The block's time stays `(block + 0.5) * block_s`.
+/// step. For a log of at most two samples a block (a step over a third of a block, at most
+/// 1.5 blocks): half a sample spacing (the step, at most a block) before the first stamp's
+/// phase on that spacing, so each stamp sits mid-way between two block edges and stamps that
+/// jitter by less than half a spacing stay in their blocks: a 1 Hz log stamped 1.000020,
+/// 1.999990, ... on a whole-second grid gave blocks of 2, 0 and 1 samples, and every empty one
+/// cut the white-noise floor's stretches short (review25a). A log on multiples of its spacing
+/// is grouped as by whole seconds either way. Denser logs, and a first step that is a gap or
+/// none, keep whole seconds (origin 0): jitter moves a sample of many, and the figures of logs
+/// in bursts, whose edge blocks hold a few samples, stay as they were. The block's time stays
+/// `(block + 0.5) * block_s`.
 fn block_grid_origin_s(first_s: f64, first_step_s: f64, block_s: f64) -> f64 {
-    let spacing_s =
-        if first_step_s.is_finite() && first_step_s > 0.0 { first_step_s.min(block_s) } else { block_s };
-    if spacing_s < block_s / 2.0 {
+    let known = first_step_s.is_finite() && first_step_s > 0.0 && first_step_s <= 1.5 * block_s;
+    let spacing_s = first_step_s.min(block_s);
+    if !known || spacing_s <= block_s / 3.0 {
         return 0.0;
     }
     let phase_s = first_s.rem_euclid(spacing_s);
@@ -3201,8 +3202,10 @@ mod tests {
         assert!(close(block_grid_origin_s(12.0, 1.0, 1.0), -0.5), "1 Hz on whole seconds");
         assert!(close(block_grid_origin_s(7.5, 1.0, 1.0), 0.0), "1 Hz on half seconds");
         assert!(close(block_grid_origin_s(7.3, 0.5, 1.0), 0.05), "2 Hz off the grid");
-        assert!(close(block_grid_origin_s(3.0, 40.0, 1.0), -0.5), "a gap first: at most a block");
-        assert!(close(block_grid_origin_s(3.0, 0.0, 1.0), -0.5), "no step: a block");
+        assert!(close(block_grid_origin_s(3.0, 1.4, 1.0), -0.5), "a late second sample: a block");
+        assert!(close(block_grid_origin_s(3.0, 40.0, 1.0), 0.0), "a gap first: whole seconds");
+        assert!(close(block_grid_origin_s(3.0, 0.0, 1.0), 0.0), "no step: whole seconds");
+        assert!(close(block_grid_origin_s(0.0, 0.49998, 1.0), -0.24999), "2 Hz, a first step a little short");
         assert!(close(block_grid_origin_s(0.03, 0.1, 1.0), 0.0), "10 Hz: whole seconds");
         assert!(close(block_grid_origin_s(15.352, 0.019, 1.0), 0.0), "50 Hz: whole seconds");
         // 2 Hz from 0 s: the samples 0.0 and 0.5 s in block 0, 1.0 s in block 1, as floor(t).

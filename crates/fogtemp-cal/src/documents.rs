@@ -807,11 +807,13 @@ impl AllanDocument {
             .map(|(s, _)| {
                 let mut accumulator = AllanAccumulator::new(dt_s);
                 let mut blocks = crate::outliers::BlockMeans::of_duration(SPIKE_BLOCK_S, dt_s);
+                // From the first row, as a log's rows are read (review28a 8).
+                let first_s = times_s.first().copied().unwrap_or(0.0);
                 for range in gap_free_ranges(times_s, dt_s) {
                     let times = times_s.get(range.clone()).unwrap_or_default();
                     for (&rate_dph, &time_s) in s.get(range).unwrap_or_default().iter().zip(times) {
                         accumulator.push(rate_dph);
-                        blocks.push(time_s, rate_dph);
+                        blocks.push(time_s - first_s, rate_dph);
                     }
                     accumulator.end_segment();
                     blocks.end_segment();
@@ -875,7 +877,7 @@ pub struct AllanAxisDocument {
     pub curve: Vec<AllanPoint>,
     /// The gyro's 1 s means (or samples, when slower) beyond 10 robust SDs of their
     /// neighbours' median: spikes, which the curve and N, B, K keep as logged (`count`,
-    /// `first_at_s`, `deviation_dph`, `robust_sd_dph`); null without any (review27a 9: one
+    /// `first_at_s` from the log's first row, `deviation_dph`, `robust_sd_dph`); null without any (review27a 9: one
     /// spiked sample set N 190 times too large, and nothing said so).
     pub gyro_outliers: Option<crate::outliers::OutlierSummary>,
 }

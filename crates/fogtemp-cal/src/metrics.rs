@@ -99,6 +99,8 @@ pub fn window_stats(times_s: &[f64], values: &[f64], options: &BiasStabilityOpti
 /// (k + 1) width_s`) that hold a sample `take` accepts, in bin order: each bin's number and
 /// what `add` gathered of its samples (given each sample's index, in the order given).
 ///
+/// A NaN time is passed over (the dense code before put it in bin 0).
+///
 /// Sparse: only bins that hold a sample exist, so a clock that jumps by years costs nothing
 /// (review27a 13: one slot per 100 s window of a 1e12 s jump asked for 160 GB and aborted
 /// the process).
@@ -146,7 +148,7 @@ pub fn sparse_windows<A: Default + Clone>(
     mut combine: impl FnMut(&mut A, &A),
 ) -> (Vec<(usize, A)>, usize) {
     let step = step.max(1);
-    let window_count = bins.last().map_or(0, |&(last, _)| (last + 1).saturating_sub(step - 1));
+    let window_count = bins.last().map_or(0, |&(last, _)| last.saturating_add(1).saturating_sub(step - 1));
     if step == 1 {
         return (bins.to_vec(), window_count);
     }

@@ -130,28 +130,114 @@ pub fn leftover_temporaries(path: &Path) -> Vec<(PathBuf, u64)> {
     found
 }
 
-/// Where writing `path` puts the bytes: the file a symbolic link names (followed to the end,
-/// as the shell's `>` follows it), else `path` itself. Renaming a temporary over the link
-/// replaced the link and left its target as it was (review27a 1).
-pub fn destination(path: &Path) -> PathBuf {
-    if !std::fs::symlink_metadata(path).is_ok_and(|m| m.file_type().is_symlink()) {
-        return path.to_path_buf();
-    }
-    if let Ok(target) = std::fs::canonicalize(path) {
-        return target;
-    }
-    // A link to a file not there yet: its target, read relative to the link's folder.
-    match std::fs::read_link(path) {
-        Ok(target) if target.is_absolute() => target,
-        Ok(target) => path.parent().map_or(target.clone(), |dir| dir.join(&target)),
-        Err(_) => path.to_path_buf(),
+/// Where writing an output puts its bytes ([`destination`]).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum Destination {
+    /// A regular file (there or not yet), replaced atomically: a temporary beside it renamed
+    /// over it.
+    Replace(PathBuf),
+    /// A device, a named pipe, a socket or a process's stream (`/dev/stdout`,
+    /// `/proc/self/fd/N`), written straight into and appended to: renaming over them replaced
+    /// the machine's `/dev/full` (review27a 1), and a file behind `/dev/stdout` lost what the
+    /// shell had written to it (review28a 1).
+    InPlace(PathBuf),
+}
+
+impl Destination {
+    /// The path written.
+    pub fn path(&self) -> &Path {
+        match self {
+            Destination::Replace(p) | Destination::InPlace(p) => p,
+        }
     }
 }
 
+/// Symbolic links followed before giving up, as the kernel's limit.
+const MAX_LINK_HOPS: usize = 40;
+
+/// Where writing `path` puts its bytes ([`Destination`]). A symbolic link is followed hop by
+/// hop to the file it names, there or not yet, as the shell's `>` follows it: renaming a
+/// temporary over the link replaced the link and left its target as it was (review27a 1).
+///
+/// # Errors
+/// [`CalError::Output`] for a loop of links (or more than 40), and for a link in a shared
+/// folder (sticky and writable by all, as `/tmp`) that its folder's owner does not own:
+/// another user may have planted it to make this process write elsewhere (the kernel's
+/// `fs.protected_symlinks` refuses those to the shell; review28a 5).
+pub fn destination(path: &Path) -> Result<Destination, CalError> {
+    if is_process_stream(path) {
+        return Ok(Destination::InPlace(path.to_path_buf()));
+    }
+    let mut current = path.to_path_buf();
+    for _ in 0..MAX_LINK_HOPS {
+        let is_link = std::fs::symlink_metadata(&current).is_ok_and(|m| m.file_type().is_symlink());
+        if !is_link {
+            return Ok(if is_special_file(&current) {
+                Destination::InPlace(current)
+            } else {
+                Destination::Replace(current)
+            });
+        }
+        refuse_planted_link(&current)?;
+        let target = std::fs::read_link(&current).map_err(|source| CalError::Output {
+            action: "cannot read the symbolic link",
+            path: current.clone(),
+            source,
+        })?;
+        current = match current.parent() {
+            Some(dir) if target.is_relative() => dir.join(target),
+            _ => target,
+        };
+    }
+    Err(CalError::Output {
+        action: "cannot write",
+        path: path.to_path_buf(),
+        source: std::io::Error::other("too many levels of symbolic links (a loop?)"),
+    })
+}
+
+/// Whether `path` names a process's stream or descriptor (`/dev/stdout`, `/dev/stderr`,
+/// `/dev/fd/N`, `/proc/...`): whatever it points at, it is written in place.
+fn is_process_stream(path: &Path) -> bool {
+    ["/dev/stdout", "/dev/stderr"].iter().any(|s| path == Path::new(s))
+        || path.starts_with("/dev/fd")
+        || path.starts_with("/proc")
+}
+
+/// Refuses to follow a symbolic link in a folder that is sticky and writable by all unless
+/// the folder's owner owns it (the rule of the kernel's `fs.protected_symlinks`, less the
+/// follower's own uid, which std does not give).
+fn refuse_planted_link(link: &Path) -> Result<(), CalError> {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::MetadataExt;
+        let dir = match link.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p,
+            _ => Path::new("."),
+        };
+        let (Ok(dir_meta), Ok(link_meta)) = (std::fs::metadata(dir), std::fs::symlink_metadata(link)) else {
+            return Ok(());
+        };
+        let shared = dir_meta.mode() & 0o1002 == 0o1002;
+        if shared && link_meta.uid() != dir_meta.uid() {
+            return Err(CalError::Output {
+                action: "will not follow the symbolic link",
+                path: link.to_path_buf(),
+                source: std::io::Error::other(format!(
+                    "it lies in {}, a folder shared by all users, and another user owns it: give the path of the file it names",
+                    dir.display()
+                )),
+            });
+        }
+    }
+    #[cfg(not(unix))]
+    let _ = link;
+    Ok(())
+}
+
 /// Whether `path` is there and neither a regular file nor a folder: a device (`/dev/null`,
-/// `/dev/full`, a terminal), a named pipe or a socket. Such an output is written straight
-/// into, as the shell's `>` writes it: a temporary renamed over it replaced the machine's
-/// `/dev/full` and `/dev/stdout` with regular files (review27a 1).
+/// `/dev/full`, a terminal), a named pipe or a socket (written in place: [`Destination`]).
+/// A named pipe with no reader blocks the write until one comes, as the shell's `>` does.
 pub fn is_special_file(path: &Path) -> bool {
     std::fs::metadata(path).is_ok_and(|m| !m.is_file() && !m.is_dir())
 }
@@ -165,10 +251,11 @@ pub fn is_special_file(path: &Path) -> bool {
 /// # Errors
 /// [`CalError::Output`] naming the path and what is wrong.
 pub fn check_output_file(path: &Path) -> Result<(), CalError> {
-    let out = &destination(path);
-    if is_special_file(out) {
-        return Ok(());
-    }
+    let out = match destination(path)? {
+        Destination::InPlace(_) => return Ok(()),
+        Destination::Replace(out) => out,
+    };
+    let out = &out;
     let refuse = |text: String| CalError::Output {
         action: "cannot write",
         path: path.to_path_buf(),
@@ -204,11 +291,13 @@ pub fn stage(
     path: &Path,
     write: impl FnOnce(&mut dyn Write) -> std::io::Result<()>,
 ) -> Result<Staged, CalError> {
-    let path = &destination(path);
-    if is_special_file(path) {
-        write_into_special_file(path, write)?;
-        return Ok(Staged { tmp: None, path: path.to_path_buf() });
-    }
+    let path = &match destination(path)? {
+        Destination::InPlace(path) => {
+            write_in_place(&path, write)?;
+            return Ok(Staged { tmp: None, path });
+        }
+        Destination::Replace(path) => path,
+    };
     let dir = match path.parent() {
         Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
         _ => PathBuf::from("."),
@@ -253,9 +342,9 @@ pub fn stage(
     Ok(Staged { tmp: Some((tmp, pending)), path: path.to_path_buf() })
 }
 
-/// Writes into a device or a named pipe as it is (no temporary, no sync: `/dev/null` cannot
-/// be synced, and a pipe's reader has the bytes).
-fn write_into_special_file(
+/// Writes into a device, a named pipe or a process's stream as it is, appending (no
+/// temporary, no sync: `/dev/null` cannot be synced, and a pipe's reader has the bytes).
+fn write_in_place(
     path: &Path,
     write: impl FnOnce(&mut dyn Write) -> std::io::Result<()>,
 ) -> Result<(), CalError> {
@@ -263,7 +352,7 @@ fn write_into_special_file(
         let path = path.to_path_buf();
         move |source| CalError::Output { action, path, source }
     };
-    let file = std::fs::OpenOptions::new().write(true).open(path).map_err(failed("cannot open"))?;
+    let file = std::fs::OpenOptions::new().append(true).open(path).map_err(failed("cannot open"))?;
     let mut buffered = std::io::BufWriter::with_capacity(WRITE_BUFFER_BYTES, file);
     write(&mut buffered).map_err(failed("writing"))?;
     buffered.flush().map_err(failed("writing"))
@@ -382,13 +471,15 @@ pub fn remove_file_deferred(path: &Path) -> std::io::Result<()> {
 /// # Errors
 /// The I/O error of the read.
 pub fn read_current(path: &Path) -> std::io::Result<String> {
+    // Staged under the file a link names (review28a 2).
+    let staged_at = destination(path).map_or_else(|_| path.to_path_buf(), |d| d.path().to_path_buf());
     let staged = DEFERRED.with(|d| {
         d.borrow().as_ref().and_then(|scope| {
             scope
                 .staged
                 .iter()
                 .rev()
-                .find(|s| s.path == path)
+                .find(|s| s.path == staged_at)
                 .and_then(|s| Some(s.tmp.as_ref()?.0.path().to_path_buf()))
         })
     });
@@ -602,8 +693,68 @@ mod tests {
         };
         assert!(is_special_file(&fifo));
         write_file_atomic(&fifo, |w| w.write_all(b"through the pipe")).expect("writes");
-        assert_eq!(reader.join().expect("reader"), b"through the pipe");
+        // Before joining the reader: a rename over the pipe would leave it waiting for ever.
         assert!(std::fs::metadata(&fifo).expect("there").file_type().is_fifo(), "still a pipe");
+        assert_eq!(reader.join().expect("reader"), b"through the pipe");
         assert!(leftover_temporaries(&fifo).is_empty());
+    }
+
+    /// Review28a 4: a loop of links turned one of them into a regular file, and a chain of
+    /// links to a file not there yet replaced the middle link. Oracle: the shell's `>`.
+    #[cfg(unix)]
+    #[test]
+    fn links_are_followed_to_the_end_and_a_loop_is_refused() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let (a, b) = (dir.path().join("a"), dir.path().join("b"));
+        std::os::unix::fs::symlink("b", &a).expect("link");
+        std::os::unix::fs::symlink("a", &b).expect("link");
+        let err = write_file_atomic(&a, |w| w.write_all(b"x")).expect_err("a loop");
+        assert!(err.to_string().contains("too many levels of symbolic links"), "{err}");
+        assert!(std::fs::symlink_metadata(&b).expect("b").file_type().is_symlink(), "b is still a link");
+        let (l1, l2) = (dir.path().join("l1"), dir.path().join("l2"));
+        std::os::unix::fs::symlink("l2", &l1).expect("link");
+        std::os::unix::fs::symlink("final.csv", &l2).expect("link");
+        write_file_atomic(&l1, |w| w.write_all(b"end")).expect("writes");
+        assert!(std::fs::symlink_metadata(&l2).expect("l2").file_type().is_symlink(), "l2 is still a link");
+        assert_eq!(std::fs::read(dir.path().join("final.csv")).expect("made"), b"end");
+    }
+
+    /// Review28a 1: `/dev/stdout` (and `/proc/self/fd/N`) are written in place, appended to,
+    /// whatever file they stand for; a path that merely lies under `/dev` is not.
+    #[test]
+    fn process_streams_are_written_in_place() {
+        for stream in ["/dev/stdout", "/dev/stderr", "/dev/fd/1", "/proc/self/fd/2"] {
+            assert_eq!(
+                destination(Path::new(stream)).expect("a destination"),
+                Destination::InPlace(PathBuf::from(stream)),
+                "{stream}"
+            );
+        }
+        let file = Path::new("/dev/shm/fogtemp-no-such-file.csv");
+        assert_eq!(destination(file).expect("a destination"), Destination::Replace(file.to_path_buf()));
+    }
+
+    /// Review28a 5: a link in a folder shared by all (sticky, as /tmp) that another user owns
+    /// is not followed (the kernel's `fs.protected_symlinks` rule). Needs root to give the link
+    /// to another user; skipped otherwise.
+    #[cfg(unix)]
+    #[test]
+    fn a_link_planted_in_a_shared_folder_is_not_followed() {
+        use std::os::unix::fs::PermissionsExt;
+        let dir = tempfile::tempdir().expect("temp dir");
+        let shared = dir.path().join("shared");
+        std::fs::create_dir(&shared).expect("mkdir");
+        std::fs::set_permissions(&shared, std::fs::Permissions::from_mode(0o1777)).expect("chmod");
+        let victim = dir.path().join("victim.txt");
+        std::fs::write(&victim, b"keep").expect("seed");
+        let link = shared.join("out.csv");
+        std::os::unix::fs::symlink(&victim, &link).expect("link");
+        if std::os::unix::fs::lchown(&link, Some(65534), Some(65534)).is_err() {
+            eprintln!("SKIPPED: giving the link to another user needs root");
+            return;
+        }
+        let err = write_file_atomic(&link, |w| w.write_all(b"x")).expect_err("refused");
+        assert!(err.to_string().contains("will not follow the symbolic link"), "{err}");
+        assert_eq!(std::fs::read(&victim).expect("victim"), b"keep");
     }
 }

@@ -141,6 +141,28 @@ pub enum RunsProblem {
     Csv(String),
 }
 
+/// `text` with every `#` comment line and every line of blanks made a bare `#` (its line
+/// end kept, so lines keep their numbers), and a UTF-8 byte-order mark left out: for the
+/// small CSV files read whole (runs files, `evaluate`'s points), whose records starting with
+/// `#` are then passed over. A quote in a comment no longer opens a field that swallows the
+/// rows after it (review28a 3).
+pub fn blank_comment_lines(text: &[u8]) -> Vec<u8> {
+    let text = text.strip_prefix(b"\xef\xbb\xbf").unwrap_or(text);
+    let mut out = Vec::with_capacity(text.len());
+    for line in text.split_inclusive(|&b| b == b'\n') {
+        let body_end = line.iter().rposition(|&b| b != b'\n' && b != b'\r').map_or(0, |i| i + 1);
+        let (body, end) = line.split_at(body_end);
+        let first = body.iter().find(|b| !b.is_ascii_whitespace());
+        if first.is_none_or(|&b| b == b'#') && !body.is_empty() {
+            out.push(b'#');
+            out.extend_from_slice(end);
+        } else {
+            out.extend_from_slice(line);
+        }
+    }
+    out
+}
+
 /// Why a header lacks the columns, when its one cell holds another delimiter: the runs file
 /// is read comma-separated (review27a 6: `run;position;input_rate_dph` said only which
 /// columns it lacked).
@@ -192,12 +214,15 @@ impl RunsFile {
     ///
     /// # Errors
     /// [`CalError::Runs`] with the line and the problem.
-    pub fn from_reader<R: Read>(reader: R, name: &Path) -> Result<Self, CalError> {
+    pub fn from_reader<R: Read>(mut reader: R, name: &Path) -> Result<Self, CalError> {
+        let mut text = Vec::new();
+        reader.read_to_end(&mut text).map_err(|source| CalError::Io { path: name.to_path_buf(), source })?;
+        let text = blank_comment_lines(&text);
         let mut csv = csv::ReaderBuilder::new()
             .trim(csv::Trim::All)
             .flexible(true)
             .has_headers(false)
-            .from_reader(reader);
+            .from_reader(text.as_slice());
         // `#` lines are comments, as in the logs: read as records and passed over (the csv
         // crate's own `comment` leaves them out of the line numbers), the header the first other.
         let is_comment = |r: &csv::StringRecord| r.get(0).is_some_and(|c| c.starts_with('#'));
@@ -690,6 +715,14 @@ mod tests {
             parse("# lab runs, 2026-11\nrun,position,input_rate_dph\n# up first\na,up,1\n").expect("reads");
         assert_eq!(commented.runs.len(), 1);
         assert_eq!(commented.runs[0].line, 4);
+        // Review28a 3: a quote in a comment opened a field that swallowed the rows after it;
+        // a line of blanks and a byte-order mark before a comment are passed over too.
+        let quoted = parse("\u{feff}# the \"cold\" runs\nrun,position,input_rate_dph\n   \na,up,1\nb,up,2\n")
+            .expect("reads");
+        assert_eq!(
+            quoted.runs.iter().map(|r| (r.run.as_str(), r.line)).collect::<Vec<_>>(),
+            [("a", 4), ("b", 5)]
+        );
         let (line, p) = runs_problem(parse("run,position,input_rate_dph,role\na,up,1,calibrate\n"));
         assert_eq!(line, 2);
         assert!(matches!(p, RunsProblem::BadCell { column: "role", .. }), "{p}");

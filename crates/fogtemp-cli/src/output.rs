@@ -17,7 +17,9 @@ pub fn write_atomic(path: &Path, write: impl FnOnce(&mut dyn Write) -> Result<()
 /// The first half of [`write_atomic`]: for outputs that must all be written before any
 /// of them is moved into place ([`Staged::commit`]).
 pub fn stage(path: &Path, write: impl FnOnce(&mut dyn Write) -> Result<()>) -> Result<Staged> {
-    note_leftover_temporaries(&fogtemp_cal::output::destination(path));
+    if let Ok(destination) = fogtemp_cal::output::destination(path) {
+        note_leftover_temporaries(destination.path());
+    }
     // The closure's error chain travels inside the I/O error.
     Ok(fogtemp_cal::output::stage(path, |w| {
         write(w).map_err(|e| std::io::Error::other(chain_text(&e, path)))

@@ -32,6 +32,21 @@ pub enum SimError {
         /// The position (run group).
         group: String,
     },
+    /// The scenario would write more CSV than a disk holds ([`crate::MAX_CSV_BYTES`]).
+    #[error(
+        "{runs} runs of {samples:.3e} samples in all at {rate_hz} Hz would write about {bytes:.1e} bytes of CSV, \
+         more than a disk holds: lower the rate (--rate) or the duration (--duration-s)"
+    )]
+    TooLarge {
+        /// Runs.
+        runs: usize,
+        /// Samples over all runs.
+        samples: f64,
+        /// The sample rate, Hz.
+        rate_hz: f64,
+        /// CSV bytes, about.
+        bytes: f64,
+    },
     /// Writing, reading, fitting or validating failed (the calibration library's error).
     #[error(transparent)]
     Cal(#[from] CalError),

@@ -19,17 +19,19 @@ pub fn evaluate(a: EvaluateArgs) -> Result<()> {
     let model = Model::from_bytes(&blob).map_err(|e| anyhow::anyhow!("{e}"))?;
     let axis = model.axis(a.axis).map_err(|e| anyhow::anyhow!("{}: {e}", a.model.display()))?;
     let mark = points_decimal_mark(&model, &a);
-    let delimiter = points_delimiter(&a.points, mark)?;
     // `#` lines are comments and rows of another length are said at their line, as in the
-    // logs (review27a 12: the csv crate's "record 2 (line: 3, byte: 29)"). Comments are read as
-    // records and passed over: the csv crate's own `comment` leaves them out of line numbers.
+    // logs (review27a 12: the csv crate's "record 2 (line: 3, byte: 29)"). Comments and blank
+    // lines are made bare `#` records and passed over (`runs::blank_comment_lines`): the csv
+    // crate's own `comment` leaves them out of line numbers.
+    let text = std::fs::read(&a.points).with_context(|| format!("cannot open {}", a.points.display()))?;
+    let text = fogtemp_cal::runs::blank_comment_lines(&text);
+    let delimiter = points_delimiter(&a.points, &text, mark)?;
     let mut reader = csv::ReaderBuilder::new()
         .trim(csv::Trim::All)
         .delimiter(delimiter)
         .flexible(true)
         .has_headers(false)
-        .from_path(&a.points)
-        .with_context(|| format!("cannot open {}", a.points.display()))?;
+        .from_reader(text.as_slice());
     let is_comment = |r: &csv::StringRecord| r.get(0).is_some_and(|c| c.starts_with('#'));
     let mut records = reader.records().filter(|r| r.as_ref().map_or(true, |r| !is_comment(r)));
     let header = match records.next() {
@@ -69,7 +71,7 @@ pub fn evaluate(a: EvaluateArgs) -> Result<()> {
                 bail!(
                     "{}:{line}:{}: column '{name}': fewer fields than the header ({} of {})",
                     a.points.display(),
-                    rec.len() + 1,
+                    i + 1,
                     rec.len(),
                     header.len()
                 );
@@ -173,24 +175,15 @@ fn decimal_hint(text: &str, mark: DecimalMark, named: bool) -> &'static str {
 /// The points file's delimiter, from its header as a log's is found (`--delimiter auto`):
 /// the most frequent of comma, semicolon and tab (a spreadsheet in a European locale writes
 /// `temp_c;rate_c_per_min`).
-fn points_delimiter(path: &std::path::Path, mark: DecimalMark) -> Result<u8> {
-    use std::io::BufRead;
-    let file = std::fs::File::open(path).with_context(|| format!("cannot open {}", path.display()))?;
-    let mut reader = std::io::BufReader::new(file);
-    // The header: the first line that is neither blank nor a `#` comment.
-    let (mut header, mut line) = (Vec::new(), 0u64);
-    loop {
-        header.clear();
-        let read = reader
-            .read_until(b'\n', &mut header)
-            .with_context(|| format!("{}: cannot read the header", path.display()))?;
-        line += 1;
-        let first = header.iter().find(|b| !b.is_ascii_whitespace());
-        if read == 0 || first.is_some_and(|&b| b != b'#') {
-            break;
-        }
-    }
-    match Delimiter::Auto.resolve_with(&header, mark) {
+fn points_delimiter(path: &std::path::Path, text: &[u8], mark: DecimalMark) -> Result<u8> {
+    // The header: the first line that is not a comment (comments and blank lines are `#`
+    // already: `runs::blank_comment_lines`).
+    let (line, header) = text
+        .split(|&b| b == b'\n')
+        .enumerate()
+        .find(|(_, l)| !l.starts_with(b"#"))
+        .map_or((1, &[][..]), |(k, l)| (k + 1, l));
+    match Delimiter::Auto.resolve_with(header, mark) {
         Delimiter::Byte(b) => Ok(b),
         _ => bail!(
             "{}:{line}: the columns are separated by spaces: separate them with commas, semicolons or tabs",

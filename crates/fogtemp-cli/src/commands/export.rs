@@ -20,7 +20,7 @@ pub fn export(a: ExportArgs) -> Result<()> {
     if a.format == ExportFormat::C {
         // A device or a pipe has no folder of its own for the header (review27a 1: `--out
         // /dev/full` made /dev/full.h).
-        if fogtemp_cal::output::is_special_file(&fogtemp_cal::output::destination(&a.out)) {
+        if let fogtemp_cal::output::Destination::InPlace(_) = fogtemp_cal::output::destination(&a.out)? {
             bail!(
                 "--out {}: is a device or a pipe; --format c writes a source and a header beside it, so it needs the path of a .c file (e.g. --out model.c)",
                 a.out.display()
@@ -33,8 +33,8 @@ pub fn export(a: ExportArgs) -> Result<()> {
                 a.out.with_extension("c").display()
             );
         }
-        check_output_file(&a.out.with_extension("h"))?;
-        refuse_overwriting_inputs(&a.out.with_extension("h"), &[&a.model])?;
+        check_output_file(&header_path_of(&a.out)?)?;
+        refuse_overwriting_inputs(&header_path_of(&a.out)?, &[&a.model])?;
     }
     let blob = read_model(&a.model)?;
     let name = &a.name;
@@ -103,7 +103,7 @@ pub fn export(a: ExportArgs) -> Result<()> {
             Ok(())
         }),
         ExportFormat::C => {
-            let header_path = a.out.with_extension("h");
+            let header_path = header_path_of(&a.out)?;
             let header_name = header_path
                 .file_name()
                 .map_or_else(|| "model.h".into(), |n| n.to_string_lossy().into_owned());
@@ -293,6 +293,13 @@ fn without_comments(text: &str) -> String {
     }
     code.push_str(rest);
     code
+}
+
+/// The header beside the C source `out` writes: beside the file a link names, so that its
+/// `#include` finds it (review28a 7: through a link into another folder, the source went
+/// there and the header beside the link).
+fn header_path_of(out: &std::path::Path) -> Result<std::path::PathBuf> {
+    Ok(fogtemp_cal::output::destination(out)?.path().with_extension("h"))
 }
 
 #[cfg(test)]

@@ -73,6 +73,23 @@ fn refuse_overwriting_other_logs(scenario: &Scenario, out: &std::path::Path) -> 
     Ok(())
 }
 
+/// CSV from which the size is said before simulating (1 GB).
+const NOTED_CSV_BYTES: f64 = 1e9;
+
+/// Says how much CSV a scenario writes when that is a lot, and refuses what no disk holds
+/// (`fogtemp_sim::csv_bytes`), before the output folder is made.
+fn check_size(scenario: &Scenario) -> Result<()> {
+    let bytes = sim::csv_bytes(scenario)?;
+    if bytes > NOTED_CSV_BYTES {
+        eprintln!(
+            "note: simulating {} runs: about {} of CSV",
+            scenario.expanded_runs().len(),
+            indicatif::HumanBytes(bytes as u64)
+        );
+    }
+    Ok(())
+}
+
 /// Simulates into a folder; returns the run summaries and the seconds it took.
 pub fn simulate_into(
     scenario: &Scenario,
@@ -80,6 +97,7 @@ pub fn simulate_into(
     out: &std::path::Path,
 ) -> Result<(Vec<sim::RunSummary>, f64)> {
     refuse_overwriting_other_logs(scenario, out)?;
+    check_size(scenario)?;
     crate::output::note_leftover_temporaries_in(out);
     std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
     let bar = samples_bar(total_samples(scenario), "simulate");
