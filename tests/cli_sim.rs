@@ -636,3 +636,95 @@ fn diagnose_of_one_run_locates_but_names_nothing_and_says_why() {
     assert!(svg.contains("<circle"), "no residual points drawn");
     assert!(svg.contains("no held-out prediction to draw"), "the title promises no line");
 }
+
+/// Runs `fogtemp-cal args...`, requires success, returns (stdout, stderr).
+fn run_ok_with_stderr(args: &[&str]) -> (String, String) {
+    let out = cal().args(args).assert().success();
+    let out = out.get_output();
+    (String::from_utf8_lossy(&out.stdout).into_owned(), String::from_utf8_lossy(&out.stderr).into_owned())
+}
+
+/// DESIGN.md §3: without `--runs`, a fogtemp simulation's `manifest.json` gives `fit` and
+/// `validate` each run's position and input rate (review27b F1: only `diagnose` read it).
+/// Oracles: the same figures as an explicit runs file written from the manifest, and each
+/// run's raw mean that of the same log without any metadata (a copy of the folder without
+/// the manifest) less the manifest's input rate. A log the manifest does not list stops its
+/// use, with a note saying why.
+#[test]
+fn fit_and_validate_read_a_simulations_manifest_as_run_metadata() {
+    let dir = TempDir::new().expect("tmp");
+    let file = dir.path().join("small.toml");
+    fs::write(&file, SMALL).expect("write scenario");
+    let sim = dir.path().join("sim");
+    run_ok(["simulate", "--scenario", s(&file), "--out", s(&sim), "--duration-s", "300"]);
+    let manifest: Value =
+        serde_json::from_slice(&fs::read(sim.join("manifest.json")).expect("manifest")).expect("JSON");
+    let rates: BTreeMap<String, f64> = manifest["runs"]
+        .as_array()
+        .expect("runs")
+        .iter()
+        .map(|r| (r["name"].as_str().expect("name").to_string(), r["input_rate_dph"].as_f64().expect("rate")))
+        .collect();
+    // The scenario's own runs have no group: each is a position of its own.
+    let runs_csv = dir.path().join("runs.csv");
+    let rows: String = rates.iter().map(|(name, rate)| format!("{name},{name},{rate:?}\n")).collect();
+    fs::write(&runs_csv, format!("run,position,input_rate_dph\n{rows}")).expect("runs file");
+    let bare = dir.path().join("bare");
+    fs::create_dir(&bare).expect("folder");
+    for name in NAMES {
+        fs::copy(sim.join(format!("{name}.csv")), bare.join(format!("{name}.csv"))).expect("copy");
+    }
+
+    let fit = |extra: &[&str], out: &str| -> (Value, String) {
+        let out = dir.path().join(out);
+        let mut args = vec!["fit", "--method", "poly", "--out", s(&out), "--json"];
+        args.extend_from_slice(extra);
+        let (stdout, stderr) = run_ok_with_stderr(&args);
+        (serde_json::from_str(&stdout).expect("fit --json"), stderr)
+    };
+    let (from_manifest, said) = fit(&[s(&sim)], "m.fogm");
+    assert!(said.contains("manifest.json") && said.contains("subtracted"), "{said}");
+    let (from_file, _) = fit(&[s(&sim), "--runs", s(&runs_csv)], "f.fogm");
+    let (without, _) = fit(&[s(&bare)], "b.fogm");
+    for key in ["residual_rms_dph", "points", "method"] {
+        assert_eq!(from_manifest["axes"][0][key], from_file["axes"][0][key], "{key}");
+    }
+    // The runs differ by their input rates, which only the metadata takes out.
+    let rms = |d: &Value| d["axes"][0]["residual_rms_dph"].as_f64().expect("residual");
+    assert!(rms(&from_manifest) < rms(&without), "{} vs {}", rms(&from_manifest), rms(&without));
+
+    let model = dir.path().join("m.fogm");
+    let validate = |logs: &Path, extra: &[&str]| -> Value {
+        let mut args = vec!["validate", "--model", s(&model), s(logs), "--json"];
+        args.extend_from_slice(extra);
+        run_json(&args)
+    };
+    let (v_manifest, v_file, v_bare) =
+        (validate(&sim, &[]), validate(&sim, &["--runs", s(&runs_csv)]), validate(&bare, &[]));
+    for ((m, f), b) in v_manifest["runs"]
+        .as_array()
+        .expect("runs")
+        .iter()
+        .zip(v_file["runs"].as_array().expect("runs"))
+        .zip(v_bare["runs"].as_array().expect("runs"))
+    {
+        let name = m["path"].as_str().and_then(|p| Path::new(p).file_stem()).expect("path").to_string_lossy();
+        let rate = rates[name.as_ref()];
+        assert_eq!(m["input_rate_dph"].as_f64(), Some(rate), "{name}");
+        assert_eq!(m["raw_mean_dph"], f["raw_mean_dph"], "{name}");
+        assert!(b["input_rate_dph"].is_null(), "{name}");
+        let (with, plain) =
+            (m["raw_mean_dph"].as_f64().expect("mean"), b["raw_mean_dph"].as_f64().expect("mean"));
+        assert!(
+            (with - (plain - rate)).abs() <= 1e-9 * plain.abs().max(1.0),
+            "{name}: {with} vs {plain} - {rate}"
+        );
+    }
+
+    // A log the manifest does not list: no metadata, and a note says why.
+    fs::copy(sim.join("hold.csv"), sim.join("recorded.csv")).expect("copy");
+    let (listed, said) = fit(&[s(&sim)], "r.fogm");
+    assert!(said.contains("is not used as run metadata") && said.contains("recorded.csv"), "{said}");
+    assert!(!said.contains("subtracted"), "{said}");
+    assert_eq!(listed["runs"].as_array().map(Vec::len), Some(4));
+}

@@ -174,7 +174,7 @@ def fit(
     temp_scale, temp_offset, gyro_column, gyro_unit, gyro_scale, delimiter, skip_lines, columns,
     sample_rate_hz, comment, decimal_mark ("point" or "comma"), date_column, skip_bad_rows; the
     log's shape as ``read_log`` describes it: ``columns`` is a list of str or one str of
-    comma-separated names) and runs (log files only: a runs file, run,position,input_rate_dph[,role], describing exactly the logs given; as fit --runs, val runs are left out and each run's input rate is subtracted from its gyro). Identifiability warnings (too few runs, heating only,
+    comma-separated names) and runs (log files only: a runs file, run,position,input_rate_dph[,role], describing exactly the logs given; as fit --runs, val runs are left out and each run's input rate is subtracted from its gyro; without it, a fogtemp simulation's manifest.json beside the logs gives the same, with a warning saying so). Identifiability warnings (too few runs, heating only,
     ...) are issued as Python warnings and listed in ``Model.fit_report["warnings"]`` (a property).
     ``report`` (a folder) writes fit-report.md, fit-report.html and the figures, as fit --report.
     ``progress`` shows reading and cross-validation progress on stderr.
@@ -234,7 +234,8 @@ def validate(
     runs (a runs file, run,position,input_rate_dph[,role], describing every log: as validate --runs,
     when it gives roles only the runs with role "val" are validated; for a model of one axis each
     run's input rate is subtracted from its means, ``runs[].input_rate_dph``; positions are not
-    used; log files only) and report (a folder: as validate --report, report.md, report.html and the SVG
+    used; log files only; without it, a fogtemp simulation's manifest.json beside the logs gives
+    the same, with a warning saying so) and report (a folder: as validate --report, report.md, report.html and the SVG
     figures, with the table of the ``compare`` models).
     Gaps in a log's time stamps longer than the model's max gap raise a FogtempWarning (a UserWarning)
     (``runs[].time_gaps``; the metric's windows they cut: ``runs[].metric_windows``).

@@ -279,8 +279,9 @@ pub struct RunValidationDocument {
     /// The same for the compensated output: the bias the model leaves, which bias stability
     /// does not see (`null` when the span is empty).
     pub compensated_mean_dph: f64,
-    /// The run's true input rate from `--runs`, deg/h, subtracted from both means; `null`
-    /// without a runs file or for a model of several axes.
+    /// The run's true input rate from `--runs`, or else from a fogtemp simulation's
+    /// `manifest.json` beside the logs, deg/h, subtracted from both means; `null` without
+    /// either or for a model of several axes.
     pub input_rate_dph: Option<f64>,
     /// Samples replayed.
     pub samples: u64,

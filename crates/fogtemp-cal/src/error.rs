@@ -131,6 +131,14 @@ pub enum CalError {
         /// What is wrong.
         problem: crate::runs::RunsProblem,
     },
+    /// A simulation's `manifest.json` is not valid JSON (see [`crate::manifest`]).
+    #[error("{}: not valid JSON: {source}", path.display())]
+    ManifestJson {
+        /// The manifest.
+        path: PathBuf,
+        /// The parser's error.
+        source: serde_json::Error,
+    },
     /// Writing an output file failed (see [`crate::output`]).
     #[error("{action} {}: {source}", path.display())]
     Output {

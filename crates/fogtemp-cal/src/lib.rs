@@ -63,6 +63,7 @@ pub mod error;
 pub mod features;
 pub mod identifiability;
 pub mod ingest;
+pub mod manifest;
 pub mod mesh;
 pub mod mesh_fit;
 pub mod metrics;

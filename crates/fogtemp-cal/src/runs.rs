@@ -136,6 +136,9 @@ pub enum RunsProblem {
     /// Roles are given, but no run has role `val`: nothing to validate.
     #[error("no run has role 'val': nothing to validate")]
     NoValidationRun,
+    /// Every run has role `val`: nothing to calibrate on.
+    #[error("every run has role 'val': none is left to calibrate on")]
+    NoCalibrationRun,
     /// The CSV itself is malformed (unequal quoting, invalid UTF-8).
     #[error("{0}")]
     Csv(String),
@@ -509,7 +512,15 @@ pub fn validation_logs(logs: Vec<PathBuf>, runs: &Path) -> Result<Vec<PathBuf>, 
 /// # Errors
 /// As [`validation_logs`].
 pub fn validation_runs(logs: Vec<PathBuf>, runs: &Path) -> Result<Vec<(PathBuf, f64)>, CalError> {
-    let file = RunsFile::read(runs)?;
+    validation_runs_of(logs, &RunsFile::read(runs)?)
+}
+
+/// [`validation_runs`] with run metadata already read (a runs file, or a simulation's
+/// manifest: [`logs_metadata`]).
+///
+/// # Errors
+/// As [`validation_logs`].
+pub fn validation_runs_of(logs: Vec<PathBuf>, file: &RunsFile) -> Result<Vec<(PathBuf, f64)>, CalError> {
     let rows = file.for_logs_of_a_command(&logs, Some(Role::Cal))?;
     let with_roles = rows.iter().any(|r| r.role.is_some());
     let kept: Vec<(PathBuf, f64)> = logs
@@ -519,9 +530,73 @@ pub fn validation_runs(logs: Vec<PathBuf>, runs: &Path) -> Result<Vec<(PathBuf, 
         .map(|(l, r)| (l.clone(), r.input_rate_dph))
         .collect();
     if kept.is_empty() && with_roles {
-        return Err(problem(runs, 0, RunsProblem::NoValidationRun));
+        return Err(problem(&file.path, 0, RunsProblem::NoValidationRun));
     }
     Ok(kept)
+}
+
+/// The logs `fit` calibrates on, each with its row: every log but those of role `val`.
+///
+/// # Errors
+/// The metadata does not describe the logs ([`RunsFile::for_logs_of_a_command`]), or every
+/// run has role `val` ([`RunsProblem::NoCalibrationRun`]).
+pub fn calibration_runs_of(
+    logs: &[PathBuf],
+    file: &RunsFile,
+) -> Result<Vec<(PathBuf, RunMetadata)>, CalError> {
+    let rows = file.for_logs_of_a_command(logs, Some(Role::Val))?;
+    let kept: Vec<(PathBuf, RunMetadata)> = logs
+        .iter()
+        .zip(rows)
+        .filter(|(_, row)| row.role != Some(Role::Val))
+        .map(|(log, row)| (log.clone(), row.clone()))
+        .collect();
+    if kept.is_empty() {
+        return Err(problem(&file.path, 0, RunsProblem::NoCalibrationRun));
+    }
+    Ok(kept)
+}
+
+/// The run metadata of a command's logs, and what to tell the user about it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LogsMetadata {
+    /// The runs file, or the simulation's manifest as one; `None` when there is neither.
+    pub file: Option<RunsFile>,
+    /// Notes for the user: the runs file's [`RunsFile::position_notes`], that the manifest
+    /// was read, or why a manifest beside the logs was not.
+    pub notes: Vec<String>,
+}
+
+/// The run metadata of `logs` for `fit` and `validate`: the runs file `runs` when given, else
+/// a fogtemp simulation's `manifest.json` beside the logs when it describes every one
+/// ([`crate::manifest::manifest_for_logs`]; DESIGN.md §3), else none.
+///
+/// # Errors
+/// The runs file cannot be read or is malformed ([`RunsFile::read`]).
+pub fn logs_metadata(logs: &[PathBuf], runs: Option<&Path>) -> Result<LogsMetadata, CalError> {
+    use crate::manifest::{manifest_for_logs, ManifestForLogs};
+    if let Some(path) = runs {
+        let file = RunsFile::read(path)?;
+        return Ok(LogsMetadata { notes: file.position_notes(), file: Some(file) });
+    }
+    Ok(match manifest_for_logs(logs) {
+        ManifestForLogs::Absent => LogsMetadata { file: None, notes: Vec::new() },
+        ManifestForLogs::NotUsed(why) => LogsMetadata { file: None, notes: vec![why] },
+        ManifestForLogs::Runs(file) => {
+            let mut positions: Vec<&str> = file.runs.iter().map(|r| r.position.as_str()).collect();
+            positions.sort_unstable();
+            positions.dedup();
+            let note = format!(
+                "each run's position and input rate from the simulation's {} ({} position{}: {}); --runs FILE \
+                 overrides it",
+                file.path.display(),
+                positions.len(),
+                if positions.len() == 1 { "" } else { "s" },
+                positions.join(", ")
+            );
+            LogsMetadata { notes: vec![note], file: Some(file) }
+        }
+    })
 }
 
 /// A folder's entry that is a log: a file named `*.csv` (any case), not a macOS AppleDouble

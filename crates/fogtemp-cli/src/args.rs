@@ -372,7 +372,8 @@ pub struct FitArgs {
     pub method: MethodArg,
     /// Run metadata (CSV: run,position,input_rate_dph[,role]) describing every log: runs
     /// with role `val` are left out of the fit; with 3 or more positions, `auto` leaves one
-    /// position out at a time instead of one run.
+    /// position out at a time instead of one run; each run's input rate is subtracted.
+    /// Without it, a fogtemp simulation's `manifest.json` beside the logs gives the same.
     #[arg(long)]
     pub runs: Option<PathBuf>,
     /// Experimental: `auto` scores only the folds whose held-out runs lie within the
@@ -621,7 +622,9 @@ pub struct ValidateArgs {
     #[arg(long = "compare", value_name = "MODEL")]
     pub compare: Vec<PathBuf>,
     /// Run metadata (CSV: run,position,input_rate_dph[,role]) describing every log: when it
-    /// gives roles, only the runs with role `val` are validated.
+    /// gives roles, only the runs with role `val` are validated; each run's means are given
+    /// less its input rate. Without it, a fogtemp simulation's `manifest.json` beside the
+    /// logs gives the same.
     #[arg(long)]
     pub runs: Option<PathBuf>,
     /// Bias stability definition.

@@ -156,31 +156,20 @@ pub fn series_from_arrays(
 /// [`DiagnoseError::Cal`] ([`CalError::Io`]) when the manifest cannot be read;
 /// [`DiagnoseError::ManifestJson`] when it is not valid JSON.
 pub fn manifest_meta(dir: &Path) -> Result<BTreeMap<String, RunMeta>, DiagnoseError> {
-    let path = dir.join("manifest.json");
-    if !path.is_file() {
-        return Ok(BTreeMap::new());
-    }
-    let text = match std::fs::read_to_string(&path) {
-        Ok(text) => text,
-        Err(source) => return Err(CalError::Io { path, source }.into()),
+    let runs = match fogtemp_cal::manifest::read_manifest(dir) {
+        Ok(runs) => runs.unwrap_or_default(),
+        Err(CalError::ManifestJson { path, source }) => {
+            return Err(DiagnoseError::ManifestJson { path, source })
+        }
+        Err(e) => return Err(e.into()),
     };
-    let doc: serde_json::Value = match serde_json::from_str(&text) {
-        Ok(doc) => doc,
-        Err(source) => return Err(DiagnoseError::ManifestJson { path, source }),
-    };
-    let mut out = BTreeMap::new();
-    for run in doc["runs"].as_array().map(Vec::as_slice).unwrap_or_default() {
-        let Some(name) = run["name"].as_str() else { continue };
-        out.insert(
-            format!("{name}.csv"),
-            RunMeta {
-                group: run["group"].as_str().filter(|g| !g.is_empty()).map(str::to_string),
-                input_rate_dph: run["input_rate_dph"].as_f64(),
-                power_on_at_s: None,
-            },
-        );
-    }
-    Ok(out)
+    Ok(runs
+        .into_iter()
+        .map(|run| {
+            let meta = RunMeta { group: run.group, input_rate_dph: run.input_rate_dph, power_on_at_s: None };
+            (format!("{}.csv", run.name), meta)
+        })
+        .collect())
 }
 
 /// Run metadata from a runs file (`run,position,input_rate_dph`), keyed by file name. Every

@@ -544,23 +544,13 @@ fn file_runs(
         .collect::<PyResult<_>>()?;
     let mut logs = expand_logs(&paths)?;
     let mut rows = None;
-    if let Some(path) = runs_file {
-        let file = fogtemp_cal::runs::RunsFile::read(path).map_err(errors::cal)?;
-        for note in file.position_notes() {
-            progress::warn(py, &note)?;
-        }
-        let kept: Vec<(PathBuf, fogtemp_cal::runs::RunMetadata)> = logs
-            .iter()
-            .zip(file.for_logs_of_a_command(&logs, Some(fogtemp_cal::runs::Role::Val)).map_err(errors::cal)?)
-            .filter(|(_, row)| row.role != Some(fogtemp_cal::runs::Role::Val))
-            .map(|(log, row)| (log.clone(), row.clone()))
-            .collect();
-        if kept.is_empty() {
-            return Err(errors::value(format!(
-                "{}: every run has role 'val': none is left to calibrate on",
-                path.display()
-            )));
-        }
+    // A runs file, else a fogtemp simulation's manifest beside the logs (DESIGN.md §3).
+    let metadata = fogtemp_cal::runs::logs_metadata(&logs, runs_file).map_err(errors::cal)?;
+    for note in &metadata.notes {
+        progress::warn(py, note)?;
+    }
+    if let Some(file) = &metadata.file {
+        let kept = fogtemp_cal::runs::calibration_runs_of(&logs, file).map_err(errors::cal)?;
         logs = kept.iter().map(|(log, _)| log.clone()).collect();
         rows = Some(kept.into_iter().map(|(_, row)| row).collect());
     }
@@ -909,8 +899,13 @@ pub fn validate<'py>(
         if logs.is_empty() {
             return Err(errors::value("validate() needs at least one log"));
         }
-        if let Some(path) = &runs_file {
-            input_rates = fogtemp_cal::runs::validation_runs(logs, path).map_err(errors::cal)?;
+        // A runs file, else a fogtemp simulation's manifest beside the logs (DESIGN.md §3).
+        let metadata = fogtemp_cal::runs::logs_metadata(&logs, runs_file.as_deref()).map_err(errors::cal)?;
+        for note in &metadata.notes {
+            progress::warn(py, note)?;
+        }
+        if let Some(file) = &metadata.file {
+            input_rates = fogtemp_cal::runs::validation_runs_of(logs, file).map_err(errors::cal)?;
             logs = input_rates.iter().map(|(log, _)| log.clone()).collect();
         }
         how_read = choose_columns(

@@ -223,6 +223,33 @@ def test_validate_runs_file_keeps_the_val_runs_like_the_command_line(mesh_model,
         fogtemp.validate(model_path, folder, runs=missing, progress=False)
 
 
+def test_a_simulations_manifest_gives_fit_and_validate_the_run_metadata(sim_dir, cal_logs, val_logs, tmp_path):
+    # DESIGN.md section 3 (review27b F1): without runs=, a fogtemp simulation's manifest.json
+    # beside the logs gives each run's position and input rate, as a runs file written from it
+    # does. Oracles: the runs file's model and means, and the means of the same logs read from
+    # a folder without the manifest less the manifest's rate.
+    manifest = json.loads((sim_dir / "manifest.json").read_text())
+    rates = {r["name"]: r["input_rate_dph"] for r in manifest["runs"]}
+    groups = {r["name"]: r["group"] for r in manifest["runs"]}
+    with pytest.warns(fogtemp.FogtempWarning, match=r"manifest\.json \(1 position: pos1\)"):
+        from_manifest = fogtemp.fit(cal_logs, method="poly", progress=False)
+    runs_csv = tmp_path / "runs.csv"
+    runs_csv.write_text(
+        "run,position,input_rate_dph\n" + "".join(f"{p.stem},{groups[p.stem]},{rates[p.stem]!r}\n" for p in cal_logs)
+    )
+    assert from_manifest == fogtemp.fit(cal_logs, method="poly", runs=runs_csv, progress=False)
+    bare = tmp_path / "bare"
+    bare.mkdir()
+    for log in val_logs[:2]:
+        (bare / log.name).symlink_to(log)
+    with pytest.warns(fogtemp.FogtempWarning, match=r"manifest\.json"):
+        with_rates = fogtemp.validate(from_manifest, val_logs[:2], progress=False)
+    without = fogtemp.validate(from_manifest, [bare / p.name for p in val_logs[:2]], progress=False)
+    for run, plain, log in zip(with_rates["runs"], without["runs"], val_logs[:2]):
+        assert run["input_rate_dph"] == rates[log.stem] and plain["input_rate_dph"] is None
+        assert run["raw_mean_dph"] == pytest.approx(plain["raw_mean_dph"] - rates[log.stem], abs=1e-9)
+
+
 def files_of(folder):
     return {p.relative_to(folder).as_posix(): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
 

@@ -6,7 +6,6 @@ use fogtemp_cal::cv_correction::CvCorrection;
 use fogtemp_cal::documents::FitDocument;
 use fogtemp_cal::identifiability::WarningKind;
 use fogtemp_cal::poly_fit::TermSelection;
-use fogtemp_cal::runs::{Role, RunsFile};
 use fogtemp_cal::selection::{CvScheme, CvScoring, Grouping, RuleScale, SelectionOptions};
 use fogtemp_cal::thin::GreedyThinning;
 use fogtemp_core::FeatureSettings;
@@ -37,7 +36,8 @@ pub fn fit(a: FitArgs) -> Result<()> {
     if let Some(dir) = &a.report {
         check_report_folder(dir)?;
     }
-    let CalibrationLogs { logs, positions, input_rates_dph } = calibration_logs(&named, a.runs.as_deref())?;
+    let CalibrationLogs { logs, positions, input_rates_dph, source } =
+        calibration_logs(&named, a.runs.as_deref())?;
     let config = CalibrationConfig {
         ingest: ingest_options(&a.ingest)?,
         features: FeatureSettings {
@@ -112,7 +112,12 @@ pub fn fit(a: FitArgs) -> Result<()> {
     if let Some(warning) = fogtemp_cal::digest::same_logs_note(&logs, &each) {
         eprintln!("warning: {warning}");
     }
-    subtract_input_rates(&mut runs, input_rates_dph.as_deref(), config.ingest.format.gyro_columns.len());
+    subtract_input_rates(
+        &mut runs,
+        input_rates_dph.as_deref(),
+        source.as_deref(),
+        config.ingest.format.gyro_columns.len(),
+    );
     let mut warnings = fogtemp_cal::identifiability::fit_warnings(&runs, &config, &a.identifiability());
     warnings.iter().for_each(|w| eprintln!("warning: {}", w.message));
 
@@ -319,54 +324,62 @@ fn check_settings(a: &FitArgs) -> Result<()> {
     Ok(())
 }
 
-/// The logs to calibrate on and, with a runs file, each one's position: every log must have
-/// a row (and every row a log); runs with role `val` are left out.
-/// With a runs file, each run's true input rate is taken from its gyro before fitting, so
-/// that the model is the bias alone (a model that kept it would remove the Earth rate from a
-/// navigation system's gyro, and runs in different positions would disagree by it). The file
-/// gives one rate per run, about the input axis, so only a one-gyro log is corrected.
+/// With run metadata (a runs file or a simulation's manifest), each run's true input rate is
+/// taken from its gyro before fitting, so that the model is the bias alone (a model that kept
+/// it would remove the Earth rate from a navigation system's gyro, and runs in different
+/// positions would disagree by it). The metadata gives one rate per run, about the input axis,
+/// so only a one-gyro log is corrected.
 fn subtract_input_rates(
     runs: &mut [fogtemp_cal::calibrate::RunFeatures],
     rates_dph: Option<&[f64]>,
+    source: Option<&std::path::Path>,
     axes: usize,
 ) {
-    let Some(rates) = rates_dph else { return };
+    let (Some(rates), Some(source)) = (rates_dph, source) else { return };
+    let source = source.display();
     if calibrate::subtract_input_rates(runs, rates, axes) {
-        eprintln!("note: each run's input_rate_dph from the runs file is subtracted from its gyro: the model is the bias alone");
+        eprintln!("note: each run's input_rate_dph from {source} is subtracted from its gyro: the model is the bias alone");
     } else {
         eprintln!(
-            "note: the runs file gives one input rate per run, but the logs have {axes} gyro columns: the rates are \
+            "note: {source} gives one input rate per run, but the logs have {axes} gyro columns: the rates are \
              not subtracted, so each axis's model includes its input rate"
         );
     }
 }
 
-/// The calibration logs: every log, or with a runs file those not of role `val`, each with
+/// The calibration logs: every log, or with run metadata those not of role `val`, each with
 /// its row.
 struct CalibrationLogs {
     logs: Vec<std::path::PathBuf>,
-    /// Per log, its position (with a runs file).
+    /// Per log, its position (with run metadata).
     positions: Option<Vec<String>>,
-    /// Per log, the true rate about the input axis, deg/h (with a runs file).
+    /// Per log, the true rate about the input axis, deg/h (with run metadata).
     input_rates_dph: Option<Vec<f64>>,
+    /// Where the run metadata came from: the runs file, or the simulation's manifest.
+    source: Option<std::path::PathBuf>,
 }
 
+/// The logs to calibrate on and, with run metadata (`--runs FILE`, else a fogtemp
+/// simulation's `manifest.json` beside the logs), each one's position: every log must have a
+/// row (and every row a log); runs with role `val` are left out.
 fn calibration_logs(logs: &[std::path::PathBuf], runs: Option<&std::path::Path>) -> Result<CalibrationLogs> {
-    let Some(path) = runs else {
-        return Ok(CalibrationLogs { logs: logs.to_vec(), positions: None, input_rates_dph: None });
-    };
-    let file = RunsFile::read(path)?;
-    let rows = file.for_logs_of_a_command(logs, Some(Role::Val))?;
-    for note in file.position_notes() {
+    let metadata = fogtemp_cal::runs::logs_metadata(logs, runs)?;
+    for note in &metadata.notes {
         eprintln!("note: {note}");
     }
-    let kept: Vec<_> = logs.iter().zip(rows).filter(|(_, row)| row.role != Some(Role::Val)).collect();
-    if kept.is_empty() {
-        bail!("{}: every run has role 'val': none is left to calibrate on", path.display());
-    }
+    let Some(file) = metadata.file else {
+        return Ok(CalibrationLogs {
+            logs: logs.to_vec(),
+            positions: None,
+            input_rates_dph: None,
+            source: None,
+        });
+    };
+    let kept = fogtemp_cal::runs::calibration_runs_of(logs, &file)?;
     Ok(CalibrationLogs {
-        logs: kept.iter().map(|(log, _)| (*log).clone()).collect(),
+        logs: kept.iter().map(|(log, _)| log.clone()).collect(),
         positions: Some(kept.iter().map(|(_, row)| row.position.clone()).collect()),
         input_rates_dph: Some(kept.iter().map(|(_, row)| row.input_rate_dph).collect()),
+        source: Some(file.path),
     })
 }

@@ -50,6 +50,26 @@ fn check_compared_columns(model: &Model<'_>, path: &Path, format: &LogFormat, pr
     Ok(())
 }
 
+/// The logs to validate, and each kept log with its input rate, deg/h (empty without metadata).
+type LogsAndRates = (Vec<std::path::PathBuf>, Vec<(std::path::PathBuf, f64)>);
+
+/// The logs to validate and, with run metadata (`--runs FILE`, else a fogtemp simulation's
+/// `manifest.json` beside the logs), each kept log's true input rate (empty without).
+fn validation_logs(a: &ValidateArgs) -> Result<LogsAndRates> {
+    let logs = expand_logs_for_reading(&a.logs)?;
+    let metadata = fogtemp_cal::runs::logs_metadata(&logs, a.runs.as_deref())?;
+    for note in &metadata.notes {
+        eprintln!("note: {note}");
+    }
+    Ok(match metadata.file {
+        Some(file) => {
+            let kept = fogtemp_cal::runs::validation_runs_of(logs, &file)?;
+            (kept.iter().map(|(log, _)| log.clone()).collect(), kept)
+        }
+        None => (logs, Vec::new()),
+    })
+}
+
 /// The `validate` command.
 pub fn validate(a: ValidateArgs) -> Result<()> {
     if let Some(dir) = &a.report {
@@ -58,13 +78,7 @@ pub fn validate(a: ValidateArgs) -> Result<()> {
     let blob = read_model(&a.model)?;
     check_capacity(&a.model, &blob, a.capacity)?;
     let model = Model::from_bytes(&blob).map_err(|e| anyhow::anyhow!("{e}"))?;
-    let (logs, input_rates): (Vec<_>, Vec<_>) = match a.runs.as_deref() {
-        Some(runs) => {
-            let kept = fogtemp_cal::runs::validation_runs(expand_logs_for_reading(&a.logs)?, runs)?;
-            (kept.iter().map(|(log, _)| log.clone()).collect(), kept)
-        }
-        None => (expand_logs_for_reading(&a.logs)?, Vec::new()),
-    };
+    let (logs, input_rates) = validation_logs(&a)?;
     let (ingest, columns) = super::ingest_options_for(&a.ingest, &model, &a.model)?;
     super::warn_axis_count(&a.model, model.axis_count(), ingest.format.gyro_columns.len());
     let options = stability_options(&a.stability)?;
