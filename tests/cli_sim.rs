@@ -275,6 +275,24 @@ fn simulate_never_replaces_logs_it_did_not_write() {
     assert!(err.contains("is not a simulation's folder") && err.contains(&name), "{err}");
     assert_eq!(fs::read_to_string(lab.join(&name)).expect("read"), "recorded data\n");
     assert!(!lab.join("manifest.json").exists());
+    // What an interrupted simulation leaves (review27a 10): a log and the marker, no manifest.
+    // `fit` warns of it; `simulate` takes the folder as its own and, done, removes the marker.
+    let partial = dir.path().join("partial");
+    fs::create_dir(&partial).expect("mkdir");
+    fs::copy(first.join(&name), partial.join(&name)).expect("copy");
+    fs::write(partial.join("SIMULATION-UNFINISHED.txt"), "left by an interrupted simulate\n")
+        .expect("marker");
+    let model = dir.path().join("partial.fogm");
+    let fitted = cal().args(["fit", "--method", "poly", "--out", s(&model), s(&partial)]).assert().success();
+    let said = String::from_utf8_lossy(&fitted.get_output().stderr).into_owned();
+    assert!(
+        said.contains("warning:") && said.contains("SIMULATION-UNFINISHED.txt: the simulation"),
+        "{said}"
+    );
+    run_ok(["simulate", "--scenario", s(&file), "--out", s(&partial), "--duration-s", "60"]);
+    assert!(!partial.join("SIMULATION-UNFINISHED.txt").exists());
+    assert!(partial.join("manifest.json").is_file());
+    assert_eq!(fs::read(partial.join(&name)).expect("read"), fs::read(first.join(&name)).expect("read"));
 }
 
 #[test]
@@ -721,10 +739,69 @@ fn fit_and_validate_read_a_simulations_manifest_as_run_metadata() {
         );
     }
 
+    // A runs file wins over the manifest (review30a F10): one that says otherwise (rates 0, one
+    // position) gives what it gives on the copy without a manifest, not the manifest's figures.
+    let zero_csv = dir.path().join("zero.csv");
+    let rows: String = NAMES.iter().map(|name| format!("{name},lab,0\n")).collect();
+    fs::write(&zero_csv, format!("run,position,input_rate_dph\n{rows}")).expect("runs file");
+    let (overridden, _) = fit(&[s(&sim), "--runs", s(&zero_csv)], "z.fogm");
+    let (bare_zero, _) = fit(&[s(&bare), "--runs", s(&zero_csv)], "bz.fogm");
+    assert_eq!(overridden["axes"][0]["residual_rms_dph"], bare_zero["axes"][0]["residual_rms_dph"]);
+    assert_ne!(overridden["axes"][0]["residual_rms_dph"], from_manifest["axes"][0]["residual_rms_dph"]);
+    let v_zero = validate(&sim, &["--runs", s(&zero_csv)]);
+    assert!(v_zero["runs"].as_array().expect("runs").iter().all(|r| r["input_rate_dph"] == 0.0));
+
     // A log the manifest does not list: no metadata, and a note says why.
     fs::copy(sim.join("hold.csv"), sim.join("recorded.csv")).expect("copy");
     let (listed, said) = fit(&[s(&sim)], "r.fogm");
     assert!(said.contains("is not used as run metadata") && said.contains("recorded.csv"), "{said}");
     assert!(!said.contains("subtracted"), "{said}");
     assert_eq!(listed["runs"].as_array().map(Vec::len), Some(4));
+}
+
+/// The manifest's groups are positions for `fit --method auto` (review30a F10): three groups
+/// of two runs leave one group out at a time, each held-out run labelled with its group; a run
+/// without a group makes every run a position of its own (review30a F2), so each run is its
+/// own fold. (The runs are too short for a scored fold: only the folds are checked.)
+#[test]
+fn auto_leaves_out_the_manifests_groups() {
+    let dir = TempDir::new().expect("tmp");
+    let mut toml = SMALL.split("[[runs]]").next().expect("head").to_string();
+    for (k, (group, axis)) in
+        [("g1", "up"), ("g1", "up"), ("g2", "down"), ("g2", "down"), ("g3", "north"), ("g3", "north")]
+            .into_iter()
+            .enumerate()
+    {
+        let start_c = -10.0 + 10.0 * k as f64;
+        toml.push_str(&format!(
+            "[[runs]]\nname = \"r{k}\"\ngroup = \"{group}\"\nduration_s = 600.0\ninput_axis = \"{axis}\"\n\
+             chamber = {{ kind = \"ramp\", start_c = {start_c:?}, end_c = {:?}, rate_c_per_min = 2.0, start_s = 60.0 }}\n\n",
+            start_c + 15.0
+        ));
+    }
+    let file = dir.path().join("groups.toml");
+    fs::write(&file, &toml).expect("write scenario");
+    let sim = dir.path().join("sim");
+    run_ok(["simulate", "--scenario", s(&file), "--out", s(&sim)]);
+    let out = dir.path().join("m.fogm");
+    let (stdout, said) = run_ok_with_stderr(&["fit", s(&sim), "--out", s(&out), "--json"]);
+    assert!(said.contains("(3 positions: g1, g2, g3)"), "{said}");
+    let doc: Value = serde_json::from_str(&stdout).expect("fit --json");
+    let groups = |doc: &Value| -> Vec<String> {
+        let runs = doc["axes"][0]["selection"]["candidates"][0]["runs"].as_array().expect("runs[]").clone();
+        runs.iter().map(|r| r["group"].as_str().expect("group").to_string()).collect()
+    };
+    assert_eq!(doc["axes"][0]["selection"]["grouping"], "positions");
+    assert_eq!(groups(&doc), vec!["g1", "g1", "g2", "g2", "g3", "g3"]);
+
+    // One run's group removed: every run its own position, one fold per run.
+    let manifest = sim.join("manifest.json");
+    let text = fs::read_to_string(&manifest).expect("manifest");
+    let mut doc: Value = serde_json::from_str(&text).expect("JSON");
+    doc["runs"][5]["group"] = Value::String(String::new());
+    fs::write(&manifest, serde_json::to_string(&doc).expect("JSON")).expect("manifest");
+    let (stdout, said) = run_ok_with_stderr(&["fit", s(&sim), "--out", s(&out), "--json"]);
+    assert!(said.contains("run 'r5' has no group, so each run is a position of its own"), "{said}");
+    let doc: Value = serde_json::from_str(&stdout).expect("fit --json");
+    assert_eq!(groups(&doc), vec!["r0", "r1", "r2", "r3", "r4", "r5"]);
 }

@@ -496,32 +496,120 @@ fn lines_text(lines: &[u64]) -> String {
     }
 }
 
-/// The logs `validate --runs FILE` validates (and Python's `validate(runs=)`): when the runs
-/// file (which must describe every log, and every run but those of role `cal`) gives roles,
-/// the logs of role `val`; else every log.
-///
-/// # Errors
-/// The runs file cannot be read or does not describe the logs ([`RunsFile::for_logs`]), or it
-/// gives roles and none is `val` ([`RunsProblem::NoValidationRun`]).
-pub fn validation_logs(logs: Vec<PathBuf>, runs: &Path) -> Result<Vec<PathBuf>, CalError> {
-    Ok(validation_runs(logs, runs)?.into_iter().map(|(log, _)| log).collect())
+/// The run metadata of a command's logs, one row per log, and what to tell the user about it.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct LogsMetadata {
+    /// Where the rows came from, for notes: the runs file, or the simulations' manifests.
+    pub source: String,
+    /// The runs file, or the first manifest: errors name it.
+    pub source_path: PathBuf,
+    /// One row per log, in the logs' order; `None` without a runs file or usable manifests.
+    pub rows: Option<Vec<RunMetadata>>,
+    /// Notes for the user: the runs file's [`RunsFile::position_notes`], that the manifests
+    /// were read, or why a manifest beside the logs was not.
+    pub notes: Vec<String>,
+    /// Warnings for the user: logs from a simulation that did not finish
+    /// ([`crate::manifest::unfinished_simulation_warnings`]).
+    pub warnings: Vec<String>,
 }
 
-/// [`validation_logs`] with each kept log's true input rate from the runs file, deg/h.
+/// The run metadata of `logs` for a command that does not read the runs of role `unused`
+/// (`fit`: `val`; `validate`: `cal`): the runs file `runs` when given, else the fogtemp
+/// simulations' `manifest.json` beside the logs when they describe every one
+/// ([`crate::manifest::manifest_for_logs`]; DESIGN.md §3), else none. `runs_option` is how
+/// the caller names a runs file in notes (`--runs FILE`, or Python's `runs=`).
 ///
 /// # Errors
-/// As [`validation_logs`].
-pub fn validation_runs(logs: Vec<PathBuf>, runs: &Path) -> Result<Vec<(PathBuf, f64)>, CalError> {
-    validation_runs_of(logs, &RunsFile::read(runs)?)
+/// The runs file cannot be read, is malformed or does not describe the logs
+/// ([`RunsFile::for_logs_of_a_command`]).
+pub fn logs_metadata(
+    logs: &[PathBuf],
+    runs: Option<&Path>,
+    unused: Role,
+    runs_option: &str,
+) -> Result<LogsMetadata, CalError> {
+    use crate::manifest::{manifest_for_logs, unfinished_simulation_warnings, ManifestForLogs};
+    let warnings = unfinished_simulation_warnings(logs);
+    if let Some(path) = runs {
+        let file = RunsFile::read(path)?;
+        let rows = file.for_logs_of_a_command(logs, Some(unused))?.into_iter().cloned().collect();
+        return Ok(LogsMetadata {
+            source: path.display().to_string(),
+            source_path: path.to_path_buf(),
+            rows: Some(rows),
+            notes: file.position_notes(),
+            warnings,
+        });
+    }
+    let runs_file = format!("a runs file ({runs_option})");
+    Ok(match manifest_for_logs(logs) {
+        ManifestForLogs::Absent => LogsMetadata { warnings, ..LogsMetadata::default() },
+        ManifestForLogs::NotUsed(why) => LogsMetadata {
+            notes: vec![why.replace("a runs file", &runs_file)],
+            warnings,
+            ..LogsMetadata::default()
+        },
+        ManifestForLogs::Runs(found) => {
+            let source = match found.manifests.as_slice() {
+                [one] => one.display().to_string(),
+                many => format!("the {} simulations' manifest.json", many.len()),
+            };
+            let mut positions: Vec<&str> = found.rows.iter().map(|r| r.position.as_str()).collect();
+            positions.sort_unstable();
+            positions.dedup();
+            let positions = match &found.ungrouped {
+                Some(run) => format!("run '{run}' has no group, so each run is a position of its own"),
+                None => format!(
+                    "{} position{}: {}",
+                    positions.len(),
+                    if positions.len() == 1 { "" } else { "s" },
+                    positions.join(", ")
+                ),
+            };
+            let note = format!(
+                "each run's position and input rate from {source} ({positions}); {runs_file} overrides it"
+            );
+            LogsMetadata {
+                source,
+                source_path: found.manifests.first().cloned().unwrap_or_default(),
+                rows: Some(found.rows),
+                notes: vec![note],
+                warnings,
+            }
+        }
+    })
 }
 
-/// [`validation_runs`] with run metadata already read (a runs file, or a simulation's
-/// manifest: [`logs_metadata`]).
+/// The logs `fit` calibrates on, each with its row: every log but those of role `val`; all
+/// logs, without rows, when there is no metadata.
 ///
 /// # Errors
-/// As [`validation_logs`].
-pub fn validation_runs_of(logs: Vec<PathBuf>, file: &RunsFile) -> Result<Vec<(PathBuf, f64)>, CalError> {
-    let rows = file.for_logs_of_a_command(&logs, Some(Role::Cal))?;
+/// Every run has role `val` ([`RunsProblem::NoCalibrationRun`]).
+pub fn calibration_runs(logs: &[PathBuf], metadata: &LogsMetadata) -> Result<CalibrationRuns, CalError> {
+    let Some(rows) = &metadata.rows else { return Ok((logs.to_vec(), None)) };
+    let (kept, rows): (Vec<PathBuf>, Vec<RunMetadata>) = logs
+        .iter()
+        .zip(rows)
+        .filter(|(_, row)| row.role != Some(Role::Val))
+        .map(|(log, row)| (log.clone(), row.clone()))
+        .unzip();
+    if kept.is_empty() {
+        return Err(problem(&metadata.source_path, 0, RunsProblem::NoCalibrationRun));
+    }
+    Ok((kept, Some(rows)))
+}
+
+/// The logs to calibrate on, and their rows when there is metadata.
+pub type CalibrationRuns = (Vec<PathBuf>, Option<Vec<RunMetadata>>);
+
+/// The logs `validate` validates (and Python's `validate`): when the metadata gives roles,
+/// the logs of role `val`; else every log; each with its true input rate, deg/h, when there
+/// is metadata.
+///
+/// # Errors
+/// Roles are given and none is `val` ([`RunsProblem::NoValidationRun`]).
+pub fn validation_runs(logs: Vec<PathBuf>, metadata: &LogsMetadata) -> Result<ValidationRuns, CalError> {
+    let Some(rows) = &metadata.rows else { return Ok((logs, Vec::new())) };
     let with_roles = rows.iter().any(|r| r.role.is_some());
     let kept: Vec<(PathBuf, f64)> = logs
         .iter()
@@ -530,74 +618,14 @@ pub fn validation_runs_of(logs: Vec<PathBuf>, file: &RunsFile) -> Result<Vec<(Pa
         .map(|(l, r)| (l.clone(), r.input_rate_dph))
         .collect();
     if kept.is_empty() && with_roles {
-        return Err(problem(&file.path, 0, RunsProblem::NoValidationRun));
+        return Err(problem(&metadata.source_path, 0, RunsProblem::NoValidationRun));
     }
-    Ok(kept)
+    Ok((kept.iter().map(|(l, _)| l.clone()).collect(), kept))
 }
 
-/// The logs `fit` calibrates on, each with its row: every log but those of role `val`.
-///
-/// # Errors
-/// The metadata does not describe the logs ([`RunsFile::for_logs_of_a_command`]), or every
-/// run has role `val` ([`RunsProblem::NoCalibrationRun`]).
-pub fn calibration_runs_of(
-    logs: &[PathBuf],
-    file: &RunsFile,
-) -> Result<Vec<(PathBuf, RunMetadata)>, CalError> {
-    let rows = file.for_logs_of_a_command(logs, Some(Role::Val))?;
-    let kept: Vec<(PathBuf, RunMetadata)> = logs
-        .iter()
-        .zip(rows)
-        .filter(|(_, row)| row.role != Some(Role::Val))
-        .map(|(log, row)| (log.clone(), row.clone()))
-        .collect();
-    if kept.is_empty() {
-        return Err(problem(&file.path, 0, RunsProblem::NoCalibrationRun));
-    }
-    Ok(kept)
-}
-
-/// The run metadata of a command's logs, and what to tell the user about it.
-#[derive(Clone, Debug, PartialEq)]
-pub struct LogsMetadata {
-    /// The runs file, or the simulation's manifest as one; `None` when there is neither.
-    pub file: Option<RunsFile>,
-    /// Notes for the user: the runs file's [`RunsFile::position_notes`], that the manifest
-    /// was read, or why a manifest beside the logs was not.
-    pub notes: Vec<String>,
-}
-
-/// The run metadata of `logs` for `fit` and `validate`: the runs file `runs` when given, else
-/// a fogtemp simulation's `manifest.json` beside the logs when it describes every one
-/// ([`crate::manifest::manifest_for_logs`]; DESIGN.md §3), else none.
-///
-/// # Errors
-/// The runs file cannot be read or is malformed ([`RunsFile::read`]).
-pub fn logs_metadata(logs: &[PathBuf], runs: Option<&Path>) -> Result<LogsMetadata, CalError> {
-    use crate::manifest::{manifest_for_logs, ManifestForLogs};
-    if let Some(path) = runs {
-        let file = RunsFile::read(path)?;
-        return Ok(LogsMetadata { notes: file.position_notes(), file: Some(file) });
-    }
-    Ok(match manifest_for_logs(logs) {
-        ManifestForLogs::Absent => LogsMetadata { file: None, notes: Vec::new() },
-        ManifestForLogs::NotUsed(why) => LogsMetadata { file: None, notes: vec![why] },
-        ManifestForLogs::Runs(file) => {
-            let mut positions: Vec<&str> = file.runs.iter().map(|r| r.position.as_str()).collect();
-            positions.sort_unstable();
-            positions.dedup();
-            let note = format!(
-                "each run's position and input rate from the simulation's {} ({} position{}: {}); --runs FILE \
-                 overrides it",
-                file.path.display(),
-                positions.len(),
-                if positions.len() == 1 { "" } else { "s" },
-                positions.join(", ")
-            );
-            LogsMetadata { notes: vec![note], file: Some(file) }
-        }
-    })
-}
+/// The logs to validate, and each kept log with its input rate, deg/h (empty without
+/// metadata).
+pub type ValidationRuns = (Vec<PathBuf>, Vec<(PathBuf, f64)>);
 
 /// A folder's entry that is a log: a file named `*.csv` (any case), not a macOS AppleDouble
 /// companion `._*.csv` (resource data a copy to a FAT or exFAT stick leaves beside each file:

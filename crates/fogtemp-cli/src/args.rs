@@ -242,7 +242,8 @@ pub enum MethodArg {
     #[value(name = "cubic-t")]
     CubicT,
     /// Per axis, the one of cubic-t, poly, mesh, hybrid with the best cross-validated bias
-    /// stability (leave one run, or with --runs one position, out; held-out runs replayed
+    /// stability (leave one run out, or one position with 3 or more from --runs or a
+    /// simulation's manifest.json; held-out runs replayed
     /// through the firmware's Compensator), the simplest within one standard error.
     Auto,
 }

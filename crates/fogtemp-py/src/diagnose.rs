@@ -203,6 +203,15 @@ pub fn diagnose<'py>(
         }
     }
     let (simulated_logs, recorded_logs) = (simulated.paths(), recorded.paths());
+    // Runs given as arrays have names, not folders.
+    let files: Vec<PathBuf> = [(&simulated, &simulated_logs), (&recorded, &recorded_logs)]
+        .into_iter()
+        .filter(|(side, _)| matches!(side, Side::Files { .. }))
+        .flat_map(|(_, logs)| logs.iter().cloned())
+        .collect();
+    for warning in fogtemp_cal::manifest::unfinished_simulation_warnings(&files) {
+        progress::warn(py, &warning)?;
+    }
     let pairs = inputs::pair(&simulated_logs, &recorded_logs).map_err(diagnose_error)?;
     let meta = match (&runs, &simulated) {
         (Some(path), _) => inputs::runs_file_meta(path, &simulated_logs),

@@ -428,7 +428,17 @@ pub fn fit(
             // As the command line's `fit --runs`: val runs left out (above), one position
             // left out at a time, each run's input rate taken from its gyro (one-gyro logs).
             let rates: Vec<f64> = rows.iter().map(|r| r.input_rate_dph).collect();
-            calibrate::subtract_input_rates(&mut runs, &rates, config.ingest.format.gyro_columns.len());
+            let axes = config.ingest.format.gyro_columns.len();
+            if !calibrate::subtract_input_rates(&mut runs, &rates, axes) {
+                // As the command line says it (review30a F7).
+                progress::warn(
+                    py,
+                    &format!(
+                        "the run metadata gives one input rate per run, but the logs have {axes} gyro columns: the \
+                         rates are not subtracted, so each axis's model includes its input rate"
+                    ),
+                )?;
+            }
             selection.positions = Some(rows.into_iter().map(|r| r.position).collect());
         }
         let fitted = {
@@ -542,18 +552,14 @@ fn file_runs(
             })
         })
         .collect::<PyResult<_>>()?;
-    let mut logs = expand_logs(&paths)?;
-    let mut rows = None;
-    // A runs file, else a fogtemp simulation's manifest beside the logs (DESIGN.md §3).
-    let metadata = fogtemp_cal::runs::logs_metadata(&logs, runs_file).map_err(errors::cal)?;
-    for note in &metadata.notes {
+    let logs = expand_logs(&paths)?;
+    // A runs file, else the fogtemp simulations' manifests beside the logs (DESIGN.md §3).
+    let metadata = fogtemp_cal::runs::logs_metadata(&logs, runs_file, fogtemp_cal::runs::Role::Val, "runs=")
+        .map_err(errors::cal)?;
+    for note in metadata.notes.iter().chain(&metadata.warnings) {
         progress::warn(py, note)?;
     }
-    if let Some(file) = &metadata.file {
-        let kept = fogtemp_cal::runs::calibration_runs_of(&logs, file).map_err(errors::cal)?;
-        logs = kept.iter().map(|(log, _)| log.clone()).collect();
-        rows = Some(kept.into_iter().map(|(_, row)| row).collect());
-    }
+    let (logs, rows) = fogtemp_cal::runs::calibration_runs(&logs, &metadata).map_err(errors::cal)?;
     let mut runs = Vec::with_capacity(logs.len());
     let mut input_digest = fogtemp_cal::digest::InputDigest::new();
     for log in &logs {
@@ -880,7 +886,7 @@ pub fn validate<'py>(
     let (mut in_sample, mut file_notes): (Vec<String>, Vec<String>) = (Vec::new(), Vec::new());
     // How the logs were read, first in the document's notes as in `validate --json`'s.
     let mut how_read: Vec<String> = Vec::new();
-    // Each log's true input rate from the runs file (none for arrays or without one).
+    // Each log's true input rate from the run metadata (none for arrays or without any).
     let mut input_rates: Vec<(PathBuf, f64)> = Vec::new();
     let per_log = if arrays {
         let runs = array_runs_of(&items, names.as_deref())?;
@@ -899,15 +905,18 @@ pub fn validate<'py>(
         if logs.is_empty() {
             return Err(errors::value("validate() needs at least one log"));
         }
-        // A runs file, else a fogtemp simulation's manifest beside the logs (DESIGN.md §3).
-        let metadata = fogtemp_cal::runs::logs_metadata(&logs, runs_file.as_deref()).map_err(errors::cal)?;
-        for note in &metadata.notes {
+        // A runs file, else the fogtemp simulations' manifests beside the logs (DESIGN.md §3).
+        let metadata = fogtemp_cal::runs::logs_metadata(
+            &logs,
+            runs_file.as_deref(),
+            fogtemp_cal::runs::Role::Cal,
+            "runs=",
+        )
+        .map_err(errors::cal)?;
+        for note in metadata.notes.iter().chain(&metadata.warnings) {
             progress::warn(py, note)?;
         }
-        if let Some(file) = &metadata.file {
-            input_rates = fogtemp_cal::runs::validation_runs_of(logs, file).map_err(errors::cal)?;
-            logs = input_rates.iter().map(|(log, _)| log.clone()).collect();
-        }
+        (logs, input_rates) = fogtemp_cal::runs::validation_runs(logs, &metadata).map_err(errors::cal)?;
         how_read = choose_columns(
             py,
             &mut ingest,

@@ -240,8 +240,16 @@ def test_a_simulations_manifest_gives_fit_and_validate_the_run_metadata(sim_dir,
     assert from_manifest == fogtemp.fit(cal_logs, method="poly", runs=runs_csv, progress=False)
     bare = tmp_path / "bare"
     bare.mkdir()
-    for log in val_logs[:2]:
+    for log in (*cal_logs, *val_logs[:2]):
         (bare / log.name).symlink_to(log)
+    # A runs file wins over the manifest, and the Python note names runs= (review30a F6, F10).
+    zero_csv = tmp_path / "zero.csv"
+    zero_csv.write_text("run,position,input_rate_dph\n" + "".join(f"{p.stem},lab,0\n" for p in cal_logs))
+    overridden = fogtemp.fit(cal_logs, method="poly", runs=zero_csv, progress=False)
+    assert overridden != from_manifest
+    assert overridden == fogtemp.fit([bare / p.name for p in cal_logs], method="poly", runs=zero_csv, progress=False)
+    with pytest.warns(fogtemp.FogtempWarning, match=r"a runs file \(runs=\) overrides it"):
+        fogtemp.fit(cal_logs[:3], method="poly", progress=False)
     with pytest.warns(fogtemp.FogtempWarning, match=r"manifest\.json"):
         with_rates = fogtemp.validate(from_manifest, val_logs[:2], progress=False)
     without = fogtemp.validate(from_manifest, [bare / p.name for p in val_logs[:2]], progress=False)
@@ -337,6 +345,23 @@ def test_simulate_document(tmp_path):
     doc = fogtemp.simulate("paper", out=tmp_path, rate=1.0, seed=3, duration_s=300.0, progress=False)
     assert doc["sample_rate_hz"] == 1.0 and doc["seed"] == 3 and len(doc["runs"]) == 16
     assert (tmp_path / "manifest.json").is_file()
+    # Finished: the marker of a simulation being written is gone.
+    assert not (tmp_path / "SIMULATION-UNFINISHED.txt").exists()
+
+
+def test_simulate_refuses_a_folder_of_recordings(tmp_path):
+    # review27a 10: the command line refused a folder holding a log of a run's name but no
+    # manifest (a lab's recordings); Python's simulate replaced the log. Now both refuse it,
+    # and take a folder an interrupted simulation left (the marker) as their own.
+    lab = tmp_path / "lab"
+    lab.mkdir()
+    (lab / "pos1_20C.csv").write_text("recorded data\n")
+    with pytest.raises(ValueError, match=r"holds pos1_20C\.csv but is not a simulation's folder"):
+        fogtemp.simulate("paper", out=lab, rate=1.0, duration_s=60.0, progress=False)
+    assert (lab / "pos1_20C.csv").read_text() == "recorded data\n"
+    (lab / "SIMULATION-UNFINISHED.txt").write_text("left by an interrupted simulate\n")
+    fogtemp.simulate("paper", out=lab, rate=1.0, duration_s=60.0, progress=False)
+    assert (lab / "manifest.json").is_file() and not (lab / "SIMULATION-UNFINISHED.txt").exists()
 
 
 def test_several_axes_from_two_dimensional_gyro_arrays():

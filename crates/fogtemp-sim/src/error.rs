@@ -47,6 +47,20 @@ pub enum SimError {
         /// CSV bytes, about.
         bytes: f64,
     },
+    /// The output folder holds a log of one of the runs but is not a simulation's folder (no
+    /// `manifest.json`, no unfinished-simulation marker): it may be a lab's recording, which
+    /// the simulated log would replace.
+    #[error(
+        "{} holds {run}.csv but is not a simulation's folder (no manifest.json): simulating would replace it; \
+         choose another output folder",
+        dir.display()
+    )]
+    NotASimulationFolder {
+        /// The output folder.
+        dir: std::path::PathBuf,
+        /// The run whose log is there.
+        run: String,
+    },
     /// Writing, reading, fitting or validating failed (the calibration library's error).
     #[error(transparent)]
     Cal(#[from] CalError),

@@ -26,6 +26,7 @@ pub use error::SimError;
 pub use run::{run_truth, RunGenerator, RunTruth, Sample, TruthPoint};
 pub use scenario::{RunSpec, Scenario, PAPER_TOML};
 
+use fogtemp_cal::manifest::{MANIFEST_FILE, UNFINISHED_FILE};
 use fogtemp_cal::output::write_file_atomic;
 use fogtemp_cal::CalError;
 
@@ -202,11 +203,15 @@ pub fn csv_bytes(scenario: &Scenario) -> Result<f64, SimError> {
 
 /// Simulates every run of `scenario` into `dir` (one `NAME.csv` per run, `truth/NAME.csv`,
 /// `scenario.toml` with `scenario_text` and `manifest.json`), runs in parallel.
-/// `progress(samples)` receives increments from any thread.
+/// `progress(samples)` receives increments from any thread. While it writes, the folder holds
+/// [`UNFINISHED_FILE`] and no manifest: the marker is removed after the manifest is written,
+/// so a folder left by an interrupted simulation says so.
 ///
 /// # Errors
 /// [`SimError::Cal`] with [`CalError::Io`] or [`CalError::Output`] naming the file that could
-/// not be written; [`SimError::TooLarge`] for more CSV than a disk holds.
+/// not be written; [`SimError::TooLarge`] for more CSV than a disk holds;
+/// [`SimError::NotASimulationFolder`] for a folder holding a log of a run that is not a
+/// simulation's.
 pub fn simulate_to_dir(
     scenario: &Scenario,
     scenario_text: &str,
@@ -214,8 +219,10 @@ pub fn simulate_to_dir(
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<Vec<RunSummary>, SimError> {
     csv_bytes(scenario)?;
+    refuse_overwriting_other_logs(scenario, dir)?;
     let truth_dir = dir.join("truth");
     std::fs::create_dir_all(&truth_dir).map_err(|source| CalError::Io { path: truth_dir.clone(), source })?;
+    let marker = mark_unfinished(scenario, dir)?;
     let runs = scenario.expanded_runs();
     let summaries = runs
         .par_iter()
@@ -254,8 +261,47 @@ pub fn simulate_to_dir(
     };
     let json = serde_json::to_vec_pretty(&manifest)
         .map_err(|e| SimError::Serialise { what: "manifest", message: e.to_string() })?;
-    write_file_atomic(&dir.join("manifest.json"), |w| w.write_all(&json))?;
+    write_file_atomic(&dir.join(MANIFEST_FILE), |w| w.write_all(&json))?;
+    std::fs::remove_file(&marker).map_err(|source| CalError::Io { path: marker, source })?;
     Ok(summaries)
+}
+
+/// Refuses a folder that holds a log of one of the runs but is not a simulation's (no
+/// `manifest.json`, no [`UNFINISHED_FILE`]): it may be a lab's recording, which the simulated
+/// log would replace. A simulation's folder, finished or not, is simulated into again.
+/// (Python's `simulate` had no such check before 2026-11-29: only the command line did.)
+fn refuse_overwriting_other_logs(scenario: &Scenario, dir: &Path) -> Result<(), SimError> {
+    if !dir.is_dir() || dir.join(MANIFEST_FILE).is_file() || dir.join(UNFINISHED_FILE).is_file() {
+        return Ok(());
+    }
+    match scenario.expanded_runs().iter().find(|r| dir.join(format!("{}.csv", r.name)).exists()) {
+        Some(run) => Err(SimError::NotASimulationFolder { dir: dir.to_path_buf(), run: run.name.clone() }),
+        None => Ok(()),
+    }
+}
+
+/// Marks `dir` as holding a simulation being written ([`UNFINISHED_FILE`]) and removes the
+/// manifest of an earlier one, so that an interrupted simulation leaves a folder that says so
+/// (review27a 10: two runs of sixteen looked like a finished campaign, and `simulate` then
+/// refused the folder as not its own). Returns the marker's path, removed when the manifest
+/// is written.
+fn mark_unfinished(scenario: &Scenario, dir: &Path) -> Result<PathBuf, SimError> {
+    let marker = dir.join(UNFINISHED_FILE);
+    let text = format!(
+        "fogtemp-cal simulate began writing a simulation here (scenario '{}', {} runs) and has not finished.\n\
+         If this file remains, it was interrupted or failed: the logs here are a part of the campaign at most,\n\
+         and fit, validate and diagnose warn of them. Simulate into this folder again to replace them.\n",
+        scenario.name,
+        scenario.expanded_runs().len()
+    );
+    write_file_atomic(&marker, |w| w.write_all(text.as_bytes()))?;
+    let manifest = dir.join(MANIFEST_FILE);
+    match std::fs::remove_file(&manifest) {
+        Err(source) if source.kind() != std::io::ErrorKind::NotFound => {
+            Err(CalError::Io { path: manifest, source }.into())
+        }
+        _ => Ok(marker),
+    }
 }
 
 /// A run's summary for `manifest.json`: its files named relative to the simulation's folder

@@ -1359,7 +1359,7 @@ pub fn write_fit_report(
                     format!("{lo:.3} to {hi:.3} deg/h")
                 };
                 md.push_str(&format!(
-                    "Each run's `input_rate_dph` from the runs file ({range}: the Earth rate's \
+                    "Each run's `input_rate_dph` from the run metadata (a runs file, or the simulation's `manifest.json`) ({range}: the Earth rate's \
                      projection or a turntable's rate) was subtracted from its gyro before the fit, so the model \
                      is the bias alone; the gyro panel shows the gyro less that rate.\n\n"
                 ));
@@ -1410,9 +1410,12 @@ pub fn means_meaning(runs: &[crate::calibrate::RunValidation]) -> String {
          opposite position)"
             .to_string()
     } else if given == runs.len() {
-        "less the run's input rate from the runs file".to_string()
+        "less the run's input rate from the run metadata (a runs file, or the simulation's manifest.json); \
+         a model fitted without the runs' rates holds its calibration runs' rate as bias, so its compensated \
+         mean here is off by that rate"
+            .to_string()
     } else {
-        format!("less the run's input rate from the runs file for {given} of {} rows", runs.len())
+        format!("less the run's input rate from the run metadata for {given} of {} rows", runs.len())
     };
     format!(
         "each run's mean output over the metric's span, deg/h: the bias raw (the gyro's own, after start-up) \

@@ -64,6 +64,11 @@ pub fn diagnose(a: DiagnoseArgs, recorded_ingest: IngestOptions) -> Result<()> {
     }
     let simulated = expand_logs(std::slice::from_ref(&a.simulated))?;
     let recorded = expand_logs(std::slice::from_ref(&a.recorded))?;
+    for warning in
+        fogtemp_cal::manifest::unfinished_simulation_warnings(&[&simulated[..], &recorded[..]].concat())
+    {
+        eprintln!("warning: {warning}");
+    }
     let pairs = inputs::pair(&simulated, &recorded)?;
     let meta = match &a.runs {
         Some(path) => inputs::runs_file_meta(path, &simulated)?,

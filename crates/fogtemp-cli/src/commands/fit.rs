@@ -6,6 +6,7 @@ use fogtemp_cal::cv_correction::CvCorrection;
 use fogtemp_cal::documents::FitDocument;
 use fogtemp_cal::identifiability::WarningKind;
 use fogtemp_cal::poly_fit::TermSelection;
+use fogtemp_cal::runs::Role;
 use fogtemp_cal::selection::{CvScheme, CvScoring, Grouping, RuleScale, SelectionOptions};
 use fogtemp_cal::thin::GreedyThinning;
 use fogtemp_core::FeatureSettings;
@@ -161,8 +162,8 @@ pub fn fit(a: FitArgs) -> Result<()> {
     if config.method == Method::Auto && folds >= MANY_FOLDS {
         eprintln!(
             "note: choosing the method by cross-validation refits every candidate once per {} ({folds} folds, \
-             {points} calibration points): on many long runs that takes hours; a runs file with positions (--runs) \
-             leaves out a position per fold instead, and --method poly (or mesh, hybrid, cubic-t) skips the choice",
+             {points} calibration points): on many long runs that takes hours; positions (a runs file, --runs, \
+             or groups in a simulation's manifest.json) leave out a position per fold instead, and --method poly (or mesh, hybrid, cubic-t) skips the choice",
             if selection.positions.is_some() { "position" } else { "run" }
         );
     }
@@ -332,11 +333,10 @@ fn check_settings(a: &FitArgs) -> Result<()> {
 fn subtract_input_rates(
     runs: &mut [fogtemp_cal::calibrate::RunFeatures],
     rates_dph: Option<&[f64]>,
-    source: Option<&std::path::Path>,
+    source: Option<&str>,
     axes: usize,
 ) {
     let (Some(rates), Some(source)) = (rates_dph, source) else { return };
-    let source = source.display();
     if calibrate::subtract_input_rates(runs, rates, axes) {
         eprintln!("note: each run's input_rate_dph from {source} is subtracted from its gyro: the model is the bias alone");
     } else {
@@ -355,31 +355,26 @@ struct CalibrationLogs {
     positions: Option<Vec<String>>,
     /// Per log, the true rate about the input axis, deg/h (with run metadata).
     input_rates_dph: Option<Vec<f64>>,
-    /// Where the run metadata came from: the runs file, or the simulation's manifest.
-    source: Option<std::path::PathBuf>,
+    /// Where the run metadata came from: the runs file, or the simulations' manifests.
+    source: Option<String>,
 }
 
 /// The logs to calibrate on and, with run metadata (`--runs FILE`, else a fogtemp
 /// simulation's `manifest.json` beside the logs), each one's position: every log must have a
 /// row (and every row a log); runs with role `val` are left out.
 fn calibration_logs(logs: &[std::path::PathBuf], runs: Option<&std::path::Path>) -> Result<CalibrationLogs> {
-    let metadata = fogtemp_cal::runs::logs_metadata(logs, runs)?;
+    let metadata = fogtemp_cal::runs::logs_metadata(logs, runs, Role::Val, "--runs FILE")?;
     for note in &metadata.notes {
         eprintln!("note: {note}");
     }
-    let Some(file) = metadata.file else {
-        return Ok(CalibrationLogs {
-            logs: logs.to_vec(),
-            positions: None,
-            input_rates_dph: None,
-            source: None,
-        });
-    };
-    let kept = fogtemp_cal::runs::calibration_runs_of(logs, &file)?;
+    for warning in &metadata.warnings {
+        eprintln!("warning: {warning}");
+    }
+    let (kept, rows) = fogtemp_cal::runs::calibration_runs(logs, &metadata)?;
     Ok(CalibrationLogs {
-        logs: kept.iter().map(|(log, _)| log.clone()).collect(),
-        positions: Some(kept.iter().map(|(_, row)| row.position.clone()).collect()),
-        input_rates_dph: Some(kept.iter().map(|(_, row)| row.input_rate_dph).collect()),
-        source: Some(file.path),
+        logs: kept,
+        positions: rows.as_ref().map(|rows| rows.iter().map(|r| r.position.clone()).collect()),
+        input_rates_dph: rows.as_ref().map(|rows| rows.iter().map(|r| r.input_rate_dph).collect()),
+        source: rows.is_some().then_some(metadata.source),
     })
 }

@@ -54,25 +54,6 @@ pub fn total_samples(scenario: &Scenario) -> u64 {
     scenario.expanded_runs().iter().map(|r| (r.duration_s * scenario.sample_rate_hz).floor() as u64 + 1).sum()
 }
 
-/// Refuses to simulate into a folder that holds a log of one of the runs' names but is not
-/// a simulation's (no `manifest.json`): it may be a lab's recording, which the simulated log
-/// would replace. A previous simulation's folder is simulated into again as before.
-fn refuse_overwriting_other_logs(scenario: &Scenario, out: &std::path::Path) -> Result<()> {
-    if !out.is_dir() || out.join("manifest.json").is_file() {
-        return Ok(());
-    }
-    if let Some(run) = scenario.expanded_runs().iter().find(|r| out.join(format!("{}.csv", r.name)).exists())
-    {
-        anyhow::bail!(
-            "{} holds {}.csv but is not a simulation's folder (no manifest.json): simulating would replace it; \
-             choose another --out",
-            out.display(),
-            run.name
-        );
-    }
-    Ok(())
-}
-
 /// CSV from which the size is said before simulating (1 GB).
 const NOTED_CSV_BYTES: f64 = 1e9;
 
@@ -96,7 +77,6 @@ pub fn simulate_into(
     text: &str,
     out: &std::path::Path,
 ) -> Result<(Vec<sim::RunSummary>, f64)> {
-    refuse_overwriting_other_logs(scenario, out)?;
     check_size(scenario)?;
     crate::output::note_leftover_temporaries_in(out);
     std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;

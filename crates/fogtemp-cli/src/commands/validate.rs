@@ -9,6 +9,7 @@ use fogtemp_cal::documents::{ComparedModel, ValidationDocument};
 use fogtemp_cal::ingest::LogFormat;
 use fogtemp_cal::metrics::BiasStabilityOptions;
 use fogtemp_cal::numbers::dph;
+use fogtemp_cal::runs::Role;
 use fogtemp_core::Model;
 
 use super::{check_capacity, print_json, read_model, report_skipped};
@@ -50,24 +51,18 @@ fn check_compared_columns(model: &Model<'_>, path: &Path, format: &LogFormat, pr
     Ok(())
 }
 
-/// The logs to validate, and each kept log with its input rate, deg/h (empty without metadata).
-type LogsAndRates = (Vec<std::path::PathBuf>, Vec<(std::path::PathBuf, f64)>);
-
-/// The logs to validate and, with run metadata (`--runs FILE`, else a fogtemp simulation's
+/// The logs to validate and, with run metadata (`--runs FILE`, else the fogtemp simulations'
 /// `manifest.json` beside the logs), each kept log's true input rate (empty without).
-fn validation_logs(a: &ValidateArgs) -> Result<LogsAndRates> {
+fn validation_logs(a: &ValidateArgs) -> Result<fogtemp_cal::runs::ValidationRuns> {
     let logs = expand_logs_for_reading(&a.logs)?;
-    let metadata = fogtemp_cal::runs::logs_metadata(&logs, a.runs.as_deref())?;
+    let metadata = fogtemp_cal::runs::logs_metadata(&logs, a.runs.as_deref(), Role::Cal, "--runs FILE")?;
     for note in &metadata.notes {
         eprintln!("note: {note}");
     }
-    Ok(match metadata.file {
-        Some(file) => {
-            let kept = fogtemp_cal::runs::validation_runs_of(logs, &file)?;
-            (kept.iter().map(|(log, _)| log.clone()).collect(), kept)
-        }
-        None => (logs, Vec::new()),
-    })
+    for warning in &metadata.warnings {
+        eprintln!("warning: {warning}");
+    }
+    Ok(fogtemp_cal::runs::validation_runs(logs, &metadata)?)
 }
 
 /// The `validate` command.
