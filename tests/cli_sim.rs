@@ -655,6 +655,27 @@ fn diagnose_of_one_run_locates_but_names_nothing_and_says_why() {
     assert!(svg.contains("no held-out prediction to draw"), "the title promises no line");
 }
 
+/// review27a 7: a scenario whose heater is 1e30 W drove the logged temperature to 1e22 C; the
+/// logs were written, and `fit` stopped on them at their third line. Now `simulate` refuses it
+/// naming the run, before any log is written.
+#[test]
+fn simulate_refuses_a_scenario_whose_logs_no_reader_takes() {
+    let dir = TempDir::new().expect("tmp");
+    let file = dir.path().join("hot.toml");
+    fs::write(&file, SMALL.replace("power_w = 10.0", "power_w = 1e30")).expect("write scenario");
+    let out = dir.path().join("out");
+    let err = run_err(["simulate", "--scenario", s(&file), "--out", s(&out), "--duration-s", "60"]);
+    assert!(err.contains("run 'hold'") && err.contains("beyond what a sensor reads"), "{err}");
+    let written: Vec<_> = fs::read_dir(&out).map(|d| d.filter_map(Result::ok).collect()).unwrap_or_default();
+    assert!(written.is_empty(), "{written:?}");
+    // A file given for the folder is named as such (review27a 14.8: "File exists").
+    let a_file = dir.path().join("a_file");
+    fs::write(&a_file, "kept\n").expect("write");
+    let err = run_err(["simulate", "--out", s(&a_file), "--rate", "1", "--duration-s", "60"]);
+    assert!(err.contains("is a file: a simulation is written into a folder"), "{err}");
+    assert_eq!(fs::read_to_string(&a_file).expect("read"), "kept\n");
+}
+
 /// Runs `fogtemp-cal args...`, requires success, returns (stdout, stderr).
 fn run_ok_with_stderr(args: &[&str]) -> (String, String) {
     let out = cal().args(args).assert().success();

@@ -1310,6 +1310,7 @@ pub fn simulate<'py>(
         let comment = Scenario::overrides_comment(scenario, rate, seed, duration_s);
         text = format!("{comment}\n{}", sc.to_toml().map_err(errors::sim)?);
     }
+    fogtemp_sim::refuse_a_file(&out).map_err(errors::sim)?;
     std::fs::create_dir_all(&out)
         .map_err(|e| errors::cal(fogtemp_cal::CalError::Io { path: out.clone(), source: e }))?;
     let total: u64 =

@@ -61,6 +61,29 @@ pub enum SimError {
         /// The run whose log is there.
         run: String,
     },
+    /// A run's logged temperature or gyro leaves what a log can hold: a scenario far outside
+    /// the physics (a heater of 1e30 W).
+    #[error(
+        "run '{run}' at {time_s} s logs a temperature of {temp_c:e} C and a gyro of {gyro_dph:e} deg/h: beyond what \
+         a sensor reads (-273.15 to 1000 C) or an f32 holds, so fit and validate would refuse the log; check the \
+         scenario's thermal and bias parameters (docs/physics.md gives their ranges)"
+    )]
+    Unreadable {
+        /// The run.
+        run: String,
+        /// The first such time on its 1 s grid, s.
+        time_s: f64,
+        /// The logged temperature there, deg C.
+        temp_c: f64,
+        /// The deterministic gyro output there, deg/h.
+        gyro_dph: f64,
+    },
+    /// The output path is a file, not a folder.
+    #[error("{} is a file: a simulation is written into a folder (NAME.csv per run, truth/, manifest.json); give a folder", path.display())]
+    OutputIsAFile {
+        /// The path given.
+        path: std::path::PathBuf,
+    },
     /// Writing, reading, fitting or validating failed (the calibration library's error).
     #[error(transparent)]
     Cal(#[from] CalError),

@@ -219,7 +219,10 @@ pub fn simulate_to_dir(
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<Vec<RunSummary>, SimError> {
     csv_bytes(scenario)?;
+    refuse_a_file(dir)?;
     refuse_overwriting_other_logs(scenario, dir)?;
+    // Before anything is written: the 1 s truth is cheap beside the samples.
+    scenario.expanded_runs().par_iter().try_for_each(|spec| refuse_unreadable(&run_truth(scenario, spec)))?;
     let truth_dir = dir.join("truth");
     std::fs::create_dir_all(&truth_dir).map_err(|source| CalError::Io { path: truth_dir.clone(), source })?;
     let marker = mark_unfinished(scenario, dir)?;
@@ -250,7 +253,7 @@ pub fn simulate_to_dir(
                 initial: spec.initial,
             })
         })
-        .collect::<Result<Vec<_>, CalError>>()?;
+        .collect::<Result<Vec<_>, SimError>>()?;
     write_file_atomic(&dir.join("scenario.toml"), |w| w.write_all(scenario_text.as_bytes()))?;
     let manifest = Manifest {
         scenario: scenario.name.clone(),
@@ -264,6 +267,36 @@ pub fn simulate_to_dir(
     write_file_atomic(&dir.join(MANIFEST_FILE), |w| w.write_all(&json))?;
     std::fs::remove_file(&marker).map_err(|source| CalError::Io { path: marker, source })?;
     Ok(summaries)
+}
+
+/// Refuses an output path that is a file (review27a 14.8: "File exists (os error 17)").
+///
+/// # Errors
+/// [`SimError::OutputIsAFile`].
+pub fn refuse_a_file(dir: &Path) -> Result<(), SimError> {
+    if dir.exists() && !dir.is_dir() {
+        return Err(SimError::OutputIsAFile { path: dir.to_path_buf() });
+    }
+    Ok(())
+}
+
+/// Refuses a run whose log its own reader would refuse, before any file is written
+/// (review27a 7: `power_w = 1e30` wrote logs of 1e28 C that `fit` stopped on at their third
+/// line, and `simulate` said nothing): the logged temperature must stay one a sensor reads
+/// (-273.15 to 1000 C, `fogtemp_core::is_physical_temperature`) and the gyro within f32.
+fn refuse_unreadable(truth: &RunTruth) -> Result<(), SimError> {
+    let unreadable = |p: &&TruthPoint| {
+        !fogtemp_core::is_physical_temperature(p.sensor_c as f32) || !(p.output_dph as f32).is_finite()
+    };
+    match truth.points.iter().find(unreadable) {
+        None => Ok(()),
+        Some(p) => Err(SimError::Unreadable {
+            run: truth.spec.name.clone(),
+            time_s: p.time_s,
+            temp_c: p.sensor_c,
+            gyro_dph: p.output_dph,
+        }),
+    }
 }
 
 /// Refuses a folder that holds a log of one of the runs but is not a simulation's (no

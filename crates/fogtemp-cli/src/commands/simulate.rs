@@ -78,6 +78,7 @@ pub fn simulate_into(
     out: &std::path::Path,
 ) -> Result<(Vec<sim::RunSummary>, f64)> {
     check_size(scenario)?;
+    sim::refuse_a_file(out)?;
     crate::output::note_leftover_temporaries_in(out);
     std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
     let bar = samples_bar(total_samples(scenario), "simulate");
