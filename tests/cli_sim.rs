@@ -728,6 +728,14 @@ fn fit_and_validate_read_a_simulations_manifest_as_run_metadata() {
     for key in ["residual_rms_dph", "points", "method"] {
         assert_eq!(from_manifest["axes"][0][key], from_file["axes"][0][key], "{key}");
     }
+    // `fit --json` says which metadata it used (review30a F9).
+    let used = &from_manifest["run_metadata"];
+    assert!(used["source"].as_str().is_some_and(|s| s.ends_with("manifest.json")), "{used}");
+    assert_eq!(used["positions"], serde_json::json!(["hold", "ramp", "step"]), "{used}");
+    assert_eq!(used["input_rates_subtracted"], true, "{used}");
+    let given: Vec<f64> = NAMES.iter().map(|n| rates[*n]).collect();
+    assert_eq!(used["input_rates_dph"], serde_json::json!(given), "{used}");
+    assert!(without["run_metadata"].is_null());
     // The runs differ by their input rates, which only the metadata takes out.
     let rms = |d: &Value| d["axes"][0]["residual_rms_dph"].as_f64().expect("residual");
     assert!(rms(&from_manifest) < rms(&without), "{} vs {}", rms(&from_manifest), rms(&without));

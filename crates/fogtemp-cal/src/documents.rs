@@ -131,6 +131,24 @@ pub struct FitDocument {
     /// What the calibration points cannot separate or do not cover
     /// ([`crate::identifiability`]; `kind`, `axis`, `message`, `values`).
     pub warnings: Vec<crate::identifiability::Warning>,
+    /// The run metadata the fit used: `null` without a runs file or a simulation's manifest
+    /// (review30a F9: only a note on stderr said that a manifest beside the logs was read).
+    pub run_metadata: Option<RunMetadataDocument>,
+}
+
+/// The run metadata a fit used, per calibration run in the order of `runs[]`.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct RunMetadataDocument {
+    /// Where it came from: the runs file, or the simulation's `manifest.json` (or "the N
+    /// simulations' manifest.json").
+    pub source: String,
+    /// Each run's position (the group `auto` leaves out when there are 3 or more).
+    pub positions: Vec<String>,
+    /// Each run's true input rate, deg/h.
+    pub input_rates_dph: Vec<f64>,
+    /// Whether the rates were subtracted from the gyro before the fit (a log of one gyro);
+    /// false for logs of several gyros, whose models keep their input rates.
+    pub input_rates_subtracted: bool,
 }
 
 impl FitDocument {
@@ -155,7 +173,14 @@ impl FitDocument {
                 .map(|(axis, r)| FitAxisDocument { axis, fit: r.clone() })
                 .collect(),
             warnings: Vec::new(),
+            run_metadata: None,
         }
+    }
+
+    /// The document with the run metadata the fit used.
+    #[must_use]
+    pub fn with_run_metadata(self, run_metadata: Option<RunMetadataDocument>) -> Self {
+        Self { run_metadata, ..self }
     }
 
     /// The document with these identifiability warnings.

@@ -404,6 +404,8 @@ pub fn fit(
     };
     o.finish()?;
     options::capacity_fits(config.features.block_count as usize, capacity)?;
+    // What the document says of the run metadata (log files with a runs file or a manifest).
+    let mut run_metadata = None;
     let fitted = if arrays {
         let array_runs = array_runs_of(&items, names.as_deref())?;
         let (runs, digest) = array_features(py, &array_runs, &mut config)?;
@@ -422,14 +424,15 @@ pub fn fit(
         let fitted = interruptible_fit(py, &runs, &config, digest, &selection, progress, &replay)?;
         (fitted, runs, digest)
     } else {
-        let (mut runs, digest, rows) = file_runs(py, &items, &config, progress, runs_file.as_deref())?;
+        let (mut runs, digest, metadata) = file_runs(py, &items, &config, progress, runs_file.as_deref())?;
         let mut selection = fogtemp_cal::selection::SelectionOptions::default();
-        if let Some(rows) = rows {
+        if let Some((source, rows)) = metadata {
             // As the command line's `fit --runs`: val runs left out (above), one position
             // left out at a time, each run's input rate taken from its gyro (one-gyro logs).
             let rates: Vec<f64> = rows.iter().map(|r| r.input_rate_dph).collect();
             let axes = config.ingest.format.gyro_columns.len();
-            if !calibrate::subtract_input_rates(&mut runs, &rates, axes) {
+            let subtracted = calibrate::subtract_input_rates(&mut runs, &rates, axes);
+            if !subtracted {
                 // As the command line says it (review30a F7).
                 progress::warn(
                     py,
@@ -439,7 +442,14 @@ pub fn fit(
                     ),
                 )?;
             }
-            selection.positions = Some(rows.into_iter().map(|r| r.position).collect());
+            let positions: Vec<String> = rows.into_iter().map(|r| r.position).collect();
+            run_metadata = Some(fogtemp_cal::documents::RunMetadataDocument {
+                source,
+                positions: positions.clone(),
+                input_rates_dph: rates,
+                input_rates_subtracted: subtracted,
+            });
+            selection.positions = Some(positions);
         }
         let fitted = {
             let replay = calibrate::replay_files(&runs, &config);
@@ -465,7 +475,9 @@ pub fn fit(
         })
         .map_err(errors::cal)?;
     }
-    let doc = FitDocument::new(Path::new(&source), &fitted, &runs, &digest).with_warnings(warnings);
+    let doc = FitDocument::new(Path::new(&source), &fitted, &runs, &digest)
+        .with_warnings(warnings)
+        .with_run_metadata(run_metadata);
     let json = serde_json::to_value(&doc).and_then(|v| serde_json::to_string(&v)).ok();
     let model = Model::new(fitted.blob, source, json)?;
     if let Some(path) = &out {
@@ -533,7 +545,8 @@ fn interruptible_fit(
 
 /// What [`file_runs`] reads: each kept log's features, the logs' digest and, with a runs
 /// file, each kept log's row.
-type FileRuns = (Vec<RunFeatures>, [u8; 32], Option<Vec<fogtemp_cal::runs::RunMetadata>>);
+/// The features, the input digest and, with run metadata, its source and each kept log's row.
+type FileRuns = (Vec<RunFeatures>, [u8; 32], Option<(String, Vec<fogtemp_cal::runs::RunMetadata>)>);
 
 /// Features of every log file (the command line's `fit` reading loop); with a runs file,
 /// of the logs whose role is not `val`, each with its row.
@@ -591,7 +604,7 @@ fn file_runs(
     if let Some(warning) = fogtemp_cal::digest::same_logs_note(&logs, &each) {
         progress::warn(py, &warning)?;
     }
-    Ok((runs, digest, rows))
+    Ok((runs, digest, rows.map(|rows| (metadata.source, rows))))
 }
 
 /// Features of every run given as arrays, and the digest of their values.

@@ -238,6 +238,10 @@ def test_a_simulations_manifest_gives_fit_and_validate_the_run_metadata(sim_dir,
         "run,position,input_rate_dph\n" + "".join(f"{p.stem},{groups[p.stem]},{rates[p.stem]!r}\n" for p in cal_logs)
     )
     assert from_manifest == fogtemp.fit(cal_logs, method="poly", runs=runs_csv, progress=False)
+    used = from_manifest.fit_report["run_metadata"]
+    assert used["source"].endswith("manifest.json") and used["input_rates_subtracted"]
+    assert used["positions"] == ["pos1"] * len(cal_logs)
+    assert used["input_rates_dph"] == [rates[p.stem] for p in cal_logs]
     bare = tmp_path / "bare"
     bare.mkdir()
     for log in (*cal_logs, *val_logs[:2]):

@@ -3,7 +3,7 @@
 use anyhow::{bail, Context, Result};
 use fogtemp_cal::calibrate::{self, CalibrationConfig, Method, Thinning};
 use fogtemp_cal::cv_correction::CvCorrection;
-use fogtemp_cal::documents::FitDocument;
+use fogtemp_cal::documents::{FitDocument, RunMetadataDocument};
 use fogtemp_cal::identifiability::WarningKind;
 use fogtemp_cal::poly_fit::TermSelection;
 use fogtemp_cal::runs::Role;
@@ -113,9 +113,10 @@ pub fn fit(a: FitArgs) -> Result<()> {
     if let Some(warning) = fogtemp_cal::digest::same_logs_note(&logs, &each) {
         eprintln!("warning: {warning}");
     }
-    subtract_input_rates(
+    let run_metadata = subtract_input_rates(
         &mut runs,
         input_rates_dph.as_deref(),
+        positions.as_deref(),
         source.as_deref(),
         config.ingest.format.gyro_columns.len(),
     );
@@ -225,7 +226,11 @@ pub fn fit(a: FitArgs) -> Result<()> {
         eprintln!("report: {}", dir.join("fit-report.md").display());
     }
     if a.json {
-        print_json(&FitDocument::new(&a.out, &fitted, &runs, &digest).with_warnings(warnings))?;
+        print_json(
+            &FitDocument::new(&a.out, &fitted, &runs, &digest)
+                .with_warnings(warnings)
+                .with_run_metadata(run_metadata),
+        )?;
     } else {
         println!(
             "wrote {} ({} bytes) from {}",
@@ -329,15 +334,17 @@ fn check_settings(a: &FitArgs) -> Result<()> {
 /// taken from its gyro before fitting, so that the model is the bias alone (a model that kept
 /// it would remove the Earth rate from a navigation system's gyro, and runs in different
 /// positions would disagree by it). The metadata gives one rate per run, about the input axis,
-/// so only a one-gyro log is corrected.
+/// so only a one-gyro log is corrected. Returns what `fit --json` says of the metadata.
 fn subtract_input_rates(
     runs: &mut [fogtemp_cal::calibrate::RunFeatures],
     rates_dph: Option<&[f64]>,
+    positions: Option<&[String]>,
     source: Option<&str>,
     axes: usize,
-) {
-    let (Some(rates), Some(source)) = (rates_dph, source) else { return };
-    if calibrate::subtract_input_rates(runs, rates, axes) {
+) -> Option<RunMetadataDocument> {
+    let (Some(rates), Some(positions), Some(source)) = (rates_dph, positions, source) else { return None };
+    let subtracted = calibrate::subtract_input_rates(runs, rates, axes);
+    if subtracted {
         eprintln!("note: each run's input_rate_dph from {source} is subtracted from its gyro: the model is the bias alone");
     } else {
         eprintln!(
@@ -345,6 +352,12 @@ fn subtract_input_rates(
              not subtracted, so each axis's model includes its input rate"
         );
     }
+    Some(RunMetadataDocument {
+        source: source.to_string(),
+        positions: positions.to_vec(),
+        input_rates_dph: rates.to_vec(),
+        input_rates_subtracted: subtracted,
+    })
 }
 
 /// The calibration logs: every log, or with run metadata those not of role `val`, each with
