@@ -280,8 +280,13 @@ fn simulate_never_replaces_logs_it_did_not_write() {
     let partial = dir.path().join("partial");
     fs::create_dir(&partial).expect("mkdir");
     fs::copy(first.join(&name), partial.join(&name)).expect("copy");
+    // A marker that lists no runs leaves the log foreign: refused (review30b F2).
     fs::write(partial.join("SIMULATION-UNFINISHED.txt"), "left by an interrupted simulate\n")
         .expect("marker");
+    let err = run_err(["simulate", "--scenario", s(&file), "--out", s(&partial), "--duration-s", "60"]);
+    assert!(err.contains("is not a simulation's folder"), "{err}");
+    let marker = format!("left by an interrupted simulate\n\nRuns being written:\n  {name}\n");
+    fs::write(partial.join("SIMULATION-UNFINISHED.txt"), marker).expect("marker");
     let model = dir.path().join("partial.fogm");
     let fitted = cal().args(["fit", "--method", "poly", "--out", s(&model), s(&partial)]).assert().success();
     let said = String::from_utf8_lossy(&fitted.get_output().stderr).into_owned();
@@ -666,8 +671,16 @@ fn simulate_refuses_a_scenario_whose_logs_no_reader_takes() {
     let out = dir.path().join("out");
     let err = run_err(["simulate", "--scenario", s(&file), "--out", s(&out), "--duration-s", "60"]);
     assert!(err.contains("run 'hold'") && err.contains("beyond what a sensor reads"), "{err}");
-    let written: Vec<_> = fs::read_dir(&out).map(|d| d.filter_map(Result::ok).collect()).unwrap_or_default();
-    assert!(written.is_empty(), "{written:?}");
+    assert!(!out.exists(), "nothing is written, not even the folder");
+    // The sensor's offset counts too (review30b F1: 5000 C of offset passed the check).
+    fs::write(&file, SMALL.replace("noise_c = 0.01", "noise_c = 0.01\noffset_c = 5000.0"))
+        .expect("write scenario");
+    let err = run_err(["simulate", "--scenario", s(&file), "--out", s(&out), "--duration-s", "60"]);
+    assert!(
+        err.contains("its sensor's offset included") && err.contains("beyond what a sensor reads"),
+        "{err}"
+    );
+    assert!(!out.exists());
     // A file given for the folder is named as such (review27a 14.8: "File exists").
     let a_file = dir.path().join("a_file");
     fs::write(&a_file, "kept\n").expect("write");

@@ -922,3 +922,32 @@ fn sample_count_and_times() {
         assert_eq!(x.time_s, n as f64 / 7.0);
     }
 }
+
+/// While `simulate_to_dir` writes, its folder holds the marker of an unfinished simulation
+/// (listing every run's log) and no manifest, an earlier simulation's removed first; when it
+/// is done, the manifest is there and the marker gone (review27a 10; review30b F12: the other
+/// tests plant the marker by hand). Observed from the progress callback, which runs while the
+/// logs are written.
+#[test]
+fn the_marker_is_in_the_folder_while_a_simulation_is_written() {
+    let dir = tempfile::TempDir::new().expect("tmp");
+    let scenario = quiet();
+    std::fs::write(dir.path().join("manifest.json"), "{\"runs\": []}").expect("an earlier manifest");
+    let seen = std::sync::Mutex::new(Vec::new());
+    let marker = dir.path().join(fogtemp_cal::manifest::UNFINISHED_FILE);
+    let manifest = dir.path().join("manifest.json");
+    fogtemp_sim::simulate_to_dir(&scenario, PAPER_TOML, dir.path(), &|_| {
+        if let Ok(mut seen) = seen.lock() {
+            let listed = std::fs::read_to_string(&marker).unwrap_or_default();
+            seen.push((listed, manifest.exists()));
+        }
+    })
+    .expect("simulated");
+    let seen = seen.into_inner().expect("lock");
+    assert!(!seen.is_empty(), "the progress callback ran");
+    for name in scenario.expanded_runs().iter().map(|r| format!("{}.csv", r.name)) {
+        assert!(seen.iter().all(|(listed, _)| listed.lines().any(|l| l.trim() == name)), "{name}");
+    }
+    assert!(seen.iter().all(|(_, manifest_there)| !manifest_there), "the earlier manifest was removed first");
+    assert!(manifest.is_file() && !marker.exists());
+}

@@ -139,8 +139,8 @@ pub struct FitDocument {
 /// The run metadata a fit used, per calibration run in the order of `runs[]`.
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct RunMetadataDocument {
-    /// Where it came from: the runs file, or the simulation's `manifest.json` (or "the N
-    /// simulations' manifest.json").
+    /// Where it came from: the runs file, or the simulations' `manifest.json` files (their
+    /// paths, separated by ", ").
     pub source: String,
     /// Each run's position (the group `auto` leaves out when there are 3 or more).
     pub positions: Vec<String>,

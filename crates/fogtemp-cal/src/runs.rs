@@ -144,11 +144,20 @@ pub enum RunsProblem {
     Csv(String),
 }
 
+/// The records of a CSV read from [`blank_comment_lines`]'s text, those starting with `#`
+/// (comments and blank lines) passed over, so the lines keep their numbers in errors.
+pub fn records_without_comments<R: Read>(
+    reader: &mut csv::Reader<R>,
+) -> impl Iterator<Item = csv::Result<csv::StringRecord>> + '_ {
+    let is_comment = |r: &csv::StringRecord| r.get(0).is_some_and(|c| c.starts_with('#'));
+    reader.records().filter(move |r| r.as_ref().map_or(true, |r| !is_comment(r)))
+}
+
 /// `text` with every `#` comment line and every line of blanks made a bare `#` (its line
 /// end kept, so lines keep their numbers), and a UTF-8 byte-order mark left out: for the
 /// small CSV files read whole (runs files, `evaluate`'s points), whose records starting with
-/// `#` are then passed over. A quote in a comment no longer opens a field that swallows the
-/// rows after it (review28a 3).
+/// `#` are then passed over ([`records_without_comments`]). A quote in a comment no longer
+/// opens a field that swallows the rows after it (review28a 3).
 pub fn blank_comment_lines(text: &[u8]) -> Vec<u8> {
     let text = text.strip_prefix(b"\xef\xbb\xbf").unwrap_or(text);
     let mut out = Vec::with_capacity(text.len());
@@ -228,8 +237,7 @@ impl RunsFile {
             .from_reader(text.as_slice());
         // `#` lines are comments, as in the logs: read as records and passed over (the csv
         // crate's own `comment` leaves them out of the line numbers), the header the first other.
-        let is_comment = |r: &csv::StringRecord| r.get(0).is_some_and(|c| c.starts_with('#'));
-        let mut records = csv.records().filter(|r| r.as_ref().map_or(true, |r| !is_comment(r)));
+        let mut records = records_without_comments(&mut csv);
         let (header, header_line) = match records.next() {
             None => return Err(problem(name, 1, RunsProblem::Empty)),
             Some(Err(e)) => {
@@ -550,10 +558,9 @@ pub fn logs_metadata(
             ..LogsMetadata::default()
         },
         ManifestForLogs::Runs(found) => {
-            let source = match found.manifests.as_slice() {
-                [one] => one.display().to_string(),
-                many => format!("the {} simulations' manifest.json", many.len()),
-            };
+            // Every manifest's path, for a program reading `run_metadata.source` (review30b F6).
+            let source: Vec<String> = found.manifests.iter().map(|m| m.display().to_string()).collect();
+            let source = source.join(", ");
             let mut positions: Vec<&str> = found.rows.iter().map(|r| r.position.as_str()).collect();
             positions.sort_unstable();
             positions.dedup();

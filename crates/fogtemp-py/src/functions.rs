@@ -1324,6 +1324,7 @@ pub fn simulate<'py>(
         text = format!("{comment}\n{}", sc.to_toml().map_err(errors::sim)?);
     }
     fogtemp_sim::refuse_a_file(&out).map_err(errors::sim)?;
+    fogtemp_sim::refuse_unreadable_scenario(&sc).map_err(errors::sim)?;
     std::fs::create_dir_all(&out)
         .map_err(|e| errors::cal(fogtemp_cal::CalError::Io { path: out.clone(), source: e }))?;
     let total: u64 =

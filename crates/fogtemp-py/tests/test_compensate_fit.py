@@ -364,6 +364,9 @@ def test_simulate_refuses_a_folder_of_recordings(tmp_path):
         fogtemp.simulate("paper", out=lab, rate=1.0, duration_s=60.0, progress=False)
     assert (lab / "pos1_20C.csv").read_text() == "recorded data\n"
     (lab / "SIMULATION-UNFINISHED.txt").write_text("left by an interrupted simulate\n")
+    with pytest.raises(ValueError, match=r"not a simulation's folder"):
+        fogtemp.simulate("paper", out=lab, rate=1.0, duration_s=60.0, progress=False)
+    (lab / "SIMULATION-UNFINISHED.txt").write_text("interrupted\n\nRuns being written:\n  pos1_20C.csv\n")
     fogtemp.simulate("paper", out=lab, rate=1.0, duration_s=60.0, progress=False)
     assert (lab / "manifest.json").is_file() and not (lab / "SIMULATION-UNFINISHED.txt").exists()
 

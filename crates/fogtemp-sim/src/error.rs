@@ -51,8 +51,9 @@ pub enum SimError {
     /// `manifest.json`, no unfinished-simulation marker): it may be a lab's recording, which
     /// the simulated log would replace.
     #[error(
-        "{} holds {run}.csv but is not a simulation's folder (no manifest.json): simulating would replace it; \
-         choose another output folder",
+        "{} holds {run}.csv but is not a simulation's folder (no manifest.json, and no SIMULATION-UNFINISHED.txt \
+         naming that run): simulating would replace it; choose another output folder (or, if it is a simulation's \
+         whose run was interrupted by a version before 2026-11-29, delete its logs)",
         dir.display()
     )]
     NotASimulationFolder {
@@ -62,27 +63,28 @@ pub enum SimError {
         run: String,
     },
     /// A run's logged temperature or gyro leaves what a log can hold: a scenario far outside
-    /// the physics (a heater of 1e30 W).
+    /// the physics (a heater of 1e30 W, a sensor offset of 5000 C).
     #[error(
-        "run '{run}' at {time_s} s logs a temperature of {temp_c:e} C and a gyro of {gyro_dph:e} deg/h: beyond what \
-         a sensor reads (-273.15 to 1000 C) or an f32 holds, so fit and validate would refuse the log; check the \
-         scenario's thermal and bias parameters (docs/physics.md gives their ranges)"
+        "run '{run}' at {time_s} s would log {what}, beyond {limit}, so fit and validate would refuse its log; check \
+         the scenario's thermal, sensor and bias parameters (docs/physics.md gives their ranges)"
     )]
     Unreadable {
         /// The run.
         run: String,
         /// The first such time on its 1 s grid, s.
         time_s: f64,
-        /// The logged temperature there, deg C.
-        temp_c: f64,
-        /// The deterministic gyro output there, deg/h.
-        gyro_dph: f64,
+        /// What it would log there ("a temperature of 3.673e22 C").
+        what: String,
+        /// The range it leaves.
+        limit: &'static str,
     },
-    /// The output path is a file, not a folder.
-    #[error("{} is a file: a simulation is written into a folder (NAME.csv per run, truth/, manifest.json); give a folder", path.display())]
+    /// The output path is a file, or a link to nothing, not a folder.
+    #[error("{} is {what}: a simulation is written into a folder (NAME.csv per run, truth/, manifest.json); give a folder", path.display())]
     OutputIsAFile {
         /// The path given.
         path: std::path::PathBuf,
+        /// "a file", or "a link to X, which does not exist".
+        what: String,
     },
     /// Writing, reading, fitting or validating failed (the calibration library's error).
     #[error(transparent)]

@@ -221,8 +221,7 @@ pub fn simulate_to_dir(
     csv_bytes(scenario)?;
     refuse_a_file(dir)?;
     refuse_overwriting_other_logs(scenario, dir)?;
-    // Before anything is written: the 1 s truth is cheap beside the samples.
-    scenario.expanded_runs().par_iter().try_for_each(|spec| refuse_unreadable(&run_truth(scenario, spec)))?;
+    refuse_unreadable_scenario(scenario)?;
     let truth_dir = dir.join("truth");
     std::fs::create_dir_all(&truth_dir).map_err(|source| CalError::Io { path: truth_dir.clone(), source })?;
     let marker = mark_unfinished(scenario, dir)?;
@@ -274,29 +273,68 @@ pub fn simulate_to_dir(
 /// # Errors
 /// [`SimError::OutputIsAFile`].
 pub fn refuse_a_file(dir: &Path) -> Result<(), SimError> {
-    if dir.exists() && !dir.is_dir() {
-        return Err(SimError::OutputIsAFile { path: dir.to_path_buf() });
+    let what = match std::fs::symlink_metadata(dir) {
+        Ok(_) if dir.is_dir() => return Ok(()),
+        Ok(meta) if meta.file_type().is_symlink() && !dir.exists() => {
+            let target = std::fs::read_link(dir).unwrap_or_default();
+            format!("a link to {}, which does not exist", target.display())
+        }
+        Ok(_) => "a file".to_string(),
+        Err(_) => return Ok(()),
+    };
+    Err(SimError::OutputIsAFile { path: dir.to_path_buf(), what })
+}
+
+/// Refuses a scenario whose logs its own reader would refuse, naming the first run and time
+/// (review27a 7: `power_w = 1e30` wrote logs of 1e22 C that `fit` stopped on at their third
+/// line, and `simulate` said nothing): the logged temperature must stay one a sensor reads
+/// (-273.15 to 1000 C, `fogtemp_core::is_physical_temperature`) with the sensor's offset and
+/// six standard deviations of its noise either way, and the gyro within f32. Computes every
+/// run's 1 s truth (cheap beside the samples); callers check it before making the folder.
+///
+/// # Errors
+/// [`SimError::Unreadable`].
+pub fn refuse_unreadable_scenario(scenario: &Scenario) -> Result<(), SimError> {
+    scenario
+        .expanded_runs()
+        .par_iter()
+        .try_for_each(|spec| refuse_unreadable(scenario, &run_truth(scenario, spec)))
+}
+
+fn refuse_unreadable(scenario: &Scenario, truth: &RunTruth) -> Result<(), SimError> {
+    let offset_c = scenario.sensor.offset_c;
+    let spread_c = 6.0 * scenario.sensor.noise_c;
+    let readable = |t: f64| fogtemp_core::is_physical_temperature(t as f32);
+    for p in &truth.points {
+        let logged_c = p.sensor_c + offset_c;
+        let unreadable = |what: String, limit| {
+            Err(SimError::Unreadable { run: truth.spec.name.clone(), time_s: p.time_s, what, limit })
+        };
+        if !(readable(logged_c - spread_c) && readable(logged_c + spread_c)) {
+            return unreadable(
+                format!("a temperature of {logged_c:.4e} C (its sensor's offset included, noise +-{spread_c:.3e} C)"),
+                "what a sensor reads (-273.15 to 1000 C)",
+            );
+        }
+        if !(p.output_dph as f32).is_finite() {
+            return unreadable(format!("a gyro of {:.4e} deg/h", p.output_dph), "what an f32 holds (3.4e38)");
+        }
     }
     Ok(())
 }
 
-/// Refuses a run whose log its own reader would refuse, before any file is written
-/// (review27a 7: `power_w = 1e30` wrote logs of 1e28 C that `fit` stopped on at their third
-/// line, and `simulate` said nothing): the logged temperature must stay one a sensor reads
-/// (-273.15 to 1000 C, `fogtemp_core::is_physical_temperature`) and the gyro within f32.
-fn refuse_unreadable(truth: &RunTruth) -> Result<(), SimError> {
-    let unreadable = |p: &&TruthPoint| {
-        !fogtemp_core::is_physical_temperature(p.sensor_c as f32) || !(p.output_dph as f32).is_finite()
-    };
-    match truth.points.iter().find(unreadable) {
-        None => Ok(()),
-        Some(p) => Err(SimError::Unreadable {
-            run: truth.spec.name.clone(),
-            time_s: p.time_s,
-            temp_c: p.sensor_c,
-            gyro_dph: p.output_dph,
-        }),
-    }
+/// The marker's line before the runs it lists.
+const MARKER_RUNS_LINE: &str = "Runs being written:";
+
+/// The runs' logs a marker lists ([`mark_unfinished`]).
+fn marker_runs(marker: &Path) -> Vec<String> {
+    let text = std::fs::read_to_string(marker).unwrap_or_default();
+    text.lines()
+        .skip_while(|l| l.trim() != MARKER_RUNS_LINE)
+        .skip(1)
+        .map(|l| l.trim().to_string())
+        .filter(|l| !l.is_empty())
+        .collect()
 }
 
 /// Refuses a folder that holds a log of one of the runs but is not a simulation's (no
@@ -304,10 +342,17 @@ fn refuse_unreadable(truth: &RunTruth) -> Result<(), SimError> {
 /// log would replace. A simulation's folder, finished or not, is simulated into again.
 /// (Python's `simulate` had no such check before 2026-11-29: only the command line did.)
 fn refuse_overwriting_other_logs(scenario: &Scenario, dir: &Path) -> Result<(), SimError> {
-    if !dir.is_dir() || dir.join(MANIFEST_FILE).is_file() || dir.join(UNFINISHED_FILE).is_file() {
+    if !dir.is_dir() || dir.join(MANIFEST_FILE).is_file() {
         return Ok(());
     }
-    match scenario.expanded_runs().iter().find(|r| dir.join(format!("{}.csv", r.name)).exists()) {
+    // An interrupted simulation's marker makes the logs it lists its own (review30b F2: any
+    // marker made every log in the folder replaceable, a lab's too).
+    let ours = marker_runs(&dir.join(UNFINISHED_FILE));
+    let foreign = |name: &String| {
+        let file = format!("{name}.csv");
+        dir.join(&file).exists() && !ours.contains(&file)
+    };
+    match scenario.expanded_runs().iter().find(|r| foreign(&r.name)) {
         Some(run) => Err(SimError::NotASimulationFolder { dir: dir.to_path_buf(), run: run.name.clone() }),
         None => Ok(()),
     }
@@ -320,10 +365,12 @@ fn refuse_overwriting_other_logs(scenario: &Scenario, dir: &Path) -> Result<(), 
 /// is written.
 fn mark_unfinished(scenario: &Scenario, dir: &Path) -> Result<PathBuf, SimError> {
     let marker = dir.join(UNFINISHED_FILE);
+    let runs: String = scenario.expanded_runs().iter().map(|r| format!("  {}.csv\n", r.name)).collect();
     let text = format!(
-        "fogtemp-cal simulate began writing a simulation here (scenario '{}', {} runs) and has not finished.\n\
-         If this file remains, it was interrupted or failed: the logs here are a part of the campaign at most,\n\
-         and fit, validate and diagnose warn of them. Simulate into this folder again to replace them.\n",
+        "A fogtemp simulation (fogtemp-cal simulate or demo, or Python's fogtemp.simulate) began writing here\n\
+         (scenario '{}', {} runs) and has not finished. If this file remains, it was interrupted or failed:\n\
+         the logs here are a part of the campaign at most, and fit, validate and diagnose warn of them.\n\
+         Simulate into this folder again to replace them.\n\n{MARKER_RUNS_LINE}\n{runs}",
         scenario.name,
         scenario.expanded_runs().len()
     );

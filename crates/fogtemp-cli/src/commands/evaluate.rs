@@ -32,8 +32,7 @@ pub fn evaluate(a: EvaluateArgs) -> Result<()> {
         .flexible(true)
         .has_headers(false)
         .from_reader(text.as_slice());
-    let is_comment = |r: &csv::StringRecord| r.get(0).is_some_and(|c| c.starts_with('#'));
-    let mut records = reader.records().filter(|r| r.as_ref().map_or(true, |r| !is_comment(r)));
+    let mut records = fogtemp_cal::runs::records_without_comments(&mut reader);
     let header = match records.next() {
         Some(header) => header.with_context(|| format!("{}: cannot read the header", a.points.display()))?,
         None => csv::StringRecord::new(),

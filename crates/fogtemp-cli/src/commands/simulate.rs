@@ -79,6 +79,8 @@ pub fn simulate_into(
 ) -> Result<(Vec<sim::RunSummary>, f64)> {
     check_size(scenario)?;
     sim::refuse_a_file(out)?;
+    // Before the folder is made: a refused scenario leaves nothing (review30b F4).
+    sim::refuse_unreadable_scenario(scenario)?;
     crate::output::note_leftover_temporaries_in(out);
     std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
     let bar = samples_bar(total_samples(scenario), "simulate");
