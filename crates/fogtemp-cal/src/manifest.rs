@@ -170,15 +170,17 @@ fn distinct_folders(logs: &[PathBuf]) -> Vec<(PathBuf, PathBuf)> {
 /// The run metadata the simulations' manifests give `logs` when no runs file is given: used
 /// only when every log's folder has a manifest that lists it ([`strict_runs`]). A run without
 /// a group leaves every run a position of its own ([`ManifestRows::ungrouped`]).
+/// `runs_option` is how the caller names a runs file in the note (`--runs FILE`, `runs=`).
 #[must_use]
-pub fn manifest_for_logs(logs: &[PathBuf]) -> ManifestForLogs {
+pub fn manifest_for_logs(logs: &[PathBuf], runs_option: &str) -> ManifestForLogs {
     let folders = distinct_folders(logs);
     let with_manifest: Vec<&PathBuf> =
         folders.iter().filter(|(_, r)| r.join(MANIFEST_FILE).is_file()).map(|(f, _)| f).collect();
     let Some(first) = with_manifest.first() else { return ManifestForLogs::Absent };
     let not_used = |path: &Path, why: String| {
         ManifestForLogs::NotUsed(format!(
-            "{} is not used as run metadata: {why}; give each run's position and input rate in a runs file",
+            "{} is not used as run metadata: {why}; give each run's position and input rate in a runs file \
+             ({runs_option})",
             path.display()
         ))
     };
@@ -256,14 +258,14 @@ mod tests {
     ]}"#;
 
     fn rows_of(logs: &[PathBuf]) -> ManifestRows {
-        match manifest_for_logs(logs) {
+        match manifest_for_logs(logs, "--runs FILE") {
             ManifestForLogs::Runs(found) => found,
             other => panic!("manifest not used: {other:?}"),
         }
     }
 
     fn why_not(logs: &[PathBuf]) -> String {
-        match manifest_for_logs(logs) {
+        match manifest_for_logs(logs, "--runs FILE") {
             ManifestForLogs::NotUsed(why) => why,
             other => panic!("expected NotUsed, got {other:?}"),
         }
@@ -367,7 +369,7 @@ mod tests {
         let other = tempfile::tempdir().expect("temporary folder");
         logs.push(other.path().join("pos2_-40C.csv"));
         assert!(why_not(&logs).contains("have no manifest beside them"));
-        assert_eq!(manifest_for_logs(&logs[1..]), ManifestForLogs::Absent);
+        assert_eq!(manifest_for_logs(&logs[1..], "--runs FILE"), ManifestForLogs::Absent);
     }
 
     #[test]

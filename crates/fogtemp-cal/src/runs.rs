@@ -549,14 +549,11 @@ pub fn logs_metadata(
             warnings,
         });
     }
-    let runs_file = format!("a runs file ({runs_option})");
-    Ok(match manifest_for_logs(logs) {
+    Ok(match manifest_for_logs(logs, runs_option) {
         ManifestForLogs::Absent => LogsMetadata { warnings, ..LogsMetadata::default() },
-        ManifestForLogs::NotUsed(why) => LogsMetadata {
-            notes: vec![why.replace("a runs file", &runs_file)],
-            warnings,
-            ..LogsMetadata::default()
-        },
+        ManifestForLogs::NotUsed(why) => {
+            LogsMetadata { notes: vec![why], warnings, ..LogsMetadata::default() }
+        }
         ManifestForLogs::Runs(found) => {
             // Every manifest's path, for a program reading `run_metadata.source` (review30b F6).
             let source: Vec<String> = found.manifests.iter().map(|m| m.display().to_string()).collect();
@@ -574,7 +571,8 @@ pub fn logs_metadata(
                 ),
             };
             let note = format!(
-                "each run's position and input rate from {source} ({positions}); {runs_file} overrides it"
+                "each run's position and input rate from {source} ({positions}); a runs file ({runs_option}) \
+                 overrides it"
             );
             LogsMetadata {
                 source,

@@ -1323,10 +1323,7 @@ pub fn simulate<'py>(
         let comment = Scenario::overrides_comment(scenario, rate, seed, duration_s);
         text = format!("{comment}\n{}", sc.to_toml().map_err(errors::sim)?);
     }
-    fogtemp_sim::refuse_a_file(&out).map_err(errors::sim)?;
-    fogtemp_sim::refuse_unreadable_scenario(&sc).map_err(errors::sim)?;
-    std::fs::create_dir_all(&out)
-        .map_err(|e| errors::cal(fogtemp_cal::CalError::Io { path: out.clone(), source: e }))?;
+    // `simulate_to_dir` checks the folder and the scenario, then makes the folder.
     let total: u64 =
         sc.expanded_runs().iter().map(|r| (r.duration_s * sc.sample_rate_hz).floor() as u64 + 1).sum();
     let bar = std::sync::Mutex::new((Progress::new("simulate", progress), 0u64));

@@ -78,11 +78,9 @@ pub fn simulate_into(
     out: &std::path::Path,
 ) -> Result<(Vec<sim::RunSummary>, f64)> {
     check_size(scenario)?;
-    sim::refuse_a_file(out)?;
-    // Before the folder is made: a refused scenario leaves nothing (review30b F4).
-    sim::refuse_unreadable_scenario(scenario)?;
     crate::output::note_leftover_temporaries_in(out);
-    std::fs::create_dir_all(out).with_context(|| format!("cannot create {}", out.display()))?;
+    // `simulate_to_dir` checks the folder and the scenario, then makes the folder: a refused
+    // scenario leaves nothing (review30b F4).
     let bar = samples_bar(total_samples(scenario), "simulate");
     let done = AtomicU64::new(0);
     let started = std::time::Instant::now();
