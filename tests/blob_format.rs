@@ -36,15 +36,16 @@ use fogtemp_cal::ingest::Delimiter;
 use fogtemp_cal::{build_mesh, encode, AxisModel, CalError, ColumnNames, MeshModel, MeshPoint, ModelFile};
 use fogtemp_core::wire::*;
 use fogtemp_core::{
-    AxisProvenance, Error, FeatureSettings, LogTimeUnit, Model, Normalisation, OutsidePolicy, PolyTerm,
-    Vertex, WalkHint,
+    AxisProvenance, Error, FeatureSettings, InputRates, LogTimeUnit, Model, Normalisation, OutsidePolicy,
+    PolyTerm, Vertex, WalkHint,
 };
 use rand::Rng;
 use shared::{
     core_digest, exercise, fix_crc, fix_len_and_crc, golden_queries, put_f32, put_u16, put_u32, u16_at,
     u32_at, GOLDEN_HEADER, GOLDEN_V2_BLOB, GOLDEN_V2_CSV, GOLDEN_V3_BLOB, GOLDEN_V3_CSV, GOLDEN_V4_BLOB,
     GOLDEN_V4_COLUMNS, GOLDEN_V4_CSV, GOLDEN_V5_BLOB, GOLDEN_V5_CSV, GOLDEN_V5_TIME, GOLDEN_V6_BLOB,
-    GOLDEN_V6_CSV, GOLDEN_V6_READING, GOLDEN_V7_BLOB, GOLDEN_V7_CSV, GOLDEN_V7_SHAPE,
+    GOLDEN_V6_CSV, GOLDEN_V6_READING, GOLDEN_V7_BLOB, GOLDEN_V7_CSV, GOLDEN_V7_SHAPE, GOLDEN_V8_BLOB,
+    GOLDEN_V8_CSV,
 };
 
 // ---------------------------------------------------------------------------------------------
@@ -159,6 +160,7 @@ fn three_axis_model() -> ModelFile {
         columns: Vec::new(),
         log_time: Default::default(),
         log_reading: Default::default(),
+        input_rates: None,
     }
 }
 
@@ -186,6 +188,7 @@ fn two_kb_blob() -> Vec<u8> {
         columns: Vec::new(),
         log_time: Default::default(),
         log_reading: Default::default(),
+        input_rates: None,
     })
     .expect("encodes")
 }
@@ -432,6 +435,7 @@ fn golden_model() -> ModelFile {
         columns: Vec::new(),
         log_time: Default::default(),
         log_reading: Default::default(),
+        input_rates: None,
     }
 }
 
@@ -488,6 +492,12 @@ fn golden_model_v7() -> ModelFile {
     model
 }
 
+/// The version-8 golden model: the version-6 one (logs of the default shape) whose fit took
+/// each run's input rate off its gyro.
+fn golden_model_v8() -> ModelFile {
+    ModelFile { input_rates: Some(InputRates::Subtracted), ..golden_model_v6() }
+}
+
 /// [`GOLDEN_V7_SHAPE`] as the writer takes it.
 fn golden_shape_v7() -> LogShapeRecord {
     let (skip_lines, delimiter, comment, columns) = GOLDEN_V7_SHAPE;
@@ -521,6 +531,7 @@ fn bless_if_requested() {
             (golden_model_v5(), GOLDEN_V5_BLOB, GOLDEN_V5_CSV),
             (golden_model_v6(), GOLDEN_V6_BLOB, GOLDEN_V6_CSV),
             (golden_model_v7(), GOLDEN_V7_BLOB, GOLDEN_V7_CSV),
+            (golden_model_v8(), GOLDEN_V8_BLOB, GOLDEN_V8_CSV),
         ] {
             let blob = encode(&model).expect("golden model encodes");
             let parsed = Model::from_bytes(&blob).expect("parses");
@@ -708,6 +719,47 @@ fn golden_v7_blob_is_reproduced_byte_for_byte_by_todays_writer() {
     let mut default_shape = golden_model_v7();
     default_shape.log_reading.shape = LogShapeRecord::default();
     assert!(encode(&default_shape).expect("encodes") == v6);
+}
+
+#[test]
+fn golden_v8_blob_is_reproduced_byte_for_byte_by_todays_writer() {
+    let golden = read_golden(GOLDEN_V8_BLOB);
+    let today = encode(&golden_model_v8()).expect("encodes");
+    assert_eq!(u16_at(&golden, FILE_VERSION.start), 8);
+    assert!(today == golden, "the writer's output for the version-8 golden model changed");
+    // Version 8 is version 6 with the default log-shape record written out (0 lines skipped
+    // as a u32, delimiter code 0 and byte 0, comment flag 1 and the prefix "#", 0 column
+    // names), then the run-metadata record: 1, the rates taken off.
+    let v6 = read_golden(GOLDEN_V6_BLOB);
+    let v6_end = v6.len() - CRC_LEN;
+    let axes_end = names_offset(&v6);
+    assert_eq!(golden[FILE_HEADER_LEN..axes_end], v6[FILE_HEADER_LEN..axes_end]);
+    let mut expected = v6[axes_end + 4..v6_end].to_vec();
+    expected.extend_from_slice(&[0, 0, 0, 0, 0, 0, 1, 1, b'#', 0, 1]);
+    let names = &golden[axes_end..golden.len() - CRC_LEN];
+    assert_eq!(u32_at(names, 0) as usize, 4 + expected.len());
+    assert_eq!(names[4..], expected[..]);
+    let model = Model::from_bytes(&golden).expect("parses");
+    assert_eq!(model.input_rates(), Some(InputRates::Subtracted));
+    assert_eq!(LogShapeRecord::of(&model), LogShapeRecord::default());
+    // With a shape other than the default, the record follows that shape's record.
+    let shaped = encode(&ModelFile { input_rates: Some(InputRates::NotSubtracted), ..golden_model_v7() })
+        .expect("encodes");
+    let shaped_model = Model::from_bytes(&shaped).expect("parses");
+    assert_eq!(u16_at(&shaped, FILE_VERSION.start), 8);
+    assert_eq!(shaped_model.input_rates(), Some(InputRates::NotSubtracted));
+    assert_eq!(LogShapeRecord::of(&shaped_model), golden_shape_v7());
+    let v7 = read_golden(GOLDEN_V7_BLOB);
+    let mut v7_records = v7[axes_end + 4..v7.len() - CRC_LEN].to_vec();
+    v7_records.push(2);
+    assert_eq!(shaped[axes_end + 4..shaped.len() - CRC_LEN], v7_records[..]);
+    // A shape the log-shape record cannot hold is not written, and so neither are the rates
+    // (the record comes after it): version 6, as before.
+    let mut unstorable = golden_model_v8();
+    unstorable.log_reading.shape.column_names = vec!["a\tb".into()];
+    let blob = encode(&unstorable).expect("encodes");
+    assert_eq!(u16_at(&blob, FILE_VERSION.start), 6);
+    assert_eq!(Model::from_bytes(&blob).expect("parses").input_rates(), None);
 }
 
 #[test]
@@ -1061,12 +1113,12 @@ fn a_wrong_section_len_names_its_axis() {
 fn targeted_header_corruptions_give_their_specific_errors() {
     let r = mutated(|b, _| b[0] = b'X');
     assert!(matches!(r, Err(Error::BadMagic)), "{r:?}");
-    let r = mutated(|b, _| put_u16(b, FILE_VERSION.start, 8));
-    assert!(matches!(r, Err(Error::UnsupportedVersion { expected: 7, found: 8 })), "{r:?}");
+    let r = mutated(|b, _| put_u16(b, FILE_VERSION.start, 9));
+    assert!(matches!(r, Err(Error::UnsupportedVersion { expected: 8, found: 9 })), "{r:?}");
     let r = mutated(|b, _| put_u16(b, FILE_VERSION.start, 0));
-    assert!(matches!(r, Err(Error::UnsupportedVersion { expected: 7, found: 0 })), "{r:?}");
-    // Versions 4 to 7 have a names section after the axes: a blob without one ends early.
-    for version in 4..=7 {
+    assert!(matches!(r, Err(Error::UnsupportedVersion { expected: 8, found: 0 })), "{r:?}");
+    // Versions 4 to 8 have a names section after the axes: a blob without one ends early.
+    for version in 4..=8 {
         let r = mutated(|b, _| put_u16(b, FILE_VERSION.start, version));
         assert!(matches!(r, Err(Error::Truncated { field: "names_len", .. })), "{version}: {r:?}");
     }
@@ -1281,6 +1333,7 @@ fn encode_mesh(mesh: MeshModel) -> Result<Vec<u8>, Error> {
         columns: Vec::new(),
         log_time: Default::default(),
         log_reading: Default::default(),
+        input_rates: None,
     }) {
         Ok(b) => Ok(b),
         Err(CalError::SelfCheck(e)) => Err(e),
@@ -1393,6 +1446,7 @@ fn gradient_blob() -> (MeshModel, Vec<u8>) {
         columns: Vec::new(),
         log_time: Default::default(),
         log_reading: Default::default(),
+        input_rates: None,
     })
     .expect("encodes");
     (mesh, blob)

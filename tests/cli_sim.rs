@@ -15,7 +15,7 @@ use std::path::{Path, PathBuf};
 
 use common::{cal, run_err, run_ok};
 use fogtemp_sim::{simulate_in_memory, Scenario, PAPER_TOML};
-use serde_json::Value;
+use serde_json::{json, Value};
 use tempfile::TempDir;
 
 /// Runs `fogtemp-cal args...`, requires success, parses stdout as JSON.
@@ -288,12 +288,26 @@ fn simulate_never_replaces_logs_it_did_not_write() {
     let marker = format!("left by an interrupted simulate\n\nRuns being written:\n  {name}\n");
     fs::write(partial.join("SIMULATION-UNFINISHED.txt"), marker).expect("marker");
     let model = dir.path().join("partial.fogm");
-    let fitted = cal().args(["fit", "--method", "poly", "--out", s(&model), s(&partial)]).assert().success();
+    let fitted =
+        cal().args(["fit", "--method", "poly", "--out", s(&model), s(&partial), "--json"]).assert().success();
     let said = String::from_utf8_lossy(&fitted.get_output().stderr).into_owned();
     assert!(
         said.contains("warning:") && said.contains("SIMULATION-UNFINISHED.txt: the simulation"),
         "{said}"
     );
+    // And in the documents (review30b F7): a warning of its own kind, validate's last note.
+    let doc: Value = serde_json::from_slice(&fitted.get_output().stdout).expect("fit --json");
+    let unfinished: Vec<&Value> = doc["warnings"]
+        .as_array()
+        .expect("warnings")
+        .iter()
+        .filter(|w| w["kind"] == "unfinished_simulation")
+        .collect();
+    assert_eq!(unfinished.len(), 1, "{doc}");
+    assert!(unfinished[0]["message"].as_str().is_some_and(|m| said.contains(m)), "{doc}");
+    let validated = run_json(&["validate", "--model", s(&model), s(&partial), "--json"]);
+    let last = validated["notes"].as_array().and_then(|n| n.last()).and_then(Value::as_str).unwrap_or("");
+    assert!(last.contains("SIMULATION-UNFINISHED.txt: the simulation"), "{validated}");
     run_ok(["simulate", "--scenario", s(&file), "--out", s(&partial), "--duration-s", "60"]);
     assert!(!partial.join("SIMULATION-UNFINISHED.txt").exists());
     assert!(partial.join("manifest.json").is_file());
@@ -792,6 +806,33 @@ fn fit_and_validate_read_a_simulations_manifest_as_run_metadata() {
     assert_ne!(overridden["axes"][0]["residual_rms_dph"], from_manifest["axes"][0]["residual_rms_dph"]);
     let v_zero = validate(&sim, &["--runs", s(&zero_csv)]);
     assert!(v_zero["runs"].as_array().expect("runs").iter().all(|r| r["input_rate_dph"] == 0.0));
+
+    // The model records that the rates were taken off (format 8), the same from the manifest
+    // as from a runs file with its values; a model fitted without metadata records nothing,
+    // and `validate` says when the record and the runs' metadata disagree (review30a F3).
+    let read = |name: &str| fs::read(dir.path().join(name)).expect("model");
+    assert!(read("m.fogm") == read("f.fogm"), "the manifest's model and the runs file's differ");
+    let inspect = |name: &str| run_json(&["inspect", s(&dir.path().join(name)), "--json"]);
+    let (with_rates, plain) = (inspect("m.fogm"), inspect("b.fogm"));
+    assert_eq!(
+        (&with_rates["format_version"], &with_rates["input_rates_subtracted"]),
+        (&json!(8), &json!(true))
+    );
+    assert!(with_rates["log_shape"].is_null(), "the default shape written out is not a shape told");
+    assert_eq!((&plain["format_version"], &plain["input_rates_subtracted"]), (&json!(6), &Value::Null));
+    let notes = |v: &Value| -> String {
+        v["notes"].as_array().expect("notes").iter().filter_map(Value::as_str).collect::<Vec<_>>().join("\n")
+    };
+    let (without_record, taken_off) = ("records no input rates taken off", "input rate taken off its gyro");
+    let agree = [notes(&v_manifest), notes(&v_file)];
+    assert!(agree.iter().all(|n| !n.contains(without_record) && !n.contains(taken_off)), "{agree:?}");
+    let no_rates_here = notes(&v_bare);
+    assert!(no_rates_here.contains(taken_off) && no_rates_here.contains("--runs FILE"), "{no_rates_here}");
+    let plain_on_sim = run_json(&["validate", "--model", s(&dir.path().join("b.fogm")), s(&sim), "--json"]);
+    assert!(notes(&plain_on_sim).contains(without_record), "{}", notes(&plain_on_sim));
+    let plain_on_bare = run_json(&["validate", "--model", s(&dir.path().join("b.fogm")), s(&bare), "--json"]);
+    let quiet = notes(&plain_on_bare);
+    assert!(!quiet.contains(without_record) && !quiet.contains(taken_off), "{quiet}");
 
     // A log the manifest does not list: no metadata, and a note says why.
     fs::copy(sim.join("hold.csv"), sim.join("recorded.csv")).expect("copy");

@@ -625,6 +625,7 @@ fn new_with_an_axis_index_that_does_not_exist_is_no_such_axis() {
         columns: Vec::new(),
         log_time: Default::default(),
         log_reading: Default::default(),
+        input_rates: None,
     })
     .expect("encodes");
     let two = Model::from_bytes(&two).expect("valid blob");

@@ -210,6 +210,7 @@ fn model_blob(policy: OutsidePolicy) -> (Vec<u8>, String) {
         columns: Vec::new(),
         log_time: Default::default(),
         log_reading: Default::default(),
+        input_rates: None,
     })
     .expect("encodes");
     (blob, about)

@@ -142,6 +142,7 @@ pub fn model_blob(poly: Vec<PolyTerm>, points: Option<&[MeshPoint]>) -> Vec<u8> 
         columns: Vec::new(),
         log_time: Default::default(),
         log_reading: Default::default(),
+        input_rates: None,
     };
     encode(&file).expect("encodes")
 }

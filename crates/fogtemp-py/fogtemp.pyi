@@ -69,7 +69,9 @@ class Model:
         """The ``fogtemp-cal inspect --json`` document (axes, nodes, triangles, polynomial, the log
         columns each axis was fitted on: ``gyro_column``, ``temp_column``, None when not recorded;
         ``log_time``: how the fit read the logs' time, None when not recorded; ``log_reading``:
-        the decimal mark and each calibration log's digest, None before format 6, ...)."""
+        the decimal mark and each calibration log's digest, None before format 6;
+        ``input_rates_subtracted``: True when the fit took each run's input rate off its gyro,
+        False when run metadata gave rates that were left in, None when not recorded, ...)."""
     @property
     def axis_count(self) -> int:
         """Number of gyro axes."""

@@ -27,7 +27,7 @@ fn check(bytes: &[u8], seed_bytes: &[u8]) {
     let Ok(model) = Model::from_bytes(bytes) else { return };
     let _ = (model.tool_version(), model.input_digest(), model.format_version());
     assert!(model.axis(model.axis_count()).is_err());
-    // The log records (versions 4 to 7): every accessor, one past the last entry too.
+    // The log records (versions 4 to 8): every accessor, one past the last entry too.
     for index in 0..=model.axis_count() {
         let _ = model.axis_columns(index);
     }
@@ -41,6 +41,9 @@ fn check(bytes: &[u8], seed_bytes: &[u8]) {
         let names = (0..shape.column_count()).filter_map(|i| shape.column_name(i)).count();
         assert_eq!(names, shape.column_count(), "an accepted shape hands out each of its names");
         assert!(shape.column_name(shape.column_count()).is_none());
+    }
+    if model.input_rates().is_some() {
+        assert!(model.log_shape().is_some(), "the run-metadata record follows a log-shape record");
     }
     // Queries: a few fixed ones, and f32s taken from the input (any bit pattern: NaN, inf,
     // subnormal, huge).

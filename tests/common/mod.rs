@@ -105,6 +105,7 @@ pub fn model_blob(poly: Vec<PolyTerm>, points: Option<&[MeshPoint]>, policy: Out
         columns: Vec::new(),
         log_time: Default::default(),
         log_reading: Default::default(),
+        input_rates: None,
     })
     .expect("encodes")
 }

@@ -594,6 +594,7 @@ mod tests {
             columns,
             log_time: Default::default(),
             log_reading: Default::default(),
+            input_rates: None,
         };
         encode(&file).expect("encodes")
     }
@@ -620,6 +621,7 @@ mod tests {
             columns,
             log_time: Default::default(),
             log_reading: Default::default(),
+            input_rates: None,
         })
         .expect("encodes")
     }
@@ -758,6 +760,7 @@ mod tests {
             }],
             log_time: record,
             log_reading: Default::default(),
+            input_rates: None,
         };
         encode(&file).expect("encodes")
     }

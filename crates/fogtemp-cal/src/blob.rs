@@ -1,12 +1,14 @@
 //! Model blob writer (format version 4 with column names, 5 with the log time, 6 with the
-//! log reading, 7 with a log shape other than the default; without column names 2, or 3 with a mesh continued by stored gradients; spec in `docs/model-format.md`, offsets in
+//! log reading, 7 with a log shape other than the default, 8 with what the fit did with its
+//! runs' input rates; without column names 2, or 3 with a mesh continued by stored gradients;
+//! spec in `docs/model-format.md`, offsets in
 //! [`fogtemp_core::wire`]). Every blob is read back through `Model::from_bytes`
 //! before it is returned, so a writer bug is reported here instead of in firmware.
 
 use fogtemp_core::wire::*;
 use fogtemp_core::{
-    AxisProvenance, FeatureSettings, LogDelimiter, LogTimeUnit, Model, Normalisation, OutsidePolicy,
-    PolyOutside, PolyTerm,
+    AxisProvenance, FeatureSettings, InputRates, LogDelimiter, LogTimeUnit, Model, Normalisation,
+    OutsidePolicy, PolyOutside, PolyTerm,
 };
 
 use crate::error::{CalError, EncodeProblem};
@@ -53,6 +55,9 @@ pub struct ModelFile {
     /// How the fit read its logs' numbers and which logs they were (written, with `columns`,
     /// as format version 6 when it records either; the default records neither).
     pub log_reading: LogReadingRecord,
+    /// What the fit did with its runs' true input rates, when it had run metadata (written,
+    /// with `columns`, as the run-metadata record of format version 8); `None` without.
+    pub input_rates: Option<InputRates>,
 }
 
 /// How the fit read its logs' numbers, and a digest of each: the log-reading record of
@@ -294,11 +299,16 @@ pub fn encode_with_selection(model: &ModelFile, selection: &[u16]) -> Result<Vec
     // version 4.
     // The log-shape record needs version 7, after the two records; written only when the
     // shape is not the default, so other blobs stay version 6 byte for byte.
+    // The run-metadata record needs version 8, after a log-shape record (the default shape
+    // written out if need be); written only with run metadata. A shape the record cannot hold
+    // is not written, and so neither is the run-metadata record after it.
     let shape = &model.log_reading.shape;
-    let with_shape = !model.columns.is_empty() && shape.is_recorded() && shape.is_storable();
+    let with_rates = !model.columns.is_empty() && model.input_rates.is_some() && shape.is_storable();
+    let with_shape = with_rates || (!model.columns.is_empty() && shape.is_recorded() && shape.is_storable());
     let with_reading = with_shape || (!model.columns.is_empty() && model.log_reading.is_recorded());
     let with_time = with_reading || (!model.columns.is_empty() && model.log_time.is_recorded());
     let version = match (model.columns.is_empty(), with_time, with_reading, needs_gradients) {
+        (false, _, true, _) if with_rates => FIRST_VERSION_WITH_RUN_METADATA,
         (false, _, true, _) if with_shape => FIRST_VERSION_WITH_LOG_SHAPE,
         (false, _, true, _) => FIRST_VERSION_WITH_LOG_READING,
         (false, true, false, _) => FIRST_VERSION_WITH_LOG_TIME,
@@ -323,6 +333,9 @@ pub fn encode_with_selection(model: &ModelFile, selection: &[u16]) -> Result<Vec
             encode_log_reading(&mut out, &model.log_reading)?;
             if with_shape {
                 encode_log_shape(&mut out, shape);
+            }
+            if let Some(rates) = model.input_rates.filter(|_| with_rates) {
+                out.push(rates.code());
             }
             let len = out.len() - names_start;
             put_u32(&mut out, names_start, len as u32);
@@ -934,6 +947,7 @@ pub(crate) fn test_blob(axis: AxisModel) -> Vec<u8> {
         columns: Vec::new(),
         log_time: Default::default(),
         log_reading: Default::default(),
+        input_rates: None,
     })
     .expect("encodes")
 }

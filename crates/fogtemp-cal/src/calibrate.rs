@@ -6,7 +6,7 @@ use std::io::Read;
 use std::path::{Path, PathBuf};
 
 use fogtemp_core::{
-    AxisProvenance, Compensator, FeatureSettings, Flags, Model, Normalisation, OutsidePolicy,
+    AxisProvenance, Compensator, FeatureSettings, Flags, InputRates, Model, Normalisation, OutsidePolicy,
 };
 
 use crate::blob::{encode, AxisModel, ModelFile};
@@ -181,6 +181,10 @@ pub struct CalibrationConfig {
     pub mesh_cv_repeats: usize,
     /// Salt of the first of those assignments (0: unsalted; `fit --mesh-cv-salt`, hidden).
     pub mesh_cv_salt: u64,
+    /// What was done with the runs' true input rates before the fit, when run metadata gave
+    /// them ([`subtract_input_rates`]); recorded in the blob (format version 8) so that
+    /// `validate` can tell whether the model's output holds an input rate. `None`: no rates.
+    pub input_rates: Option<InputRates>,
 }
 
 impl Default for CalibrationConfig {
@@ -202,6 +206,7 @@ impl Default for CalibrationConfig {
             mesh_relative_weight: None,
             mesh_cv_repeats: crate::mesh_fit::CV_REPEATS,
             mesh_cv_salt: 0,
+            input_rates: None,
         }
     }
 }
@@ -318,16 +323,16 @@ impl RunFeatures {
 
 /// Subtracts each run's true input rate (`rates_dph`, one per run, in order) from its gyro
 /// ([`RunFeatures::subtract_input_rate`]) when the logs have one gyro axis: a runs file gives
-/// one rate per run, about the input axis. Returns whether the rates were subtracted (not
-/// with several axes).
-pub fn subtract_input_rates(runs: &mut [RunFeatures], rates_dph: &[f64], axes: usize) -> bool {
+/// one rate per run, about the input axis. Returns what was done, as the blob records it
+/// ([`CalibrationConfig::input_rates`]): not subtracted with several axes.
+pub fn subtract_input_rates(runs: &mut [RunFeatures], rates_dph: &[f64], axes: usize) -> InputRates {
     if axes != 1 {
-        return false;
+        return InputRates::NotSubtracted;
     }
     for (run, &rate) in runs.iter_mut().zip(rates_dph) {
         run.subtract_input_rate(0, rate);
     }
-    true
+    InputRates::Subtracted
 }
 
 /// The warning for a log most of whose steps between rows are gaps longer than the tracker's
@@ -1374,6 +1379,7 @@ pub fn fit_axis(
         columns: Vec::new(),
         log_time: Default::default(),
         log_reading: Default::default(),
+        input_rates: None,
     })?;
     let model = Model::from_bytes(&probe).map_err(CalError::SelfCheck)?;
     let core_axis = model.axis(0).map_err(CalError::SelfCheck)?;
@@ -1513,6 +1519,7 @@ pub fn fit_model_replaying(
         columns,
         log_time,
         log_reading,
+        input_rates: config.input_rates,
     };
     let blob = crate::blob::encode_with_selection(&model, &codes)?;
     Ok(FittedModel { blob, axes: reports })

@@ -248,6 +248,7 @@ mod tests {
             columns: vec![ColumnNames::default()],
             log_time: Default::default(),
             log_reading: LogReadingRecord::of_logs(false, logs),
+            input_rates: None,
         })
         .expect("encodes")
     }

@@ -440,6 +440,11 @@ pub struct ModelDocument {
     /// lines), `columns` (the names of a headerless log, in order; empty with a header row),
     /// `description` (in words).
     pub log_shape: Option<LogShapeDocument>,
+    /// What the fit did with its runs' true input rates (format 8, written when the fit had
+    /// run metadata): `true` taken off each run's gyro (the model is the bias alone), `false`
+    /// given but left in (logs with several gyro columns); `null` when not recorded (fitted
+    /// without run metadata, or before format 8).
+    pub input_rates_subtracted: Option<bool>,
     /// Every axis.
     pub axes: Vec<ModelAxisDocument>,
 }
@@ -483,7 +488,8 @@ pub struct LogShapeDocument {
 impl LogShapeDocument {
     fn of(model: &Model<'_>) -> Option<Self> {
         model.log_shape()?;
-        let record = crate::blob::LogShapeRecord::of(model);
+        // Version 8 writes the default shape out: not a shape the fit was told.
+        let record = Some(crate::blob::LogShapeRecord::of(model)).filter(|r| r.is_recorded())?;
         Some(Self {
             skip_lines: record.skip_lines,
             delimiter: record.delimiter.name(),
@@ -539,6 +545,7 @@ impl ModelDocument {
             log_time: LogTimeDocument::of(&model),
             log_reading: LogReadingDocument::of(&model),
             log_shape: LogShapeDocument::of(&model),
+            input_rates_subtracted: model.input_rates().map(|r| r == fogtemp_core::InputRates::Subtracted),
             axes: (0..model.axis_count())
                 .map(|i| {
                     let mut axis = ModelAxisDocument::new(i, &model.axis(i)?);

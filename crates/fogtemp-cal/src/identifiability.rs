@@ -125,6 +125,10 @@ pub enum WarningKind {
     /// No calibration point over more than [`TEMPERATURE_GAP_C`] inside the calibrated
     /// temperature range (plateau runs far apart): the model is interpolated there.
     TemperatureGap,
+    /// Logs from a folder where a simulation did not finish
+    /// ([`crate::manifest::UNFINISHED_FILE`]): a part of its campaign at most. Reported on
+    /// axis 0 (review30b F7: only stderr said so).
+    UnfinishedSimulation,
 }
 
 impl WarningKind {
@@ -145,6 +149,7 @@ impl WarningKind {
             WarningKind::ContinuedLogs => "continued_logs",
             WarningKind::CoarseTemperature => "coarse_temperature",
             WarningKind::TemperatureGap => "temperature_gap",
+            WarningKind::UnfinishedSimulation => "unfinished_simulation",
         }
     }
 }
@@ -169,6 +174,12 @@ pub struct Warning {
 impl Warning {
     fn new(axis: usize, kind: WarningKind, message: String, values: &[(&'static str, f64)]) -> Self {
         Self { axis, kind, message, values: values.iter().copied().collect(), logs: Vec::new() }
+    }
+
+    /// `unfinished_simulation`, from the run metadata's warning `message`
+    /// ([`crate::runs::LogsMetadata::warnings`]), for `fit --json` and Python's `fit_report`.
+    pub fn unfinished_simulation(message: String) -> Self {
+        Self::new(0, WarningKind::UnfinishedSimulation, message, &[])
     }
 }
 

@@ -32,10 +32,11 @@ pub fn unfinished_simulation_warnings(logs: &[PathBuf]) -> Vec<String> {
         .filter(|(_, resolved)| resolved.join(UNFINISHED_FILE).is_file())
         .map(|(f, _)| f)
         .map(|f| {
+            // "." alone read as a typo (review30b F8).
+            let folder = if f == Path::new(".") { "the current folder (.)".into() } else { f.display().to_string() };
             format!(
-                "{} holds {UNFINISHED_FILE}: the simulation written there did not finish (interrupted, or it \
-                 failed), so its logs are a part of the campaign at most; simulate into it again",
-                f.display()
+                "{folder} holds {UNFINISHED_FILE}: the simulation written there did not finish (interrupted, or \
+                 it failed), so its logs are a part of the campaign at most; simulate into it again"
             )
         })
         .collect()

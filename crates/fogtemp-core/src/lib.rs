@@ -57,6 +57,6 @@ pub use mesh::{
 pub use model::{
     Axis, AxisProvenance, Evaluation, FeatureSettings, Model, Normalisation, MAX_NORMALISED_COORD,
 };
-pub use names::{AxisColumns, LogDelimiter, LogReading, LogShape, LogTime, LogTimeUnit};
+pub use names::{AxisColumns, InputRates, LogDelimiter, LogReading, LogShape, LogTime, LogTimeUnit};
 pub use poly::{Poly, PolyTerm};
 pub use region::{PolyOutside, Region};

@@ -6,7 +6,7 @@ use crate::mesh::{
     barycentric, edge_vertices, plane_value, Mesh, MeshValue, OutsidePolicy, StartGrid, TriangleRecord,
     WalkHint,
 };
-use crate::names::{AxisColumns, LogReading, LogShape, LogTime};
+use crate::names::{AxisColumns, InputRates, LogReading, LogShape, LogTime};
 use crate::poly::{parse_term, Poly};
 use crate::region::{PolyOutside, Region};
 use crate::wire::*;
@@ -321,6 +321,7 @@ impl<'a> Model<'a> {
                 time: version >= FIRST_VERSION_WITH_LOG_TIME,
                 reading: version >= FIRST_VERSION_WITH_LOG_READING,
                 shape: version >= FIRST_VERSION_WITH_LOG_SHAPE,
+                run_metadata: version >= FIRST_VERSION_WITH_RUN_METADATA,
             };
             crate::names::validate(body, offset, axis_count, records)?;
         } else if offset != body_len {
@@ -445,13 +446,26 @@ impl<'a> Model<'a> {
 
     /// The shape of the fit's logs: lines skipped before the header or data, the delimiter,
     /// the comment prefix and, for logs without a header row, their column names (format
-    /// version 7, written when the shape was not the default; `None` otherwise). Not used by
+    /// version 7, written when the shape was not the default; `None` otherwise; in version 8
+    /// always present, the default shape included). Not used by
     /// evaluation: it lets a host read a log as the fit did.
     pub fn log_shape(&self) -> Option<LogShape<'a>> {
         if self.version < FIRST_VERSION_WITH_LOG_SHAPE {
             return None;
         }
         crate::names::log_shape(self.bytes, self.names_offset()?, self.axis_count)
+    }
+
+    /// What the fit did with its runs' true input rates (format version 8, written when the
+    /// fit had run metadata: a runs file or a simulation's manifest; `None` otherwise, and for
+    /// every blob written before version 8, whether or not its fit had rates). Not used by
+    /// evaluation: it lets a host tell whether the model's output holds an input rate (the
+    /// Earth rate a calibration position saw) besides the bias.
+    pub fn input_rates(&self) -> Option<InputRates> {
+        if self.version < FIRST_VERSION_WITH_RUN_METADATA {
+            return None;
+        }
+        crate::names::input_rates(self.bytes, self.names_offset()?, self.axis_count)
     }
 
     /// Where the log-columns section starts: after the axis sections, whose lengths were

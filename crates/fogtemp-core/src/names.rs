@@ -30,11 +30,19 @@
 //! prefix (a one-byte length and UTF-8: length 0 without comments, at least 1 with), then
 //! `column_count` (u8: 0 = the logs have a header row) and that many column names of a
 //! headerless log, in order (each a one-byte length, at least 1, and UTF-8).
+//!
+//! From format version 8 the log-shape record is always present (the default shape written
+//! out when the logs had it: `skip_lines` 0, delimiter detected, comment lines starting with
+//! `#`, `column_count` 0), and the **run-metadata record** follows it, written only when the fit had run metadata
+//! (a runs file or a simulation's manifest giving each run's true input rate): `input_rates`
+//! (u8: 1 = each calibration run's input rate was taken off its gyro before the fit, so the
+//! model is the bias alone; 2 = the rates were given but not taken off, the logs having
+//! several gyro columns, so each axis's model holds its calibration runs' input rate as bias).
 
 use crate::error::Error;
 use crate::wire::{
     f64_at, u16_at, u32_at, COLUMN_UNITS_LEN, LOG_DIGEST_LEN, LOG_READING_FIXED_LEN, LOG_SHAPE_FIXED_LEN,
-    LOG_TIME_FIXED_LEN, NAMES_LEN_LEN,
+    LOG_TIME_FIXED_LEN, NAMES_LEN_LEN, RUN_METADATA_LEN,
 };
 
 /// What one axis records of its log columns (names `""` = not recorded).
@@ -143,6 +151,36 @@ impl<'a> LogReading<'a> {
     }
 }
 
+/// What the fit did with its runs' true input rates (the run-metadata record, format version 8).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum InputRates {
+    /// Each calibration run's input rate was taken off its gyro before the fit (code 1): the
+    /// model is the bias alone, and its output is the bias to remove.
+    Subtracted,
+    /// The rates were given but not taken off (code 2: logs with several gyro columns, one
+    /// rate per run): each axis's model holds its calibration runs' input rate as bias.
+    NotSubtracted,
+}
+
+impl InputRates {
+    /// The rates of a stored code; `None` for an unknown one.
+    pub fn from_code(code: u8) -> Option<Self> {
+        match code {
+            1 => Some(Self::Subtracted),
+            2 => Some(Self::NotSubtracted),
+            _ => None,
+        }
+    }
+
+    /// The stored code.
+    pub fn code(self) -> u8 {
+        match self {
+            Self::Subtracted => 1,
+            Self::NotSubtracted => 2,
+        }
+    }
+}
+
 /// How the fields of a log's records are separated, as the log-shape record stores it.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum LogDelimiter {
@@ -197,6 +235,8 @@ pub(crate) struct Records {
     pub(crate) reading: bool,
     /// The log-shape record after that (version 7).
     pub(crate) shape: bool,
+    /// The run-metadata record after the log-shape record (version 8).
+    pub(crate) run_metadata: bool,
 }
 
 /// Checks the section that starts at `offset` and runs to the end of `body` (the blob without
@@ -215,6 +255,9 @@ pub(crate) fn validate(body: &[u8], offset: usize, axis_count: u16, records: Rec
     }
     if records.shape {
         at = log_shape_at(body, at)?.1;
+    }
+    if records.run_metadata {
+        at = input_rates_at(body, at)?.1;
     }
     if at != body.len() {
         return Err(Error::LengthMismatch {
@@ -265,6 +308,28 @@ pub(crate) fn log_shape(body: &[u8], offset: usize, axis_count: u16) -> Option<L
     let at = log_time_at(body, at).ok()?.1;
     let at = log_reading_at(body, at).ok()?.1;
     log_shape_at(body, at).ok().map(|(shape, _)| shape)
+}
+
+/// The run-metadata record of a validated version-8 section at `offset` with `axis_count`
+/// axes.
+pub(crate) fn input_rates(body: &[u8], offset: usize, axis_count: u16) -> Option<InputRates> {
+    let mut at = section_start(body, offset).ok()?;
+    for _ in 0..axis_count {
+        at = record_at(body, at, 0).ok()?.1;
+    }
+    let at = log_time_at(body, at).ok()?.1;
+    let at = log_reading_at(body, at).ok()?.1;
+    let at = log_shape_at(body, at).ok()?.1;
+    input_rates_at(body, at).ok().map(|(rates, _)| rates)
+}
+
+/// The run-metadata record at `at` and where it ends.
+fn input_rates_at(body: &[u8], at: usize) -> Result<(InputRates, usize), Error> {
+    let end = at.saturating_add(RUN_METADATA_LEN);
+    let code =
+        *body.get(at).ok_or(Error::Truncated { field: "run metadata", needed: end, found: body.len() })?;
+    let rates = InputRates::from_code(code).ok_or(Error::BadLogReading { field: "input_rates" })?;
+    Ok((rates, end))
 }
 
 /// The log-shape record at `at` and where it ends.

@@ -36,8 +36,10 @@ pub const MAGIC: [u8; 4] = *b"FOGM";
 /// the log columns each axis was fitted on, the log's time and how its logs were read (the
 /// log-columns section after the axis sections, ending with the log-time record and the
 /// log-reading record), and its logs' shape when that is not the default (the log-shape
-/// record, version 7); a blob whose logs had the default shape is written as version 6.
-pub const FORMAT_VERSION: u16 = 7;
+/// record, version 7); a blob whose logs had the default shape is written as version 6. A
+/// blob whose fit had run metadata (each run's input rate) records what it did with the rates
+/// in the run-metadata record after the log-shape record (version 8).
+pub const FORMAT_VERSION: u16 = 8;
 /// The version this build writes for a blob without column names whose mesh is continued by
 /// stored gradients (`outside_policy = 3`, which needs it).
 pub const FORMAT_VERSION_WITH_GRADIENTS: u16 = 3;
@@ -57,6 +59,13 @@ pub const FIRST_VERSION_WITH_LOG_READING: u16 = 6;
 /// with the log-shape record (lines skipped, delimiter, comment prefix, headerless column
 /// names).
 pub const FIRST_VERSION_WITH_LOG_SHAPE: u16 = 7;
+/// The oldest format version whose log-columns section ends, after the log-shape record (then
+/// always present, the default shape included), with the run-metadata record: what the fit
+/// did with its runs' input rates.
+pub const FIRST_VERSION_WITH_RUN_METADATA: u16 = 8;
+/// The run-metadata record: `input_rates` (u8: 1 taken off each run's gyro before the fit,
+/// 2 given but not taken off).
+pub const RUN_METADATA_LEN: usize = 1;
 /// The log-shape record's fixed part before its names: `skip_lines` (u32), `delimiter` (u8),
 /// `delimiter_byte` (u8) and `has_comment` (u8).
 pub const LOG_SHAPE_FIXED_LEN: usize = 7;

@@ -23,11 +23,14 @@ use common::blob::{
     core_digest, exercise, fix_len_and_crc, golden_queries, put_u16, put_u32, u32_at, GOLDEN_BLOB,
     GOLDEN_CSV, GOLDEN_HEADER, GOLDEN_V2_BLOB, GOLDEN_V2_CSV, GOLDEN_V3_BLOB, GOLDEN_V3_CSV, GOLDEN_V4_BLOB,
     GOLDEN_V4_COLUMNS, GOLDEN_V4_CSV, GOLDEN_V5_BLOB, GOLDEN_V5_CSV, GOLDEN_V5_TIME, GOLDEN_V6_BLOB,
-    GOLDEN_V6_CSV, GOLDEN_V6_READING, GOLDEN_V7_BLOB, GOLDEN_V7_CSV, GOLDEN_V7_SHAPE,
+    GOLDEN_V6_CSV, GOLDEN_V6_READING, GOLDEN_V7_BLOB, GOLDEN_V7_CSV, GOLDEN_V7_SHAPE, GOLDEN_V8_BLOB,
+    GOLDEN_V8_CSV,
 };
 use common::rng;
 use fogtemp_core::wire::*;
-use fogtemp_core::{Error, LogDelimiter, LogTimeUnit, Model, OutsidePolicy, PolyOutside, WalkHint};
+use fogtemp_core::{
+    Error, InputRates, LogDelimiter, LogTimeUnit, Model, OutsidePolicy, PolyOutside, WalkHint,
+};
 use proptest::prelude::*;
 use proptest::test_runner::{Config, RngAlgorithm, RngSeed};
 use rand::Rng;
@@ -197,6 +200,65 @@ fn golden_v7_blob_evaluates_as_version_4_and_reads_the_log_shape() {
         let blob = read_golden(older);
         assert_eq!(Model::from_bytes(&blob).expect("parses").log_shape(), None, "{older}");
     }
+}
+
+#[test]
+fn golden_v8_blob_evaluates_as_version_4_and_reads_the_run_metadata() {
+    let model = check_golden(GOLDEN_V8_BLOB, GOLDEN_V8_CSV, 8);
+    assert_eq!(
+        std::fs::read(golden_dir().join(GOLDEN_V8_CSV)).ok(),
+        std::fs::read(golden_dir().join(GOLDEN_V4_CSV)).ok()
+    );
+    assert_eq!(model.input_rates(), Some(InputRates::Subtracted));
+    assert_eq!(model.log_reading().map(|r| r.log_count()), Some(2));
+    // The default shape, written out: nothing skipped, the delimiter detected, comment lines
+    // starting with '#', a header row.
+    let shape = model.log_shape().expect("present in version 8");
+    assert_eq!(
+        (shape.skip_lines, shape.delimiter, shape.comment, shape.column_count()),
+        (0, LogDelimiter::Detected, Some("#"), 0)
+    );
+    for older in [
+        GOLDEN_BLOB,
+        GOLDEN_V2_BLOB,
+        GOLDEN_V3_BLOB,
+        GOLDEN_V4_BLOB,
+        GOLDEN_V5_BLOB,
+        GOLDEN_V6_BLOB,
+        GOLDEN_V7_BLOB,
+    ] {
+        let blob = read_golden(older);
+        assert_eq!(Model::from_bytes(&blob).expect("parses").input_rates(), None, "{older}");
+    }
+    for code in 0..=255u8 {
+        assert_eq!(InputRates::from_code(code).map(InputRates::code), matches!(code, 1 | 2).then_some(code));
+    }
+}
+
+#[test]
+fn a_damaged_run_metadata_record_is_refused() {
+    let golden = read_golden(GOLDEN_V8_BLOB);
+    let record = golden.len() - CRC_LEN - 1;
+    let reread = |mutate: &dyn Fn(&mut Vec<u8>)| reread_mutated(&golden, mutate);
+    assert_eq!(reread(&|_| {}), Ok(()));
+    assert_eq!(reread(&|b| b[record] = 2), Ok(()), "rates given, not taken off");
+    for code in [0, 3, 0xff] {
+        assert_eq!(
+            reread(&|b| b[record] = code),
+            Err(Error::BadLogReading { field: "input_rates" }),
+            "code {code}"
+        );
+    }
+    // A version-7 blob relabelled 8 lacks the record.
+    let mut v7 = read_golden(GOLDEN_V7_BLOB);
+    put_u16(&mut v7, FILE_VERSION.start, 8);
+    fix_len_and_crc(&mut v7);
+    assert!(matches!(Model::from_bytes(&v7), Err(Error::Truncated { field: "run metadata", .. })));
+    // And a version-8 blob relabelled 7 has a byte after its section's last record.
+    let mut as_v7 = golden.clone();
+    put_u16(&mut as_v7, FILE_VERSION.start, 7);
+    fix_len_and_crc(&mut as_v7);
+    assert!(matches!(Model::from_bytes(&as_v7), Err(Error::LengthMismatch { field: "names_len", .. })));
 }
 
 #[test]

@@ -220,11 +220,11 @@ fn malformed_regions_and_policies_are_refused() {
     assert!(matches!(bad(poly_blob(2, &nan, hold)), Error::NonFinite { field: "region.x", .. }));
     // Version 1 has no region: the bytes are reserved.
     assert!(matches!(bad(poly_blob(1, &REGION, hold)), Error::BadValue { field: "reserved", .. }));
-    // Version 8 is not known (3 adds the mesh's stored hull gradients, none here; 4 the
-    // column names, 5 the log time, 6 the log reading and 7 the log shape, so a version-4 to
-    // -7 blob without them ends early).
-    assert!(matches!(bad(poly_blob(8, &REGION, hold)), Error::UnsupportedVersion { expected: 7, found: 8 }));
-    for version in 4..=7 {
+    // Version 9 is not known (3 adds the mesh's stored hull gradients, none here; 4 the
+    // column names, 5 the log time, 6 the log reading, 7 the log shape and 8 the run
+    // metadata, so a version-4 to -8 blob without them ends early).
+    assert!(matches!(bad(poly_blob(9, &REGION, hold)), Error::UnsupportedVersion { expected: 8, found: 9 }));
+    for version in 4..=8 {
         assert!(matches!(
             bad(poly_blob(version, &REGION, hold)),
             Error::Truncated { field: "names_len", .. }

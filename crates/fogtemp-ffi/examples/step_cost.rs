@@ -88,6 +88,7 @@ fn large_mesh_blob() -> Vec<u8> {
         columns: Vec::new(),
         log_time: Default::default(),
         log_reading: Default::default(),
+        input_rates: None,
     };
     encode(&file).expect("encodes")
 }

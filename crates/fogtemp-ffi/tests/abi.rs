@@ -503,6 +503,7 @@ fn a_value_beyond_f32_is_a_status_not_infinity() {
         columns: Vec::new(),
         log_time: Default::default(),
         log_reading: Default::default(),
+        input_rates: None,
     };
     let blob: &'static [u8] = Box::leak(fogtemp_cal::encode(&file).unwrap().into_boxed_slice());
     let mut blocks = vec![0.0f32; 8];
@@ -528,6 +529,7 @@ fn twin_axes_blob() -> Vec<u8> {
         columns: Vec::new(),
         log_time: Default::default(),
         log_reading: Default::default(),
+        input_rates: None,
     };
     encode(&file).unwrap()
 }

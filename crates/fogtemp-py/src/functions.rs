@@ -406,6 +406,8 @@ pub fn fit(
     options::capacity_fits(config.features.block_count as usize, capacity)?;
     // What the document says of the run metadata (log files with a runs file or a manifest).
     let mut run_metadata = None;
+    // Logs of an unfinished simulation: warned as read, in `fit_report`'s warnings too.
+    let mut unfinished = Vec::new();
     let fitted = if arrays {
         let array_runs = array_runs_of(&items, names.as_deref())?;
         let (runs, digest) = array_features(py, &array_runs, &mut config)?;
@@ -424,14 +426,18 @@ pub fn fit(
         let fitted = interruptible_fit(py, &runs, &config, digest, &selection, progress, &replay)?;
         (fitted, runs, digest)
     } else {
-        let (mut runs, digest, metadata) = file_runs(py, &items, &config, progress, runs_file.as_deref())?;
+        let (mut runs, digest, metadata, warned) =
+            file_runs(py, &items, &config, progress, runs_file.as_deref())?;
+        unfinished = warned;
         let mut selection = fogtemp_cal::selection::SelectionOptions::default();
         if let Some((source, rows)) = metadata {
             // As the command line's `fit --runs`: val runs left out (above), one position
             // left out at a time, each run's input rate taken from its gyro (one-gyro logs).
             let rates: Vec<f64> = rows.iter().map(|r| r.input_rate_dph).collect();
             let axes = config.ingest.format.gyro_columns.len();
-            let subtracted = calibrate::subtract_input_rates(&mut runs, &rates, axes);
+            let done = calibrate::subtract_input_rates(&mut runs, &rates, axes);
+            config.input_rates = Some(done);
+            let subtracted = done == fogtemp_core::InputRates::Subtracted;
             if !subtracted {
                 // As the command line says it (review30a F7).
                 progress::warn(
@@ -464,6 +470,7 @@ pub fn fit(
     for w in &warnings {
         progress::warn(py, &w.message)?;
     }
+    warnings.extend(unfinished.into_iter().map(fogtemp_cal::identifiability::Warning::unfinished_simulation));
     let source = out.as_ref().map_or_else(|| "<fit>".to_string(), |p| p.display().to_string());
     if let Some(dir) = &report {
         // The report's title names the model's file; "<fit>" would read as an HTML tag there.
@@ -546,7 +553,10 @@ fn interruptible_fit(
 /// What [`file_runs`] reads: each kept log's features, the logs' digest and, with a runs
 /// file, each kept log's row.
 /// The features, the input digest and, with run metadata, its source and each kept log's row.
-type FileRuns = (Vec<RunFeatures>, [u8; 32], Option<(String, Vec<fogtemp_cal::runs::RunMetadata>)>);
+/// A file fit's runs, input digest, run metadata (source and rows) and the run metadata's
+/// warnings (logs of an unfinished simulation, warned already).
+type FileRuns =
+    (Vec<RunFeatures>, [u8; 32], Option<(String, Vec<fogtemp_cal::runs::RunMetadata>)>, Vec<String>);
 
 /// Features of every log file (the command line's `fit` reading loop); with a runs file,
 /// of the logs whose role is not `val`, each with its row.
@@ -604,7 +614,7 @@ fn file_runs(
     if let Some(warning) = fogtemp_cal::digest::same_logs_note(&logs, &each) {
         progress::warn(py, &warning)?;
     }
-    Ok((runs, digest, rows.map(|rows| (metadata.source, rows))))
+    Ok((runs, digest, rows.map(|rows| (metadata.source, rows)), metadata.warnings))
 }
 
 /// Features of every run given as arrays, and the digest of their values.
@@ -901,6 +911,8 @@ pub fn validate<'py>(
     let mut how_read: Vec<String> = Vec::new();
     // Each log's true input rate from the run metadata (none for arrays or without any).
     let mut input_rates: Vec<(PathBuf, f64)> = Vec::new();
+    // Logs of an unfinished simulation: warned as read, last in the document's notes.
+    let mut unfinished: Vec<String> = Vec::new();
     let per_log = if arrays {
         let runs = array_runs_of(&items, names.as_deref())?;
         if let Some(note) = calibrate::axis_count_note(
@@ -929,6 +941,7 @@ pub fn validate<'py>(
         for note in metadata.notes.iter().chain(&metadata.warnings) {
             progress::warn(py, note)?;
         }
+        unfinished.clone_from(&metadata.warnings);
         (logs, input_rates) = fogtemp_cal::runs::validation_runs(logs, &metadata).map_err(errors::cal)?;
         how_read = choose_columns(
             py,
@@ -978,7 +991,8 @@ pub fn validate<'py>(
             progress::warn(py, &note)?;
         }
     }
-    for note in validation.runs.iter().flat_map(calibrate::RunValidation::notes) {
+    let rates_note = fogtemp_cal::runs::input_rates_note(&blobs[0].1, &models[0], &validation.runs, "runs=");
+    for note in validation.runs.iter().flat_map(calibrate::RunValidation::notes).chain(rates_note) {
         progress::warn(py, &note)?;
         notes.push(note);
     }
@@ -1005,7 +1019,7 @@ pub fn validate<'py>(
             .map_err(errors::cal)
         })?;
     }
-    let notes = how_read.into_iter().chain(notes).collect();
+    let notes = how_read.into_iter().chain(notes).chain(unfinished).collect();
     convert::document(py, &ValidationDocument::new(&stability, &validation, comparison).with_notes(notes))
 }
 

@@ -200,9 +200,15 @@ def test_validate_runs_file_keeps_the_val_runs_like_the_command_line(mesh_model,
         for key in means[:2]:
             assert run[key] == pytest.approx(bare[key] + 9.66, abs=1e-9), key
 
+    # The model, fitted on a simulation's folder, records that it is the bias alone: without
+    # run metadata one note more says the means include each run's rate (review30a F3).
+    extra = [n for n in without["notes"] if n not in ours["notes"]]
+    assert len(extra) == 1 and "input rate taken off its gyro" in extra[0], extra
+
     def without_means(doc):
         runs = [{k: v for k, v in r.items() if k not in means} for r in doc["runs"]]
-        return dict(doc, runs=runs)
+        notes = [n for n in doc["notes"] if n not in extra]
+        return dict(doc, runs=runs, notes=notes)
 
     assert without_means(ours) == without_means(without)
     # The same runs file with only the val logs given: its cal rows need no log.
@@ -256,10 +262,22 @@ def test_a_simulations_manifest_gives_fit_and_validate_the_run_metadata(sim_dir,
         fogtemp.fit(cal_logs[:3], method="poly", progress=False)
     with pytest.warns(fogtemp.FogtempWarning, match=r"manifest\.json"):
         with_rates = fogtemp.validate(from_manifest, val_logs[:2], progress=False)
-    without = fogtemp.validate(from_manifest, [bare / p.name for p in val_logs[:2]], progress=False)
+    # The model records that it is the bias alone (format 8): validated on logs without run
+    # metadata, a note says the means include each run's rate (review30a F3).
+    with pytest.warns(fogtemp.FogtempWarning, match=r"input rate taken off its gyro .* runs="):
+        without = fogtemp.validate(from_manifest, [bare / p.name for p in val_logs[:2]], progress=False)
     for run, plain, log in zip(with_rates["runs"], without["runs"], val_logs[:2]):
         assert run["input_rate_dph"] == rates[log.stem] and plain["input_rate_dph"] is None
         assert run["raw_mean_dph"] == pytest.approx(plain["raw_mean_dph"] - rates[log.stem], abs=1e-9)
+    assert from_manifest.inspect()["input_rates_subtracted"] is True
+    assert not any("input rate" in n for n in with_rates["notes"])
+    assert any("input rate taken off its gyro" in n for n in without["notes"])
+    # A model fitted without metadata records none; with the manifest's rates, validate says
+    # that its compensated means are then off by its calibration runs' rate.
+    plain_model = fogtemp.fit([bare / p.name for p in cal_logs], method="poly", progress=False)
+    assert plain_model.inspect()["input_rates_subtracted"] is None
+    with pytest.warns(fogtemp.FogtempWarning, match="records no input rates taken off"):
+        fogtemp.validate(plain_model, val_logs[:2], progress=False)
 
 
 def files_of(folder):
@@ -351,6 +369,23 @@ def test_simulate_document(tmp_path):
     assert (tmp_path / "manifest.json").is_file()
     # Finished: the marker of a simulation being written is gone.
     assert not (tmp_path / "SIMULATION-UNFINISHED.txt").exists()
+
+
+def test_logs_of_an_unfinished_simulation_are_warned_of_in_the_documents(cal_logs, tmp_path):
+    # review30b F7: the warning went to a Python warning only; fit_report and validate's
+    # document carry it too, as the command line's --json.
+    partial = tmp_path / "partial"
+    partial.mkdir()
+    for log in cal_logs[:3]:
+        (partial / log.name).symlink_to(log)
+    (partial / "SIMULATION-UNFINISHED.txt").write_text("interrupted\n")
+    with pytest.warns(fogtemp.FogtempWarning, match="SIMULATION-UNFINISHED.txt: the simulation"):
+        model = fogtemp.fit(partial, method="poly", progress=False)
+    kinds = [w["kind"] for w in model.fit_report["warnings"]]
+    assert kinds.count("unfinished_simulation") == 1, kinds
+    with pytest.warns(fogtemp.FogtempWarning, match="SIMULATION-UNFINISHED.txt: the simulation"):
+        doc = fogtemp.validate(model, partial, progress=False)
+    assert "SIMULATION-UNFINISHED.txt: the simulation" in doc["notes"][-1]
 
 
 def test_simulate_refuses_a_folder_of_recordings(tmp_path):

@@ -37,9 +37,9 @@ pub fn fit(a: FitArgs) -> Result<()> {
     if let Some(dir) = &a.report {
         check_report_folder(dir)?;
     }
-    let CalibrationLogs { logs, positions, input_rates_dph, source } =
+    let CalibrationLogs { logs, positions, input_rates_dph, source, unfinished } =
         calibration_logs(&named, a.runs.as_deref())?;
-    let config = CalibrationConfig {
+    let mut config = CalibrationConfig {
         ingest: ingest_options(&a.ingest)?,
         features: FeatureSettings {
             window_s: a.window_s,
@@ -84,6 +84,8 @@ pub fn fit(a: FitArgs) -> Result<()> {
         mesh_relative_weight: a.mesh_relative_weight,
         mesh_cv_repeats: a.mesh_cv_repeats as usize,
         mesh_cv_salt: a.mesh_cv_salt,
+        // Set once the run metadata's rates are taken off (below).
+        input_rates: None,
     };
     let mut runs = Vec::with_capacity(logs.len());
     let mut input_digest = fogtemp_cal::digest::InputDigest::new();
@@ -114,14 +116,16 @@ pub fn fit(a: FitArgs) -> Result<()> {
         eprintln!("warning: {warning}");
     }
     let run_metadata = subtract_input_rates(
+        &mut config,
         &mut runs,
         input_rates_dph.as_deref(),
         positions.as_deref(),
         source.as_deref(),
-        config.ingest.format.gyro_columns.len(),
     );
     let mut warnings = fogtemp_cal::identifiability::fit_warnings(&runs, &config, &a.identifiability());
     warnings.iter().for_each(|w| eprintln!("warning: {}", w.message));
+    // Printed when the logs were chosen; for --json too (review30b F7).
+    warnings.extend(unfinished.into_iter().map(fogtemp_cal::identifiability::Warning::unfinished_simulation));
 
     let selection = SelectionOptions {
         positions,
@@ -334,16 +338,20 @@ fn check_settings(a: &FitArgs) -> Result<()> {
 /// taken from its gyro before fitting, so that the model is the bias alone (a model that kept
 /// it would remove the Earth rate from a navigation system's gyro, and runs in different
 /// positions would disagree by it). The metadata gives one rate per run, about the input axis,
-/// so only a one-gyro log is corrected. Returns what `fit --json` says of the metadata.
+/// so only a one-gyro log is corrected; what was done goes into `config` for the blob to record.
+/// Returns what `fit --json` says of the metadata.
 fn subtract_input_rates(
+    config: &mut CalibrationConfig,
     runs: &mut [fogtemp_cal::calibrate::RunFeatures],
     rates_dph: Option<&[f64]>,
     positions: Option<&[String]>,
     source: Option<&str>,
-    axes: usize,
 ) -> Option<RunMetadataDocument> {
     let (Some(rates), Some(positions), Some(source)) = (rates_dph, positions, source) else { return None };
-    let subtracted = calibrate::subtract_input_rates(runs, rates, axes);
+    let axes = config.ingest.format.gyro_columns.len();
+    let done = calibrate::subtract_input_rates(runs, rates, axes);
+    config.input_rates = Some(done);
+    let subtracted = done == fogtemp_core::InputRates::Subtracted;
     if subtracted {
         eprintln!("note: each run's input_rate_dph from {source} is subtracted from its gyro: the model is the bias alone");
     } else {
@@ -370,6 +378,8 @@ struct CalibrationLogs {
     input_rates_dph: Option<Vec<f64>>,
     /// Where the run metadata came from: the runs file, or the simulations' manifests.
     source: Option<String>,
+    /// The warnings for logs of a simulation that did not finish (printed already).
+    unfinished: Vec<String>,
 }
 
 /// The logs to calibrate on and, with run metadata (`--runs FILE`, else a fogtemp
@@ -389,5 +399,6 @@ fn calibration_logs(logs: &[std::path::PathBuf], runs: Option<&std::path::Path>)
         positions: rows.as_ref().map(|rows| rows.iter().map(|r| r.position.clone()).collect()),
         input_rates_dph: rows.as_ref().map(|rows| rows.iter().map(|r| r.input_rate_dph).collect()),
         source: rows.is_some().then_some(metadata.source),
+        unfinished: metadata.warnings,
     })
 }

@@ -44,6 +44,13 @@ pub fn inspect(a: InspectArgs) -> Result<()> {
             shape.description
         );
     }
+    match doc.input_rates_subtracted {
+        Some(true) => println!("input rates: taken off each calibration run's gyro before the fit (the model is the bias alone)"),
+        Some(false) => println!(
+            "input rates: given by the run metadata but left in (several gyro columns): the model holds its calibration runs' rate as bias"
+        ),
+        None => println!("input rates: not recorded (fitted without run metadata, or before format 8)"),
+    }
     // The stored values are f32: printed to the digits they hold (every one is in --json).
     let number = |v: f64, digits: usize| if v.is_finite() { format!("{v:.digits$}") } else { "null".into() };
     for axis in &doc.axes {

@@ -52,8 +52,9 @@ fn check_compared_columns(model: &Model<'_>, path: &Path, format: &LogFormat, pr
 }
 
 /// The logs to validate and, with run metadata (`--runs FILE`, else the fogtemp simulations'
-/// `manifest.json` beside the logs), each kept log's true input rate (empty without).
-fn validation_logs(a: &ValidateArgs) -> Result<fogtemp_cal::runs::ValidationRuns> {
+/// `manifest.json` beside the logs), each kept log's true input rate (empty without); and the
+/// warnings printed of them (logs of an unfinished simulation), for `--json`'s notes.
+fn validation_logs(a: &ValidateArgs) -> Result<(fogtemp_cal::runs::ValidationRuns, Vec<String>)> {
     let logs = expand_logs_for_reading(&a.logs)?;
     let metadata = fogtemp_cal::runs::logs_metadata(&logs, a.runs.as_deref(), Role::Cal, "--runs FILE")?;
     for note in &metadata.notes {
@@ -62,7 +63,7 @@ fn validation_logs(a: &ValidateArgs) -> Result<fogtemp_cal::runs::ValidationRuns
     for warning in &metadata.warnings {
         eprintln!("warning: {warning}");
     }
-    Ok(fogtemp_cal::runs::validation_runs(logs, &metadata)?)
+    Ok((fogtemp_cal::runs::validation_runs(logs, &metadata)?, metadata.warnings))
 }
 
 /// The `validate` command.
@@ -73,7 +74,7 @@ pub fn validate(a: ValidateArgs) -> Result<()> {
     let blob = read_model(&a.model)?;
     check_capacity(&a.model, &blob, a.capacity)?;
     let model = Model::from_bytes(&blob).map_err(|e| anyhow::anyhow!("{e}"))?;
-    let (logs, input_rates) = validation_logs(&a)?;
+    let ((logs, input_rates), unfinished) = validation_logs(&a)?;
     let (ingest, columns) = super::ingest_options_for(&a.ingest, &model, &a.model)?;
     super::warn_axis_count(&a.model, model.axis_count(), ingest.format.gyro_columns.len());
     let options = stability_options(&a.stability)?;
@@ -127,6 +128,12 @@ pub fn validate(a: ValidateArgs) -> Result<()> {
         super::warn_if_mostly_gaps(&r.path, &r.series.gaps, r.ingest.rows);
     }
     notes.extend(runs.iter().flat_map(calibrate::RunValidation::notes));
+    notes.extend(fogtemp_cal::runs::input_rates_note(
+        &a.model.display().to_string(),
+        model,
+        runs,
+        "--runs FILE",
+    ));
     let digests = input_digest.finish();
     notes.extend(fogtemp_cal::digest::same_logs_note(&logs, &digests.1));
     let in_sample =
@@ -156,7 +163,8 @@ pub fn validate(a: ValidateArgs) -> Result<()> {
     }
     if a.json {
         // How the logs were read (printed first) goes into the document's notes too.
-        let all_notes = columns.notes.iter().cloned().chain(notes).collect();
+        // And the warnings of an unfinished simulation (review30b F7).
+        let all_notes = columns.notes.iter().cloned().chain(notes).chain(unfinished).collect();
         print_json(&ValidationDocument::new(&options, &validation, comparison).with_notes(all_notes))?;
         return nothing_validated(runs);
     }

@@ -180,6 +180,11 @@ pub const GOLDEN_V7_CSV: &str = "model-v7.expected.csv";
 /// order.
 pub const GOLDEN_V7_SHAPE: (u32, u8, &str, [&str; 5]) =
     (2, b';', "//", ["Zeit [ms]", "gyro_x", "temp_c", "Drehrate Y (°/h)", "T_y"]);
+/// The golden files of format version 8: the version-6 golden model (logs of the default
+/// shape) whose fit took each run's input rate off its gyro: the default log-shape record
+/// written out, then the run-metadata record (code 1).
+pub const GOLDEN_V8_BLOB: &str = "model-v8.fogm";
+pub const GOLDEN_V8_CSV: &str = "model-v8.expected.csv";
 pub const GOLDEN_HEADER: &str = "axis,temp_c,rate_c_per_min,value_dph_bits,outside";
 
 /// The input digest the golden model (and the root's three-axis model) carries.
