@@ -1592,6 +1592,14 @@ pub struct OutsideReach {
     /// mesh's hull (its thinned nodes) need not cover the region, and between the two the
     /// mesh is continued from its edge.
     pub samples_in_region: u64,
+    /// The model's value does not depend on dT/dt (a polynomial in T alone, no mesh): a
+    /// sample beyond the calibrated rates at a calibrated temperature is flagged, but its
+    /// value is the polynomial's own, not extrapolated (review26b F4). Its rate reach is then
+    /// that of those samples alone.
+    pub rate_unused: bool,
+    /// Of a model that does not use the rate: samples flagged outside at a temperature within
+    /// the calibrated range, flagged for their rate alone.
+    pub samples_rate_only: u64,
 }
 
 impl OutsideReach {
@@ -1606,6 +1614,18 @@ impl OutsideReach {
             |v: f64, (lo, hi): (f64, f64)| if v.is_finite() { (lo - v).max(v - hi).max(0.0) } else { 0.0 };
         let (temp, rate) =
             (beyond(temp_c, self.temp_range_c), beyond(rate_c_per_min, self.rate_range_c_per_min));
+        if self.rate_unused {
+            // Only the temperature moves the value: the rate is not part of how far it is
+            // extrapolated.
+            if temp > 0.0 {
+                self.temp_beyond_c = self.temp_beyond_c.max(temp);
+                self.samples_beyond += samples;
+            } else {
+                self.rate_beyond_c_per_min = self.rate_beyond_c_per_min.max(rate);
+                self.samples_rate_only += samples;
+            }
+            return;
+        }
         self.temp_beyond_c = self.temp_beyond_c.max(temp);
         self.rate_beyond_c_per_min = self.rate_beyond_c_per_min.max(rate);
         if temp > 0.0 || rate > 0.0 {
@@ -1639,13 +1659,18 @@ impl OutsideReach {
                 distance_text(self.temp_beyond_c, 2)
             ));
         }
-        if self.rate_beyond_c_per_min > 0.0 {
-            reach.push(format!(
-                "{} C/min beyond the calibrated {r0:.4} .. {r1:.4} C/min",
-                distance_text(self.rate_beyond_c_per_min, 4)
-            ));
+        let rate_reach = format!(
+            "{} C/min beyond the calibrated {r0:.4} .. {r1:.4} C/min",
+            distance_text(self.rate_beyond_c_per_min, 4)
+        );
+        if self.rate_beyond_c_per_min > 0.0 && !self.rate_unused {
+            reach.push(rate_reach.clone());
         }
         let beyond = format!("at most {} (the tracker's features)", reach.join(" and "));
+        let rate_only = format!(
+            "at a calibrated temperature, at most {rate_reach}: a rate this model (a polynomial in T alone) does \
+             not use, so its value there is the polynomial's own, as inside the region"
+        );
         let within = format!(
             "within the calibrated ranges ({t0:.2} .. {t1:.2} C, {r0:.4} .. {r1:.4} C/min) at combinations of \
              temperature and rate no calibration run held"
@@ -1654,10 +1679,15 @@ impl OutsideReach {
             "inside the calibrated region but outside the hull of the mesh's nodes, where the mesh is \
                          continued from its edge"
                 .to_string();
-        [(self.samples_beyond, beyond), (self.samples_within, within), (self.samples_in_region, in_region)]
-            .into_iter()
-            .filter(|(samples, _)| *samples > 0)
-            .collect()
+        [
+            (self.samples_beyond, beyond),
+            (self.samples_within, within),
+            (self.samples_in_region, in_region),
+            (self.samples_rate_only, rate_only),
+        ]
+        .into_iter()
+        .filter(|(samples, _)| *samples > 0)
+        .collect()
     }
 }
 
@@ -1721,6 +1751,7 @@ impl<'m> Replayer<'m> {
                 f64::from(a.provenance.rate_min_c_per_min),
                 f64::from(a.provenance.rate_max_c_per_min),
             ),
+            rate_unused: a.mesh.is_none() && a.poly.is_some_and(|p| p.terms().all(|t| t.rate_power == 0)),
             ..OutsideReach::default()
         });
         let series = ReplaySeries {
@@ -2149,6 +2180,12 @@ impl RunValidation {
         let outside = s.flag_counts[Flags::OUTSIDE_HULL.0.trailing_zeros() as usize];
         if outside > 0 {
             let mut note = match &s.outside_reach {
+                // All flagged for a rate the model does not use: not "extrapolated".
+                Some(reach) if reach.rate_unused && reach.samples_rate_only == outside => format!(
+                    "{name}: {outside} of {} samples ({} %) are flagged OUTSIDE_HULL for their rate alone",
+                    s.samples,
+                    share_percent(outside, s.samples)
+                ),
                 // Some inside the region: "outside the region" is not said of them all.
                 Some(reach) if reach.samples_in_region > 0 => format!(
                     "{name}: {outside} of {} samples ({} %) are where the model is extrapolated (flag OUTSIDE_HULL)",
@@ -2697,6 +2734,33 @@ mod tests {
         assert!(
             note.contains("temperature no sensor reads") && note.contains("; 1 of them a gyro value"),
             "{note}"
+        );
+    }
+
+    #[test]
+    fn a_model_in_t_alone_is_not_called_extrapolated_at_a_rate_beyond_its_calibration() {
+        // review26b F4: a cubic in T flagged OUTSIDE_HULL for a rate it does not use.
+        let mut reach = OutsideReach {
+            temp_range_c: (-35.0, 62.55),
+            rate_range_c_per_min: (-0.08, 0.54),
+            rate_unused: true,
+            ..OutsideReach::default()
+        };
+        reach.observe(20.0, 0.6, 3, false);
+        let rate_only = "at a calibrated temperature, at most 0.0600 C/min beyond the calibrated -0.0800 .. 0.5400 \
+                         C/min: a rate this model (a polynomial in T alone) does not use, so its value there is the \
+                         polynomial's own, as inside the region";
+        assert_eq!(reach.text(), format!("all of them {rate_only}"));
+        // Beyond the temperatures, the temperature alone is how far it is extrapolated.
+        reach.observe(63.05, 0.9, 2, false);
+        assert_eq!((reach.samples_beyond, reach.samples_rate_only), (2, 3));
+        assert!((reach.rate_beyond_c_per_min - 0.06).abs() < 1e-9);
+        assert_eq!(
+            reach.text(),
+            format!(
+                "2 of them at most 0.50 C beyond the calibrated -35.00 .. 62.55 C (the tracker's features); 3 of them \
+                 {rate_only}"
+            )
         );
     }
 
@@ -3341,6 +3405,40 @@ mod tests {
         assert!(flagged > 0, "the run starts outside");
         assert_eq!(reach.samples_within, 0, "{reach:?}");
         assert_eq!(reach.samples_beyond, flagged, "{reach:?}");
+        assert!(reach.rate_unused && reach.rate_beyond_c_per_min == 0.0, "{reach:?}");
+        // Within the calibrated temperatures (-15 .. 15 C), heating faster than any
+        // calibration run (0.52 against 0.5 C/min at most): flagged for the rate alone, and
+        // the note does not call the value extrapolated (review26b F4).
+        let fast = ramp_log(-12.0, 0.52);
+        let replay =
+            replay_models_from(fast.as_bytes(), Path::new("fast.csv"), &[&model], &config.ingest, 10.0)
+                .expect("replays");
+        let series = replay.models[0][0].clone();
+        let flagged = series.flag_counts[Flags::OUTSIDE_HULL.0.trailing_zeros() as usize];
+        let reach = series.outside_reach.expect("reach");
+        assert!(flagged > 0 && reach.samples_rate_only == flagged && reach.samples_beyond == 0, "{reach:?}");
+        assert!((reach.rate_beyond_c_per_min - 0.02).abs() < 1e-3, "{reach:?}");
+        let run = RunValidation {
+            path: PathBuf::from("fast.csv"),
+            axis: 0,
+            raw_bias_stability_dph: f64::NAN,
+            compensated_bias_stability_dph: 0.001,
+            series,
+            ingest: IngestReport::default(),
+            raw_mean_dph: f64::NAN,
+            compensated_mean_dph: f64::NAN,
+            input_rate_dph: None,
+            windows: MetricWindows::default(),
+        };
+        let notes = run.coverage_notes();
+        assert_eq!(notes.len(), 1, "{notes:?}");
+        assert!(notes[0].starts_with(&format!("fast.csv axis 0: {flagged} of ")), "{notes:?}");
+        assert!(
+            notes[0].contains(
+                "flagged OUTSIDE_HULL for their rate alone: all of them at a calibrated temperature"
+            ) && !notes[0].contains("extrapolated"),
+            "{notes:?}"
+        );
     }
 
     /// `ramp_log` with the temperature cell of data row `row` (0-based) replaced by `cell`.

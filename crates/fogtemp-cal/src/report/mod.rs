@@ -867,7 +867,8 @@ pub fn write_validation_report_with(
         );
         md.push_str(&bullet_section(
             "Samples the model did not compensate as calibrated (\"outside\": the share of a run's samples flagged \
-             OUTSIDE_HULL, where the model is extrapolated):",
+             OUTSIDE_HULL, outside the calibrated region, where the model is extrapolated; a polynomial in T alone \
+             only beyond the calibrated temperatures):",
             &runs.iter().flat_map(crate::calibrate::RunValidation::coverage_notes).collect::<Vec<_>>(),
         ));
         md.push_str(&bullet_section(
