@@ -2588,3 +2588,67 @@ fn spikes_copies_and_streamed_output_are_said() {
     assert!(stderr.contains("the reader of stdout closed it before the log's end"), "{stderr}");
     assert!(stderr.contains("--out FILE"), "{stderr}");
 }
+
+/// Logs with two gyro columns and a runs file: one rate per run is about one input axis, so
+/// `fit` leaves the rates in and the model records so (format 8, code 2; review31a F7).
+/// Validated on one of its gyro columns with the rates, a note says that the model holds its
+/// calibration runs' rates; on both columns no rate is applied and nothing is said.
+#[test]
+fn rates_left_in_for_two_gyro_columns_are_recorded_and_noted() {
+    let dir = TempDir::new().expect("tempdir");
+    let mut logs = Vec::new();
+    let mut rows = String::from("run,position,input_rate_dph\n");
+    for (k, start_c) in [-10.0, 10.0, 30.0].into_iter().enumerate() {
+        let one = dir.path().join(format!("one{k}.csv"));
+        write_warmup(&one, start_c, 20.0, 40 + k as u64);
+        let text = fs::read_to_string(&one).expect("read");
+        let two: Vec<String> = text
+            .lines()
+            .enumerate()
+            .map(|(i, l)| {
+                if i == 0 {
+                    format!("{l},gyro2")
+                } else {
+                    format!("{l},{}", l.rsplit(',').next().unwrap_or("0"))
+                }
+            })
+            .collect();
+        let log = dir.path().join(format!("two{k}.csv"));
+        write_lines(&log, &two);
+        logs.push(log);
+        rows.push_str(&format!("two{k},p{k},{}\n", 9.67 * if k == 1 { -1.0 } else { 1.0 }));
+    }
+    let runs = dir.path().join("runs.csv");
+    fs::write(&runs, rows).expect("runs file");
+    let model = dir.path().join("two.fogm");
+    let mut fit = args!["fit", "--method", "poly", "--gyro-column", "gyro_dph", "--gyro-column", "gyro2"];
+    fit.extend(args!["--runs", &runs, "--out", &model, "--json"]);
+    fit.extend(logs.iter().map(OsString::from));
+    let fitted = json(&run_ok(fit));
+    assert_eq!(fitted["run_metadata"]["input_rates_subtracted"], false, "{}", fitted["run_metadata"]);
+    let inspect = json(&run_ok(args!["inspect", &model, "--json"]));
+    assert_eq!(
+        (&inspect["format_version"], &inspect["input_rates_subtracted"]),
+        (&Value::from(8), &Value::from(false))
+    );
+    let notes =
+        |doc: &Value| arr(&doc["notes"]).iter().filter_map(Value::as_str).collect::<Vec<_>>().join("\n");
+    let mut both = args!["validate", "--model", &model, "--runs", &runs, "--json"];
+    both.extend(logs.iter().map(OsString::from));
+    let both = json(&run_ok(both));
+    assert!(
+        arr(&both["runs"]).iter().all(|r| r["input_rate_dph"].is_null()),
+        "rates about one axis are not applied"
+    );
+    assert!(!notes(&both).contains("input rates left in"), "{}", notes(&both));
+    let mut first =
+        args!["validate", "--model", &model, "--gyro-column", "gyro_dph", "--runs", &runs, "--json"];
+    first.extend(logs.iter().map(OsString::from));
+    let first = json(&run_ok(first));
+    assert!(arr(&first["runs"]).iter().all(|r| r["input_rate_dph"].is_number()));
+    assert!(
+        notes(&first).contains("was fitted with its runs' input rates left in its gyro"),
+        "{}",
+        notes(&first)
+    );
+}

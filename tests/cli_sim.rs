@@ -494,6 +494,11 @@ fn demo_models_know_their_calibration_logs(out: &Path) {
     let fit_report =
         fs::read_to_string(out.join("report").join("mesh").join("fit-report.md")).expect("fit report");
     assert!(fit_report.contains("  - calibrated range: "), "{fit_report}");
+    // With the model over temperature (review26b F10), a file the report names.
+    assert!(fit_report.contains("(fit-temperature-axis0.svg)"), "{fit_report}");
+    let svg =
+        fs::read_to_string(out.join("report").join("mesh").join("fit-temperature-axis0.svg")).expect("svg");
+    assert!(svg.contains("50th percentile)"), "a mesh model's curves at three rates");
 }
 
 /// `demo` needs runs in positions pos1 and pos2: a scenario without pos2 is refused with a
@@ -823,13 +828,20 @@ fn fit_and_validate_read_a_simulations_manifest_as_run_metadata() {
     let notes = |v: &Value| -> String {
         v["notes"].as_array().expect("notes").iter().filter_map(Value::as_str).collect::<Vec<_>>().join("\n")
     };
-    let (without_record, taken_off) = ("records no input rates taken off", "input rate taken off its gyro");
+    let (without_record, taken_off) =
+        ("does not record whether its fit took", "input rate taken off its gyro");
     let agree = [notes(&v_manifest), notes(&v_file)];
     assert!(agree.iter().all(|n| !n.contains(without_record) && !n.contains(taken_off)), "{agree:?}");
     let no_rates_here = notes(&v_bare);
     assert!(no_rates_here.contains(taken_off) && no_rates_here.contains("--runs FILE"), "{no_rates_here}");
     let plain_on_sim = run_json(&["validate", "--model", s(&dir.path().join("b.fogm")), s(&sim), "--json"]);
     assert!(notes(&plain_on_sim).contains(without_record), "{}", notes(&plain_on_sim));
+    // The report carries it too, under its own heading (review31a F6).
+    let report = dir.path().join("plain-report");
+    run_ok(["validate", "--model", s(&dir.path().join("b.fogm")), s(&sim), "--report", s(&report)]);
+    let md = fs::read_to_string(report.join("report.md")).expect("report.md");
+    let section = md.split("Run metadata (what the mean columns hold").nth(1).unwrap_or_default();
+    assert!(section.split("\n\n").nth(1).is_some_and(|b| b.contains(without_record)), "{md}");
     let plain_on_bare = run_json(&["validate", "--model", s(&dir.path().join("b.fogm")), s(&bare), "--json"]);
     let quiet = notes(&plain_on_bare);
     assert!(!quiet.contains(without_record) && !quiet.contains(taken_off), "{quiet}");

@@ -935,8 +935,6 @@ fn put_f32(buf: &mut [u8], at: usize, v: f32) {
     buf[at..at + 4].copy_from_slice(&v.to_le_bytes());
 }
 
-/// A polynomial axis over the identity normalisation (T in C, dT/dt in C/min), with the
-/// default feature settings and no region: the unit tests' small models.
 /// The blob of a model of one axis, `axis`, with nothing else recorded.
 #[cfg(test)]
 pub(crate) fn test_blob(axis: AxisModel) -> Vec<u8> {
@@ -952,6 +950,8 @@ pub(crate) fn test_blob(axis: AxisModel) -> Vec<u8> {
     .expect("encodes")
 }
 
+/// A polynomial axis over the identity normalisation (T in C, dT/dt in C/min), with the
+/// default feature settings and no region: the unit tests' small models.
 #[cfg(test)]
 pub(crate) fn test_poly_axis(poly: Vec<PolyTerm>) -> AxisModel {
     AxisModel {

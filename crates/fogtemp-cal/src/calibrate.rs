@@ -556,6 +556,12 @@ pub fn compensation_notes(
     notes
 }
 
+/// Whether model axis `axis` does not use dT/dt: a polynomial in T alone without a mesh
+/// (`cubic-t`, or a stepwise fit that admitted no rate term).
+pub fn ignores_rate(axis: &fogtemp_core::Axis<'_>) -> bool {
+    axis.mesh.is_none() && axis.poly.is_some_and(|p| p.terms().all(|t| t.rate_power == 0))
+}
+
 /// The note for `outside` of `samples` samples outside the calibrated region (`flagged`
 /// says where the flag can be seen).
 pub fn outside_region_note(name: &str, outside: u64, samples: u64, flagged: &str) -> String {
@@ -1751,7 +1757,7 @@ impl<'m> Replayer<'m> {
                 f64::from(a.provenance.rate_min_c_per_min),
                 f64::from(a.provenance.rate_max_c_per_min),
             ),
-            rate_unused: a.mesh.is_none() && a.poly.is_some_and(|p| p.terms().all(|t| t.rate_power == 0)),
+            rate_unused: ignores_rate(&a),
             ..OutsideReach::default()
         });
         let series = ReplaySeries {

@@ -634,39 +634,41 @@ pub type ValidationRuns = (Vec<PathBuf>, Vec<(PathBuf, f64)>);
 
 /// What `validate` says when the model's record of its fit's input rates (format version 8)
 /// and the validated runs' run metadata do not match, so that the mean columns do not read as
-/// a bias the model leaves (review30a F3): a model fitted without the rates holds its
-/// calibration runs' rate as bias, and a model of the bias alone validated without them shows
-/// each run's rate in both means. `None` when they agree. `runs_option` names how the caller
-/// gives run metadata (`--runs FILE`, `runs=`).
+/// a bias the model leaves (review30a F3): a model fitted without the rates holds the mean of
+/// its calibration runs' rates as bias, and a model of the bias alone validated without them
+/// shows each run's rate in both means. `None` when they agree. `how_to_give` says how the
+/// caller gives each run's rate (`give each run's input_rate_dph with --runs FILE`).
 pub fn input_rates_note(
     model_name: &str,
     model: &fogtemp_core::Model<'_>,
     runs: &[crate::calibrate::RunValidation],
-    runs_option: &str,
+    how_to_give: &str,
 ) -> Option<String> {
     use fogtemp_core::InputRates;
     let rates_taken_off = runs.iter().any(|r| r.input_rate_dph.is_some());
+    // What a model holds when its fit kept the rates: their mean over its calibration runs,
+    // 0 when they cancel (two opposite positions), so the means are off only by that mean
+    // (review31a F1: the note said "off by that rate" of a two-position model that was right).
+    let held = "the mean of its calibration runs' input rates as bias (the Earth rate's share in their \
+                positions; about 0 when they cancel, as two opposite positions do), so each comp mean here, less \
+                the run's input rate, is off by that mean";
     match (model.input_rates(), rates_taken_off) {
         (Some(InputRates::Subtracted), true) => None,
         (Some(InputRates::Subtracted), false) => (model.axis_count() == 1).then(|| {
             format!(
                 "{model_name} was fitted with each calibration run's input rate taken off its gyro (it is the bias \
-                 alone), and these logs have no run metadata: each run's raw mean and comp mean include the rate \
-                 its gyro sensed (the Earth rate's share); give each run's input_rate_dph with {runs_option} for \
-                 the means of the bias alone"
+                 alone), and these runs have no run metadata: each run's raw mean and comp mean include the rate \
+                 its gyro sensed (the Earth rate's share); {how_to_give} for the means of the bias alone"
             )
         }),
         (Some(InputRates::NotSubtracted), true) => Some(format!(
             "{model_name} was fitted with its runs' input rates left in its gyro (its logs had several gyro \
-             columns): it holds its calibration runs' input rate as bias, so each comp mean here, less the run's \
-             input rate, is off by that rate"
+             columns): it holds {held}"
         )),
         (None, true) => Some(format!(
-            "{model_name} records no input rates taken off its calibration runs' gyro (fitted without run \
-             metadata, or written before model format 8 recorded it): a model fitted without them holds its \
-             calibration runs' input rate (the Earth rate's share in their positions, averaged) as bias, so each comp mean \
-             here, less the run's input rate, is then off by that rate (about minus the rate for a run in the \
-             same position); fitted with each run's input_rate_dph, a model is the bias alone"
+            "{model_name} does not record whether its fit took its runs' input rates off their gyro (fitted \
+             without run metadata, or written before model format 8 recorded it); fitted without them, it holds \
+             {held}"
         )),
         (_, false) => None,
     }

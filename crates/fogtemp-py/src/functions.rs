@@ -991,8 +991,15 @@ pub fn validate<'py>(
             progress::warn(py, &note)?;
         }
     }
-    let rates_note = fogtemp_cal::runs::input_rates_note(&blobs[0].1, &models[0], &validation.runs, "runs=");
-    for note in validation.runs.iter().flat_map(calibrate::RunValidation::notes).chain(rates_note) {
+    // Arrays take no runs file (review31a F5): their rates come off the arrays themselves.
+    let how_to_give = if arrays {
+        "take each run's input rate off its gyro array"
+    } else {
+        "give each run's input_rate_dph with runs="
+    };
+    let rates_note =
+        fogtemp_cal::runs::input_rates_note(&blobs[0].1, &models[0], &validation.runs, how_to_give);
+    for note in validation.runs.iter().flat_map(calibrate::RunValidation::notes).chain(rates_note.clone()) {
         progress::warn(py, &note)?;
         notes.push(note);
     }
@@ -1015,6 +1022,13 @@ pub fn validate<'py>(
                 dir,
                 "Runs the model was fitted on (their figures are in-sample):",
                 &in_sample,
+            )
+            .map_err(errors::cal)?;
+            let metadata: Vec<String> = rates_note.iter().chain(&unfinished).cloned().collect();
+            fogtemp_cal::report::add_notes_to_validation_report(
+                dir,
+                fogtemp_cal::report::RUN_METADATA_HEADING,
+                &metadata,
             )
             .map_err(errors::cal)
         })?;

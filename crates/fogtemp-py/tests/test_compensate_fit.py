@@ -269,6 +269,11 @@ def test_a_simulations_manifest_gives_fit_and_validate_the_run_metadata(sim_dir,
     for run, plain, log in zip(with_rates["runs"], without["runs"], val_logs[:2]):
         assert run["input_rate_dph"] == rates[log.stem] and plain["input_rate_dph"] is None
         assert run["raw_mean_dph"] == pytest.approx(plain["raw_mean_dph"] - rates[log.stem], abs=1e-9)
+    # Runs given as arrays take no runs file: the note says to take the rate off the arrays
+    # (review31a F5).
+    arrays = [fogtemp.read_log(p, progress=False) for p in val_logs[:1]]
+    with pytest.warns(fogtemp.FogtempWarning, match="take each run's input rate off its gyro array"):
+        fogtemp.validate(from_manifest, arrays, progress=False)
     assert from_manifest.inspect()["input_rates_subtracted"] is True
     assert not any("input rate" in n for n in with_rates["notes"])
     assert any("input rate taken off its gyro" in n for n in without["notes"])
@@ -276,7 +281,7 @@ def test_a_simulations_manifest_gives_fit_and_validate_the_run_metadata(sim_dir,
     # that its compensated means are then off by its calibration runs' rate.
     plain_model = fogtemp.fit([bare / p.name for p in cal_logs], method="poly", progress=False)
     assert plain_model.inspect()["input_rates_subtracted"] is None
-    with pytest.warns(fogtemp.FogtempWarning, match="records no input rates taken off"):
+    with pytest.warns(fogtemp.FogtempWarning, match="does not record whether its fit took its runs. input rates off"):
         fogtemp.validate(plain_model, val_logs[:2], progress=False)
 
 
@@ -315,6 +320,9 @@ def test_fit_report_is_the_command_lines(cal_logs, tmp_path, cli):
     fogtemp.fit(cal_logs, method="poly", out=out, report=tmp_path / "py", progress=False)
     theirs, mine = files_of(tmp_path / "cli"), files_of(tmp_path / "py")
     assert "fit-report.md" in mine and "fit-report.html" in mine and any(n.endswith(".svg") for n in mine)
+    # The model over temperature (review26b F10), referenced from the report.
+    assert "fit-temperature-axis0.svg" in mine
+    assert "(fit-temperature-axis0.svg)" in mine["fit-report.md"].decode()
     assert sorted(mine) == sorted(theirs)
     for name in theirs:
         assert mine[name] == theirs[name], name
@@ -371,7 +379,7 @@ def test_simulate_document(tmp_path):
     assert not (tmp_path / "SIMULATION-UNFINISHED.txt").exists()
 
 
-def test_logs_of_an_unfinished_simulation_are_warned_of_in_the_documents(cal_logs, tmp_path):
+def test_logs_of_an_unfinished_simulation_are_warned_of_in_the_documents(cal_logs, tmp_path, cli):
     # review30b F7: the warning went to a Python warning only; fit_report and validate's
     # document carry it too, as the command line's --json.
     partial = tmp_path / "partial"
@@ -383,6 +391,11 @@ def test_logs_of_an_unfinished_simulation_are_warned_of_in_the_documents(cal_log
         model = fogtemp.fit(partial, method="poly", progress=False)
     kinds = [w["kind"] for w in model.fit_report["warnings"]]
     assert kinds.count("unfinished_simulation") == 1, kinds
+    # Last, as in the command line's document (review31a F3).
+    done = cli("fit", "--method", "poly", "--json", "--out", tmp_path / "cli.fogm", partial)
+    assert done.returncode == 0, done.stderr
+    assert json.loads(done.stdout)["warnings"] == model.fit_report["warnings"]
+    assert kinds[-1] == "unfinished_simulation"
     with pytest.warns(fogtemp.FogtempWarning, match="SIMULATION-UNFINISHED.txt: the simulation"):
         doc = fogtemp.validate(model, partial, progress=False)
     assert "SIMULATION-UNFINISHED.txt: the simulation" in doc["notes"][-1]

@@ -15,6 +15,7 @@ pub mod cross_validation;
 pub mod data;
 pub mod figures;
 pub mod html;
+pub mod temperature;
 
 pub use cross_validation::{cross_validation_markdown, selection_markdown, CrossValidationRow};
 pub use figures::{plot_drift, plot_grouped_bars, plot_run_bars, BarSeries, DriftRun, RAW_GREY};
@@ -764,6 +765,12 @@ fn insert_before_first_section(dir: &Path, text: &str) -> Result<(), CalError> {
     write_html_beside(&path)
 }
 
+/// The validation report's heading for what `validate` says of the run metadata: the input
+/// rates' note ([`crate::runs::input_rates_note`]) and logs of a simulation that did not
+/// finish (review31a F6: only the terminal and `--json` had them).
+pub const RUN_METADATA_HEADING: &str =
+    "Run metadata (what the mean columns hold; logs of a simulation that did not finish):";
+
 /// Adds `notes` under `heading` to the validation report in `dir`, before its first section
 /// (what the command line said about the runs as a whole: the in-sample note).
 ///
@@ -856,7 +863,7 @@ pub fn write_validation_report_with(
             "White-noise floor: {}\n\n",
             white_noise_floor_explanation(overall_floor, overall.1, options.tau_s)
         ));
-        md.push_str(&format!("Means: {}.\n\n", crate::report::means_meaning(runs)));
+        md.push_str(&format!("Means: {}.\n\n", crate::report::means_meaning(runs, model.input_rates())));
         // How far one run's figure moves with its noise alone (review14 F4: per-run ratios of
         // 0.87-0.96 read as compensation making things worse, within a run's ~8 % scatter).
         md.push_str(
@@ -914,7 +921,7 @@ pub fn write_validation_report_with(
 /// The figures a validation report draws, `{prefix}{axis}.svg`.
 const VALIDATION_FIGURES: [&str; 4] = ["mesh-axis", "drift-axis", "bars-axis", "allan-axis"];
 /// The figures a fit report draws, `{prefix}{axis}.svg`.
-const FIT_FIGURES: [&str; 2] = ["fit-runs-axis", "fit-mesh-axis"];
+const FIT_FIGURES: [&str; 3] = ["fit-runs-axis", "fit-temperature-axis", "fit-mesh-axis"];
 
 /// Removes from `dir` the figures of an earlier report of the same kind (`{prefix}{axis}.svg`
 /// for one of `prefixes`) that `markdown`, the report being written, does not show, so a
@@ -1365,6 +1372,27 @@ pub fn write_fit_report(
                      is the bias alone; the gyro panel shows the gyro less that rate.\n\n"
                 ));
             }
+            let (axis_points, axis_targets): (Vec<&crate::features::FeaturePoint>, Vec<f64>) = runs
+                .iter()
+                .filter_map(|r| r.axes.get(axis))
+                .flat_map(|(p, t)| p.iter().zip(t.iter().copied()))
+                .unzip();
+            let over_temperature = model
+                .axis(axis)
+                .ok()
+                .and_then(|a| temperature::temperature_figure(&a, &axis_points, &axis_targets));
+            if let Some(fig) = over_temperature {
+                let temp_svg = format!("fit-temperature-axis{axis}.svg");
+                temperature::plot_model_over_temperature(
+                    &dir.join(&temp_svg),
+                    &format!("The model over temperature, axis {axis}"),
+                    &fig,
+                )?;
+                md.push_str(&format!(
+                    "![The model against temperature at the calibration points' rates, with their targets, and \
+                     each point's residual]({temp_svg})\n\n"
+                ));
+            }
             let points: Vec<(f64, f64)> = runs
                 .iter()
                 .filter_map(|r| r.axes.get(axis))
@@ -1401,9 +1429,24 @@ fn mean_cell(value_dph: f64) -> String {
 /// What the validation's mean columns are (`validate`'s table and report): each run's mean
 /// output over the metric's span, the bias a constant leaves that bias stability does not
 /// see; less the true input rate where a runs file gave it.
-pub fn means_meaning(runs: &[crate::calibrate::RunValidation]) -> String {
+pub fn means_meaning(
+    runs: &[crate::calibrate::RunValidation],
+    recorded: Option<fogtemp_core::InputRates>,
+) -> String {
     let given = runs.iter().filter(|r| r.input_rate_dph.is_some()).count();
-    let rate = if given == 0 {
+    // The model says what its fit did with the rates (format 8): no conditional then
+    // (review31a F11).
+    let bias_alone = recorded == Some(fogtemp_core::InputRates::Subtracted);
+    let rate = if given == 0 && bias_alone {
+        "it includes the rate the gyro sensed (the Earth rate's share), which a runs file's input_rate_dph \
+         takes off for a model of one axis; the model records that its fit took its runs' rates off (it is the \
+         bias alone), so the compensated mean is the bias it leaves plus the run's rate"
+            .to_string()
+    } else if given == runs.len() && bias_alone {
+        "less the run's input rate from the run metadata (a runs file, or the simulation's manifest.json); the \
+         model records that its fit took its runs' rates off (it is the bias alone)"
+            .to_string()
+    } else if given == 0 {
         "it includes the rate the gyro sensed (the Earth rate's share), which a runs file's \
          input_rate_dph takes off for a model of one axis (a rate is about one input axis); and a \
          model fitted without the runs' rates holds its calibration runs' rate as bias, so a run in \
@@ -1412,8 +1455,8 @@ pub fn means_meaning(runs: &[crate::calibrate::RunValidation]) -> String {
             .to_string()
     } else if given == runs.len() {
         "less the run's input rate from the run metadata (a runs file, or the simulation's manifest.json); \
-         a model fitted without the runs' rates holds its calibration runs' rate as bias, so its compensated \
-         mean here is off by that rate"
+         a model fitted without the runs' rates holds the mean of its calibration runs' rates as bias, so its \
+         compensated mean here is off by that mean"
             .to_string()
     } else {
         format!("less the run's input rate from the run metadata for {given} of {} rows", runs.len())

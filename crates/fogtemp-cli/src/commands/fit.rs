@@ -124,8 +124,6 @@ pub fn fit(a: FitArgs) -> Result<()> {
     );
     let mut warnings = fogtemp_cal::identifiability::fit_warnings(&runs, &config, &a.identifiability());
     warnings.iter().for_each(|w| eprintln!("warning: {}", w.message));
-    // Printed when the logs were chosen; for --json too (review30b F7).
-    warnings.extend(unfinished.into_iter().map(fogtemp_cal::identifiability::Warning::unfinished_simulation));
 
     let selection = SelectionOptions {
         positions,
@@ -213,6 +211,9 @@ pub fn fit(a: FitArgs) -> Result<()> {
         eprintln!("warning: {}", w.message);
         warnings.push(w);
     }
+    // Printed when the logs were chosen; last, for --json and the report too (review30b F7),
+    // as Python's `fit_report` (review31a F3).
+    warnings.extend(unfinished.into_iter().map(fogtemp_cal::identifiability::Warning::unfinished_simulation));
     write_atomic(&a.out, |w| Ok(w.write_all(blob)?))?;
     if let Some(dir) = &a.report {
         // The model is in place by now: a report that fails (a full disk) must say so, or the

@@ -128,12 +128,13 @@ pub fn validate(a: ValidateArgs) -> Result<()> {
         super::warn_if_mostly_gaps(&r.path, &r.series.gaps, r.ingest.rows);
     }
     notes.extend(runs.iter().flat_map(calibrate::RunValidation::notes));
-    notes.extend(fogtemp_cal::runs::input_rates_note(
+    let rates_note = fogtemp_cal::runs::input_rates_note(
         &a.model.display().to_string(),
         model,
         runs,
-        "--runs FILE",
-    ));
+        "give each run's input_rate_dph with --runs FILE",
+    );
+    notes.extend(rates_note.clone());
     let digests = input_digest.finish();
     notes.extend(fogtemp_cal::digest::same_logs_note(&logs, &digests.1));
     let in_sample =
@@ -159,6 +160,12 @@ pub fn validate(a: ValidateArgs) -> Result<()> {
         }
         let in_sample: Vec<String> = in_sample.into_iter().collect();
         fogtemp_cal::report::add_notes_to_validation_report(dir, IN_SAMPLE_HEADING, &in_sample)?;
+        let metadata: Vec<String> = rates_note.into_iter().chain(unfinished.iter().cloned()).collect();
+        fogtemp_cal::report::add_notes_to_validation_report(
+            dir,
+            fogtemp_cal::report::RUN_METADATA_HEADING,
+            &metadata,
+        )?;
         eprintln!("report: {}", dir.join("report.md").display());
     }
     if a.json {
@@ -235,7 +242,7 @@ pub fn validate(a: ValidateArgs) -> Result<()> {
         "floor = white noise alone: {}",
         fogtemp_cal::report::white_noise_floor_explanation(overall_floor, comp, options.tau_s)
     );
-    println!("raw mean, comp mean = {}", fogtemp_cal::report::means_meaning(runs));
+    println!("raw mean, comp mean = {}", fogtemp_cal::report::means_meaning(runs, model.input_rates()));
     if !comparison.is_empty() {
         println!("\nmodels compared on the same logs (overall, RMS over runs):");
         println!(
