@@ -98,6 +98,12 @@ pub fn plot_model_over_temperature(
     );
     let residual_max = fig.points.iter().map(|p| p.2.abs()).filter(|v| v.is_finite()).fold(0.0f64, f64::max);
     let r = if residual_max > 0.0 { residual_max * 1.1 } else { 1.0 };
+    // Few points (a bursty log's dozens) drawn large enough to see, many small.
+    let dot = match fig.points.len() {
+        0..300 => 3,
+        300..1500 => 2,
+        _ => 1,
+    };
     write_svg(path, (1200, 860), |root| {
         root.fill(&WHITE).map_err(|e| plot_err(path, e))?;
         let root = root.titled(title, ("sans-serif", 22)).map_err(|e| plot_err(path, e))?;
@@ -125,7 +131,7 @@ pub fn plot_model_over_temperature(
         shade_beyond(&mut chart, path, x, y, (c0, c1))?;
         chart
             .draw_series(
-                fig.points.iter().map(|p| Circle::new((p.0, p.1), 1, RGBColor(150, 150, 150).filled())),
+                fig.points.iter().map(|p| Circle::new((p.0, p.1), dot, RGBColor(150, 150, 150).filled())),
             )
             .map_err(|e| plot_err(path, e))?;
         for (i, (label, curve)) in fig.curves.iter().enumerate() {
@@ -166,7 +172,7 @@ pub fn plot_model_over_temperature(
             .map_err(|e| plot_err(path, e))?;
         chart
             .draw_series(
-                fig.points.iter().map(|p| Circle::new((p.0, p.2), 1, RGBColor(110, 110, 110).filled())),
+                fig.points.iter().map(|p| Circle::new((p.0, p.2), dot, RGBColor(110, 110, 110).filled())),
             )
             .map_err(|e| plot_err(path, e))?;
         root.present().map_err(|e| plot_err(path, e))
