@@ -1672,7 +1672,10 @@ impl OutsideReach {
         if self.rate_beyond_c_per_min > 0.0 && !self.rate_unused {
             reach.push(rate_reach.clone());
         }
-        let beyond = format!("at most {} (the tracker's features)", reach.join(" and "));
+        // A model without the rate is extrapolated beyond its temperatures only: said where
+        // its other samples are not (review31b F1).
+        let continued = if self.rate_unused { ", where the model is extrapolated" } else { "" };
+        let beyond = format!("at most {} (the tracker's features){continued}", reach.join(" and "));
         let rate_only = format!(
             "at a calibrated temperature, at most {rate_reach}: a rate this model (a polynomial in T alone) does \
              not use, so its value there is the polynomial's own, as inside the region"
@@ -2189,6 +2192,13 @@ impl RunValidation {
                 // All flagged for a rate the model does not use: not "extrapolated".
                 Some(reach) if reach.rate_unused && reach.samples_rate_only == outside => format!(
                     "{name}: {outside} of {} samples ({} %) are flagged OUTSIDE_HULL for their rate alone",
+                    s.samples,
+                    share_percent(outside, s.samples)
+                ),
+                // Some of them: the parts say which are extrapolated (review31b F1).
+                Some(reach) if reach.rate_unused && reach.samples_rate_only > 0 => format!(
+                    "{name}: {outside} of {} samples ({} %) lie outside the model's calibrated (T, dT/dt) region \
+                     (flag OUTSIDE_HULL)",
                     s.samples,
                     share_percent(outside, s.samples)
                 ),
@@ -2764,10 +2774,54 @@ mod tests {
         assert_eq!(
             reach.text(),
             format!(
-                "2 of them at most 0.50 C beyond the calibrated -35.00 .. 62.55 C (the tracker's features); 3 of them \
-                 {rate_only}"
+                "2 of them at most 0.50 C beyond the calibrated -35.00 .. 62.55 C (the tracker's features), where the \
+                 model is extrapolated; 3 of them {rate_only}"
             )
         );
+    }
+
+    #[test]
+    fn a_model_in_t_alone_says_which_flagged_samples_are_extrapolated() {
+        // review31b F1: 2 samples beyond the temperatures and 3 beyond the rates only; the
+        // note's head said "the model is extrapolated there" of all 5.
+        let mut reach = OutsideReach {
+            temp_range_c: (-35.0, 62.55),
+            rate_range_c_per_min: (-0.08, 0.54),
+            rate_unused: true,
+            ..OutsideReach::default()
+        };
+        reach.observe(20.0, 0.6, 3, false);
+        reach.observe(63.05, 0.9, 2, false);
+        let mut series = ReplaySeries {
+            samples: 10,
+            compensating_from_s: 0.0,
+            outside_reach: Some(reach),
+            ..ReplaySeries::default()
+        };
+        series.flag_counts[Flags::OUTSIDE_HULL.0.trailing_zeros() as usize] = 5;
+        let run = RunValidation {
+            path: PathBuf::from("m.csv"),
+            axis: 0,
+            raw_bias_stability_dph: 0.01,
+            compensated_bias_stability_dph: 0.005,
+            series,
+            ingest: IngestReport::default(),
+            raw_mean_dph: f64::NAN,
+            compensated_mean_dph: f64::NAN,
+            input_rate_dph: None,
+            windows: MetricWindows::default(),
+        };
+        let notes = run.coverage_notes();
+        assert_eq!(notes.len(), 1, "{notes:?}");
+        assert!(
+            notes[0].starts_with(
+                "m.csv axis 0: 5 of 10 samples (50.0 %) lie outside the model's calibrated (T, dT/dt) region (flag \
+                 OUTSIDE_HULL): 2 of them at most 0.50 C beyond the calibrated -35.00 .. 62.55 C (the tracker's \
+                 features), where the model is extrapolated; 3 of them at a calibrated temperature"
+            ),
+            "{notes:?}"
+        );
+        assert_eq!(notes[0].matches("extrapolated").count(), 1, "{notes:?}");
     }
 
     #[test]

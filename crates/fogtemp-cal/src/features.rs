@@ -36,6 +36,22 @@ pub struct FeaturePoint {
     pub segment: u32,
 }
 
+#[cfg(test)]
+impl FeaturePoint {
+    /// A full-window point at `(temp_c, rate_c_per_min)`, nothing else set: the unit tests'.
+    pub(crate) fn at(temp_c: f64, rate_c_per_min: f64) -> Self {
+        Self {
+            time_s: 0.0,
+            temp_c,
+            rate_c_per_min,
+            window_full: true,
+            gyro_mean_dph: 0.0,
+            gyro_samples: 1,
+            segment: 0,
+        }
+    }
+}
+
 /// Feature extraction for one axis of one run, fed row by row.
 pub struct AxisFeatureStream {
     tracker: Box<FeatureTracker<CAL_CAPACITY>>,

@@ -1767,15 +1767,7 @@ mod tests {
     fn run_spanning(points: &[(f64, f64)]) -> RunFeatures {
         let features = points
             .iter()
-            .map(|&(temp_c, rate_c_per_min)| crate::features::FeaturePoint {
-                time_s: 0.0,
-                temp_c,
-                rate_c_per_min,
-                window_full: true,
-                gyro_mean_dph: 0.0,
-                gyro_samples: 1,
-                segment: 0,
-            })
+            .map(|&(temp_c, rate_c_per_min)| crate::features::FeaturePoint::at(temp_c, rate_c_per_min))
             .collect();
         RunFeatures {
             path: PathBuf::from("r.csv"),

@@ -873,9 +873,10 @@ pub fn write_validation_report_with(
              better nor worse.\n\n",
         );
         md.push_str(&bullet_section(
-            "Samples the model did not compensate as calibrated (\"outside\": the share of a run's samples flagged \
-             OUTSIDE_HULL, outside the calibrated region, where the model is extrapolated; a polynomial in T alone \
-             only beyond the calibrated temperatures):",
+            "Samples the calibration did not cover or the model did not compensate (\"outside\": the share of a \
+             run's samples flagged OUTSIDE_HULL, outside the calibrated (T, dT/dt) region: a model is extrapolated \
+             there, but a polynomial in T alone only beyond the calibrated temperatures, its value elsewhere its \
+             own):",
             &runs.iter().flat_map(crate::calibrate::RunValidation::coverage_notes).collect::<Vec<_>>(),
         ));
         md.push_str(&bullet_section(
@@ -1383,11 +1384,13 @@ pub fn write_fit_report(
                 .and_then(|a| temperature::temperature_figure(&a, &axis_points, &axis_targets));
             if let Some(fig) = over_temperature {
                 let temp_svg = format!("fit-temperature-axis{axis}.svg");
-                temperature::plot_model_over_temperature(
-                    &dir.join(&temp_svg),
-                    &format!("The model over temperature, axis {axis}"),
-                    &fig,
-                )?;
+                // The gyro column too, where the model records it (review31b F10).
+                let column = model.axis_columns(axis).map(|c| c.gyro).filter(|g| !g.is_empty());
+                let title = match column {
+                    Some(gyro) => format!("The model over temperature, axis {axis} ({gyro})"),
+                    None => format!("The model over temperature, axis {axis}"),
+                };
+                temperature::plot_model_over_temperature(&dir.join(&temp_svg), &title, &fig)?;
                 md.push_str(&format!(
                     "![The model against temperature at the calibration points' rates, with their targets, and \
                      each point's residual]({temp_svg})\n\n"
@@ -1437,7 +1440,14 @@ pub fn means_meaning(
     // The model says what its fit did with the rates (format 8): no conditional then
     // (review31a F11).
     let bias_alone = recorded == Some(fogtemp_core::InputRates::Subtracted);
-    let rate = if given == 0 && bias_alone {
+    let left_in = recorded == Some(fogtemp_core::InputRates::NotSubtracted);
+    let rate = if left_in {
+        format!(
+            "{}the model records that its fit left its runs' input rates in (several gyro columns), so it holds \
+             the mean of its calibration runs' rates as bias and each compensated mean is off by that mean",
+            if given > 0 { "less the run's input rate from the run metadata for the rows that give it; " } else { "" }
+        )
+    } else if given == 0 && bias_alone {
         "it includes the rate the gyro sensed (the Earth rate's share), which a runs file's input_rate_dph \
          takes off for a model of one axis; the model records that its fit took its runs' rates off (it is the \
          bias alone), so the compensated mean is the bias it leaves plus the run's rate"
@@ -1449,9 +1459,9 @@ pub fn means_meaning(
     } else if given == 0 {
         "it includes the rate the gyro sensed (the Earth rate's share), which a runs file's \
          input_rate_dph takes off for a model of one axis (a rate is about one input axis); and a \
-         model fitted without the runs' rates holds its calibration runs' rate as bias, so a run in \
-         another position shows the difference of the two (twice the Earth rate's share in the \
-         opposite position)"
+         model fitted without the runs' rates holds the mean of its calibration runs' rates as bias, so \
+         a run's compensated mean is its own rate less that mean (twice the Earth rate's share for a \
+         model of one position validated in the opposite one)"
             .to_string()
     } else if given == runs.len() {
         "less the run's input rate from the run metadata (a runs file, or the simulation's manifest.json); \
@@ -1470,6 +1480,42 @@ pub fn means_meaning(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// review31b F6, F7, F11: the legend of the mean columns says what the model records of
+    /// its runs' input rates, for runs with and without rates.
+    #[test]
+    fn the_means_legend_says_what_the_model_records() {
+        use fogtemp_core::InputRates;
+        let run = |rate: Option<f64>| crate::calibrate::RunValidation {
+            path: "r.csv".into(),
+            axis: 0,
+            raw_bias_stability_dph: 0.01,
+            compensated_bias_stability_dph: 0.005,
+            series: Default::default(),
+            ingest: Default::default(),
+            raw_mean_dph: 0.0,
+            compensated_mean_dph: 0.0,
+            input_rate_dph: rate,
+            windows: Default::default(),
+        };
+        let (with, without) = ([run(Some(9.67)), run(Some(-9.67))], [run(None), run(None)]);
+        let alone = Some(InputRates::Subtracted);
+        let legend = means_meaning(&with, alone);
+        assert!(
+            legend.contains("records that its fit took its runs' rates off")
+                && !legend.contains("fitted without")
+        );
+        assert!(means_meaning(&with, None).contains("holds the mean of its calibration runs' rates as bias"));
+        assert!(means_meaning(&without, alone).contains("plus the run's rate"));
+        assert!(means_meaning(&without, None).contains("its own rate less that mean"));
+        let left = means_meaning(&without, Some(InputRates::NotSubtracted));
+        assert!(
+            left.contains("left its runs' input rates in") && !left.contains("less the run's input rate"),
+            "{left}"
+        );
+        let left = means_meaning(&with, Some(InputRates::NotSubtracted));
+        assert!(left.contains("less the run's input rate from the run metadata for the rows"), "{left}");
+    }
 
     /// Lab names lose what every one shares, cut at separators; short names (the testbed's)
     /// and names that would not stay apart are kept (ends around an ellipsis when long).

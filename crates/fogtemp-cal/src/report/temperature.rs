@@ -18,11 +18,15 @@ pub struct TemperatureFigure {
     /// Calibration points: temperature (deg C), target and residual (deg/h), at most
     /// [`MAX_POINTS`] of them, evenly taken.
     pub points: Vec<(f64, f64, f64)>,
-    /// The model's curves: label, then (temperature, value) pairs in increasing temperature.
-    pub curves: Vec<(String, Vec<(f64, f64)>)>,
+    /// The model's curves: label, then its points in increasing temperature.
+    pub curves: Vec<(String, Vec<CurvePoint>)>,
     /// The calibrated temperature range (the model's provenance), deg C.
     pub calibrated_c: (f64, f64),
 }
+
+/// A point of a model curve: temperature (deg C), value (deg/h), and whether it lies outside
+/// the calibrated region (the core's `outside_hull`, flag OUTSIDE_HULL).
+pub type CurvePoint = (f64, f64, bool);
 
 /// Points drawn at most (an SVG of every point of a long campaign would be megabytes).
 pub const MAX_POINTS: usize = 4000;
@@ -42,8 +46,10 @@ pub fn temperature_figure(
         return None;
     }
     let mut hint = fogtemp_core::WalkHint::default();
-    let mut value = |temp_c: f64, rate: f64| {
-        axis.evaluate(temp_c as f32, rate as f32, &mut hint).map_or(f64::NAN, |e| f64::from(e.value_dph))
+    // The value and whether the point is outside the calibrated region (flag OUTSIDE_HULL).
+    let mut evaluate = |temp_c: f64, rate: f64| {
+        axis.evaluate(temp_c as f32, rate as f32, &mut hint)
+            .map_or((f64::NAN, true), |e| (f64::from(e.value_dph), e.outside_hull))
     };
     let step = points.len().div_ceil(MAX_POINTS).max(1);
     let drawn = points
@@ -51,17 +57,20 @@ pub fn temperature_figure(
         .zip(targets)
         .step_by(step)
         .filter(|(p, target)| p.temp_c.is_finite() && target.is_finite())
-        .map(|(p, &target)| (p.temp_c, target, target - value(p.temp_c, p.rate_c_per_min)))
+        .map(|(p, &target)| (p.temp_c, target, target - evaluate(p.temp_c, p.rate_c_per_min).0))
         .collect();
     let margin = (t1 - t0) / 6.0;
     let temps: Vec<f64> = (0..=CURVE_STEPS)
         .map(|k| t0 - margin + (t1 - t0 + 2.0 * margin) * k as f64 / CURVE_STEPS as f64)
         .collect();
-    let curve = |rate: f64, value: &mut dyn FnMut(f64, f64) -> f64| {
-        temps.iter().map(|&t| (t, value(t, rate))).collect()
+    let mut curve = |rate: f64| -> Vec<CurvePoint> {
+        temps.iter().map(|&t| (t, evaluate(t, rate))).map(|(t, (v, outside))| (t, v, outside)).collect()
     };
     let curves = if crate::calibrate::ignores_rate(axis) {
-        vec![("the model (no dT/dt term)".to_string(), curve(0.0, &mut value))]
+        // At a rate inside the calibrated ones: the curve is flagged beyond the temperatures
+        // alone.
+        let rate = 0.5 * f64::from(axis.provenance.rate_min_c_per_min + axis.provenance.rate_max_c_per_min);
+        vec![("the model (no dT/dt term)".to_string(), curve(rate))]
     } else {
         let mut rates: Vec<f64> = points.iter().map(|p| p.rate_c_per_min).filter(|r| r.is_finite()).collect();
         rates.sort_by(f64::total_cmp);
@@ -70,10 +79,7 @@ pub fn temperature_figure(
             .into_iter()
             .filter_map(|(q, name)| at(q).map(|r| (name, r)))
             .map(|(name, r)| {
-                (
-                    format!("the model at dT/dt = {r:.3} C/min (the points' {name} percentile)"),
-                    curve(r, &mut value),
-                )
+                (format!("the model at dT/dt = {r:.3} C/min (the points' {name} percentile)"), curve(r))
             })
             .collect()
     };
@@ -109,8 +115,15 @@ pub fn plot_model_over_temperature(
         let root = root.titled(title, ("sans-serif", 22)).map_err(|e| plot_err(path, e))?;
         let root = root
             .titled(
-                "grey: the calibration points' smoothed gyro targets; shaded: beyond the calibrated temperatures, \
-                 where the model is continued",
+                "grey: the calibration points' smoothed gyro targets; a curve is faint where its (T, dT/dt) lies \
+                 outside the calibrated region (flag OUTSIDE_HULL)",
+                ("sans-serif", 14),
+            )
+            .map_err(|e| plot_err(path, e))?;
+        let root = root
+            .titled(
+                "shaded: beyond the calibrated temperatures (those of full tracker windows), where the model is \
+                 continued",
                 ("sans-serif", 14),
             )
             .map_err(|e| plot_err(path, e))?;
@@ -124,7 +137,7 @@ pub fn plot_model_over_temperature(
         chart
             .configure_mesh()
             .x_desc("temperature, deg C")
-            .y_desc("bias, deg/h")
+            .y_desc("model value and targets, deg/h")
             .y_label_formatter(&tick)
             .draw()
             .map_err(|e| plot_err(path, e))?;
@@ -136,18 +149,31 @@ pub fn plot_model_over_temperature(
             .map_err(|e| plot_err(path, e))?;
         for (i, (label, curve)) in fig.curves.iter().enumerate() {
             let colour = run_colour(i);
+            // Solid inside the calibrated region, faint outside it (review31b F3).
+            for (outside, segment) in segments(curve) {
+                let style = if outside { colour.mix(0.35).stroke_width(1) } else { colour.stroke_width(2) };
+                chart.draw_series(LineSeries::new(segment, style)).map_err(|e| plot_err(path, e))?;
+            }
             chart
-                .draw_series(LineSeries::new(
-                    curve.iter().copied().filter(|p| p.1.is_finite()),
-                    colour.stroke_width(2),
-                ))
+                .draw_series(LineSeries::new(std::iter::empty::<(f64, f64)>(), colour.stroke_width(2)))
                 .map_err(|e| plot_err(path, e))?
                 .label(label.as_str())
                 .legend(move |(px, py)| {
                     PathElement::new(vec![(px, py), (px + 20, py)], colour.stroke_width(2))
                 });
         }
-        draw_legend_at(&mut chart, path, SeriesLabelPosition::UpperLeft)?;
+        // The legend where the first curve leaves room: the upper left above a rising one
+        // (review31b F8: it hid the start of a falling one).
+        let rising = fig.curves.first().and_then(|(_, c)| {
+            let finite: Vec<f64> = c.iter().map(|p| p.1).filter(|v| v.is_finite()).collect();
+            Some(finite.first()? <= finite.last()?)
+        });
+        let corner = if rising == Some(false) {
+            SeriesLabelPosition::UpperRight
+        } else {
+            SeriesLabelPosition::UpperLeft
+        };
+        draw_legend_at(&mut chart, path, corner)?;
 
         let mut chart = ChartBuilder::on(&bottom)
             .margin(10)
@@ -177,6 +203,23 @@ pub fn plot_model_over_temperature(
             .map_err(|e| plot_err(path, e))?;
         root.present().map_err(|e| plot_err(path, e))
     })
+}
+
+/// A curve cut where its flag changes, each piece with its flag, finite values only; the
+/// pieces share their end points, so the line is unbroken.
+fn segments(curve: &[CurvePoint]) -> Vec<(bool, Vec<(f64, f64)>)> {
+    let mut pieces: Vec<(bool, Vec<(f64, f64)>)> = Vec::new();
+    for &(t, v, outside) in curve.iter().filter(|p| p.1.is_finite()) {
+        match pieces.last_mut() {
+            Some((flag, piece)) if *flag == outside => piece.push((t, v)),
+            Some((_, piece)) => {
+                let joint = piece.last().copied();
+                pieces.push((outside, joint.into_iter().chain([(t, v)]).collect()));
+            }
+            None => pieces.push((outside, vec![(t, v)])),
+        }
+    }
+    pieces
 }
 
 /// Shades the parts of the x range `x` beyond the calibrated temperatures `(c0, c1)`.
@@ -210,15 +253,7 @@ mod tests {
     }
 
     fn point(temp_c: f64, rate_c_per_min: f64) -> FeaturePoint {
-        FeaturePoint {
-            time_s: 0.0,
-            temp_c,
-            rate_c_per_min,
-            window_full: true,
-            gyro_mean_dph: 0.0,
-            gyro_samples: 1,
-            segment: 0,
-        }
+        FeaturePoint::at(temp_c, rate_c_per_min)
     }
 
     /// Oracle: the closed form of the polynomial (identity normalisation, extrapolated).
@@ -248,7 +283,7 @@ mod tests {
                 (curve[0].0 + 50.0 + 100.0 / 6.0).abs() < 1e-9
                     && (curve[CURVE_STEPS].0 - 50.0 - 100.0 / 6.0).abs() < 1e-9
             );
-            assert!(curve.iter().all(|&(t, v)| (v - closed(t, rate)).abs() < 1e-5), "{label}");
+            assert!(curve.iter().all(|&(t, v, _)| (v - closed(t, rate)).abs() < 1e-5), "{label}");
         }
         // A model without dT/dt: one curve.
         let blob = test_blob(test_poly_axis(vec![term(0, 0, 0.5), term(1, 0, 0.01)]));
@@ -258,6 +293,26 @@ mod tests {
         assert!(fig.curves[0].0.contains("no dT/dt term"));
         // No points: no figure.
         assert!(temperature_figure(&model.axis(0).expect("axis"), &[], &[]).is_none());
+    }
+
+    #[test]
+    fn a_curve_is_cut_where_it_leaves_the_region_and_stays_unbroken() {
+        let curve = [
+            (0.0, 1.0, true),
+            (1.0, 2.0, false),
+            (2.0, f64::NAN, false),
+            (3.0, 3.0, false),
+            (4.0, 4.0, true),
+        ];
+        assert_eq!(
+            segments(&curve),
+            vec![
+                (true, vec![(0.0, 1.0)]),
+                (false, vec![(0.0, 1.0), (1.0, 2.0), (3.0, 3.0)]),
+                (true, vec![(3.0, 3.0), (4.0, 4.0)]),
+            ]
+        );
+        assert!(segments(&[]).is_empty());
     }
 
     #[test]
