@@ -322,17 +322,25 @@ impl RunFeatures {
 }
 
 /// Subtracts each run's true input rate (`rates_dph`, one per run, in order) from its gyro
-/// ([`RunFeatures::subtract_input_rate`]) when the logs have one gyro axis: a runs file gives
-/// one rate per run, about the input axis. Returns what was done, as the blob records it
-/// ([`CalibrationConfig::input_rates`]): not subtracted with several axes.
-pub fn subtract_input_rates(runs: &mut [RunFeatures], rates_dph: &[f64], axes: usize) -> InputRates {
-    if axes != 1 {
-        return InputRates::NotSubtracted;
-    }
-    for (run, &rate) in runs.iter_mut().zip(rates_dph) {
-        run.subtract_input_rate(0, rate);
-    }
-    InputRates::Subtracted
+/// ([`RunFeatures::subtract_input_rate`]) when `config`'s logs have one gyro column: a runs
+/// file gives one rate per run, about the input axis. Records what was done in
+/// [`CalibrationConfig::input_rates`], for the blob (not subtracted with several columns),
+/// and returns it.
+pub fn subtract_input_rates(
+    runs: &mut [RunFeatures],
+    rates_dph: &[f64],
+    config: &mut CalibrationConfig,
+) -> InputRates {
+    let done = if config.ingest.format.gyro_columns.len() == 1 {
+        for (run, &rate) in runs.iter_mut().zip(rates_dph) {
+            run.subtract_input_rate(0, rate);
+        }
+        InputRates::Subtracted
+    } else {
+        InputRates::NotSubtracted
+    };
+    config.input_rates = Some(done);
+    done
 }
 
 /// The warning for a log most of whose steps between rows are gaps longer than the tracker's
@@ -2753,15 +2761,20 @@ mod tests {
         );
     }
 
-    #[test]
-    fn a_model_in_t_alone_is_not_called_extrapolated_at_a_rate_beyond_its_calibration() {
-        // review26b F4: a cubic in T flagged OUTSIDE_HULL for a rate it does not use.
-        let mut reach = OutsideReach {
+    /// The reach of a model without dT/dt over -35 .. 62.55 C and -0.08 .. 0.54 C/min.
+    fn t_alone_reach() -> OutsideReach {
+        OutsideReach {
             temp_range_c: (-35.0, 62.55),
             rate_range_c_per_min: (-0.08, 0.54),
             rate_unused: true,
             ..OutsideReach::default()
-        };
+        }
+    }
+
+    #[test]
+    fn a_model_in_t_alone_is_not_called_extrapolated_at_a_rate_beyond_its_calibration() {
+        // review26b F4: a cubic in T flagged OUTSIDE_HULL for a rate it does not use.
+        let mut reach = t_alone_reach();
         reach.observe(20.0, 0.6, 3, false);
         let rate_only = "at a calibrated temperature, at most 0.0600 C/min beyond the calibrated -0.0800 .. 0.5400 \
                          C/min: a rate this model (a polynomial in T alone) does not use, so its value there is the \
@@ -2784,12 +2797,7 @@ mod tests {
     fn a_model_in_t_alone_says_which_flagged_samples_are_extrapolated() {
         // review31b F1: 2 samples beyond the temperatures and 3 beyond the rates only; the
         // note's head said "the model is extrapolated there" of all 5.
-        let mut reach = OutsideReach {
-            temp_range_c: (-35.0, 62.55),
-            rate_range_c_per_min: (-0.08, 0.54),
-            rate_unused: true,
-            ..OutsideReach::default()
-        };
+        let mut reach = t_alone_reach();
         reach.observe(20.0, 0.6, 3, false);
         reach.observe(63.05, 0.9, 2, false);
         let mut series = ReplaySeries {

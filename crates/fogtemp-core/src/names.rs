@@ -281,31 +281,19 @@ pub(crate) fn axis_columns(body: &[u8], offset: usize, index: usize) -> Option<A
 /// The log-time record of a validated section at `offset` with `axis_count` axes (`None`
 /// when it records nothing: no time column and no rate).
 pub(crate) fn log_time(body: &[u8], offset: usize, axis_count: u16) -> Option<LogTime<'_>> {
-    let mut at = section_start(body, offset).ok()?;
-    for _ in 0..axis_count {
-        at = record_at(body, at, 0).ok()?.1;
-    }
-    let (time, _) = log_time_at(body, at).ok()?;
+    let (time, _) = log_time_at(body, after_axes(body, offset, axis_count)?).ok()?;
     (!time.column.is_empty() || time.sample_rate_hz > 0.0).then_some(time)
 }
 
 /// The log-reading record of a validated version-6 section at `offset` with `axis_count` axes.
 pub(crate) fn log_reading(body: &[u8], offset: usize, axis_count: u16) -> Option<LogReading<'_>> {
-    let mut at = section_start(body, offset).ok()?;
-    for _ in 0..axis_count {
-        at = record_at(body, at, 0).ok()?.1;
-    }
-    let at = log_time_at(body, at).ok()?.1;
+    let at = log_time_at(body, after_axes(body, offset, axis_count)?).ok()?.1;
     log_reading_at(body, at).ok().map(|(reading, _)| reading)
 }
 
 /// The log-shape record of a validated version-7 section at `offset` with `axis_count` axes.
 pub(crate) fn log_shape(body: &[u8], offset: usize, axis_count: u16) -> Option<LogShape<'_>> {
-    let mut at = section_start(body, offset).ok()?;
-    for _ in 0..axis_count {
-        at = record_at(body, at, 0).ok()?.1;
-    }
-    let at = log_time_at(body, at).ok()?.1;
+    let at = log_time_at(body, after_axes(body, offset, axis_count)?).ok()?.1;
     let at = log_reading_at(body, at).ok()?.1;
     log_shape_at(body, at).ok().map(|(shape, _)| shape)
 }
@@ -313,14 +301,20 @@ pub(crate) fn log_shape(body: &[u8], offset: usize, axis_count: u16) -> Option<L
 /// The run-metadata record of a validated version-8 section at `offset` with `axis_count`
 /// axes.
 pub(crate) fn input_rates(body: &[u8], offset: usize, axis_count: u16) -> Option<InputRates> {
+    let at = log_time_at(body, after_axes(body, offset, axis_count)?).ok()?.1;
+    let at = log_reading_at(body, at).ok()?.1;
+    let at = log_shape_at(body, at).ok()?.1;
+    input_rates_at(body, at).ok().map(|(rates, _)| rates)
+}
+
+/// Where the records after the axes' column records start in a validated section at
+/// `offset` with `axis_count` axes.
+fn after_axes(body: &[u8], offset: usize, axis_count: u16) -> Option<usize> {
     let mut at = section_start(body, offset).ok()?;
     for _ in 0..axis_count {
         at = record_at(body, at, 0).ok()?.1;
     }
-    let at = log_time_at(body, at).ok()?.1;
-    let at = log_reading_at(body, at).ok()?.1;
-    let at = log_shape_at(body, at).ok()?.1;
-    input_rates_at(body, at).ok().map(|(rates, _)| rates)
+    Some(at)
 }
 
 /// The run-metadata record at `at` and where it ends.

@@ -435,9 +435,8 @@ pub fn fit(
             // left out at a time, each run's input rate taken from its gyro (one-gyro logs).
             let rates: Vec<f64> = rows.iter().map(|r| r.input_rate_dph).collect();
             let axes = config.ingest.format.gyro_columns.len();
-            let done = calibrate::subtract_input_rates(&mut runs, &rates, axes);
-            config.input_rates = Some(done);
-            let subtracted = done == fogtemp_core::InputRates::Subtracted;
+            let subtracted = calibrate::subtract_input_rates(&mut runs, &rates, &mut config)
+                == fogtemp_core::InputRates::Subtracted;
             if !subtracted {
                 // As the command line says it (review30a F7).
                 progress::warn(
@@ -550,11 +549,9 @@ fn interruptible_fit(
     fitted.map_err(errors::cal)
 }
 
-/// What [`file_runs`] reads: each kept log's features, the logs' digest and, with a runs
-/// file, each kept log's row.
-/// The features, the input digest and, with run metadata, its source and each kept log's row.
-/// A file fit's runs, input digest, run metadata (source and rows) and the run metadata's
-/// warnings (logs of an unfinished simulation, warned already).
+/// What [`file_runs`] reads: each kept log's features, the input digest, with run metadata
+/// its source and each kept log's row, and the run metadata's warnings (logs of an unfinished
+/// simulation, warned already).
 type FileRuns =
     (Vec<RunFeatures>, [u8; 32], Option<(String, Vec<fogtemp_cal::runs::RunMetadata>)>, Vec<String>);
 

@@ -350,9 +350,8 @@ fn subtract_input_rates(
 ) -> Option<RunMetadataDocument> {
     let (Some(rates), Some(positions), Some(source)) = (rates_dph, positions, source) else { return None };
     let axes = config.ingest.format.gyro_columns.len();
-    let done = calibrate::subtract_input_rates(runs, rates, axes);
-    config.input_rates = Some(done);
-    let subtracted = done == fogtemp_core::InputRates::Subtracted;
+    let subtracted =
+        calibrate::subtract_input_rates(runs, rates, config) == fogtemp_core::InputRates::Subtracted;
     if subtracted {
         eprintln!("note: each run's input_rate_dph from {source} is subtracted from its gyro: the model is the bias alone");
     } else {
