@@ -708,6 +708,20 @@ fn short_log_and_model(dir: &Path, method: &str, model_name: &str) -> (PathBuf, 
     (ok, lines, model)
 }
 
+/// A log's lines with a second gyro column, `gyro2`, a copy of the last column.
+fn with_second_gyro<'a>(lines: impl Iterator<Item = &'a str>) -> Vec<String> {
+    lines
+        .enumerate()
+        .map(|(i, l)| {
+            if i == 0 {
+                format!("{l},gyro2")
+            } else {
+                format!("{l},{}", l.rsplit(',').next().unwrap_or("0"))
+            }
+        })
+        .collect()
+}
+
 fn write_lines(path: &Path, lines: &[String]) {
     fs::write(path, lines.join("\n") + "\n").expect("write log");
 }
@@ -1313,17 +1327,7 @@ fn run_with_stdout_closed(args: Vec<OsString>) -> (std::process::ExitStatus, Str
 fn a_model_and_a_log_of_different_axis_counts_are_warned() {
     let dir = TempDir::new().expect("tempdir");
     let (ok, lines) = short_log(dir.path(), "ok.csv");
-    let two: Vec<String> = lines
-        .iter()
-        .enumerate()
-        .map(|(k, l)| {
-            if k == 0 {
-                format!("{l},gyro2")
-            } else {
-                format!("{l},{}", l.rsplit(',').next().unwrap_or("0"))
-            }
-        })
-        .collect();
+    let two = with_second_gyro(lines.iter().map(String::as_str));
     let two_log = dir.path().join("two.csv");
     write_lines(&two_log, &two);
     let model = dir.path().join("two.fogm");
@@ -2602,17 +2606,7 @@ fn rates_left_in_for_two_gyro_columns_are_recorded_and_noted() {
         let one = dir.path().join(format!("one{k}.csv"));
         write_warmup(&one, start_c, 20.0, 40 + k as u64);
         let text = fs::read_to_string(&one).expect("read");
-        let two: Vec<String> = text
-            .lines()
-            .enumerate()
-            .map(|(i, l)| {
-                if i == 0 {
-                    format!("{l},gyro2")
-                } else {
-                    format!("{l},{}", l.rsplit(',').next().unwrap_or("0"))
-                }
-            })
-            .collect();
+        let two = with_second_gyro(text.lines());
         let log = dir.path().join(format!("two{k}.csv"));
         write_lines(&log, &two);
         logs.push(log);

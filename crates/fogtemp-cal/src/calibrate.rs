@@ -2761,6 +2761,23 @@ mod tests {
         );
     }
 
+    /// A validated run of axis 0 of `path` with `series` and a defined compensated figure:
+    /// what its coverage notes need.
+    fn run_of_series(path: &str, series: ReplaySeries) -> RunValidation {
+        RunValidation {
+            path: PathBuf::from(path),
+            axis: 0,
+            raw_bias_stability_dph: f64::NAN,
+            compensated_bias_stability_dph: 0.001,
+            series,
+            ingest: IngestReport::default(),
+            raw_mean_dph: f64::NAN,
+            compensated_mean_dph: f64::NAN,
+            input_rate_dph: None,
+            windows: MetricWindows::default(),
+        }
+    }
+
     /// The reach of a model without dT/dt over -35 .. 62.55 C and -0.08 .. 0.54 C/min.
     fn t_alone_reach() -> OutsideReach {
         OutsideReach {
@@ -2807,18 +2824,7 @@ mod tests {
             ..ReplaySeries::default()
         };
         series.flag_counts[Flags::OUTSIDE_HULL.0.trailing_zeros() as usize] = 5;
-        let run = RunValidation {
-            path: PathBuf::from("m.csv"),
-            axis: 0,
-            raw_bias_stability_dph: 0.01,
-            compensated_bias_stability_dph: 0.005,
-            series,
-            ingest: IngestReport::default(),
-            raw_mean_dph: f64::NAN,
-            compensated_mean_dph: f64::NAN,
-            input_rate_dph: None,
-            windows: MetricWindows::default(),
-        };
+        let run = run_of_series("m.csv", series);
         let notes = run.coverage_notes();
         assert_eq!(notes.len(), 1, "{notes:?}");
         assert!(
@@ -3486,18 +3492,7 @@ mod tests {
         let reach = series.outside_reach.expect("reach");
         assert!(flagged > 0 && reach.samples_rate_only == flagged && reach.samples_beyond == 0, "{reach:?}");
         assert!((reach.rate_beyond_c_per_min - 0.02).abs() < 1e-3, "{reach:?}");
-        let run = RunValidation {
-            path: PathBuf::from("fast.csv"),
-            axis: 0,
-            raw_bias_stability_dph: f64::NAN,
-            compensated_bias_stability_dph: 0.001,
-            series,
-            ingest: IngestReport::default(),
-            raw_mean_dph: f64::NAN,
-            compensated_mean_dph: f64::NAN,
-            input_rate_dph: None,
-            windows: MetricWindows::default(),
-        };
+        let run = run_of_series("fast.csv", series);
         let notes = run.coverage_notes();
         assert_eq!(notes.len(), 1, "{notes:?}");
         assert!(notes[0].starts_with(&format!("fast.csv axis 0: {flagged} of ")), "{notes:?}");
