@@ -2000,7 +2000,7 @@ fn uncalibrated_samples_are_noted_with_their_count() {
     write_warmup(&hot, 60.0, 3.0, 8);
     let out = dir.path().join("hot_out.csv");
     let rows = lines.len() - 1;
-    let mut counts = Vec::new();
+    let (mut counts, mut notes) = (Vec::new(), Vec::new());
     for args in [
         args!["validate", "--model", &model, &hot],
         args!["compensate", "--model", &model, &hot, "--out", &out],
@@ -2021,7 +2021,19 @@ fn uncalibrated_samples_are_noted_with_their_count() {
             .expect("count");
         assert!(count > rows as u64 / 2 && count < rows as u64, "{note}");
         counts.push(count);
+        notes.push(note);
     }
+    // Both say how far the samples reach, in the same words (compensate's said only
+    // "extrapolated" until 2026-11-30); only where the flag is seen differs.
+    assert!(
+        notes[0].contains("all of them at most ") && notes[0].contains(" C beyond the calibrated "),
+        "{notes:?}"
+    );
+    assert_eq!(
+        notes[0].replace("(flag OUTSIDE_HULL)", "(flag OUTSIDE_HULL in the output)"),
+        notes[1],
+        "validate's and compensate's notes"
+    );
     // The oracle: the compensated output's own flags (bit 2, OUTSIDE_HULL), row by row.
     let text = fs::read_to_string(&out).expect("read");
     let flagged = text

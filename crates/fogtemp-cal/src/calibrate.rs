@@ -529,8 +529,10 @@ fn bad_input_note(name: &str, bad: u64, samples: u64, output: &str, sources: &Ba
 /// The notes on one axis's compensated output (`compensate`, Python's `Model.compensate`)
 /// from how many of its `samples` carried each flag bit (`flag_counts[bit]`): that nothing
 /// was corrected (with `never_consequence`, and then nothing else), and the shares of samples
-/// flagged `BAD_INPUT`, `TEMP_STALE` and `OUTSIDE_HULL`; `name` names the axis, `output` the
-/// place of the flags ("the output", "flags"); `sources` where the `BAD_INPUT` samples can come from.
+/// flagged `BAD_INPUT`, `TEMP_STALE` and `OUTSIDE_HULL` (with how far those reach, `reach`,
+/// from an [`OutsideWatch`]); `name` names the axis, `output` the place of the flags ("the
+/// output", "flags"); `sources` where the `BAD_INPUT` samples can come from.
+#[allow(clippy::too_many_arguments)] // two call sites, each with the replay's results
 pub fn compensation_notes(
     name: &str,
     flag_counts: &[u64; 8],
@@ -539,6 +541,7 @@ pub fn compensation_notes(
     output: &str,
     never_consequence: &str,
     sources: &BadInputSources,
+    reach: Option<&OutsideReach>,
 ) -> Vec<String> {
     use fogtemp_core::Flags;
     let count = |flag: Flags| flag_counts[flag.0.trailing_zeros() as usize & 7];
@@ -559,7 +562,7 @@ pub fn compensation_notes(
         notes.push(stale_temperature_note(name, stale, samples, max_gap_s, &flagged));
     }
     if outside > 0 {
-        notes.push(outside_region_note(name, outside, samples, &format!("flag OUTSIDE_HULL in {output}")));
+        notes.push(outside_note(name, outside, samples, reach, &format!("flag OUTSIDE_HULL in {output}")));
     }
     notes
 }
@@ -1681,8 +1684,13 @@ impl OutsideReach {
             reach.push(rate_reach.clone());
         }
         // A model without the rate is extrapolated beyond its temperatures only: said where
-        // its other samples are not (review31b F1).
-        let continued = if self.rate_unused { ", where the model is extrapolated" } else { "" };
+        // its other samples are not (review31b F1); the note's head says it when they are all
+        // beyond.
+        let continued = if self.rate_unused && self.samples_rate_only > 0 {
+            ", where the model is extrapolated"
+        } else {
+            ""
+        };
         let beyond = format!("at most {} (the tracker's features){continued}", reach.join(" and "));
         let rate_only = format!(
             "at a calibrated temperature, at most {rate_reach}: a rate this model (a polynomial in T alone) does \
@@ -1706,6 +1714,108 @@ impl OutsideReach {
         .filter(|(samples, _)| *samples > 0)
         .collect()
     }
+}
+
+/// Follows a replay's samples flagged `OUTSIDE_HULL` on one model axis, at the tracker's
+/// features as the compensator flagged each, into an [`OutsideReach`] (`validate`, and since
+/// 2026-11-30 `compensate` and Python's `Model.compensate`, whose note said "extrapolated" of
+/// samples a polynomial in T alone is flagged for by their rate alone).
+pub struct OutsideWatch<'m> {
+    /// `None` when the model records no calibrated ranges to measure against.
+    reach: Option<OutsideReach>,
+    /// The features at the last sample flagged and whether they lie in the region: features
+    /// change once per tracker block, so a run of flagged samples tests the region once.
+    last: Option<(f32, f32, bool)>,
+    /// The calibrated region of an axis with a mesh and the plane it is drawn in (a
+    /// polynomial alone is flagged only outside the region).
+    region: Option<(fogtemp_core::Region<'m>, Normalisation)>,
+}
+
+impl<'m> OutsideWatch<'m> {
+    /// A watch on axis `axis` of `model`, against its recorded ranges and region.
+    pub fn new(model: &'m Model<'_>, axis: usize) -> Self {
+        let axis = model.axis(axis).ok();
+        let reach = axis.as_ref().map(|a| OutsideReach {
+            temp_range_c: (f64::from(a.provenance.temp_min_c), f64::from(a.provenance.temp_max_c)),
+            rate_range_c_per_min: (
+                f64::from(a.provenance.rate_min_c_per_min),
+                f64::from(a.provenance.rate_max_c_per_min),
+            ),
+            rate_unused: ignores_rate(a),
+            ..OutsideReach::default()
+        });
+        let region = axis.filter(|a| a.mesh.is_some()).and_then(|a| Some((a.region?, a.normalisation)));
+        Self { reach, last: None, region }
+    }
+
+    /// Counts one sample flagged outside, at the tracker's `features` when it was flagged
+    /// (nothing without features: the compensator flags none then).
+    pub fn observe(&mut self, features: Option<fogtemp_core::Features>) {
+        let Some(f) = features else { return };
+        let in_region = match self.last {
+            Some((temp_c, rate_c_per_min, inside))
+                if temp_c == f.temp_c && rate_c_per_min == f.rate_c_per_min =>
+            {
+                inside
+            }
+            _ => {
+                let inside = self.region.is_some_and(|(region, normalisation)| {
+                    let (x, y) = normalisation.apply(f.temp_c, f.rate_c_per_min);
+                    region.contains(x, y)
+                });
+                self.last = Some((f.temp_c, f.rate_c_per_min, inside));
+                inside
+            }
+        };
+        if let Some(reach) = self.reach.as_mut() {
+            reach.observe(f64::from(f.temp_c), f64::from(f.rate_c_per_min), 1, in_region);
+        }
+    }
+
+    /// The reach of the samples counted so far.
+    pub fn reach(&self) -> Option<&OutsideReach> {
+        self.reach.as_ref()
+    }
+}
+
+/// The note on `outside` of `samples` samples flagged outside the calibrated region, with how
+/// far they reach when it is known (`flagged` says where the flag is seen: "flag
+/// OUTSIDE_HULL", "flag OUTSIDE_HULL in the output"). Samples a polynomial in T alone flags
+/// for their rate alone are not called extrapolated (review26b F4), nor, without "outside the
+/// region", are samples inside the region beyond a mesh's nodes.
+pub fn outside_note(
+    name: &str,
+    outside: u64,
+    samples: u64,
+    reach: Option<&OutsideReach>,
+    flagged: &str,
+) -> String {
+    let share = share_percent(outside, samples);
+    let mut note = match reach {
+        // All flagged for a rate the model does not use: not "extrapolated".
+        Some(reach) if reach.rate_unused && reach.samples_rate_only == outside => {
+            format!("{name}: {outside} of {samples} samples ({share} %) are {flagged_for} for their rate alone", flagged_for = flagged_as(flagged))
+        }
+        // Some of them: the parts say which are extrapolated (review31b F1).
+        Some(reach) if reach.rate_unused && reach.samples_rate_only > 0 => format!(
+            "{name}: {outside} of {samples} samples ({share} %) lie outside the model's calibrated (T, dT/dt) region \
+             ({flagged})"
+        ),
+        // Some inside the region: "outside the region" is not said of them all.
+        Some(reach) if reach.samples_in_region > 0 => {
+            format!("{name}: {outside} of {samples} samples ({share} %) are where the model is extrapolated ({flagged})")
+        }
+        _ => outside_region_note(name, outside, samples, flagged),
+    };
+    if let Some(reach) = reach.filter(|r| !r.parts().is_empty()) {
+        note.push_str(&format!(": {}", reach.text()));
+    }
+    note
+}
+
+/// "flag OUTSIDE_HULL in the output" as "flagged OUTSIDE_HULL in the output".
+fn flagged_as(flagged: &str) -> String {
+    flagged.strip_prefix("flag ").map_or_else(|| flagged.to_string(), |rest| format!("flagged {rest}"))
 }
 
 /// A positive distance to `decimals` decimals, or to its first significant digit when it is
@@ -1748,13 +1858,8 @@ struct Replayer<'m> {
     grid_origin_s: Option<f64>,
     /// Finds temperature spikes (only reports them: the compensator takes every reading).
     spikes: SpikeGuard,
-    /// The tracker's features at the last sample flagged `OUTSIDE_HULL` and whether they lie
-    /// in the region: features change once per tracker block, so a run of flagged samples
-    /// tests the region once.
-    last_outside: Option<(f32, f32, bool)>,
-    /// The calibrated region of an axis with a mesh and the plane it is drawn in, for the
-    /// outside note (a polynomial alone is flagged only outside the region).
-    region: Option<(fogtemp_core::Region<'m>, fogtemp_core::Normalisation)>,
+    /// The samples flagged `OUTSIDE_HULL`, and how far they reach (into the series at the end).
+    outside: OutsideWatch<'m>,
 }
 
 impl<'m> Replayer<'m> {
@@ -1762,19 +1867,9 @@ impl<'m> Replayer<'m> {
         let comp = Compensator::new(model, axis)
             .map_err(|source| CalError::Model { path: path.to_path_buf(), source })?;
         let max_gap_s = comp.tracker().max_gap_us() as f64 * 1e-6;
-        let outside_reach = model.axis(axis).ok().map(|a| OutsideReach {
-            temp_range_c: (f64::from(a.provenance.temp_min_c), f64::from(a.provenance.temp_max_c)),
-            rate_range_c_per_min: (
-                f64::from(a.provenance.rate_min_c_per_min),
-                f64::from(a.provenance.rate_max_c_per_min),
-            ),
-            rate_unused: ignores_rate(&a),
-            ..OutsideReach::default()
-        });
         let series = ReplaySeries {
             compensating_from_s: f64::NAN,
             gaps: TimeGaps::new(max_gap_s),
-            outside_reach,
             ..ReplaySeries::default()
         };
         let acc = (0, 0.0, 0.0, 0.0, 0);
@@ -1789,12 +1884,7 @@ impl<'m> Replayer<'m> {
             previous_s: None,
             grid_origin_s: None,
             spikes,
-            last_outside: None,
-            region: model
-                .axis(axis)
-                .ok()
-                .filter(|a| a.mesh.is_some())
-                .and_then(|a| Some((a.region?, a.normalisation))),
+            outside: OutsideWatch::new(model, axis),
         })
     }
 
@@ -1830,7 +1920,11 @@ impl<'m> Replayer<'m> {
         self.acc.3 += f64::from(out.bias_dph);
         self.series.samples += 1;
         if out.flags.0 & fogtemp_core::Flags::OUTSIDE_HULL.0 != 0 {
-            self.observe_outside();
+            // At the tracker's features as the compensator flagged it. (Until 2026-11-29 a
+            // block's flagged samples were counted at the features of the block's end, which,
+            // with tracker and replay blocks not aligned, put some "within the calibrated
+            // ranges" that were flagged beyond them: psim-tvc's T-alone model, 49 of 250.)
+            self.outside.observe(self.comp.tracker().features());
         }
         for (bit, count) in self.series.flag_counts.iter_mut().enumerate() {
             if out.flags.0 & (1 << bit) != 0 {
@@ -1857,33 +1951,6 @@ impl<'m> Replayer<'m> {
         self.acc = (0, 0.0, 0.0, 0.0, block);
     }
 
-    /// Counts a sample flagged outside in the reach, at the tracker's features as the
-    /// compensator flagged it. (Until 2026-11-29 a block's flagged samples were counted at the
-    /// features of the block's end, which, with tracker and replay blocks not aligned, put some
-    /// "within the calibrated ranges" that were flagged beyond them: psim-tvc's T-alone model,
-    /// 49 of 250.)
-    fn observe_outside(&mut self) {
-        let Some(f) = self.comp.tracker().features() else { return };
-        let in_region = match self.last_outside {
-            Some((temp_c, rate_c_per_min, inside))
-                if temp_c == f.temp_c && rate_c_per_min == f.rate_c_per_min =>
-            {
-                inside
-            }
-            _ => {
-                let inside = self.region.is_some_and(|(region, normalisation)| {
-                    let (x, y) = normalisation.apply(f.temp_c, f.rate_c_per_min);
-                    region.contains(x, y)
-                });
-                self.last_outside = Some((f.temp_c, f.rate_c_per_min, inside));
-                inside
-            }
-        };
-        if let Some(reach) = self.series.outside_reach.as_mut() {
-            reach.observe(f64::from(f.temp_c), f64::from(f.rate_c_per_min), 1, in_region);
-        }
-    }
-
     /// The series at the end of the log. A last block cut short by the end (under 90 % of
     /// the fullest block, e.g. the one sample logged at exactly the run's duration) is left
     /// out: its mean of few samples is much noisier than the others and spiked the figures.
@@ -1896,6 +1963,7 @@ impl<'m> Replayer<'m> {
         }
         self.series.fullest_block_samples = self.fullest_block;
         self.series.temperature_spikes = self.spikes.finish(&mut |_| {});
+        self.series.outside_reach = self.outside.reach().copied();
         self.series
     }
 }
@@ -2196,31 +2264,7 @@ impl RunValidation {
         }
         let outside = s.flag_counts[Flags::OUTSIDE_HULL.0.trailing_zeros() as usize];
         if outside > 0 {
-            let mut note = match &s.outside_reach {
-                // All flagged for a rate the model does not use: not "extrapolated".
-                Some(reach) if reach.rate_unused && reach.samples_rate_only == outside => format!(
-                    "{name}: {outside} of {} samples ({} %) are flagged OUTSIDE_HULL for their rate alone",
-                    s.samples,
-                    share_percent(outside, s.samples)
-                ),
-                // Some of them: the parts say which are extrapolated (review31b F1).
-                Some(reach) if reach.rate_unused && reach.samples_rate_only > 0 => format!(
-                    "{name}: {outside} of {} samples ({} %) lie outside the model's calibrated (T, dT/dt) region \
-                     (flag OUTSIDE_HULL)",
-                    s.samples,
-                    share_percent(outside, s.samples)
-                ),
-                // Some inside the region: "outside the region" is not said of them all.
-                Some(reach) if reach.samples_in_region > 0 => format!(
-                    "{name}: {outside} of {} samples ({} %) are where the model is extrapolated (flag OUTSIDE_HULL)",
-                    s.samples,
-                    share_percent(outside, s.samples)
-                ),
-                _ => outside_region_note(&name, outside, s.samples, "flag OUTSIDE_HULL"),
-            };
-            if let Some(reach) = s.outside_reach.as_ref().filter(|r| !r.parts().is_empty()) {
-                note.push_str(&format!(": {}", reach.text()));
-            }
+            let note = outside_note(&name, outside, s.samples, s.outside_reach.as_ref(), "flag OUTSIDE_HULL");
             notes.push(note);
         }
         notes.extend(temperature_spike_note(&name, &self.path, &s.temperature_spikes));
@@ -3502,6 +3546,78 @@ mod tests {
             ) && !notes[0].contains("extrapolated"),
             "{notes:?}"
         );
+    }
+
+    /// `compensate`'s note (the CLI's and Python's) counts its flagged samples with the same
+    /// watch as `validate`'s: a polynomial in T alone that flags samples for their rate alone
+    /// is not called extrapolated there either (it was until 2026-11-30). Oracle: validate's
+    /// reach of the same log, and the closed count of the compensator's flags.
+    #[test]
+    fn compensation_notes_count_the_reach_as_validate_does() {
+        let config = CalibrationConfig { method: Method::CubicT, ..CalibrationConfig::default() };
+        let fitted = fit_ramps(&config, &[(-10.0, 0.5), (0.0, -0.3), (5.0, 0.2)]);
+        let model = Model::from_bytes(&fitted.blob).expect("parses");
+        let note_of = |log: &str| {
+            let validated =
+                replay_models_from(log.as_bytes(), Path::new("v.csv"), &[&model], &config.ingest, 10.0)
+                    .expect("replays")
+                    .models[0][0]
+                    .outside_reach
+                    .expect("reach");
+            let mut comp = Compensator::<CAL_CAPACITY>::new(&model, 0).expect("compensator");
+            let mut watch = OutsideWatch::new(&model, 0);
+            let (mut counts, mut samples) = ([0_u64; 8], 0);
+            for line in log.lines().skip(1) {
+                let v: Vec<f64> = line.split(',').map(|f| f.parse().expect("number")).collect();
+                let o = comp.step(crate::features::micros(v[0]), v[2] as f32, Some(v[1] as f32));
+                if o.flags.contains(Flags::OUTSIDE_HULL) {
+                    watch.observe(comp.tracker().features());
+                }
+                for (bit, count) in counts.iter_mut().enumerate() {
+                    *count += u64::from((o.flags.0 >> bit) & 1);
+                }
+                samples += 1;
+            }
+            assert_eq!(watch.reach(), Some(&validated), "compensate's reach is validate's");
+            let outside = counts[Flags::OUTSIDE_HULL.0.trailing_zeros() as usize];
+            let notes = compensation_notes(
+                "c.csv axis 0",
+                &counts,
+                samples,
+                60.0,
+                "the output",
+                "the output's bias is 0",
+                &BadInputSources::default(),
+                watch.reach(),
+            );
+            (outside, notes)
+        };
+        // Heating faster than any calibration run at calibrated temperatures: flagged for
+        // the rate alone.
+        let (outside, notes) = note_of(&ramp_log(-12.0, 0.52));
+        assert!(outside > 0, "{notes:?}");
+        assert_eq!(
+            notes,
+            [format!(
+                "c.csv axis 0: {outside} of 3000 samples ({} %) are flagged OUTSIDE_HULL in the output for their \
+                 rate alone: all of them at a calibrated temperature, at most 0.0200 C/min beyond the calibrated \
+                 -0.3000 .. 0.5000 C/min: a rate this model (a polynomial in T alone) does not use, so its value \
+                 there is the polynomial's own, as inside the region",
+                share_percent(outside, 3000)
+            )]
+        );
+        // From 10 C above the calibrated maximum: extrapolated, and said so with how far.
+        let p = model.axis(0).expect("axis 0").provenance;
+        let (outside, notes) = note_of(&ramp_log(f64::from(p.temp_max_c) + 10.0, -0.25));
+        assert!(outside > 0 && notes.len() == 1, "{notes:?}");
+        let head =
+            "lie outside the model's calibrated (T, dT/dt) region (flag OUTSIDE_HULL in the output): the \
+                    model is extrapolated there: all of them at most ";
+        assert!(
+            notes[0].contains(head) && notes[0].contains(" C beyond the calibrated -14.99 .. 14.99 C"),
+            "{notes:?}"
+        );
+        assert_eq!(notes[0].matches("extrapolated").count(), 1, "said once: {notes:?}");
     }
 
     /// `ramp_log` with the temperature cell of data row `row` (0-based) replaced by `cell`.

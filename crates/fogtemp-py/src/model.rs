@@ -297,12 +297,13 @@ impl Model {
         let mut comp: Box<Compensator<'_, CAL_CAPACITY>> =
             Box::new(Compensator::new(&model, axis).map_err(|e| errors::model(&self.source, e))?);
         let max_gap_s = comp.tracker().max_gap_us() as f64 * 1e-6;
+        let mut outside = fogtemp_cal::calibrate::OutsideWatch::new(&model, axis);
         let replay = py.detach(|| {
             // The glitches are looked for beside the replay (they only read the inputs), so
             // that the note costs no time where a second core is free.
             std::thread::scope(|scope| {
                 let glitches = scope.spawn(|| compensate_notes::temperature_glitches(ts, gs, cs, max_gap_s));
-                let (out, bias, flags) = replay_samples(&mut comp, ts, gs, cs);
+                let (out, bias, flags) = replay_samples(&mut comp, ts, gs, cs, &mut outside);
                 let glitches = glitches.join().unwrap_or_else(|panic| std::panic::resume_unwind(panic));
                 (out, bias, flags, glitches)
             })
@@ -313,7 +314,14 @@ impl Model {
             same_microsecond: fogtemp_cal::calibrate::same_microsecond_rejections(ts, cs, &flags),
             ..Default::default()
         };
-        warn_about_compensation(py, axis, ts, &flags, max_gap_s, &glitches, &sources)?;
+        let replay = Replay {
+            flags: &flags,
+            max_gap_s,
+            glitches: &glitches,
+            sources: &sources,
+            outside: outside.reach(),
+        };
+        warn_about_compensation(py, axis, ts, &replay)?;
         let mut items: Vec<Bound<'py, PyAny>> =
             vec![PyArray1::from_vec(py, out).into_any(), PyArray1::from_vec(py, flags).into_any()];
         if return_bias {
@@ -489,15 +497,30 @@ fn evaluate_chunk(axis: &Axis<'_>, grid: Option<&StartGrid<'_>>, ts: &[f64], rs:
     }
 }
 
+/// What a replay of one axis left for its notes.
+struct Replay<'a> {
+    /// Each sample's flags.
+    flags: &'a [u8],
+    /// The tracker's max gap, seconds.
+    max_gap_s: f64,
+    /// Temperature glitches found beside the replay.
+    glitches: &'a fogtemp_cal::spikes::AxisSpikes,
+    /// Where its `BAD_INPUT` samples can come from.
+    sources: &'a fogtemp_cal::calibrate::BadInputSources,
+    /// How far its samples flagged `OUTSIDE_HULL` reach.
+    outside: Option<&'a fogtemp_cal::calibrate::OutsideReach>,
+}
+
 /// Every sample through `comp`, as firmware steps it (times as microseconds since the first
 /// sample; a NaN temperature is no reading, an infinite one a reading the compensator flags
 /// BAD_INPUT, as the command line and the C API pass it; review20 F2): the rate, bias and
-/// flags of each.
+/// flags of each; the samples flagged `OUTSIDE_HULL` are counted in `outside`.
 fn replay_samples(
     comp: &mut Compensator<'_, CAL_CAPACITY>,
     ts: &[f64],
     gs: &[f64],
     cs: &[f64],
+    outside: &mut fogtemp_cal::calibrate::OutsideWatch<'_>,
 ) -> (Vec<f64>, Vec<f64>, Vec<u8>) {
     let n = ts.len();
     let (mut out, mut bias, mut flags) = (vec![0.0; n], vec![0.0; n], vec![0u8; n]);
@@ -508,6 +531,9 @@ fn replay_samples(
         out[k] = f64::from(o.rate_dph);
         bias[k] = f64::from(o.bias_dph);
         flags[k] = o.flags.0;
+        if o.flags.contains(Flags::OUTSIDE_HULL) {
+            outside.observe(comp.tracker().features());
+        }
     }
     (out, bias, flags)
 }
@@ -560,17 +586,9 @@ fn blob_bytes(data: &Bound<'_, PyAny>) -> PyResult<Vec<u8>> {
 /// times mostly further apart than the tracker's max gap (another unit?), temperature
 /// glitches, nothing corrected, and the shares of samples flagged `BAD_INPUT` (`sources`: how
 /// many with a gyro value that is not finite, or in the microsecond of the sample before),
-/// `TEMP_STALE` and `OUTSIDE_HULL`.
-#[allow(clippy::too_many_arguments)] // one call site; the arguments are the replay's results
-fn warn_about_compensation(
-    py: Python<'_>,
-    axis: usize,
-    time_s: &[f64],
-    flags: &[u8],
-    max_gap_s: f64,
-    glitches: &fogtemp_cal::spikes::AxisSpikes,
-    sources: &fogtemp_cal::calibrate::BadInputSources,
-) -> PyResult<()> {
+/// `TEMP_STALE` and `OUTSIDE_HULL` (with how far those reach).
+fn warn_about_compensation(py: Python<'_>, axis: usize, time_s: &[f64], replay: &Replay<'_>) -> PyResult<()> {
+    let Replay { flags, max_gap_s, glitches, sources, outside } = *replay;
     let name = format!("Model.compensate axis {axis}");
     if let Some(note) = compensate_notes::backward_time_note(&name, time_s, max_gap_s) {
         crate::progress::warn(py, &note)?;
@@ -613,6 +631,7 @@ fn warn_about_compensation(
         "flags",
         consequence,
         sources,
+        outside,
     ) {
         crate::progress::warn(py, &note)?;
     }

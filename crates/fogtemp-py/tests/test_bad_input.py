@@ -2,6 +2,7 @@
 library's message, and none crashes the interpreter (each case also runs in a child
 interpreter that must exit normally)."""
 
+import re
 import subprocess
 import sys
 import warnings
@@ -593,8 +594,14 @@ def test_compensate_warns_where_the_cli_notes(tmp_path):
     said = " | ".join(str(w.message) for w in seen)
     assert np.all(flags & 1) and np.array_equal(out, run["gyro_dph"].astype(np.float32))
     assert "is time_s in another unit" in said and "never corrected a sample" in said, said
-    with pytest.warns(fogtemp.FogtempWarning, match=r"lie outside the model's calibrated \(T, dT/dt\) region \(flag OUTSIDE_HULL in flags\)"):
+    # With how far, as validate says it (since 2026-11-30). Oracle: the run's hottest reading
+    # in kelvin less the calibrated maximum, within 0.5 C (the tracker's features are means).
+    head = r"lie outside the model's calibrated \(T, dT/dt\) region \(flag OUTSIDE_HULL in flags\): the model is extrapolated there: all of them at most ([\d.]+) C beyond the calibrated"
+    with pytest.warns(fogtemp.FogtempWarning, match=head) as seen:
         _, flags = model.compensate(run["time_s"], run["gyro_dph"], run["temp_c"] + 273.15)
+    beyond_c = float(re.search(head, str(seen[0].message)).group(1))
+    hottest_c = np.nanmax(run["temp_c"]) + 273.15
+    assert abs(beyond_c - (hottest_c - model.inspect()["axes"][0]["provenance"]["temp_max_c"])) < 0.5, beyond_c
     outside = int(np.count_nonzero(flags & 4))
     with pytest.warns(fogtemp.FogtempWarning, match=rf"{outside} of {flags.size} samples"):
         model.compensate(run["time_s"], run["gyro_dph"], run["temp_c"] + 273.15)

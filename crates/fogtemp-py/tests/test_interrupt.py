@@ -200,7 +200,12 @@ for k in range(12):  # 12 warm-ups of 1 h at 1 Hz: auto's 12 folds take tens of 
     rate = np.gradient(temp, t) * 60.0
     gyro = 0.3 * (temp - 20.0) + 0.002 * (temp - 20.0) ** 2 + 4.0 * rate + rng.normal(0.0, 0.05, t.size)
     runs.append({"time_s": t, "temp_c": temp, "gyro_dph": gyro})
-print("go", flush=True)
+# One fold's fits (every candidate on the other 11 runs), timed here under the machine's
+# load of the moment: the bound on the interrupt is counted in folds.
+started = time.monotonic()
+for method in ("cubic-t", "poly", "mesh", "hybrid"):
+    fogtemp.fit(runs[1:], method=method, progress=False)
+print("go %.3f" % (time.monotonic() - started), flush=True)
 started = time.monotonic()
 try:
     fogtemp.fit(runs, method="auto", progress=False)
@@ -211,12 +216,18 @@ except KeyboardInterrupt:
 
 
 def test_ctrl_c_stops_a_fit_during_its_cross_validation():
-    # Reading arrays takes no time: 2 s in, the fit is cross-validating, and Ctrl-C must stop
-    # it at the fold's first held-out replay, not after every fold (it used to run to the end
-    # first). A fold's fits are not cut short: the bound allows one.
+    # Reading arrays takes no time: 2 s in, the fit is cross-validating (12 folds), and Ctrl-C
+    # must stop it at the fold's first held-out replay, not after every fold (it used to run to
+    # the end first). A fold's fits are not cut short: the bound allows the fold under way, one
+    # more and the interpreter's exit, counted in the child's own fold time (measured just
+    # before, on the same machine and load: a fixed 8 s failed under a parallel build).
+    started = time.monotonic()
+    subprocess.run([sys.executable, "-c", "import fogtemp"], check=True)
+    interpreter_s = time.monotonic() - started
     child = subprocess.Popen([sys.executable, "-c", CV_CHILD], stdout=subprocess.PIPE, text=True)
     try:
-        assert child.stdout.readline().strip() == "go"
+        go, fold_s = child.stdout.readline().split()
+        assert go == "go"
         time.sleep(2.0)
         child.send_signal(signal.SIGINT)
         sent = time.monotonic()
@@ -226,4 +237,5 @@ def test_ctrl_c_stops_a_fit_during_its_cross_validation():
         child.kill()
         child.wait()
     assert out.strip() == "interrupted", out
-    assert took_s < 2 * BOUND_S, f"KeyboardInterrupt {took_s:.1f} s after Ctrl-C"
+    bound_s = 3.0 * float(fold_s) + interpreter_s
+    assert took_s < bound_s, f"KeyboardInterrupt {took_s:.1f} s after Ctrl-C; one fold takes {float(fold_s):.1f} s"

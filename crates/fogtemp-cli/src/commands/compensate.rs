@@ -70,6 +70,9 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
     let mut same_microsecond = vec![calibrate::SameMicrosecond::default(); axes];
     // Per axis: temperature spikes, reported (the compensator takes every reading).
     let mut spike_guards: Vec<SpikeGuard> = (0..axes).map(|_| SpikeGuard::new(max_gap_s)).collect();
+    // Per axis: the samples flagged OUTSIDE_HULL and how far they reach, for the note.
+    let mut outside: Vec<calibrate::OutsideWatch<'_>> =
+        (0..axes).map(|axis| calibrate::OutsideWatch::new(&model, axis)).collect();
     let bar = RowProgress::new(&a.log, "compensate");
     let mut report = None;
     // A problem in the log is reported as the log's (with its hint), not as the output's.
@@ -111,6 +114,9 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
                         );
                         for (bit, count) in flag_counts[i].iter_mut().enumerate() {
                             *count += u64::from((o.flags.0 >> bit) & 1);
+                        }
+                        if o.flags.contains(fogtemp_core::Flags::OUTSIDE_HULL) {
+                            outside[i].observe(comp.tracker().features());
                         }
                         let bad = o.flags.contains(fogtemp_core::Flags::BAD_INPUT);
                         if bad && bad_lines[i].len() < calibrate::BAD_INPUT_LINES_LISTED {
@@ -209,6 +215,7 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
                 "the output",
                 consequence,
                 &bad,
+                outside[axis].reach(),
             );
             notes.iter().for_each(|note| eprintln!("note: {note}"));
         }
