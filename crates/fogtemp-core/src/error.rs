@@ -73,6 +73,15 @@ pub enum Error {
         /// `column_names` of the log shape.
         field: &'static str,
     },
+    /// A field of the run-metadata record (format version 8, after the log-shape record)
+    /// holds a value outside its allowed range (until 2026-11-30 it was reported as a
+    /// `BadLogReading`, without the value).
+    BadRunMetadata {
+        /// Which field: `input_rates`.
+        field: &'static str,
+        /// The value found.
+        found: u64,
+    },
     /// A field of the file header (before any axis section) holds a value outside its
     /// allowed range.
     BadHeaderValue {
@@ -189,6 +198,9 @@ impl fmt::Display for Error {
             }
             Error::BadLogReading { field } => {
                 write!(f, "log reading: {field} holds a value outside its allowed range")
+            }
+            Error::BadRunMetadata { field, found } => {
+                write!(f, "run metadata: {field} is {found}, outside its allowed range")
             }
             Error::BadHeaderValue { field, found } => {
                 write!(f, "file header: {field} is {found}, outside its allowed range")

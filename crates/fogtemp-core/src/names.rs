@@ -322,7 +322,8 @@ fn input_rates_at(body: &[u8], at: usize) -> Result<(InputRates, usize), Error> 
     let end = at.saturating_add(RUN_METADATA_LEN);
     let code =
         *body.get(at).ok_or(Error::Truncated { field: "run metadata", needed: end, found: body.len() })?;
-    let rates = InputRates::from_code(code).ok_or(Error::BadLogReading { field: "input_rates" })?;
+    let rates = InputRates::from_code(code)
+        .ok_or(Error::BadRunMetadata { field: "input_rates", found: u64::from(code) })?;
     Ok((rates, end))
 }
 

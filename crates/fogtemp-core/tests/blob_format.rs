@@ -243,11 +243,15 @@ fn a_damaged_run_metadata_record_is_refused() {
     assert_eq!(reread(&|_| {}), Ok(()));
     assert_eq!(reread(&|b| b[record] = 2), Ok(()), "rates given, not taken off");
     for code in [0, 3, 0xff] {
+        let found = reread(&|b| b[record] = code);
         assert_eq!(
-            reread(&|b| b[record] = code),
-            Err(Error::BadLogReading { field: "input_rates" }),
+            found,
+            Err(Error::BadRunMetadata { field: "input_rates", found: u64::from(code) }),
             "code {code}"
         );
+        // The message names the record and the byte (review31a F9: "log reading", no value).
+        let message = found.expect_err("refused").to_string();
+        assert_eq!(message, format!("run metadata: input_rates is {code}, outside its allowed range"));
     }
     // A version-7 blob relabelled 8 lacks the record.
     let mut v7 = read_golden(GOLDEN_V7_BLOB);

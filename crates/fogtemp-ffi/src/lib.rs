@@ -104,6 +104,7 @@ impl fogtemp_status {
             Error::CrcMismatch { .. } => Self::CrcMismatch,
             Error::BadValue { .. }
             | Error::BadHeaderValue { .. }
+            | Error::BadRunMetadata { .. }
             | Error::BadLogTime { .. }
             | Error::BadLogReading { .. } => Self::BadValue,
             Error::NonFinite { .. } => Self::NonFinite,
@@ -554,7 +555,9 @@ fn details(e: &Error) -> (u32, u32, u64, u64) {
         Error::BadValue { axis, index, .. } | Error::NonFinite { axis, index, .. } => {
             (u32::from(axis), index, 0, 0)
         }
-        Error::BadHeaderValue { found, .. } => (FOGTEMP_NO_AXIS, 0, 0, found),
+        Error::BadHeaderValue { found, .. } | Error::BadRunMetadata { found, .. } => {
+            (FOGTEMP_NO_AXIS, 0, 0, found)
+        }
         Error::BadLogTime { .. } | Error::BadLogReading { .. } => (FOGTEMP_NO_AXIS, 0, 0, 0),
         Error::IndexOutOfRange { axis, index, value, limit, .. } => {
             (u32::from(axis), index, u64::from(limit), u64::from(value))

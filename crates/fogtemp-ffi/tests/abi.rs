@@ -276,6 +276,16 @@ fn errors_carry_the_axis_and_the_element() {
     let status = unsafe { fogtemp_model_from_bytes(blob.as_ptr(), n, &mut model, &mut err) };
     assert_eq!((status, err.axis, err.found), (fogtemp_status::BadValue, FOGTEMP_NO_AXIS, 17));
     assert_eq!(message(&err), "file header: axis_count is 17, outside 1..=16");
+    // So does the run-metadata record of format 8 (its byte before the CRC): review31a F9.
+    let mut blob = include_bytes!("../../../tests/golden/model-v8.fogm").to_vec();
+    let m = blob.len();
+    blob[m - 5] = 3;
+    let crc = fogtemp_core::crc::crc32(&blob[..m - 4]);
+    blob[m - 4..].copy_from_slice(&crc.to_le_bytes());
+    // SAFETY: live pointers; `blob` outlives the (failed) model.
+    let status = unsafe { fogtemp_model_from_bytes(blob.as_ptr(), m, &mut model, &mut err) };
+    assert_eq!((status, err.axis, err.found), (fogtemp_status::BadValue, FOGTEMP_NO_AXIS, 3));
+    assert_eq!(message(&err), "run metadata: input_rates is 3, outside its allowed range");
     // A section_len that disagrees with its counts names its axis (needed: the implied length).
     let mut blob = GOLDEN.to_vec();
     let axis1 = 64 + u32::from_le_bytes(blob[64..68].try_into().unwrap()) as usize;
