@@ -301,10 +301,12 @@ pub fn encode_with_selection(model: &ModelFile, selection: &[u16]) -> Result<Vec
     // shape is not the default, so other blobs stay version 6 byte for byte.
     // The run-metadata record needs version 8, after a log-shape record (the default shape
     // written out if need be); written only with run metadata. A shape the record cannot hold
-    // is not written, and so neither is the run-metadata record after it.
-    let shape = &model.log_reading.shape;
-    let with_rates = !model.columns.is_empty() && model.input_rates.is_some() && shape.is_storable();
-    let with_shape = with_rates || (!model.columns.is_empty() && shape.is_recorded() && shape.is_storable());
+    // is written as the default one, which readers take as "not recorded", as when no record
+    // is written (until 2026-11-30 it dropped the run-metadata record with it: review31a F4).
+    let default_shape = LogShapeRecord::default();
+    let shape = Some(&model.log_reading.shape).filter(|s| s.is_storable()).unwrap_or(&default_shape);
+    let with_rates = !model.columns.is_empty() && model.input_rates.is_some();
+    let with_shape = with_rates || (!model.columns.is_empty() && shape.is_recorded());
     let with_reading = with_shape || (!model.columns.is_empty() && model.log_reading.is_recorded());
     let with_time = with_reading || (!model.columns.is_empty() && model.log_time.is_recorded());
     let version = match (model.columns.is_empty(), with_time, with_reading, needs_gradients) {
