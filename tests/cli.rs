@@ -808,6 +808,102 @@ fn bad_log_rows_are_located_and_nothing_is_written() {
     }
 }
 
+/// Logs as other lab tools write them get the hint that fits, not "use --skip-bad-rows"
+/// alone, which dropped their data (review32a F1, F3, F4, F5, F6, F8): a blank cell in
+/// space-aligned columns, words and NaN for a missing temperature, a header repeated after a
+/// logger restart, a wrapped microsecond counter, thousands points with a decimal comma,
+/// channels on separate rows.
+#[test]
+fn logs_of_other_lab_tools_get_the_hint_that_fits() {
+    let dir = TempDir::new().expect("tempdir");
+    let out = dir.path().join("m.fogm");
+    let rows = |line: &dyn Fn(u32) -> String| (0..400).map(line).collect::<Vec<_>>().join("\n");
+    let plain = |k: u32| format!("{k},{:.2},1.5", 20.0 + 0.05 * f64::from(k));
+    let cases: Vec<(&str, String, Vec<&str>)> = vec![
+        (
+            "spaced.txt",
+            format!(
+                "  time_s  temp_c  gyro_dph  rh_pct\n{}",
+                rows(&|k| if k == 5 {
+                    format!("{k:>8}  {:>6}  {:>8}  {:>6}", "", "1.5", "45.0")
+                } else {
+                    format!("{k:>8}  {:>6.2}  {:>8}  {:>6}", 20.0 + 0.05 * f64::from(k), "1.5", "45.0")
+                })
+            ),
+            vec![
+                ":7:4: column 'rh_pct'",
+                "a blank cell, which vanishes there",
+                "another delimiter",
+                "--skip-lines 1 --columns",
+            ],
+        ),
+        (
+            "na.csv",
+            format!(
+                "time_s,temp_c,gyro_dph\n{}",
+                rows(&|k| if k == 9 { format!("{k},N/A,1.5") } else { plain(k) })
+            ),
+            vec![":11:2: column 'temp_c'", "(found 'N/A')", "empty those cells"],
+        ),
+        (
+            "nan.csv",
+            format!(
+                "time_s,temp_c,gyro_dph\n{}",
+                rows(&|k| if k == 9 { format!("{k},NaN,1.5") } else { plain(k) })
+            ),
+            vec![":11:2: column 'temp_c'", "empty those cells"],
+        ),
+        (
+            "restart.csv",
+            format!(
+                "time_s,temp_c,gyro_dph\n{}",
+                rows(&|k| if k == 200 { "time_s,temp_c,gyro_dph".into() } else { plain(k % 200) })
+            ),
+            vec![":202:1:", "a header repeated mid-file", "split the file there"],
+        ),
+        (
+            "wrap.csv",
+            format!(
+                "time_us,temp_c,gyro_dph\n{}",
+                rows(&|k| format!(
+                    "{},{:.2},1.5",
+                    (4_294_000_000_u64 + u64::from(k) * 2_000_000) % (1 << 32),
+                    20.0
+                ))
+            ),
+            vec!["time before the previous row", "a counter that wrapped", "--sample-rate-hz"],
+        ),
+        (
+            "separate.csv",
+            format!(
+                "time_s,temp_c,gyro_dph\n{}",
+                rows(&|k| if k % 2 == 1 { format!("{k},21.0,") } else { plain(k) })
+            ),
+            vec![":3:3: column 'gyro_dph'", "empty required cell", "channels logged on separate rows"],
+        ),
+    ];
+    for (name, text, needles) in cases {
+        let log = dir.path().join(name);
+        fs::write(&log, text).expect("write");
+        let mut args = args!["fit", "--out", &out, &log];
+        if name == "wrap.csv" {
+            args.extend(args!["--time-column", "time_us", "--time-unit", "us"]);
+        }
+        expect_failure(&args, dir.path(), Some(&out), &needles);
+        fs::remove_file(&log).expect("remove");
+    }
+    // Thousands points in a log read with a decimal comma: not "give --decimal-mark point".
+    let log = dir.path().join("comma.csv");
+    let text = format!(
+        "time_s;temp_c;gyro_dph\n{}",
+        rows(&|k| if k == 300 { "1.000,5;20,5;1,5".into() } else { format!("{k},5;20,5;1,5") })
+    );
+    fs::write(&log, text).expect("write");
+    let args = args!["fit", "--out", &out, &log, "--decimal-mark", "comma"];
+    let stderr = expect_failure(&args, dir.path(), Some(&out), &[":302:1:", "thousands separators"]);
+    assert!(!stderr.contains("give --decimal-mark point"), "{stderr}");
+}
+
 #[test]
 fn bad_log_files_are_named_and_nothing_is_written() {
     let dir = TempDir::new().expect("tempdir");

@@ -45,14 +45,34 @@ fn hint(e: &CalError) -> &'static str {
             "; the log writes decimal points? pass decimal_mark='point' (a model fitted on decimal-comma logs \
              reads its logs so unless told)"
         }
+        CalError::BadRow { row, .. } if row.kind == BadRowKind::TextRow && row.line > 3 => {
+            "; a header repeated mid-file (a logger restart, or two logs joined)? split the file there, each part \
+             a run (skip_bad_rows=True would skip it, and then, if the time started again, every row until it \
+             passes the old one)"
+        }
+        CalError::BadRow { row, .. } if row.looks_like_missing_marker() => {
+            "; a mark for a missing reading? empty those cells: an empty temperature cell is read as no reading \
+             (skip_bad_rows=True would drop the rows, gyro samples and all)"
+        }
+        CalError::BadRow { row, .. } if row.kind == BadRowKind::ShortSpacedRow => {
+            "; write the log with another delimiter (a comma keeps a blank cell in its place), or pass \
+             skip_bad_rows=True to skip such rows (listed); if the header's names hold spaces, name the columns \
+             in order with skip_lines=1, columns=[...]"
+        }
+        CalError::BadRow { row, .. } if row.kind == BadRowKind::EmptyCell => {
+            "; a time or gyro cell left empty: channels logged on separate rows (merge them first, each gyro row \
+             with the temperature read last: an empty temperature cell is read as no reading), or a lost sample \
+             (skip_bad_rows=True skips such rows)"
+        }
         CalError::BadRow { row, .. } if row.kind == BadRowKind::DuplicateTime => {
             "; repeated time stamps: a clock coarser than the sample rate? pass sample_rate_hz= to time the rows by \
              their index (skip_bad_rows=True would keep one row per stamp and drop the rest)"
         }
         CalError::BadRow { row, .. } if row.kind == BadRowKind::BackwardTime => {
             "; the time goes back: a logger restart (a new run starts here: split the file there), two logs \
-             joined, or a corrupted stamp in the row before that jumps ahead? skip_bad_rows=True would drop every \
-             row until the time passes the old one"
+             joined, a counter that wrapped (32-bit microseconds wrap every 71.6 min: pass sample_rate_hz= to \
+             time the rows by their index), or a corrupted stamp in the row before that jumps ahead? \
+             skip_bad_rows=True would drop every row until the time passes the old one"
         }
         CalError::BadRow { row, .. } if row.kind == BadRowKind::NotADateTime => {
             "; date-times are read in ISO 8601 (2026-11-24T23:30:00, or with a space, optional .fff and Z or \

@@ -73,6 +73,30 @@ def test_malformed_row_names_file_line_and_column_like_the_command_line(tmp_path
     assert len(data["time_s"]) == 2
 
 
+def test_logs_of_other_lab_tools_get_the_hint_that_fits(tmp_path):
+    # Review32a F1, F4, F5, F6: in keyword form, as the command line gives them.
+    spaced = tmp_path / "spaced.txt"
+    spaced.write_text("  time_s  temp_c  gyro_dph  rh_pct\n     0.0   20.00      0.75    45.0\n     0.5              0.74    45.0\n")
+    with pytest.raises(ValueError, match=r"spaced.txt:3:4: column 'rh_pct': .*a blank cell.*skip_lines=1, columns=\[\.\.\.\]"):
+        fogtemp.read_log(spaced, progress=False)
+    # Skipped and listed, the rows that are whole read in place (oracle: the values written).
+    with pytest.warns(UserWarning, match="skipped 1 bad row of 2 rows"):
+        data = fogtemp.read_log(spaced, skip_bad_rows=True, progress=False)
+    assert list(data["temp_c"]) == [20.0] and list(data["gyro_dph"]) == [0.75]
+    na = tmp_path / "na.csv"
+    na.write_text("time_s,temp_c,gyro_dph\n0,20,1\n1,N/A,1\n")
+    with pytest.raises(ValueError, match=r"na.csv:3:2: .*found 'N/A'.*empty those cells"):
+        fogtemp.read_log(na, progress=False)
+    restart = tmp_path / "restart.csv"
+    restart.write_text("time_s,temp_c,gyro_dph\n0,20,1\n1,20,1\n2,20,1\n3,20,1\ntime_s,temp_c,gyro_dph\n0,20,1\n")
+    with pytest.raises(ValueError, match=r"restart.csv:6:1: .*a header repeated mid-file.*split the file there"):
+        fogtemp.read_log(restart, progress=False)
+    separate = tmp_path / "separate.csv"
+    separate.write_text("time_s,temp_c,gyro_dph\n0,,1\n0.5,20,\n")
+    with pytest.raises(ValueError, match=r"separate.csv:3:3: .*channels logged on separate rows"):
+        fogtemp.read_log(separate, progress=False)
+
+
 def test_decimal_comma_logs_read_with_decimal_mark_and_a_hint_without(tmp_path):
     points = "time_s;temp_c;gyro_dph\n0.0;20.5;-1.25e-3\n0.5;20.625;2.5\n"
     twin, log = tmp_path / "points.csv", tmp_path / "commas.csv"

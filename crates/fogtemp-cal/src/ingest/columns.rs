@@ -44,6 +44,8 @@ pub(super) struct Plan {
     pub(super) decimal_mark: DecimalMark,
     /// [`super::IngestOptions::keep_impossible_temperatures`].
     pub(super) keep_impossible_temperatures: bool,
+    /// Fields are split at runs of spaces ([`Delimiter::Whitespace`]).
+    pub(super) spaced: bool,
 }
 
 /// Row-level state: header, previous time, skipped rows.
@@ -227,6 +229,7 @@ pub(super) fn make_plan(path: &Path, header: Fields<'_>, f: &LogFormat, line: u6
         comment_first: f.comment_prefix().first().copied(),
         decimal_mark: f.decimal_mark,
         keep_impossible_temperatures: false,
+        spaced: f.delimiter == Delimiter::Whitespace,
     })
 }
 
@@ -394,7 +397,10 @@ fn locate_columns(path: &Path, header: Fields<'_>, f: &LogFormat, line: u64) -> 
     // link lost) even where the fields it lacks are not read: its cells are shifted
     // (review24a F4: a fragment's first cell read as 0 C). A header may name trailing
     // columns a logger leaves off, so there only the fields read are required.
-    let min_fields = if f.column_names.is_empty() { read_fields } else { read_fields.max(names.len()) };
+    // Fields split at runs of spaces lose a blank cell, and the cells after it move left, so
+    // there every named field is required too (review32a F1).
+    let every_field = !f.column_names.is_empty() || f.delimiter == Delimiter::Whitespace;
+    let min_fields = if every_field { read_fields.max(names.len()) } else { read_fields };
     Ok(Columns { time, date, temps, gyros, names, min_fields })
 }
 
@@ -583,7 +589,7 @@ pub(super) fn parse_row(
             line,
             field.min(columns.names.len().saturating_sub(1)),
             b"",
-            BadRowKind::ShortRow,
+            if plan.spaced { BadRowKind::ShortSpacedRow } else { BadRowKind::ShortRow },
         ));
     }
     if let Some(extra) = (columns.named_fields()..fields.len())

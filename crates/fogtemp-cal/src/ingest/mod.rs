@@ -516,6 +516,11 @@ pub enum BadRowKind {
     NonFinite,
     /// Fewer fields than the header.
     ShortRow,
+    /// Fewer fields than the header (or the names of `--columns`) in a log whose fields are
+    /// separated by runs of spaces: a blank cell there vanishes and every cell after it
+    /// moves one column left, so which cell is missing cannot be told (review32a F1: a
+    /// fixed-width log's blank temperature read the gyro as the temperature, exit 0).
+    ShortSpacedRow,
     /// More fields than the header (or the names of `--columns`) with text in the extra
     /// ones: two records run together (a lost line break). Empty extra fields (a trailing
     /// delimiter) are not.
@@ -570,6 +575,11 @@ impl BadRowKind {
             }
             BadRowKind::NonFinite => "NaN or infinite",
             BadRowKind::ShortRow => "fewer fields than the header (or the names --columns gives)",
+            BadRowKind::ShortSpacedRow => {
+                "fewer fields than the header (or the names --columns gives) in a log whose columns are separated \
+                 by spaces: a row cut short, or a blank cell, which vanishes there (the cells after it move left: \
+                 which one is missing cannot be told)"
+            }
             BadRowKind::LongRow => {
                 "more fields than the header (or the names --columns gives): two records run together (a lost line \
                  break)? name every field of a log without a header"
@@ -645,18 +655,34 @@ impl BadRow {
     /// `-12,345`: a spreadsheet's number format): skipping such rows drops every value from
     /// 1000 on (review23b F8: a fit on the first 1000 s of every run, exit status 0).
     pub fn looks_like_thousands_separators(&self) -> bool {
+        // Commas grouping a number with a decimal point, or (read with a decimal comma, where
+        // a point is refused) points grouping one with a decimal comma (review32a F8).
+        let (group, decimal) = match self.kind {
+            BadRowKind::NotANumber => (',', '.'),
+            BadRowKind::PointWithDecimalComma => ('.', ','),
+            _ => return false,
+        };
         let text = self.found.trim();
         let unsigned = text.strip_prefix(['+', '-']).unwrap_or(text);
-        let integer = unsigned.split_once('.').map_or(unsigned, |(int, _)| int);
-        let mut groups = integer.split(',');
+        let integer = unsigned.split_once(decimal).map_or(unsigned, |(int, _)| int);
+        let mut groups = integer.split(group);
         let first = groups.next().unwrap_or("");
         let grouped = (1..=3).contains(&first.len())
             && first.bytes().all(|b| b.is_ascii_digit())
-            && integer.contains(',')
+            && integer.contains(group)
             && groups.all(|g| g.len() == 3 && g.bytes().all(|b| b.is_ascii_digit()));
-        self.kind == BadRowKind::NotANumber
-            && grouped
-            && unsigned.split_once('.').is_none_or(|(_, frac)| frac.bytes().all(|b| b.is_ascii_digit()))
+        grouped
+            && unsigned.split_once(decimal).is_none_or(|(_, frac)| frac.bytes().all(|b| b.is_ascii_digit()))
+    }
+
+    /// The cell holds a word loggers and spreadsheets write for a missing value (`N/A`, `NA`,
+    /// `-`, `null`, ...; not `NaN`, which arrays hold too: [`BadRowKind::NonFinite`]): a
+    /// hint for the caller to say that an empty cell is read as no reading where one may be
+    /// missing (review32a F6).
+    pub fn looks_like_missing_marker(&self) -> bool {
+        const MARKERS: [&str; 9] = ["n/a", "na", "-", "--", "null", "none", "nil", "#n/a", "?"];
+        let text = self.found.trim().trim_matches('"').to_ascii_lowercase();
+        matches!(self.kind, BadRowKind::NotANumber | BadRowKind::TextRow) && MARKERS.contains(&text.as_str())
     }
 }
 
