@@ -52,6 +52,9 @@
 //! - `implausible_rates`: half the calibration points change temperature faster than 3 x the
 //!   peak case rate of docs/physics.md (2.01 C/min): a time column in minutes or hours read
 //!   as seconds.
+//! - `implausible_gyro`: every calibration point's gyro mean within
+//!   [`IMPLAUSIBLE_GYRO_DPH`] of zero, below any FOG's: a gyro logged in rad/s or deg/s read
+//!   as deg/h.
 //! - `gyro_outliers`: feature points whose gyro mean lay beyond 10 robust standard
 //!   deviations of the median of the points around them ([`crate::outliers`]: a corrupted
 //!   sample, an overload code). Calibration read them as missing; the warning names each by
@@ -119,6 +122,9 @@ pub enum WarningKind {
     /// Logs that continue one another in time ([`crate::continued`]): one run split over
     /// files, read as several runs. Reported on axis 0.
     ContinuedLogs,
+    /// Every calibration point's gyro mean within [`IMPLAUSIBLE_GYRO_DPH`] of zero: a gyro in
+    /// rad/s or deg/s read as deg/h (review32a F2).
+    ImplausibleGyro,
     /// A run's temperature changes only in steps of [`COARSE_TEMPERATURE_STEP_C`] or more (a
     /// coarse sensor, or decimals cut off): dT/dt is a staircase's.
     CoarseTemperature,
@@ -147,6 +153,7 @@ impl WarningKind {
             WarningKind::ImplausibleTemperatures => "implausible_temperatures",
             WarningKind::ImplausibleRates => "implausible_rates",
             WarningKind::ContinuedLogs => "continued_logs",
+            WarningKind::ImplausibleGyro => "implausible_gyro",
             WarningKind::CoarseTemperature => "coarse_temperature",
             WarningKind::TemperatureGap => "temperature_gap",
             WarningKind::UnfinishedSimulation => "unfinished_simulation",
@@ -199,6 +206,7 @@ pub fn fit_warnings(
             let column = temp_columns.get(axis.min(temp_columns.len().saturating_sub(1)));
             found.extend(temperature_spikes(runs, axis, column.map_or("temperature", String::as_str)));
             found.extend(gyro_outliers(runs, axis));
+            found.extend(implausible_gyro(&points, axis));
             found.extend(coarse_temperature(runs, axis, f64::from(config.features.window_s)));
             found
         })
@@ -646,6 +654,36 @@ fn implausible_rates(points: &CalibrationPoints, axis: usize) -> Option<Warning>
                  another unit? minutes or hours read as seconds: give --time-unit min or h (Python time_unit=)"
             ),
             &[("median_abs_rate_c_per_min", median), ("implausible_rate_c_per_min", IMPLAUSIBLE_RATE_C_PER_MIN)],
+        )
+    })
+}
+
+/// Below this every calibration point's smoothed gyro lies closer to zero than any FOG's,
+/// deg/h: a FOG ten times quieter than docs/physics.md's (angle random walk N = 5e-5 against
+/// 5e-4 deg/sqrt(h)) scatters by 6 N = 3e-4 deg/h over a 100 s mean, so thousands of points
+/// reach past 1e-3, and a gyro also reads its bias and the Earth rate's projection. A gyro in rad/s
+/// read as deg/h is 206,265 times too small: a FOG reading under 20 deg/h is under 1e-4
+/// rad/s (review32a F2: a model 206,265 times too small, exit 0, no word). Applied to the
+/// points as read, after `--gyro-unit`.
+pub const IMPLAUSIBLE_GYRO_DPH: f64 = 1e-4;
+
+/// `implausible_gyro`: the largest |gyro mean| of the calibration points below
+/// [`IMPLAUSIBLE_GYRO_DPH`].
+fn implausible_gyro(points: &CalibrationPoints, axis: usize) -> Option<Warning> {
+    let finite = points.points.iter().map(|p| p.value_dph.abs()).filter(|v| v.is_finite());
+    let largest = finite.reduce(f64::max)?;
+    (largest < IMPLAUSIBLE_GYRO_DPH).then(|| {
+        Warning::new(
+            axis,
+            WarningKind::ImplausibleGyro,
+            format!(
+                "axis {axis}: every calibration point's gyro mean lies within {} deg/h of zero, below any FOG's (its \
+                 noise alone scatters them by more than {IMPLAUSIBLE_GYRO_DPH:.0e}, and it reads its bias and the \
+                 Earth rate): a gyro logged in rad/s or deg/s read as deg/h? give --gyro-unit rps or dps (Python \
+                 gyro_unit=); the model is in the unit the gyro is read in",
+                crate::numbers::dph(largest)
+            ),
+            &[("largest_abs_gyro_dph", largest), ("implausible_gyro_dph", IMPLAUSIBLE_GYRO_DPH)],
         )
     })
 }
@@ -1108,6 +1146,33 @@ mod tests {
         assert_eq!(w.values["temp_min_c"], 238.15);
         assert!(implausible_temperatures(&points(&[(0, 20.0, 0.1), (1, 140.0, 0.2)]), 0).is_none());
         assert!(implausible_temperatures(&points(&[(0, 149.0, 0.1), (1, 300.0, 0.2)]), 0).is_none());
+    }
+
+    /// A gyro in rad/s read as deg/h (206,265 times too small) warns with the largest mean and
+    /// the fix; one point past the limit, or a FOG's deg/h, does not (review32a F2).
+    #[test]
+    fn a_gyro_closer_to_zero_than_any_fog_is_said_to_be_in_another_unit() {
+        let with_values = |values: &[f64]| {
+            let mut p = points(&values.iter().map(|_| (0, 20.0, 0.1)).collect::<Vec<_>>());
+            p.points.iter_mut().zip(values).for_each(|(p, &v)| p.value_dph = v);
+            p
+        };
+        let rad_per_s: Vec<f64> = (0..100).map(|k| 2.4e-6 + 1e-8 * f64::from(k % 7) - 3e-8).collect();
+        let w = implausible_gyro(&with_values(&rad_per_s), 2).expect("warned");
+        assert_eq!(w.kind.name(), "implausible_gyro");
+        assert_eq!(w.values["largest_abs_gyro_dph"], rad_per_s.iter().copied().fold(0.0, f64::max));
+        assert!(
+            w.message.starts_with(
+                "axis 2: every calibration point's gyro mean lies within 2.430e-6 deg/h of zero"
+            ) && w.message.contains("--gyro-unit rps or dps"),
+            "{}",
+            w.message
+        );
+        let mut one_past = rad_per_s.clone();
+        one_past[50] = -1.5e-4;
+        assert!(implausible_gyro(&with_values(&one_past), 0).is_none());
+        assert!(implausible_gyro(&with_values(&[0.5, 0.49, 0.51]), 0).is_none());
+        assert!(implausible_gyro(&CalibrationPoints::default(), 0).is_none());
     }
 
     /// Minutes read as seconds (every rate 60 times too large) warns with the median and the
