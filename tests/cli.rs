@@ -902,6 +902,16 @@ fn logs_of_other_lab_tools_get_the_hint_that_fits() {
     let args = args!["fit", "--out", &out, &log, "--decimal-mark", "comma"];
     let stderr = expect_failure(&args, dir.path(), Some(&out), &[":302:1:", "thousands separators"]);
     assert!(!stderr.contains("give --decimal-mark point"), "{stderr}");
+    // Two gyro columns in one flag: the flag is repeated instead (F15).
+    let log = dir.path().join("two.csv");
+    fs::write(&log, format!("time_s,temp_c,gx,gy\n{}", rows(&|k| format!("{k},20,1,2")))).expect("write");
+    let args = args!["fit", "--out", &out, &log, "--gyro-column", "gx,gy"];
+    expect_failure(
+        &args,
+        dir.path(),
+        Some(&out),
+        &["no column named 'gx,gy'", "repeat the flag", "--gyro-column gy"],
+    );
 }
 
 #[test]

@@ -1,6 +1,6 @@
 //! Errors of the calibration library.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// Everything that can go wrong while calibrating, with the place it went wrong.
 #[derive(Debug, thiserror::Error)]
@@ -79,18 +79,22 @@ pub enum CalError {
         source: fogtemp_core::Error,
     },
     /// A named column is not in the file's header.
-    #[error("{}: no column named '{column}' (the header has: {available}){}", path.display(), similar_note(similar))]
+    #[error("{}: no column named '{column}' (the header has: {available}){}{also}", path.display(), similar_note(similar))]
     MissingColumn {
-        /// File.
-        path: PathBuf,
+        /// File (boxed, as `also`: the error stays small enough to return by value).
+        path: Box<Path>,
         /// The missing column.
         column: String,
         /// What it was to hold: `time`, `date`, `temperature` or `gyro`.
         role: &'static str,
         /// Columns the header does have.
-        available: String,
+        available: Box<str>,
         /// Header names that look like the missing one (case, units or punctuation aside).
         similar: Vec<String>,
+        /// The other named columns the header lacks, with theirs (`; also missing: 'b'
+        /// (perhaps 'B')`), or empty: every one is said at once (review32a F15: a log with
+        /// upper-case names took three runs of the command).
+        also: Box<str>,
     },
     /// A row was rejected.
     #[error("{}:{}:{}: column '{}': {} (found '{}')", path.display(), row.line, row.column, row.column_name, row.kind.describe(), row.found)]
@@ -164,7 +168,7 @@ pub enum CalError {
 }
 
 /// `; perhaps 'a' or 'b'` for header names close to a missing column's, nothing without any.
-fn similar_note(similar: &[String]) -> String {
+pub(crate) fn similar_note(similar: &[String]) -> String {
     match similar {
         [] => String::new(),
         names => {

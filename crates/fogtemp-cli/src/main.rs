@@ -257,6 +257,15 @@ fn flag_hint(e: &(dyn std::error::Error + 'static)) -> Option<&'static str> {
             "; --skip-bad-rows skips such lines and lists them",
         ),
         CalError::BadRow { .. } => Some("; use --skip-bad-rows to skip such rows"),
+        CalError::MissingColumn { column, role: role @ ("gyro" | "temperature"), .. } if column.contains(',') => {
+            Some(if *role == "gyro" {
+                "; one column per --gyro-column: repeat the flag, one for each model axis (--gyro-column gx \
+                 --gyro-column gy)"
+            } else {
+                "; one column per --temp-column: repeat the flag, one for each model axis (--temp-column tx \
+                 --temp-column ty)"
+            })
+        }
         CalError::MissingColumn { role: "time", .. } => Some(
             "; name the time column with --time-column (its unit with --time-unit), or give --sample-rate-hz \
              for a log without one; if line 1 is not the header (a terminal program's banner), skip it with \

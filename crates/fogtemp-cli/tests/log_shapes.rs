@@ -448,6 +448,23 @@ fn date_time_logs_fit_the_same_model_as_their_seconds_twins() {
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     // The oracle: every stored value equal to the model of the same run timed in seconds.
     assert_eq!(stored_model(&model), stored_model(&twin));
+    // compensate keeps the log's clock, Unix time for date-times, and says so (review32a
+    // F14). Oracle: 2026-11-24 23:30:00 +01:00 is 1795559400 s (`date -u -d "2026-11-24
+    // 22:30:00" +%s`).
+    let comp = dir.path().join("comp.csv");
+    let log = dated.join("run0.csv");
+    let out = run(&["compensate", "--model", s(&model), "--out", s(&comp), s(&log)]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        out.status.success() && stderr.contains("seconds since 1970-01-01 00:00:00 UTC (Unix time)"),
+        "{stderr}"
+    );
+    let text = std::fs::read_to_string(&comp).unwrap();
+    let first = text.lines().nth(1).and_then(|l| l.split(',').next()).unwrap();
+    assert_eq!(first.parse::<f64>().unwrap(), 1_795_559_400.0, "{first}");
+    // A log timed in seconds says nothing of its clock.
+    let out = run(&["compensate", "--model", s(&twin), "--out", s(&comp), s(&seconds.join("run0.csv"))]);
+    assert!(!String::from_utf8_lossy(&out.stderr).contains("Unix time"));
 }
 
 fn write_clock_log(path: &Path, start_c: f64, clock: bool) {

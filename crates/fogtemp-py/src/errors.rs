@@ -95,6 +95,9 @@ fn hint(e: &CalError) -> &'static str {
             "; skip_bad_rows=True skips such lines and lists them"
         }
         CalError::BadRow { .. } => "; pass skip_bad_rows=True to skip such rows",
+        CalError::MissingColumn { column, role: "gyro" | "temperature", .. } if column.contains(',') => {
+            "; one column per name: pass a list, one for each model axis (gyro_column=['gx', 'gy'], temp_column=['tx', 'ty'])"
+        }
         CalError::NoCalibrationPoints { .. } => {
             "; check temp_column, or set max_gap_s and window_s to suit the temperature sampling"
         }

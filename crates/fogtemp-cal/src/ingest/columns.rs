@@ -305,11 +305,12 @@ fn locate_columns(path: &Path, header: Fields<'_>, f: &LogFormat, line: u64) -> 
         let at: Vec<usize> = names.iter().enumerate().filter(|(_, n)| *n == wanted).map(|(i, _)| i).collect();
         match at.as_slice() {
             [] => Err(CalError::MissingColumn {
-                path: path.to_path_buf(),
+                path: path.into(),
                 column: wanted.to_string(),
                 role,
-                available: names.join(", "),
+                available: names.join(", ").into(),
                 similar: similar_names(wanted, &names).into_iter().filter(|n| !read_elsewhere(n)).collect(),
+                also: "".into(),
             }),
             [one] => Ok(*one),
             // Two sensors logged under one name: reading the first without a word moved a
@@ -380,15 +381,55 @@ fn locate_columns(path: &Path, header: Fields<'_>, f: &LogFormat, line: u64) -> 
                 ),
             })
         }
+        Err(CalError::MissingColumn { path, column, role, available, similar, .. }) => {
+            // Every other named column the header lacks, said with the first.
+            let wanted =
+                f.sample_rate_hz.is_none().then_some(&f.time_column).into_iter().chain(&f.date_column);
+            let others: Vec<String> = wanted
+                .chain(&f.temp_columns)
+                .chain(&f.gyro_columns)
+                .filter(|&w| *w != column && !names.contains(w))
+                .fold(Vec::new(), |mut seen: Vec<&String>, w| {
+                    if !seen.contains(&w) {
+                        seen.push(w);
+                    }
+                    seen
+                })
+                .into_iter()
+                .map(|w| {
+                    let like: Vec<String> =
+                        similar_names(w, &names).into_iter().filter(|n| !read_elsewhere(n)).collect();
+                    let like = crate::error::similar_note(&like);
+                    match like.strip_prefix("; ") {
+                        Some(note) => format!("'{w}' ({note})"),
+                        None => format!("'{w}'"),
+                    }
+                })
+                .collect();
+            let also = if others.is_empty() {
+                String::new()
+            } else {
+                format!("; also missing: {}", others.join(", "))
+            };
+            return Err(CalError::MissingColumn {
+                path,
+                column,
+                role,
+                available,
+                similar,
+                also: also.into(),
+            });
+        }
         other => other?,
     };
     if gyros.is_empty() {
         return Err(CalError::MissingColumn {
-            path: path.to_path_buf(),
+            path: path.into(),
             column: "(no gyro column named)".into(),
             role: "gyro",
-            available: names.join(", "),
+            available: names.join(", ").into(),
             similar: Vec::new(),
+            also: "".into(),
         });
     }
     let read_fields = temps.iter().chain(&gyros).copied().chain(time).chain(date).max().unwrap_or(0) + 1;
@@ -459,7 +500,10 @@ fn looks_like_data(names: &[String], f: &LogFormat) -> bool {
             || (f.time_unit == TimeUnit::TimeOfDay
                 && super::datetime::parse_time_of_day(n.as_bytes()).is_some())
     };
-    !names.is_empty() && names.iter().all(datum)
+    // Empty names are the fields a trailing delimiter leaves (review32a F11: a LabVIEW row
+    // ending in a tab, read as the header, was listed as names instead).
+    let filled: Vec<&String> = names.iter().filter(|n| !n.is_empty()).collect();
+    !filled.is_empty() && filled.into_iter().all(datum)
 }
 
 /// Longest cell a decimal comma is replaced in (longer ones are not numbers this reader
@@ -948,7 +992,8 @@ mod tests {
         let e = result.unwrap_err();
         assert!(
             e.to_string().ends_with(
-                "no column named 'time_s' (the header has: Time_s, Temp_C, Gyro_dph); perhaps 'Time_s'"
+                "no column named 'time_s' (the header has: Time_s, Temp_C, Gyro_dph); perhaps 'Time_s'; also \
+                 missing: 'temp_c' (perhaps 'Temp_C'), 'gyro_dph' (perhaps 'Gyro_dph')"
             ),
             "{e}"
         );
@@ -974,7 +1019,7 @@ mod tests {
         let (_, result) = run(b"time_s,temp_c\n0,20\n", &default_options());
         assert!(
             matches!(&result, Err(CalError::MissingColumn { column, available, .. })
-                if column == "gyro_dph" && available == "time_s, temp_c"),
+                if column == "gyro_dph" && &**available == "time_s, temp_c"),
             "{}",
             summary(&result)
         );

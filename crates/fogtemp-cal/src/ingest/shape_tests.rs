@@ -56,11 +56,33 @@ fn headerless_logs_take_the_given_names() {
     // A name the columns do not have.
     let missing = error_of("1,2,3\n", &with(LogFormat { time_column: "t".into(), ..format }));
     assert!(matches!(&missing, CalError::MissingColumn { column, .. } if column == "t"), "{missing}");
-    // Without names, a first line of numbers is named as data, not as a missing column.
-    let e = error_of("0,20,1\n1,20,1\n", &default_options());
-    assert!(
-        matches!(&e, CalError::LogFormat { line: 1, problem, .. } if problem.contains("every cell is a number")),
-        "{e}"
+    // Without names, a first line of numbers is named as data, not as a missing column; so
+    // is one ending in a delimiter (review32a F11: a LabVIEW row ending in a tab was listed
+    // as the header's names).
+    for data in ["0,20,1\n1,20,1\n", "0\t20\t1\t\n1\t20\t1\t\n"] {
+        let e = error_of(data, &default_options());
+        assert!(
+            matches!(&e, CalError::LogFormat { line: 1, problem, .. } if problem.contains("every cell is a number")),
+            "{data:?}: {e}"
+        );
+    }
+}
+
+/// Every named column the header lacks is said at once, each with the names like it
+/// (review32a F15: upper-case names took three runs of the command, one column each).
+#[test]
+fn every_missing_column_is_named_at_once() {
+    let e = error_of("TIME_S,TEMP_C,GYRO_DPH\n0,20,1\n", &default_options());
+    assert_eq!(
+        e.to_string(),
+        "log.csv: no column named 'time_s' (the header has: TIME_S, TEMP_C, GYRO_DPH); perhaps 'TIME_S'; also \
+         missing: 'temp_c' (perhaps 'TEMP_C'), 'gyro_dph' (perhaps 'GYRO_DPH')"
+    );
+    // One missing: nothing more.
+    let e = error_of("time_s,temp_c,gyro\n0,20,1\n", &default_options());
+    assert_eq!(
+        e.to_string(),
+        "log.csv: no column named 'gyro_dph' (the header has: time_s, temp_c, gyro); perhaps 'gyro'"
     );
 }
 

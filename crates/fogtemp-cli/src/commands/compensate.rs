@@ -219,6 +219,9 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
             );
             notes.iter().for_each(|note| eprintln!("note: {note}"));
         }
+        if let Some(note) = clock_note(ingest.format.time_unit) {
+            eprintln!("note: {note}");
+        }
         let summary = format!("({} rows, {})", r.rows, super::counted(axes as u64, "axis", "axes"));
         if to_stdout {
             eprintln!("wrote the compensated log to stdout {summary}");
@@ -227,6 +230,23 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// What the output's `time_s` counts when the log's time column is a clock, not seconds: the
+/// output keeps the log's own clock so it joins other channels by time, which for date-times
+/// is Unix time (review32a F14: epoch seconds under `time_s` without a word).
+fn clock_note(unit: fogtemp_cal::ingest::TimeUnit) -> Option<&'static str> {
+    match unit {
+        fogtemp_cal::ingest::TimeUnit::DateTime => Some(
+            "the output's time_s is the log's date-time as seconds since 1970-01-01 00:00:00 UTC (Unix time), \
+             so that it joins the log's other channels by time",
+        ),
+        fogtemp_cal::ingest::TimeUnit::TimeOfDay => Some(
+            "the output's time_s is the log's time of day as seconds since the midnight before its first row \
+             (past the next midnight it goes on counting), so that it joins the log's other channels by time",
+        ),
+        _ => None,
+    }
 }
 
 /// Whether `e` comes from writing to a closed pipe.
