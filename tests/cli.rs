@@ -902,6 +902,19 @@ fn logs_of_other_lab_tools_get_the_hint_that_fits() {
     let args = args!["fit", "--out", &out, &log, "--decimal-mark", "comma"];
     let stderr = expect_failure(&args, dir.path(), Some(&out), &[":302:1:", "thousands separators"]);
     assert!(!stderr.contains("give --decimal-mark point"), "{stderr}");
+    // A spreadsheet's serial days read as seconds: 400 rows in 0.005 s (F7).
+    let log = dir.path().join("days.csv");
+    let days = rows(&|k| {
+        format!("{:.10},{:.2},1.5", 46_085.5 + f64::from(k) / 86_400.0, 20.0 + 0.05 * f64::from(k))
+    });
+    fs::write(&log, format!("time_days,temp_c,gyro_dph\n{days}")).expect("write");
+    let args = args!["fit", "--out", &out, &log, "--time-column", "time_days"];
+    expect_failure(
+        &args,
+        dir.path(),
+        Some(&out),
+        &["faster than any gyro's logger", "convert them to seconds"],
+    );
     // Two gyro columns in one flag: the flag is repeated instead (F15).
     let log = dir.path().join("two.csv");
     fs::write(&log, format!("time_s,temp_c,gx,gy\n{}", rows(&|k| format!("{k},20,1,2")))).expect("write");

@@ -345,18 +345,51 @@ pub fn subtract_input_rates(
 
 /// The warning for a log most of whose steps between rows are gaps longer than the tracker's
 /// max gap (a time column read in the wrong unit: ms read as s), or `None`. `unit_hint`
-/// names the setting to check (the command line's `--time-unit`, Python's `time_unit=`).
+/// names the setting to check (the command line's `--time-unit`, Python's `time_unit=`), or
+/// is empty for arrays, whose time is in seconds.
 pub fn mostly_gaps_note(path: &Path, gaps: &TimeGaps, rows: u64, unit_hint: &str) -> Option<String> {
     gaps.mostly_gaps(rows).then(|| {
         format!(
-            "{}: {} of its {} steps between rows are longer than the tracker's max gap of {} s: are its \
-             times in another unit? ({unit_hint} s, ms, us, ns, min or h)",
+            "{}: {} of its {} steps between rows are longer than the tracker's max gap of {} s: {}",
             path.display(),
             gaps.count,
             rows - 1,
-            gaps.longer_than_s
+            gaps.longer_than_s,
+            another_unit(unit_hint)
         )
     })
+}
+
+/// Below this mean step between rows a log is faster than any gyro's logger writes, s (20
+/// kHz): its time is in a larger unit read as seconds, such as a spreadsheet's serial days
+/// (review32a F7: 10,800 rows at 2 Hz in 0.06 s, then "no calibration points" and advice to
+/// check the temperature column).
+pub const FASTEST_LOG_STEP_S: f64 = 5e-5;
+
+/// The warning for a log of at least 100 rows whose mean step between rows is under
+/// [`FASTEST_LOG_STEP_S`], or `None`; `unit_hint` as for [`mostly_gaps_note`].
+pub fn too_brief_note(path: &Path, ingest: &crate::ingest::IngestReport, unit_hint: &str) -> Option<String> {
+    let rows = ingest.rows;
+    let step_s = ingest.last_time_s / rows.saturating_sub(1).max(1) as f64;
+    (rows >= 100 && step_s < FASTEST_LOG_STEP_S).then(|| {
+        format!(
+            "{}: its {rows} rows span only {:.3e} s, {step_s:.1e} s a row, faster than any gyro's logger: {} \
+             (dates as spreadsheets write them count days: convert them to seconds first)",
+            path.display(),
+            ingest.last_time_s,
+            another_unit(unit_hint)
+        )
+    })
+}
+
+/// "are its times in another unit?" with the setting to check (`unit_hint`), or for arrays
+/// (empty `unit_hint`) the unit they are read in.
+fn another_unit(unit_hint: &str) -> String {
+    if unit_hint.is_empty() {
+        "is time_s in another unit? It is read in seconds (milliseconds / 1000)".to_string()
+    } else {
+        format!("are its times in another unit? ({unit_hint} s, ms, us, ns, min or h)")
+    }
 }
 
 /// The warning for a model whose axis count differs from the log's gyro columns (only the
@@ -3618,6 +3651,35 @@ mod tests {
             "{notes:?}"
         );
         assert_eq!(notes[0].matches("extrapolated").count(), 1, "said once: {notes:?}");
+    }
+
+    /// A log whose rows come faster than any logger writes (a spreadsheet's serial days read
+    /// as seconds) is said to be in another unit; a 10 kHz log is not (review32a F7).
+    #[test]
+    fn rows_faster_than_any_logger_are_said_to_be_in_another_unit() {
+        let report = |rows: u64, span_s: f64| crate::ingest::IngestReport {
+            rows,
+            last_time_s: span_s,
+            ..crate::ingest::IngestReport::default()
+        };
+        // 10,800 rows at 2 Hz, in days: 5399.5 / 86400 s.
+        let days = report(10_800, 5399.5 / 86_400.0);
+        let note = too_brief_note(Path::new("x.csv"), &days, "--time-unit").expect("noted");
+        assert_eq!(
+            note,
+            "x.csv: its 10800 rows span only 6.249e-2 s, 5.8e-6 s a row, faster than any gyro's logger: are its \
+             times in another unit? (--time-unit s, ms, us, ns, min or h) (dates as spreadsheets write them count \
+             days: convert them to seconds first)"
+        );
+        assert!(too_brief_note(Path::new("a"), &days, "").expect("noted").contains("It is read in seconds"));
+        assert!(
+            too_brief_note(Path::new("x.csv"), &report(10_000, 0.9999), "--time-unit").is_none(),
+            "10 kHz"
+        );
+        assert!(
+            too_brief_note(Path::new("x.csv"), &report(50, 1e-6), "--time-unit").is_none(),
+            "too few rows"
+        );
     }
 
     /// `ramp_log` with the temperature cell of data row `row` (0-based) replaced by `cell`.

@@ -601,6 +601,9 @@ fn file_runs(
         if let Some(note) = calibrate::mostly_gaps_note(&run.path, &run.gaps, run.ingest.rows, "time_unit=") {
             progress::warn(py, &note)?;
         }
+        if let Some(note) = calibrate::too_brief_note(&run.path, &run.ingest, "time_unit=") {
+            progress::warn(py, &note)?;
+        }
         for note in (0..run.temperature_silences.len()).filter_map(|axis| run.temperature_silence_note(axis))
         {
             progress::warn(py, &note)?;
@@ -670,6 +673,15 @@ fn array_features(
         }
         warn_skipped(py, &f.ingest, true)?;
         if let Some(note) = f.gaps.note(&f.path) {
+            progress::warn(py, &note)?;
+        }
+        // Arrays are in seconds: another unit is said as such (review32a F7: arrays timed in
+        // milliseconds got no "another unit?" warning, and then advice to name a column).
+        let notes = [
+            calibrate::mostly_gaps_note(&f.path, &f.gaps, f.ingest.rows, ""),
+            calibrate::too_brief_note(&f.path, &f.ingest, ""),
+        ];
+        for note in notes.into_iter().flatten() {
             progress::warn(py, &note)?;
         }
         for note in (0..f.temperature_silences.len()).filter_map(|axis| f.temperature_silence_note(axis)) {
@@ -982,9 +994,13 @@ pub fn validate<'py>(
         progress::warn(py, note)?;
     }
     // A log's time unit is a setting; arrays are in seconds (as fit() reads them).
-    for r in validation.runs.iter().filter(|r| r.axis == 0 && !arrays) {
-        if let Some(note) = calibrate::mostly_gaps_note(&r.path, &r.series.gaps, r.ingest.rows, "time_unit=")
-        {
+    let unit_hint = if arrays { "" } else { "time_unit=" };
+    for r in validation.runs.iter().filter(|r| r.axis == 0) {
+        let notes = [
+            calibrate::mostly_gaps_note(&r.path, &r.series.gaps, r.ingest.rows, unit_hint),
+            calibrate::too_brief_note(&r.path, &r.ingest, unit_hint),
+        ];
+        for note in notes.into_iter().flatten() {
             progress::warn(py, &note)?;
         }
     }

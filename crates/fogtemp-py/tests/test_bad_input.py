@@ -379,6 +379,17 @@ def test_validate_warns_of_a_wrong_time_unit_and_of_unpaired_axes(poly_model, tm
     write_csv(tmp_path / "ms.csv", in_ms)
     with pytest.warns(UserWarning, match=r"are its times in another unit\? \(time_unit= s, ms, us, ns, min or h\)"):
         fogtemp.validate(poly_model, [tmp_path / "ms.csv"], progress=False)
+    # Arrays are in seconds, and say so (review32a F7: arrays in ms got no such warning, in
+    # validate or fit); days as spreadsheets count them make every step far too short.
+    with pytest.warns(UserWarning, match=r"is time_s in another unit\? It is read in seconds"):
+        fogtemp.validate(poly_model, [in_ms], progress=False)
+    with pytest.warns(UserWarning, match=r"is time_s in another unit\? It is read in seconds"):
+        with pytest.raises(ValueError, match="no calibration points"):
+            fogtemp.fit([in_ms, in_ms], method="poly", progress=False)
+    in_days = dict(run, time_s=run["time_s"] / 86400.0)
+    with pytest.warns(UserWarning, match=r"faster than any gyro's logger: is time_s in another unit\?"):
+        with pytest.raises(ValueError, match="no calibration points"):
+            fogtemp.fit([in_days, in_days], method="poly", progress=False)
     two = tmp_path / "two.csv"
     with open(two, "w") as f:
         f.write("time_s,temp_c,gyro_dph,gyro2_dph\n")

@@ -191,6 +191,7 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
             eprintln!("note: {note}");
         }
         super::warn_if_mostly_gaps(&a.log, &gaps, r.rows);
+        super::warn_if_too_brief(&a.log, r);
         for (axis, ((counts, guard), first_lines)) in
             flag_counts.iter().zip(spike_guards).zip(bad_lines).enumerate()
         {

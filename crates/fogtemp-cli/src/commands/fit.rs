@@ -109,6 +109,7 @@ pub fn fit(a: FitArgs) -> Result<()> {
             }
         }
         warn_if_mostly_gaps(&run.path, &run.gaps, run.ingest.rows);
+        super::warn_if_too_brief(&run.path, &run.ingest);
         runs.push(run);
     }
     let (digest, each) = input_digest.finish();

@@ -213,6 +213,13 @@ fn warn_if_mostly_gaps(path: &Path, gaps: &fogtemp_cal::calibrate::TimeGaps, row
     }
 }
 
+/// Warns when a log's rows come faster than any logger writes: a larger unit read as seconds.
+fn warn_if_too_brief(path: &Path, ingest: &fogtemp_cal::ingest::IngestReport) {
+    if let Some(note) = fogtemp_cal::calibrate::too_brief_note(path, ingest, "--time-unit") {
+        eprintln!("warning: {note}");
+    }
+}
+
 /// Warns when the model's axes and the log's gyro columns differ in number: only the
 /// first `min` of them are paired (axis k with gyro column k).
 fn warn_axis_count(model_path: &Path, model_axes: usize, gyro_columns: usize) {
