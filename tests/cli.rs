@@ -902,6 +902,33 @@ fn logs_of_other_lab_tools_get_the_hint_that_fits() {
     let args = args!["fit", "--out", &out, &log, "--decimal-mark", "comma"];
     let stderr = expect_failure(&args, dir.path(), Some(&out), &[":302:1:", "thousands separators"]);
     assert!(!stderr.contains("give --decimal-mark point"), "{stderr}");
+    // A units row under the header: the hint's shape is recorded in the model, so validate
+    // then reads the log with no option given (F12).
+    let log = dir.path().join("units.csv");
+    fs::write(&log, format!("time_s,temp_c,gyro_dph\ns,degC,deg/h\n{}", rows(&plain))).expect("write");
+    expect_failure(
+        &args!["fit", "--out", &out, &log],
+        dir.path(),
+        Some(&out),
+        &[":2:1:", "--skip-lines 2 --columns"],
+    );
+    let shaped = args![
+        "fit",
+        "--method",
+        "poly",
+        "--out",
+        &out,
+        &log,
+        "--skip-lines",
+        "2",
+        "--columns",
+        "time_s,temp_c,gyro_dph"
+    ];
+    let output = cal().args(&shaped).output().expect("run");
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    let output = cal().args(args!["validate", "--model", &out, &log]).output().expect("run");
+    assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
+    fs::remove_file(&out).expect("remove");
     // A spreadsheet's serial days read as seconds: 400 rows in 0.005 s (F7).
     let log = dir.path().join("days.csv");
     let days = rows(&|k| {

@@ -199,7 +199,9 @@ fn flag_hint(e: &(dyn std::error::Error + 'static)) -> Option<&'static str> {
         }
         CalError::BadRow { row, .. } if row.kind == BadRowKind::TextRow && row.line <= 3 => Some(
             "; a banner above the data (a terminal program's log line)? skip it with --skip-lines N; \
-             a units row or repeated header: --skip-bad-rows",
+             a units row under the header: --skip-lines 2 --columns a,b,c names the columns and skips both \
+             lines, and the model records it for validate and compensate (--skip-bad-rows also skips the row, \
+             but has to be given again at every step)",
         ),
         CalError::BadRow { row, .. } if row.kind == BadRowKind::TextRow => Some(
             "; a header repeated mid-file (a logger restart, or two logs joined)? split the file there, each part \

@@ -45,6 +45,12 @@ fn hint(e: &CalError) -> &'static str {
             "; the log writes decimal points? pass decimal_mark='point' (a model fitted on decimal-comma logs \
              reads its logs so unless told)"
         }
+        CalError::BadRow { row, .. } if row.kind == BadRowKind::TextRow && row.line <= 3 => {
+            "; a banner above the data (a terminal program's log line)? skip it with skip_lines=N; a units row \
+             under the header: skip_lines=2, columns=[...] names the columns and skips both lines, and the model \
+             records it for validate and compensate (skip_bad_rows=True also skips the row, but has to be passed \
+             again at every step)"
+        }
         CalError::BadRow { row, .. } if row.kind == BadRowKind::TextRow && row.line > 3 => {
             "; a header repeated mid-file (a logger restart, or two logs joined)? split the file there, each part \
              a run (skip_bad_rows=True would skip it, and then, if the time started again, every row until it \

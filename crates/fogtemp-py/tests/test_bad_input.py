@@ -91,6 +91,10 @@ def test_logs_of_other_lab_tools_get_the_hint_that_fits(tmp_path):
     restart.write_text("time_s,temp_c,gyro_dph\n0,20,1\n1,20,1\n2,20,1\n3,20,1\ntime_s,temp_c,gyro_dph\n0,20,1\n")
     with pytest.raises(ValueError, match=r"restart.csv:6:1: .*a header repeated mid-file.*split the file there"):
         fogtemp.read_log(restart, progress=False)
+    units = tmp_path / "units.csv"
+    units.write_text("time_s,temp_c,gyro_dph\ns,degC,deg/h\n0,20,1\n")
+    with pytest.raises(ValueError, match=r"units.csv:2:1: .*skip_lines=2, columns=\[\.\.\.\]"):
+        fogtemp.read_log(units, progress=False)
     separate = tmp_path / "separate.csv"
     separate.write_text("time_s,temp_c,gyro_dph\n0,,1\n0.5,20,\n")
     with pytest.raises(ValueError, match=r"separate.csv:3:3: .*channels logged on separate rows"):
