@@ -859,7 +859,7 @@ fn logs_of_other_lab_tools_get_the_hint_that_fits() {
                 "time_s,temp_c,gyro_dph\n{}",
                 rows(&|k| if k == 200 { "time_s,temp_c,gyro_dph".into() } else { plain(k % 200) })
             ),
-            vec![":202:1:", "a header repeated mid-file", "split the file there"],
+            vec![":202:1:", "the header again", "split the file there"],
         ),
         (
             "wrap.csv",
@@ -871,7 +871,7 @@ fn logs_of_other_lab_tools_get_the_hint_that_fits() {
                     20.0
                 ))
             ),
-            vec!["time before the previous row", "a counter that wrapped", "--sample-rate-hz"],
+            vec!["time before the previous row", "a 32-bit counter that wrapped", "--sample-rate-hz"],
         ),
         (
             "separate.csv",
@@ -903,27 +903,20 @@ fn logs_of_other_lab_tools_get_the_hint_that_fits() {
     let stderr = expect_failure(&args, dir.path(), Some(&out), &[":302:1:", "thousands separators"]);
     assert!(!stderr.contains("give --decimal-mark point"), "{stderr}");
     // A units row under the header: the hint's shape is recorded in the model, so validate
-    // then reads the log with no option given (F12).
+    // then reads the log with no option given (F12); below a banner the units row is still
+    // one, not the header again (review32b F4).
     let log = dir.path().join("units.csv");
     fs::write(&log, format!("time_s,temp_c,gyro_dph\ns,degC,deg/h\n{}", rows(&plain))).expect("write");
-    expect_failure(
-        &args!["fit", "--out", &out, &log],
-        dir.path(),
-        Some(&out),
-        &[":2:1:", "--skip-lines 2 --columns"],
-    );
-    let shaped = args![
-        "fit",
-        "--method",
-        "poly",
-        "--out",
-        &out,
-        &log,
-        "--skip-lines",
-        "2",
-        "--columns",
-        "time_s,temp_c,gyro_dph"
-    ];
+    expect_failure(&args!["fit", "--out", &out, &log], dir.path(), Some(&out), &[":2:1:", "--columns a,b,c"]);
+    let banner = format!("logger v2\nstarted 12:00\ntime_s,temp_c,gyro_dph\ns,degC,deg/h\n{}", rows(&plain));
+    fs::write(&log, banner).expect("write");
+    let args = args!["fit", "--out", &out, &log, "--skip-lines", "2"];
+    let stderr =
+        expect_failure(&args, dir.path(), Some(&out), &[":4:1:", "a units row under the header: skip both"]);
+    assert!(!stderr.contains("split the file"), "{stderr}");
+    let columns = ["--skip-lines", "4", "--columns", "time_s,temp_c,gyro_dph"];
+    let mut shaped = args!["fit", "--method", "poly", "--out", &out, &log];
+    shaped.extend(columns.iter().map(OsString::from));
     let output = cal().args(&shaped).output().expect("run");
     assert!(output.status.success(), "{}", String::from_utf8_lossy(&output.stderr));
     let output = cal().args(args!["validate", "--model", &out, &log]).output().expect("run");

@@ -148,7 +148,8 @@ class Model:
         FogtempWarnings say what ``fogtemp-cal compensate`` notes: time that goes back (named by
         the sample index; the command line refuses such a log, the compensator restarts there),
         gaps, temperature glitches (``sample:INDEX``, 0-based), and the shares of samples flagged
-        BAD_INPUT, TEMP_STALE and OUTSIDE_HULL."""
+        BAD_INPUT, TEMP_STALE and OUTSIDE_HULL, the last with how far they reach beyond the
+        calibrated ranges, in ``validate``'s words."""
     def __eq__(self, other: object) -> bool:
         """True when ``other`` is a Model with the same blob bytes."""
     def __hash__(self) -> int:

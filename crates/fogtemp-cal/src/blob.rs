@@ -144,7 +144,8 @@ impl LogShapeRecord {
     /// Whether the record can hold it: at most `u32::MAX` lines skipped, a delimiter byte
     /// that is ASCII and not a quote, line end or NUL, and a comment prefix and at most 255
     /// column names of 1 to 255 bytes without control characters. A shape it cannot hold is
-    /// not written (the logs' shape has to be named again when the model is replayed).
+    /// not written (the logs' shape has to be named again when the model is replayed); with
+    /// run metadata after it, the default shape is written in its place.
     pub fn is_storable(&self) -> bool {
         let delimiter = match self.delimiter {
             Delimiter::Byte(b) => b.is_ascii() && !matches!(b, 0 | b'"' | b'\n' | b'\r'),

@@ -1805,6 +1805,18 @@ impl<'m> OutsideWatch<'m> {
         }
     }
 
+    /// Counts the compensator's last output when it is flagged `OUTSIDE_HULL`, at its
+    /// tracker's features: what every replay does after each step.
+    pub fn observe_output<const N: usize>(
+        &mut self,
+        output: &fogtemp_core::Output,
+        comp: &Compensator<'_, N>,
+    ) {
+        if output.flags.contains(Flags::OUTSIDE_HULL) {
+            self.observe(comp.tracker().features());
+        }
+    }
+
     /// The reach of the samples counted so far.
     pub fn reach(&self) -> Option<&OutsideReach> {
         self.reach.as_ref()
@@ -1952,13 +1964,11 @@ impl<'m> Replayer<'m> {
         self.acc.2 += f64::from(out.rate_dph);
         self.acc.3 += f64::from(out.bias_dph);
         self.series.samples += 1;
-        if out.flags.0 & fogtemp_core::Flags::OUTSIDE_HULL.0 != 0 {
-            // At the tracker's features as the compensator flagged it. (Until 2026-11-29 a
-            // block's flagged samples were counted at the features of the block's end, which,
-            // with tracker and replay blocks not aligned, put some "within the calibrated
-            // ranges" that were flagged beyond them: psim-tvc's T-alone model, 49 of 250.)
-            self.outside.observe(self.comp.tracker().features());
-        }
+        // At the tracker's features as the compensator flagged it. (Until 2026-11-29 a block's
+        // flagged samples were counted at the features of the block's end, which, with tracker
+        // and replay blocks not aligned, put some "within the calibrated ranges" that were
+        // flagged beyond them: psim-tvc's T-alone model, 49 of 250.)
+        self.outside.observe_output(&out, &self.comp);
         for (bit, count) in self.series.flag_counts.iter_mut().enumerate() {
             if out.flags.0 & (1 << bit) != 0 {
                 *count += 1;

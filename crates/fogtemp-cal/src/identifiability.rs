@@ -206,7 +206,7 @@ pub fn fit_warnings(
             let column = temp_columns.get(axis.min(temp_columns.len().saturating_sub(1)));
             found.extend(temperature_spikes(runs, axis, column.map_or("temperature", String::as_str)));
             found.extend(gyro_outliers(runs, axis));
-            found.extend(implausible_gyro(&points, axis));
+            found.extend(implausible_gyro(runs, axis));
             found.extend(coarse_temperature(runs, axis, f64::from(config.features.window_s)));
             found
         })
@@ -667,20 +667,28 @@ fn implausible_rates(points: &CalibrationPoints, axis: usize) -> Option<Warning>
 /// points as read, after `--gyro-unit`.
 pub const IMPLAUSIBLE_GYRO_DPH: f64 = 1e-4;
 
-/// `implausible_gyro`: the largest |gyro mean| of the calibration points below
+/// `implausible_gyro`: the largest |gyro mean| of the runs' features as read, before any input
+/// rate was taken off (review32b F2: after it, an ideal gyro reading the Earth rate alone was
+/// near zero, and a rad/s gyro beside a manifest's rates was not), below
 /// [`IMPLAUSIBLE_GYRO_DPH`].
-fn implausible_gyro(points: &CalibrationPoints, axis: usize) -> Option<Warning> {
-    let finite = points.points.iter().map(|p| p.value_dph.abs()).filter(|v| v.is_finite());
-    let largest = finite.reduce(f64::max)?;
+fn implausible_gyro(runs: &[RunFeatures], axis: usize) -> Option<Warning> {
+    let as_read = runs.iter().flat_map(|run| {
+        let taken_off = run.input_rate_subtracted_dph.get(axis).copied().unwrap_or(0.0);
+        run.axes
+            .get(axis)
+            .into_iter()
+            .flat_map(move |(features, _)| features.iter().map(move |f| (f.gyro_mean_dph + taken_off).abs()))
+    });
+    let largest = as_read.filter(|v| v.is_finite()).reduce(f64::max)?;
     (largest < IMPLAUSIBLE_GYRO_DPH).then(|| {
         Warning::new(
             axis,
             WarningKind::ImplausibleGyro,
             format!(
-                "axis {axis}: every calibration point's gyro mean lies within {} deg/h of zero, below any FOG's (its \
-                 noise alone scatters them by more than {IMPLAUSIBLE_GYRO_DPH:.0e}, and it reads its bias and the \
-                 Earth rate): a gyro logged in rad/s or deg/s read as deg/h? give --gyro-unit rps or dps (Python \
-                 gyro_unit=); the model is in the unit the gyro is read in",
+                "axis {axis}: every gyro mean of the calibration logs, as read, lies within {} deg/h of zero, below \
+                 any FOG's (its noise alone scatters them by more than {IMPLAUSIBLE_GYRO_DPH:.0e}, and it reads its \
+                 bias and the Earth rate): a gyro logged in rad/s or deg/s read as deg/h? give --gyro-unit rps or \
+                 dps (Python gyro_unit=); the model is in the unit the gyro is read in",
                 crate::numbers::dph(largest)
             ),
             &[("largest_abs_gyro_dph", largest), ("implausible_gyro_dph", IMPLAUSIBLE_GYRO_DPH)],
@@ -1148,31 +1156,43 @@ mod tests {
         assert!(implausible_temperatures(&points(&[(0, 149.0, 0.1), (1, 300.0, 0.2)]), 0).is_none());
     }
 
+    /// A 0.5 C/min ramp for 3000 s at 1 Hz whose gyro reads `gyro_dph(temp_c)`.
+    fn ramp_reading(gyro_dph: impl Fn(f64) -> f64) -> RunFeatures {
+        let mut csv = String::from("time_s,temp_c,gyro_dph\n");
+        for k in 0..3000 {
+            let temp_c = 20.0 + 0.5 * f64::from(k) / 60.0;
+            csv.push_str(&format!("{k},{temp_c:.4},{:e}\n", gyro_dph(temp_c)));
+        }
+        let config = CalibrationConfig::default();
+        crate::calibrate::extract_run_from(csv.as_bytes(), std::path::Path::new("ramp.csv"), &config)
+            .expect("reads")
+    }
+
     /// A gyro in rad/s read as deg/h (206,265 times too small) warns with the largest mean and
-    /// the fix; one point past the limit, or a FOG's deg/h, does not (review32a F2).
+    /// the fix, whether or not an input rate was taken off (it is added back); a gyro reading
+    /// the Earth rate alone, taken off, does not (review32a F2, review32b F2).
     #[test]
     fn a_gyro_closer_to_zero_than_any_fog_is_said_to_be_in_another_unit() {
-        let with_values = |values: &[f64]| {
-            let mut p = points(&values.iter().map(|_| (0, 20.0, 0.1)).collect::<Vec<_>>());
-            p.points.iter_mut().zip(values).for_each(|(p, &v)| p.value_dph = v);
-            p
-        };
-        let rad_per_s: Vec<f64> = (0..100).map(|k| 2.4e-6 + 1e-8 * f64::from(k % 7) - 3e-8).collect();
-        let w = implausible_gyro(&with_values(&rad_per_s), 2).expect("warned");
+        let rad_per_s = |temp_c: f64| (9.67 + 0.02 * temp_c) / 206_264.8;
+        let mut run = ramp_reading(rad_per_s);
+        let w = implausible_gyro(std::slice::from_ref(&run), 0).expect("warned");
         assert_eq!(w.kind.name(), "implausible_gyro");
-        assert_eq!(w.values["largest_abs_gyro_dph"], rad_per_s.iter().copied().fold(0.0, f64::max));
+        let largest = w.values["largest_abs_gyro_dph"];
+        // Oracle: the ramp's hottest reading, 45 C (features are means over the window).
+        assert!(largest < rad_per_s(45.0) && largest > rad_per_s(40.0), "{largest}");
         assert!(
-            w.message.starts_with(
-                "axis 2: every calibration point's gyro mean lies within 2.430e-6 deg/h of zero"
-            ) && w.message.contains("--gyro-unit rps or dps"),
+            w.message.starts_with("axis 0: every gyro mean of the calibration logs, as read, lies within ")
+                && w.message.contains("--gyro-unit rps or dps"),
             "{}",
             w.message
         );
-        let mut one_past = rad_per_s.clone();
-        one_past[50] = -1.5e-4;
-        assert!(implausible_gyro(&with_values(&one_past), 0).is_none());
-        assert!(implausible_gyro(&with_values(&[0.5, 0.49, 0.51]), 0).is_none());
-        assert!(implausible_gyro(&CalibrationPoints::default(), 0).is_none());
+        run.subtract_input_rate(0, 9.67);
+        assert!(implausible_gyro(std::slice::from_ref(&run), 0).is_some(), "rates taken off are added back");
+        let mut earth = ramp_reading(|_| 9.67);
+        earth.subtract_input_rate(0, 9.67);
+        assert!(implausible_gyro(std::slice::from_ref(&earth), 0).is_none(), "as read it is 9.67 deg/h");
+        assert!(implausible_gyro(&[ramp_reading(|t| 0.5 + 0.01 * t)], 0).is_none());
+        assert!(implausible_gyro(&[], 0).is_none());
     }
 
     /// Minutes read as seconds (every rate 60 times too large) warns with the median and the

@@ -197,34 +197,30 @@ fn flag_hint(e: &(dyn std::error::Error + 'static)) -> Option<&'static str> {
                  reads its logs so unless told)",
             )
         }
-        CalError::BadRow { row, .. } if row.kind == BadRowKind::TextRow && row.line <= 3 => Some(
-            "; a banner above the data (a terminal program's log line)? skip it with --skip-lines N; \
-             a units row under the header: --skip-lines 2 --columns a,b,c names the columns and skips both \
-             lines, and the model records it for validate and compensate (--skip-bad-rows also skips the row, \
-             but has to be given again at every step)",
+        // A word for a missing value (before the text-row arms: a row of them is a text row).
+        CalError::BadRow { row, .. } if row.looks_like_missing_marker() => Some(
+            "; a mark for a missing reading? in a temperature column empty those cells: an empty temperature \
+             cell is read as no reading (--skip-bad-rows would drop the rows, gyro samples and all); a time or \
+             gyro value missing: --skip-bad-rows skips its row",
+        ),
+        CalError::BadRow { row, .. } if row.looks_like_repeated_header() => Some(
+            "; the header again (a logger restart, or two logs joined)? split the file there, each part a run \
+             (--skip-bad-rows would skip it, and then, if the time started again, every row until it passes the \
+             old one)",
         ),
         CalError::BadRow { row, .. } if row.kind == BadRowKind::TextRow => Some(
-            "; a header repeated mid-file (a logger restart, or two logs joined)? split the file there, each part \
-             a run (--skip-bad-rows would skip it, and then, if the time started again, every row until it passes \
-             the old one)",
+            "; a banner above the data (a terminal program's log line)? skip it with --skip-lines N; a units row \
+             under the header: skip both with --skip-lines N and name the columns with --columns a,b,c, which the \
+             model records for validate and compensate (--skip-bad-rows also skips the row, but has to be given \
+             again at every step)",
         ),
-        // The command line reads files only: a NaN there is written text, a mark too.
-        CalError::BadRow { row, .. }
-            if row.looks_like_missing_marker()
-                || (row.kind == BadRowKind::NonFinite && row.found.trim().eq_ignore_ascii_case("nan")) =>
-        {
-            Some(
-            "; a mark for a missing reading? empty those cells: an empty temperature cell is read as no reading \
-             (--skip-bad-rows would drop the rows, gyro samples and all)",
-            )
-        }
         CalError::BadRow { row, .. } if row.kind == BadRowKind::ShortSpacedRow => Some(
-            "; write the log with another delimiter (a comma keeps a blank cell in its place), or skip such rows \
-             with --skip-bad-rows (listed); if the header's names hold spaces, name the columns in order with \
-             --skip-lines 1 --columns a,b,c",
+            "; a row cut short (as a serial capture's): skip such rows with --skip-bad-rows (listed); a blank \
+             cell: write the log with another delimiter (a comma keeps it in its place); if the header's names \
+             hold spaces, name the columns in order with --skip-lines 1 --columns a,b,c",
         ),
         CalError::BadRow { row, .. } if row.kind == BadRowKind::EmptyCell => Some(
-            "; a time or gyro cell left empty: channels logged on separate rows (merge them first, each gyro row \
+            "; a time, date or gyro cell left empty: channels logged on separate rows (merge them first, each gyro row \
              with the temperature read last: an empty temperature cell is read as no reading), or a lost sample \
              (--skip-bad-rows skips such rows)",
         ),
@@ -234,9 +230,10 @@ fn flag_hint(e: &(dyn std::error::Error + 'static)) -> Option<&'static str> {
         ),
         CalError::BadRow { row, .. } if row.kind == BadRowKind::BackwardTime => Some(
             "; the time goes back: a logger restart (a new run starts here: split the file there), two logs \
-             joined, a counter that wrapped (32-bit microseconds wrap every 71.6 min: give --sample-rate-hz HZ to \
-             time the rows by their index), or a corrupted stamp in the row before that jumps ahead? \
-             --skip-bad-rows would drop every row until the time passes the old one",
+             joined, a 32-bit counter that wrapped (if the time before was near 4294.97 s from microseconds or \
+             4294967 s from milliseconds: give --sample-rate-hz HZ to time the rows by their index), or a \
+             corrupted stamp in the row before that jumps ahead? --skip-bad-rows would drop every row until the \
+             time passes the old one",
         ),
         CalError::BadRow { row, .. } if row.kind == BadRowKind::NotADateTime => Some(
             "; date-times are read in ISO 8601 (2026-11-24T23:30:00, or with a space, optional .fff and Z or \

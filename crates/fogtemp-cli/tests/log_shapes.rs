@@ -81,7 +81,7 @@ fn serial_captures_fit_and_validate_end_to_end() {
     assert!(!out.status.success());
     assert!(
         stderr.contains(&format!(
-            "{}:7002:2: column 'temp_c': fewer fields than the header (or the names --columns gives) in a log whose \
+            "{}:7002:2: column 'temp_c': fewer fields than the header (or the names given for a headerless log) in a log whose \
              columns are separated by spaces: a row cut short, or a blank cell, which vanishes there",
             cal[0].display()
         )) && stderr.contains("--skip-bad-rows"),

@@ -240,7 +240,8 @@ pub struct fogtemp_error {
     pub needed: u64,
     /// What was found or available: the blocks array's length, the bytes present, the
     /// stored length or CRC, the requested axis, the offending offset (`TRAILING_BYTES`), the
-    /// length given (`BAD_VALUE` for a length argument).
+    /// length given (`BAD_VALUE` for a length argument), the value of a file-header field or
+    /// of the run-metadata byte out of range (`BAD_VALUE` with `FOGTEMP_NO_AXIS`).
     pub found: u64,
     /// The core error, for `fogtemp_error_message`. Opaque.
     pub opaque: [u64; 6],

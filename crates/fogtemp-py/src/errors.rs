@@ -45,28 +45,30 @@ fn hint(e: &CalError) -> &'static str {
             "; the log writes decimal points? pass decimal_mark='point' (a model fitted on decimal-comma logs \
              reads its logs so unless told)"
         }
-        CalError::BadRow { row, .. } if row.kind == BadRowKind::TextRow && row.line <= 3 => {
-            "; a banner above the data (a terminal program's log line)? skip it with skip_lines=N; a units row \
-             under the header: skip_lines=2, columns=[...] names the columns and skips both lines, and the model \
-             records it for validate and compensate (skip_bad_rows=True also skips the row, but has to be passed \
-             again at every step)"
-        }
-        CalError::BadRow { row, .. } if row.kind == BadRowKind::TextRow && row.line > 3 => {
-            "; a header repeated mid-file (a logger restart, or two logs joined)? split the file there, each part \
-             a run (skip_bad_rows=True would skip it, and then, if the time started again, every row until it \
-             passes the old one)"
-        }
+        // A word for a missing value (before the text-row arms: a row of them is a text row).
         CalError::BadRow { row, .. } if row.looks_like_missing_marker() => {
-            "; a mark for a missing reading? empty those cells: an empty temperature cell is read as no reading \
-             (skip_bad_rows=True would drop the rows, gyro samples and all)"
+            "; a mark for a missing reading? in a temperature column empty those cells: an empty temperature cell \
+             is read as no reading (skip_bad_rows=True would drop the rows, gyro samples and all); a time or gyro \
+             value missing: skip_bad_rows=True skips its row"
+        }
+        CalError::BadRow { row, .. } if row.looks_like_repeated_header() => {
+            "; the header again (a logger restart, or two logs joined)? split the file there, each part a run \
+             (skip_bad_rows=True would skip it, and then, if the time started again, every row until it passes \
+             the old one)"
+        }
+        CalError::BadRow { row, .. } if row.kind == BadRowKind::TextRow => {
+            "; a banner above the data (a terminal program's log line)? skip it with skip_lines=N; a units row \
+             under the header: skip both with skip_lines=N and name the columns with columns=[...], which the \
+             model records for validate and compensate (skip_bad_rows=True also skips the row, but has to be \
+             passed again at every step)"
         }
         CalError::BadRow { row, .. } if row.kind == BadRowKind::ShortSpacedRow => {
-            "; write the log with another delimiter (a comma keeps a blank cell in its place), or pass \
-             skip_bad_rows=True to skip such rows (listed); if the header's names hold spaces, name the columns \
-             in order with skip_lines=1, columns=[...]"
+            "; a row cut short (as a serial capture's): pass skip_bad_rows=True to skip such rows (listed); a \
+             blank cell: write the log with another delimiter (a comma keeps it in its place); if the header's \
+             names hold spaces, name the columns in order with skip_lines=1, columns=[...]"
         }
         CalError::BadRow { row, .. } if row.kind == BadRowKind::EmptyCell => {
-            "; a time or gyro cell left empty: channels logged on separate rows (merge them first, each gyro row \
+            "; a time, date or gyro cell left empty: channels logged on separate rows (merge them first, each gyro row \
              with the temperature read last: an empty temperature cell is read as no reading), or a lost sample \
              (skip_bad_rows=True skips such rows)"
         }
@@ -76,9 +78,10 @@ fn hint(e: &CalError) -> &'static str {
         }
         CalError::BadRow { row, .. } if row.kind == BadRowKind::BackwardTime => {
             "; the time goes back: a logger restart (a new run starts here: split the file there), two logs \
-             joined, a counter that wrapped (32-bit microseconds wrap every 71.6 min: pass sample_rate_hz= to \
-             time the rows by their index), or a corrupted stamp in the row before that jumps ahead? \
-             skip_bad_rows=True would drop every row until the time passes the old one"
+             joined, a 32-bit counter that wrapped (if the time before was near 4294.97 s from microseconds or \
+             4294967 s from milliseconds: pass sample_rate_hz= to time the rows by their index), or a corrupted \
+             stamp in the row before that jumps ahead? skip_bad_rows=True would drop every row until the time \
+             passes the old one"
         }
         CalError::BadRow { row, .. } if row.kind == BadRowKind::NotADateTime => {
             "; date-times are read in ISO 8601 (2026-11-24T23:30:00, or with a space, optional .fff and Z or \
@@ -105,7 +108,8 @@ fn hint(e: &CalError) -> &'static str {
             "; one column per name: pass a list, one for each model axis (gyro_column=['gx', 'gy'], temp_column=['tx', 'ty'])"
         }
         CalError::NoCalibrationPoints { .. } => {
-            "; check temp_column, or set max_gap_s and window_s to suit the temperature sampling"
+            "; check temp_column (for arrays, the temperature array: NaN is no reading), or set max_gap_s and window_s \
+             to suit the temperature sampling"
         }
         _ => "",
     }

@@ -531,9 +531,7 @@ fn replay_samples(
         out[k] = f64::from(o.rate_dph);
         bias[k] = f64::from(o.bias_dph);
         flags[k] = o.flags.0;
-        if o.flags.contains(Flags::OUTSIDE_HULL) {
-            outside.observe(comp.tracker().features());
-        }
+        outside.observe_output(&o, comp);
     }
     (out, bias, flags)
 }

@@ -89,11 +89,11 @@ def test_logs_of_other_lab_tools_get_the_hint_that_fits(tmp_path):
         fogtemp.read_log(na, progress=False)
     restart = tmp_path / "restart.csv"
     restart.write_text("time_s,temp_c,gyro_dph\n0,20,1\n1,20,1\n2,20,1\n3,20,1\ntime_s,temp_c,gyro_dph\n0,20,1\n")
-    with pytest.raises(ValueError, match=r"restart.csv:6:1: .*a header repeated mid-file.*split the file there"):
+    with pytest.raises(ValueError, match=r"restart.csv:6:1: .*the header again.*split the file there"):
         fogtemp.read_log(restart, progress=False)
     units = tmp_path / "units.csv"
     units.write_text("time_s,temp_c,gyro_dph\ns,degC,deg/h\n0,20,1\n")
-    with pytest.raises(ValueError, match=r"units.csv:2:1: .*skip_lines=2, columns=\[\.\.\.\]"):
+    with pytest.raises(ValueError, match=r"units.csv:2:1: .*skip both with skip_lines=N and name the columns with columns=\[\.\.\.\]"):
         fogtemp.read_log(units, progress=False)
     separate = tmp_path / "separate.csv"
     separate.write_text("time_s,temp_c,gyro_dph\n0,,1\n0.5,20,\n")

@@ -377,7 +377,7 @@ fn locate_columns(path: &Path, header: Fields<'_>, f: &LogFormat, line: u64) -> 
                         TimeUnit::TimeOfDay => " or a time of day",
                         _ => "",
                     },
-                    names.join(", ")
+                    names.iter().filter(|n| !n.is_empty()).cloned().collect::<Vec<_>>().join(", ")
                 ),
             })
         }

@@ -574,14 +574,14 @@ impl BadRowKind {
                  header repeated where two logs were joined?)"
             }
             BadRowKind::NonFinite => "NaN or infinite",
-            BadRowKind::ShortRow => "fewer fields than the header (or the names --columns gives)",
+            BadRowKind::ShortRow => "fewer fields than the header (or the names given for a headerless log)",
             BadRowKind::ShortSpacedRow => {
-                "fewer fields than the header (or the names --columns gives) in a log whose columns are separated \
-                 by spaces: a row cut short, or a blank cell, which vanishes there (the cells after it move left: \
-                 which one is missing cannot be told)"
+                "fewer fields than the header (or the names given for a headerless log) in a log whose columns are \
+                 separated by spaces: a row cut short, or a blank cell, which vanishes there (the cells after it \
+                 move left: which one is missing cannot be told)"
             }
             BadRowKind::LongRow => {
-                "more fields than the header (or the names --columns gives): two records run together (a lost line \
+                "more fields than the header (or the names given for a headerless log): two records run together (a lost line \
                  break)? name every field of a log without a header"
             }
             BadRowKind::DuplicateTime => "time equal to the previous row",
@@ -656,13 +656,17 @@ impl BadRow {
     /// 1000 on (review23b F8: a fit on the first 1000 s of every run, exit status 0).
     pub fn looks_like_thousands_separators(&self) -> bool {
         // Commas grouping a number with a decimal point, or (read with a decimal comma, where
-        // a point is refused) points grouping one with a decimal comma (review32a F8).
+        // a point is refused) points grouping one with a decimal comma (review32a F8). One
+        // point alone there is a decimal point (`0.500`: a log that writes points, review32b
+        // F1), so a point grouping needs the decimal comma too, or a second point.
+        let text = self.found.trim();
         let (group, decimal) = match self.kind {
             BadRowKind::NotANumber => (',', '.'),
-            BadRowKind::PointWithDecimalComma => ('.', ','),
+            BadRowKind::PointWithDecimalComma if text.contains(',') || text.matches('.').count() > 1 => {
+                ('.', ',')
+            }
             _ => return false,
         };
-        let text = self.found.trim();
         let unsigned = text.strip_prefix(['+', '-']).unwrap_or(text);
         let integer = unsigned.split_once(decimal).map_or(unsigned, |(int, _)| int);
         let mut groups = integer.split(group);
@@ -675,14 +679,24 @@ impl BadRow {
             && unsigned.split_once(decimal).is_none_or(|(_, frac)| frac.bytes().all(|b| b.is_ascii_digit()))
     }
 
-    /// The cell holds a word loggers and spreadsheets write for a missing value (`N/A`, `NA`,
-    /// `-`, `null`, ...; not `NaN`, which arrays hold too: [`BadRowKind::NonFinite`]): a
-    /// hint for the caller to say that an empty cell is read as no reading where one may be
-    /// missing (review32a F6).
+    /// The cell of a log holds a word loggers and spreadsheets write for a missing value
+    /// (`NaN`, `N/A`, `NA`, `-`, `null`, ...): a hint for the caller to say that an empty
+    /// temperature cell is read as no reading (review32a F6). (Arrays' errors do not come
+    /// here: their NaN is a value, said in their own words.)
     pub fn looks_like_missing_marker(&self) -> bool {
         const MARKERS: [&str; 9] = ["n/a", "na", "-", "--", "null", "none", "nil", "#n/a", "?"];
         let text = self.found.trim().trim_matches('"').to_ascii_lowercase();
-        matches!(self.kind, BadRowKind::NotANumber | BadRowKind::TextRow) && MARKERS.contains(&text.as_str())
+        match self.kind {
+            BadRowKind::NotANumber | BadRowKind::TextRow => MARKERS.contains(&text.as_str()),
+            BadRowKind::NonFinite => text == "nan",
+            _ => false,
+        }
+    }
+
+    /// A row of text whose cell repeats the header's name of its column: the header again,
+    /// where a logger restarted or two logs were joined (a units row holds units instead).
+    pub fn looks_like_repeated_header(&self) -> bool {
+        self.kind == BadRowKind::TextRow && self.found.trim() == self.column_name
     }
 }
 

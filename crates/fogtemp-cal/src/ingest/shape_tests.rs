@@ -62,7 +62,8 @@ fn headerless_logs_take_the_given_names() {
     for data in ["0,20,1\n1,20,1\n", "0\t20\t1\t\n1\t20\t1\t\n"] {
         let e = error_of(data, &default_options());
         assert!(
-            matches!(&e, CalError::LogFormat { line: 1, problem, .. } if problem.contains("every cell is a number")),
+            matches!(&e, CalError::LogFormat { line: 1, problem, .. }
+                if problem.contains("every cell is a number (0, 20, 1):")),
             "{data:?}: {e}"
         );
     }
@@ -113,7 +114,7 @@ fn time_from_the_sample_rate_counts_rejected_rows() {
     assert_eq!((report.rows, report.skipped, report.time_origin_s), (4, 1, 0.0));
     expect(&report.first_skipped[0], 5, 2, "gyro_dph", "", BadRowKind::ShortRow);
     let e = error_of(data, &with(format.clone()));
-    assert_eq!(e.to_string(), "log.csv:5:2: column 'gyro_dph': fewer fields than the header (or the names --columns gives) (found '')");
+    assert_eq!(e.to_string(), "log.csv:5:2: column 'gyro_dph': fewer fields than the header (or the names given for a headerless log) (found '')");
     // A time column as well is ambiguous, with or without a header.
     let ambiguous = LogFormat { sample_rate_hz: Some(50.0), ..LogFormat::default() };
     let e = error_of(&format!("{HEADER}0,20,1\n"), &with(ambiguous));
@@ -279,7 +280,7 @@ fn serial_capture_rows_exactly() {
     );
     assert_eq!(
         e.to_string(),
-        "log.csv:1236:2: column 'temp_c': fewer fields than the header (or the names --columns gives) in a log \
+        "log.csv:1236:2: column 'temp_c': fewer fields than the header (or the names given for a headerless log) in a log \
          whose columns are separated by spaces: a row cut short, or a blank cell, which vanishes there (the cells \
          after it move left: which one is missing cannot be told) (found '')"
     );
@@ -413,10 +414,11 @@ fn thousands_separators_are_recognised_for_the_hint() {
     // Read with a decimal comma, a point is refused: grouping points are thousands too
     // (review32a F8: the hint said to read decimal points, which failed on line 2).
     let comma = |found: &str| BadRow { kind: BadRowKind::PointWithDecimalComma, ..cell(found) };
-    for found in ["1.000,000", "-12.345", "1.234.567,5"] {
+    for found in ["1.000,000", "-12.345,5", "1.234.567", "1.234.567,5"] {
         assert!(comma(found).looks_like_thousands_separators(), "{found}");
     }
-    for found in ["20.5", "1.00,5", "1,000.000"] {
+    // One point alone is a decimal point (a log that writes points: review32b F1).
+    for found in ["20.5", "0.500", "20.125", "-12.345", "1.00,5", "1,000.000"] {
         assert!(!comma(found).looks_like_thousands_separators(), "{found}");
     }
     let (seen, report) = run("time_s;temp_c;gyro_dph\n999,5;20,5;1,5\n1.000,5;20,5;1,5\n".as_bytes(), &{
@@ -446,12 +448,25 @@ fn words_for_a_missing_value_are_recognised_for_the_hint() {
     for found in ["20.5x", "-5-", "nano", ""] {
         assert!(!cell(found, BadRowKind::NotANumber).looks_like_missing_marker(), "{found}");
     }
-    // NaN is a value arrays hold too: not a written mark (the command line checks it itself).
-    assert!(!cell("NaN", BadRowKind::NonFinite).looks_like_missing_marker());
+    // A NaN written in a log is a mark too; infinity is not.
+    assert!(cell("NaN", BadRowKind::NonFinite).looks_like_missing_marker());
+    assert!(!cell("inf", BadRowKind::NonFinite).looks_like_missing_marker());
     // What the reader reports for such a log.
     let b = bad(&format!("{HEADER}0,20,1\n1,N/A,2\n"));
     expect(&b, 3, 2, "temp_c", "N/A", BadRowKind::NotANumber);
     assert!(b.looks_like_missing_marker());
+}
+
+/// The header again is told from a units row by its text, wherever it is (review32b F4: a
+/// units row below a banner was called the header again for its line number).
+#[test]
+fn the_header_again_is_told_from_a_units_row() {
+    let again = bad(&format!("{HEADER}0,20,1\n{HEADER}0,20,1\n"));
+    expect(&again, 3, 1, "time_s", "time_s", BadRowKind::TextRow);
+    assert!(again.looks_like_repeated_header());
+    let units = bad(&format!("{HEADER}s,degC,deg/h\n0,20,1\n"));
+    expect(&units, 2, 1, "time_s", "s", BadRowKind::TextRow);
+    assert!(!units.looks_like_repeated_header());
 }
 
 /// Fields split at runs of spaces lose a blank cell and the cells after it move left: a

@@ -115,9 +115,7 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
                         for (bit, count) in flag_counts[i].iter_mut().enumerate() {
                             *count += u64::from((o.flags.0 >> bit) & 1);
                         }
-                        if o.flags.contains(fogtemp_core::Flags::OUTSIDE_HULL) {
-                            outside[i].observe(comp.tracker().features());
-                        }
+                        outside[i].observe_output(&o, comp);
                         let bad = o.flags.contains(fogtemp_core::Flags::BAD_INPUT);
                         if bad && bad_lines[i].len() < calibrate::BAD_INPUT_LINES_LISTED {
                             bad_lines[i].push(row.line);
