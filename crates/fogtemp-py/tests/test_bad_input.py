@@ -83,22 +83,26 @@ def test_logs_of_other_lab_tools_get_the_hint_that_fits(tmp_path):
     with pytest.warns(UserWarning, match="skipped 1 bad row of 2 rows"):
         data = fogtemp.read_log(spaced, skip_bad_rows=True, progress=False)
     assert list(data["temp_c"]) == [20.0] and list(data["gyro_dph"]) == [0.75]
-    na = tmp_path / "na.csv"
-    na.write_text("time_s,temp_c,gyro_dph\n0,20,1\n1,N/A,1\n")
-    with pytest.raises(ValueError, match=r"na.csv:3:2: .*found 'N/A'.*empty those cells"):
-        fogtemp.read_log(na, progress=False)
-    restart = tmp_path / "restart.csv"
-    restart.write_text("time_s,temp_c,gyro_dph\n0,20,1\n1,20,1\n2,20,1\n3,20,1\ntime_s,temp_c,gyro_dph\n0,20,1\n")
-    with pytest.raises(ValueError, match=r"restart.csv:6:1: .*the header again.*split the file there"):
-        fogtemp.read_log(restart, progress=False)
-    units = tmp_path / "units.csv"
-    units.write_text("time_s,temp_c,gyro_dph\ns,degC,deg/h\n0,20,1\n")
-    with pytest.raises(ValueError, match=r"units.csv:2:1: .*skip both with skip_lines=N and name the columns with columns=\[\.\.\.\]"):
-        fogtemp.read_log(units, progress=False)
-    separate = tmp_path / "separate.csv"
-    separate.write_text("time_s,temp_c,gyro_dph\n0,,1\n0.5,20,\n")
-    with pytest.raises(ValueError, match=r"separate.csv:3:3: .*channels logged on separate rows"):
-        fogtemp.read_log(separate, progress=False)
+    cases = [
+        ("na.csv", "time_s,temp_c,gyro_dph\n0,20,1\n1,N/A,1\n", r"na.csv:3:2: .*found 'N/A'.*empty those cells"),
+        ("nan.csv", "time_s,temp_c,gyro_dph\n0,20,1\n1,NaN,1\n", r"nan.csv:3:2: .*found 'NaN'.*empty those cells"),
+        (
+            "restart.csv",
+            "time_s,temp_c,gyro_dph\n0,20,1\n1,20,1\n2,20,1\n3,20,1\ntime_s,temp_c,gyro_dph\n0,20,1\n",
+            r"restart.csv:6:1: .*the header again.*split the file there",
+        ),
+        (
+            "units.csv",
+            "time_s,temp_c,gyro_dph\ns,degC,deg/h\n0,20,1\n",
+            r"units.csv:2:1: .*skip both with skip_lines=N and name the columns with columns=\[\.\.\.\]",
+        ),
+        ("separate.csv", "time_s,temp_c,gyro_dph\n0,,1\n0.5,20,\n", r"separate.csv:3:3: .*channels logged on separate rows"),
+    ]
+    for name, text, expected in cases:
+        log = tmp_path / name
+        log.write_text(text)
+        with pytest.raises(ValueError, match=expected):
+            fogtemp.read_log(log, progress=False)
 
 
 def test_decimal_comma_logs_read_with_decimal_mark_and_a_hint_without(tmp_path):
