@@ -52,9 +52,9 @@
 //! - `implausible_rates`: half the calibration points change temperature faster than 3 x the
 //!   peak case rate of docs/physics.md (2.01 C/min): a time column in minutes or hours read
 //!   as seconds.
-//! - `implausible_gyro`: every calibration point's gyro mean within
-//!   [`IMPLAUSIBLE_GYRO_DPH`] of zero, below any FOG's: a gyro logged in rad/s or deg/s read
-//!   as deg/h.
+//! - `implausible_gyro`: every gyro mean of the calibration logs as read (before any input
+//!   rate is taken off) within [`IMPLAUSIBLE_GYRO_DPH`] of zero, below any FOG's: a gyro
+//!   logged in rad/s or deg/s read as deg/h.
 //! - `gyro_outliers`: feature points whose gyro mean lay beyond 10 robust standard
 //!   deviations of the median of the points around them ([`crate::outliers`]: a corrupted
 //!   sample, an overload code). Calibration read them as missing; the warning names each by
@@ -122,8 +122,8 @@ pub enum WarningKind {
     /// Logs that continue one another in time ([`crate::continued`]): one run split over
     /// files, read as several runs. Reported on axis 0.
     ContinuedLogs,
-    /// Every calibration point's gyro mean within [`IMPLAUSIBLE_GYRO_DPH`] of zero: a gyro in
-    /// rad/s or deg/s read as deg/h (review32a F2).
+    /// Every gyro mean of the calibration logs as read within [`IMPLAUSIBLE_GYRO_DPH`] of zero:
+    /// a gyro in rad/s or deg/s read as deg/h (review32a F2).
     ImplausibleGyro,
     /// A run's temperature changes only in steps of [`COARSE_TEMPERATURE_STEP_C`] or more (a
     /// coarse sensor, or decimals cut off): dT/dt is a staircase's.
@@ -658,13 +658,13 @@ fn implausible_rates(points: &CalibrationPoints, axis: usize) -> Option<Warning>
     })
 }
 
-/// Below this every calibration point's smoothed gyro lies closer to zero than any FOG's,
+/// Below this every smoothed gyro mean of the calibration logs lies closer to zero than any FOG's,
 /// deg/h: a FOG ten times quieter than docs/physics.md's (angle random walk N = 5e-5 against
 /// 5e-4 deg/sqrt(h)) scatters by 6 N = 3e-4 deg/h over a 100 s mean, so thousands of points
 /// reach past 1e-3, and a gyro also reads its bias and the Earth rate's projection. A gyro in rad/s
 /// read as deg/h is 206,265 times too small: a FOG reading under 20 deg/h is under 1e-4
 /// rad/s (review32a F2: a model 206,265 times too small, exit 0, no word). Applied to the
-/// points as read, after `--gyro-unit`.
+/// features' gyro means as read (after `--gyro-unit`, before input rates are taken off).
 pub const IMPLAUSIBLE_GYRO_DPH: f64 = 1e-4;
 
 /// `implausible_gyro`: the largest |gyro mean| of the runs' features as read, before any input

@@ -278,6 +278,36 @@ fn refuse_binary_header(path: &Path, header: &Fields<'_>, line: u64) -> Result<(
     Ok(())
 }
 
+/// `; also missing: 'b' (perhaps 'B'), ...`: every named column the header (`names`) lacks
+/// besides the one reported, each with the names like it, or empty (review32a F15).
+fn also_missing(f: &LogFormat, names: &[String], reported: &str) -> String {
+    let read_elsewhere =
+        |n: &String| f.gyro_columns.contains(n) || f.temp_columns.contains(n) || *n == f.time_column;
+    let time = f.sample_rate_hz.is_none().then_some(&f.time_column);
+    let mut missing: Vec<&String> = Vec::new();
+    for wanted in time.into_iter().chain(&f.date_column).chain(&f.temp_columns).chain(&f.gyro_columns) {
+        if wanted != reported && !names.contains(wanted) && !missing.contains(&wanted) {
+            missing.push(wanted);
+        }
+    }
+    let said: Vec<String> = missing
+        .into_iter()
+        .map(|w| {
+            let like: Vec<String> =
+                similar_names(w, names).into_iter().filter(|n| !read_elsewhere(n)).collect();
+            match crate::error::similar_note(&like).strip_prefix("; ") {
+                Some(note) => format!("'{w}' ({note})"),
+                None => format!("'{w}'"),
+            }
+        })
+        .collect();
+    if said.is_empty() {
+        String::new()
+    } else {
+        format!("; also missing: {}", said.join(", "))
+    }
+}
+
 /// A header field's text: UTF-8, or else Latin-1 (ISO 8859-1, each byte its own character: a
 /// Windows logger's `Temp (\u{b0}C)` writes the degree sign as the single byte 0xB0, which is no
 /// UTF-8; read lossily it could not be named, review12 F15). The values are numbers in ASCII
@@ -382,43 +412,8 @@ fn locate_columns(path: &Path, header: Fields<'_>, f: &LogFormat, line: u64) -> 
             })
         }
         Err(CalError::MissingColumn { path, column, role, available, similar, .. }) => {
-            // Every other named column the header lacks, said with the first.
-            let wanted =
-                f.sample_rate_hz.is_none().then_some(&f.time_column).into_iter().chain(&f.date_column);
-            let others: Vec<String> = wanted
-                .chain(&f.temp_columns)
-                .chain(&f.gyro_columns)
-                .filter(|&w| *w != column && !names.contains(w))
-                .fold(Vec::new(), |mut seen: Vec<&String>, w| {
-                    if !seen.contains(&w) {
-                        seen.push(w);
-                    }
-                    seen
-                })
-                .into_iter()
-                .map(|w| {
-                    let like: Vec<String> =
-                        similar_names(w, &names).into_iter().filter(|n| !read_elsewhere(n)).collect();
-                    let like = crate::error::similar_note(&like);
-                    match like.strip_prefix("; ") {
-                        Some(note) => format!("'{w}' ({note})"),
-                        None => format!("'{w}'"),
-                    }
-                })
-                .collect();
-            let also = if others.is_empty() {
-                String::new()
-            } else {
-                format!("; also missing: {}", others.join(", "))
-            };
-            return Err(CalError::MissingColumn {
-                path,
-                column,
-                role,
-                available,
-                similar,
-                also: also.into(),
-            });
+            let also = also_missing(f, &names, &column).into();
+            return Err(CalError::MissingColumn { path, column, role, available, similar, also });
         }
         other => other?,
     };
