@@ -86,8 +86,8 @@ pub struct IngestArgs {
     /// '' for none [default: #; replaying a model: as its fit's logs].
     #[arg(long, value_name = "PREFIX", help_heading = "Log shape")]
     pub comment: Option<String>,
-    /// Temperature column(s): one shared by all axes, or one per gyro column [default: temp_c;
-    /// replaying a model: the columns it was fitted with].
+    /// Temperature column(s): one shared by all axes, or one per gyro column, the flag repeated
+    /// [default: temp_c; replaying a model: the columns it was fitted with].
     #[arg(long = "temp-column", help_heading = "Log columns")]
     pub temp_columns: Vec<String>,
     /// temp_c = raw * temp-scale + temp-offset (for a sensor logged in raw counts) [default: 1;
@@ -97,8 +97,9 @@ pub struct IngestArgs {
     /// See --temp-scale, deg C [default: 0; replaying a model: as it was fitted].
     #[arg(long, allow_negative_numbers = true, help_heading = "Log columns", value_parser = finite)]
     pub temp_offset: Option<f64>,
-    /// Gyro column(s), one model axis each [default: gyro_dph; replaying a model: the columns
-    /// it was fitted on, and named ones are checked against them].
+    /// Gyro column(s), one model axis each, the flag repeated (--gyro-column gx --gyro-column gy)
+    /// [default: gyro_dph; replaying a model: the columns it was fitted on, and named ones are
+    /// checked against them]. Log shapes and options: docs/calibration-logs.md.
     #[arg(long = "gyro-column", help_heading = "Log columns")]
     pub gyro_columns: Vec<String>,
     /// Unit of the gyro columns [default: dph; replaying a model: as it was fitted].
