@@ -382,6 +382,20 @@ pub fn too_brief_note(path: &Path, ingest: &crate::ingest::IngestReport, unit_hi
     })
 }
 
+/// The warnings that a log's times are in another unit than read: most steps gaps
+/// ([`mostly_gaps_note`]) or rows faster than any logger ([`too_brief_note`]); `gaps` as the
+/// tracker saw them, `unit_hint` as for [`mostly_gaps_note`].
+pub fn time_unit_notes(
+    path: &Path,
+    gaps: &TimeGaps,
+    ingest: &crate::ingest::IngestReport,
+    unit_hint: &str,
+) -> impl Iterator<Item = String> {
+    [mostly_gaps_note(path, gaps, ingest.rows, unit_hint), too_brief_note(path, ingest, unit_hint)]
+        .into_iter()
+        .flatten()
+}
+
 /// "are its times in another unit?" with the setting to check (`unit_hint`), or for arrays
 /// (empty `unit_hint`) the unit they are read in.
 fn another_unit(unit_hint: &str) -> String {

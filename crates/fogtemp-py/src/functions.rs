@@ -598,10 +598,7 @@ fn file_runs(
         if let Some(note) = run.gaps.note(&run.path) {
             progress::warn(py, &note)?;
         }
-        if let Some(note) = calibrate::mostly_gaps_note(&run.path, &run.gaps, run.ingest.rows, "time_unit=") {
-            progress::warn(py, &note)?;
-        }
-        if let Some(note) = calibrate::too_brief_note(&run.path, &run.ingest, "time_unit=") {
+        for note in calibrate::time_unit_notes(&run.path, &run.gaps, &run.ingest, "time_unit=") {
             progress::warn(py, &note)?;
         }
         for note in (0..run.temperature_silences.len()).filter_map(|axis| run.temperature_silence_note(axis))
@@ -677,11 +674,7 @@ fn array_features(
         }
         // Arrays are in seconds: another unit is said as such (review32a F7: arrays timed in
         // milliseconds got no "another unit?" warning, and then advice to name a column).
-        let notes = [
-            calibrate::mostly_gaps_note(&f.path, &f.gaps, f.ingest.rows, ""),
-            calibrate::too_brief_note(&f.path, &f.ingest, ""),
-        ];
-        for note in notes.into_iter().flatten() {
+        for note in calibrate::time_unit_notes(&f.path, &f.gaps, &f.ingest, "") {
             progress::warn(py, &note)?;
         }
         for note in (0..f.temperature_silences.len()).filter_map(|axis| f.temperature_silence_note(axis)) {
@@ -996,11 +989,7 @@ pub fn validate<'py>(
     // A log's time unit is a setting; arrays are in seconds (as fit() reads them).
     let unit_hint = if arrays { "" } else { "time_unit=" };
     for r in validation.runs.iter().filter(|r| r.axis == 0) {
-        let notes = [
-            calibrate::mostly_gaps_note(&r.path, &r.series.gaps, r.ingest.rows, unit_hint),
-            calibrate::too_brief_note(&r.path, &r.ingest, unit_hint),
-        ];
-        for note in notes.into_iter().flatten() {
+        for note in calibrate::time_unit_notes(&r.path, &r.series.gaps, &r.ingest, unit_hint) {
             progress::warn(py, &note)?;
         }
     }

@@ -188,8 +188,7 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
         if let Some(note) = gaps.note_then(&a.log, consequence) {
             eprintln!("note: {note}");
         }
-        super::warn_if_mostly_gaps(&a.log, &gaps, r.rows);
-        super::warn_if_too_brief(&a.log, r);
+        super::warn_of_time_unit(&a.log, &gaps, r);
         for (axis, ((counts, guard), first_lines)) in
             flag_counts.iter().zip(spike_guards).zip(bad_lines).enumerate()
         {

@@ -11,7 +11,7 @@ use fogtemp_cal::selection::{CvScheme, CvScoring, Grouping, RuleScale, Selection
 use fogtemp_cal::thin::GreedyThinning;
 use fogtemp_core::FeatureSettings;
 
-use super::{capacity_fits, ingest_options, print_json, report_skipped, warn_if_mostly_gaps};
+use super::{capacity_fits, ingest_options, print_json, report_skipped, warn_of_time_unit};
 use crate::args::{
     CvCorrectionArg, CvSchemeArg, CvScoringArg, FitArgs, MethodArg, PolyArg, RuleScaleArg, ThinningArg,
 };
@@ -108,8 +108,7 @@ pub fn fit(a: FitArgs) -> Result<()> {
                 eprintln!("note: {note}");
             }
         }
-        warn_if_mostly_gaps(&run.path, &run.gaps, run.ingest.rows);
-        super::warn_if_too_brief(&run.path, &run.ingest);
+        warn_of_time_unit(&run.path, &run.gaps, &run.ingest);
         runs.push(run);
     }
     let (digest, each) = input_digest.finish();

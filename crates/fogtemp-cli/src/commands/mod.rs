@@ -205,17 +205,15 @@ fn capacity_fits(needed: usize, capacity: usize) -> Result<()> {
     Ok(())
 }
 
-/// Warns when most steps between a log's rows are gaps: the usual sign of time stamps read
-/// in the wrong unit (milliseconds read as seconds make every 20 ms step a 20 s gap).
-fn warn_if_mostly_gaps(path: &Path, gaps: &fogtemp_cal::calibrate::TimeGaps, rows: u64) {
-    if let Some(note) = fogtemp_cal::calibrate::mostly_gaps_note(path, gaps, rows, "--time-unit") {
-        eprintln!("warning: {note}");
-    }
-}
-
-/// Warns when a log's rows come faster than any logger writes: a larger unit read as seconds.
-fn warn_if_too_brief(path: &Path, ingest: &fogtemp_cal::ingest::IngestReport) {
-    if let Some(note) = fogtemp_cal::calibrate::too_brief_note(path, ingest, "--time-unit") {
+/// Warns when a log's times look read in the wrong unit: most steps between rows gaps
+/// (milliseconds read as seconds make every 20 ms step a 20 s gap), or rows faster than any
+/// logger writes (days read as seconds).
+fn warn_of_time_unit(
+    path: &Path,
+    gaps: &fogtemp_cal::calibrate::TimeGaps,
+    ingest: &fogtemp_cal::ingest::IngestReport,
+) {
+    for note in fogtemp_cal::calibrate::time_unit_notes(path, gaps, ingest, "--time-unit") {
         eprintln!("warning: {note}");
     }
 }

@@ -125,8 +125,7 @@ pub fn validate(a: ValidateArgs) -> Result<()> {
     let mut notes: Vec<String> =
         calibrate::gap_notes(runs).into_iter().chain(calibrate::continued_notes(runs)).collect();
     for r in runs.iter().filter(|r| r.axis == 0) {
-        super::warn_if_mostly_gaps(&r.path, &r.series.gaps, r.ingest.rows);
-        super::warn_if_too_brief(&r.path, &r.ingest);
+        super::warn_of_time_unit(&r.path, &r.series.gaps, &r.ingest);
     }
     notes.extend(runs.iter().flat_map(calibrate::RunValidation::notes));
     let rates_note = fogtemp_cal::runs::input_rates_note(
