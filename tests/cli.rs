@@ -874,12 +874,17 @@ fn logs_of_other_lab_tools_get_the_hint_that_fits() {
             vec!["time before the previous row", "a 32-bit counter that wrapped", "--sample-rate-hz"],
         ),
         (
-            "separate.csv",
+            "lost.csv",
             format!(
                 "time_s,temp_c,gyro_dph\n{}",
-                rows(&|k| if k % 2 == 1 { format!("{k},21.0,") } else { plain(k) })
+                rows(&|k| if k % 2 == 1 { format!("{k},,") } else { plain(k) })
             ),
-            vec![":3:3: column 'gyro_dph'", "empty required cell", "channels logged on separate rows"],
+            vec![
+                ":3:3: column 'gyro_dph'",
+                "empty required cell",
+                "a lost sample?",
+                "channels logged on separate rows",
+            ],
         ),
     ];
     for (name, text, needles) in cases {

@@ -197,7 +197,9 @@ def read_log(
     ``time_origin_s`` (a float): the first row's time in the log's own clock, seconds (an epoch
     stamp in s, ms, us, ns, min or h as seconds; seconds since 1970 UTC for time_unit="datetime", since
     midnight for "time_of_day"; 0 when timed by sample_rate_hz), so ``time_origin_s + time_s``
-    is each row's own stamp, as ``fogtemp-cal compensate`` writes it.
+    is each row's own stamp, as ``fogtemp-cal compensate`` writes it. One entry per sample: a
+    row with a temperature and no gyro reading (channels logged on separate rows) gives its
+    reading to the next sample, with a warning that counts such rows.
     Keywords: the log-column options of ``fit``. The log's shape: ``skip_lines`` (int: lines
     dropped before the header or the data), ``delimiter`` ("auto", "comma", "semicolon", "tab",
     "whitespace" or one character), ``comment`` (a line prefix, "" for none) and ``columns``

@@ -39,6 +39,9 @@ pub struct IngestDocument {
     pub skipped_rows: u64,
     /// The first skipped rows (at most [`crate::ingest::MAX_REPORTED_BAD_ROWS`]).
     pub first_skipped: Vec<SkippedRowDocument>,
+    /// Rows with a temperature and no gyro reading, not counted in `rows`: each reading went
+    /// with the next sample ([`crate::ingest::IngestReport::temperature_only_rows`]).
+    pub temperature_only_rows: u64,
     /// Gaps in the time stamps longer than the feature tracker's `max_gap_s` (`fit` only:
     /// [`crate::calibrate::TimeGaps`]).
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -82,6 +85,7 @@ impl IngestDocument {
             bytes: report.bytes,
             skipped_rows: report.skipped,
             first_skipped: report.first_skipped.iter().map(SkippedRowDocument::new).collect(),
+            temperature_only_rows: report.temperature_only_rows,
             time_gaps: None,
         }
     }

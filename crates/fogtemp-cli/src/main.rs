@@ -220,9 +220,9 @@ fn flag_hint(e: &(dyn std::error::Error + 'static)) -> Option<&'static str> {
              hold spaces, name the columns in order with --skip-lines 1 --columns a,b,c",
         ),
         CalError::BadRow { row, .. } if row.kind == BadRowKind::EmptyCell => Some(
-            "; a time, date or gyro cell left empty: channels logged on separate rows (merge them first, each gyro row \
-             with the temperature read last: an empty temperature cell is read as no reading), or a lost sample \
-             (--skip-bad-rows skips such rows)",
+            "; a time, date or gyro cell left empty: a lost sample? (--skip-bad-rows skips such rows, listed; a row with a temperature and \
+             no gyro reading at all is read as a temperature row, its reading going with the next sample: \
+             channels logged on separate rows)",
         ),
         CalError::BadRow { row, .. } if row.kind == BadRowKind::DuplicateTime => Some(
             "; repeated time stamps: a clock coarser than the sample rate? give --sample-rate-hz HZ to time the rows \

@@ -699,3 +699,64 @@ fn a_run_split_over_files_is_named_by_fit_and_validate() {
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success() && !stderr.contains("continue"), "{stderr}");
 }
+
+/// A 1 Hz warm-up of an hour from `start_c` whose temperature is read every 2 s: with
+/// `separate`, on its own row half a second before the gyro row it goes with (a CAN or
+/// multi-instrument logger); else in that gyro row's temperature cell (the oracle).
+fn write_separate_channel_log(path: &Path, start_c: f64, separate: bool) {
+    let mut text = String::from("time_s,temp_c,gyro_dph\n");
+    for k in 0..3600u32 {
+        let temp = temp_c(start_c, f64::from(k));
+        let gyro = bias_dph(temp);
+        match (k % 2 == 1, separate) {
+            (true, true) => text.push_str(&format!("{}.5,{temp:.4},\n{k}.0,,{gyro:.6}\n", k - 1)),
+            (true, false) => text.push_str(&format!("{k}.0,{temp:.4},{gyro:.6}\n")),
+            (false, _) => text.push_str(&format!("{k}.0,,{gyro:.6}\n")),
+        }
+    }
+    std::fs::write(path, text).unwrap();
+}
+
+/// Channels logged on separate rows (review32a F5): `fit` stores the model of the logs with
+/// each reading merged into the next sample's row, `validate` and `compensate` give that
+/// twin's figures and output, and each says how many rows held only a temperature.
+#[test]
+fn separate_channel_logs_fit_the_same_model_as_their_merged_twins() {
+    let dir = tempfile::tempdir().unwrap();
+    let (separate, merged) = twin_folders(dir.path(), write_separate_channel_log);
+    let (model, twin) = (dir.path().join("m.fogm"), dir.path().join("twin.fogm"));
+    let fitted =
+        |m: &Path, logs: &Path| ok_json(&["fit", "--json", "--method", "poly", "--out", s(m), s(logs)]);
+    let (doc, stderr) = fitted(&model, &separate);
+    assert!(
+        stderr.contains(
+            "run0.csv: 1800 rows held a temperature and no gyro reading (channels logged on separate rows)"
+        ),
+        "{stderr}"
+    );
+    assert_eq!(
+        (doc["runs"][0]["temperature_only_rows"].as_u64(), doc["runs"][0]["rows"].as_u64()),
+        (Some(1800), Some(3600))
+    );
+    let (twin_doc, twin_stderr) = fitted(&twin, &merged);
+    assert!(!twin_stderr.contains("no gyro reading"), "{twin_stderr}");
+    assert_eq!(twin_doc["runs"][0]["temperature_only_rows"].as_u64(), Some(0));
+    assert_eq!(stored_model(&model), stored_model(&twin));
+    let figures = |m: &Path, logs: &Path| {
+        let (doc, stderr) = ok_json(&["validate", "--json", "--model", s(m), s(logs)]);
+        ((doc["raw_bias_stability_dph"].clone(), doc["compensated_bias_stability_dph"].clone()), stderr)
+    };
+    let (validated, stderr) = figures(&model, &separate);
+    assert!(stderr.contains("1800 rows held a temperature"), "{stderr}");
+    assert_eq!(validated, figures(&twin, &merged).0);
+    let compensated = |m: &Path, log: &Path, out: &Path| {
+        let o = run(&["compensate", "--model", s(m), "--out", s(out), s(log)]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        std::fs::read(out).unwrap()
+    };
+    let (a, b) = (dir.path().join("a.csv"), dir.path().join("b.csv"));
+    assert_eq!(
+        compensated(&model, &separate.join("run1.csv"), &a),
+        compensated(&twin, &merged.join("run1.csv"), &b)
+    );
+}

@@ -68,9 +68,9 @@ fn hint(e: &CalError) -> &'static str {
              names hold spaces, name the columns in order with skip_lines=1, columns=[...]"
         }
         CalError::BadRow { row, .. } if row.kind == BadRowKind::EmptyCell => {
-            "; a time, date or gyro cell left empty: channels logged on separate rows (merge them first, each gyro row \
-             with the temperature read last: an empty temperature cell is read as no reading), or a lost sample \
-             (skip_bad_rows=True skips such rows)"
+            "; a time, date or gyro cell left empty: a lost sample? (skip_bad_rows=True skips such rows, listed; a row with a temperature and \
+             no gyro reading at all is read as a temperature row, its reading going with the next sample: \
+             channels logged on separate rows)"
         }
         CalError::BadRow { row, .. } if row.kind == BadRowKind::DuplicateTime => {
             "; repeated time stamps: a clock coarser than the sample rate? pass sample_rate_hz= to time the rows by \

@@ -692,6 +692,9 @@ fn file_name(p: &Path) -> String {
 /// Warns about skipped rows, in the command line's words (nothing is dropped silently); for
 /// runs given as arrays (`samples`), in the words of `fit`'s errors: sample indices, not lines.
 fn warn_skipped(py: Python<'_>, report: &IngestReport, samples: bool) -> PyResult<()> {
+    if let Some(note) = report.temperature_only_note() {
+        progress::warn(py, &format!("{}: {note}", report.path.display()))?;
+    }
     if report.skipped == 0 {
         return Ok(());
     }
@@ -714,7 +717,9 @@ fn warn_skipped(py: Python<'_>, report: &IngestReport, samples: bool) -> PyResul
 /// Reads a CSV log into numpy arrays (the library's ingest, as every command reads logs).
 ///
 /// Returns `{"time_s", "temp_c", "gyro_dph", "time_origin_s"}`: time in seconds since the
-/// first row, deg C (NaN where a row has no temperature reading), deg/h; with several
+/// first row, deg C (NaN where a row has no temperature reading), deg/h, one entry per
+/// sample (a row with a temperature and no gyro reading is no sample: its reading goes with
+/// the next sample, with a warning; channels logged on separate rows); with several
 /// temperature or gyro columns the keys are `temp_c_0`, `temp_c_1`, ... and `gyro_dph_0`,
 /// .... `time_origin_s` (a float) is the first row's time in the log's own clock, seconds:
 /// its time cell in seconds for `time_unit` 's', 'ms', 'us', 'ns', 'min' and 'h' (an epoch stamp stays one),

@@ -96,7 +96,7 @@ def test_logs_of_other_lab_tools_get_the_hint_that_fits(tmp_path):
             "time_s,temp_c,gyro_dph\ns,degC,deg/h\n0,20,1\n",
             r"units.csv:2:1: .*skip both with skip_lines=N and name the columns with columns=\[\.\.\.\]",
         ),
-        ("separate.csv", "time_s,temp_c,gyro_dph\n0,,1\n0.5,20,\n", r"separate.csv:3:3: .*channels logged on separate rows"),
+        ("lost.csv", "time_s,temp_c,gyro_dph\n0,,1\n0.5,,\n", r"lost.csv:3:3: .*a lost sample\?"),
     ]
     for name, text, expected in cases:
         log = tmp_path / name
@@ -694,3 +694,18 @@ def test_a_gyro_beyond_f32_and_infinite_points_are_named(small_model):
     with pytest.warns(UserWarning, match=r"rate_c_per_min\[1\] = -inf"):
         small_model.evaluate(np.array([20.0, 20.0]), np.array([0.0, -np.inf]))
     assert np.isnan(small_model.evaluate(np.nan, 0.0))
+
+
+def test_channels_on_separate_rows_read_as_their_merged_twin(tmp_path):
+    """A temperature-only row's reading goes with the next sample (review32a F5): the arrays
+    of the log with the reading merged into that sample's row, and a warning counting them."""
+    separate = tmp_path / "separate.csv"
+    separate.write_text("time_s,temp_c,gyro_dph\n0,,1\n0.4,20.5,\n0.5,,2\n1,,3\n1,21,\n1.5,,4\n")
+    merged = tmp_path / "merged.csv"
+    merged.write_text("time_s,temp_c,gyro_dph\n0,,1\n0.5,20.5,2\n1,,3\n1.5,21,4\n")
+    with pytest.warns(UserWarning, match=r"separate.csv: 2 rows held a temperature and no gyro reading"):
+        got = fogtemp.read_log(separate, progress=False)
+    want = fogtemp.read_log(merged, progress=False)
+    for key in ("time_s", "temp_c", "gyro_dph"):
+        np.testing.assert_array_equal(got[key], want[key])
+    assert list(got["gyro_dph"]) == [1.0, 2.0, 3.0, 4.0]

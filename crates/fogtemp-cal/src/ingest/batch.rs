@@ -35,6 +35,11 @@ pub(super) struct Consumer {
     pub(super) temps: usize,
     pub(super) stride: usize,
     pub(super) last_progress: u64,
+    /// Per temperature column: the reading of a temperature-only row not yet given to a
+    /// sample (NaN: none).
+    pub(super) pending_temps_c: Vec<f64>,
+    /// The temperatures of the row being visited.
+    pub(super) row_temps_c: Vec<f64>,
 }
 
 impl Consumer {
@@ -88,16 +93,21 @@ impl Consumer {
     {
         let split = 1 + self.temps;
         for (values, &line) in batch.values.chunks_exact(self.stride).zip(&batch.lines) {
+            let (temps_c, gyros_dph) = (&values[1..split], &values[split..]);
+            if super::columns::is_temperature_only(gyros_dph) {
+                self.hold_temperatures(temps_c);
+                continue;
+            }
+            self.give_held_temperatures(temps_c);
+            self.report.rows += 1;
+            self.report.last_time_s = values[0] - origin;
             visit(&Row {
                 line: line_base + line,
                 time_s: values[0] - origin,
                 origin_s: file_origin_s,
-                temps_c: &values[1..split],
-                gyros_dph: &values[split..],
+                temps_c: &self.row_temps_c,
+                gyros_dph,
             })?;
-        }
-        if let Some(last) = batch.values.chunks_exact(self.stride).next_back() {
-            self.report.last_time_s = last[0] - origin;
         }
         if self.temps > 0 {
             // The first temperature column's first and last readings (an empty cell is NaN).
@@ -108,8 +118,34 @@ impl Consumer {
                 ends.1 = last;
             }
         }
-        self.report.rows += batch.lines.len() as u64;
         Ok(())
+    }
+
+    /// A temperature-only row (channels logged on separate rows): its readings wait for the
+    /// next sample, a newer reading replacing one that waits.
+    fn hold_temperatures(&mut self, temps_c: &[f64]) {
+        self.report.temperature_only_rows += 1;
+        self.pending_temps_c.resize(temps_c.len(), f64::NAN);
+        for (held, &reading) in self.pending_temps_c.iter_mut().zip(temps_c) {
+            if !reading.is_nan() {
+                *held = reading;
+            }
+        }
+    }
+
+    /// A sample's temperatures: its own readings, else one held from a temperature-only row
+    /// before it (the firmware's `step` likewise takes a reading with the next sample).
+    fn give_held_temperatures(&mut self, temps_c: &[f64]) {
+        self.row_temps_c.clear();
+        self.row_temps_c.extend_from_slice(temps_c);
+        for (k, held) in self.pending_temps_c.iter_mut().enumerate() {
+            if let Some(own) = self.row_temps_c.get_mut(k) {
+                if own.is_nan() {
+                    *own = *held;
+                }
+            }
+            *held = f64::NAN;
+        }
     }
 }
 

@@ -59,7 +59,10 @@ pub(super) struct RowState {
     pub(super) values: Vec<f64>,
     temps: Vec<f64>,
     gyros: Vec<f64>,
+    /// The previous accepted row's time, a temperature-only row's too.
     pub(super) previous_time: Option<f64>,
+    /// The previous row with gyro readings: its time.
+    pub(super) previous_sample_time: Option<f64>,
     pub(super) origin: Option<f64>,
     pub(super) skipped: u64,
     pub(super) first_skipped: Vec<BadRow>,
@@ -79,6 +82,7 @@ impl RowState {
             temps: vec![f64::NAN; options.format.temp_columns.len()],
             gyros: vec![0.0; options.format.gyro_columns.len()],
             previous_time: None,
+            previous_sample_time: None,
             origin: None,
             skipped: 0,
             first_skipped: Vec::new(),
@@ -124,6 +128,7 @@ impl RowState {
             temps: self.temps.clone(),
             gyros: self.gyros.clone(),
             previous_time: None,
+            previous_sample_time: None,
             origin: Some(0.0),
             skipped: 0,
             first_skipped: Vec::new(),
@@ -146,13 +151,23 @@ impl RowState {
         self.records += 1;
         let parsed = parse_row(fields, plan, line, index, &mut self.temps, &mut self.gyros)
             .map_err(|bad| named_text_row(bad, fields, plan))
-            .map(|time| continue_time(plan, time, self.previous_time))
-            .and_then(|time| check_time(time, self.previous_time, &plan.columns, line, fields))
+            .map(|time| continue_time(plan, time, self.previous_time));
+        let sample = !is_temperature_only(&self.gyros);
+        if parsed.is_ok() && !sample && plan.columns.time.is_none() {
+            // A temperature-only row takes no sample period: the rate is the gyro's.
+            self.records -= 1;
+        }
+        let previous = Previous { any: self.previous_time, sample: self.previous_sample_time };
+        let parsed = parsed
+            .and_then(|time| check_time(time, previous, sample, &plan.columns, line, fields))
             .map_err(|bad| named_nul_bytes(bad, fields, plan));
         match parsed {
             Ok(time) => {
                 let origin = *self.origin.get_or_insert(time);
                 self.previous_time = Some(time);
+                if sample {
+                    self.previous_sample_time = Some(time);
+                }
                 batch.lines.push(line);
                 batch.values.push(time - origin);
                 batch.values.extend_from_slice(&self.temps);
@@ -646,7 +661,15 @@ pub(super) fn parse_row(
         Some(field) => plan.time_unit.to_seconds(required(field)?),
         None => time_of_record(index, plan.sample_rate_hz),
     };
+    // Every gyro cell empty: a temperature-only row when it holds a temperature (channels
+    // logged on separate rows; the reading goes with the next sample, `batch::Consumer`).
+    let gyros_empty =
+        columns.gyros.iter().all(|&field| fields.get(field).unwrap_or(b"").trim_ascii().is_empty());
     for (slot, &field) in gyros.iter_mut().zip(&columns.gyros) {
+        if gyros_empty {
+            *slot = f64::NAN;
+            continue;
+        }
         *slot = required(field)? * plan.gyro_factor;
         if !super::is_representable_rate(*slot) {
             let raw = fields.get(field).unwrap_or(b"");
@@ -668,7 +691,31 @@ pub(super) fn parse_row(
             return Err(bad_row(columns, line, field, raw, BadRowKind::ImpossibleTemperature));
         }
     }
+    if gyros_empty && temps.iter().all(|t| t.is_nan()) {
+        // Neither a gyro nor a temperature: the empty gyro cell is the error.
+        return Err(bad_row(
+            columns,
+            line,
+            columns.gyros.first().copied().unwrap_or(0),
+            b"",
+            BadRowKind::EmptyCell,
+        ));
+    }
     Ok(time)
+}
+
+/// A row parsed with no gyro reading (every gyro NaN): a temperature-only row.
+pub(super) fn is_temperature_only(gyros: &[f64]) -> bool {
+    gyros.first().is_some_and(|g| g.is_nan())
+}
+
+/// The times a row's is checked against.
+#[derive(Clone, Copy)]
+pub(super) struct Previous {
+    /// The previous accepted row's, a temperature-only row's too.
+    pub(super) any: Option<f64>,
+    /// The previous row with gyro readings'.
+    pub(super) sample: Option<f64>,
 }
 
 /// A date-time time cell, seconds since 1970 UTC; with a date column, its cell `T` the
@@ -728,18 +775,26 @@ pub(super) fn time_of_record(index: u64, sample_rate_hz: Option<f64>) -> f64 {
     index as f64 / sample_rate_hz.unwrap_or(1.0)
 }
 
+///
+/// Times increase strictly, except that a temperature-only row may share its time with
+/// the row before it and the next sample may share it with the temperature-only row (a
+/// logger that writes each channel's row with one time stamp): two samples never share one.
 pub(super) fn check_time(
     time: f64,
-    previous: Option<f64>,
+    previous: Previous,
+    sample: bool,
     columns: &Columns,
     line: u64,
     fields: Fields<'_>,
 ) -> Result<f64, BadRow> {
     let Some(field) = columns.time else { return Ok(time) };
     let found = || fields.get(field).unwrap_or(b"");
-    match previous {
-        Some(p) if time == p => Err(bad_row(columns, line, field, found(), BadRowKind::DuplicateTime)),
+    let shared = |p: Option<f64>| p.is_some_and(|p| time == p);
+    match previous.any {
         Some(p) if time < p => Err(bad_row(columns, line, field, found(), BadRowKind::BackwardTime)),
+        _ if sample && shared(previous.sample) => {
+            Err(bad_row(columns, line, field, found(), BadRowKind::DuplicateTime))
+        }
         _ => Ok(time),
     }
 }
@@ -849,9 +904,11 @@ mod tests {
     fn empty_required_cells() {
         let b = bad(&format!("{HEADER}0.0,20,1\n,20,1\n"));
         expect(&b, 3, 1, "time_s", "", BadRowKind::EmptyCell);
-        let b = bad(&format!("{HEADER}0.0,20,1\n0.1,20,\n"));
+        // A row with a temperature and no gyro is a temperature-only row (shape_tests); with
+        // neither, the empty gyro cell is the error.
+        let b = bad(&format!("{HEADER}0.0,20,1\n0.1,,\n"));
         expect(&b, 3, 3, "gyro_dph", "", BadRowKind::EmptyCell);
-        let b = bad(&format!("{HEADER}0.0,20,  \n"));
+        let b = bad(&format!("{HEADER}0.0,  ,  \n"));
         expect(&b, 2, 3, "gyro_dph", "", BadRowKind::EmptyCell);
     }
 

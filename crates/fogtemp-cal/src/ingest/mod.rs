@@ -721,6 +721,9 @@ pub struct IngestReport {
     /// The first and the last reading of the first temperature column, deg C (`None` without
     /// any): whether another log continues this one ([`crate::continued`]).
     pub temp_ends_c: Option<(f64, f64)>,
+    /// Rows with a temperature and no gyro reading (channels logged on separate rows): not
+    /// rows of [`IngestReport::rows`]; each reading went with the next sample.
+    pub temperature_only_rows: u64,
 }
 
 /// How many skipped rows are listed individually.
@@ -730,6 +733,18 @@ pub const MAX_REPORTED_BAD_ROWS: usize = 20;
 pub const MANY_SKIPPED_PERCENT: f64 = 1.0;
 
 impl IngestReport {
+    /// What the command line and Python say of temperature-only rows, or `None` without any.
+    pub fn temperature_only_note(&self) -> Option<String> {
+        let n = self.temperature_only_rows;
+        (n > 0).then(|| {
+            format!(
+                "{n} row{} held a temperature and no gyro reading (channels logged on separate rows): each \
+                 reading went with the next row that has one, as the firmware takes a reading with the next sample",
+                if n == 1 { "" } else { "s" }
+            )
+        })
+    }
+
     /// What the command line and Python say of the skipped rows, before the list of the
     /// first ones: `skipped N bad rows of M rows (x %) (OPTION)`, and from
     /// [`MANY_SKIPPED_PERCENT`] on, to check the log (review24b S2: 36,001 of 72,001 rows
@@ -1008,6 +1023,8 @@ where
         temps,
         stride: 1 + temps + options.format.gyro_columns.len(),
         last_progress: 0,
+        pending_temps_c: Vec::new(),
+        row_temps_c: Vec::new(),
     };
     let batch_rows = tuning.batch_rows.max(1);
     let mut batch = Batch::default();
@@ -1030,7 +1047,7 @@ where
 
 #[cfg(test)]
 mod tests {
-    use super::columns::{check_time, make_plan, parse_row};
+    use super::columns::{check_time, make_plan, parse_row, Previous};
     use super::parser::Fields;
     use super::test_support::*;
     use super::*;
@@ -1172,7 +1189,9 @@ mod tests {
                 IngestReport { path: path.into(), bytes: data.len() as u64, ..Default::default() };
             let mut temps = vec![f64::NAN; plan.columns.temps.len()];
             let mut gyros = vec![0.0; plan.columns.gyros.len()];
-            let mut previous = None;
+            let mut previous = Previous { any: None, sample: None };
+            let mut held = vec![f64::NAN; temps.len()];
+            let mut records = 0;
             let mut record = csv::ByteRecord::new();
             while reader.read_byte_record(&mut record).unwrap() {
                 let line = record.position().map_or(0, |p| p.line());
@@ -1194,19 +1213,40 @@ mod tests {
                 }
                 let joined: Vec<u8> = record.iter().flatten().copied().collect();
                 let fields = Fields { data: &joined, bounds: &bounds };
-                let parsed = parse_row(fields, &plan, line, report.rows, &mut temps, &mut gyros)
-                    .and_then(|time| check_time(time, previous, &plan.columns, line, fields));
+                let parsed = parse_row(fields, &plan, line, records, &mut temps, &mut gyros);
+                let sample = !gyros[0].is_nan();
+                let parsed =
+                    parsed.and_then(|time| check_time(time, previous, sample, &plan.columns, line, fields));
+                // A temperature-only row takes no sample period (times from the record index).
+                records += u64::from(sample || parsed.is_err());
                 match parsed {
                     Ok(time) => {
-                        if previous.is_none() {
+                        if previous.any.is_none() {
                             report.time_origin_s = time;
                         }
-                        previous = Some(time);
-                        report.rows += 1;
-                        report.last_time_s = time - report.time_origin_s;
+                        previous.any = Some(time);
                         if let Some(&t) = temps.first().filter(|t| !t.is_nan()) {
                             report.temp_ends_c.get_or_insert((t, t)).1 = t;
                         }
+                        if !sample {
+                            // A temperature-only row: its readings go with the next sample.
+                            report.temperature_only_rows += 1;
+                            for (h, &t) in held.iter_mut().zip(&temps) {
+                                if !t.is_nan() {
+                                    *h = t;
+                                }
+                            }
+                            continue;
+                        }
+                        previous.sample = Some(time);
+                        for (t, h) in temps.iter_mut().zip(held.iter_mut()) {
+                            if t.is_nan() {
+                                *t = *h;
+                            }
+                            *h = f64::NAN;
+                        }
+                        report.rows += 1;
+                        report.last_time_s = time - report.time_origin_s;
                         seen.push(Seen::of(&Row {
                             line,
                             time_s: time - report.time_origin_s,

@@ -9,7 +9,7 @@ use std::sync::{mpsc, Mutex};
 use memchr::{memchr, memrchr2};
 
 use super::batch::{Batch, Consumer};
-use super::columns::{continue_time, RowState};
+use super::columns::{continue_time, is_temperature_only, RowState};
 use super::parser::{Parser, Source};
 use super::{IngestReport, Row, Tuning, MAX_REPORTED_BAD_ROWS, PROGRESS_EVERY_BYTES};
 use crate::error::CalError;
@@ -327,6 +327,11 @@ impl Merger<'_> {
                 let origin = *self.rows.origin.get_or_insert(first);
                 self.consumer.visit_rows(batch, base, origin, origin, visit)?;
                 self.rows.previous_time = batch.values.len().checked_sub(stride).map(|i| batch.values[i]);
+                let temps = self.consumer.temps;
+                let samples = batch.values.chunks_exact(stride.max(1));
+                if let Some(last) = samples.rev().find(|v| !is_temperature_only(&v[1 + temps..])) {
+                    self.rows.previous_sample_time = Some(last[0]);
+                }
             }
             match batch.end.take() {
                 Some(Ok(tail)) => {

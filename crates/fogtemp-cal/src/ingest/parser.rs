@@ -374,7 +374,10 @@ impl<R: Read> Parser<R> {
     /// The one-pass path, over as many records as it can take; stops (leaving `pos` at
     /// the record's start) at the first record it cannot, for `general_record`.
     fn fast_rows(&mut self, batch: &mut Batch, max_rows: usize) {
-        let RowState { plan: Some(plan), values, previous_time, origin, records, .. } = &mut self.rows else {
+        let RowState {
+            plan: Some(plan), values, previous_time, previous_sample_time, origin, records, ..
+        } = &mut self.rows
+        else {
             return;
         };
         let buf = &self.src.buf[..self.src.end];
@@ -428,6 +431,7 @@ impl<R: Read> Parser<R> {
             }
             let time_origin = *origin.get_or_insert(time);
             *previous_time = Some(time);
+            *previous_sample_time = Some(time);
             *records += 1;
             batch.lines.push(line);
             batch.values.push(time - time_origin);

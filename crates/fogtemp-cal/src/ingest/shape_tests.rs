@@ -854,3 +854,127 @@ fn a_column_asked_to_be_two_things_is_refused() {
     let rate = LogFormat { temp_columns: names(&["time_s"]), sample_rate_hz: Some(50.0), ..base };
     assert!(rate.check(Path::new("log.csv")).is_ok());
 }
+
+/// A sample: time, temperatures, gyros.
+type Sample = (f64, Vec<f64>, Vec<f64>);
+
+/// The samples of `data`, and the report's temperature-only row count.
+fn samples_of(data: &str, options: &IngestOptions) -> (Vec<Sample>, u64) {
+    let (seen, result) = run(data.as_bytes(), options);
+    let report = result.unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(report.rows, seen.len() as u64);
+    let v = values(&seen).into_iter().map(|(_, t, temps, gyros)| (t, temps, gyros)).collect();
+    (v, report.temperature_only_rows)
+}
+
+/// Bit patterns, so that NaN compares equal to NaN.
+fn bits(v: &[Sample]) -> Vec<(u64, Vec<u64>, Vec<u64>)> {
+    v.iter()
+        .map(|(t, temps, gyros)| {
+            (
+                t.to_bits(),
+                temps.iter().map(|x| x.to_bits()).collect(),
+                gyros.iter().map(|x| x.to_bits()).collect(),
+            )
+        })
+        .collect()
+}
+
+/// Channels logged on separate rows (review32a F5: CAN and multi-instrument loggers): a row
+/// with a temperature and no gyro reading gives its temperature to the next sample, as the
+/// firmware's `step` takes a reading with the next sample; a sample's own reading wins; a
+/// temperature row may share its time stamp with the rows beside it, two samples may not.
+#[test]
+fn channels_on_separate_rows_give_the_temperature_to_the_next_sample() {
+    let data = format!(
+        "{HEADER}0.000,,0.5\n0.250,-20.0,\n0.500,,0.25\n1.000,,0.75\n1.000,-19.5,\n1.000,-19.25,\n\
+         1.250,,1.0\n1.300,-19.0,\n1.500,-18.5,1.25\n1.750,,1.5\n"
+    );
+    let (v, temperature_only) = samples_of(&data, &IngestOptions::default());
+    let nan = f64::NAN;
+    let expected = vec![
+        (0.0, vec![nan], vec![0.5]),
+        (0.5, vec![-20.0], vec![0.25]),
+        (1.0, vec![nan], vec![0.75]),
+        // The newer of two waiting readings.
+        (1.25, vec![-19.25], vec![1.0]),
+        // Its own reading, not the waiting one (-19.0 is not used).
+        (1.5, vec![-18.5], vec![1.25]),
+        (1.75, vec![nan], vec![1.5]),
+    ];
+    assert_eq!(bits(&v), bits(&expected));
+    assert_eq!(temperature_only, 4);
+    // The same samples as the log with the readings merged into the samples' rows.
+    let merged = format!(
+        "{HEADER}0.000,,0.5\n0.500,-20.0,0.25\n1.000,,0.75\n1.250,-19.25,1.0\n1.500,-18.5,1.25\n1.750,,1.5\n"
+    );
+    assert_eq!(bits(&samples_of(&merged, &IngestOptions::default()).0), bits(&expected));
+    // Two samples at one time, a temperature row between them: a duplicate time.
+    let b = bad(&format!("{HEADER}1.0,,0.5\n1.0,20,\n1.0,,0.6\n"));
+    expect(&b, 4, 1, "time_s", "1.0", BadRowKind::DuplicateTime);
+    let b = bad(&format!("{HEADER}1.0,,0.5\n0.9,20,\n"));
+    expect(&b, 3, 1, "time_s", "0.9", BadRowKind::BackwardTime);
+}
+
+/// One reading per temperature column waits: a row of the second sensor does not replace the
+/// first sensor's waiting reading.
+#[test]
+fn each_temperature_column_waits_on_its_own() {
+    let format = LogFormat {
+        temp_columns: vec!["t_coil".into(), "t_case".into()],
+        gyro_columns: vec!["gx".into(), "gy".into()],
+        ..LogFormat::default()
+    };
+    let data = "time_s,t_coil,t_case,gx,gy\n0,,,1,2\n0.5,20,,,\n0.6,,21,,\n1,,,3,4\n2,,,5,6\n";
+    let (v, temperature_only) = samples_of(data, &with(format.clone()));
+    let nan = f64::NAN;
+    let expected = vec![
+        (0.0, vec![nan, nan], vec![1.0, 2.0]),
+        (1.0, vec![20.0, 21.0], vec![3.0, 4.0]),
+        (2.0, vec![nan, nan], vec![5.0, 6.0]),
+    ];
+    assert_eq!(bits(&v), bits(&expected));
+    assert_eq!(temperature_only, 2);
+    // One gyro of two left empty is no temperature row: the empty cell is the error.
+    match run(b"time_s,t_coil,t_case,gx,gy\n0,20,21,1,\n", &with(format)).1 {
+        Err(CalError::BadRow { row, .. }) => expect(&row, 2, 5, "gy", "", BadRowKind::EmptyCell),
+        other => panic!("{}", summary(&other)),
+    }
+}
+
+/// Without a time column, a temperature-only row takes no sample period: the rate is the
+/// gyro's.
+#[test]
+fn a_temperature_row_takes_no_sample_period() {
+    let format = LogFormat {
+        column_names: vec!["temp_c".into(), "gyro_dph".into()],
+        sample_rate_hz: Some(2.0),
+        ..LogFormat::default()
+    };
+    let (v, temperature_only) = samples_of("20,1\n21,\n,2\n,3\n", &with(format));
+    let times: Vec<f64> = v.iter().map(|s| s.0).collect();
+    assert_eq!(times, vec![0.0, 0.5, 1.0]);
+    assert_eq!(v[1].1, vec![21.0]);
+    assert_eq!(temperature_only, 1);
+}
+
+/// A long log with a temperature row between every two samples, read in every reader mode
+/// (chunks cut between a temperature row and its sample): the samples of the merged log.
+#[test]
+fn separate_rows_in_a_log_read_in_chunks() {
+    let (mut split, mut merged) = (String::from(HEADER), String::from(HEADER));
+    for k in 0..400 {
+        let (t, temp_c, gyro) = (k as f64 * 0.5, 20.0 + k as f64 / 64.0, (k % 7) as f64 * 0.125);
+        if k % 2 == 1 {
+            split.push_str(&format!("{:.3},{temp_c},\n", t - 0.25));
+            merged.push_str(&format!("{t:.3},{temp_c},{gyro}\n"));
+        } else {
+            merged.push_str(&format!("{t:.3},,{gyro}\n"));
+        }
+        split.push_str(&format!("{t:.3},,{gyro}\n"));
+    }
+    let (a, temperature_only) = samples_of(&split, &IngestOptions::default());
+    let (b, none) = samples_of(&merged, &IngestOptions::default());
+    assert_eq!(bits(&a), bits(&b));
+    assert_eq!((a.len(), temperature_only, none), (400, 200, 0));
+}

@@ -96,8 +96,15 @@ pub(super) fn run(data: &[u8], options: &IngestOptions) -> Outcome {
 pub(super) fn summary(result: &Result<IngestReport, CalError>) -> String {
     match result {
         Ok(r) => format!(
-            "ok rows {} skipped {} bytes {} origin {:?} last {:?} temps {:?} first {:?}",
-            r.rows, r.skipped, r.bytes, r.time_origin_s, r.last_time_s, r.temp_ends_c, r.first_skipped
+            "ok rows {} skipped {} bytes {} origin {:?} last {:?} temps {:?} temperature-only {} first {:?}",
+            r.rows,
+            r.skipped,
+            r.bytes,
+            r.time_origin_s,
+            r.last_time_s,
+            r.temp_ends_c,
+            r.temperature_only_rows,
+            r.first_skipped
         ),
         Err(e) => format!("error {e}"),
     }

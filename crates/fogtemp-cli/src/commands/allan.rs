@@ -8,7 +8,7 @@ use fogtemp_cal::allan_stream::{allan_of_scanned_log, scan_log, DEFAULT_EXACT_LI
 use fogtemp_cal::ingest::LogFormat;
 use fogtemp_core::Flags;
 
-use super::{ingest_options, json_text, print_json, report_skipped};
+use super::{ingest_options, json_text, print_json, report_rows_not_read_as_samples};
 use crate::args::AllanArgs;
 use crate::output::RowProgress;
 
@@ -43,7 +43,7 @@ pub fn allan(a: AllanArgs) -> Result<()> {
         |b, r| bar.update(b, r),
     )?;
     bar.finish_and_clear();
-    report_skipped(&scan.report);
+    report_rows_not_read_as_samples(&scan.report);
     if scan.start_row > 0 {
         eprintln!(
             "note: {}: the first {} rows ({:.1} s) are the compensator's start-up (flag WARMING_UP in {}: its output is the raw gyro, then it steps by the bias): the Allan deviation starts at the first compensated row, as validate's does",

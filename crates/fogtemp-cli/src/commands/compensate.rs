@@ -7,7 +7,7 @@ use fogtemp_cal::calibrate::{self, TimeGaps};
 use fogtemp_cal::spikes::{Sample, SpikeGuard};
 use fogtemp_core::{Compensator, Model};
 
-use super::{check_capacity, read_model, report_skipped};
+use super::{check_capacity, read_model, report_rows_not_read_as_samples};
 use crate::args::CompensateArgs;
 use crate::compensated_csv::{self, AxisOutput, RowSink};
 use crate::output::{check_output_file, refuse_overwriting_inputs, write_atomic, RowProgress};
@@ -182,7 +182,7 @@ pub fn compensate(a: CompensateArgs) -> Result<()> {
     }
     written?;
     if let Some(r) = &report {
-        report_skipped(r);
+        report_rows_not_read_as_samples(r);
         let consequence = "after each the compensator held its bias until its tracker had features again \
                            (flag WARMING_UP in the output, then PARTIAL_WINDOW until its window is full again)";
         if let Some(note) = gaps.note_then(&a.log, consequence) {

@@ -11,7 +11,7 @@ use fogtemp_cal::selection::{CvScheme, CvScoring, Grouping, RuleScale, Selection
 use fogtemp_cal::thin::GreedyThinning;
 use fogtemp_core::FeatureSettings;
 
-use super::{capacity_fits, ingest_options, print_json, report_skipped, warn_of_time_unit};
+use super::{capacity_fits, ingest_options, print_json, report_rows_not_read_as_samples, warn_of_time_unit};
 use crate::args::{
     CvCorrectionArg, CvSchemeArg, CvScoringArg, FitArgs, MethodArg, PolyArg, RuleScaleArg, ThinningArg,
 };
@@ -99,7 +99,7 @@ pub fn fit(a: FitArgs) -> Result<()> {
         if run.ingest.rows == 0 {
             return Err(super::no_rows_error(&run.ingest));
         }
-        report_skipped(&run.ingest);
+        report_rows_not_read_as_samples(&run.ingest);
         if let Some(note) = run.gaps.note(&run.path) {
             eprintln!("note: {note}");
         }

@@ -239,7 +239,7 @@ fn no_rows_error(report: &IngestReport) -> anyhow::Error {
             report.path.display()
         );
     }
-    report_skipped(report);
+    report_rows_not_read_as_samples(report);
     anyhow::anyhow!(
         "{}: no data rows left: all {} were skipped as bad (listed above); when every row fails alike, \
          the log's shape is not the one given: check --delimiter, --skip-lines (a banner line), \
@@ -254,7 +254,12 @@ fn bad_rows(count: u64) -> String {
     format!("{count} bad row{}", if count == 1 { "" } else { "s" })
 }
 
-fn report_skipped(report: &IngestReport) {
+/// Says what of a log was not read as a sample: temperature-only rows (a note) and skipped
+/// bad rows (a warning, with the first ones).
+fn report_rows_not_read_as_samples(report: &IngestReport) {
+    if let Some(note) = report.temperature_only_note() {
+        eprintln!("note: {}: {note}", report.path.display());
+    }
     if report.skipped == 0 {
         return;
     }

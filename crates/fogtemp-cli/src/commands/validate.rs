@@ -12,7 +12,7 @@ use fogtemp_cal::numbers::dph;
 use fogtemp_cal::runs::Role;
 use fogtemp_core::Model;
 
-use super::{check_capacity, print_json, read_model, report_skipped};
+use super::{check_capacity, print_json, read_model, report_rows_not_read_as_samples};
 use crate::args::{StabilityArgs, ValidateArgs};
 use crate::output::{expand_logs_for_reading, RowProgress};
 
@@ -119,7 +119,7 @@ pub fn validate(a: ValidateArgs) -> Result<()> {
         if r.ingest.rows == 0 {
             return Err(super::no_rows_error(&r.ingest));
         }
-        report_skipped(&r.ingest);
+        report_rows_not_read_as_samples(&r.ingest);
     }
     // Every note goes to stderr and into --json's `notes`.
     let mut notes: Vec<String> =
