@@ -64,7 +64,8 @@ pub struct IngestArgs {
     #[arg(long, value_name = "NAME", help_heading = "Log columns")]
     pub date_column: Option<String>,
     /// Unit of the time column (datetime: ISO 8601 date-times; time-of-day: hh:mm[:ss] without
-    /// a date) [default: s; validate and compensate: the one the model records].
+    /// a date, or an elapsed h:mm:ss whose hours pass 24) [default: s; validate and
+    /// compensate: the one the model records].
     #[arg(long, value_enum, help_heading = "Log columns")]
     pub time_unit: Option<TimeUnitArg>,
     /// The log has no time column: row k (0-based, counting rows rejected with

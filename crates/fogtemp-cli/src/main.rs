@@ -182,7 +182,7 @@ fn flag_hint(e: &(dyn std::error::Error + 'static)) -> Option<&'static str> {
             Some("; the time column holds date-times: use --time-unit datetime")
         }
         CalError::BadRow { row, .. } if row.looks_like_time_of_day() => {
-            Some("; the time column holds times of day: use --time-unit time-of-day")
+            Some("; the time column holds times of day (or elapsed h:mm:ss): use --time-unit time-of-day")
         }
         CalError::BadRow { row, .. } if row.looks_like_thousands_separators() && !row.looks_like_decimal_comma() => {
             Some("; thousands separators in the numbers (a spreadsheet's number format): save the log without them \
@@ -241,8 +241,9 @@ fn flag_hint(e: &(dyn std::error::Error + 'static)) -> Option<&'static str> {
              tool), or give --sample-rate-hz HZ to time the rows by their index",
         ),
         CalError::BadRow { row, .. } if row.kind == BadRowKind::NotATimeOfDay => Some(
-            "; times of day are read as hh:mm[:ss[.fff]] on a 24-hour clock; convert others first (11:30:00 PM), \
-             or give --sample-rate-hz HZ to time the rows by their index",
+            "; times of day are read as hh:mm[:ss[.fff]] on a 24-hour clock, elapsed times as h:mm:ss with hours \
+             that may pass 24; convert others first (11:30:00 PM, 1.02:03:04), or give --sample-rate-hz HZ to time \
+             the rows by their index",
         ),
         CalError::BadRow { row, .. } if row.kind == BadRowKind::RateBeyondRange => Some(
             "; a logger's overload code: --skip-bad-rows skips such rows (listed); a unit or scale far off: \

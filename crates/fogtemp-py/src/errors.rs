@@ -32,7 +32,7 @@ fn hint(e: &CalError) -> &'static str {
             "; the time column holds date-times: pass time_unit='datetime'"
         }
         CalError::BadRow { row, .. } if row.looks_like_time_of_day() => {
-            "; the time column holds times of day: pass time_unit='time_of_day'"
+            "; the time column holds times of day (or elapsed h:mm:ss): pass time_unit='time_of_day'"
         }
         CalError::BadRow { row, .. } if row.looks_like_thousands_separators() && !row.looks_like_decimal_comma() => {
             "; thousands separators in the numbers (a spreadsheet's number format): save the log without them \
@@ -89,8 +89,9 @@ fn hint(e: &CalError) -> &'static str {
              sample_rate_hz= to time the rows by their index"
         }
         CalError::BadRow { row, .. } if row.kind == BadRowKind::NotATimeOfDay => {
-            "; times of day are read as hh:mm[:ss[.fff]] on a 24-hour clock; convert others first (11:30:00 PM), \
-             or pass sample_rate_hz= to time the rows by their index"
+            "; times of day are read as hh:mm[:ss[.fff]] on a 24-hour clock, elapsed times as h:mm:ss with hours \
+             that may pass 24; convert others first (11:30:00 PM, 1.02:03:04), or pass sample_rate_hz= to time the \
+             rows by their index"
         }
         CalError::BadRow { row, .. } if row.kind == BadRowKind::RateBeyondRange => {
             "; a logger's overload code: skip_bad_rows=True skips such rows (listed); a unit or scale far off: \

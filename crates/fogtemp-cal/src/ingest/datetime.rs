@@ -17,7 +17,7 @@ pub fn parse_datetime(text: &[u8]) -> Option<f64> {
     at.exact(date_sep)?;
     let day = at.digits(2)?;
     at.one_of(b"T ")?;
-    let (clock_s, fraction) = at.clock(2)?;
+    let (clock_s, fraction) = at.clock(2, !HOURS_ELAPSED)?;
     let offset_s = at.zone()?;
     if at.pos != text.len() || !(1..=12).contains(&month) || day < 1 || day > days_in_month(year, month) {
         return None;
@@ -30,14 +30,23 @@ pub fn parse_datetime(text: &[u8]) -> Option<f64> {
 pub const DAY_S: f64 = 86_400.0;
 
 /// A time of day without a date, `h:mm` or `hh:mm[:ss[.fraction]]` (as hand logs and
-/// terminal programs write it): seconds since midnight. `None` for anything else or a
-/// field out of range.
+/// terminal programs write it): seconds since midnight; or an elapsed time whose hours
+/// pass 23 (`25:13:02`, `100:00:00`, as chamber controllers write a test's elapsed time;
+/// review32a F13): seconds since its zero, up to [`MAX_ELAPSED_HOUR_DIGITS`] digits of hours.
+/// `None` for anything else or a minute or second out of range.
 pub fn parse_time_of_day(text: &[u8]) -> Option<f64> {
     let mut at = Cursor { text, pos: 0 };
-    let hour_digits = if text.get(1) == Some(&b':') { 1 } else { 2 };
-    let (clock_s, fraction) = at.clock(hour_digits)?;
+    let hour_digits =
+        text.iter().position(|&b| b == b':').filter(|&n| (1..=MAX_ELAPSED_HOUR_DIGITS).contains(&n))?;
+    let (clock_s, fraction) = at.clock(hour_digits, HOURS_ELAPSED)?;
     (at.pos == text.len()).then_some(clock_s as f64 + fraction)
 }
+
+/// Digits of hours an elapsed time may have (99,999 h: over 11 years).
+pub const MAX_ELAPSED_HOUR_DIGITS: usize = 5;
+
+/// A time of day's hours may pass 23 (an elapsed time); a date-time's may not.
+const HOURS_ELAPSED: bool = true;
 
 /// The time of a row whose clock reads `time_of_day_s` (seconds since midnight), after a
 /// row at `previous_s` (seconds since the first row's midnight): the clock reading's
@@ -106,8 +115,9 @@ impl Cursor<'_> {
     }
 
     /// `hh:mm[:ss[.fraction]]` with `hour_digits` digits of hour: whole seconds since
-    /// midnight and the fraction; `None` for a field out of range.
-    fn clock(&mut self, hour_digits: usize) -> Option<(i64, f64)> {
+    /// midnight (or since an elapsed time's zero, with `elapsed`, where the hours may pass
+    /// 23) and the fraction; `None` for a field out of range.
+    fn clock(&mut self, hour_digits: usize, elapsed: bool) -> Option<(i64, f64)> {
         let hour = self.digits(hour_digits)?;
         self.exact(b':')?;
         let minute = self.digits(2)?;
@@ -118,10 +128,10 @@ impl Cursor<'_> {
         } else {
             (0, 0.0)
         };
-        if hour > 23 || minute > 59 || second > 59 {
+        if (hour > 23 && !elapsed) || minute > 59 || second > 59 {
             return None;
         }
-        Some((i64::from(hour * 3600 + minute * 60 + second), fraction))
+        Some((i64::from(hour) * 3600 + i64::from(minute * 60 + second), fraction))
     }
 
     /// `.ddd...` (or `,ddd...`, ISO's other decimal sign) as seconds; 0 when absent.
@@ -231,6 +241,11 @@ mod tests {
             ("09:05:07", 32_707.0),
             ("00:00:00.25", 0.25),
             ("23:59:59,5", 86_399.5),
+            // Elapsed times past a day (review32a F13): 24 h 0 min is 86,400 s, and so on.
+            ("24:00:00", 86_400.0),
+            ("25:13:02.5", 25.0 * 3600.0 + 13.0 * 60.0 + 2.5),
+            ("123:00", 123.0 * 3600.0),
+            ("99999:59:59", 99_999.0 * 3600.0 + 3599.0),
         ] {
             assert_eq!(parse_time_of_day(text.as_bytes()), Some(expected), "{text}");
         }
@@ -238,14 +253,15 @@ mod tests {
             "",
             "15",
             "15:4",
-            "24:00",
+            ":15",
+            "100000:00",
             "12:60",
             "12:00:60",
             "1:2:3",
-            "123:00",
             "15:45 ",
             "15:45Z",
             "2026-11-24T15:45",
+            "2026-11-24 24:00",
         ] {
             assert_eq!(parse_time_of_day(text.as_bytes()), None, "{text:?}");
         }

@@ -688,6 +688,31 @@ fn times_of_day_read_as_seconds_from_their_first_row_across_midnights() {
     let as_numbers = bad_with("Time;temp_c;gyro_dph\n15:45;20;1\n", &clock(TimeUnit::Seconds));
     assert!(as_numbers.looks_like_time_of_day() && !as_numbers.looks_like_datetime(), "{as_numbers:?}");
     assert!(!bad("time_s,temp_c,gyro_dph\n0,20,x1\n").looks_like_time_of_day());
+    // Elapsed test time past a day (review32a F13), h:mm:ss with the hours counting on: the
+    // seconds of the same instants (the oracle), across 24:00:00 and a row every 4 h.
+    let elapsed = |instants: &[f64]| {
+        let mut text = String::from("Time;temp_c;gyro_dph\n");
+        for (k, &t) in instants.iter().enumerate() {
+            let (h, m, s) = ((t / 3600.0).floor(), ((t % 3600.0) / 60.0).floor(), t % 60.0);
+            text.push_str(&format!("{h}:{m:02}:{s:04.1};20;{k}\n"));
+        }
+        text
+    };
+    let seconds = |instants: &[f64]| {
+        let mut text = String::from("Time;temp_c;gyro_dph\n");
+        for (k, &t) in instants.iter().enumerate() {
+            text.push_str(&format!("{t:.1};20;{k}\n"));
+        }
+        text
+    };
+    let long: Vec<f64> = (0..12).map(|k| 3600.0 + 14_400.0 * f64::from(k)).collect();
+    for instants in [&dense, &long] {
+        let got = values(&rows(&elapsed(instants), &clock(TimeUnit::TimeOfDay)));
+        assert_eq!(got, values(&rows(&seconds(instants), &clock(TimeUnit::Seconds))));
+    }
+    assert!(
+        bad_with("Time;temp_c;gyro_dph\n25:13:02;20;1\n", &clock(TimeUnit::Seconds)).looks_like_time_of_day()
+    );
 }
 
 #[test]

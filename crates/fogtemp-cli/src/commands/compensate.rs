@@ -241,7 +241,8 @@ fn clock_note(unit: fogtemp_cal::ingest::TimeUnit) -> Option<&'static str> {
         ),
         fogtemp_cal::ingest::TimeUnit::TimeOfDay => Some(
             "the output's time_s is the log's time of day as seconds since the midnight before its first row \
-             (past the next midnight it goes on counting), so that it joins the log's other channels by time",
+             (past the next midnight it goes on counting; an elapsed h:mm:ss as seconds since its zero), so that \
+             it joins the log's other channels by time",
         ),
         _ => None,
     }
