@@ -237,7 +237,7 @@ fn flag_hint(e: &(dyn std::error::Error + 'static)) -> Option<&'static str> {
         ),
         CalError::BadRow { row, .. } if row.kind == BadRowKind::NotADateTime => Some(
             "; date-times are read in ISO 8601 (2026-11-24T23:30:00, or with a space, optional .fff and Z or \
-             +hh:mm); convert other formats first (DD.MM.YYYY and MM/DD/YYYY cannot be told apart by the \
+             +hh:mm, or a dotted day-first date, DD.MM.YYYY hh:mm:ss); convert other formats first (MM/DD/YYYY and DD/MM/YYYY cannot be told apart by the \
              tool), or give --sample-rate-hz HZ to time the rows by their index",
         ),
         CalError::BadRow { row, .. } if row.kind == BadRowKind::NotATimeOfDay => Some(

@@ -2,20 +2,27 @@
 //! it, read into seconds since 1970-01-01 00:00 UTC. Only differences between rows are used
 //! (a run's time starts at its first row), so a time without a zone is read as UTC.
 
-/// `YYYY-MM-DD` (or `YYYY/MM/DD`), `T` or a space, `hh:mm[:ss[.fraction]]`, then optionally
-/// `Z`, `+hh:mm`, `+hhmm` or `+hh` (or `-`): seconds since 1970-01-01 00:00 UTC. `None` for
-/// anything else, an impossible date (2025-02-29) or a field out of range.
+/// `YYYY-MM-DD` (or `YYYY/MM/DD`, or `DD.MM.YYYY`: a dotted date is day first by convention,
+/// as German and other European lab software writes it; one-digit day and month allowed
+/// there), `T` or a space, `hh:mm[:ss[.fraction]]`, then optionally `Z`, `+hh:mm`, `+hhmm`
+/// or `+hh` (or `-`): seconds since 1970-01-01 00:00 UTC. `None` for anything else, an
+/// impossible date (2025-02-29) or a field out of range. (`MM/DD/YYYY` and `DD/MM/YYYY`
+/// cannot be told apart and are not read.)
 ///
 /// Resolution: the whole seconds are exact in an f64; with the fraction added, a time near
 /// 2026 is rounded to 2.4e-7 s (one unit in the last place of 1.8e9), below the 1 us grid
 /// the feature tracker uses.
 pub fn parse_datetime(text: &[u8]) -> Option<f64> {
     let mut at = Cursor { text, pos: 0 };
-    let year = at.digits(4)? as i64;
-    let date_sep = at.one_of(b"-/")?;
-    let month = at.digits(2)?;
-    at.exact(date_sep)?;
-    let day = at.digits(2)?;
+    let (year, month, day) = if text.get(1..3).is_some_and(|t| t.contains(&b'.')) {
+        at.dotted_date()?
+    } else {
+        let year = at.digits(4)? as i64;
+        let date_sep = at.one_of(b"-/")?;
+        let month = at.digits(2)?;
+        at.exact(date_sep)?;
+        (year, month, at.digits(2)?)
+    };
     at.one_of(b"T ")?;
     let (clock_s, fraction) = at.clock(2, !HOURS_ELAPSED)?;
     let offset_s = at.zone()?;
@@ -102,6 +109,21 @@ impl Cursor<'_> {
         }
         self.pos += n;
         Some(field.iter().fold(0, |v, d| v * 10 + u32::from(d - b'0')))
+    }
+
+    /// One or two ASCII digits.
+    fn one_or_two_digits(&mut self) -> Option<u32> {
+        let n = if self.text.get(self.pos + 1).is_some_and(u8::is_ascii_digit) { 2 } else { 1 };
+        self.digits(n)
+    }
+
+    /// `D.M.YYYY` (one or two digits of day and month): year, month, day.
+    fn dotted_date(&mut self) -> Option<(i64, u32, u32)> {
+        let day = self.one_or_two_digits()?;
+        self.exact(b'.')?;
+        let month = self.one_or_two_digits()?;
+        self.exact(b'.')?;
+        Some((i64::from(self.digits(4)?), month, day))
     }
 
     fn exact(&mut self, byte: u8) -> Option<()> {
@@ -207,6 +229,10 @@ mod tests {
         }
         // Slashes and a decimal comma in the seconds, and an hour-only zone.
         assert_eq!(parse_datetime(b"2026/11/24 10:00:01,5+01"), Some(1_795_514_401.5 - 3600.0));
+        // A dotted date is day first (review32a F13): the same instants.
+        assert_eq!(parse_datetime(b"24.11.2026 10:00:00"), parse_datetime(b"2026-11-24T10:00:00"));
+        assert_eq!(parse_datetime(b"4.3.2026T12:00:00.5"), parse_datetime(b"2026-03-04T12:00:00.5"));
+        assert_eq!(parse_datetime(b"29.02.2024 00:00"), Some(1_709_164_800.0));
     }
 
     #[test]
@@ -219,6 +245,12 @@ mod tests {
             "2026-13-01T00:00:00",
             "2026-04-31T00:00:00",
             "2026-11-24T24:00:00",
+            "29.02.2025 00:00:00",
+            "24.13.2026 00:00:00",
+            "24.11.26 00:00:00",
+            "124.11.2026 00:00:00",
+            "24.11.2026",
+            "11/24/2026 10:00:00",
             "2026-11-24T10:60:00",
             "2026-11-24T10:00:60",
             "2026-11-24T10:00:00.",
