@@ -475,7 +475,7 @@ fn check_export(model: &Path, blob: &[u8], dir: &Path) {
         ("temp_offset_c", "TEMP_OFFSET_C"),
     ] {
         let value = axis[key].as_f64().unwrap_or(f64::NAN);
-        assert!(header.contains(&format!("#define GYRO_MODEL_{constant} {value:?} ")), "{key}: {header}");
+        assert!(header.contains(&format!("#define GYRO_MODEL_{constant} {value:?}f ")), "{key}: {header}");
         assert!(
             text.contains(&format!("pub const FOGTEMP_MODEL_{constant}: f64 = {value:?};")),
             "{key}: {text}"
@@ -812,7 +812,7 @@ fn bad_log_rows_are_located_and_nothing_is_written() {
 /// alone, which dropped their data (review32a F1, F3, F4, F5, F6, F8): a blank cell in
 /// space-aligned columns, words and NaN for a missing temperature, a header repeated after a
 /// logger restart, a wrapped microsecond counter, thousands points with a decimal comma,
-/// channels on separate rows.
+/// unquoted thousands commas (F9), a lost sample.
 #[test]
 fn logs_of_other_lab_tools_get_the_hint_that_fits() {
     let dir = TempDir::new().expect("tempdir");
@@ -852,6 +852,18 @@ fn logs_of_other_lab_tools_get_the_hint_that_fits() {
                 rows(&|k| if k == 9 { format!("{k},NaN,1.5") } else { plain(k) })
             ),
             vec![":11:2: column 'temp_c'", "empty those cells"],
+        ),
+        (
+            "thousands.csv",
+            format!(
+                "time_s,temp_c,gyro_dph\n{}",
+                rows(&|k| if k >= 300 {
+                    format!("{},{:03}.000,20.5,1.5", k / 100, k % 100)
+                } else {
+                    plain(k)
+                })
+            ),
+            vec![":302:1: column 'time_s'", "(found '3,000.000')", "without thousands separators"],
         ),
         (
             "restart.csv",

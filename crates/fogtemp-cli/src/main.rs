@@ -253,6 +253,10 @@ fn flag_hint(e: &(dyn std::error::Error + 'static)) -> Option<&'static str> {
             "; raw counts or kelvin? give --temp-scale/--temp-offset; a logger's mark for a missing reading: \
              empty the cell, or --skip-bad-rows",
         ),
+        CalError::BadRow { row, .. } if row.kind == BadRowKind::SplitThousands => Some(
+            "; write the numbers without thousands separators (1000.5; a spreadsheet's number format adds them): \
+             --skip-bad-rows would drop every row from the first such number on",
+        ),
         CalError::BadRow { row, .. } if row.kind == BadRowKind::NulBytes => Some(
             "; --skip-bad-rows skips such lines and lists them",
         ),

@@ -45,6 +45,11 @@
 // [`fogtemp_error::axis`] when the error names no axis.
 #define FOGTEMP_NO_AXIS UINT32_MAX
 
+// The newest model format version this library reads (it reads every version from 1 on):
+// a blob of a newer version is `FOGTEMP_STATUS_UNSUPPORTED_VERSION`. `fogtemp-cal inspect`
+// prints a model's version; check it against this at build time, before flashing.
+#define FOGTEMP_MAX_FORMAT_VERSION 8
+
 // Result of every `fogtemp_*` call. `FOGTEMP_STATUS_OK` is 0; the others name the core
 // error ([`fogtemp_error`] has the details) or a caller mistake (null, misaligned or
 // uninitialised pointer).
@@ -154,6 +159,23 @@ typedef struct {
   uint64_t opaque[24];
 } fogtemp_axis;
 
+// The units a model axis was fitted in: how its calibration logs' numbers were converted
+// to the deg/h and deg C the core takes. A firmware whose sensor gives other units converts
+// each sample before [`fogtemp_step`]: `gyro_dph = gyro * gyro_dph_per_unit`, `temp_c =
+// temperature * temp_c_per_unit + temp_offset_c` (convert the factors to `float` once, at
+// start-up, to keep double arithmetic out of the per-sample path on an FPU without it).
+typedef struct {
+  // Degrees per hour per unit of the gyro column (unit conversion and any extra scale).
+  double gyro_dph_per_unit;
+  // Degrees C per unit of the temperature column.
+  double temp_c_per_unit;
+  // Degrees C added after the scale.
+  double temp_offset_c;
+  // 1 when the model records its units (format 4 and later); 0 for an older model, whose
+  // inputs are deg/h and deg C as the fit took them (the factors are then 1, 1 and 0).
+  uint32_t recorded;
+} fogtemp_axis_units;
+
 // The per-axis state (feature tracker, walk hint, held bias, flags, wrapping clock): fill
 // with [`fogtemp_state_init`]. Opaque; borrows the `blocks` array given there.
 typedef struct {
@@ -216,6 +238,18 @@ fogtemp_status fogtemp_model_axis(const fogtemp_model *model,
                                   size_t index,
                                   fogtemp_axis *out,
                                   fogtemp_error *err);
+
+// The units axis `index` of `*model` was fitted in, into `*out` (see [`fogtemp_axis_units`]):
+// so that a firmware loading a model from a partition can check, or adapt to, the units
+// its sensor gives (a model fitted on deg/s runs unflagged, and wrong, on samples in deg/h).
+// `FOGTEMP_STATUS_NO_SUCH_AXIS` for an index past the last axis.
+//
+// # Safety
+// `model` points to a filled `fogtemp_model`; `out` is writable for a `fogtemp_axis_units`.
+// On failure `*out` is unchanged.
+fogtemp_status fogtemp_model_axis_units(const fogtemp_model *model,
+                                        size_t index,
+                                        fogtemp_axis_units *out);
 
 // The number of `float`s the `blocks` array of a state for `*axis` needs (the model's
 // `block_count`), into `*blocks`. Size the array with it (or with the `#define` that

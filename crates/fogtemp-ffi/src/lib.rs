@@ -200,6 +200,31 @@ pub const FOGTEMP_FLAG_TEMP_STALE: u8 = 0x08;
 pub const FOGTEMP_FLAG_BAD_INPUT: u8 = 0x10;
 /// [`fogtemp_error::axis`] when the error names no axis.
 pub const FOGTEMP_NO_AXIS: u32 = u32::MAX;
+/// The newest model format version this library reads (it reads every version from 1 on):
+/// a blob of a newer version is `FOGTEMP_STATUS_UNSUPPORTED_VERSION`. `fogtemp-cal inspect`
+/// prints a model's version; check it against this at build time, before flashing.
+pub const FOGTEMP_MAX_FORMAT_VERSION: u32 = 8;
+const _: () = assert!(FOGTEMP_MAX_FORMAT_VERSION == fogtemp_core::wire::FORMAT_VERSION as u32);
+
+/// The units a model axis was fitted in: how its calibration logs' numbers were converted
+/// to the deg/h and deg C the core takes. A firmware whose sensor gives other units converts
+/// each sample before [`fogtemp_step`]: `gyro_dph = gyro * gyro_dph_per_unit`, `temp_c =
+/// temperature * temp_c_per_unit + temp_offset_c` (convert the factors to `float` once, at
+/// start-up, to keep double arithmetic out of the per-sample path on an FPU without it).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[allow(non_camel_case_types)]
+pub struct fogtemp_axis_units {
+    /// Degrees per hour per unit of the gyro column (unit conversion and any extra scale).
+    pub gyro_dph_per_unit: f64,
+    /// Degrees C per unit of the temperature column.
+    pub temp_c_per_unit: f64,
+    /// Degrees C added after the scale.
+    pub temp_offset_c: f64,
+    /// 1 when the model records its units (format 4 and later); 0 for an older model, whose
+    /// inputs are deg/h and deg C as the fit took them (the factors are then 1, 1 and 0).
+    pub recorded: u32,
+}
 
 /// One compensated sample.
 #[repr(C)]
@@ -715,6 +740,49 @@ pub unsafe extern "C" fn fogtemp_model_axis(
         }
         // SAFETY: `err` per this function's contract.
         Err(e) => unsafe { fail(err, e) },
+    }
+}
+
+/// The units axis `index` of `*model` was fitted in, into `*out` (see [`fogtemp_axis_units`]):
+/// so that a firmware loading a model from a partition can check, or adapt to, the units
+/// its sensor gives (a model fitted on deg/s runs unflagged, and wrong, on samples in deg/h).
+/// `FOGTEMP_STATUS_NO_SUCH_AXIS` for an index past the last axis.
+///
+/// # Safety
+/// `model` points to a filled `fogtemp_model`; `out` is writable for a `fogtemp_axis_units`.
+/// On failure `*out` is unchanged.
+#[no_mangle]
+pub unsafe extern "C" fn fogtemp_model_axis_units(
+    model: *const fogtemp_model,
+    index: usize,
+    out: *mut fogtemp_axis_units,
+) -> fogtemp_status {
+    // SAFETY: `model` per this function's contract.
+    let model = match unsafe { model_ref(model) }.and_then(|m| check(out).map(|()| m)) {
+        Ok(m) => m,
+        Err(s) => return s,
+    };
+    if index >= model.axis_count() {
+        return fogtemp_status::NoSuchAxis;
+    }
+    let units = match model.axis_columns(index) {
+        Some(c) => fogtemp_axis_units {
+            gyro_dph_per_unit: c.gyro_dph_per_unit,
+            temp_c_per_unit: c.temp_c_per_unit,
+            temp_offset_c: c.temp_offset_c,
+            recorded: 1,
+        },
+        None => fogtemp_axis_units {
+            gyro_dph_per_unit: 1.0,
+            temp_c_per_unit: 1.0,
+            temp_offset_c: 0.0,
+            recorded: 0,
+        },
+    };
+    // SAFETY: `out` checked above, writable per this function's contract.
+    match unsafe { write_out(out, units) } {
+        Ok(()) => fogtemp_status::Ok,
+        Err(s) => s,
     }
 }
 

@@ -645,3 +645,76 @@ fn one_state_takes_one_clock_until_a_reset() {
     let text = unsafe { CStr::from_ptr(fogtemp_status_message(fogtemp_status::MixedClocks as u32)) };
     assert!(text.to_str().unwrap().contains("fogtemp_step_u32"));
 }
+
+/// `fogtemp_model_axis_units` gives back the conversions the writer stored (review33a F2):
+/// deg/s with an extra scale 0.5 on axis 0, a temperature in counts of 1/16 C with an offset
+/// on axis 1 (the oracle: the writer's own numbers, exactly); a model before format 4 says
+/// none is recorded, with the identity; an axis past the end and caller mistakes are statuses.
+#[test]
+fn axis_units_are_the_ones_the_writer_stored() {
+    use fogtemp_cal::{blob::ColumnNames, encode, ModelFile};
+    let axes = vec![poly_axis(), poly_axis()];
+    let columns = vec![
+        ColumnNames { gyro: "gx_dps".into(), gyro_dph_per_unit: 3600.0 * 0.5, ..ColumnNames::default() },
+        ColumnNames {
+            temp: "t_counts".into(),
+            temp_c_per_unit: 0.0625,
+            temp_offset_c: -40.0,
+            ..ColumnNames::default()
+        },
+    ];
+    let file = ModelFile {
+        tool_version: "abi test".into(),
+        input_digest: [0; 32],
+        axes,
+        columns,
+        log_time: Default::default(),
+        log_reading: Default::default(),
+        input_rates: None,
+    };
+    let blob: &'static [u8] = Box::leak(encode(&file).unwrap().into_boxed_slice());
+    let units_of = |blob: &'static [u8], index: usize| {
+        let mut model = fogtemp_model { opaque: [0; 4] };
+        let mut units = fogtemp_axis_units::default();
+        // SAFETY: live pointers; the blob is 'static.
+        unsafe {
+            assert_eq!(
+                fogtemp_model_from_bytes(blob.as_ptr(), blob.len(), &mut model, ptr::null_mut()),
+                fogtemp_status::Ok
+            );
+            let status = fogtemp_model_axis_units(&model, index, &mut units);
+            (status, units)
+        }
+    };
+    let ok = |gyro, temp, offset, recorded| {
+        (
+            fogtemp_status::Ok,
+            fogtemp_axis_units {
+                gyro_dph_per_unit: gyro,
+                temp_c_per_unit: temp,
+                temp_offset_c: offset,
+                recorded,
+            },
+        )
+    };
+    assert_eq!(units_of(blob, 0), ok(1800.0, 1.0, 0.0, 1));
+    assert_eq!(units_of(blob, 1), ok(1.0, 0.0625, -40.0, 1));
+    assert_eq!(units_of(blob, 2), (fogtemp_status::NoSuchAxis, fogtemp_axis_units::default()));
+    assert_eq!(units_of(GOLDEN, 0), ok(1.0, 1.0, 0.0, 0));
+    let mut units = fogtemp_axis_units::default();
+    let unfilled = fogtemp_model { opaque: [0; 4] };
+    // SAFETY: live pointers, or NULL as the mistake under test.
+    unsafe {
+        assert_eq!(fogtemp_model_axis_units(&unfilled, 0, &mut units), fogtemp_status::NotInitialised);
+        assert_eq!(fogtemp_model_axis_units(ptr::null(), 0, &mut units), fogtemp_status::NullPointer);
+    }
+    let mut model = fogtemp_model { opaque: [0; 4] };
+    // SAFETY: live pointers, or NULL as the mistake under test.
+    unsafe {
+        assert_eq!(
+            fogtemp_model_from_bytes(blob.as_ptr(), blob.len(), &mut model, ptr::null_mut()),
+            fogtemp_status::Ok
+        );
+        assert_eq!(fogtemp_model_axis_units(&model, 0, ptr::null_mut()), fogtemp_status::NullPointer);
+    }
+}

@@ -101,6 +101,10 @@ fn hint(e: &CalError) -> &'static str {
             "; raw counts or kelvin? pass temp_scale=/temp_offset=; a logger's mark for a missing reading: empty \
              the cell, or skip_bad_rows=True"
         }
+        CalError::BadRow { row, .. } if row.kind == BadRowKind::SplitThousands => {
+            "; write the numbers without thousands separators (1000.5; a spreadsheet's number format adds them): \
+             skip_bad_rows=True would drop every row from the first such number on"
+        }
         CalError::BadRow { row, .. } if row.kind == BadRowKind::NulBytes => {
             "; skip_bad_rows=True skips such lines and lists them"
         }

@@ -96,6 +96,7 @@ def test_logs_of_other_lab_tools_get_the_hint_that_fits(tmp_path):
             "time_s,temp_c,gyro_dph\ns,degC,deg/h\n0,20,1\n",
             r"units.csv:2:1: .*skip both with skip_lines=N and name the columns with columns=\[\.\.\.\]",
         ),
+        ("thousands.csv", "time_s,temp_c,gyro_dph\n999,20,1\n1,000.5,20,1\n", r"thousands.csv:3:1: .*without thousands separators"),
         ("lost.csv", "time_s,temp_c,gyro_dph\n0,,1\n0.5,,\n", r"lost.csv:3:3: .*a lost sample\?"),
     ]
     for name, text, expected in cases:

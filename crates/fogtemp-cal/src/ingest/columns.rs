@@ -649,6 +649,12 @@ pub(super) fn parse_row(
     if let Some(extra) = (columns.named_fields()..fields.len())
         .find(|&k| !fields.get(k).unwrap_or(b"").trim_ascii().is_empty())
     {
+        if let Some(field) = split_thousands(fields, fields.len() - columns.named_fields()) {
+            let separator = if plan.spaced { b' ' } else { b',' };
+            let joined =
+                [fields.get(field).unwrap_or(b""), fields.get(field + 1).unwrap_or(b"")].join(&separator);
+            return Err(bad_row(columns, line, field, &joined, BadRowKind::SplitThousands));
+        }
         return Err(bad_row(columns, line, extra, fields.get(extra).unwrap_or(b""), BadRowKind::LongRow));
     }
     let required = |field: usize| -> Result<f64, BadRow> {
@@ -716,6 +722,45 @@ pub(super) struct Previous {
     pub(super) any: Option<f64>,
     /// The previous row with gyro readings'.
     pub(super) sample: Option<f64>,
+}
+
+/// The first field of a number split at its thousands separators, when the row's `extra`
+/// fields are all such splits: a field of 1-3 digits (with a sign) followed by fields of
+/// exactly 3 digits, the last of them with an optional fraction (`1`, `000.5`; `1`, `000`,
+/// `000`).
+fn split_thousands(fields: Fields<'_>, extra: usize) -> Option<usize> {
+    let cell = |k: usize| fields.get(k).unwrap_or(b"").trim_ascii();
+    let is_digits = |t: &[u8]| !t.is_empty() && t.iter().all(u8::is_ascii_digit);
+    let head = |t: &[u8]| {
+        let t = t.strip_prefix(b"-").or_else(|| t.strip_prefix(b"+")).unwrap_or(t);
+        is_digits(t) && t.len() <= 3
+    };
+    let group = |t: &[u8]| {
+        let (whole, fraction) = match t.iter().position(|&b| b == b'.') {
+            Some(at) => (&t[..at], Some(&t[at + 1..])),
+            None => (t, None),
+        };
+        whole.len() == 3 && is_digits(whole) && fraction.is_none_or(|f| f.iter().all(u8::is_ascii_digit))
+    };
+    let (mut first, mut splits, mut k) = (None, 0, 0);
+    while k < fields.len() {
+        let mut next = k + 1;
+        if head(cell(k)) {
+            // The groups after it, up to one with a fraction.
+            while next < fields.len() && group(cell(next)) {
+                next += 1;
+                if cell(next - 1).contains(&b'.') {
+                    break;
+                }
+            }
+            if next > k + 1 {
+                first = first.or(Some(k));
+                splits += next - k - 1;
+            }
+        }
+        k = next;
+    }
+    first.filter(|_| splits == extra)
 }
 
 /// A date-time time cell, seconds since 1970 UTC; with a date column, its cell `T` the

@@ -525,6 +525,12 @@ pub enum BadRowKind {
     /// ones: two records run together (a lost line break). Empty extra fields (a trailing
     /// delimiter) are not.
     LongRow,
+    /// More fields than the header because numbers were written with thousands separators
+    /// equal to the delimiter (`1,000.5` in a comma log, `1 000.5` in a spaced one): a field
+    /// of 1-3 digits followed by one of exactly 3 digits (and a fraction), as many such pairs
+    /// as extra fields (review32a F9: explained as a lost line break, and `--skip-bad-rows`
+    /// dropped every row from 1000 s on).
+    SplitThousands,
     /// Time equal to the previous row's.
     DuplicateTime,
     /// Time before the previous row's.
@@ -583,6 +589,10 @@ impl BadRowKind {
             BadRowKind::LongRow => {
                 "more fields than the header (or the names given for a headerless log): two records run together (a lost line \
                  break)? name every field of a log without a header"
+            }
+            BadRowKind::SplitThousands => {
+                "more fields than the header: a number written with a thousands separator that is the log's \
+                 delimiter (1,000.5), split in two"
             }
             BadRowKind::DuplicateTime => "time equal to the previous row",
             BadRowKind::BackwardTime => "time before the previous row",

@@ -1003,3 +1003,27 @@ fn separate_rows_in_a_log_read_in_chunks() {
     assert_eq!(bits(&a), bits(&b));
     assert_eq!((a.len(), temperature_only, none), (400, 200, 0));
 }
+
+/// Thousands separators equal to the delimiter split a number (review32a F9): named so, at the
+/// number's column with its text joined, not as two records run together; a row with more
+/// fields than the splits explain is still a long row.
+#[test]
+fn a_number_split_at_its_thousands_separator_is_named() {
+    let b = bad(&format!("{HEADER}999.5,20,0.5\n1,000.000,14.0517,0.78631\n"));
+    expect(&b, 3, 1, "time_s", "1,000.000", BadRowKind::SplitThousands);
+    let b = bad(&format!("{HEADER}0,20,0.5\n1,234,567.5,20,-1,250\n"));
+    expect(&b, 3, 1, "time_s", "1,234", BadRowKind::SplitThousands);
+    // Spaces as the separator (SI style) in a spaced log.
+    let spaced = with(LogFormat { delimiter: Delimiter::Whitespace, ..LogFormat::default() });
+    match run(b"time_s temp_c gyro_dph\n999.5 20 0.5\n1 000.5 20 0.5\n", &spaced).1 {
+        Err(CalError::BadRow { row, .. }) => {
+            expect(&row, 3, 1, "time_s", "1 000.5", BadRowKind::SplitThousands)
+        }
+        other => panic!("{}", summary(&other)),
+    }
+    // Two records run together: no split explains the extra fields.
+    let b = bad(&format!("{HEADER}0,20,0.5\n1,20,0.52,20,0.5\n"));
+    assert_eq!(b.kind, BadRowKind::LongRow, "{b:?}");
+    let b = bad(&format!("{HEADER}0,20,0.5\n1,000,20,0.5,7\n"));
+    assert_eq!(b.kind, BadRowKind::LongRow, "{b:?}");
+}

@@ -122,7 +122,9 @@ pub fn export(a: ExportArgs) -> Result<()> {
                     writeln!(w, "/* {UNITS_NOTE} */")?;
                 }
                 for (constant, value, what) in &units {
-                    writeln!(w, "#define {constant} {value:?} /* {what} */")?;
+                    // A float literal: `raw * CONSTANT` stays single precision (review33a F4: a
+                    // double constant put soft-float double arithmetic in every sample on an M4F).
+                    writeln!(w, "#define {constant} {value:?}f /* {what} */")?;
                 }
                 writeln!(w, "extern const uint8_t {name}[{}];\n\n#endif", blob.len())?;
                 Ok(())
