@@ -2838,3 +2838,44 @@ fn rates_left_in_for_two_gyro_columns_are_recorded_and_noted() {
         notes(&first)
     );
 }
+
+/// A fit without run metadata says that the rates the runs sensed stay in the model's bias
+/// (review33b F1: a model of an up position held the Earth rate's 11.2 deg/h as bias, without
+/// a word); with a runs file nothing of it is said.
+#[test]
+fn a_fit_without_run_metadata_says_the_sensed_rates_stay_in_the_bias() {
+    let dir = TempDir::new().expect("tempdir");
+    let mut logs = Vec::new();
+    let mut rows = String::from("run,position,input_rate_dph\n");
+    for (k, start_c) in [-10.0, 10.0, 30.0].into_iter().enumerate() {
+        let log = dir.path().join(format!("run{k}.csv"));
+        write_warmup(&log, start_c, 20.0, 60 + k as u64);
+        logs.push(log);
+        rows.push_str(&format!("run{k},up,9.67\n"));
+    }
+    let runs = dir.path().join("runs.csv");
+    fs::write(&runs, rows).expect("runs file");
+    let model = dir.path().join("m.fogm");
+    let kinds = |doc: &Value| {
+        arr(&doc["warnings"])
+            .iter()
+            .filter_map(|w| w["kind"].as_str().map(str::to_string))
+            .collect::<Vec<_>>()
+    };
+    let mut bare = args!["fit", "--method", "poly", "--out", &model, "--json"];
+    bare.extend(logs.iter().map(OsString::from));
+    let output = cal().args(&bare).output().expect("run");
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(output.status.success(), "{stderr}");
+    assert!(stderr.contains("warning: no run metadata: whatever constant rate the gyro sensed"), "{stderr}");
+    assert!(stderr.contains("--runs FILE"), "{stderr}");
+    let doc: Value = serde_json::from_slice(&output.stdout).expect("json");
+    assert!(kinds(&doc).contains(&"no_run_metadata".to_string()), "{:?}", kinds(&doc));
+    let mut with_runs = args!["fit", "--method", "poly", "--runs", &runs, "--out", &model, "--json"];
+    with_runs.extend(logs.iter().map(OsString::from));
+    let output = cal().args(&with_runs).output().expect("run");
+    let stderr = String::from_utf8_lossy(&output.stderr);
+    assert!(output.status.success() && !stderr.contains("no run metadata"), "{stderr}");
+    let doc: Value = serde_json::from_slice(&output.stdout).expect("json");
+    assert!(!kinds(&doc).contains(&"no_run_metadata".to_string()), "{:?}", kinds(&doc));
+}

@@ -77,7 +77,12 @@ class Model:
         """Number of gyro axes."""
     @property
     def fit_report(self) -> Optional[Dict[str, Any]]:
-        """The ``fit --json`` document when fitted by ``fogtemp.fit`` in this process, else None."""
+        """The ``fit --json`` document when fitted by ``fogtemp.fit`` in this process, else None
+        (not kept by pickle or save: ``json.dump`` it to keep it). The model choice of
+        method="auto" is ``fit_report["axes"][i]["selection"]``: ``method`` (chosen), ``best``,
+        ``rule``, ``grouping``, ``folds`` and ``candidates`` (per method its
+        ``cv_bias_stability_dph``, ``standard_error_dph``, ``within_one_standard_error`` and per
+        held-out run ``runs``), e.g. ``pandas.DataFrame(fit_report["axes"][0]["selection"]["candidates"])``."""
     @overload
     def evaluate(
         self,
@@ -178,7 +183,10 @@ def fit(
     sample_rate_hz, comment, decimal_mark ("point" or "comma"), date_column, skip_bad_rows; the
     log's shape as ``read_log`` describes it: ``columns`` is a list of str or one str of
     comma-separated names) and runs (log files only: a runs file, run,position,input_rate_dph[,role], describing exactly the logs given; as fit --runs, val runs are left out and each run's input rate is subtracted from its gyro; without it, a fogtemp simulation's manifest.json beside the logs gives the same, with a warning saying so; ``Model.fit_report["run_metadata"]`` says which was used, None for neither). Identifiability warnings (too few runs, heating only,
-    ...) are issued as Python warnings and listed in ``Model.fit_report["warnings"]`` (a property).
+    ...) are issued as Python warnings and listed in ``Model.fit_report["warnings"]`` (a property);
+    without run metadata (no runs file or manifest; always for arrays) the warning
+    ``no_run_metadata`` says that the rate each run's gyro sensed (the Earth rate's share) stays
+    in the model's bias: for arrays, subtract each run's input rate from ``gyro_dph`` first.
     ``report`` (a folder) writes fit-report.md, fit-report.html and the figures, as fit --report.
     ``progress`` shows reading and cross-validation progress on stderr.
     """

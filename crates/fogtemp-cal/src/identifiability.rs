@@ -135,6 +135,10 @@ pub enum WarningKind {
     /// ([`crate::manifest::UNFINISHED_FILE`]): a part of its campaign at most. Reported on
     /// axis 0 (review30b F7: only stderr said so).
     UnfinishedSimulation,
+    /// No run metadata (no runs file, no simulation manifest): the rate each run's gyro
+    /// sensed (the Earth rate's share, a turntable's rate) stays in the calibration targets,
+    /// so the model's bias holds their mean. Reported on axis 0 (review33b F1).
+    NoRunMetadata,
 }
 
 impl WarningKind {
@@ -157,6 +161,7 @@ impl WarningKind {
             WarningKind::CoarseTemperature => "coarse_temperature",
             WarningKind::TemperatureGap => "temperature_gap",
             WarningKind::UnfinishedSimulation => "unfinished_simulation",
+            WarningKind::NoRunMetadata => "no_run_metadata",
         }
     }
 }
@@ -188,7 +193,23 @@ impl Warning {
     pub fn unfinished_simulation(message: String) -> Self {
         Self::new(0, WarningKind::UnfinishedSimulation, message, &[])
     }
+
+    /// `no_run_metadata`, for a fit without run metadata; `remedy` says how to give it (the
+    /// command line's `--runs FILE`, Python's `runs=`, or for arrays taking the rates off).
+    pub fn no_run_metadata(remedy: &str) -> Self {
+        let message = format!(
+            "no run metadata: whatever constant rate the gyro sensed in each calibration run stays in the model's \
+             bias (the Earth rate's share about the input axis, up to {EARTH_RATE_DPH} deg/h, or a turntable's \
+             rate), averaged over the runs; the model then takes that mean off every sample, so a run at another \
+             position or rate is compensated wrongly by the difference, which bias stability does not show. \
+             {remedy}; logs whose gyro has the rate taken off already need nothing"
+        );
+        Self::new(0, WarningKind::NoRunMetadata, message, &[("earth_rate_dph", EARTH_RATE_DPH)])
+    }
 }
+
+/// The Earth's rotation rate, deg/h (360 deg per sidereal day, 86,164.1 s).
+pub const EARTH_RATE_DPH: f64 = 15.041;
 
 /// The warnings of every axis, from the calibration points `fit` uses (the same selection as
 /// [`crate::calibrate::fit_model`]).

@@ -199,10 +199,21 @@ fn numbered_columns<'py>(
     while let Some(value) = convert::item(run, &format!("{key}_{}", numbered.len()))? {
         numbered.push(value);
     }
+    // A number past a gap (`key_0`, `key_2`): an axis would be dropped without a word
+    // (review33b F3, a dead channel's column deleted from an IMU DataFrame).
+    if let Some(beyond) = numbered_beyond(run, key, numbered.len()).filter(|_| !numbered.is_empty()) {
+        return Err(errors::value(format!(
+            "{label}: '{beyond}' but no '{key}_{}': the axes' columns are numbered from 0 without gaps; \
+             renumber them, or give every axis",
+            numbered.len()
+        )));
+    }
     // `key_1` alone (no `key_0`: renamed to `key`) still says there is a second axis.
     let other = match numbered.is_empty() {
         false => Some(format!("{key}_0")),
-        true => convert::item(run, &format!("{key}_1"))?.map(|_| format!("{key}_1")),
+        true => convert::item(run, &format!("{key}_1"))?
+            .map(|_| format!("{key}_1"))
+            .or_else(|| numbered_beyond(run, key, 1)),
     };
     match (convert::item(run, key)?, other) {
         (Some(_), Some(other)) => Err(errors::value(format!(
@@ -218,6 +229,19 @@ fn numbered_columns<'py>(
             .collect::<PyResult<Vec<_>>>()
             .map(Some),
     }
+}
+
+/// The first key of `run` named `key_N` with `N` at least `from` (`key_2` when `key_1` is
+/// missing), if any; a run whose keys cannot be listed has none.
+fn numbered_beyond(run: &Bound<'_, PyAny>, key: &str, from: usize) -> Option<String> {
+    let keys = run.getattr("columns").or_else(|_| run.call_method0("keys")).ok()?;
+    let prefix = format!("{key}_");
+    keys.try_iter().ok()?.filter_map(|k| k.ok()?.extract::<String>().ok()).find(|name| {
+        name.strip_prefix(&prefix)
+            .filter(|n| !n.is_empty() && n.bytes().all(|b| b.is_ascii_digit()))
+            .and_then(|n| n.parse::<usize>().ok())
+            .is_some_and(|n| n >= from)
+    })
 }
 
 /// What a run given as a dict or DataFrame has instead of its `missing` column, and how to
@@ -465,6 +489,13 @@ pub fn fit(
     let (fitted, runs, digest) = fitted;
     // The command line's identifiability warnings: Python warnings, and in `fit_report`.
     let mut warnings = fogtemp_cal::identifiability::fit_warnings(&runs, &config, &identifiability);
+    if run_metadata.is_none() {
+        warnings.push(fogtemp_cal::identifiability::Warning::no_run_metadata(if arrays {
+            "To fit the bias alone, subtract each run's input rate from its gyro_dph before the fit"
+        } else {
+            "To fit the bias alone, give each run's position and input_rate_dph in a runs file (runs=)"
+        }));
+    }
     warnings.extend(fogtemp_cal::identifiability::post_fit_warnings(&runs, &fitted));
     for w in &warnings {
         progress::warn(py, &w.message)?;

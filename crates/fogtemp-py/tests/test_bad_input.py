@@ -710,3 +710,36 @@ def test_channels_on_separate_rows_read_as_their_merged_twin(tmp_path):
     for key in ("time_s", "temp_c", "gyro_dph"):
         np.testing.assert_array_equal(got[key], want[key])
     assert list(got["gyro_dph"]) == [1.0, 2.0, 3.0, 4.0]
+
+
+def test_a_fit_without_run_metadata_warns_that_the_sensed_rate_stays_in_the_bias(tmp_path):
+    """review33b F1: fit(list_of_logs) of an up position held the Earth rate as bias without a
+    word. Files without a runs file name runs=; arrays are told to subtract the rate."""
+    runs = synthetic_runs(seed=5, runs=3)
+    with pytest.warns(UserWarning, match=r"no run metadata: .*subtract each run's input rate from its gyro_dph"):
+        model = fogtemp.fit(runs, method="poly", progress=False)
+    kinds = [w["kind"] for w in model.fit_report["warnings"]]
+    assert "no_run_metadata" in kinds
+    paths = [tmp_path / f"run{k}.csv" for k in range(3)]
+    for path, run in zip(paths, runs):
+        write_csv(path, run)
+    with pytest.warns(UserWarning, match=r"no run metadata: .*runs file \(runs=\)"):
+        fogtemp.fit(paths, method="poly", progress=False)
+    table = tmp_path / "runs.csv"
+    table.write_text("run,position,input_rate_dph\n" + "".join(f"run{k},up,9.67\n" for k in range(3)))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        model = fogtemp.fit(paths, method="poly", runs=table, progress=False)
+    assert not [w for w in caught if "no run metadata" in str(w.message)]
+    assert "no_run_metadata" not in [w["kind"] for w in model.fit_report["warnings"]]
+
+
+def test_a_gap_in_the_axes_numbering_is_refused():
+    """review33b F3: gyro_dph_0 and gyro_dph_2 without gyro_dph_1 fitted one axis and dropped
+    the other without a word."""
+    run = dict(synthetic_runs(seed=6, runs=1)[0])
+    gyro = np.asarray(run.pop("gyro_dph"))
+    run["gyro_dph_0"] = gyro
+    run["gyro_dph_2"] = gyro
+    with pytest.raises(ValueError, match=r"'gyro_dph_2' but no 'gyro_dph_1': .*numbered from 0 without gaps"):
+        fogtemp.fit([run, run, run], method="poly", progress=False)

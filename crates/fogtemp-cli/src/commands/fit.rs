@@ -123,6 +123,12 @@ pub fn fit(a: FitArgs) -> Result<()> {
         source.as_deref(),
     );
     let mut warnings = fogtemp_cal::identifiability::fit_warnings(&runs, &config, &a.identifiability());
+    if run_metadata.is_none() {
+        warnings.push(fogtemp_cal::identifiability::Warning::no_run_metadata(
+            "To fit the bias alone, give each run's position and input_rate_dph in a runs file (--runs FILE; \
+             docs/diagnose.md, \"Run metadata\")",
+        ));
+    }
     warnings.iter().for_each(|w| eprintln!("warning: {}", w.message));
 
     let selection = SelectionOptions {
