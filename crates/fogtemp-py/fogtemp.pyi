@@ -182,11 +182,11 @@ def fit(
     temp_scale, temp_offset, gyro_column, gyro_unit, gyro_scale, delimiter, skip_lines, columns,
     sample_rate_hz, comment, decimal_mark ("point" or "comma"), date_column, skip_bad_rows; the
     log's shape as ``read_log`` describes it: ``columns`` is a list of str or one str of
-    comma-separated names) and runs (log files only: a runs file, run,position,input_rate_dph[,role], describing exactly the logs given; as fit --runs, val runs are left out and each run's input rate is subtracted from its gyro; without it, a fogtemp simulation's manifest.json beside the logs gives the same, with a warning saying so; ``Model.fit_report["run_metadata"]`` says which was used, None for neither). Identifiability warnings (too few runs, heating only,
+    comma-separated names) and runs (a runs file, run,position,input_rate_dph[,role], describing exactly the logs given, or the runs given as arrays in a dict {name: run}, named by their keys; as fit --runs, val runs are left out and each run's input rate is subtracted from its gyro; without it, a fogtemp simulation's manifest.json beside the logs gives the same, with a warning saying so; ``Model.fit_report["run_metadata"]`` says which was used, None for neither). Identifiability warnings (too few runs, heating only,
     ...) are issued as Python warnings and listed in ``Model.fit_report["warnings"]`` (a property);
-    without run metadata (no runs file or manifest; always for arrays) the warning
-    ``no_run_metadata`` says that the rate each run's gyro sensed (the Earth rate's share) stays
-    in the model's bias: for arrays, subtract each run's input rate from ``gyro_dph`` first.
+    without run metadata (no runs file or manifest) the warning ``no_run_metadata`` says that
+    the rate each run's gyro sensed (the Earth rate's share) stays in the model's bias: give
+    runs=, or for arrays subtract each run's input rate from ``gyro_dph`` first.
     ``report`` (a folder) writes fit-report.md, fit-report.html and the figures, as fit --report.
     ``progress`` shows reading and cross-validation progress on stderr.
     """

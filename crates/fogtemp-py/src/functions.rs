@@ -244,6 +244,68 @@ fn numbered_beyond(run: &Bound<'_, PyAny>, key: &str, from: usize) -> Option<Str
     })
 }
 
+/// As the command line's `fit --runs`: each run's input rate taken from its gyro (one-gyro
+/// logs; else left in, with a warning), and the positions `auto` leaves out one at a time;
+/// the document of the metadata and the positions.
+fn apply_run_metadata(
+    py: Python<'_>,
+    runs: &mut [fogtemp_cal::calibrate::RunFeatures],
+    config: &mut CalibrationConfig,
+    source: String,
+    rows: Vec<fogtemp_cal::runs::RunMetadata>,
+) -> PyResult<(fogtemp_cal::documents::RunMetadataDocument, Vec<String>)> {
+    let rates: Vec<f64> = rows.iter().map(|r| r.input_rate_dph).collect();
+    let axes = config.ingest.format.gyro_columns.len();
+    let subtracted =
+        calibrate::subtract_input_rates(runs, &rates, config) == fogtemp_core::InputRates::Subtracted;
+    if !subtracted {
+        // As the command line says it (review30a F7).
+        progress::warn(
+            py,
+            &format!(
+                "the run metadata gives one input rate per run, but the logs have {axes} gyro columns: the rates \
+                 are not subtracted, so each axis's model includes its input rate"
+            ),
+        )?;
+    }
+    let positions: Vec<String> = rows.into_iter().map(|r| r.position).collect();
+    let document = fogtemp_cal::documents::RunMetadataDocument {
+        source,
+        positions: positions.clone(),
+        input_rates_dph: rates,
+        input_rates_subtracted: subtracted,
+    };
+    Ok((document, positions))
+}
+
+/// Drops the samples `allan` cannot use (a time not finite or not after the previous kept
+/// one, a rate not finite in any series), as `skip_bad_rows` drops a log's bad rows; their
+/// indices in the input, in order.
+fn keep_good_samples(times: &mut Vec<f64>, series: &mut [Vec<f64>]) -> Vec<usize> {
+    let mut skipped = Vec::new();
+    let mut kept = 0;
+    let mut last: Option<f64> = None;
+    for i in 0..times.len() {
+        let t = times[i];
+        let good = t.is_finite()
+            && last.is_none_or(|p| t > p)
+            && series.iter().all(|s| s.get(i).is_some_and(|g| g.is_finite()));
+        if good {
+            times[kept] = t;
+            for s in series.iter_mut() {
+                s[kept] = s[i];
+            }
+            kept += 1;
+            last = Some(t);
+        } else {
+            skipped.push(i);
+        }
+    }
+    times.truncate(kept);
+    series.iter_mut().for_each(|s| s.truncate(kept));
+    skipped
+}
+
 /// What a run given as a dict or DataFrame has instead of its `missing` column, and how to
 /// rename one (review17 F5: a log file's error lists its header, a DataFrame's listed
 /// nothing). The keys are shown as Python writes them (`repr`: `0` is not `'0'`), the rename
@@ -376,7 +438,8 @@ pub(crate) fn array_error(e: fogtemp_cal::CalError) -> PyErr {
 /// shape as `read_log` describes it: `columns` is a list of str or one str of comma-separated
 /// names, "" for a header row) and `runs`
 /// (a runs file, `run,position,input_rate_dph[,role]`, as `fit --runs`: `val` runs left out,
-/// one position left out at a time by `auto`, each run's input rate subtracted from its gyro);
+/// one position left out at a time by `auto`, each run's input rate subtracted from its gyro;
+/// for log files, or runs given as arrays in a dict `{name: run}`, named by their keys);
 /// identifiability warnings as Python warnings. `report` (a folder) writes `fit-report.md`,
 /// `fit-report.html` and the figures, as `fit --report`. `out` also writes the model
 /// file; `progress` shows reading and cross-validation progress on stderr. Runs with the GIL
@@ -418,9 +481,10 @@ pub fn fit(
     let capacity = o.int("capacity", fogtemp_core::DEFAULT_CAPACITY, options::MIN_CAPACITY, u64::MAX)?;
     let runs_file = o.opt_path("runs")?;
     let report = o.report_folder()?;
-    if arrays && runs_file.is_some() {
+    if arrays && runs_file.is_some() && names.is_none() {
         return Err(PyTypeError::new_err(
-            "fit(): runs= names log files by their run names; it applies to log files",
+            "fit(): runs= names runs by their names: give runs as arrays in a dict {name: run}, the names \
+             those of the runs file's run column",
         ));
     }
     let identifiability = fogtemp_cal::identifiability::IdentifiabilitySettings {
@@ -433,8 +497,41 @@ pub fn fit(
     // Logs of an unfinished simulation: warned as read, in `fit_report`'s warnings too.
     let mut unfinished = Vec::new();
     let fitted = if arrays {
-        let array_runs = array_runs_of(&items, names.as_deref())?;
-        let (runs, digest) = array_features(py, &array_runs, &mut config)?;
+        let mut array_runs = array_runs_of(&items, names.as_deref())?;
+        // A runs file names the runs given in a dict by their keys (review33b F2): val runs
+        // left out, as for log files.
+        let metadata = match runs_file.as_deref() {
+            Some(path) => {
+                let named: Vec<PathBuf> = array_runs.iter().map(|r| r.name.clone()).collect();
+                let file = fogtemp_cal::runs::RunsFile::read(path).map_err(errors::cal)?;
+                let rows: Vec<fogtemp_cal::runs::RunMetadata> = file
+                    .for_logs_of_a_command(&named, Some(fogtemp_cal::runs::Role::Val))
+                    .map_err(errors::cal)?
+                    .into_iter()
+                    .cloned()
+                    .collect();
+                for note in file.position_notes() {
+                    progress::warn(py, &note)?;
+                }
+                let all = fogtemp_cal::runs::LogsMetadata {
+                    source: path.display().to_string(),
+                    source_path: path.to_path_buf(),
+                    rows: Some(rows),
+                    ..Default::default()
+                };
+                let (kept, rows) = fogtemp_cal::runs::calibration_runs(&named, &all).map_err(errors::cal)?;
+                array_runs.retain(|r| kept.contains(&r.name));
+                rows.map(|rows| (all.source, rows))
+            }
+            None => None,
+        };
+        let (mut runs, digest) = array_features(py, &array_runs, &mut config)?;
+        let mut selection = fogtemp_cal::selection::SelectionOptions::default();
+        if let Some((source, rows)) = metadata {
+            let (document, positions) = apply_run_metadata(py, &mut runs, &mut config, source, rows)?;
+            run_metadata = Some(document);
+            selection.positions = Some(positions);
+        }
         let columns: Vec<ArrayColumns<'_>> =
             array_runs.iter().map(ArrayColumns::new).collect::<PyResult<_>>()?;
         // `auto` replays each held-out run from its arrays, as it rereads a file.
@@ -446,7 +543,6 @@ pub fn fit(
                 message: "no such run".into(),
             }),
         };
-        let selection = fogtemp_cal::selection::SelectionOptions::default();
         let fitted = interruptible_fit(py, &runs, &config, digest, &selection, progress, &replay)?;
         (fitted, runs, digest)
     } else {
@@ -455,29 +551,8 @@ pub fn fit(
         unfinished = warned;
         let mut selection = fogtemp_cal::selection::SelectionOptions::default();
         if let Some((source, rows)) = metadata {
-            // As the command line's `fit --runs`: val runs left out (above), one position
-            // left out at a time, each run's input rate taken from its gyro (one-gyro logs).
-            let rates: Vec<f64> = rows.iter().map(|r| r.input_rate_dph).collect();
-            let axes = config.ingest.format.gyro_columns.len();
-            let subtracted = calibrate::subtract_input_rates(&mut runs, &rates, &mut config)
-                == fogtemp_core::InputRates::Subtracted;
-            if !subtracted {
-                // As the command line says it (review30a F7).
-                progress::warn(
-                    py,
-                    &format!(
-                        "the run metadata gives one input rate per run, but the logs have {axes} gyro columns: the \
-                         rates are not subtracted, so each axis's model includes its input rate"
-                    ),
-                )?;
-            }
-            let positions: Vec<String> = rows.into_iter().map(|r| r.position).collect();
-            run_metadata = Some(fogtemp_cal::documents::RunMetadataDocument {
-                source,
-                positions: positions.clone(),
-                input_rates_dph: rates,
-                input_rates_subtracted: subtracted,
-            });
+            let (document, positions) = apply_run_metadata(py, &mut runs, &mut config, source, rows)?;
+            run_metadata = Some(document);
             selection.positions = Some(positions);
         }
         let fitted = {
@@ -491,7 +566,8 @@ pub fn fit(
     let mut warnings = fogtemp_cal::identifiability::fit_warnings(&runs, &config, &identifiability);
     if run_metadata.is_none() {
         warnings.push(fogtemp_cal::identifiability::Warning::no_run_metadata(if arrays {
-            "To fit the bias alone, subtract each run's input rate from its gyro_dph before the fit"
+            "To fit the bias alone, give the runs in a dict {name: run} with a runs file (runs=), or \
+             subtract each run's input rate from its gyro_dph before the fit"
         } else {
             "To fit the bias alone, give each run's position and input_rate_dph in a runs file (runs=)"
         }));
@@ -1274,15 +1350,16 @@ pub fn allan<'py>(
 ) -> PyResult<Bound<'py, PyAny>> {
     let mut o = Options::new("allan", options);
     if convert::is_arrays(log)? {
+        // As fit() and validate() take it for arrays (review33b F6).
+        let skip_bad_rows = o.bool("skip_bad_rows", false)?;
         o.finish()?;
-        let time = f64_vector(
-            &convert::item(log, "time_s")?.ok_or_else(|| errors::value("allan(): no 'time_s'"))?,
-            "time_s",
-        )?;
-        let gyro = convert::item(log, "gyro_dph")?.ok_or_else(|| errors::value("allan(): no 'gyro_dph'"))?;
+        let missing =
+            |key: &str| errors::value(format!("allan(): no '{key}': {}", missing_column_help(log, key)));
+        let time = f64_vector(&convert::item(log, "time_s")?.ok_or_else(|| missing("time_s"))?, "time_s")?;
+        let gyro = convert::item(log, "gyro_dph")?.ok_or_else(|| missing("gyro_dph"))?;
         let gyros = columns(&gyro, "gyro_dph")?;
-        let times = slice(&time, "time_s")?;
-        let series: Vec<Vec<f64>> =
+        let mut times = slice(&time, "time_s")?.to_vec();
+        let mut series: Vec<Vec<f64>> =
             gyros.iter().map(|g| slice(g, "gyro_dph").map(<[f64]>::to_vec)).collect::<PyResult<_>>()?;
         if let Some(s) = series.iter().find(|s| s.len() != times.len()) {
             return Err(errors::value(format!(
@@ -1294,6 +1371,21 @@ pub fn allan<'py>(
         let names: Vec<String> = (0..series.len())
             .map(|k| if series.len() == 1 { "gyro_dph".into() } else { format!("gyro_dph[{k}]") })
             .collect();
+        if skip_bad_rows {
+            let skipped = keep_good_samples(&mut times, &mut series);
+            if let Some((&first, count)) = skipped.first().zip(Some(skipped.len())) {
+                progress::warn(
+                    py,
+                    &format!(
+                        "allan(): skipped {count} bad sample{} of {} (a time not finite or not after the previous \
+                         kept one, or a rate not finite), the first at index {first}",
+                        if count == 1 { "" } else { "s" },
+                        count + times.len()
+                    ),
+                )?;
+            }
+        }
+        let times = times.as_slice();
         // The rules fit() applies to arrays: finite samples, time increasing.
         if let Some(i) = times.iter().position(|t| !t.is_finite()) {
             return Err(errors::value(format!("allan(): time_s[{i}] is {}: not a finite time", times[i])));

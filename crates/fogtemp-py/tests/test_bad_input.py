@@ -339,7 +339,7 @@ def test_fit_reads_a_runs_file_like_the_command_line(tmp_path):
     assert len(with_runs.fit_report["runs"]) == 4, "the val run is left out"
     without = fogtemp.fit([shifted / f"r{i}.csv" for i in range(4)], method="poly", progress=False)
     assert rms(without) > 5 * rms(oracle)
-    with pytest.raises(TypeError, match="runs= names log files"):
+    with pytest.raises(TypeError, match="runs= names runs by their names"):
         fogtemp.fit(runs, method="poly", runs=runs_csv, progress=False)
 
 
@@ -743,3 +743,58 @@ def test_a_gap_in_the_axes_numbering_is_refused():
     run["gyro_dph_2"] = gyro
     with pytest.raises(ValueError, match=r"'gyro_dph_2' but no 'gyro_dph_1': .*numbered from 0 without gaps"):
         fogtemp.fit([run, run, run], method="poly", progress=False)
+
+
+def test_allan_of_arrays_skips_bad_samples_when_asked():
+    """review33b F6: allan() refused skip_bad_rows= for arrays, which fit() and validate() take.
+    The oracle: allan() of the arrays with those samples removed by hand."""
+    import pandas as pd
+
+    run = synthetic_runs(seed=8, runs=1)[0]
+    t, g = np.asarray(run["time_s"]), np.asarray(run["gyro_dph"]).copy()
+    bad = [100, 101, 4000]
+    g[bad] = np.nan
+    with pytest.raises(ValueError, match=r"sample 100: NaN is not a finite rate"):
+        fogtemp.allan({"time_s": t, "gyro_dph": g}, progress=False)
+    with pytest.warns(UserWarning, match=r"skipped 3 bad samples of 7500 .*the first at index 100"):
+        got = fogtemp.allan({"time_s": t, "gyro_dph": g}, skip_bad_rows=True, progress=False)
+    keep = np.ones(t.size, dtype=bool)
+    keep[bad] = False
+    want = fogtemp.allan({"time_s": t[keep], "gyro_dph": g[keep]}, progress=False)
+    assert got == want
+    frame = pd.DataFrame({"gyro_dph": g}, index=pd.to_datetime(t, unit="s"))
+    with pytest.raises(ValueError, match=r"no 'time_s': .*reset_index\(\) makes it a column"):
+        fogtemp.allan(frame, progress=False)
+
+
+def test_a_runs_file_names_runs_given_as_arrays_by_their_keys(tmp_path):
+    """review33b F2: runs given as arrays could not carry positions, rates or roles. A dict
+    {name: run} with runs= gives the model and the choice of the same runs as log files with
+    the same runs file (the oracle): val runs left out, rates taken off, positions left out."""
+    runs = synthetic_runs(seed=9, runs=4)
+    table = tmp_path / "runs.csv"
+    table.write_text(
+        "run,position,input_rate_dph,role\nrun0,a,9.67,cal\nrun1,b,-9.67,cal\nrun2,c,9.67,cal\nrun3,a,9.67,val\n"
+    )
+    paths = [tmp_path / f"run{k}.csv" for k in range(4)]
+    for path, run in zip(paths, runs):
+        write_csv(path, run)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        from_files = fogtemp.fit(paths, runs=table, progress=False)
+        from_arrays = fogtemp.fit({f"run{k}": run for k, run in enumerate(runs)}, runs=table, progress=False)
+    assert from_arrays.inspect()["axes"] == from_files.inspect()["axes"]
+    for model in (from_arrays, from_files):
+        report = model.fit_report
+        assert report["axes"][0]["selection"]["grouping"] == "positions"
+        assert report["run_metadata"]["positions"] == ["a", "b", "c"]
+        assert report["run_metadata"]["input_rates_subtracted"] is True
+        assert len(report["runs"]) == 3
+    assert [c["cv_bias_stability_dph"] for c in from_arrays.fit_report["axes"][0]["selection"]["candidates"]] == [
+        c["cv_bias_stability_dph"] for c in from_files.fit_report["axes"][0]["selection"]["candidates"]
+    ]
+    with pytest.raises(TypeError, match=r"runs= names runs by their names: give runs as arrays in a dict"):
+        fogtemp.fit(runs, runs=table, progress=False)
+    # A run the file does not list: named, with the file.
+    with pytest.raises(ValueError, match=r"other"):
+        fogtemp.fit({"other": runs[0], "run1": runs[1], "run2": runs[2]}, runs=table, method="poly", progress=False)
