@@ -34,6 +34,12 @@ class FogtempWarning(UserWarning):
     ``warnings.filterwarnings("ignore", category=fogtemp.FogtempWarning)`` silences fogtemp's
     alone; ``"error"`` turns them into exceptions."""
 
+class FogtempNote(FogtempWarning):
+    """A note that needs no action (the command line's ``note:`` lines): logs read as the model
+    was fitted, run metadata read from a file or manifest, gaps counted, channels on separate
+    rows. ``warnings.filterwarnings("ignore", category=fogtemp.FogtempNote)`` silences the notes
+    and keeps the warnings."""
+
 # Names for the annotations below only (private: not in the module at run time).
 _PathLike = Union[str, "os.PathLike[str]"]
 _ArrayLike = npt.ArrayLike

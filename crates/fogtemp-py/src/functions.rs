@@ -511,7 +511,7 @@ pub fn fit(
                     .cloned()
                     .collect();
                 for note in file.position_notes() {
-                    progress::warn(py, &note)?;
+                    progress::note(py, &note)?;
                 }
                 let all = fogtemp_cal::runs::LogsMetadata {
                     source: path.display().to_string(),
@@ -683,8 +683,11 @@ fn file_runs(
     // A runs file, else the fogtemp simulations' manifests beside the logs (DESIGN.md §3).
     let metadata = fogtemp_cal::runs::logs_metadata(&logs, runs_file, fogtemp_cal::runs::Role::Val, "runs=")
         .map_err(errors::cal)?;
-    for note in metadata.notes.iter().chain(&metadata.warnings) {
-        progress::warn(py, note)?;
+    for note in &metadata.notes {
+        progress::note(py, note)?;
+    }
+    for warning in &metadata.warnings {
+        progress::warn(py, warning)?;
     }
     let (logs, rows) = fogtemp_cal::runs::calibration_runs(&logs, &metadata).map_err(errors::cal)?;
     let mut runs = Vec::with_capacity(logs.len());
@@ -703,14 +706,14 @@ fn file_runs(
         }
         warn_skipped(py, &run.ingest, false)?;
         if let Some(note) = run.gaps.note(&run.path) {
-            progress::warn(py, &note)?;
+            progress::note(py, &note)?;
         }
         for note in calibrate::time_unit_notes(&run.path, &run.gaps, &run.ingest, "time_unit=") {
             progress::warn(py, &note)?;
         }
         for note in (0..run.temperature_silences.len()).filter_map(|axis| run.temperature_silence_note(axis))
         {
-            progress::warn(py, &note)?;
+            progress::note(py, &note)?;
         }
         runs.push(run);
     }
@@ -777,7 +780,7 @@ fn array_features(
         }
         warn_skipped(py, &f.ingest, true)?;
         if let Some(note) = f.gaps.note(&f.path) {
-            progress::warn(py, &note)?;
+            progress::note(py, &note)?;
         }
         // Arrays are in seconds: another unit is said as such (review32a F7: arrays timed in
         // milliseconds got no "another unit?" warning, and then advice to name a column).
@@ -785,7 +788,7 @@ fn array_features(
             progress::warn(py, &note)?;
         }
         for note in (0..f.temperature_silences.len()).filter_map(|axis| f.temperature_silence_note(axis)) {
-            progress::warn(py, &note)?;
+            progress::note(py, &note)?;
         }
         features.push(f);
     }
@@ -800,7 +803,7 @@ fn file_name(p: &Path) -> String {
 /// runs given as arrays (`samples`), in the words of `fit`'s errors: sample indices, not lines.
 fn warn_skipped(py: Python<'_>, report: &IngestReport, samples: bool) -> PyResult<()> {
     if let Some(note) = report.temperature_only_note() {
-        progress::warn(py, &format!("{}: {note}", report.path.display()))?;
+        progress::note(py, &format!("{}: {note}", report.path.display()))?;
     }
     if report.skipped == 0 {
         return Ok(());
@@ -1052,8 +1055,11 @@ pub fn validate<'py>(
             "runs=",
         )
         .map_err(errors::cal)?;
-        for note in metadata.notes.iter().chain(&metadata.warnings) {
-            progress::warn(py, note)?;
+        for note in &metadata.notes {
+            progress::note(py, note)?;
+        }
+        for warning in &metadata.warnings {
+            progress::warn(py, warning)?;
         }
         unfinished.clone_from(&metadata.warnings);
         (logs, input_rates) = fogtemp_cal::runs::validation_runs(logs, &metadata).map_err(errors::cal)?;
@@ -1232,7 +1238,7 @@ fn choose_columns(
         }
         .map_err(|e| errors::value(e.to_string()))?;
         for note in &chosen.notes {
-            progress::warn(py, note)?;
+            progress::note(py, note)?;
         }
         if index == 0 {
             format = ingest.format.clone();

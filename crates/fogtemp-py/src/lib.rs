@@ -34,5 +34,6 @@ fn fogtemp_module(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("METHODS", functions::METHOD_NAMES.to_vec())?;
     m.add("FLAG_BITS", model::flag_bits(m.py())?)?;
     m.add("FogtempWarning", m.py().get_type::<progress::FogtempWarning>())?;
+    m.add("FogtempNote", m.py().get_type::<progress::FogtempNote>())?;
     Ok(())
 }

@@ -122,10 +122,28 @@ pyo3::create_exception!(
      fogtemp's alone, and `\"error\"` turns them into exceptions."
 );
 
+pyo3::create_exception!(
+    fogtemp,
+    FogtempNote,
+    FogtempWarning,
+    "A note of fogtemp's that needs no action (the command line's `note:` lines): logs read as the \
+     model was fitted, run metadata read from a file, gaps counted, a temperature held. A subclass of \
+     FogtempWarning, so `warnings.filterwarnings(\"ignore\", category=fogtemp.FogtempNote)` silences \
+     the notes and keeps the warnings."
+);
+
 /// A `warnings.warn` of category [`FogtempWarning`] (e.g. skipped rows), printed like the
 /// command line's warning.
 pub fn warn(py: Python<'_>, message: &str) -> PyResult<()> {
     let category = py.get_type::<FogtempWarning>();
+    py.import("warnings")?.call_method1("warn", (message, category))?;
+    Ok(())
+}
+
+/// A `warnings.warn` of category [`FogtempNote`]: what the command line says as a `note:`
+/// (review33b F5: information and warnings could not be told apart by category).
+pub fn note(py: Python<'_>, message: &str) -> PyResult<()> {
+    let category = py.get_type::<FogtempNote>();
     py.import("warnings")?.call_method1("warn", (message, category))?;
     Ok(())
 }

@@ -798,3 +798,31 @@ def test_a_runs_file_names_runs_given_as_arrays_by_their_keys(tmp_path):
     # A run the file does not list: named, with the file.
     with pytest.raises(ValueError, match=r"other"):
         fogtemp.fit({"other": runs[0], "run1": runs[1], "run2": runs[2]}, runs=table, method="poly", progress=False)
+
+
+def test_notes_are_a_category_of_their_own(tmp_path):
+    """review33b F5: notes (no action needed) and warnings shared one category. Reading a log
+    as a model was fitted gives notes only; a note is still a FogtempWarning."""
+    runs = synthetic_runs(seed=12, runs=3)
+    paths = [tmp_path / f"run{k}.csv" for k in range(3)]
+    for path, run in zip(paths, runs):
+        write_csv(path, run)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        # A unit other than the default, which read_log(model=) says it reads as fitted.
+        model = fogtemp.fit(paths, method="poly", gyro_scale=2.0, progress=False)
+    assert issubclass(fogtemp.FogtempNote, fogtemp.FogtempWarning)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        fogtemp.read_log(paths[0], model=model, progress=False)
+    assert caught and all(issubclass(w.category, fogtemp.FogtempNote) for w in caught), [str(w.message) for w in caught]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        warnings.filterwarnings("ignore", category=fogtemp.FogtempNote)
+        fogtemp.read_log(paths[0], model=model, progress=False)
+    # A warning stays a warning (not a note) under the same filter.
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        warnings.filterwarnings("ignore", category=fogtemp.FogtempNote)
+        fogtemp.fit(runs, method="poly", progress=False)
+    assert any("no run metadata" in str(w.message) for w in caught)
