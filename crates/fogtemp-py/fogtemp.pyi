@@ -50,9 +50,10 @@ per axis, or ``gyro_dph_0``, ``gyro_dph_1``, ... as ``read_log`` returns them; `
 booleans and date-times are refused (TypeError): give time in seconds, e.g.
 ``(t - t.iloc[0]).dt.total_seconds()``. A DataFrame's index is not read (``reset_index()``).
 The gyro is the bias plus the true input rate: subtract each run's input rate (Earth rate in its
-position, or a turntable's) from ``gyro_dph`` yourself, as ``runs=`` does for log files; else the
-model takes a shared input rate as bias. Several runs: a list, or a dict keyed by run name (the
-names then stand for the runs in documents and messages)."""
+position, or a turntable's) from ``gyro_dph`` yourself, or give the runs in a dict with ``runs=``
+(a runs file naming them by their keys), which does it; else the model takes a shared input
+rate as bias (with the warning ``no_run_metadata``). Several runs: a list, or a dict keyed by run
+name (the names then stand for the runs in documents, messages and a runs file)."""
 
 class Model:
     """A validated fogtemp model blob (what firmware embeds), with the library's documents.
@@ -253,7 +254,7 @@ def validate(
     runs (a runs file, run,position,input_rate_dph[,role], describing every log: as validate --runs,
     when it gives roles only the runs with role "val" are validated; for a model of one axis each
     run's input rate is subtracted from its means, ``runs[].input_rate_dph``; positions are not
-    used; log files only; without it, a fogtemp simulation's manifest.json beside the logs gives
+    used; log files, or runs given as arrays in a dict named by their keys; without it, a fogtemp simulation's manifest.json beside the logs gives
     the same, with a warning saying so) and report (a folder: as validate --report, report.md, report.html and the SVG
     figures, with the table of the ``compare`` models).
     Gaps in a log's time stamps longer than the model's max gap raise a FogtempWarning (a UserWarning)

@@ -244,6 +244,31 @@ fn numbered_beyond(run: &Bound<'_, PyAny>, key: &str, from: usize) -> Option<Str
     })
 }
 
+/// The runs file `path` for runs given as arrays, each named by its key in the dict they came
+/// in (review33b F2), for a command that does not read the runs of role `unused`: the runs'
+/// names as paths (a run's name is its path's) and the metadata, its position notes said.
+fn array_runs_metadata(
+    py: Python<'_>,
+    runs: &[ArrayRun<'_>],
+    path: &Path,
+    unused: fogtemp_cal::runs::Role,
+) -> PyResult<(Vec<PathBuf>, fogtemp_cal::runs::LogsMetadata)> {
+    let named: Vec<PathBuf> = runs.iter().map(|r| r.name.clone()).collect();
+    let file = fogtemp_cal::runs::RunsFile::read(path).map_err(errors::cal)?;
+    let rows =
+        file.for_logs_of_a_command(&named, Some(unused)).map_err(errors::cal)?.into_iter().cloned().collect();
+    for note in file.position_notes() {
+        progress::note(py, &note)?;
+    }
+    let metadata = fogtemp_cal::runs::LogsMetadata {
+        source: path.display().to_string(),
+        source_path: path.to_path_buf(),
+        rows: Some(rows),
+        ..Default::default()
+    };
+    Ok((named, metadata))
+}
+
 /// As the command line's `fit --runs`: each run's input rate taken from its gyro (one-gyro
 /// logs; else left in, with a warning), and the positions `auto` leaves out one at a time;
 /// the document of the metadata and the positions.
@@ -502,23 +527,7 @@ pub fn fit(
         // left out, as for log files.
         let metadata = match runs_file.as_deref() {
             Some(path) => {
-                let named: Vec<PathBuf> = array_runs.iter().map(|r| r.name.clone()).collect();
-                let file = fogtemp_cal::runs::RunsFile::read(path).map_err(errors::cal)?;
-                let rows: Vec<fogtemp_cal::runs::RunMetadata> = file
-                    .for_logs_of_a_command(&named, Some(fogtemp_cal::runs::Role::Val))
-                    .map_err(errors::cal)?
-                    .into_iter()
-                    .cloned()
-                    .collect();
-                for note in file.position_notes() {
-                    progress::note(py, &note)?;
-                }
-                let all = fogtemp_cal::runs::LogsMetadata {
-                    source: path.display().to_string(),
-                    source_path: path.to_path_buf(),
-                    rows: Some(rows),
-                    ..Default::default()
-                };
+                let (named, all) = array_runs_metadata(py, &array_runs, path, fogtemp_cal::runs::Role::Val)?;
                 let (kept, rows) = fogtemp_cal::runs::calibration_runs(&named, &all).map_err(errors::cal)?;
                 array_runs.retain(|r| kept.contains(&r.name));
                 rows.map(|rows| (all.source, rows))
@@ -960,7 +969,8 @@ fn model_arg(value: &Bound<'_, PyAny>) -> PyResult<(Vec<u8>, String)> {
 /// models replayed on the same logs), `runs` (a runs file describing every log, as
 /// `validate --runs`: when it gives roles, only the `val` runs are validated), `report` (a
 /// folder: `report.md`, `report.html` and the figures, as `validate --report`), and the
-/// log-column options (files only; `runs` too). Log files are read with the columns, units,
+/// log-column options (files only; `runs` also names runs given as arrays in a dict `{name:
+/// run}` by their keys). Log files are read with the columns, units,
 /// time and, for a model that records it (format 7), the shape (`skip_lines`, `delimiter`,
 /// `comment`, `columns`: a list of str or one str of comma-separated names, "" for a header
 /// row) the model records, for each keyword not given (with a warning); the document's
@@ -1002,9 +1012,10 @@ pub fn validate<'py>(
     let runs_file = o.opt_path("runs")?;
     let report = o.report_folder()?;
     o.finish()?;
-    if arrays && runs_file.is_some() {
+    if arrays && runs_file.is_some() && names.is_none() {
         return Err(PyTypeError::new_err(
-            "validate(): runs= names log files by their run names; it applies to log files",
+            "validate(): runs= names runs by their names: give runs as arrays in a dict {name: run}, the \
+             names those of the runs file's run column",
         ));
     }
     let mut blobs = vec![model_arg(model)?];
@@ -1031,7 +1042,15 @@ pub fn validate<'py>(
     // Logs of an unfinished simulation: warned as read, last in the document's notes.
     let mut unfinished: Vec<String> = Vec::new();
     let per_log = if arrays {
-        let runs = array_runs_of(&items, names.as_deref())?;
+        let mut runs = array_runs_of(&items, names.as_deref())?;
+        if let Some(path) = runs_file.as_deref() {
+            // As for log files: the val runs when roles are given, each with its rate.
+            let (named, metadata) = array_runs_metadata(py, &runs, path, fogtemp_cal::runs::Role::Cal)?;
+            let kept;
+            (kept, input_rates) =
+                fogtemp_cal::runs::validation_runs(named, &metadata).map_err(errors::cal)?;
+            runs.retain(|r| kept.contains(&r.name));
+        }
         if let Some(note) = calibrate::axis_count_note(
             &blobs[0].1,
             models[0].axis_count(),
@@ -1113,7 +1132,7 @@ pub fn validate<'py>(
     }
     // Arrays take no runs file (review31a F5): their rates come off the arrays themselves.
     let how_to_give = if arrays {
-        "take each run's input rate off its gyro array"
+        "give the runs in a dict {name: run} with runs=, or take each run's input rate off its gyro array"
     } else {
         "give each run's input_rate_dph with runs="
     };

@@ -795,6 +795,16 @@ def test_a_runs_file_names_runs_given_as_arrays_by_their_keys(tmp_path):
     ]
     with pytest.raises(TypeError, match=r"runs= names runs by their names: give runs as arrays in a dict"):
         fogtemp.fit(runs, runs=table, progress=False)
+    # validate takes the same: the val run, with its rate (the means of the bias alone), as
+    # the log file with the same runs file.
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        by_file = fogtemp.validate(from_files, paths, runs=table, progress=False)
+        by_array = fogtemp.validate(from_files, {f"run{k}": run for k, run in enumerate(runs)}, runs=table, progress=False)
+    assert [r["input_rate_dph"] for r in by_array["runs"]] == [r["input_rate_dph"] for r in by_file["runs"]] == [9.67]
+    for key in ("raw_bias_stability_dph", "compensated_bias_stability_dph"):
+        assert by_array[key] == by_file[key]
+    assert [r["compensated_mean_dph"] for r in by_array["runs"]] == [r["compensated_mean_dph"] for r in by_file["runs"]]
     # A run the file does not list: named, with the file.
     with pytest.raises(ValueError, match=r"other"):
         fogtemp.fit({"other": runs[0], "run1": runs[1], "run2": runs[2]}, runs=table, method="poly", progress=False)

@@ -480,7 +480,7 @@ def test_validate_runs_given_as_arrays_refuses_file_options_and_mixed_axes(tmp_p
     with pytest.raises(TypeError, match="column and unit options apply to log files"):
         fogtemp.validate(model, runs, temp_column="T", progress=False)
     (tmp_path / "runs.csv").write_text("run,position,input_rate_dph\nr0,a,0\n")
-    with pytest.raises(TypeError, match="runs= names log files"):
+    with pytest.raises(TypeError, match="runs= names runs by their names: give runs as arrays in a dict"):
         fogtemp.validate(model, runs, runs=tmp_path / "runs.csv", progress=False)
     two_axes = dict(runs[1], gyro_dph=np.stack([runs[1]["gyro_dph"]] * 2, axis=1))
     with pytest.raises(ValueError, match=r"runs\[1\]\['gyro_dph'\] has 2 columns but runs\[0\]\['gyro_dph'\] has 1"):
