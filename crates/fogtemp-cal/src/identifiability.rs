@@ -139,6 +139,9 @@ pub enum WarningKind {
     /// sensed (the Earth rate's share, a turntable's rate) stays in the calibration targets,
     /// so the model's bias holds their mean. Reported on axis 0 (review33b F1).
     NoRunMetadata,
+    /// Runs that gave no calibration point at all (too short for the feature tracker, or
+    /// without temperature readings): they calibrate nothing (review33b F8).
+    RunsWithoutPoints,
 }
 
 impl WarningKind {
@@ -162,6 +165,7 @@ impl WarningKind {
             WarningKind::TemperatureGap => "temperature_gap",
             WarningKind::UnfinishedSimulation => "unfinished_simulation",
             WarningKind::NoRunMetadata => "no_run_metadata",
+            WarningKind::RunsWithoutPoints => "runs_without_points",
         }
     }
 }
@@ -223,6 +227,7 @@ pub fn fit_warnings(
             let points = calibration_points_of(runs, axis, config);
             let mut found = warnings(&points, axis, settings);
             found.extend(short_runs(runs, axis, f64::from(config.features.window_s)));
+            found.extend(runs_without_points(runs, axis, config));
             let temp_columns = &config.ingest.format.temp_columns;
             let column = temp_columns.get(axis.min(temp_columns.len().saturating_sub(1)));
             found.extend(temperature_spikes(runs, axis, column.map_or("temperature", String::as_str)));
@@ -289,6 +294,44 @@ fn short_runs(runs: &[RunFeatures], axis: usize, window_s: f64) -> Option<Warnin
             if runs.len() == 1 { "1 run".to_string() } else { format!("{} runs", runs.len()) }
         ),
         &[("short_runs", short.len() as f64), ("window_s", window_s)],
+    ))
+}
+
+/// `runs_without_points` for axis `axis`: the runs (with rows) whose feature tracker never
+/// gave a point, named with their rows and span; they calibrate nothing, so a run too short
+/// for the tracker, or without temperature readings, is said rather than left out silently.
+fn runs_without_points(runs: &[RunFeatures], axis: usize, config: &CalibrationConfig) -> Option<Warning> {
+    let empty: Vec<String> = runs
+        .iter()
+        .filter(|run| run.axes.get(axis).is_some_and(|(points, _)| points.is_empty()))
+        .map(|run| {
+            format!(
+                "{} ({} row{}, {:.0} s)",
+                crate::runs::run_name(&run.path),
+                run.ingest.rows,
+                if run.ingest.rows == 1 { "" } else { "s" },
+                run.ingest.last_time_s
+            )
+        })
+        .collect();
+    if empty.is_empty() {
+        return None;
+    }
+    let features = &config.features;
+    let ready_s = f64::from(features.min_blocks) * f64::from(features.window_s)
+        / f64::from(features.block_count.max(1));
+    Some(Warning::new(
+        axis,
+        WarningKind::RunsWithoutPoints,
+        format!(
+            "axis {axis}: {} of {} gave no calibration point and calibrate nothing: {}; the feature tracker needs \
+             {ready_s:.0} s of temperature readings without a gap longer than {:.0} s before its first point",
+            empty.len(),
+            if runs.len() == 1 { "1 run".to_string() } else { format!("{} runs", runs.len()) },
+            empty.join(", "),
+            features.max_gap_s
+        ),
+        &[("runs_without_points", empty.len() as f64), ("ready_s", ready_s)],
     ))
 }
 

@@ -748,6 +748,20 @@ fn separate_channel_logs_fit_the_same_model_as_their_merged_twins() {
     };
     let (validated, stderr) = figures(&model, &separate);
     assert!(stderr.contains("1800 rows held a temperature"), "{stderr}");
+    // validate --json carries the note too (review33c F7).
+    let (doc, _) = ok_json(&["validate", "--json", "--model", s(&model), s(&separate)]);
+    let notes =
+        doc["notes"].as_array().map(|n| n.iter().filter_map(Value::as_str).collect::<Vec<_>>().join("\n"));
+    assert!(notes.as_deref().unwrap_or("").contains("run0.csv: 1800 rows held a temperature"), "{notes:?}");
+    // A log of temperature rows only is said so, not "only a header" (review33c F6).
+    let only = dir.path().join("only.csv");
+    std::fs::write(&only, "time_s,temp_c,gyro_dph\n0,20,\n1,20.5,\n").unwrap();
+    let out = run(&["fit", "--method", "poly", "--out", s(&dir.path().join("o.fogm")), s(&only)]);
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && stderr.contains("only.csv: no gyro reading: all 2 rows held a temperature"),
+        "{stderr}"
+    );
     assert_eq!(validated, figures(&twin, &merged).0);
     let compensated = |m: &Path, log: &Path, out: &Path| {
         let o = run(&["compensate", "--model", s(m), "--out", s(out), s(log)]);

@@ -41,6 +41,9 @@ pub struct ReadSeries {
     pub skipped: u64,
     /// Steps between rows longer than two bins.
     pub gaps: TimeGaps,
+    /// The log's note on its rows with a temperature and no gyro reading (channels logged on
+    /// separate rows: each reading went with the next sample), `None` without any.
+    pub temperature_only_note: Option<String>,
 }
 
 impl ReadSeries {
@@ -93,7 +96,7 @@ impl Binning {
 
     fn finish(mut self, skipped: u64) -> ReadSeries {
         flush(&mut self.series, &self.acc);
-        ReadSeries { series: self.series, skipped, gaps: self.gaps }
+        ReadSeries { series: self.series, skipped, gaps: self.gaps, temperature_only_note: None }
     }
 }
 
@@ -124,7 +127,10 @@ pub fn read_series(
     if report.rows == 0 {
         return Err(DiagnoseError::NoDataRows { path: path.to_path_buf() });
     }
-    Ok(binning.finish(report.skipped))
+    let mut read = binning.finish(report.skipped);
+    read.temperature_only_note =
+        report.temperature_only_note().map(|note| format!("{}: {note}", path.display()));
+    Ok(read)
 }
 
 /// [`read_series`] for a run given as arrays (`fogtemp_cal::arrays`: the row rules a log
@@ -349,6 +355,25 @@ mod tests {
         assert_eq!(err.to_string(), format!("{}: not valid JSON", path.display()));
         let empty = tempfile::tempdir().expect("temp dir");
         assert!(manifest_meta(empty.path()).expect("no manifest").is_empty());
+    }
+
+    /// Channels on separate rows: the series of the log with each reading merged into the next
+    /// sample's row (the oracle), and a note counting the temperature rows.
+    #[test]
+    fn temperature_rows_give_the_merged_series_and_a_note() {
+        let split = "time_s,temp_c,gyro_dph\n-60.0,19,\n0.0,,1\n0.25,22,\n0.5,,3\n1.0,,5\n1.5,,7\n";
+        let merged = "time_s,temp_c,gyro_dph\n0.0,19,1\n0.5,22,3\n1.0,,5\n1.5,,7\n";
+        let (_a, split_path) = write("r.csv", split);
+        let (_b, merged_path) = write("r.csv", merged);
+        let read = |path: &Path| {
+            read_series(path, &IngestOptions::default(), 1.0, RunMeta::default(), |_, _| {}).expect("valid")
+        };
+        let (from_split, from_merged) = (read(&split_path), read(&merged_path));
+        // (Debug text: a bin without a temperature is NaN in both, which == does not equal.)
+        assert_eq!(format!("{:?}", from_split.series), format!("{:?}", from_merged.series));
+        assert!(from_merged.temperature_only_note.is_none());
+        let note = from_split.temperature_only_note.expect("a note");
+        assert!(note.contains("r.csv: 2 rows held a temperature and no gyro reading"), "{note}");
     }
 
     #[test]

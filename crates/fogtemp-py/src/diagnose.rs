@@ -235,6 +235,9 @@ pub fn diagnose<'py>(
         if let Some(note) = sim.gap_note(s) {
             progress::warn(py, &note)?;
         }
+        if let Some(note) = &sim.temperature_only_note {
+            progress::note(py, note)?;
+        }
         sims.push(sim.series);
         let rec = recorded.series(py, r, &recorded_ingest, bin_s, m, progress)?;
         if rec.skipped > 0 {
@@ -243,6 +246,9 @@ pub fn diagnose<'py>(
         }
         if let Some(note) = rec.gap_note(r) {
             progress::warn(py, &note)?;
+        }
+        if let Some(note) = &rec.temperature_only_note {
+            progress::note(py, note)?;
         }
         recs.push(rec.series);
     }

@@ -100,7 +100,9 @@ type LogsAndNames<'py> = (Vec<Bound<'py, PyAny>>, Option<Vec<String>>);
 fn runs_and_names<'py>(logs: &Bound<'py, PyAny>) -> PyResult<LogsAndNames<'py>> {
     let (items, names) =
         match logs.cast::<PyDict>() {
-            Ok(dict) if !dict.contains("time_s")? && !dict.is_empty() => {
+            // (review33b F8: `{}` was read as one run without columns.)
+            Ok(dict) if dict.is_empty() => return Err(errors::value("no runs: the dict of runs is empty")),
+            Ok(dict) if !dict.contains("time_s")? => {
                 let mut names = Vec::with_capacity(dict.len());
                 let mut items = Vec::with_capacity(dict.len());
                 for (key, run) in dict.iter() {
@@ -711,7 +713,10 @@ fn file_runs(
         bar.boundary(py)?;
         let run = run.map_err(errors::cal)?;
         if run.ingest.rows == 0 {
-            return Err(errors::value(format!("{}: no data rows (only a header)", log.display())));
+            let why = run.ingest.only_temperature_rows("gyro_column=");
+            return Err(errors::value(
+                why.unwrap_or_else(|| format!("{}: no data rows (only a header)", log.display())),
+            ));
         }
         warn_skipped(py, &run.ingest, false)?;
         if let Some(note) = run.gaps.note(&run.path) {
@@ -1111,11 +1116,13 @@ pub fn validate<'py>(
     for r in validation.runs.iter().filter(|r| r.axis == 0) {
         if r.ingest.rows == 0 {
             let what = if arrays { "no samples" } else { "no data rows (only a header)" };
-            return Err(errors::value(format!("{}: {what}", r.path.display())));
+            let why = r.ingest.only_temperature_rows("gyro_column=");
+            return Err(errors::value(why.unwrap_or_else(|| format!("{}: {what}", r.path.display()))));
         }
         warn_skipped(py, &r.ingest, arrays)?;
     }
-    // The notes in the command line's order, for the document's `notes`.
+    // The notes in the command line's order, for the document's `notes` (the temperature
+    // rows' said above, with the skipped rows).
     let mut notes: Vec<String> = calibrate::gap_notes(&validation.runs)
         .into_iter()
         .chain(calibrate::continued_notes(&validation.runs))
@@ -1123,6 +1130,10 @@ pub fn validate<'py>(
     for note in &notes {
         progress::warn(py, note)?;
     }
+    let temperature_rows = validation.runs.iter().filter(|r| r.axis == 0).filter_map(|r| {
+        r.ingest.temperature_only_note().map(|note| format!("{}: {note}", r.ingest.path.display()))
+    });
+    notes.splice(0..0, temperature_rows.collect::<Vec<_>>());
     // A log's time unit is a setting; arrays are in seconds (as fit() reads them).
     let unit_hint = if arrays { "" } else { "time_unit=" };
     for r in validation.runs.iter().filter(|r| r.axis == 0) {

@@ -836,3 +836,15 @@ def test_notes_are_a_category_of_their_own(tmp_path):
         warnings.filterwarnings("ignore", category=fogtemp.FogtempNote)
         fogtemp.fit(runs, method="poly", progress=False)
     assert any("no run metadata" in str(w.message) for w in caught)
+
+
+def test_runs_that_calibrate_nothing_are_named_and_no_runs_is_an_error():
+    """review33b F8: a 1-sample run passed silently (it gives no calibration point), and fit({})
+    was read as one run without columns."""
+    runs = synthetic_runs(seed=13, runs=3)
+    one = {key: np.asarray(value)[:1] for key, value in runs[0].items()}
+    with pytest.warns(UserWarning, match=r"1 of 4 runs gave no calibration point and calibrate nothing: tiny \(1 row, 0 s\)"):
+        model = fogtemp.fit({"a": runs[0], "b": runs[1], "c": runs[2], "tiny": one}, method="poly", progress=False)
+    assert "runs_without_points" in [w["kind"] for w in model.fit_report["warnings"]]
+    with pytest.raises(ValueError, match="no runs: the dict of runs is empty"):
+        fogtemp.fit({}, progress=False)

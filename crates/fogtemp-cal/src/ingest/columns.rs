@@ -153,17 +153,16 @@ impl RowState {
             .map_err(|bad| named_text_row(bad, fields, plan))
             .map(|time| continue_time(plan, time, self.previous_time));
         let sample = !is_temperature_only(&self.gyros);
-        if parsed.is_ok() && !sample && plan.columns.time.is_none() {
-            // A temperature-only row takes no sample period: the rate is the gyro's.
-            self.records -= 1;
-        }
         let previous = Previous { any: self.previous_time, sample: self.previous_sample_time };
         let parsed = parsed
             .and_then(|time| check_time(time, previous, sample, &plan.columns, line, fields))
             .map_err(|bad| named_nul_bytes(bad, fields, plan));
         match parsed {
             Ok(time) => {
-                let origin = *self.origin.get_or_insert(time);
+                // The file's time zero is its first sample's (review33c F1: a temperature row
+                // before it moved every sample's time); a temperature row before it is not visited.
+                let origin =
+                    if sample { *self.origin.get_or_insert(time) } else { self.origin.unwrap_or(time) };
                 self.previous_time = Some(time);
                 if sample {
                     self.previous_sample_time = Some(time);
@@ -649,7 +648,11 @@ pub(super) fn parse_row(
     if let Some(extra) = (columns.named_fields()..fields.len())
         .find(|&k| !fields.get(k).unwrap_or(b"").trim_ascii().is_empty())
     {
-        if let Some(field) = split_thousands(fields, fields.len() - columns.named_fields()) {
+        // The extra fields with text (a trailing delimiter's empty field is none).
+        let last_filled =
+            (0..fields.len()).rev().find(|&k| !fields.get(k).unwrap_or(b"").trim_ascii().is_empty());
+        let extra_filled = last_filled.map_or(0, |k| k + 1).saturating_sub(columns.named_fields());
+        if let Some(field) = split_thousands(fields, extra_filled) {
             let separator = if plan.spaced { b' ' } else { b',' };
             let joined =
                 [fields.get(field).unwrap_or(b""), fields.get(field + 1).unwrap_or(b"")].join(&separator);
@@ -725,9 +728,11 @@ pub(super) struct Previous {
 }
 
 /// The first field of a number split at its thousands separators, when the row's `extra`
-/// fields are all such splits: a field of 1-3 digits (with a sign) followed by fields of
+/// fields can all be such splits: a field of 1-3 digits (with a sign) followed by fields of
 /// exactly 3 digits, the last of them with an optional fraction (`1`, `000.5`; `1`, `000`,
-/// `000`).
+/// `000`). A head followed by several groups may have split into fewer of them (`1`, `000`,
+/// `250`: a 3-digit integer cell after `1,000`), so `extra` must lie between the heads'
+/// count and the groups'.
 fn split_thousands(fields: Fields<'_>, extra: usize) -> Option<usize> {
     let cell = |k: usize| fields.get(k).unwrap_or(b"").trim_ascii();
     let is_digits = |t: &[u8]| !t.is_empty() && t.iter().all(u8::is_ascii_digit);
@@ -742,7 +747,7 @@ fn split_thousands(fields: Fields<'_>, extra: usize) -> Option<usize> {
         };
         whole.len() == 3 && is_digits(whole) && fraction.is_none_or(|f| f.iter().all(u8::is_ascii_digit))
     };
-    let (mut first, mut splits, mut k) = (None, 0, 0);
+    let (mut first, mut heads, mut groups, mut k) = (None, 0, 0, 0);
     while k < fields.len() {
         let mut next = k + 1;
         if head(cell(k)) {
@@ -755,12 +760,13 @@ fn split_thousands(fields: Fields<'_>, extra: usize) -> Option<usize> {
             }
             if next > k + 1 {
                 first = first.or(Some(k));
-                splits += next - k - 1;
+                heads += 1;
+                groups += next - k - 1;
             }
         }
         k = next;
     }
-    first.filter(|_| splits == extra)
+    first.filter(|_| extra > 0 && (heads..=groups).contains(&extra))
 }
 
 /// A date-time time cell, seconds since 1970 UTC; with a date column, its cell `T` the

@@ -63,6 +63,8 @@ const HOURS_ELAPSED: bool = true;
 pub fn continue_clock(time_of_day_s: f64, previous_s: Option<f64>) -> f64 {
     match previous_s {
         None => time_of_day_s,
+        // Hours past 23: an elapsed time, as read (review33c F4: a 25 h pause read as 1 h).
+        Some(_) if time_of_day_s >= DAY_S => time_of_day_s,
         Some(previous) => {
             let days = ((previous - 0.5 * DAY_S - time_of_day_s) / DAY_S).floor() + 1.0;
             time_of_day_s + days * DAY_S
@@ -301,6 +303,9 @@ mod tests {
 
     #[test]
     fn a_clock_continues_across_midnight_and_only_there() {
+        // An elapsed time (hours past 23) is as read, whatever the previous row's.
+        assert_eq!(continue_clock(55.0 * 3600.0, Some(30.0 * 3600.0 + 1.0)), 55.0 * 3600.0);
+        assert_eq!(continue_clock(43.5 * 3600.0, Some(30.0 * 3600.0)), 43.5 * 3600.0);
         // Closed forms: the instant within 12 h of the previous row.
         assert_eq!(continue_clock(3600.0, None), 3600.0);
         assert_eq!(continue_clock(10.0, Some(DAY_S - 5.0)), DAY_S + 10.0);

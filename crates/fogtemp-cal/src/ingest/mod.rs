@@ -743,6 +743,20 @@ pub const MAX_REPORTED_BAD_ROWS: usize = 20;
 pub const MANY_SKIPPED_PERCENT: f64 = 1.0;
 
 impl IngestReport {
+    /// Why a log gave no sample although it has rows: every row held only a temperature
+    /// (review33c F6: "only a header" was said); `None` otherwise. `option` names the gyro
+    /// column's setting (`--gyro-column`, `gyro_column=`).
+    pub fn only_temperature_rows(&self, option: &str) -> Option<String> {
+        (self.rows == 0 && self.skipped == 0 && self.temperature_only_rows > 0).then(|| {
+            format!(
+                "{}: no gyro reading: all {} rows held a temperature and no gyro reading (is {option} the \
+                 gyro's column?)",
+                self.path.display(),
+                self.temperature_only_rows
+            )
+        })
+    }
+
     /// What the command line and Python say of temperature-only rows, or `None` without any.
     pub fn temperature_only_note(&self) -> Option<String> {
         let n = self.temperature_only_rows;
@@ -1227,11 +1241,10 @@ mod tests {
                 let sample = !gyros[0].is_nan();
                 let parsed =
                     parsed.and_then(|time| check_time(time, previous, sample, &plan.columns, line, fields));
-                // A temperature-only row takes no sample period (times from the record index).
-                records += u64::from(sample || parsed.is_err());
+                records += 1;
                 match parsed {
                     Ok(time) => {
-                        if previous.any.is_none() {
+                        if previous.sample.is_none() && sample {
                             report.time_origin_s = time;
                         }
                         previous.any = Some(time);

@@ -324,12 +324,17 @@ impl Merger<'_> {
         if in_order {
             let base = self.line;
             if let Some(first) = first_time {
-                let origin = *self.rows.origin.get_or_insert(first);
+                let temps = self.consumer.temps;
+                let is_sample = |v: &&[f64]| !is_temperature_only(&v[1 + temps..]);
+                let mut samples = batch.values.chunks_exact(stride.max(1)).filter(is_sample);
+                // The file's time zero is its first sample's (a temperature row is not one).
+                let origin = match samples.next() {
+                    Some(v) => *self.rows.origin.get_or_insert(v[0]),
+                    None => self.rows.origin.unwrap_or(first),
+                };
                 self.consumer.visit_rows(batch, base, origin, origin, visit)?;
                 self.rows.previous_time = batch.values.len().checked_sub(stride).map(|i| batch.values[i]);
-                let temps = self.consumer.temps;
-                let samples = batch.values.chunks_exact(stride.max(1));
-                if let Some(last) = samples.rev().find(|v| !is_temperature_only(&v[1 + temps..])) {
+                if let Some(last) = batch.values.chunks_exact(stride.max(1)).rev().find(is_sample) {
                     self.rows.previous_sample_time = Some(last[0]);
                 }
             }

@@ -967,10 +967,11 @@ fn each_temperature_column_waits_on_its_own() {
     }
 }
 
-/// Without a time column, a temperature-only row takes no sample period: the rate is the
-/// gyro's.
+/// Without a time column every record takes its sample period, a temperature-only row too
+/// (row k is at k / HZ: a row whose gyro reading was lost keeps the later samples' times;
+/// review33c F2).
 #[test]
-fn a_temperature_row_takes_no_sample_period() {
+fn a_temperature_row_takes_its_sample_period_in_a_log_without_time() {
     let format = LogFormat {
         column_names: vec!["temp_c".into(), "gyro_dph".into()],
         sample_rate_hz: Some(2.0),
@@ -978,9 +979,23 @@ fn a_temperature_row_takes_no_sample_period() {
     };
     let (v, temperature_only) = samples_of("20,1\n21,\n,2\n,3\n", &with(format));
     let times: Vec<f64> = v.iter().map(|s| s.0).collect();
-    assert_eq!(times, vec![0.0, 0.5, 1.0]);
+    assert_eq!(times, vec![0.0, 1.0, 1.5]);
     assert_eq!(v[1].1, vec![21.0]);
     assert_eq!(temperature_only, 1);
+}
+
+/// The file's time zero is its first sample's, not a temperature row's before it (review33c
+/// F1: every sample's time moved by the gap to that row).
+#[test]
+fn a_temperature_row_before_the_first_sample_does_not_set_the_time_zero() {
+    let data = format!("{HEADER}40.0,20,\n100.0,,1\n101.0,,2\n");
+    let (seen, result) = run(data.as_bytes(), &IngestOptions::default());
+    let report = result.unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(report.time_origin_s, 100.0);
+    let v = values(&seen);
+    assert_eq!((v[0].1, v[0].2[0], v[1].1), (0.0, 20.0, 1.0));
+    assert!(v[1].2[0].is_nan());
+    assert!(seen.iter().all(|s| f64::from_bits(s.origin) == 100.0));
 }
 
 /// A long log with a temperature row between every two samples, read in every reader mode
@@ -1021,6 +1036,11 @@ fn a_number_split_at_its_thousands_separator_is_named() {
         }
         other => panic!("{}", summary(&other)),
     }
+    // A trailing delimiter (an empty last field), and a 3-digit integer cell after the split.
+    let b = bad(&format!("{HEADER}999.5,20,0.5,\n1,000.000,14.0517,0.78631,\n"));
+    expect(&b, 3, 1, "time_s", "1,000.000", BadRowKind::SplitThousands);
+    let b = bad(&format!("{HEADER}999,20,0.5\n1,000,250,0.5\n"));
+    expect(&b, 3, 1, "time_s", "1,000", BadRowKind::SplitThousands);
     // Two records run together: no split explains the extra fields.
     let b = bad(&format!("{HEADER}0,20,0.5\n1,20,0.52,20,0.5\n"));
     assert_eq!(b.kind, BadRowKind::LongRow, "{b:?}");

@@ -34,6 +34,9 @@ fn read_series(path: &Path, ingest: &IngestOptions, bin_s: f64, meta: RunMeta) -
         Err(DiagnoseError::Cal(e)) => return Err(e).with_context(|| format!("reading {}", path.display())),
         Err(e) => return Err(e.into()),
     };
+    if let Some(note) = &read.temperature_only_note {
+        eprintln!("note: {note}");
+    }
     if read.skipped > 0 {
         eprintln!("{}: skipped {}", path.display(), super::bad_rows(read.skipped as u64));
     }

@@ -233,6 +233,9 @@ fn warn_axis_count(model_path: &Path, model_axes: usize, gyro_columns: usize) {
 /// The error for a log with no data row left: only a header, or every row skipped as bad
 /// (`--skip-bad-rows`; then the skipped rows are listed first, and the likely cause named).
 fn no_rows_error(report: &IngestReport) -> anyhow::Error {
+    if let Some(why) = report.only_temperature_rows("--gyro-column") {
+        return anyhow::anyhow!(why);
+    }
     if report.skipped == 0 {
         return anyhow::anyhow!(
             "{}: no data rows (only a header, or with --columns only skipped and comment lines)",
