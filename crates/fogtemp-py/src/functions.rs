@@ -1392,8 +1392,9 @@ pub fn allan<'py>(
         let missing =
             |key: &str| errors::value(format!("allan(): no '{key}': {}", missing_column_help(log, key)));
         let time = f64_vector(&convert::item(log, "time_s")?.ok_or_else(|| missing("time_s"))?, "time_s")?;
-        let gyro = convert::item(log, "gyro_dph")?.ok_or_else(|| missing("gyro_dph"))?;
-        let gyros = columns(&gyro, "gyro_dph")?;
+        // One 2-D `gyro_dph`, or `gyro_dph_0`, `gyro_dph_1`, ... as read_log returns them
+        // (review33c F8: the hint said to rename one, dropping the others).
+        let gyros = numbered_columns(log, "gyro_dph", "allan()")?.ok_or_else(|| missing("gyro_dph"))?;
         let mut times = slice(&time, "time_s")?.to_vec();
         let mut series: Vec<Vec<f64>> =
             gyros.iter().map(|g| slice(g, "gyro_dph").map(<[f64]>::to_vec)).collect::<PyResult<_>>()?;

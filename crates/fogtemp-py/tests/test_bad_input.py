@@ -848,3 +848,23 @@ def test_runs_that_calibrate_nothing_are_named_and_no_runs_is_an_error():
     assert "runs_without_points" in [w["kind"] for w in model.fit_report["warnings"]]
     with pytest.raises(ValueError, match="no runs: the dict of runs is empty"):
         fogtemp.fit({}, progress=False)
+
+
+def test_allan_of_arrays_reads_the_numbered_axes_read_log_returns(tmp_path):
+    """review33c F8: allan(read_log(...)) of a two-gyro log refused gyro_dph_0, gyro_dph_1 and
+    its hint said to rename one (dropping the other). The oracle: allan of the file."""
+    run = synthetic_runs(seed=14, runs=1)[0]
+    log = tmp_path / "two.csv"
+    with open(log, "w") as f:
+        f.write("time_s,temp_c,gx,gy\n")
+        for t, g in zip(run["time_s"], run["gyro_dph"]):
+            f.write(f"{float(t)!r},20.0,{float(g)!r},{float(-g)!r}\n")
+    arrays = fogtemp.read_log(log, gyro_column=["gx", "gy"], progress=False)
+    assert {"gyro_dph_0", "gyro_dph_1"} <= set(arrays)
+    got = fogtemp.allan(arrays, progress=False)
+    want = fogtemp.allan(log, gyro_column=["gx", "gy"], progress=False)
+    assert len(got["axes"]) == 2
+    for a, b in zip(got["axes"], want["axes"]):
+        # The file is read as a stream, the arrays in memory: the same curve to rounding.
+        assert [p["tau_s"] for p in a["curve"]] == [p["tau_s"] for p in b["curve"]]
+        np.testing.assert_allclose([p["adev_dph"] for p in a["curve"]], [p["adev_dph"] for p in b["curve"]], rtol=1e-9)

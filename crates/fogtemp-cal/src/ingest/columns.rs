@@ -718,7 +718,7 @@ pub(super) fn is_temperature_only(gyros: &[f64]) -> bool {
     gyros.first().is_some_and(|g| g.is_nan())
 }
 
-/// The times a row's is checked against.
+/// The times a row's time is checked against.
 #[derive(Clone, Copy)]
 pub(super) struct Previous {
     /// The previous accepted row's, a temperature-only row's too.
@@ -826,6 +826,8 @@ pub(super) fn time_of_record(index: u64, sample_rate_hz: Option<f64>) -> f64 {
     index as f64 / sample_rate_hz.unwrap_or(1.0)
 }
 
+/// `time`, or the bad row for a time equal to (`DuplicateTime`) or before (`BackwardTime`)
+/// the previous row's; a log without a time column is not checked.
 ///
 /// Times increase strictly, except that a temperature-only row may share its time with
 /// the row before it and the next sample may share it with the temperature-only row (a
