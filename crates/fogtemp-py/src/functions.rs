@@ -271,6 +271,9 @@ fn array_runs_metadata(
     Ok((named, metadata))
 }
 
+/// How messages and documents name a model `fit` returned without writing it (`out=`).
+const UNSAVED_MODEL: &str = "the model of fogtemp.fit() (not saved)";
+
 /// As the command line's `fit --runs`: each run's input rate taken from its gyro (one-gyro
 /// logs; else left in, with a warning), and the positions `auto` leaves out one at a time;
 /// the document of the metadata and the positions.
@@ -588,9 +591,10 @@ pub fn fit(
         progress::warn(py, &w.message)?;
     }
     warnings.extend(unfinished.into_iter().map(fogtemp_cal::identifiability::Warning::unfinished_simulation));
-    let source = out.as_ref().map_or_else(|| "<fit>".to_string(), |p| p.display().to_string());
+    // How messages name the model (review33b F5: "<fit>" was cryptic in notes).
+    let source = out.as_ref().map_or_else(|| UNSAVED_MODEL.to_string(), |p| p.display().to_string());
     if let Some(dir) = &report {
-        // The report's title names the model's file; "<fit>" would read as an HTML tag there.
+        // The report's title names the model's file, or says it was not saved.
         let title = out
             .as_ref()
             .map_or_else(|| "fogtemp.fit() (not saved to a file)".to_string(), |_| source.clone());
