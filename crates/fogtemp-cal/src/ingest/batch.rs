@@ -38,8 +38,10 @@ pub(super) struct Consumer {
     /// Per temperature column: the reading of a temperature-only row not yet given to a
     /// sample (NaN: none).
     pub(super) pending_temps_c: Vec<f64>,
-    /// The temperatures of the row being visited.
+    /// The temperatures of the row being visited, when readings were held for it.
     pub(super) row_temps_c: Vec<f64>,
+    /// A temperature row's reading waits for the next sample.
+    pub(super) holds_temperatures: bool,
 }
 
 impl Consumer {
@@ -98,14 +100,17 @@ impl Consumer {
                 self.hold_temperatures(temps_c);
                 continue;
             }
-            self.give_held_temperatures(temps_c);
             self.report.rows += 1;
             self.report.last_time_s = values[0] - origin;
+            // Readings held from temperature rows go in (a copy only then: the hot path of
+            // every other log is unchanged).
+            let temps_c =
+                if self.holds_temperatures { self.give_held_temperatures(temps_c) } else { temps_c };
             visit(&Row {
                 line: line_base + line,
                 time_s: values[0] - origin,
                 origin_s: file_origin_s,
-                temps_c: &self.row_temps_c,
+                temps_c,
                 gyros_dph,
             })?;
         }
@@ -125,6 +130,7 @@ impl Consumer {
     /// next sample, a newer reading replacing one that waits.
     fn hold_temperatures(&mut self, temps_c: &[f64]) {
         self.report.temperature_only_rows += 1;
+        self.holds_temperatures = true;
         self.pending_temps_c.resize(temps_c.len(), f64::NAN);
         for (held, &reading) in self.pending_temps_c.iter_mut().zip(temps_c) {
             if !reading.is_nan() {
@@ -135,7 +141,8 @@ impl Consumer {
 
     /// A sample's temperatures: its own readings, else one held from a temperature-only row
     /// before it (the firmware's `step` likewise takes a reading with the next sample).
-    fn give_held_temperatures(&mut self, temps_c: &[f64]) {
+    fn give_held_temperatures<'a>(&'a mut self, temps_c: &[f64]) -> &'a [f64] {
+        self.holds_temperatures = false;
         self.row_temps_c.clear();
         self.row_temps_c.extend_from_slice(temps_c);
         for (k, held) in self.pending_temps_c.iter_mut().enumerate() {
@@ -146,6 +153,7 @@ impl Consumer {
             }
             *held = f64::NAN;
         }
+        &self.row_temps_c
     }
 }
 

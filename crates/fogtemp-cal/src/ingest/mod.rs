@@ -1049,6 +1049,7 @@ where
         last_progress: 0,
         pending_temps_c: Vec::new(),
         row_temps_c: Vec::new(),
+        holds_temperatures: false,
     };
     let batch_rows = tuning.batch_rows.max(1);
     let mut batch = Batch::default();
