@@ -2454,6 +2454,12 @@ pub fn stale_temperature_note(name: &str, stale: u64, samples: u64, max_gap_s: f
     )
 }
 
+/// The temperature rows' notes of `runs` (channels logged on separate rows), one per log
+/// (from its axis 0), for `validate`'s `notes`.
+pub fn temperature_row_notes(runs: &[RunValidation]) -> Vec<String> {
+    runs.iter().filter(|r| r.axis == 0).filter_map(|r| r.ingest.temperature_only_note()).collect()
+}
+
 /// The gap notes of `runs`, one per log and distinct gaps (the axes of one log usually
 /// share them).
 pub fn gap_notes(runs: &[RunValidation]) -> Vec<String> {

@@ -128,8 +128,7 @@ pub fn read_series(
         return Err(DiagnoseError::NoDataRows { path: path.to_path_buf() });
     }
     let mut read = binning.finish(report.skipped);
-    read.temperature_only_note =
-        report.temperature_only_note().map(|note| format!("{}: {note}", path.display()));
+    read.temperature_only_note = report.temperature_only_note();
     Ok(read)
 }
 

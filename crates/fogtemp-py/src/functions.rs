@@ -821,7 +821,7 @@ fn file_name(p: &Path) -> String {
 /// runs given as arrays (`samples`), in the words of `fit`'s errors: sample indices, not lines.
 fn warn_skipped(py: Python<'_>, report: &IngestReport, samples: bool) -> PyResult<()> {
     if let Some(note) = report.temperature_only_note() {
-        progress::note(py, &format!("{}: {note}", report.path.display()))?;
+        progress::note(py, &note)?;
     }
     if report.skipped == 0 {
         return Ok(());
@@ -1134,10 +1134,7 @@ pub fn validate<'py>(
     for note in &notes {
         progress::warn(py, note)?;
     }
-    let temperature_rows = validation.runs.iter().filter(|r| r.axis == 0).filter_map(|r| {
-        r.ingest.temperature_only_note().map(|note| format!("{}: {note}", r.ingest.path.display()))
-    });
-    notes.splice(0..0, temperature_rows.collect::<Vec<_>>());
+    notes.splice(0..0, calibrate::temperature_row_notes(&validation.runs));
     // A log's time unit is a setting; arrays are in seconds (as fit() reads them).
     let unit_hint = if arrays { "" } else { "time_unit=" };
     for r in validation.runs.iter().filter(|r| r.axis == 0) {

@@ -757,13 +757,15 @@ impl IngestReport {
         })
     }
 
-    /// What the command line and Python say of temperature-only rows, or `None` without any.
+    /// What the command line and Python say of temperature-only rows, naming the log, or
+    /// `None` without any.
     pub fn temperature_only_note(&self) -> Option<String> {
         let n = self.temperature_only_rows;
         (n > 0).then(|| {
             format!(
-                "{n} row{} held a temperature and no gyro reading (channels logged on separate rows): each \
+                "{}: {n} row{} held a temperature and no gyro reading (channels logged on separate rows): each \
                  reading went with the next row that has one, as the firmware takes a reading with the next sample",
+                self.path.display(),
                 if n == 1 { "" } else { "s" }
             )
         })

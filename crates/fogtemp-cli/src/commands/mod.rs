@@ -261,7 +261,7 @@ fn bad_rows(count: u64) -> String {
 /// bad rows (a warning, with the first ones).
 fn report_rows_not_read_as_samples(report: &IngestReport) {
     if let Some(note) = report.temperature_only_note() {
-        eprintln!("note: {}: {note}", report.path.display());
+        eprintln!("note: {note}");
     }
     if report.skipped == 0 {
         return;

@@ -123,11 +123,11 @@ pub fn validate(a: ValidateArgs) -> Result<()> {
     }
     // Every note goes to stderr and into --json's `notes` (the temperature rows' said above;
     // review33c F7).
-    let temperature_rows = runs.iter().filter(|r| r.axis == 0).filter_map(|r| {
-        r.ingest.temperature_only_note().map(|note| format!("{}: {note}", r.ingest.path.display()))
-    });
-    let mut notes: Vec<String> =
-        temperature_rows.chain(calibrate::gap_notes(runs)).chain(calibrate::continued_notes(runs)).collect();
+    let mut notes: Vec<String> = calibrate::temperature_row_notes(runs)
+        .into_iter()
+        .chain(calibrate::gap_notes(runs))
+        .chain(calibrate::continued_notes(runs))
+        .collect();
     for r in runs.iter().filter(|r| r.axis == 0) {
         super::warn_of_time_unit(&r.path, &r.series.gaps, &r.ingest);
     }
